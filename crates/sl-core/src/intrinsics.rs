@@ -1,0 +1,190 @@
+//! Pinhole camera intrinsics: projection, back-projection and pixel rays.
+
+use nalgebra::{Point3, Vector3};
+
+use crate::error::{CoreError, Result};
+
+/// Pinhole intrinsics of a depth camera (no lens distortion: the paper notes the Kinect's is
+/// negligible).
+///
+/// Pixel `(x, y)` has its centre at integer coordinates; `x` grows to the right, `y` downwards,
+/// and the camera looks along +Z. Following the paper (section 3.4),
+/// `x = fx·X/Z + cx`, `y = fy·Y/Z + cy`, and back-projection is
+/// `X = (x − cx)·Z/fx`, `Y = (y − cy)·Z/fy`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    /// Image width in pixels.
+    pub width: usize,
+    /// Image height in pixels.
+    pub height: usize,
+    /// Focal length along x, in pixels.
+    pub fx: f64,
+    /// Focal length along y, in pixels.
+    pub fy: f64,
+    /// Principal point x, in pixels.
+    pub cx: f64,
+    /// Principal point y, in pixels.
+    pub cy: f64,
+}
+
+impl Intrinsics {
+    /// Validated constructor: sizes must be non-zero and focal lengths positive and finite.
+    pub fn new(width: usize, height: usize, fx: f64, fy: f64, cx: f64, cy: f64) -> Result<Self> {
+        let k = Self {
+            width,
+            height,
+            fx,
+            fy,
+            cx,
+            cy,
+        };
+        k.validate()?;
+        Ok(k)
+    }
+
+    /// Checks the invariants of [`Intrinsics::new`] (useful after deserialising).
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(CoreError::InvalidIntrinsics(format!(
+                "image size {}x{} must be non-zero",
+                self.width, self.height
+            )));
+        }
+        if self.width > 1 << 16 || self.height > 1 << 16 {
+            return Err(CoreError::InvalidIntrinsics(format!(
+                "image size {}x{} exceeds 65536 pixels per side",
+                self.width, self.height
+            )));
+        }
+        for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(CoreError::InvalidIntrinsics(format!(
+                    "{name} = {v} must be positive and finite"
+                )));
+            }
+        }
+        for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
+            if !v.is_finite() {
+                return Err(CoreError::InvalidIntrinsics(format!("{name} = {v} must be finite")));
+            }
+        }
+        Ok(())
+    }
+
+    /// The `kinect-v1` preset: 640×480, f = 580 px, principal point (319.5, 239.5).
+    pub fn kinect_v1() -> Self {
+        Self {
+            width: 640,
+            height: 480,
+            fx: 580.0,
+            fy: 580.0,
+            cx: 319.5,
+            cy: 239.5,
+        }
+    }
+
+    /// The camera of the paper: 640×480, f = 587 px (the paper's calibration), centred
+    /// principal point.
+    pub fn paper_kinect() -> Self {
+        Self {
+            fx: 587.0,
+            fy: 587.0,
+            ..Self::kinect_v1()
+        }
+    }
+
+    /// Number of pixels, `width * height`.
+    pub fn pixel_count(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Projects a camera-frame point to continuous pixel coordinates; `None` behind the camera
+    /// (Z ≤ 0). The result may lie outside the image.
+    pub fn project(&self, p: &Point3<f64>) -> Option<(f64, f64)> {
+        if !(p.z > 0.0) {
+            return None;
+        }
+        Some((self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))
+    }
+
+    /// Projects to the nearest pixel inside the image, or `None`.
+    pub fn project_to_pixel(&self, p: &Point3<f64>) -> Option<(usize, usize)> {
+        let (u, v) = self.project(p)?;
+        let (x, y) = (u.round(), v.round());
+        if x < 0.0 || y < 0.0 || x >= self.width as f64 || y >= self.height as f64 {
+            return None;
+        }
+        Some((x as usize, y as usize))
+    }
+
+    /// Back-projects pixel `(x, y)` at depth `z` (metres along the optical axis) to a
+    /// camera-frame point.
+    pub fn back_project(&self, x: f64, y: f64, z: f64) -> Point3<f64> {
+        Point3::new((x - self.cx) * z / self.fx, (y - self.cy) * z / self.fy, z)
+    }
+
+    /// The ray through pixel `(x, y)`, scaled so that its Z component is 1: the point at depth
+    /// `z` is `z * ray`.
+    pub fn ray(&self, x: f64, y: f64) -> Vector3<f64> {
+        Vector3::new((x - self.cx) / self.fx, (y - self.cy) / self.fy, 1.0)
+    }
+
+    /// The unit-length ray through pixel `(x, y)`.
+    pub fn unit_ray(&self, x: f64, y: f64) -> Vector3<f64> {
+        self.ray(x, y).normalize()
+    }
+
+    /// Intrinsics for the same camera with the image resampled by `factor` (e.g. 0.5 for half
+    /// resolution, pixel-centre convention preserved).
+    pub fn scaled(&self, factor: f64) -> Result<Self> {
+        if !(factor.is_finite() && factor > 0.0) {
+            return Err(CoreError::InvalidIntrinsics(format!("scale factor {factor} must be positive")));
+        }
+        Self::new(
+            ((self.width as f64) * factor).round() as usize,
+            ((self.height as f64) * factor).round() as usize,
+            self.fx * factor,
+            self.fy * factor,
+            (self.cx + 0.5) * factor - 0.5,
+            (self.cy + 0.5) * factor - 0.5,
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_back_project_round_trip() {
+        let k = Intrinsics::kinect_v1();
+        let p = k.back_project(100.25, 400.5, 2.5);
+        let (u, v) = k.project(&p).unwrap();
+        assert!((u - 100.25).abs() < 1e-12 && (v - 400.5).abs() < 1e-12);
+        assert_eq!(k.project(&Point3::new(0.0, 0.0, -1.0)), None);
+    }
+
+    #[test]
+    fn rays_scale_to_points() {
+        let k = Intrinsics::paper_kinect();
+        let r = k.ray(10.0, 20.0);
+        let p = k.back_project(10.0, 20.0, 3.0);
+        assert!((r * 3.0 - p.coords).norm() < 1e-12);
+        assert!((k.unit_ray(10.0, 20.0).norm() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn validation_rejects_nonsense() {
+        assert!(Intrinsics::new(0, 480, 500.0, 500.0, 1.0, 1.0).is_err());
+        assert!(Intrinsics::new(640, 480, -5.0, 500.0, 1.0, 1.0).is_err());
+        assert!(Intrinsics::new(640, 480, 500.0, f64::NAN, 1.0, 1.0).is_err());
+        assert!(Intrinsics::new(640, 480, 500.0, 500.0, 319.5, 239.5).is_ok());
+    }
+
+    #[test]
+    fn half_resolution() {
+        let k = Intrinsics::kinect_v1().scaled(0.5).unwrap();
+        assert_eq!((k.width, k.height), (320, 240));
+        assert!((k.cx - 159.5).abs() < 1e-12 && (k.fx - 290.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,42 @@
+//! # sl-core — the structured-light camera model
+//!
+//! The foundation of the `sldepth` workspace: camera [`Intrinsics`], the disparity
+//! [`SensorModel`] of the paper (`Z = f·B/D`, `σ_Z = Z²·σ_D/(f·B)`), typed [`DepthImage`] (metres)
+//! and [`DisparityImage`] (pixels) with 0 as the invalid value, back-projection to points, and
+//! rigid camera poses. Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
+//! crates) speaks these types. `sl-core` does no I/O.
+//!
+//! ```
+//! use sl_core::{Camera, DepthImage};
+//!
+//! let cam = Camera::kinect_v1();
+//! // Depth noise grows with the square of depth: 4× from 1.5 m to 3 m.
+//! let ratio = cam.sensor.sigma_z(3.0) / cam.sensor.sigma_z(1.5);
+//! assert!((ratio - 4.0).abs() < 1e-12);
+//!
+//! // A flat wall 2 m away, seen as disparity: f·B/Z = 580·0.075/2 = 21.75 px everywhere.
+//! let depth = DepthImage::from_vec(640, 480, vec![2.0; 640 * 480])?;
+//! let disparity = depth.to_disparity(&cam.sensor);
+//! assert!((disparity.get(10, 10).unwrap_or(0.0) - 21.75).abs() < 1e-4);
+//! let points = depth.to_points(&cam.intrinsics)?;
+//! assert_eq!(points.len(), 640 * 480);
+//! # Ok::<(), sl_core::CoreError>(())
+//! ```
+#![deny(missing_docs)]
+
+pub mod camera;
+pub mod error;
+pub mod image;
+pub mod intrinsics;
+pub mod pose;
+pub mod sensor;
+
+pub use camera::Camera;
+pub use error::{CoreError, Result};
+pub use image::{DepthImage, DisparityImage, Image, ValidStats};
+pub use intrinsics::Intrinsics;
+pub use pose::{Pose, pose_from_matrix, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix};
+pub use sensor::SensorModel;
+
+/// Re-export of the nalgebra version used in the public API.
+pub use nalgebra;

@@ -1,0 +1,204 @@
+//! The structured-light noise model of the paper (section 2).
+//!
+//! The camera measures disparity `D` (pixels) and reports depth `Z = f·B / D`. Disparity is
+//! estimated to `1/q` pixel (q = 8 for the Kinect) with a constant noise `σ_D`, so the depth
+//! noise grows with the square of depth: `σ_Z = Z²·σ_D / (f·B)` and `∂Z/∂D = −Z² / (f·B)`.
+
+use crate::error::{CoreError, Result};
+
+/// Disparity-domain sensor model of a structured-light camera.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorModel {
+    /// Focal length of the IR camera, pixels.
+    pub focal_px: f64,
+    /// Projector–camera baseline, metres.
+    pub baseline_m: f64,
+    /// Sub-pixel disparity steps per pixel (`q`; 8 for a Kinect).
+    pub subpixel_steps: u32,
+    /// Standard deviation of the disparity noise, pixels.
+    pub sigma_d_px: f64,
+}
+
+/// Default disparity noise, pixels.
+///
+/// Obtained by converting the axial noise model of Nguyen, Izadi & Lovell (3DIMPVT 2012),
+/// `σ_Z = 1.2 mm + 1.9 mm·(Z − 0.4 m)²`, back to disparity with `f·B = 43.5 px·m`: it gives
+/// 0.066 px at 2 m and 0.082 px at 1 m. The quantisation alone (1/8 px, uniform) contributes
+/// `0.125/√12 = 0.036` px.
+pub const DEFAULT_SIGMA_D_PX: f64 = 0.07;
+
+impl SensorModel {
+    /// Validated constructor.
+    pub fn new(focal_px: f64, baseline_m: f64, subpixel_steps: u32, sigma_d_px: f64) -> Result<Self> {
+        let s = Self {
+            focal_px,
+            baseline_m,
+            subpixel_steps,
+            sigma_d_px,
+        };
+        s.validate()?;
+        Ok(s)
+    }
+
+    /// Checks that focal length and baseline are positive and finite, steps ≥ 1 and σ_D ≥ 0.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.focal_px.is_finite() && self.focal_px > 0.0) {
+            return Err(CoreError::InvalidSensor(format!(
+                "focal length {} px must be positive",
+                self.focal_px
+            )));
+        }
+        if !(self.baseline_m.is_finite() && self.baseline_m > 0.0) {
+            return Err(CoreError::InvalidSensor(format!(
+                "baseline {} m must be positive",
+                self.baseline_m
+            )));
+        }
+        if self.subpixel_steps == 0 {
+            return Err(CoreError::InvalidSensor("sub-pixel steps must be at least 1".into()));
+        }
+        if !(self.sigma_d_px.is_finite() && self.sigma_d_px >= 0.0) {
+            return Err(CoreError::InvalidSensor(format!(
+                "disparity noise {} px must be non-negative",
+                self.sigma_d_px
+            )));
+        }
+        Ok(())
+    }
+
+    /// The Kinect of the paper: f = 587 px, B = 75 mm, 1/8 px disparity steps.
+    pub fn paper_kinect() -> Self {
+        Self {
+            focal_px: 587.0,
+            baseline_m: 0.075,
+            subpixel_steps: 8,
+            sigma_d_px: DEFAULT_SIGMA_D_PX,
+        }
+    }
+
+    /// The `kinect-v1` default: f = 580 px, B = 0.075 m, 1/8 px steps.
+    pub fn kinect_v1() -> Self {
+        Self {
+            focal_px: 580.0,
+            ..Self::paper_kinect()
+        }
+    }
+
+    /// `f·B` in pixel·metres: depth (m) times disparity (px).
+    pub fn fb(&self) -> f64 {
+        self.focal_px * self.baseline_m
+    }
+
+    /// Disparity step `1/q`, pixels.
+    pub fn disparity_step_px(&self) -> f64 {
+        1.0 / f64::from(self.subpixel_steps)
+    }
+
+    /// `D = f·B / Z` (pixels) for a depth in metres; 0 for an invalid (non-positive) depth.
+    pub fn depth_to_disparity(&self, z_m: f64) -> f64 {
+        if z_m > 0.0 { self.fb() / z_m } else { 0.0 }
+    }
+
+    /// `Z = f·B / D` (metres) for a disparity in pixels; 0 for an invalid (non-positive)
+    /// disparity.
+    pub fn disparity_to_depth(&self, d_px: f64) -> f64 {
+        if d_px > 0.0 { self.fb() / d_px } else { 0.0 }
+    }
+
+    /// Rounds a disparity to the sensor's `1/q` pixel grid.
+    pub fn quantize_disparity(&self, d_px: f64) -> f64 {
+        let q = f64::from(self.subpixel_steps);
+        (d_px * q).round() / q
+    }
+
+    /// Depth sensitivity `∂Z/∂D = −Z² / (f·B)`, metres per pixel of disparity.
+    pub fn dz_dd(&self, z_m: f64) -> f64 {
+        -z_m * z_m / self.fb()
+    }
+
+    /// Depth noise `σ_Z = Z²·σ_D / (f·B)`, metres.
+    pub fn sigma_z(&self, z_m: f64) -> f64 {
+        z_m * z_m * self.sigma_d_px / self.fb()
+    }
+
+    /// Depth noise of a disparity noise `sigma_d_px` (overriding the model's), metres.
+    pub fn sigma_z_for(&self, z_m: f64, sigma_d_px: f64) -> f64 {
+        z_m * z_m * sigma_d_px / self.fb()
+    }
+
+    /// Depth quantum `ΔZ ≈ c·Z²` between neighbouring representable depths, with
+    /// `c = 1 / (q·f·B)` per metre.
+    pub fn depth_quantum_per_m(&self) -> f64 {
+        1.0 / (f64::from(self.subpixel_steps) * self.fb())
+    }
+
+    /// Spacing between neighbouring representable depths at `z_m`, metres (`c·Z²`).
+    pub fn depth_step_m(&self, z_m: f64) -> f64 {
+        self.depth_quantum_per_m() * z_m * z_m
+    }
+}
+
+impl Default for SensorModel {
+    fn default() -> Self {
+        Self::kinect_v1()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The paper's worked example (section 2.1): −8.2 mm/px at 600 mm and −51.1 mm/px at
+    /// 1500 mm for f = 587 px, B = 75 mm.
+    #[test]
+    fn paper_depth_sensitivity() {
+        let s = SensorModel::paper_kinect();
+        let at_600 = s.dz_dd(0.6) * 1000.0;
+        let at_1500 = s.dz_dd(1.5) * 1000.0;
+        assert!((at_600 - -8.2).abs() < 0.05, "{at_600}");
+        assert!((at_1500 - -51.1).abs() < 0.05, "{at_1500}");
+    }
+
+    #[test]
+    fn disparity_depth_round_trip() {
+        let s = SensorModel::kinect_v1();
+        for z in [0.5, 1.0, 2.345, 4.0] {
+            let d = s.depth_to_disparity(z);
+            assert!((s.disparity_to_depth(d) - z).abs() < 1e-12);
+        }
+        assert_eq!(s.depth_to_disparity(0.0), 0.0);
+        assert_eq!(s.disparity_to_depth(-1.0), 0.0);
+    }
+
+    #[test]
+    fn sigma_z_is_quadratic() {
+        let s = SensorModel::kinect_v1();
+        let r = s.sigma_z(3.0) / s.sigma_z(1.5);
+        assert!((r - 4.0).abs() < 1e-12);
+        assert!((s.sigma_z(2.0) - 4.0 * s.sigma_d_px / s.fb()).abs() < 1e-15);
+    }
+
+    #[test]
+    fn quantum_matches_readme_steps() {
+        // The data README: about 3 mm at 1 m, 11-12 mm at 2 m, 26 mm at 3 m.
+        let s = SensorModel::kinect_v1();
+        assert!((s.depth_step_m(1.0) * 1000.0 - 2.87).abs() < 0.1);
+        assert!((s.depth_step_m(2.0) * 1000.0 - 11.5).abs() < 0.3);
+        assert!((s.depth_step_m(3.0) * 1000.0 - 25.9).abs() < 0.5);
+    }
+
+    #[test]
+    fn quantize_to_eighth_pixel() {
+        let s = SensorModel::kinect_v1();
+        assert_eq!(s.quantize_disparity(10.06), 10.0);
+        assert_eq!(s.quantize_disparity(10.07), 10.125);
+    }
+
+    #[test]
+    fn validation() {
+        assert!(SensorModel::new(580.0, 0.0, 8, 0.1).is_err());
+        assert!(SensorModel::new(580.0, 0.075, 0, 0.1).is_err());
+        assert!(SensorModel::new(580.0, 0.075, 8, -0.1).is_err());
+        assert!(SensorModel::new(580.0, 0.075, 8, 0.1).is_ok());
+    }
+}
