@@ -1,0 +1,417 @@
+//! The public filter API: [`DepthFilter`], [`Method`] and the sensor-derived defaults.
+
+use std::fmt;
+use std::str::FromStr;
+
+use sl_core::{DepthImage, SensorModel};
+
+use crate::error::{FilterError, Result};
+use crate::fastexp::LOG2_E;
+use crate::kernel::{self, Adaptive, Fixed, INVALID_FILL, Isa, NoRange, Source, Taps};
+
+/// Multiplier `m` of the default adaptive coefficient `k = m·σ_D/(f·B)`: the range σ of the
+/// adaptive filter is `m` times the sensor's depth noise `σ_Z(Z) = Z²·σ_D/(f·B)`.
+///
+/// Chosen by measurement: `cargo xtask validate` sweeps `m` on simulated Kinect frames (the
+/// tilted floor 0.8–4 m and the figure-before-two-walls scene, 7×7 window) and this is the `m`
+/// with the lowest overall RMSE against ground truth; see the crate docs for the sweep.
+pub const DEFAULT_K_MULTIPLIER: f64 = 3.0;
+
+/// Default window radius: 3, a 7×7 window.
+pub const DEFAULT_RADIUS_PX: usize = 3;
+
+/// Largest supported window radius (a 65×65 window).
+pub const MAX_RADIUS_PX: usize = 32;
+
+/// Largest supported depth, metres (valid depths above it are an error, not silently dropped).
+pub const MAX_DEPTH_M: f32 = 1.0e4;
+/// Smallest supported depth, metres.
+pub const MIN_DEPTH_M: f32 = 1.0e-6;
+
+/// Memory budget: images with more pixels than this are refused (the filter allocates one padded
+/// copy and one output of about this size, 256 MiB each at the limit).
+pub const MAX_PIXELS: usize = 1 << 26;
+
+/// Depth at which the default fixed-σ bilateral matches the default adaptive filter, metres:
+/// the default `σ_d` of [`DepthFilter::default_for`]`(Method::Bilateral, …)` is
+/// `k·(2 m)²`, i.e. the adaptive σ in the middle of the Kinect's range.
+pub const BILATERAL_DEFAULT_DEPTH_M: f64 = 2.0;
+
+/// The default adaptive coefficient for a sensor: `k = m·σ_D/(f·B)` per metre, with
+/// `m =` [`DEFAULT_K_MULTIPLIER`], so that `σ_d(Z) = k·Z² = m·σ_Z(Z)`.
+pub fn default_k_per_m(sensor: &SensorModel) -> f64 {
+    DEFAULT_K_MULTIPLIER * sensor.sigma_d_px / sensor.fb()
+}
+
+/// The default spatial σ for a radius: `r/2` pixels (at least 0.5), so the window spans ±2σ_s.
+pub fn default_sigma_s_px(radius_px: usize) -> f64 {
+    (radius_px as f64 / 2.0).max(0.5)
+}
+
+/// The four filters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Method {
+    /// Gaussian smoothing (spatial weights only), normalised over the valid pixels.
+    Gaussian,
+    /// Bilateral filter with a fixed range σ in metres (paper eq. 3–5).
+    Bilateral,
+    /// Adaptive bilateral filter, `σ_d(p) = k·Z(p)²` (paper eq. 6).
+    Adaptive,
+    /// Bilateral filter on disparity `D = f·B/Z` with a constant σ in pixels, converted back.
+    Disparity,
+}
+
+impl Method {
+    /// All methods, in the order of the docs.
+    pub const ALL: [Method; 4] = [Method::Gaussian, Method::Bilateral, Method::Adaptive, Method::Disparity];
+
+    /// The lowercase name used by the CLI.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Gaussian => "gaussian",
+            Method::Bilateral => "bilateral",
+            Method::Adaptive => "adaptive",
+            Method::Disparity => "disparity",
+        }
+    }
+}
+
+impl fmt::Display for Method {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Method {
+    type Err = FilterError;
+    fn from_str(s: &str) -> Result<Self> {
+        Method::ALL
+            .into_iter()
+            .find(|m| m.name().eq_ignore_ascii_case(s))
+            .ok_or_else(|| FilterError::InvalidParameter(format!("unknown method {s:?} (gaussian, bilateral, adaptive, disparity)")))
+    }
+}
+
+/// The range kernel of a filter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RangeKernel {
+    /// No range weight: the Gaussian filter.
+    None,
+    /// A fixed range σ in metres.
+    Fixed {
+        /// Range σ, metres.
+        sigma_d_m: f64,
+    },
+    /// `σ_d(p) = k·Z(p)²`.
+    Adaptive {
+        /// `k`, per metre.
+        k_per_m: f64,
+    },
+    /// A fixed σ in disparity pixels, applied to `D = fb/Z`.
+    Disparity {
+        /// Range σ in disparity, pixels.
+        sigma_disp_px: f64,
+        /// `f·B`, pixel·metres.
+        fb_px_m: f64,
+    },
+}
+
+/// A configured depth filter. Build it with [`DepthFilter::default_for`] (sensor-derived
+/// defaults, no tuning) or one of the explicit constructors, then [`DepthFilter::apply`] it.
+///
+/// **Invalid pixels** (0, negative or non-finite) never contribute and are never filled: the
+/// output is invalid (0) exactly where the input is. **Borders:** the window is clipped at the
+/// image border and the weights are renormalised over the valid pixels inside the image (the
+/// same rule as for holes), so border pixels are smoothed with fewer neighbours, never with
+/// replicated or mirrored values.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthFilter {
+    /// Window radius `r`: the window is `(2r+1)×(2r+1)`.
+    pub radius_px: usize,
+    /// Spatial σ, pixels.
+    pub sigma_s_px: f64,
+    /// The range kernel (which also selects the method).
+    pub range: RangeKernel,
+}
+
+impl DepthFilter {
+    /// Gaussian smoothing.
+    pub fn gaussian(radius_px: usize, sigma_s_px: f64) -> Self {
+        Self {
+            radius_px,
+            sigma_s_px,
+            range: RangeKernel::None,
+        }
+    }
+
+    /// Bilateral filter with a fixed range σ (metres).
+    pub fn bilateral(radius_px: usize, sigma_s_px: f64, sigma_d_m: f64) -> Self {
+        Self {
+            radius_px,
+            sigma_s_px,
+            range: RangeKernel::Fixed { sigma_d_m },
+        }
+    }
+
+    /// Adaptive bilateral filter, `σ_d(p) = k·Z(p)²`.
+    pub fn adaptive(radius_px: usize, sigma_s_px: f64, k_per_m: f64) -> Self {
+        Self {
+            radius_px,
+            sigma_s_px,
+            range: RangeKernel::Adaptive { k_per_m },
+        }
+    }
+
+    /// Disparity-domain bilateral filter with range σ `sigma_disp_px` (disparity pixels).
+    pub fn disparity(radius_px: usize, sigma_s_px: f64, sigma_disp_px: f64, sensor: &SensorModel) -> Self {
+        Self {
+            radius_px,
+            sigma_s_px,
+            range: RangeKernel::Disparity {
+                sigma_disp_px,
+                fb_px_m: sensor.fb(),
+            },
+        }
+    }
+
+    /// The defaults for `method` and a sensor: radius [`DEFAULT_RADIUS_PX`], σ_s from
+    /// [`default_sigma_s_px`], adaptive `k` from [`default_k_per_m`], bilateral σ_d =
+    /// `k·(2 m)²`, disparity σ = `m·σ_D` (the same noise multiple, in disparity).
+    pub fn default_for(method: Method, sensor: &SensorModel) -> Self {
+        let r = DEFAULT_RADIUS_PX;
+        let s = default_sigma_s_px(r);
+        let k = default_k_per_m(sensor);
+        match method {
+            Method::Gaussian => Self::gaussian(r, s),
+            Method::Bilateral => Self::bilateral(r, s, k * BILATERAL_DEFAULT_DEPTH_M * BILATERAL_DEFAULT_DEPTH_M),
+            Method::Adaptive => Self::adaptive(r, s, k),
+            Method::Disparity => Self::disparity(r, s, DEFAULT_K_MULTIPLIER * sensor.sigma_d_px, sensor),
+        }
+    }
+
+    /// The same filter with another radius.
+    pub fn with_radius(mut self, radius_px: usize) -> Self {
+        self.radius_px = radius_px;
+        self
+    }
+
+    /// The same filter with another spatial σ.
+    pub fn with_sigma_s(mut self, sigma_s_px: f64) -> Self {
+        self.sigma_s_px = sigma_s_px;
+        self
+    }
+
+    /// Which of the four methods this is.
+    pub fn method(&self) -> Method {
+        match self.range {
+            RangeKernel::None => Method::Gaussian,
+            RangeKernel::Fixed { .. } => Method::Bilateral,
+            RangeKernel::Adaptive { .. } => Method::Adaptive,
+            RangeKernel::Disparity { .. } => Method::Disparity,
+        }
+    }
+
+    /// Checks the parameters: `1 ≤ r ≤` [`MAX_RADIUS_PX`], `0 < σ_s ≤ 1000` px,
+    /// `10⁻⁶ ≤ σ_d ≤ 1000` m, `10⁻⁶ ≤ k ≤ 1000` /m, `10⁻⁶ ≤ σ_D ≤ 1000` px, `f·B > 0`.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |what: String| Err(FilterError::InvalidParameter(what));
+        if self.radius_px == 0 || self.radius_px > MAX_RADIUS_PX {
+            return bad(format!("radius {} px must be in 1..={MAX_RADIUS_PX}", self.radius_px));
+        }
+        let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
+        if !(in_range(self.sigma_s_px, f64::MIN_POSITIVE, 1.0e3)) {
+            return bad(format!("sigma_s {} px must be in (0, 1000]", self.sigma_s_px));
+        }
+        match self.range {
+            RangeKernel::None => {}
+            RangeKernel::Fixed { sigma_d_m } if !in_range(sigma_d_m, 1e-6, 1e3) => {
+                return bad(format!("sigma_d {sigma_d_m} m must be in [1e-6, 1000]"));
+            }
+            RangeKernel::Adaptive { k_per_m } if !in_range(k_per_m, 1e-6, 1e3) => {
+                return bad(format!("k {k_per_m} per m must be in [1e-6, 1000]"));
+            }
+            RangeKernel::Disparity { sigma_disp_px, fb_px_m } => {
+                if !in_range(sigma_disp_px, 1e-6, 1e3) {
+                    return bad(format!("disparity sigma {sigma_disp_px} px must be in [1e-6, 1000]"));
+                }
+                if !in_range(fb_px_m, 1e-6, 1e9) {
+                    return bad(format!("f*B {fb_px_m} px*m must be positive"));
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The normalised spatial weights `ŵ(δ)` of the full window, row-major `(2r+1)²`.
+    pub fn spatial_weights(&self) -> Vec<f64> {
+        let r = self.radius_px as i64;
+        let mut w = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
+        for dy in -r..=r {
+            for dx in -r..=r {
+                w.push((-((dx * dx + dy * dy) as f64) / (2.0 * self.sigma_s_px * self.sigma_s_px)).exp());
+            }
+        }
+        let s: f64 = w.iter().sum();
+        w.iter().map(|v| v / s).collect()
+    }
+
+    /// `Σ ŵ(δ)·|δ|²` over the full window, px²: the second moment of the spatial kernel, which
+    /// sets the curvature bias on tilted planes (see the crate docs).
+    pub fn spatial_second_moment_px2(&self) -> f64 {
+        let r = self.radius_px as i64;
+        let w = self.spatial_weights();
+        let mut m = 0.0;
+        let mut i = 0;
+        for dy in -r..=r {
+            for dx in -r..=r {
+                m += w[i] * (dx * dx + dy * dy) as f64;
+                i += 1;
+            }
+        }
+        m
+    }
+
+    /// Filters `depth` (using the best instruction set of this CPU and all rayon threads; run it
+    /// inside `ThreadPool::install` to choose the threads).
+    pub fn apply(&self, depth: &DepthImage) -> Result<DepthImage> {
+        self.apply_with_isa(depth, Isa::detect())
+    }
+
+    /// Like [`DepthFilter::apply`] with an explicit instruction set (for tests and benchmarks;
+    /// an unsupported one falls back to the portable code).
+    pub fn apply_with_isa(&self, depth: &DepthImage, isa: Isa) -> Result<DepthImage> {
+        self.validate()?;
+        let (w, h) = (depth.width(), depth.height());
+        if w.checked_mul(h).is_none_or(|n| n > MAX_PIXELS) {
+            return Err(FilterError::ImageSize(format!("{w}x{h} exceeds the budget of {MAX_PIXELS} pixels")));
+        }
+        let isa = if isa.is_supported() { isa } else { Isa::Portable };
+        let r = self.radius_px;
+        let k = 2 * r + 1;
+        let inv2s2 = 1.0 / (2.0 * self.sigma_s_px * self.sigma_s_px);
+        let mut taps = Vec::with_capacity(k * k);
+        for dy in 0..k {
+            for dx in 0..k {
+                let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
+                taps.push(match self.range {
+                    // Spatial weights below 1e-30 are 0 (no subnormal products; see fastexp).
+                    RangeKernel::None => {
+                        let w = (-d2 * inv2s2).exp();
+                        if w > 1e-30 { w as f32 } else { 0.0 }
+                    }
+                    _ => (-d2 * inv2s2 * std::f64::consts::LOG2_E) as f32,
+                });
+            }
+        }
+        let taps = Taps { radius: r, taps: &taps };
+        let mut out = vec![0.0f32; w * h];
+        let log2e = f64::from(LOG2_E);
+        let coef = |sigma: f64| ((log2e / (2.0 * sigma * sigma)).min(1e30)) as f32;
+        let mut src = Source {
+            data: depth.data(),
+            width: w,
+            height: h,
+            fill: INVALID_FILL,
+            disparity_fb: None,
+            min_m: MIN_DEPTH_M,
+            max_m: MAX_DEPTH_M,
+        };
+        let ok = match self.range {
+            RangeKernel::None => {
+                src.fill = 0.0;
+                kernel::run(isa, taps, &src, &mut out, NoRange)
+            }
+            RangeKernel::Fixed { sigma_d_m } => kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_d_m))),
+            RangeKernel::Adaptive { k_per_m } => kernel::run(isa, taps, &src, &mut out, Adaptive(coef(k_per_m))),
+            RangeKernel::Disparity { sigma_disp_px, fb_px_m } => {
+                src.disparity_fb = Some(fb_px_m as f32);
+                kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_disp_px)))
+            }
+        };
+        if !ok {
+            return Err(out_of_range(depth));
+        }
+        Ok(DepthImage::from_vec(w, h, out)?)
+    }
+}
+
+/// The error for the first valid depth outside `[MIN_DEPTH_M, MAX_DEPTH_M]`.
+fn out_of_range(depth: &DepthImage) -> FilterError {
+    let w = depth.width().max(1);
+    let found = depth
+        .data()
+        .iter()
+        .enumerate()
+        .find(|&(_, &z)| z > 0.0 && z.is_finite() && !(MIN_DEPTH_M..=MAX_DEPTH_M).contains(&z));
+    match found {
+        Some((i, &z)) => FilterError::DepthOutOfRange {
+            value_m: z,
+            x: i % w,
+            y: i / w,
+            max_m: MAX_DEPTH_M,
+        },
+        None => FilterError::ImageSize("inconsistent range check".into()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_names_round_trip() {
+        for m in Method::ALL {
+            assert_eq!(m.name().parse::<Method>().unwrap(), m);
+            assert_eq!(DepthFilter::default_for(m, &SensorModel::kinect_v1()).method(), m);
+        }
+        assert!("median".parse::<Method>().is_err());
+    }
+
+    #[test]
+    fn validation_rejects_nonsense() {
+        let s = SensorModel::kinect_v1();
+        assert!(DepthFilter::gaussian(0, 1.0).validate().is_err());
+        assert!(DepthFilter::gaussian(MAX_RADIUS_PX + 1, 1.0).validate().is_err());
+        assert!(DepthFilter::gaussian(2, 0.0).validate().is_err());
+        assert!(DepthFilter::gaussian(2, f64::NAN).validate().is_err());
+        assert!(DepthFilter::bilateral(2, 1.0, -0.01).validate().is_err());
+        assert!(DepthFilter::adaptive(2, 1.0, f64::INFINITY).validate().is_err());
+        assert!(DepthFilter::disparity(2, 1.0, 0.0, &s).validate().is_err());
+        for m in Method::ALL {
+            assert!(DepthFilter::default_for(m, &s).validate().is_ok());
+        }
+    }
+
+    #[test]
+    fn default_k_is_a_multiple_of_the_depth_noise() {
+        let s = SensorModel::kinect_v1();
+        let k = default_k_per_m(&s);
+        for z in [0.8, 2.0, 4.0] {
+            assert!((k * z * z - DEFAULT_K_MULTIPLIER * s.sigma_z(z)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn out_of_range_depth_is_an_error_not_a_hole() {
+        let mut d = DepthImage::from_vec(8, 8, vec![1.0; 64]).unwrap();
+        d.data_mut()[9] = 1.0e6;
+        let e = DepthFilter::default_for(Method::Adaptive, &SensorModel::kinect_v1()).apply(&d);
+        assert!(matches!(e, Err(FilterError::DepthOutOfRange { x: 1, y: 1, .. })), "{e:?}");
+    }
+
+    #[test]
+    fn second_moment_of_a_wide_kernel_approaches_two_sigma_squared() {
+        let f = DepthFilter::gaussian(12, 2.0);
+        assert!((f.spatial_second_moment_px2() - 8.0).abs() < 1e-3);
+        // Truncation lowers it.
+        assert!(DepthFilter::gaussian(2, 2.0).spatial_second_moment_px2() < 8.0);
+    }
+
+    #[test]
+    fn empty_image_is_fine() {
+        let d = DepthImage::invalid(0, 0);
+        let out = DepthFilter::gaussian(2, 1.0).apply(&d).unwrap();
+        assert_eq!(out.width(), 0);
+    }
+}

@@ -1,0 +1,55 @@
+//! The fast kernel (every method, every fast path, every instruction set) against the slow
+//! reference implementation, on random images with holes and depth edges.
+
+use sl_core::SensorModel;
+use sl_filter::reference::filter_reference;
+
+use super::common::{filters, isas, random_image};
+
+#[test]
+fn fast_kernel_matches_reference_on_random_images_with_holes() {
+    let sensor = SensorModel::kinect_v1();
+    let mut checked = 0;
+    // Radii 1-3 are the const-radius fast paths, 4 and 6 the runtime-radius path; widths that
+    // are and are not multiples of the lane counts (8, 16, 32).
+    for (case, &(w, h, r, s)) in [(37, 23, 1, 0.8), (64, 40, 2, 1.0), (33, 17, 3, 1.5), (50, 31, 4, 2.0), (19, 29, 6, 3.0), (5, 4, 3, 1.5)]
+        .iter()
+        .enumerate()
+    {
+        let depth = random_image(w, h, 0.5, 4.0, 0.15, 100 + case as u64);
+        for f in filters(r, s, &sensor) {
+            let want = filter_reference(&f, &depth).unwrap();
+            for isa in isas() {
+                let got = f.apply_with_isa(&depth, isa).unwrap();
+                for (i, (&a, &b)) in got.data().iter().zip(want.data()).enumerate() {
+                    let input = depth.data()[i];
+                    let valid_in = input > 0.0 && input.is_finite();
+                    assert_eq!(a > 0.0, valid_in, "{f:?} {isa:?}: mask differs at {i}");
+                    assert_eq!(b > 0.0, valid_in);
+                    // Weights carry the fast exp's relative error (4e-6) and f32 rounding: the
+                    // output error is at most ~1e-5 of the depth differences in the window
+                    // (< 4 m here) plus a few ulp of the depth.
+                    let tol = 4.0e-6 * b.abs() + 2.0e-5;
+                    assert!((a - b).abs() <= tol, "{f:?} {isa:?} at ({}, {}): fast {a} vs reference {b}", i % w, i / w);
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 10_000);
+}
+
+#[test]
+fn every_instruction_set_gives_nearly_identical_results() {
+    let sensor = SensorModel::kinect_v1();
+    let depth = random_image(97, 41, 0.6, 3.5, 0.1, 7);
+    for f in filters(3, 1.5, &sensor) {
+        let base = f.apply_with_isa(&depth, sl_filter::Isa::Portable).unwrap();
+        for isa in isas() {
+            let other = f.apply_with_isa(&depth, isa).unwrap();
+            for (&a, &b) in base.data().iter().zip(other.data()) {
+                assert!((a - b).abs() <= 1e-5, "{isa:?}: {a} vs {b}");
+            }
+        }
+    }
+}

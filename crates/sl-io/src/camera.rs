@@ -1,0 +1,274 @@
+//! Camera files: Open3D `PinholeCameraIntrinsic` JSON (with optional sensor-model keys) and
+//! plain 3×3 intrinsic matrices such as 7-Scenes' `camera-intrinsics.txt`.
+//!
+//! The JSON format is Open3D's:
+//!
+//! ```json
+//! {
+//!   "width": 640, "height": 480,
+//!   "intrinsic_matrix": [fx, 0, 0, 0, fy, 0, cx, cy, 1],
+//!   "baseline_m": 0.075, "subpixel": 8, "sigma_d_px": 0.07
+//! }
+//! ```
+//!
+//! `intrinsic_matrix` is the 3×3 matrix `K` in **column-major** order. The last three keys are
+//! ours and optional (defaults: the Kinect's 0.075 m, 8 steps, σ_D 0.07 px), so any Open3D camera
+//! file reads. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
+//! length differs from `fx` (it defaults to `fx`).
+
+use std::fs::File;
+use std::io::Read;
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+use sl_core::camera::{KINECT_BASELINE_M, KINECT_SUBPIXEL_STEPS};
+use sl_core::sensor::DEFAULT_SIGMA_D_PX;
+use sl_core::{Camera, Intrinsics, SensorModel};
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+use crate::limits::MAX_TEXT_BYTES;
+
+/// Largest camera file we read (they are a few hundred bytes).
+const MAX_CAMERA_BYTES: u64 = 1 << 20;
+
+/// Default image size for intrinsics files that do not state it (7-Scenes, Kinect v1).
+pub const DEFAULT_WIDTH: usize = 640;
+/// Default image height, see [`DEFAULT_WIDTH`].
+pub const DEFAULT_HEIGHT: usize = 480;
+
+/// How far from zero the fixed entries of `K` may be (skew, bottom row).
+const MATRIX_TOLERANCE: f64 = 1e-9;
+
+#[derive(Debug, Serialize, Deserialize)]
+struct CameraJson {
+    width: usize,
+    height: usize,
+    intrinsic_matrix: [f64; 9],
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    baseline_m: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    subpixel: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sigma_d_px: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    sensor_focal_px: Option<f64>,
+}
+
+/// Reads a whole text file of at most `max` bytes.
+pub(crate) fn read_text(path: &Path, max: u64) -> Result<String> {
+    let file = File::open(path).map_err(|e| IoError::io(path, e))?;
+    let len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+    if len > max {
+        return Err(IoError::too_large(path, format!("{len} bytes, over the {max}-byte limit for this file type")));
+    }
+    let mut s = String::new();
+    file.take(max + 1)
+        .read_to_string(&mut s)
+        .map_err(|e| IoError::io(path, e))?;
+    Ok(s)
+}
+
+/// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern.
+fn intrinsics_from_k(path: &Path, width: usize, height: usize, k: [[f64; 3]; 3]) -> Result<Intrinsics> {
+    let fixed = [
+        ("K[0][1] (skew)", k[0][1], 0.0),
+        ("K[1][0]", k[1][0], 0.0),
+        ("K[2][0]", k[2][0], 0.0),
+        ("K[2][1]", k[2][1], 0.0),
+        ("K[2][2]", k[2][2], 1.0),
+    ];
+    for (name, v, want) in fixed {
+        if !v.is_finite() || (v - want).abs() > MATRIX_TOLERANCE {
+            return Err(IoError::malformed(
+                path,
+                format!("intrinsic matrix entry {name} is {v}, expected {want} (no skew, K[2] = [0, 0, 1])"),
+            ));
+        }
+    }
+    Intrinsics::new(width, height, k[0][0], k[1][1], k[0][2], k[1][2]).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Reads an Open3D `PinholeCameraIntrinsic` JSON file into a [`Camera`]; the sensor model comes
+/// from the optional `baseline_m`, `subpixel`, `sigma_d_px` and `sensor_focal_px` keys, with
+/// Kinect defaults.
+pub fn read_camera_json(path: impl AsRef<Path>) -> Result<Camera> {
+    let path = path.as_ref();
+    let text = read_text(path, MAX_CAMERA_BYTES)?;
+    let json: CameraJson = serde_json::from_str(&text).map_err(|source| IoError::Json {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let m = json.intrinsic_matrix;
+    // Column-major: m[col * 3 + row].
+    let k = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
+    let intrinsics = intrinsics_from_k(path, json.width, json.height, k)?;
+    let sensor = SensorModel::new(
+        json.sensor_focal_px.unwrap_or(intrinsics.fx),
+        json.baseline_m.unwrap_or(KINECT_BASELINE_M),
+        json.subpixel.unwrap_or(KINECT_SUBPIXEL_STEPS),
+        json.sigma_d_px.unwrap_or(DEFAULT_SIGMA_D_PX),
+    )
+    .map_err(|e| IoError::core(path, None, e))?;
+    Ok(Camera { intrinsics, sensor })
+}
+
+/// The JSON text [`write_camera_json`] writes.
+pub fn camera_to_json(camera: &Camera) -> String {
+    let k = &camera.intrinsics;
+    let s = &camera.sensor;
+    let json = CameraJson {
+        width: k.width,
+        height: k.height,
+        intrinsic_matrix: [k.fx, 0.0, 0.0, 0.0, k.fy, 0.0, k.cx, k.cy, 1.0],
+        baseline_m: Some(s.baseline_m),
+        subpixel: Some(s.subpixel_steps),
+        sigma_d_px: Some(s.sigma_d_px),
+        sensor_focal_px: (s.focal_px != k.fx).then_some(s.focal_px),
+    };
+    // Serialising plain numbers into a String cannot fail; fall back to an empty object.
+    serde_json::to_string_pretty(&json).unwrap_or_else(|_| "{}".into())
+}
+
+/// Writes a camera as Open3D JSON plus the sensor keys, atomically; [`read_camera_json`] reads
+/// it back exactly.
+pub fn write_camera_json(path: impl AsRef<Path>, camera: &Camera) -> Result<()> {
+    let path = path.as_ref();
+    camera
+        .intrinsics
+        .validate()
+        .and_then(|_| camera.sensor.validate())
+        .map_err(|e| IoError::core(path, None, e))?;
+    let text = camera_to_json(camera);
+    write_atomic(path, |w| {
+        w.write_all(text.as_bytes())?;
+        w.write_all(b"\n")
+    })
+}
+
+/// Reads a plain-text 3×3 intrinsic matrix (row-major, whitespace-separated, e.g. 7-Scenes'
+/// `camera-intrinsics.txt`) for an image of `width`×`height` pixels.
+pub fn read_intrinsics_txt(path: impl AsRef<Path>, width: usize, height: usize) -> Result<Intrinsics> {
+    let path = path.as_ref();
+    let text = read_text(path, MAX_CAMERA_BYTES.min(MAX_TEXT_BYTES))?;
+    let mut values = Vec::with_capacity(9);
+    for (i, line) in text.lines().enumerate() {
+        for tok in line.split_whitespace() {
+            let v: f64 = tok
+                .parse()
+                .map_err(|_| IoError::parse(path, i + 1, format!("{tok:?} is not a number")))?;
+            if values.len() == 9 {
+                return Err(IoError::parse(path, i + 1, "more than 9 numbers in a 3x3 intrinsic matrix"));
+            }
+            values.push(v);
+        }
+    }
+    if values.len() != 9 {
+        return Err(IoError::malformed(
+            path,
+            format!("found {} numbers, a 3x3 intrinsic matrix needs 9", values.len()),
+        ));
+    }
+    let k = [
+        [values[0], values[1], values[2]],
+        [values[3], values[4], values[5]],
+        [values[6], values[7], values[8]],
+    ];
+    intrinsics_from_k(path, width, height, k)
+}
+
+/// Reads 7-Scenes' `camera-intrinsics.txt`, assuming the Kinect's 640×480 frames
+/// ([`DEFAULT_WIDTH`]×[`DEFAULT_HEIGHT`]).
+pub fn read_7scenes_intrinsics(path: impl AsRef<Path>) -> Result<Intrinsics> {
+    read_intrinsics_txt(path, DEFAULT_WIDTH, DEFAULT_HEIGHT)
+}
+
+/// Reads a camera file of either kind: `.json` (Open3D + sensor keys) or a 3×3 matrix text file
+/// (640×480 assumed, Kinect sensor defaults).
+pub fn read_camera(path: impl AsRef<Path>) -> Result<Camera> {
+    let path = path.as_ref();
+    let is_json = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    if is_json {
+        read_camera_json(path)
+    } else {
+        let k = read_7scenes_intrinsics(path)?;
+        Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(path, None, e))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_round_trip_exact() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        let mut cam = Camera::paper_kinect();
+        cam.intrinsics.cx = 318.6;
+        cam.intrinsics.fy = 516.5;
+        cam.sensor.baseline_m = 0.0751;
+        cam.sensor.sigma_d_px = 0.05;
+        write_camera_json(&p, &cam).unwrap();
+        assert_eq!(read_camera_json(&p).unwrap(), cam);
+        cam.sensor.focal_px = 590.0;
+        write_camera_json(&p, &cam).unwrap();
+        assert_eq!(read_camera_json(&p).unwrap(), cam);
+    }
+
+    #[test]
+    fn open3d_file_without_sensor_keys() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        std::fs::write(
+            &p,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525.0, 0, 0, 0, 525.0, 0, 319.5, 239.5, 1]}"#,
+        )
+        .unwrap();
+        let cam = read_camera_json(&p).unwrap();
+        assert_eq!(cam.intrinsics, Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap());
+        assert_eq!(cam.sensor.focal_px, 525.0);
+        assert_eq!(cam.sensor.baseline_m, KINECT_BASELINE_M);
+        assert_eq!(cam.sensor.subpixel_steps, 8);
+    }
+
+    #[test]
+    fn bad_json_names_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.json");
+        for text in [
+            "{",
+            r#"{"width": 640}"#,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5]}"#,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 3, 525, 0, 319.5, 239.5, 1]}"#,
+            r#"{"width": 0, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]}"#,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1], "baseline_m": -1}"#,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1], "subpixel": 0}"#,
+        ] {
+            std::fs::write(&p, text).unwrap();
+            let err = read_camera_json(&p).unwrap_err();
+            assert!(err.to_string().contains("bad.json"), "{err}");
+        }
+    }
+
+    #[test]
+    fn matrix_txt() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("camera-intrinsics.txt");
+        std::fs::write(&p, " 5.85e+02\t 0.0\t 3.2e+02\t\n 0 585 240\n 0 0 1\n").unwrap();
+        let k = read_7scenes_intrinsics(&p).unwrap();
+        assert_eq!((k.width, k.height, k.fx, k.fy, k.cx, k.cy), (640, 480, 585.0, 585.0, 320.0, 240.0));
+        std::fs::write(&p, "585 0 320\n0 585 x\n0 0 1\n").unwrap();
+        match read_7scenes_intrinsics(&p).unwrap_err() {
+            IoError::Parse { line, .. } => assert_eq!(line, 2),
+            other => panic!("unexpected {other}"),
+        }
+        std::fs::write(&p, "585 0 320\n0 585 240\n").unwrap();
+        assert!(read_7scenes_intrinsics(&p).is_err());
+        std::fs::write(&p, "585 0 320\n0 585 240\n0 0 1 1\n").unwrap();
+        assert!(read_7scenes_intrinsics(&p).is_err());
+    }
+}

@@ -1,0 +1,701 @@
+//! Depth images on disk: 16-bit PNG and TIFF at any scale, NYU Depth v2 raw Kinect disparity
+//! (PGM), and SUN RGB-D's bit-rotated PNG.
+//!
+//! [`read_depth`] returns the depth in metres together with the [`DepthEncoding`] it was stored
+//! in, and [`write_depth`] writes any [`DepthImage`] in a given encoding, so a tool can write its
+//! output "in the input's encoding and scale".
+//!
+//! | [`DepthFormat`] | file | stored integer `v` | metres | invalid |
+//! |---|---|---|---|---|
+//! | `Png` | 16-bit grey PNG | depth units | `v / units_per_m` | 0 and 65535 |
+//! | `Tiff` | 16-bit grey TIFF | depth units | `v / units_per_m` | 0 and 65535 |
+//! | `Sun` | 16-bit grey PNG | `mm` rotated left by 3 bits | `rotr(v, 3) / units_per_m` (1000) | 0 and 65535 |
+//! | `NyuRaw` | PGM `P5`, 16-bit **little-endian** | raw disparity, 1/8 px | `351.3 / (1092.5 − v)` | `v ≥ 1093` (2047) |
+//!
+//! Common scales: 1000 units per metre (millimetres: 7-Scenes, ICL-NUIM, PCL, SUN RGB-D), 5000
+//! (TUM RGB-D). 7-Scenes marks invalid pixels with 65535 rather than 0; the sentinel a file uses
+//! is recorded in [`DepthEncoding::invalid_value`] so that it round-trips.
+
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+
+use sl_core::{DepthImage, DisparityImage, Image, Intrinsics, SensorModel};
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+use crate::pnm::{PnmKind, read_pnm};
+use crate::raster::{Container, check_writable_size, decode_l16, write_png_l16, write_tiff_l16};
+
+/// Default depth scale: millimetres.
+pub const DEFAULT_UNITS_PER_M: f64 = 1000.0;
+/// The TUM RGB-D depth scale (value / 5000 = metres).
+pub const TUM_UNITS_PER_M: f64 = 5000.0;
+/// The 16-bit value that some datasets (7-Scenes) use for "no depth"; always invalid on read.
+pub const INVALID_SENTINEL: u16 = u16::MAX;
+/// Largest stored unit that reads back as a valid depth (65535 is the invalid sentinel).
+pub const MAX_VALID_UNITS: u16 = u16::MAX - 1;
+
+/// NYU Depth v2 toolbox numerator: metres = `NYU_DEPTH_NUMERATOR / (NYU_DOFF − raw)`.
+pub const NYU_DEPTH_NUMERATOR: f64 = 351.3;
+/// NYU Depth v2 toolbox disparity offset (`doff` of the ROS kinect model, in raw 1/8-px units).
+pub const NYU_DOFF: f64 = 1092.5;
+/// Raw value of a pixel without a measurement in NYU raw frames (the Kinect's 2047).
+pub const NYU_INVALID_RAW: u16 = 2047;
+/// Raw Kinect disparity steps per pixel: the raw value counts 1/8 px.
+pub const KINECT_RAW_STEPS_PER_PX: u32 = 8;
+/// `f·B` implied by the NYU constants: `351.3 / 8 = 43.9125` px·m (with `D_px = (doff − raw)/8`
+/// and `Z = f·B / D_px`, this reproduces the toolbox's depth exactly).
+pub const NYU_FB_PX_M: f64 = NYU_DEPTH_NUMERATOR / KINECT_RAW_STEPS_PER_PX as f64;
+/// Largest raw value that gives a positive NYU depth (`raw < 1092.5`).
+pub const NYU_MAX_VALID_RAW: u16 = 1092;
+
+/// How a depth file stores its values (the container and the value transform).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DepthFormat {
+    /// 16-bit single-channel PNG, `units_per_m` units per metre.
+    Png,
+    /// 16-bit single-channel TIFF, `units_per_m` units per metre.
+    Tiff,
+    /// NYU Depth v2 raw Kinect disparity: binary PGM, 16-bit little-endian raw values.
+    NyuRaw,
+    /// SUN RGB-D: 16-bit PNG of millimetres rotated left by 3 bits.
+    Sun,
+}
+
+impl DepthFormat {
+    /// All formats, in the order of their names in [`DepthFormat::NAMES`].
+    pub const ALL: [DepthFormat; 4] = [Self::Png, Self::Tiff, Self::NyuRaw, Self::Sun];
+    /// The accepted names (`--format` values).
+    pub const NAMES: [&'static str; 4] = ["png", "tiff", "nyu-raw", "sun"];
+
+    /// The canonical name: `png`, `tiff`, `nyu-raw` or `sun`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Png => "png",
+            Self::Tiff => "tiff",
+            Self::NyuRaw => "nyu-raw",
+            Self::Sun => "sun",
+        }
+    }
+
+    /// The format implied by a file extension (case-insensitive): `.png` → `Png`,
+    /// `.tif`/`.tiff` → `Tiff`, `.pgm` → `NyuRaw`. SUN RGB-D files are ordinary `.png` files and
+    /// must be named explicitly.
+    pub fn from_path(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "png" => Some(Self::Png),
+            "tif" | "tiff" => Some(Self::Tiff),
+            "pgm" => Some(Self::NyuRaw),
+            _ => None,
+        }
+    }
+
+    /// Whether the format stores depth units at a scale (all but `NyuRaw`).
+    pub fn has_scale(self) -> bool {
+        !matches!(self, Self::NyuRaw)
+    }
+}
+
+impl fmt::Display for DepthFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Error of [`DepthFormat::from_str`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("unknown depth format {0:?} (expected one of: png, tiff, nyu-raw, sun)")]
+pub struct UnknownFormat(pub String);
+
+impl FromStr for DepthFormat {
+    type Err = UnknownFormat;
+
+    /// Parses `png`, `tiff` (or `tif`), `nyu-raw` (or `nyu`, `pgm`), `sun` (or `sun-rgbd`),
+    /// case-insensitively.
+    fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
+        match s.trim().to_ascii_lowercase().replace('_', "-").as_str() {
+            "png" => Ok(Self::Png),
+            "tiff" | "tif" => Ok(Self::Tiff),
+            "nyu-raw" | "nyu" | "pgm" => Ok(Self::NyuRaw),
+            "sun" | "sun-rgbd" | "sunrgbd" => Ok(Self::Sun),
+            _ => Err(UnknownFormat(s.to_string())),
+        }
+    }
+}
+
+/// Everything needed to write depth back the way a file stored it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DepthEncoding {
+    /// Container and value transform.
+    pub format: DepthFormat,
+    /// Integer units per metre (1000 = millimetres, 5000 = TUM). Ignored by
+    /// [`DepthFormat::NyuRaw`], whose values are disparities (set to 1000 there).
+    pub units_per_m: f64,
+    /// The stored value of an invalid pixel: 0 or 65535 (7-Scenes) for PNG/TIFF/SUN,
+    /// [`NYU_INVALID_RAW`] for NYU raw. On read, 0 and 65535 are *both* invalid whatever this
+    /// says; it only decides what [`write_depth`] stores for invalid pixels.
+    pub invalid_value: u16,
+}
+
+impl Default for DepthEncoding {
+    /// 16-bit PNG, millimetres, 0 = invalid.
+    fn default() -> Self {
+        Self::png(DEFAULT_UNITS_PER_M)
+    }
+}
+
+impl DepthEncoding {
+    /// 16-bit PNG at `units_per_m`, invalid = 0.
+    pub fn png(units_per_m: f64) -> Self {
+        Self {
+            format: DepthFormat::Png,
+            units_per_m,
+            invalid_value: 0,
+        }
+    }
+
+    /// 16-bit TIFF at `units_per_m`, invalid = 0.
+    pub fn tiff(units_per_m: f64) -> Self {
+        Self {
+            format: DepthFormat::Tiff,
+            ..Self::png(units_per_m)
+        }
+    }
+
+    /// The TUM RGB-D encoding: 16-bit PNG, 5000 units per metre.
+    pub fn tum() -> Self {
+        Self::png(TUM_UNITS_PER_M)
+    }
+
+    /// The 7-Scenes encoding: 16-bit PNG millimetres, invalid = 65535.
+    pub fn seven_scenes() -> Self {
+        Self::png(DEFAULT_UNITS_PER_M).with_invalid_value(INVALID_SENTINEL)
+    }
+
+    /// SUN RGB-D: bit-rotated 16-bit PNG millimetres, invalid = 0.
+    pub fn sun() -> Self {
+        Self {
+            format: DepthFormat::Sun,
+            ..Self::png(DEFAULT_UNITS_PER_M)
+        }
+    }
+
+    /// NYU Depth v2 raw Kinect disparity PGM, invalid = 2047.
+    pub fn nyu_raw() -> Self {
+        Self {
+            format: DepthFormat::NyuRaw,
+            units_per_m: DEFAULT_UNITS_PER_M,
+            invalid_value: NYU_INVALID_RAW,
+        }
+    }
+
+    /// The default encoding of a format: 1000 units per metre, the format's invalid value.
+    pub fn for_format(format: DepthFormat) -> Self {
+        match format {
+            DepthFormat::Png => Self::png(DEFAULT_UNITS_PER_M),
+            DepthFormat::Tiff => Self::tiff(DEFAULT_UNITS_PER_M),
+            DepthFormat::Sun => Self::sun(),
+            DepthFormat::NyuRaw => Self::nyu_raw(),
+        }
+    }
+
+    /// The same encoding with another invalid value.
+    pub fn with_invalid_value(self, invalid_value: u16) -> Self {
+        Self { invalid_value, ..self }
+    }
+
+    /// The same encoding with another scale.
+    pub fn with_units_per_m(self, units_per_m: f64) -> Self {
+        Self { units_per_m, ..self }
+    }
+
+    /// Smallest depth that survives a round trip, metres.
+    pub fn min_depth_m(&self) -> f64 {
+        match self.format {
+            DepthFormat::NyuRaw => NYU_DEPTH_NUMERATOR / NYU_DOFF,
+            _ => 1.0 / self.units_per_m,
+        }
+    }
+
+    /// Largest depth that can be stored, metres (65534 units, or raw 1092 for NYU: 702.6 m).
+    pub fn max_depth_m(&self) -> f64 {
+        match self.format {
+            DepthFormat::NyuRaw => NYU_DEPTH_NUMERATOR / (NYU_DOFF - f64::from(NYU_MAX_VALID_RAW)),
+            _ => f64::from(MAX_VALID_UNITS) / self.units_per_m,
+        }
+    }
+
+    /// Checks the scale and the invalid value.
+    fn validate(&self, path: &Path) -> Result<()> {
+        if self.format.has_scale() && !(self.units_per_m.is_finite() && self.units_per_m > 0.0) {
+            return Err(IoError::InvalidScale {
+                path: path.to_path_buf(),
+                units_per_m: self.units_per_m,
+            });
+        }
+        let ok = match self.format {
+            DepthFormat::NyuRaw => self.invalid_value > NYU_MAX_VALID_RAW,
+            _ => self.invalid_value == 0 || self.invalid_value == INVALID_SENTINEL,
+        };
+        if !ok {
+            return Err(IoError::Format {
+                path: path.to_path_buf(),
+                message: format!(
+                    "invalid value {} cannot mark missing depth in {} (use {})",
+                    self.invalid_value,
+                    self.format,
+                    if self.format == DepthFormat::NyuRaw {
+                        "2047"
+                    } else {
+                        "0 or 65535"
+                    }
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// Converts stored integers to metres.
+    fn decode(&self, raw: &Image<u16>) -> DepthImage {
+        let (w, h) = raw.dimensions();
+        let data = match self.format {
+            DepthFormat::NyuRaw => raw.data().iter().map(|&v| nyu_raw_value_to_m(v)).collect(),
+            DepthFormat::Png | DepthFormat::Tiff => {
+                let s = self.units_per_m;
+                raw.data().iter().map(|&v| units_to_m(v, s)).collect()
+            }
+            DepthFormat::Sun => {
+                let s = self.units_per_m;
+                raw.data().iter().map(|&v| units_to_m(v.rotate_right(3), s)).collect()
+            }
+        };
+        DepthImage::from_image(rebuild(w, h, data))
+    }
+
+    /// Converts metres to stored integers, refusing values that would not round-trip.
+    fn encode(&self, path: &Path, depth: &DepthImage) -> Result<Vec<u16>> {
+        let w = depth.width().max(1);
+        let out_of_range = |i: usize, z: f32| IoError::DepthOutOfRange {
+            path: path.to_path_buf(),
+            x: i % w,
+            y: i / w,
+            depth_m: z,
+            min_depth_m: self.min_depth_m(),
+            max_depth_m: self.max_depth_m(),
+        };
+        let mut out = Vec::with_capacity(depth.data().len());
+        for (i, &z) in depth.data().iter().enumerate() {
+            if !(z > 0.0 && z.is_finite()) {
+                out.push(self.invalid_value);
+                continue;
+            }
+            let v = match self.format {
+                DepthFormat::NyuRaw => {
+                    let raw = (NYU_DOFF - NYU_DEPTH_NUMERATOR / f64::from(z)).round();
+                    if !(0.0..=f64::from(NYU_MAX_VALID_RAW)).contains(&raw) {
+                        return Err(out_of_range(i, z));
+                    }
+                    raw as u16
+                }
+                DepthFormat::Png | DepthFormat::Tiff | DepthFormat::Sun => {
+                    let u = (f64::from(z) * self.units_per_m).round();
+                    if !(1.0..=f64::from(MAX_VALID_UNITS)).contains(&u) {
+                        return Err(out_of_range(i, z));
+                    }
+                    let u = u as u16;
+                    if self.format == DepthFormat::Sun { u.rotate_left(3) } else { u }
+                }
+            };
+            out.push(v);
+        }
+        Ok(out)
+    }
+}
+
+impl fmt::Display for DepthEncoding {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.format {
+            DepthFormat::NyuRaw => write!(f, "nyu-raw (Kinect raw disparity, invalid {})", self.invalid_value),
+            fmt => write!(
+                f,
+                "{fmt} ({} units/m, invalid {})",
+                self.units_per_m, self.invalid_value
+            ),
+        }
+    }
+}
+
+fn units_to_m(v: u16, units_per_m: f64) -> f32 {
+    if v == 0 || v == INVALID_SENTINEL {
+        0.0
+    } else {
+        (f64::from(v) / units_per_m) as f32
+    }
+}
+
+/// Metres of one NYU raw value (0 for `raw ≥ 1093`, which includes the 2047 no-data code).
+///
+/// The NYU toolbox (`depth_rel2depth_abs.m`) also clamps depths beyond 10 m to 10 m; we do not,
+/// since a fabricated depth would distort resolution analyses (Kinect raw values that far out do
+/// not occur in practice: the real frame spans 1.39–6.69 m).
+pub fn nyu_raw_value_to_m(raw: u16) -> f32 {
+    if raw > NYU_MAX_VALID_RAW {
+        0.0
+    } else {
+        (NYU_DEPTH_NUMERATOR / (NYU_DOFF - f64::from(raw))) as f32
+    }
+}
+
+/// Rebuilds an image of known size from a buffer of the same length.
+fn rebuild(w: usize, h: usize, data: Vec<f32>) -> Image<f32> {
+    Image::from_vec(w, h, data).unwrap_or_else(|_| Image::filled(w, h, 0.0))
+}
+
+/// How [`read_depth`] interprets a file.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ReadOptions {
+    /// The format; `None` infers it from the extension ([`DepthFormat::from_path`]).
+    pub format: Option<DepthFormat>,
+    /// Units per metre for PNG/TIFF/SUN; `None` = 1000 (millimetres). Must be positive; giving it
+    /// for `nyu-raw` (which stores disparity) is an error.
+    pub scale_units_per_m: Option<f64>,
+}
+
+impl ReadOptions {
+    /// Options with an explicit format.
+    pub fn with_format(self, format: DepthFormat) -> Self {
+        Self {
+            format: Some(format),
+            ..self
+        }
+    }
+
+    /// Options with an explicit scale.
+    pub fn with_scale(self, units_per_m: f64) -> Self {
+        Self {
+            scale_units_per_m: Some(units_per_m),
+            ..self
+        }
+    }
+}
+
+/// A depth map and the encoding it was read from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoadedDepth {
+    /// Depth in metres, 0 = invalid.
+    pub depth: DepthImage,
+    /// How the file stored it; pass it to [`write_depth`] to write in the same encoding.
+    pub encoding: DepthEncoding,
+}
+
+/// The integer values of a depth file, before conversion to metres.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawDepth {
+    /// Stored values: PNG/TIFF depth units, SUN millimetres (bit rotation undone), NYU raw
+    /// disparity in 1/8 px (byte order fixed).
+    pub values: Image<u16>,
+    /// The encoding (as [`read_depth`] would report it).
+    pub encoding: DepthEncoding,
+}
+
+fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthFormat> {
+    match format.or_else(|| DepthFormat::from_path(path)) {
+        Some(f) => Ok(f),
+        None => Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: "cannot infer the depth format from the extension (.png, .tif, .tiff, .pgm); \
+                      name it: png, tiff, nyu-raw or sun"
+                .into(),
+        }),
+    }
+}
+
+/// Reads the stored integer values of a depth file (see [`RawDepth`]).
+pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<RawDepth> {
+    let path = path.as_ref();
+    let format = resolve_format(path, options.format)?;
+    let mut encoding = DepthEncoding::for_format(format);
+    match (format, options.scale_units_per_m) {
+        (DepthFormat::NyuRaw, Some(_)) => {
+            return Err(IoError::Format {
+                path: path.to_path_buf(),
+                message: "a depth scale does not apply to nyu-raw files (they store Kinect disparity)".into(),
+            });
+        }
+        (_, Some(s)) => encoding.units_per_m = s,
+        (_, None) => {}
+    }
+    encoding.validate(path)?;
+    let values = match format {
+        DepthFormat::Png | DepthFormat::Sun => decode_l16(path, Container::Png)?,
+        DepthFormat::Tiff => decode_l16(path, Container::Tiff)?,
+        DepthFormat::NyuRaw => read_nyu_raw(path)?,
+    };
+    let values = match format {
+        DepthFormat::Sun => values.map(|v| v.rotate_right(3)),
+        _ => values,
+    };
+    if format.has_scale() && values.data().contains(&INVALID_SENTINEL) {
+        encoding.invalid_value = INVALID_SENTINEL;
+    }
+    Ok(RawDepth { values, encoding })
+}
+
+/// Reads a depth file into metres.
+///
+/// The format comes from `options.format` or the extension; the scale from
+/// `options.scale_units_per_m` (default 1000). Non-16-bit or multi-channel images are rejected
+/// with [`IoError::UnsupportedImage`]; decoding is bounded by [`crate::limits`].
+pub fn read_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<LoadedDepth> {
+    let path = path.as_ref();
+    let RawDepth { values, encoding } = read_raw_depth(path, options)?;
+    // `values` is already un-rotated for SUN: decode it as a plain PNG at the same scale.
+    let plain = DepthEncoding {
+        format: if encoding.format == DepthFormat::Sun {
+            DepthFormat::Png
+        } else {
+            encoding.format
+        },
+        ..encoding
+    };
+    Ok(LoadedDepth {
+        depth: plain.decode(&values),
+        encoding,
+    })
+}
+
+/// Writes `depth` (metres) in `encoding`, atomically.
+///
+/// Values are rounded to the nearest unit; invalid pixels (0, negative, NaN, infinite) are
+/// stored as `encoding.invalid_value`. A valid depth that the encoding cannot hold (it would
+/// round to 0 or exceed 65534 units, i.e. [`DepthEncoding::max_depth_m`]) is an
+/// [`IoError::DepthOutOfRange`] naming the pixel and the valid range — never a silent wrap.
+pub fn write_depth(path: impl AsRef<Path>, depth: &DepthImage, encoding: &DepthEncoding) -> Result<()> {
+    let path = path.as_ref();
+    encoding.validate(path)?;
+    check_writable_size(path, depth.width(), depth.height())?;
+    let values = encoding.encode(path, depth)?;
+    let (w, h) = (depth.width(), depth.height());
+    match encoding.format {
+        DepthFormat::Png | DepthFormat::Sun => write_png_l16(path, w, h, &values),
+        DepthFormat::Tiff => write_tiff_l16(path, w, h, &values),
+        DepthFormat::NyuRaw => write_nyu_pgm(path, w, h, &values),
+    }
+}
+
+/// Reads the raw values of an NYU raw-disparity PGM.
+///
+/// NYU stores 16-bit values **little-endian** although the PGM specification says big-endian
+/// (the toolbox applies `swapbytes` after `imread`). Raw Kinect values have 11 bits, so the byte
+/// order is checked: if some little-endian value exceeds 2047 but every big-endian one fits, the
+/// file was written spec-conformingly and is read big-endian; if neither fits it is rejected.
+pub fn read_nyu_raw(path: impl AsRef<Path>) -> Result<Image<u16>> {
+    let path = path.as_ref();
+    let (header, bytes) = read_pnm(path)?;
+    if header.kind != PnmKind::Gray || header.bytes_per_sample() != 2 {
+        return Err(IoError::UnsupportedImage {
+            path: path.to_path_buf(),
+            found: format!(
+                "{} PNM with maxval {}",
+                if header.kind == PnmKind::Gray { "grey" } else { "colour" },
+                header.maxval
+            ),
+            expected: "16-bit grey PGM (P5, maxval > 255) of raw Kinect disparity".into(),
+        });
+    }
+    let le: Vec<u16> = bytes.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+    let values = if le.iter().all(|&v| v <= NYU_INVALID_RAW) {
+        le
+    } else {
+        let be: Vec<u16> = le.iter().map(|v| v.swap_bytes()).collect();
+        if be.iter().all(|&v| v <= NYU_INVALID_RAW) {
+            be
+        } else {
+            return Err(IoError::malformed(
+                path,
+                "values exceed the 11-bit Kinect range (0..=2047) in either byte order: not a raw Kinect disparity file",
+            ));
+        }
+    };
+    Image::from_vec(header.width, header.height, values).map_err(|e| IoError::core(path, None, e))
+}
+
+fn write_nyu_pgm(path: &Path, width: usize, height: usize, values: &[u16]) -> Result<()> {
+    let mut bytes = Vec::with_capacity(32 + values.len() * 2);
+    bytes.extend_from_slice(format!("P5\n{width} {height}\n65535\n").as_bytes());
+    for v in values {
+        bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    write_atomic(path, |w| w.write_all(&bytes))
+}
+
+/// NYU raw values to metres: `351.3 / (1092.5 − raw)`, 0 for `raw ≥ 1093` (incl. 2047).
+pub fn nyu_raw_to_depth(raw: &Image<u16>) -> DepthImage {
+    let (w, h) = raw.dimensions();
+    DepthImage::from_image(rebuild(w, h, raw.data().iter().map(|&v| nyu_raw_value_to_m(v)).collect()))
+}
+
+/// NYU raw values to disparity in pixels with the ROS kinect model `D_px = (doff − raw) / 8`;
+/// raw values at or beyond `doff` (incl. 2047) are invalid (0).
+///
+/// With `doff =` [`NYU_DOFF`] (1092.5), `Z = f·B / D_px` with `f·B =` [`NYU_FB_PX_M`]
+/// (351.3 / 8 = 43.9125 px·m) reproduces the NYU toolbox depth exactly; [`nyu_sensor_model`]
+/// packages that `f·B`. The ROS `kinect_calibration` default `doff` is about 1090.
+pub fn nyu_raw_to_disparity(raw: &Image<u16>, doff: f64) -> DisparityImage {
+    let (w, h) = raw.dimensions();
+    let steps = f64::from(KINECT_RAW_STEPS_PER_PX);
+    let data = raw
+        .data()
+        .iter()
+        .map(|&v| {
+            let d = (doff - f64::from(v)) / steps;
+            if v != NYU_INVALID_RAW && d > 0.0 { d as f32 } else { 0.0 }
+        })
+        .collect();
+    DisparityImage::from_image(rebuild(w, h, data))
+}
+
+/// The NYU Depth v2 depth camera (toolbox `camera_params.m`): 640×480, fx 582.62, fy 582.69,
+/// cx 313.04, cy 238.44.
+pub fn nyu_intrinsics() -> Intrinsics {
+    Intrinsics {
+        width: 640,
+        height: 480,
+        fx: 582.624_481_677_379_6,
+        fy: 582.691_032_709_886_4,
+        cx: 313.044_758_708_047_3,
+        cy: 238.443_896_266_203_9,
+    }
+}
+
+/// The sensor model implied by the NYU constants: focal length fx of [`nyu_intrinsics`],
+/// baseline `NYU_FB_PX_M / fx` (≈ 0.07537 m) so that `f·B = 43.9125` px·m, 8 sub-pixel steps,
+/// the default σ_D.
+pub fn nyu_sensor_model() -> SensorModel {
+    let f = nyu_intrinsics().fx;
+    SensorModel {
+        focal_px: f,
+        baseline_m: NYU_FB_PX_M / f,
+        subpixel_steps: KINECT_RAW_STEPS_PER_PX,
+        sigma_d_px: sl_core::sensor::DEFAULT_SIGMA_D_PX,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp(w: usize, h: usize, scale: f32) -> DepthImage {
+        DepthImage::from_image(Image::from_fn(w, h, |x, y| {
+            if (x + y) % 7 == 0 {
+                0.0
+            } else {
+                (1 + x + w * y) as f32 * scale
+            }
+        }))
+    }
+
+    #[test]
+    fn format_names_and_extensions() {
+        for (f, name) in DepthFormat::ALL.iter().zip(DepthFormat::NAMES) {
+            assert_eq!(name.parse::<DepthFormat>().unwrap(), *f);
+            assert_eq!(f.to_string(), name);
+        }
+        assert_eq!("TIF".parse::<DepthFormat>().unwrap(), DepthFormat::Tiff);
+        assert!("jpeg".parse::<DepthFormat>().is_err());
+        assert_eq!(DepthFormat::from_path(Path::new("a/b.PNG")), Some(DepthFormat::Png));
+        assert_eq!(DepthFormat::from_path(Path::new("b.tif")), Some(DepthFormat::Tiff));
+        assert_eq!(DepthFormat::from_path(Path::new("b.tiff")), Some(DepthFormat::Tiff));
+        assert_eq!(DepthFormat::from_path(Path::new("b.pgm")), Some(DepthFormat::NyuRaw));
+        assert_eq!(DepthFormat::from_path(Path::new("b.jpg")), None);
+        assert_eq!(DepthFormat::from_path(Path::new("noext")), None);
+    }
+
+    #[test]
+    #[allow(clippy::manual_rotate)] // the point is to spell out the toolbox's shifts
+    fn sun_rotation_matches_toolbox() {
+        // Toolbox: bitor(bitshift(v, -3), bitshift(v, 16 - 3)) on uint16.
+        for v in [0u16, 1, 8, 0x1234, 0xfff8, 0xffff, 12345] {
+            let toolbox = (v >> 3) | (v << 13);
+            assert_eq!(v.rotate_right(3), toolbox);
+            assert_eq!(toolbox.rotate_left(3), v);
+        }
+    }
+
+    #[test]
+    fn nyu_constants() {
+        assert!((NYU_FB_PX_M - 43.9125).abs() < 1e-12);
+        // Disparity model reproduces the toolbox depth.
+        let raw = Image::from_vec(4, 1, vec![839u16, 1000, 2047, 1093]).unwrap();
+        let z = nyu_raw_to_depth(&raw);
+        let d = nyu_raw_to_disparity(&raw, NYU_DOFF);
+        for i in 0..2 {
+            let zt = 351.3 / (1092.5 - f64::from(raw.data()[i]));
+            assert!((f64::from(z.data()[i]) - zt).abs() < 1e-6);
+            assert!((NYU_FB_PX_M / f64::from(d.data()[i]) - zt).abs() < 1e-5);
+        }
+        assert_eq!(&z.data()[2..], &[0.0, 0.0]);
+        assert_eq!(&d.data()[2..], &[0.0, 0.0]);
+        let s = nyu_sensor_model();
+        assert!((s.fb() - NYU_FB_PX_M).abs() < 1e-12);
+    }
+
+    #[test]
+    fn encode_rejects_out_of_range() {
+        let path = Path::new("x.png");
+        let mut d = DepthImage::invalid(3, 2);
+        d.data_mut()[4] = 14.0; // > 65534 / 5000 = 13.1068 m
+        let err = DepthEncoding::tum().encode(path, &d).unwrap_err();
+        match &err {
+            IoError::DepthOutOfRange { x, y, max_depth_m, .. } => {
+                assert_eq!((*x, *y), (1, 1));
+                assert!((max_depth_m - 13.1068).abs() < 1e-9);
+            }
+            other => panic!("unexpected {other}"),
+        }
+        assert!(err.to_string().contains("13.1068"), "{err}");
+        d.data_mut()[4] = 1e-5;
+        assert!(DepthEncoding::default().encode(path, &d).is_err());
+        d.data_mut()[4] = 0.1; // nearer than NYU's 0.32 m
+        assert!(DepthEncoding::nyu_raw().encode(path, &d).is_err());
+    }
+
+    #[test]
+    fn encode_decode_round_trip_all_formats() {
+        let d = ramp(16, 8, 0.013);
+        for enc in [
+            DepthEncoding::png(1000.0),
+            DepthEncoding::tum(),
+            DepthEncoding::seven_scenes(),
+            DepthEncoding::tiff(1000.0),
+            DepthEncoding::sun(),
+        ] {
+            let v = enc.encode(Path::new("x"), &d).unwrap();
+            let img = Image::from_vec(16, 8, v).unwrap();
+            let plain = if enc.format == DepthFormat::Sun {
+                img.map(|v| v.rotate_right(3))
+            } else {
+                img
+            };
+            let back = DepthEncoding { format: DepthFormat::Png, ..enc }.decode(&plain);
+            for (a, b) in back.data().iter().zip(d.data()) {
+                assert!((a - b).abs() <= 0.5 / enc.units_per_m as f32 + 1e-6, "{enc}: {a} vs {b}");
+                assert_eq!(*a == 0.0, *b == 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn invalid_values_validated() {
+        let p = Path::new("x");
+        assert!(DepthEncoding::png(1000.0).with_invalid_value(7).validate(p).is_err());
+        assert!(DepthEncoding::png(0.0).validate(p).is_err());
+        assert!(DepthEncoding::png(f64::NAN).validate(p).is_err());
+        assert!(DepthEncoding::png(-5.0).validate(p).is_err());
+        assert!(DepthEncoding::nyu_raw().with_invalid_value(5).validate(p).is_err());
+        assert!(DepthEncoding::nyu_raw().validate(p).is_ok());
+        assert!(DepthEncoding::seven_scenes().validate(p).is_ok());
+    }
+}

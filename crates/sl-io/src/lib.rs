@@ -1,0 +1,78 @@
+//! # sl-io — files in, files out
+//!
+//! The I/O layer of the `sldepth` workspace. Depth frames enter the pipeline here and results
+//! leave through here:
+//!
+//! ```text
+//! depth frames ─▶ sl-io ─▶ sl-core types ─▶ sl-filter ─▶ sl-tsdf / sl-planes ─▶ sl-io ─▶ files
+//! ```
+//!
+//! - [`depth`]: 16-bit PNG / TIFF depth at any scale (1000 units/m default, 5000 for TUM; 0 and
+//!   65535 invalid), NYU Depth v2 raw Kinect disparity PGM, SUN RGB-D bit-rotated PNG. Reading
+//!   returns the [`DepthEncoding`] so output can be written the way the input was stored.
+//! - [`rgb`]: colour frames in (PNG, TIFF, PPM), 8-bit RGB / grey and 16-bit label PNGs out.
+//! - [`camera`]: Open3D `PinholeCameraIntrinsic` JSON plus sensor-model keys → [`sl_core::Camera`];
+//!   7-Scenes `camera-intrinsics.txt`.
+//! - [`ply`]: point clouds and triangle meshes (normals, colours, a per-vertex scalar), binary or
+//!   ASCII, through `ply-rs`.
+//! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt`, Open3D `.log`, 7-Scenes
+//!   `frame-*.pose.txt`, all as [`Frame`]s with camera-to-world [`sl_core::Pose`]s.
+//! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
+//!   rename), so readers never see half-written output.
+//!
+//! Every malformed input gives an [`IoError`] naming the file and the problem (with the line
+//! number for text formats); decoders are bounded by [`limits`], and no buffer is sized from an
+//! unchecked header.
+//!
+//! ```
+//! use sl_io::{DepthEncoding, ReadOptions, read_depth, write_depth};
+//! use sl_core::DepthImage;
+//!
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! let dir = tempfile::tempdir()?;
+//! let path = dir.path().join("depth.png");
+//!
+//! // A 4×2 frame: 1.2346 m everywhere except one invalid pixel, saved the TUM way (1/5000 m).
+//! let mut depth = DepthImage::from_vec(4, 2, vec![1.2346; 8])?;
+//! depth.data_mut()[3] = 0.0;
+//! write_depth(&path, &depth, &DepthEncoding::tum())?;
+//!
+//! // Reading needs the scale (a PNG does not record it); the encoding comes back for writing.
+//! let loaded = read_depth(&path, &ReadOptions::default().with_scale(5000.0))?;
+//! assert_eq!(loaded.encoding, DepthEncoding::tum());
+//! assert_eq!(loaded.depth.valid_count(), 7);
+//! assert!((loaded.depth.get(0, 0).unwrap_or(0.0) - 1.2346).abs() < 1e-6);
+//!
+//! // Depth beyond what 16 bits hold at this scale (65534 / 5000 = 13.1068 m) is an error.
+//! depth.data_mut()[0] = 20.0;
+//! assert!(write_depth(&path, &depth, &DepthEncoding::tum()).is_err());
+//! # Ok(())
+//! # }
+//! ```
+#![deny(missing_docs)]
+// Tests may unwrap / panic (CONVENTIONS.md); library code may not.
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+pub mod atomic;
+pub mod camera;
+pub mod depth;
+pub mod error;
+pub mod limits;
+pub mod ply;
+mod pnm;
+mod raster;
+pub mod rgb;
+pub mod trajectory;
+
+pub use camera::{read_7scenes_intrinsics, read_camera, read_camera_json, read_intrinsics_txt, write_camera_json};
+pub use depth::{
+    DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadOptions, read_depth, read_nyu_raw, read_raw_depth,
+    write_depth,
+};
+pub use error::{IoError, Result};
+pub use ply::{PlyData, PlyFormat, VertexScalar, read_ply, write_ply};
+pub use trajectory::{
+    DEFAULT_MAX_DT_S, Frame, TimedPose, TumSequence, read_7scenes_sequence, read_open3d_log, read_open3d_log_frames,
+    read_tum_sequence,
+};
+pub use rgb::{read_gray16, read_rgb, write_gray8_png, write_gray16_png, write_rgb_png};

@@ -1,0 +1,762 @@
+//! PLY point clouds and triangle meshes through `ply-rs` (package `ply-rs-bw`).
+//!
+//! One type, [`PlyData`], covers clouds and meshes: vertex positions, optional normals,
+//! colours and one named per-vertex scalar (e.g. `confidence`, `sigma_z_m`), and triangle faces
+//! (empty for a cloud). Files follow the MeshLab / Open3D conventions:
+//!
+//! ```text
+//! element vertex N
+//! property float x / y / z
+//! property float nx / ny / nz            (with normals)
+//! property uchar red / green / blue      (with colours)
+//! property float <scalar name>           (with a scalar)
+//! element face M                          (only when there are faces)
+//! property list uchar int vertex_indices
+//! ```
+//!
+//! [`write_ply`] streams vertices and faces straight from the slices (no per-element
+//! allocation); [`read_ply`] accepts any scalar types for coordinates, any integer list type for
+//! `vertex_indices` (or `vertex_index`), binary (either endianness) or ASCII, and ignores other
+//! elements. Non-triangle faces are rejected with their index.
+
+use std::fmt;
+use std::fs::File;
+use std::io::{BufReader, Write};
+use std::path::Path;
+use std::str::FromStr;
+
+use ply_rs::parser::{Parser, Reader};
+use ply_rs::ply::{
+    Addable, ElementDef, Encoding, Header, PropertyAccess, PropertyAccessResult, PropertyDef, PropertyType,
+    ScalarType,
+};
+use ply_rs::writer::Writer;
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+
+/// Vertex property names with a fixed meaning (never taken as the scalar).
+const RESERVED: [&str; 10] = ["x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"];
+
+/// A named per-vertex scalar.
+#[derive(Debug, Clone, PartialEq)]
+pub struct VertexScalar {
+    /// Property name, e.g. `confidence` (a PLY identifier: no whitespace, not `x`, `red`, ...).
+    pub name: String,
+    /// One value per vertex.
+    pub values: Vec<f32>,
+}
+
+/// A point cloud or triangle mesh.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PlyData {
+    /// Vertex positions (metres for our outputs).
+    pub positions: Vec<[f32; 3]>,
+    /// Optional unit normals, one per vertex.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Optional 8-bit RGB colours, one per vertex.
+    pub colors: Option<Vec<[u8; 3]>>,
+    /// Optional named scalar, one per vertex.
+    pub scalar: Option<VertexScalar>,
+    /// Triangles as vertex indices (empty for a point cloud).
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl PlyData {
+    /// A point cloud without attributes.
+    pub fn from_positions(positions: Vec<[f32; 3]>) -> Self {
+        Self {
+            positions,
+            ..Self::default()
+        }
+    }
+
+    /// A point cloud from `sl-core` points (e.g. `DepthImage::to_points`).
+    pub fn from_points(points: &[sl_core::nalgebra::Point3<f32>]) -> Self {
+        Self::from_positions(points.iter().map(|p| [p.x, p.y, p.z]).collect())
+    }
+
+    /// A triangle mesh without attributes.
+    pub fn mesh(positions: Vec<[f32; 3]>, faces: Vec<[u32; 3]>) -> Self {
+        Self {
+            positions,
+            faces,
+            ..Self::default()
+        }
+    }
+
+    /// Adds normals.
+    pub fn with_normals(self, normals: Vec<[f32; 3]>) -> Self {
+        Self {
+            normals: Some(normals),
+            ..self
+        }
+    }
+
+    /// Adds colours.
+    pub fn with_colors(self, colors: Vec<[u8; 3]>) -> Self {
+        Self {
+            colors: Some(colors),
+            ..self
+        }
+    }
+
+    /// Adds a named per-vertex scalar.
+    pub fn with_scalar(self, name: impl Into<String>, values: Vec<f32>) -> Self {
+        Self {
+            scalar: Some(VertexScalar {
+                name: name.into(),
+                values,
+            }),
+            ..self
+        }
+    }
+
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Checks that every attribute has one entry per vertex, that face indices are in range
+    /// (and fit a PLY `int`), and that the scalar name is a usable PLY identifier.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        let n = self.positions.len();
+        if let Some(v) = &self.normals
+            && v.len() != n
+        {
+            return Err(format!("{} normals for {n} vertices", v.len()));
+        }
+        if let Some(v) = &self.colors
+            && v.len() != n
+        {
+            return Err(format!("{} colours for {n} vertices", v.len()));
+        }
+        if let Some(s) = &self.scalar {
+            if s.values.len() != n {
+                return Err(format!("{} values of scalar {:?} for {n} vertices", s.values.len(), s.name));
+            }
+            let bad_char = s.name.chars().any(|c| c.is_whitespace() || c.is_control());
+            if s.name.is_empty() || bad_char || RESERVED.contains(&s.name.as_str()) {
+                return Err(format!(
+                    "scalar name {:?} must be a non-empty PLY identifier without whitespace and not one of {RESERVED:?}",
+                    s.name
+                ));
+            }
+        }
+        if n > i32::MAX as usize && !self.faces.is_empty() {
+            return Err(format!("{n} vertices cannot be indexed by PLY int face indices"));
+        }
+        if let Some((i, f)) = self.faces.iter().enumerate().find(|(_, f)| f.iter().any(|&v| v as usize >= n)) {
+            return Err(format!("face {i} {f:?} refers to a vertex beyond the {n} vertices"));
+        }
+        Ok(())
+    }
+}
+
+/// PLY payload encodings we write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PlyFormat {
+    /// `binary_little_endian 1.0` (compact and fast; the default).
+    #[default]
+    BinaryLittleEndian,
+    /// `ascii 1.0` (human-readable, about 3× larger).
+    Ascii,
+}
+
+impl fmt::Display for PlyFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Self::BinaryLittleEndian => "binary",
+            Self::Ascii => "ascii",
+        })
+    }
+}
+
+impl FromStr for PlyFormat {
+    type Err = String;
+
+    /// Parses `binary` (or `binary_little_endian`) and `ascii`.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "binary" | "binary_little_endian" | "binary-little-endian" | "bin" => Ok(Self::BinaryLittleEndian),
+            "ascii" | "text" => Ok(Self::Ascii),
+            other => Err(format!("unknown PLY format {other:?} (expected binary or ascii)")),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing
+
+/// One vertex, as the ply-rs writer sees it (built on the stack per vertex).
+#[derive(Debug, Clone, Copy, Default)]
+struct VertexOut {
+    p: [f32; 3],
+    n: [f32; 3],
+    c: [u8; 3],
+    s: f32,
+}
+
+impl PropertyAccess for VertexOut {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn get_float(&self, name: &str) -> Option<f32> {
+        Some(match name {
+            "x" => self.p[0],
+            "y" => self.p[1],
+            "z" => self.p[2],
+            "nx" => self.n[0],
+            "ny" => self.n[1],
+            "nz" => self.n[2],
+            // The only other float property we declare is the scalar.
+            _ => self.s,
+        })
+    }
+
+    fn get_uchar(&self, name: &str) -> Option<u8> {
+        match name {
+            "red" => Some(self.c[0]),
+            "green" => Some(self.c[1]),
+            "blue" => Some(self.c[2]),
+            _ => None,
+        }
+    }
+}
+
+/// One triangle, as the ply-rs writer sees it.
+#[derive(Debug, Clone, Copy, Default)]
+struct FaceOut {
+    idx: [i32; 3],
+}
+
+impl PropertyAccess for FaceOut {
+    fn new() -> Self {
+        Self::default()
+    }
+
+    fn get_list_int(&self, name: &str) -> Option<&[i32]> {
+        (name == "vertex_indices").then_some(&self.idx[..])
+    }
+}
+
+fn scalar_prop(name: &str, t: ScalarType) -> PropertyDef {
+    PropertyDef::new(name.to_string(), PropertyType::Scalar(t))
+}
+
+fn header_for(data: &PlyData, format: PlyFormat) -> Header {
+    let mut header = Header::new();
+    header.encoding = match format {
+        PlyFormat::BinaryLittleEndian => Encoding::BinaryLittleEndian,
+        PlyFormat::Ascii => Encoding::Ascii,
+    };
+    header.comments.push("written by sldepth (sl-io)".to_string());
+    let mut vertex = ElementDef::new("vertex".to_string());
+    vertex.count = data.positions.len();
+    for n in ["x", "y", "z"] {
+        vertex.properties.add(scalar_prop(n, ScalarType::Float));
+    }
+    if data.normals.is_some() {
+        for n in ["nx", "ny", "nz"] {
+            vertex.properties.add(scalar_prop(n, ScalarType::Float));
+        }
+    }
+    if data.colors.is_some() {
+        for n in ["red", "green", "blue"] {
+            vertex.properties.add(scalar_prop(n, ScalarType::UChar));
+        }
+    }
+    if let Some(s) = &data.scalar {
+        vertex.properties.add(scalar_prop(&s.name, ScalarType::Float));
+    }
+    header.elements.add(vertex);
+    if !data.faces.is_empty() {
+        let mut face = ElementDef::new("face".to_string());
+        face.count = data.faces.len();
+        face.properties.add(PropertyDef::new(
+            "vertex_indices".to_string(),
+            PropertyType::List(ScalarType::UChar, ScalarType::Int),
+        ));
+        header.elements.add(face);
+    }
+    header
+}
+
+/// Bytes encoded in memory before each hand-over to the output (keeps ply-rs's per-value writes
+/// on a statically dispatched `Vec<u8>` instead of the `dyn Write` of [`write_atomic`]).
+const ENCODE_CHUNK_BYTES: usize = 1 << 20;
+
+fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io::Result<()> {
+    let header = header_for(data, format);
+    let mut chunk: Vec<u8> = Vec::with_capacity(ENCODE_CHUNK_BYTES + 4096);
+    let vw = Writer::<VertexOut>::new();
+    vw.write_header(&mut chunk, &header)?;
+    let Some(vdef) = header.elements.get("vertex") else {
+        return Err(std::io::Error::other("internal: vertex element missing"));
+    };
+    for (i, p) in data.positions.iter().enumerate() {
+        let v = VertexOut {
+            p: *p,
+            n: data.normals.as_ref().and_then(|n| n.get(i).copied()).unwrap_or_default(),
+            c: data.colors.as_ref().and_then(|c| c.get(i).copied()).unwrap_or_default(),
+            s: data.scalar.as_ref().and_then(|s| s.values.get(i).copied()).unwrap_or_default(),
+        };
+        match format {
+            PlyFormat::BinaryLittleEndian => vw.write_little_endian_element(&mut chunk, &v, vdef)?,
+            PlyFormat::Ascii => vw.write_ascii_element(&mut chunk, &v, vdef)?,
+        };
+        if chunk.len() >= ENCODE_CHUNK_BYTES {
+            out.write_all(&chunk)?;
+            chunk.clear();
+        }
+    }
+    if let Some(fdef) = header.elements.get("face") {
+        let fw = Writer::<FaceOut>::new();
+        for f in &data.faces {
+            // `validate` checked every index is below the vertex count, which fits in i32.
+            let face = FaceOut {
+                idx: [f[0] as i32, f[1] as i32, f[2] as i32],
+            };
+            match format {
+                PlyFormat::BinaryLittleEndian => fw.write_little_endian_element(&mut chunk, &face, fdef)?,
+                PlyFormat::Ascii => fw.write_ascii_element(&mut chunk, &face, fdef)?,
+            };
+            if chunk.len() >= ENCODE_CHUNK_BYTES {
+                out.write_all(&chunk)?;
+                chunk.clear();
+            }
+        }
+    }
+    out.write_all(&chunk)
+}
+
+/// Encodes a cloud or mesh as PLY into any writer (e.g. a `Vec<u8>` or stdout); invalid data
+/// (see [`PlyData::validate`]) is an [`std::io::ErrorKind::InvalidInput`] error. Files should be
+/// written with [`write_ply`], which is atomic.
+pub fn encode_ply(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io::Result<()> {
+    data.validate()
+        .map_err(|m| std::io::Error::new(std::io::ErrorKind::InvalidInput, m))?;
+    write_body(out, data, format)
+}
+
+/// Writes a cloud or mesh atomically. Mismatched attribute lengths, out-of-range face indices or
+/// a bad scalar name are [`IoError::InvalidData`].
+pub fn write_ply(path: impl AsRef<Path>, data: &PlyData, format: PlyFormat) -> Result<()> {
+    let path = path.as_ref();
+    data.validate().map_err(|m| IoError::invalid_data(path, m))?;
+    write_atomic(path, |w| write_body(w, data, format))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reading
+
+/// A vertex as parsed (every numeric type routed through `set_num`).
+#[derive(Debug, Clone, Copy, Default)]
+struct VertexIn {
+    p: [f32; 3],
+    n: [f32; 3],
+    c: [u8; 3],
+    s: f32,
+    s_set: bool,
+}
+
+impl VertexIn {
+    fn set_num(&mut self, name: &str, v: f64) -> PropertyAccessResult {
+        match name {
+            "x" => self.p[0] = v as f32,
+            "y" => self.p[1] = v as f32,
+            "z" => self.p[2] = v as f32,
+            "nx" => self.n[0] = v as f32,
+            "ny" => self.n[1] = v as f32,
+            "nz" => self.n[2] = v as f32,
+            "red" => self.c[0] = v.clamp(0.0, 255.0) as u8,
+            "green" => self.c[1] = v.clamp(0.0, 255.0) as u8,
+            "blue" => self.c[2] = v.clamp(0.0, 255.0) as u8,
+            "alpha" => return PropertyAccessResult::Ignored,
+            // Properties arrive in header order: the first unknown one is the scalar.
+            _ if !self.s_set => {
+                self.s = v as f32;
+                self.s_set = true;
+            }
+            _ => return PropertyAccessResult::Ignored,
+        }
+        PropertyAccessResult::Set
+    }
+}
+
+impl PropertyAccess for VertexIn {
+    fn new() -> Self {
+        Self::default()
+    }
+    fn set_char(&mut self, name: &str, v: i8) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_uchar(&mut self, name: &str, v: u8) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_short(&mut self, name: &str, v: i16) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_ushort(&mut self, name: &str, v: u16) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_int(&mut self, name: &str, v: i32) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_uint(&mut self, name: &str, v: u32) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_float(&mut self, name: &str, v: f32) -> PropertyAccessResult {
+        self.set_num(name, f64::from(v))
+    }
+    fn set_double(&mut self, name: &str, v: f64) -> PropertyAccessResult {
+        self.set_num(name, v)
+    }
+}
+
+/// A face as parsed: the first three indices, the list length, and whether any index was
+/// negative.
+#[derive(Debug, Clone, Copy, Default)]
+struct FaceIn {
+    idx: [u32; 3],
+    len: usize,
+    negative: bool,
+}
+
+impl FaceIn {
+    fn set_list<T: Copy + TryInto<u32>>(&mut self, name: &str, v: &[T]) -> PropertyAccessResult {
+        if name != "vertex_indices" && name != "vertex_index" {
+            return PropertyAccessResult::Ignored;
+        }
+        self.len = v.len();
+        for (slot, x) in self.idx.iter_mut().zip(v) {
+            match (*x).try_into() {
+                Ok(u) => *slot = u,
+                Err(_) => self.negative = true,
+            }
+        }
+        PropertyAccessResult::Set
+    }
+}
+
+impl PropertyAccess for FaceIn {
+    fn new() -> Self {
+        Self::default()
+    }
+    fn set_list_char(&mut self, name: &str, v: Vec<i8>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+    fn set_list_uchar(&mut self, name: &str, v: Vec<u8>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+    fn set_list_short(&mut self, name: &str, v: Vec<i16>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+    fn set_list_ushort(&mut self, name: &str, v: Vec<u16>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+    fn set_list_int(&mut self, name: &str, v: Vec<i32>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+    fn set_list_uint(&mut self, name: &str, v: Vec<u32>) -> PropertyAccessResult {
+        self.set_list(name, &v)
+    }
+}
+
+/// An element we do not use: every property is ignored.
+#[derive(Debug, Clone, Copy, Default)]
+struct Skip;
+
+impl PropertyAccess for Skip {
+    fn new() -> Self {
+        Skip
+    }
+}
+
+fn is_int(t: &ScalarType) -> bool {
+    !matches!(t, ScalarType::Float | ScalarType::Double)
+}
+
+fn scalar_size(t: &ScalarType) -> u64 {
+    match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    }
+}
+
+/// What the vertex element declares.
+struct VertexLayout {
+    normals: bool,
+    colors: bool,
+    scalar: Option<String>,
+}
+
+/// Checks the header against what [`PlyData`] can hold, and that the declared element counts
+/// fit in the file (so nothing is sized by an unchecked count).
+fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLayout> {
+    let err = |m: String| IoError::Ply {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    let Some(vertex) = header.elements.get("vertex") else {
+        return Err(err("no `vertex` element".into()));
+    };
+    let mut min_payload: u64 = 0;
+    for (name, e) in &header.elements {
+        if e.properties.is_empty() && e.count > 0 {
+            return Err(err(format!("element `{name}` declares {} entries but no properties", e.count)));
+        }
+        // Smallest possible encoding of one entry: binary = scalar sizes + list counts;
+        // ASCII = one digit plus a separator per property.
+        let per: u64 = e
+            .properties
+            .values()
+            .map(|p| match (&header.encoding, &p.data_type) {
+                (Encoding::Ascii, _) => 2,
+                (_, PropertyType::Scalar(t)) => scalar_size(t),
+                (_, PropertyType::List(t, _)) => scalar_size(t),
+            })
+            .sum();
+        min_payload = (e.count as u64)
+            .checked_mul(per)
+            .and_then(|b| b.checked_add(min_payload))
+            .ok_or_else(|| err(format!("element `{name}` count {} overflows", e.count)))?;
+    }
+    if min_payload > file_len {
+        return Err(err(format!(
+            "the header declares at least {min_payload} bytes of data, the file has {file_len} bytes (truncated?)"
+        )));
+    }
+    let props = &vertex.properties;
+    let scalar_of = |n: &str| match props.get(n).map(|p| &p.data_type) {
+        Some(PropertyType::Scalar(t)) => Some(t.clone()),
+        _ => None,
+    };
+    for n in ["x", "y", "z"] {
+        if scalar_of(n).is_none() {
+            return Err(err(format!("vertex element lacks scalar property `{n}`")));
+        }
+    }
+    let group = |names: [&str; 3], what: &str| -> Result<bool> {
+        let present = names.iter().filter(|n| props.contains_key(**n)).count();
+        match present {
+            0 => Ok(false),
+            3 if names.iter().all(|n| scalar_of(n).is_some()) => Ok(true),
+            _ => Err(err(format!("vertex {what} need scalar properties {names:?}, found {present} of them"))),
+        }
+    };
+    let normals = group(["nx", "ny", "nz"], "normals")?;
+    let colors = group(["red", "green", "blue"], "colours")?;
+    if colors && !["red", "green", "blue"].iter().all(|n| scalar_of(n).is_some_and(|t| is_int(&t))) {
+        return Err(err("vertex colours must be integer properties (uchar 0..255)".into()));
+    }
+    let scalar = props
+        .iter()
+        .find(|(n, p)| !RESERVED.contains(&n.as_str()) && matches!(p.data_type, PropertyType::Scalar(_)))
+        .map(|(n, _)| n.clone());
+    if let Some(face) = header.elements.get("face") {
+        let list = ["vertex_indices", "vertex_index"]
+            .iter()
+            .find_map(|n| face.properties.get(*n));
+        match list.map(|p| &p.data_type) {
+            Some(PropertyType::List(_, t)) if is_int(t) => {}
+            Some(_) => return Err(err("face `vertex_indices` must be a list of integers".into())),
+            None if face.count == 0 => {}
+            None => return Err(err("face element lacks a `vertex_indices` list".into())),
+        }
+    }
+    Ok(VertexLayout {
+        normals,
+        colors,
+        scalar,
+    })
+}
+
+fn ply_err(path: &Path, e: &ply_rs::parser::ParseError) -> IoError {
+    IoError::Ply {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+/// Reads a PLY cloud or mesh (see the module docs for what is accepted).
+pub fn read_ply(path: impl AsRef<Path>) -> Result<PlyData> {
+    let path = path.as_ref();
+    let file = File::open(path).map_err(|e| IoError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+    let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
+    let header = Parser::<Skip>::new()
+        .read_header(&mut reader)
+        .map_err(|e| ply_err(path, &e))?;
+    let layout = check_header(path, &header, file_len)?;
+
+    let mut data = PlyData::default();
+    for (name, element) in &header.elements {
+        match name.as_str() {
+            "vertex" => {
+                let verts = Parser::<VertexIn>::new()
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(|e| ply_err(path, &e))?;
+                data.positions = verts.iter().map(|v| v.p).collect();
+                if layout.normals {
+                    data.normals = Some(verts.iter().map(|v| v.n).collect());
+                }
+                if layout.colors {
+                    data.colors = Some(verts.iter().map(|v| v.c).collect());
+                }
+                if let Some(name) = &layout.scalar {
+                    data.scalar = Some(VertexScalar {
+                        name: name.clone(),
+                        values: verts.iter().map(|v| v.s).collect(),
+                    });
+                }
+            }
+            "face" => {
+                let faces = Parser::<FaceIn>::new()
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(|e| ply_err(path, &e))?;
+                data.faces.reserve(faces.len());
+                for (i, f) in faces.iter().enumerate() {
+                    if f.negative {
+                        return Err(IoError::Ply {
+                            path: path.to_path_buf(),
+                            message: format!("face {i} has a negative vertex index"),
+                        });
+                    }
+                    if f.len != 3 {
+                        return Err(IoError::Ply {
+                            path: path.to_path_buf(),
+                            message: format!("face {i} has {} vertices; only triangles are supported", f.len),
+                        });
+                    }
+                    data.faces.push(f.idx);
+                }
+            }
+            _ => {
+                Parser::<Skip>::new()
+                    .read_payload_for_element(&mut reader, element, &header)
+                    .map_err(|e| ply_err(path, &e))?;
+            }
+        }
+    }
+    data.validate().map_err(|m| IoError::Ply {
+        path: path.to_path_buf(),
+        message: m,
+    })?;
+    Ok(data)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(n: usize, faces: bool) -> PlyData {
+        let positions: Vec<[f32; 3]> = (0..n).map(|i| [i as f32 * 0.25, -(i as f32) / 3.0, 1.0 + i as f32]).collect();
+        let mut d = PlyData::from_positions(positions);
+        if faces {
+            d.faces = (0..n.saturating_sub(2)).map(|i| [i as u32, i as u32 + 1, i as u32 + 2]).collect();
+        }
+        d
+    }
+
+    #[test]
+    fn round_trip_variants() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.ply");
+        for format in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+            for faces in [false, true] {
+                for attrs in 0..4 {
+                    let mut d = sample(7, faces);
+                    if attrs & 1 == 1 {
+                        d = d.with_normals((0..7).map(|i| [0.0, (i as f32).sin(), 1.0]).collect());
+                        d = d.with_colors((0..7).map(|i| [i as u8 * 30, 255, 0]).collect());
+                    }
+                    if attrs & 2 == 2 {
+                        d = d.with_scalar("confidence", (0..7).map(|i| i as f32 / 7.0).collect());
+                    }
+                    write_ply(&p, &d, format).unwrap();
+                    assert_eq!(read_ply(&p).unwrap(), d, "{format} faces={faces} attrs={attrs}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn header_is_conventional() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("m.ply");
+        write_ply(&p, &sample(4, true).with_scalar("sigma_z_m", vec![0.0; 4]), PlyFormat::Ascii).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert!(text.starts_with("ply\nformat ascii 1.0\n"), "{text}");
+        assert!(text.contains("element vertex 4\n"));
+        assert!(text.contains("property float sigma_z_m\n"));
+        assert!(text.contains("element face 2\nproperty list uchar int vertex_indices\nend_header\n"));
+        assert!(text.ends_with("3 0 1 2\n3 1 2 3\n"), "{text}");
+    }
+
+    #[test]
+    fn invalid_data_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.ply");
+        let cases = [
+            sample(3, false).with_normals(vec![[0.0; 3]; 2]),
+            sample(3, false).with_colors(vec![[0; 3]; 4]),
+            sample(3, false).with_scalar("c", vec![0.0; 2]),
+            sample(3, false).with_scalar("x", vec![0.0; 3]),
+            sample(3, false).with_scalar("two words", vec![0.0; 3]),
+            PlyData::mesh(vec![[0.0; 3]; 3], vec![[0, 1, 3]]),
+        ];
+        for d in cases {
+            let err = write_ply(&p, &d, PlyFormat::BinaryLittleEndian).unwrap_err();
+            assert!(matches!(err, IoError::InvalidData { .. }), "{err}");
+            assert!(!p.exists());
+        }
+    }
+
+    #[test]
+    fn reads_foreign_layouts() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f.ply");
+        std::fs::write(
+            &p,
+            "ply\nformat ascii 1.0\ncomment other tool\nelement vertex 3\nproperty double x\nproperty double y\n\
+             property double z\nproperty uchar alpha\nproperty float intensity\nproperty float extra\n\
+             element face 1\nproperty list uchar uint vertex_index\nelement edge 1\nproperty int a\n\
+             end_header\n0 0 0 9 0.5 7\n1 0 0 9 1.5 7\n0 1 0 9 2.5 7\n3 0 1 2\n5\n",
+        )
+        .unwrap();
+        let d = read_ply(&p).unwrap();
+        assert_eq!(d.positions, vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(d.faces, vec![[0, 1, 2]]);
+        assert_eq!(d.scalar.unwrap(), VertexScalar { name: "intensity".into(), values: vec![0.5, 1.5, 2.5] });
+        assert!(d.normals.is_none() && d.colors.is_none());
+    }
+
+    #[test]
+    fn malformed_files_rejected() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.ply");
+        let cases: [&str; 7] = [
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n0 0\n",
+            "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2 0\n",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 5\n",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+             element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n",
+            "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\n\
+             property float z\nend_header\n",
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n\
+             property float nx\nend_header\n0 0 0 1\n1 0 0 1\n0 1 0 1\n",
+        ];
+        for text in cases {
+            std::fs::write(&p, text).unwrap();
+            let err = read_ply(&p).unwrap_err();
+            assert!(err.to_string().contains("bad.ply"), "{err}");
+        }
+    }
+}

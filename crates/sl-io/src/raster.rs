@@ -1,0 +1,162 @@
+//! Bounded decoding and atomic encoding of PNG / TIFF rasters through the `image` crate.
+
+use std::fs::File;
+use std::io::{BufReader, Cursor, Write};
+use std::path::Path;
+
+use image::codecs::png::{CompressionType, FilterType, PngDecoder, PngEncoder};
+use image::codecs::tiff::{TiffDecoder, TiffEncoder};
+use image::{ColorType, DynamicImage, ExtendedColorType, ImageDecoder, ImageEncoder, ImageError};
+use sl_core::Image;
+
+use crate::atomic::write_atomic;
+use crate::error::{IoError, Result};
+use crate::limits::{MAX_SIDE, image_limits};
+
+/// Raster containers we decode ourselves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Container {
+    Png,
+    Tiff,
+}
+
+/// Converts an `image` error into an [`IoError`] naming `path`.
+pub(crate) fn image_error(path: &Path, e: ImageError) -> IoError {
+    match e {
+        ImageError::Limits(l) => IoError::too_large(path, format!("{l} (decode limits: {MAX_SIDE} px per side, 512 MiB)")),
+        ImageError::IoError(io) => IoError::io(path, io),
+        other => IoError::Decode {
+            path: path.to_path_buf(),
+            message: other.to_string(),
+        },
+    }
+}
+
+/// Human description of a colour type, for error messages.
+pub(crate) fn describe(ct: ColorType) -> String {
+    let bits = ct.bits_per_pixel() / u16::from(ct.channel_count().max(1));
+    let layout = match ct {
+        ColorType::L8 | ColorType::L16 => "single-channel (grey)",
+        ColorType::La8 | ColorType::La16 => "grey+alpha (2 channels)",
+        ColorType::Rgb8 | ColorType::Rgb16 | ColorType::Rgb32F => "RGB (3 channels)",
+        ColorType::Rgba8 | ColorType::Rgba16 | ColorType::Rgba32F => "RGBA (4 channels)",
+        _ => "unknown layout",
+    };
+    format!("{bits}-bit {layout}")
+}
+
+fn open(path: &Path) -> Result<BufReader<File>> {
+    let f = File::open(path).map_err(|e| IoError::io(path, e))?;
+    Ok(BufReader::new(f))
+}
+
+/// Decodes a 16-bit single-channel PNG or TIFF; any other layout is
+/// [`IoError::UnsupportedImage`].
+pub(crate) fn decode_l16(path: &Path, container: Container) -> Result<Image<u16>> {
+    let reader = open(path)?;
+    let img = match container {
+        Container::Png => {
+            let dec = PngDecoder::with_limits(reader, image_limits()).map_err(|e| image_error(path, e))?;
+            check_l16(path, dec.color_type())?;
+            DynamicImage::from_decoder(dec)
+        }
+        Container::Tiff => {
+            let mut dec = TiffDecoder::new(reader).map_err(|e| image_error(path, e))?;
+            dec.set_limits(image_limits()).map_err(|e| image_error(path, e))?;
+            check_l16(path, dec.color_type())?;
+            DynamicImage::from_decoder(dec)
+        }
+    }
+    .map_err(|e| image_error(path, e))?;
+    let found = describe(img.color());
+    let DynamicImage::ImageLuma16(buf) = img else {
+        return Err(unsupported_l16(path, found));
+    };
+    let (w, h) = (buf.width() as usize, buf.height() as usize);
+    Image::from_vec(w, h, buf.into_raw()).map_err(|e| IoError::core(path, None, e))
+}
+
+fn unsupported_l16(path: &Path, found: String) -> IoError {
+    IoError::UnsupportedImage {
+        path: path.to_path_buf(),
+        found,
+        expected: "16-bit single-channel (grey) depth image".into(),
+    }
+}
+
+fn check_l16(path: &Path, ct: ColorType) -> Result<()> {
+    if ct == ColorType::L16 {
+        Ok(())
+    } else {
+        Err(unsupported_l16(path, describe(ct)))
+    }
+}
+
+/// Decodes any PNG or TIFF the `image` crate understands and converts it to 8-bit RGB.
+pub(crate) fn decode_rgb8(path: &Path) -> Result<Image<[u8; 3]>> {
+    let mut reader = image::ImageReader::new(open(path)?)
+        .with_guessed_format()
+        .map_err(|e| IoError::io(path, e))?;
+    if reader.format().is_none() {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: "unrecognised image format (supported: PNG, TIFF, binary PPM/PGM)".into(),
+        });
+    }
+    reader.limits(image_limits());
+    let img = reader.decode().map_err(|e| image_error(path, e))?.into_rgb8();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
+    Image::from_vec(w, h, data).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Checks that an image can be written: non-empty and at most [`MAX_SIDE`] per side.
+pub(crate) fn check_writable_size(path: &Path, width: usize, height: usize) -> Result<(u32, u32)> {
+    if width == 0 || height == 0 || width > MAX_SIDE || height > MAX_SIDE {
+        return Err(IoError::invalid_data(
+            path,
+            format!("cannot write a {width}x{height} image (each side must be in 1..={MAX_SIDE})"),
+        ));
+    }
+    Ok((width as u32, height as u32))
+}
+
+fn png_encoder(w: &mut dyn Write) -> PngEncoder<&mut dyn Write> {
+    // Fast deflate + adaptive filtering: depth maps compress well with it and it is several
+    // times faster than the default level (see benches/io.rs).
+    PngEncoder::new_with_quality(w, CompressionType::Fast, FilterType::Adaptive)
+}
+
+/// Writes `values` (row-major, `width * height`) as a 16-bit grey PNG, atomically.
+pub(crate) fn write_png_l16(path: &Path, width: usize, height: usize, values: &[u16]) -> Result<()> {
+    let (w, h) = check_writable_size(path, width, height)?;
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    write_atomic(path, |out| {
+        png_encoder(out)
+            .write_image(&bytes, w, h, ExtendedColorType::L16)
+            .map_err(std::io::Error::other)
+    })
+}
+
+/// Writes 8-bit pixels (`channels` 1 or 3) as a PNG, atomically.
+pub(crate) fn write_png_u8(path: &Path, width: usize, height: usize, bytes: &[u8], color: ExtendedColorType) -> Result<()> {
+    let (w, h) = check_writable_size(path, width, height)?;
+    write_atomic(path, |out| {
+        png_encoder(out)
+            .write_image(bytes, w, h, color)
+            .map_err(std::io::Error::other)
+    })
+}
+
+/// Writes `values` as an uncompressed 16-bit grey TIFF, atomically. The TIFF encoder needs
+/// `Seek`, so the file is assembled in memory first.
+pub(crate) fn write_tiff_l16(path: &Path, width: usize, height: usize, values: &[u16]) -> Result<()> {
+    let (w, h) = check_writable_size(path, width, height)?;
+    let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let mut buf = Cursor::new(Vec::with_capacity(bytes.len() + 1024));
+    TiffEncoder::new(&mut buf)
+        .write_image(&bytes, w, h, ExtendedColorType::L16)
+        .map_err(|e| image_error(path, e))?;
+    let encoded = buf.into_inner();
+    write_atomic(path, |out| out.write_all(&encoded))
+}

@@ -1,0 +1,504 @@
+//! Camera trajectories of RGB-D datasets, as depth [`Frame`]s with camera-to-world poses.
+//!
+//! - TUM RGB-D: `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, `#` comments) and
+//!   `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`); each depth frame gets the
+//!   ground-truth pose nearest in time, within a maximum difference ([`DEFAULT_MAX_DT_S`]).
+//! - Open3D `.log`: a line `i j n`, then the four rows of a 4×4 camera-to-world matrix.
+//! - 7-Scenes: one `frame-XXXXXX.pose.txt` (4×4 camera-to-world, row-major) per frame next to
+//!   `frame-XXXXXX.depth.png`.
+//!
+//! All poses follow the `sl_core::pose` convention `X_w = R·X_c + t`; matrices are
+//! re-orthonormalised by [`sl_core::pose_from_matrix`], which rejects non-rigid ones.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use sl_core::{Pose, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix};
+
+use crate::atomic::write_atomic;
+use crate::camera::read_text;
+use crate::error::{IoError, Result};
+use crate::limits::MAX_TEXT_BYTES;
+
+/// Default largest |depth timestamp − pose timestamp| for TUM association, seconds.
+pub const DEFAULT_MAX_DT_S: f64 = 0.02;
+
+/// One depth frame with its camera-to-world pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The depth image file.
+    pub depth_path: PathBuf,
+    /// Camera-to-world pose.
+    pub pose: Pose,
+    /// Capture time in seconds, when the dataset has one (TUM).
+    pub timestamp: Option<f64>,
+}
+
+/// A pose with its timestamp (one line of a TUM trajectory).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimedPose {
+    /// Seconds.
+    pub timestamp: f64,
+    /// Camera-to-world pose.
+    pub pose: Pose,
+}
+
+/// One line of a TUM `associations.txt`; paths are resolved against the file's directory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Association {
+    /// Colour frame time, seconds.
+    pub rgb_timestamp: f64,
+    /// Colour frame file.
+    pub rgb_path: PathBuf,
+    /// Depth frame time, seconds.
+    pub depth_timestamp: f64,
+    /// Depth frame file.
+    pub depth_path: PathBuf,
+}
+
+/// Depth frames matched to poses, and those left without one.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TumSequence {
+    /// Frames with a pose within the time tolerance, in association-file order.
+    pub frames: Vec<Frame>,
+    /// Depth frames (timestamp, path) with no pose within the tolerance.
+    pub without_pose: Vec<(f64, PathBuf)>,
+}
+
+/// Non-empty, non-comment lines with their 1-based numbers.
+fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
+}
+
+fn parse_f64(path: &Path, line: usize, tok: &str, what: &str) -> Result<f64> {
+    let v: f64 = tok
+        .parse()
+        .map_err(|_| IoError::parse(path, line, format!("{what}: {tok:?} is not a number")))?;
+    if !v.is_finite() {
+        return Err(IoError::parse(path, line, format!("{what}: {tok:?} is not finite")));
+    }
+    Ok(v)
+}
+
+fn parse_n<const N: usize>(path: &Path, line: usize, toks: &[&str], what: &str) -> Result<[f64; N]> {
+    if toks.len() != N {
+        return Err(IoError::parse(
+            path,
+            line,
+            format!("expected {N} numbers ({what}), found {} fields", toks.len()),
+        ));
+    }
+    let mut out = [0.0; N];
+    for (o, t) in out.iter_mut().zip(toks) {
+        *o = parse_f64(path, line, t, what)?;
+    }
+    Ok(out)
+}
+
+/// Reads a TUM trajectory (`groundtruth.txt` or any `timestamp tx ty tz qx qy qz qw` file),
+/// sorted by timestamp.
+pub fn read_tum_trajectory(path: impl AsRef<Path>) -> Result<Vec<TimedPose>> {
+    let path = path.as_ref();
+    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let mut poses = Vec::new();
+    for (n, line) in data_lines(&text) {
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        let v = parse_n::<8>(path, n, &toks, "timestamp tx ty tz qx qy qz qw")?;
+        let pose = pose_from_translation_quaternion([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]])
+            .map_err(|e| IoError::core(path, Some(n), e))?;
+        poses.push(TimedPose {
+            timestamp: v[0],
+            pose,
+        });
+    }
+    poses.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
+    Ok(poses)
+}
+
+/// Writes a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, 6 decimals for time, 9 for the
+/// rest), atomically.
+pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Result<()> {
+    let mut text = String::from("# timestamp tx ty tz qx qy qz qw\n");
+    for p in poses {
+        let t = p.pose.translation.vector;
+        let q = p.pose.rotation.coords; // (i, j, k, w) = (qx, qy, qz, qw)
+        let _ = writeln!(
+            text,
+            "{:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
+            p.timestamp, t.x, t.y, t.z, q.x, q.y, q.z, q.w
+        );
+    }
+    write_atomic(path, |w| w.write_all(text.as_bytes()))
+}
+
+/// Reads a TUM `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`, extra columns
+/// ignored); relative paths are resolved against the file's directory.
+pub fn read_tum_associations(path: impl AsRef<Path>) -> Result<Vec<Association>> {
+    let path = path.as_ref();
+    let base = path.parent().unwrap_or(Path::new(""));
+    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let mut out = Vec::new();
+    for (n, line) in data_lines(&text) {
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        if toks.len() < 4 {
+            return Err(IoError::parse(
+                path,
+                n,
+                format!("expected `rgb_ts rgb_path depth_ts depth_path`, found {} fields", toks.len()),
+            ));
+        }
+        out.push(Association {
+            rgb_timestamp: parse_f64(path, n, toks[0], "rgb timestamp")?,
+            rgb_path: base.join(toks[1]),
+            depth_timestamp: parse_f64(path, n, toks[2], "depth timestamp")?,
+            depth_path: base.join(toks[3]),
+        });
+    }
+    Ok(out)
+}
+
+/// The pose nearest in time to `t` within `max_dt_s` (`poses` sorted by timestamp).
+pub fn nearest_pose(poses: &[TimedPose], t: f64, max_dt_s: f64) -> Option<&TimedPose> {
+    let i = poses.partition_point(|p| p.timestamp < t);
+    let before = i.checked_sub(1).and_then(|j| poses.get(j));
+    let after = poses.get(i);
+    let best = match (before, after) {
+        (Some(a), Some(b)) => {
+            if (t - a.timestamp).abs() <= (b.timestamp - t).abs() {
+                a
+            } else {
+                b
+            }
+        }
+        (Some(a), None) => a,
+        (None, Some(b)) => b,
+        (None, None) => return None,
+    };
+    ((best.timestamp - t).abs() <= max_dt_s).then_some(best)
+}
+
+/// Gives each depth frame `(timestamp, path)` the nearest pose within `max_dt_s`.
+pub fn associate(depth: &[(f64, PathBuf)], poses: &[TimedPose], max_dt_s: f64) -> TumSequence {
+    let mut sorted;
+    let poses = if poses.is_sorted_by(|a, b| a.timestamp <= b.timestamp) {
+        poses
+    } else {
+        sorted = poses.to_vec();
+        sorted.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
+        &sorted
+    };
+    let mut seq = TumSequence::default();
+    for (t, p) in depth {
+        match nearest_pose(poses, *t, max_dt_s) {
+            Some(tp) => seq.frames.push(Frame {
+                depth_path: p.clone(),
+                pose: tp.pose,
+                timestamp: Some(*t),
+            }),
+            None => seq.without_pose.push((*t, p.clone())),
+        }
+    }
+    seq
+}
+
+/// Reads a TUM sequence directory: `dir/groundtruth.txt` and `dir/associations.txt`, matching
+/// each associated depth frame to the nearest ground-truth pose within `max_dt_s` seconds
+/// ([`DEFAULT_MAX_DT_S`] = 0.02 s is the usual choice). A non-positive or non-finite tolerance
+/// is an error naming `associations.txt`.
+pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequence> {
+    let dir = dir.as_ref();
+    let assoc_path = dir.join("associations.txt");
+    if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
+        return Err(IoError::Format {
+            path: assoc_path,
+            message: format!("maximum time difference {max_dt_s} s must be positive"),
+        });
+    }
+    let poses = read_tum_trajectory(dir.join("groundtruth.txt"))?;
+    let assoc = read_tum_associations(&assoc_path)?;
+    let depth: Vec<(f64, PathBuf)> = assoc.into_iter().map(|a| (a.depth_timestamp, a.depth_path)).collect();
+    Ok(associate(&depth, &poses, max_dt_s))
+}
+
+/// One entry of an Open3D `.log` trajectory.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LogEntry {
+    /// The metadata line `i j n` (for a trajectory: frame index, frame index, frame count).
+    pub metadata: [u64; 3],
+    /// Camera-to-world pose.
+    pub pose: Pose,
+}
+
+/// Reads an Open3D `.log` trajectory: per entry a line of three integers, then four lines of
+/// four numbers (a camera-to-world matrix).
+pub fn read_open3d_log(path: impl AsRef<Path>) -> Result<Vec<LogEntry>> {
+    let path = path.as_ref();
+    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let lines: Vec<(usize, &str)> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim()))
+        .filter(|(_, l)| !l.is_empty())
+        .collect();
+    let mut out = Vec::with_capacity(lines.len() / 5);
+    for chunk in lines.chunks(5) {
+        let (n0, head) = chunk[0];
+        if chunk.len() < 5 {
+            return Err(IoError::parse(
+                path,
+                n0,
+                format!("entry has {} matrix rows, expected 4 (truncated file?)", chunk.len() - 1),
+            ));
+        }
+        let toks: Vec<&str> = head.split_whitespace().collect();
+        if toks.len() != 3 {
+            return Err(IoError::parse(
+                path,
+                n0,
+                format!("expected a metadata line `i j n`, found {} fields", toks.len()),
+            ));
+        }
+        let mut metadata = [0u64; 3];
+        for (m, t) in metadata.iter_mut().zip(&toks) {
+            *m = t
+                .parse()
+                .map_err(|_| IoError::parse(path, n0, format!("metadata {t:?} is not a non-negative integer")))?;
+        }
+        let mut m = [0.0; 16];
+        for (r, &(n, row)) in chunk[1..].iter().enumerate() {
+            let toks: Vec<&str> = row.split_whitespace().collect();
+            let v = parse_n::<4>(path, n, &toks, "a matrix row")?;
+            m[r * 4..r * 4 + 4].copy_from_slice(&v);
+        }
+        let pose = pose_from_row_major(&m).map_err(|e| IoError::core(path, Some(n0), e))?;
+        out.push(LogEntry { metadata, pose });
+    }
+    Ok(out)
+}
+
+/// Writes an Open3D `.log` trajectory (`i i n` metadata, as Open3D writes odometry), atomically.
+pub fn write_open3d_log(path: impl AsRef<Path>, poses: &[Pose]) -> Result<()> {
+    let mut text = String::new();
+    let n = poses.len();
+    for (i, p) in poses.iter().enumerate() {
+        let _ = writeln!(text, "{i} {i} {n}");
+        let m = pose_to_matrix(p);
+        for r in 0..4 {
+            let _ = writeln!(
+                text,
+                "{:.10} {:.10} {:.10} {:.10}",
+                m[(r, 0)],
+                m[(r, 1)],
+                m[(r, 2)],
+                m[(r, 3)]
+            );
+        }
+    }
+    write_atomic(path, |w| w.write_all(text.as_bytes()))
+}
+
+/// Depth image files (`.png`, `.tif`, `.tiff`, `.pgm`) in `dir`, sorted by name.
+pub fn list_depth_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>> {
+    let dir = dir.as_ref();
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+        let path = entry.map_err(|e| IoError::io(dir, e))?.path();
+        if path.is_file() && crate::depth::DepthFormat::from_path(&path).is_some() {
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Pairs an Open3D `.log` with the depth images of `depth_dir` (sorted by name): entry
+/// `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
+pub fn read_open3d_log_frames(log_path: impl AsRef<Path>, depth_dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
+    let log_path = log_path.as_ref();
+    let entries = read_open3d_log(log_path)?;
+    let files = list_depth_files(depth_dir.as_ref())?;
+    entries
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let i = e.metadata[0];
+            let depth_path = usize::try_from(i).ok().and_then(|i| files.get(i)).ok_or_else(|| {
+                IoError::Format {
+                    path: log_path.to_path_buf(),
+                    message: format!(
+                        "entry {k} refers to frame {i}, but {} has only {} depth images",
+                        depth_dir.as_ref().display(),
+                        files.len()
+                    ),
+                }
+            })?;
+            Ok(Frame {
+                depth_path: depth_path.clone(),
+                pose: e.pose,
+                timestamp: None,
+            })
+        })
+        .collect()
+}
+
+/// Reads one 4×4 row-major pose file (7-Scenes `frame-XXXXXX.pose.txt`).
+pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
+    let path = path.as_ref();
+    let text = read_text(path, 1 << 20)?;
+    let mut m = [0.0; 16];
+    let mut k = 0;
+    let mut last_line = 1;
+    for (n, line) in text.lines().enumerate() {
+        last_line = n + 1;
+        for tok in line.split_whitespace() {
+            if k == 16 {
+                return Err(IoError::parse(path, n + 1, "more than 16 numbers in a 4x4 pose"));
+            }
+            m[k] = parse_f64(path, n + 1, tok, "pose matrix entry")?;
+            k += 1;
+        }
+    }
+    if k != 16 {
+        return Err(IoError::parse(path, last_line, format!("found {k} numbers, a 4x4 pose needs 16")));
+    }
+    pose_from_row_major(&m).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Reads a 7-Scenes sequence directory: every `frame-XXXXXX.pose.txt`, sorted by name, with its
+/// `frame-XXXXXX.depth.png` (which must exist).
+pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
+    let dir = dir.as_ref();
+    let mut pose_files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+        let path = entry.map_err(|e| IoError::io(dir, e))?.path();
+        let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
+            continue;
+        };
+        if let Some(stem) = name.strip_prefix("frame-").and_then(|s| s.strip_suffix(".pose.txt")) {
+            pose_files.push((stem.to_string(), path));
+        }
+    }
+    pose_files.sort();
+    pose_files
+        .into_iter()
+        .map(|(stem, pose_path)| {
+            let depth_path = dir.join(format!("frame-{stem}.depth.png"));
+            if !depth_path.is_file() {
+                return Err(IoError::Format {
+                    path: pose_path,
+                    message: format!("no depth image {} for this pose", depth_path.display()),
+                });
+            }
+            Ok(Frame {
+                pose: read_pose_txt(&pose_path)?,
+                depth_path,
+                timestamp: None,
+            })
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sl_core::nalgebra::{Isometry3, Vector3};
+
+    fn tp(t: f64) -> TimedPose {
+        TimedPose {
+            timestamp: t,
+            pose: Isometry3::new(Vector3::new(t, 0.0, 0.0), Vector3::zeros()),
+        }
+    }
+
+    #[test]
+    fn nearest_within_tolerance() {
+        let poses = [tp(1.0), tp(1.01), tp(1.02), tp(2.0)];
+        assert_eq!(nearest_pose(&poses, 1.012, 0.02).unwrap().timestamp, 1.01);
+        assert_eq!(nearest_pose(&poses, 1.016, 0.02).unwrap().timestamp, 1.02);
+        assert_eq!(nearest_pose(&poses, 0.99, 0.02).unwrap().timestamp, 1.0);
+        assert_eq!(nearest_pose(&poses, 2.015, 0.02).unwrap().timestamp, 2.0);
+        assert!(nearest_pose(&poses, 1.5, 0.02).is_none());
+        assert!(nearest_pose(&[], 1.5, 0.02).is_none());
+        let seq = associate(
+            &[(1.011, "a".into()), (1.5, "b".into())],
+            &[tp(2.0), tp(1.0), tp(1.01)],
+            0.02,
+        );
+        assert_eq!(seq.frames.len(), 1);
+        assert_eq!(seq.frames[0].pose.translation.vector.x, 1.01);
+        assert_eq!(seq.without_pose, vec![(1.5, PathBuf::from("b"))]);
+    }
+
+    #[test]
+    fn tum_round_trip_and_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("gt.txt");
+        let poses: Vec<TimedPose> = (0..5)
+            .map(|i| TimedPose {
+                timestamp: 100.0 + f64::from(i) * 0.01,
+                pose: Isometry3::new(Vector3::new(1.0, -2.0, 0.5 * f64::from(i)), Vector3::new(0.1, 0.2 * f64::from(i), -0.3)),
+            })
+            .collect();
+        write_tum_trajectory(&p, &poses).unwrap();
+        let back = read_tum_trajectory(&p).unwrap();
+        assert_eq!(back.len(), 5);
+        for (a, b) in back.iter().zip(&poses) {
+            assert!((a.timestamp - b.timestamp).abs() < 1e-6);
+            assert!((a.pose.to_homogeneous() - b.pose.to_homogeneous()).abs().max() < 1e-8);
+        }
+        std::fs::write(&p, "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0\n").unwrap();
+        match read_tum_trajectory(&p).unwrap_err() {
+            IoError::Parse { line, .. } => assert_eq!(line, 3),
+            e => panic!("{e}"),
+        }
+        std::fs::write(&p, "1 0 0 0 0 0 0 0\n").unwrap();
+        let e = read_tum_trajectory(&p).unwrap_err();
+        assert!(matches!(e, IoError::Core { line: Some(1), .. }), "{e}");
+        assert!(e.to_string().contains("gt.txt:1"), "{e}");
+    }
+
+    #[test]
+    fn open3d_log_round_trip_and_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.log");
+        let poses = vec![
+            Isometry3::new(Vector3::new(2.0, 2.0, -0.3), Vector3::zeros()),
+            Isometry3::new(Vector3::new(1.0, 0.0, 0.5), Vector3::new(0.0, 0.3, 0.1)),
+        ];
+        write_open3d_log(&p, &poses).unwrap();
+        let back = read_open3d_log(&p).unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!(back[1].metadata, [1, 1, 2]);
+        for (a, b) in back.iter().zip(&poses) {
+            assert!((a.pose.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-9);
+        }
+        std::fs::write(&p, "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n").unwrap();
+        assert!(matches!(read_open3d_log(&p).unwrap_err(), IoError::Parse { line: 1, .. }));
+        std::fs::write(&p, "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n0 -1 1\n").unwrap();
+        assert!(read_open3d_log(&p).is_err());
+        std::fs::write(&p, "0 0 1\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
+        assert!(matches!(read_open3d_log(&p).unwrap_err(), IoError::Core { line: Some(1), .. }));
+    }
+
+    #[test]
+    fn seven_scenes_directory() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let id = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+        std::fs::write(d.join("frame-000002.pose.txt"), id).unwrap();
+        std::fs::write(d.join("frame-000001.pose.txt"), "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
+        std::fs::write(d.join("frame-000001.depth.png"), b"").unwrap();
+        let err = read_7scenes_sequence(d).unwrap_err();
+        assert!(err.to_string().contains("frame-000002.depth.png"), "{err}");
+        std::fs::write(d.join("frame-000002.depth.png"), b"").unwrap();
+        let frames = read_7scenes_sequence(d).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert!(frames[0].depth_path.ends_with("frame-000001.depth.png"));
+        assert_eq!(frames[0].pose.translation.vector.x, 0.5);
+        std::fs::write(d.join("frame-000002.pose.txt"), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0\n").unwrap();
+        assert!(read_7scenes_sequence(d).is_err());
+    }
+}

@@ -1,0 +1,42 @@
+//! The error type of `sl-noise`.
+
+use sl_core::CoreError;
+
+/// Everything that can go wrong in `sl-noise`.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum NoiseError {
+    /// A depth map with too few distinct depth values for a resolution analysis.
+    #[error("too few distinct depths: found {found}, need at least {needed}")]
+    TooFewDepths {
+        /// Distinct depth values found.
+        found: usize,
+        /// Distinct depth values needed.
+        needed: usize,
+    },
+    /// A parameter outside its valid range (non-positive step, NaN, …).
+    #[error("invalid parameter: {0}")]
+    InvalidParameter(String),
+    /// Degenerate geometry: zero-length normal, non-orthogonal rectangle axes, non-positive radius.
+    #[error("degenerate geometry: {0}")]
+    DegenerateGeometry(String),
+    /// A scene already holding the maximum of 65535 labelled surfaces.
+    #[error("a scene holds at most {max} surfaces")]
+    SceneFull {
+        /// The maximum number of surfaces.
+        max: usize,
+    },
+    /// A scene name that [`crate::sim::named_scene`] does not know.
+    #[error("unknown scene {name:?}; known scenes: {known}")]
+    UnknownScene {
+        /// The requested name.
+        name: String,
+        /// The known names, comma-separated.
+        known: String,
+    },
+    /// An error from `sl-core` (bad intrinsics, sensor model, buffer sizes).
+    #[error(transparent)]
+    Core(#[from] CoreError),
+}
+
+/// `Result` with [`NoiseError`].
+pub type Result<T> = std::result::Result<T, NoiseError>;

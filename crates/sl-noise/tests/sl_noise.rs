@@ -1,0 +1,9 @@
+//! Integration tests of `sl-noise`: real frames, simulate → analyze recovery, proptests.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+
+mod sl_noise {
+    mod algorithm1;
+    pub mod common;
+    mod real_frames;
+    mod recovery;
+}

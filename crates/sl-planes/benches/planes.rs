@@ -1,0 +1,2 @@
+//! Plane extraction benchmark (filled in below).
+fn main() {}

@@ -1,0 +1,56 @@
+//! # sl-planes — plane extraction in the disparity domain, and motion from planes
+//!
+//! Section 3.4–3.5 of the paper. A structured-light camera measures disparity `D = f·B/Z` with
+//! a noise that is constant in pixels, and on a plane `D` is an affine function of the pixel
+//! (eq. 14, see [`plane`]). Working on the disparity, one **fixed** threshold in pixels is right
+//! at 0.6 m and at 4 m, while a metric threshold is too tight far away or too loose nearby.
+//!
+//! Pipeline position: depth frames → `sl-io` → `sl-core` types → (`sl-filter`) → **`sl-planes`**.
+//!
+//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → connected components →
+//!   robust affine fits → k-means refinement with merging and neighbour disambiguation → label
+//!   image + [`PlaneInfo`] (3D normal/offset, disparity-affine coefficients, RMS in px and m).
+//! * [`ransac::metric_ransac`]: the fixed metric-threshold baseline (Open3D `segment_plane` style).
+//! * [`segcomp::segcomp`]: the Hoover et al. segmentation comparison.
+//! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes, and
+//!   point-to-plane ICP.
+//!
+//! ```
+//! use sl_core::{Camera, DepthImage, nalgebra::Vector3};
+//! use sl_planes::{Plane3, PlaneConfig, extract_planes};
+//!
+//! // A 160x120 camera looking at a wall 2 m away, tilted 20 degrees about the vertical axis.
+//! let k = sl_core::Intrinsics::kinect_v1().scaled(0.25)?;
+//! let cam = Camera { intrinsics: k, sensor: sl_core::SensorModel::kinect_v1() };
+//! let wall = Plane3::new(Vector3::new(20f64.to_radians().sin(), 0.0, -20f64.to_radians().cos()), 2.0)?;
+//! let depth: Vec<f32> = (0..k.width * k.height)
+//!     .map(|i| wall.depth_at(&k, (i % k.width) as f64, (i / k.width) as f64).unwrap_or(0.0) as f32)
+//!     .collect();
+//! let depth = DepthImage::from_vec(k.width, k.height, depth)?;
+//! let cfg = PlaneConfig { min_pixels: 200, ..PlaneConfig::default() };
+//! let seg = extract_planes(&depth, &cam, &cfg)?;
+//! assert_eq!(seg.planes.len(), 1);
+//! assert!(seg.planes[0].plane.angle_deg(&wall) < 0.1);
+//! assert!((seg.planes[0].plane.offset_m - 2.0).abs() < 0.01);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+#![deny(missing_docs)]
+
+pub mod components;
+pub mod error;
+pub mod extract;
+pub mod fit;
+pub mod log;
+pub mod motion;
+pub mod overlay;
+pub mod plane;
+pub mod ransac;
+pub mod segcomp;
+
+pub use error::{PlanesError, Result};
+pub use extract::{PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, extract_planes};
+pub use fit::AffineSums;
+pub use motion::{IcpConfig, IcpResult, MotionConfig, PlaneMatch, PlaneMotion, estimate_motion, icp_point_to_plane};
+pub use plane::{DisparityAffine, Plane3};
+pub use ransac::{RansacConfig, metric_ransac};
+pub use segcomp::{SegCompScore, segcomp};

@@ -1,0 +1,164 @@
+//! Box-approximated Laplacian-of-Gaussian of a disparity map and the planarity mask.
+//!
+//! The Gaussian is replaced by two passes of a `(2r+1)²` box filter (a separable, triangle-like
+//! kernel of variance `2r(r+1)/3` per axis, so `r ≈ (√(1+6σ²) − 1)/2`), computed with direct
+//! shifted-slice additions that the compiler vectorises. The Laplacian is the 5-point stencil
+//! with step `s = max(1, round(σ))` on the smoothed map:
+//! `L = M(x−s,y) + M(x+s,y) + M(x,y−s) + M(x,y+s) − 4M`. Like the LoG it is exactly zero on any
+//! affine disparity (a plane), whatever its depth, so a **fixed** threshold in disparity pixels
+//! separates planar from non-planar pixels. A pixel is planar only when it and its four
+//! neighbours pass (an erosion that closes the zero-crossing line in the middle of an edge).
+//!
+//! Invalid pixels are NaN in the input: any window touching one yields NaN, which fails the
+//! threshold test, so a pixel is planar only with a complete valid support (image borders count
+//! as invalid). Pixels near holes are therefore not seeds; the refinement assigns them
+//! afterwards by their residual.
+
+/// Largest box radius.
+pub const MAX_BOX_RADIUS: usize = 8;
+
+/// Box radius and Laplacian step for a LoG scale `sigma_px` (in pixels of the filtered image).
+pub fn log_geometry(sigma_px: f64) -> (usize, usize) {
+    let r = (((1.0 + 6.0 * sigma_px * sigma_px).sqrt() - 1.0) / 2.0).round().max(1.0) as usize;
+    let s = sigma_px.round().max(1.0) as usize;
+    (r.min(MAX_BOX_RADIUS), s)
+}
+
+/// Reusable buffers for [`planar_mask`].
+#[derive(Debug, Default, Clone)]
+pub struct LogBuffers {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    raw: Vec<u8>,
+}
+
+/// Horizontal then vertical box sum of radius `r` from `src` into `dst` via `tmp`; NaN where
+/// the window leaves the image.
+fn box_sum(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize, r: usize) {
+    let n = w * h;
+    tmp.clear();
+    tmp.resize(n, f32::NAN);
+    dst.clear();
+    dst.resize(n, f32::NAN);
+    if w <= 2 * r || h <= 2 * r {
+        return;
+    }
+    let inner = w - 2 * r;
+    for y in 0..h {
+        let row = &src[y * w..(y + 1) * w];
+        let out = &mut tmp[y * w + r..y * w + r + inner];
+        out.copy_from_slice(&row[..inner]);
+        for k in 1..=2 * r {
+            for (o, &v) in out.iter_mut().zip(&row[k..k + inner]) {
+                *o += v;
+            }
+        }
+    }
+    for y in r..h - r {
+        let (before, rest) = dst.split_at_mut(y * w);
+        let _ = before;
+        let out = &mut rest[..w];
+        out.copy_from_slice(&tmp[(y - r) * w..(y - r + 1) * w]);
+        for k in 1..=2 * r {
+            let row = &tmp[(y - r + k) * w..(y - r + k + 1) * w];
+            for (o, &v) in out.iter_mut().zip(row) {
+                *o += v;
+            }
+        }
+    }
+}
+
+/// Writes the planarity mask (1 = planar, 0 = not) of the disparity `d` (NaN = invalid) into
+/// `mask`: pixels whose box-LoG response, and that of their four neighbours, is at most
+/// `threshold_px` in magnitude, with a complete valid support. Returns the number of planar
+/// pixels.
+#[allow(clippy::too_many_arguments)]
+pub fn planar_mask(
+    d: &[f32],
+    width: usize,
+    height: usize,
+    radius: usize,
+    step: usize,
+    threshold_px: f32,
+    buf: &mut LogBuffers,
+    mask: &mut Vec<u8>,
+) -> usize {
+    let (w, h) = (width, height);
+    mask.clear();
+    mask.resize(w * h, 0);
+    let r = radius.clamp(1, MAX_BOX_RADIUS);
+    let s = step.max(1);
+    if w <= 2 * s + 2 || h <= 2 * s + 2 {
+        return 0;
+    }
+    let LogBuffers { a, b, raw } = buf;
+    box_sum(d, b, a, w, h, r);
+    let b1 = std::mem::take(b);
+    box_sum(&b1, b, a, w, h, r);
+    *a = b1;
+    let nwin = ((2 * r + 1) * (2 * r + 1)) as f32;
+    let thr = threshold_px * nwin * nwin;
+    raw.clear();
+    raw.resize(w * h, 0);
+    let inner = w - 2 * s;
+    for y in s..h - s {
+        let c = &b[y * w..(y + 1) * w];
+        let up = &b[(y - s) * w + s..(y - s) * w + s + inner];
+        let dn = &b[(y + s) * w + s..(y + s) * w + s + inner];
+        let out = &mut raw[y * w + s..y * w + s + inner];
+        let (left, mid, right) = (&c[..inner], &c[s..s + inner], &c[2 * s..2 * s + inner]);
+        for i in 0..inner {
+            let l = left[i] + right[i] + up[i] + dn[i] - 4.0 * mid[i];
+            out[i] = u8::from(l.abs() <= thr);
+        }
+    }
+    // Erosion by the 4-neighbour cross.
+    let mut count = 0usize;
+    for y in 1..h - 1 {
+        let (u, c, dn) = (&raw[(y - 1) * w..y * w], &raw[y * w..(y + 1) * w], &raw[(y + 1) * w..(y + 2) * w]);
+        let out = &mut mask[y * w..(y + 1) * w];
+        for x in 1..w - 1 {
+            let v = c[x] & c[x - 1] & c[x + 1] & u[x] & dn[x];
+            out[x] = v;
+            count += usize::from(v);
+        }
+    }
+    count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn affine_is_planar_and_steps_are_not() {
+        let (w, h) = (80, 60);
+        let mut d: Vec<f32> = (0..w * h).map(|i| 30.0 + 0.05 * (i % w) as f32 - 0.03 * (i / w) as f32).collect();
+        let mut buf = LogBuffers::default();
+        let mut mask = Vec::new();
+        let (r, s) = log_geometry(2.0);
+        assert_eq!((r, s), (2, 2));
+        let n = planar_mask(&d, w, h, r, s, 0.05, &mut buf, &mut mask);
+        // Everything at least r+s from the border is planar.
+        assert_eq!(n, (w - 2 * (2 * r + s + 1)) * (h - 2 * (2 * r + s + 1)));
+        // A 1 px step at x = 40 makes a band non-planar; an invalid pixel kills its support.
+        for y in 0..h {
+            for x in 40..w {
+                d[y * w + x] += 1.0;
+            }
+        }
+        d[30 * w + 15] = f32::NAN;
+        planar_mask(&d, w, h, r, s, 0.05, &mut buf, &mut mask);
+        assert_eq!(mask[30 * w + 40], 0);
+        assert_eq!(mask[30 * w + 39], 0);
+        assert_eq!(mask[30 * w + 15], 0);
+        let reach = 2 * r + s + 1;
+        assert_eq!(mask[30 * w + 15 + reach], 0);
+        assert_eq!(mask[30 * w + 15 + reach + 1], 1);
+        // The whole band around the edge is non-planar, including its zero crossing.
+        for x in 36..44 {
+            assert_eq!(mask[30 * w + x], 0, "x = {x}");
+        }
+        assert_eq!(mask[30 * w + 60], 1);
+    }
+}

@@ -1,0 +1,298 @@
+//! Fusion parameters: voxel size, truncation band, weighting scheme and memory budget.
+
+use sl_core::SensorModel;
+
+use crate::error::{Result, TsdfError};
+
+/// How much one observation counts in the running average `F = Σ wᵢ fᵢ / Σ wᵢ`.
+///
+/// All weights are *normalised* so that they are of order one: an observation at the reference
+/// depth `z_ref` (1 m by default) weighs 1 in every mode. The normalisation does not change the
+/// average (the paper notes that a constant factor cancels in eq. 12) but keeps the f32
+/// arithmetic away from the range where `1/Z⁴` of millimetre units would under- or overflow and
+/// makes the weight cap and the `min_weight` threshold of the mesher meaningful for every mode.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum WeightMode {
+    /// The paper (eq. 13): `w = (z_ref / Z)⁴`, the inverse variance of a structured-light depth
+    /// whose noise grows as `Z²`. Default.
+    #[default]
+    InvZ4,
+    /// The classic unweighted average of Curless & Levoy / KinectFusion: `w = 1`.
+    Uniform,
+    /// `w = (z_ref / Z)²`, as used by voxblox and nvblox.
+    InvZ2,
+    /// The inverse variance of the sensor model plus a floor:
+    /// `w = (σ_Z(z_ref)² + σ_floor²) / (σ_Z(Z)² + σ_floor²)` with `σ_Z(Z) = Z²·σ_D/(f·B)` from
+    /// [`SensorModel::sigma_z`]. The floor (e.g. the 1 mm depth-storage step over √12) keeps
+    /// close observations from being weighted beyond what the file format can resolve; with a
+    /// zero floor this is exactly [`WeightMode::InvZ4`].
+    SensorVariance {
+        /// The sensor model giving `σ_Z(Z)`.
+        sensor: SensorModel,
+        /// Standard deviation that does not shrink with depth, metres.
+        floor_m: f64,
+    },
+}
+
+impl WeightMode {
+    /// Parses `inv-z4`, `uniform`, `inv-z2` (the CLI names). `sensor` is not parsed here since
+    /// it needs a sensor model: use [`WeightMode::sensor_variance`].
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "inv-z4" | "invz4" => Ok(Self::InvZ4),
+            "uniform" => Ok(Self::Uniform),
+            "inv-z2" | "invz2" => Ok(Self::InvZ2),
+            other => Err(TsdfError::InvalidParameter(format!(
+                "unknown weight '{other}' (expected inv-z4, uniform, inv-z2 or sensor)"
+            ))),
+        }
+    }
+
+    /// The sensor-variance weight with the depth-storage floor of a 1 mm depth step
+    /// (`0.001/√12` m).
+    pub fn sensor_variance(sensor: SensorModel) -> Self {
+        Self::SensorVariance {
+            sensor,
+            floor_m: 0.001 / 12f64.sqrt(),
+        }
+    }
+
+    /// The CLI name of the mode.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::InvZ4 => "inv-z4",
+            Self::Uniform => "uniform",
+            Self::InvZ2 => "inv-z2",
+            Self::SensorVariance { .. } => "sensor",
+        }
+    }
+}
+
+/// A per-frame weight function, precomputed from a [`WeightMode`] and the reference depth so
+/// that the inner loop costs a few multiplications.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum WeightFn {
+    Uniform,
+    /// `(z_ref/Z)²` computed as `(z_ref · 1/Z)²`.
+    InvZ2 { z_ref: f32 },
+    InvZ4 { z_ref: f32 },
+    /// `num / (c·Z⁴ + floor²)` with `c = (σ_D/(f·B))²`.
+    Variance { c: f32, floor2: f32, num: f32 },
+}
+
+impl WeightFn {
+    pub(crate) fn new(mode: WeightMode, z_ref_m: f64) -> Self {
+        match mode {
+            WeightMode::Uniform => Self::Uniform,
+            WeightMode::InvZ2 => Self::InvZ2 { z_ref: z_ref_m as f32 },
+            WeightMode::InvZ4 => Self::InvZ4 { z_ref: z_ref_m as f32 },
+            WeightMode::SensorVariance { sensor, floor_m } => {
+                // Work in units of the reference variance so that everything is O(1).
+                let s_ref = sensor.sigma_z(z_ref_m);
+                let c = (sensor.sigma_d_px / sensor.fb()).powi(2) / (s_ref * s_ref);
+                let floor2 = (floor_m / s_ref).powi(2);
+                Self::Variance {
+                    c: c as f32,
+                    floor2: floor2 as f32,
+                    num: (1.0 + floor2) as f32,
+                }
+            }
+        }
+    }
+
+    /// The weight of an observation whose pixel has depth `z` (metres, > 0).
+    #[inline(always)]
+    pub(crate) fn weight(&self, z: f32) -> f32 {
+        match *self {
+            Self::Uniform => 1.0,
+            Self::InvZ2 { z_ref } => {
+                let r = z_ref / z;
+                r * r
+            }
+            Self::InvZ4 { z_ref } => {
+                let r = z_ref / z;
+                let r2 = r * r;
+                r2 * r2
+            }
+            Self::Variance { c, floor2, num } => {
+                let z2 = z * z;
+                num / (c * z2 * z2 + floor2)
+            }
+        }
+    }
+}
+
+/// Parameters of a [`crate::TsdfVolume`].
+///
+/// Defaults (see [`TsdfParams::default`]): 4 mm voxels, a 2 cm truncation band, `inv-z4`
+/// weights normalised at 1 m, 4 m maximum depth, weight cap 10⁶ and a 4 GiB memory budget.
+///
+/// **Truncation.** The band must cover the sensor noise and a few voxels: a surface seen
+/// with noise `σ_Z` spreads its zero crossing over ±3σ_Z, and marching cubes needs the
+/// voxels on both sides of the surface to be observed. For a Kinect v1 `σ_Z` is 1.6 mm at 1 m,
+/// 6.4 mm at 2 m and 14 mm at 3 m, so 2 cm (5 voxels of 4 mm) covers ±3σ up to about 2 m and
+/// ±1.4σ at 3 m; [`TsdfParams::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for another
+/// voxel size or range. A wider band blurs thin structures (the two sides of a 1 cm board
+/// interfere) and costs memory.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TsdfParams {
+    /// Edge of a voxel, metres.
+    pub voxel_m: f64,
+    /// Truncation `f_max = −f_min`, metres: signed distances are clipped to
+    /// `[−trunc_m, trunc_m]`; voxels more than `trunc_m` behind the observed surface are not
+    /// updated (they are occluded: Curless & Levoy's "unseen" region).
+    pub trunc_m: f64,
+    /// The weighting scheme.
+    pub weight: WeightMode,
+    /// Reference depth at which every weight mode gives 1, metres.
+    pub z_ref_m: f64,
+    /// Depths above this are ignored, metres.
+    pub max_depth_m: f64,
+    /// Depths below this are ignored, metres.
+    pub min_depth_m: f64,
+    /// Cap of the accumulated weight of a voxel (in normalised units). Past the cap the running
+    /// average becomes an exponential moving average; it also keeps `w/(W+w)` above the f32
+    /// resolution for any observation weighing more than 10⁻⁶ of the cap.
+    pub max_weight: f32,
+    /// Memory the voxel blocks and their index may use, bytes. Integration that would exceed it
+    /// fails with [`TsdfError::MemoryBudget`] and leaves the volume unchanged.
+    pub memory_budget_bytes: usize,
+}
+
+impl Default for TsdfParams {
+    fn default() -> Self {
+        Self {
+            voxel_m: 0.004,
+            trunc_m: 0.02,
+            weight: WeightMode::InvZ4,
+            z_ref_m: 1.0,
+            max_depth_m: 4.0,
+            min_depth_m: 0.1,
+            max_weight: 1.0e6,
+            memory_budget_bytes: 4 << 30,
+        }
+    }
+}
+
+impl TsdfParams {
+    /// Checks the parameters.
+    pub fn validate(&self) -> Result<()> {
+        let pos = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(TsdfError::InvalidParameter(format!("{name} = {v} must be positive and finite")))
+            }
+        };
+        pos("voxel_m", self.voxel_m)?;
+        pos("trunc_m", self.trunc_m)?;
+        pos("z_ref_m", self.z_ref_m)?;
+        pos("max_depth_m", self.max_depth_m)?;
+        pos("max_weight", f64::from(self.max_weight))?;
+        if !(self.min_depth_m.is_finite() && self.min_depth_m >= 0.0 && self.min_depth_m < self.max_depth_m) {
+            return Err(TsdfError::InvalidParameter(format!(
+                "min_depth_m = {} must be in [0, max_depth_m = {})",
+                self.min_depth_m, self.max_depth_m
+            )));
+        }
+        if self.trunc_m < self.voxel_m {
+            return Err(TsdfError::InvalidParameter(format!(
+                "trunc_m = {} must be at least one voxel ({} m)",
+                self.trunc_m, self.voxel_m
+            )));
+        }
+        if let WeightMode::SensorVariance { sensor, floor_m } = self.weight {
+            sensor.validate()?;
+            if !(floor_m.is_finite() && floor_m >= 0.0) {
+                return Err(TsdfError::InvalidParameter(format!("floor_m = {floor_m} must be >= 0")));
+            }
+        }
+        Ok(())
+    }
+
+    /// A truncation suited to `voxel_m` and a sensor at typical depth `z_m`:
+    /// `max(4·voxel, 3·σ_Z(z))`.
+    pub fn suggested_trunc_m(voxel_m: f64, sensor: &SensorModel, z_m: f64) -> f64 {
+        (4.0 * voxel_m).max(3.0 * sensor.sigma_z(z_m))
+    }
+
+    /// The normalised weight of one observation at depth `z_m` under these parameters.
+    pub fn weight_at(&self, z_m: f64) -> f32 {
+        WeightFn::new(self.weight, self.z_ref_m).weight(z_m as f32)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_are_normalised_at_reference() {
+        let s = SensorModel::kinect_v1();
+        for mode in [
+            WeightMode::InvZ4,
+            WeightMode::Uniform,
+            WeightMode::InvZ2,
+            WeightMode::sensor_variance(s),
+        ] {
+            let p = TsdfParams {
+                weight: mode,
+                ..TsdfParams::default()
+            };
+            assert!((p.weight_at(1.0) - 1.0).abs() < 1e-6, "{mode:?}");
+        }
+    }
+
+    #[test]
+    fn inv_z4_ratio_matches_paper() {
+        let p = TsdfParams::default();
+        // The paper's two scans: 0.75 m and 1.5 m -> the close one weighs 2^4 = 16 times more.
+        let r = p.weight_at(0.75) / p.weight_at(1.5);
+        assert!((r - 16.0).abs() < 1e-4, "{r}");
+        // Far and near weights stay in a comfortable f32 range.
+        assert!(p.weight_at(8.0) > 1e-4 && p.weight_at(0.2) < 1e4);
+        let p2 = TsdfParams {
+            weight: WeightMode::InvZ2,
+            ..p
+        };
+        assert!((p2.weight_at(0.5) - 4.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn sensor_variance_is_inv_z4_without_floor() {
+        let s = SensorModel::kinect_v1();
+        let p = TsdfParams {
+            weight: WeightMode::SensorVariance { sensor: s, floor_m: 0.0 },
+            ..TsdfParams::default()
+        };
+        let q = TsdfParams::default();
+        for z in [0.5, 1.3, 3.0] {
+            assert!((p.weight_at(z) / q.weight_at(z) - 1.0).abs() < 1e-4);
+        }
+        // With the floor, close observations gain less than 1/Z^4.
+        let f = TsdfParams {
+            weight: WeightMode::sensor_variance(s),
+            ..TsdfParams::default()
+        };
+        assert!(f.weight_at(0.5) < q.weight_at(0.5));
+    }
+
+    #[test]
+    fn validation() {
+        assert!(TsdfParams::default().validate().is_ok());
+        let bad = TsdfParams {
+            voxel_m: 0.0,
+            ..TsdfParams::default()
+        };
+        assert!(bad.validate().is_err());
+        let bad = TsdfParams {
+            trunc_m: 0.001,
+            ..TsdfParams::default()
+        };
+        assert!(bad.validate().is_err());
+        assert!(WeightMode::parse("inv-z4").is_ok());
+        assert!(WeightMode::parse("foo").is_err());
+        let t = TsdfParams::suggested_trunc_m(0.004, &SensorModel::kinect_v1(), 2.0);
+        assert!(t > 0.016 && t < 0.03, "{t}");
+    }
+}

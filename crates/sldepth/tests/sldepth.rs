@@ -1,0 +1,140 @@
+//! End-to-end tests of the `sldepth` binary, including the regression tests over the seeded
+//! synthetic frames in `testdata/` (regenerate them with `cargo xtask gen-testdata`).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn sldepth(args: &[&str]) -> Output {
+    #[allow(clippy::expect_used)]
+    Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(args)
+        .output()
+        .expect("the sldepth binary runs")
+}
+
+fn testdata(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata").join(name)
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "sldepth failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout))
+    })
+}
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().unwrap_or_default()
+}
+
+#[test]
+fn info_reports_size_and_depth_range() {
+    let p = testdata("floor-seed1-depth.png");
+    let v = json_of(&sldepth(&["info", path_str(&p), "--json"]));
+    assert_eq!(v["width"], 640);
+    assert_eq!(v["height"], 480);
+    let valid = v["valid_pixels"].as_u64().unwrap_or(0);
+    assert!(valid > 200_000, "valid {valid}");
+    let (zmin, zmed, zmax) = (
+        v["z_min_m"].as_f64().unwrap_or(0.0),
+        v["z_median_m"].as_f64().unwrap_or(0.0),
+        v["z_max_m"].as_f64().unwrap_or(0.0),
+    );
+    // The floor scene spans about 0.8 to 3.9 m.
+    assert!(zmin > 0.7 && zmin < 0.9, "zmin {zmin}");
+    assert!(zmax > 3.5 && zmax < 4.5, "zmax {zmax}");
+    assert!(zmin < zmed && zmed < zmax);
+}
+
+/// Regression over the committed floor frame: the analysis recovers the simulator's
+/// f·B = 580 px × 0.075 m = 43.5 px·m within 1 %, its 1/8 px steps, and a slope near 2.
+#[test]
+fn analyze_recovers_the_simulated_sensor_from_testdata() {
+    let p = testdata("floor-seed1-depth.png");
+    let v = json_of(&sldepth(&["analyze", path_str(&p), "--json"]));
+    let fb = v["fb_px_m"].as_f64().unwrap_or(0.0);
+    assert!((fb - 43.5).abs() / 43.5 < 0.01, "fb {fb}");
+    assert_eq!(v["subpixel_steps"], 8);
+    let slope = v["slope"].as_f64().unwrap_or(0.0);
+    assert!((1.9..=2.1).contains(&slope), "slope {slope}");
+    assert!(v["unique_depths"].as_u64().unwrap_or(0) > 200);
+}
+
+/// Regression: simulating the same scene and seed again gives exactly the committed frame.
+#[test]
+fn simulate_reproduces_committed_frames() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    for (scene, seed) in [("floor", "1"), ("three-planes", "3")] {
+        let out = dir.path().join(format!("{scene}.png"));
+        let labels = dir.path().join(format!("{scene}-labels.png"));
+        let o = sldepth(&[
+            "simulate",
+            "--scene",
+            scene,
+            "--seed",
+            seed,
+            "--output",
+            path_str(&out),
+            "--labels",
+            path_str(&labels),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let read = |p: &Path| {
+            sl_io::depth::read_depth(p, &sl_io::depth::ReadOptions::default())
+                .unwrap_or_else(|e| panic!("{e}"))
+                .depth
+        };
+        let fresh = read(&out);
+        let committed = read(&testdata(&format!("{scene}-seed{seed}-depth.png")));
+        assert_eq!(fresh, committed, "{scene} seed {seed} differs from testdata/");
+        let l1 = sl_io::rgb::read_gray16(&labels).unwrap_or_else(|e| panic!("{e}"));
+        let l2 = sl_io::rgb::read_gray16(testdata(&format!("{scene}-seed{seed}-labels.png")))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(l1, l2);
+    }
+}
+
+#[test]
+fn cloud_writes_one_point_per_valid_pixel() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let p = testdata("three-planes-seed3-depth.png");
+    let ply = dir.path().join("cloud.ply");
+    let o = sldepth(&["cloud", path_str(&p), "--output", path_str(&ply)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let info = json_of(&sldepth(&["info", path_str(&p), "--json"]));
+    let data = sl_io::ply::read_ply(&ply).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(data.positions.len() as u64, info["valid_pixels"].as_u64().unwrap_or(0));
+    // Every point is in front of the camera within the sensor's range.
+    assert!(data.positions.iter().all(|p| p[2] > 0.4 && p[2] < 5.1));
+}
+
+#[test]
+fn errors_name_the_file_and_problem() {
+    let o = sldepth(&["info", "/nonexistent/depth.png"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("/nonexistent/depth.png"), "{err}");
+
+    let p = testdata("floor-seed1-depth.png");
+    let o = sldepth(&["info", path_str(&p), "--format", "jpeg"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("jpeg"));
+
+    let o = sldepth(&["simulate", "--scene", "moon", "--output", "/tmp/x.png"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("floor"));
+}
+
+#[test]
+fn help_names_units() {
+    for cmd in ["info", "analyze", "simulate", "cloud"] {
+        let o = sldepth(&[cmd, "--help"]);
+        assert!(o.status.success());
+        let help = String::from_utf8_lossy(&o.stdout);
+        assert!(help.contains("UNITS_PER_M"), "{cmd}: {help}");
+    }
+}
