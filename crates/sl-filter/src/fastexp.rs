@@ -13,11 +13,10 @@
 //! how far-away and invalid neighbours contribute nothing (see [`crate::kernel`]), and which
 //! keeps every product of a weight and a depth difference out of the slow subnormal range.
 
-/// `1.5·2²³`: adding it to an `|x| < 2²²` rounds `x` to an integer held in the low mantissa bits.
-const MAGIC: f32 = 12_582_912.0;
-/// Bit pattern of [`MAGIC`] minus the exponent bias, so that
-/// `(x + MAGIC).to_bits() − MAGIC_BITS_MINUS_BIAS` is `round(x) + 127`.
-const MAGIC_BITS_MINUS_BIAS: u32 = 0x4B40_0000 - 127;
+/// `1.5·2²³ + 127`: adding it to an `|x| < 2²¹` rounds `x` to an integer held in the low
+/// mantissa bits, already offset by the exponent bias 127; shifting those bits left by 23 then
+/// drops the constant high bits and leaves exactly the `f32` exponent field of `2^round(x)`.
+const MAGIC: f32 = 12_583_039.0;
 
 /// Minimax-relative-error coefficients of `2^f` on `[−½, ½]`, degree 4.
 const C0: f32 = 0.999_999_3;
@@ -44,7 +43,7 @@ pub fn exp2_fast(x: f32) -> f32 {
     let t = x + MAGIC;
     let f = x - (t - MAGIC);
     let p = C0 + f * (C1 + f * (C2 + f * (C3 + f * C4)));
-    let scale = f32::from_bits(t.to_bits().wrapping_sub(MAGIC_BITS_MINUS_BIAS) << 23);
+    let scale = f32::from_bits(t.to_bits() << 23);
     p * scale
 }
 
@@ -67,7 +66,7 @@ pub(crate) fn exp2_neg<const FMA: bool>(x: f32) -> f32 {
     } else {
         C0 + f * (C1 + f * (C2 + f * (C3 + f * C4)))
     };
-    let scale = f32::from_bits(t.to_bits().wrapping_sub(MAGIC_BITS_MINUS_BIAS) << 23);
+    let scale = f32::from_bits(t.to_bits() << 23);
     if keep { p * scale } else { 0.0 }
 }
 

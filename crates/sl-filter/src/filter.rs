@@ -307,7 +307,8 @@ impl DepthFilter {
         let taps = Taps { radius: r, taps: &taps };
         let mut out = vec![0.0f32; w * h];
         let log2e = f64::from(LOG2_E);
-        let coef = |sigma: f64| ((log2e / (2.0 * sigma * sigma)).min(1e30)) as f32;
+        // Range scale √(log2 e / (2σ²)); for the adaptive filter √(log2 e / 2) / k.
+        let coef = |sigma: f64| ((log2e / 2.0).sqrt() / sigma).min(1e15) as f32;
         let mut src = Source {
             data: depth.data(),
             width: w,

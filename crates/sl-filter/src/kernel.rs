@@ -3,14 +3,15 @@
 //! All four filters compute, for each valid pixel `p` with value `v_p`,
 //!
 //! ```text
-//! v̂_p = v_p + Σ_q w_q (v_q − v_p) / Σ_q w_q,   w_q = 2^(t_q − c_p·(v_q − v_p)²)
+//! v̂_p = v_p + (Σ_q w_q·e_q / Σ_q w_q) / s_p,   e_q = s_p·v_q − s_p·v_p,   w_q = 2^(t_q − e_q²)
 //! ```
 //!
 //! where `t_q = −|q − p|²/(2σ_s²)·log2 e` is the precomputed spatial exponent of the tap and
-//! `c_p` the range coefficient (`log2 e / (2σ²)`, constant for the bilateral filters, `a / v_p⁴`
-//! for the adaptive one, 0 — and no exponential at all — for the Gaussian). Accumulating
-//! `w·(v_q − v_p)` instead of `w·v_q` keeps full `f32` precision (no cancellation of large
-//! depths) and makes symmetric cancellations exact.
+//! `s_p = √(log2 e / (2σ_p²))` the range scale (constant for the bilateral filters,
+//! `√a / v_p²` for the adaptive one with `σ_p = k·v_p²`, 1 — and no exponential at all — for
+//! the Gaussian). `e_q` is one fused multiply-add per tap (`v_q·s_p − (s_p·v_p)`), the exponent
+//! one more. Accumulating the scaled *difference* instead of `w·v_q` keeps full `f32` precision
+//! (no cancellation of large depths) and makes symmetric cancellations exact.
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the
 //! width rounded up to the lane count). Invalid pixels and the padding hold a sentinel:
@@ -35,17 +36,17 @@ use crate::fastexp::exp2_neg;
 pub(crate) const INVALID_FILL: f32 = 1.0e18;
 /// Values at or above this are not valid (the sentinel, or out of range).
 pub(crate) const VALID_LIMIT: f32 = 1.0e17;
-/// Largest range coefficient used (keeps `c·0` finite for any centre value).
-const MAX_COEF: f32 = 1.0e30;
+/// Largest range scale used (keeps `s·v` finite for any supported value).
+const MAX_SCALE: f32 = 1.0e15;
 /// Rows per rayon task.
 const BLOCK_ROWS: usize = 16;
 
-/// How the range coefficient `c_p` depends on the centre value.
+/// How the range scale `s_p` depends on the centre value.
 pub(crate) trait RangeMode: Copy + Send + Sync {
     /// Whether there is a range weight at all (false: the Gaussian).
     const RANGE: bool;
-    /// `c_p` for a centre value.
-    fn coef(self, v: f32) -> f32;
+    /// `s_p` for a centre value.
+    fn scale(self, v: f32) -> f32;
 }
 
 /// The Gaussian: spatial weights only.
@@ -54,32 +55,31 @@ pub(crate) struct NoRange;
 impl RangeMode for NoRange {
     const RANGE: bool = false;
     #[inline(always)]
-    fn coef(self, _v: f32) -> f32 {
-        0.0
+    fn scale(self, _v: f32) -> f32 {
+        1.0
     }
 }
 
-/// A constant range coefficient (bilateral, in depth or in disparity).
+/// A constant range scale `√(log2 e/(2σ²))` (bilateral, in depth or in disparity).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Fixed(pub f32);
 impl RangeMode for Fixed {
     const RANGE: bool = true;
     #[inline(always)]
-    fn coef(self, _v: f32) -> f32 {
+    fn scale(self, _v: f32) -> f32 {
         self.0
     }
 }
 
-/// `c_p = a / v_p⁴`, i.e. `σ(p) = k·v_p²` with `a = log2 e / (2k²)`.
+/// `s_p = √a / v_p²`, i.e. `σ(p) = k·v_p²` with `√a = √(log2 e/2) / k`.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Adaptive(pub f32);
 impl RangeMode for Adaptive {
     const RANGE: bool = true;
     #[inline(always)]
-    fn coef(self, v: f32) -> f32 {
-        let v2 = v * v;
-        let c = self.0 / (v2 * v2);
-        if c < MAX_COEF { c } else { MAX_COEF }
+    fn scale(self, v: f32) -> f32 {
+        let s = self.0 / (v * v);
+        if s < MAX_SCALE { s } else { MAX_SCALE }
     }
 }
 
@@ -307,7 +307,8 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
     let stride = p.stride;
     let width = p.width;
     let tap_w = &taps.taps[..k * k];
-    let mut cc = [0.0f32; CHUNK];
+    let mut sc = [1.0f32; CHUNK];
+    let mut zs = [0.0f32; CHUNK];
     let mut sw = [0.0f32; CHUNK];
     let mut swd = [0.0f32; CHUNK];
     let mut res = [0.0f32; CHUNK];
@@ -321,10 +322,11 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
             let Ok(centre) = <&[f32; CW]>::try_from(&win[r * stride + x0..r * stride + x0 + CW]) else {
                 return;
             };
-            if M::RANGE {
-                for i in 0..CHUNK {
-                    cc[i] = mode.coef(centre[i + r]);
-                }
+            for i in 0..CHUNK {
+                let z = centre[i + r];
+                let s = if M::RANGE { mode.scale(z) } else { 1.0 };
+                sc[i] = s;
+                zs[i] = s * z;
             }
             sw.fill(0.0);
             swd.fill(0.0);
@@ -336,14 +338,12 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
                 if R > 0 {
                     // Fast path: lanes outer (vectorised), the row's taps unrolled inside.
                     for i in 0..CHUNK {
-                        let z = centre[i + R];
+                        let (s, z) = (sc[i], zs[i]);
                         let (mut s0, mut s1) = (sw[i], swd[i]);
                         for dx in 0..2 * R + 1 {
-                            let nb = row[i + dx];
-                            let w = weight::<FMA, M>(nb, z, cc[i], trow[dx]);
-                            let d = nb - z;
+                            let (w, e) = weight::<FMA, M>(row[i + dx], s, z, trow[dx]);
                             s0 += w;
-                            s1 = if FMA { w.mul_add(d, s1) } else { s1 + w * d };
+                            s1 = if FMA { w.mul_add(e, s1) } else { s1 + w * e };
                         }
                         sw[i] = s0;
                         swd[i] = s1;
@@ -351,14 +351,12 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
                 } else {
                     // Runtime radius: taps outer, lanes inner (vectorised).
                     let row = &win[dy * stride + x0..];
-                    let zc = &centre[r..r + CHUNK];
                     for (dx, &t) in trow.iter().enumerate() {
                         let nb = &row[dx..dx + CHUNK];
                         for i in 0..CHUNK {
-                            let w = weight::<FMA, M>(nb[i], zc[i], cc[i], t);
-                            let d = nb[i] - zc[i];
+                            let (w, e) = weight::<FMA, M>(nb[i], sc[i], zs[i], t);
                             sw[i] += w;
-                            swd[i] = if FMA { w.mul_add(d, swd[i]) } else { swd[i] + w * d };
+                            swd[i] = if FMA { w.mul_add(e, swd[i]) } else { swd[i] + w * e };
                         }
                     }
                 }
@@ -367,7 +365,7 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
             // LLVM's vectorisers give up.
             for i in 0..CHUNK {
                 let c = centre[i + r];
-                let v = c + swd[i] / sw[i];
+                let v = c + swd[i] / sw[i] / sc[i];
                 let (v, c_out) = if DISP { (fb / v, fb / c) } else { (v, c) };
                 let v = if v > 0.0 && v < f32::INFINITY { v } else { c_out };
                 res[i] = if c > 0.0 && c < VALID_LIMIT { v } else { 0.0 };
@@ -379,17 +377,16 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
     }
 }
 
-/// The weight of neighbour value `nb` for centre value `z`, range coefficient `c` and spatial
-/// tap `t` (an exponent for the range filters, a linear weight for the Gaussian).
+/// The weight of neighbour value `nb` and its scaled difference `e = s·nb − zs` to the centre
+/// (`zs = s·z`), for the spatial tap `t` (an exponent for the range filters, a linear weight for
+/// the Gaussian, where `s = 1` and invalid neighbours are masked explicitly).
 #[inline(always)]
-fn weight<const FMA: bool, M: RangeMode>(nb: f32, z: f32, c: f32, t: f32) -> f32 {
+fn weight<const FMA: bool, M: RangeMode>(nb: f32, s: f32, zs: f32, t: f32) -> (f32, f32) {
     if M::RANGE {
-        let d = nb - z;
-        let x = if FMA { (-c * d).mul_add(d, t) } else { t - c * d * d };
-        exp2_neg::<FMA>(x)
-    } else if nb > 0.0 {
-        t
+        let e = if FMA { nb.mul_add(s, -zs) } else { nb * s - zs };
+        let x = if FMA { (-e).mul_add(e, t) } else { t - e * e };
+        (exp2_neg::<FMA>(x), e)
     } else {
-        0.0
+        (if nb > 0.0 { t } else { 0.0 }, nb - zs)
     }
 }

@@ -58,7 +58,10 @@ where
 {
     let path = path.as_ref();
     let Some(file_name) = path.file_name() else {
-        return Err(IoError::invalid_data(path, "not a file path (no file name)"));
+        return Err(IoError::invalid_data(
+            path,
+            "not a file path (no file name)",
+        ));
     };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -153,7 +156,10 @@ mod tests {
             Err(std::io::Error::other("boom"))
         })
         .unwrap_err();
-        assert!(err.to_string().contains("a.bin") && err.to_string().contains("boom"), "{err}");
+        assert!(
+            err.to_string().contains("a.bin") && err.to_string().contains("boom"),
+            "{err}"
+        );
         assert_eq!(fs::read(&p).unwrap(), b"keep");
         assert_eq!(entries(dir.path()), vec!["a.bin".to_string()]);
     }
@@ -163,7 +169,9 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("b.bin");
         let r = std::panic::catch_unwind(|| {
-            let _ = write_atomic(&p, |_w| -> std::io::Result<()> { panic!("callback panicked") });
+            let _ = write_atomic(&p, |_w| -> std::io::Result<()> {
+                panic!("callback panicked")
+            });
         });
         assert!(r.is_err());
         assert!(entries(dir.path()).is_empty());

@@ -60,7 +60,10 @@ pub(crate) fn read_text(path: &Path, max: u64) -> Result<String> {
     let file = File::open(path).map_err(|e| IoError::io(path, e))?;
     let len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
     if len > max {
-        return Err(IoError::too_large(path, format!("{len} bytes, over the {max}-byte limit for this file type")));
+        return Err(IoError::too_large(
+            path,
+            format!("{len} bytes, over the {max}-byte limit for this file type"),
+        ));
     }
     let mut s = String::new();
     file.take(max + 1)
@@ -70,7 +73,12 @@ pub(crate) fn read_text(path: &Path, max: u64) -> Result<String> {
 }
 
 /// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern.
-fn intrinsics_from_k(path: &Path, width: usize, height: usize, k: [[f64; 3]; 3]) -> Result<Intrinsics> {
+fn intrinsics_from_k(
+    path: &Path,
+    width: usize,
+    height: usize,
+    k: [[f64; 3]; 3],
+) -> Result<Intrinsics> {
     let fixed = [
         ("K[0][1] (skew)", k[0][1], 0.0),
         ("K[1][0]", k[1][0], 0.0),
@@ -82,11 +90,14 @@ fn intrinsics_from_k(path: &Path, width: usize, height: usize, k: [[f64; 3]; 3])
         if !v.is_finite() || (v - want).abs() > MATRIX_TOLERANCE {
             return Err(IoError::malformed(
                 path,
-                format!("intrinsic matrix entry {name} is {v}, expected {want} (no skew, K[2] = [0, 0, 1])"),
+                format!(
+                    "intrinsic matrix entry {name} is {v}, expected {want} (no skew, K[2] = [0, 0, 1])"
+                ),
             ));
         }
     }
-    Intrinsics::new(width, height, k[0][0], k[1][1], k[0][2], k[1][2]).map_err(|e| IoError::core(path, None, e))
+    Intrinsics::new(width, height, k[0][0], k[1][1], k[0][2], k[1][2])
+        .map_err(|e| IoError::core(path, None, e))
 }
 
 /// Reads an Open3D `PinholeCameraIntrinsic` JSON file into a [`Camera`]; the sensor model comes
@@ -148,7 +159,11 @@ pub fn write_camera_json(path: impl AsRef<Path>, camera: &Camera) -> Result<()> 
 
 /// Reads a plain-text 3×3 intrinsic matrix (row-major, whitespace-separated, e.g. 7-Scenes'
 /// `camera-intrinsics.txt`) for an image of `width`×`height` pixels.
-pub fn read_intrinsics_txt(path: impl AsRef<Path>, width: usize, height: usize) -> Result<Intrinsics> {
+pub fn read_intrinsics_txt(
+    path: impl AsRef<Path>,
+    width: usize,
+    height: usize,
+) -> Result<Intrinsics> {
     let path = path.as_ref();
     let text = read_text(path, MAX_CAMERA_BYTES.min(MAX_TEXT_BYTES))?;
     let mut values = Vec::with_capacity(9);
@@ -158,7 +173,11 @@ pub fn read_intrinsics_txt(path: impl AsRef<Path>, width: usize, height: usize) 
                 .parse()
                 .map_err(|_| IoError::parse(path, i + 1, format!("{tok:?} is not a number")))?;
             if values.len() == 9 {
-                return Err(IoError::parse(path, i + 1, "more than 9 numbers in a 3x3 intrinsic matrix"));
+                return Err(IoError::parse(
+                    path,
+                    i + 1,
+                    "more than 9 numbers in a 3x3 intrinsic matrix",
+                ));
             }
             values.push(v);
         }
@@ -166,7 +185,10 @@ pub fn read_intrinsics_txt(path: impl AsRef<Path>, width: usize, height: usize) 
     if values.len() != 9 {
         return Err(IoError::malformed(
             path,
-            format!("found {} numbers, a 3x3 intrinsic matrix needs 9", values.len()),
+            format!(
+                "found {} numbers, a 3x3 intrinsic matrix needs 9",
+                values.len()
+            ),
         ));
     }
     let k = [
@@ -229,7 +251,10 @@ mod tests {
         )
         .unwrap();
         let cam = read_camera_json(&p).unwrap();
-        assert_eq!(cam.intrinsics, Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap());
+        assert_eq!(
+            cam.intrinsics,
+            Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap()
+        );
         assert_eq!(cam.sensor.focal_px, 525.0);
         assert_eq!(cam.sensor.baseline_m, KINECT_BASELINE_M);
         assert_eq!(cam.sensor.subpixel_steps, 8);
@@ -260,7 +285,10 @@ mod tests {
         let p = dir.path().join("camera-intrinsics.txt");
         std::fs::write(&p, " 5.85e+02\t 0.0\t 3.2e+02\t\n 0 585 240\n 0 0 1\n").unwrap();
         let k = read_7scenes_intrinsics(&p).unwrap();
-        assert_eq!((k.width, k.height, k.fx, k.fy, k.cx, k.cy), (640, 480, 585.0, 585.0, 320.0, 240.0));
+        assert_eq!(
+            (k.width, k.height, k.fx, k.fy, k.cx, k.cy),
+            (640, 480, 585.0, 585.0, 320.0, 240.0)
+        );
         std::fs::write(&p, "585 0 320\n0 585 x\n0 0 1\n").unwrap();
         match read_7scenes_intrinsics(&p).unwrap_err() {
             IoError::Parse { line, .. } => assert_eq!(line, 2),

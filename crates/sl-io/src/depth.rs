@@ -203,12 +203,18 @@ impl DepthEncoding {
 
     /// The same encoding with another invalid value.
     pub fn with_invalid_value(self, invalid_value: u16) -> Self {
-        Self { invalid_value, ..self }
+        Self {
+            invalid_value,
+            ..self
+        }
     }
 
     /// The same encoding with another scale.
     pub fn with_units_per_m(self, units_per_m: f64) -> Self {
-        Self { units_per_m, ..self }
+        Self {
+            units_per_m,
+            ..self
+        }
     }
 
     /// Smallest depth that survives a round trip, metres.
@@ -268,7 +274,10 @@ impl DepthEncoding {
             }
             DepthFormat::Sun => {
                 let s = self.units_per_m;
-                raw.data().iter().map(|&v| units_to_m(v.rotate_right(3), s)).collect()
+                raw.data()
+                    .iter()
+                    .map(|&v| units_to_m(v.rotate_right(3), s))
+                    .collect()
             }
         };
         DepthImage::from_image(rebuild(w, h, data))
@@ -305,7 +314,11 @@ impl DepthEncoding {
                         return Err(out_of_range(i, z));
                     }
                     let u = u as u16;
-                    if self.format == DepthFormat::Sun { u.rotate_left(3) } else { u }
+                    if self.format == DepthFormat::Sun {
+                        u.rotate_left(3)
+                    } else {
+                        u
+                    }
                 }
             };
             out.push(v);
@@ -317,7 +330,11 @@ impl DepthEncoding {
 impl fmt::Display for DepthEncoding {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self.format {
-            DepthFormat::NyuRaw => write!(f, "nyu-raw (Kinect raw disparity, invalid {})", self.invalid_value),
+            DepthFormat::NyuRaw => write!(
+                f,
+                "nyu-raw (Kinect raw disparity, invalid {})",
+                self.invalid_value
+            ),
             fmt => write!(
                 f,
                 "{fmt} ({} units/m, invalid {})",
@@ -421,7 +438,9 @@ pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<R
         (DepthFormat::NyuRaw, Some(_)) => {
             return Err(IoError::Format {
                 path: path.to_path_buf(),
-                message: "a depth scale does not apply to nyu-raw files (they store Kinect disparity)".into(),
+                message:
+                    "a depth scale does not apply to nyu-raw files (they store Kinect disparity)"
+                        .into(),
             });
         }
         (_, Some(s)) => encoding.units_per_m = s,
@@ -472,7 +491,11 @@ pub fn read_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<Loade
 /// stored as `encoding.invalid_value`. A valid depth that the encoding cannot hold (it would
 /// round to 0 or exceed 65534 units, i.e. [`DepthEncoding::max_depth_m`]) is an
 /// [`IoError::DepthOutOfRange`] naming the pixel and the valid range — never a silent wrap.
-pub fn write_depth(path: impl AsRef<Path>, depth: &DepthImage, encoding: &DepthEncoding) -> Result<()> {
+pub fn write_depth(
+    path: impl AsRef<Path>,
+    depth: &DepthImage,
+    encoding: &DepthEncoding,
+) -> Result<()> {
     let path = path.as_ref();
     encoding.validate(path)?;
     check_writable_size(path, depth.width(), depth.height())?;
@@ -499,13 +522,20 @@ pub fn read_nyu_raw(path: impl AsRef<Path>) -> Result<Image<u16>> {
             path: path.to_path_buf(),
             found: format!(
                 "{} PNM with maxval {}",
-                if header.kind == PnmKind::Gray { "grey" } else { "colour" },
+                if header.kind == PnmKind::Gray {
+                    "grey"
+                } else {
+                    "colour"
+                },
                 header.maxval
             ),
             expected: "16-bit grey PGM (P5, maxval > 255) of raw Kinect disparity".into(),
         });
     }
-    let le: Vec<u16> = bytes.chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+    let le: Vec<u16> = bytes
+        .chunks_exact(2)
+        .map(|b| u16::from_le_bytes([b[0], b[1]]))
+        .collect();
     let values = if le.iter().all(|&v| v <= NYU_INVALID_RAW) {
         le
     } else {
@@ -534,7 +564,11 @@ fn write_nyu_pgm(path: &Path, width: usize, height: usize, values: &[u16]) -> Re
 /// NYU raw values to metres: `351.3 / (1092.5 − raw)`, 0 for `raw ≥ 1093` (incl. 2047).
 pub fn nyu_raw_to_depth(raw: &Image<u16>) -> DepthImage {
     let (w, h) = raw.dimensions();
-    DepthImage::from_image(rebuild(w, h, raw.data().iter().map(|&v| nyu_raw_value_to_m(v)).collect()))
+    DepthImage::from_image(rebuild(
+        w,
+        h,
+        raw.data().iter().map(|&v| nyu_raw_value_to_m(v)).collect(),
+    ))
 }
 
 /// NYU raw values to disparity in pixels with the ROS kinect model `D_px = (doff − raw) / 8`;
@@ -551,7 +585,11 @@ pub fn nyu_raw_to_disparity(raw: &Image<u16>, doff: f64) -> DisparityImage {
         .iter()
         .map(|&v| {
             let d = (doff - f64::from(v)) / steps;
-            if v != NYU_INVALID_RAW && d > 0.0 { d as f32 } else { 0.0 }
+            if v != NYU_INVALID_RAW && d > 0.0 {
+                d as f32
+            } else {
+                0.0
+            }
         })
         .collect();
     DisparityImage::from_image(rebuild(w, h, data))
@@ -605,10 +643,22 @@ mod tests {
         }
         assert_eq!("TIF".parse::<DepthFormat>().unwrap(), DepthFormat::Tiff);
         assert!("jpeg".parse::<DepthFormat>().is_err());
-        assert_eq!(DepthFormat::from_path(Path::new("a/b.PNG")), Some(DepthFormat::Png));
-        assert_eq!(DepthFormat::from_path(Path::new("b.tif")), Some(DepthFormat::Tiff));
-        assert_eq!(DepthFormat::from_path(Path::new("b.tiff")), Some(DepthFormat::Tiff));
-        assert_eq!(DepthFormat::from_path(Path::new("b.pgm")), Some(DepthFormat::NyuRaw));
+        assert_eq!(
+            DepthFormat::from_path(Path::new("a/b.PNG")),
+            Some(DepthFormat::Png)
+        );
+        assert_eq!(
+            DepthFormat::from_path(Path::new("b.tif")),
+            Some(DepthFormat::Tiff)
+        );
+        assert_eq!(
+            DepthFormat::from_path(Path::new("b.tiff")),
+            Some(DepthFormat::Tiff)
+        );
+        assert_eq!(
+            DepthFormat::from_path(Path::new("b.pgm")),
+            Some(DepthFormat::NyuRaw)
+        );
         assert_eq!(DepthFormat::from_path(Path::new("b.jpg")), None);
         assert_eq!(DepthFormat::from_path(Path::new("noext")), None);
     }
@@ -649,7 +699,9 @@ mod tests {
         d.data_mut()[4] = 14.0; // > 65534 / 5000 = 13.1068 m
         let err = DepthEncoding::tum().encode(path, &d).unwrap_err();
         match &err {
-            IoError::DepthOutOfRange { x, y, max_depth_m, .. } => {
+            IoError::DepthOutOfRange {
+                x, y, max_depth_m, ..
+            } => {
                 assert_eq!((*x, *y), (1, 1));
                 assert!((max_depth_m - 13.1068).abs() < 1e-9);
             }
@@ -679,9 +731,16 @@ mod tests {
             } else {
                 img
             };
-            let back = DepthEncoding { format: DepthFormat::Png, ..enc }.decode(&plain);
+            let back = DepthEncoding {
+                format: DepthFormat::Png,
+                ..enc
+            }
+            .decode(&plain);
             for (a, b) in back.data().iter().zip(d.data()) {
-                assert!((a - b).abs() <= 0.5 / enc.units_per_m as f32 + 1e-6, "{enc}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 0.5 / enc.units_per_m as f32 + 1e-6,
+                    "{enc}: {a} vs {b}"
+                );
                 assert_eq!(*a == 0.0, *b == 0.0);
             }
         }
@@ -690,11 +749,21 @@ mod tests {
     #[test]
     fn invalid_values_validated() {
         let p = Path::new("x");
-        assert!(DepthEncoding::png(1000.0).with_invalid_value(7).validate(p).is_err());
+        assert!(
+            DepthEncoding::png(1000.0)
+                .with_invalid_value(7)
+                .validate(p)
+                .is_err()
+        );
         assert!(DepthEncoding::png(0.0).validate(p).is_err());
         assert!(DepthEncoding::png(f64::NAN).validate(p).is_err());
         assert!(DepthEncoding::png(-5.0).validate(p).is_err());
-        assert!(DepthEncoding::nyu_raw().with_invalid_value(5).validate(p).is_err());
+        assert!(
+            DepthEncoding::nyu_raw()
+                .with_invalid_value(5)
+                .validate(p)
+                .is_err()
+        );
         assert!(DepthEncoding::nyu_raw().validate(p).is_ok());
         assert!(DepthEncoding::seven_scenes().validate(p).is_ok());
     }

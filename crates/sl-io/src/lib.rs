@@ -64,15 +64,17 @@ mod raster;
 pub mod rgb;
 pub mod trajectory;
 
-pub use camera::{read_7scenes_intrinsics, read_camera, read_camera_json, read_intrinsics_txt, write_camera_json};
+pub use camera::{
+    read_7scenes_intrinsics, read_camera, read_camera_json, read_intrinsics_txt, write_camera_json,
+};
 pub use depth::{
-    DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadOptions, read_depth, read_nyu_raw, read_raw_depth,
-    write_depth,
+    DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadOptions, read_depth, read_nyu_raw,
+    read_raw_depth, write_depth,
 };
 pub use error::{IoError, Result};
 pub use ply::{PlyData, PlyFormat, VertexScalar, read_ply, write_ply};
-pub use trajectory::{
-    DEFAULT_MAX_DT_S, Frame, TimedPose, TumSequence, read_7scenes_sequence, read_open3d_log, read_open3d_log_frames,
-    read_tum_sequence,
-};
 pub use rgb::{read_gray16, read_rgb, write_gray8_png, write_gray16_png, write_rgb_png};
+pub use trajectory::{
+    DEFAULT_MAX_DT_S, Frame, TimedPose, TumSequence, read_7scenes_sequence, read_open3d_log,
+    read_open3d_log_frames, read_tum_sequence,
+};

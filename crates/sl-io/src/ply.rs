@@ -27,8 +27,8 @@ use std::str::FromStr;
 
 use ply_rs::parser::{Parser, Reader};
 use ply_rs::ply::{
-    Addable, ElementDef, Encoding, Header, PropertyAccess, PropertyAccessResult, PropertyDef, PropertyType,
-    ScalarType,
+    Addable, ElementDef, Encoding, Header, PropertyAccess, PropertyAccessResult, PropertyDef,
+    PropertyType, ScalarType,
 };
 use ply_rs::writer::Writer;
 
@@ -36,7 +36,9 @@ use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
 
 /// Vertex property names with a fixed meaning (never taken as the scalar).
-const RESERVED: [&str; 10] = ["x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha"];
+const RESERVED: [&str; 10] = [
+    "x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha",
+];
 
 /// A named per-vertex scalar.
 #[derive(Debug, Clone, PartialEq)]
@@ -133,7 +135,11 @@ impl PlyData {
         }
         if let Some(s) = &self.scalar {
             if s.values.len() != n {
-                return Err(format!("{} values of scalar {:?} for {n} vertices", s.values.len(), s.name));
+                return Err(format!(
+                    "{} values of scalar {:?} for {n} vertices",
+                    s.values.len(),
+                    s.name
+                ));
             }
             let bad_char = s.name.chars().any(|c| c.is_whitespace() || c.is_control());
             if s.name.is_empty() || bad_char || RESERVED.contains(&s.name.as_str()) {
@@ -144,10 +150,19 @@ impl PlyData {
             }
         }
         if n > i32::MAX as usize && !self.faces.is_empty() {
-            return Err(format!("{n} vertices cannot be indexed by PLY int face indices"));
+            return Err(format!(
+                "{n} vertices cannot be indexed by PLY int face indices"
+            ));
         }
-        if let Some((i, f)) = self.faces.iter().enumerate().find(|(_, f)| f.iter().any(|&v| v as usize >= n)) {
-            return Err(format!("face {i} {f:?} refers to a vertex beyond the {n} vertices"));
+        if let Some((i, f)) = self
+            .faces
+            .iter()
+            .enumerate()
+            .find(|(_, f)| f.iter().any(|&v| v as usize >= n))
+        {
+            return Err(format!(
+                "face {i} {f:?} refers to a vertex beyond the {n} vertices"
+            ));
         }
         Ok(())
     }
@@ -178,9 +193,13 @@ impl FromStr for PlyFormat {
     /// Parses `binary` (or `binary_little_endian`) and `ascii`.
     fn from_str(s: &str) -> std::result::Result<Self, String> {
         match s.trim().to_ascii_lowercase().as_str() {
-            "binary" | "binary_little_endian" | "binary-little-endian" | "bin" => Ok(Self::BinaryLittleEndian),
+            "binary" | "binary_little_endian" | "binary-little-endian" | "bin" => {
+                Ok(Self::BinaryLittleEndian)
+            }
             "ascii" | "text" => Ok(Self::Ascii),
-            other => Err(format!("unknown PLY format {other:?} (expected binary or ascii)")),
+            other => Err(format!(
+                "unknown PLY format {other:?} (expected binary or ascii)"
+            )),
         }
     }
 }
@@ -251,7 +270,9 @@ fn header_for(data: &PlyData, format: PlyFormat) -> Header {
         PlyFormat::BinaryLittleEndian => Encoding::BinaryLittleEndian,
         PlyFormat::Ascii => Encoding::Ascii,
     };
-    header.comments.push("written by sldepth (sl-io)".to_string());
+    header
+        .comments
+        .push("written by sldepth (sl-io)".to_string());
     let mut vertex = ElementDef::new("vertex".to_string());
     vertex.count = data.positions.len();
     for n in ["x", "y", "z"] {
@@ -268,7 +289,9 @@ fn header_for(data: &PlyData, format: PlyFormat) -> Header {
         }
     }
     if let Some(s) = &data.scalar {
-        vertex.properties.add(scalar_prop(&s.name, ScalarType::Float));
+        vertex
+            .properties
+            .add(scalar_prop(&s.name, ScalarType::Float));
     }
     header.elements.add(vertex);
     if !data.faces.is_empty() {
@@ -298,12 +321,26 @@ fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io
     for (i, p) in data.positions.iter().enumerate() {
         let v = VertexOut {
             p: *p,
-            n: data.normals.as_ref().and_then(|n| n.get(i).copied()).unwrap_or_default(),
-            c: data.colors.as_ref().and_then(|c| c.get(i).copied()).unwrap_or_default(),
-            s: data.scalar.as_ref().and_then(|s| s.values.get(i).copied()).unwrap_or_default(),
+            n: data
+                .normals
+                .as_ref()
+                .and_then(|n| n.get(i).copied())
+                .unwrap_or_default(),
+            c: data
+                .colors
+                .as_ref()
+                .and_then(|c| c.get(i).copied())
+                .unwrap_or_default(),
+            s: data
+                .scalar
+                .as_ref()
+                .and_then(|s| s.values.get(i).copied())
+                .unwrap_or_default(),
         };
         match format {
-            PlyFormat::BinaryLittleEndian => vw.write_little_endian_element(&mut chunk, &v, vdef)?,
+            PlyFormat::BinaryLittleEndian => {
+                vw.write_little_endian_element(&mut chunk, &v, vdef)?
+            }
             PlyFormat::Ascii => vw.write_ascii_element(&mut chunk, &v, vdef)?,
         };
         if chunk.len() >= ENCODE_CHUNK_BYTES {
@@ -319,7 +356,9 @@ fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io
                 idx: [f[0] as i32, f[1] as i32, f[2] as i32],
             };
             match format {
-                PlyFormat::BinaryLittleEndian => fw.write_little_endian_element(&mut chunk, &face, fdef)?,
+                PlyFormat::BinaryLittleEndian => {
+                    fw.write_little_endian_element(&mut chunk, &face, fdef)?
+                }
                 PlyFormat::Ascii => fw.write_ascii_element(&mut chunk, &face, fdef)?,
             };
             if chunk.len() >= ENCODE_CHUNK_BYTES {
@@ -344,7 +383,8 @@ pub fn encode_ply(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std
 /// a bad scalar name are [`IoError::InvalidData`].
 pub fn write_ply(path: impl AsRef<Path>, data: &PlyData, format: PlyFormat) -> Result<()> {
     let path = path.as_ref();
-    data.validate().map_err(|m| IoError::invalid_data(path, m))?;
+    data.validate()
+        .map_err(|m| IoError::invalid_data(path, m))?;
     write_atomic(path, |w| write_body(w, data, format))
 }
 
@@ -507,7 +547,10 @@ fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLay
     let mut min_payload: u64 = 0;
     for (name, e) in &header.elements {
         if e.properties.is_empty() && e.count > 0 {
-            return Err(err(format!("element `{name}` declares {} entries but no properties", e.count)));
+            return Err(err(format!(
+                "element `{name}` declares {} entries but no properties",
+                e.count
+            )));
         }
         // Smallest possible encoding of one entry: binary = scalar sizes + list counts;
         // ASCII = one digit plus a separator per property.
@@ -545,17 +588,27 @@ fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLay
         match present {
             0 => Ok(false),
             3 if names.iter().all(|n| scalar_of(n).is_some()) => Ok(true),
-            _ => Err(err(format!("vertex {what} need scalar properties {names:?}, found {present} of them"))),
+            _ => Err(err(format!(
+                "vertex {what} need scalar properties {names:?}, found {present} of them"
+            ))),
         }
     };
     let normals = group(["nx", "ny", "nz"], "normals")?;
     let colors = group(["red", "green", "blue"], "colours")?;
-    if colors && !["red", "green", "blue"].iter().all(|n| scalar_of(n).is_some_and(|t| is_int(&t))) {
-        return Err(err("vertex colours must be integer properties (uchar 0..255)".into()));
+    if colors
+        && !["red", "green", "blue"]
+            .iter()
+            .all(|n| scalar_of(n).is_some_and(|t| is_int(&t)))
+    {
+        return Err(err(
+            "vertex colours must be integer properties (uchar 0..255)".into(),
+        ));
     }
     let scalar = props
         .iter()
-        .find(|(n, p)| !RESERVED.contains(&n.as_str()) && matches!(p.data_type, PropertyType::Scalar(_)))
+        .find(|(n, p)| {
+            !RESERVED.contains(&n.as_str()) && matches!(p.data_type, PropertyType::Scalar(_))
+        })
         .map(|(n, _)| n.clone());
     if let Some(face) = header.elements.get("face") {
         let list = ["vertex_indices", "vertex_index"]
@@ -563,7 +616,11 @@ fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLay
             .find_map(|n| face.properties.get(*n));
         match list.map(|p| &p.data_type) {
             Some(PropertyType::List(_, t)) if is_int(t) => {}
-            Some(_) => return Err(err("face `vertex_indices` must be a list of integers".into())),
+            Some(_) => {
+                return Err(err(
+                    "face `vertex_indices` must be a list of integers".into()
+                ));
+            }
             None if face.count == 0 => {}
             None => return Err(err("face element lacks a `vertex_indices` list".into())),
         }
@@ -629,7 +686,10 @@ pub fn read_ply(path: impl AsRef<Path>) -> Result<PlyData> {
                     if f.len != 3 {
                         return Err(IoError::Ply {
                             path: path.to_path_buf(),
-                            message: format!("face {i} has {} vertices; only triangles are supported", f.len),
+                            message: format!(
+                                "face {i} has {} vertices; only triangles are supported",
+                                f.len
+                            ),
                         });
                     }
                     data.faces.push(f.idx);
@@ -654,10 +714,14 @@ mod tests {
     use super::*;
 
     fn sample(n: usize, faces: bool) -> PlyData {
-        let positions: Vec<[f32; 3]> = (0..n).map(|i| [i as f32 * 0.25, -(i as f32) / 3.0, 1.0 + i as f32]).collect();
+        let positions: Vec<[f32; 3]> = (0..n)
+            .map(|i| [i as f32 * 0.25, -(i as f32) / 3.0, 1.0 + i as f32])
+            .collect();
         let mut d = PlyData::from_positions(positions);
         if faces {
-            d.faces = (0..n.saturating_sub(2)).map(|i| [i as u32, i as u32 + 1, i as u32 + 2]).collect();
+            d.faces = (0..n.saturating_sub(2))
+                .map(|i| [i as u32, i as u32 + 1, i as u32 + 2])
+                .collect();
         }
         d
     }
@@ -678,7 +742,11 @@ mod tests {
                         d = d.with_scalar("confidence", (0..7).map(|i| i as f32 / 7.0).collect());
                     }
                     write_ply(&p, &d, format).unwrap();
-                    assert_eq!(read_ply(&p).unwrap(), d, "{format} faces={faces} attrs={attrs}");
+                    assert_eq!(
+                        read_ply(&p).unwrap(),
+                        d,
+                        "{format} faces={faces} attrs={attrs}"
+                    );
                 }
             }
         }
@@ -688,12 +756,19 @@ mod tests {
     fn header_is_conventional() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("m.ply");
-        write_ply(&p, &sample(4, true).with_scalar("sigma_z_m", vec![0.0; 4]), PlyFormat::Ascii).unwrap();
+        write_ply(
+            &p,
+            &sample(4, true).with_scalar("sigma_z_m", vec![0.0; 4]),
+            PlyFormat::Ascii,
+        )
+        .unwrap();
         let text = std::fs::read_to_string(&p).unwrap();
         assert!(text.starts_with("ply\nformat ascii 1.0\n"), "{text}");
         assert!(text.contains("element vertex 4\n"));
         assert!(text.contains("property float sigma_z_m\n"));
-        assert!(text.contains("element face 2\nproperty list uchar int vertex_indices\nend_header\n"));
+        assert!(
+            text.contains("element face 2\nproperty list uchar int vertex_indices\nend_header\n")
+        );
         assert!(text.ends_with("3 0 1 2\n3 1 2 3\n"), "{text}");
     }
 
@@ -729,9 +804,18 @@ mod tests {
         )
         .unwrap();
         let d = read_ply(&p).unwrap();
-        assert_eq!(d.positions, vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        assert_eq!(
+            d.positions,
+            vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        );
         assert_eq!(d.faces, vec![[0, 1, 2]]);
-        assert_eq!(d.scalar.unwrap(), VertexScalar { name: "intensity".into(), values: vec![0.5, 1.5, 2.5] });
+        assert_eq!(
+            d.scalar.unwrap(),
+            VertexScalar {
+                name: "intensity".into(),
+                values: vec![0.5, 1.5, 2.5]
+            }
+        );
         assert!(d.normals.is_none() && d.colors.is_none());
     }
 

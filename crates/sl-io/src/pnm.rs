@@ -111,7 +111,9 @@ pub(crate) fn parse_header(buf: &[u8]) -> std::result::Result<PnmHeader, HeaderE
             }
         }
         if pos == start {
-            return Err(HeaderError::Invalid(format!("missing whitespace before {name}")));
+            return Err(HeaderError::Invalid(format!(
+                "missing whitespace before {name}"
+            )));
         }
         let digits_start = pos;
         let mut value: u64 = 0;
@@ -151,11 +153,15 @@ pub(crate) fn parse_header(buf: &[u8]) -> std::result::Result<PnmHeader, HeaderE
     let [w, h, maxval] = fields;
     for (name, v) in [("width", w), ("height", h)] {
         if v == 0 || v > MAX_SIDE as u64 {
-            return Err(HeaderError::Invalid(format!("{name} {v} must be in 1..={MAX_SIDE}")));
+            return Err(HeaderError::Invalid(format!(
+                "{name} {v} must be in 1..={MAX_SIDE}"
+            )));
         }
     }
     if maxval == 0 || maxval > 65535 {
-        return Err(HeaderError::Invalid(format!("maxval {maxval} must be in 1..=65535")));
+        return Err(HeaderError::Invalid(format!(
+            "maxval {maxval} must be in 1..=65535"
+        )));
     }
     Ok(PnmHeader {
         kind,
@@ -218,7 +224,8 @@ pub(crate) fn read_pnm(path: &Path) -> Result<(PnmHeader, Vec<u8>)> {
     file.seek(SeekFrom::Start(header.data_offset as u64))
         .map_err(|e| IoError::io(path, e))?;
     let mut data = vec![0u8; data_len];
-    file.read_exact(&mut data).map_err(|e| IoError::io(path, e))?;
+    file.read_exact(&mut data)
+        .map_err(|e| IoError::io(path, e))?;
     Ok((header, data))
 }
 
@@ -245,7 +252,10 @@ mod tests {
     #[test]
     fn comments_are_whitespace() {
         let h = parse_header(b"P6\n# made by hand\n3 # w\n2\n255\nxyz").unwrap();
-        assert_eq!((h.kind, h.width, h.height, h.maxval), (PnmKind::Rgb, 3, 2, 255));
+        assert_eq!(
+            (h.kind, h.width, h.height, h.maxval),
+            (PnmKind::Rgb, 3, 2, 255)
+        );
         assert_eq!(h.bytes_per_sample(), 1);
         assert_eq!(h.data_len(), Some(18));
     }
@@ -269,7 +279,13 @@ mod tests {
                 String::from_utf8_lossy(bad)
             );
         }
-        for short in [&b""[..], b"P5", b"P5 640", b"P5 640 480 65535", b"P5 # comment"] {
+        for short in [
+            &b""[..],
+            b"P5",
+            b"P5 640",
+            b"P5 640 480 65535",
+            b"P5 # comment",
+        ] {
             assert_eq!(parse_header(short), Err(HeaderError::Incomplete));
         }
     }

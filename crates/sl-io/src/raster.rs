@@ -23,7 +23,10 @@ pub(crate) enum Container {
 /// Converts an `image` error into an [`IoError`] naming `path`.
 pub(crate) fn image_error(path: &Path, e: ImageError) -> IoError {
     match e {
-        ImageError::Limits(l) => IoError::too_large(path, format!("{l} (decode limits: {MAX_SIDE} px per side, 512 MiB)")),
+        ImageError::Limits(l) => IoError::too_large(
+            path,
+            format!("{l} (decode limits: {MAX_SIDE} px per side, 512 MiB)"),
+        ),
         ImageError::IoError(io) => IoError::io(path, io),
         other => IoError::Decode {
             path: path.to_path_buf(),
@@ -56,13 +59,15 @@ pub(crate) fn decode_l16(path: &Path, container: Container) -> Result<Image<u16>
     let reader = open(path)?;
     let img = match container {
         Container::Png => {
-            let dec = PngDecoder::with_limits(reader, image_limits()).map_err(|e| image_error(path, e))?;
+            let dec = PngDecoder::with_limits(reader, image_limits())
+                .map_err(|e| image_error(path, e))?;
             check_l16(path, dec.color_type())?;
             DynamicImage::from_decoder(dec)
         }
         Container::Tiff => {
             let mut dec = TiffDecoder::new(reader).map_err(|e| image_error(path, e))?;
-            dec.set_limits(image_limits()).map_err(|e| image_error(path, e))?;
+            dec.set_limits(image_limits())
+                .map_err(|e| image_error(path, e))?;
             check_l16(path, dec.color_type())?;
             DynamicImage::from_decoder(dec)
         }
@@ -104,7 +109,10 @@ pub(crate) fn decode_rgb8(path: &Path) -> Result<Image<[u8; 3]>> {
         });
     }
     reader.limits(image_limits());
-    let img = reader.decode().map_err(|e| image_error(path, e))?.into_rgb8();
+    let img = reader
+        .decode()
+        .map_err(|e| image_error(path, e))?
+        .into_rgb8();
     let (w, h) = (img.width() as usize, img.height() as usize);
     let data: Vec<[u8; 3]> = img.pixels().map(|p| p.0).collect();
     Image::from_vec(w, h, data).map_err(|e| IoError::core(path, None, e))
@@ -128,7 +136,12 @@ fn png_encoder(w: &mut dyn Write) -> PngEncoder<&mut dyn Write> {
 }
 
 /// Writes `values` (row-major, `width * height`) as a 16-bit grey PNG, atomically.
-pub(crate) fn write_png_l16(path: &Path, width: usize, height: usize, values: &[u16]) -> Result<()> {
+pub(crate) fn write_png_l16(
+    path: &Path,
+    width: usize,
+    height: usize,
+    values: &[u16],
+) -> Result<()> {
     let (w, h) = check_writable_size(path, width, height)?;
     let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
     write_atomic(path, |out| {
@@ -139,7 +152,13 @@ pub(crate) fn write_png_l16(path: &Path, width: usize, height: usize, values: &[
 }
 
 /// Writes 8-bit pixels (`channels` 1 or 3) as a PNG, atomically.
-pub(crate) fn write_png_u8(path: &Path, width: usize, height: usize, bytes: &[u8], color: ExtendedColorType) -> Result<()> {
+pub(crate) fn write_png_u8(
+    path: &Path,
+    width: usize,
+    height: usize,
+    bytes: &[u8],
+    color: ExtendedColorType,
+) -> Result<()> {
     let (w, h) = check_writable_size(path, width, height)?;
     write_atomic(path, |out| {
         png_encoder(out)
@@ -150,7 +169,12 @@ pub(crate) fn write_png_u8(path: &Path, width: usize, height: usize, bytes: &[u8
 
 /// Writes `values` as an uncompressed 16-bit grey TIFF, atomically. The TIFF encoder needs
 /// `Seek`, so the file is assembled in memory first.
-pub(crate) fn write_tiff_l16(path: &Path, width: usize, height: usize, values: &[u16]) -> Result<()> {
+pub(crate) fn write_tiff_l16(
+    path: &Path,
+    width: usize,
+    height: usize,
+    values: &[u16],
+) -> Result<()> {
     let (w, h) = check_writable_size(path, width, height)?;
     let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_ne_bytes()).collect();
     let mut buf = Cursor::new(Vec::with_capacity(bytes.len() + 1024));

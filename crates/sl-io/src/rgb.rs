@@ -45,7 +45,10 @@ fn read_pnm_rgb(path: &Path) -> Result<Image<[u8; 3]>> {
             .collect()
     };
     let pixels: Vec<[u8; 3]> = match header.kind {
-        PnmKind::Rgb => samples.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+        PnmKind::Rgb => samples
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
         PnmKind::Gray => samples.iter().map(|&g| [g, g, g]).collect(),
     };
     Image::from_vec(header.width, header.height, pixels).map_err(|e| IoError::core(path, None, e))
@@ -54,12 +57,24 @@ fn read_pnm_rgb(path: &Path) -> Result<Image<[u8; 3]>> {
 /// Writes an 8-bit RGB PNG atomically (plots, overlays, normal renderings).
 pub fn write_rgb_png(path: impl AsRef<Path>, image: &Image<[u8; 3]>) -> Result<()> {
     let bytes: Vec<u8> = image.data().iter().flatten().copied().collect();
-    write_png_u8(path.as_ref(), image.width(), image.height(), &bytes, ExtendedColorType::Rgb8)
+    write_png_u8(
+        path.as_ref(),
+        image.width(),
+        image.height(),
+        &bytes,
+        ExtendedColorType::Rgb8,
+    )
 }
 
 /// Writes an 8-bit grey PNG atomically (masks, confidence maps).
 pub fn write_gray8_png(path: impl AsRef<Path>, image: &Image<u8>) -> Result<()> {
-    write_png_u8(path.as_ref(), image.width(), image.height(), image.data(), ExtendedColorType::L8)
+    write_png_u8(
+        path.as_ref(),
+        image.width(),
+        image.height(),
+        image.data(),
+        ExtendedColorType::L8,
+    )
 }
 
 /// Writes a 16-bit grey PNG atomically (plane / surface label images; raw values, no scaling).

@@ -78,12 +78,21 @@ fn parse_f64(path: &Path, line: usize, tok: &str, what: &str) -> Result<f64> {
         .parse()
         .map_err(|_| IoError::parse(path, line, format!("{what}: {tok:?} is not a number")))?;
     if !v.is_finite() {
-        return Err(IoError::parse(path, line, format!("{what}: {tok:?} is not finite")));
+        return Err(IoError::parse(
+            path,
+            line,
+            format!("{what}: {tok:?} is not finite"),
+        ));
     }
     Ok(v)
 }
 
-fn parse_n<const N: usize>(path: &Path, line: usize, toks: &[&str], what: &str) -> Result<[f64; N]> {
+fn parse_n<const N: usize>(
+    path: &Path,
+    line: usize,
+    toks: &[&str],
+    what: &str,
+) -> Result<[f64; N]> {
     if toks.len() != N {
         return Err(IoError::parse(
             path,
@@ -147,7 +156,10 @@ pub fn read_tum_associations(path: impl AsRef<Path>) -> Result<Vec<Association>>
             return Err(IoError::parse(
                 path,
                 n,
-                format!("expected `rgb_ts rgb_path depth_ts depth_path`, found {} fields", toks.len()),
+                format!(
+                    "expected `rgb_ts rgb_path depth_ts depth_path`, found {} fields",
+                    toks.len()
+                ),
             ));
         }
         out.push(Association {
@@ -219,7 +231,10 @@ pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequ
     }
     let poses = read_tum_trajectory(dir.join("groundtruth.txt"))?;
     let assoc = read_tum_associations(&assoc_path)?;
-    let depth: Vec<(f64, PathBuf)> = assoc.into_iter().map(|a| (a.depth_timestamp, a.depth_path)).collect();
+    let depth: Vec<(f64, PathBuf)> = assoc
+        .into_iter()
+        .map(|a| (a.depth_timestamp, a.depth_path))
+        .collect();
     Ok(associate(&depth, &poses, max_dt_s))
 }
 
@@ -250,7 +265,10 @@ pub fn read_open3d_log(path: impl AsRef<Path>) -> Result<Vec<LogEntry>> {
             return Err(IoError::parse(
                 path,
                 n0,
-                format!("entry has {} matrix rows, expected 4 (truncated file?)", chunk.len() - 1),
+                format!(
+                    "entry has {} matrix rows, expected 4 (truncated file?)",
+                    chunk.len() - 1
+                ),
             ));
         }
         let toks: Vec<&str> = head.split_whitespace().collect();
@@ -258,14 +276,21 @@ pub fn read_open3d_log(path: impl AsRef<Path>) -> Result<Vec<LogEntry>> {
             return Err(IoError::parse(
                 path,
                 n0,
-                format!("expected a metadata line `i j n`, found {} fields", toks.len()),
+                format!(
+                    "expected a metadata line `i j n`, found {} fields",
+                    toks.len()
+                ),
             ));
         }
         let mut metadata = [0u64; 3];
         for (m, t) in metadata.iter_mut().zip(&toks) {
-            *m = t
-                .parse()
-                .map_err(|_| IoError::parse(path, n0, format!("metadata {t:?} is not a non-negative integer")))?;
+            *m = t.parse().map_err(|_| {
+                IoError::parse(
+                    path,
+                    n0,
+                    format!("metadata {t:?} is not a non-negative integer"),
+                )
+            })?;
         }
         let mut m = [0.0; 16];
         for (r, &(n, row)) in chunk[1..].iter().enumerate() {
@@ -316,7 +341,10 @@ pub fn list_depth_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>> {
 
 /// Pairs an Open3D `.log` with the depth images of `depth_dir` (sorted by name): entry
 /// `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
-pub fn read_open3d_log_frames(log_path: impl AsRef<Path>, depth_dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
+pub fn read_open3d_log_frames(
+    log_path: impl AsRef<Path>,
+    depth_dir: impl AsRef<Path>,
+) -> Result<Vec<Frame>> {
     let log_path = log_path.as_ref();
     let entries = read_open3d_log(log_path)?;
     let files = list_depth_files(depth_dir.as_ref())?;
@@ -325,16 +353,17 @@ pub fn read_open3d_log_frames(log_path: impl AsRef<Path>, depth_dir: impl AsRef<
         .enumerate()
         .map(|(k, e)| {
             let i = e.metadata[0];
-            let depth_path = usize::try_from(i).ok().and_then(|i| files.get(i)).ok_or_else(|| {
-                IoError::Format {
+            let depth_path = usize::try_from(i)
+                .ok()
+                .and_then(|i| files.get(i))
+                .ok_or_else(|| IoError::Format {
                     path: log_path.to_path_buf(),
                     message: format!(
                         "entry {k} refers to frame {i}, but {} has only {} depth images",
                         depth_dir.as_ref().display(),
                         files.len()
                     ),
-                }
-            })?;
+                })?;
             Ok(Frame {
                 depth_path: depth_path.clone(),
                 pose: e.pose,
@@ -355,14 +384,22 @@ pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
         last_line = n + 1;
         for tok in line.split_whitespace() {
             if k == 16 {
-                return Err(IoError::parse(path, n + 1, "more than 16 numbers in a 4x4 pose"));
+                return Err(IoError::parse(
+                    path,
+                    n + 1,
+                    "more than 16 numbers in a 4x4 pose",
+                ));
             }
             m[k] = parse_f64(path, n + 1, tok, "pose matrix entry")?;
             k += 1;
         }
     }
     if k != 16 {
-        return Err(IoError::parse(path, last_line, format!("found {k} numbers, a 4x4 pose needs 16")));
+        return Err(IoError::parse(
+            path,
+            last_line,
+            format!("found {k} numbers, a 4x4 pose needs 16"),
+        ));
     }
     pose_from_row_major(&m).map_err(|e| IoError::core(path, None, e))
 }
@@ -377,7 +414,10 @@ pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
         let Some(name) = path.file_name().and_then(|n| n.to_str()) else {
             continue;
         };
-        if let Some(stem) = name.strip_prefix("frame-").and_then(|s| s.strip_suffix(".pose.txt")) {
+        if let Some(stem) = name
+            .strip_prefix("frame-")
+            .and_then(|s| s.strip_suffix(".pose.txt"))
+        {
             pose_files.push((stem.to_string(), path));
         }
     }
@@ -439,7 +479,10 @@ mod tests {
         let poses: Vec<TimedPose> = (0..5)
             .map(|i| TimedPose {
                 timestamp: 100.0 + f64::from(i) * 0.01,
-                pose: Isometry3::new(Vector3::new(1.0, -2.0, 0.5 * f64::from(i)), Vector3::new(0.1, 0.2 * f64::from(i), -0.3)),
+                pose: Isometry3::new(
+                    Vector3::new(1.0, -2.0, 0.5 * f64::from(i)),
+                    Vector3::new(0.1, 0.2 * f64::from(i), -0.3),
+                ),
             })
             .collect();
         write_tum_trajectory(&p, &poses).unwrap();
@@ -447,7 +490,12 @@ mod tests {
         assert_eq!(back.len(), 5);
         for (a, b) in back.iter().zip(&poses) {
             assert!((a.timestamp - b.timestamp).abs() < 1e-6);
-            assert!((a.pose.to_homogeneous() - b.pose.to_homogeneous()).abs().max() < 1e-8);
+            assert!(
+                (a.pose.to_homogeneous() - b.pose.to_homogeneous())
+                    .abs()
+                    .max()
+                    < 1e-8
+            );
         }
         std::fs::write(&p, "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0\n").unwrap();
         match read_tum_trajectory(&p).unwrap_err() {
@@ -476,11 +524,17 @@ mod tests {
             assert!((a.pose.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-9);
         }
         std::fs::write(&p, "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n").unwrap();
-        assert!(matches!(read_open3d_log(&p).unwrap_err(), IoError::Parse { line: 1, .. }));
+        assert!(matches!(
+            read_open3d_log(&p).unwrap_err(),
+            IoError::Parse { line: 1, .. }
+        ));
         std::fs::write(&p, "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n0 -1 1\n").unwrap();
         assert!(read_open3d_log(&p).is_err());
         std::fs::write(&p, "0 0 1\n2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
-        assert!(matches!(read_open3d_log(&p).unwrap_err(), IoError::Core { line: Some(1), .. }));
+        assert!(matches!(
+            read_open3d_log(&p).unwrap_err(),
+            IoError::Core { line: Some(1), .. }
+        ));
     }
 
     #[test]
@@ -489,7 +543,11 @@ mod tests {
         let d = dir.path();
         let id = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
         std::fs::write(d.join("frame-000002.pose.txt"), id).unwrap();
-        std::fs::write(d.join("frame-000001.pose.txt"), "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n").unwrap();
+        std::fs::write(
+            d.join("frame-000001.pose.txt"),
+            "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+        )
+        .unwrap();
         std::fs::write(d.join("frame-000001.depth.png"), b"").unwrap();
         let err = read_7scenes_sequence(d).unwrap_err();
         assert!(err.to_string().contains("frame-000002.depth.png"), "{err}");
@@ -498,7 +556,11 @@ mod tests {
         assert_eq!(frames.len(), 2);
         assert!(frames[0].depth_path.ends_with("frame-000001.depth.png"));
         assert_eq!(frames[0].pose.translation.vector.x, 0.5);
-        std::fs::write(d.join("frame-000002.pose.txt"), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0\n").unwrap();
+        std::fs::write(
+            d.join("frame-000002.pose.txt"),
+            "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0\n",
+        )
+        .unwrap();
         assert!(read_7scenes_sequence(d).is_err());
     }
 }

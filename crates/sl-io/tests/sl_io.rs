@@ -18,7 +18,10 @@ pub fn data_dir() -> Option<PathBuf> {
     if dir.is_dir() {
         Some(dir)
     } else {
-        eprintln!("skipping: ../shared/data not found (looked in {})", dir.display());
+        eprintln!(
+            "skipping: ../shared/data not found (looked in {})",
+            dir.display()
+        );
         None
     }
 }

@@ -5,7 +5,7 @@
 //! with `Z²` (the paper's section 2). This crate holds the three tools the paper's argument is
 //! built on:
 //!
-//! * [`algorithm1`] — the paper's Algorithm 1 (synthetic depths 0.5–3 m through a 1/8-px
+//! * [`mod@algorithm1`] — the paper's Algorithm 1 (synthetic depths 0.5–3 m through a 1/8-px
 //!   disparity quantiser; the log-log slope of the depth steps, 1.946);
 //! * [`analysis`] — the depth-resolution analysis of any depth map (sorted unique depths,
 //!   `ln ΔZ` vs `ln Z` slopes, the quantum `c` of `ΔZ ≈ c·Z²`, the implied `f·B`, and the

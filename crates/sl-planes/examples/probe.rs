@@ -5,6 +5,12 @@ use std::time::Instant;
 use sl_core::{Camera, Intrinsics};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap();
+    let f: Vec<&str> = s.rsplit(')').next().unwrap().split_whitespace().collect();
+    (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
+}
+
 fn main() {
     let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     let args: Vec<String> = std::env::args().collect();
@@ -27,12 +33,14 @@ fn main() {
     for (name, depth, cam) in &frames {
         let mut best = f64::MAX;
         let mut seg = None;
-        for _ in 0..20 {
+        let c0 = cpu_s();
+        for _ in 0..100 {
             let t = Instant::now();
             let s = ex.extract_depth(depth, cam).unwrap();
             best = best.min(t.elapsed().as_secs_f64() * 1e3);
             seg = Some(s);
         }
+        println!("cpu per frame {:.2} ms", (cpu_s() - c0) * 10.0);
         let seg = seg.unwrap();
         let lab: usize = seg.planes.iter().map(|p| p.pixels).sum();
         println!("{name}: {:.2} ms, {} planes, {:.1}% labelled of {} valid", best, seg.planes.len(), 100.0 * lab as f64 / depth.valid_count() as f64, depth.valid_count());

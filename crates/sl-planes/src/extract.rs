@@ -7,8 +7,9 @@
 //! 1. **Seeds.** The box-approximated LoG of the disparity (see [`crate::log`]) is thresholded
 //!    at a fixed value in disparity pixels; 4-connected components of planar pixels with at least
 //!    `min_pixels` (full-resolution) pixels are seeds. Each seed gets a least-squares affine fit
-//!    `D = a·x + b·y + c` followed by two trimmed refits (residual below `3τ`, then `τ`): a
-//!    truncated-quadratic (hard-redescending) robust estimate.
+//!    `D = a·x + b·y + c` followed by a trimmed refit (residuals below `2τ`); the k-means
+//!    iterations then refit on the pixels within `τ`: a truncated-quadratic (hard-redescending)
+//!    robust estimate.
 //! 2. **k-means refinement**: every valid block goes to the plane with the smallest disparity
 //!    residual if it is below the fixed threshold `τ` (candidates: planes whose support box,
 //!    grown by a margin, covers the block's tile); planes are refitted from one-pass moment sums
@@ -60,7 +61,7 @@ impl Default for PlaneConfig {
             log_threshold_px: 0.1,
             log_sigma_px: 2.0,
             min_pixels: 1000,
-            max_iterations: 4,
+            max_iterations: 3,
             merge_px: 0.2,
             min_piece_pixels: 64,
         }
@@ -154,30 +155,18 @@ fn half_to_full(f: &DisparityAffine) -> DisparityAffine {
     }
 }
 
-/// Per-plane accumulators of the final pass (full-resolution coordinates).
+/// Per-plane accumulators of the final statistics: moments on the stride-2 sample of pixels
+/// `(2i, 2j)` in `(i, j)` coordinates, metric sums in full-resolution coordinates, and the exact
+/// full-resolution pixel count.
 #[derive(Debug, Clone, Copy, Default)]
 struct FinalAcc {
     sums: AffineSums,
-    /// Σ(r/D)², Σ1/D, Σx/D, Σy/D.
+    /// Σ(r/D)², Σ1/D, Σx/D, Σy/D over the sample.
     sr2: f64,
     si: f64,
     sxi: f64,
     syi: f64,
-}
-
-impl FinalAcc {
-    fn add(&mut self, x: f64, y: f64, d: f64, r: f64, sign: f64) {
-        let inv = 1.0 / d;
-        if sign > 0.0 {
-            self.sums.add(x, y, d);
-        } else {
-            self.sums.remove(x, y, d);
-        }
-        self.sr2 += sign * (r * inv) * (r * inv);
-        self.si += sign * inv;
-        self.sxi += sign * x * inv;
-        self.syi += sign * y * inv;
-    }
+    pixels: usize,
 }
 
 /// A reusable plane extractor: holds its work buffers so that repeated calls on frames of the
@@ -282,26 +271,16 @@ impl PlaneExtractor {
         self.planes.clear();
         self.acc.clear();
         let (w2, h2) = (w / 2, h / 2);
-        let dbg = std::env::var_os("SL_PLANES_DEBUG").is_some();
-        let t0 = std::time::Instant::now();
-        let lap = |what: &str, n: usize| {
-            if dbg {
-                eprintln!("{what}: {:.3} ms ({n})", t0.elapsed().as_secs_f64() * 1e3);
-            }
-        };
         let mut labels = vec![0u16; w * h];
         if w2 < 8 || h2 < 8 {
             return self.finish(w, h, k, fb, labels);
         }
         // 0. Half resolution.
         self.downsample(w, w2, h2);
-        lap("down",0);
         // 1. Seeds.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
         planar_mask(&self.dh, w2, h2, r, s, cfg.log_threshold_px as f32, &mut self.log, &mut self.mask);
-        lap("log",0);
         self.cc.label(&self.mask, w2, h2);
-        lap("cc",self.cc.runs.len());
         let min_h = (cfg.min_pixels / 4).max(3);
         self.labh.clear();
         self.labh.resize(w2 * h2, 0);
@@ -310,7 +289,6 @@ impl PlaneExtractor {
         self.seed_from_components(w2, min_h);
         self.merge();
         self.compact();
-        lap("seeds",self.planes.len());
 
         // 2. k-means refinement at half resolution.
         for it in 0..cfg.max_iterations {
@@ -319,7 +297,6 @@ impl PlaneExtractor {
             }
             self.build_tiles(w2, h2);
             let (changed, free) = self.coarse_pass(w2, h2, tau);
-            lap("coarse",self.tile_list.len());
             for p in self.planes.iter_mut() {
                 p.alive = p.sums.n >= min_h as f64;
                 if p.alive {
@@ -341,28 +318,26 @@ impl PlaneExtractor {
                     continue;
                 }
             }
-            lap("iter",self.planes.len());
             if changed * 500 < w2 * h2 {
                 break;
             }
         }
 
-        // 3. Final full-resolution pass.
+        // 3. Coherence at half resolution, then the final full-resolution pass.
         if !self.planes.is_empty() {
+            if cfg.min_piece_pixels > 0 {
+                self.drop_small_pieces(w2, h2);
+            }
             self.build_tiles(w2, h2);
             self.final_pass(w, h, w2, h2, tau, &mut labels);
-            lap("final",self.amb.len());
             self.resolve_ambiguous(w, h, &mut labels);
-            if cfg.min_piece_pixels > 0 {
-                self.drop_small_pieces(w, h, &mut labels);
-            }
+            self.statistics(w, h, &labels);
         }
-        lap("pieces",0);
         self.finish(w, h, k, fb, labels)
     }
 
     /// Creates planes from the components in `self.cc` (on the half-resolution grid of width
-    /// `w2`) with at least `min` blocks: least squares, then trimmed at 3τ and at τ.
+    /// `w2`) with at least `min` blocks: least squares, then refitted on the inliers within 2τ.
     fn seed_from_components(&mut self, w2: usize, min: usize) {
         let nc = self.cc.sizes.len();
         self.comp_sums.clear();
@@ -371,9 +346,8 @@ impl PlaneExtractor {
         self.comp_box.resize(nc, [u32::MAX, u32::MAX, 0, 0]);
         self.comp_fit.clear();
         self.comp_fit.resize(nc, None);
-        let tau = self.cfg.threshold_px;
-        for pass in 0..3 {
-            let lim = if pass == 1 { 3.0 * tau } else { tau };
+        let lim = 2.0 * self.cfg.threshold_px;
+        for pass in 0..2 {
             for s in self.comp_sums.iter_mut() {
                 *s = AffineSums::default();
             }
@@ -397,26 +371,24 @@ impl PlaneExtractor {
                 let row = &self.dh[j * w2..(j + 1) * w2];
                 let sums = &mut self.comp_sums[c];
                 let jf = j as f64;
-                match f {
-                    None => {
-                        let (mut sd, mut sxd, mut sdd) = (0.0, 0.0, 0.0);
-                        for i in run.x0 as usize..run.x1 as usize {
-                            let d = f64::from(row[i]);
-                            sd += d;
-                            sxd += i as f64 * d;
-                            sdd += d * d;
-                        }
-                        sums.add_run(jf, run.x0 as usize, run.x1 as usize, sd, sxd, sdd);
-                    }
-                    Some(f) => {
-                        for i in run.x0 as usize..run.x1 as usize {
-                            let d = f64::from(row[i]);
-                            if (d - f.eval(i as f64, jf)).abs() < lim {
-                                sums.add(i as f64, jf, d);
-                            }
-                        }
+                // Inliers are accumulated in sub-runs (closed-form x moments).
+                let (fa, fc) = f.map_or((0.0, 0.0), |f| (f.a, f.b * jf + f.c));
+                let (mut sd, mut sxd, mut sdd) = (0.0, 0.0, 0.0);
+                let mut start = run.x0 as usize;
+                for i in run.x0 as usize..run.x1 as usize {
+                    let d = f64::from(row[i]);
+                    let inlier = f.is_none() || (d - (fa * i as f64 + fc)).abs() < lim;
+                    if inlier {
+                        sd += d;
+                        sxd += i as f64 * d;
+                        sdd += d * d;
+                    } else {
+                        sums.add_run(jf, start, i, sd, sxd, sdd);
+                        (sd, sxd, sdd) = (0.0, 0.0, 0.0);
+                        start = i + 1;
                     }
                 }
+                sums.add_run(jf, start, run.x1 as usize, sd, sxd, sdd);
             }
             for c in 0..nc {
                 if self.cc.sizes[c] >= min && (pass == 0 || self.comp_fit[c].is_some()) {
@@ -594,8 +566,9 @@ impl PlaneExtractor {
         )
     }
 
-    /// The full-resolution assignment: the block's label is tried first; otherwise (or if it
-    /// does not fit) all candidates of the tile. Accumulates the final sums run by run.
+    /// The full-resolution assignment: the block's label is tried first; if it does not fit,
+    /// or the block is unlabelled but touches a labelled block, all candidates of the tile are
+    /// searched. Pixels of unlabelled blocks away from planes stay unlabelled (coherence).
     fn final_pass(&mut self, w: usize, h: usize, w2: usize, h2: usize, tau: f32, labels: &mut [u16]) {
         self.acc.clear();
         self.acc.resize(self.planes.len(), FinalAcc::default());
@@ -642,35 +615,62 @@ impl PlaneExtractor {
                 }
             }
             if c2 > c1 && labels[i] == k1 {
-                let (xf, yf) = (x as f64, y as f64);
-                let d = f64::from(self.d[i]);
-                let r1 = d - self.full[k1 as usize - 1].eval(xf, yf);
-                let r2 = d - self.full[k2 as usize - 1].eval(xf, yf);
-                self.acc[k1 as usize - 1].add(xf, yf, d, r1, -1.0);
-                self.acc[k2 as usize - 1].add(xf, yf, d, r2, 1.0);
+                self.acc[k1 as usize - 1].pixels -= 1;
+                self.acc[k2 as usize - 1].pixels += 1;
                 labels[i] = k2;
             }
         }
     }
 
-    /// Drops 4-connected pieces of a plane's pixels smaller than `min_piece_pixels`.
-    fn drop_small_pieces(&mut self, w: usize, h: usize, labels: &mut [u16]) {
-        self.cc.label(labels, w, h);
-        let min = self.cfg.min_piece_pixels;
+    /// Drops 4-connected pieces of a plane's half-resolution blocks smaller than
+    /// `min_piece_pixels / 4` blocks.
+    fn drop_small_pieces(&mut self, w2: usize, h2: usize) {
+        self.cc.label(&self.labh, w2, h2);
+        let min = self.cfg.min_piece_pixels.div_ceil(4);
         for (ri, run) in self.cc.runs.iter().enumerate() {
             if self.cc.sizes[self.cc.component[ri] as usize] >= min {
                 continue;
             }
-            let k = run.key as usize - 1;
             let y = run.y as usize;
-            let f = self.full[k];
-            for x in run.x0 as usize..run.x1 as usize {
-                let i = y * w + x;
-                let d = f64::from(self.d[i]);
-                let (xf, yf) = (x as f64, y as f64);
-                self.acc[k].add(xf, yf, d, d - f.eval(xf, yf), -1.0);
-                labels[i] = 0;
+            self.labh[y * w2 + run.x0 as usize..y * w2 + run.x1 as usize].fill(0);
+        }
+    }
+
+    /// Moments and metric sums on the stride-2 sample of the final labels.
+    fn statistics(&mut self, w: usize, h: usize, labels: &[u16]) {
+        for y in (0..h).step_by(2) {
+            let yf = y as f64;
+            let jf = (y / 2) as f64;
+            self.rowc.clear();
+            self.rowc.extend(self.full.iter().map(|f| (f.b * yf + f.c) as f32));
+            let row_d = &self.d[y * w..(y + 1) * w];
+            let row_l = &labels[y * w..(y + 1) * w];
+            let mut cur = 0u16;
+            let mut i0 = 0usize;
+            let mut rs = RunSums::default();
+            for (i, (&dv, &lab)) in row_d.iter().step_by(2).zip(row_l.iter().step_by(2)).enumerate() {
+                if lab != cur {
+                    rs.flush(&mut self.acc, cur, jf, i0, i);
+                    cur = lab;
+                    i0 = i;
+                }
+                if lab != 0 {
+                    let ku = lab as usize - 1;
+                    let (Some(&a), Some(&c)) = (self.fa.get(ku), self.rowc.get(ku)) else { continue };
+                    let x = 2 * i;
+                    let r = dv - (a * x as f32 + c);
+                    let df = f64::from(dv);
+                    let inv = f64::from(1.0 / dv);
+                    let ri = f64::from(r) * inv;
+                    rs.sd += df;
+                    rs.sxd += i as f64 * df;
+                    rs.sdd += df * df;
+                    rs.si += inv;
+                    rs.sxi += x as f64 * inv;
+                    rs.sr2 += ri * ri;
+                }
             }
+            rs.flush(&mut self.acc, cur, jf, i0, w.div_ceil(2));
         }
     }
 
@@ -679,10 +679,16 @@ impl PlaneExtractor {
         let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
         for (pi, a) in self.acc.iter().enumerate() {
             let n = a.sums.n;
-            if n < self.cfg.min_pixels as f64 {
+            if a.pixels < self.cfg.min_pixels || n < 3.0 {
                 continue;
             }
-            let Some(f) = a.sums.solve() else { continue };
+            // The sample's (i, j) = (x/2, y/2).
+            let Some(fs) = a.sums.solve() else { continue };
+            let f = DisparityAffine {
+                a: fs.a / 2.0,
+                b: fs.b / 2.0,
+                c: fs.c,
+            };
             let Ok(plane) = f.to_plane(k, fb) else { continue };
             let centroid_m = Point3::new(
                 fb * (a.sxi - k.cx * a.si) / (k.fx * n),
@@ -695,8 +701,8 @@ impl PlaneExtractor {
                     id: 0,
                     plane,
                     affine: f,
-                    pixels: n.round() as usize,
-                    rms_px: a.sums.rms(&f),
+                    pixels: a.pixels,
+                    rms_px: a.sums.rms(&fs),
                     rms_m: plane.offset_m * (a.sr2.max(0.0) / n).sqrt(),
                     centroid_m,
                 },
@@ -793,7 +799,16 @@ fn coarse_assign(
             let i0 = tx * TILE_H;
             for (o, (((&d, &m), l), f)) in dt.iter().zip(mt).zip(lt.iter_mut()).zip(ft.iter_mut()).enumerate() {
                 let i = i0 + o;
-                let lab = best_of(cands, fa, rowc, d, i as f32, tau);
+                // The previous label is kept while it fits clearly (within τ/2): a plane that
+                // is better still would have to lie within τ of it, and those merge.
+                let prev = *l;
+                let xf = i as f32;
+                let keep = prev != 0
+                    && match (fa.get(prev as usize - 1), rowc.get(prev as usize - 1)) {
+                        (Some(&a), Some(&c)) => (d - (a * xf + c)).abs() < 0.5 * tau,
+                        _ => false,
+                    };
+                let lab = if keep { prev } else { best_of(cands, fa, rowc, d, xf, tau) };
                 let fr = lab == 0 && m == 1;
                 *f = u8::from(fr);
                 free += usize::from(fr);
@@ -871,6 +886,7 @@ fn final_assign(
 ) {
     let th = h2.div_ceil(TILE_H);
     let ftile = 2 * TILE_H;
+    let empty: &[u16] = &[];
     for y in 0..h {
         let yf = y as f64;
         rowc.clear();
@@ -878,10 +894,12 @@ fn final_assign(
         let rowc: &[f32] = rowc;
         let j = y / 2;
         let ty = (j / TILE_H).min(th.saturating_sub(1));
-        let hint_row: &[u16] = if j < h2 { &labh[j * w2..(j + 1) * w2] } else { &[] };
+        let hrow = |jj: usize| if jj < h2 { &labh[jj * w2..(jj + 1) * w2] } else { empty };
+        let hint_row = hrow(j);
+        let up_row = if j > 0 { hrow(j - 1) } else { empty };
+        let dn_row = hrow(j + 1);
         let mut cur = 0u16;
         let mut rx0 = 0usize;
-        let mut rs = RunSums::default();
         let row_d = &d[y * w..(y + 1) * w];
         let row_l = &mut labels[y * w..(y + 1) * w];
         for (txf, (dt, lt)) in row_d.chunks(ftile).zip(row_l.chunks_mut(ftile)).enumerate() {
@@ -890,33 +908,37 @@ fn final_assign(
             for (o, (&dv, l)) in dt.iter().zip(lt.iter_mut()).enumerate() {
                 let x = x0 + o;
                 let mut lab = 0u16;
-                let mut rsel = 0.0f32;
                 if dv > 0.0 {
                     let xf = x as f32;
-                    let hint = hint_row.get(x / 2).copied().unwrap_or(0);
+                    let i = x / 2;
+                    let hint = hint_row.get(i).copied().unwrap_or(0);
+                    let mut search = hint != 0;
                     if hint != 0
                         && let (Some(&a), Some(&c)) = (fa.get(hint as usize - 1), rowc.get(hint as usize - 1))
+                        && (dv - (a * xf + c)).abs() < tau
                     {
-                        let r = dv - (a * xf + c);
-                        if r.abs() < tau {
-                            lab = hint;
-                            rsel = r;
-                        }
+                        lab = hint;
+                        search = false;
                     }
-                    if lab == 0 {
+                    if hint == 0 {
+                        let g = |r: &[u16], ii: usize| r.get(ii).copied().unwrap_or(0);
+                        search = (i > 0 && g(hint_row, i - 1) != 0)
+                            || g(hint_row, i + 1) != 0
+                            || g(up_row, i) != 0
+                            || g(dn_row, i) != 0;
+                    }
+                    if search {
                         let (mut best, mut second) = (tau, tau);
                         let mut sk = 0u16;
                         for &k in cands {
                             let ku = k as usize;
                             let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) else { continue };
-                            let r = dv - (a * xf + c);
-                            let ar = r.abs();
+                            let ar = (dv - (a * xf + c)).abs();
                             if ar < best {
                                 second = best;
                                 sk = lab;
                                 best = ar;
                                 lab = k + 1;
-                                rsel = r;
                             } else if ar < second {
                                 second = ar;
                                 sk = k + 1;
@@ -929,25 +951,21 @@ fn final_assign(
                 }
                 *l = lab;
                 if lab != cur {
-                    rs.flush(acc, cur, yf, rx0, x);
+                    if cur != 0
+                        && let Some(a) = acc.get_mut(cur as usize - 1)
+                    {
+                        a.pixels += x - rx0;
+                    }
                     cur = lab;
                     rx0 = x;
                 }
-                if lab != 0 {
-                    let df = f64::from(dv);
-                    let xd = x as f64;
-                    let inv = f64::from(1.0 / dv);
-                    let ri = f64::from(rsel) * inv;
-                    rs.sd += df;
-                    rs.sxd += xd * df;
-                    rs.sdd += df * df;
-                    rs.si += inv;
-                    rs.sxi += xd * inv;
-                    rs.sr2 += ri * ri;
-                }
             }
         }
-        rs.flush(acc, cur, yf, rx0, w);
+        if cur != 0
+            && let Some(a) = acc.get_mut(cur as usize - 1)
+        {
+            a.pixels += w - rx0;
+        }
     }
 }
 

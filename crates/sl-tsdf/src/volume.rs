@@ -236,10 +236,8 @@ impl TsdfVolume {
             });
         }
         k.validate()?;
-        let t0 = std::time::Instant::now();
         let (table, pixels_used) = self.pixel_table(depth, k);
         let keys = self.band_blocks(&table, k, pose)?;
-        let t1 = t0.elapsed();
         let new_keys: Vec<u64> = keys.iter().copied().filter(|key| !self.index.contains_key(key)).collect();
         let total = self.blocks.len() + new_keys.len();
         let needed = total.saturating_mul(BYTES_PER_BLOCK);
@@ -271,9 +269,7 @@ impl TsdfVolume {
                 touched[i as usize] = true;
             }
         }
-        let t2 = t0.elapsed();
         self.update_blocks(&touched, &table, k, pose);
-        if std::env::var_os("SLT_PROF").is_some() { eprintln!("band {:?} alloc {:?} update {:?} keys {}", t1, t2 - t1, t0.elapsed() - t2, keys.len()); }
         self.frames += 1;
         Ok(IntegrateStats {
             blocks_touched: keys.len(),

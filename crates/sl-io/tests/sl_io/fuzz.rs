@@ -7,10 +7,12 @@ use proptest::prelude::*;
 use sl_core::{DepthImage, Image};
 use sl_io::depth::DepthFormat;
 use sl_io::ply::{PlyData, PlyFormat};
-use sl_io::trajectory::{read_open3d_log, read_pose_txt, read_tum_associations, read_tum_trajectory};
+use sl_io::trajectory::{
+    read_open3d_log, read_pose_txt, read_tum_associations, read_tum_trajectory,
+};
 use sl_io::{
-    DepthEncoding, ReadOptions, read_camera_json, read_depth, read_intrinsics_txt, read_ply, read_rgb, write_depth,
-    write_ply,
+    DepthEncoding, ReadOptions, read_camera_json, read_depth, read_intrinsics_txt, read_ply,
+    read_rgb, write_depth, write_ply,
 };
 
 /// Runs every reader on `path`; returns how many succeeded.
@@ -33,7 +35,13 @@ fn run_all_readers(path: &Path) -> usize {
 /// Valid files of each binary format, as bytes.
 fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
     let dir = tempfile::tempdir().unwrap();
-    let depth = DepthImage::from_image(Image::from_fn(9, 7, |x, y| if x == y { 0.0 } else { 0.5 + 0.1 * (x + y) as f32 }));
+    let depth = DepthImage::from_image(Image::from_fn(9, 7, |x, y| {
+        if x == y {
+            0.0
+        } else {
+            0.5 + 0.1 * (x + y) as f32
+        }
+    }));
     let mut out = Vec::new();
     for (name, enc) in [
         ("d.png", DepthEncoding::default()),
@@ -44,10 +52,21 @@ fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
         write_depth(&p, &depth, &enc).unwrap();
         out.push((name, std::fs::read(&p).unwrap()));
     }
-    let mesh = PlyData::mesh(vec![[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 1.0, 1.0]], vec![[0, 1, 2], [1, 3, 2]])
-        .with_normals(vec![[0.0, 0.0, 1.0]; 4])
-        .with_scalar("confidence", vec![0.5; 4]);
-    for (name, fmt) in [("m.ply", PlyFormat::BinaryLittleEndian), ("a.ply", PlyFormat::Ascii)] {
+    let mesh = PlyData::mesh(
+        vec![
+            [0.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0],
+        ],
+        vec![[0, 1, 2], [1, 3, 2]],
+    )
+    .with_normals(vec![[0.0, 0.0, 1.0]; 4])
+    .with_scalar("confidence", vec![0.5; 4]);
+    for (name, fmt) in [
+        ("m.ply", PlyFormat::BinaryLittleEndian),
+        ("a.ply", PlyFormat::Ascii),
+    ] {
         let p = dir.path().join(name);
         write_ply(&p, &mesh, fmt).unwrap();
         out.push((name, std::fs::read(&p).unwrap()));
@@ -75,7 +94,10 @@ fn truncated_binary_files_are_errors() {
                 "m.ply" | "a.ply" => read_ply(&p).map(|_| ()),
                 _ => read_depth(&p, &ReadOptions::default()).map(|_| ()),
             };
-            let e = r.expect_err(&format!("{name} truncated to {len} of {} bytes must be an error", bytes.len()));
+            let e = r.expect_err(&format!(
+                "{name} truncated to {len} of {} bytes must be an error",
+                bytes.len()
+            ));
             assert!(e.to_string().contains(name), "{e}");
             run_all_readers(&p);
         }
@@ -92,7 +114,12 @@ fn oversized_headers_do_not_allocate() {
     assert!(e.to_string().contains("huge.pgm"), "{e}");
     // 10000 x 10000 (200 MB declared, within budget) but truncated: rejected before allocating.
     std::fs::write(&p, b"P5 10000 10000 65535\n\x00\x00").unwrap();
-    assert!(read_depth(&p, &ReadOptions::default()).unwrap_err().to_string().contains("truncated"));
+    assert!(
+        read_depth(&p, &ReadOptions::default())
+            .unwrap_err()
+            .to_string()
+            .contains("truncated")
+    );
     // A PNG whose IHDR claims 65536 x 65536: the decoder limits refuse it.
     let png = dir.path().join("huge.png");
     let mut bytes = b"\x89PNG\r\n\x1a\n\x00\x00\x00\x0dIHDR".to_vec();
@@ -118,7 +145,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         crc ^= u32::from(b);
         for _ in 0..8 {
-            crc = if crc & 1 == 1 { (crc >> 1) ^ 0xedb8_8320 } else { crc >> 1 };
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0xedb8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc

@@ -5,18 +5,31 @@ use sl_core::{DepthImage, Intrinsics};
 use sl_io::depth::{NYU_DOFF, NYU_FB_PX_M, TUM_UNITS_PER_M, nyu_raw_to_disparity};
 use sl_io::trajectory::list_depth_files;
 use sl_io::{
-    DEFAULT_MAX_DT_S, DepthEncoding, DepthFormat, IoError, ReadOptions, read_7scenes_intrinsics, read_7scenes_sequence,
-    read_camera_json, read_depth, read_nyu_raw, read_open3d_log_frames, read_raw_depth, read_rgb, read_tum_sequence,
-    write_depth,
+    DEFAULT_MAX_DT_S, DepthEncoding, DepthFormat, IoError, ReadOptions, read_7scenes_intrinsics,
+    read_7scenes_sequence, read_camera_json, read_depth, read_nyu_raw, read_open3d_log_frames,
+    read_raw_depth, read_rgb, read_tum_sequence, write_depth,
 };
 
 use crate::data_dir;
 
-fn assert_frame(depth: &DepthImage, valid: std::ops::RangeInclusive<usize>, z_m: std::ops::RangeInclusive<f32>) {
+fn assert_frame(
+    depth: &DepthImage,
+    valid: std::ops::RangeInclusive<usize>,
+    z_m: std::ops::RangeInclusive<f32>,
+) {
     assert_eq!((depth.width(), depth.height()), (640, 480));
     let s = depth.stats().expect("valid pixels");
-    assert!(valid.contains(&s.valid_pixels), "valid {} not in {valid:?}", s.valid_pixels);
-    assert!(*z_m.start() <= s.min && s.max <= *z_m.end(), "depth {}..{} m not in {z_m:?}", s.min, s.max);
+    assert!(
+        valid.contains(&s.valid_pixels),
+        "valid {} not in {valid:?}",
+        s.valid_pixels
+    );
+    assert!(
+        *z_m.start() <= s.min && s.max <= *z_m.end(),
+        "depth {}..{} m not in {z_m:?}",
+        s.min,
+        s.max
+    );
 }
 
 fn close(a: f32, b: f64) -> bool {
@@ -28,14 +41,24 @@ fn tum_fr1_rpy_depth_and_trajectory() {
     let Some(data) = data_dir() else { return };
     let dir = data.join("tum-fr1-rpy");
     let seq = read_tum_sequence(&dir, DEFAULT_MAX_DT_S).unwrap();
-    assert_eq!(seq.frames.len(), 30, "every associated depth frame has a pose within 20 ms");
+    assert_eq!(
+        seq.frames.len(),
+        30,
+        "every associated depth frame has a pose within 20 ms"
+    );
     assert!(seq.without_pose.is_empty());
-    assert!(seq.frames.windows(2).all(|w| w[0].timestamp < w[1].timestamp));
+    assert!(
+        seq.frames
+            .windows(2)
+            .all(|w| w[0].timestamp < w[1].timestamp)
+    );
     // Ground-truth line nearest to the first depth frame (4.4 ms away).
     let f0 = &seq.frames[0];
     assert_eq!(f0.timestamp, Some(1305031229.528784));
     let t = f0.pose.translation.vector;
-    assert!((t.x - 1.2989).abs() < 1e-9 && (t.y - 0.688).abs() < 1e-9 && (t.z - 1.5734).abs() < 1e-9);
+    assert!(
+        (t.x - 1.2989).abs() < 1e-9 && (t.y - 0.688).abs() < 1e-9 && (t.z - 1.5734).abs() < 1e-9
+    );
     let q = f0.pose.rotation.coords;
     let n = (0.6817f64.powi(2) + 0.5533f64.powi(2) + 0.018f64.powi(2) + 0.4784f64.powi(2)).sqrt();
     let sign = q.x.signum() / 0.6817f64.signum();
@@ -60,14 +83,21 @@ fn tum_fr1_rpy_depth_and_trajectory() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("tum.png");
     write_depth(&out, &first.depth, &first.encoding).unwrap();
-    assert_eq!(read_raw_depth(&out, &opts).unwrap(), read_raw_depth(&f0.depth_path, &opts).unwrap());
+    assert_eq!(
+        read_raw_depth(&out, &opts).unwrap(),
+        read_raw_depth(&f0.depth_path, &opts).unwrap()
+    );
 }
 
 #[test]
 fn open3d_testdata_frames() {
     let Some(data) = data_dir() else { return };
     let dir = data.join("open3d-testdata");
-    let tum = read_depth(dir.join("tum-depth.png"), &ReadOptions::default().with_scale(5000.0)).unwrap();
+    let tum = read_depth(
+        dir.join("tum-depth.png"),
+        &ReadOptions::default().with_scale(5000.0),
+    )
+    .unwrap();
     assert_frame(&tum.depth, 248_250..=248_250, 1.464..=9.331);
     let med = tum.depth.stats().unwrap().median;
     assert!(close(med, 12075.0 / 5000.0) && (0.5..=4.0).contains(&med));
@@ -86,7 +116,10 @@ fn open3d_testdata_frames() {
     assert_eq!(nyu_rgb.get(320, 240), Some(&[98, 102, 112]));
     // A colour image is not a depth map.
     let e = read_depth(dir.join("tum-color.png"), &ReadOptions::default()).unwrap_err();
-    assert!(matches!(e, IoError::UnsupportedImage { .. }) && e.to_string().contains("tum-color.png"), "{e}");
+    assert!(
+        matches!(e, IoError::UnsupportedImage { .. }) && e.to_string().contains("tum-color.png"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -96,7 +129,10 @@ fn nyu_raw_disparity() {
     let raw = read_nyu_raw(&path).unwrap();
     assert_eq!(raw.dimensions(), (640, 480));
     assert_eq!(raw.data().iter().filter(|v| **v == 2047).count(), 22_199);
-    assert_eq!((raw.data().iter().min(), raw.get(320, 240)), (Some(&839), Some(&977)));
+    assert_eq!(
+        (raw.data().iter().min(), raw.get(320, 240)),
+        (Some(&839), Some(&977))
+    );
     let loaded = read_depth(&path, &ReadOptions::default()).unwrap();
     assert_eq!(loaded.encoding.format, DepthFormat::NyuRaw);
     assert_frame(&loaded.depth, 285_001..=285_001, 0.5..=10.0);
@@ -112,7 +148,10 @@ fn nyu_raw_disparity() {
     let out = tmp.path().join("nyu.pgm");
     write_depth(&out, &loaded.depth, &loaded.encoding).unwrap();
     assert_eq!(read_nyu_raw(&out).unwrap(), raw);
-    assert_eq!(std::fs::metadata(&out).unwrap().len(), std::fs::metadata(&path).unwrap().len());
+    assert_eq!(
+        std::fs::metadata(&out).unwrap().len(),
+        std::fs::metadata(&path).unwrap().len()
+    );
 }
 
 #[test]
@@ -120,8 +159,18 @@ fn icl_livingroom_camera_and_log() {
     let Some(data) = data_dir() else { return };
     let dir = data.join("open3d-testdata/icl-livingroom");
     let cam = read_camera_json(dir.join("camera.json")).unwrap();
-    assert_eq!(cam.intrinsics, Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap());
-    assert_eq!((cam.sensor.focal_px, cam.sensor.baseline_m, cam.sensor.subpixel_steps), (525.0, 0.075, 8));
+    assert_eq!(
+        cam.intrinsics,
+        Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap()
+    );
+    assert_eq!(
+        (
+            cam.sensor.focal_px,
+            cam.sensor.baseline_m,
+            cam.sensor.subpixel_steps
+        ),
+        (525.0, 0.075, 8)
+    );
     let frames = read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth")).unwrap();
     assert_eq!(frames.len(), 5);
     assert!(frames[4].depth_path.ends_with("00004.png"));
@@ -133,7 +182,9 @@ fn icl_livingroom_camera_and_log() {
         let d = read_depth(&f.depth_path, &ReadOptions::default()).unwrap();
         assert_frame(&d.depth, 200_000..=300_000, 0.5..=5.0);
     }
-    let d0 = read_depth(&frames[0].depth_path, &ReadOptions::default()).unwrap().depth;
+    let d0 = read_depth(&frames[0].depth_path, &ReadOptions::default())
+        .unwrap()
+        .depth;
     assert_eq!(d0.valid_count(), 267_129);
     assert!(close(d0.get(320, 240).unwrap(), 2.195));
 }
@@ -143,13 +194,20 @@ fn seven_scenes_sequence() {
     let Some(data) = data_dir() else { return };
     let dir = data.join("7scenes-redkitchen");
     let k = read_7scenes_intrinsics(dir.join("camera-intrinsics.txt")).unwrap();
-    assert_eq!(k, Intrinsics::new(640, 480, 585.0, 585.0, 320.0, 240.0).unwrap());
+    assert_eq!(
+        k,
+        Intrinsics::new(640, 480, 585.0, 585.0, 320.0, 240.0).unwrap()
+    );
     let frames = read_7scenes_sequence(&dir).unwrap();
     assert_eq!(frames.len(), 50);
     assert!(frames[0].depth_path.ends_with("frame-000150.depth.png"));
     assert!(frames[49].depth_path.ends_with("frame-000199.depth.png"));
     let t = frames[0].pose.translation.vector;
-    assert!((t.x + 0.91287065).abs() < 1e-9 && (t.y + 0.34388667).abs() < 1e-9 && (t.z - 0.75986093).abs() < 1e-9);
+    assert!(
+        (t.x + 0.91287065).abs() < 1e-9
+            && (t.y + 0.34388667).abs() < 1e-9
+            && (t.z - 0.75986093).abs() < 1e-9
+    );
     let first = read_depth(&frames[0].depth_path, &ReadOptions::default()).unwrap();
     // These frames mark missing depth with 0 (none holds 65535), so the encoding reports 0.
     assert_eq!(first.encoding, DepthEncoding::png(1000.0));
@@ -189,5 +247,8 @@ fn pcl_floor_box_tiff() {
     let out = tmp.path().join("floor.tiff");
     write_depth(&out, &first.depth, &first.encoding).unwrap();
     let o = ReadOptions::default();
-    assert_eq!(read_raw_depth(&out, &o).unwrap(), read_raw_depth(&files[0], &o).unwrap());
+    assert_eq!(
+        read_raw_depth(&out, &o).unwrap(),
+        read_raw_depth(&files[0], &o).unwrap()
+    );
 }

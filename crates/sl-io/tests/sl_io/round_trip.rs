@@ -4,8 +4,8 @@ use proptest::prelude::*;
 use sl_core::{DepthImage, Image};
 use sl_io::depth::{INVALID_SENTINEL, nyu_raw_to_depth};
 use sl_io::{
-    DepthEncoding, DepthFormat, IoError, ReadOptions, read_depth, read_gray16, read_nyu_raw, read_raw_depth, read_rgb,
-    write_depth, write_gray16_png, write_rgb_png,
+    DepthEncoding, DepthFormat, IoError, ReadOptions, read_depth, read_gray16, read_nyu_raw,
+    read_raw_depth, read_rgb, write_depth, write_gray16_png, write_rgb_png,
 };
 
 /// A 16×12 frame: a slanted plane between `near` and `far` metres, every 5th pixel invalid.
@@ -21,7 +21,11 @@ fn plane(near: f32, far: f32) -> DepthImage {
 
 fn options(enc: &DepthEncoding) -> ReadOptions {
     let o = ReadOptions::default().with_format(enc.format);
-    if enc.format.has_scale() { o.with_scale(enc.units_per_m) } else { o }
+    if enc.format.has_scale() {
+        o.with_scale(enc.units_per_m)
+    } else {
+        o
+    }
 }
 
 /// Largest |z_read − z_written| the encoding allows at depth `z`.
@@ -41,7 +45,10 @@ fn all_encodings() -> Vec<(&'static str, DepthEncoding)> {
         ("tum.png", DepthEncoding::tum()),
         ("7scenes.png", DepthEncoding::seven_scenes()),
         ("mm.tiff", DepthEncoding::tiff(1000.0)),
-        ("tenth-mm.tif", DepthEncoding::tiff(10000.0).with_invalid_value(INVALID_SENTINEL)),
+        (
+            "tenth-mm.tif",
+            DepthEncoding::tiff(10000.0).with_invalid_value(INVALID_SENTINEL),
+        ),
         ("sun.png", DepthEncoding::sun()),
         ("nyu.pgm", DepthEncoding::nyu_raw()),
     ]
@@ -60,7 +67,10 @@ fn depth_files_round_trip_in_every_encoding() {
         assert_eq!(loaded.depth.width(), 16);
         assert_eq!(loaded.depth.valid_count(), depth.valid_count(), "{name}");
         for (a, b) in loaded.depth.data().iter().zip(depth.data()) {
-            assert!((a - b).abs() <= tolerance(&enc, *b), "{name}: read {a}, wrote {b}");
+            assert!(
+                (a - b).abs() <= tolerance(&enc, *b),
+                "{name}: read {a}, wrote {b}"
+            );
         }
         // Writing what was read reproduces the stored integers exactly.
         let again = dir.path().join(format!("again-{name}"));
@@ -79,26 +89,46 @@ fn extension_inference_and_sentinel() {
     write_depth(&png, &depth, &DepthEncoding::seven_scenes()).unwrap();
     let raw = read_raw_depth(&png, &ReadOptions::default()).unwrap();
     let invalid = depth.data().iter().filter(|z| **z == 0.0).count();
-    assert_eq!(raw.values.data().iter().filter(|v| **v == INVALID_SENTINEL).count(), invalid);
+    assert_eq!(
+        raw.values
+            .data()
+            .iter()
+            .filter(|v| **v == INVALID_SENTINEL)
+            .count(),
+        invalid
+    );
     assert_eq!(raw.encoding.invalid_value, INVALID_SENTINEL);
     let pgm = dir.path().join("d.pgm");
     write_depth(&pgm, &depth, &DepthEncoding::nyu_raw()).unwrap();
-    assert_eq!(read_depth(&pgm, &ReadOptions::default()).unwrap().encoding.format, DepthFormat::NyuRaw);
+    assert_eq!(
+        read_depth(&pgm, &ReadOptions::default())
+            .unwrap()
+            .encoding
+            .format,
+        DepthFormat::NyuRaw
+    );
     // Raw NYU values agree with the metres.
     let raw = read_nyu_raw(&pgm).unwrap();
-    assert_eq!(nyu_raw_to_depth(&raw), read_depth(&pgm, &ReadOptions::default()).unwrap().depth);
+    assert_eq!(
+        nyu_raw_to_depth(&raw),
+        read_depth(&pgm, &ReadOptions::default()).unwrap().depth
+    );
     // Unknown extension without a format, scale on nyu-raw, zero scale: typed errors naming the file.
     let odd = dir.path().join("d.depth");
     std::fs::copy(&png, &odd).unwrap();
     let e = read_depth(&odd, &ReadOptions::default()).unwrap_err();
-    assert!(matches!(e, IoError::Format { .. }) && e.to_string().contains("d.depth"), "{e}");
+    assert!(
+        matches!(e, IoError::Format { .. }) && e.to_string().contains("d.depth"),
+        "{e}"
+    );
     assert!(read_depth(&odd, &ReadOptions::default().with_format(DepthFormat::Png)).is_ok());
     let e = read_depth(&pgm, &ReadOptions::default().with_scale(1000.0)).unwrap_err();
     assert!(e.to_string().contains("d.pgm"), "{e}");
     for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
         let e = read_depth(&png, &ReadOptions::default().with_scale(bad)).unwrap_err();
         assert!(matches!(e, IoError::InvalidScale { .. }), "{e}");
-        let e = write_depth(dir.path().join("z.png"), &depth, &DepthEncoding::png(bad)).unwrap_err();
+        let e =
+            write_depth(dir.path().join("z.png"), &depth, &DepthEncoding::png(bad)).unwrap_err();
         assert!(matches!(e, IoError::InvalidScale { .. }), "{e}");
     }
 }
@@ -120,7 +150,10 @@ fn big_pgm_is_big_endian_tolerant() {
     assert!(read_nyu_raw(&path).is_err());
     // 8-bit PGM is not raw disparity.
     std::fs::write(&path, b"P5\n1 1\n255\n\x07").unwrap();
-    assert!(matches!(read_nyu_raw(&path).unwrap_err(), IoError::UnsupportedImage { .. }));
+    assert!(matches!(
+        read_nyu_raw(&path).unwrap_err(),
+        IoError::UnsupportedImage { .. }
+    ));
 }
 
 #[test]
@@ -132,14 +165,22 @@ fn wrong_layouts_are_typed_errors() {
     assert_eq!(read_rgb(&rgb).unwrap(), img);
     let e = read_depth(&rgb, &ReadOptions::default()).unwrap_err();
     assert!(matches!(e, IoError::UnsupportedImage { .. }), "{e}");
-    assert!(e.to_string().contains("rgb.png") && e.to_string().contains("8-bit RGB"), "{e}");
+    assert!(
+        e.to_string().contains("rgb.png") && e.to_string().contains("8-bit RGB"),
+        "{e}"
+    );
     // A PNG named .tiff: the TIFF decoder rejects it with a message naming the file.
     let fake = dir.path().join("fake.tiff");
     std::fs::copy(&rgb, &fake).unwrap();
     let e = read_depth(&fake, &ReadOptions::default()).unwrap_err();
     assert!(e.to_string().contains("fake.tiff"), "{e}");
     // Empty images cannot be written.
-    let e = write_depth(dir.path().join("e.png"), &DepthImage::invalid(0, 3), &DepthEncoding::default()).unwrap_err();
+    let e = write_depth(
+        dir.path().join("e.png"),
+        &DepthImage::invalid(0, 3),
+        &DepthEncoding::default(),
+    )
+    .unwrap_err();
     assert!(matches!(e, IoError::InvalidData { .. }), "{e}");
 }
 
@@ -153,7 +194,10 @@ fn labels_and_colour_files() {
     // PPM (8- and 16-bit) and PGM colour input.
     let ppm = dir.path().join("c.ppm");
     std::fs::write(&ppm, b"P6\n# c\n2 1\n255\n\x01\x02\x03\xfa\xfb\xfc").unwrap();
-    assert_eq!(read_rgb(&ppm).unwrap().data(), &[[1, 2, 3], [250, 251, 252]]);
+    assert_eq!(
+        read_rgb(&ppm).unwrap().data(),
+        &[[1, 2, 3], [250, 251, 252]]
+    );
     std::fs::write(&ppm, b"P6 1 1 65535\n\xff\xff\x00\x00\x80\x00").unwrap();
     assert_eq!(read_rgb(&ppm).unwrap().data(), &[[255, 0, 128]]);
     std::fs::write(&ppm, b"P5 2 1 255\n\x00\x10").unwrap();
@@ -163,7 +207,8 @@ fn labels_and_colour_files() {
 fn encoding_strategy() -> impl Strategy<Value = DepthEncoding> {
     prop_oneof![
         (100.0f64..10000.0).prop_map(DepthEncoding::png),
-        (100.0f64..10000.0).prop_map(|s| DepthEncoding::tiff(s).with_invalid_value(INVALID_SENTINEL)),
+        (100.0f64..10000.0)
+            .prop_map(|s| DepthEncoding::tiff(s).with_invalid_value(INVALID_SENTINEL)),
         Just(DepthEncoding::sun()),
         Just(DepthEncoding::nyu_raw()),
     ]

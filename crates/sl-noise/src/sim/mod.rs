@@ -1,6 +1,18 @@
 //! The seeded Kinect simulator: analytic ground-truth scenes rendered through a pinhole camera,
 //! then passed through the structured-light sensor model.
 //!
+//! * Geometry: the [`Surface`] trait (ray intersection + unsigned distance) and the primitives
+//!   [`Plane`], [`Quad`], [`Sphere`], [`Cuboid`], [`Cylinder`] and [`ReliefPlate`]; implement
+//!   [`Surface`] for anything else.
+//! * [`Scene`]: labelled surfaces (label = 1-based insertion index, 0 = background;
+//!   [`Scene::add_cuboid`] labels each face), [`Scene::render`] to exact depth `Z`, labels and
+//!   camera-frame normals (rows in parallel), [`Scene::distance`] for ground-truth
+//!   point-to-surface errors (e.g. of a fused mesh), [`look_at`] for camera poses.
+//! * [`KinectSimulator`]: disparity noise, `1/q` quantisation, 1 mm rounding, range limits,
+//!   dropout, and optionally projector shadows ([`KinectSimulator::simulate_with_shadows`]);
+//!   seeded per row so results do not depend on threads.
+//! * [`named_scene`]: the scenes of the paper's figures by name ([`SCENE_NAMES`]).
+//!
 //! ```
 //! use sl_noise::sim::{KinectSimulator, Plane, Scene, Sphere};
 //! use sl_core::{Intrinsics, Pose, nalgebra::{Point3, Vector3}};
