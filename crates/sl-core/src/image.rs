@@ -135,6 +135,9 @@ impl<T> Image<T> {
     }
 }
 
+/// A pixel `(x, y)` with the camera-frame point it back-projects to.
+pub type PixelPoint = ((usize, usize), Point3<f32>);
+
 /// Summary statistics of the valid (> 0, finite) values of a map.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ValidStats {
@@ -278,7 +281,7 @@ impl DepthImage {
     }
 
     /// Like [`DepthImage::to_points`], each point paired with its pixel `(x, y)`.
-    pub fn to_points_with_pixels(&self, k: &Intrinsics) -> Result<Vec<((usize, usize), Point3<f32>)>> {
+    pub fn to_points_with_pixels(&self, k: &Intrinsics) -> Result<Vec<PixelPoint>> {
         self.0.check_size(k)?;
         let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
         let mut out = Vec::with_capacity(self.valid_count());

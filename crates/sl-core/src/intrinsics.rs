@@ -101,7 +101,8 @@ impl Intrinsics {
     /// Projects a camera-frame point to continuous pixel coordinates; `None` behind the camera
     /// (Z ≤ 0). The result may lie outside the image.
     pub fn project(&self, p: &Point3<f64>) -> Option<(f64, f64)> {
-        if !(p.z > 0.0) {
+        // Written so that NaN depths are rejected too.
+        if p.z.is_nan() || p.z <= 0.0 {
             return None;
         }
         Some((self.fx * p.x / p.z + self.cx, self.fy * p.y / p.z + self.cy))

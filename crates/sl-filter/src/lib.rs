@@ -4,10 +4,12 @@
 #![deny(missing_docs)]
 
 pub mod error;
+pub mod eval;
 pub mod fastexp;
 pub mod filter;
 pub mod kernel;
 pub mod reference;
+pub mod render;
 
 pub use error::{FilterError, Result};
 pub use filter::{
@@ -15,3 +17,8 @@ pub use filter::{
     MIN_DEPTH_M, Method, RangeKernel, default_k_per_m, default_sigma_s_px,
 };
 pub use kernel::Isa;
+
+/// Number of threads the filters use when called outside a custom rayon pool.
+pub fn current_threads() -> usize {
+    rayon::current_num_threads()
+}

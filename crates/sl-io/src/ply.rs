@@ -820,6 +820,23 @@ mod tests {
     }
 
     #[test]
+    fn reads_big_endian() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("be.ply");
+        let mut bytes = b"ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+            .to_vec();
+        for v in [1.5f32, -2.0, 3.25] {
+            bytes.extend_from_slice(&v.to_be_bytes());
+        }
+        bytes.extend_from_slice(&[10, 20, 30]);
+        std::fs::write(&p, &bytes).unwrap();
+        let d = read_ply(&p).unwrap();
+        assert_eq!(d.positions, vec![[1.5, -2.0, 3.25]]);
+        assert_eq!(d.colors, Some(vec![[10, 20, 30]]));
+    }
+
+    #[test]
     fn malformed_files_rejected() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("bad.ply");

@@ -20,8 +20,8 @@
 //!   only the product `q·f·B`);
 //! * `subpixel_steps`: the paper's sub-pixel experiment — unique depths converted to
 //!   disparities `D = f·B/Z` with a stated `f·B` (`fb_used_px_m`), distinct disparities counted
-//!   between consecutive integer disparities in the far range, the most frequent count reported
-//!   (8 for a Kinect). See [`ResolutionAnalysis::fb_source`] for which `f·B` is used and why.
+//!   between consecutive integer disparities in the far range, the largest count (seen in at
+//!   least two intervals) reported (8 for a Kinect). See [`ResolutionAnalysis::fb_source`] for which `f·B` is used and why.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -130,12 +130,20 @@ pub struct ResolutionAnalysis {
     /// their product is observable); `subpixel_steps_nominal` gives the paper's independent count
     /// with the nominal `f·B`.
     pub fb_source: FbSource,
-    /// Most frequent number of distinct disparities per unit disparity interval in the far range
-    /// (ties to the larger): the disparity sub-pixel resolution (8 for a Kinect).
+    /// The disparity sub-pixel resolution (8 for a Kinect): the paper's "at most 8 disparities
+    /// between two integer disparities" — the largest number of distinct disparities per unit
+    /// disparity interval in the far range that occurs in at least two complete intervals (so a
+    /// single stray value cannot raise it; with one interval, its count). Gaps in a frame's depth
+    /// coverage only lower individual counts, which is why the largest and not the most
+    /// frequent count is used: a sparse 160×120 frame may fill only a few intervals completely.
     pub subpixel_steps: Option<u32>,
-    /// Largest such count.
+    /// Most frequent count (ties to the larger); equals `subpixel_steps` on densely covered
+    /// frames.
+    pub subpixel_steps_mode: Option<u32>,
+    /// Largest count.
     pub subpixel_steps_max: Option<u32>,
-    /// The same count with the nominal `f·B` (the paper's procedure with calibrated intrinsics).
+    /// `subpixel_steps` with the nominal `f·B` (the paper's procedure with calibrated
+    /// intrinsics).
     pub subpixel_steps_nominal: Option<u32>,
     /// Per complete unit interval `[i + offset, i + 1 + offset)`: `(i, distinct disparities)`.
     pub subpixel_counts: Vec<(i64, u32)>,
@@ -234,9 +242,10 @@ pub fn analyze_depths(
         fb_nominal_px_m: fb_nominal,
         fb_used_px_m: fb_used,
         fb_source,
-        subpixel_steps: count.as_ref().map(|c| c.mode),
+        subpixel_steps: count.as_ref().map(|c| c.steps),
+        subpixel_steps_mode: count.as_ref().map(|c| c.mode),
         subpixel_steps_max: count.as_ref().map(|c| c.max),
-        subpixel_steps_nominal: count_nominal.map(|c| c.mode),
+        subpixel_steps_nominal: count_nominal.map(|c| c.steps),
         disparity_bin_offset_px: count.as_ref().map_or(0.0, |c| c.offset),
         subpixel_counts: count.map(|c| c.counts).unwrap_or_default(),
         sorted_depths_m: z,
@@ -420,6 +429,7 @@ pub fn fit_quantum(z: &[f64], step_m: f64) -> Result<QuantumFit> {
 /// Result of the sub-pixel count.
 #[derive(Debug, Clone, PartialEq)]
 struct SubpixelCount {
+    steps: u32,
     mode: u32,
     max: u32,
     counts: Vec<(i64, u32)>,
@@ -475,7 +485,17 @@ fn count_subpixel(depths_m: &[f64], fb: f64) -> Option<SubpixelCount> {
         .max_by_key(|(c, n)| (**n, **c))
         .map(|(c, _)| *c)?;
     let max = complete.iter().map(|(_, c)| *c).max()?;
+    let steps = if complete.len() == 1 {
+        max
+    } else {
+        histogram
+            .iter()
+            .rev()
+            .find(|(_, n)| **n >= 2)
+            .map_or(mode, |(c, _)| *c)
+    };
     Some(SubpixelCount {
+        steps,
         mode,
         max,
         counts: complete,
@@ -574,6 +594,29 @@ mod tests {
         assert!((a.fb_px_m.unwrap() / sensor.fb() - 1.0).abs() < 2e-3);
         assert!((a.slope_robust - 2.0).abs() < 0.15, "{}", a.slope_robust);
         assert_eq!(a.subpixel_steps_max, Some(8));
+    }
+
+    #[test]
+    fn simulated_frames_recover_fb_and_steps() {
+        // Several seeds and scenes at quarter resolution: f·B within 1 %, q exactly.
+        for (name, seed) in [("floor", 3), ("corridor", 8), ("floor", 21)] {
+            let ns = crate::sim::named_scene(name).unwrap();
+            let k = ns.intrinsics.scaled(0.25).unwrap();
+            let sim = KinectSimulator::kinect_v1();
+            let f = sim.simulate(&ns.scene, &k, &ns.pose, seed);
+            let a = analyze(&f.depth, &sim.sensor).unwrap();
+            assert!(
+                (a.fb_px_m.unwrap() / sim.sensor.fb() - 1.0).abs() < 0.01,
+                "{name} {seed}"
+            );
+            assert_eq!(
+                a.subpixel_steps,
+                Some(8),
+                "{name} {seed}: {:?}",
+                a.subpixel_counts
+            );
+            assert!((a.slope - 2.0).abs() < 0.1, "{name} {seed}: {}", a.slope);
+        }
     }
 
     #[test]

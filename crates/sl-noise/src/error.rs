@@ -33,6 +33,16 @@ pub enum NoiseError {
         /// The known names, comma-separated.
         known: String,
     },
+    /// Work that would exceed a stated memory budget.
+    #[error("{what}: {requested} exceeds the budget of {budget}")]
+    TooLarge {
+        /// What was refused.
+        what: String,
+        /// The requested amount.
+        requested: usize,
+        /// The budget.
+        budget: usize,
+    },
     /// An error from `sl-core` (bad intrinsics, sensor model, buffer sizes).
     #[error(transparent)]
     Core(#[from] CoreError),

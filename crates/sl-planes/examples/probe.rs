@@ -16,7 +16,8 @@ fn main() {
     let args: Vec<String> = std::env::args().collect();
     let thr: f64 = args.get(1).map_or(0.3, |s| s.parse().unwrap());
     let lthr: f64 = args.get(2).map_or(0.1, |s| s.parse().unwrap());
-    let cfg = PlaneConfig { threshold_px: thr, log_threshold_px: lthr, ..Default::default() };
+    let mp: f64 = args.get(3).map_or(0.2, |s| s.parse().unwrap());
+    let cfg = PlaneConfig { threshold_px: thr, log_threshold_px: lthr, merge_px: mp, ..Default::default() };
     let tum = Camera::from_intrinsics(Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3).unwrap(), None, None).unwrap();
     let o3d = Camera::from_intrinsics(Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap(), None, None).unwrap();
     let sev = Camera::from_intrinsics(Intrinsics::new(640, 480, 585.0, 585.0, 320.0, 240.0).unwrap(), None, None).unwrap();
@@ -34,13 +35,13 @@ fn main() {
         let mut best = f64::MAX;
         let mut seg = None;
         let c0 = cpu_s();
-        for _ in 0..100 {
+        for _ in 0..5 {
             let t = Instant::now();
             let s = ex.extract_depth(depth, cam).unwrap();
             best = best.min(t.elapsed().as_secs_f64() * 1e3);
             seg = Some(s);
         }
-        println!("cpu per frame {:.2} ms", (cpu_s() - c0) * 10.0);
+        println!("cpu per frame {:.2} ms", (cpu_s() - c0) * 200.0);
         let seg = seg.unwrap();
         let lab: usize = seg.planes.iter().map(|p| p.pixels).sum();
         println!("{name}: {:.2} ms, {} planes, {:.1}% labelled of {} valid", best, seg.planes.len(), 100.0 * lab as f64 / depth.valid_count() as f64, depth.valid_count());

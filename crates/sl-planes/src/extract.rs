@@ -57,13 +57,13 @@ pub struct PlaneConfig {
 impl Default for PlaneConfig {
     fn default() -> Self {
         Self {
-            threshold_px: 0.4,
+            threshold_px: 0.5,
             log_threshold_px: 0.1,
             log_sigma_px: 2.0,
             min_pixels: 1000,
             max_iterations: 3,
-            merge_px: 0.2,
-            min_piece_pixels: 64,
+            merge_px: 0.3,
+            min_piece_pixels: 256,
         }
     }
 }
@@ -397,10 +397,13 @@ impl PlaneExtractor {
                 }
             }
         }
+        // Each seed's blocks start with its label (the incumbent in the k-means passes).
+        let mut plane_of: Vec<u16> = vec![0; nc];
         for c in 0..nc {
             if let Some(f) = self.comp_fit[c]
                 && self.planes.len() < MAX_PLANES
             {
+                plane_of[c] = self.planes.len() as u16 + 1;
                 self.planes.push(Cand {
                     f,
                     sums: self.comp_sums[c],
@@ -408,6 +411,13 @@ impl PlaneExtractor {
                     alive: true,
                     into: NONE,
                 });
+            }
+        }
+        for (ri, run) in self.cc.runs.iter().enumerate() {
+            let lab = plane_of[self.cc.component[ri] as usize];
+            if lab != 0 {
+                let y = run.y as usize;
+                self.labh[y * w2 + run.x0 as usize..y * w2 + run.x1 as usize].fill(lab);
             }
         }
     }
@@ -799,13 +809,14 @@ fn coarse_assign(
             let i0 = tx * TILE_H;
             for (o, (((&d, &m), l), f)) in dt.iter().zip(mt).zip(lt.iter_mut()).zip(ft.iter_mut()).enumerate() {
                 let i = i0 + o;
-                // The previous label is kept while it fits clearly (within τ/2): a plane that
-                // is better still would have to lie within τ of it, and those merge.
+                // The incumbent (seed or previous) label is kept while it fits within τ, so
+                // the extension of another plane cannot cut a band through a seeded region;
+                // other blocks take the best candidate.
                 let prev = *l;
                 let xf = i as f32;
                 let keep = prev != 0
                     && match (fa.get(prev as usize - 1), rowc.get(prev as usize - 1)) {
-                        (Some(&a), Some(&c)) => (d - (a * xf + c)).abs() < 0.5 * tau,
+                        (Some(&a), Some(&c)) => (d - (a * xf + c)).abs() < tau,
                         _ => false,
                     };
                 let lab = if keep { prev } else { best_of(cands, fa, rowc, d, xf, tau) };

@@ -5,6 +5,7 @@
 //!
 //! Run: `cargo bench -p sl-tsdf --bench tsdf`. The Open3D comparison is
 //! `docs/bench/open3d_tsdf.py` (same frames and parameters).
+#![allow(clippy::expect_used)] // benchmark setup on fixed inputs
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -27,7 +28,9 @@ fn data_dir() -> PathBuf {
 }
 
 fn matrix(nums: &[f64]) -> Option<Pose> {
-    (nums.len() == 16).then(|| pose_from_matrix(&Matrix4::from_row_slice(nums)).ok()).flatten()
+    (nums.len() == 16)
+        .then(|| pose_from_matrix(&Matrix4::from_row_slice(nums)).ok())
+        .flatten()
 }
 
 fn icl() -> Option<Sequence> {
@@ -36,13 +39,26 @@ fn icl() -> Option<Sequence> {
     let lines: Vec<&str> = log.lines().filter(|l| !l.trim().is_empty()).collect();
     let mut frames = Vec::new();
     for (i, chunk) in lines.chunks(5).enumerate() {
-        let nums: Vec<f64> = chunk[1..].iter().flat_map(|l| l.split_whitespace()).filter_map(|t| t.parse().ok()).collect();
+        let nums: Vec<f64> = chunk[1..]
+            .iter()
+            .flat_map(|l| l.split_whitespace())
+            .filter_map(|t| t.parse().ok())
+            .collect();
         let pose = matrix(&nums)?;
-        let depth = read_depth(dir.join(format!("depth/{i:05}.png")), &ReadOptions::default()).ok()?.depth;
+        let depth = read_depth(
+            dir.join(format!("depth/{i:05}.png")),
+            &ReadOptions::default(),
+        )
+        .ok()?
+        .depth;
         frames.push((depth, pose));
     }
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).ok()?;
-    Some(Sequence { name: "icl", k, frames })
+    Some(Sequence {
+        name: "icl",
+        k,
+        frames,
+    })
 }
 
 fn seven_scenes() -> Option<Sequence> {
@@ -50,13 +66,25 @@ fn seven_scenes() -> Option<Sequence> {
     let mut frames = Vec::new();
     for i in 150..200 {
         let txt = std::fs::read_to_string(dir.join(format!("frame-{i:06}.pose.txt"))).ok()?;
-        let nums: Vec<f64> = txt.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+        let nums: Vec<f64> = txt
+            .split_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect();
         let pose = matrix(&nums)?;
-        let depth = read_depth(dir.join(format!("frame-{i:06}.depth.png")), &ReadOptions::default()).ok()?.depth;
+        let depth = read_depth(
+            dir.join(format!("frame-{i:06}.depth.png")),
+            &ReadOptions::default(),
+        )
+        .ok()?
+        .depth;
         frames.push((depth, pose));
     }
     let k = Intrinsics::new(640, 480, 585.0, 585.0, 320.0, 240.0).ok()?;
-    Some(Sequence { name: "7scenes", k, frames })
+    Some(Sequence {
+        name: "7scenes",
+        k,
+        frames,
+    })
 }
 
 /// A 4×3×2.5 m room with a few spheres, seen by 10 cameras moving along a wall.
@@ -76,11 +104,18 @@ fn simulated() -> Sequence {
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).expect("valid intrinsics");
     let frames = (0..10)
         .map(|i| {
-            let pose = Pose::new(Vector3::new(-0.5 + 0.1 * i as f64, 0.0, -0.5), Vector3::new(0.0, 0.05 * i as f64 - 0.2, 0.0));
+            let pose = Pose::new(
+                Vector3::new(-0.5 + 0.1 * i as f64, 0.0, -0.5),
+                Vector3::new(0.0, 0.05 * i as f64 - 0.2, 0.0),
+            );
             (scene.render(&k, &pose), pose)
         })
         .collect();
-    Sequence { name: "simulated", k, frames }
+    Sequence {
+        name: "simulated",
+        k,
+        frames,
+    }
 }
 
 fn params() -> TsdfParams {
@@ -95,7 +130,8 @@ fn params() -> TsdfParams {
 fn fuse(seq: &Sequence) -> TsdfVolume {
     let mut vol = TsdfVolume::new(params()).expect("valid parameters");
     for (d, p) in &seq.frames {
-        vol.integrate(d, &seq.k, p).expect("integration within budget");
+        vol.integrate(d, &seq.k, p)
+            .expect("integration within budget");
     }
     vol
 }
@@ -108,7 +144,9 @@ fn bench(c: &mut Criterion) {
             seqs.push(b);
         }
         _ => {
-            eprintln!("skipping real data: ../shared/data not found; benchmarking simulated frames");
+            eprintln!(
+                "skipping real data: ../shared/data not found; benchmarking simulated frames"
+            );
             seqs.push(simulated());
         }
     }
@@ -118,7 +156,9 @@ fn bench(c: &mut Criterion) {
         g.sample_size(10);
         // The whole sequence into a fresh volume (allocation included): divide by the frame
         // count for the per-frame time.
-        g.bench_function(format!("integrate_{n}_frames"), |b| b.iter(|| black_box(fuse(seq)).block_count()));
+        g.bench_function(format!("integrate_{n}_frames"), |b| {
+            b.iter(|| black_box(fuse(seq)).block_count())
+        });
         let vol = fuse(seq);
         g.bench_function("extract_mesh", |b| {
             b.iter(|| black_box(vol.extract_mesh(&ExtractOptions::default())).triangle_count())

@@ -22,17 +22,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let (frames, k) = if which == "icl" {
         let dir = data.join("open3d-testdata/icl-livingroom");
-        let f = sl_io::trajectory::read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth"))?;
-        (f, sl_io::camera::read_camera_json(dir.join("camera.json"))?.intrinsics)
+        let f =
+            sl_io::trajectory::read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth"))?;
+        (
+            f,
+            sl_io::camera::read_camera_json(dir.join("camera.json"))?.intrinsics,
+        )
     } else {
         let dir = data.join("7scenes-redkitchen");
         let f = sl_io::trajectory::read_7scenes_sequence(&dir)?;
-        (f, sl_io::camera::read_7scenes_intrinsics(dir.join("camera-intrinsics.txt"))?)
+        (
+            f,
+            sl_io::camera::read_7scenes_intrinsics(dir.join("camera-intrinsics.txt"))?,
+        )
     };
     let frames: Vec<_> = frames
         .into_iter()
         .take(max_frames)
-        .map(|f| Ok((read_depth(&f.depth_path, &ReadOptions::default())?.depth, f.pose)))
+        .map(|f| {
+            Ok((
+                read_depth(&f.depth_path, &ReadOptions::default())?.depth,
+                f.pose,
+            ))
+        })
         .collect::<Result<_, sl_io::IoError>>()?;
     let params = TsdfParams {
         voxel_m: 0.004,
@@ -54,11 +66,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut sorted = ms.clone();
     sorted.sort_by(f64::total_cmp);
     let n = sorted.len();
-    let med = if n % 2 == 1 { sorted[n / 2] } else { 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]) };
+    let med = if n % 2 == 1 {
+        sorted[n / 2]
+    } else {
+        0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
+    };
     println!(
         "{{\"tool\": \"sl-tsdf\", \"dataset\": \"{which}\", \"weight\": \"{}\", \"frames\": {n}, \"integrate_ms_median\": {med:.2}, \"integrate_ms\": {:?}, \"extract_ms\": {extract_ms:.1}, \"vertices\": {}, \"triangles\": {}, \"blocks\": {}, \"memory_bytes\": {}}}",
         weight.name(),
-        ms.iter().map(|x| (x * 100.0).round() / 100.0).collect::<Vec<_>>(),
+        ms.iter()
+            .map(|x| (x * 100.0).round() / 100.0)
+            .collect::<Vec<_>>(),
         mesh.vertex_count(),
         mesh.triangle_count(),
         vol.block_count(),

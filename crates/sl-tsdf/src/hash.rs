@@ -66,6 +66,7 @@ pub fn unpack(k: u64) -> [i32; 3] {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
     use std::hash::BuildHasher;

@@ -24,6 +24,27 @@
 //! * [`render::render_mesh`], [`metrics`]: a software renderer and accuracy statistics for
 //!   reports; [`io`]: PLY meshes and PNG images through `sl-io`.
 //!
+//! ## Numerics of the 1/Z⁴ average
+//!
+//! Each voxel stores the running mean `F` (metres, f32) and the accumulated weight `W`, and is
+//! updated as `W' = W + w`, `F' = F + (f − F)·w/W'` — the incremental form of eq. 12, which
+//! never forms the large sums `Σ w f` and stays exact for a single observation. Weights are
+//! divided by the weight at a reference depth `z_ref` (1 m), so `w = (1 m / Z)⁴` is 16 at
+//! 0.5 m and 1/256 at 4 m instead of 16 and 0.004 in m⁻⁴ — or 10⁻¹² in mm⁻⁴, where f32 would
+//! lose it; the constant factor cancels in `F` (the paper's remark after eq. 13). `W` is capped
+//! at [`TsdfParams::max_weight`] (10⁶): below the cap `F` is the exact weighted mean, above it
+//! `F` becomes a moving average, and the cap keeps `w/W'` of any observation weighing more
+//! than 10⁻⁶ above the f32 resolution (2⁻²⁴ ≈ 6·10⁻⁸), so late observations still move `F`.
+//!
+//! ## Memory
+//!
+//! A block is 8³ voxels of 8 bytes (4 KiB) plus its key and hash-map slot
+//! ([`volume::BYTES_PER_BLOCK`]). Before allocating the blocks a frame needs, the volume checks
+//! `blocks × BYTES_PER_BLOCK` against [`TsdfParams::memory_budget_bytes`] and fails with
+//! [`TsdfError::MemoryBudget`] (volume unchanged) if it would be exceeded; the allocations
+//! themselves use `try_reserve`, so an allocator failure is [`TsdfError::OutOfMemory`], never
+//! an abort. (Vector growth may briefly hold up to twice the block storage while it moves.)
+//!
 //! ```
 //! use sl_core::{Camera, Pose};
 //! use sl_core::nalgebra::{Point3, Vector3};

@@ -57,7 +57,10 @@ pub const EDGES: [(u8, u8, u8); 12] = {
 fn edge_between(c0: usize, c1: usize) -> usize {
     let (lo, hi) = if c0 < c1 { (c0, c1) } else { (c1, c0) };
     let a = (hi ^ lo).trailing_zeros() as usize;
-    let j = (0..8).filter(|&c| (c >> a) & 1 == 0).take_while(|&c| c != lo).count();
+    let j = (0..8)
+        .filter(|&c| (c >> a) & 1 == 0)
+        .take_while(|&c| c != lo)
+        .count();
     a * 4 + j
 }
 
@@ -128,7 +131,10 @@ impl McTable {
 
     /// The largest number of triangles of any case.
     pub fn max_triangles(&self) -> usize {
-        (0..256).map(|c| (self.offsets[c + 1] - self.offsets[c]) as usize).max().unwrap_or(0)
+        (0..256)
+            .map(|c| (self.offsets[c + 1] - self.offsets[c]) as usize)
+            .max()
+            .unwrap_or(0)
     }
 }
 
@@ -262,10 +268,13 @@ pub fn cube_rotations() -> Vec<[usize; 8]> {
 
 /// Applies a corner permutation to a case index.
 pub fn permute_case(case: u8, perm: &[usize; 8]) -> u8 {
-    (0..8).filter(|&c| (case >> c) & 1 == 1).fold(0u8, |acc, c| acc | (1 << perm[c]))
+    (0..8)
+        .filter(|&c| (case >> c) & 1 == 1)
+        .fold(0u8, |acc, c| acc | (1 << perm[c]))
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
     use std::collections::HashMap;
@@ -323,8 +332,10 @@ mod tests {
             }
             best
         };
-        let with_compl: std::collections::BTreeSet<u8> = (0..=255u8).map(|c| canon(c, true)).collect();
-        let rot_only: std::collections::BTreeSet<u8> = (0..=255u8).map(|c| canon(c, false)).collect();
+        let with_compl: std::collections::BTreeSet<u8> =
+            (0..=255u8).map(|c| canon(c, true)).collect();
+        let rot_only: std::collections::BTreeSet<u8> =
+            (0..=255u8).map(|c| canon(c, false)).collect();
         // Lorensen & Cline's 15 classes (rotations + complement), 23 without complement.
         assert_eq!(with_compl.len(), 15);
         assert_eq!(rot_only.len(), 23);
@@ -363,13 +374,16 @@ mod tests {
             let mut directed: HashMap<(u8, u8), i32> = HashMap::new();
             for t in tris {
                 for i in 0..3 {
-                    assert!(crossing(case, t[i] as usize), "case {case} uses non-crossing edge");
+                    assert!(
+                        crossing(case, t[i] as usize),
+                        "case {case} uses non-crossing edge"
+                    );
                     used[t[i] as usize] = true;
                     *directed.entry((t[i], t[(i + 1) % 3])).or_default() += 1;
                 }
             }
-            for e in 0..12 {
-                assert_eq!(used[e], crossing(case, e), "case {case} edge {e}");
+            for (e, &u) in used.iter().enumerate() {
+                assert_eq!(u, crossing(case, e), "case {case} edge {e}");
             }
             let mut segs: Vec<(u8, u8)> = Vec::new();
             for axis in 0..3 {
@@ -407,8 +421,7 @@ mod tests {
             };
             let grad = |p: [f64; 3]| {
                 let mut g = [0.0; 3];
-                for c in 0..8 {
-                    let o = CORNERS[c];
+                for (c, o) in CORNERS.iter().enumerate() {
                     for ax in 0..3 {
                         let mut w = if o[ax] == 1 { 1.0 } else { -1.0 };
                         for bx in 0..3 {
@@ -426,7 +439,11 @@ mod tests {
                 let [a, b, c] = t.map(vert);
                 let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
                 let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-                let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+                let n = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
                 let m = [0, 1, 2].map(|i| (a[i] + b[i] + c[i]) / 3.0);
                 let g = grad(m);
                 agree += n[0] * g[0] + n[1] * g[1] + n[2] * g[2];
@@ -460,7 +477,8 @@ mod tests {
                     let hi = if ax == 0 { hi } else { hi & !1 };
                     edge_between(lo as usize, hi as usize)
                 };
-                let mut mapped: Vec<(usize, usize)> = sa.iter().map(|&(x, y)| (to_b(y), to_b(x))).collect();
+                let mut mapped: Vec<(usize, usize)> =
+                    sa.iter().map(|&(x, y)| (to_b(y), to_b(x))).collect();
                 let mut sb = sb;
                 mapped.sort_unstable();
                 sb.sort_unstable();

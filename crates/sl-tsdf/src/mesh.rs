@@ -89,8 +89,10 @@ impl Mesh {
                 directed.push((t[i], t[(i + 1) % 3]));
             }
         }
-        let mut undirected: Vec<(u32, u32, bool)> =
-            directed.iter().map(|&(a, b)| if a < b { (a, b, true) } else { (b, a, false) }).collect();
+        let mut undirected: Vec<(u32, u32, bool)> = directed
+            .iter()
+            .map(|&(a, b)| if a < b { (a, b, true) } else { (b, a, false) })
+            .collect();
         undirected.par_sort_unstable();
         let mut topo = Topology {
             degenerate_triangles: degenerate,
@@ -99,7 +101,10 @@ impl Mesh {
         let mut i = 0;
         while i < undirected.len() {
             let mut j = i;
-            while j < undirected.len() && undirected[j].0 == undirected[i].0 && undirected[j].1 == undirected[i].1 {
+            while j < undirected.len()
+                && undirected[j].0 == undirected[i].0
+                && undirected[j].1 == undirected[i].1
+            {
                 j += 1;
             }
             topo.edges += 1;
@@ -144,13 +149,17 @@ impl Mesh {
     /// Axis-aligned bounds `(min, max)`, or `None` for an empty mesh.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let first = *self.positions.first()?;
-        Some(self.positions.iter().fold((first, first), |(mut lo, mut hi), p| {
-            for i in 0..3 {
-                lo[i] = lo[i].min(p[i]);
-                hi[i] = hi[i].max(p[i]);
-            }
-            (lo, hi)
-        }))
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(mut lo, mut hi), p| {
+                    for i in 0..3 {
+                        lo[i] = lo[i].min(p[i]);
+                        hi[i] = hi[i].max(p[i]);
+                    }
+                    (lo, hi)
+                }),
+        )
     }
 }
 
@@ -159,7 +168,11 @@ pub(crate) fn face_normal(m: &Mesh, t: &[u32; 3]) -> [f64; 3] {
     let [a, b, c] = t.map(|i| m.positions[i as usize].map(f64::from));
     let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
     let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
 }
 
 pub(crate) fn norm(v: &[f64; 3]) -> f64 {
@@ -192,10 +205,14 @@ impl<'a> Neighbourhood<'a> {
 
     /// Voxel at local coordinates in `-8..16` relative to the centre block.
     #[inline(always)]
-    fn get(&self, x: i32, y: i32, z: i32) -> Option<&'a Voxel> {
+    fn get(&self, x: i32, y: i32, z: i32) -> Option<Voxel> {
         let bi = ((x >> 3) + 1) + 3 * ((y >> 3) + 1) + 9 * ((z >> 3) + 1);
         let blk = self.blocks[bi as usize]?;
-        Some(&blk.voxels[local_index((x & 7) as usize, (y & 7) as usize, (z & 7) as usize)])
+        Some(blk.voxel(local_index(
+            (x & 7) as usize,
+            (y & 7) as usize,
+            (z & 7) as usize,
+        )))
     }
 
     /// Slot and local edge key of the edge owned by voxel `(x, y, z)` (in `0..16`) along `axis`.
@@ -206,7 +223,10 @@ impl<'a> Neighbourhood<'a> {
         if s == u32::MAX {
             return None;
         }
-        Some((s, local_index((x & 7) as usize, (y & 7) as usize, (z & 7) as usize) * 3 + axis))
+        Some((
+            s,
+            local_index((x & 7) as usize, (y & 7) as usize, (z & 7) as usize) * 3 + axis,
+        ))
     }
 }
 
@@ -272,21 +292,30 @@ impl TsdfVolume {
                 for lz in 0..BLOCK_SIDE as i32 {
                     for ly in 0..BLOCK_SIDE as i32 {
                         for lx in 0..BLOCK_SIDE as i32 {
-                            let Some(v0) = nb.get(lx, ly, lz) else { continue };
-                            if !observed(v0, min_w) {
+                            let Some(v0) = nb.get(lx, ly, lz) else {
+                                continue;
+                            };
+                            if !observed(&v0, min_w) {
                                 continue;
                             }
                             for axis in 0..3 {
                                 let mut n = [lx, ly, lz];
                                 n[axis] += 1;
-                                let Some(v1) = nb.get(n[0], n[1], n[2]) else { continue };
-                                if !observed(v1, min_w) || (v0.tsdf < 0.0) == (v1.tsdf < 0.0) {
+                                let Some(v1) = nb.get(n[0], n[1], n[2]) else {
+                                    continue;
+                                };
+                                if !observed(&v1, min_w) || (v0.tsdf < 0.0) == (v1.tsdf < 0.0) {
                                     continue;
                                 }
                                 let t = v0.tsdf / (v0.tsdf - v1.tsdf);
-                                let key = local_index(lx as usize, ly as usize, lz as usize) * 3 + axis;
+                                let key =
+                                    local_index(lx as usize, ly as usize, lz as usize) * 3 + axis;
                                 bv.mask.bits[key / 64] |= 1 << (key % 64);
-                                let mut p = [origin[0] + lx as f32, origin[1] + ly as f32, origin[2] + lz as f32];
+                                let mut p = [
+                                    origin[0] + lx as f32,
+                                    origin[1] + ly as f32,
+                                    origin[2] + lz as f32,
+                                ];
                                 p[axis] += t;
                                 bv.positions.push(p.map(|c| c * v));
                                 if opts.normals {
@@ -345,12 +374,14 @@ impl TsdfVolume {
                         'cube: for lx in 0..BLOCK_SIDE as i32 {
                             let mut case = 0u8;
                             for (c, off) in CORNERS.iter().enumerate() {
-                                let Some(vx) =
-                                    nb.get(lx + off[0] as i32, ly + off[1] as i32, lz + off[2] as i32)
-                                else {
+                                let Some(vx) = nb.get(
+                                    lx + off[0] as i32,
+                                    ly + off[1] as i32,
+                                    lz + off[2] as i32,
+                                ) else {
                                     continue 'cube;
                                 };
-                                if !observed(vx, min_w) {
+                                if !observed(&vx, min_w) {
                                     continue 'cube;
                                 }
                                 vals[c] = vx.tsdf;
@@ -419,7 +450,8 @@ impl TsdfVolume {
         }
         mesh.triangles.reserve(tri_lists.iter().map(Vec::len).sum());
         for list in tri_lists {
-            mesh.triangles.extend(list.into_iter().map(|t| t.map(|i| remap[i as usize])));
+            mesh.triangles
+                .extend(list.into_iter().map(|t| t.map(|i| remap[i as usize])));
         }
         mesh
     }
@@ -430,14 +462,23 @@ impl TsdfVolume {
 #[inline]
 fn gradient(nb: &Neighbourhood<'_>, p: [i32; 3], min_w: f32) -> [f32; 3] {
     let mut g = [0.0f32; 3];
-    let c = nb.get(p[0], p[1], p[2]).filter(|v| observed(v, min_w)).map(|v| v.tsdf);
+    let c = nb
+        .get(p[0], p[1], p[2])
+        .filter(|v| observed(v, min_w))
+        .map(|v| v.tsdf);
     for axis in 0..3 {
         let mut lo = p;
         let mut hi = p;
         lo[axis] -= 1;
         hi[axis] += 1;
-        let f_lo = nb.get(lo[0], lo[1], lo[2]).filter(|v| observed(v, min_w)).map(|v| v.tsdf);
-        let f_hi = nb.get(hi[0], hi[1], hi[2]).filter(|v| observed(v, min_w)).map(|v| v.tsdf);
+        let f_lo = nb
+            .get(lo[0], lo[1], lo[2])
+            .filter(|v| observed(v, min_w))
+            .map(|v| v.tsdf);
+        let f_hi = nb
+            .get(hi[0], hi[1], hi[2])
+            .filter(|v| observed(v, min_w))
+            .map(|v| v.tsdf);
         g[axis] = match (f_lo, c, f_hi) {
             (Some(a), _, Some(b)) => 0.5 * (b - a),
             (None, Some(m), Some(b)) => b - m,

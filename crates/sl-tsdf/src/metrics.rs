@@ -23,7 +23,11 @@ pub struct DistanceStats {
 impl DistanceStats {
     /// Statistics of the finite values of `d` (absolute values are taken); `None` if none.
     pub fn from_distances(d: &[f64]) -> Option<Self> {
-        let mut v: Vec<f64> = d.iter().filter(|x| x.is_finite()).map(|x| x.abs()).collect();
+        let mut v: Vec<f64> = d
+            .iter()
+            .filter(|x| x.is_finite())
+            .map(|x| x.abs())
+            .collect();
         if v.is_empty() {
             return None;
         }
@@ -59,6 +63,7 @@ pub fn vertex_distances(
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
 

@@ -74,18 +74,30 @@ impl WeightMode {
 pub(crate) enum WeightFn {
     Uniform,
     /// `(z_ref/Z)²` computed as `(z_ref · 1/Z)²`.
-    InvZ2 { z_ref: f32 },
-    InvZ4 { z_ref: f32 },
+    InvZ2 {
+        z_ref: f32,
+    },
+    InvZ4 {
+        z_ref: f32,
+    },
     /// `num / (c·Z⁴ + floor²)` with `c = (σ_D/(f·B))²`.
-    Variance { c: f32, floor2: f32, num: f32 },
+    Variance {
+        c: f32,
+        floor2: f32,
+        num: f32,
+    },
 }
 
 impl WeightFn {
     pub(crate) fn new(mode: WeightMode, z_ref_m: f64) -> Self {
         match mode {
             WeightMode::Uniform => Self::Uniform,
-            WeightMode::InvZ2 => Self::InvZ2 { z_ref: z_ref_m as f32 },
-            WeightMode::InvZ4 => Self::InvZ4 { z_ref: z_ref_m as f32 },
+            WeightMode::InvZ2 => Self::InvZ2 {
+                z_ref: z_ref_m as f32,
+            },
+            WeightMode::InvZ4 => Self::InvZ4 {
+                z_ref: z_ref_m as f32,
+            },
             WeightMode::SensorVariance { sensor, floor_m } => {
                 // Work in units of the reference variance so that everything is O(1).
                 let s_ref = sensor.sigma_z(z_ref_m);
@@ -181,7 +193,9 @@ impl TsdfParams {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(TsdfError::InvalidParameter(format!("{name} = {v} must be positive and finite")))
+                Err(TsdfError::InvalidParameter(format!(
+                    "{name} = {v} must be positive and finite"
+                )))
             }
         };
         pos("voxel_m", self.voxel_m)?;
@@ -189,7 +203,10 @@ impl TsdfParams {
         pos("z_ref_m", self.z_ref_m)?;
         pos("max_depth_m", self.max_depth_m)?;
         pos("max_weight", f64::from(self.max_weight))?;
-        if !(self.min_depth_m.is_finite() && self.min_depth_m >= 0.0 && self.min_depth_m < self.max_depth_m) {
+        if !(self.min_depth_m.is_finite()
+            && self.min_depth_m >= 0.0
+            && self.min_depth_m < self.max_depth_m)
+        {
             return Err(TsdfError::InvalidParameter(format!(
                 "min_depth_m = {} must be in [0, max_depth_m = {})",
                 self.min_depth_m, self.max_depth_m
@@ -204,7 +221,9 @@ impl TsdfParams {
         if let WeightMode::SensorVariance { sensor, floor_m } = self.weight {
             sensor.validate()?;
             if !(floor_m.is_finite() && floor_m >= 0.0) {
-                return Err(TsdfError::InvalidParameter(format!("floor_m = {floor_m} must be >= 0")));
+                return Err(TsdfError::InvalidParameter(format!(
+                    "floor_m = {floor_m} must be >= 0"
+                )));
             }
         }
         Ok(())
@@ -223,6 +242,7 @@ impl TsdfParams {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
 
@@ -262,7 +282,10 @@ mod tests {
     fn sensor_variance_is_inv_z4_without_floor() {
         let s = SensorModel::kinect_v1();
         let p = TsdfParams {
-            weight: WeightMode::SensorVariance { sensor: s, floor_m: 0.0 },
+            weight: WeightMode::SensorVariance {
+                sensor: s,
+                floor_m: 0.0,
+            },
             ..TsdfParams::default()
         };
         let q = TsdfParams::default();

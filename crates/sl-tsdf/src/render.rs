@@ -17,7 +17,9 @@ pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &Pose) -> Result<Image<[u8
     k.validate()?;
     let (w, h) = (k.width, k.height);
     if w.saturating_mul(h) > 64 << 20 {
-        return Err(TsdfError::InvalidParameter(format!("render size {w}x{h} too large")));
+        return Err(TsdfError::InvalidParameter(format!(
+            "render size {w}x{h} too large"
+        )));
     }
     let inv = pose.inverse();
     let cam: Vec<Point3<f64>> = mesh
@@ -43,9 +45,17 @@ pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &Pose) -> Result<Image<[u8
         let cos = n.dot(&view) / nn;
         let shade = 0.2 + 0.8 * cos.abs();
         let rgb = if cos >= 0.0 {
-            [(230.0 * shade) as u8, (225.0 * shade) as u8, (215.0 * shade) as u8]
+            [
+                (230.0 * shade) as u8,
+                (225.0 * shade) as u8,
+                (215.0 * shade) as u8,
+            ]
         } else {
-            [(120.0 * shade) as u8, (140.0 * shade) as u8, (230.0 * shade) as u8]
+            [
+                (120.0 * shade) as u8,
+                (140.0 * shade) as u8,
+                (230.0 * shade) as u8,
+            ]
         };
         let proj = |p: &Point3<f64>| (k.fx * p.x / p.z + k.cx, k.fy * p.y / p.z + k.cy, 1.0 / p.z);
         let (pa, pb, pc) = (proj(&a), proj(&b), proj(&c));
@@ -100,7 +110,14 @@ pub fn framing_camera(
     let centre = (lo + hi) / 2.0;
     let radius = ((hi - lo).norm() / 2.0).max(1e-3);
     let f = width as f64 / 2.0 / (30f64.to_radians()).tan();
-    let k = Intrinsics::new(width, height, f, f, (width as f64 - 1.0) / 2.0, (height as f64 - 1.0) / 2.0)?;
+    let k = Intrinsics::new(
+        width,
+        height,
+        f,
+        f,
+        (width as f64 - 1.0) / 2.0,
+        (height as f64 - 1.0) / 2.0,
+    )?;
     let half_fov = ((width.min(height) as f64 / 2.0) / f).atan();
     let dist = radius / half_fov.sin() * 1.05;
     let z = view_dir
@@ -111,7 +128,8 @@ pub fn framing_camera(
         .try_normalize(1e-12)
         .ok_or_else(|| TsdfError::InvalidParameter("view direction parallel to up".into()))?;
     let y = z.cross(&x);
-    let rot = nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z]));
+    let rot =
+        nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z]));
     let eye = centre - z * dist;
     let pose = Pose::from_parts(
         nalgebra::Translation3::from(eye),

@@ -23,7 +23,9 @@ impl Axis {
             "x" | "X" => Ok(Self::X),
             "y" | "Y" => Ok(Self::Y),
             "z" | "Z" => Ok(Self::Z),
-            o => Err(TsdfError::InvalidParameter(format!("axis '{o}' is not x, y or z"))),
+            o => Err(TsdfError::InvalidParameter(format!(
+                "axis '{o}' is not x, y or z"
+            ))),
         }
     }
 

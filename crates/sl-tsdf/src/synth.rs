@@ -46,7 +46,10 @@ impl AnalyticScene {
 
     /// Unsigned distance from a point to the nearest surface.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
-        let dp = self.planes.iter().map(|(n, d)| (n.dot(&p.coords) - d).abs());
+        let dp = self
+            .planes
+            .iter()
+            .map(|(n, d)| (n.dot(&p.coords) - d).abs());
         let ds = self.spheres.iter().map(|(c, r)| ((p - c).norm() - r).abs());
         dp.chain(ds).fold(f64::INFINITY, f64::min)
     }
@@ -56,16 +59,18 @@ impl AnalyticScene {
     pub fn render(&self, k: &Intrinsics, pose: &Pose) -> DepthImage {
         let o = Point3::from(pose.translation.vector);
         let mut data = vec![0.0f32; k.width * k.height];
-        data.par_chunks_mut(k.width).enumerate().for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                let rc = k.ray(x as f64, y as f64);
-                let n = rc.norm();
-                let r = pose.rotation * (rc / n);
-                if let Some(t) = self.intersect(&o, &r) {
-                    *px = (t / n) as f32;
+        data.par_chunks_mut(k.width)
+            .enumerate()
+            .for_each(|(y, row)| {
+                for (x, px) in row.iter_mut().enumerate() {
+                    let rc = k.ray(x as f64, y as f64);
+                    let n = rc.norm();
+                    let r = pose.rotation * (rc / n);
+                    if let Some(t) = self.intersect(&o, &r) {
+                        *px = (t / n) as f32;
+                    }
                 }
-            }
-        });
+            });
         // `data` has exactly width*height entries.
         match DepthImage::from_vec(k.width, k.height, data) {
             Ok(d) => d,

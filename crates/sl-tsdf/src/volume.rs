@@ -23,18 +23,40 @@ pub struct Voxel {
     pub weight: f32,
 }
 
-/// An 8×8×8 brick of voxels, `x` fastest: index `x + 8·y + 64·z`.
+/// An 8×8×8 brick of voxels, `x` fastest: index `x + 8·y + 64·z`. Stored as two arrays
+/// (structure of arrays) so that the integration of a row of 8 voxels vectorises.
 #[derive(Debug, Clone)]
 pub struct Block {
-    /// The voxels.
-    pub voxels: [Voxel; BLOCK_VOXELS],
+    /// Weighted mean signed distances, metres.
+    pub tsdf: [f32; BLOCK_VOXELS],
+    /// Accumulated weights (0 = unobserved).
+    pub weight: [f32; BLOCK_VOXELS],
 }
 
 impl Default for Block {
     fn default() -> Self {
         Self {
-            voxels: [Voxel::default(); BLOCK_VOXELS],
+            tsdf: [0.0; BLOCK_VOXELS],
+            weight: [0.0; BLOCK_VOXELS],
         }
+    }
+}
+
+impl Block {
+    /// The voxel at local index `i` (see [`local_index`]).
+    #[inline(always)]
+    pub fn voxel(&self, i: usize) -> Voxel {
+        Voxel {
+            tsdf: self.tsdf[i],
+            weight: self.weight[i],
+        }
+    }
+
+    /// Sets the voxel at local index `i`.
+    #[inline]
+    pub fn set_voxel(&mut self, i: usize, v: Voxel) {
+        self.tsdf[i] = v.tsdf;
+        self.weight[i] = v.weight;
     }
 }
 
@@ -135,10 +157,14 @@ impl TsdfVolume {
     pub fn voxel(&self, v: [i64; 3]) -> Option<Voxel> {
         let s = BLOCK_SIDE as i64;
         let b = [v[0].div_euclid(s), v[1].div_euclid(s), v[2].div_euclid(s)];
-        let b32 = [i32::try_from(b[0]).ok()?, i32::try_from(b[1]).ok()?, i32::try_from(b[2]).ok()?];
+        let b32 = [
+            i32::try_from(b[0]).ok()?,
+            i32::try_from(b[1]).ok()?,
+            i32::try_from(b[2]).ok()?,
+        ];
         let blk = self.block(b32)?;
         let l = [v[0].rem_euclid(s), v[1].rem_euclid(s), v[2].rem_euclid(s)].map(|c| c as usize);
-        Some(blk.voxels[local_index(l[0], l[1], l[2])])
+        Some(blk.voxel(local_index(l[0], l[1], l[2])))
     }
 
     /// Trilinear interpolation of `F` at a world point; `None` if any of the 8 surrounding
@@ -190,7 +216,8 @@ impl TsdfVolume {
             for by in lo[1]..=hi[1] {
                 for bx in lo[0]..=hi[0] {
                     let b = [bx, by, bz].map(|c| c as i32);
-                    let key = pack(b).ok_or_else(|| TsdfError::OutOfRange(format!("block {b:?}")))?;
+                    let key =
+                        pack(b).ok_or_else(|| TsdfError::OutOfRange(format!("block {b:?}")))?;
                     vol.index.insert(key, vol.blocks.len() as u32);
                     vol.keys.push(key);
                     vol.blocks.push(Block::default());
@@ -211,7 +238,13 @@ impl TsdfVolume {
                         ];
                         let p = nalgebra::Point3::new(g[0] * v, g[1] * v, g[2] * v);
                         if let Some(f) = field(&p) {
-                            blk.voxels[local_index(lx, ly, lz)] = Voxel { tsdf: f, weight: 1.0 };
+                            blk.set_voxel(
+                                local_index(lx, ly, lz),
+                                Voxel {
+                                    tsdf: f,
+                                    weight: 1.0,
+                                },
+                            );
                         }
                     }
                 }
@@ -226,7 +259,12 @@ impl TsdfVolume {
     /// line-of-sight signed distance of eq. 11 and the weight of eq. 13.
     ///
     /// On error (size mismatch, memory budget, geometry out of range) the volume is unchanged.
-    pub fn integrate(&mut self, depth: &DepthImage, k: &Intrinsics, pose: &Pose) -> Result<IntegrateStats> {
+    pub fn integrate(
+        &mut self,
+        depth: &DepthImage,
+        k: &Intrinsics,
+        pose: &Pose,
+    ) -> Result<IntegrateStats> {
         if depth.width() != k.width || depth.height() != k.height {
             return Err(TsdfError::SizeMismatch {
                 expected_width: k.width,
@@ -238,7 +276,11 @@ impl TsdfVolume {
         k.validate()?;
         let (table, pixels_used) = self.pixel_table(depth, k);
         let keys = self.band_blocks(&table, k, pose)?;
-        let new_keys: Vec<u64> = keys.iter().copied().filter(|key| !self.index.contains_key(key)).collect();
+        let new_keys: Vec<u64> = keys
+            .iter()
+            .copied()
+            .filter(|key| !self.index.contains_key(key))
+            .collect();
         let total = self.blocks.len() + new_keys.len();
         let needed = total.saturating_mul(BYTES_PER_BLOCK);
         if needed > self.params.memory_budget_bytes {
@@ -278,25 +320,22 @@ impl TsdfVolume {
         })
     }
 
-    /// Per-pixel precomputation for one frame: `(depth, λ, weight)` with `λ = ‖ray‖` (range
-    /// per unit of depth) and depth 0 where the pixel is invalid or outside the depth range.
-    fn pixel_table(&self, depth: &DepthImage, k: &Intrinsics) -> (Vec<[f32; 3]>, usize) {
+    /// Per-pixel precomputation for one frame: `(depth, weight)`, depth 0 where the pixel is
+    /// invalid or outside the depth range.
+    fn pixel_table(&self, depth: &DepthImage, k: &Intrinsics) -> (Vec<[f32; 2]>, usize) {
         let p = &self.params;
         let wf = WeightFn::new(p.weight, p.z_ref_m);
         let (min_d, max_d) = (p.min_depth_m as f32, p.max_depth_m as f32);
         let w = k.width;
-        let mut table = vec![[0.0f32; 3]; w * k.height];
+        let mut table = vec![[0.0f32; 2]; w * k.height];
         let used: usize = table
             .par_chunks_mut(w)
             .zip(depth.data().par_chunks(w))
-            .enumerate()
-            .map(|(y, (out, row))| {
-                let ry = ((y as f64 - k.cy) / k.fy) as f32;
+            .map(|(out, row)| {
                 let mut used = 0;
-                for (x, (o, &d)) in out.iter_mut().zip(row).enumerate() {
+                for (o, &d) in out.iter_mut().zip(row) {
                     if d > min_d && d <= max_d {
-                        let rx = ((x as f64 - k.cx) / k.fx) as f32;
-                        *o = [d, (rx * rx + ry * ry + 1.0).sqrt(), wf.weight(d)];
+                        *o = [d, wf.weight(d)];
                         used += 1;
                     }
                 }
@@ -307,18 +346,24 @@ impl TsdfVolume {
     }
 
     /// Sorted unique keys of the blocks within the band of the frame's valid pixels.
-    fn band_blocks(&self, table: &[[f32; 3]], k: &Intrinsics, pose: &Pose) -> Result<Vec<u64>> {
+    fn band_blocks(&self, table: &[[f32; 2]], k: &Intrinsics, pose: &Pose) -> Result<Vec<u64>> {
         let w = k.width;
         let p = &self.params;
         // Shifted block space: a point x belongs to the block of its nearest voxel, so block
         // coordinate = floor((x/v + 1/2) / 8). Everything scaled to block units up front.
         let inv_bs = 1.0 / (p.voxel_m * BLOCK_SIDE as f64);
         let shift = 0.5 / BLOCK_SIDE as f64;
-        let rot: Matrix3<f32> = (pose.rotation.to_rotation_matrix().into_inner() * inv_bs).cast::<f32>();
-        let t: Vector3<f32> = (pose.translation.vector * inv_bs).add_scalar(shift).cast::<f32>();
+        let rot: Matrix3<f32> =
+            (pose.rotation.to_rotation_matrix().into_inner() * inv_bs).cast::<f32>();
+        let t: Vector3<f32> = (pose.translation.vector * inv_bs)
+            .add_scalar(shift)
+            .cast::<f32>();
         let lim = crate::hash::MAX_BLOCK_COORD as f32 - 2.0;
         if t.iter().any(|c| !c.is_finite() || c.abs() > lim) {
-            return Err(TsdfError::OutOfRange(format!("camera position {:?} m", pose.translation.vector)));
+            return Err(TsdfError::OutOfRange(format!(
+                "camera position {:?} m",
+                pose.translation.vector
+            )));
         }
         let trunc = p.trunc_m as f32;
         let rows_per_chunk = 8usize;
@@ -333,17 +378,23 @@ impl TsdfVolume {
                     let y = ci * rows_per_chunk + ri;
                     let ry = ((y as f64 - k.cy) / k.fy) as f32;
                     for (x, px) in row.iter().enumerate() {
-                        let [d, lambda, _] = *px;
+                        let d = px[0];
                         if d <= 0.0 {
                             continue;
                         }
                         let rx = ((x as f64 - k.cx) / k.fx) as f32;
+                        let lambda = (rx * rx + ry * ry + 1.0).sqrt();
                         let dir = rot * Vector3::new(rx, ry, 1.0);
                         let dt = trunc / lambda;
                         let a = t + dir * (d - dt).max(0.0);
                         let b = t + dir * (d + dt);
-                        if a.iter().chain(b.iter()).any(|c| !(c.abs() < lim)) {
-                            return Err(TsdfError::OutOfRange(format!("pixel ({x}, {y}) at depth {d} m")));
+                        if a.iter()
+                            .chain(b.iter())
+                            .any(|c| c.abs() >= lim || c.is_nan())
+                        {
+                            return Err(TsdfError::OutOfRange(format!(
+                                "pixel ({x}, {y}) at depth {d} m"
+                            )));
                         }
                         traverse(&a, &b, |cell| {
                             // In range: every coordinate was checked against `lim` above.
@@ -371,7 +422,7 @@ impl TsdfVolume {
     }
 
     /// Updates the voxels of the touched blocks from one frame.
-    fn update_blocks(&mut self, touched: &[bool], table: &[[f32; 3]], k: &Intrinsics, pose: &Pose) {
+    fn update_blocks(&mut self, touched: &[bool], table: &[[f32; 2]], k: &Intrinsics, pose: &Pose) {
         let p = self.params;
         let inv = pose.inverse();
         let rt: Matrix3<f32> = inv.rotation.to_rotation_matrix().into_inner().cast::<f32>();
@@ -380,7 +431,12 @@ impl TsdfVolume {
         let step_x = rt.column(0) * v;
         let step_y = rt.column(1) * v;
         let step_z = rt.column(2) * v;
-        let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32 + 0.5, k.cy as f32 + 0.5);
+        let (fx, fy, cx, cy) = (
+            k.fx as f32,
+            k.fy as f32,
+            k.cx as f32 + 0.5,
+            k.cy as f32 + 0.5,
+        );
         let w = k.width;
         let (wf32, hf32) = (k.width as f32, k.height as f32);
         let trunc = p.trunc_m as f32;
@@ -394,37 +450,57 @@ impl TsdfVolume {
                 let b = unpack(keys[i]);
                 let o = [0, 1, 2].map(|a| (b[a] * BLOCK_SIDE as i32) as f32 * v);
                 let origin = rt * Vector3::new(o[0], o[1], o[2]) + tt;
-                for lz in 0..BLOCK_SIDE {
-                    for ly in 0..BLOCK_SIDE {
+                const N: usize = BLOCK_SIDE;
+                let sx = [0, 1, 2, 3, 4, 5, 6, 7].map(|i| i as f32);
+                for lz in 0..N {
+                    for ly in 0..N {
                         let row = origin + step_y * ly as f32 + step_z * lz as f32;
                         let base = local_index(0, ly, lz);
-                        let voxels = &mut blk.voxels[base..base + BLOCK_SIDE];
-                        for (lx, vx) in voxels.iter_mut().enumerate() {
-                            let pc = row + step_x * lx as f32;
-                            let z = pc.z;
-                            if z <= 0.0 {
-                                continue;
-                            }
-                            let inv_z = 1.0 / z;
+                        // Stage 1 (pure f32 arithmetic, vectorised): camera coordinates,
+                        // continuous pixel coordinates and λ = ‖P‖/z of the 8 voxels.
+                        let mut xs = [0.0f32; N];
+                        let mut ys = [0.0f32; N];
+                        let mut z = [0.0f32; N];
+                        for i in 0..N {
+                            xs[i] = row.x + step_x.x * sx[i];
+                            ys[i] = row.y + step_x.y * sx[i];
+                            z[i] = row.z + step_x.z * sx[i];
+                        }
+                        let mut us = [0.0f32; N];
+                        let mut vs = [0.0f32; N];
+                        let mut lam = [0.0f32; N];
+                        for i in 0..N {
+                            let inv_z = 1.0 / z[i];
                             // Pixel centres are at integers: +0.5 then truncation rounds.
-                            let u = fx * pc.x * inv_z + cx;
-                            let vv = fy * pc.y * inv_z + cy;
-                            if !(u >= 0.0 && vv >= 0.0 && u < wf32 && vv < hf32) {
-                                continue;
+                            us[i] = fx * xs[i] * inv_z + cx;
+                            vs[i] = fy * ys[i] * inv_z + cy;
+                            lam[i] = (xs[i] * xs[i] + ys[i] * ys[i] + z[i] * z[i]).sqrt() * inv_z;
+                        }
+                        // Stage 2 (scalar gather): depth and weight of each voxel's pixel.
+                        let mut d = [0.0f32; N];
+                        let mut wg = [0.0f32; N];
+                        for i in 0..N {
+                            let (u, vv) = (us[i], vs[i]);
+                            if z[i] > 0.0 && u >= 0.0 && vv >= 0.0 && u < wf32 && vv < hf32 {
+                                let px = table[vv as usize * w + u as usize];
+                                d[i] = px[0];
+                                wg[i] = px[1];
                             }
-                            let [d, _, wgt] = table[vv as usize * w + u as usize];
-                            // Line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ along the voxel's
-                            // own ray = (d − z)·λ with λ = ‖P_voxel‖/z. Invalid pixels have
-                            // d = 0 and fail the band test.
-                            let lambda = (pc.x * pc.x + pc.y * pc.y + z * z).sqrt() * inv_z;
-                            let sdf = (d - z) * lambda;
-                            if !(d > 0.0 && sdf >= -trunc) {
-                                continue;
-                            }
-                            let f = sdf.min(trunc);
-                            let wn = vx.weight + wgt;
-                            vx.tsdf += (f - vx.tsdf) * (wgt / wn);
-                            vx.weight = wn.min(max_w);
+                        }
+                        // Stage 3 (vectorisable, branch-free): line-of-sight distance
+                        // ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ along the voxel's own ray; an
+                        // invalid pixel (d = 0) or a voxel more than `trunc` behind the surface
+                        // gets weight 0 and is left unchanged.
+                        let tsdf = &mut blk.tsdf[base..base + N];
+                        let weight = &mut blk.weight[base..base + N];
+                        for i in 0..N {
+                            let sdf = (d[i] - z[i]) * lam[i];
+                            let in_band = sdf >= -trunc; // false for NaN (z = 0)
+                            let wgt = if in_band { wg[i] } else { 0.0 };
+                            let f = if in_band { sdf.min(trunc) } else { tsdf[i] };
+                            let wn = weight[i] + wgt;
+                            tsdf[i] += (f - tsdf[i]) * (wgt / wn.max(f32::MIN_POSITIVE));
+                            weight[i] = wn.min(max_w);
                         }
                     }
                 }
@@ -492,6 +568,7 @@ fn traverse(a: &Vector3<f32>, b: &Vector3<f32>, mut visit: impl FnMut([i32; 3]))
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 mod tests {
     use super::*;
 

@@ -1,5 +1,6 @@
 //! Integration tests of sl-tsdf: analytic TSDFs, weighting, marching cubes topology and
 //! accuracy, property tests on planes seen from random poses.
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use proptest::prelude::*;
 use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
@@ -14,11 +15,20 @@ fn small_camera() -> Intrinsics {
 /// A camera at `eye` looking at `target` (y roughly along `up` downwards in the image).
 fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Pose {
     let z = (target - eye).normalize();
-    let up = if z.y.abs() > 0.9 { Vector3::x() } else { -Vector3::y() };
+    let up = if z.y.abs() > 0.9 {
+        Vector3::x()
+    } else {
+        -Vector3::y()
+    };
     let x = (-up).cross(&z).normalize();
     let y = z.cross(&x);
-    let r = sl_core::nalgebra::Rotation3::from_matrix_unchecked(sl_core::nalgebra::Matrix3::from_columns(&[x, y, z]));
-    Pose::from_parts(Translation3::from(eye.coords), UnitQuaternion::from_rotation_matrix(&r))
+    let r = sl_core::nalgebra::Rotation3::from_matrix_unchecked(
+        sl_core::nalgebra::Matrix3::from_columns(&[x, y, z]),
+    );
+    Pose::from_parts(
+        Translation3::from(eye.coords),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
 }
 
 fn params(voxel_m: f64, trunc_m: f64, weight: WeightMode) -> TsdfParams {
@@ -48,7 +58,9 @@ fn plane_tsdf_is_the_analytic_line_of_sight_distance() {
     for i in -5i64..=5 {
         for j in -3i64..=3 {
             for kz in 90i64..=110 {
-                let Some(vx) = vol.voxel([i, j, kz]) else { continue };
+                let Some(vx) = vol.voxel([i, j, kz]) else {
+                    continue;
+                };
                 let p = Point3::new(i as f64 * v, j as f64 * v, kz as f64 * v);
                 // Line of sight through p meets z = 1 at range |p|/p.z; f = that − |p|.
                 let los = p.coords.norm() / p.z - p.coords.norm();
@@ -58,7 +70,11 @@ fn plane_tsdf_is_the_analytic_line_of_sight_distance() {
                 }
                 assert!(vx.weight > 0.0, "voxel {i},{j},{kz} in the band unobserved");
                 let expect = los.min(trunc);
-                assert!((f64::from(vx.tsdf) - expect).abs() < 1e-4, "{} vs {expect}", vx.tsdf);
+                assert!(
+                    (f64::from(vx.tsdf) - expect).abs() < 1e-4,
+                    "{} vs {expect}",
+                    vx.tsdf
+                );
                 // One observation at depth 1 m = the reference depth: weight 1.
                 assert!((vx.weight - 1.0).abs() < 1e-6);
                 checked += 1;
@@ -92,7 +108,11 @@ fn weighted_average_of_two_frames() {
             let z = kz as f64 * 0.01;
             let vx = vol.voxel([0, 0, kz]).unwrap();
             let expect = (1.0 * (1.0 - z) + w2 * (1.01 - z)) / (1.0 + w2);
-            assert!((f64::from(vx.tsdf) - expect).abs() < 2e-6, "{mode:?} z {z}: {} vs {expect}", vx.tsdf);
+            assert!(
+                (f64::from(vx.tsdf) - expect).abs() < 2e-6,
+                "{mode:?} z {z}: {} vs {expect}",
+                vx.tsdf
+            );
             assert!((f64::from(vx.weight) - (1.0 + w2)).abs() < 1e-5);
         }
         // The zero crossing moves towards the close frame as its weight grows.
@@ -120,7 +140,10 @@ fn weight_cap_turns_into_moving_average() {
     let before = vol.voxel([0, 0, 50]).unwrap().tsdf;
     vol.integrate(&d2, &k, &Pose::identity()).unwrap();
     let after = vol.voxel([0, 0, 50]).unwrap().tsdf;
-    assert!((after - before - 0.02 / 5.0).abs() < 1e-6, "{before} -> {after}");
+    assert!(
+        (after - before - 0.02 / 5.0).abs() < 1e-6,
+        "{before} -> {after}"
+    );
 }
 
 #[test]
@@ -141,10 +164,16 @@ fn errors_leave_the_volume_unchanged() {
     assert_eq!(vol.block_count(), 0);
     assert_eq!(vol.frame_count(), 0);
     let wrong = DepthImage::invalid(10, 10);
-    assert!(matches!(vol.integrate(&wrong, &k, &Pose::identity()), Err(TsdfError::SizeMismatch { .. })));
+    assert!(matches!(
+        vol.integrate(&wrong, &k, &Pose::identity()),
+        Err(TsdfError::SizeMismatch { .. })
+    ));
     let far_away = Pose::translation(1e9, 0.0, 0.0);
     let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
-    assert!(matches!(vol.integrate(&depth, &k, &far_away), Err(TsdfError::OutOfRange(_))));
+    assert!(matches!(
+        vol.integrate(&depth, &k, &far_away),
+        Err(TsdfError::OutOfRange(_))
+    ));
 }
 
 #[test]
@@ -159,7 +188,11 @@ fn memory_grows_with_surface_not_bounding_box() {
     vol.integrate(&far, &k, &Pose::identity()).unwrap();
     // The band is 6 cm thick: at most 2-3 block layers per wall.
     let zs: std::collections::BTreeSet<i32> = vol.block_coords().map(|b| b[2]).collect();
-    assert!(zs.iter().all(|&z| (11..=14).contains(&z) || (35..=39).contains(&z)), "{zs:?}");
+    assert!(
+        zs.iter()
+            .all(|&z| (11..=14).contains(&z) || (35..=39).contains(&z)),
+        "{zs:?}"
+    );
     assert!(vol.block_count() > one);
     assert!(vol.memory_bytes() >= vol.block_count() * std::mem::size_of::<sl_tsdf::Block>());
 }
@@ -167,9 +200,12 @@ fn memory_grows_with_surface_not_bounding_box() {
 fn sphere_volume(voxel: f64, r: f64, centre: Point3<f64>) -> TsdfVolume {
     let lo = [0, 1, 2].map(|a| centre[a] - r - 3.0 * voxel);
     let hi = [0, 1, 2].map(|a| centre[a] + r + 3.0 * voxel);
-    TsdfVolume::from_field(params(voxel, 4.0 * voxel, WeightMode::Uniform), lo, hi, |p| {
-        Some(((p - centre).norm() - r) as f32)
-    })
+    TsdfVolume::from_field(
+        params(voxel, 4.0 * voxel, WeightMode::Uniform),
+        lo,
+        hi,
+        |p| Some(((p - centre).norm() - r) as f32),
+    )
     .unwrap()
 }
 
@@ -221,7 +257,9 @@ fn random_fields_give_crack_free_oriented_meshes() {
     let voxel = 0.1;
     for trial in 0..6 {
         let n = 12i64; // voxels -6..6 per axis: spans 2-3 blocks per axis
-        let values: Vec<f32> = (0..(n * n * n)).map(|_| rng.random_range(-1.0f32..1.0)).collect();
+        let values: Vec<f32> = (0..(n * n * n))
+            .map(|_| rng.random_range(-1.0f32..1.0))
+            .collect();
         let field = |p: &Point3<f64>| {
             let g = [p.x, p.y, p.z].map(|c| (c / voxel).round() as i64 + n / 2);
             if g.iter().all(|&c| (0..n).contains(&c)) {
@@ -253,11 +291,17 @@ fn random_fields_give_crack_free_oriented_meshes() {
                 *count.entry((a, b)).or_insert(0) += 1;
             }
         }
-        let on_border = |p: &[f32; 3]| p.iter().any(|&c| ((c as f64) - lo).abs() < 1e-5 || ((c as f64) - hi).abs() < 1e-5);
+        let on_border = |p: &[f32; 3]| {
+            p.iter()
+                .any(|&c| ((c as f64) - lo).abs() < 1e-5 || ((c as f64) - hi).abs() < 1e-5)
+        };
         for ((a, b), c) in count {
             if c == 1 {
                 let (pa, pb) = (&mesh.positions[a as usize], &mesh.positions[b as usize]);
-                assert!(on_border(pa) && on_border(pb), "interior crack at {pa:?} {pb:?}");
+                assert!(
+                    on_border(pa) && on_border(pb),
+                    "interior crack at {pa:?} {pb:?}"
+                );
             }
         }
     }
@@ -288,10 +332,20 @@ fn ambiguous_shared_face_has_no_crack() {
         };
         Some(v)
     };
-    let vol = TsdfVolume::from_field(params(voxel, 0.4, WeightMode::Uniform), [0.0; 3], [0.2, 0.1, 0.1], field).unwrap();
+    let vol = TsdfVolume::from_field(
+        params(voxel, 0.4, WeightMode::Uniform),
+        [0.0; 3],
+        [0.2, 0.1, 0.1],
+        field,
+    )
+    .unwrap();
     let mesh = vol.extract_mesh(&ExtractOptions::default());
     let topo = mesh.topology();
-    assert_eq!(topo.nonmanifold_edges + topo.inconsistent_edges, 0, "{topo:?}");
+    assert_eq!(
+        topo.nonmanifold_edges + topo.inconsistent_edges,
+        0,
+        "{topo:?}"
+    );
     // Boundary edges only on the outer faces of the 2x1x1 box (y, z in {0, 0.1}, x in {0, 0.2}).
     let mut count = std::collections::HashMap::new();
     for t in &mesh.triangles {
@@ -303,14 +357,19 @@ fn ambiguous_shared_face_has_no_crack() {
     let outer = |p: &[f32; 3], q: &[f32; 3]| {
         (0..3).any(|ax| {
             let bounds = if ax == 0 { [0.0, 0.2] } else { [0.0, 0.1] };
-            bounds.iter().any(|&b| ((p[ax] as f64) - b).abs() < 1e-6 && ((q[ax] as f64) - b).abs() < 1e-6)
+            bounds
+                .iter()
+                .any(|&b| ((p[ax] as f64) - b).abs() < 1e-6 && ((q[ax] as f64) - b).abs() < 1e-6)
         })
     };
     let mut boundary = 0;
     for ((a, b), c) in count {
         if c == 1 {
             boundary += 1;
-            assert!(outer(&mesh.positions[a as usize], &mesh.positions[b as usize]), "crack on the shared face");
+            assert!(
+                outer(&mesh.positions[a as usize], &mesh.positions[b as usize]),
+                "crack on the shared face"
+            );
         }
     }
     assert!(boundary > 0);
@@ -396,7 +455,9 @@ fn slice_shows_the_zero_crossing_at_the_wall() {
     let mask = s.zero_crossing_mask();
     // Row r has v = 1.1 − r·0.005: the crossing is between rows 19 (v = 1.005) and 20 (v = 1.0).
     for x in 0..s.values.width() {
-        let rows: Vec<usize> = (0..s.values.height()).filter(|&y| *mask.get(x, y).unwrap()).collect();
+        let rows: Vec<usize> = (0..s.values.height())
+            .filter(|&y| *mask.get(x, y).unwrap())
+            .collect();
         assert!(rows == vec![19] || rows == vec![20], "column {x}: {rows:?}");
     }
     let rgb = s.to_rgb([0, 0, 0]);
@@ -478,11 +539,15 @@ fn fused_mesh_survives_a_ply_round_trip() {
         planes: vec![(Vector3::z(), 1.4)],
     };
     let mut vol = TsdfVolume::new(params(0.02, 0.06, WeightMode::InvZ4)).unwrap();
-    vol.integrate(&scene.render(&k, &Pose::identity()), &k, &Pose::identity()).unwrap();
+    vol.integrate(&scene.render(&k, &Pose::identity()), &k, &Pose::identity())
+        .unwrap();
     let mesh = vol.extract_mesh(&ExtractOptions::default());
     assert!(mesh.triangle_count() > 100);
     let dir = tempfile::tempdir().unwrap();
-    for (name, format) in [("m.ply", sl_io::PlyFormat::BinaryLittleEndian), ("a.ply", sl_io::PlyFormat::Ascii)] {
+    for (name, format) in [
+        ("m.ply", sl_io::PlyFormat::BinaryLittleEndian),
+        ("a.ply", sl_io::PlyFormat::Ascii),
+    ] {
         let path = dir.path().join(name);
         sl_tsdf::io::write_mesh_ply(&path, &mesh, format).unwrap();
         let back = sl_tsdf::io::read_mesh_ply(&path).unwrap();
@@ -490,7 +555,11 @@ fn fused_mesh_survives_a_ply_round_trip() {
         assert_eq!(back.positions.len(), mesh.positions.len());
         assert_eq!(back.confidence.len(), mesh.confidence.len());
         assert_eq!(back.normals.len(), mesh.normals.len());
-        let close = |a: &[f32], b: &[f32]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-6 * x.abs().max(1.0));
+        let close = |a: &[f32], b: &[f32]| {
+            a.iter()
+                .zip(b)
+                .all(|(x, y)| (x - y).abs() <= 1e-6 * x.abs().max(1.0))
+        };
         for (a, b) in back.positions.iter().zip(&mesh.positions) {
             assert!(close(a, b), "{a:?} vs {b:?}");
         }

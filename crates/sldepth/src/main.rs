@@ -29,6 +29,9 @@ enum Command {
     /// Merge registered depth frames into a mesh: sparse TSDF with 1/Z^4 noise weights and
     /// crack-free marching cubes (paper section 3.3).
     Fuse(cmd::fuse::Args),
+    /// Smooth a depth map: Gaussian, bilateral, the paper's adaptive bilateral (σ_d = k·Z², the
+    /// default, tuned from the sensor model) or a disparity-domain bilateral (section 3.2).
+    Filter(cmd::filter::Args),
     // @commands-variants (add `Name(cmd::name::Args),` with a doc comment above this line)
 }
 
@@ -40,6 +43,7 @@ fn main() -> anyhow::Result<()> {
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Cloud(a) => cmd::cloud::run(a),
         Command::Fuse(a) => cmd::fuse::run(a),
+        Command::Filter(a) => cmd::filter::run(a),
         // @commands-arms (add `Command::Name(a) => cmd::name::run(a),` above this line)
     }
 }

@@ -9,6 +9,8 @@ use anyhow::{Context as _, Result, bail};
 use serde::Serialize;
 
 mod noise;
+mod tsdf;
+mod filter;
 // @experiment-modules (add `mod name;` above this line)
 
 /// One experiment: a name (for `--only`) and its entry point.
@@ -17,6 +19,8 @@ type Experiment = (&'static str, fn(&mut Context) -> Result<()>);
 /// Every experiment, in report order.
 const EXPERIMENTS: &[Experiment] = &[
     ("noise", noise::run),
+    ("tsdf", tsdf::run),
+    ("filter", filter::run),
     // @experiments (add `("name", name::run),` above this line)
 ];
 

@@ -3,6 +3,7 @@
 
 use sl_core::{DepthImage, Intrinsics};
 use sl_io::depth::{NYU_DOFF, NYU_FB_PX_M, TUM_UNITS_PER_M, nyu_raw_to_disparity};
+use sl_io::ply::{PlyData, PlyFormat, read_ply, write_ply};
 use sl_io::trajectory::list_depth_files;
 use sl_io::{
     DEFAULT_MAX_DT_S, DepthEncoding, DepthFormat, IoError, ReadOptions, read_7scenes_intrinsics,
@@ -171,6 +172,13 @@ fn icl_livingroom_camera_and_log() {
         ),
         (525.0, 0.075, 8)
     );
+    // The camera file round-trips through our writer (which adds the sensor keys).
+    let tmp = tempfile::tempdir().unwrap();
+    sl_io::write_camera_json(tmp.path().join("camera.json"), &cam).unwrap();
+    assert_eq!(
+        read_camera_json(tmp.path().join("camera.json")).unwrap(),
+        cam
+    );
     let frames = read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth")).unwrap();
     assert_eq!(frames.len(), 5);
     assert!(frames[4].depth_path.ends_with("00004.png"));
@@ -187,6 +195,16 @@ fn icl_livingroom_camera_and_log() {
         .depth;
     assert_eq!(d0.valid_count(), 267_129);
     assert!(close(d0.get(320, 240).unwrap(), 2.195));
+    // Back-projected cloud of a real frame, through PLY and back, both encodings.
+    let points = d0.to_points(&cam.intrinsics).unwrap();
+    let z: Vec<f32> = points.iter().map(|p| p.z).collect();
+    let cloud = PlyData::from_points(&points).with_scalar("z_m", z);
+    assert_eq!(cloud.vertex_count(), 267_129);
+    for format in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+        let p = tmp.path().join(format!("cloud-{format}.ply"));
+        write_ply(&p, &cloud, format).unwrap();
+        assert_eq!(read_ply(&p).unwrap(), cloud, "{format}");
+    }
 }
 
 #[test]

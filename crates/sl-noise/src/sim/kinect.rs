@@ -149,7 +149,21 @@ impl KinectSimulator {
         DepthImage::from_vec(w, h, out).unwrap_or_else(|_| DepthImage::invalid(w, h))
     }
 
-    /// Renders `scene` through `k` from `camera_to_world` and applies the sensor.
+    /// [`KinectSimulator::simulate`] after checking the image size against
+    /// [`crate::sim::MAX_RENDER_PIXELS`]: use it when the intrinsics come from outside.
+    pub fn try_simulate(
+        &self,
+        scene: &Scene,
+        k: &Intrinsics,
+        camera_to_world: &Pose,
+        seed: u64,
+    ) -> crate::Result<SimulatedFrame> {
+        crate::sim::scene::check_render_size(k)?;
+        Ok(self.simulate(scene, k, camera_to_world, seed))
+    }
+
+    /// Renders `scene` through `k` from `camera_to_world` and applies the sensor (no size
+    /// check: see [`KinectSimulator::try_simulate`]).
     pub fn simulate(
         &self,
         scene: &Scene,

@@ -7,6 +7,10 @@ use sl_core::{DepthImage, Image, Intrinsics, Pose};
 use crate::error::{NoiseError, Result};
 use crate::sim::primitives::{Hit, Surface, faces_of};
 
+/// Largest image [`Scene::try_render`] accepts, pixels (64 Mpx ≈ 1.2 GB of depth, labels and
+/// normals).
+pub const MAX_RENDER_PIXELS: usize = 1 << 26;
+
 /// Maximum number of surfaces in a scene (labels are `u16`, 0 is the background).
 pub const MAX_SURFACES: usize = u16::MAX as usize;
 
@@ -125,17 +129,25 @@ impl Scene {
             .min_by(|a, b| a.1.total_cmp(&b.1))
     }
 
+    /// [`Scene::render`] after checking the image size against [`MAX_RENDER_PIXELS`]: use it
+    /// when the intrinsics come from outside (a camera file).
+    pub fn try_render(&self, k: &Intrinsics, camera_to_world: &Pose) -> Result<Render> {
+        check_render_size(k)?;
+        Ok(self.render(k, camera_to_world))
+    }
+
     /// Renders exact depth, labels and normals through the pinhole `k` from the camera pose
     /// `camera_to_world` (X_w = R·X_c + t). Pixel centres are at integer coordinates; the ray of
     /// pixel `(x, y)` is `R·((x − cx)/fx, (y − cy)/fy, 1)`, so the hit's ray parameter is the
-    /// depth `Z` itself. Rows are rendered in parallel.
+    /// depth `Z` itself. Rows are rendered in parallel. Allocates 18 bytes per pixel without a
+    /// size check: see [`Scene::try_render`] for untrusted intrinsics.
     pub fn render(&self, k: &Intrinsics, camera_to_world: &Pose) -> Render {
         let (w, h) = (k.width, k.height);
         let mut depth = vec![0.0f32; w * h];
         let mut labels = vec![0u16; w * h];
         let mut normals = vec![[0.0f32; 3]; w * h];
         let origin = Point3::from(camera_to_world.translation.vector);
-        let rot = camera_to_world.rotation;
+        let rot = camera_to_world.rotation.to_rotation_matrix();
         if w > 0 {
             depth
                 .par_chunks_mut(w)
@@ -160,6 +172,19 @@ impl Scene {
             normals: image_from(w, h, normals),
         }
     }
+}
+
+/// Refuses images larger than [`MAX_RENDER_PIXELS`].
+pub(crate) fn check_render_size(k: &Intrinsics) -> Result<()> {
+    let pixels = k.width.saturating_mul(k.height);
+    if pixels > MAX_RENDER_PIXELS {
+        return Err(NoiseError::TooLarge {
+            what: format!("rendering a {}x{} image", k.width, k.height),
+            requested: pixels,
+            budget: MAX_RENDER_PIXELS,
+        });
+    }
+    Ok(())
 }
 
 /// Wraps a buffer that has exactly `w·h` elements by construction.
@@ -307,5 +332,11 @@ mod tests {
         );
         assert!(scene.surface(0).is_none() && scene.surface(7).is_none());
         assert_eq!(Scene::new().distance(&Point3::origin()), f64::INFINITY);
+        let huge = Intrinsics::new(65536, 65536, 500.0, 500.0, 0.0, 0.0).unwrap();
+        assert!(matches!(
+            scene.try_render(&huge, &Pose::identity()),
+            Err(NoiseError::TooLarge { .. })
+        ));
+        assert_eq!(scene.try_render(&k, &Pose::identity()).unwrap(), r);
     }
 }

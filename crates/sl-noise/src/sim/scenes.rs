@@ -100,12 +100,13 @@ pub fn named_scene(name: &str) -> Result<NamedScene> {
             label(l, "right wall");
             let l = scene.add(Plane::new(Point3::origin(), up)?);
             label(l, "floor");
-            // The figure, 1.1 m ahead of a camera at 1.3 m height.
-            let fy = 1.1;
-            let l = scene.add(Sphere::new(Point3::new(0.0, fy, 1.62), 0.11)?);
+            // The figure, 1.1 m ahead of a camera at 1.3 m height and 0.3 m left of the view
+            // axis, so that the corner stays visible beside it.
+            let (fx, fy) = (-0.3, 1.1);
+            let l = scene.add(Sphere::new(Point3::new(fx, fy, 1.62), 0.11)?);
             label(l, "head");
             let torso = scene.add_cuboid(
-                Point3::new(0.0, fy, 1.2),
+                Point3::new(fx, fy, 1.2),
                 Vector3::new(0.2, 0.1, 0.3),
                 UnitQuaternion::identity(),
             );
@@ -114,7 +115,7 @@ pub fn named_scene(name: &str) -> Result<NamedScene> {
             }
             for (side, name) in [(-1.0, "left arm"), (1.0, "right arm")] {
                 let l = scene.add(Cylinder::new(
-                    Point3::new(side * 0.27, fy, 1.15),
+                    Point3::new(fx + side * 0.27, fy, 1.15),
                     up,
                     0.05,
                     0.3,
@@ -123,7 +124,7 @@ pub fn named_scene(name: &str) -> Result<NamedScene> {
                 label(l, name);
             }
             let eye = Point3::new(0.0, 0.0, 1.3);
-            let target = Point3::new(0.0, 3.0, 1.1);
+            let target = Point3::new(0.0, 3.0, 1.25);
             (
                 "a figure ~1 m away before two walls meeting at 90° at ~3 m (paper Fig. 4)",
                 look_at(eye, target, up)?,

@@ -7,7 +7,7 @@ use super::common::{data_dir, read_depth};
 
 fn report(name: &str, a: &ResolutionAnalysis) {
     eprintln!(
-        "{name}: unique {} slope {:.4} robust {:.4} c {:.6}/m (median {:.6}) fB implied {:.3} used {:?} ({:?}) sub-pixel {:?} (max {:?}, nominal {:?}) far from {:.3} m ({} pairs)",
+        "{name}: unique {} slope {:.4} robust {:.4} c {:.6}/m (median {:.6}) fB implied {:.3} used {:?} ({:?}) sub-pixel {:?} (mode {:?}, max {:?}, nominal-fB count {:?}) far from {:.3} m ({} pairs)",
         a.unique_depths,
         a.slope,
         a.slope_robust,
@@ -17,6 +17,7 @@ fn report(name: &str, a: &ResolutionAnalysis) {
         a.fb_used_px_m,
         a.fb_source,
         a.subpixel_steps,
+        a.subpixel_steps_mode,
         a.subpixel_steps_max,
         a.subpixel_steps_nominal,
         a.far_range_min_m,

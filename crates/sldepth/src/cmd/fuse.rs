@@ -98,7 +98,8 @@ fn parse_weight(name: &str, camera: &Camera) -> Result<WeightMode> {
 
 /// Reads a `--frames` list.
 fn read_frame_list(path: &Path) -> Result<Vec<Frame>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut frames = Vec::new();
     for (i, line) in text.lines().enumerate() {
@@ -121,7 +122,8 @@ fn read_frame_list(path: &Path) -> Result<Vec<Frame>> {
                 .parse()
                 .with_context(|| format!("{}:{}: {t:?} is not a number", path.display(), i + 1))?;
         }
-        let pose = pose_from_row_major(&m).with_context(|| format!("{}:{}", path.display(), i + 1))?;
+        let pose =
+            pose_from_row_major(&m).with_context(|| format!("{}:{}", path.display(), i + 1))?;
         frames.push(Frame {
             depth_path: base.join(toks[0]),
             pose,
@@ -136,9 +138,8 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     let camera_or = |default: Option<PathBuf>| -> Result<Camera> {
         match (&args.input.camera, default) {
             (Some(_), _) => load_camera(&args.input),
-            (None, Some(p)) if p.is_file() => {
-                sl_io::camera::read_camera(&p).with_context(|| format!("reading camera {}", p.display()))
-            }
+            (None, Some(p)) if p.is_file() => sl_io::camera::read_camera(&p)
+                .with_context(|| format!("reading camera {}", p.display())),
             _ => load_camera(&args.input),
         }
     };
@@ -147,7 +148,10 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     } else if let Some(dir) = &args.tum {
         let seq = sl_io::trajectory::read_tum_sequence(dir, sl_io::trajectory::DEFAULT_MAX_DT_S)?;
         if !seq.without_pose.is_empty() {
-            eprintln!("note: {} depth frames have no pose within 20 ms and are skipped", seq.without_pose.len());
+            eprintln!(
+                "note: {} depth frames have no pose within 20 ms and are skipped",
+                seq.without_pose.len()
+            );
         }
         Ok((seq.frames, camera_or(None)?, Some(5000.0)))
     } else if let Some(log) = &args.o3d_log {
@@ -162,7 +166,9 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         let cam = camera_or(Some(dir.join("camera-intrinsics.txt")))?;
         Ok((frames, cam, None))
     } else {
-        bail!("give the frames with --frames LIST, --tum DIR, --o3d-log FILE --depth-dir DIR or --7scenes DIR")
+        bail!(
+            "give the frames with --frames LIST, --tum DIR, --o3d-log FILE --depth-dir DIR or --7scenes DIR"
+        )
     }
 }
 
@@ -172,7 +178,11 @@ fn median(v: &mut [f64]) -> f64 {
     }
     v.sort_by(f64::total_cmp);
     let n = v.len();
-    if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) }
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
 }
 
 /// Runs `sldepth fuse`.
@@ -204,7 +214,10 @@ pub fn run(args: Args) -> Result<()> {
         scale_units_per_m: args.input.depth_scale.or(default_scale),
     };
     let filter = if args.prefilter {
-        Some(sl_filter::DepthFilter::default_for(sl_filter::Method::Adaptive, &camera.sensor))
+        Some(sl_filter::DepthFilter::default_for(
+            sl_filter::Method::Adaptive,
+            &camera.sensor,
+        ))
     } else {
         None
     };
@@ -221,7 +234,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut integrate_ms = Vec::with_capacity(frames.len());
     let mut first_pose: Option<Pose> = None;
     for f in &frames {
-        let loaded = read_depth(&f.depth_path, &read_opts).with_context(|| format!("reading {}", f.depth_path.display()))?;
+        let loaded = read_depth(&f.depth_path, &read_opts)
+            .with_context(|| format!("reading {}", f.depth_path.display()))?;
         let mut depth: DepthImage = loaded.depth;
         if depth.width() != k.width || depth.height() != k.height {
             bail!(
@@ -234,7 +248,9 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if let Some(filt) = &filter {
-            depth = filt.apply(&depth).with_context(|| format!("filtering {}", f.depth_path.display()))?;
+            depth = filt
+                .apply(&depth)
+                .with_context(|| format!("filtering {}", f.depth_path.display()))?;
         }
         let t0 = Instant::now();
         volume
@@ -259,7 +275,8 @@ pub fn run(args: Args) -> Result<()> {
         } else {
             sl_io::ply::PlyFormat::BinaryLittleEndian
         };
-        sl_tsdf::io::write_mesh_ply(out, &mesh, format).with_context(|| format!("writing {}", out.display()))?;
+        sl_tsdf::io::write_mesh_ply(out, &mesh, format)
+            .with_context(|| format!("writing {}", out.display()))?;
     }
     if let Some(png) = &args.slice_png {
         let img = volume.slice_rgb(&SliceSpec::new(axis, args.slice_m))?;

@@ -1,0 +1,392 @@
+//! Evaluation metrics for depth filters (used by `cargo xtask validate` and unit-tested here):
+//! RMSE against ground truth per depth band, depth-edge masks, and plane-fit residuals on a
+//! robustly chosen planar region of a real frame.
+
+use sl_core::nalgebra::{Matrix3, SymmetricEigen, Vector3};
+use sl_core::{DepthImage, Intrinsics, SensorModel};
+
+use crate::error::{FilterError, Result};
+
+/// The depth bands of the evaluation, metres: `< 1.5`, `1.5–2.5`, `> 2.5`.
+pub const KINECT_BANDS_M: [(f32, f32); 3] = [(0.0, 1.5), (1.5, 2.5), (2.5, f32::INFINITY)];
+
+/// An error statistic over the pixels of one depth band.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BandError {
+    /// Lower band limit (inclusive), metres.
+    pub lo_m: f32,
+    /// Upper band limit (exclusive), metres.
+    pub hi_m: f32,
+    /// Number of pixels in the band.
+    pub pixels: usize,
+    /// Root-mean-square error, metres (NaN when the band is empty).
+    pub rmse_m: f64,
+}
+
+fn valid(z: f32) -> bool {
+    z > 0.0 && z.is_finite()
+}
+
+fn same_size(a: &DepthImage, b: &DepthImage) -> Result<()> {
+    if a.width() != b.width() || a.height() != b.height() {
+        return Err(FilterError::ImageSize(format!(
+            "{}x{} vs {}x{}",
+            a.width(),
+            a.height(),
+            b.width(),
+            b.height()
+        )));
+    }
+    Ok(())
+}
+
+/// RMSE of `estimate` against `truth` per depth band of the *true* depth, over the pixels valid
+/// in both (and inside `mask` when given). The filters keep the input's valid mask, so every
+/// method is scored on the same pixels.
+pub fn rmse_by_band(estimate: &DepthImage, truth: &DepthImage, mask: Option<&[bool]>, bands: &[(f32, f32)]) -> Result<Vec<BandError>> {
+    same_size(estimate, truth)?;
+    let mut acc = vec![(0usize, 0.0f64); bands.len()];
+    for (i, (&e, &t)) in estimate.data().iter().zip(truth.data()).enumerate() {
+        if !(valid(e) && valid(t)) || mask.is_some_and(|m| !m.get(i).copied().unwrap_or(false)) {
+            continue;
+        }
+        if let Some(b) = bands.iter().position(|&(lo, hi)| t >= lo && t < hi) {
+            let d = f64::from(e) - f64::from(t);
+            acc[b].0 += 1;
+            acc[b].1 += d * d;
+        }
+    }
+    Ok(bands
+        .iter()
+        .zip(acc)
+        .map(|(&(lo_m, hi_m), (n, s))| BandError {
+            lo_m,
+            hi_m,
+            pixels: n,
+            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+        })
+        .collect())
+}
+
+/// RMSE over all bands together (pooled pixels), metres, and the pixel count.
+pub fn pooled(bands: &[BandError]) -> (f64, usize) {
+    let n: usize = bands.iter().map(|b| b.pixels).sum();
+    let s: f64 = bands.iter().filter(|b| b.pixels > 0).map(|b| b.rmse_m * b.rmse_m * b.pixels as f64).sum();
+    (if n > 0 { (s / n as f64).sqrt() } else { f64::NAN }, n)
+}
+
+/// Pixels within `radius_px` (Chebyshev distance) of a true depth edge: a pair of 4-neighbours,
+/// both valid in `truth`, whose depths differ by more than `rel_jump` times the nearer one
+/// (5 % is a good choice: far above the depth change between neighbours on any surface the
+/// Kinect sees at less than ~80° incidence, far below the jumps at occluding contours).
+pub fn depth_edge_mask(truth: &DepthImage, rel_jump: f32, radius_px: usize) -> Vec<bool> {
+    let (w, h) = (truth.width(), truth.height());
+    let z = truth.data();
+    let mut edge = vec![false; w * h];
+    let jump = |a: f32, b: f32| valid(a) && valid(b) && (a - b).abs() > rel_jump * a.min(b);
+    for y in 0..h {
+        for x in 0..w {
+            let i = y * w + x;
+            if x + 1 < w && jump(z[i], z[i + 1]) {
+                edge[i] = true;
+                edge[i + 1] = true;
+            }
+            if y + 1 < h && jump(z[i], z[i + w]) {
+                edge[i] = true;
+                edge[i + w] = true;
+            }
+        }
+    }
+    dilate(&edge, w, h, radius_px)
+}
+
+/// Binary dilation with a `(2r+1)²` square.
+pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    morph(mask, w, h, r, true)
+}
+
+/// Binary erosion with a `(2r+1)²` square (outside the image counts as `false`).
+pub fn erode(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    morph(mask, w, h, r, false)
+}
+
+fn morph(mask: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool> {
+    if r == 0 {
+        return mask.to_vec();
+    }
+    // Separable: rows, then columns.
+    let pass = |src: &[bool], horizontal: bool| -> Vec<bool> {
+        let mut out = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let (c, n) = if horizontal { (x, w) } else { (y, h) };
+                let lo = c.saturating_sub(r);
+                let hi = (c + r).min(n - 1);
+                let at = |t: usize| if horizontal { src[y * w + t] } else { src[t * w + x] };
+                let inside = c >= r && c + r < n;
+                out[y * w + x] = if dilate { (lo..=hi).any(at) } else { inside && (lo..=hi).all(at) };
+            }
+        }
+        out
+    };
+    let a = pass(mask, true);
+    pass(&a, false)
+}
+
+/// A plane `n·X = d` (unit normal, camera frame, metres).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaneFit {
+    /// Unit normal.
+    pub normal: [f64; 3],
+    /// Offset `d`, metres.
+    pub offset_m: f64,
+}
+
+impl PlaneFit {
+    /// Signed distance of a point to the plane, metres.
+    pub fn distance(&self, p: [f64; 3]) -> f64 {
+        self.normal[0] * p[0] + self.normal[1] * p[1] + self.normal[2] * p[2] - self.offset_m
+    }
+}
+
+/// Least-squares plane through points (smallest eigenvector of the scatter matrix), or `None`
+/// for fewer than 3 points or degenerate ones.
+pub fn fit_plane(points: &[[f64; 3]]) -> Option<PlaneFit> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mut c = Vector3::zeros();
+    for p in points {
+        c += Vector3::new(p[0], p[1], p[2]);
+    }
+    c /= n;
+    let mut m = Matrix3::zeros();
+    for p in points {
+        let d = Vector3::new(p[0], p[1], p[2]) - c;
+        m += d * d.transpose();
+    }
+    let eig = SymmetricEigen::new(m);
+    let (i, _) = eig.eigenvalues.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    let nrm = eig.eigenvectors.column(i).into_owned();
+    let len = nrm.norm();
+    if !(len > 0.0 && len.is_finite()) {
+        return None;
+    }
+    let nrm = nrm / len;
+    Some(PlaneFit {
+        normal: [nrm.x, nrm.y, nrm.z],
+        offset_m: nrm.dot(&c),
+    })
+}
+
+/// The dominant plane of a frame and the pixels that belong to it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaneRegion {
+    /// Least-squares plane through the region of the input frame.
+    pub plane: PlaneFit,
+    /// Row-major pixel mask of the region.
+    pub mask: Vec<bool>,
+}
+
+/// Deterministic SplitMix64, for RANSAC sampling.
+fn splitmix(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Finds the dominant plane of a (raw) depth frame and a robust region on it, for measuring how
+/// much a filter flattens a real planar surface.
+///
+/// 1. RANSAC (`iterations` samples of 3 points, seeded) over every 4th pixel in each direction;
+///    a point is an inlier when its distance to the plane is below
+///    `τ(Z) = 3·σ_Z(Z) + ΔZ(Z) + 2 mm` — three noise σ plus one depth quantum of the sensor
+///    model, so the band widens with `Z²` exactly like the noise and inliers are not selected
+///    by their (depth-dependent) noise.
+/// 2. The largest-consensus plane is refitted by least squares on all inlier pixels.
+/// 3. The pixel mask of inliers is *closed* (dilated then eroded by 2 px) so that isolated
+///    noisy pixels inside the surface are put back (otherwise the raw frame's residual would be
+///    truncated at `τ` and look better than it is), then *eroded* by `erode_px` (use the filter
+///    radius + 1) so the region keeps away from its boundaries, where filters legitimately mix
+///    in other surfaces.
+///
+/// Returns `None` when no plane with at least 1000 region pixels exists.
+pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &SensorModel, erode_px: usize, iterations: usize, seed: u64) -> Result<Option<PlaneRegion>> {
+    depth.as_image().check_size(k)?;
+    let (w, h) = (depth.width(), depth.height());
+    let z = depth.data();
+    let point = |x: usize, y: usize| -> [f64; 3] {
+        let d = f64::from(z[y * w + x]);
+        [(x as f64 - k.cx) / k.fx * d, (y as f64 - k.cy) / k.fy * d, d]
+    };
+    let tau = |d: f64| 3.0 * sensor.sigma_z(d) + sensor.depth_step_m(d) + 0.002;
+    let mut samples = Vec::new();
+    for y in (0..h).step_by(4) {
+        for x in (0..w).step_by(4) {
+            if valid(z[y * w + x]) {
+                samples.push(point(x, y));
+            }
+        }
+    }
+    if samples.len() < 3 {
+        return Ok(None);
+    }
+    let mut state = seed;
+    let mut best: Option<(usize, PlaneFit)> = None;
+    for _ in 0..iterations {
+        let pick = |s: &mut u64| samples[(splitmix(s) % samples.len() as u64) as usize];
+        let (a, b, c) = (pick(&mut state), pick(&mut state), pick(&mut state));
+        let (u, v) = (Vector3::from(b) - Vector3::from(a), Vector3::from(c) - Vector3::from(a));
+        let n = u.cross(&v);
+        let len = n.norm();
+        if !(len > 1e-9) {
+            continue;
+        }
+        let n = n / len;
+        let plane = PlaneFit {
+            normal: [n.x, n.y, n.z],
+            offset_m: n.dot(&Vector3::from(a)),
+        };
+        let count = samples.iter().filter(|p| plane.distance(**p).abs() < tau(p[2])).count();
+        if best.is_none_or(|(bc, _)| count > bc) {
+            best = Some((count, plane));
+        }
+    }
+    let Some((_, plane)) = best else {
+        return Ok(None);
+    };
+    let inlier = |plane: &PlaneFit| -> Vec<bool> {
+        (0..w * h)
+            .map(|i| valid(z[i]) && {
+                let p = point(i % w, i / w);
+                plane.distance(p).abs() < tau(p[2])
+            })
+            .collect()
+    };
+    let first = inlier(&plane);
+    let pts: Vec<[f64; 3]> = (0..w * h).filter(|&i| first[i]).map(|i| point(i % w, i / w)).collect();
+    let Some(plane) = fit_plane(&pts) else {
+        return Ok(None);
+    };
+    let mask = inlier(&plane);
+    let closed = erode(&dilate(&mask, w, h, 2), w, h, 2);
+    let region = erode(&closed, w, h, erode_px);
+    let mask: Vec<bool> = region.iter().zip(z).map(|(&m, &d)| m && valid(d)).collect();
+    if mask.iter().filter(|&&m| m).count() < 1000 {
+        return Ok(None);
+    }
+    Ok(Some(PlaneRegion { plane, mask }))
+}
+
+/// Plane-fit residual of `depth` on `mask`, per depth band: a least-squares plane is fitted to
+/// the masked points of this (filtered) frame, and the RMS orthogonal distance of the points to
+/// it is reported per band of their depth. Each frame gets its own fit, so a filter is judged on
+/// how flat it leaves the surface, not on how it moves it.
+pub fn plane_residual_by_band(depth: &DepthImage, k: &Intrinsics, mask: &[bool], bands: &[(f32, f32)]) -> Result<Vec<BandError>> {
+    depth.as_image().check_size(k)?;
+    let (w, h) = (depth.width(), depth.height());
+    let z = depth.data();
+    let idx: Vec<usize> = (0..w * h).filter(|&i| mask.get(i).copied().unwrap_or(false) && valid(z[i])).collect();
+    let pts: Vec<[f64; 3]> = idx
+        .iter()
+        .map(|&i| {
+            let (x, y, d) = ((i % w) as f64, (i / w) as f64, f64::from(z[i]));
+            [(x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d]
+        })
+        .collect();
+    let mut acc = vec![(0usize, 0.0f64); bands.len()];
+    if let Some(plane) = fit_plane(&pts) {
+        for p in &pts {
+            let d = p[2] as f32;
+            if let Some(b) = bands.iter().position(|&(lo, hi)| d >= lo && d < hi) {
+                let r = plane.distance(*p);
+                acc[b].0 += 1;
+                acc[b].1 += r * r;
+            }
+        }
+    }
+    Ok(bands
+        .iter()
+        .zip(acc)
+        .map(|(&(lo_m, hi_m), (n, s))| BandError {
+            lo_m,
+            hi_m,
+            pixels: n,
+            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rmse_bands_use_the_true_depth() {
+        let truth = DepthImage::from_vec(4, 1, vec![1.0, 2.0, 3.0, 0.0]).unwrap();
+        let est = DepthImage::from_vec(4, 1, vec![1.1, 2.0, 2.8, 5.0]).unwrap();
+        let b = rmse_by_band(&est, &truth, None, &KINECT_BANDS_M).unwrap();
+        assert_eq!(b.iter().map(|b| b.pixels).collect::<Vec<_>>(), vec![1, 1, 1]);
+        assert!((b[0].rmse_m - 0.1).abs() < 1e-6 && b[1].rmse_m == 0.0 && (b[2].rmse_m - 0.2).abs() < 1e-6);
+        let (all, n) = pooled(&b);
+        assert_eq!(n, 3);
+        assert!((all - ((0.01 + 0.04) / 3.0f64).sqrt()).abs() < 1e-6);
+        let masked = rmse_by_band(&est, &truth, Some(&[false, true, true, true]), &KINECT_BANDS_M).unwrap();
+        assert_eq!(masked[0].pixels, 0);
+        assert!(masked[0].rmse_m.is_nan());
+    }
+
+    #[test]
+    fn edge_mask_marks_jumps_not_slopes() {
+        // A steep ramp (2 % per pixel) with a 50 % step in the middle.
+        let w = 20;
+        let data: Vec<f32> = (0..w * 5).map(|i| 1.0 + 0.02 * (i % w) as f32 + if i % w >= 10 { 1.0 } else { 0.0 }).collect();
+        let d = DepthImage::from_vec(w, 5, data).unwrap();
+        let m = depth_edge_mask(&d, 0.05, 2);
+        for x in 0..w {
+            assert_eq!(m[2 * w + x], (7..=12).contains(&x), "x = {x}");
+        }
+    }
+
+    #[test]
+    fn morphology() {
+        let mut m = vec![false; 49];
+        m[24] = true;
+        let d = dilate(&m, 7, 7, 1);
+        assert_eq!(d.iter().filter(|&&v| v).count(), 9);
+        assert_eq!(erode(&d, 7, 7, 1), m);
+        assert!(erode(&vec![true; 49], 7, 7, 1)[0..7].iter().all(|&v| !v));
+    }
+
+    #[test]
+    fn plane_fit_and_region_on_a_noisy_floor() {
+        let k = Intrinsics::new(160, 120, 145.0, 145.0, 79.5, 59.5).unwrap();
+        let sensor = SensorModel::kinect_v1();
+        // Plane n·X = 1 with n tilted 60° from the optical axis, plus ±2 mm noise, and a box
+        // (a 0.5 m closer rectangle) that must be excluded from the region.
+        let n = [0.0, -(60f64.to_radians().sin()), 60f64.to_radians().cos()];
+        let mut state = 7u64;
+        let data: Vec<f32> = (0..160 * 120)
+            .map(|i| {
+                let (x, y) = ((i % 160) as f64, (i / 160) as f64);
+                let r = k.ray(x, y);
+                let z = 1.0 / (n[0] * r.x + n[1] * r.y + n[2] * r.z);
+                let noise = (splitmix(&mut state) % 1000) as f64 / 1000.0 * 0.004 - 0.002;
+                let boxed = (60..90).contains(&(i % 160)) && (70..100).contains(&(i / 160));
+                if boxed { (z - 0.5) as f32 } else { (z + noise) as f32 }
+            })
+            .collect();
+        let d = DepthImage::from_vec(160, 120, data).unwrap();
+        let region = dominant_plane_region(&d, &k, &sensor, 3, 200, 1).unwrap().unwrap();
+        let dot: f64 = region.plane.normal.iter().zip(&n).map(|(a, b)| a * b).sum();
+        assert!(dot.abs() > 0.999, "{:?}", region.plane);
+        assert!(!region.mask[85 * 160 + 75], "the box is not in the region");
+        assert!(region.mask[20 * 160 + 20]);
+        let res = plane_residual_by_band(&d, &k, &region.mask, &[(0.0, f32::INFINITY)]).unwrap();
+        // Uniform ±2 mm noise along Z has an RMS of 1.15 mm, seen at 60° from the normal.
+        assert!(res[0].rmse_m > 0.0003 && res[0].rmse_m < 0.0012, "{:?}", res[0]);
+    }
+}
