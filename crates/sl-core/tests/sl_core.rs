@@ -1,5 +1,8 @@
 //! Property tests of sl-core's geometry.
 
+// Test code: a panic is a failed test.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
+
 use nalgebra::{Isometry3, Point3, Vector3};
 use proptest::prelude::*;
 use sl_core::{DepthImage, Intrinsics, SensorModel, pose_from_matrix, pose_to_matrix};

@@ -242,7 +242,7 @@ pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &Sensor
         let (u, v) = (Vector3::from(b) - Vector3::from(a), Vector3::from(c) - Vector3::from(a));
         let n = u.cross(&v);
         let len = n.norm();
-        if !(len > 1e-9) {
+        if len.is_nan() || len <= 1e-9 {
             continue;
         }
         let n = n / len;
@@ -358,7 +358,7 @@ mod tests {
         let d = dilate(&m, 7, 7, 1);
         assert_eq!(d.iter().filter(|&&v| v).count(), 9);
         assert_eq!(erode(&d, 7, 7, 1), m);
-        assert!(erode(&vec![true; 49], 7, 7, 1)[0..7].iter().all(|&v| !v));
+        assert!(erode(&[true; 49], 7, 7, 1)[0..7].iter().all(|&v| !v));
     }
 
     #[test]
