@@ -50,7 +50,13 @@ fn generate(scene: &str, seed: u64) -> Result<Generated> {
 fn quantised(d: &DepthImage, units_per_m: f64) -> Vec<u32> {
     d.data()
         .iter()
-        .map(|&z| if z > 0.0 { (f64::from(z) * units_per_m).round() as u32 } else { 0 })
+        .map(|&z| {
+            if z > 0.0 {
+                (f64::from(z) * units_per_m).round() as u32
+            } else {
+                0
+            }
+        })
         .collect()
 }
 
@@ -66,14 +72,21 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         let depth_enc = DepthEncoding::png(1000.0);
         let truth_enc = DepthEncoding::png(TRUTH_UNITS_PER_M);
         if check {
-            for (path, img, enc) in [(&depth_p, &g.depth, depth_enc), (&truth_p, &g.truth, truth_enc)] {
-                let read = sl_io::depth::read_depth(path, &ReadOptions::default().with_scale(enc.units_per_m))
-                    .with_context(|| format!("reading {}", path.display()))?;
+            for (path, img, enc) in [
+                (&depth_p, &g.depth, depth_enc),
+                (&truth_p, &g.truth, truth_enc),
+            ] {
+                let read = sl_io::depth::read_depth(
+                    path,
+                    &ReadOptions::default().with_scale(enc.units_per_m),
+                )
+                .with_context(|| format!("reading {}", path.display()))?;
                 if quantised(&read.depth, enc.units_per_m) != quantised(img, enc.units_per_m) {
                     mismatches.push(path.display().to_string());
                 }
             }
-            let labels = sl_io::rgb::read_gray16(&labels_p).with_context(|| format!("reading {}", labels_p.display()))?;
+            let labels = sl_io::rgb::read_gray16(&labels_p)
+                .with_context(|| format!("reading {}", labels_p.display()))?;
             if labels != g.labels {
                 mismatches.push(labels_p.display().to_string());
             }
@@ -81,7 +94,12 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
             sl_io::depth::write_depth(&depth_p, &g.depth, &depth_enc)?;
             sl_io::depth::write_depth(&truth_p, &g.truth, &truth_enc)?;
             sl_io::rgb::write_gray16_png(&labels_p, &g.labels)?;
-            eprintln!("wrote {}, {}, {}", depth_p.display(), truth_p.display(), labels_p.display());
+            eprintln!(
+                "wrote {}, {}, {}",
+                depth_p.display(),
+                truth_p.display(),
+                labels_p.display()
+            );
         }
     }
     if !mismatches.is_empty() {

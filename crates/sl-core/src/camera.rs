@@ -37,7 +37,11 @@ impl Camera {
 
     /// A camera with the given intrinsics and a Kinect-like sensor: focal length `fx`,
     /// baseline and sub-pixel steps from the Kinect defaults unless given.
-    pub fn from_intrinsics(intrinsics: Intrinsics, baseline_m: Option<f64>, subpixel_steps: Option<u32>) -> Result<Self> {
+    pub fn from_intrinsics(
+        intrinsics: Intrinsics,
+        baseline_m: Option<f64>,
+        subpixel_steps: Option<u32>,
+    ) -> Result<Self> {
         intrinsics.validate()?;
         let sensor = SensorModel::new(
             intrinsics.fx,

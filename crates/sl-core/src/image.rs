@@ -236,7 +236,13 @@ macro_rules! typed_map {
 
             /// Min / median / max of the valid values, or `None` when nothing is valid.
             pub fn stats(&self) -> Option<ValidStats> {
-                let mut v: Vec<f32> = self.0.data().iter().copied().filter(|v| is_valid(*v)).collect();
+                let mut v: Vec<f32> = self
+                    .0
+                    .data()
+                    .iter()
+                    .copied()
+                    .filter(|v| is_valid(*v))
+                    .collect();
                 if v.is_empty() {
                     return None;
                 }
@@ -277,7 +283,11 @@ impl DepthImage {
 
     /// Back-projects every valid pixel to a camera-frame point (metres), in row-major order.
     pub fn to_points(&self, k: &Intrinsics) -> Result<Vec<Point3<f32>>> {
-        Ok(self.to_points_with_pixels(k)?.into_iter().map(|(_, p)| p).collect())
+        Ok(self
+            .to_points_with_pixels(k)?
+            .into_iter()
+            .map(|(_, p)| p)
+            .collect())
     }
 
     /// Like [`DepthImage::to_points`], each point paired with its pixel `(x, y)`.

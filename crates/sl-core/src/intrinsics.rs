@@ -65,7 +65,9 @@ impl Intrinsics {
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !v.is_finite() {
-                return Err(CoreError::InvalidIntrinsics(format!("{name} = {v} must be finite")));
+                return Err(CoreError::InvalidIntrinsics(format!(
+                    "{name} = {v} must be finite"
+                )));
             }
         }
         Ok(())
@@ -139,7 +141,9 @@ impl Intrinsics {
     /// resolution, pixel-centre convention preserved).
     pub fn scaled(&self, factor: f64) -> Result<Self> {
         if !(factor.is_finite() && factor > 0.0) {
-            return Err(CoreError::InvalidIntrinsics(format!("scale factor {factor} must be positive")));
+            return Err(CoreError::InvalidIntrinsics(format!(
+                "scale factor {factor} must be positive"
+            )));
         }
         Self::new(
             ((self.width as f64) * factor).round() as usize,

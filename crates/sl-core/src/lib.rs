@@ -35,7 +35,9 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
-pub use pose::{Pose, pose_from_matrix, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix};
+pub use pose::{
+    Pose, pose_from_matrix, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
+};
 pub use sensor::SensorModel;
 
 /// Re-export of the nalgebra version used in the public API.

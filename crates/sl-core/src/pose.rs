@@ -22,8 +22,14 @@ pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Pose> {
         return Err(CoreError::NotRigid("matrix has non-finite entries".into()));
     }
     let bottom = [m[(3, 0)], m[(3, 1)], m[(3, 2)], m[(3, 3)]];
-    if bottom.iter().zip([0.0, 0.0, 0.0, 1.0]).any(|(a, b)| (a - b).abs() > RIGID_TOLERANCE) {
-        return Err(CoreError::NotRigid(format!("last row is {bottom:?}, expected [0, 0, 0, 1]")));
+    if bottom
+        .iter()
+        .zip([0.0, 0.0, 0.0, 1.0])
+        .any(|(a, b)| (a - b).abs() > RIGID_TOLERANCE)
+    {
+        return Err(CoreError::NotRigid(format!(
+            "last row is {bottom:?}, expected [0, 0, 0, 1]"
+        )));
     }
     let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
     let err = (r.transpose() * r - Matrix3::identity()).abs().max();
@@ -33,7 +39,9 @@ pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Pose> {
         )));
     }
     if r.determinant() < 0.0 {
-        return Err(CoreError::NotRigid("rotation block is a reflection (det < 0)".into()));
+        return Err(CoreError::NotRigid(
+            "rotation block is a reflection (det < 0)".into(),
+        ));
     }
     // Nearest rotation (polar decomposition): R = U·Vᵀ from the SVD of the stored block.
     let svd = r.svd(true, true);
@@ -42,7 +50,10 @@ pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Pose> {
     };
     let rot = Rotation3::from_matrix_unchecked(u * v_t);
     let t = Translation3::new(m[(0, 3)], m[(1, 3)], m[(2, 3)]);
-    Ok(Isometry3::from_parts(t, UnitQuaternion::from_rotation_matrix(&rot)))
+    Ok(Isometry3::from_parts(
+        t,
+        UnitQuaternion::from_rotation_matrix(&rot),
+    ))
 }
 
 /// Builds a pose from a row-major array of 16 numbers.
@@ -61,7 +72,9 @@ pub fn pose_from_translation_quaternion(t: [f64; 3], q: [f64; 4]) -> Result<Pose
     let quat = Quaternion::new(q[3], q[0], q[1], q[2]);
     let n = quat.norm();
     if !(n.is_finite() && n > 1e-9) || t.iter().any(|v| !v.is_finite()) {
-        return Err(CoreError::NotRigid(format!("invalid translation {t:?} / quaternion {q:?}")));
+        return Err(CoreError::NotRigid(format!(
+            "invalid translation {t:?} / quaternion {q:?}"
+        )));
     }
     Ok(Isometry3::from_parts(
         Translation3::new(t[0], t[1], t[2]),

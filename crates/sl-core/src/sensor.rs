@@ -29,7 +29,12 @@ pub const DEFAULT_SIGMA_D_PX: f64 = 0.07;
 
 impl SensorModel {
     /// Validated constructor.
-    pub fn new(focal_px: f64, baseline_m: f64, subpixel_steps: u32, sigma_d_px: f64) -> Result<Self> {
+    pub fn new(
+        focal_px: f64,
+        baseline_m: f64,
+        subpixel_steps: u32,
+        sigma_d_px: f64,
+    ) -> Result<Self> {
         let s = Self {
             focal_px,
             baseline_m,
@@ -55,7 +60,9 @@ impl SensorModel {
             )));
         }
         if self.subpixel_steps == 0 {
-            return Err(CoreError::InvalidSensor("sub-pixel steps must be at least 1".into()));
+            return Err(CoreError::InvalidSensor(
+                "sub-pixel steps must be at least 1".into(),
+            ));
         }
         if !(self.sigma_d_px.is_finite() && self.sigma_d_px >= 0.0) {
             return Err(CoreError::InvalidSensor(format!(

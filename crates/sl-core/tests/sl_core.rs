@@ -8,8 +8,14 @@ use proptest::prelude::*;
 use sl_core::{DepthImage, Intrinsics, SensorModel, pose_from_matrix, pose_to_matrix};
 
 fn camera() -> impl Strategy<Value = (Intrinsics, SensorModel)> {
-    (400.0f64..700.0, 0.9f64..1.1, -20.0f64..20.0, -20.0f64..20.0, 0.05f64..0.12).prop_map(
-        |(f, aspect, dcx, dcy, b)| {
+    (
+        400.0f64..700.0,
+        0.9f64..1.1,
+        -20.0f64..20.0,
+        -20.0f64..20.0,
+        0.05f64..0.12,
+    )
+        .prop_map(|(f, aspect, dcx, dcy, b)| {
             let k = Intrinsics {
                 width: 64,
                 height: 48,
@@ -18,15 +24,18 @@ fn camera() -> impl Strategy<Value = (Intrinsics, SensorModel)> {
                 cx: 31.5 + dcx,
                 cy: 23.5 + dcy,
             };
-            (k, SensorModel::new(f, b, 8, 0.07).unwrap_or_else(|e| panic!("{e}")))
-        },
-    )
+            (
+                k,
+                SensorModel::new(f, b, 8, 0.07).unwrap_or_else(|e| panic!("{e}")),
+            )
+        })
 }
 
 /// A plane n·X = d in front of the camera, with its normal within 60° of the optical axis so
 /// that it covers the image at positive depth.
 fn plane() -> impl Strategy<Value = (Vector3<f64>, f64)> {
-    (-0.8f64..0.8, -0.8f64..0.8, 0.6f64..4.0).prop_map(|(a, b, d)| (Vector3::new(a, b, 1.0).normalize(), d))
+    (-0.8f64..0.8, -0.8f64..0.8, 0.6f64..4.0)
+        .prop_map(|(a, b, d)| (Vector3::new(a, b, 1.0).normalize(), d))
 }
 
 proptest! {

@@ -5,6 +5,7 @@
 //! tilted plane of the same size. Radius 2 (5×5) and 3 (7×7), every method, with one thread (a
 //! local rayon pool) and with all threads; the adaptive filter also with the portable (non-AVX)
 //! kernel. Compare with OpenCV using `docs/bench/opencv_bilateral.py`.
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -14,16 +15,21 @@ use sl_core::{DepthImage, SensorModel};
 use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
 
 fn frame() -> DepthImage {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/open3d-testdata/person-depth.png");
-    if let Ok(img) = image::ImageReader::open(&path).and_then(|r| r.with_guessed_format()) {
-        if let Ok(img) = img.decode() {
-            let img = img.to_luma16();
-            let (w, h) = img.dimensions();
-            let data = img.as_raw().iter().map(|&v| f32::from(v) / 1000.0).collect();
-            if let Ok(d) = DepthImage::from_vec(w as usize, h as usize, data) {
-                eprintln!("benchmark frame: {}", path.display());
-                return d;
-            }
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/open3d-testdata/person-depth.png");
+    if let Ok(img) = image::ImageReader::open(&path).and_then(|r| r.with_guessed_format())
+        && let Ok(img) = img.decode()
+    {
+        let img = img.to_luma16();
+        let (w, h) = img.dimensions();
+        let data = img
+            .as_raw()
+            .iter()
+            .map(|&v| f32::from(v) / 1000.0)
+            .collect();
+        if let Ok(d) = DepthImage::from_vec(w as usize, h as usize, data) {
+            eprintln!("benchmark frame: {}", path.display());
+            return d;
         }
     }
     eprintln!("skipping real frame: ../shared/data not found; using a synthetic 640x480 plane");
@@ -35,7 +41,11 @@ fn frame() -> DepthImage {
             state ^= state << 17;
             let (x, y) = ((i % 640) as f32, (i / 640) as f32);
             let noise = ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.01;
-            if state % 50 == 0 { 0.0 } else { 1.0 + 0.004 * y + 0.001 * x + noise }
+            if state.is_multiple_of(50) {
+                0.0
+            } else {
+                1.0 + 0.004 * y + 0.001 * x + noise
+            }
         })
         .collect();
     DepthImage::from_vec(640, 480, data).unwrap_or_else(|_| DepthImage::invalid(640, 480))
@@ -44,25 +54,39 @@ fn frame() -> DepthImage {
 fn bench(c: &mut Criterion) {
     let depth = frame();
     let sensor = SensorModel::kinect_v1();
-    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     let all_threads = rayon::current_num_threads();
     let mut g = c.benchmark_group("filter_640x480");
     g.sample_size(30);
     for r in [2usize, 3] {
         for m in Method::ALL {
-            let f = DepthFilter::default_for(m, &sensor).with_radius(r).with_sigma_s(default_sigma_s_px(r));
+            let f = DepthFilter::default_for(m, &sensor)
+                .with_radius(r)
+                .with_sigma_s(default_sigma_s_px(r));
             g.bench_function(format!("{m}/{}x{}/1thread", 2 * r + 1, 2 * r + 1), |b| {
                 one.install(|| b.iter(|| f.apply(black_box(&depth)).unwrap()))
             });
-            g.bench_function(format!("{m}/{}x{}/{all_threads}threads", 2 * r + 1, 2 * r + 1), |b| {
-                b.iter(|| f.apply(black_box(&depth)).unwrap())
-            });
+            g.bench_function(
+                format!("{m}/{}x{}/{all_threads}threads", 2 * r + 1, 2 * r + 1),
+                |b| b.iter(|| f.apply(black_box(&depth)).unwrap()),
+            );
         }
-        let f = DepthFilter::default_for(Method::Adaptive, &sensor).with_radius(r).with_sigma_s(default_sigma_s_px(r));
+        let f = DepthFilter::default_for(Method::Adaptive, &sensor)
+            .with_radius(r)
+            .with_sigma_s(default_sigma_s_px(r));
         for isa in [Isa::Portable, Isa::Avx2] {
-            g.bench_function(format!("adaptive-{}/{}x{}/1thread", isa.name(), 2 * r + 1, 2 * r + 1), |b| {
-                one.install(|| b.iter(|| f.apply_with_isa(black_box(&depth), isa).unwrap()))
-            });
+            g.bench_function(
+                format!(
+                    "adaptive-{}/{}x{}/1thread",
+                    isa.name(),
+                    2 * r + 1,
+                    2 * r + 1
+                ),
+                |b| one.install(|| b.iter(|| f.apply_with_isa(black_box(&depth), isa).unwrap())),
+            );
         }
     }
     g.finish();

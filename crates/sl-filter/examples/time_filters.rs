@@ -13,13 +13,37 @@ use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let path = args.get(1).cloned().unwrap_or_else(|| {
-        concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/open3d-testdata/person-depth.png").to_string()
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../../shared/data/open3d-testdata/person-depth.png"
+        )
+        .to_string()
     });
     let reps: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(100);
-    let scale: f32 = args.get(3).map(|s| s.parse()).transpose()?.unwrap_or(1000.0);
-    let img = image::ImageReader::open(&path)?.with_guessed_format()?.decode()?.to_luma16();
+    let scale: f32 = args
+        .get(3)
+        .map(|s| s.parse())
+        .transpose()?
+        .unwrap_or(1000.0);
+    let img = image::ImageReader::open(&path)?
+        .with_guessed_format()?
+        .decode()?
+        .to_luma16();
     let (w, h) = img.dimensions();
-    let depth = DepthImage::from_vec(w as usize, h as usize, img.as_raw().iter().map(|&v| if v == 65535 { 0.0 } else { f32::from(v) / scale }).collect())?;
+    let depth = DepthImage::from_vec(
+        w as usize,
+        h as usize,
+        img.as_raw()
+            .iter()
+            .map(|&v| {
+                if v == 65535 {
+                    0.0
+                } else {
+                    f32::from(v) / scale
+                }
+            })
+            .collect(),
+    )?;
     let sensor = SensorModel::kinect_v1();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let methods: Vec<Method> = match std::env::var("METHODS") {
@@ -31,12 +55,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Ok("avx2") => Isa::Avx2,
         _ => Isa::detect(),
     };
-    println!("frame {path} ({w}x{h}), isa {}, threads {}", isa.name(), rayon::current_num_threads());
+    println!(
+        "frame {path} ({w}x{h}), isa {}, threads {}",
+        isa.name(),
+        rayon::current_num_threads()
+    );
     for r in [2usize, 3] {
         for &m in &methods {
-            let f = DepthFilter::default_for(m, &sensor).with_radius(r).with_sigma_s(default_sigma_s_px(r));
+            let f = DepthFilter::default_for(m, &sensor)
+                .with_radius(r)
+                .with_sigma_s(default_sigma_s_px(r));
             for threads in [1usize, rayon::current_num_threads()] {
-                let mut run = || -> Result<Vec<f64>, sl_filter::FilterError> {
+                let run = || -> Result<Vec<f64>, sl_filter::FilterError> {
                     let mut t = Vec::with_capacity(reps);
                     f.apply_with_isa(&depth, isa)?;
                     for _ in 0..reps {
@@ -46,9 +76,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     }
                     Ok(t)
                 };
-                let mut t = if threads == 1 { one.install(&mut run)? } else { run()? };
+                let mut t = if threads == 1 {
+                    one.install(run)?
+                } else {
+                    run()?
+                };
                 t.sort_by(f64::total_cmp);
-                println!("{m:>9} {}x{} threads={threads}: median {:.3} ms, min {:.3} ms", 2 * r + 1, 2 * r + 1, t[t.len() / 2], t[0]);
+                println!(
+                    "{m:>9} {}x{} threads={threads}: median {:.3} ms, min {:.3} ms",
+                    2 * r + 1,
+                    2 * r + 1,
+                    t[t.len() / 2],
+                    t[0]
+                );
             }
         }
     }

@@ -43,7 +43,12 @@ fn same_size(a: &DepthImage, b: &DepthImage) -> Result<()> {
 /// RMSE of `estimate` against `truth` per depth band of the *true* depth, over the pixels valid
 /// in both (and inside `mask` when given). The filters keep the input's valid mask, so every
 /// method is scored on the same pixels.
-pub fn rmse_by_band(estimate: &DepthImage, truth: &DepthImage, mask: Option<&[bool]>, bands: &[(f32, f32)]) -> Result<Vec<BandError>> {
+pub fn rmse_by_band(
+    estimate: &DepthImage,
+    truth: &DepthImage,
+    mask: Option<&[bool]>,
+    bands: &[(f32, f32)],
+) -> Result<Vec<BandError>> {
     same_size(estimate, truth)?;
     let mut acc = vec![(0usize, 0.0f64); bands.len()];
     for (i, (&e, &t)) in estimate.data().iter().zip(truth.data()).enumerate() {
@@ -63,7 +68,11 @@ pub fn rmse_by_band(estimate: &DepthImage, truth: &DepthImage, mask: Option<&[bo
             lo_m,
             hi_m,
             pixels: n,
-            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+            rmse_m: if n > 0 {
+                (s / n as f64).sqrt()
+            } else {
+                f64::NAN
+            },
         })
         .collect())
 }
@@ -71,8 +80,19 @@ pub fn rmse_by_band(estimate: &DepthImage, truth: &DepthImage, mask: Option<&[bo
 /// RMSE over all bands together (pooled pixels), metres, and the pixel count.
 pub fn pooled(bands: &[BandError]) -> (f64, usize) {
     let n: usize = bands.iter().map(|b| b.pixels).sum();
-    let s: f64 = bands.iter().filter(|b| b.pixels > 0).map(|b| b.rmse_m * b.rmse_m * b.pixels as f64).sum();
-    (if n > 0 { (s / n as f64).sqrt() } else { f64::NAN }, n)
+    let s: f64 = bands
+        .iter()
+        .filter(|b| b.pixels > 0)
+        .map(|b| b.rmse_m * b.rmse_m * b.pixels as f64)
+        .sum();
+    (
+        if n > 0 {
+            (s / n as f64).sqrt()
+        } else {
+            f64::NAN
+        },
+        n,
+    )
 }
 
 /// Pixels within `radius_px` (Chebyshev distance) of a true depth edge: a pair of 4-neighbours,
@@ -122,9 +142,19 @@ fn morph(mask: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
                 let (c, n) = if horizontal { (x, w) } else { (y, h) };
                 let lo = c.saturating_sub(r);
                 let hi = (c + r).min(n - 1);
-                let at = |t: usize| if horizontal { src[y * w + t] } else { src[t * w + x] };
+                let at = |t: usize| {
+                    if horizontal {
+                        src[y * w + t]
+                    } else {
+                        src[t * w + x]
+                    }
+                };
                 let inside = c >= r && c + r < n;
-                out[y * w + x] = if dilate { (lo..=hi).any(at) } else { inside && (lo..=hi).all(at) };
+                out[y * w + x] = if dilate {
+                    (lo..=hi).any(at)
+                } else {
+                    inside && (lo..=hi).all(at)
+                };
             }
         }
         out
@@ -167,7 +197,11 @@ pub fn fit_plane(points: &[[f64; 3]]) -> Option<PlaneFit> {
         m += d * d.transpose();
     }
     let eig = SymmetricEigen::new(m);
-    let (i, _) = eig.eigenvalues.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    let (i, _) = eig
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
     let nrm = eig.eigenvectors.column(i).into_owned();
     let len = nrm.norm();
     if !(len > 0.0 && len.is_finite()) {
@@ -214,13 +248,24 @@ fn splitmix(state: &mut u64) -> u64 {
 ///    in other surfaces.
 ///
 /// Returns `None` when no plane with at least 1000 region pixels exists.
-pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &SensorModel, erode_px: usize, iterations: usize, seed: u64) -> Result<Option<PlaneRegion>> {
+pub fn dominant_plane_region(
+    depth: &DepthImage,
+    k: &Intrinsics,
+    sensor: &SensorModel,
+    erode_px: usize,
+    iterations: usize,
+    seed: u64,
+) -> Result<Option<PlaneRegion>> {
     depth.as_image().check_size(k)?;
     let (w, h) = (depth.width(), depth.height());
     let z = depth.data();
     let point = |x: usize, y: usize| -> [f64; 3] {
         let d = f64::from(z[y * w + x]);
-        [(x as f64 - k.cx) / k.fx * d, (y as f64 - k.cy) / k.fy * d, d]
+        [
+            (x as f64 - k.cx) / k.fx * d,
+            (y as f64 - k.cy) / k.fy * d,
+            d,
+        ]
     };
     let tau = |d: f64| 3.0 * sensor.sigma_z(d) + sensor.depth_step_m(d) + 0.002;
     let mut samples = Vec::new();
@@ -239,7 +284,10 @@ pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &Sensor
     for _ in 0..iterations {
         let pick = |s: &mut u64| samples[(splitmix(s) % samples.len() as u64) as usize];
         let (a, b, c) = (pick(&mut state), pick(&mut state), pick(&mut state));
-        let (u, v) = (Vector3::from(b) - Vector3::from(a), Vector3::from(c) - Vector3::from(a));
+        let (u, v) = (
+            Vector3::from(b) - Vector3::from(a),
+            Vector3::from(c) - Vector3::from(a),
+        );
         let n = u.cross(&v);
         let len = n.norm();
         if len.is_nan() || len <= 1e-9 {
@@ -250,7 +298,10 @@ pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &Sensor
             normal: [n.x, n.y, n.z],
             offset_m: n.dot(&Vector3::from(a)),
         };
-        let count = samples.iter().filter(|p| plane.distance(**p).abs() < tau(p[2])).count();
+        let count = samples
+            .iter()
+            .filter(|p| plane.distance(**p).abs() < tau(p[2]))
+            .count();
         if best.is_none_or(|(bc, _)| count > bc) {
             best = Some((count, plane));
         }
@@ -260,14 +311,19 @@ pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &Sensor
     };
     let inlier = |plane: &PlaneFit| -> Vec<bool> {
         (0..w * h)
-            .map(|i| valid(z[i]) && {
-                let p = point(i % w, i / w);
-                plane.distance(p).abs() < tau(p[2])
+            .map(|i| {
+                valid(z[i]) && {
+                    let p = point(i % w, i / w);
+                    plane.distance(p).abs() < tau(p[2])
+                }
             })
             .collect()
     };
     let first = inlier(&plane);
-    let pts: Vec<[f64; 3]> = (0..w * h).filter(|&i| first[i]).map(|i| point(i % w, i / w)).collect();
+    let pts: Vec<[f64; 3]> = (0..w * h)
+        .filter(|&i| first[i])
+        .map(|i| point(i % w, i / w))
+        .collect();
     let Some(plane) = fit_plane(&pts) else {
         return Ok(None);
     };
@@ -285,11 +341,18 @@ pub fn dominant_plane_region(depth: &DepthImage, k: &Intrinsics, sensor: &Sensor
 /// the masked points of this (filtered) frame, and the RMS orthogonal distance of the points to
 /// it is reported per band of their depth. Each frame gets its own fit, so a filter is judged on
 /// how flat it leaves the surface, not on how it moves it.
-pub fn plane_residual_by_band(depth: &DepthImage, k: &Intrinsics, mask: &[bool], bands: &[(f32, f32)]) -> Result<Vec<BandError>> {
+pub fn plane_residual_by_band(
+    depth: &DepthImage,
+    k: &Intrinsics,
+    mask: &[bool],
+    bands: &[(f32, f32)],
+) -> Result<Vec<BandError>> {
     depth.as_image().check_size(k)?;
     let (w, h) = (depth.width(), depth.height());
     let z = depth.data();
-    let idx: Vec<usize> = (0..w * h).filter(|&i| mask.get(i).copied().unwrap_or(false) && valid(z[i])).collect();
+    let idx: Vec<usize> = (0..w * h)
+        .filter(|&i| mask.get(i).copied().unwrap_or(false) && valid(z[i]))
+        .collect();
     let pts: Vec<[f64; 3]> = idx
         .iter()
         .map(|&i| {
@@ -315,7 +378,11 @@ pub fn plane_residual_by_band(depth: &DepthImage, k: &Intrinsics, mask: &[bool],
             lo_m,
             hi_m,
             pixels: n,
-            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+            rmse_m: if n > 0 {
+                (s / n as f64).sqrt()
+            } else {
+                f64::NAN
+            },
         })
         .collect())
 }
@@ -329,12 +396,25 @@ mod tests {
         let truth = DepthImage::from_vec(4, 1, vec![1.0, 2.0, 3.0, 0.0]).unwrap();
         let est = DepthImage::from_vec(4, 1, vec![1.1, 2.0, 2.8, 5.0]).unwrap();
         let b = rmse_by_band(&est, &truth, None, &KINECT_BANDS_M).unwrap();
-        assert_eq!(b.iter().map(|b| b.pixels).collect::<Vec<_>>(), vec![1, 1, 1]);
-        assert!((b[0].rmse_m - 0.1).abs() < 1e-6 && b[1].rmse_m == 0.0 && (b[2].rmse_m - 0.2).abs() < 1e-6);
+        assert_eq!(
+            b.iter().map(|b| b.pixels).collect::<Vec<_>>(),
+            vec![1, 1, 1]
+        );
+        assert!(
+            (b[0].rmse_m - 0.1).abs() < 1e-6
+                && b[1].rmse_m == 0.0
+                && (b[2].rmse_m - 0.2).abs() < 1e-6
+        );
         let (all, n) = pooled(&b);
         assert_eq!(n, 3);
         assert!((all - ((0.01 + 0.04) / 3.0f64).sqrt()).abs() < 1e-6);
-        let masked = rmse_by_band(&est, &truth, Some(&[false, true, true, true]), &KINECT_BANDS_M).unwrap();
+        let masked = rmse_by_band(
+            &est,
+            &truth,
+            Some(&[false, true, true, true]),
+            &KINECT_BANDS_M,
+        )
+        .unwrap();
         assert_eq!(masked[0].pixels, 0);
         assert!(masked[0].rmse_m.is_nan());
     }
@@ -343,7 +423,9 @@ mod tests {
     fn edge_mask_marks_jumps_not_slopes() {
         // A steep ramp (2 % per pixel) with a 50 % step in the middle.
         let w = 20;
-        let data: Vec<f32> = (0..w * 5).map(|i| 1.0 + 0.02 * (i % w) as f32 + if i % w >= 10 { 1.0 } else { 0.0 }).collect();
+        let data: Vec<f32> = (0..w * 5)
+            .map(|i| 1.0 + 0.02 * (i % w) as f32 + if i % w >= 10 { 1.0 } else { 0.0 })
+            .collect();
         let d = DepthImage::from_vec(w, 5, data).unwrap();
         let m = depth_edge_mask(&d, 0.05, 2);
         for x in 0..w {
@@ -376,17 +458,27 @@ mod tests {
                 let z = 1.0 / (n[0] * r.x + n[1] * r.y + n[2] * r.z);
                 let noise = (splitmix(&mut state) % 1000) as f64 / 1000.0 * 0.004 - 0.002;
                 let boxed = (60..90).contains(&(i % 160)) && (70..100).contains(&(i / 160));
-                if boxed { (z - 0.5) as f32 } else { (z + noise) as f32 }
+                if boxed {
+                    (z - 0.5) as f32
+                } else {
+                    (z + noise) as f32
+                }
             })
             .collect();
         let d = DepthImage::from_vec(160, 120, data).unwrap();
-        let region = dominant_plane_region(&d, &k, &sensor, 3, 200, 1).unwrap().unwrap();
+        let region = dominant_plane_region(&d, &k, &sensor, 3, 200, 1)
+            .unwrap()
+            .unwrap();
         let dot: f64 = region.plane.normal.iter().zip(&n).map(|(a, b)| a * b).sum();
         assert!(dot.abs() > 0.999, "{:?}", region.plane);
         assert!(!region.mask[85 * 160 + 75], "the box is not in the region");
         assert!(region.mask[20 * 160 + 20]);
         let res = plane_residual_by_band(&d, &k, &region.mask, &[(0.0, f32::INFINITY)]).unwrap();
         // Uniform ±2 mm noise along Z has an RMS of 1.15 mm, seen at 60° from the normal.
-        assert!(res[0].rmse_m > 0.0003 && res[0].rmse_m < 0.0012, "{:?}", res[0]);
+        assert!(
+            res[0].rmse_m > 0.0003 && res[0].rmse_m < 0.0012,
+            "{:?}",
+            res[0]
+        );
     }
 }

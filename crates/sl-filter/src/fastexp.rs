@@ -98,7 +98,10 @@ mod tests {
             let e3 = rel(exp2_neg::<true>(xn), f64::from(xn).exp2());
             worst = worst.max(e2).max(e3);
         }
-        assert!(worst < f64::from(MAX_RELATIVE_ERROR), "worst relative error {worst}");
+        assert!(
+            worst < f64::from(MAX_RELATIVE_ERROR),
+            "worst relative error {worst}"
+        );
         // Exact at integers up to the polynomial's constant term.
         assert!(rel(exp2_fast(-3.0), 0.125) < 1e-6);
     }

@@ -67,7 +67,12 @@ pub enum Method {
 
 impl Method {
     /// All methods, in the order of the docs.
-    pub const ALL: [Method; 4] = [Method::Gaussian, Method::Bilateral, Method::Adaptive, Method::Disparity];
+    pub const ALL: [Method; 4] = [
+        Method::Gaussian,
+        Method::Bilateral,
+        Method::Adaptive,
+        Method::Disparity,
+    ];
 
     /// The lowercase name used by the CLI.
     pub fn name(self) -> &'static str {
@@ -92,7 +97,11 @@ impl FromStr for Method {
         Method::ALL
             .into_iter()
             .find(|m| m.name().eq_ignore_ascii_case(s))
-            .ok_or_else(|| FilterError::InvalidParameter(format!("unknown method {s:?} (gaussian, bilateral, adaptive, disparity)")))
+            .ok_or_else(|| {
+                FilterError::InvalidParameter(format!(
+                    "unknown method {s:?} (gaussian, bilateral, adaptive, disparity)"
+                ))
+            })
     }
 }
 
@@ -167,7 +176,12 @@ impl DepthFilter {
     }
 
     /// Disparity-domain bilateral filter with range σ `sigma_disp_px` (disparity pixels).
-    pub fn disparity(radius_px: usize, sigma_s_px: f64, sigma_disp_px: f64, sensor: &SensorModel) -> Self {
+    pub fn disparity(
+        radius_px: usize,
+        sigma_s_px: f64,
+        sigma_disp_px: f64,
+        sensor: &SensorModel,
+    ) -> Self {
         Self {
             radius_px,
             sigma_s_px,
@@ -187,9 +201,15 @@ impl DepthFilter {
         let k = default_k_per_m(sensor);
         match method {
             Method::Gaussian => Self::gaussian(r, s),
-            Method::Bilateral => Self::bilateral(r, s, k * BILATERAL_DEFAULT_DEPTH_M * BILATERAL_DEFAULT_DEPTH_M),
+            Method::Bilateral => Self::bilateral(
+                r,
+                s,
+                k * BILATERAL_DEFAULT_DEPTH_M * BILATERAL_DEFAULT_DEPTH_M,
+            ),
             Method::Adaptive => Self::adaptive(r, s, k),
-            Method::Disparity => Self::disparity(r, s, DEFAULT_K_MULTIPLIER * sensor.sigma_d_px, sensor),
+            Method::Disparity => {
+                Self::disparity(r, s, DEFAULT_K_MULTIPLIER * sensor.sigma_d_px, sensor)
+            }
         }
     }
 
@@ -220,11 +240,17 @@ impl DepthFilter {
     pub fn validate(&self) -> Result<()> {
         let bad = |what: String| Err(FilterError::InvalidParameter(what));
         if self.radius_px == 0 || self.radius_px > MAX_RADIUS_PX {
-            return bad(format!("radius {} px must be in 1..={MAX_RADIUS_PX}", self.radius_px));
+            return bad(format!(
+                "radius {} px must be in 1..={MAX_RADIUS_PX}",
+                self.radius_px
+            ));
         }
         let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         if !(in_range(self.sigma_s_px, f64::MIN_POSITIVE, 1.0e3)) {
-            return bad(format!("sigma_s {} px must be in (0, 1000]", self.sigma_s_px));
+            return bad(format!(
+                "sigma_s {} px must be in (0, 1000]",
+                self.sigma_s_px
+            ));
         }
         match self.range {
             RangeKernel::None => {}
@@ -234,9 +260,14 @@ impl DepthFilter {
             RangeKernel::Adaptive { k_per_m } if !in_range(k_per_m, 1e-6, 1e3) => {
                 return bad(format!("k {k_per_m} per m must be in [1e-6, 1000]"));
             }
-            RangeKernel::Disparity { sigma_disp_px, fb_px_m } => {
+            RangeKernel::Disparity {
+                sigma_disp_px,
+                fb_px_m,
+            } => {
                 if !in_range(sigma_disp_px, 1e-6, 1e3) {
-                    return bad(format!("disparity sigma {sigma_disp_px} px must be in [1e-6, 1000]"));
+                    return bad(format!(
+                        "disparity sigma {sigma_disp_px} px must be in [1e-6, 1000]"
+                    ));
                 }
                 if !in_range(fb_px_m, 1e-6, 1e9) {
                     return bad(format!("f*B {fb_px_m} px*m must be positive"));
@@ -253,7 +284,10 @@ impl DepthFilter {
         let mut w = Vec::with_capacity(((2 * r + 1) * (2 * r + 1)) as usize);
         for dy in -r..=r {
             for dx in -r..=r {
-                w.push((-((dx * dx + dy * dy) as f64) / (2.0 * self.sigma_s_px * self.sigma_s_px)).exp());
+                w.push(
+                    (-((dx * dx + dy * dy) as f64) / (2.0 * self.sigma_s_px * self.sigma_s_px))
+                        .exp(),
+                );
             }
         }
         let s: f64 = w.iter().sum();
@@ -288,9 +322,15 @@ impl DepthFilter {
         self.validate()?;
         let (w, h) = (depth.width(), depth.height());
         if w.checked_mul(h).is_none_or(|n| n > MAX_PIXELS) {
-            return Err(FilterError::ImageSize(format!("{w}x{h} exceeds the budget of {MAX_PIXELS} pixels")));
+            return Err(FilterError::ImageSize(format!(
+                "{w}x{h} exceeds the budget of {MAX_PIXELS} pixels"
+            )));
         }
-        let isa = if isa.is_supported() { isa } else { Isa::Portable };
+        let isa = if isa.is_supported() {
+            isa
+        } else {
+            Isa::Portable
+        };
         let r = self.radius_px;
         let k = 2 * r + 1;
         let inv2s2 = 1.0 / (2.0 * self.sigma_s_px * self.sigma_s_px);
@@ -308,7 +348,10 @@ impl DepthFilter {
                 });
             }
         }
-        let taps = Taps { radius: r, taps: &taps };
+        let taps = Taps {
+            radius: r,
+            taps: &taps,
+        };
         let mut out = vec![0.0f32; w * h];
         let log2e = f64::from(LOG2_E);
         // Range scale √(log2 e / (2σ²)); for the adaptive filter √(log2 e / 2) / k.
@@ -327,9 +370,16 @@ impl DepthFilter {
                 src.fill = 0.0;
                 kernel::run(isa, taps, &src, &mut out, NoRange)
             }
-            RangeKernel::Fixed { sigma_d_m } => kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_d_m))),
-            RangeKernel::Adaptive { k_per_m } => kernel::run(isa, taps, &src, &mut out, Adaptive(coef(k_per_m))),
-            RangeKernel::Disparity { sigma_disp_px, fb_px_m } => {
+            RangeKernel::Fixed { sigma_d_m } => {
+                kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_d_m)))
+            }
+            RangeKernel::Adaptive { k_per_m } => {
+                kernel::run(isa, taps, &src, &mut out, Adaptive(coef(k_per_m)))
+            }
+            RangeKernel::Disparity {
+                sigma_disp_px,
+                fb_px_m,
+            } => {
                 src.disparity_fb = Some(fb_px_m as f32);
                 kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_disp_px)))
             }
@@ -368,7 +418,10 @@ mod tests {
     fn method_names_round_trip() {
         for m in Method::ALL {
             assert_eq!(m.name().parse::<Method>().unwrap(), m);
-            assert_eq!(DepthFilter::default_for(m, &SensorModel::kinect_v1()).method(), m);
+            assert_eq!(
+                DepthFilter::default_for(m, &SensorModel::kinect_v1()).method(),
+                m
+            );
         }
         assert!("median".parse::<Method>().is_err());
     }
@@ -377,11 +430,19 @@ mod tests {
     fn validation_rejects_nonsense() {
         let s = SensorModel::kinect_v1();
         assert!(DepthFilter::gaussian(0, 1.0).validate().is_err());
-        assert!(DepthFilter::gaussian(MAX_RADIUS_PX + 1, 1.0).validate().is_err());
+        assert!(
+            DepthFilter::gaussian(MAX_RADIUS_PX + 1, 1.0)
+                .validate()
+                .is_err()
+        );
         assert!(DepthFilter::gaussian(2, 0.0).validate().is_err());
         assert!(DepthFilter::gaussian(2, f64::NAN).validate().is_err());
         assert!(DepthFilter::bilateral(2, 1.0, -0.01).validate().is_err());
-        assert!(DepthFilter::adaptive(2, 1.0, f64::INFINITY).validate().is_err());
+        assert!(
+            DepthFilter::adaptive(2, 1.0, f64::INFINITY)
+                .validate()
+                .is_err()
+        );
         assert!(DepthFilter::disparity(2, 1.0, 0.0, &s).validate().is_err());
         for m in Method::ALL {
             assert!(DepthFilter::default_for(m, &s).validate().is_ok());
@@ -402,7 +463,10 @@ mod tests {
         let mut d = DepthImage::from_vec(8, 8, vec![1.0; 64]).unwrap();
         d.data_mut()[9] = 1.0e6;
         let e = DepthFilter::default_for(Method::Adaptive, &SensorModel::kinect_v1()).apply(&d);
-        assert!(matches!(e, Err(FilterError::DepthOutOfRange { x: 1, y: 1, .. })), "{e:?}");
+        assert!(
+            matches!(e, Err(FilterError::DepthOutOfRange { x: 1, y: 1, .. })),
+            "{e:?}"
+        );
     }
 
     #[test]

@@ -102,7 +102,9 @@ impl Isa {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 return Isa::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
                 return Isa::Avx2;
             }
         }
@@ -175,7 +177,13 @@ thread_local! {
 /// Each block is first copied with its `r` rows of context into a per-thread padded buffer
 /// (so the copy stays in cache and no image-sized temporary is allocated). Returns `false` if a
 /// valid depth lies outside `[min_m, max_m]` (the output is then unspecified).
-pub(crate) fn run<M: RangeMode>(isa: Isa, taps: Taps<'_>, src: &Source<'_>, out: &mut [f32], mode: M) -> bool {
+pub(crate) fn run<M: RangeMode>(
+    isa: Isa,
+    taps: Taps<'_>,
+    src: &Source<'_>,
+    out: &mut [f32],
+    mode: M,
+) -> bool {
     let width = src.width;
     if width == 0 || src.height == 0 {
         return true;
@@ -183,40 +191,49 @@ pub(crate) fn run<M: RangeMode>(isa: Isa, taps: Taps<'_>, src: &Source<'_>, out:
     let r = taps.radius;
     let stride = stride_for(width, r);
     let bad = std::sync::atomic::AtomicBool::new(false);
-    out.par_chunks_mut(width * BLOCK_ROWS).enumerate().for_each(|(bi, block)| {
-        let y0 = bi * BLOCK_ROWS;
-        let rows = block.len() / width;
-        SCRATCH.with(|cell| {
-            let mut buf = cell.borrow_mut();
-            let need = stride * (rows + 2 * r);
-            if buf.len() < need {
-                buf.resize(need, 0.0);
-            }
-            let buf = &mut buf[..need];
-            let ok = match src.disparity_fb {
-                None => fill_rows::<false>(src, y0, r, stride, buf, 0.0),
-                Some(fb) => fill_rows::<true>(src, y0, r, stride, buf, fb),
-            };
-            if !ok {
-                bad.store(true, std::sync::atomic::Ordering::Relaxed);
-            }
-            let p = Padded {
-                data: buf,
-                stride,
-                width,
-            };
-            match src.disparity_fb {
-                None => dispatch::<M, false>(isa, taps, &p, block, mode, 0.0),
-                Some(fb) => dispatch::<M, true>(isa, taps, &p, block, mode, fb),
-            }
+    out.par_chunks_mut(width * BLOCK_ROWS)
+        .enumerate()
+        .for_each(|(bi, block)| {
+            let y0 = bi * BLOCK_ROWS;
+            let rows = block.len() / width;
+            SCRATCH.with(|cell| {
+                let mut buf = cell.borrow_mut();
+                let need = stride * (rows + 2 * r);
+                if buf.len() < need {
+                    buf.resize(need, 0.0);
+                }
+                let buf = &mut buf[..need];
+                let ok = match src.disparity_fb {
+                    None => fill_rows::<false>(src, y0, r, stride, buf, 0.0),
+                    Some(fb) => fill_rows::<true>(src, y0, r, stride, buf, fb),
+                };
+                if !ok {
+                    bad.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+                let p = Padded {
+                    data: buf,
+                    stride,
+                    width,
+                };
+                match src.disparity_fb {
+                    None => dispatch::<M, false>(isa, taps, &p, block, mode, 0.0),
+                    Some(fb) => dispatch::<M, true>(isa, taps, &p, block, mode, fb),
+                }
+            });
         });
-    });
     !bad.into_inner()
 }
 
 /// Copies image rows `y0 − r .. y0 + rows + r` into `buf` (see [`Padded`]); `false` if a valid
 /// depth is out of range.
-fn fill_rows<const DISP: bool>(src: &Source<'_>, y0: usize, r: usize, stride: usize, buf: &mut [f32], fb: f32) -> bool {
+fn fill_rows<const DISP: bool>(
+    src: &Source<'_>,
+    y0: usize,
+    r: usize,
+    stride: usize,
+    buf: &mut [f32],
+    fb: f32,
+) -> bool {
     let (w, h, fill) = (src.width, src.height, src.fill);
     let mut bad = false;
     for (j, row) in buf.chunks_mut(stride).enumerate() {
@@ -239,7 +256,14 @@ fn fill_rows<const DISP: bool>(src: &Source<'_>, y0: usize, r: usize, stride: us
     !bad
 }
 
-fn dispatch<M: RangeMode, const DISP: bool>(isa: Isa, taps: Taps<'_>, p: &Padded<'_>, out: &mut [f32], mode: M, fb: f32) {
+fn dispatch<M: RangeMode, const DISP: bool>(
+    isa: Isa,
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
     match isa {
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 if Isa::Avx512.is_supported() => {
@@ -273,19 +297,37 @@ macro_rules! radius_dispatch {
     };
 }
 
-fn block_portable<M: RangeMode, const DISP: bool>(taps: Taps<'_>, p: &Padded<'_>, out: &mut [f32], mode: M, fb: f32) {
+fn block_portable<M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
     radius_dispatch!(false, taps, p, out, mode, fb)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn block_avx2<M: RangeMode, const DISP: bool>(taps: Taps<'_>, p: &Padded<'_>, out: &mut [f32], mode: M, fb: f32) {
+fn block_avx2<M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
     radius_dispatch!(true, taps, p, out, mode, fb)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx2,fma")]
-fn block_avx512<M: RangeMode, const DISP: bool>(taps: Taps<'_>, p: &Padded<'_>, out: &mut [f32], mode: M, fb: f32) {
+fn block_avx512<M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
     radius_dispatch!(true, taps, p, out, mode, fb)
 }
 
@@ -301,7 +343,13 @@ const CW: usize = CHUNK + 2 * MAX_FAST_RADIUS;
 
 /// Filters the block of whole rows `out` from its padded block `p`. `R = 0`: runtime radius.
 #[inline(always)]
-fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: Taps<'_>, p: &Padded<'_>, out: &mut [f32], mode: M, fb: f32) {
+fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
     let r = if R == 0 { taps.radius } else { R };
     let k = 2 * r + 1;
     let stride = p.stride;
@@ -319,7 +367,8 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
         while x0 < width {
             // `CW`-long fixed-size row windows: every `row[i + dx]` below is provably in
             // bounds, so the lane loops carry no bounds checks and vectorise.
-            let Ok(centre) = <&[f32; CW]>::try_from(&win[r * stride + x0..r * stride + x0 + CW]) else {
+            let Ok(centre) = <&[f32; CW]>::try_from(&win[r * stride + x0..r * stride + x0 + CW])
+            else {
                 return;
             };
             for i in 0..CHUNK {
@@ -331,7 +380,8 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
             sw.fill(0.0);
             swd.fill(0.0);
             for dy in 0..k {
-                let Ok(row) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW]) else {
+                let Ok(row) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
+                else {
                     return;
                 };
                 let trow = &tap_w[dy * k..dy * k + k];
@@ -356,7 +406,11 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
                         for i in 0..CHUNK {
                             let (w, e) = weight::<FMA, M>(nb[i], sc[i], zs[i], t);
                             sw[i] += w;
-                            swd[i] = if FMA { w.mul_add(e, swd[i]) } else { swd[i] + w * e };
+                            swd[i] = if FMA {
+                                w.mul_add(e, swd[i])
+                            } else {
+                                swd[i] + w * e
+                            };
                         }
                     }
                 }
@@ -367,7 +421,11 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(taps: 
                 let c = centre[i + r];
                 let v = c + swd[i] / sw[i] / sc[i];
                 let (v, c_out) = if DISP { (fb / v, fb / c) } else { (v, c) };
-                let v = if v > 0.0 && v < f32::INFINITY { v } else { c_out };
+                let v = if v > 0.0 && v < f32::INFINITY {
+                    v
+                } else {
+                    c_out
+                };
                 res[i] = if c > 0.0 && c < VALID_LIMIT { v } else { 0.0 };
             }
             let n = CHUNK.min(width - x0);

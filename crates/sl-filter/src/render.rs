@@ -38,49 +38,68 @@ pub fn shaded_normals(depth: &DepthImage, k: &Intrinsics) -> Result<Image<[u8; 3
         [l[0] / n, l[1] / n, l[2] / n]
     };
     let mut out = vec![[0u8; 3]; w * h];
-    out.par_chunks_mut(w.max(1)).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            let c = z[y * w + x];
-            if !valid(c) {
-                continue;
-            }
-            let near = |xx: usize, yy: usize| {
-                let v = z[yy * w + xx];
-                valid(v) && (v - c).abs() <= EDGE_JUMP * c
-            };
-            // Tangent along one axis from the usable neighbours.
-            let tangent = |a: Option<(usize, usize)>, b: Option<(usize, usize)>| -> Option<[f32; 3]> {
-                let a = a.filter(|&(xx, yy)| near(xx, yy));
-                let b = b.filter(|&(xx, yy)| near(xx, yy));
-                let (p, q) = match (a, b) {
-                    (Some(a), Some(b)) => (point(a.0, a.1), point(b.0, b.1)),
-                    (Some(a), None) => (point(a.0, a.1), point(x, y)),
-                    (None, Some(b)) => (point(x, y), point(b.0, b.1)),
-                    (None, None) => return None,
+    out.par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            for (x, px) in row.iter_mut().enumerate() {
+                let c = z[y * w + x];
+                if !valid(c) {
+                    continue;
+                }
+                let near = |xx: usize, yy: usize| {
+                    let v = z[yy * w + xx];
+                    valid(v) && (v - c).abs() <= EDGE_JUMP * c
                 };
-                Some([q[0] - p[0], q[1] - p[1], q[2] - p[2]])
-            };
-            let tx = tangent(x.checked_sub(1).map(|xx| (xx, y)), (x + 1 < w).then_some((x + 1, y)));
-            let ty = tangent(y.checked_sub(1).map(|yy| (x, yy)), (y + 1 < h).then_some((x, y + 1)));
-            let (Some(u), Some(v)) = (tx, ty) else {
-                continue;
-            };
-            let mut n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
-            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-            if !(len > 0.0 && len.is_finite()) {
-                continue;
+                // Tangent along one axis from the usable neighbours.
+                let tangent =
+                    |a: Option<(usize, usize)>, b: Option<(usize, usize)>| -> Option<[f32; 3]> {
+                        let a = a.filter(|&(xx, yy)| near(xx, yy));
+                        let b = b.filter(|&(xx, yy)| near(xx, yy));
+                        let (p, q) = match (a, b) {
+                            (Some(a), Some(b)) => (point(a.0, a.1), point(b.0, b.1)),
+                            (Some(a), None) => (point(a.0, a.1), point(x, y)),
+                            (None, Some(b)) => (point(x, y), point(b.0, b.1)),
+                            (None, None) => return None,
+                        };
+                        Some([q[0] - p[0], q[1] - p[1], q[2] - p[2]])
+                    };
+                let tx = tangent(
+                    x.checked_sub(1).map(|xx| (xx, y)),
+                    (x + 1 < w).then_some((x + 1, y)),
+                );
+                let ty = tangent(
+                    y.checked_sub(1).map(|yy| (x, yy)),
+                    (y + 1 < h).then_some((x, y + 1)),
+                );
+                let (Some(u), Some(v)) = (tx, ty) else {
+                    continue;
+                };
+                let mut n = [
+                    u[1] * v[2] - u[2] * v[1],
+                    u[2] * v[0] - u[0] * v[2],
+                    u[0] * v[1] - u[1] * v[0],
+                ];
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                if !(len > 0.0 && len.is_finite()) {
+                    continue;
+                }
+                // Face the camera: the normal points against the viewing ray (towards −z).
+                let p = point(x, y);
+                let s = if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0.0 {
+                    -1.0 / len
+                } else {
+                    1.0 / len
+                };
+                for v in &mut n {
+                    *v *= s;
+                }
+                let shade =
+                    0.25 + 0.75 * (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]).max(0.0);
+                let to_u8 =
+                    |v: f32| ((0.5 + 0.5 * v) * shade * 255.0).round().clamp(0.0, 255.0) as u8;
+                *px = [to_u8(n[0]), to_u8(n[1]), to_u8(-n[2])];
             }
-            // Face the camera: the normal points against the viewing ray (towards −z).
-            let p = point(x, y);
-            let s = if n[0] * p[0] + n[1] * p[1] + n[2] * p[2] > 0.0 { -1.0 / len } else { 1.0 / len };
-            for v in &mut n {
-                *v *= s;
-            }
-            let shade = 0.25 + 0.75 * (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]).max(0.0);
-            let to_u8 = |v: f32| ((0.5 + 0.5 * v) * shade * 255.0).round().clamp(0.0, 255.0) as u8;
-            *px = [to_u8(n[0]), to_u8(n[1]), to_u8(-n[2])];
-        }
-    });
+        });
     Ok(Image::from_vec(w, h, out)?)
 }
 
@@ -124,7 +143,11 @@ mod tests {
         let d = DepthImage::from_vec(32, 24, data).unwrap();
         let img = shaded_normals(&d, &k).unwrap();
         assert_eq!(*img.get(5, 5).unwrap(), [0, 0, 0]);
-        let flat = shaded_normals(&DepthImage::from_vec(32, 24, vec![1.0; 32 * 24]).unwrap(), &k).unwrap();
+        let flat = shaded_normals(
+            &DepthImage::from_vec(32, 24, vec![1.0; 32 * 24]).unwrap(),
+            &k,
+        )
+        .unwrap();
         assert_ne!(img.get(16, 12), flat.get(16, 12));
         assert!(shaded_normals(&d, &Intrinsics::kinect_v1()).is_err());
     }

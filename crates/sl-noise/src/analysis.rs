@@ -14,6 +14,8 @@
 //!   up to 1 000 000 pairs, otherwise the median over that many pairs drawn with a fixed seed,
 //!   so the result is deterministic). Gaps in a real frame's depth coverage (a neighbour
 //!   missing because no pixel saw that depth) make upward outliers that it shrugs off;
+//! * `slope_continuous`: the OLS slope over the continuous range only — pairs spanning a
+//!   coverage gap of more than [`GAP_FACTOR`] quanta are left out (counted in `gap_pairs`);
 //! * `quantum_per_m` (c): see [`fit_quantum`] — a data-only, robust estimate valid in the far
 //!   range where the depth rounding cannot merge neighbouring disparities;
 //! * `fb_px_m`: the implied `f·B = 1/(q·c)` with the camera's `q` (the data alone determine
@@ -82,6 +84,12 @@ pub enum FbSource {
     None,
 }
 
+/// A neighbouring pair whose `ΔZ` exceeds this many depth quanta `c·Z²` (plus one depth step)
+/// spans a gap in the frame's depth coverage: at least this many representable depths between
+/// them were seen by no pixel. Sensor noise cannot produce it (a missing level or two gives 2–3
+/// quanta), so such pairs are left out of [`ResolutionAnalysis::slope_continuous`].
+pub const GAP_FACTOR: f64 = 8.0;
+
 /// The result of [`analyze`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ResolutionAnalysis {
@@ -101,6 +109,14 @@ pub struct ResolutionAnalysis {
     pub slope: f64,
     /// OLS intercept (millimetre units).
     pub intercept: f64,
+    /// OLS slope over the *continuous range* only: the same points without the pairs that
+    /// span a gap in the frame's depth coverage (see [`GAP_FACTOR`]). The paper's experiment
+    /// presupposes "a continuous range of depth values"; a `ΔZ` across depths no pixel saw
+    /// measures the scene, not the sensor, and one such point (a 0.37 m gap behind a desk, say)
+    /// can move the whole-frame OLS slope by 0.08. Equals `slope` when there is no gap.
+    pub slope_continuous: f64,
+    /// Pairs left out of `slope_continuous` as coverage gaps.
+    pub gap_pairs: usize,
     /// Theil–Sen slope of the same points.
     pub slope_robust: f64,
     /// Theil–Sen intercept (median residual, millimetre units).
@@ -212,6 +228,23 @@ pub fn analyze_depths(
         theil_sen(&ln_z_mm, &ln_dz_mm, THEIL_SEN_MAX_PAIRS).ok_or(too_few)?;
     let fit = fit_quantum(&z, step)?;
     let c = fit.quantum_per_m;
+    // Coverage gaps: ΔZ larger than GAP_FACTOR quanta (plus one depth step of rounding).
+    let (mut xs, mut ys) = (
+        Vec::with_capacity(ln_z_mm.len()),
+        Vec::with_capacity(ln_z_mm.len()),
+    );
+    for (w, (x, y)) in z.windows(2).zip(ln_z_mm.iter().zip(&ln_dz_mm)) {
+        if w[1] - w[0] <= GAP_FACTOR * c * w[0] * w[1] + step {
+            xs.push(*x);
+            ys.push(*y);
+        }
+    }
+    let gap_pairs = ln_z_mm.len() - xs.len();
+    let slope_continuous = if gap_pairs == 0 {
+        slope
+    } else {
+        ols_slope(&xs, &ys).map_or(f64::NAN, |(s, _)| s)
+    };
     let q = opts.subpixel_steps;
     let fb_implied = q.map(|q| 1.0 / (f64::from(q) * c));
     let fb_nominal = opts.nominal_fb_px_m.filter(|f| f.is_finite() && *f > 0.0);
@@ -231,6 +264,8 @@ pub fn analyze_depths(
         ln_dz_mm,
         slope,
         intercept,
+        slope_continuous,
+        gap_pairs,
         slope_robust,
         intercept_robust,
         quantum_per_m: c,
@@ -559,6 +594,42 @@ mod tests {
             let expect = (1.5e-3 / sensor.depth_quantum_per_m()).sqrt();
             assert!((a.far_range_min_m - expect).abs() < 0.01);
         }
+    }
+
+    /// A frame that sees 0.8–1.8 m and 2.2–3.0 m but nothing in between: the one pair across
+    /// the gap is an outlier of ~100 quanta; the continuous-range slope leaves it out.
+    #[test]
+    fn coverage_gap_is_left_out_of_the_continuous_slope() {
+        let sensor = SensorModel::kinect_v1();
+        let sim = crate::sim::KinectSimulator::kinect_v1();
+        let z: Vec<f64> = sim
+            .representable_depths()
+            .into_iter()
+            .filter(|z| (0.8..1.8).contains(z) || (2.2..3.0).contains(z))
+            .collect();
+        let a = analyze_depths(z.iter().copied(), &AnalysisOptions::for_sensor(&sensor)).unwrap();
+        assert_eq!(a.gap_pairs, 1);
+        assert!(
+            (a.slope_continuous - 2.0).abs() < 0.1,
+            "{}",
+            a.slope_continuous
+        );
+        assert!(
+            a.slope > a.slope_continuous,
+            "{} vs {}",
+            a.slope,
+            a.slope_continuous
+        );
+        // Without a gap the two slopes are the same number.
+        let full: Vec<f64> = sim
+            .representable_depths()
+            .into_iter()
+            .filter(|z| (0.8..3.0).contains(z))
+            .collect();
+        let b =
+            analyze_depths(full.iter().copied(), &AnalysisOptions::for_sensor(&sensor)).unwrap();
+        assert_eq!(b.gap_pairs, 0);
+        assert_eq!(b.slope, b.slope_continuous);
     }
 
     #[test]

@@ -368,6 +368,17 @@ impl TsdfVolume {
                 let b = unpack(key);
                 let nb = Neighbourhood::new(self, b);
                 let mut out = Vec::new();
+                // Every edge of this block's cubes is owned by this block or one of its seven
+                // positive neighbours: if none of them has a vertex, no cube here has a
+                // triangle.
+                let any_vertex = (0..8).any(|c| {
+                    let bi = 13 + (c & 1) + 3 * ((c >> 1) & 1) + 9 * ((c >> 2) & 1);
+                    let s = nb.slots[bi];
+                    s != u32::MAX && !per_block[s as usize].positions.is_empty()
+                });
+                if !any_vertex {
+                    return out;
+                }
                 let mut vals = [0.0f32; 8];
                 for lz in 0..BLOCK_SIDE as i32 {
                     for ly in 0..BLOCK_SIDE as i32 {

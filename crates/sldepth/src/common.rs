@@ -40,7 +40,8 @@ pub struct Loaded {
 /// The camera of `--camera`, or the `kinect-v1` preset.
 pub fn load_camera(args: &InputArgs) -> Result<Camera> {
     match &args.camera {
-        Some(p) => sl_io::camera::read_camera_json(p).with_context(|| format!("reading camera {}", p.display())),
+        Some(p) => sl_io::camera::read_camera_json(p)
+            .with_context(|| format!("reading camera {}", p.display())),
         None => Ok(Camera::kinect_v1()),
     }
 }
@@ -95,7 +96,8 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
 
 /// Writes a depth map in the given encoding (atomically).
 pub fn save_depth(path: &Path, depth: &DepthImage, encoding: &DepthEncoding) -> Result<()> {
-    sl_io::depth::write_depth(path, depth, encoding).with_context(|| format!("writing {}", path.display()))
+    sl_io::depth::write_depth(path, depth, encoding)
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// Prints a JSON value on one line to standard output.

@@ -32,6 +32,12 @@ enum Command {
     /// Smooth a depth map: Gaussian, bilateral, the paper's adaptive bilateral (σ_d = k·Z², the
     /// default, tuned from the sensor model) or a disparity-domain bilateral (section 3.2).
     Filter(cmd::filter::Args),
+    /// Extract planes with a fixed threshold in disparity (paper section 3.4), or with the
+    /// fixed-metric-threshold RANSAC baseline; writes a 16-bit label image.
+    Planes(cmd::planes::Args),
+    /// Camera motion between two depth frames from matched planes (section 3.5), optionally
+    /// refined by point-to-plane ICP.
+    Motion(cmd::motion::Args),
     // @commands-variants (add `Name(cmd::name::Args),` with a doc comment above this line)
 }
 
@@ -44,6 +50,8 @@ fn main() -> anyhow::Result<()> {
         Command::Cloud(a) => cmd::cloud::run(a),
         Command::Fuse(a) => cmd::fuse::run(a),
         Command::Filter(a) => cmd::filter::run(a),
+        Command::Planes(a) => cmd::planes::run(a),
+        Command::Motion(a) => cmd::motion::run(a),
         // @commands-arms (add `Command::Name(a) => cmd::name::run(a),` above this line)
     }
 }

@@ -13,7 +13,9 @@ fn sldepth(args: &[&str]) -> Output {
 }
 
 fn testdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../testdata").join(name)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../testdata")
+        .join(name)
 }
 
 fn json_of(out: &Output) -> serde_json::Value {
@@ -22,9 +24,8 @@ fn json_of(out: &Output) -> serde_json::Value {
         "sldepth failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout))
-    })
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 fn path_str(p: &Path) -> &str {
@@ -90,7 +91,10 @@ fn simulate_reproduces_committed_frames() {
         };
         let fresh = read(&out);
         let committed = read(&testdata(&format!("{scene}-seed{seed}-depth.png")));
-        assert_eq!(fresh, committed, "{scene} seed {seed} differs from testdata/");
+        assert_eq!(
+            fresh, committed,
+            "{scene} seed {seed} differs from testdata/"
+        );
         let l1 = sl_io::rgb::read_gray16(&labels).unwrap_or_else(|e| panic!("{e}"));
         let l2 = sl_io::rgb::read_gray16(testdata(&format!("{scene}-seed{seed}-labels.png")))
             .unwrap_or_else(|e| panic!("{e}"));
@@ -107,7 +111,10 @@ fn cloud_writes_one_point_per_valid_pixel() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let info = json_of(&sldepth(&["info", path_str(&p), "--json"]));
     let data = sl_io::ply::read_ply(&ply).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(data.positions.len() as u64, info["valid_pixels"].as_u64().unwrap_or(0));
+    assert_eq!(
+        data.positions.len() as u64,
+        info["valid_pixels"].as_u64().unwrap_or(0)
+    );
     // Every point is in front of the camera within the sensor's range.
     assert!(data.positions.iter().all(|p| p[2] > 0.4 && p[2] < 5.1));
 }

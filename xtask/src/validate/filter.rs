@@ -57,7 +57,10 @@ struct Acc {
 
 impl Acc {
     fn add(&mut self, est: &DepthImage, f: &SimFrame) -> Result<()> {
-        for (i, b) in eval::rmse_by_band(est, &f.truth, None, &KINECT_BANDS_M)?.iter().enumerate() {
+        for (i, b) in eval::rmse_by_band(est, &f.truth, None, &KINECT_BANDS_M)?
+            .iter()
+            .enumerate()
+        {
             self.add_band(i, b);
         }
         let e = eval::rmse_by_band(est, &f.truth, Some(&f.edges), &[(0.0, f32::INFINITY)])?;
@@ -111,7 +114,10 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     let s = default_sigma_s_px(r);
     let score_on = |f: Option<&DepthFilter>, sweep: bool| -> Result<Acc> {
         let mut acc = Acc::default();
-        for fr in frames.iter().filter(|fr| sweep || EVAL_SCENES.contains(&fr.scene)) {
+        for fr in frames
+            .iter()
+            .filter(|fr| sweep || EVAL_SCENES.contains(&fr.scene))
+        {
             match f {
                 Some(f) => acc.add(&f.apply(&fr.depth)?, fr)?,
                 None => acc.add(&fr.depth, fr)?,
@@ -122,7 +128,9 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     let score = |f: Option<&DepthFilter>| score_on(f, false);
 
     // 1. The sweep of m for the default k.
-    let mut sweep_md = String::from("| m | k (per m) | σ_d at 1 m / 3 m (mm) | RMSE < 1.5 m | 1.5–2.5 m | > 2.5 m | overall | edges |\n|---|---|---|---|---|---|---|---|\n");
+    let mut sweep_md = String::from(
+        "| m | k (per m) | σ_d at 1 m / 3 m (mm) | RMSE < 1.5 m | 1.5–2.5 m | > 2.5 m | overall | edges |\n|---|---|---|---|---|---|---|---|\n",
+    );
     let mut best_m = (f64::NAN, f64::INFINITY);
     let mut default_overall = f64::NAN;
     for m in M_SWEEP {
@@ -139,7 +147,12 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             mm(a.overall()),
             mm(a.edge())
         )?;
-        ctx.row(EXP, &format!("sweep m={m} overall RMSE"), a.overall() * 1e3, "mm");
+        ctx.row(
+            EXP,
+            &format!("sweep m={m} overall RMSE"),
+            a.overall() * 1e3,
+            "mm",
+        );
         if a.overall() < best_m.1 {
             best_m = (m, a.overall());
         }
@@ -161,16 +174,24 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     // 2. The methods.
     let mut methods: Vec<(String, Option<DepthFilter>)> = vec![
         ("raw".into(), None),
-        (format!("gaussian σ_s {s}"), Some(DepthFilter::gaussian(r, s))),
+        (
+            format!("gaussian σ_s {s}"),
+            Some(DepthFilter::gaussian(r, s)),
+        ),
     ];
     for sd in SIGMA_D_SWEEP_MM {
-        methods.push((format!("bilateral σ_d {sd} mm"), Some(DepthFilter::bilateral(r, s, sd * 1e-3))));
+        methods.push((
+            format!("bilateral σ_d {sd} mm"),
+            Some(DepthFilter::bilateral(r, s, sd * 1e-3)),
+        ));
     }
     let adaptive = DepthFilter::default_for(sl_filter::Method::Adaptive, &sensor);
     let disparity = DepthFilter::default_for(sl_filter::Method::Disparity, &sensor);
     methods.push(("adaptive (default k)".into(), Some(adaptive)));
     methods.push(("disparity (default σ_D)".into(), Some(disparity)));
-    let mut table = String::from("| method | RMSE < 1.5 m | 1.5–2.5 m | > 2.5 m | overall | edges (≤ 2 px) | overall, 4 scenes |\n|---|---|---|---|---|---|---|\n");
+    let mut table = String::from(
+        "| method | RMSE < 1.5 m | 1.5–2.5 m | > 2.5 m | overall | edges (≤ 2 px) | overall, 4 scenes |\n|---|---|---|---|---|---|---|\n",
+    );
     let mut results = Vec::new();
     let mut results4 = Vec::new();
     for (name, f) in &methods {
@@ -186,16 +207,32 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             mm(a.edge()),
             mm(a4.overall())
         )?;
-        ctx.row(EXP, &format!("{name} RMSE overall (4 scenes)"), a4.overall() * 1e3, "mm");
+        ctx.row(
+            EXP,
+            &format!("{name} RMSE overall (4 scenes)"),
+            a4.overall() * 1e3,
+            "mm",
+        );
         results4.push((name.clone(), a4));
         for (i, band) in ["<1.5m", "1.5-2.5m", ">2.5m"].iter().enumerate() {
             ctx.row(EXP, &format!("{name} RMSE {band}"), a.band(i) * 1e3, "mm");
         }
-        ctx.row(EXP, &format!("{name} RMSE overall"), a.overall() * 1e3, "mm");
+        ctx.row(
+            EXP,
+            &format!("{name} RMSE overall"),
+            a.overall() * 1e3,
+            "mm",
+        );
         ctx.row(EXP, &format!("{name} RMSE edges"), a.edge() * 1e3, "mm");
         results.push((name.clone(), a));
     }
-    let get = |prefix: &str| results.iter().find(|(n, _)| n.starts_with(prefix)).map(|(_, a)| a.clone()).unwrap_or_default();
+    let get = |prefix: &str| {
+        results
+            .iter()
+            .find(|(n, _)| n.starts_with(prefix))
+            .map(|(_, a)| a.clone())
+            .unwrap_or_default()
+    };
     let raw = get("raw");
     let ada = get("adaptive");
     let disp = get("disparity");
@@ -205,7 +242,11 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         .min_by(|a, b| a.1.overall().total_cmp(&b.1.overall()))
         .map(|(n, a)| (n.clone(), a.clone()))
         .unwrap_or_default();
-    let ada4 = results4.iter().find(|(n, _)| n.starts_with("adaptive")).map(|(_, a)| a.overall()).unwrap_or(f64::NAN);
+    let ada4 = results4
+        .iter()
+        .find(|(n, _)| n.starts_with("adaptive"))
+        .map(|(_, a)| a.overall())
+        .unwrap_or(f64::NAN);
     let best_bilateral4 = results4
         .iter()
         .filter(|(n, _)| n.starts_with("bilateral"))
@@ -229,17 +270,31 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     ctx.check(
         "adaptive beats the best single-σ_d bilateral overall",
         ada.overall() < best_bilateral.1.overall(),
-        format!("adaptive {} mm vs best bilateral ({}) {} mm", mm(ada.overall()), best_bilateral.0, mm(best_bilateral.1.overall())),
+        format!(
+            "adaptive {} mm vs best bilateral ({}) {} mm",
+            mm(ada.overall()),
+            best_bilateral.0,
+            mm(best_bilateral.1.overall())
+        ),
     );
     ctx.check(
         "adaptive beats the best single-σ_d bilateral overall on all four scenes",
         ada4 < best_bilateral4.1,
-        format!("adaptive {} mm vs best bilateral ({}) {} mm", mm(ada4), best_bilateral4.0, mm(best_bilateral4.1)),
+        format!(
+            "adaptive {} mm vs best bilateral ({}) {} mm",
+            mm(ada4),
+            best_bilateral4.0,
+            mm(best_bilateral4.1)
+        ),
     );
     ctx.check(
         "adaptive edge error near raw (≤ 1.1× raw)",
         ada.edge() <= EDGE_TOLERANCE * raw.edge(),
-        format!("adaptive {} mm vs raw {} mm at pixels ≤ 2 px from a true depth edge", mm(ada.edge()), mm(raw.edge())),
+        format!(
+            "adaptive {} mm vs raw {} mm at pixels ≤ 2 px from a true depth edge",
+            mm(ada.edge()),
+            mm(raw.edge())
+        ),
     );
     let rel = disp.overall() / ada.overall() - 1.0;
     let verdict = if rel.abs() < 0.01 {
@@ -256,8 +311,22 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     for scene in ["floor", "figure-walls"] {
         if let Some(fr) = frames.iter().find(|f| f.scene == scene) {
             let bil = best_bilateral_filter(&methods, &best_bilateral.0);
-            let path = write_normals(ctx.out_dir(), &format!("filter_{scene}_normals.png"), &fr.depth, &fr.k, &[Some(DepthFilter::gaussian(r, s)), bil, Some(adaptive), Some(disparity)])?;
-            writeln!(images, "![{scene}: raw | gaussian | best bilateral | adaptive | disparity]({path})")?;
+            let path = write_normals(
+                ctx.out_dir(),
+                &format!("filter_{scene}_normals.png"),
+                &fr.depth,
+                &fr.k,
+                &[
+                    Some(DepthFilter::gaussian(r, s)),
+                    bil,
+                    Some(adaptive),
+                    Some(disparity),
+                ],
+            )?;
+            writeln!(
+                images,
+                "![{scene}: raw | gaussian | best bilateral | adaptive | disparity]({path})"
+            )?;
         }
     }
     ctx.section(
@@ -285,16 +354,32 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     Ok(())
 }
 
-fn best_bilateral_filter(methods: &[(String, Option<DepthFilter>)], name: &str) -> Option<DepthFilter> {
-    methods.iter().find(|(n, _)| n == name).and_then(|(_, f)| *f)
+fn best_bilateral_filter(
+    methods: &[(String, Option<DepthFilter>)],
+    name: &str,
+) -> Option<DepthFilter> {
+    methods
+        .iter()
+        .find(|(n, _)| n == name)
+        .and_then(|(_, f)| *f)
 }
 
 fn mm(v_m: f64) -> String {
-    if v_m.is_finite() { format!("{:.2}", v_m * 1e3) } else { "–".into() }
+    if v_m.is_finite() {
+        format!("{:.2}", v_m * 1e3)
+    } else {
+        "–".into()
+    }
 }
 
 /// Writes raw and filtered shaded normals side by side; returns the file name.
-fn write_normals(dir: &Path, name: &str, depth: &DepthImage, k: &Intrinsics, filters: &[Option<DepthFilter>]) -> Result<String> {
+fn write_normals(
+    dir: &Path,
+    name: &str,
+    depth: &DepthImage,
+    k: &Intrinsics,
+    filters: &[Option<DepthFilter>],
+) -> Result<String> {
     let mut imgs = vec![sl_filter::render::shaded_normals(depth, k)?];
     for f in filters.iter().flatten() {
         imgs.push(sl_filter::render::shaded_normals(&f.apply(depth)?, k)?);
@@ -309,17 +394,30 @@ fn write_normals(dir: &Path, name: &str, depth: &DepthImage, k: &Intrinsics, fil
 /// Real frames: plane-fit residual per band on the dominant plane.
 fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> Result<()> {
     let Some(data) = ctx.data_dir().map(Path::to_path_buf) else {
-        ctx.section("Depth filters: real frames", "skipped: ../shared/data not found".to_string());
+        ctx.section(
+            "Depth filters: real frames",
+            "skipped: ../shared/data not found".to_string(),
+        );
         return Ok(());
     };
     let tum_first = std::fs::read_to_string(data.join("tum-fr1-rpy/associations.txt"))
         .ok()
-        .and_then(|s| s.lines().next().and_then(|l| l.split_whitespace().nth(3).map(str::to_string)));
-    let pcl_first = std::fs::read_dir(data.join("pcl-floor-box")).ok().and_then(|d| {
-        let mut v: Vec<_> = d.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.to_string_lossy().ends_with("_depth.tiff")).collect();
-        v.sort();
-        v.into_iter().next()
-    });
+        .and_then(|s| {
+            s.lines()
+                .next()
+                .and_then(|l| l.split_whitespace().nth(3).map(str::to_string))
+        });
+    let pcl_first = std::fs::read_dir(data.join("pcl-floor-box"))
+        .ok()
+        .and_then(|d| {
+            let mut v: Vec<_> = d
+                .filter_map(|e| e.ok())
+                .map(|e| e.path())
+                .filter(|p| p.to_string_lossy().ends_with("_depth.tiff"))
+                .collect();
+            v.sort();
+            v.into_iter().next()
+        });
     let mut frames: Vec<(String, std::path::PathBuf, f64, Intrinsics)> = vec![(
         "person-depth.png (wall)".into(),
         data.join("open3d-testdata/person-depth.png"),
@@ -327,10 +425,20 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
         Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5)?,
     )];
     if let Some(p) = pcl_first {
-        frames.push(("pcl-floor-box (floor)".into(), p, 1000.0, Intrinsics::new(640, 480, 525.0, 525.0, 320.0, 240.0)?));
+        frames.push((
+            "pcl-floor-box (floor)".into(),
+            p,
+            1000.0,
+            Intrinsics::new(640, 480, 525.0, 525.0, 320.0, 240.0)?,
+        ));
     }
     if let Some(rel) = tum_first {
-        frames.push(("tum-fr1-rpy frame 0".into(), data.join("tum-fr1-rpy").join(rel), 5000.0, Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3)?));
+        frames.push((
+            "tum-fr1-rpy frame 0".into(),
+            data.join("tum-fr1-rpy").join(rel),
+            5000.0,
+            Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3)?,
+        ));
     }
     let mut md = String::from(
         "Residual = RMS orthogonal distance to a least-squares plane fitted (per method) on the dominant \
@@ -340,7 +448,10 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
     );
     let mut first_img = None;
     for (name, path, scale, k) in frames {
-        let loaded = match sl_io::depth::read_depth(&path, &sl_io::depth::ReadOptions::default().with_scale(scale)) {
+        let loaded = match sl_io::depth::read_depth(
+            &path,
+            &sl_io::depth::ReadOptions::default().with_scale(scale),
+        ) {
             Ok(l) => l,
             Err(e) => {
                 writeln!(md, "- {name}: could not read {} ({e})", path.display())?;
@@ -350,20 +461,31 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
         let camera = Camera::from_intrinsics(k, None, None)?;
         let sensor: SensorModel = camera.sensor;
         let depth = loaded.depth;
-        let Some(region) = eval::dominant_plane_region(&depth, &k, &sensor, DEFAULT_RADIUS_PX + 1, 500, 7)
-            .with_context(|| format!("plane region of {name}"))?
+        let Some(region) =
+            eval::dominant_plane_region(&depth, &k, &sensor, DEFAULT_RADIUS_PX + 1, 500, 7)
+                .with_context(|| format!("plane region of {name}"))?
         else {
             writeln!(md, "- {name}: no dominant plane found")?;
             continue;
         };
         let npx = region.mask.iter().filter(|&&m| m).count();
-        writeln!(md, "**{name}** — region of {npx} px, plane normal ({:.2}, {:.2}, {:.2}):\n", region.plane.normal[0], region.plane.normal[1], region.plane.normal[2])?;
+        writeln!(
+            md,
+            "**{name}** — region of {npx} px, plane normal ({:.2}, {:.2}, {:.2}):\n",
+            region.plane.normal[0], region.plane.normal[1], region.plane.normal[2]
+        )?;
         md.push_str("| method | < 1.5 m | 1.5–2.5 m | > 2.5 m |\n|---|---|---|---|\n");
         // Per-frame sensor for the sensor-derived filters; the fixed ones as in the simulation.
         for (mname, f) in methods {
             let f = match (mname.as_str(), f) {
-                (n, _) if n.starts_with("adaptive") => Some(DepthFilter::default_for(sl_filter::Method::Adaptive, &sensor)),
-                (n, _) if n.starts_with("disparity") => Some(DepthFilter::default_for(sl_filter::Method::Disparity, &sensor)),
+                (n, _) if n.starts_with("adaptive") => Some(DepthFilter::default_for(
+                    sl_filter::Method::Adaptive,
+                    &sensor,
+                )),
+                (n, _) if n.starts_with("disparity") => Some(DepthFilter::default_for(
+                    sl_filter::Method::Disparity,
+                    &sensor,
+                )),
                 (_, f) => *f,
             };
             let out = match &f {
@@ -371,28 +493,70 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
                 None => depth.clone(),
             };
             let res = eval::plane_residual_by_band(&out, &k, &region.mask, &KINECT_BANDS_M)?;
-            let cell = |b: &BandError| if b.pixels > 0 { format!("{} ({} px)", mm(b.rmse_m), b.pixels) } else { "–".into() };
-            writeln!(md, "| {mname} | {} | {} | {} |", cell(&res[0]), cell(&res[1]), cell(&res[2]))?;
+            let cell = |b: &BandError| {
+                if b.pixels > 0 {
+                    format!("{} ({} px)", mm(b.rmse_m), b.pixels)
+                } else {
+                    "–".into()
+                }
+            };
+            writeln!(
+                md,
+                "| {mname} | {} | {} | {} |",
+                cell(&res[0]),
+                cell(&res[1]),
+                cell(&res[2])
+            )?;
             for (i, band) in ["<1.5m", "1.5-2.5m", ">2.5m"].iter().enumerate() {
                 if res[i].pixels > 0 {
-                    ctx.row(EXP, &format!("{name} {mname} plane residual {band}"), res[i].rmse_m * 1e3, "mm");
+                    ctx.row(
+                        EXP,
+                        &format!("{name} {mname} plane residual {band}"),
+                        res[i].rmse_m * 1e3,
+                        "mm",
+                    );
                 }
             }
         }
         md.push('\n');
         if first_img.is_none() {
             let f = [
-                methods.iter().find(|(n, _)| n.starts_with("gaussian")).and_then(|(_, f)| *f),
-                Some(DepthFilter::bilateral(DEFAULT_RADIUS_PX, default_sigma_s_px(DEFAULT_RADIUS_PX), 0.02)),
-                Some(DepthFilter::default_for(sl_filter::Method::Adaptive, &sensor)),
-                Some(DepthFilter::default_for(sl_filter::Method::Disparity, &sensor)),
+                methods
+                    .iter()
+                    .find(|(n, _)| n.starts_with("gaussian"))
+                    .and_then(|(_, f)| *f),
+                Some(DepthFilter::bilateral(
+                    DEFAULT_RADIUS_PX,
+                    default_sigma_s_px(DEFAULT_RADIUS_PX),
+                    0.02,
+                )),
+                Some(DepthFilter::default_for(
+                    sl_filter::Method::Adaptive,
+                    &sensor,
+                )),
+                Some(DepthFilter::default_for(
+                    sl_filter::Method::Disparity,
+                    &sensor,
+                )),
             ];
-            first_img = Some(write_normals(ctx.out_dir(), "filter_person_normals.png", &depth, &k, &f)?);
+            first_img = Some(write_normals(
+                ctx.out_dir(),
+                "filter_person_normals.png",
+                &depth,
+                &k,
+                &f,
+            )?);
         }
     }
     if let Some(p) = first_img {
-        writeln!(md, "Normals of person-depth.png (raw | Gaussian | bilateral 20 mm | adaptive | disparity):\n\n![person]({p})")?;
+        writeln!(
+            md,
+            "Normals of person-depth.png (raw | Gaussian | bilateral 20 mm | adaptive | disparity):\n\n![person]({p})"
+        )?;
     }
-    ctx.section("Depth filters: real frames (plane residual per depth band)", md);
+    ctx.section(
+        "Depth filters: real frames (plane residual per depth band)",
+        md,
+    );
     Ok(())
 }

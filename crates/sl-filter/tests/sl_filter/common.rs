@@ -39,7 +39,10 @@ pub fn filters(radius: usize, sigma_s: f64, sensor: &SensorModel) -> Vec<DepthFi
 
 /// Every instruction set this CPU supports.
 pub fn isas() -> Vec<Isa> {
-    [Isa::Portable, Isa::Avx2, Isa::Avx512].into_iter().filter(|i| i.is_supported()).collect()
+    [Isa::Portable, Isa::Avx2, Isa::Avx512]
+        .into_iter()
+        .filter(|i| i.is_supported())
+        .collect()
 }
 
 /// Depth of the plane `n·X = dist` (camera frame) at every pixel, f64.

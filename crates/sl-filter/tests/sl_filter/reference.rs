@@ -12,9 +12,16 @@ fn fast_kernel_matches_reference_on_random_images_with_holes() {
     let mut checked = 0;
     // Radii 1-3 are the const-radius fast paths, 4 and 6 the runtime-radius path; widths that
     // are and are not multiples of the lane counts (8, 16, 32).
-    for (case, &(w, h, r, s)) in [(37, 23, 1, 0.8), (64, 40, 2, 1.0), (33, 17, 3, 1.5), (50, 31, 4, 2.0), (19, 29, 6, 3.0), (5, 4, 3, 1.5)]
-        .iter()
-        .enumerate()
+    for (case, &(w, h, r, s)) in [
+        (37, 23, 1, 0.8),
+        (64, 40, 2, 1.0),
+        (33, 17, 3, 1.5),
+        (50, 31, 4, 2.0),
+        (19, 29, 6, 3.0),
+        (5, 4, 3, 1.5),
+    ]
+    .iter()
+    .enumerate()
     {
         let depth = random_image(w, h, 0.5, 4.0, 0.15, 100 + case as u64);
         for f in filters(r, s, &sensor) {
@@ -30,7 +37,12 @@ fn fast_kernel_matches_reference_on_random_images_with_holes() {
                     // output error is at most ~1e-5 of the depth differences in the window
                     // (< 4 m here) plus a few ulp of the depth.
                     let tol = 4.0e-6 * b.abs() + 2.0e-5;
-                    assert!((a - b).abs() <= tol, "{f:?} {isa:?} at ({}, {}): fast {a} vs reference {b}", i % w, i / w);
+                    assert!(
+                        (a - b).abs() <= tol,
+                        "{f:?} {isa:?} at ({}, {}): fast {a} vs reference {b}",
+                        i % w,
+                        i / w
+                    );
                     checked += 1;
                 }
             }

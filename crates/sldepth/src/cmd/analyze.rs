@@ -29,7 +29,8 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     let loaded = load_depth(&args.depth, &args.input)?;
     let sensor = loaded.camera.sensor;
-    let a = analyze(&loaded.depth, &sensor).with_context(|| format!("analysing {}", args.depth.display()))?;
+    let a = analyze(&loaded.depth, &sensor)
+        .with_context(|| format!("analysing {}", args.depth.display()))?;
     if let Some(plot) = &args.plot {
         let ext = plot
             .extension()
@@ -41,7 +42,9 @@ pub fn run(args: Args) -> Result<()> {
                 let svg = sl_noise::plot::resolution_svg(&a);
                 sl_io::atomic::write_atomic(plot, |w| w.write_all(svg.as_bytes()))?;
             }
-            "png" => sl_io::rgb::write_rgb_png(plot, &sl_noise::plot::resolution_rgb(&a, 900, 420))?,
+            "png" => {
+                sl_io::rgb::write_rgb_png(plot, &sl_noise::plot::resolution_rgb(&a, 900, 420))?
+            }
             _ => bail!("--plot {}: use a .svg or .png file name", plot.display()),
         }
     }
@@ -50,6 +53,8 @@ pub fn run(args: Args) -> Result<()> {
             "path": args.depth.display().to_string(),
             "unique_depths": a.unique_depths,
             "slope": round_to(a.slope, 6),
+            "slope_continuous": round_to(a.slope_continuous, 6),
+            "gap_pairs": a.gap_pairs,
             "slope_robust": round_to(a.slope_robust, 6),
             "quantum_per_m": a.quantum_per_m,
             "fb_px_m": a.fb_px_m.map(|v| round_to(v, 6)),
@@ -62,7 +67,10 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         println!("{}", args.depth.display());
         println!("  unique depths          {}", a.unique_depths);
-        println!("  slope ln ΔZ vs ln Z    {:.3} (OLS), {:.3} (robust); the model predicts 2", a.slope, a.slope_robust);
+        println!(
+            "  slope ln ΔZ vs ln Z    {:.3} (OLS), {:.3} (robust), {:.3} (OLS without {} coverage-gap pairs); the model predicts 2",
+            a.slope, a.slope_robust, a.slope_continuous, a.gap_pairs
+        );
         println!("  quantum c (ΔZ ≈ c·Z²)  {:.6} 1/m", a.quantum_per_m);
         match a.fb_px_m {
             Some(fb) => println!(
@@ -74,7 +82,10 @@ pub fn run(args: Args) -> Result<()> {
         }
         match (a.subpixel_steps, a.fb_used_px_m) {
             (Some(q), Some(fb)) => {
-                println!("  disparity sub-pixel    1/{q} px (counted with f·B = {fb:.3} px·m, {:?})", a.fb_source)
+                println!(
+                    "  disparity sub-pixel    1/{q} px (counted with f·B = {fb:.3} px·m, {:?})",
+                    a.fb_source
+                )
             }
             _ => println!("  disparity sub-pixel    undetermined (too few far depths)"),
         }

@@ -76,7 +76,9 @@ pub fn build_filter(args: &Args, sensor: &sl_core::SensorModel) -> Result<DepthF
         (None, Some(s)) if s.is_finite() && s > 0.0 => ((2.0 * s).ceil() as usize).max(1),
         _ => f.radius_px,
     };
-    f = f.with_radius(radius).with_sigma_s(args.sigma_s.unwrap_or_else(|| default_sigma_s_px(radius)));
+    f = f
+        .with_radius(radius)
+        .with_sigma_s(args.sigma_s.unwrap_or_else(|| default_sigma_s_px(radius)));
     f.range = match f.range {
         RangeKernel::Fixed { sigma_d_m } => RangeKernel::Fixed {
             sigma_d_m: args.sigma_d_m.unwrap_or(sigma_d_m),
@@ -84,7 +86,10 @@ pub fn build_filter(args: &Args, sensor: &sl_core::SensorModel) -> Result<DepthF
         RangeKernel::Adaptive { k_per_m } => RangeKernel::Adaptive {
             k_per_m: args.k_per_m.unwrap_or(k_per_m),
         },
-        RangeKernel::Disparity { sigma_disp_px, fb_px_m } => RangeKernel::Disparity {
+        RangeKernel::Disparity {
+            sigma_disp_px,
+            fb_px_m,
+        } => RangeKernel::Disparity {
             sigma_disp_px: args.sigma_disp_px.unwrap_or(sigma_disp_px),
             fb_px_m,
         },
@@ -160,7 +165,11 @@ pub fn run(args: Args) -> Result<()> {
             2 * filter.radius_px + 1,
             filter.sigma_s_px,
             match (k_per_m, sigma_d_m, sigma_disp_px) {
-                (Some(k), _, _) => format!(", k {k:.6} /m (sigma_d {:.1} mm at 1 m, {:.1} mm at 3 m)", k * 1e3, 9.0 * k * 1e3),
+                (Some(k), _, _) => format!(
+                    ", k {k:.6} /m (sigma_d {:.1} mm at 1 m, {:.1} mm at 3 m)",
+                    k * 1e3,
+                    9.0 * k * 1e3
+                ),
                 (_, Some(s), _) => format!(", sigma_d {:.1} mm", s * 1e3),
                 (_, _, Some(s)) => format!(", sigma_D {s:.3} px"),
                 _ => String::new(),

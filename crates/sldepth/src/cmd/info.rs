@@ -48,7 +48,12 @@ pub fn run(args: Args) -> Result<()> {
         }));
     } else {
         println!("{}", args.depth.display());
-        println!("  size          {} x {} px ({})", d.width(), d.height(), loaded.encoding);
+        println!(
+            "  size          {} x {} px ({})",
+            d.width(),
+            d.height(),
+            loaded.encoding
+        );
         println!(
             "  valid pixels  {valid} of {total} ({:.1} %)",
             100.0 * valid as f64 / total.max(1) as f64

@@ -2,8 +2,10 @@
 
 pub mod analyze;
 pub mod cloud;
-pub mod info;
-pub mod simulate;
-pub mod fuse;
 pub mod filter;
+pub mod fuse;
+pub mod info;
+pub mod motion;
+pub mod planes;
+pub mod simulate;
 // @commands-modules (add `pub mod name;` above this line)

@@ -44,7 +44,11 @@ pub struct Args {
 /// Runs `sldepth simulate`.
 pub fn run(args: Args) -> Result<()> {
     if !SCENE_NAMES.contains(&args.scene.as_str()) {
-        bail!("unknown scene {:?}; choose one of: {}", args.scene, SCENE_NAMES.join(", "));
+        bail!(
+            "unknown scene {:?}; choose one of: {}",
+            args.scene,
+            SCENE_NAMES.join(", ")
+        );
     }
     if !(args.depth_scale.is_finite() && args.depth_scale > 0.0) {
         bail!("--depth-scale must be positive, got {}", args.depth_scale);
@@ -84,7 +88,8 @@ pub fn run(args: Args) -> Result<()> {
         save_depth(t, &frame.truth, &enc_for(t))?;
     }
     if let Some(l) = &args.labels {
-        sl_io::rgb::write_gray16_png(l, &frame.labels).with_context(|| format!("writing {}", l.display()))?;
+        sl_io::rgb::write_gray16_png(l, &frame.labels)
+            .with_context(|| format!("writing {}", l.display()))?;
     }
     let valid = frame.depth.valid_count();
     if args.json {

@@ -1,0 +1,178 @@
+//! `sldepth planes`: plane extraction with a fixed threshold in disparity (paper section 3.4),
+//! or the fixed-metric-threshold RANSAC baseline.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use serde_json::json;
+use sl_core::Image;
+use sl_io::DepthFormat;
+use sl_planes::{
+    PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac, overlay,
+};
+
+use crate::common::{InputArgs, load_depth, print_json, round_to};
+
+/// Arguments of `sldepth planes`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Depth map (PNG/TIFF/NYU raw PGM).
+    pub depth: PathBuf,
+    /// Output label image: 16-bit PNG, 0 = not on a plane, i = plane id.
+    #[arg(long, short)]
+    pub output: PathBuf,
+    /// Also write a colour overlay of the planes (PNG).
+    #[arg(long)]
+    pub overlay: Option<PathBuf>,
+    /// Colour image to draw the overlay on (default: the depth map in grey).
+    #[arg(long)]
+    pub color: Option<PathBuf>,
+    /// Print the planes as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// `disparity` (the paper's method) or `metric-ransac` (the fixed metric threshold baseline).
+    #[arg(long, default_value = "disparity")]
+    pub method: String,
+    /// Disparity residual threshold, pixels (disparity method).
+    #[arg(long, default_value_t = PlaneConfig::default().threshold_px)]
+    pub threshold_px: f64,
+    /// LoG response threshold, pixels of disparity (disparity method).
+    #[arg(long, default_value_t = PlaneConfig::default().log_threshold_px)]
+    pub log_threshold_px: f64,
+    /// Point-to-plane threshold, metres (metric-ransac).
+    #[arg(long, default_value_t = 0.01)]
+    pub threshold_m: f64,
+    /// LoG scale, pixels (disparity method).
+    #[arg(long, default_value_t = PlaneConfig::default().log_sigma_px)]
+    pub log_sigma_px: f64,
+    /// Minimum pixels of a plane.
+    #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
+    pub min_pixels: usize,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+/// Runs `sldepth planes`.
+pub fn run(args: Args) -> Result<()> {
+    let loaded = load_depth(&args.depth, &args.input)?;
+    let camera = loaded.camera;
+    let (seg, ms) = match args.method.as_str() {
+        "disparity" => {
+            let cfg = PlaneConfig {
+                threshold_px: args.threshold_px,
+                log_threshold_px: args.log_threshold_px,
+                log_sigma_px: args.log_sigma_px,
+                min_pixels: args.min_pixels,
+                ..PlaneConfig::default()
+            };
+            let mut ex = PlaneExtractor::new(cfg)?;
+            if loaded.encoding.format == DepthFormat::NyuRaw {
+                // Work on the raw disparity directly: D = (doff − raw) / 8 px.
+                let raw = sl_io::read_raw_depth(
+                    &args.depth,
+                    &sl_io::ReadOptions::default().with_format(DepthFormat::NyuRaw),
+                )?;
+                let disp = sl_io::depth::nyu_raw_to_disparity(&raw.values, sl_io::depth::NYU_DOFF);
+                let t = Instant::now();
+                let seg = ex.extract_disparity(&disp, &camera)?;
+                (seg, t.elapsed().as_secs_f64() * 1e3)
+            } else {
+                let t = Instant::now();
+                let seg = ex.extract_depth(&loaded.depth, &camera)?;
+                (seg, t.elapsed().as_secs_f64() * 1e3)
+            }
+        }
+        "metric-ransac" => {
+            let cfg = RansacConfig {
+                threshold_m: args.threshold_m,
+                min_pixels: args.min_pixels,
+                ..RansacConfig::default()
+            };
+            let t = Instant::now();
+            let seg = metric_ransac(&loaded.depth, &camera, &cfg)?;
+            (seg, t.elapsed().as_secs_f64() * 1e3)
+        }
+        other => bail!("unknown --method {other:?}: use disparity or metric-ransac"),
+    };
+    sl_io::write_gray16_png(&args.output, &seg.labels)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    if let Some(path) = &args.overlay {
+        write_overlay(path, args.color.as_deref(), &loaded.depth, &seg)?;
+    }
+    if args.json {
+        print_json(&segmentation_json(&seg, ms));
+    } else {
+        println!(
+            "{} planes in {:.2} ms ({})",
+            seg.planes.len(),
+            ms,
+            args.method
+        );
+        for p in &seg.planes {
+            let n = p.plane.normal;
+            println!(
+                "  #{:<3} {:>7} px  normal [{:+.3} {:+.3} {:+.3}]  offset {:.3} m  rms {:.3} px / {:.1} mm",
+                p.id,
+                p.pixels,
+                n.x,
+                n.y,
+                n.z,
+                p.plane.offset_m,
+                p.rms_px,
+                p.rms_m * 1e3
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The JSON description of a segmentation.
+pub fn segmentation_json(seg: &PlaneSegmentation, ms: f64) -> serde_json::Value {
+    let planes: Vec<_> = seg
+        .planes
+        .iter()
+        .map(|p| {
+            json!({
+                "id": p.id,
+                "pixels": p.pixels,
+                "normal": [round_to(p.plane.normal.x, 6), round_to(p.plane.normal.y, 6), round_to(p.plane.normal.z, 6)],
+                "offset_m": round_to(p.plane.offset_m, 6),
+                "disparity_affine": [p.affine.a, p.affine.b, p.affine.c],
+                "rms_px": round_to(p.rms_px, 5),
+                "rms_m": round_to(p.rms_m, 6),
+                "centroid_m": [round_to(p.centroid_m.x, 4), round_to(p.centroid_m.y, 4), round_to(p.centroid_m.z, 4)],
+            })
+        })
+        .collect();
+    json!({ "planes": planes, "ms": round_to(ms, 3) })
+}
+
+fn write_overlay(
+    path: &std::path::Path,
+    color: Option<&std::path::Path>,
+    depth: &sl_core::DepthImage,
+    seg: &PlaneSegmentation,
+) -> Result<()> {
+    let (w, h) = seg.labels.dimensions();
+    let base: Vec<u8> = match color {
+        Some(c) => {
+            let img = sl_io::read_rgb(c).with_context(|| format!("reading {}", c.display()))?;
+            if img.dimensions() != (w, h) {
+                bail!(
+                    "{}: colour image is {}x{}, depth is {w}x{h}",
+                    c.display(),
+                    img.width(),
+                    img.height()
+                );
+            }
+            img.data().iter().flatten().copied().collect()
+        }
+        None => overlay::depth_to_rgb(depth),
+    };
+    let rgb = overlay::overlay_rgb(&seg.labels, &base, 0.6).context("overlay size mismatch")?;
+    let pixels: Vec<[u8; 3]> = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    let img = Image::from_vec(w, h, pixels)?;
+    sl_io::write_rgb_png(path, &img).with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}
