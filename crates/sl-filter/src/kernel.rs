@@ -204,20 +204,13 @@ pub(crate) fn run<M: RangeMode>(
                 }
                 let buf = &mut buf[..need];
                 let ok = match src.disparity_fb {
-                    None => fill_rows::<false>(src, y0, r, stride, buf, 0.0),
-                    Some(fb) => fill_rows::<true>(src, y0, r, stride, buf, fb),
+                    None => dispatch::<M, false>(isa, taps, src, y0, stride, buf, block, mode, 0.0),
+                    Some(fb) => {
+                        dispatch::<M, true>(isa, taps, src, y0, stride, buf, block, mode, fb)
+                    }
                 };
                 if !ok {
                     bad.store(true, std::sync::atomic::Ordering::Relaxed);
-                }
-                let p = Padded {
-                    data: buf,
-                    stride,
-                    width,
-                };
-                match src.disparity_fb {
-                    None => dispatch::<M, false>(isa, taps, &p, block, mode, 0.0),
-                    Some(fb) => dispatch::<M, true>(isa, taps, &p, block, mode, fb),
                 }
             });
         });
@@ -226,6 +219,7 @@ pub(crate) fn run<M: RangeMode>(
 
 /// Copies image rows `y0 − r .. y0 + rows + r` into `buf` (see [`Padded`]); `false` if a valid
 /// depth is out of range.
+#[inline(always)]
 fn fill_rows<const DISP: bool>(
     src: &Source<'_>,
     y0: usize,
@@ -256,14 +250,20 @@ fn fill_rows<const DISP: bool>(
     !bad
 }
 
+/// Pads one block (see [`fill_rows`]) and filters it with the instruction set `isa`; `false`
+/// if a valid depth is out of range.
+#[allow(clippy::too_many_arguments)]
 fn dispatch<M: RangeMode, const DISP: bool>(
     isa: Isa,
     taps: Taps<'_>,
-    p: &Padded<'_>,
+    src: &Source<'_>,
+    y0: usize,
+    stride: usize,
+    buf: &mut [f32],
     out: &mut [f32],
     mode: M,
     fb: f32,
-) {
+) -> bool {
     match isa {
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 if Isa::Avx512.is_supported() => {
@@ -271,7 +271,7 @@ fn dispatch<M: RangeMode, const DISP: bool>(
             // supports the features, which `is_supported` has just checked at run time.
             #[allow(unsafe_code)]
             unsafe {
-                block_avx512::<M, DISP>(taps, p, out, mode, fb)
+                block_avx512::<M, DISP>(taps, src, y0, stride, buf, out, mode, fb)
             }
         }
         #[cfg(target_arch = "x86_64")]
@@ -279,56 +279,76 @@ fn dispatch<M: RangeMode, const DISP: bool>(
             // SAFETY: as above — AVX2 and FMA support was checked at run time.
             #[allow(unsafe_code)]
             unsafe {
-                block_avx2::<M, DISP>(taps, p, out, mode, fb)
+                block_avx2::<M, DISP>(taps, src, y0, stride, buf, out, mode, fb)
             }
         }
-        _ => block_portable::<M, DISP>(taps, p, out, mode, fb),
+        _ => block_portable::<M, DISP>(taps, src, y0, stride, buf, out, mode, fb),
     }
 }
 
-macro_rules! radius_dispatch {
-    ($fma:literal, $taps:ident, $p:ident, $out:ident, $mode:ident, $fb:ident) => {
+macro_rules! pad_and_filter {
+    ($fma:literal, $taps:ident, $src:ident, $y0:ident, $stride:ident, $buf:ident, $out:ident, $mode:ident, $fb:ident) => {{
+        let ok = fill_rows::<DISP>($src, $y0, $taps.radius, $stride, $buf, $fb);
+        let p = Padded {
+            data: $buf,
+            stride: $stride,
+            width: $src.width,
+        };
+        let p = &p;
         match $taps.radius {
-            1 => block::<1, $fma, M, DISP>($taps, $p, $out, $mode, $fb),
-            2 => block::<2, $fma, M, DISP>($taps, $p, $out, $mode, $fb),
-            3 => block::<3, $fma, M, DISP>($taps, $p, $out, $mode, $fb),
-            _ => block::<0, $fma, M, DISP>($taps, $p, $out, $mode, $fb),
+            1 => block::<1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            2 => block::<2, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            3 => block::<3, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            _ => block::<0, $fma, M, DISP>($taps, p, $out, $mode, $fb),
         }
-    };
+        ok
+    }};
 }
 
+#[allow(clippy::too_many_arguments)]
 fn block_portable<M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
-    p: &Padded<'_>,
+    src: &Source<'_>,
+    y0: usize,
+    stride: usize,
+    buf: &mut [f32],
     out: &mut [f32],
     mode: M,
     fb: f32,
-) {
-    radius_dispatch!(false, taps, p, out, mode, fb)
+) -> bool {
+    pad_and_filter!(false, taps, src, y0, stride, buf, out, mode, fb)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
 fn block_avx2<M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
-    p: &Padded<'_>,
+    src: &Source<'_>,
+    y0: usize,
+    stride: usize,
+    buf: &mut [f32],
     out: &mut [f32],
     mode: M,
     fb: f32,
-) {
-    radius_dispatch!(true, taps, p, out, mode, fb)
+) -> bool {
+    pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx2,fma")]
+#[allow(clippy::too_many_arguments)]
 fn block_avx512<M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
-    p: &Padded<'_>,
+    src: &Source<'_>,
+    y0: usize,
+    stride: usize,
+    buf: &mut [f32],
     out: &mut [f32],
     mode: M,
     fb: f32,
-) {
-    radius_dispatch!(true, taps, p, out, mode, fb)
+) -> bool {
+    pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
 }
 
 /// Output pixels computed together: the lane loops run over `CHUNK` pixels, long enough for

@@ -107,9 +107,9 @@
 //! ## Speed
 //!
 //! One padded copy of each block of 16 rows per rayon task (in a reused per-thread buffer),
-//! precomputed spatial exponents, the range weight `2^(t − e²)` with a bit-trick + degree-4
-//! polynomial `2^x` ([`fastexp`]; relative error < 4·10⁻⁶, tested against `f64::exp2` and
-//! `f32::exp`), no per-pixel allocation or branch, constant-radius fast paths for 3×3, 5×5 and
+//! precomputed spatial exponents, the range weight `2^(t − e²)` with a bit-trick + polynomial
+//! `2^x` ([`fastexp`]; relative error < 8·10⁻⁵ for the weights, < 4·10⁻⁶ for the public
+//! `exp_fast`, both tested against `f64::exp2` / `f32::exp`), no per-pixel allocation or branch, constant-radius fast paths for 3×3, 5×5 and
 //! 7×7 (lanes vectorised, taps unrolled), and AVX2+FMA / AVX-512 code selected at run time
 //! ([`Isa`]). Measured timings against OpenCV: see `docs/bench/` and the crate README of the
 //! closing report; `cargo bench -p sl-filter` runs the criterion benches.

@@ -23,9 +23,9 @@ pub struct RunLabeler {
     /// The runs, row by row.
     pub runs: Vec<Run>,
     parent: Vec<u32>,
-    /// Component index per run after [`RunLabeler::finish`].
+    /// Component index per run after [`RunLabeler::label`].
     pub component: Vec<u32>,
-    /// Pixel count per component after [`RunLabeler::finish`].
+    /// Pixel count per component after [`RunLabeler::label`].
     pub sizes: Vec<usize>,
 }
 
@@ -33,7 +33,12 @@ impl RunLabeler {
     /// Labels the components of the non-zero values of a row-major `width × height` image.
     /// Afterwards `runs[i]` belongs to component `component[i]` (0-based, dense) of
     /// `sizes[component[i]]` pixels.
-    pub fn label<T: Copy + PartialEq + Default + Into<u32>>(&mut self, data: &[T], width: usize, height: usize) {
+    pub fn label<T: Copy + PartialEq + Default + Into<u32>>(
+        &mut self,
+        data: &[T],
+        width: usize,
+        height: usize,
+    ) {
         self.runs.clear();
         self.parent.clear();
         let zero = T::default();

@@ -7,7 +7,9 @@ pub enum PlanesError {
     #[error("invalid configuration: {0}")]
     InvalidConfig(String),
     /// Image and camera (or two images) of different sizes.
-    #[error("size mismatch: image is {width}x{height}, expected {expected_width}x{expected_height}")]
+    #[error(
+        "size mismatch: image is {width}x{height}, expected {expected_width}x{expected_height}"
+    )]
     SizeMismatch {
         /// Width that was expected.
         expected_width: usize,

@@ -10,16 +10,22 @@
 //!    `D = a·x + b·y + c` followed by a trimmed refit (residuals below `2τ`); the k-means
 //!    iterations then refit on the pixels within `τ`: a truncated-quadratic (hard-redescending)
 //!    robust estimate.
-//! 2. **k-means refinement**: every valid block goes to the plane with the smallest disparity
-//!    residual if it is below the fixed threshold `τ` (candidates: planes whose support box,
-//!    grown by a margin, covers the block's tile); planes are refitted from one-pass moment sums
+//! 2. **k-means refinement**: a block keeps its incumbent label (its seed's, or the previous
+//!    pass's) while that plane fits it within `τ`; any other valid block goes to the plane with
+//!    the smallest disparity residual if it is below the fixed threshold `τ` (candidates: planes
+//!    whose support box, grown by a margin, covers the block's tile). The incumbent rule keeps
+//!    the extension of one plane from cutting a band through another plane's seed. Planes are refitted from one-pass moment sums
 //!    (accumulated run by run), planes that one affine function explains jointly (each within
 //!    `merge_px` RMS) are merged (sums add), and planar blocks left unassigned form new seeds (so
 //!    a component spanning a shallow crease splits into its planes). Repeats until the labels
 //!    settle or `max_iterations`.
-//! 3. **Final pass** at full resolution: assignment, pixels fitting several planes are given the
-//!    label that dominates their 8-neighbourhood, disconnected pieces smaller than
-//!    `min_piece_pixels` are dropped, planes are refitted and converted to 3D.
+//! 3. **Coherence and final pass**: 4-connected pieces of a plane's blocks smaller than
+//!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its block's label if
+//!    that plane fits it within `τ`, otherwise (and for unlabelled blocks touching a labelled
+//!    one) the best candidate within `τ`; pixels fitting several planes take the label that
+//!    dominates their 8-neighbourhood. The planes are refitted on the stride-2 sample of the
+//!    final labels (pixels `(2i, 2j)`), which also gives the RMS residuals and the centroid;
+//!    pixel counts are exact.
 //!
 //! Everything after the disparity conversion works on the disparity, so the threshold means the
 //! same at 0.6 m and at 4 m: the noise of a structured-light camera is constant in disparity.
@@ -75,7 +81,9 @@ impl PlaneConfig {
             if v.is_finite() && v > 0.0 {
                 Ok(())
             } else {
-                Err(PlanesError::InvalidConfig(format!("{name} = {v} must be positive and finite")))
+                Err(PlanesError::InvalidConfig(format!(
+                    "{name} = {v} must be positive and finite"
+                )))
             }
         };
         pos("threshold_px", self.threshold_px)?;
@@ -89,7 +97,9 @@ impl PlaneConfig {
             )));
         }
         if self.min_pixels < 3 {
-            return Err(PlanesError::InvalidConfig("min_pixels must be at least 3".into()));
+            return Err(PlanesError::InvalidConfig(
+                "min_pixels must be at least 3".into(),
+            ));
         }
         Ok(())
     }
@@ -197,7 +207,11 @@ pub struct PlaneExtractor {
 }
 
 /// Extracts planes from a depth image (metres) with a new extractor.
-pub fn extract_planes(depth: &DepthImage, camera: &Camera, cfg: &PlaneConfig) -> Result<PlaneSegmentation> {
+pub fn extract_planes(
+    depth: &DepthImage,
+    camera: &Camera,
+    cfg: &PlaneConfig,
+) -> Result<PlaneSegmentation> {
     PlaneExtractor::new(*cfg)?.extract_depth(depth, camera)
 }
 
@@ -230,23 +244,42 @@ impl PlaneExtractor {
 
     /// Extracts planes from a depth image (metres, 0 = invalid); the disparity is `f·B / Z` with
     /// the camera's sensor model.
-    pub fn extract_depth(&mut self, depth: &DepthImage, camera: &Camera) -> Result<PlaneSegmentation> {
+    pub fn extract_depth(
+        &mut self,
+        depth: &DepthImage,
+        camera: &Camera,
+    ) -> Result<PlaneSegmentation> {
         let (w, h) = (depth.width(), depth.height());
         Self::check(w, h, &camera.intrinsics)?;
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
         self.d.clear();
-        self.d.extend(depth.data().iter().map(|&z| if z > 0.0 && z.is_finite() { fbf / z } else { 0.0 }));
+        self.d.extend(depth.data().iter().map(|&z| {
+            if z > 0.0 && z.is_finite() {
+                fbf / z
+            } else {
+                0.0
+            }
+        }));
         self.run(w, h, &camera.intrinsics, fb)
     }
 
     /// Extracts planes from a disparity image (pixels, 0 = invalid), e.g. raw Kinect disparity
     /// converted to pixels; `f·B` of the camera relates it to depth.
-    pub fn extract_disparity(&mut self, disparity: &DisparityImage, camera: &Camera) -> Result<PlaneSegmentation> {
+    pub fn extract_disparity(
+        &mut self,
+        disparity: &DisparityImage,
+        camera: &Camera,
+    ) -> Result<PlaneSegmentation> {
         let (w, h) = (disparity.width(), disparity.height());
         Self::check(w, h, &camera.intrinsics)?;
         self.d.clear();
-        self.d.extend(disparity.data().iter().map(|&v| if v > 0.0 && v.is_finite() { v } else { 0.0 }));
+        self.d.extend(
+            disparity
+                .data()
+                .iter()
+                .map(|&v| if v > 0.0 && v.is_finite() { v } else { 0.0 }),
+        );
         self.run(w, h, &camera.intrinsics, camera.sensor.fb())
     }
 
@@ -279,7 +312,16 @@ impl PlaneExtractor {
         self.downsample(w, w2, h2);
         // 1. Seeds.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
-        planar_mask(&self.dh, w2, h2, r, s, cfg.log_threshold_px as f32, &mut self.log, &mut self.mask);
+        planar_mask(
+            &self.dh,
+            w2,
+            h2,
+            r,
+            s,
+            cfg.log_threshold_px as f32,
+            &mut self.log,
+            &mut self.mask,
+        );
         self.cc.label(&self.mask, w2, h2);
         let min_h = (cfg.min_pixels / 4).max(3);
         self.labh.clear();
@@ -375,8 +417,9 @@ impl PlaneExtractor {
                 let (fa, fc) = f.map_or((0.0, 0.0), |f| (f.a, f.b * jf + f.c));
                 let (mut sd, mut sxd, mut sdd) = (0.0, 0.0, 0.0);
                 let mut start = run.x0 as usize;
-                for i in run.x0 as usize..run.x1 as usize {
-                    let d = f64::from(row[i]);
+                let (x0, x1) = (run.x0 as usize, run.x1 as usize);
+                for (i, &dv) in row.iter().enumerate().take(x1).skip(x0) {
+                    let d = f64::from(dv);
                     let inlier = f.is_none() || (d - (fa * i as f64 + fc)).abs() < lim;
                     if inlier {
                         sd += d;
@@ -393,17 +436,21 @@ impl PlaneExtractor {
             for c in 0..nc {
                 if self.cc.sizes[c] >= min && (pass == 0 || self.comp_fit[c].is_some()) {
                     let s = &self.comp_sums[c];
-                    self.comp_fit[c] = if s.n >= (min as f64) * 0.5 { s.solve() } else { None };
+                    self.comp_fit[c] = if s.n >= (min as f64) * 0.5 {
+                        s.solve()
+                    } else {
+                        None
+                    };
                 }
             }
         }
         // Each seed's blocks start with its label (the incumbent in the k-means passes).
         let mut plane_of: Vec<u16> = vec![0; nc];
-        for c in 0..nc {
+        for (c, slot) in plane_of.iter_mut().enumerate() {
             if let Some(f) = self.comp_fit[c]
                 && self.planes.len() < MAX_PLANES
             {
-                plane_of[c] = self.planes.len() as u16 + 1;
+                *slot = self.planes.len() as u16 + 1;
                 self.planes.push(Cand {
                     f,
                     sums: self.comp_sums[c],
@@ -445,10 +492,15 @@ impl PlaneExtractor {
                         b: pi.f.b - pj.f.b,
                         c: pi.f.c - pj.f.c,
                     };
-                    let worst = [(bb[0], bb[1]), (bb[2], bb[1]), (bb[0], bb[3]), (bb[2], bb[3])]
-                        .iter()
-                        .map(|&(x, y)| df.eval(f64::from(x), f64::from(y)).abs())
-                        .fold(0.0, f64::max);
+                    let worst = [
+                        (bb[0], bb[1]),
+                        (bb[2], bb[1]),
+                        (bb[0], bb[3]),
+                        (bb[2], bb[3]),
+                    ]
+                    .iter()
+                    .map(|&(x, y)| df.eval(f64::from(x), f64::from(y)).abs())
+                    .fold(0.0, f64::max);
                     if worst > pre {
                         continue;
                     }
@@ -579,12 +631,21 @@ impl PlaneExtractor {
     /// The full-resolution assignment: the block's label is tried first; if it does not fit,
     /// or the block is unlabelled but touches a labelled block, all candidates of the tile are
     /// searched. Pixels of unlabelled blocks away from planes stay unlabelled (coherence).
-    fn final_pass(&mut self, w: usize, h: usize, w2: usize, h2: usize, tau: f32, labels: &mut [u16]) {
+    fn final_pass(
+        &mut self,
+        w: usize,
+        h: usize,
+        w2: usize,
+        h2: usize,
+        tau: f32,
+        labels: &mut [u16],
+    ) {
         self.acc.clear();
         self.acc.resize(self.planes.len(), FinalAcc::default());
         self.amb.clear();
         self.full.clear();
-        self.full.extend(self.planes.iter().map(|p| half_to_full(&p.f)));
+        self.full
+            .extend(self.planes.iter().map(|p| half_to_full(&p.f)));
         self.fa.clear();
         self.fa.extend(self.full.iter().map(|f| f.a as f32));
         let tiles = Tiles {
@@ -652,13 +713,19 @@ impl PlaneExtractor {
             let yf = y as f64;
             let jf = (y / 2) as f64;
             self.rowc.clear();
-            self.rowc.extend(self.full.iter().map(|f| (f.b * yf + f.c) as f32));
+            self.rowc
+                .extend(self.full.iter().map(|f| (f.b * yf + f.c) as f32));
             let row_d = &self.d[y * w..(y + 1) * w];
             let row_l = &labels[y * w..(y + 1) * w];
             let mut cur = 0u16;
             let mut i0 = 0usize;
             let mut rs = RunSums::default();
-            for (i, (&dv, &lab)) in row_d.iter().step_by(2).zip(row_l.iter().step_by(2)).enumerate() {
+            for (i, (&dv, &lab)) in row_d
+                .iter()
+                .step_by(2)
+                .zip(row_l.iter().step_by(2))
+                .enumerate()
+            {
                 if lab != cur {
                     rs.flush(&mut self.acc, cur, jf, i0, i);
                     cur = lab;
@@ -666,7 +733,9 @@ impl PlaneExtractor {
                 }
                 if lab != 0 {
                     let ku = lab as usize - 1;
-                    let (Some(&a), Some(&c)) = (self.fa.get(ku), self.rowc.get(ku)) else { continue };
+                    let (Some(&a), Some(&c)) = (self.fa.get(ku), self.rowc.get(ku)) else {
+                        continue;
+                    };
                     let x = 2 * i;
                     let r = dv - (a * x as f32 + c);
                     let df = f64::from(dv);
@@ -685,7 +754,14 @@ impl PlaneExtractor {
     }
 
     /// Final refit, 3D conversion, statistics, and compaction of the ids by decreasing size.
-    fn finish(&mut self, w: usize, h: usize, k: &Intrinsics, fb: f64, mut labels: Vec<u16>) -> Result<PlaneSegmentation> {
+    fn finish(
+        &mut self,
+        w: usize,
+        h: usize,
+        k: &Intrinsics,
+        fb: f64,
+        mut labels: Vec<u16>,
+    ) -> Result<PlaneSegmentation> {
         let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
         for (pi, a) in self.acc.iter().enumerate() {
             let n = a.sums.n;
@@ -699,7 +775,9 @@ impl PlaneExtractor {
                 b: fs.b / 2.0,
                 c: fs.c,
             };
-            let Ok(plane) = f.to_plane(k, fb) else { continue };
+            let Ok(plane) = f.to_plane(k, fb) else {
+                continue;
+            };
             let centroid_m = Point3::new(
                 fb * (a.sxi - k.cx * a.si) / (k.fx * n),
                 fb * (a.syi - k.cy * a.si) / (k.fy * n),
@@ -718,7 +796,7 @@ impl PlaneExtractor {
                 },
             ));
         }
-        out.sort_by(|a, b| b.1.pixels.cmp(&a.1.pixels));
+        out.sort_by_key(|o| std::cmp::Reverse(o.1.pixels));
         self.lut.clear();
         self.lut.resize(self.acc.len() + 1, 0);
         for (new, (old, info)) in out.iter_mut().enumerate() {
@@ -807,7 +885,13 @@ fn coarse_assign(
         {
             let cands = tiles.cands(tx, ty);
             let i0 = tx * TILE_H;
-            for (o, (((&d, &m), l), f)) in dt.iter().zip(mt).zip(lt.iter_mut()).zip(ft.iter_mut()).enumerate() {
+            for (o, (((&d, &m), l), f)) in dt
+                .iter()
+                .zip(mt)
+                .zip(lt.iter_mut())
+                .zip(ft.iter_mut())
+                .enumerate()
+            {
                 let i = i0 + o;
                 // The incumbent (seed or previous) label is kept while it fits within τ, so
                 // the extension of another plane cannot cut a band through a seeded region;
@@ -819,7 +903,11 @@ fn coarse_assign(
                         (Some(&a), Some(&c)) => (d - (a * xf + c)).abs() < tau,
                         _ => false,
                     };
-                let lab = if keep { prev } else { best_of(cands, fa, rowc, d, xf, tau) };
+                let lab = if keep {
+                    prev
+                } else {
+                    best_of(cands, fa, rowc, d, xf, tau)
+                };
                 let fr = lab == 0 && m == 1;
                 *f = u8::from(fr);
                 free += usize::from(fr);
@@ -905,7 +993,13 @@ fn final_assign(
         let rowc: &[f32] = rowc;
         let j = y / 2;
         let ty = (j / TILE_H).min(th.saturating_sub(1));
-        let hrow = |jj: usize| if jj < h2 { &labh[jj * w2..(jj + 1) * w2] } else { empty };
+        let hrow = |jj: usize| {
+            if jj < h2 {
+                &labh[jj * w2..(jj + 1) * w2]
+            } else {
+                empty
+            }
+        };
         let hint_row = hrow(j);
         let up_row = if j > 0 { hrow(j - 1) } else { empty };
         let dn_row = hrow(j + 1);
@@ -925,7 +1019,8 @@ fn final_assign(
                     let hint = hint_row.get(i).copied().unwrap_or(0);
                     let mut search = hint != 0;
                     if hint != 0
-                        && let (Some(&a), Some(&c)) = (fa.get(hint as usize - 1), rowc.get(hint as usize - 1))
+                        && let (Some(&a), Some(&c)) =
+                            (fa.get(hint as usize - 1), rowc.get(hint as usize - 1))
                         && (dv - (a * xf + c)).abs() < tau
                     {
                         lab = hint;
@@ -943,7 +1038,9 @@ fn final_assign(
                         let mut sk = 0u16;
                         for &k in cands {
                             let ku = k as usize;
-                            let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) else { continue };
+                            let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) else {
+                                continue;
+                            };
                             let ar = (dv - (a * xf + c)).abs();
                             if ar < best {
                                 second = best;
@@ -988,5 +1085,10 @@ fn grow(bb: &mut [u32; 4], x0: usize, x1: usize, y: usize) {
 }
 
 fn union_box(a: &[u32; 4], b: &[u32; 4]) -> [u32; 4] {
-    [a[0].min(b[0]), a[1].min(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+    [
+        a[0].min(b[0]),
+        a[1].min(b[1]),
+        a[2].max(b[2]),
+        a[3].max(b[3]),
+    ]
 }

@@ -131,7 +131,8 @@ impl AffineSums {
         let m = Matrix3::new(cxx, cxy, 0.0, cxy, cyy, 0.0, 0.0, 0.0, 1.0);
         let rhs = Vector3::new(cxd, cyd, md);
         let det = cxx * cyy - cxy * cxy;
-        if !(det > 1e-9 * (cxx * cyy).max(1e-30)) || !(cxx > 1e-12 && cyy > 1e-12) {
+        let well_posed = det > 1e-9 * (cxx * cyy).max(1e-30) && cxx > 1e-12 && cyy > 1e-12;
+        if !well_posed {
             return None;
         }
         let sol = m.lu().solve(&rhs)?;
@@ -151,13 +152,18 @@ impl AffineSums {
         let ([cxx, cxy, cyy, cxd, cyd, cdd], [mx, my, md]) = self.centred();
         let (a, b) = (f.a, f.b);
         let e = md - a * mx - b * my - f.c;
-        let v = cdd + a * a * cxx + b * b * cyy + 2.0 * a * b * cxy - 2.0 * a * cxd - 2.0 * b * cyd + e * e;
+        let v = cdd + a * a * cxx + b * b * cyy + 2.0 * a * b * cxy - 2.0 * a * cxd - 2.0 * b * cyd
+            + e * e;
         (v * self.n).max(0.0)
     }
 
     /// RMS residual of `f` over the samples, pixels of disparity.
     pub fn rms(&self, f: &DisparityAffine) -> f64 {
-        if self.n <= 0.0 { 0.0 } else { (self.rss(f) / self.n).sqrt() }
+        if self.n <= 0.0 {
+            0.0
+        } else {
+            (self.rss(f) / self.n).sqrt()
+        }
     }
 }
 
@@ -167,7 +173,11 @@ mod tests {
 
     #[test]
     fn exact_fit_and_runs() {
-        let f = DisparityAffine { a: 0.013, b: -0.021, c: 40.0 };
+        let f = DisparityAffine {
+            a: 0.013,
+            b: -0.021,
+            c: 40.0,
+        };
         let mut s = AffineSums::default();
         let mut r = AffineSums::default();
         for y in 100..140 {
@@ -181,7 +191,14 @@ mod tests {
             }
             r.add_run(y as f64, 300, 620, sd, sxd, sdd);
         }
-        for (u, v) in [(s.n, r.n), (s.sx, r.sx), (s.sxx, r.sxx), (s.sxy, r.sxy), (s.syy, r.syy), (s.syd, r.syd)] {
+        for (u, v) in [
+            (s.n, r.n),
+            (s.sx, r.sx),
+            (s.sxx, r.sxx),
+            (s.sxy, r.sxy),
+            (s.syy, r.syy),
+            (s.syd, r.syd),
+        ] {
             assert!((u - v).abs() <= 1e-9 * u.abs().max(1.0));
         }
         let g = s.solve().unwrap();

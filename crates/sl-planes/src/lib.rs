@@ -50,7 +50,10 @@ pub mod segcomp;
 pub use error::{PlanesError, Result};
 pub use extract::{PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, extract_planes};
 pub use fit::AffineSums;
-pub use motion::{IcpConfig, IcpResult, MotionConfig, PlaneMatch, PlaneMotion, estimate_motion, icp_point_to_plane};
+pub use motion::{
+    IcpConfig, IcpResult, MotionConfig, PlaneMatch, PlaneMotion, estimate_motion,
+    icp_point_to_plane,
+};
 pub use plane::{DisparityAffine, Plane3};
 pub use ransac::{RansacConfig, metric_ransac};
 pub use segcomp::{SegCompScore, segcomp};

@@ -19,7 +19,9 @@ pub const MAX_BOX_RADIUS: usize = 8;
 
 /// Box radius and Laplacian step for a LoG scale `sigma_px` (in pixels of the filtered image).
 pub fn log_geometry(sigma_px: f64) -> (usize, usize) {
-    let r = (((1.0 + 6.0 * sigma_px * sigma_px).sqrt() - 1.0) / 2.0).round().max(1.0) as usize;
+    let r = (((1.0 + 6.0 * sigma_px * sigma_px).sqrt() - 1.0) / 2.0)
+        .round()
+        .max(1.0) as usize;
     let s = sigma_px.round().max(1.0) as usize;
     (r.min(MAX_BOX_RADIUS), s)
 }
@@ -115,7 +117,11 @@ pub fn planar_mask(
     // Erosion by the 4-neighbour cross.
     let mut count = 0usize;
     for y in 1..h - 1 {
-        let (u, c, dn) = (&raw[(y - 1) * w..y * w], &raw[y * w..(y + 1) * w], &raw[(y + 1) * w..(y + 2) * w]);
+        let (u, c, dn) = (
+            &raw[(y - 1) * w..y * w],
+            &raw[y * w..(y + 1) * w],
+            &raw[(y + 1) * w..(y + 2) * w],
+        );
         let out = &mut mask[y * w..(y + 1) * w];
         for x in 1..w - 1 {
             let v = c[x] & c[x - 1] & c[x + 1] & u[x] & dn[x];
@@ -133,7 +139,9 @@ mod tests {
     #[test]
     fn affine_is_planar_and_steps_are_not() {
         let (w, h) = (80, 60);
-        let mut d: Vec<f32> = (0..w * h).map(|i| 30.0 + 0.05 * (i % w) as f32 - 0.03 * (i / w) as f32).collect();
+        let mut d: Vec<f32> = (0..w * h)
+            .map(|i| 30.0 + 0.05 * (i % w) as f32 - 0.03 * (i / w) as f32)
+            .collect();
         let mut buf = LogBuffers::default();
         let mut mask = Vec::new();
         let (r, s) = log_geometry(2.0);

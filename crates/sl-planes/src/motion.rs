@@ -8,14 +8,18 @@
 //!   differ by less than `max_angle_deg` and offsets by less than `max_offset_m`. Every two
 //!   candidate pairs with non-parallel normals and a consistent mutual angle propose a rotation
 //!   (Kabsch on the two normals); the proposal supported by the largest pixel weight of
-//!   one-to-one matches within `inlier_angle_deg` wins.
+//!   one-to-one matches within `inlier_angle_deg` whose offsets agree with one translation
+//!   (within `inlier_offset_m`) wins.
 //! * **Rotation** from all matches by weighted Kabsch (SVD of `Σ w·n_a·n_bᵀ`, weights = the
 //!   smaller pixel count of the pair): needs ≥ 2 non-parallel normals.
 //! * **Translation** from `n_a·t = d_b − d_a` by weighted least squares; it is reported as
 //!   determined only when the matched normals span 3D (≥ 3 independent planes).
 //! * **ICP**: point-to-plane with projective data association, the reference the paper used.
 
-use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    Isometry3, Matrix3, Matrix6, Point3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion,
+    Vector3, Vector6,
+};
 use sl_core::{Camera, DepthImage};
 
 use crate::error::{PlanesError, Result};
@@ -32,6 +36,8 @@ pub struct MotionConfig {
     pub inlier_angle_deg: f64,
     /// Two normals closer than this are treated as parallel, degrees.
     pub min_spread_deg: f64,
+    /// Largest disagreement of a match's offset with the common translation, metres.
+    pub inlier_offset_m: f64,
     /// Smallest eigenvalue of the normalised normal scatter `Σw·n·nᵀ / Σw` for the translation
     /// to count as determined.
     pub min_translation_eigen: f64,
@@ -44,6 +50,7 @@ impl Default for MotionConfig {
             max_offset_m: 0.5,
             inlier_angle_deg: 4.0,
             min_spread_deg: 15.0,
+            inlier_offset_m: 0.08,
             min_translation_eigen: 0.02,
         }
     }
@@ -80,7 +87,10 @@ impl PlaneMotion {
     /// The motion as an isometry (`translation_partial_m` when the translation is not fully
     /// determined).
     pub fn isometry(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(Translation3::from(self.translation_m.unwrap_or(self.translation_partial_m)), self.rotation)
+        Isometry3::from_parts(
+            Translation3::from(self.translation_m.unwrap_or(self.translation_partial_m)),
+            self.rotation,
+        )
     }
 }
 
@@ -95,7 +105,8 @@ pub fn weighted_kabsch(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Ro
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut sv = svd.singular_values;
     sv.as_mut_slice().sort_by(|a, b| b.total_cmp(a));
-    if !(sv[1] > 1e-9 * sv[0].max(1e-300)) {
+    let rank2 = sv[1] > 1e-9 * sv[0].max(1e-300);
+    if !rank2 {
         return None;
     }
     let v = v_t.transpose();
@@ -104,8 +115,37 @@ pub fn weighted_kabsch(pairs: &[(Vector3<f64>, Vector3<f64>, f64)]) -> Option<Ro
     Some(Rotation3::from_matrix_unchecked(v * fix * u.transpose()))
 }
 
+/// Minimum-norm weighted least-squares `t` of `n·t = δ` over `(n, δ, w)` rows, restricted to
+/// the eigen-directions of `Σw·n·nᵀ/Σw` above `min_eigen`.
+fn partial_translation(rows: &[(Vector3<f64>, f64, f64)], min_eigen: f64) -> Vector3<f64> {
+    let mut m = Matrix3::zeros();
+    let mut v = Vector3::zeros();
+    let mut sw = 0.0;
+    for (n, delta, w) in rows {
+        m += *w * n * n.transpose();
+        v += *w * n * *delta;
+        sw += w;
+    }
+    if sw <= 0.0 {
+        return Vector3::zeros();
+    }
+    let eig = SymmetricEigen::new(m / sw);
+    let mut t = Vector3::zeros();
+    for i in 0..3 {
+        let l = eig.eigenvalues[i];
+        if l > min_eigen {
+            let e = eig.eigenvectors.column(i).into_owned();
+            t += e * (e.dot(&(v / sw)) / l);
+        }
+    }
+    t
+}
+
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    (a.dot(b) / (a.norm() * b.norm())).clamp(-1.0, 1.0).acos().to_degrees()
+    (a.dot(b) / (a.norm() * b.norm()))
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees()
 }
 
 /// Matches the planes of two frames and estimates the motion of B in A's coordinates.
@@ -121,7 +161,9 @@ pub fn estimate_motion(
     let mut cands: Vec<PlaneMatch> = Vec::new();
     for (i, pa) in planes_a.iter().enumerate() {
         for (j, pb) in bt.iter().enumerate() {
-            if pa.plane.angle_deg(pb) < cfg.max_angle_deg && (pa.plane.offset_m - pb.offset_m).abs() < cfg.max_offset_m {
+            if pa.plane.angle_deg(pb) < cfg.max_angle_deg
+                && (pa.plane.offset_m - pb.offset_m).abs() < cfg.max_offset_m
+            {
                 cands.push(PlaneMatch {
                     a: i,
                     b: j,
@@ -146,11 +188,30 @@ pub fn estimate_motion(
             if angle_deg(&na(m), &(r * nb(m))) < cfg.inlier_angle_deg {
                 used_a[m.a] = true;
                 used_b[m.b] = true;
-                score += m.weight;
                 out.push(*m);
             }
         }
-        (score, out)
+        // Offsets must agree with one translation: d_a = d_b − n_a·t (least squares over the
+        // directions the normals determine).
+        let rows: Vec<(Vector3<f64>, f64, f64)> = out
+            .iter()
+            .map(|m| {
+                (
+                    na(m),
+                    bt[m.b].offset_m - planes_a[m.a].plane.offset_m,
+                    m.weight,
+                )
+            })
+            .collect();
+        let t = partial_translation(&rows, cfg.min_translation_eigen);
+        let kept: Vec<PlaneMatch> = out
+            .into_iter()
+            .zip(&rows)
+            .filter(|(_, (n, delta, _))| (delta - n.dot(&t)).abs() < cfg.inlier_offset_m)
+            .map(|(m, _)| m)
+            .collect();
+        let score = kept.iter().map(|m| m.weight).sum();
+        (score, kept)
     };
     let mut best: Option<(f64, Vec<PlaneMatch>)> = None;
     for (x, m1) in cands.iter().enumerate() {
@@ -166,7 +227,9 @@ pub fn estimate_motion(
             if (spread_a - spread_b).abs() > 2.0 * cfg.inlier_angle_deg {
                 continue;
             }
-            let Some(r) = weighted_kabsch(&[(na(m1), nb(m1), m1.weight), (na(m2), nb(m2), m2.weight)]) else {
+            let Some(r) =
+                weighted_kabsch(&[(na(m1), nb(m1), m1.weight), (na(m2), nb(m2), m2.weight)])
+            else {
                 continue;
             };
             let (score, ms) = inliers(&r);
@@ -184,8 +247,15 @@ pub fn estimate_motion(
         )));
     };
     // Refine on all inliers, then re-collect once.
-    let refine = |ms: &[PlaneMatch]| weighted_kabsch(&ms.iter().map(|m| (na(m), nb(m), m.weight)).collect::<Vec<_>>());
-    let mut r = refine(&matches).ok_or_else(|| PlanesError::MotionUndetermined("degenerate normals".into()))?;
+    let refine = |ms: &[PlaneMatch]| {
+        weighted_kabsch(
+            &ms.iter()
+                .map(|m| (na(m), nb(m), m.weight))
+                .collect::<Vec<_>>(),
+        )
+    };
+    let mut r = refine(&matches)
+        .ok_or_else(|| PlanesError::MotionUndetermined("degenerate normals".into()))?;
     let (_, again) = inliers(&r);
     if again.len() >= 2
         && let Some(r2) = refine(&again)
@@ -195,10 +265,14 @@ pub fn estimate_motion(
     }
     let rotation = UnitQuaternion::from_rotation_matrix(&(r * g.rotation.to_rotation_matrix()));
     // Translation from the original (untransformed) B planes: n_a·t = d_b − d_a.
-    let (translation_m, translation_partial_m, matches) = solve_translation(planes_a, planes_b, &rotation, matches, cfg);
+    let (translation_m, translation_partial_m, matches) =
+        solve_translation(planes_a, planes_b, &rotation, matches, cfg);
     let (mut sw, mut sa) = (0.0, 0.0);
     for m in &matches {
-        let a = angle_deg(&planes_a[m.a].plane.normal, &(rotation * planes_b[m.b].plane.normal));
+        let a = angle_deg(
+            &planes_a[m.a].plane.normal,
+            &(rotation * planes_b[m.b].plane.normal),
+        );
         sw += m.weight;
         sa += m.weight * a * a;
     }
@@ -364,15 +438,23 @@ pub fn icp_point_to_plane(
     let mut rms = 0.0;
     let iters = cfg.iterations.max(1);
     for it in 0..iters {
-        let frac = if iters > 1 { it as f64 / (iters - 1) as f64 } else { 1.0 };
+        let frac = if iters > 1 {
+            it as f64 / (iters - 1) as f64
+        } else {
+            1.0
+        };
         let maxd = cfg.max_dist_m + (cfg.min_dist_m - cfg.max_dist_m) * frac;
         let mut ata = Matrix6::<f64>::zeros();
         let mut atb = Vector6::<f64>::zeros();
         let (mut n_in, mut ss) = (0usize, 0.0);
         for p in &src {
             let q = pose * p;
-            let Some(pix) = k.project_to_pixel(&q) else { continue };
-            let Some((a, n)) = normals[pix.1 * w + pix.0] else { continue };
+            let Some(pix) = k.project_to_pixel(&q) else {
+                continue;
+            };
+            let Some((a, n)) = normals[pix.1 * w + pix.0] else {
+                continue;
+            };
             if (q - a).norm() > maxd {
                 continue;
             }
@@ -386,15 +468,22 @@ pub fn icp_point_to_plane(
         }
         inliers = n_in;
         if n_in < 6 {
-            return Err(PlanesError::MotionUndetermined(format!("ICP found only {n_in} correspondences")));
+            return Err(PlanesError::MotionUndetermined(format!(
+                "ICP found only {n_in} correspondences"
+            )));
         }
         rms = (ss / n_in as f64).sqrt();
         let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else {
-            return Err(PlanesError::MotionUndetermined("ICP normal equations are singular".into()));
+            return Err(PlanesError::MotionUndetermined(
+                "ICP normal equations are singular".into(),
+            ));
         };
         let dr = UnitQuaternion::from_scaled_axis(Vector3::new(x[0], x[1], x[2]));
         let dt = Vector3::new(x[3], x[4], x[5]);
-        pose = Isometry3::from_parts(Translation3::from(dr * pose.translation.vector + dt), dr * pose.rotation);
+        pose = Isometry3::from_parts(
+            Translation3::from(dr * pose.translation.vector + dt),
+            dr * pose.rotation,
+        );
         if x.norm() < 1e-7 && frac >= 1.0 {
             break;
         }
@@ -413,7 +502,10 @@ mod tests {
     #[test]
     fn kabsch_recovers_rotation() {
         let r = Rotation3::from_scaled_axis(Vector3::new(0.2, -0.4, 0.1));
-        let bs = [Vector3::new(0.0, 0.0, -1.0), Vector3::new(0.0, -1.0, 0.1).normalize()];
+        let bs = [
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(0.0, -1.0, 0.1).normalize(),
+        ];
         let pairs: Vec<_> = bs.iter().map(|b| (r * b, *b, 1.0)).collect();
         let est = weighted_kabsch(&pairs).unwrap();
         assert!(est.angle_to(&r) < 1e-9);

@@ -30,7 +30,11 @@ pub fn depth_to_rgb(depth: &DepthImage) -> Vec<u8> {
     let span = (hi - lo).max(1e-6);
     let mut out = Vec::with_capacity(depth.data().len() * 3);
     for &z in depth.data() {
-        let g = if z > 0.0 && z.is_finite() { (255.0 - 200.0 * (z - lo) / span) as u8 } else { 0 };
+        let g = if z > 0.0 && z.is_finite() {
+            (255.0 - 200.0 * (z - lo) / span) as u8
+        } else {
+            0
+        };
         out.extend_from_slice(&[g, g, g]);
     }
     out
@@ -51,7 +55,11 @@ pub fn overlay_rgb(labels: &Image<u16>, base_rgb: &[u8], alpha: f32) -> Option<V
             out.extend(px.iter().map(|&v| (f32::from(v) * 0.5) as u8));
         } else {
             let c = label_color(l);
-            out.extend(px.iter().zip(c).map(|(&v, c)| (f32::from(v) * (1.0 - a) + f32::from(c) * a) as u8));
+            out.extend(
+                px.iter()
+                    .zip(c)
+                    .map(|(&v, c)| (f32::from(v) * (1.0 - a) + f32::from(c) * a) as u8),
+            );
         }
     }
     Some(out)

@@ -47,7 +47,10 @@ impl Plane3 {
             n = -n;
             d = -d;
         }
-        Ok(Self { normal: n, offset_m: d })
+        Ok(Self {
+            normal: n,
+            offset_m: d,
+        })
     }
 
     /// The plane through `point` with the given normal.
@@ -59,7 +62,9 @@ impl Plane3 {
     pub fn from_paper(abc: Vector3<f64>) -> Result<Self> {
         let len = abc.norm();
         if !(len.is_finite() && len > 1e-12) {
-            return Err(PlanesError::DegeneratePlane(format!("paper coefficients {abc:?}")));
+            return Err(PlanesError::DegeneratePlane(format!(
+                "paper coefficients {abc:?}"
+            )));
         }
         Ok(Self {
             normal: abc / len,
@@ -70,7 +75,8 @@ impl Plane3 {
     /// The paper's coefficients `(a, b, c) = n / d`; an error for a plane through the camera
     /// centre.
     pub fn paper_coefficients(&self) -> Result<Vector3<f64>> {
-        if !(self.offset_m > 1e-12) {
+        let off_centre = self.offset_m > 1e-12;
+        if !off_centre {
             return Err(PlanesError::DegeneratePlane(
                 "a plane through the camera centre has no aX+bY+cZ+1=0 form".into(),
             ));
@@ -85,7 +91,11 @@ impl Plane3 {
 
     /// Angle between the two normals, degrees (orientation-aware: 0 for equal normals).
     pub fn angle_deg(&self, other: &Plane3) -> f64 {
-        self.normal.dot(&other.normal).clamp(-1.0, 1.0).acos().to_degrees()
+        self.normal
+            .dot(&other.normal)
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees()
     }
 
     /// The plane expressed in another frame: if `t` maps this plane's frame B into frame A
@@ -95,9 +105,15 @@ impl Plane3 {
         let n = t.rotation * self.normal;
         let d = self.offset_m - n.dot(&t.translation.vector);
         if d < 0.0 {
-            Plane3 { normal: -n, offset_m: -d }
+            Plane3 {
+                normal: -n,
+                offset_m: -d,
+            }
         } else {
-            Plane3 { normal: n, offset_m: d }
+            Plane3 {
+                normal: n,
+                offset_m: d,
+            }
         }
     }
 
@@ -137,7 +153,9 @@ impl DisparityAffine {
     pub fn from_plane(plane: &Plane3, k: &Intrinsics, fb: f64) -> Result<Self> {
         let m = plane.paper_coefficients()?;
         if !(fb.is_finite() && fb > 0.0) {
-            return Err(PlanesError::InvalidConfig(format!("f·B = {fb} must be positive")));
+            return Err(PlanesError::InvalidConfig(format!(
+                "f·B = {fb} must be positive"
+            )));
         }
         let a = -fb * m.x / k.fx;
         let b = -fb * m.y / k.fy;
@@ -149,7 +167,9 @@ impl DisparityAffine {
     /// An error when the function is (numerically) zero everywhere: a plane at infinity.
     pub fn to_plane(&self, k: &Intrinsics, fb: f64) -> Result<Plane3> {
         if !(fb.is_finite() && fb > 0.0) {
-            return Err(PlanesError::InvalidConfig(format!("f·B = {fb} must be positive")));
+            return Err(PlanesError::InvalidConfig(format!(
+                "f·B = {fb} must be positive"
+            )));
         }
         let m = Vector3::new(
             -self.a * k.fx / fb,
@@ -157,7 +177,9 @@ impl DisparityAffine {
             -(self.c + self.a * k.cx + self.b * k.cy) / fb,
         );
         if !m.iter().all(|v| v.is_finite()) {
-            return Err(PlanesError::DegeneratePlane(format!("{self:?} is not finite")));
+            return Err(PlanesError::DegeneratePlane(format!(
+                "{self:?} is not finite"
+            )));
         }
         Plane3::from_paper(m)
     }
@@ -165,7 +187,12 @@ impl DisparityAffine {
     /// The paper's eq. 14 coefficients `(a, b, 1/B, c·f − a·u − b·v)` of
     /// `a·x + b·y + D/B + (c·f − a·u − b·v) = 0` for a camera with `fx = fy = f`, baseline `B`.
     pub fn paper_eq14(&self, baseline_m: f64) -> [f64; 4] {
-        [-self.a / baseline_m, -self.b / baseline_m, 1.0 / baseline_m, -self.c / baseline_m]
+        [
+            -self.a / baseline_m,
+            -self.b / baseline_m,
+            1.0 / baseline_m,
+            -self.c / baseline_m,
+        ]
     }
 }
 
@@ -210,11 +237,16 @@ mod tests {
         let plane = Plane3::new(Vector3::new(0.0, 0.3, -1.0), 2.0).unwrap();
         let t = Isometry3::new(Vector3::new(0.1, -0.2, 0.3), Vector3::new(0.05, -0.1, 0.2));
         // A point on the plane in B, moved into A, lies on the transformed plane.
-        let p_b = Point3::new(0.4, 0.0, 0.0) + plane.normal * -plane.signed_distance(&Point3::new(0.4, 0.0, 0.0));
+        let p_b = Point3::new(0.4, 0.0, 0.0)
+            + plane.normal * -plane.signed_distance(&Point3::new(0.4, 0.0, 0.0));
         assert!(plane.signed_distance(&p_b).abs() < 1e-12);
         let pa = t * p_b;
         assert!(plane.transformed(&t).signed_distance(&pa).abs() < 1e-12);
         assert!(Plane3::new(Vector3::zeros(), 1.0).is_err());
-        assert!(DisparityAffine::default().to_plane(&Intrinsics::kinect_v1(), 43.5).is_err());
+        assert!(
+            DisparityAffine::default()
+                .to_plane(&Intrinsics::kinect_v1(), 43.5)
+                .is_err()
+        );
     }
 }

@@ -59,14 +59,22 @@ pub fn fit_plane_pca(points: &[Point3<f64>]) -> Option<Plane3> {
         m += d * d.transpose();
     }
     let eig = SymmetricEigen::new(m);
-    let (imin, _) = eig.eigenvalues.iter().enumerate().min_by(|a, b| a.1.total_cmp(b.1))?;
+    let (imin, _) = eig
+        .eigenvalues
+        .iter()
+        .enumerate()
+        .min_by(|a, b| a.1.total_cmp(b.1))?;
     let normal = eig.eigenvectors.column(imin).into_owned();
     Plane3::new(normal, -normal.dot(&c)).ok()
 }
 
 /// Sequential metric RANSAC on a depth image. Returns the same structure as the disparity
 /// extractor (the disparity-affine coefficients are derived from the 3D planes).
-pub fn metric_ransac(depth: &DepthImage, camera: &Camera, cfg: &RansacConfig) -> Result<PlaneSegmentation> {
+pub fn metric_ransac(
+    depth: &DepthImage,
+    camera: &Camera,
+    cfg: &RansacConfig,
+) -> Result<PlaneSegmentation> {
     let k = &camera.intrinsics;
     if depth.width() != k.width || depth.height() != k.height {
         return Err(PlanesError::SizeMismatch {
@@ -99,7 +107,9 @@ pub fn metric_ransac(depth: &DepthImage, camera: &Camera, cfg: &RansacConfig) ->
     let thr = cfg.threshold_m;
     while planes.len() < cfg.max_planes && remaining.len() >= cfg.min_pixels.max(3) {
         let nr = remaining.len();
-        let subset: Vec<usize> = (0..cfg.score_samples.min(nr)).map(|_| remaining[rng.random_range(0..nr)]).collect();
+        let subset: Vec<usize> = (0..cfg.score_samples.min(nr))
+            .map(|_| remaining[rng.random_range(0..nr)])
+            .collect();
         let mut best: Option<(usize, Plane3)> = None;
         for _ in 0..cfg.iterations {
             let (a, b, c) = (
@@ -109,8 +119,13 @@ pub fn metric_ransac(depth: &DepthImage, camera: &Camera, cfg: &RansacConfig) ->
             );
             let (pa, pb, pc) = (pts[a], pts[b], pts[c]);
             let nrm = (pb - pa).cross(&(pc - pa));
-            let Ok(pl) = Plane3::new(nrm, -nrm.dot(&pa.coords)) else { continue };
-            let score = subset.iter().filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr).count();
+            let Ok(pl) = Plane3::new(nrm, -nrm.dot(&pa.coords)) else {
+                continue;
+            };
+            let score = subset
+                .iter()
+                .filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr)
+                .count();
             if best.is_none_or(|(s, _)| score > s) {
                 best = Some((score, pl));
             }
@@ -118,15 +133,19 @@ pub fn metric_ransac(depth: &DepthImage, camera: &Camera, cfg: &RansacConfig) ->
         let Some((_, mut pl)) = best else { break };
         // Inliers, PCA refit, inliers again.
         for _ in 0..2 {
-            let inl: Vec<Point3<f64>> =
-                remaining.iter().filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr).map(|&i| pts[i]).collect();
+            let inl: Vec<Point3<f64>> = remaining
+                .iter()
+                .filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr)
+                .map(|&i| pts[i])
+                .collect();
             match fit_plane_pca(&inl) {
                 Some(p) => pl = p,
                 None => break,
             }
         }
-        let (inl, rest): (Vec<usize>, Vec<usize>) =
-            remaining.iter().partition(|&&i| pl.signed_distance(&pts[i]).abs() < thr);
+        let (inl, rest): (Vec<usize>, Vec<usize>) = remaining
+            .iter()
+            .partition(|&&i| pl.signed_distance(&pts[i]).abs() < thr);
         if inl.len() < cfg.min_pixels {
             break;
         }

@@ -58,10 +58,14 @@ pub fn segcomp(
     if let Some(v) = valid
         && v.len() != gt.data().len()
     {
-        return Err(PlanesError::InvalidConfig("valid mask has the wrong length".into()));
+        return Err(PlanesError::InvalidConfig(
+            "valid mask has the wrong length".into(),
+        ));
     }
     if !(t > 0.5 && t <= 1.0) {
-        return Err(PlanesError::InvalidConfig(format!("tolerance {t} must be in (0.5, 1]")));
+        return Err(PlanesError::InvalidConfig(format!(
+            "tolerance {t} must be in (0.5, 1]"
+        )));
     }
     let ok = |i: usize| valid.is_none_or(|v| v[i]);
     let mut gsize: HashMap<u16, usize> = HashMap::new();
@@ -168,17 +172,51 @@ mod tests {
         let s = segcomp(&gt, &gt, None, 0.8, 1).unwrap();
         assert_eq!((s.correct, s.missed, s.noise), (2, 0, 0));
         // Left split into two, right merged with nothing: over-segmentation + correct.
-        let over = img(20, 10, |x, y| if x < 10 { if y < 5 { 5 } else { 6 } } else { 7 });
+        let over = img(
+            20,
+            10,
+            |x, y| if x < 10 { if y < 5 { 5 } else { 6 } } else { 7 },
+        );
         let s = segcomp(&gt, &over, None, 0.8, 1).unwrap();
-        assert_eq!((s.correct, s.over_segmented, s.under_segmented, s.missed, s.noise), (1, 1, 0, 0, 0));
+        assert_eq!(
+            (
+                s.correct,
+                s.over_segmented,
+                s.under_segmented,
+                s.missed,
+                s.noise
+            ),
+            (1, 1, 0, 0, 0)
+        );
         // One machine region covering both: under-segmentation.
         let under = img(20, 10, |_, _| 3);
         let s = segcomp(&gt, &under, None, 0.8, 1).unwrap();
-        assert_eq!((s.correct, s.under_segmented, s.missed, s.noise), (0, 1, 0, 0));
+        assert_eq!(
+            (s.correct, s.under_segmented, s.missed, s.noise),
+            (0, 1, 0, 0)
+        );
         // Right half only 50 % labelled, plus a noise region in the unlabelled area: right is
         // missed, and both right-side machine regions are noise.
-        let gt3 = img(20, 10, |x, _| if x < 10 { 1 } else if x < 15 { 2 } else { 0 });
-        let partial = img(20, 10, |x, y| if x < 10 { 1 } else if y < 3 && x < 15 { 2 } else if x >= 15 { 9 } else { 0 });
+        let gt3 = img(20, 10, |x, _| {
+            if x < 10 {
+                1
+            } else if x < 15 {
+                2
+            } else {
+                0
+            }
+        });
+        let partial = img(20, 10, |x, y| {
+            if x < 10 {
+                1
+            } else if y < 3 && x < 15 {
+                2
+            } else if x >= 15 {
+                9
+            } else {
+                0
+            }
+        });
         let s = segcomp(&gt3, &partial, None, 0.8, 1).unwrap();
         assert_eq!((s.correct, s.missed, s.noise), (1, 1, 2));
         // The valid mask removes pixels from both images.

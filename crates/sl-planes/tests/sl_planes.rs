@@ -2,10 +2,13 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use proptest::prelude::*;
-use sl_core::nalgebra::{Isometry3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, DepthImage, Image, Intrinsics, SensorModel};
 use sl_noise::sim::KinectSimulator;
-use sl_planes::{MotionConfig, Plane3, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion, metric_ransac, segcomp};
+use sl_planes::{
+    MotionConfig, Plane3, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion,
+    metric_ransac, segcomp,
+};
 
 /// A 160x120 camera (focal length `f`) with the Kinect sensor model (f·B = 43.5 px·m).
 fn small_camera(f: f64) -> Camera {
@@ -45,7 +48,10 @@ fn render(k: &Intrinsics, planes: &[Plane3], max_z: f64) -> (DepthImage, Image<u
             }
         }
     }
-    (DepthImage::from_vec(k.width, k.height, depth).unwrap(), Image::from_vec(k.width, k.height, labels).unwrap())
+    (
+        DepthImage::from_vec(k.width, k.height, depth).unwrap(),
+        Image::from_vec(k.width, k.height, labels).unwrap(),
+    )
 }
 
 fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
@@ -91,7 +97,11 @@ fn two_planes_one_centimetre_apart_stay_separate() {
     let cam = small_camera(145.0);
     let k = cam.intrinsics;
     // A table seen at 45°, a book 1 cm above it covering a middle band, a wall at 3 m above.
-    let n = Vector3::new(0.0, -(45f64.to_radians().sin()), -(45f64.to_radians().cos()));
+    let n = Vector3::new(
+        0.0,
+        -(45f64.to_radians().sin()),
+        -(45f64.to_radians().cos()),
+    );
     let table = Plane3::new(n, 0.6 * 45f64.to_radians().cos()).unwrap();
     let book = Plane3::new(n, table.offset_m - 0.01).unwrap();
     let wall = Plane3::new(Vector3::new(0.0, 0.0, -1.0), 3.0).unwrap();
@@ -105,7 +115,7 @@ fn two_planes_one_centimetre_apart_stay_separate() {
             let i = y * k.width + x;
             let (lab, z) = if y < 30 {
                 (3, truth_w.data()[i])
-            } else if (50..75).contains(&x) && (55..95).contains(&y) {
+            } else if (40..100).contains(&x) && (50..100).contains(&y) {
                 (2, truth_b.data()[i])
             } else {
                 (1, truth_t.data()[i])
@@ -118,11 +128,31 @@ fn two_planes_one_centimetre_apart_stay_separate() {
     let gt = Image::from_vec(k.width, k.height, gt).unwrap();
     let depth = noisy(&truth, 7);
     let valid: Vec<bool> = depth.data().iter().map(|&z| z > 0.0).collect();
-    let seg = PlaneExtractor::new(cfg_small()).unwrap().extract_depth(&depth, &cam).unwrap();
+    let seg = PlaneExtractor::new(cfg_small())
+        .unwrap()
+        .extract_depth(&depth, &cam)
+        .unwrap();
     let score = segcomp(&gt, &seg.labels, Some(&valid), 0.8, 100).unwrap();
-    assert_eq!(score.correct, 3, "{score:?} planes {:?}", seg.planes.iter().map(|p| (p.pixels, p.plane.offset_m)).collect::<Vec<_>>());
+    assert_eq!(
+        score.correct,
+        3,
+        "{score:?} planes {:?}",
+        seg.planes
+            .iter()
+            .map(|p| (p.pixels, p.plane.offset_m))
+            .collect::<Vec<_>>()
+    );
     // The metric baseline with 20 mm cannot tell the table from the book.
-    let rs = metric_ransac(&depth, &cam, &RansacConfig { threshold_m: 0.02, min_pixels: 200, ..RansacConfig::default() }).unwrap();
+    let rs = metric_ransac(
+        &depth,
+        &cam,
+        &RansacConfig {
+            threshold_m: 0.02,
+            min_pixels: 200,
+            ..RansacConfig::default()
+        },
+    )
+    .unwrap();
     let rscore = segcomp(&gt, &rs.labels, Some(&valid), 0.8, 100).unwrap();
     assert!(rscore.correct < 3, "{rscore:?}");
 }
@@ -139,8 +169,16 @@ fn a_deep_plane_is_one_plane() {
     let stats = truth.stats().unwrap();
     assert!(stats.min < 0.65 && stats.max > 3.8, "{stats:?}");
     let depth = noisy(&truth, 3);
-    let seg = PlaneExtractor::new(cfg_small()).unwrap().extract_depth(&depth, &cam).unwrap();
-    assert_eq!(seg.planes.len(), 1, "{:?}", seg.planes.iter().map(|p| p.pixels).collect::<Vec<_>>());
+    let seg = PlaneExtractor::new(cfg_small())
+        .unwrap()
+        .extract_depth(&depth, &cam)
+        .unwrap();
+    assert_eq!(
+        seg.planes.len(),
+        1,
+        "{:?}",
+        seg.planes.iter().map(|p| p.pixels).collect::<Vec<_>>()
+    );
     assert!(seg.planes[0].pixels as f64 > 0.9 * depth.valid_count() as f64);
     assert!(seg.planes[0].plane.angle_deg(&plane) < 0.5);
 }
@@ -190,9 +228,5 @@ proptest! {
         if let Some(tr) = m.translation_m {
             prop_assert!((tr - b_in_a.translation.vector).norm() < 0.03, "translation {tr:?}");
         }
-        // A point of B maps onto A's plane.
-        let p = Point3::new(0.0, 0.0, 3.0);
-        prop_assert!(p.coords.norm() > 0.0);
-        let _ = Rotation3::<f64>::identity();
     }
 }

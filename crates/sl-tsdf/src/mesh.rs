@@ -273,13 +273,26 @@ impl TsdfVolume {
         let v = self.params().voxel_m as f32;
         let min_w = opts.min_weight;
         let keys = self.keys();
+        // Which signs each block holds among its observed voxels (bit 0: F < 0, bit 1: F ≥ 0).
+        let signs: Vec<u8> = self
+            .blocks()
+            .par_iter()
+            .map(|blk| {
+                let mut bits = 0u8;
+                for (f, w) in blk.tsdf.iter().zip(&blk.weight) {
+                    if *w > 0.0 && *w >= min_w {
+                        bits |= if *f < 0.0 { 1 } else { 2 };
+                    }
+                }
+                bits
+            })
+            .collect();
         // Phase A: vertices on edges owned by each block.
         let per_block: Vec<BlockVertices> = keys
             .par_iter()
-            .map(|&key| {
+            .enumerate()
+            .map(|(slot, &key)| {
                 let b = unpack(key);
-                let nb = Neighbourhood::new(self, b);
-                let origin = b.map(|c| (c * BLOCK_SIDE as i32) as f32);
                 let mut bv = BlockVertices {
                     mask: EdgeMask {
                         bits: [0; MASK_WORDS],
@@ -289,6 +302,20 @@ impl TsdfVolume {
                     normals: Vec::new(),
                     confidence: Vec::new(),
                 };
+                // The edges this block owns join its voxels to voxels of the block itself or of
+                // its +x, +y, +z neighbours: without both signs among them, there is no vertex.
+                let mut union = signs[slot];
+                for off in [[1, 0, 0], [0, 1, 0], [0, 0, 1]] {
+                    if let Some(s) = self.block_slot([b[0] + off[0], b[1] + off[1], b[2] + off[2]])
+                    {
+                        union |= signs[s];
+                    }
+                }
+                if union != 3 {
+                    return bv;
+                }
+                let nb = Neighbourhood::new(self, b);
+                let origin = b.map(|c| (c * BLOCK_SIDE as i32) as f32);
                 for lz in 0..BLOCK_SIDE as i32 {
                     for ly in 0..BLOCK_SIDE as i32 {
                         for lx in 0..BLOCK_SIDE as i32 {

@@ -1,6 +1,9 @@
 //! End-to-end tests of the `sldepth` binary, including the regression tests over the seeded
 //! synthetic frames in `testdata/` (regenerate them with `cargo xtask gen-testdata`).
 
+// Test code: a panic is a failed test.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -11,6 +11,7 @@ use serde::Serialize;
 mod filter;
 mod noise;
 mod tsdf;
+mod planes;
 // @experiment-modules (add `mod name;` above this line)
 
 /// One experiment: a name (for `--only`) and its entry point.
@@ -21,6 +22,7 @@ const EXPERIMENTS: &[Experiment] = &[
     ("noise", noise::run),
     ("tsdf", tsdf::run),
     ("filter", filter::run),
+    ("planes", planes::run),
     // @experiments (add `("name", name::run),` above this line)
 ];
 
@@ -285,11 +287,11 @@ fn write_report(ctx: &Context, timings: &[(&str, f64)]) -> Result<()> {
     for (name, s) in timings {
         let _ = writeln!(md, "- {name}: {s:.1} s");
     }
-    sl_io::atomic::write_atomic(&ctx.out_dir.join("REPORT.md"), |w| {
+    sl_io::atomic::write_atomic(ctx.out_dir.join("REPORT.md"), |w| {
         w.write_all(md.as_bytes())
     })?;
     let json =
         serde_json::to_vec_pretty(&serde_json::json!({ "rows": ctx.rows, "checks": ctx.checks }))?;
-    sl_io::atomic::write_atomic(&ctx.out_dir.join("results.json"), |w| w.write_all(&json))?;
+    sl_io::atomic::write_atomic(ctx.out_dir.join("results.json"), |w| w.write_all(&json))?;
     Ok(())
 }
