@@ -148,3 +148,48 @@ fn help_names_units() {
         assert!(help.contains("UNITS_PER_M"), "{cmd}: {help}");
     }
 }
+
+/// `fuse` on a committed frame with an identity pose: a mesh whose vertices lie at the frame's
+/// depths, the JSON fields the issue names, and a clear error past the memory budget.
+#[test]
+fn fuse_meshes_a_frame_and_refuses_past_the_budget() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let depth = testdata("three-planes-seed3-depth.png");
+    let list = dir.path().join("frames.txt");
+    let identity = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
+    std::fs::write(&list, format!("{} {identity}\n", depth.display())).unwrap_or_else(|e| panic!("{e}"));
+    let mesh = dir.path().join("mesh.ply");
+    let v = json_of(&sldepth(&[
+        "fuse",
+        "--frames",
+        path_str(&list),
+        "--voxel-m",
+        "0.01",
+        "--output",
+        path_str(&mesh),
+        "--json",
+    ]));
+    for key in ["frames", "integrate_ms_median", "extract_ms", "vertices", "triangles", "blocks", "memory_bytes"] {
+        assert!(v.get(key).is_some(), "missing {key}: {v}");
+    }
+    assert_eq!(v["frames"], 1);
+    let data = sl_io::ply::read_ply(&mesh).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(data.positions.len() as u64, v["vertices"].as_u64().unwrap_or(0));
+    assert_eq!(data.faces.len() as u64, v["triangles"].as_u64().unwrap_or(0));
+    assert!(data.faces.len() > 1000, "{} triangles", data.faces.len());
+    // The scene's surfaces are 0.5 to 3.5 m in front of the camera (identity pose: world = camera).
+    assert!(data.positions.iter().all(|p| p[2] > 0.45 && p[2] < 3.6));
+
+    let o = sldepth(&[
+        "fuse",
+        "--frames",
+        path_str(&list),
+        "--voxel-m",
+        "0.01",
+        "--memory-budget-bytes",
+        "100000",
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr).to_lowercase();
+    assert!(err.contains("budget"), "{err}");
+}
