@@ -15,7 +15,7 @@
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the
 //! width rounded up to the lane count). Invalid pixels and the padding hold a sentinel:
-//! [`INVALID_FILL`] (10¹⁸) for the range filters — its range exponent is below the cutoff of
+//! a sentinel (10¹⁸) for the range filters — its range exponent is below the cutoff of
 //! the weight function (`2^−100`), so its weight is exactly 0 and invalid neighbours need no
 //! mask — and 0 with an explicit mask for the Gaussian.
 //! This is what makes the border handling "window clipped at the border, weights renormalised
@@ -397,7 +397,9 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
                 sc[i] = s;
                 zs[i] = s * z;
             }
-            sw.fill(0.0);
+            // The centre tap has weight exactly 1 (w_s(0)·w_d(0)) and a zero difference: it
+            // initialises the sums and is skipped below.
+            sw.fill(1.0);
             swd.fill(0.0);
             for dy in 0..k {
                 let Ok(row) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
@@ -407,21 +409,18 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
                 let trow = &tap_w[dy * k..dy * k + k];
                 if R > 0 {
                     // Fast path: lanes outer (vectorised), the row's taps unrolled inside.
-                    for i in 0..CHUNK {
-                        let (s, z) = (sc[i], zs[i]);
-                        let (mut s0, mut s1) = (sw[i], swd[i]);
-                        for dx in 0..2 * R + 1 {
-                            let (w, e) = weight::<FMA, M>(row[i + dx], s, z, trow[dx]);
-                            s0 += w;
-                            s1 = if FMA { w.mul_add(e, s1) } else { s1 + w * e };
-                        }
-                        sw[i] = s0;
-                        swd[i] = s1;
+                    if dy == R {
+                        accumulate_row::<R, FMA, M, true>(row, trow, &sc, &zs, &mut sw, &mut swd);
+                    } else {
+                        accumulate_row::<R, FMA, M, false>(row, trow, &sc, &zs, &mut sw, &mut swd);
                     }
                 } else {
                     // Runtime radius: taps outer, lanes inner (vectorised).
                     let row = &win[dy * stride + x0..];
                     for (dx, &t) in trow.iter().enumerate() {
+                        if dy == r && dx == r {
+                            continue;
+                        }
                         let nb = &row[dx..dx + CHUNK];
                         for i in 0..CHUNK {
                             let (w, e) = weight::<FMA, M>(nb[i], sc[i], zs[i], t);
@@ -452,6 +451,34 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
             out_row[x0..x0 + n].copy_from_slice(&res[..n]);
             x0 += CHUNK;
         }
+    }
+}
+
+/// Adds the taps of one window row (constant radius `R`) to the sums of a chunk: lanes outer
+/// (vectorised), taps unrolled inside; `SKIP_CENTRE` leaves out the centre tap.
+#[inline(always)]
+fn accumulate_row<const R: usize, const FMA: bool, M: RangeMode, const SKIP_CENTRE: bool>(
+    row: &[f32; CW],
+    trow: &[f32],
+    sc: &[f32; CHUNK],
+    zs: &[f32; CHUNK],
+    sw: &mut [f32; CHUNK],
+    swd: &mut [f32; CHUNK],
+) {
+    let trow = &trow[..2 * R + 1];
+    for i in 0..CHUNK {
+        let (s, z) = (sc[i], zs[i]);
+        let (mut s0, mut s1) = (sw[i], swd[i]);
+        for dx in 0..2 * R + 1 {
+            if SKIP_CENTRE && dx == R {
+                continue;
+            }
+            let (w, e) = weight::<FMA, M>(row[i + dx], s, z, trow[dx]);
+            s0 += w;
+            s1 = if FMA { w.mul_add(e, s1) } else { s1 + w * e };
+        }
+        sw[i] = s0;
+        swd[i] = s1;
     }
 }
 

@@ -5,5 +5,6 @@
 mod sl_filter {
     pub mod common;
     mod invariants;
+    mod real;
     mod reference;
 }

@@ -67,7 +67,7 @@ impl Default for PlaneConfig {
             log_threshold_px: 0.1,
             log_sigma_px: 2.0,
             min_pixels: 1000,
-            max_iterations: 2,
+            max_iterations: 3,
             merge_px: 0.3,
             min_piece_pixels: 256,
         }

@@ -180,7 +180,6 @@ pub fn estimate_motion(
         let mut used_a = vec![false; planes_a.len()];
         let mut used_b = vec![false; planes_b.len()];
         let mut out = Vec::new();
-        let mut score = 0.0;
         for m in &cands {
             if used_a[m.a] || used_b[m.b] {
                 continue;

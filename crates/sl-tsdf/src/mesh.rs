@@ -273,6 +273,7 @@ impl TsdfVolume {
         let v = self.params().voxel_m as f32;
         let min_w = opts.min_weight;
         let keys = self.keys();
+        let ta = std::time::Instant::now(); // PROFTMP
         // Which signs each block holds among its observed voxels (bit 0: F < 0, bit 1: F ≥ 0).
         let signs: Vec<u8> = self
             .blocks()
@@ -378,6 +379,7 @@ impl TsdfVolume {
             })
             .collect();
 
+        let tb = std::time::Instant::now(); // PROFTMP
         // Phase B: global vertex offsets.
         let mut offsets = Vec::with_capacity(per_block.len() + 1);
         let mut total = 0u32;
@@ -457,6 +459,7 @@ impl TsdfVolume {
             })
             .collect();
 
+        let tc = std::time::Instant::now(); // PROFTMP
         // Phase D: keep referenced vertices only, renumbered in order.
         let mut used = vec![false; total as usize];
         for list in &tri_lists {
@@ -491,6 +494,8 @@ impl TsdfVolume {
             mesh.triangles
                 .extend(list.into_iter().map(|t| t.map(|i| remap[i as usize])));
         }
+        let td = std::time::Instant::now(); // PROFTMP
+        if std::env::var_os("PROFTMP").is_some() { eprintln!("mc A {:.1} C {:.1} D {:.1}", (tb-ta).as_secs_f64()*1e3, (tc-tb).as_secs_f64()*1e3, (td-tc).as_secs_f64()*1e3); } // PROFTMP
         mesh
     }
 }

@@ -274,8 +274,11 @@ impl TsdfVolume {
             });
         }
         k.validate()?;
+        let t0 = std::time::Instant::now(); // PROFTMP
         let (table, pixels_used) = self.pixel_table(depth, k);
+        let t1 = std::time::Instant::now(); // PROFTMP
         let keys = self.band_blocks(&table, k, pose)?;
+        let t2 = std::time::Instant::now(); // PROFTMP
         let new_keys: Vec<u64> = keys
             .iter()
             .copied()
@@ -311,7 +314,10 @@ impl TsdfVolume {
                 touched[i as usize] = true;
             }
         }
+        let t3 = std::time::Instant::now(); // PROFTMP
         self.update_blocks(&touched, &table, k, pose);
+        let t4 = std::time::Instant::now(); // PROFTMP
+        if std::env::var_os("PROFTMP").is_some() { eprintln!("table {:.1} band {:.1} alloc {:.1} update {:.1} keys {} new {}", (t1-t0).as_secs_f64()*1e3, (t2-t1).as_secs_f64()*1e3, (t3-t2).as_secs_f64()*1e3, (t4-t3).as_secs_f64()*1e3, keys.len(), new_keys.len()); } // PROFTMP
         self.frames += 1;
         Ok(IntegrateStats {
             blocks_touched: keys.len(),
