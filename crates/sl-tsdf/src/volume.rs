@@ -274,10 +274,17 @@ impl TsdfVolume {
             });
         }
         k.validate()?;
+        // Pixel indices are u32 in the inner loop, with one sentinel index past the image.
+        if k.width * k.height >= u32::MAX as usize {
+            return Err(TsdfError::InvalidParameter(format!(
+                "image size {}x{} has too many pixels",
+                k.width, k.height
+            )));
+        }
         let t0 = std::time::Instant::now(); // PROFTMP
         let (table, pixels_used) = self.pixel_table(depth, k);
         let t1 = std::time::Instant::now(); // PROFTMP
-        let keys = self.band_blocks(&table, k, pose)?;
+        let keys = self.band_blocks(&table[..k.width * k.height], k, pose)?;
         let t2 = std::time::Instant::now(); // PROFTMP
         let new_keys: Vec<u64> = keys
             .iter()
@@ -333,8 +340,10 @@ impl TsdfVolume {
         let wf = WeightFn::new(p.weight, p.z_ref_m);
         let (min_d, max_d) = (p.min_depth_m as f32, p.max_depth_m as f32);
         let w = k.width;
-        let mut table = vec![[0.0f32; 2]; w * k.height];
-        let used: usize = table
+        // One extra entry past the image, always `[0, 0]`: the pixel of voxels that project
+        // outside the image, so that the integration gathers without branching.
+        let mut table = vec![[0.0f32; 2]; w * k.height + 1];
+        let used: usize = table[..w * k.height]
             .par_chunks_mut(w)
             .zip(depth.data().par_chunks(w))
             .map(|(out, row)| {
@@ -443,7 +452,8 @@ impl TsdfVolume {
             k.cx as f32 + 0.5,
             k.cy as f32 + 0.5,
         );
-        let w = k.width;
+        let w32 = k.width as u32;
+        let outside = (k.width * k.height) as u32;
         let (wf32, hf32) = (k.width as f32, k.height as f32);
         let trunc = p.trunc_m as f32;
         let max_w = p.max_weight;
@@ -472,26 +482,28 @@ impl TsdfVolume {
                             ys[i] = row.y + step_x.y * sx[i];
                             z[i] = row.z + step_x.z * sx[i];
                         }
-                        let mut us = [0.0f32; N];
-                        let mut vs = [0.0f32; N];
+                        let mut pix = [0u32; N];
                         let mut lam = [0.0f32; N];
                         for i in 0..N {
                             let inv_z = 1.0 / z[i];
                             // Pixel centres are at integers: +0.5 then truncation rounds.
-                            us[i] = fx * xs[i] * inv_z + cx;
-                            vs[i] = fy * ys[i] * inv_z + cy;
+                            let u = fx * xs[i] * inv_z + cx;
+                            let vv = fy * ys[i] * inv_z + cy;
                             lam[i] = (xs[i] * xs[i] + ys[i] * ys[i] + z[i] * z[i]).sqrt() * inv_z;
+                            let inside =
+                                z[i] > 0.0 && u >= 0.0 && vv >= 0.0 && u < wf32 && vv < hf32;
+                            // In range when `inside`: 0 <= u < w, 0 <= v < h.
+                            let (ui, vi) = (u as i32 as u32, vv as i32 as u32);
+                            pix[i] = if inside { vi * w32 + ui } else { outside };
                         }
-                        // Stage 2 (scalar gather): depth and weight of each voxel's pixel.
+                        // Stage 2 (scalar gather): depth and weight of each voxel's pixel, or
+                        // `[0, 0]` (the sentinel entry) outside the image or behind the camera.
                         let mut d = [0.0f32; N];
                         let mut wg = [0.0f32; N];
                         for i in 0..N {
-                            let (u, vv) = (us[i], vs[i]);
-                            if z[i] > 0.0 && u >= 0.0 && vv >= 0.0 && u < wf32 && vv < hf32 {
-                                let px = table[vv as usize * w + u as usize];
-                                d[i] = px[0];
-                                wg[i] = px[1];
-                            }
+                            let px = table.get(pix[i] as usize).copied().unwrap_or_default();
+                            d[i] = px[0];
+                            wg[i] = px[1];
                         }
                         // Stage 3 (vectorisable, branch-free): line-of-sight distance
                         // ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ along the voxel's own ray; an

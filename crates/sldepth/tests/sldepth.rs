@@ -157,7 +157,8 @@ fn fuse_meshes_a_frame_and_refuses_past_the_budget() {
     let depth = testdata("three-planes-seed3-depth.png");
     let list = dir.path().join("frames.txt");
     let identity = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
-    std::fs::write(&list, format!("{} {identity}\n", depth.display())).unwrap_or_else(|e| panic!("{e}"));
+    std::fs::write(&list, format!("{} {identity}\n", depth.display()))
+        .unwrap_or_else(|e| panic!("{e}"));
     let mesh = dir.path().join("mesh.ply");
     let v = json_of(&sldepth(&[
         "fuse",
@@ -169,13 +170,27 @@ fn fuse_meshes_a_frame_and_refuses_past_the_budget() {
         path_str(&mesh),
         "--json",
     ]));
-    for key in ["frames", "integrate_ms_median", "extract_ms", "vertices", "triangles", "blocks", "memory_bytes"] {
+    for key in [
+        "frames",
+        "integrate_ms_median",
+        "extract_ms",
+        "vertices",
+        "triangles",
+        "blocks",
+        "memory_bytes",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}: {v}");
     }
     assert_eq!(v["frames"], 1);
     let data = sl_io::ply::read_ply(&mesh).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(data.positions.len() as u64, v["vertices"].as_u64().unwrap_or(0));
-    assert_eq!(data.faces.len() as u64, v["triangles"].as_u64().unwrap_or(0));
+    assert_eq!(
+        data.positions.len() as u64,
+        v["vertices"].as_u64().unwrap_or(0)
+    );
+    assert_eq!(
+        data.faces.len() as u64,
+        v["triangles"].as_u64().unwrap_or(0)
+    );
     assert!(data.faces.len() > 1000, "{} triangles", data.faces.len());
     // The scene's surfaces are 0.5 to 3.5 m in front of the camera (identity pose: world = camera).
     assert!(data.positions.iter().all(|p| p[2] > 0.45 && p[2] < 3.6));

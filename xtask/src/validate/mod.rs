@@ -10,8 +10,8 @@ use serde::Serialize;
 
 mod filter;
 mod noise;
-mod tsdf;
 mod planes;
+mod tsdf;
 // @experiment-modules (add `mod name;` above this line)
 
 /// One experiment: a name (for `--only`) and its entry point.
