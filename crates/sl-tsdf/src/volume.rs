@@ -457,73 +457,155 @@ impl TsdfVolume {
         let (wf32, hf32) = (k.width as f32, k.height as f32);
         let trunc = p.trunc_m as f32;
         let max_w = p.max_weight;
+        let frame = FrameConsts {
+            rt,
+            tt,
+            step_x,
+            step_y,
+            step_z,
+            fx,
+            fy,
+            cx,
+            cy,
+            wf32,
+            hf32,
+            w32,
+            outside,
+            trunc,
+            max_w,
+            v,
+        };
         let keys = &self.keys;
         self.blocks
             .par_iter_mut()
             .enumerate()
             .filter(|(i, _)| touched[*i])
-            .for_each(|(i, blk)| {
-                let b = unpack(keys[i]);
-                let o = [0, 1, 2].map(|a| (b[a] * BLOCK_SIDE as i32) as f32 * v);
-                let origin = rt * Vector3::new(o[0], o[1], o[2]) + tt;
-                const N: usize = BLOCK_SIDE;
-                let sx = [0, 1, 2, 3, 4, 5, 6, 7].map(|i| i as f32);
-                for lz in 0..N {
-                    for ly in 0..N {
-                        let row = origin + step_y * ly as f32 + step_z * lz as f32;
-                        let base = local_index(0, ly, lz);
-                        // Stage 1 (pure f32 arithmetic, vectorised): camera coordinates,
-                        // continuous pixel coordinates and λ = ‖P‖/z of the 8 voxels.
-                        let mut xs = [0.0f32; N];
-                        let mut ys = [0.0f32; N];
-                        let mut z = [0.0f32; N];
-                        for i in 0..N {
-                            xs[i] = row.x + step_x.x * sx[i];
-                            ys[i] = row.y + step_x.y * sx[i];
-                            z[i] = row.z + step_x.z * sx[i];
-                        }
-                        let mut pix = [0u32; N];
-                        let mut lam = [0.0f32; N];
-                        for i in 0..N {
-                            let inv_z = 1.0 / z[i];
-                            // Pixel centres are at integers: +0.5 then truncation rounds.
-                            let u = fx * xs[i] * inv_z + cx;
-                            let vv = fy * ys[i] * inv_z + cy;
-                            lam[i] = (xs[i] * xs[i] + ys[i] * ys[i] + z[i] * z[i]).sqrt() * inv_z;
-                            let inside =
-                                z[i] > 0.0 && u >= 0.0 && vv >= 0.0 && u < wf32 && vv < hf32;
-                            // In range when `inside`: 0 <= u < w, 0 <= v < h.
-                            let (ui, vi) = (u as i32 as u32, vv as i32 as u32);
-                            pix[i] = if inside { vi * w32 + ui } else { outside };
-                        }
-                        // Stage 2 (scalar gather): depth and weight of each voxel's pixel, or
-                        // `[0, 0]` (the sentinel entry) outside the image or behind the camera.
-                        let mut d = [0.0f32; N];
-                        let mut wg = [0.0f32; N];
-                        for i in 0..N {
-                            let px = table.get(pix[i] as usize).copied().unwrap_or_default();
-                            d[i] = px[0];
-                            wg[i] = px[1];
-                        }
-                        // Stage 3 (vectorisable, branch-free): line-of-sight distance
-                        // ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ along the voxel's own ray; an
-                        // invalid pixel (d = 0) or a voxel more than `trunc` behind the surface
-                        // gets weight 0 and is left unchanged.
-                        let tsdf = &mut blk.tsdf[base..base + N];
-                        let weight = &mut blk.weight[base..base + N];
-                        for i in 0..N {
-                            let sdf = (d[i] - z[i]) * lam[i];
-                            let in_band = sdf >= -trunc; // false for NaN (z = 0)
-                            let wgt = if in_band { wg[i] } else { 0.0 };
-                            let f = if in_band { sdf.min(trunc) } else { tsdf[i] };
-                            let wn = weight[i] + wgt;
-                            tsdf[i] += (f - tsdf[i]) * (wgt / wn.max(f32::MIN_POSITIVE));
-                            weight[i] = wn.min(max_w);
-                        }
-                    }
-                }
-            });
+            .for_each(|(i, blk)| integrate_block(blk, unpack(keys[i]), &frame, table));
     }
+}
+
+/// Per-frame constants of the voxel update (camera from world, intrinsics, band).
+#[derive(Debug, Clone, Copy)]
+struct FrameConsts {
+    rt: Matrix3<f32>,
+    tt: Vector3<f32>,
+    step_x: Vector3<f32>,
+    step_y: Vector3<f32>,
+    step_z: Vector3<f32>,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    wf32: f32,
+    hf32: f32,
+    w32: u32,
+    outside: u32,
+    trunc: f32,
+    max_w: f32,
+    v: f32,
+}
+
+/// Updates the 512 voxels of block `b` from one frame (`table`: per-pixel depth and weight,
+/// with the `[0, 0]` sentinel entry at index `frame.outside`).
+#[inline(never)]
+fn integrate_block(blk: &mut Block, b: [i32; 3], frame: &FrameConsts, table: &[[f32; 2]]) {
+    let FrameConsts {
+        rt,
+        tt,
+        step_x,
+        step_y,
+        step_z,
+        fx,
+        fy,
+        cx,
+        cy,
+        wf32,
+        hf32,
+        w32,
+        outside,
+        trunc,
+        max_w,
+        v,
+    } = *frame;
+    let o = [0, 1, 2].map(|a| (b[a] * BLOCK_SIDE as i32) as f32 * v);
+    let origin = rt * Vector3::new(o[0], o[1], o[2]) + tt;
+    // One z slice (8×8 voxels, contiguous in the block) at a time: loops of 64 independent
+    // lanes that the compiler vectorises.
+    const N: usize = BLOCK_SIDE * BLOCK_SIDE;
+    let lx: [f32; N] = std::array::from_fn(|i| (i % BLOCK_SIDE) as f32);
+    let ly: [f32; N] = std::array::from_fn(|i| (i / BLOCK_SIDE) as f32);
+    for lz in 0..BLOCK_SIDE {
+        let base = lz * N;
+        // Stage 1 (pure f32 arithmetic): camera coordinates, the pixel index and λ = ‖P‖/z.
+        // Each voxel's position is `((origin + step_y·ly) + step_z·lz) + step_x·lx`.
+        let mut xs = [0.0f32; N];
+        let mut ys = [0.0f32; N];
+        let mut z = [0.0f32; N];
+        let sz = step_z * lz as f32;
+        for i in 0..N {
+            xs[i] = ((origin.x + step_y.x * ly[i]) + sz.x) + step_x.x * lx[i];
+            ys[i] = ((origin.y + step_y.y * ly[i]) + sz.y) + step_x.y * lx[i];
+            z[i] = ((origin.z + step_y.z * ly[i]) + sz.z) + step_x.z * lx[i];
+        }
+        let mut pix = [0u32; N];
+        let mut lam = [0.0f32; N];
+        for i in 0..N {
+            let inv_z = 1.0 / z[i];
+            // Pixel centres are at integers: +0.5 then truncation rounds.
+            let u = fx * xs[i] * inv_z + cx;
+            let vv = fy * ys[i] * inv_z + cy;
+            lam[i] = (xs[i] * xs[i] + ys[i] * ys[i] + z[i] * z[i]).sqrt() * inv_z;
+            let inside = (z[i] > 0.0) & (u >= 0.0) & (vv >= 0.0) & (u < wf32) & (vv < hf32);
+            // In range when `inside`: 0 <= u < w, 0 <= v < h.
+            let (ui, vi) = (trunc_u32(u), trunc_u32(vv));
+            pix[i] = if inside {
+                vi.wrapping_mul(w32).wrapping_add(ui)
+            } else {
+                outside
+            };
+        }
+        // Stage 2 (scalar gather): depth and weight of each voxel's pixel, or `[0, 0]` (the
+        // sentinel entry) outside the image or behind the camera.
+        let mut d = [0.0f32; N];
+        let mut wg = [0.0f32; N];
+        for i in 0..N {
+            let px = table.get(pix[i] as usize).copied().unwrap_or_default();
+            d[i] = px[0];
+            wg[i] = px[1];
+        }
+        // Stage 3 (branch-free): line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ
+        // along the voxel's own ray; an invalid pixel (d = 0) or a voxel more than `trunc`
+        // behind the surface gets weight 0 and is left unchanged.
+        let tsdf = &mut blk.tsdf[base..base + N];
+        let weight = &mut blk.weight[base..base + N];
+        // Plain compares instead of `f32::min`/`max` (whose NaN rules block vectorisation):
+        // the same values, since `sdf` is only used when it is not NaN and `wn` is never NaN.
+        for i in 0..N {
+            let sdf = (d[i] - z[i]) * lam[i];
+            let in_band = sdf >= -trunc; // false for NaN (z = 0)
+            let wgt = if in_band { wg[i] } else { 0.0 };
+            let clipped = if sdf < trunc { sdf } else { trunc };
+            let f = if in_band { clipped } else { tsdf[i] };
+            let wn = weight[i] + wgt;
+            let den = if wn > f32::MIN_POSITIVE {
+                wn
+            } else {
+                f32::MIN_POSITIVE
+            };
+            tsdf[i] += (f - tsdf[i]) * (wgt / den);
+            weight[i] = if wn < max_w { wn } else { max_w };
+        }
+    }
+}
+
+/// `x as u32` for `0 ≤ x < 2²³` without a float-to-int conversion, so that a loop of them
+/// vectorises (the saturating `as` does not); meaningless for other `x`.
+#[inline(always)]
+fn trunc_u32(x: f32) -> u32 {
+    const MAGIC: f32 = 8_388_608.0; // 2^23: in [2^23, 2^24) the f32 spacing is 1
+    let r = (x + MAGIC) - MAGIC; // x rounded to the nearest integer, exactly
+    let t = if r > x { r - 1.0 } else { r }; // rounded down: trunc for x ≥ 0
+    (t + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits())
 }
 
 /// `floor` as an integer without a libm call (the baseline x86-64 target has no SSE4.1 round).
@@ -607,6 +689,25 @@ mod tests {
         }
         // Crosses 3 + 3 + 2 boundaries.
         assert_eq!(cells.len(), 9);
+    }
+
+    #[test]
+    fn trunc_u32_matches_cast() {
+        let mut xs = vec![0.0f32, 0.5, 0.999_999_9, 1.0, 1.5, 2.5, 639.5, 639.999_97, 65_535.99];
+        for i in 0..20_000u32 {
+            let base = (i / 4) as f32;
+            xs.push(base);
+            xs.push(f32::from_bits(base.to_bits() + 1));
+            xs.push(base + 0.5);
+            if base > 0.0 {
+                xs.push(f32::from_bits(base.to_bits() - 1));
+            }
+            xs.push(i as f32 * 0.37 + 0.013);
+        }
+        xs.push(8_388_607.5);
+        for x in xs {
+            assert_eq!(trunc_u32(x), x as u32, "{x}");
+        }
     }
 
     #[test]
