@@ -23,6 +23,20 @@ pub struct BandError {
     pub rmse_m: f64,
 }
 
+/// Turns per-band `(pixel count, sum of squared errors)` into [`BandError`]s.
+fn band_errors(bands: &[(f32, f32)], acc: &[(usize, f64)]) -> Vec<BandError> {
+    bands
+        .iter()
+        .zip(acc)
+        .map(|(&(lo_m, hi_m), &(n, s))| BandError {
+            lo_m,
+            hi_m,
+            pixels: n,
+            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+        })
+        .collect()
+}
+
 fn valid(z: f32) -> bool {
     z > 0.0 && z.is_finite()
 }
@@ -61,20 +75,7 @@ pub fn rmse_by_band(
             acc[b].1 += d * d;
         }
     }
-    Ok(bands
-        .iter()
-        .zip(acc)
-        .map(|(&(lo_m, hi_m), (n, s))| BandError {
-            lo_m,
-            hi_m,
-            pixels: n,
-            rmse_m: if n > 0 {
-                (s / n as f64).sqrt()
-            } else {
-                f64::NAN
-            },
-        })
-        .collect())
+    Ok(band_errors(bands, &acc))
 }
 
 /// RMSE over all bands together (pooled pixels), metres, and the pixel count.
@@ -371,20 +372,7 @@ pub fn plane_residual_by_band(
             }
         }
     }
-    Ok(bands
-        .iter()
-        .zip(acc)
-        .map(|(&(lo_m, hi_m), (n, s))| BandError {
-            lo_m,
-            hi_m,
-            pixels: n,
-            rmse_m: if n > 0 {
-                (s / n as f64).sqrt()
-            } else {
-                f64::NAN
-            },
-        })
-        .collect())
+    Ok(band_errors(bands, &acc))
 }
 
 #[cfg(test)]

@@ -32,6 +32,9 @@ pub struct Args {
     /// Directory with the real frames (default: ../shared/data beside the workspace).
     #[arg(long, value_name = "DIR")]
     data: Option<PathBuf>,
+    /// Behave as on a machine without the real data (simulated frames only).
+    #[arg(long, conflicts_with = "data")]
+    no_data: bool,
     /// Output directory for REPORT.md, results.json and images (default: target/validate).
     #[arg(long, value_name = "DIR")]
     out: Option<PathBuf>,
@@ -128,6 +131,7 @@ impl Context {
 pub fn main(args: Args) -> Result<()> {
     let root = crate::workspace_root();
     let data_dir = match args.data {
+        _ if args.no_data => None,
         Some(d) => {
             if !d.is_dir() {
                 bail!("--data {}: not a directory", d.display());
