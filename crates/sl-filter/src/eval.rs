@@ -32,7 +32,11 @@ fn band_errors(bands: &[(f32, f32)], acc: &[(usize, f64)]) -> Vec<BandError> {
             lo_m,
             hi_m,
             pixels: n,
-            rmse_m: if n > 0 { (s / n as f64).sqrt() } else { f64::NAN },
+            rmse_m: if n > 0 {
+                (s / n as f64).sqrt()
+            } else {
+                f64::NAN
+            },
         })
         .collect()
 }

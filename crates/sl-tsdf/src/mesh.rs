@@ -4,7 +4,7 @@ use rayon::prelude::*;
 
 use crate::hash::unpack;
 use crate::mc_table::{CORNERS, EDGES, table};
-use crate::volume::{BLOCK_SIDE, BLOCK_VOXELS, Block, TsdfVolume, Voxel, local_index};
+use crate::volume::{BLOCK_SIDE, BLOCK_VOXELS, Block, TsdfVolume, local_index};
 
 /// An indexed triangle mesh (world frame, metres). Triangles are counter-clockwise seen from
 /// the outside (the side with F > 0, towards the cameras); normals point the same way.
@@ -179,54 +179,150 @@ pub(crate) fn norm(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
-/// The 27 blocks around a block (offsets −1..=1 per axis), for voxel access across borders.
-struct Neighbourhood<'a> {
-    blocks: [Option<&'a Block>; 27],
+/// Side of the padded voxel grid around a block: local coordinates `-1..=8+1`.
+const G: usize = BLOCK_SIDE + 3;
+/// Cells of the padded grid.
+const G3: usize = G * G * G;
+
+/// Index of local voxel `(x, y, z)` (each in `-1..=9`) in the padded grid.
+#[inline(always)]
+fn gidx(x: i32, y: i32, z: i32) -> usize {
+    ((x + 1) + G as i32 * ((y + 1) + G as i32 * (z + 1))) as usize
+}
+
+/// A block's voxels with a one-voxel border below and a two-voxel border above (local
+/// coordinates `-1..=9`), copied from the 27 blocks around it, so that marching cubes reads
+/// plain arrays instead of looking up a neighbour block per voxel. Also the slots of those
+/// blocks (for vertex ownership) and which cubes have all 8 corners observed.
+struct BlockGrid {
+    /// `F` of each voxel (0 outside allocated blocks; only read where `obs` is set).
+    val: [f32; G3],
+    /// Accumulated weight of each voxel.
+    weight: [f32; G3],
+    /// Observed with at least the minimum weight (0 or 1).
+    obs: [u8; G3],
+    /// For the cube whose lowest corner is this voxel (`-1..=8` per axis): all 8 corners
+    /// observed (0 or 1).
+    cube_ok: [u8; G3],
+    /// Marching-cubes case of the cube whose lowest corner is this voxel (see
+    /// [`BlockGrid::cases`]; meaningful where `cube_ok`).
+    case: [u8; G3],
+    /// Slots of the 27 blocks around (offsets −1..=1, index `(dx+1) + 3(dy+1) + 9(dz+1)`),
+    /// `u32::MAX` where not allocated.
     slots: [u32; 27],
 }
 
-impl<'a> Neighbourhood<'a> {
-    fn new(vol: &'a TsdfVolume, b: [i32; 3]) -> Self {
-        let mut blocks = [None; 27];
-        let mut slots = [u32::MAX; 27];
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
+impl BlockGrid {
+    fn new() -> Box<Self> {
+        Box::new(Self {
+            val: [0.0; G3],
+            weight: [0.0; G3],
+            obs: [0; G3],
+            cube_ok: [0; G3],
+            case: [0; G3],
+            slots: [u32::MAX; 27],
+        })
+    }
+
+    /// Fills the grid around block `b`.
+    fn fill(&mut self, vol: &TsdfVolume, b: [i32; 3], min_w: f32) {
+        self.val.fill(0.0);
+        self.weight.fill(0.0);
+        // Local coordinate range each neighbour contributes, per offset −1, 0, +1.
+        const RANGES: [(i32, i32); 3] = [(7, 8), (0, 8), (0, 2)];
+        let s8 = BLOCK_SIDE as i32;
+        for dz in -1..=1i32 {
+            for dy in -1..=1i32 {
+                for dx in -1..=1i32 {
                     let i = ((dx + 1) + 3 * (dy + 1) + 9 * (dz + 1)) as usize;
-                    if let Some(s) = vol.block_slot([b[0] + dx, b[1] + dy, b[2] + dz]) {
-                        blocks[i] = Some(&vol.blocks()[s]);
-                        slots[i] = s as u32;
+                    self.slots[i] = u32::MAX;
+                    let Some(s) = vol.block_slot([b[0] + dx, b[1] + dy, b[2] + dz]) else {
+                        continue;
+                    };
+                    self.slots[i] = s as u32;
+                    let blk = &vol.blocks()[s];
+                    let (rx, ry, rz) = (
+                        RANGES[(dx + 1) as usize],
+                        RANGES[(dy + 1) as usize],
+                        RANGES[(dz + 1) as usize],
+                    );
+                    for z in rz.0..rz.1 {
+                        for y in ry.0..ry.1 {
+                            let src = local_index(rx.0 as usize, y as usize, z as usize);
+                            let dst = gidx(dx * s8 + rx.0, dy * s8 + y, dz * s8 + z);
+                            // Constant lengths, so that the copies are a few moves.
+                            match dx {
+                                -1 => self.copy_run::<1>(dst, blk, src),
+                                0 => self.copy_run::<8>(dst, blk, src),
+                                _ => self.copy_run::<2>(dst, blk, src),
+                            }
+                        }
                     }
                 }
             }
         }
-        Self { blocks, slots }
-    }
-
-    /// Voxel at local coordinates in `-8..16` relative to the centre block.
-    #[inline(always)]
-    fn get(&self, x: i32, y: i32, z: i32) -> Option<Voxel> {
-        let bi = ((x >> 3) + 1) + 3 * ((y >> 3) + 1) + 9 * ((z >> 3) + 1);
-        let blk = self.blocks[bi as usize]?;
-        Some(blk.voxel(local_index(
-            (x & 7) as usize,
-            (y & 7) as usize,
-            (z & 7) as usize,
-        )))
-    }
-
-    /// Slot and local edge key of the edge owned by voxel `(x, y, z)` (in `0..16`) along `axis`.
-    #[inline(always)]
-    fn edge_owner(&self, x: i32, y: i32, z: i32, axis: usize) -> Option<(u32, usize)> {
-        let bi = ((x >> 3) + 1) + 3 * ((y >> 3) + 1) + 9 * ((z >> 3) + 1);
-        let s = self.slots[bi as usize];
-        if s == u32::MAX {
-            return None;
+        for (o, &w) in self.obs.iter_mut().zip(&self.weight) {
+            *o = u8::from((w > 0.0) & (w >= min_w));
         }
-        Some((
-            s,
-            local_index((x & 7) as usize, (y & 7) as usize, (z & 7) as usize) * 3 + axis,
-        ))
+        // All 8 corners observed, separably along x, y, z over the flat array; the entries that
+        // wrap around a row or slice are cubes with a lowest corner at 9, which are never read.
+        let mut pair = [0u8; G3];
+        for (p, (a, b)) in pair.iter_mut().zip(self.obs.iter().zip(&self.obs[1..])) {
+            *p = a & b;
+        }
+        let mut quad = [0u8; G3];
+        for (q, (a, b)) in quad.iter_mut().zip(pair.iter().zip(&pair[G..])) {
+            *q = a & b;
+        }
+        for (c, (a, b)) in self.cube_ok.iter_mut().zip(quad.iter().zip(&quad[G * G..])) {
+            *c = a & b;
+        }
+    }
+
+    /// Copies `N` voxels of `blk` from local index `src` to grid index `dst`.
+    #[inline(always)]
+    fn copy_run<const N: usize>(&mut self, dst: usize, blk: &Block, src: usize) {
+        self.val[dst..dst + N].copy_from_slice(&blk.tsdf[src..src + N]);
+        self.weight[dst..dst + N].copy_from_slice(&blk.weight[src..src + N]);
+    }
+
+    /// Computes `case` of every cube with its lowest corner in `-1..=8` (bit `c` set when
+    /// corner `c` has `F < 0`), over the flat array so that it vectorises.
+    fn cases(&mut self) {
+        let mut neg = [0u8; G3];
+        for (n, &f) in neg.iter_mut().zip(&self.val) {
+            *n = u8::from(f < 0.0);
+        }
+        const OFF: [usize; 8] = [0, 1, G, G + 1, G * G, G * G + 1, G * G + G, G * G + G + 1];
+        self.case = [0; G3];
+        for (c, off) in OFF.iter().enumerate() {
+            for (k, &n) in self.case.iter_mut().zip(&neg[*off..]) {
+                *k |= n << c;
+            }
+        }
+    }
+
+    /// `F` at local voxel `p` if observed.
+    #[inline(always)]
+    fn get(&self, p: [i32; 3]) -> Option<f32> {
+        let g = gidx(p[0], p[1], p[2]);
+        (self.obs[g] != 0).then_some(self.val[g])
+    }
+
+    /// Whether a vertex on the edge from local voxel `p` along `axis` belongs to some kept
+    /// cube: one of the four cubes around the edge has all 8 corners observed. (Every such
+    /// cube has a sign change on the edge, so its triangulation uses the vertex.)
+    #[inline(always)]
+    fn edge_used(&self, p: [i32; 3], axis: usize) -> bool {
+        let (b, c) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut any = false;
+        for (ob, oc) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            let mut q = p;
+            q[b] -= ob;
+            q[c] -= oc;
+            any |= self.cube_ok[gidx(q[0], q[1], q[2])] != 0;
+        }
+        any
     }
 }
 
@@ -252,14 +348,15 @@ impl EdgeMask {
 
 struct BlockVertices {
     mask: EdgeMask,
+    /// Cubes of this block (lowest corner inside it) with all 8 corners observed and a sign
+    /// change: local index of the lowest corner and case, in index order.
+    cubes: Vec<(u16, u8)>,
+    /// Slots of this block and its 7 positive neighbours (index `dx + 2dy + 4dz`),
+    /// `u32::MAX` where not allocated.
+    slots: [u32; 8],
     positions: Vec<[f32; 3]>,
     normals: Vec<[f32; 3]>,
     confidence: Vec<f32>,
-}
-
-#[inline(always)]
-fn observed(v: &Voxel, min_w: f32) -> bool {
-    v.weight > 0.0 && v.weight >= min_w
 }
 
 impl TsdfVolume {
@@ -268,12 +365,12 @@ impl TsdfVolume {
     /// Cubes straddling block borders are handled through the neighbouring blocks. Each
     /// vertex lives on a voxel edge and is created once by the voxel at the edge's lower end,
     /// so the mesh is indexed without duplicates; cubes with an unobserved (or too lightly
-    /// weighted) corner are skipped, and vertices no kept cube uses are dropped.
+    /// weighted) corner are skipped, and so are vertices that no kept cube uses. The blocks
+    /// are processed in parallel; the output does not depend on the number of threads.
     pub fn extract_mesh(&self, opts: &ExtractOptions) -> Mesh {
         let v = self.params().voxel_m as f32;
         let min_w = opts.min_weight;
         let keys = self.keys();
-        let ta = std::time::Instant::now(); // PROFTMP
         // Which signs each block holds among its observed voxels (bit 0: F < 0, bit 1: F ≥ 0).
         let signs: Vec<u8> = self
             .blocks()
@@ -288,54 +385,90 @@ impl TsdfVolume {
                 bits
             })
             .collect();
-        // Phase A: vertices on edges owned by each block.
+        // Phase A: the used vertices on edges owned by each block, in (voxel, axis) order.
         let per_block: Vec<BlockVertices> = keys
             .par_iter()
             .enumerate()
-            .map(|(slot, &key)| {
+            .map_init(BlockGrid::new, |grid, (slot, &key)| {
                 let b = unpack(key);
                 let mut bv = BlockVertices {
                     mask: EdgeMask {
                         bits: [0; MASK_WORDS],
                         prefix: [0; MASK_WORDS],
                     },
+                    cubes: Vec::new(),
+                    slots: [u32::MAX; 8],
                     positions: Vec::new(),
                     normals: Vec::new(),
                     confidence: Vec::new(),
                 };
                 // The edges this block owns join its voxels to voxels of the block itself or of
                 // its +x, +y, +z neighbours: without both signs among them, there is no vertex.
-                let mut union = signs[slot];
-                for off in [[1, 0, 0], [0, 1, 0], [0, 0, 1]] {
-                    if let Some(s) = self.block_slot([b[0] + off[0], b[1] + off[1], b[2] + off[2]])
-                    {
-                        union |= signs[s];
+                // Its cubes reach into all 7 positive neighbours: without both signs among
+                // those, no cube here has a triangle either.
+                let (mut union_own, mut union_all) = (0u8, 0u8);
+                for c in 0..8usize {
+                    let off = [c & 1, (c >> 1) & 1, (c >> 2) & 1].map(|o| o as i32);
+                    let s = if c == 0 {
+                        Some(slot)
+                    } else {
+                        self.block_slot([b[0] + off[0], b[1] + off[1], b[2] + off[2]])
+                    };
+                    if let Some(s) = s {
+                        union_all |= signs[s];
+                        if c.count_ones() <= 1 {
+                            union_own |= signs[s];
+                        }
                     }
                 }
-                if union != 3 {
+                if union_all != 3 {
                     return bv;
                 }
-                let nb = Neighbourhood::new(self, b);
+                grid.fill(self, b, min_w);
+                grid.cases();
+                for c in 0..8usize {
+                    bv.slots[c] =
+                        grid.slots[13 + (c & 1) + 3 * ((c >> 1) & 1) + 9 * ((c >> 2) & 1)];
+                }
+                for lz in 0..BLOCK_SIDE as i32 {
+                    for ly in 0..BLOCK_SIDE as i32 {
+                        for lx in 0..BLOCK_SIDE as i32 {
+                            let g = gidx(lx, ly, lz);
+                            if grid.cube_ok[g] == 0 {
+                                continue;
+                            }
+                            let case = grid.case[g];
+                            if case != 0 && case != 255 {
+                                let i = local_index(lx as usize, ly as usize, lz as usize);
+                                bv.cubes.push((i as u16, case));
+                            }
+                        }
+                    }
+                }
+                if union_own != 3 {
+                    return bv;
+                }
                 let origin = b.map(|c| (c * BLOCK_SIDE as i32) as f32);
                 for lz in 0..BLOCK_SIDE as i32 {
                     for ly in 0..BLOCK_SIDE as i32 {
                         for lx in 0..BLOCK_SIDE as i32 {
-                            let Some(v0) = nb.get(lx, ly, lz) else {
-                                continue;
-                            };
-                            if !observed(&v0, min_w) {
+                            let g0 = gidx(lx, ly, lz);
+                            if grid.obs[g0] == 0 {
                                 continue;
                             }
+                            let f0 = grid.val[g0];
                             for axis in 0..3 {
                                 let mut n = [lx, ly, lz];
                                 n[axis] += 1;
-                                let Some(v1) = nb.get(n[0], n[1], n[2]) else {
-                                    continue;
-                                };
-                                if !observed(&v1, min_w) || (v0.tsdf < 0.0) == (v1.tsdf < 0.0) {
+                                let g1 = gidx(n[0], n[1], n[2]);
+                                let f1 = grid.val[g1];
+                                if grid.obs[g1] == 0 || (f0 < 0.0) == (f1 < 0.0) {
                                     continue;
                                 }
-                                let t = v0.tsdf / (v0.tsdf - v1.tsdf);
+                                if !grid.edge_used([lx, ly, lz], axis) {
+                                    continue;
+                                }
+                                let t = f0 / (f0 - f1);
                                 let key =
                                     local_index(lx as usize, ly as usize, lz as usize) * 3 + axis;
                                 bv.mask.bits[key / 64] |= 1 << (key % 64);
@@ -347,11 +480,11 @@ impl TsdfVolume {
                                 p[axis] += t;
                                 bv.positions.push(p.map(|c| c * v));
                                 if opts.normals {
-                                    let g0 = gradient(&nb, [lx, ly, lz], min_w);
-                                    let g1 = gradient(&nb, n, min_w);
+                                    let gr0 = gradient(grid, [lx, ly, lz]);
+                                    let gr1 = gradient(grid, n);
                                     let mut g = [0.0f32; 3];
                                     for i in 0..3 {
-                                        g[i] = g0[i] * (1.0 - t) + g1[i] * t;
+                                        g[i] = gr0[i] * (1.0 - t) + gr1[i] * t;
                                     }
                                     let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
                                     if len > 0.0 {
@@ -359,12 +492,13 @@ impl TsdfVolume {
                                     } else {
                                         // No usable gradient: the edge direction, towards F > 0.
                                         let mut e = [0.0f32; 3];
-                                        e[axis] = if v1.tsdf > v0.tsdf { 1.0 } else { -1.0 };
+                                        e[axis] = if f1 > f0 { 1.0 } else { -1.0 };
                                         bv.normals.push(e);
                                     }
                                 }
                                 if opts.confidence {
-                                    bv.confidence.push(v0.weight * (1.0 - t) + v1.weight * t);
+                                    bv.confidence
+                                        .push(grid.weight[g0] * (1.0 - t) + grid.weight[g1] * t);
                                 }
                             }
                         }
@@ -379,7 +513,6 @@ impl TsdfVolume {
             })
             .collect();
 
-        let tb = std::time::Instant::now(); // PROFTMP
         // Phase B: global vertex offsets.
         let mut offsets = Vec::with_capacity(per_block.len() + 1);
         let mut total = 0u32;
@@ -389,113 +522,57 @@ impl TsdfVolume {
         }
         offsets.push(total);
 
-        // Phase C: triangles.
+        // Phase C: triangles of the listed cubes, with global indices.
         let tab = table();
-        let tri_lists: Vec<Vec<[u32; 3]>> = keys
+        let tri_lists: Vec<Vec<[u32; 3]>> = per_block
             .par_iter()
-            .map(|&key| {
-                let b = unpack(key);
-                let nb = Neighbourhood::new(self, b);
+            .map(|bv| {
                 let mut out = Vec::new();
-                // Every edge of this block's cubes is owned by this block or one of its seven
-                // positive neighbours: if none of them has a vertex, no cube here has a
-                // triangle.
-                let any_vertex = (0..8).any(|c| {
-                    let bi = 13 + (c & 1) + 3 * ((c >> 1) & 1) + 9 * ((c >> 2) & 1);
-                    let s = nb.slots[bi];
-                    s != u32::MAX && !per_block[s as usize].positions.is_empty()
-                });
-                if !any_vertex {
-                    return out;
-                }
-                let mut vals = [0.0f32; 8];
-                for lz in 0..BLOCK_SIDE as i32 {
-                    for ly in 0..BLOCK_SIDE as i32 {
-                        'cube: for lx in 0..BLOCK_SIDE as i32 {
-                            let mut case = 0u8;
-                            for (c, off) in CORNERS.iter().enumerate() {
-                                let Some(vx) = nb.get(
-                                    lx + off[0] as i32,
-                                    ly + off[1] as i32,
-                                    lz + off[2] as i32,
-                                ) else {
-                                    continue 'cube;
-                                };
-                                if !observed(&vx, min_w) {
-                                    continue 'cube;
-                                }
-                                vals[c] = vx.tsdf;
-                                if vx.tsdf < 0.0 {
-                                    case |= 1 << c;
-                                }
+                'cube: for &(ci, case) in &bv.cubes {
+                    let (lx, ly, lz) = (ci & 7, (ci >> 3) & 7, ci >> 6);
+                    for tri in tab.triangles(case) {
+                        let mut idx = [0u32; 3];
+                        for (k, &e) in tri.iter().enumerate() {
+                            let (lo, _, axis) = EDGES[e as usize];
+                            let o = CORNERS[lo as usize];
+                            // The edge's owner voxel, in 0..=8 per axis.
+                            let (x, y, z) =
+                                (lx as usize + o[0], ly as usize + o[1], lz as usize + o[2]);
+                            let slot = bv.slots[(x >> 3) + 2 * (y >> 3) + 4 * (z >> 3)];
+                            if slot == u32::MAX {
+                                continue 'cube;
                             }
-                            if case == 0 || case == 255 {
-                                continue;
-                            }
-                            for tri in tab.triangles(case) {
-                                let mut idx = [0u32; 3];
-                                for (k, &e) in tri.iter().enumerate() {
-                                    let (lo, _, axis) = EDGES[e as usize];
-                                    let o = CORNERS[lo as usize];
-                                    let Some((slot, ek)) = nb.edge_owner(
-                                        lx + o[0] as i32,
-                                        ly + o[1] as i32,
-                                        lz + o[2] as i32,
-                                        axis as usize,
-                                    ) else {
-                                        continue 'cube;
-                                    };
-                                    let Some(r) = per_block[slot as usize].mask.rank(ek) else {
-                                        continue 'cube;
-                                    };
-                                    idx[k] = offsets[slot as usize] + r;
-                                }
-                                out.push(idx);
-                            }
+                            let ek = local_index(x & 7, y & 7, z & 7) * 3 + axis as usize;
+                            let Some(r) = per_block[slot as usize].mask.rank(ek) else {
+                                continue 'cube;
+                            };
+                            idx[k] = offsets[slot as usize] + r;
                         }
+                        out.push(idx);
                     }
                 }
                 out
             })
             .collect();
 
-        let tc = std::time::Instant::now(); // PROFTMP
-        // Phase D: keep referenced vertices only, renumbered in order.
-        let mut used = vec![false; total as usize];
-        for list in &tri_lists {
-            for t in list {
-                for &i in t {
-                    used[i as usize] = true;
-                }
-            }
-        }
-        let mut remap = vec![u32::MAX; total as usize];
+        // Phase D: concatenate (every vertex is used by some triangle: see `edge_used`).
         let mut mesh = Mesh::default();
-        let mut next = 0u32;
-        let mut gi = 0usize;
+        mesh.positions.reserve(total as usize);
+        if opts.normals {
+            mesh.normals.reserve(total as usize);
+        }
+        if opts.confidence {
+            mesh.confidence.reserve(total as usize);
+        }
         for bv in &per_block {
-            for j in 0..bv.positions.len() {
-                if used[gi] {
-                    remap[gi] = next;
-                    next += 1;
-                    mesh.positions.push(bv.positions[j]);
-                    if opts.normals {
-                        mesh.normals.push(bv.normals[j]);
-                    }
-                    if opts.confidence {
-                        mesh.confidence.push(bv.confidence[j]);
-                    }
-                }
-                gi += 1;
-            }
+            mesh.positions.extend_from_slice(&bv.positions);
+            mesh.normals.extend_from_slice(&bv.normals);
+            mesh.confidence.extend_from_slice(&bv.confidence);
         }
         mesh.triangles.reserve(tri_lists.iter().map(Vec::len).sum());
-        for list in tri_lists {
-            mesh.triangles
-                .extend(list.into_iter().map(|t| t.map(|i| remap[i as usize])));
+        for list in &tri_lists {
+            mesh.triangles.extend_from_slice(list);
         }
-        let td = std::time::Instant::now(); // PROFTMP
-        if std::env::var_os("PROFTMP").is_some() { eprintln!("mc A {:.1} C {:.1} D {:.1}", (tb-ta).as_secs_f64()*1e3, (tc-tb).as_secs_f64()*1e3, (td-tc).as_secs_f64()*1e3); } // PROFTMP
         mesh
     }
 }
@@ -503,25 +580,16 @@ impl TsdfVolume {
 /// Central-difference gradient of F at local voxel `p` (one-sided where a neighbour is
 /// unobserved), in metres per voxel (only its direction is used).
 #[inline]
-fn gradient(nb: &Neighbourhood<'_>, p: [i32; 3], min_w: f32) -> [f32; 3] {
+fn gradient(grid: &BlockGrid, p: [i32; 3]) -> [f32; 3] {
     let mut g = [0.0f32; 3];
-    let c = nb
-        .get(p[0], p[1], p[2])
-        .filter(|v| observed(v, min_w))
-        .map(|v| v.tsdf);
+    let c = grid.get(p);
     for axis in 0..3 {
         let mut lo = p;
         let mut hi = p;
         lo[axis] -= 1;
         hi[axis] += 1;
-        let f_lo = nb
-            .get(lo[0], lo[1], lo[2])
-            .filter(|v| observed(v, min_w))
-            .map(|v| v.tsdf);
-        let f_hi = nb
-            .get(hi[0], hi[1], hi[2])
-            .filter(|v| observed(v, min_w))
-            .map(|v| v.tsdf);
+        let f_lo = grid.get(lo);
+        let f_hi = grid.get(hi);
         g[axis] = match (f_lo, c, f_hi) {
             (Some(a), _, Some(b)) => 0.5 * (b - a),
             (None, Some(m), Some(b)) => b - m,

@@ -281,11 +281,8 @@ impl TsdfVolume {
                 k.width, k.height
             )));
         }
-        let t0 = std::time::Instant::now(); // PROFTMP
         let (table, pixels_used) = self.pixel_table(depth, k);
-        let t1 = std::time::Instant::now(); // PROFTMP
         let keys = self.band_blocks(&table[..k.width * k.height], k, pose)?;
-        let t2 = std::time::Instant::now(); // PROFTMP
         let new_keys: Vec<u64> = keys
             .iter()
             .copied()
@@ -321,10 +318,7 @@ impl TsdfVolume {
                 touched[i as usize] = true;
             }
         }
-        let t3 = std::time::Instant::now(); // PROFTMP
         self.update_blocks(&touched, &table, k, pose);
-        let t4 = std::time::Instant::now(); // PROFTMP
-        if std::env::var_os("PROFTMP").is_some() { eprintln!("table {:.1} band {:.1} alloc {:.1} update {:.1} keys {} new {}", (t1-t0).as_secs_f64()*1e3, (t2-t1).as_secs_f64()*1e3, (t3-t2).as_secs_f64()*1e3, (t4-t3).as_secs_f64()*1e3, keys.len(), new_keys.len()); } // PROFTMP
         self.frames += 1;
         Ok(IntegrateStats {
             blocks_touched: keys.len(),
@@ -578,14 +572,16 @@ fn integrate_block(blk: &mut Block, b: [i32; 3], frame: &FrameConsts, table: &[[
         // behind the surface gets weight 0 and is left unchanged.
         let tsdf = &mut blk.tsdf[base..base + N];
         let weight = &mut blk.weight[base..base + N];
-        // Plain compares instead of `f32::min`/`max` (whose NaN rules block vectorisation):
-        // the same values, since `sdf` is only used when it is not NaN and `wn` is never NaN.
+        // Plain compares instead of `f32::min`/`max` (whose NaN rules block vectorisation)
+        // and selects through bit masks: the same values, since `sdf` is only used when it is
+        // not NaN and `wn` is never NaN.
         for i in 0..N {
             let sdf = (d[i] - z[i]) * lam[i];
-            let in_band = sdf >= -trunc; // false for NaN (z = 0)
-            let wgt = if in_band { wg[i] } else { 0.0 };
+            // All ones when in the band; false for NaN (z = 0).
+            let in_band = 0u32.wrapping_sub(u32::from(sdf >= -trunc));
+            let wgt = f32::from_bits(wg[i].to_bits() & in_band);
             let clipped = if sdf < trunc { sdf } else { trunc };
-            let f = if in_band { clipped } else { tsdf[i] };
+            let f = f32::from_bits((clipped.to_bits() & in_band) | (tsdf[i].to_bits() & !in_band));
             let wn = weight[i] + wgt;
             let den = if wn > f32::MIN_POSITIVE {
                 wn
@@ -693,7 +689,17 @@ mod tests {
 
     #[test]
     fn trunc_u32_matches_cast() {
-        let mut xs = vec![0.0f32, 0.5, 0.999_999_9, 1.0, 1.5, 2.5, 639.5, 639.999_97, 65_535.99];
+        let mut xs = vec![
+            0.0f32,
+            0.5,
+            0.999_999_9,
+            1.0,
+            1.5,
+            2.5,
+            639.5,
+            639.999_97,
+            65_535.99,
+        ];
         for i in 0..20_000u32 {
             let base = (i / 4) as f32;
             xs.push(base);

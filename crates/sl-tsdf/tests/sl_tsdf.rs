@@ -6,7 +6,9 @@ use proptest::prelude::*;
 use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, DepthImage, Intrinsics, Pose};
 use sl_tsdf::synth::AnalyticScene;
-use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfError, TsdfParams, TsdfVolume, WeightMode};
+use sl_tsdf::{
+    Axis, ExtractOptions, Mesh, SliceSpec, TsdfError, TsdfParams, TsdfVolume, WeightMode,
+};
 
 fn small_camera() -> Intrinsics {
     Camera::kinect_v1().intrinsics.scaled(0.25).unwrap() // 160x120, f = 145
@@ -304,6 +306,72 @@ fn random_fields_give_crack_free_oriented_meshes() {
                 );
             }
         }
+    }
+}
+
+/// The parallel extraction gives the same mesh with any number of threads, and every vertex it
+/// emits is used by a triangle (also with unobserved voxels and a weight threshold).
+#[test]
+fn extraction_is_deterministic_and_has_no_unused_vertices() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let voxel = 0.1;
+    let n = 20i64; // voxels -10..10 per axis: 3-4 blocks per axis
+    let values: Vec<Option<f32>> = (0..(n * n * n))
+        .map(|_| {
+            let f = rng.random_range(-1.0f32..1.0);
+            (rng.random_range(0.0f32..1.0) > 0.15).then_some(f)
+        })
+        .collect();
+    let field = |p: &Point3<f64>| {
+        let g = [p.x, p.y, p.z].map(|c| (c / voxel).round() as i64 + n / 2);
+        if g.iter().all(|&c| (0..n).contains(&c)) {
+            values[(g[0] + n * (g[1] + n * g[2])) as usize]
+        } else {
+            None
+        }
+    };
+    let half = (n / 2) as f64 * voxel;
+    let vol = TsdfVolume::from_field(
+        params(voxel, 0.4, WeightMode::Uniform),
+        [-half; 3],
+        [half; 3],
+        field,
+    )
+    .unwrap();
+    for min_weight in [0.0, 1.0, 2.0] {
+        let opts = ExtractOptions {
+            min_weight,
+            ..ExtractOptions::default()
+        };
+        let meshes: Vec<Mesh> = [1, 2, 5]
+            .iter()
+            .map(|&threads| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap()
+                    .install(|| vol.extract_mesh(&opts))
+            })
+            .collect();
+        assert_eq!(meshes[0], meshes[1]);
+        assert_eq!(meshes[0], meshes[2]);
+        let mesh = &meshes[0];
+        if min_weight > 1.0 {
+            // Every voxel has weight 1: nothing passes.
+            assert_eq!(mesh.vertex_count(), 0);
+            continue;
+        }
+        assert!(mesh.triangle_count() > 1000, "{}", mesh.triangle_count());
+        let mut used = vec![false; mesh.vertex_count()];
+        for t in &mesh.triangles {
+            for &i in t {
+                used[i as usize] = true;
+            }
+        }
+        assert!(used.iter().all(|&u| u), "unused vertices");
+        assert_eq!(mesh.normals.len(), mesh.vertex_count());
+        assert_eq!(mesh.confidence.len(), mesh.vertex_count());
     }
 }
 
