@@ -72,7 +72,7 @@ fn analyze_recovers_the_simulated_sensor_from_testdata() {
 #[test]
 fn simulate_reproduces_committed_frames() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
-    for (scene, seed) in [("floor", "1"), ("three-planes", "3")] {
+    for (scene, seed) in [("floor", "1"), ("figure-walls", "2"), ("three-planes", "3")] {
         let out = dir.path().join(format!("{scene}.png"));
         let labels = dir.path().join(format!("{scene}-labels.png"));
         let o = sldepth(&[
