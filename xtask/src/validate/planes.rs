@@ -305,43 +305,33 @@ fn real(ctx: &mut Context) -> Result<()> {
         let base = overlay::depth_to_rgb(&depth);
         report_real(ctx, &mut md, "nyu-raw", &depth, &seg, ms, &base, &mut imgs)?;
     }
-    // 7-Scenes (depth not registered to colour: drawn over the depth).
-    let sev = data.join("7scenes-redkitchen/frame-000150.depth.png");
-    if sev.exists() {
-        let depth =
-            sl_io::read_depth(&sev, &sl_io::ReadOptions::default().with_scale(1000.0))?.depth;
-        let cam = fixed_camera(585.0, 320.0, 240.0)?;
-        let (seg, ms) = timed(reps, || Ok(ex.extract_depth(&depth, &cam)?))?;
-        let base = overlay::depth_to_rgb(&depth);
-        report_real(
-            ctx,
-            &mut md,
+    // Depth-only frames, drawn over the depth (7-Scenes depth is not registered to colour):
+    // (name, path under the data directory, units per metre, focal length and principal point).
+    let depth_only = [
+        (
             "7scenes-redkitchen",
-            &depth,
-            &seg,
-            ms,
-            &base,
-            &mut imgs,
-        )?;
-    }
-    // The Open3D TUM sample frame.
-    let o3d = data.join("open3d-testdata/tum-depth.png");
-    if o3d.exists() {
+            "7scenes-redkitchen/frame-000150.depth.png",
+            1000.0,
+            (585.0, 320.0, 240.0),
+        ),
+        (
+            "open3d-tum",
+            "open3d-testdata/tum-depth.png",
+            5000.0,
+            (525.0, 319.5, 239.5),
+        ),
+    ];
+    for (name, rel, scale, (f, cx, cy)) in depth_only {
+        let path = data.join(rel);
+        if !path.exists() {
+            continue;
+        }
         let depth =
-            sl_io::read_depth(&o3d, &sl_io::ReadOptions::default().with_scale(5000.0))?.depth;
-        let cam = fixed_camera(525.0, 319.5, 239.5)?;
+            sl_io::read_depth(&path, &sl_io::ReadOptions::default().with_scale(scale))?.depth;
+        let cam = fixed_camera(f, cx, cy)?;
         let (seg, ms) = timed(reps, || Ok(ex.extract_depth(&depth, &cam)?))?;
         let base = overlay::depth_to_rgb(&depth);
-        report_real(
-            ctx,
-            &mut md,
-            "open3d-tum",
-            &depth,
-            &seg,
-            ms,
-            &base,
-            &mut imgs,
-        )?;
+        report_real(ctx, &mut md, name, &depth, &seg, ms, &base, &mut imgs)?;
     }
     md.push('\n');
     for i in &imgs {
