@@ -4,6 +4,9 @@
 //! ```text
 //! cargo run --release -p sl-filter --example time_filters -- [DEPTH.png] [REPS] [DEPTH_SCALE]
 //! ```
+//!
+//! Environment: `METHODS=adaptive,gaussian` (default: all four), `RADII=2` (default: 2,3),
+//! `ISA=portable|avx2` (default: the best this CPU supports).
 
 use std::time::Instant;
 
@@ -60,7 +63,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         isa.name(),
         rayon::current_num_threads()
     );
-    for r in [2usize, 3] {
+    let radii: Vec<usize> = match std::env::var("RADII") {
+        Ok(s) => s.split(',').map(|r| r.parse()).collect::<Result<_, _>>()?,
+        Err(_) => vec![2, 3],
+    };
+    for &r in &radii {
         for &m in &methods {
             let f = DepthFilter::default_for(m, &sensor)
                 .with_radius(r)

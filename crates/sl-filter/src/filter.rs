@@ -6,7 +6,7 @@ use std::str::FromStr;
 use sl_core::{DepthImage, SensorModel};
 
 use crate::error::{FilterError, Result};
-use crate::fastexp::LOG2_E;
+use crate::fastexp::{LOG2_E, TapExp};
 use crate::kernel::{self, Adaptive, Fixed, INVALID_FILL, Isa, NoRange, Source, Taps};
 
 /// Multiplier `m` of the default adaptive coefficient `k = m·σ_D/(f·B)`: the range σ of the
@@ -334,23 +334,33 @@ impl DepthFilter {
         let r = self.radius_px;
         let k = 2 * r + 1;
         let inv2s2 = 1.0 / (2.0 * self.sigma_s_px * self.sigma_s_px);
+        // Gaussian: linear spatial weights. Range filters: the spatial exponent
+        // t = −d²/(2σ_s²)·log2 e of each tap, folded into the range weight's constants.
         let mut taps = Vec::with_capacity(k * k);
+        let mut exps = Vec::with_capacity(k * k);
+        let mut texp = Vec::with_capacity(k * k);
         for dy in 0..k {
             for dx in 0..k {
                 let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
-                taps.push(match self.range {
+                match self.range {
                     // Spatial weights below 1e-30 are 0 (no subnormal products; see fastexp).
                     RangeKernel::None => {
                         let w = (-d2 * inv2s2).exp();
-                        if w > 1e-30 { w as f32 } else { 0.0 }
+                        taps.push(if w > 1e-30 { w as f32 } else { 0.0 });
                     }
-                    _ => (-d2 * inv2s2 * std::f64::consts::LOG2_E) as f32,
-                });
+                    _ => {
+                        let t = -d2 * inv2s2 * std::f64::consts::LOG2_E;
+                        exps.push(TapExp::new(t));
+                        texp.push(t as f32);
+                    }
+                }
             }
         }
         let taps = Taps {
             radius: r,
             taps: &taps,
+            exps: &exps,
+            texp: &texp,
         };
         let mut out = vec![0.0f32; w * h];
         let log2e = f64::from(LOG2_E);

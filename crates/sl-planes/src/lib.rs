@@ -12,8 +12,9 @@
 //!   image + [`PlaneInfo`] (3D normal/offset, disparity-affine coefficients, RMS in px and m).
 //! * [`ransac::metric_ransac`]: the fixed metric-threshold baseline (Open3D `segment_plane` style).
 //! * [`segcomp::segcomp`]: the Hoover et al. segmentation comparison.
-//! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes, and
-//!   point-to-plane ICP.
+//! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes,
+//!   [`estimate_motion_verified`] checking every plane hypothesis against both depth maps (no
+//!   prior needed; "not determined" rather than a wrong rotation), and point-to-plane ICP.
 //!
 //! ```
 //! use sl_core::{Camera, DepthImage, nalgebra::Vector3};
@@ -46,13 +47,14 @@ pub mod overlay;
 pub mod plane;
 pub mod ransac;
 pub mod segcomp;
+mod verify;
 
 pub use error::{PlanesError, Result};
 pub use extract::{PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, extract_planes};
 pub use fit::AffineSums;
 pub use motion::{
-    IcpConfig, IcpResult, MotionConfig, PlaneMatch, PlaneMotion, estimate_motion,
-    icp_point_to_plane,
+    IcpConfig, IcpResult, MotionConfidence, MotionConfig, MotionFrame, PlaneMatch, PlaneMotion,
+    Verification, VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
 };
 pub use plane::{DisparityAffine, Plane3};
 pub use ransac::{RansacConfig, metric_ransac};

@@ -58,6 +58,9 @@ fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
     KinectSimulator::kinect_v1().apply(truth, seed)
 }
 
+#[path = "sl_planes/motion.rs"]
+mod motion;
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
 

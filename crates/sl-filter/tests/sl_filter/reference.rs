@@ -65,3 +65,42 @@ fn every_instruction_set_gives_nearly_identical_results() {
         }
     }
 }
+
+#[test]
+fn large_holes_and_image_borders_match_the_reference() {
+    // Holes wider than the kernel's 32-pixel groups (whose output is skipped as a whole) and
+    // than a window, next to valid pixels, on an image wider than one 128-pixel chunk.
+    let sensor = SensorModel::kinect_v1();
+    let (w, h) = (171, 23);
+    let mut depth = random_image(w, h, 0.5, 4.0, 0.05, 42);
+    for y in 3..15 {
+        for x in 20..95 {
+            depth.data_mut()[y * w + x] = 0.0;
+        }
+    }
+    for x in 100..171 {
+        depth.data_mut()[20 * w + x] = f32::NAN;
+    }
+    for r in 1..=3 {
+        for f in filters(r, 0.5 * r as f64, &sensor) {
+            let want = filter_reference(&f, &depth).unwrap();
+            for isa in isas() {
+                let got = f.apply_with_isa(&depth, isa).unwrap();
+                for (i, (&a, &b)) in got.data().iter().zip(want.data()).enumerate() {
+                    let input = depth.data()[i];
+                    assert_eq!(
+                        a > 0.0,
+                        input > 0.0 && input.is_finite(),
+                        "{f:?} {isa:?} at {i}"
+                    );
+                    assert!(
+                        (a - b).abs() <= 4.0e-6 * b.abs() + 2.0e-5,
+                        "{f:?} {isa:?} at ({}, {}): fast {a} vs reference {b}",
+                        i % w,
+                        i / w
+                    );
+                }
+            }
+        }
+    }
+}

@@ -1,12 +1,21 @@
 //! `sldepth motion`: camera motion between two depth frames from matched planes (paper
-//! section 3.5), optionally refined by point-to-plane ICP.
+//! section 3.5), checked against the depth data, optionally refined by point-to-plane ICP.
+//!
+//! The plane hypotheses are verified on both depth maps (`sl_planes::estimate_motion_verified`):
+//! when no rotation explains the data, or two distinct ones do, or the shared view is nearly one
+//! plane, the motion is reported as undetermined (with `--json`: `"determined": false`,
+//! `"rotation": null` and the reason) and the command fails, instead of printing a wrong
+//! rotation. `--no-verify` gives the plain plane estimate (prior: small motion), marked
+//! `unverified` or `ambiguous`.
 
 use std::path::PathBuf;
 
 use anyhow::{Result, bail};
-use serde_json::json;
+use serde_json::{Value, json};
+use sl_core::nalgebra::{Isometry3, Vector3};
 use sl_planes::{
-    IcpConfig, MotionConfig, PlaneConfig, PlaneExtractor, estimate_motion, icp_point_to_plane,
+    IcpConfig, MotionConfig, MotionFrame, PlaneConfig, PlaneExtractor, PlaneMotion, PlanesError,
+    VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
 };
 
 use crate::common::{InputArgs, load_depth, print_json, round_to};
@@ -24,6 +33,10 @@ pub struct Args {
     /// Refine with point-to-plane ICP (starting from the plane estimate).
     #[arg(long)]
     pub icp: bool,
+    /// Skip the check against the depth data: plane matching alone, assuming a small motion
+    /// (the result may be ambiguous; see `confidence`).
+    #[arg(long)]
+    pub no_verify: bool,
     /// Disparity residual threshold of the plane extraction, pixels.
     #[arg(long, default_value_t = PlaneConfig::default().threshold_px)]
     pub threshold_px: f64,
@@ -32,6 +45,50 @@ pub struct Args {
     pub min_pixels: usize,
     #[command(flatten)]
     pub input: InputArgs,
+}
+
+fn vec3(v: &Vector3<f64>, digits: i32) -> Value {
+    json!([
+        round_to(v.x, digits),
+        round_to(v.y, digits),
+        round_to(v.z, digits)
+    ])
+}
+
+fn rotation_rows(pose: &Isometry3<f64>) -> Vec<f64> {
+    let rot = pose.rotation.to_rotation_matrix();
+    let rm = rot.matrix();
+    (0..3)
+        .flat_map(|i| (0..3).map(move |j| round_to(rm[(i, j)], 7)))
+        .collect()
+}
+
+/// The JSON of an undetermined motion.
+fn undetermined_json(err: &PlanesError, planes_a: usize, planes_b: usize) -> Value {
+    let (inlier, alternative) = match err {
+        PlanesError::MotionNotVerified {
+            inlier_fraction,
+            alternative_inlier_fraction,
+            ..
+        } => (
+            json!(round_to(*inlier_fraction, 4)),
+            json!(round_to(*alternative_inlier_fraction, 4)),
+        ),
+        _ => (Value::Null, Value::Null),
+    };
+    json!({
+        "determined": false,
+        "confidence": "undetermined",
+        "reason": err.to_string(),
+        "rotation": Value::Null,
+        "rotation_deg": Value::Null,
+        "translation_m": Value::Null,
+        "matched_planes": [],
+        "planes_a": planes_a,
+        "planes_b": planes_b,
+        "inlier_fraction": inlier,
+        "alternative_inlier_fraction": alternative,
+    })
 }
 
 /// Runs `sldepth motion`.
@@ -52,19 +109,48 @@ pub fn run(args: Args) -> Result<()> {
     let mut ex = PlaneExtractor::new(cfg)?;
     let pa = ex.extract_depth(&a.depth, &a.camera)?;
     let pb = ex.extract_depth(&b.depth, &b.camera)?;
-    let m = estimate_motion(&pa.planes, &pb.planes, None, &MotionConfig::default())?;
+    let mcfg = MotionConfig::default();
+    let estimate: std::result::Result<PlaneMotion, PlanesError> = if args.no_verify {
+        estimate_motion(&pa.planes, &pb.planes, None, &mcfg)
+    } else {
+        estimate_motion_verified(
+            MotionFrame {
+                depth: &a.depth,
+                planes: &pa.planes,
+            },
+            MotionFrame {
+                depth: &b.depth,
+                planes: &pb.planes,
+            },
+            &a.camera,
+            None,
+            &mcfg,
+            &VerifyConfig::default(),
+        )
+    };
+    let m = match estimate {
+        Ok(m) => m,
+        Err(e @ (PlanesError::MotionNotVerified { .. } | PlanesError::MotionUndetermined(_))) => {
+            if args.json {
+                print_json(&undetermined_json(&e, pa.planes.len(), pb.planes.len()));
+            } else {
+                println!(
+                    "planes: {} in A, {} in B; motion undetermined",
+                    pa.planes.len(),
+                    pb.planes.len()
+                );
+            }
+            bail!("{e}");
+        }
+        Err(e) => return Err(e.into()),
+    };
     let mut pose = m.isometry();
-    let mut icp_json = serde_json::Value::Null;
+    let mut icp_json = Value::Null;
     if args.icp {
         let r = icp_point_to_plane(&a.depth, &b.depth, &a.camera, &pose, &IcpConfig::default())?;
         icp_json = json!({ "inliers": r.inliers, "rms_m": round_to(r.rms_m, 6) });
         pose = r.pose;
     }
-    let rot = pose.rotation.to_rotation_matrix();
-    let rm = rot.matrix();
-    let rotation: Vec<f64> = (0..3)
-        .flat_map(|i| (0..3).map(move |j| round_to(rm[(i, j)], 7)))
-        .collect();
     let rotation_deg = pose.rotation.angle().to_degrees();
     let translation = if args.icp {
         Some(pose.translation.vector)
@@ -76,32 +162,54 @@ pub fn run(args: Args) -> Result<()> {
         .iter()
         .map(|mt| json!({ "a": pa.planes[mt.a].id, "b": pb.planes[mt.b].id, "weight": mt.weight }))
         .collect();
+    let verification = m.verification.as_ref().map_or(Value::Null, |v| {
+        json!({
+            "inlier_fraction": round_to(v.inlier_fraction, 4),
+            "overlap_fraction": round_to(v.overlap_fraction, 4),
+            "alternative_inlier_fraction": round_to(v.alternative_inlier_fraction, 4),
+            "turned_inlier_fraction": round_to(v.turned_inlier_fraction, 4),
+            "hypotheses": v.hypotheses,
+            "samples": v.samples,
+        })
+    });
     if args.json {
         print_json(&json!({
-            "rotation": rotation,
+            "determined": true,
+            "confidence": m.confidence.as_str(),
+            "rotation": rotation_rows(&pose),
             "rotation_deg": round_to(rotation_deg, 4),
-            "translation_m": translation.map(|t| vec![round_to(t.x, 5), round_to(t.y, 5), round_to(t.z, 5)]),
+            "translation_m": translation.map(|t| vec3(&t, 5)),
             "matched_planes": matched,
             "planes_a": pa.planes.len(),
             "planes_b": pb.planes.len(),
             "rms_angle_deg": round_to(m.rms_angle_deg, 4),
+            "runner_up_support": round_to(m.runner_up_support, 4),
+            "inlier_fraction": m.verification.as_ref().map(|v| round_to(v.inlier_fraction, 4)),
+            "verification": verification,
             "icp": icp_json,
         }));
     } else {
         println!(
-            "planes: {} in A, {} in B, {} matched",
+            "planes: {} in A, {} in B, {} matched; confidence: {}",
             pa.planes.len(),
             pb.planes.len(),
-            m.matches.len()
+            m.matches.len(),
+            m.confidence.as_str()
         );
-        println!("rotation (X_a = R X_b + t), {rotation_deg:.3} deg:");
-        for i in 0..3 {
+        if let Some(v) = &m.verification {
             println!(
-                "  [{:+.6} {:+.6} {:+.6}]",
-                rm[(i, 0)],
-                rm[(i, 1)],
-                rm[(i, 2)]
+                "verified: {:.1} % of the overlapping points explained (best alternative {:.1} %, \
+                 turned by {}° {:.1} %)",
+                100.0 * v.inlier_fraction,
+                100.0 * v.alternative_inlier_fraction,
+                mcfg.distinct_deg,
+                100.0 * v.turned_inlier_fraction
             );
+        }
+        println!("rotation (X_a = R X_b + t), {rotation_deg:.3} deg:");
+        let r = rotation_rows(&pose);
+        for row in r.chunks_exact(3) {
+            println!("  [{:+.6} {:+.6} {:+.6}]", row[0], row[1], row[2]);
         }
         match translation {
             Some(t) => println!("translation: [{:+.4} {:+.4} {:+.4}] m", t.x, t.y, t.z),
@@ -109,4 +217,27 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn undetermined_json_has_no_rotation() {
+        let e = PlanesError::MotionNotVerified {
+            reason: "ambiguous".into(),
+            inlier_fraction: 0.95,
+            alternative_inlier_fraction: 0.93,
+        };
+        let v = undetermined_json(&e, 3, 4);
+        assert_eq!(v["determined"], json!(false));
+        assert!(v["rotation"].is_null());
+        assert_eq!(v["inlier_fraction"], json!(0.95));
+        assert!(
+            v["reason"]
+                .as_str()
+                .is_some_and(|r| r.contains("ambiguous"))
+        );
+    }
 }
