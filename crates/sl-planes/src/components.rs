@@ -17,6 +17,83 @@ pub struct Run {
     pub key: u32,
 }
 
+/// A pixel value the labeller accepts (the default value is the background); scanning works
+/// on 64-bit words.
+pub trait RunValue: Copy + PartialEq + Default + Into<u32> {
+    /// Values per 64-bit word.
+    const PER_WORD: usize;
+    /// Bits of one value.
+    const BITS: u32;
+    /// The values `row[x..x + PER_WORD]` as a little-endian word.
+    fn word(row: &[Self], x: usize) -> u64;
+    /// First `x' ≥ x` with a non-background value (or `row.len()`).
+    #[inline]
+    fn skip_zeros(row: &[Self], mut x: usize) -> usize {
+        while x + Self::PER_WORD <= row.len() {
+            let wd = Self::word(row, x);
+            if wd != 0 {
+                return x + (wd.trailing_zeros() / Self::BITS) as usize;
+            }
+            x += Self::PER_WORD;
+        }
+        while x < row.len() && row[x] == Self::default() {
+            x += 1;
+        }
+        x
+    }
+    /// End of the run of values equal to `row[x]` that starts at `x`.
+    #[inline]
+    fn run_end(row: &[Self], mut x: usize) -> usize {
+        let v = row[x];
+        let mut vv = u64::from(v.into());
+        let mut shift = Self::BITS;
+        while shift < 64 {
+            vv |= vv << shift;
+            shift *= 2;
+        }
+        while x + Self::PER_WORD <= row.len() {
+            let diff = Self::word(row, x) ^ vv;
+            if diff != 0 {
+                return x + (diff.trailing_zeros() / Self::BITS) as usize;
+            }
+            x += Self::PER_WORD;
+        }
+        while x < row.len() && row[x] == v {
+            x += 1;
+        }
+        x
+    }
+}
+
+impl RunValue for u8 {
+    const PER_WORD: usize = 8;
+    const BITS: u32 = 8;
+    #[inline]
+    fn word(row: &[u8], x: usize) -> u64 {
+        match row.get(x..x + 8).map(<[u8; 8]>::try_from) {
+            Some(Ok(a)) => u64::from_le_bytes(a),
+            _ => 0,
+        }
+    }
+}
+
+impl RunValue for u16 {
+    const PER_WORD: usize = 4;
+    const BITS: u32 = 16;
+    #[inline]
+    fn word(row: &[u16], x: usize) -> u64 {
+        match row.get(x..x + 4).map(<[u16; 4]>::try_from) {
+            Some(Ok(a)) => {
+                u64::from(a[0])
+                    | (u64::from(a[1]) << 16)
+                    | (u64::from(a[2]) << 32)
+                    | (u64::from(a[3]) << 48)
+            }
+            _ => 0,
+        }
+    }
+}
+
 /// Reusable run-based connected-component labeller.
 #[derive(Debug, Default, Clone)]
 pub struct RunLabeler {
@@ -33,30 +110,23 @@ impl RunLabeler {
     /// Labels the components of the non-zero values of a row-major `width × height` image.
     /// Afterwards `runs[i]` belongs to component `component[i]` (0-based, dense) of
     /// `sizes[component[i]]` pixels.
-    pub fn label<T: Copy + PartialEq + Default + Into<u32>>(
-        &mut self,
-        data: &[T],
-        width: usize,
-        height: usize,
-    ) {
+    pub fn label<T: RunValue>(&mut self, data: &[T], width: usize, height: usize) {
         self.runs.clear();
         self.parent.clear();
-        let zero = T::default();
         let mut prev_start = 0usize;
         for y in 0..height {
             let row = &data[y * width..(y + 1) * width];
             let row_start = self.runs.len();
             let mut x = 0usize;
             while x < width {
+                // Skip the background a word at a time, then find the end of the run.
+                x = T::skip_zeros(row, x);
+                if x >= width {
+                    break;
+                }
                 let v = row[x];
-                if v == zero {
-                    x += 1;
-                    continue;
-                }
                 let x0 = x;
-                while x < width && row[x] == v {
-                    x += 1;
-                }
+                x = T::run_end(row, x);
                 let idx = self.runs.len() as u32;
                 self.runs.push(Run {
                     y: y as u32,
@@ -128,6 +198,70 @@ impl RunLabeler {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Component sizes by a per-pixel flood fill.
+    fn naive<T: RunValue>(img: &[T], w: usize, h: usize) -> Vec<usize> {
+        let mut seen = vec![false; w * h];
+        let mut sizes = Vec::new();
+        for s in 0..w * h {
+            if seen[s] || img[s] == T::default() {
+                continue;
+            }
+            let (mut stack, mut n) = (vec![s], 0);
+            seen[s] = true;
+            while let Some(i) = stack.pop() {
+                n += 1;
+                let (x, y) = (i % w, i / w);
+                let mut nb = Vec::new();
+                if x > 0 {
+                    nb.push(i - 1);
+                }
+                if x + 1 < w {
+                    nb.push(i + 1);
+                }
+                if y > 0 {
+                    nb.push(i - w);
+                }
+                if y + 1 < h {
+                    nb.push(i + w);
+                }
+                for j in nb {
+                    if !seen[j] && img[j] == img[i] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+            sizes.push(n);
+        }
+        sizes.sort_unstable();
+        sizes
+    }
+
+    #[test]
+    fn word_scanning_matches_flood_fill() {
+        let (w, h) = (45, 23);
+        let mut l = RunLabeler::default();
+        for seed in 0..20u32 {
+            let v = |i: usize| (((i as u32).wrapping_mul(2654435761) ^ (seed * 40503)) >> 7) % 7;
+            // Blocky values so that runs are long and cross word boundaries.
+            let img8: Vec<u8> = (0..w * h)
+                .map(|i| {
+                    let r = v((i % w) / 5 + 31 * ((i / w) / 3));
+                    if r < 3 { 0 } else { (r - 2) as u8 }
+                })
+                .collect();
+            let img16: Vec<u16> = img8.iter().map(|&b| u16::from(b) * 300).collect();
+            l.label(&img8, w, h);
+            let mut s8 = l.sizes.clone();
+            s8.sort_unstable();
+            assert_eq!(s8, naive(&img8, w, h));
+            l.label(&img16, w, h);
+            let mut s16 = l.sizes.clone();
+            s16.sort_unstable();
+            assert_eq!(s16, naive(&img16, w, h));
+        }
+    }
 
     #[test]
     fn u_shape_is_one_component() {

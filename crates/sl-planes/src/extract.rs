@@ -1,41 +1,55 @@
-//! The paper's plane extraction in the disparity domain (section 3.4), made robust and fast.
+//! The paper's plane extraction in the disparity domain (section 3.4), made robust and fast
+//! (≈ 3 ms per 640×480 frame on one core; the per-stage times are in [`StageTimes`]).
 //!
-//! 0. The disparity (`f·B/Z`, or given) is averaged over 2×2 blocks (invalid if any pixel is):
-//!    the seed and refinement stages work on this half-resolution map, which is 4× cheaper and
-//!    halves the noise. The block mean of an affine function is that function at the block
-//!    centre, so plane parameters carry over exactly.
-//! 1. **Seeds.** The box-approximated LoG of the disparity (see [`crate::log`]) is thresholded
-//!    at a fixed value in disparity pixels; 4-connected components of planar pixels with at least
-//!    `min_pixels` (full-resolution) pixels are seeds. Each seed gets a least-squares affine fit
-//!    `D = a·x + b·y + c` followed by a trimmed refit (residuals below `2τ`); the k-means
-//!    iterations then refit on the pixels within `τ`: a truncated-quadratic (hard-redescending)
-//!    robust estimate.
-//! 2. **k-means refinement**: a block keeps its incumbent label (its seed's, or the previous
-//!    pass's) while that plane fits it within `τ`; any other valid block goes to the plane with
-//!    the smallest disparity residual if it is below the fixed threshold `τ` (candidates: planes
-//!    whose support box, grown by a margin, covers the block's tile). The incumbent rule keeps
-//!    the extension of one plane from cutting a band through another plane's seed. Planes are refitted from one-pass moment sums
-//!    (accumulated run by run), planes that one affine function explains jointly (each within
-//!    `merge_px` RMS) are merged (sums add), and planar blocks left unassigned form new seeds (so
+//! 0. The disparity (`f·B/Z`, or given) is averaged over 2×2 blocks (half resolution, for the
+//!    LoG) and over 4×4 pixels (**cells**, for the seeds and the k-means refinement), invalid if
+//!    any pixel is. The mean of an affine function over a block is its value at the block's
+//!    centre, so plane parameters carry over exactly between the grids.
+//! 1. **Seeds.** The box-approximated LoG of the half-resolution disparity (see [`crate::log`])
+//!    is thresholded at a fixed value in disparity pixels; a cell is planar when its four blocks
+//!    are. 4-connected components of planar cells with at least `min_pixels` (full-resolution)
+//!    pixels are seeds. Each seed gets a least-squares affine fit `D = a·x + b·y + c` followed
+//!    by a trimmed refit (residuals below `2τ`); the k-means iterations then refit on the cells
+//!    within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
+//! 2. **k-means refinement** on the cells: a cell keeps its incumbent label (its seed's, or the
+//!    previous pass's) while that plane fits it within `τ`; any other valid cell goes to the
+//!    plane with the smallest disparity residual if it is below the fixed threshold `τ`, among
+//!    the planes of its neighbouring cells (spatial coherence: a plane grows into adjacent cells;
+//!    coplanar but disconnected regions join by merging). Planes are refitted from moment sums
+//!    accumulated run by run, planes that one affine function explains jointly (each within
+//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds (so
 //!    a component spanning a shallow crease splits into its planes). Repeats until the labels
 //!    settle or `max_iterations`.
-//! 3. **Coherence and final pass**: 4-connected pieces of a plane's blocks smaller than
-//!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its block's label if
-//!    that plane fits it within `τ`, otherwise (and for unlabelled blocks touching a labelled
-//!    one) the best candidate within `τ`; pixels fitting several planes take the label that
-//!    dominates their 8-neighbourhood. The planes are refitted on the stride-2 sample of the
-//!    final labels (pixels `(2i, 2j)`), which also gives the RMS residuals and the centroid;
-//!    pixel counts are exact.
+//! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
+//!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its cell's label if
+//!    that plane fits it within `τ`; otherwise, and for the pixels of unlabelled cells touching
+//!    a labelled one, the best plane of the neighbouring cells within `τ`. Pixels fitting two
+//!    planes take the label that dominates their 8-neighbourhood. The planes are refitted on
+//!    the labelled pixels of every fourth row (which also gives the RMS residual in pixels; the
+//!    centroid and the RMS in metres come from every eighth row); pixel counts are exact.
 //!
 //! Everything after the disparity conversion works on the disparity, so the threshold means the
 //! same at 0.6 m and at 4 m: the noise of a structured-light camera is constant in disparity.
+//!
+//! The per-pixel and per-cell loops are run-based and vectorised (`wide`, baseline SSE2): runs
+//! of equal labels are tested against their plane eight pixels at a time with the moments of
+//! the pixels that pass accumulated as small residuals in `f32` lanes (see `kernels`), and the
+//! candidate searches compare eight pixels with each candidate at once. A [`PlaneExtractor`]
+//! keeps its buffers, so a video allocates only the output per frame.
+
+use std::time::Instant;
 
 use nalgebra::Point3;
 use sl_core::{Camera, DepthImage, DisparityImage, Image, Intrinsics};
+use wide::{CmpEq, i16x8};
 
 use crate::components::RunLabeler;
 use crate::error::{PlanesError, Result};
 use crate::fit::AffineSums;
+use crate::kernels::{
+    InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8,
+    search8_two, valid_mask,
+};
 use crate::log::{LogBuffers, log_geometry, planar_mask};
 use crate::plane::{DisparityAffine, Plane3};
 
@@ -54,7 +68,7 @@ pub struct PlaneConfig {
     /// Maximum refinement iterations (coarse passes) before the final pass.
     pub max_iterations: usize,
     /// Two planes merge when the least-squares plane of their union fits each of them with an
-    /// RMS residual below this, pixels (of the 2×2-averaged disparity).
+    /// RMS residual below this, pixels (of the cell-averaged disparity).
     pub merge_px: f64,
     /// Disconnected pieces of a plane smaller than this are dropped (0 keeps all).
     pub min_piece_pixels: usize,
@@ -133,10 +147,8 @@ pub struct PlaneSegmentation {
     pub planes: Vec<PlaneInfo>,
 }
 
-/// Tile size of the candidate lists, in half-resolution blocks (16 full-resolution pixels).
-const TILE_H: usize = 8;
-/// Growth margin of a plane's support box per iteration, half-resolution blocks.
-const MARGIN_H: u32 = 8;
+/// Cells per chunk of the coarse search (one vector of 8 lanes).
+const CHUNK: usize = LANES;
 /// Most planes tracked at once.
 const MAX_PLANES: usize = 4000;
 /// No merge target.
@@ -144,56 +156,108 @@ const NONE: u32 = u32::MAX;
 
 #[derive(Debug, Clone, Copy)]
 struct Cand {
-    /// Affine fit in half-resolution block coordinates.
+    /// Affine fit in cell coordinates.
     f: DisparityAffine,
-    /// Moments in half-resolution block coordinates.
+    /// Moments in cell coordinates.
     sums: AffineSums,
-    /// Support box `[x0, y0, x1, y1]` (inclusive), half-resolution blocks.
+    /// Support box `[x0, y0, x1, y1]` (inclusive), cells.
     bbox: [u32; 4],
     alive: bool,
     /// Index of the plane this one was merged into.
     into: u32,
 }
 
-/// The full-resolution affine function of a half-resolution one: block `(i, j)` is centred on
-/// pixel `(2i + ½, 2j + ½)`.
-fn half_to_full(f: &DisparityAffine) -> DisparityAffine {
+/// Side of a cell of the k-means grid, pixels.
+const CELL: usize = 4;
+
+/// The full-resolution affine function of a cell-grid one: cell `(i, j)` is centred on pixel
+/// `(4i + 1.5, 4j + 1.5)`.
+fn cell_to_full(f: &DisparityAffine) -> DisparityAffine {
+    let (a, b) = (f.a / 4.0, f.b / 4.0);
     DisparityAffine {
-        a: f.a / 2.0,
-        b: f.b / 2.0,
-        c: f.c - (f.a + f.b) / 4.0,
+        a,
+        b,
+        c: f.c - 1.5 * (a + b),
     }
 }
 
-/// Per-plane accumulators of the final statistics: moments on the stride-2 sample of pixels
-/// `(2i, 2j)` in `(i, j)` coordinates, metric sums in full-resolution coordinates, and the exact
-/// full-resolution pixel count.
+/// Rows whose labelled pixels feed the final fit (a quarter of the rows).
+#[inline]
+fn is_sample_row(y: usize) -> bool {
+    y.is_multiple_of(4)
+}
+
+/// Rows whose labelled pixels feed the metric statistics (centroid, RMS in metres; an eighth
+/// of the rows).
+#[inline]
+fn is_metric_row(y: usize) -> bool {
+    y.is_multiple_of(8)
+}
+
+/// Per-plane accumulators of the final statistics: moments of the labelled pixels of the even
+/// rows (full-resolution coordinates), their metric sums, and the exact pixel count.
 #[derive(Debug, Clone, Copy, Default)]
 struct FinalAcc {
     sums: AffineSums,
-    /// Σ(r/D)², Σ1/D, Σx/D, Σy/D over the sample.
-    sr2: f64,
-    si: f64,
-    sxi: f64,
-    syi: f64,
+    inv: InvSums,
     pixels: usize,
+    /// Rows `y0..y1` holding the plane's pixels.
+    y0: usize,
+    y1: usize,
+}
+
+impl FinalAcc {
+    #[inline]
+    fn add_rows(&mut self, y: usize) {
+        self.y0 = self.y0.min(y);
+        self.y1 = self.y1.max(y + 1);
+    }
 }
 
 /// A reusable plane extractor: holds its work buffers so that repeated calls on frames of the
-/// same size allocate little beyond the output.
+/// same size allocate nothing beyond the output (the label image and the plane list).
+///
+/// ```
+/// use sl_core::{Camera, DepthImage};
+/// use sl_planes::{PlaneConfig, PlaneExtractor, Stage};
+///
+/// let cam = Camera::kinect_v1();
+/// let k = cam.intrinsics;
+/// let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
+/// // A fronto-parallel wall at 2 m, then a frame with nothing valid.
+/// let wall = DepthImage::from_vec(k.width, k.height, vec![2.0; k.width * k.height])?;
+/// assert_eq!(ex.extract_depth(&wall, &cam)?.planes.len(), 1);
+/// let empty = DepthImage::invalid(k.width, k.height);
+/// assert!(ex.extract_depth(&empty, &cam)?.planes.is_empty());
+/// // Time per stage of the last frame.
+/// let _ns = ex.stage_times().ns(Stage::FinalPass);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 #[derive(Debug, Clone, Default)]
 pub struct PlaneExtractor {
     cfg: PlaneConfig,
     d: Vec<f32>,
     dh: Vec<f32>,
+    dq: Vec<f32>,
+    maskq: Vec<u8>,
+    labq: Vec<u16>,
     mask: Vec<u8>,
     log: LogBuffers,
     cc: RunLabeler,
     planes: Vec<Cand>,
-    labh: Vec<u16>,
+    spare: Vec<Cand>,
     free: Vec<u8>,
-    tile_off: Vec<u32>,
-    tile_list: Vec<u16>,
+    keep: Vec<u8>,
+    need: Vec<u8>,
+    chunks: Vec<(u32, u64)>,
+    hruns: Vec<(u32, u32, u16)>,
+    cellbits: Vec<u64>,
+    near_tag: Vec<u32>,
+    near_set: Vec<[u16; 16]>,
+    near_len: Vec<u8>,
+    vsum: Vec<f32>,
+    vmin: Vec<f32>,
+    zrow: Vec<u16>,
     cursor: Vec<u32>,
     fa: Vec<f32>,
     rowc: Vec<f32>,
@@ -204,6 +268,7 @@ pub struct PlaneExtractor {
     comp_box: Vec<[u32; 4]>,
     comp_fit: Vec<Option<DisparityAffine>>,
     lut: Vec<u16>,
+    times: StageTimes,
 }
 
 /// Extracts planes from a depth image (metres) with a new extractor.
@@ -230,6 +295,11 @@ impl PlaneExtractor {
         &self.cfg
     }
 
+    /// Wall-clock time per stage of the last extraction.
+    pub fn stage_times(&self) -> &StageTimes {
+        &self.times
+    }
+
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
         if w != k.width || h != k.height {
             return Err(PlanesError::SizeMismatch {
@@ -251,17 +321,20 @@ impl PlaneExtractor {
     ) -> Result<PlaneSegmentation> {
         let (w, h) = (depth.width(), depth.height());
         Self::check(w, h, &camera.intrinsics)?;
+        let mut t0 = Instant::now();
+        self.times = StageTimes::default();
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
-        self.d.clear();
-        self.d.extend(depth.data().iter().map(|&z| {
-            if z > 0.0 && z.is_finite() {
-                fbf / z
-            } else {
-                0.0
-            }
-        }));
-        self.run(w, h, &camera.intrinsics, fb)
+        let mut d = std::mem::take(&mut self.d);
+        d.resize(w * h, 0.0);
+        for (z, o) in depth.data().chunks_exact(w).zip(d.chunks_exact_mut(w)) {
+            depth_to_disparity_row(z, o, fbf);
+        }
+        self.downsample(&d, w, h);
+        self.times.add(Stage::Disparity, &mut t0);
+        let out = self.run(&d, w, h, &camera.intrinsics, fb, t0);
+        self.d = d;
+        out
     }
 
     /// Extracts planes from a disparity image (pixels, 0 = invalid), e.g. raw Kinect disparity
@@ -273,44 +346,69 @@ impl PlaneExtractor {
     ) -> Result<PlaneSegmentation> {
         let (w, h) = (disparity.width(), disparity.height());
         Self::check(w, h, &camera.intrinsics)?;
-        self.d.clear();
-        self.d.extend(
-            disparity
-                .data()
-                .iter()
-                .map(|&v| if v > 0.0 && v.is_finite() { v } else { 0.0 }),
-        );
-        self.run(w, h, &camera.intrinsics, camera.sensor.fb())
+        let mut t0 = Instant::now();
+        self.times = StageTimes::default();
+        // The disparity is used in place: every test treats non-positive and non-finite values
+        // as invalid.
+        let d = disparity.data();
+        self.downsample(d, w, h);
+        self.times.add(Stage::Disparity, &mut t0);
+        self.run(d, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
     }
 
-    fn downsample(&mut self, w: usize, w2: usize, h2: usize) {
-        self.dh.clear();
+    /// Averages the disparity (non-positive or non-finite = invalid) over 2×2 blocks into the
+    /// half-resolution `dh`, then `dh` into the cells `dq` (NaN = invalid).
+    #[inline(never)]
+    fn downsample(&mut self, d: &[f32], w: usize, h: usize) {
+        let (w2, h2) = (w / 2, h / 2);
         self.dh.resize(w2 * h2, f32::NAN);
-        for j in 0..h2 {
-            let r0 = &self.d[2 * j * w..2 * j * w + 2 * w2];
-            let r1 = &self.d[(2 * j + 1) * w..(2 * j + 1) * w + 2 * w2];
-            let out = &mut self.dh[j * w2..(j + 1) * w2];
-            for (i, o) in out.iter_mut().enumerate() {
-                let (a, b, c, d) = (r0[2 * i], r0[2 * i + 1], r1[2 * i], r1[2 * i + 1]);
-                let ok = a > 0.0 && b > 0.0 && c > 0.0 && d > 0.0;
-                *o = if ok { 0.25 * (a + b + c + d) } else { f32::NAN };
+        self.vsum.resize(w, 0.0);
+        self.vmin.resize(w, 0.0);
+        for (r2, out) in d
+            .chunks_exact(2 * w)
+            .zip(self.dh.chunks_exact_mut(w2.max(1)))
+        {
+            let (r0, r1) = r2.split_at(w);
+            downsample_rows(r0, r1, &mut self.vsum, &mut self.vmin, out);
+        }
+        // Cells: 2×2 means of the half-resolution map (NaN propagates).
+        let (wq, hq) = (w2 / 2, h2 / 2);
+        self.dq.resize(wq * hq, f32::NAN);
+        for (j, out) in self.dq.chunks_exact_mut(wq.max(1)).take(hq).enumerate() {
+            let r0 = &self.dh[2 * j * w2..(2 * j + 1) * w2];
+            let r1 = &self.dh[(2 * j + 1) * w2..(2 * j + 2) * w2];
+            for ((o, p), q) in out
+                .iter_mut()
+                .zip(r0.chunks_exact(2))
+                .zip(r1.chunks_exact(2))
+            {
+                *o = 0.25 * ((p[0] + p[1]) + (q[0] + q[1]));
             }
         }
     }
 
-    fn run(&mut self, w: usize, h: usize, k: &Intrinsics, fb: f64) -> Result<PlaneSegmentation> {
+    fn run(
+        &mut self,
+        d: &[f32],
+        w: usize,
+        h: usize,
+        k: &Intrinsics,
+        fb: f64,
+        mut t0: Instant,
+    ) -> Result<PlaneSegmentation> {
         let cfg = self.cfg;
         let tau = cfg.threshold_px as f32;
         self.planes.clear();
         self.acc.clear();
         let (w2, h2) = (w / 2, h / 2);
+        let (wq, hq) = (w2 / 2, h2 / 2);
         let mut labels = vec![0u16; w * h];
-        if w2 < 8 || h2 < 8 {
+        if wq < 8 || hq < 8 {
             return self.finish(w, h, k, fb, labels);
         }
-        // 0. Half resolution.
-        self.downsample(w, w2, h2);
-        // 1. Seeds.
+        // Row scratch; `fit_run` may write up to 7 bytes past a run.
+        self.keep.resize(w + LANES, 0);
+        // 1. Seeds: the LoG on the half-resolution map, components on the cell grid.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
         planar_mask(
             &self.dh,
@@ -322,25 +420,25 @@ impl PlaneExtractor {
             &mut self.log,
             &mut self.mask,
         );
-        self.cc.label(&self.mask, w2, h2);
-        let min_h = (cfg.min_pixels / 4).max(3);
-        self.labh.clear();
-        self.labh.resize(w2 * h2, 0);
-        self.free.clear();
-        self.free.resize(w2 * h2, 0);
-        self.seed_from_components(w2, min_h);
+        self.planar_cells(w2, wq, hq);
+        self.times.add(Stage::Log, &mut t0);
+        self.cc.label(&self.maskq, wq, hq);
+        self.times.add(Stage::Components, &mut t0);
+        let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
+        self.seed_from_components(wq, min_q);
+        self.times.add(Stage::SeedFits, &mut t0);
         self.merge();
         self.compact();
+        self.times.add(Stage::Merge, &mut t0);
 
-        // 2. k-means refinement at half resolution.
+        // 2. k-means refinement on the cell grid (4×4 pixels).
         for it in 0..cfg.max_iterations {
             if self.planes.is_empty() {
                 break;
             }
-            self.build_tiles(w2, h2);
-            let (changed, free) = self.coarse_pass(w2, h2, tau);
+            let (changed, free) = self.coarse_pass(wq, hq, tau);
             for p in self.planes.iter_mut() {
-                p.alive = p.sums.n >= min_h as f64;
+                p.alive = p.sums.n >= min_q as f64;
                 if p.alive {
                     match p.sums.solve() {
                         Some(f) => p.f = f,
@@ -348,39 +446,49 @@ impl PlaneExtractor {
                     }
                 }
             }
+            self.times.add(Stage::Refine, &mut t0);
             self.merge();
             self.compact();
-            if it + 1 < cfg.max_iterations && free >= min_h {
-                self.cc.label(&self.free, w2, h2);
+            self.times.add(Stage::Merge, &mut t0);
+            if it + 1 < cfg.max_iterations && free >= min_q {
+                self.cc.label(&self.free, wq, hq);
+                self.times.add(Stage::Components, &mut t0);
                 let before = self.planes.len();
-                self.seed_from_components(w2, min_h);
+                self.seed_from_components(wq, min_q);
+                self.times.add(Stage::SeedFits, &mut t0);
                 if self.planes.len() > before {
                     self.merge();
                     self.compact();
+                    self.times.add(Stage::Merge, &mut t0);
                     continue;
                 }
             }
-            if changed * 500 < w2 * h2 {
+            if changed * 500 < wq * hq {
                 break;
             }
         }
 
-        // 3. Coherence at half resolution, then the final full-resolution pass.
+        // 3. Coherence on the cell grid, then the final full-resolution pass.
         if !self.planes.is_empty() {
             if cfg.min_piece_pixels > 0 {
-                self.drop_small_pieces(w2, h2);
+                self.drop_small_pieces(wq, hq);
             }
-            self.build_tiles(w2, h2);
-            self.final_pass(w, h, w2, h2, tau, &mut labels);
-            self.resolve_ambiguous(w, h, &mut labels);
-            self.statistics(w, h, &labels);
+            self.times.add(Stage::Components, &mut t0);
+            self.order_by_size();
+            self.final_pass(d, w, h, wq, tau, &mut labels);
+            self.times.add(Stage::FinalPass, &mut t0);
+            self.resolve_ambiguous(d, w, h, &mut labels);
+            self.times.add(Stage::Disambiguate, &mut t0);
         }
-        self.finish(w, h, k, fb, labels)
+        let out = self.finish(w, h, k, fb, labels);
+        self.times.add(Stage::Output, &mut t0);
+        out
     }
 
-    /// Creates planes from the components in `self.cc` (on the half-resolution grid of width
-    /// `w2`) with at least `min` blocks: least squares, then refitted on the inliers within 2τ.
-    fn seed_from_components(&mut self, w2: usize, min: usize) {
+    /// Creates planes from the components in `self.cc` (on the cell grid of width `wg`) with at
+    /// least `min` cells: least squares, then refitted on the inliers within 2τ.
+    #[inline(never)]
+    fn seed_from_components(&mut self, wg: usize, min: usize) {
         let nc = self.cc.sizes.len();
         self.comp_sums.clear();
         self.comp_sums.resize(nc, AffineSums::default());
@@ -388,50 +496,56 @@ impl PlaneExtractor {
         self.comp_box.resize(nc, [u32::MAX, u32::MAX, 0, 0]);
         self.comp_fit.clear();
         self.comp_fit.resize(nc, None);
-        let lim = 2.0 * self.cfg.threshold_px;
+        let lim = 2.0 * self.cfg.threshold_px as f32;
+        let mut inv = InvSums::default();
         for pass in 0..2 {
-            for s in self.comp_sums.iter_mut() {
-                *s = AffineSums::default();
+            if pass > 0 {
+                self.comp_sums.fill(AffineSums::default());
             }
             for (ri, run) in self.cc.runs.iter().enumerate() {
                 let c = self.cc.component[ri] as usize;
                 if self.cc.sizes[c] < min {
                     continue;
                 }
-                let f = self.comp_fit[c];
-                if pass > 0 && f.is_none() {
-                    continue;
-                }
                 let j = run.y as usize;
-                if pass == 0 {
-                    let bb = &mut self.comp_box[c];
-                    bb[0] = bb[0].min(run.x0);
-                    bb[1] = bb[1].min(run.y);
-                    bb[2] = bb[2].max(run.x1 - 1);
-                    bb[3] = bb[3].max(run.y);
-                }
-                let row = &self.dh[j * w2..(j + 1) * w2];
-                let sums = &mut self.comp_sums[c];
-                let jf = j as f64;
-                // Inliers are accumulated in sub-runs (closed-form x moments).
-                let (fa, fc) = f.map_or((0.0, 0.0), |f| (f.a, f.b * jf + f.c));
-                let (mut sd, mut sxd, mut sdd) = (0.0, 0.0, 0.0);
-                let mut start = run.x0 as usize;
                 let (x0, x1) = (run.x0 as usize, run.x1 as usize);
-                for (i, &dv) in row.iter().enumerate().take(x1).skip(x0) {
-                    let d = f64::from(dv);
-                    let inlier = f.is_none() || (d - (fa * i as f64 + fc)).abs() < lim;
-                    if inlier {
-                        sd += d;
-                        sxd += i as f64 * d;
-                        sdd += d * d;
-                    } else {
-                        sums.add_run(jf, start, i, sd, sxd, sdd);
-                        (sd, sxd, sdd) = (0.0, 0.0, 0.0);
-                        start = i + 1;
-                    }
+                // The rest of the row: `fit_run` reads and writes ahead.
+                let seg = &self.dq[j * wg + x0..(j + 1) * wg];
+                let keep = &mut self.keep[x0..];
+                let n = x1 - x0;
+                let jf = j as f64;
+                let sums = &mut self.comp_sums[c];
+                if pass == 0 {
+                    grow(&mut self.comp_box[c], x0, x1 - 1, j);
+                    // Plain least squares; residuals against the run's first value.
+                    let d0 = f64::from(seg[0]);
+                    fit_run::<true, false>(
+                        seg,
+                        keep,
+                        n,
+                        x0,
+                        jf,
+                        0.0,
+                        d0,
+                        f32::INFINITY,
+                        sums,
+                        &mut inv,
+                    );
+                } else if let Some(f) = self.comp_fit[c] {
+                    // Trimmed refit on the inliers within 2τ.
+                    fit_run::<true, false>(
+                        seg,
+                        keep,
+                        n,
+                        x0,
+                        jf,
+                        f.a,
+                        f.b * jf + f.c,
+                        lim,
+                        sums,
+                        &mut inv,
+                    );
                 }
-                sums.add_run(jf, start, run.x1 as usize, sd, sxd, sdd);
             }
             for c in 0..nc {
                 if self.cc.sizes[c] >= min && (pass == 0 || self.comp_fit[c].is_some()) {
@@ -464,13 +578,36 @@ impl PlaneExtractor {
             let lab = plane_of[self.cc.component[ri] as usize];
             if lab != 0 {
                 let y = run.y as usize;
-                self.labh[y * w2 + run.x0 as usize..y * w2 + run.x1 as usize].fill(lab);
+                self.labq[y * wg + run.x0 as usize..y * wg + run.x1 as usize].fill(lab);
+            }
+        }
+    }
+
+    /// The planarity of the cells (all four of their half-resolution blocks planar), and fresh
+    /// label and free-cell grids.
+    #[inline(never)]
+    fn planar_cells(&mut self, w2: usize, wq: usize, hq: usize) {
+        self.labq.clear();
+        self.labq.resize(wq * hq, 0);
+        self.maskq.resize(wq * hq, 0);
+        self.free.clear();
+        self.free.resize(wq * hq, 0);
+        for (j, mq) in self.maskq.chunks_exact_mut(wq).take(hq).enumerate() {
+            let m0 = &self.mask[2 * j * w2..(2 * j + 1) * w2];
+            let m1 = &self.mask[(2 * j + 1) * w2..(2 * j + 2) * w2];
+            for ((o, p), q) in mq
+                .iter_mut()
+                .zip(m0.chunks_exact(2))
+                .zip(m1.chunks_exact(2))
+            {
+                *o = p[0] & p[1] & q[0] & q[1];
             }
         }
     }
 
     /// Merges planes that one affine function explains jointly: the least-squares plane of the
     /// union fits each of the two with an RMS below `merge_px`.
+    #[inline(never)]
     fn merge(&mut self) {
         let mp = self.cfg.merge_px;
         let pre = 4.0 * self.cfg.threshold_px;
@@ -524,18 +661,21 @@ impl PlaneExtractor {
         }
     }
 
-    /// Removes dead planes and renumbers the half-resolution labels (merged planes' blocks go
+    /// Removes dead planes and renumbers the cell labels (merged planes' cells go
     /// to the plane they merged into).
+    #[inline(never)]
     fn compact(&mut self) {
         let n = self.planes.len();
         self.lut.clear();
         self.lut.resize(n + 1, 0);
         let mut next = 0u16;
-        let mut newidx = vec![0u16; n];
+        let newidx = &mut self.cursor;
+        newidx.clear();
+        newidx.resize(n, 0);
         for (i, p) in self.planes.iter().enumerate() {
             if p.alive {
                 next += 1;
-                newidx[i] = next;
+                newidx[i] = u32::from(next);
             }
         }
         for i in 0..n {
@@ -545,12 +685,14 @@ impl PlaneExtractor {
                 r = self.planes[r].into as usize;
                 guard += 1;
             }
-            self.lut[i + 1] = if self.planes[r].alive { newidx[r] } else { 0 };
+            self.lut[i + 1] = if self.planes[r].alive {
+                newidx[r] as u16
+            } else {
+                0
+            };
         }
         if self.lut.iter().enumerate().any(|(i, &v)| v as usize != i) {
-            for l in self.labh.iter_mut() {
-                *l = self.lut.get(*l as usize).copied().unwrap_or(0);
-            }
+            remap(&mut self.labq, &self.lut);
         }
         self.planes.retain(|p| p.alive);
         for p in self.planes.iter_mut() {
@@ -558,119 +700,423 @@ impl PlaneExtractor {
         }
     }
 
-    /// Candidate lists per tile (8×8 blocks): the planes whose support box, grown by the
-    /// margin, overlaps the tile.
-    fn build_tiles(&mut self, w2: usize, h2: usize) {
-        let (tw, th) = (w2.div_ceil(TILE_H), h2.div_ceil(TILE_H));
-        self.tile_off.clear();
-        self.tile_off.resize(tw * th + 1, 0);
-        let range = |p: &Cand| {
-            let x0 = p.bbox[0].saturating_sub(MARGIN_H) as usize / TILE_H;
-            let y0 = p.bbox[1].saturating_sub(MARGIN_H) as usize / TILE_H;
-            let x1 = ((p.bbox[2].saturating_add(MARGIN_H)) as usize / TILE_H).min(tw - 1);
-            let y1 = ((p.bbox[3].saturating_add(MARGIN_H)) as usize / TILE_H).min(th - 1);
-            (x0.min(tw - 1), y0.min(th - 1), x1, y1)
-        };
-        for p in &self.planes {
-            let (x0, y0, x1, y1) = range(p);
-            for ty in y0..=y1 {
-                for tx in x0..=x1 {
-                    self.tile_off[ty * tw + tx + 1] += 1;
-                }
-            }
+    /// Renumbers the planes by decreasing support (cells of the last pass), so that the
+    /// final ids (by decreasing pixel count) usually need no relabelling of the full image.
+    #[inline(never)]
+    fn order_by_size(&mut self) {
+        let n = self.planes.len();
+        let order = &mut self.cursor;
+        order.clear();
+        order.extend(0..n as u32);
+        order.sort_by(|&a, &b| {
+            self.planes[b as usize]
+                .sums
+                .n
+                .total_cmp(&self.planes[a as usize].sums.n)
+        });
+        if order.iter().enumerate().all(|(i, &o)| o as usize == i) {
+            return;
         }
-        for t in 0..tw * th {
-            self.tile_off[t + 1] += self.tile_off[t];
+        self.lut.clear();
+        self.lut.resize(n + 1, 0);
+        self.spare.clear();
+        for (new, &old) in order.iter().enumerate() {
+            self.lut[old as usize + 1] = new as u16 + 1;
+            self.spare.push(self.planes[old as usize]);
         }
-        let total = self.tile_off[tw * th] as usize;
-        self.tile_list.clear();
-        self.tile_list.resize(total, 0);
-        self.cursor.clear();
-        self.cursor.extend_from_slice(&self.tile_off[..tw * th]);
-        for (pi, p) in self.planes.iter().enumerate() {
-            let (x0, y0, x1, y1) = range(p);
-            for ty in y0..=y1 {
-                for tx in x0..=x1 {
-                    let c = &mut self.cursor[ty * tw + tx];
-                    self.tile_list[*c as usize] = pi as u16;
-                    *c += 1;
-                }
-            }
-        }
+        std::mem::swap(&mut self.planes, &mut self.spare);
+        remap(&mut self.labq, &self.lut);
     }
 
-    /// One assignment pass on the half-resolution map; refills the planes' sums and boxes.
-    /// Returns the number of labels that changed and the number of planar but unassigned blocks
-    /// (marked in `free`).
-    fn coarse_pass(&mut self, w2: usize, h2: usize, tau: f32) -> (usize, usize) {
+    /// One assignment pass on the cells; refills the planes' sums and boxes. Returns the number
+    /// of labels that changed and the number of planar but unassigned cells (marked in `free`).
+    ///
+    /// Runs of equal incumbent labels are tested against their plane in one vectorised sweep
+    /// (the cells that pass are accumulated there); the cells that fail, and unlabelled cells,
+    /// then take the best of the planes of the cells around them, searched 8 cells at a time.
+    #[inline(never)]
+    fn coarse_pass(&mut self, wq: usize, hq: usize, tau: f32) -> (usize, usize) {
         for p in self.planes.iter_mut() {
             p.sums = AffineSums::default();
-            p.bbox = [u32::MAX, u32::MAX, 0, 0];
+            p.bbox = EMPTY_BOX;
         }
         self.fa.clear();
         self.fa.extend(self.planes.iter().map(|p| p.f.a as f32));
-        let tiles = Tiles {
-            off: &self.tile_off,
-            list: &self.tile_list,
-            tw: w2.div_ceil(TILE_H),
-        };
-        coarse_assign(
-            &self.dh,
-            &self.mask,
-            &mut self.labh,
-            &mut self.free,
-            &mut self.planes,
-            &self.fa,
-            &mut self.rowc,
-            &tiles,
-            (w2, h2),
-            tau,
-        )
+        // With at most 64 planes, the planes around a chunk come from per-cell bit masks kept
+        // for three rows (above: this pass's labels; this row and below: before the
+        // searches).
+        let small = self.planes.len() <= 64;
+        self.cellbits.clear();
+        self.cellbits.resize(3 * wq, 0);
+        if small {
+            for j in 0..hq.min(2) {
+                let (src, dst) = (&self.labq[j * wq..(j + 1) * wq], j % 3);
+                label_bits(src, &mut self.cellbits[dst * wq..(dst + 1) * wq]);
+            }
+        }
+        let planes = &mut self.planes;
+        let mut inv = InvSums::default();
+        let (mut changed, mut free) = (0usize, 0usize);
+        for j in 0..hq {
+            if small && j >= 1 {
+                let slot = (j + 1) % 3;
+                let dst = &mut self.cellbits[slot * wq..(slot + 1) * wq];
+                match self.labq.get((j + 1) * wq..(j + 2) * wq) {
+                    Some(src) => label_bits(src, dst),
+                    None => dst.fill(0),
+                }
+            }
+            let jf = j as f64;
+            self.rowc.clear();
+            self.rowc
+                .extend(planes.iter().map(|p| (p.f.b * jf + p.f.c) as f32));
+            let rowc: &[f32] = &self.rowc;
+            let fa: &[f32] = &self.fa;
+            let row = &self.dq[j * wq..(j + 1) * wq];
+            let mrow = &self.maskq[j * wq..(j + 1) * wq];
+            let (above, rest) = self.labq.split_at_mut(j * wq);
+            let (lrow, below) = rest.split_at_mut(wq);
+            let up: &[u16] = if j > 0 { &above[(j - 1) * wq..] } else { &[] };
+            let dn: &[u16] = below.get(..wq).unwrap_or(&[]);
+            let frow = &mut self.free[j * wq..(j + 1) * wq];
+            let keep = &mut self.keep[..];
+            let mut near = [0u16; 16];
+            // Incumbents.
+            let mut i = 0;
+            while i < wq {
+                let v = lrow[i];
+                let e = run_end(lrow, i);
+                match planes.get_mut((v as usize).wrapping_sub(1)) {
+                    Some(p) => {
+                        let kept = fit_run::<true, false>(
+                            &row[i..],
+                            &mut keep[i..],
+                            e - i,
+                            i,
+                            jf,
+                            p.f.a,
+                            p.f.b * jf + p.f.c,
+                            tau,
+                            &mut p.sums,
+                            &mut inv,
+                        );
+                        if kept > 0 {
+                            let ks = &keep[i..e];
+                            let first = ks.iter().position(|&k| k != 0).unwrap_or(0);
+                            let last = ks.iter().rposition(|&k| k != 0).unwrap_or(0);
+                            grow(&mut p.bbox, i + first, i + last, j);
+                        }
+                    }
+                    None => keep[i..e].fill(0),
+                }
+                i = e;
+            }
+            // The others, one tile (8 blocks) at a time.
+            frow.fill(0);
+            let mut row_changed = false;
+            let mut i0 = 0;
+            while i0 < wq {
+                let i1 = (i0 + CHUNK).min(wq);
+                let (dt, kt) = (&row[i0..i1], &keep[i0..i1]);
+                let kk = <[u8; LANES]>::try_from(kt).unwrap_or_else(|_| pad(kt, 1));
+                // Lanes to search: keep byte 0.
+                let searched = byte_mask(!u64::from_le_bytes(kk) & ALL_KEPT);
+                if searched == 0 {
+                    i0 = i1;
+                    continue;
+                }
+                let d8 = <[f32; LANES]>::try_from(dt).unwrap_or_else(|_| pad(dt, f32::NAN));
+                let (labs, found) = if searched & valid_mask(&d8) != 0 {
+                    // Candidates: the planes of the cells around the chunk (spatial
+                    // coherence; coplanar disconnected regions join by merging).
+                    let (a, b) = (i0.saturating_sub(1), (i1 + 1).min(wq));
+                    let nc = if small {
+                        let cb = &self.cellbits;
+                        let or = |slot: usize| {
+                            cb[slot * wq + a..slot * wq + b]
+                                .iter()
+                                .fold(0u64, |m, &v| m | v)
+                        };
+                        let up_bits = if j > 0 { or((j - 1) % 3) } else { 0 };
+                        bits_to_planes(up_bits | or(j % 3) | or((j + 1) % 3), &mut near)
+                    } else {
+                        neighbour_planes([up, &*lrow, dn], a, b, &mut near)
+                    };
+                    search8(&d8, i0 as f32, &near[..nc], fa, rowc, tau)
+                } else {
+                    ([0u16; LANES], 0)
+                };
+                let (lt, mt) = (&mut lrow[i0..i1], &mrow[i0..i1]);
+                let mut todo = searched & (found | nonzero_mask(lt) | byte_mask(pad_word(mt)));
+                // Searched lanes outside `todo` stay unlabelled (invalid or no plane fits)
+                // and were unlabelled, unmasked: nothing changes.
+                while todo != 0 {
+                    let o = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let (lab, old) = (labs[o], lt[o]);
+                    changed += usize::from(lab != old);
+                    row_changed |= lab != old;
+                    lt[o] = lab;
+                    let fr = lab == 0 && mt[o] == 1;
+                    frow[i0 + o] = u8::from(fr);
+                    free += usize::from(fr);
+                    if let Some(p) = planes.get_mut((lab as usize).wrapping_sub(1)) {
+                        let ii = i0 + o;
+                        p.sums.add(ii as f64, jf, f64::from(dt[o]));
+                        grow(&mut p.bbox, ii, ii, j);
+                    }
+                }
+                i0 = i1;
+            }
+            if small && row_changed {
+                // This row's labels after its searches, for the row below.
+                let slot = j % 3;
+                label_bits(
+                    &self.labq[j * wq..(j + 1) * wq],
+                    &mut self.cellbits[slot * wq..(slot + 1) * wq],
+                );
+            }
+        }
+        (changed, free)
     }
 
-    /// The full-resolution assignment: the block's label is tried first; if it does not fit,
-    /// or the block is unlabelled but touches a labelled block, all candidates of the tile are
-    /// searched. Pixels of unlabelled blocks away from planes stay unlabelled (coherence).
+    /// The full-resolution assignment, with the final moments of the sample rows: each pixel
+    /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
+    /// tested in one vectorised sweep); otherwise, and for the pixels of unlabelled cells
+    /// touching a labelled cell, the planes of the cells around are searched, 8 pixels at a time
+    /// (pixels that fit two planes are recorded for the disambiguation). Pixels of unlabelled
+    /// cells away from planes stay unlabelled (coherence).
+    #[inline(never)]
     fn final_pass(
         &mut self,
+        d: &[f32],
         w: usize,
         h: usize,
-        w2: usize,
-        h2: usize,
+        wq: usize,
         tau: f32,
         labels: &mut [u16],
     ) {
         self.acc.clear();
-        self.acc.resize(self.planes.len(), FinalAcc::default());
+        self.acc.resize(
+            self.planes.len(),
+            FinalAcc {
+                y0: usize::MAX,
+                ..FinalAcc::default()
+            },
+        );
         self.amb.clear();
         self.full.clear();
         self.full
-            .extend(self.planes.iter().map(|p| half_to_full(&p.f)));
+            .extend(self.planes.iter().map(|p| cell_to_full(&p.f)));
         self.fa.clear();
         self.fa.extend(self.full.iter().map(|f| f.a as f32));
-        let tiles = Tiles {
-            off: &self.tile_off,
-            list: &self.tile_list,
-            tw: w2.div_ceil(TILE_H),
-        };
-        final_assign(
-            &self.d,
-            &self.labh,
-            labels,
-            &mut self.acc,
-            &mut self.amb,
-            &self.full,
-            &self.fa,
-            &mut self.rowc,
-            &tiles,
-            (w, h, w2, h2),
-            tau,
-        );
+        let full: &[DisparityAffine] = &self.full;
+        let fa: &[f32] = &self.fa;
+        let acc = &mut self.acc;
+        let amb = &mut self.amb;
+        let empty: &[u16] = &[];
+        let hrow = |jj: usize| self.labq.get(jj * wq..(jj + 1) * wq).unwrap_or(empty);
+        let mut inv_dummy = InvSums::default();
+        let mut sums_dummy = AffineSums::default();
+        let nchunks = w.div_ceil(LANES);
+        self.near_tag.clear();
+        self.near_tag.resize(nchunks, 0);
+        self.near_set.resize(nchunks, [0; 16]);
+        self.near_len.resize(nchunks, 0);
+        self.need.clear();
+        self.need.resize(wq, 0);
+        self.zrow.clear();
+        self.zrow.resize(wq, 0);
+        for y in 0..h {
+            let yf = y as f64;
+            let (stats, metric) = (is_sample_row(y), is_metric_row(y));
+            self.rowc.clear();
+            self.rowc
+                .extend(full.iter().map(|f| (f.b * yf + f.c) as f32));
+            let rowc: &[f32] = &self.rowc;
+            let j = y / CELL;
+            let hint_row = hrow(j);
+            let up_row = if j > 0 { hrow(j - 1) } else { empty };
+            let dn_row = hrow(j + 1);
+            let zrow = &self.zrow[..];
+            let nh = hint_row.len();
+            let need = &mut self.need[..nh];
+            if y % CELL == 0 {
+                let up2 = if up_row.is_empty() { zrow } else { up_row };
+                let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
+                touching(hint_row, up2, dn2, need);
+                // The runs of equal cell labels, shared by the rows of this cell row.
+                self.hruns.clear();
+                let mut i = 0;
+                while i < nh {
+                    let e = run_end(hint_row, i);
+                    self.hruns.push((i as u32, e as u32, hint_row[i]));
+                    i = e;
+                }
+            }
+            let row_d = &d[y * w..(y + 1) * w];
+            let row_l = &mut labels[y * w..(y + 1) * w];
+            let keep = &mut self.keep[..];
+            row_l.fill(0);
+            // keep: 1 = labelled or stays unlabelled, 0 = search.
+            for &(i, e, v) in &self.hruns {
+                let (i, e) = (i as usize, e as usize);
+                let (x0, x1) = (CELL * i, (CELL * e).min(w));
+                if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
+                    // The rest of the row: `fit_run` reads and writes ahead.
+                    let (seg, ks) = (&row_d[x0..], &mut keep[x0..]);
+                    let f = &full[v as usize - 1];
+                    let c_row = f.b * yf + f.c;
+                    let n = x1 - x0;
+                    let lab = &mut row_l[x0..];
+                    let kept = if metric {
+                        fit_run_labels::<true, true, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut a.sums,
+                            &mut a.inv,
+                        )
+                    } else if stats {
+                        fit_run_labels::<true, false, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut a.sums,
+                            &mut inv_dummy,
+                        )
+                    } else {
+                        fit_run_labels::<false, false, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut sums_dummy,
+                            &mut inv_dummy,
+                        )
+                    };
+                    a.pixels += kept;
+                    a.add_rows(y);
+                } else {
+                    // Unlabelled cells: searched only when touching a labelled cell.
+                    let ks = &mut keep[x0..x1];
+                    let mut kc = ks.chunks_exact_mut(CELL);
+                    for (k4, &nd) in (&mut kc).zip(&need[i..e]) {
+                        k4.fill(1 - nd);
+                    }
+                    let last = need.get(e - 1).copied().unwrap_or(0);
+                    kc.into_remainder().fill(1 - last);
+                }
+            }
+            // Columns beyond the cell grid (width not a multiple of the cell), or rows without
+            // one: unlabelled cells (after the runs, which may write ahead).
+            let g = |r: &[u16], ii: usize| r.get(ii).is_some_and(|&l| l != 0);
+            for (x, k) in keep.iter_mut().enumerate().take(w).skip(CELL * nh) {
+                let i = x / CELL;
+                let t = (i > 0 && g(hint_row, i - 1))
+                    || g(hint_row, i + 1)
+                    || g(up_row, i)
+                    || g(dn_row, i);
+                *k = u8::from(!t);
+            }
+            let keep = &keep[..w];
+            // Searches, 8 pixels at a time: first the chunks with a pixel to search.
+            // (Branch-free: every chunk is written, the count advances only for those.)
+            let nch = w.div_ceil(LANES);
+            self.chunks.resize(nch + 1, (0, 0));
+            let mut count = 0usize;
+            let mut kw = keep.chunks_exact(LANES);
+            for (c, kc) in (&mut kw).enumerate() {
+                let word =
+                    u64::from_le_bytes([kc[0], kc[1], kc[2], kc[3], kc[4], kc[5], kc[6], kc[7]]);
+                self.chunks[count] = (c as u32, word);
+                count += usize::from(word != ALL_KEPT);
+            }
+            let tail = kw.remainder();
+            if !tail.is_empty() {
+                let word = u64::from_le_bytes(pad(tail, 1));
+                self.chunks[count] = ((w / LANES) as u32, word);
+                count += usize::from(word != ALL_KEPT);
+            }
+            for &(c, word) in &self.chunks[..count] {
+                let x0 = c as usize * LANES;
+                let x1 = (x0 + LANES).min(w);
+                let mut todo = byte_mask(!word & ALL_KEPT);
+                let (dc, lc) = (&row_d[x0..x1], &mut row_l[x0..x1]);
+                let d8 = <[f32; LANES]>::try_from(dc).unwrap_or_else(|_| pad(dc, f32::NAN));
+                todo &= valid_mask(&d8);
+                if todo == 0 {
+                    continue;
+                }
+                // Candidates: the planes of the cells around the chunk (coherence), the same
+                // for the rows of a cell row.
+                let ci = c as usize;
+                let tag = j as u32 + 1;
+                if self.near_tag[ci] != tag {
+                    let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
+                    let nc = neighbour_planes(
+                        [up_row, hint_row, dn_row],
+                        c0.saturating_sub(1),
+                        c1 + 1,
+                        &mut self.near_set[ci],
+                    );
+                    self.near_len[ci] = nc as u8;
+                    self.near_tag[ci] = tag;
+                }
+                let near = &self.near_set[ci][..self.near_len[ci] as usize];
+                let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
+                todo &= nonzero_mask(&best);
+                while todo != 0 {
+                    let o = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let lab = best[o];
+                    let Some(a) = acc.get_mut((lab as usize).wrapping_sub(1)) else {
+                        continue;
+                    };
+                    lc[o] = lab;
+                    let x = x0 + o;
+                    a.pixels += 1;
+                    a.add_rows(y);
+                    if stats {
+                        let (xf, df) = (x as f64, f64::from(dc[o]));
+                        a.sums.add(xf, yf, df);
+                        if metric {
+                            let r = df - full[lab as usize - 1].eval(xf, yf);
+                            a.inv.add(xf, yf, df, r, 1.0);
+                        }
+                    }
+                    if second[o] != 0 {
+                        amb.push(((y * w + x) as u32, lab, second[o]));
+                    }
+                }
+            }
+        }
     }
 
     /// Pixels within the threshold of two planes take the label that dominates their
-    /// 8-neighbourhood (ties keep the smaller residual).
-    fn resolve_ambiguous(&mut self, w: usize, h: usize, labels: &mut [u16]) {
+    /// 8-neighbourhood (ties keep the smaller residual); the statistics follow.
+    #[inline(never)]
+    fn resolve_ambiguous(&mut self, d: &[f32], w: usize, h: usize, labels: &mut [u16]) {
         for &(i, k1, k2) in &self.amb {
             let i = i as usize;
             let (x, y) = (i % w, i / w);
@@ -685,75 +1131,46 @@ impl PlaneExtractor {
                     c2 += u32::from(l == k2);
                 }
             }
-            if c2 > c1 && labels[i] == k1 {
-                self.acc[k1 as usize - 1].pixels -= 1;
-                self.acc[k2 as usize - 1].pixels += 1;
+            let (u1, u2) = (k1 as usize - 1, k2 as usize - 1);
+            if c2 > c1 && labels[i] == k1 && u1 < self.acc.len() && u2 < self.acc.len() {
                 labels[i] = k2;
+                self.acc[u1].pixels -= 1;
+                self.acc[u2].pixels += 1;
+                self.acc[u2].add_rows(y);
+                if is_sample_row(y) {
+                    let (xf, yf, df) = (x as f64, y as f64, f64::from(d[i]));
+                    let (f1, f2) = (self.full[u1], self.full[u2]);
+                    let a1 = &mut self.acc[u1];
+                    a1.sums.remove(xf, yf, df);
+                    if is_metric_row(y) {
+                        a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
+                    }
+                    let a2 = &mut self.acc[u2];
+                    a2.sums.add(xf, yf, df);
+                    if is_metric_row(y) {
+                        a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
+                    }
+                }
             }
         }
     }
 
-    /// Drops 4-connected pieces of a plane's half-resolution blocks smaller than
-    /// `min_piece_pixels / 4` blocks.
-    fn drop_small_pieces(&mut self, w2: usize, h2: usize) {
-        self.cc.label(&self.labh, w2, h2);
-        let min = self.cfg.min_piece_pixels.div_ceil(4);
+    /// Drops 4-connected pieces of a plane's cells smaller than `min_piece_pixels / 16` cells.
+    #[inline(never)]
+    fn drop_small_pieces(&mut self, wq: usize, hq: usize) {
+        self.cc.label(&self.labq, wq, hq);
+        let min = self.cfg.min_piece_pixels.div_ceil(CELL * CELL);
         for (ri, run) in self.cc.runs.iter().enumerate() {
             if self.cc.sizes[self.cc.component[ri] as usize] >= min {
                 continue;
             }
             let y = run.y as usize;
-            self.labh[y * w2 + run.x0 as usize..y * w2 + run.x1 as usize].fill(0);
-        }
-    }
-
-    /// Moments and metric sums on the stride-2 sample of the final labels.
-    fn statistics(&mut self, w: usize, h: usize, labels: &[u16]) {
-        for y in (0..h).step_by(2) {
-            let yf = y as f64;
-            let jf = (y / 2) as f64;
-            self.rowc.clear();
-            self.rowc
-                .extend(self.full.iter().map(|f| (f.b * yf + f.c) as f32));
-            let row_d = &self.d[y * w..(y + 1) * w];
-            let row_l = &labels[y * w..(y + 1) * w];
-            let mut cur = 0u16;
-            let mut i0 = 0usize;
-            let mut rs = RunSums::default();
-            for (i, (&dv, &lab)) in row_d
-                .iter()
-                .step_by(2)
-                .zip(row_l.iter().step_by(2))
-                .enumerate()
-            {
-                if lab != cur {
-                    rs.flush(&mut self.acc, cur, jf, i0, i);
-                    cur = lab;
-                    i0 = i;
-                }
-                if lab != 0 {
-                    let ku = lab as usize - 1;
-                    let (Some(&a), Some(&c)) = (self.fa.get(ku), self.rowc.get(ku)) else {
-                        continue;
-                    };
-                    let x = 2 * i;
-                    let r = dv - (a * x as f32 + c);
-                    let df = f64::from(dv);
-                    let inv = f64::from(1.0 / dv);
-                    let ri = f64::from(r) * inv;
-                    rs.sd += df;
-                    rs.sxd += i as f64 * df;
-                    rs.sdd += df * df;
-                    rs.si += inv;
-                    rs.sxi += x as f64 * inv;
-                    rs.sr2 += ri * ri;
-                }
-            }
-            rs.flush(&mut self.acc, cur, jf, i0, w.div_ceil(2));
+            self.labq[y * wq + run.x0 as usize..y * wq + run.x1 as usize].fill(0);
         }
     }
 
     /// Final refit, 3D conversion, statistics, and compaction of the ids by decreasing size.
+    #[inline(never)]
     fn finish(
         &mut self,
         w: usize,
@@ -768,21 +1185,29 @@ impl PlaneExtractor {
             if a.pixels < self.cfg.min_pixels || n < 3.0 {
                 continue;
             }
-            // The sample's (i, j) = (x/2, y/2).
-            let Some(fs) = a.sums.solve() else { continue };
-            let f = DisparityAffine {
-                a: fs.a / 2.0,
-                b: fs.b / 2.0,
-                c: fs.c,
-            };
+            let Some(f) = a.sums.solve() else { continue };
             let Ok(plane) = f.to_plane(k, fb) else {
                 continue;
             };
-            let centroid_m = Point3::new(
-                fb * (a.sxi - k.cx * a.si) / (k.fx * n),
-                fb * (a.syi - k.cy * a.si) / (k.fy * n),
-                fb * a.si / n,
-            );
+            let s = &a.inv;
+            let (centroid_m, rms_m) = if s.n >= 1.0 {
+                (
+                    Point3::new(
+                        fb * (s.sxi - k.cx * s.si) / (k.fx * s.n),
+                        fb * (s.syi - k.cy * s.si) / (k.fy * s.n),
+                        fb * s.si / s.n,
+                    ),
+                    plane.offset_m * (s.sr2.max(0.0) / s.n).sqrt(),
+                )
+            } else {
+                // No metric sample (a tiny plane): the point at the mean pixel.
+                let (mx, my) = (a.sums.sx / n, a.sums.sy / n);
+                let z = fb / f.eval(mx, my);
+                (
+                    Point3::new((mx - k.cx) * z / k.fx, (my - k.cy) * z / k.fy, z),
+                    plane.offset_m * a.sums.rms(&f) / (fb / z),
+                )
+            };
             out.push((
                 pi,
                 PlaneInfo {
@@ -790,8 +1215,8 @@ impl PlaneExtractor {
                     plane,
                     affine: f,
                     pixels: a.pixels,
-                    rms_px: a.sums.rms(&fs),
-                    rms_m: plane.offset_m * (a.sr2.max(0.0) / n).sqrt(),
+                    rms_px: a.sums.rms(&f),
+                    rms_m,
                     centroid_m,
                 },
             ));
@@ -803,8 +1228,16 @@ impl PlaneExtractor {
             info.id = new as u16 + 1;
             self.lut[*old + 1] = info.id;
         }
-        for l in labels.iter_mut() {
-            *l = self.lut.get(*l as usize).copied().unwrap_or(0);
+        // Relabel only the rows of the planes whose id changes.
+        let (mut y0, mut y1) = (usize::MAX, 0);
+        for (i, a) in self.acc.iter().enumerate() {
+            if self.lut[i + 1] as usize != i + 1 && a.pixels > 0 {
+                y0 = y0.min(a.y0);
+                y1 = y1.max(a.y1);
+            }
+        }
+        if y0 < y1 && w > 0 {
+            relabel(&mut labels[y0 * w..(y1 * w).min(w * h)], &self.lut);
         }
         self.acc.clear();
         Ok(PlaneSegmentation {
@@ -814,268 +1247,271 @@ impl PlaneExtractor {
     }
 }
 
-/// Candidate lists per tile.
-struct Tiles<'a> {
-    off: &'a [u32],
-    list: &'a [u16],
-    tw: usize,
+/// The stages of [`PlaneExtractor`], for [`StageTimes`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    /// Depth → disparity conversion (or cleaning of the given disparity), fused with the 2×2
+    /// and 4×4 averaging.
+    Disparity,
+    /// Box LoG, threshold and erosion (half resolution), and the planar cells.
+    Log,
+    /// Connected components (planar cells, free cells, coherence pieces).
+    Components,
+    /// Per-component robust affine fits.
+    SeedFits,
+    /// Merging of close planes and renumbering.
+    Merge,
+    /// k-means assignment passes on the cells (searches, sums, refits).
+    Refine,
+    /// Full-resolution assignment with the final moments.
+    FinalPass,
+    /// Neighbourhood disambiguation of pixels that fit two planes.
+    Disambiguate,
+    /// Final refit, 3D planes, statistics and output labels.
+    Output,
 }
 
-impl Tiles<'_> {
-    #[inline]
-    fn cands(&self, tx: usize, ty: usize) -> &[u16] {
-        let t = ty * self.tw + tx.min(self.tw - 1);
-        match (self.off.get(t), self.off.get(t + 1)) {
-            (Some(&a), Some(&b)) => self.list.get(a as usize..b as usize).unwrap_or(&[]),
-            _ => &[],
+impl Stage {
+    /// All stages in pipeline order.
+    pub const ALL: [Stage; 9] = [
+        Stage::Disparity,
+        Stage::Log,
+        Stage::Components,
+        Stage::SeedFits,
+        Stage::Merge,
+        Stage::Refine,
+        Stage::FinalPass,
+        Stage::Disambiguate,
+        Stage::Output,
+    ];
+
+    /// A short name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Disparity => "disparity+2x2",
+            Stage::Log => "log+threshold",
+            Stage::Components => "components",
+            Stage::SeedFits => "seed fits",
+            Stage::Merge => "merge",
+            Stage::Refine => "k-means refine",
+            Stage::FinalPass => "final pass",
+            Stage::Disambiguate => "disambiguate",
+            Stage::Output => "output/stats",
         }
     }
 }
 
-/// Index and |residual| of the best candidate under `tau` (index `u16::MAX` if none).
+/// Wall-clock time per stage of the last extraction, nanoseconds (see
+/// [`PlaneExtractor::stage_times`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StageTimes {
+    ns: [u64; 9],
+}
+
+impl StageTimes {
+    /// Nanoseconds spent in `stage`.
+    pub fn ns(&self, stage: Stage) -> u64 {
+        self.ns[stage as usize]
+    }
+
+    /// Total nanoseconds.
+    pub fn total_ns(&self) -> u64 {
+        self.ns.iter().sum()
+    }
+
+    fn add(&mut self, stage: Stage, t0: &mut Instant) {
+        let now = Instant::now();
+        self.ns[stage as usize] += (now - *t0).as_nanos() as u64;
+        *t0 = now;
+    }
+}
+
+/// End of the run of values equal to `row[i]` that starts at `i` (4 values per step).
+#[inline]
+fn run_end(row: &[u16], i: usize) -> usize {
+    let v = row[i];
+    let vv = u64::from(v) * 0x0001_0001_0001_0001;
+    let rest = &row[i..];
+    let mut words = rest.chunks_exact(4);
+    let mut base = i;
+    for q in &mut words {
+        let w = u64::from(q[0])
+            | (u64::from(q[1]) << 16)
+            | (u64::from(q[2]) << 32)
+            | (u64::from(q[3]) << 48);
+        let x = w ^ vv;
+        if x != 0 {
+            return base + (x.trailing_zeros() / 16) as usize;
+        }
+        base += 4;
+    }
+    words
+        .remainder()
+        .iter()
+        .position(|&l| l != v)
+        .map_or(row.len(), |n| base + n)
+}
+
+/// Replaces every label `l` by `lut[l]` (0 beyond the table): when few labels change, 8 labels
+/// are compared with them at a time and only chunks holding one are rewritten.
+fn relabel(labels: &mut [u16], lut: &[u16]) {
+    let mut changed = [0i16; 4];
+    let mut nc = 0;
+    for (l, &v) in lut.iter().enumerate() {
+        if v as usize != l {
+            if nc == changed.len() {
+                remap(labels, lut);
+                return;
+            }
+            changed[nc] = l as i16;
+            nc += 1;
+        }
+    }
+    let cv = changed.map(i16x8::splat);
+    let mut ch = labels.chunks_exact_mut(LANES);
+    for c in &mut ch {
+        let v = i16x8::from([
+            c[0] as i16,
+            c[1] as i16,
+            c[2] as i16,
+            c[3] as i16,
+            c[4] as i16,
+            c[5] as i16,
+            c[6] as i16,
+            c[7] as i16,
+        ]);
+        let hit = cv[..nc].iter().fold(i16x8::ZERO, |m, &k| m | v.cmp_eq(k));
+        if hit.move_mask() != 0 {
+            remap(c, lut);
+        }
+    }
+    remap(ch.into_remainder(), lut);
+}
+
+/// Replaces every label `l` by `lut[l]` (0 beyond the table).
+fn remap(labels: &mut [u16], lut: &[u16]) {
+    for l in labels.iter_mut() {
+        *l = lut.get(*l as usize).copied().unwrap_or(0);
+    }
+}
+
+/// Bit `l − 1` of label `l` for labels 1..=64 (0 for 0 and larger labels).
+static LABEL_BIT: [u64; 128] = {
+    let mut t = [0u64; 128];
+    let mut l = 1;
+    while l <= 64 {
+        t[l] = 1 << (l - 1);
+        l += 1;
+    }
+    t
+};
+
+/// The distinct planes (label − 1) of the cells `i0..i1` of `rows` (rows may be shorter or
+/// empty) into `out` (at most 16); returns their number.
 #[inline(always)]
-fn best_of(cands: &[u16], fa: &[f32], rowc: &[f32], d: f32, xf: f32, tau: f32) -> u16 {
-    let mut best = tau;
-    let mut lab = 0u16;
-    for &k in cands {
-        let ku = k as usize;
-        if let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) {
-            let r = (d - (a * xf + c)).abs();
-            if r < best {
-                best = r;
-                lab = k + 1;
-            }
+fn neighbour_planes(rows: [&[u16]; 3], i0: usize, i1: usize, out: &mut [u16; 16]) -> usize {
+    // Labels up to 64 as bits, larger ones one by one.
+    let mut bits = 0u64;
+    let mut big = 0u16;
+    for r in rows {
+        for &l in r.get(i0.min(r.len())..i1.min(r.len())).unwrap_or(&[]) {
+            bits |= LABEL_BIT.get(l as usize).copied().unwrap_or(0);
+            big = big.max(l);
         }
     }
-    lab
-}
-
-#[allow(clippy::too_many_arguments)]
-fn coarse_assign(
-    dh: &[f32],
-    mask: &[u8],
-    labh: &mut [u16],
-    free_mask: &mut [u8],
-    planes: &mut [Cand],
-    fa: &[f32],
-    rowc: &mut Vec<f32>,
-    tiles: &Tiles<'_>,
-    (w2, h2): (usize, usize),
-    tau: f32,
-) -> (usize, usize) {
-    let (mut changed, mut free) = (0usize, 0usize);
-    for j in 0..h2 {
-        let jf = j as f64;
-        rowc.clear();
-        rowc.extend(planes.iter().map(|p| (p.f.b * jf + p.f.c) as f32));
-        let rowc: &[f32] = rowc;
-        let ty = j / TILE_H;
-        let row = &dh[j * w2..(j + 1) * w2];
-        let mrow = &mask[j * w2..(j + 1) * w2];
-        let lrow = &mut labh[j * w2..(j + 1) * w2];
-        let frow = &mut free_mask[j * w2..(j + 1) * w2];
-        let mut cur = 0u16;
-        let mut rx0 = 0usize;
-        let (mut sd, mut sxd, mut sdd) = (0.0f64, 0.0f64, 0.0f64);
-        for (tx, ((dt, mt), (lt, ft))) in row
-            .chunks(TILE_H)
-            .zip(mrow.chunks(TILE_H))
-            .zip(lrow.chunks_mut(TILE_H).zip(frow.chunks_mut(TILE_H)))
-            .enumerate()
-        {
-            let cands = tiles.cands(tx, ty);
-            let i0 = tx * TILE_H;
-            for (o, (((&d, &m), l), f)) in dt
-                .iter()
-                .zip(mt)
-                .zip(lt.iter_mut())
-                .zip(ft.iter_mut())
-                .enumerate()
-            {
-                let i = i0 + o;
-                // The incumbent (seed or previous) label is kept while it fits within τ, so
-                // the extension of another plane cannot cut a band through a seeded region;
-                // other blocks take the best candidate.
-                let prev = *l;
-                let xf = i as f32;
-                let keep = prev != 0
-                    && match (fa.get(prev as usize - 1), rowc.get(prev as usize - 1)) {
-                        (Some(&a), Some(&c)) => (d - (a * xf + c)).abs() < tau,
-                        _ => false,
-                    };
-                let lab = if keep {
-                    prev
-                } else {
-                    best_of(cands, fa, rowc, d, xf, tau)
-                };
-                let fr = lab == 0 && m == 1;
-                *f = u8::from(fr);
-                free += usize::from(fr);
-                changed += usize::from(*l != lab);
-                *l = lab;
-                if lab != cur {
-                    if cur != 0
-                        && let Some(p) = planes.get_mut(cur as usize - 1)
-                    {
-                        p.sums.add_run(jf, rx0, i, sd, sxd, sdd);
-                        grow(&mut p.bbox, rx0, i - 1, j);
-                    }
-                    cur = lab;
-                    rx0 = i;
-                    (sd, sxd, sdd) = (0.0, 0.0, 0.0);
-                }
-                if lab != 0 {
-                    let df = f64::from(d);
-                    sd += df;
-                    sxd += i as f64 * df;
-                    sdd += df * df;
+    let mut n = 0;
+    while bits != 0 && n < out.len() {
+        out[n] = bits.trailing_zeros() as u16;
+        bits &= bits - 1;
+        n += 1;
+    }
+    if big > 64 {
+        for r in rows {
+            for &l in r.get(i0.min(r.len())..i1.min(r.len())).unwrap_or(&[]) {
+                if l > 64 && n < out.len() && !out[..n].contains(&(l - 1)) {
+                    out[n] = l - 1;
+                    n += 1;
                 }
             }
         }
-        if cur != 0
-            && let Some(p) = planes.get_mut(cur as usize - 1)
-        {
-            p.sums.add_run(jf, rx0, w2, sd, sxd, sdd);
-            grow(&mut p.bbox, rx0, w2 - 1, j);
-        }
     }
-    (changed, free)
+    n
 }
 
-/// Running sums of one run of equally labelled pixels in a row.
-#[derive(Default, Clone, Copy)]
-struct RunSums {
-    sd: f64,
-    sxd: f64,
-    sdd: f64,
-    sr2: f64,
-    si: f64,
-    sxi: f64,
-}
-
-impl RunSums {
-    #[inline]
-    fn flush(&mut self, acc: &mut [FinalAcc], lab: u16, y: f64, x0: usize, x1: usize) {
-        if lab != 0
-            && let Some(a) = acc.get_mut(lab as usize - 1)
-        {
-            a.sums.add_run(y, x0, x1, self.sd, self.sxd, self.sdd);
-            a.sr2 += self.sr2;
-            a.si += self.si;
-            a.sxi += self.sxi;
-            a.syi += y * self.si;
-        }
-        *self = RunSums::default();
+/// Bit `l − 1` of each label `l` ≤ 64 (0 for unlabelled cells).
+#[inline]
+fn label_bits(labels: &[u16], bits: &mut [u64]) {
+    // Callers have at most 64 planes: labels ≤ 64 < 128.
+    for (b, &l) in bits.iter_mut().zip(labels) {
+        *b = LABEL_BIT[(l & 127) as usize];
     }
 }
 
-#[allow(clippy::too_many_arguments)]
-fn final_assign(
-    d: &[f32],
-    labh: &[u16],
-    labels: &mut [u16],
-    acc: &mut [FinalAcc],
-    amb: &mut Vec<(u32, u16, u16)>,
-    full: &[DisparityAffine],
-    fa: &[f32],
-    rowc: &mut Vec<f32>,
-    tiles: &Tiles<'_>,
-    (w, h, w2, h2): (usize, usize, usize, usize),
-    tau: f32,
-) {
-    let th = h2.div_ceil(TILE_H);
-    let ftile = 2 * TILE_H;
-    let empty: &[u16] = &[];
-    for y in 0..h {
-        let yf = y as f64;
-        rowc.clear();
-        rowc.extend(full.iter().map(|f| (f.b * yf + f.c) as f32));
-        let rowc: &[f32] = rowc;
-        let j = y / 2;
-        let ty = (j / TILE_H).min(th.saturating_sub(1));
-        let hrow = |jj: usize| {
-            if jj < h2 {
-                &labh[jj * w2..(jj + 1) * w2]
-            } else {
-                empty
-            }
-        };
-        let hint_row = hrow(j);
-        let up_row = if j > 0 { hrow(j - 1) } else { empty };
-        let dn_row = hrow(j + 1);
-        let mut cur = 0u16;
-        let mut rx0 = 0usize;
-        let row_d = &d[y * w..(y + 1) * w];
-        let row_l = &mut labels[y * w..(y + 1) * w];
-        for (txf, (dt, lt)) in row_d.chunks(ftile).zip(row_l.chunks_mut(ftile)).enumerate() {
-            let cands = tiles.cands(txf, ty);
-            let x0 = txf * ftile;
-            for (o, (&dv, l)) in dt.iter().zip(lt.iter_mut()).enumerate() {
-                let x = x0 + o;
-                let mut lab = 0u16;
-                if dv > 0.0 {
-                    let xf = x as f32;
-                    let i = x / 2;
-                    let hint = hint_row.get(i).copied().unwrap_or(0);
-                    let mut search = hint != 0;
-                    if hint != 0
-                        && let (Some(&a), Some(&c)) =
-                            (fa.get(hint as usize - 1), rowc.get(hint as usize - 1))
-                        && (dv - (a * xf + c)).abs() < tau
-                    {
-                        lab = hint;
-                        search = false;
-                    }
-                    if hint == 0 {
-                        let g = |r: &[u16], ii: usize| r.get(ii).copied().unwrap_or(0);
-                        search = (i > 0 && g(hint_row, i - 1) != 0)
-                            || g(hint_row, i + 1) != 0
-                            || g(up_row, i) != 0
-                            || g(dn_row, i) != 0;
-                    }
-                    if search {
-                        let (mut best, mut second) = (tau, tau);
-                        let mut sk = 0u16;
-                        for &k in cands {
-                            let ku = k as usize;
-                            let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) else {
-                                continue;
-                            };
-                            let ar = (dv - (a * xf + c)).abs();
-                            if ar < best {
-                                second = best;
-                                sk = lab;
-                                best = ar;
-                                lab = k + 1;
-                            } else if ar < second {
-                                second = ar;
-                                sk = k + 1;
-                            }
-                        }
-                        if lab != 0 && sk != 0 {
-                            amb.push(((y * w + x) as u32, lab, sk));
-                        }
-                    }
-                }
-                *l = lab;
-                if lab != cur {
-                    if cur != 0
-                        && let Some(a) = acc.get_mut(cur as usize - 1)
-                    {
-                        a.pixels += x - rx0;
-                    }
-                    cur = lab;
-                    rx0 = x;
-                }
-            }
+/// The planes (label − 1) of a bit mask into `out` (at most 16); returns their number.
+#[inline(always)]
+fn bits_to_planes(mut bits: u64, out: &mut [u16; 16]) -> usize {
+    let mut n = 0;
+    while bits != 0 && n < out.len() {
+        out[n] = bits.trailing_zeros() as u16;
+        bits &= bits - 1;
+        n += 1;
+    }
+    n
+}
+
+/// `s` padded to 8 elements with `fill`.
+#[inline]
+fn pad<T: Copy>(s: &[T], fill: T) -> [T; LANES] {
+    let mut a = [fill; LANES];
+    let n = s.len().min(LANES);
+    a[..n].copy_from_slice(&s[..n]);
+    a
+}
+
+/// Bit mask of the non-zero bytes of a word whose bytes are 0 or 1.
+#[inline(always)]
+fn byte_mask(v: u64) -> u32 {
+    (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+}
+
+/// Up to 8 bytes (0 or 1) as a little-endian word, zero-padded.
+#[inline(always)]
+fn pad_word(s: &[u8]) -> u64 {
+    u64::from_le_bytes(<[u8; LANES]>::try_from(s).unwrap_or_else(|_| pad(s, 0)))
+}
+
+/// Bit mask of the non-zero values among up to 8 labels.
+#[inline(always)]
+fn nonzero_mask(s: &[u16]) -> u32 {
+    let a = <[u16; LANES]>::try_from(s).unwrap_or_else(|_| pad(s, 0));
+    let v = i16x8::from(a.map(|l| l as i16));
+    (v.cmp_eq(i16x8::ZERO).move_mask() as u32 ^ 0xff) & 0xff
+}
+
+/// Keep bytes of 8 cells or pixels that all passed.
+const ALL_KEPT: u64 = 0x0101_0101_0101_0101;
+
+/// `need[i]` = 1 for the unlabelled cells of `row` with a labelled 4-neighbour, else 0
+/// (`up` and `dn` have the length of `row`).
+fn touching(row: &[u16], up: &[u16], dn: &[u16], need: &mut [u8]) {
+    for ((o, &u), &d) in need.iter_mut().zip(up).zip(dn) {
+        *o = u8::from((u | d) != 0);
+    }
+    if row.len() > 1 {
+        for (o, &l) in need[1..].iter_mut().zip(row) {
+            *o |= u8::from(l != 0);
         }
-        if cur != 0
-            && let Some(a) = acc.get_mut(cur as usize - 1)
-        {
-            a.pixels += w - rx0;
+        for (o, &r) in need.iter_mut().zip(&row[1..]) {
+            *o |= u8::from(r != 0);
         }
     }
+    for (o, &c) in need.iter_mut().zip(row) {
+        *o &= u8::from(c == 0);
+    }
 }
+
+/// An empty support box.
+const EMPTY_BOX: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
 
 fn grow(bb: &mut [u32; 4], x0: usize, x1: usize, y: usize) {
     bb[0] = bb[0].min(x0 as u32);
@@ -1091,4 +1527,116 @@ fn union_box(a: &[u32; 4], b: &[u32; 4]) -> [u32; 4] {
         a[2].max(b[2]),
         a[3].max(b[3]),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sl_core::{Camera, Intrinsics, SensorModel};
+
+    /// Two tilted planes with a depth step between them, on frames whose sizes are not
+    /// multiples of the cell (tail columns and rows), through both entry points.
+    #[test]
+    fn odd_sizes_and_disparity_input() {
+        for (w, h) in [(163usize, 125usize), (160, 120), (97, 61)] {
+            let k = Intrinsics::new(w, h, 150.0, 150.0, w as f64 / 2.0, h as f64 / 2.0).unwrap();
+            let cam = Camera {
+                intrinsics: k,
+                sensor: SensorModel::kinect_v1(),
+            };
+            let left = Plane3::new(nalgebra::Vector3::new(0.3, 0.0, -1.0), 1.5).unwrap();
+            let right = Plane3::new(nalgebra::Vector3::new(-0.3, 0.1, -1.0), 2.5).unwrap();
+            let depth: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    let p = if x < w as f64 / 2.0 { &left } else { &right };
+                    p.depth_at(&k, x, y).unwrap_or(0.0) as f32
+                })
+                .collect();
+            let depth = DepthImage::from_vec(w, h, depth).unwrap();
+            let cfg = PlaneConfig {
+                min_pixels: 200,
+                min_piece_pixels: 64,
+                ..PlaneConfig::default()
+            };
+            let mut ex = PlaneExtractor::new(cfg).unwrap();
+            let seg = ex.extract_depth(&depth, &cam).unwrap();
+            assert_eq!(seg.planes.len(), 2, "{w}x{h}: {:?}", seg.planes);
+            let labelled = seg.labels.data().iter().filter(|&&l| l != 0).count();
+            assert!(
+                labelled as f64 > 0.9 * (w * h) as f64,
+                "{w}x{h}: {labelled}"
+            );
+            // Sorted by size, ids 1.., the label counts match.
+            for (i, p) in seg.planes.iter().enumerate() {
+                assert_eq!(p.id as usize, i + 1);
+                let n = seg.labels.data().iter().filter(|&&l| l == p.id).count();
+                assert_eq!(n, p.pixels);
+                let truth = if p.plane.normal.x > 0.0 {
+                    &left
+                } else {
+                    &right
+                };
+                assert!(p.plane.angle_deg(truth) < 0.1, "{:?}", p.plane);
+            }
+            // The same through the disparity entry point, also with garbage where invalid.
+            let disp = depth.to_disparity(&cam.sensor);
+            let seg2 = ex.extract_disparity(&disp, &cam).unwrap();
+            assert_eq!(seg2.planes.len(), 2);
+            assert_eq!(seg2.labels, seg.labels);
+            if w < 160 {
+                continue;
+            }
+            // (A hole of 8×8 pixels and a few isolated pixels.)
+            let is_bad = |i: usize| {
+                let (x, y) = (i % w, i / w);
+                (20..28).contains(&x) && (30..38).contains(&y) || i % 997 == 3
+            };
+            let mut bad = disp.data().to_vec();
+            for (i, v) in bad.iter_mut().enumerate().filter(|(i, _)| is_bad(*i)) {
+                *v = [f32::NAN, f32::INFINITY, -4.0, f32::NEG_INFINITY][i % 4];
+            }
+            let bad = DisparityImage::from_vec(w, h, bad).unwrap();
+            let seg3 = ex.extract_disparity(&bad, &cam).unwrap();
+            // (The isolated invalid pixels break the LoG support around them: fewer seeds,
+            // but never an invalid pixel labelled or a non-finite statistic.)
+            assert!(!seg3.planes.is_empty());
+            for (i, &l) in seg3.labels.data().iter().enumerate() {
+                if is_bad(i) {
+                    assert_eq!(l, 0, "invalid pixel {i} labelled");
+                }
+            }
+            assert!(seg3.planes.iter().all(|p| p.rms_px.is_finite()
+                && p.rms_m.is_finite()
+                && p.centroid_m.iter().all(|c| c.is_finite())));
+        }
+    }
+
+    #[test]
+    fn empty_and_tiny_frames() {
+        let cam = Camera::kinect_v1();
+        let k = cam.intrinsics;
+        let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+        let seg = ex
+            .extract_depth(&DepthImage::invalid(k.width, k.height), &cam)
+            .unwrap();
+        assert!(seg.planes.is_empty());
+        assert!(seg.labels.data().iter().all(|&l| l == 0));
+        assert!(ex.stage_times().total_ns() > 0);
+        // Too small for the cell grid: no planes, no panic.
+        let tiny = Intrinsics::new(20, 12, 30.0, 30.0, 10.0, 6.0).unwrap();
+        let cam = Camera {
+            intrinsics: tiny,
+            sensor: SensorModel::kinect_v1(),
+        };
+        let seg = ex
+            .extract_depth(&DepthImage::from_vec(20, 12, vec![1.0; 240]).unwrap(), &cam)
+            .unwrap();
+        assert!(seg.planes.is_empty());
+        // A size mismatch is an error.
+        assert!(
+            ex.extract_depth(&DepthImage::invalid(10, 10), &cam)
+                .is_err()
+        );
+    }
 }

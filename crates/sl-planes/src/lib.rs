@@ -7,9 +7,12 @@
 //!
 //! Pipeline position: depth frames → `sl-io` → `sl-core` types → (`sl-filter`) → **`sl-planes`**.
 //!
-//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → connected components →
-//!   robust affine fits → k-means refinement with merging and neighbour disambiguation → label
-//!   image + [`PlaneInfo`] (3D normal/offset, disparity-affine coefficients, RMS in px and m).
+//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → connected components of
+//!   planar 4×4-pixel cells → robust affine fits → k-means refinement on the cells with merging
+//!   → per-pixel assignment with neighbour disambiguation → label image + [`PlaneInfo`] (3D
+//!   normal/offset, disparity-affine coefficients, RMS in px and m). About 3 ms per 640×480
+//!   frame on one core; reuse one extractor for a video ([`PlaneExtractor::stage_times`] gives
+//!   the time per stage).
 //! * [`ransac::metric_ransac`]: the fixed metric-threshold baseline (Open3D `segment_plane` style).
 //! * [`segcomp::segcomp`]: the Hoover et al. segmentation comparison.
 //! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes,
@@ -41,6 +44,7 @@ pub mod components;
 pub mod error;
 pub mod extract;
 pub mod fit;
+mod kernels;
 pub mod log;
 pub mod motion;
 pub mod overlay;
@@ -50,7 +54,9 @@ pub mod segcomp;
 mod verify;
 
 pub use error::{PlanesError, Result};
-pub use extract::{PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, extract_planes};
+pub use extract::{
+    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, Stage, StageTimes, extract_planes,
+};
 pub use fit::AffineSums;
 pub use motion::{
     IcpConfig, IcpResult, MotionConfidence, MotionConfig, MotionFrame, PlaneMatch, PlaneMotion,

@@ -3,6 +3,9 @@
 //! `docs/bench/open3d_tsdf.py`.
 //!
 //! `cargo run --release -p sl-tsdf --example fuse_timing -- icl|7scenes [weight] [frames]`
+//!
+//! The JSON also carries `mesh_checksum`, an order-sensitive hash of the mesh's bits, to check
+//! that a change of implementation leaves the output unchanged.
 
 use std::path::Path;
 use std::time::Instant;
@@ -63,6 +66,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t0 = Instant::now();
     let mesh = vol.extract_mesh(&ExtractOptions::default());
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
+    // Order-sensitive FNV-1a checksum of the mesh (to compare implementations).
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |v: u32| {
+        h ^= u64::from(v);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    };
+    for p in mesh.positions.iter().chain(&mesh.normals) {
+        p.iter().for_each(|c| eat(c.to_bits()));
+    }
+    mesh.confidence.iter().for_each(|c| eat(c.to_bits()));
+    mesh.triangles.iter().flatten().for_each(|&i| eat(i));
     let mut sorted = ms.clone();
     sorted.sort_by(f64::total_cmp);
     let n = sorted.len();
@@ -72,7 +86,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         0.5 * (sorted[n / 2 - 1] + sorted[n / 2])
     };
     println!(
-        "{{\"tool\": \"sl-tsdf\", \"dataset\": \"{which}\", \"weight\": \"{}\", \"frames\": {n}, \"integrate_ms_median\": {med:.2}, \"integrate_ms\": {:?}, \"extract_ms\": {extract_ms:.1}, \"vertices\": {}, \"triangles\": {}, \"blocks\": {}, \"memory_bytes\": {}}}",
+        "{{\"tool\": \"sl-tsdf\", \"dataset\": \"{which}\", \"weight\": \"{}\", \"frames\": {n}, \"integrate_ms_median\": {med:.2}, \"integrate_ms\": {:?}, \"extract_ms\": {extract_ms:.1}, \"vertices\": {}, \"triangles\": {}, \"blocks\": {}, \"memory_bytes\": {}, \"mesh_checksum\": \"{h:016x}\"}}",
         weight.name(),
         ms.iter()
             .map(|x| (x * 100.0).round() / 100.0)

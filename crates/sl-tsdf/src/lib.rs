@@ -43,7 +43,11 @@
 //! `blocks × BYTES_PER_BLOCK` against [`TsdfParams::memory_budget_bytes`] and fails with
 //! [`TsdfError::MemoryBudget`] (volume unchanged) if it would be exceeded; the allocations
 //! themselves use `try_reserve`, so an allocator failure is [`TsdfError::OutOfMemory`], never
-//! an abort. (Vector growth may briefly hold up to twice the block storage while it moves.)
+//! an abort. The blocks live in one arena (a vector indexed through the hash map) that grows
+//! geometrically but never beyond the number of blocks the budget allows, so its capacity
+//! stays within the budget (a reallocation may briefly hold the old and the new storage while
+//! it moves). Per-frame scratch space (the per-pixel table, about 4 MiB for 640×480) is not
+//! counted.
 //!
 //! ```
 //! use sl_core::{Camera, Pose};
@@ -77,6 +81,7 @@ pub mod io;
 pub mod mc_table;
 pub mod mesh;
 pub mod metrics;
+mod par;
 pub mod params;
 pub mod render;
 pub mod slice;

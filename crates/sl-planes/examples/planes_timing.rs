@@ -1,0 +1,243 @@
+//! Per-stage timing of the plane extractor on the real 640×480 frames, one thread, and a
+//! regression check of its labels against a saved run.
+//!
+//! * `cargo run --release -p sl-planes --example planes_timing -- time [ITERATIONS] [FILTER]`:
+//!   min and median milliseconds per frame and the median per stage (one frame per source).
+//! * `… -- sweep [ITERATIONS]`: min/median over many frames of each source (all TUM and 7-Scenes
+//!   frames).
+//! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of many frames (real and
+//!   simulated) to `DIR`, or compares the current labels with them (pixel agreement after
+//!   matching planes by overlap).
+//!
+//! Frames come from `../shared/data` (simulated frames when absent), as in `benches/planes.rs`.
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+#[path = "../benches/support/frames.rs"]
+mod frames;
+
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+use frames::{Input, frames, load};
+use sl_core::Camera;
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, Stage};
+
+fn run(ex: &mut PlaneExtractor, input: &Input, cam: &Camera) -> PlaneSegmentation {
+    match input {
+        Input::Depth(d) => ex.extract_depth(d, cam).unwrap(),
+        Input::Disparity(d) => ex.extract_disparity(d, cam).unwrap(),
+    }
+}
+
+fn median(v: &mut [u64]) -> f64 {
+    v.sort_unstable();
+    v[v.len() / 2] as f64 / 1e6
+}
+
+fn time(iters: usize, filter: &str) {
+    for (name, input, cam) in frames() {
+        if !name.contains(filter) {
+            continue;
+        }
+        let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+        let mut totals = Vec::with_capacity(iters);
+        let mut stages: Vec<Vec<u64>> = vec![Vec::with_capacity(iters); Stage::ALL.len()];
+        let mut nplanes = 0;
+        for _ in 0..iters {
+            let t = std::time::Instant::now();
+            let seg = run(&mut ex, &input, &cam);
+            totals.push(t.elapsed().as_nanos() as u64);
+            nplanes = seg.planes.len();
+            std::hint::black_box(seg);
+            for (s, v) in Stage::ALL.iter().zip(stages.iter_mut()) {
+                v.push(ex.stage_times().ns(*s));
+            }
+        }
+        let min = *totals.iter().min().unwrap() as f64 / 1e6;
+        println!(
+            "{name}: {nplanes} planes, min {min:.3} ms, median {:.3} ms",
+            median(&mut totals)
+        );
+        for (s, v) in Stage::ALL.iter().zip(stages.iter_mut()) {
+            println!("  {:<16} {:>7.3} ms", s.name(), median(v));
+        }
+    }
+}
+
+fn sweep(iters: usize) {
+    let mut by_source: HashMap<String, (Vec<u64>, Vec<u64>)> = HashMap::new();
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    for (name, input, cam) in load(50) {
+        let source = name.split('/').next().unwrap().to_string();
+        let mut t = Vec::with_capacity(iters);
+        for _ in 0..iters {
+            let t0 = std::time::Instant::now();
+            std::hint::black_box(run(&mut ex, &input, &cam));
+            t.push(t0.elapsed().as_nanos() as u64);
+        }
+        let e = by_source.entry(source).or_default();
+        e.0.push(*t.iter().min().unwrap());
+        e.1.push((median(&mut t) * 1e6) as u64);
+    }
+    let mut keys: Vec<_> = by_source.keys().cloned().collect();
+    keys.sort();
+    for k in keys {
+        let (mins, meds) = by_source.get_mut(&k).unwrap();
+        let n = mins.len();
+        let worst = *mins.iter().max().unwrap() as f64 / 1e6;
+        println!(
+            "{k:<14} {n:>3} frames: per-frame min: median {:.3} ms, worst {worst:.3} ms; per-frame median: median {:.3} ms",
+            median(mins),
+            median(meds)
+        );
+    }
+}
+
+fn dump(dir: &std::path::Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    for (name, input, cam) in load(50) {
+        let seg = run(&mut ex, &input, &cam);
+        let file = dir.join(name.replace('/', "_"));
+        let bytes: Vec<u8> = seg
+            .labels
+            .data()
+            .iter()
+            .flat_map(|l| l.to_le_bytes())
+            .collect();
+        std::fs::write(file.with_extension("labels"), bytes).unwrap();
+        let mut txt = String::new();
+        for p in &seg.planes {
+            txt += &format!(
+                "{} {} {:.6} {:.6} {:.6} {:.6} {:.4} {:.5}\n",
+                p.id,
+                p.pixels,
+                p.plane.normal.x,
+                p.plane.normal.y,
+                p.plane.normal.z,
+                p.plane.offset_m,
+                p.rms_px,
+                p.rms_m
+            );
+        }
+        std::fs::write(file.with_extension("planes"), txt).unwrap();
+    }
+}
+
+fn compare(dir: &std::path::Path) {
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let (mut worst, mut sum, mut n) = (1.0f64, 0.0f64, 0usize);
+    for (name, input, cam) in load(50) {
+        let seg = run(&mut ex, &input, &cam);
+        let file = dir.join(name.replace('/', "_"));
+        let Ok(bytes) = std::fs::read(file.with_extension("labels")) else {
+            println!("{name}: no saved labels");
+            continue;
+        };
+        let old: Vec<u16> = bytes
+            .chunks(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        let old_planes = std::fs::read_to_string(file.with_extension("planes"))
+            .unwrap()
+            .lines()
+            .count();
+        // Confusion counts, greedy one-to-one matching by overlap.
+        let mut conf: HashMap<(u16, u16), usize> = HashMap::new();
+        let mut either = 0usize;
+        for (&a, &b) in old.iter().zip(seg.labels.data()) {
+            if a != 0 || b != 0 {
+                either += 1;
+            }
+            if a != 0 && b != 0 {
+                *conf.entry((a, b)).or_default() += 1;
+            }
+        }
+        let mut pairs: Vec<_> = conf.into_iter().collect();
+        pairs.sort_by_key(|p| std::cmp::Reverse(p.1));
+        let (mut ua, mut ub) = (vec![false; 65536], vec![false; 65536]);
+        let mut agree = 0usize;
+        for ((a, b), c) in pairs {
+            if !ua[a as usize] && !ub[b as usize] {
+                ua[a as usize] = true;
+                ub[b as usize] = true;
+                agree += c;
+            }
+        }
+        let frac = if either == 0 {
+            1.0
+        } else {
+            agree as f64 / either as f64
+        };
+        worst = worst.min(frac);
+        sum += frac;
+        n += 1;
+        println!(
+            "{name:<22} planes {old_planes:>3} -> {:>3}  agreement {:.2} %",
+            seg.planes.len(),
+            100.0 * frac
+        );
+    }
+    println!(
+        "mean agreement {:.2} %, worst {:.2} % over {n} frames",
+        100.0 * sum / n.max(1) as f64,
+        100.0 * worst
+    );
+}
+
+/// Side-by-side overlays (saved labels | current labels) of the frames matching `filter`.
+fn view(dir: &std::path::Path, out: &std::path::Path, filter: &str) {
+    use sl_planes::overlay::{depth_to_rgb, overlay_rgb};
+    std::fs::create_dir_all(out).unwrap();
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    for (name, input, cam) in load(50) {
+        if !name.contains(filter) {
+            continue;
+        }
+        let seg = run(&mut ex, &input, &cam);
+        let file = dir.join(name.replace('/', "_"));
+        let Ok(bytes) = std::fs::read(file.with_extension("labels")) else {
+            continue;
+        };
+        let old: Vec<u16> = bytes
+            .chunks(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        let (w, h) = (seg.labels.width(), seg.labels.height());
+        let depth = match &input {
+            Input::Depth(d) => d.clone(),
+            Input::Disparity(d) => d.to_depth(&cam.sensor),
+        };
+        let base = depth_to_rgb(&depth);
+        let old = sl_core::Image::from_vec(w, h, old).unwrap();
+        let a = overlay_rgb(&old, &base, 0.6).unwrap();
+        let b = overlay_rgb(&seg.labels, &base, 0.6).unwrap();
+        let mut img = image::RgbImage::new(2 * w as u32, h as u32);
+        for y in 0..h {
+            for x in 0..w {
+                let i = 3 * (y * w + x);
+                img.put_pixel(x as u32, y as u32, image::Rgb([a[i], a[i + 1], a[i + 2]]));
+                img.put_pixel(
+                    (x + w) as u32,
+                    y as u32,
+                    image::Rgb([b[i], b[i + 1], b[i + 2]]),
+                );
+            }
+        }
+        img.save(out.join(format!("{}.png", name.replace('/', "_"))))
+            .unwrap();
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize| args.get(i).cloned().unwrap_or_default();
+    match arg(0).as_str() {
+        "sweep" => sweep(arg(1).parse().unwrap_or(5)),
+        "dump" => dump(&PathBuf::from(arg(1))),
+        "compare" => compare(&PathBuf::from(arg(1))),
+        "view" => view(&PathBuf::from(arg(1)), &PathBuf::from(arg(2)), &arg(3)),
+        "time" => time(arg(1).parse().unwrap_or(200), &arg(2)),
+        _ => time(arg(0).parse().unwrap_or(200), &arg(1)),
+    }
+}
