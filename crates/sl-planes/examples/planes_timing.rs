@@ -3,13 +3,15 @@
 //!
 //! * `cargo run --release -p sl-planes --example planes_timing -- time [ITERATIONS] [FILTER]`:
 //!   min and median milliseconds per frame and the median per stage (one frame per source).
-//! * `… -- sweep [ITERATIONS]`: min/median over many frames of each source (all TUM and 7-Scenes
-//!   frames).
-//! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of many frames (real and
-//!   simulated) to `DIR`, or compares the current labels with them (pixel agreement after
-//!   matching planes by overlap).
+//! * `… -- sweep [ITERATIONS]`: min/median over many frames of each source (all TUM and
+//!   7-Scenes frames, NYU raw, the Open3D and PCL frames, the simulated scenes).
+//! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of those frames to `DIR`,
+//!   or compares the current labels with them (pixel agreement after matching planes by
+//!   overlap): a check that an optimisation did not change the segmentation.
+//! * `… -- view DIR OUT FILTER`: side-by-side overlays (saved | current) as PNGs in `OUT`.
 //!
-//! Frames come from `../shared/data` (simulated frames when absent), as in `benches/planes.rs`.
+//! Run with `RAYON_NUM_THREADS=1` (the extractor itself is sequential). Frames come from
+//! `../shared/data` (simulated frames when absent), as in `benches/planes.rs`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 #[path = "../benches/support/frames.rs"]

@@ -2,7 +2,8 @@
 //!
 //! Each row is split into maximal runs of equal non-background value; runs of consecutive rows
 //! with the same value and overlapping columns are united. The work is proportional to the
-//! number of runs, not pixels, after one scan of the image.
+//! number of runs, not pixels, after one scan of the image, which reads 64-bit words (8 mask
+//! bytes or 4 labels at a time) to skip the background and to find the ends of runs.
 
 /// One horizontal run `x0..x1` on row `y` of pixels with the same value.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

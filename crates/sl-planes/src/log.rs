@@ -2,7 +2,8 @@
 //!
 //! The Gaussian is replaced by two passes of a `(2r+1)²` box filter (a separable, triangle-like
 //! kernel of variance `2r(r+1)/3` per axis, so `r ≈ (√(1+6σ²) − 1)/2`), computed with direct
-//! shifted-slice additions that the compiler vectorises. The Laplacian is the 5-point stencil
+//! shifted-slice additions that the compiler vectorises (for `r = 1`, the default, the two boxes
+//! are one separable `[1 2 3 2 1]` pass per axis). The Laplacian is the 5-point stencil
 //! with step `s = max(1, round(σ))` on the smoothed map:
 //! `L = M(x−s,y) + M(x+s,y) + M(x,y−s) + M(x,y+s) − 4M`. Like the LoG it is exactly zero on any
 //! affine disparity (a plane), whatever its depth, so a **fixed** threshold in disparity pixels

@@ -14,7 +14,8 @@
 //!
 //! * [`TsdfVolume`]: sparse storage — a hash map of 8³ voxel blocks allocated only within the
 //!   truncation band of observed pixels (memory grows with surface area), a memory budget that
-//!   fails cleanly ([`TsdfError::MemoryBudget`]), and rayon-parallel integration per block.
+//!   fails cleanly ([`TsdfError::MemoryBudget`]), and parallel integration per block (on as
+//!   many threads as rayon's pool has, `RAYON_NUM_THREADS`).
 //! * [`WeightMode`]: `inv-z4` (default), `uniform`, `inv-z2`, and the sensor-model variance;
 //!   weights are normalised at a reference depth so the f32 arithmetic stays O(1)
 //!   (see [`TsdfParams`]).
