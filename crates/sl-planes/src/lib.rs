@@ -17,7 +17,8 @@
 //! * [`segcomp::segcomp`]: the Hoover et al. segmentation comparison.
 //! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes,
 //!   [`estimate_motion_verified`] checking every plane hypothesis against both depth maps (no
-//!   prior needed; "not determined" rather than a wrong rotation), and point-to-plane ICP.
+//!   prior needed; "not determined" rather than a wrong rotation), and point-to-plane ICP
+//!   ([`refine_motion_icp_verified`]: a refinement is kept only when the depth data verify it).
 //!
 //! ```
 //! use sl_core::{Camera, DepthImage, nalgebra::Vector3};
@@ -59,8 +60,9 @@ pub use extract::{
 };
 pub use fit::AffineSums;
 pub use motion::{
-    IcpConfig, IcpResult, MotionConfidence, MotionConfig, MotionFrame, PlaneMatch, PlaneMotion,
-    Verification, VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
+    ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,
+    MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification, VerifyConfig,
+    estimate_motion, estimate_motion_verified, icp_point_to_plane, refine_motion_icp_verified,
 };
 pub use plane::{DisparityAffine, Plane3};
 pub use ransac::{RansacConfig, metric_ransac};

@@ -1,6 +1,7 @@
 //! Geometric verification of motion hypotheses against depth data, and the point-to-plane ICP
 //! core shared by [`crate::motion::icp_point_to_plane`] and
-//! [`crate::motion::estimate_motion_verified`].
+//! [`crate::motion::estimate_motion_verified`]. The same two-way check decides whether
+//! [`crate::motion::refine_motion_icp_verified`] keeps an ICP refinement.
 //!
 //! A hypothesis `X_a = R·X_b + t` is checked by moving a grid of frame-B points (with their
 //! normals) into frame A, projecting them into A's depth map (projective association) and

@@ -137,18 +137,11 @@ fn fuse(seq: &Sequence) -> TsdfVolume {
 }
 
 fn bench(c: &mut Criterion) {
-    let mut seqs = Vec::new();
-    match (icl(), seven_scenes()) {
-        (Some(a), Some(b)) => {
-            seqs.push(a);
-            seqs.push(b);
-        }
-        _ => {
-            eprintln!(
-                "skipping real data: ../shared/data not found; benchmarking simulated frames"
-            );
-            seqs.push(simulated());
-        }
+    // Whichever real sequences are present; simulated frames when there are none.
+    let mut seqs: Vec<Sequence> = [icl(), seven_scenes()].into_iter().flatten().collect();
+    if seqs.is_empty() {
+        eprintln!("skipping real data: ../shared/data not found; benchmarking simulated frames");
+        seqs.push(simulated());
     }
     for seq in &seqs {
         let n = seq.frames.len();

@@ -39,16 +39,16 @@
 //!
 //! ## Memory
 //!
-//! A block is 8³ voxels of 8 bytes (4 KiB) plus its key and hash-map slot
-//! ([`volume::BYTES_PER_BLOCK`]). Before allocating the blocks a frame needs, the volume checks
-//! `blocks × BYTES_PER_BLOCK` against [`TsdfParams::memory_budget_bytes`] and fails with
+//! A block is 8³ voxels of 8 bytes (4 KiB) plus its key and its worst-case share of the hash
+//! index ([`volume::BYTES_PER_BLOCK`]). Before allocating the blocks a frame needs, the volume
+//! checks `blocks × BYTES_PER_BLOCK` against [`TsdfParams::memory_budget_bytes`] and fails with
 //! [`TsdfError::MemoryBudget`] (volume unchanged) if it would be exceeded; the allocations
 //! themselves use `try_reserve`, so an allocator failure is [`TsdfError::OutOfMemory`], never
 //! an abort. The blocks live in one arena (a vector indexed through the hash map) that grows
 //! geometrically but never beyond the number of blocks the budget allows, so its capacity
-//! stays within the budget (a reallocation may briefly hold the old and the new storage while
-//! it moves). Per-frame scratch space (the per-pixel table, about 4 MiB for 640×480) is not
-//! counted.
+//! stays within the budget: [`TsdfVolume::memory_bytes`] never exceeds it (a reallocation may
+//! briefly hold the old and the new storage while it moves). Per-frame scratch space (the
+//! per-pixel table, about 4 MiB for 640×480) is not counted.
 //!
 //! ```
 //! use sl_core::{Camera, Pose};

@@ -69,8 +69,13 @@ pub fn local_index(x: usize, y: usize, z: usize) -> usize {
     x + BLOCK_SIDE * (y + BLOCK_SIDE * z)
 }
 
-/// Bytes one block costs in the volume: the voxels, its key and its hash-map slot.
-pub const BYTES_PER_BLOCK: usize = std::mem::size_of::<Block>() + 8 + 24;
+/// Bytes one block costs in the volume: the voxels, its key (8 bytes) and its share of the
+/// hash index (56 bytes). An index slot is a 16-byte entry plus a control byte, and the index
+/// grows by doubling, so right after a growth it holds up to about two slots per block (three
+/// slots for a single block): at most 51 bytes per block as [`TsdfVolume::memory_bytes`]
+/// counts it. With this cost [`TsdfVolume::memory_bytes`] stays within
+/// [`TsdfParams::memory_budget_bytes`] whenever the budget check passed.
+pub const BYTES_PER_BLOCK: usize = std::mem::size_of::<Block>() + 8 + 56;
 
 /// What one call of [`TsdfVolume::integrate`] did.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -229,15 +234,28 @@ impl TsdfVolume {
         let bs = BLOCK_SIDE as f64 * params.voxel_m;
         let lo = lo_m.map(|c| (c / bs).floor() as i64);
         let hi = hi_m.map(|c| (c / bs).floor() as i64);
-        let n: i64 = (0..3).map(|a| (hi[a] - lo[a] + 1).max(0)).product();
-        let needed = (n as usize).saturating_mul(BYTES_PER_BLOCK);
+        let n: usize = (0..3)
+            .map(|a| usize::try_from(hi[a].saturating_sub(lo[a]).saturating_add(1)).unwrap_or(0))
+            .fold(1, usize::saturating_mul);
+        let needed = n.saturating_mul(BYTES_PER_BLOCK);
         if needed > params.memory_budget_bytes {
             return Err(TsdfError::MemoryBudget {
-                blocks: n as usize,
+                blocks: n,
                 needed_bytes: needed,
                 budget_bytes: params.memory_budget_bytes,
             });
         }
+        // Exactly the blocks needed (no geometric growth), so that the capacities stay within
+        // the budget like those of `integrate`.
+        vol.blocks
+            .try_reserve_exact(n)
+            .map_err(|_| TsdfError::OutOfMemory("voxel blocks"))?;
+        vol.keys
+            .try_reserve_exact(n)
+            .map_err(|_| TsdfError::OutOfMemory("block keys"))?;
+        vol.index
+            .try_reserve(n)
+            .map_err(|_| TsdfError::OutOfMemory("block index"))?;
         for bz in lo[2]..=hi[2] {
             for by in lo[1]..=hi[1] {
                 for bx in lo[0]..=hi[0] {
@@ -529,6 +547,14 @@ impl<'a> BandFrame<'a> {
             .add_scalar(shift)
             .cast::<f32>();
         let lim = crate::hash::MAX_BLOCK_COORD as f32 - 2.0;
+        // A non-finite rotation would make every cell below NaN, and NaN passes the range
+        // checks of `band_rows` (its compares are false): refuse it here.
+        if rot.iter().any(|c| !c.is_finite()) {
+            return Err(TsdfError::OutOfRange(format!(
+                "camera rotation {:?} is not finite",
+                pose.rotation.coords
+            )));
+        }
         if t.iter().any(|c| !c.is_finite() || c.abs() > lim) {
             return Err(TsdfError::OutOfRange(format!(
                 "camera position {:?} m",
@@ -1059,6 +1085,9 @@ fn traverse(a: &Vector3<f32>, b: &Vector3<f32>, mut visit: impl FnMut([i32; 3]))
         visit(cell);
     }
 }
+
+#[cfg(test)]
+mod reference_tests;
 
 #[cfg(test)]
 #[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]

@@ -6,7 +6,8 @@
 //!    weights; the distance from the fused mesh vertices to the true surface (mean, RMS, 95th
 //!    percentile) is reported, and `inv-z4` must have a clearly lower RMS (we expect ≥ 25 %
 //!    lower than `uniform`). Cross-sections of F for both weights are written side by side,
-//!    with both zero crossings and the true profile overlaid (the paper's Figure 7).
+//!    with both zero crossings over the true profile and their distance from it along the
+//!    line below them (the paper's Figure 7).
 //! 2. Real: the ICL-NUIM and 7-Scenes frames fused with each weight (4 mm voxels, 2 cm
 //!    truncation): vertex and triangle counts, timings, and a shaded rendering of each mesh
 //!    from the first camera.
@@ -211,26 +212,61 @@ fn simulated(ctx: &mut Context) -> Result<()> {
         );
     }
 
-    // Figure 7: both cross-sections, and their zero crossings over the true profile.
+    // Figure 7: both cross-sections; below them their zero crossings over the true profile,
+    // and each zero crossing's distance from the true profile along the line.
     if slices.len() == 2 {
         let (a, b) = (&slices[0].1, &slices[1].1);
         let ia = a.to_rgb([0, 0, 0]);
         let ib = b.to_rgb([0, 0, 0]);
         let mut overlay = Image::filled(a.values.width(), a.values.height(), [255u8, 255, 255]);
         draw_true_profile(&mut overlay, a, &plate_height_at_crest);
-        a.draw_zero_crossing(&mut overlay, [220, 30, 30]);
-        b.draw_zero_crossing(&mut overlay, [30, 60, 220]);
+        a.draw_zero_crossing(&mut overlay, UNIFORM_RGB);
+        b.draw_zero_crossing(&mut overlay, INV_Z4_RGB);
+        let errors = [a, b].map(|s| zero_crossing_errors(s, &plate_height_at_crest));
+        let mean_abs = errors.each_ref().map(|e| {
+            let v: Vec<f64> = e.iter().flatten().copied().collect();
+            (v.iter().sum::<f64>() / v.len().max(1) as f64, v.len())
+        });
+        // Full height of the error panel: the larger 99th percentile, rounded up to the grid.
+        let mut all: Vec<f64> = errors.iter().flatten().flatten().copied().collect();
+        all.sort_by(f64::total_cmp);
+        let p99 = all.get(all.len() * 99 / 100).copied().unwrap_or(0.0);
+        let full_scale_m = (p99 / ERROR_GRID_M).ceil().max(1.0) * ERROR_GRID_M;
+        let panel = error_panel(
+            overlay.width(),
+            overlay.height(),
+            &[(&errors[0], UNIFORM_RGB), (&errors[1], INV_Z4_RGB)],
+            full_scale_m,
+        );
         let fig = hconcat(&[&ia, &ib], 6);
-        let fig = vstack(&fig, &overlay, 6);
+        let fig = vstack(&fig, &hconcat(&[&overlay, &panel], 6), 6);
         let path = ctx.out_dir().join("tsdf_cross_sections.png");
         sl_tsdf::io::write_png(&path, &fig)?;
+        for ((name, _), (mae, _)) in slices.iter().zip(&mean_abs) {
+            ctx.row(
+                EXP,
+                &format!("sim crest-line zero crossing {name} mean |error|"),
+                mae * 1e3,
+                "mm",
+            );
+        }
         writeln!(
             md,
             "\n![cross-sections](tsdf_cross_sections.png)\n\nTop: F on the plane y = {:.0} mm (x from −80 to \
              80 mm across, z from −12 to 12 mm up; blue behind, red in front of the surface, black zero \
-             crossing, grey unobserved) for `uniform` (left) and `inv-z4` (right). Bottom: the zero crossings, \
-             `uniform` in red and `inv-z4` in blue, over the true relief profile in grey.",
-            RELIEF_WAVELENGTH_M / 4.0 * 1e3
+             crossing, grey unobserved) for `uniform` (left) and `inv-z4` (right). Bottom left: the zero \
+             crossings, `uniform` in red and `inv-z4` in blue, over the true relief profile in grey (same axes \
+             as the top row). Bottom right: the distance of each zero crossing from the true profile along x \
+             (same x axis; 0 at the bottom, {:.1} mm at the top — the larger 99th percentile, rounded up; larger \
+             values are clipped —, grid lines every {:.1} mm; red `uniform`, blue `inv-z4`): mean {:.3} mm for `uniform` and {:.3} mm for `inv-z4` over {} and {} columns with a \
+             zero crossing.",
+            RELIEF_WAVELENGTH_M / 4.0 * 1e3,
+            full_scale_m * 1e3,
+            ERROR_GRID_M * 1e3,
+            mean_abs[0].0 * 1e3,
+            mean_abs[1].0 * 1e3,
+            mean_abs[0].1,
+            mean_abs[1].1,
         )?;
     }
     ctx.section(
@@ -238,6 +274,80 @@ fn simulated(ctx: &mut Context) -> Result<()> {
         md,
     );
     Ok(())
+}
+
+/// Line colours of the two fusions in the cross-section figure.
+const UNIFORM_RGB: [u8; 3] = [220, 30, 30];
+const INV_Z4_RGB: [u8; 3] = [30, 60, 220];
+/// Grid spacing of the error panel, metres.
+const ERROR_GRID_M: f64 = 0.0005;
+
+/// Per column of `slice`: the distance from the zero crossing of F (the first `+ → −`
+/// change from the top, i.e. the surface seen from the front, linear between the two pixels)
+/// to the true height `h(u)`; `None` where the column has no crossing.
+fn zero_crossing_errors(slice: &sl_tsdf::Slice, h: &dyn Fn(f64) -> f64) -> Vec<Option<f64>> {
+    let (w, hgt) = (slice.values.width(), slice.values.height());
+    let d = slice.values.data();
+    (0..w)
+        .map(|x| {
+            let u = slice.origin_m[0] + x as f64 * slice.pixel_m;
+            (0..hgt.saturating_sub(1)).find_map(|y| {
+                let (fa, fb) = (d[y * w + x], d[(y + 1) * w + x]);
+                (fa >= 0.0 && fb < 0.0).then(|| {
+                    // Row y is at v = origin + (hgt − 1 − y)·pixel; the crossing is below it.
+                    let v_a = slice.origin_m[1] + (hgt - 1 - y) as f64 * slice.pixel_m;
+                    let t = f64::from(fa) / f64::from(fa - fb);
+                    (v_a - t * slice.pixel_m - h(u)).abs()
+                })
+            })
+        })
+        .collect()
+}
+
+/// A white `w`×`h` panel plotting each curve (value per column, metres) from 0 at the bottom
+/// row to `full_scale_m` at the top (values above are clipped to the top row), with light grey
+/// grid lines every [`ERROR_GRID_M`].
+fn error_panel(
+    w: usize,
+    h: usize,
+    curves: &[(&[Option<f64>], [u8; 3])],
+    full_scale_m: f64,
+) -> Image<[u8; 3]> {
+    let mut img = Image::filled(w, h, [255u8, 255, 255]);
+    if h < 2 {
+        return img;
+    }
+    let row_of = |e: f64| {
+        let r = (h - 1) as f64 * (1.0 - (e / full_scale_m).clamp(0.0, 1.0));
+        r.round() as usize
+    };
+    let mut g = 0.0;
+    while g <= full_scale_m + 1e-12 {
+        let y = row_of(g);
+        for p in &mut img.data_mut()[y * w..(y + 1) * w] {
+            *p = [210, 210, 210];
+        }
+        g += ERROR_GRID_M;
+    }
+    for (values, rgb) in curves {
+        let mut prev: Option<usize> = None;
+        for (x, e) in values.iter().enumerate().take(w) {
+            let Some(e) = e else {
+                prev = None;
+                continue;
+            };
+            let row = row_of(*e);
+            let (lo, hi) = match prev {
+                Some(p) => (p.min(row), p.max(row)),
+                None => (row, row),
+            };
+            for y in lo..=hi {
+                img.data_mut()[y * w + x] = *rgb;
+            }
+            prev = Some(row);
+        }
+    }
+    img
 }
 
 /// True relief height along the crest line y = λ/4 (where sin(k·y) = 1).

@@ -5,8 +5,9 @@ use sl_core::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, V
 use sl_core::{Camera, DepthImage};
 use sl_noise::sim::{KinectSimulator, Plane as SimPlane, Scene, Sphere};
 use sl_planes::{
-    MotionConfidence, MotionConfig, MotionFrame, Plane3, PlaneExtractor, PlanesError, VerifyConfig,
-    estimate_motion_verified,
+    ICP_INLIER_TOLERANCE, IcpConfig, IcpRejection, MotionConfidence, MotionConfig, MotionFrame,
+    Plane3, PlaneExtractor, PlanesError, VerifyConfig, estimate_motion_verified,
+    refine_motion_icp_verified,
 };
 
 use super::{cfg_small, small_camera};
@@ -208,4 +209,119 @@ fn shared_floor_only_is_not_a_wrong_rotation() {
             "{e}"
         ),
     }
+}
+
+/// A verified motion in the furnished room (25° about a tilted axis, 5 cm), with its depth
+/// maps and the true motion.
+fn verified_room_motion() -> (
+    Camera,
+    DepthImage,
+    DepthImage,
+    Isometry3<f64>,
+    sl_planes::PlaneMotion,
+) {
+    let cam = small_camera(55.0);
+    let axis = Unit::new_normalize(Vector3::new(0.3, 1.0, 0.2));
+    let truth = Isometry3::from_parts(
+        Translation3::new(0.05, -0.02, 0.03),
+        UnitQuaternion::from_axis_angle(&axis, 25f64.to_radians()),
+    );
+    let scene = cluttered_room();
+    let sim = KinectSimulator::kinect_v1();
+    let k = cam.intrinsics;
+    let da = sim.simulate(&scene, &k, &Isometry3::identity(), 3).depth;
+    let db = sim.simulate(&scene, &k, &truth, 4).depth;
+    let m = verified_from_depths(&cam, &da, &db).unwrap();
+    assert_eq!(m.confidence, MotionConfidence::Verified);
+    (cam, da, db, truth, m)
+}
+
+/// A good refinement is accepted: ICP's pose is itself verified, explains at least the
+/// verified share of the overlap (up to the tolerance) and is close to the truth.
+#[test]
+fn verified_icp_refinement_is_accepted() {
+    let (cam, da, db, truth, m) = verified_room_motion();
+    let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
+    let out =
+        refine_motion_icp_verified(&da, &db, &cam, &m, &IcpConfig::refinement(), &mcfg, &vcfg)
+            .unwrap();
+    assert!(out.accepted, "{out:?}");
+    assert!(out.rejection.is_none());
+    let v = m.verification.as_ref().unwrap();
+    assert_eq!(out.start, v.aligned);
+    assert_eq!(out.inlier_fraction_before, v.inlier_fraction);
+    let after = out.inlier_fraction_after.unwrap();
+    assert!(after >= vcfg.min_inlier_fraction, "{out:?}");
+    assert!(
+        after + ICP_INLIER_TOLERANCE >= out.inlier_fraction_before,
+        "{out:?}"
+    );
+    assert!(out.overlap_fraction_after.unwrap() >= vcfg.min_overlap_fraction);
+    assert_eq!(Some(out.pose), out.icp.as_ref().map(|r| r.pose));
+    let err = out.pose.rotation.angle_to(&truth.rotation).to_degrees();
+    assert!(err < 0.5, "refined rotation error {err}°");
+    assert!((out.pose.translation.vector - truth.translation.vector).norm() < 0.02);
+}
+
+/// A refinement that explains a smaller share of the overlap than the verified estimate is
+/// rejected and the plane estimate kept, while a loss within the tolerance is accepted. The
+/// verified estimate's share is set just above / just below what ICP reaches.
+#[test]
+fn icp_refinement_losing_inliers_is_rejected() {
+    let (cam, da, db, _, m) = verified_room_motion();
+    let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
+    let icp_cfg = IcpConfig::refinement();
+    let first = refine_motion_icp_verified(&da, &db, &cam, &m, &icp_cfg, &mcfg, &vcfg).unwrap();
+    let reached = first.inlier_fraction_after.unwrap();
+    let with_before = |before: f64| {
+        let mut m2 = m.clone();
+        m2.verification.as_mut().unwrap().inlier_fraction = before;
+        (
+            refine_motion_icp_verified(&da, &db, &cam, &m2, &icp_cfg, &mcfg, &vcfg).unwrap(),
+            m2,
+        )
+    };
+    let (lost, m2) = with_before(reached + 2.0 * ICP_INLIER_TOLERANCE);
+    assert!(!lost.accepted, "{lost:?}");
+    assert_eq!(lost.rejection, Some(IcpRejection::LostInliers));
+    assert_eq!(lost.pose, m2.isometry());
+    assert_eq!(lost.inlier_fraction_after, Some(reached));
+    let (within, _) = with_before(reached + 0.5 * ICP_INLIER_TOLERANCE);
+    assert!(within.accepted, "{within:?}");
+}
+
+/// A deliberately bad ICP start (the verified alignment turned by 40°): whatever ICP reaches
+/// from there is not verified on the data, so the plane estimate is kept.
+#[test]
+fn icp_from_a_bad_start_is_rejected() {
+    let (cam, da, db, truth, mut m) = verified_room_motion();
+    let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
+    let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 40f64.to_radians());
+    let v = m.verification.as_mut().unwrap();
+    v.aligned = Isometry3::from_parts(v.aligned.translation, turn * v.aligned.rotation);
+    let out =
+        refine_motion_icp_verified(&da, &db, &cam, &m, &IcpConfig::refinement(), &mcfg, &vcfg)
+            .unwrap();
+    assert!(!out.accepted, "{out:?}");
+    assert_eq!(out.pose, m.isometry());
+    match out.rejection {
+        Some(IcpRejection::NotVerified) => {
+            let inl = out.inlier_fraction_after.unwrap();
+            let ovl = out.overlap_fraction_after.unwrap();
+            assert!(inl < vcfg.min_inlier_fraction || ovl < vcfg.min_overlap_fraction);
+        }
+        Some(IcpRejection::LostInliers | IcpRejection::MovedTooFar | IcpRejection::Failed(_)) => {}
+        None => unreachable!(),
+    }
+    // Unless ICP turned far back (rejected as an unchecked alternative), it ended far from the
+    // truth: the check rejected a wrong pose, not a right one.
+    if let Some(r) = out
+        .icp
+        .as_ref()
+        .filter(|_| out.rejection != Some(IcpRejection::MovedTooFar))
+    {
+        assert!(r.pose.rotation.angle_to(&truth.rotation).to_degrees() > 5.0);
+    }
+    // The plane estimate that was kept is right.
+    assert!(m.rotation.angle_to(&truth.rotation).to_degrees() < 1.0);
 }

@@ -1,6 +1,11 @@
 //! `sldepth motion`: camera motion between two depth frames from matched planes (paper
 //! section 3.5), checked against the depth data, optionally refined by point-to-plane ICP.
 //!
+//! `--icp` refines through `sl_planes::refine_motion_icp_verified`: the ICP pose is kept only
+//! when it is itself verified on the depth maps and explains no smaller a share of the
+//! overlapping points than the estimate (`icp_accepted`, `icp_inlier_fraction` in the JSON);
+//! otherwise the plane estimate is reported and the reason given.
+//!
 //! The plane hypotheses are verified on both depth maps (`sl_planes::estimate_motion_verified`):
 //! when no rotation explains the data, or two distinct ones do, or the shared view is nearly one
 //! plane, the motion is reported as undetermined (with `--json`: `"determined": false`,
@@ -14,8 +19,9 @@ use anyhow::{Result, bail};
 use serde_json::{Value, json};
 use sl_core::nalgebra::{Isometry3, Vector3};
 use sl_planes::{
-    IcpConfig, MotionConfig, MotionFrame, PlaneConfig, PlaneExtractor, PlaneMotion, PlanesError,
-    VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
+    IcpConfig, IcpOutcome, MotionConfig, MotionFrame, PlaneConfig, PlaneExtractor, PlaneMotion,
+    PlanesError, VerifyConfig, estimate_motion, estimate_motion_verified,
+    refine_motion_icp_verified,
 };
 
 use crate::common::{InputArgs, load_depth, print_json, round_to};
@@ -30,7 +36,8 @@ pub struct Args {
     /// Print JSON.
     #[arg(long)]
     pub json: bool,
-    /// Refine with point-to-plane ICP (starting from the plane estimate).
+    /// Refine with point-to-plane ICP (from the verified alignment, or the plane estimate with
+    /// `--no-verify`); the refinement is kept only when the depth data confirm it.
     #[arg(long)]
     pub icp: bool,
     /// Skip the check against the depth data: plane matching alone, assuming a small motion
@@ -91,6 +98,19 @@ fn undetermined_json(err: &PlanesError, planes_a: usize, planes_b: usize) -> Val
     })
 }
 
+/// The JSON of a verified ICP refinement.
+fn icp_outcome_json(o: &IcpOutcome) -> Value {
+    json!({
+        "accepted": o.accepted,
+        "rejection": o.rejection.as_ref().map(|r| r.as_str()),
+        "inliers": o.icp.as_ref().map(|r| r.inliers),
+        "rms_m": o.icp.as_ref().map(|r| round_to(r.rms_m, 6)),
+        "inlier_fraction_before": round_to(o.inlier_fraction_before, 4),
+        "inlier_fraction_after": o.inlier_fraction_after.map(|f| round_to(f, 4)),
+        "overlap_fraction_after": o.overlap_fraction_after.map(|f| round_to(f, 4)),
+    })
+}
+
 /// Runs `sldepth motion`.
 pub fn run(args: Args) -> Result<()> {
     let a = load_depth(&args.depth_a, &args.input)?;
@@ -144,15 +164,26 @@ pub fn run(args: Args) -> Result<()> {
         }
         Err(e) => return Err(e.into()),
     };
-    let mut pose = m.isometry();
-    let mut icp_json = Value::Null;
-    if args.icp {
-        let r = icp_point_to_plane(&a.depth, &b.depth, &a.camera, &pose, &IcpConfig::default())?;
-        icp_json = json!({ "inliers": r.inliers, "rms_m": round_to(r.rms_m, 6) });
-        pose = r.pose;
-    }
+    let vcfg = VerifyConfig::default();
+    let outcome = if args.icp {
+        // From a verified alignment a tight correspondence gate; from the plane estimate alone
+        // (`--no-verify`) the wide default.
+        let icp_cfg = if m.verification.is_some() {
+            IcpConfig::refinement()
+        } else {
+            IcpConfig::default()
+        };
+        Some(refine_motion_icp_verified(
+            &a.depth, &b.depth, &a.camera, &m, &icp_cfg, &mcfg, &vcfg,
+        )?)
+    } else {
+        None
+    };
+    let icp_json = outcome.as_ref().map_or(Value::Null, icp_outcome_json);
+    let icp_accepted = outcome.as_ref().is_some_and(|o| o.accepted);
+    let pose = outcome.as_ref().map_or_else(|| m.isometry(), |o| o.pose);
     let rotation_deg = pose.rotation.angle().to_degrees();
-    let translation = if args.icp {
+    let translation = if icp_accepted {
         Some(pose.translation.vector)
     } else {
         m.translation_m
@@ -186,6 +217,11 @@ pub fn run(args: Args) -> Result<()> {
             "runner_up_support": round_to(m.runner_up_support, 4),
             "inlier_fraction": m.verification.as_ref().map(|v| round_to(v.inlier_fraction, 4)),
             "verification": verification,
+            "icp_accepted": outcome.as_ref().map(|o| o.accepted),
+            "icp_inlier_fraction": outcome
+                .as_ref()
+                .and_then(|o| o.inlier_fraction_after)
+                .map(|f| round_to(f, 4)),
             "icp": icp_json,
         }));
     } else {
@@ -206,6 +242,24 @@ pub fn run(args: Args) -> Result<()> {
                 100.0 * v.turned_inlier_fraction
             );
         }
+        if let Some(o) = &outcome {
+            let after = o
+                .inlier_fraction_after
+                .map_or("–".to_string(), |f| format!("{:.1} %", 100.0 * f));
+            match &o.rejection {
+                None => println!(
+                    "ICP refinement accepted: {after} of the overlapping points explained \
+                     (before {:.1} %)",
+                    100.0 * o.inlier_fraction_before
+                ),
+                Some(r) => println!(
+                    "ICP refinement rejected ({}): {after} of the overlapping points explained \
+                     (before {:.1} %); keeping the plane estimate",
+                    r.as_str(),
+                    100.0 * o.inlier_fraction_before
+                ),
+            }
+        }
         println!("rotation (X_a = R X_b + t), {rotation_deg:.3} deg:");
         let r = rotation_rows(&pose);
         for row in r.chunks_exact(3) {
@@ -222,6 +276,26 @@ pub fn run(args: Args) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn icp_outcome_json_reports_the_decision() {
+        let o = IcpOutcome {
+            accepted: false,
+            rejection: Some(sl_planes::IcpRejection::LostInliers),
+            pose: Isometry3::identity(),
+            start: Isometry3::identity(),
+            icp: None,
+            inlier_fraction_before: 0.99,
+            inlier_fraction_after: Some(0.95),
+            overlap_fraction_after: Some(0.5),
+        };
+        let v = icp_outcome_json(&o);
+        assert_eq!(v["accepted"], json!(false));
+        assert_eq!(v["rejection"], json!("lost-inliers"));
+        assert_eq!(v["inlier_fraction_before"], json!(0.99));
+        assert_eq!(v["inlier_fraction_after"], json!(0.95));
+        assert!(v["inliers"].is_null());
+    }
 
     #[test]
     fn undetermined_json_has_no_rotation() {
