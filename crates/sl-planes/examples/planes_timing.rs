@@ -8,6 +8,9 @@
 //! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of those frames to `DIR`,
 //!   or compares the current labels with them (pixel agreement after matching planes by
 //!   overlap): a check that an optimisation did not change the segmentation.
+//!   `compare` also checks that labels and every plane field are bit-identical.
+//! * `… -- repeat N FILTER`: N extractions of one frame (for `valgrind --tool=callgrind
+//!   --collect-atstart=no --toggle-collect='*repeat_extract*'`).
 //! * `… -- view DIR OUT FILTER`: side-by-side overlays (saved | current) as PNGs in `OUT`.
 //!
 //! Run with `RAYON_NUM_THREADS=1` (the extractor itself is sequential). Frames come from
@@ -123,12 +126,60 @@ fn dump(dir: &std::path::Path) {
             );
         }
         std::fs::write(file.with_extension("planes"), txt).unwrap();
+        std::fs::write(file.with_extension("full"), full_planes(&seg)).unwrap();
     }
+}
+
+/// Every field of every plane at full precision (bit-exact comparison).
+fn full_planes(seg: &PlaneSegmentation) -> String {
+    let mut txt = String::new();
+    for p in &seg.planes {
+        txt += &format!(
+            "{} {} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?} {:?}\n",
+            p.id,
+            p.pixels,
+            p.plane.normal.x,
+            p.plane.normal.y,
+            p.plane.normal.z,
+            p.plane.offset_m,
+            p.affine.a,
+            p.affine.b,
+            p.affine.c,
+            p.rms_px,
+            p.rms_m,
+            p.centroid_m.x,
+            p.centroid_m.y,
+            p.centroid_m.z
+        );
+    }
+    txt
+}
+
+/// Runs the extraction `iters` times on the first frame matching `filter` (for callgrind:
+/// `--toggle-collect` on `repeat_extract` counts the extraction alone).
+fn repeat(iters: usize, filter: &str) {
+    let (name, input, cam) = load(1)
+        .into_iter()
+        .find(|(n, _, _)| n.contains(filter))
+        .unwrap();
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let n = repeat_extract(&mut ex, &input, &cam, iters);
+    println!("{name}: {iters} runs, {n} planes");
+}
+
+#[inline(never)]
+fn repeat_extract(ex: &mut PlaneExtractor, input: &Input, cam: &Camera, iters: usize) -> usize {
+    let mut n = 0;
+    for _ in 0..iters {
+        n = std::hint::black_box(run(ex, input, cam)).planes.len();
+    }
+    n
 }
 
 fn compare(dir: &std::path::Path) {
     let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
     let (mut worst, mut sum, mut n) = (1.0f64, 0.0f64, 0usize);
+    let mut exact = true;
     for (name, input, cam) in load(50) {
         let seg = run(&mut ex, &input, &cam);
         let file = dir.join(name.replace('/', "_"));
@@ -144,6 +195,10 @@ fn compare(dir: &std::path::Path) {
             .unwrap()
             .lines()
             .count();
+        let exact_labels = old.as_slice() == seg.labels.data();
+        let exact_planes = std::fs::read_to_string(file.with_extension("full"))
+            .is_ok_and(|t| t == full_planes(&seg));
+        exact &= exact_labels && exact_planes;
         // Confusion counts, greedy one-to-one matching by overlap.
         let mut conf: HashMap<(u16, u16), usize> = HashMap::new();
         let mut either = 0usize;
@@ -175,15 +230,21 @@ fn compare(dir: &std::path::Path) {
         sum += frac;
         n += 1;
         println!(
-            "{name:<22} planes {old_planes:>3} -> {:>3}  agreement {:.2} %",
+            "{name:<22} planes {old_planes:>3} -> {:>3}  agreement {:.2} %  labels {}  planes {}",
             seg.planes.len(),
-            100.0 * frac
+            100.0 * frac,
+            if exact_labels { "identical" } else { "DIFFER" },
+            if exact_planes { "identical" } else { "DIFFER" },
         );
     }
     println!(
         "mean agreement {:.2} %, worst {:.2} % over {n} frames",
         100.0 * sum / n.max(1) as f64,
         100.0 * worst
+    );
+    println!(
+        "bit-exact labels and planes on all frames: {}",
+        if exact { "YES" } else { "NO" }
     );
 }
 
@@ -239,6 +300,7 @@ fn main() {
         "dump" => dump(&PathBuf::from(arg(1))),
         "compare" => compare(&PathBuf::from(arg(1))),
         "view" => view(&PathBuf::from(arg(1)), &PathBuf::from(arg(2)), &arg(3)),
+        "repeat" => repeat(arg(1).parse().unwrap_or(20), &arg(2)),
         "time" => time(arg(1).parse().unwrap_or(200), &arg(2)),
         _ => time(arg(0).parse().unwrap_or(200), &arg(1)),
     }

@@ -50,7 +50,7 @@ use crate::kernels::{
     InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8,
     search8_two, valid_mask,
 };
-use crate::log::{LogBuffers, log_geometry, planar_mask};
+use crate::log::{LogBuffers, log_geometry, planar_mask_uncounted};
 use crate::plane::{DisparityAffine, Plane3};
 
 /// Parameters of the disparity-domain extractor.
@@ -249,9 +249,11 @@ pub struct PlaneExtractor {
     free: Vec<u8>,
     keep: Vec<u8>,
     need: Vec<u8>,
-    chunks: Vec<(u32, u64)>,
     hruns: Vec<(u32, u32, u16)>,
-    cellbits: Vec<u64>,
+    pre_row: Vec<u16>,
+    lrow: Vec<u16>,
+    ukeep: Vec<u8>,
+    chunks: Vec<(u32, u64)>,
     near_tag: Vec<u32>,
     near_set: Vec<[u16; 16]>,
     near_len: Vec<u8>,
@@ -402,15 +404,17 @@ impl PlaneExtractor {
         self.acc.clear();
         let (w2, h2) = (w / 2, h / 2);
         let (wq, hq) = (w2 / 2, h2 / 2);
-        let mut labels = vec![0u16; w * h];
+        // The final pass appends the rows of the label image (no zeroing of the whole image).
+        let mut labels: Vec<u16> = Vec::with_capacity(w * h);
         if wq < 8 || hq < 8 {
+            labels.resize(w * h, 0);
             return self.finish(w, h, k, fb, labels);
         }
         // Row scratch; `fit_run` may write up to 7 bytes past a run.
         self.keep.resize(w + LANES, 0);
         // 1. Seeds: the LoG on the half-resolution map, components on the cell grid.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
-        planar_mask(
+        planar_mask_uncounted(
             &self.dh,
             w2,
             h2,
@@ -480,6 +484,7 @@ impl PlaneExtractor {
             self.resolve_ambiguous(d, w, h, &mut labels);
             self.times.add(Stage::Disambiguate, &mut t0);
         }
+        labels.resize(w * h, 0);
         let out = self.finish(w, h, k, fb, labels);
         self.times.add(Stage::Output, &mut t0);
         out
@@ -692,7 +697,7 @@ impl PlaneExtractor {
             };
         }
         if self.lut.iter().enumerate().any(|(i, &v)| v as usize != i) {
-            remap(&mut self.labq, &self.lut);
+            relabel(&mut self.labq, &self.lut);
         }
         self.planes.retain(|p| p.alive);
         for p in self.planes.iter_mut() {
@@ -725,7 +730,7 @@ impl PlaneExtractor {
             self.spare.push(self.planes[old as usize]);
         }
         std::mem::swap(&mut self.planes, &mut self.spare);
-        remap(&mut self.labq, &self.lut);
+        relabel(&mut self.labq, &self.lut);
     }
 
     /// One assignment pass on the cells; refills the planes' sums and boxes. Returns the number
@@ -742,29 +747,18 @@ impl PlaneExtractor {
         }
         self.fa.clear();
         self.fa.extend(self.planes.iter().map(|p| p.f.a as f32));
-        // With at most 64 planes, the planes around a chunk come from per-cell bit masks kept
-        // for three rows (above: this pass's labels; this row and below: before the
-        // searches).
+        // With at most 64 planes, the planes around a chunk are the bits of the labels of the
+        // three rows around it (above: this pass's labels; this row: a copy from before its
+        // searches; below: not yet searched).
         let small = self.planes.len() <= 64;
-        self.cellbits.clear();
-        self.cellbits.resize(3 * wq, 0);
-        if small {
-            for j in 0..hq.min(2) {
-                let (src, dst) = (&self.labq[j * wq..(j + 1) * wq], j % 3);
-                label_bits(src, &mut self.cellbits[dst * wq..(dst + 1) * wq]);
-            }
-        }
         let planes = &mut self.planes;
         let mut inv = InvSums::default();
         let (mut changed, mut free) = (0usize, 0usize);
         for j in 0..hq {
-            if small && j >= 1 {
-                let slot = (j + 1) % 3;
-                let dst = &mut self.cellbits[slot * wq..(slot + 1) * wq];
-                match self.labq.get((j + 1) * wq..(j + 2) * wq) {
-                    Some(src) => label_bits(src, dst),
-                    None => dst.fill(0),
-                }
+            if small {
+                self.pre_row.clear();
+                self.pre_row
+                    .extend_from_slice(&self.labq[j * wq..(j + 1) * wq]);
             }
             let jf = j as f64;
             self.rowc.clear();
@@ -813,7 +807,6 @@ impl PlaneExtractor {
             }
             // The others, one tile (8 blocks) at a time.
             frow.fill(0);
-            let mut row_changed = false;
             let mut i0 = 0;
             while i0 < wq {
                 let i1 = (i0 + CHUNK).min(wq);
@@ -831,14 +824,9 @@ impl PlaneExtractor {
                     // coherence; coplanar disconnected regions join by merging).
                     let (a, b) = (i0.saturating_sub(1), (i1 + 1).min(wq));
                     let nc = if small {
-                        let cb = &self.cellbits;
-                        let or = |slot: usize| {
-                            cb[slot * wq + a..slot * wq + b]
-                                .iter()
-                                .fold(0u64, |m, &v| m | v)
-                        };
-                        let up_bits = if j > 0 { or((j - 1) % 3) } else { 0 };
-                        bits_to_planes(up_bits | or(j % 3) | or((j + 1) % 3), &mut near)
+                        let bits =
+                            or_bits(up, a, b) | or_bits(&self.pre_row, a, b) | or_bits(dn, a, b);
+                        bits_to_planes(bits, &mut near)
                     } else {
                         neighbour_planes([up, &*lrow, dn], a, b, &mut near)
                     };
@@ -855,7 +843,6 @@ impl PlaneExtractor {
                     todo &= todo - 1;
                     let (lab, old) = (labs[o], lt[o]);
                     changed += usize::from(lab != old);
-                    row_changed |= lab != old;
                     lt[o] = lab;
                     let fr = lab == 0 && mt[o] == 1;
                     frow[i0 + o] = u8::from(fr);
@@ -867,14 +854,6 @@ impl PlaneExtractor {
                     }
                 }
                 i0 = i1;
-            }
-            if small && row_changed {
-                // This row's labels after its searches, for the row below.
-                let slot = j % 3;
-                label_bits(
-                    &self.labq[j * wq..(j + 1) * wq],
-                    &mut self.cellbits[slot * wq..(slot + 1) * wq],
-                );
             }
         }
         (changed, free)
@@ -894,8 +873,14 @@ impl PlaneExtractor {
         h: usize,
         wq: usize,
         tau: f32,
-        labels: &mut [u16],
+        labels: &mut Vec<u16>,
     ) {
+        // Each row is labelled in a scratch row, then appended to `labels` (which holds the
+        // rows above on entry to the row).
+        labels.clear();
+        let mut lrow = std::mem::take(&mut self.lrow);
+        lrow.clear();
+        lrow.resize(w, 0);
         self.acc.clear();
         self.acc.resize(
             self.planes.len(),
@@ -919,6 +904,8 @@ impl PlaneExtractor {
         let mut inv_dummy = InvSums::default();
         let mut sums_dummy = AffineSums::default();
         let nchunks = w.div_ceil(LANES);
+        // With at most 64 planes, labels are at most 64 (bit masks of the candidates).
+        let small = self.planes.len() <= 64;
         self.near_tag.clear();
         self.near_tag.resize(nchunks, 0);
         self.near_set.resize(nchunks, [0; 16]);
@@ -945,6 +932,10 @@ impl PlaneExtractor {
                 let up2 = if up_row.is_empty() { zrow } else { up_row };
                 let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
                 touching(hint_row, up2, dn2, need);
+                // The keep bytes of the pixels of unlabelled cells (0 = search).
+                self.ukeep.clear();
+                self.ukeep
+                    .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
                 // The runs of equal cell labels, shared by the rows of this cell row.
                 self.hruns.clear();
                 let mut i = 0;
@@ -955,9 +946,9 @@ impl PlaneExtractor {
                 }
             }
             let row_d = &d[y * w..(y + 1) * w];
-            let row_l = &mut labels[y * w..(y + 1) * w];
-            let keep = &mut self.keep[..];
+            let row_l = &mut lrow[..w];
             row_l.fill(0);
+            let keep = &mut self.keep[..];
             // keep: 1 = labelled or stays unlabelled, 0 = search.
             for &(i, e, v) in &self.hruns {
                 let (i, e) = (i as usize, e as usize);
@@ -1018,14 +1009,13 @@ impl PlaneExtractor {
                     a.pixels += kept;
                     a.add_rows(y);
                 } else {
-                    // Unlabelled cells: searched only when touching a labelled cell.
+                    // Unlabelled cells: searched only when touching a labelled cell (`x1` is
+                    // `CELL · e`, within the pattern of this cell row).
                     let ks = &mut keep[x0..x1];
-                    let mut kc = ks.chunks_exact_mut(CELL);
-                    for (k4, &nd) in (&mut kc).zip(&need[i..e]) {
-                        k4.fill(1 - nd);
+                    match self.ukeep.get(x0..x1) {
+                        Some(u) => ks.copy_from_slice(u),
+                        None => ks.fill(1),
                     }
-                    let last = need.get(e - 1).copied().unwrap_or(0);
-                    kc.into_remainder().fill(1 - last);
                 }
             }
             // Columns beyond the cell grid (width not a multiple of the cell), or rows without
@@ -1041,16 +1031,16 @@ impl PlaneExtractor {
             }
             let keep = &keep[..w];
             // Searches, 8 pixels at a time: first the chunks with a pixel to search.
-            // (Branch-free: every chunk is written, the count advances only for those.)
             let nch = w.div_ceil(LANES);
             self.chunks.resize(nch + 1, (0, 0));
             let mut count = 0usize;
             let mut kw = keep.chunks_exact(LANES);
             for (c, kc) in (&mut kw).enumerate() {
-                let word =
-                    u64::from_le_bytes([kc[0], kc[1], kc[2], kc[3], kc[4], kc[5], kc[6], kc[7]]);
-                self.chunks[count] = (c as u32, word);
-                count += usize::from(word != ALL_KEPT);
+                let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
+                if word != ALL_KEPT {
+                    self.chunks[count] = (c as u32, word);
+                    count += 1;
+                }
             }
             let tail = kw.remainder();
             if !tail.is_empty() {
@@ -1074,12 +1064,14 @@ impl PlaneExtractor {
                 let tag = j as u32 + 1;
                 if self.near_tag[ci] != tag {
                     let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
-                    let nc = neighbour_planes(
-                        [up_row, hint_row, dn_row],
-                        c0.saturating_sub(1),
-                        c1 + 1,
-                        &mut self.near_set[ci],
-                    );
+                    let (a, b) = (c0.saturating_sub(1), c1 + 1);
+                    let nc = if small {
+                        let bits =
+                            or_bits(up_row, a, b) | or_bits(hint_row, a, b) | or_bits(dn_row, a, b);
+                        bits_to_planes(bits, &mut self.near_set[ci])
+                    } else {
+                        neighbour_planes([up_row, hint_row, dn_row], a, b, &mut self.near_set[ci])
+                    };
                     self.near_len[ci] = nc as u8;
                     self.near_tag[ci] = tag;
                 }
@@ -1110,7 +1102,9 @@ impl PlaneExtractor {
                     }
                 }
             }
+            labels.extend_from_slice(row_l);
         }
+        self.lrow = lrow;
     }
 
     /// Pixels within the threshold of two planes take the label that dominates their
@@ -1353,9 +1347,10 @@ fn run_end(row: &[u16], i: usize) -> usize {
 }
 
 /// Replaces every label `l` by `lut[l]` (0 beyond the table): when few labels change, 8 labels
-/// are compared with them at a time and only chunks holding one are rewritten.
+/// at a time are compared with each of them and blended with its new value (a chunk equal to
+/// the previous one reuses its result). Callers' labels are all within the table.
 fn relabel(labels: &mut [u16], lut: &[u16]) {
-    let mut changed = [0i16; 4];
+    let mut changed = [0i16; 16];
     let mut nc = 0;
     for (l, &v) in lut.iter().enumerate() {
         if v as usize != l {
@@ -1367,23 +1362,27 @@ fn relabel(labels: &mut [u16], lut: &[u16]) {
             nc += 1;
         }
     }
-    let cv = changed.map(i16x8::splat);
+    let from = changed.map(i16x8::splat);
+    let to = changed.map(|l| i16x8::splat(lut.get(l as u16 as usize).copied().unwrap_or(0) as i16));
+    let map = |v: i16x8| {
+        from[..nc]
+            .iter()
+            .zip(&to[..nc])
+            .fold(v, |r, (&f, &t)| v.cmp_eq(f).blend(t, r))
+    };
+    // Runs of equal chunks (inside a plane) reuse the previous chunk's result.
+    let (mut prev_v, mut prev_r) = (i16x8::ZERO, map(i16x8::ZERO));
     let mut ch = labels.chunks_exact_mut(LANES);
     for c in &mut ch {
-        let v = i16x8::from([
-            c[0] as i16,
-            c[1] as i16,
-            c[2] as i16,
-            c[3] as i16,
-            c[4] as i16,
-            c[5] as i16,
-            c[6] as i16,
-            c[7] as i16,
-        ]);
-        let hit = cv[..nc].iter().fold(i16x8::ZERO, |m, &k| m | v.cmp_eq(k));
-        if hit.move_mask() != 0 {
-            remap(c, lut);
+        let Ok(c8) = <&mut [u16; LANES]>::try_from(c) else {
+            continue;
+        };
+        let v = i16x8::from(c8.map(|l| l as i16));
+        if v.cmp_eq(prev_v).move_mask() & 0xff != 0xff {
+            prev_v = v;
+            prev_r = map(v);
         }
+        *c8 = prev_r.to_array().map(|l| l as u16);
     }
     remap(ch.into_remainder(), lut);
 }
@@ -1438,13 +1437,15 @@ fn neighbour_planes(rows: [&[u16]; 3], i0: usize, i1: usize, out: &mut [u16; 16]
     n
 }
 
-/// Bit `l − 1` of each label `l` ≤ 64 (0 for unlabelled cells).
-#[inline]
-fn label_bits(labels: &[u16], bits: &mut [u64]) {
+/// The bits `l − 1` of the labels `l` of `row[a..b]` (labels ≤ 64; an empty or short row
+/// contributes its part of the range).
+#[inline(always)]
+fn or_bits(row: &[u16], a: usize, b: usize) -> u64 {
     // Callers have at most 64 planes: labels ≤ 64 < 128.
-    for (b, &l) in bits.iter_mut().zip(labels) {
-        *b = LABEL_BIT[(l & 127) as usize];
-    }
+    row.get(a..b.min(row.len()))
+        .unwrap_or(&[])
+        .iter()
+        .fold(0u64, |m, &l| m | LABEL_BIT[(l & 127) as usize])
 }
 
 /// The planes (label − 1) of a bit mask into `out` (at most 16); returns their number.

@@ -9,7 +9,7 @@
 //! flushed into the `f64` moments of [`AffineSums`] by the exact change of variables
 //! `D = r + a·x + c`, `x = x₀ + x'`.
 
-use wide::{CmpGt, CmpLt, f32x4};
+use wide::{CmpGt, CmpLt, f32x4, u32x4};
 
 use crate::fit::AffineSums;
 
@@ -257,10 +257,17 @@ pub(crate) fn fit_run_labels<const MOM: bool, const INV: bool, const LAB: bool>(
         let full = len / LANES;
         let mut o = s0;
         let mut xb = 0u32;
-        for _ in 0..full {
-            let (Some(dc), Some(kc)) = (d.get(o..o + LANES), keep.get_mut(o..o + LANES)) else {
-                break;
-            };
+        // The whole chunks of the segment (`s0 + body <= n`, within `d` and `keep`; labels
+        // only where they exist).
+        let body = full * LANES;
+        let dseg = d.get(s0..s0 + body).unwrap_or(&[]);
+        let kseg = keep.get_mut(s0..s0 + body).unwrap_or(&mut []);
+        let nl = labels.len();
+        let lseg = labels
+            .get_mut(s0.min(nl)..(s0 + body).min(nl))
+            .unwrap_or(&mut []);
+        let mut lch = lseg.chunks_exact_mut(LANES);
+        for (dc, kc) in dseg.chunks_exact(LANES).zip(kseg.chunks_exact_mut(LANES)) {
             let (Ok(dc), Ok(kc)) = (
                 <&[f32; LANES]>::try_from(dc),
                 <&mut [u8; LANES]>::try_from(kc),
@@ -270,10 +277,8 @@ pub(crate) fn fit_run_labels<const MOM: bool, const INV: bool, const LAB: bool>(
             let bits = step::<MOM, INV>(&mut l, dc, x, av, cv, tv);
             let kb = SPREAD[bits].to_le_bytes();
             *kc = kb;
-            if LAB && let Some(lc) = labels.get_mut(o..o + LANES) {
-                for (lv, &m) in lc.iter_mut().zip(&SPREAD16[bits]) {
-                    *lv = m & v;
-                }
+            if LAB && let Some(Ok(lc)) = lch.next().map(<&mut [u16; LANES]>::try_from) {
+                *lc = SPREAD16[bits].map(|m| m & v);
             }
             if MOM {
                 miss.add(!bits & 0xff, xb);
@@ -323,7 +328,7 @@ pub(crate) fn fit_run_labels<const MOM: bool, const INV: bool, const LAB: bool>(
         s0 = s1;
         let lenf = len as f64;
         let nk = lenf - f64::from(miss.n);
-        kept += nk as usize;
+        kept += len - miss.n as usize;
         if !MOM || nk == 0.0 {
             continue;
         }
@@ -414,11 +419,11 @@ pub(crate) fn valid_mask(d: &[f32; LANES]) -> u32 {
 /// Labels (index + 1, 0 = none) of 8 encoded residuals.
 #[inline(always)]
 fn decode(v: &[f32x4; 2]) -> [u16; LANES] {
-    let (a, b) = (v[0].to_array(), v[1].to_array());
-    [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]].map(|f| {
-        let i = f.to_bits() & IDX_MASK;
-        if i == IDX_MASK { 0 } else { i as u16 + 1 }
-    })
+    // (`IDX_MASK + 1` wraps to 0: no plane.)
+    let (m, one) = (u32x4::splat(IDX_MASK), u32x4::splat(1));
+    let dec = |x: f32x4| (((u32x4::from(x.to_array().map(f32::to_bits)) & m) + one) & m).to_array();
+    let (a, b) = (dec(v[0]), dec(v[1]));
+    [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]].map(|i| i as u16)
 }
 
 /// For 8 pixels (disparity `d`, NaN or 0 = invalid) at columns `x0 + k` of a row: the label

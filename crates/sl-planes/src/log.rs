@@ -73,6 +73,34 @@ fn box_sum(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usi
     }
 }
 
+/// `o = (a + e) + 2(b + d) + 3c` elementwise over `r = [a, b, c, d, e]` (the common length;
+/// slices cut to it so that the loop has no bounds checks and vectorises).
+// (Indexing the cut slices is what removes the checks.)
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn tent_row(o: &mut [f32], r: [&[f32]; 5]) {
+    let n = r.iter().fold(o.len(), |n, s| n.min(s.len()));
+    let o = &mut o[..n];
+    let [a, b, c, d, e] = r.map(|s| &s[..n]);
+    for i in 0..n {
+        o[i] = (a[i] + e[i]) + 2.0 * (b[i] + d[i]) + 3.0 * c[i];
+    }
+}
+
+/// `o = |l + r + u + d − 4m| <= thr` (as 1/0) elementwise over `[l, m, r, u, d]` (as
+/// [`tent_row`]).
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
+fn laplacian_row(o: &mut [u8], s: [&[f32]; 5], thr: f32) {
+    let n = s.iter().fold(o.len(), |n, v| n.min(v.len()));
+    let o = &mut o[..n];
+    let [l, m, r, u, d] = s.map(|v| &v[..n]);
+    for i in 0..n {
+        let lap = l[i] + r[i] + u[i] + d[i] - 4.0 * m[i];
+        o[i] = u8::from(lap.abs() <= thr);
+    }
+}
+
 /// The separable `[1 2 3 2 1]` filter (two 3×3 box sums) of `src` into `dst` via `tmp`; NaN
 /// where the 5×5 window leaves the image.
 fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize) {
@@ -96,9 +124,7 @@ fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize
             &row[3..3 + inner],
             &row[4..4 + inner],
         );
-        for (((((o, &a), &b), &c), &d), &e) in mid.iter_mut().zip(a).zip(b).zip(c).zip(d).zip(e) {
-            *o = (a + e) + 2.0 * (b + d) + 3.0 * c;
-        }
+        tent_row(mid, [a, b, c, d, e]);
     }
     for (y, out) in dst.chunks_exact_mut(w).enumerate() {
         if y < 2 || y + 2 >= h {
@@ -106,10 +132,7 @@ fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize
             continue;
         }
         let r = |k: usize| &tmp[(y + k - 2) * w..(y + k - 1) * w];
-        let (a, b, c, d, e) = (r(0), r(1), r(2), r(3), r(4));
-        for (((((o, &a), &b), &c), &d), &e) in out.iter_mut().zip(a).zip(b).zip(c).zip(d).zip(e) {
-            *o = (a + e) + 2.0 * (b + d) + 3.0 * c;
-        }
+        tent_row(out, [r(0), r(1), r(2), r(3), r(4)]);
     }
 }
 
@@ -119,6 +142,36 @@ fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize
 /// pixels.
 #[allow(clippy::too_many_arguments)]
 pub fn planar_mask(
+    d: &[f32],
+    width: usize,
+    height: usize,
+    radius: usize,
+    step: usize,
+    threshold_px: f32,
+    buf: &mut LogBuffers,
+    mask: &mut Vec<u8>,
+) -> usize {
+    planar_mask_impl::<true>(d, width, height, radius, step, threshold_px, buf, mask)
+}
+
+/// [`planar_mask`] without the count of planar pixels (0 is returned).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn planar_mask_uncounted(
+    d: &[f32],
+    width: usize,
+    height: usize,
+    radius: usize,
+    step: usize,
+    threshold_px: f32,
+    buf: &mut LogBuffers,
+    mask: &mut Vec<u8>,
+) {
+    planar_mask_impl::<false>(d, width, height, radius, step, threshold_px, buf, mask);
+}
+
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn planar_mask_impl<const COUNT: bool>(
     d: &[f32],
     width: usize,
     height: usize,
@@ -163,17 +216,7 @@ pub fn planar_mask(
         head.fill(0);
         tail.fill(0);
         let (left, centre, right) = (&c[..inner], &c[s..s + inner], &c[2 * s..2 * s + inner]);
-        for (((((o, &l), &m), &rt), &u), &dv) in mid
-            .iter_mut()
-            .zip(left)
-            .zip(centre)
-            .zip(right)
-            .zip(up)
-            .zip(dn)
-        {
-            let lap = l + rt + u + dv - 4.0 * m;
-            *o = u8::from(lap.abs() <= thr);
-        }
+        laplacian_row(mid, [left, centre, right, up, dn], thr);
     }
     // Erosion by the 4-neighbour cross.
     let mut count = 0usize;
@@ -199,7 +242,9 @@ pub fn planar_mask(
         {
             *o = cm & cl & cr & uu & dd;
         }
-        count += out.iter().map(|&v| usize::from(v)).sum::<usize>();
+        if COUNT {
+            count += out.iter().map(|&v| usize::from(v)).sum::<usize>();
+        }
     }
     count
 }
