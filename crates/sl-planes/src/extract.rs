@@ -50,7 +50,7 @@ use crate::kernels::{
     InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8,
     search8_two, valid_mask,
 };
-use crate::log::{LogBuffers, log_geometry, planar_mask_uncounted};
+use crate::log::{LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
 use crate::plane::{DisparityAffine, Plane3};
 
 /// Parameters of the disparity-domain extractor.
@@ -257,8 +257,6 @@ pub struct PlaneExtractor {
     near_tag: Vec<u32>,
     near_set: Vec<[u16; 16]>,
     near_len: Vec<u8>,
-    vsum: Vec<f32>,
-    vmin: Vec<f32>,
     zrow: Vec<u16>,
     cursor: Vec<u32>,
     fa: Vec<f32>,
@@ -271,6 +269,97 @@ pub struct PlaneExtractor {
     comp_fit: Vec<Option<DisparityAffine>>,
     lut: Vec<u16>,
     times: StageTimes,
+}
+
+/// The full-resolution input of [`PlaneExtractor::run`].
+enum Source<'a> {
+    /// Disparity (pixels; non-positive or non-finite = invalid), used in place.
+    Disparity(&'a [f32]),
+    /// Depth (metres), converted into `d` row by row.
+    Depth {
+        z: &'a [f32],
+        d: &'a mut [f32],
+        fb: f32,
+    },
+}
+
+/// The half-resolution disparity (2×2 means, NaN = invalid) produced row by row for the LoG,
+/// from the full-resolution rows (converted from depth on the way) while they are in L1; after
+/// each odd row, the row of the cells `dq` (2×2 means of the half-resolution map).
+struct HalfRows<'a, 'b> {
+    src: Source<'a>,
+    /// The last two half-resolution rows.
+    dh: &'b mut [f32],
+    dq: &'b mut [f32],
+    /// Full-resolution width.
+    w: usize,
+    /// Next half-resolution row.
+    next: usize,
+}
+
+impl<'a> HalfRows<'a, '_> {
+    /// Produces the next half-resolution row (and cell row) and returns its index.
+    fn produce(&mut self) -> usize {
+        let (w, y2) = (self.w, self.next);
+        self.next += 1;
+        let pair = 2 * y2 * w..(2 * y2 + 2) * w;
+        let r2: &[f32] = match &mut self.src {
+            Source::Disparity(d) => &d[pair],
+            Source::Depth { z, d, fb } => {
+                let (zp, dp) = (&z[pair.clone()], &mut d[pair]);
+                for (zr, dr) in zp.chunks_exact(w).zip(dp.chunks_exact_mut(w)) {
+                    depth_to_disparity_row(zr, dr, *fb);
+                }
+                dp
+            }
+        };
+        let (r0, r1) = r2.split_at(w);
+        let w2 = w / 2;
+        let (q0, q1) = self.dh.split_at_mut(w2);
+        let out = if y2.is_multiple_of(2) { q0 } else { q1 };
+        downsample_rows(r0, r1, out);
+        if !y2.is_multiple_of(2) {
+            let (q0, q1) = self.dh.split_at(w2);
+            let (wq, j) = (w2 / 2, y2 / 2);
+            let out = &mut self.dq[j * wq..(j + 1) * wq];
+            for ((o, p), q) in out
+                .iter_mut()
+                .zip(q0.chunks_exact(2))
+                .zip(q1.chunks_exact(2))
+            {
+                *o = 0.25 * ((p[0] + p[1]) + (q[0] + q[1]));
+            }
+        }
+        y2
+    }
+
+    /// Produces the rows the LoG left (all of `dh` and `dq` are then done) and returns the
+    /// full-resolution disparity (height `h`).
+    fn finish(mut self, h: usize) -> &'a [f32] {
+        while self.next < h / 2 {
+            self.produce();
+        }
+        match self.src {
+            Source::Disparity(d) => d,
+            Source::Depth { z, d, fb } => {
+                // The last row of an odd height.
+                if !h.is_multiple_of(2) {
+                    let w = self.w;
+                    let y = h - 1;
+                    depth_to_disparity_row(&z[y * w..(y + 1) * w], &mut d[y * w..(y + 1) * w], fb);
+                }
+                d
+            }
+        }
+    }
+}
+
+impl RowSource for HalfRows<'_, '_> {
+    fn next_row(&mut self) -> &[f32] {
+        let y2 = self.produce();
+        let w2 = self.w / 2;
+        &self.dh[(y2 % 2) * w2..(y2 % 2 + 1) * w2]
+    }
 }
 
 /// Extracts planes from a depth image (metres) with a new extractor.
@@ -329,12 +418,13 @@ impl PlaneExtractor {
         let fbf = fb as f32;
         let mut d = std::mem::take(&mut self.d);
         d.resize(w * h, 0.0);
-        for (z, o) in depth.data().chunks_exact(w).zip(d.chunks_exact_mut(w)) {
-            depth_to_disparity_row(z, o, fbf);
-        }
-        self.downsample(&d, w, h);
+        let src = Source::Depth {
+            z: depth.data(),
+            d: &mut d,
+            fb: fbf,
+        };
         self.times.add(Stage::Disparity, &mut t0);
-        let out = self.run(&d, w, h, &camera.intrinsics, fb, t0);
+        let out = self.run(src, w, h, &camera.intrinsics, fb, t0);
         self.d = d;
         out
     }
@@ -352,46 +442,14 @@ impl PlaneExtractor {
         self.times = StageTimes::default();
         // The disparity is used in place: every test treats non-positive and non-finite values
         // as invalid.
-        let d = disparity.data();
-        self.downsample(d, w, h);
+        let src = Source::Disparity(disparity.data());
         self.times.add(Stage::Disparity, &mut t0);
-        self.run(d, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
-    }
-
-    /// Averages the disparity (non-positive or non-finite = invalid) over 2×2 blocks into the
-    /// half-resolution `dh`, then `dh` into the cells `dq` (NaN = invalid).
-    #[inline(never)]
-    fn downsample(&mut self, d: &[f32], w: usize, h: usize) {
-        let (w2, h2) = (w / 2, h / 2);
-        self.dh.resize(w2 * h2, f32::NAN);
-        self.vsum.resize(w, 0.0);
-        self.vmin.resize(w, 0.0);
-        for (r2, out) in d
-            .chunks_exact(2 * w)
-            .zip(self.dh.chunks_exact_mut(w2.max(1)))
-        {
-            let (r0, r1) = r2.split_at(w);
-            downsample_rows(r0, r1, &mut self.vsum, &mut self.vmin, out);
-        }
-        // Cells: 2×2 means of the half-resolution map (NaN propagates).
-        let (wq, hq) = (w2 / 2, h2 / 2);
-        self.dq.resize(wq * hq, f32::NAN);
-        for (j, out) in self.dq.chunks_exact_mut(wq.max(1)).take(hq).enumerate() {
-            let r0 = &self.dh[2 * j * w2..(2 * j + 1) * w2];
-            let r1 = &self.dh[(2 * j + 1) * w2..(2 * j + 2) * w2];
-            for ((o, p), q) in out
-                .iter_mut()
-                .zip(r0.chunks_exact(2))
-                .zip(r1.chunks_exact(2))
-            {
-                *o = 0.25 * ((p[0] + p[1]) + (q[0] + q[1]));
-            }
-        }
+        self.run(src, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
     }
 
     fn run(
         &mut self,
-        d: &[f32],
+        src: Source<'_>,
         w: usize,
         h: usize,
         k: &Intrinsics,
@@ -410,12 +468,22 @@ impl PlaneExtractor {
             labels.resize(w * h, 0);
             return self.finish(w, h, k, fb, labels);
         }
+        // 0. The disparity and its 2×2 means, row pair by row pair as the LoG consumes them.
+        self.dh.resize(2 * w2, f32::NAN);
+        self.dq.resize(wq * hq, f32::NAN);
+        let mut rows = HalfRows {
+            src,
+            dh: &mut self.dh,
+            dq: &mut self.dq,
+            w,
+            next: 0,
+        };
         // Row scratch; `fit_run` may write up to 7 bytes past a run.
         self.keep.resize(w + LANES, 0);
         // 1. Seeds: the LoG on the half-resolution map, components on the cell grid.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
         planar_mask_uncounted(
-            &self.dh,
+            &mut rows,
             w2,
             h2,
             r,
@@ -424,6 +492,7 @@ impl PlaneExtractor {
             &mut self.log,
             &mut self.mask,
         );
+        let d = rows.finish(h);
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
         self.cc.label(&self.maskq, wq, hq);
@@ -1244,10 +1313,11 @@ impl PlaneExtractor {
 /// The stages of [`PlaneExtractor`], for [`StageTimes`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
-    /// Depth → disparity conversion (or cleaning of the given disparity), fused with the 2×2
-    /// and 4×4 averaging.
+    /// Set-up of the input. The depth → disparity conversion and the 2×2 and 4×4 averaging
+    /// are streamed row by row into the LoG, so their time counts in [`Stage::Log`].
     Disparity,
-    /// Box LoG, threshold and erosion (half resolution), and the planar cells.
+    /// Depth → disparity and 2×2 / 4×4 averaging, box LoG, threshold and erosion (half
+    /// resolution), and the planar cells.
     Log,
     /// Connected components (planar cells, free cells, coherence pieces).
     Components,
@@ -1282,8 +1352,8 @@ impl Stage {
     /// A short name.
     pub fn name(self) -> &'static str {
         match self {
-            Stage::Disparity => "disparity+2x2",
-            Stage::Log => "log+threshold",
+            Stage::Disparity => "input set-up",
+            Stage::Log => "disparity+log",
             Stage::Components => "components",
             Stage::SeedFits => "seed fits",
             Stage::Merge => "merge",

@@ -509,27 +509,27 @@ pub(crate) fn depth_to_disparity_row(z: &[f32], d: &mut [f32], fb: f32) {
 }
 
 /// The 2×2 block means of two disparity rows (NaN where any of the four is invalid, i.e. not
-/// positive); `sum` and `min` are scratch rows of the input width.
+/// positive), by blocks of 256 columns through stack scratch rows (which stay in L1).
 #[inline]
-pub(crate) fn downsample_rows(
-    r0: &[f32],
-    r1: &[f32],
-    sum: &mut [f32],
-    min: &mut [f32],
-    out: &mut [f32],
-) {
-    for (((s, m), &a), &b) in sum.iter_mut().zip(min.iter_mut()).zip(r0).zip(r1) {
-        *s = a + b;
-        *m = if a < b { a } else { b };
-    }
-    for ((o, sp), mp) in out
-        .iter_mut()
-        .zip(sum.chunks_exact(2))
-        .zip(min.chunks_exact(2))
-    {
-        let mm = if mp[0] < mp[1] { mp[0] } else { mp[1] };
-        let v = 0.25 * (sp[0] + sp[1]);
-        *o = if mm > 0.0 { v } else { f32::NAN };
+pub(crate) fn downsample_rows(r0: &[f32], r1: &[f32], out: &mut [f32]) {
+    const B: usize = 256;
+    let (mut sum, mut min) = ([0f32; B], [0f32; B]);
+    for ((b0, b1), ob) in r0.chunks(B).zip(r1.chunks(B)).zip(out.chunks_mut(B / 2)) {
+        let n = b0.len().min(b1.len());
+        let (sum, min) = (&mut sum[..n], &mut min[..n]);
+        for (((s, m), &a), &b) in sum.iter_mut().zip(min.iter_mut()).zip(b0).zip(b1) {
+            *s = a + b;
+            *m = if a < b { a } else { b };
+        }
+        for ((o, sp), mp) in ob
+            .iter_mut()
+            .zip(sum.chunks_exact(2))
+            .zip(min.chunks_exact(2))
+        {
+            let mm = if mp[0] < mp[1] { mp[0] } else { mp[1] };
+            let v = 0.25 * (sp[0] + sp[1]);
+            *o = if mm > 0.0 { v } else { f32::NAN };
+        }
     }
 }
 
@@ -692,12 +692,9 @@ mod tests {
         depth_to_disparity_row(&z, &mut d, 40.0);
         assert_eq!(d, [40.0, 0.0, 0.0, 0.0, 0.0, 20.0]);
         let mut h = [0f32; 3];
-        let (mut s, mut m) = ([0f32; 6], [0f32; 6]);
         downsample_rows(
             &[1.0, 2.0, 3.0, 0.0, 5.0, 5.0],
             &[3.0, 2.0, 1.0, 1.0, 5.0, 5.0],
-            &mut s,
-            &mut m,
             &mut h,
         );
         assert_eq!(h[0], 2.0);

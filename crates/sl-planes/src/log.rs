@@ -14,6 +14,10 @@
 //! threshold test, so a pixel is planar only with a complete valid support (image borders count
 //! as invalid). Pixels near holes are therefore not seeds; the refinement assigns them
 //! afterwards by their residual.
+//!
+//! The passes are streamed row by row through rings of a few rows (for `r = 1`), so that only
+//! the input and the mask span the whole map, and the extractor produces the input rows
+//! themselves on demand (half-resolution means of the disparity computed as they are needed).
 
 /// Largest box radius.
 pub const MAX_BOX_RADIUS: usize = 8;
@@ -33,6 +37,29 @@ pub struct LogBuffers {
     a: Vec<f32>,
     b: Vec<f32>,
     raw: Vec<u8>,
+    /// The whole input, for box radii above 1.
+    full: Vec<f32>,
+}
+
+/// The rows of the map whose planarity mask is computed, produced on demand.
+pub(crate) trait RowSource {
+    /// The next row (rows come in order, each once; at most `height` calls).
+    fn next_row(&mut self) -> &[f32];
+}
+
+/// The rows of a whole map.
+struct FrameRows<'a> {
+    d: &'a [f32],
+    w: usize,
+    next: usize,
+}
+
+impl RowSource for FrameRows<'_> {
+    fn next_row(&mut self) -> &[f32] {
+        let y = self.next;
+        self.next += 1;
+        &self.d[y * self.w..(y + 1) * self.w]
+    }
 }
 
 /// Horizontal then vertical box sum of radius `r` from `src` into `dst` via `tmp`; NaN where
@@ -103,6 +130,7 @@ fn laplacian_row(o: &mut [u8], s: [&[f32]; 5], thr: f32) {
 
 /// The separable `[1 2 3 2 1]` filter (two 3×3 box sums) of `src` into `dst` via `tmp`; NaN
 /// where the 5×5 window leaves the image.
+#[cfg(test)]
 fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize) {
     let n = w * h;
     tmp.resize(n, f32::NAN);
@@ -151,13 +179,28 @@ pub fn planar_mask(
     buf: &mut LogBuffers,
     mask: &mut Vec<u8>,
 ) -> usize {
-    planar_mask_impl::<true>(d, width, height, radius, step, threshold_px, buf, mask)
+    let mut src = FrameRows {
+        d,
+        w: width,
+        next: 0,
+    };
+    planar_mask_impl::<true, _>(
+        &mut src,
+        width,
+        height,
+        radius,
+        step,
+        threshold_px,
+        buf,
+        mask,
+    )
 }
 
-/// [`planar_mask`] without the count of planar pixels (0 is returned).
+/// [`planar_mask`] of the rows of `src` (which may not all be consumed), without the count of
+/// planar pixels.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn planar_mask_uncounted(
-    d: &[f32],
+pub(crate) fn planar_mask_uncounted<S: RowSource>(
+    src: &mut S,
     width: usize,
     height: usize,
     radius: usize,
@@ -166,13 +209,13 @@ pub(crate) fn planar_mask_uncounted(
     buf: &mut LogBuffers,
     mask: &mut Vec<u8>,
 ) {
-    planar_mask_impl::<false>(d, width, height, radius, step, threshold_px, buf, mask);
+    planar_mask_impl::<false, S>(src, width, height, radius, step, threshold_px, buf, mask);
 }
 
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn planar_mask_impl<const COUNT: bool>(
-    d: &[f32],
+fn planar_mask_impl<const COUNT: bool, S: RowSource>(
+    src: &mut S,
     width: usize,
     height: usize,
     radius: usize,
@@ -189,47 +232,89 @@ fn planar_mask_impl<const COUNT: bool>(
         mask[..w * h].fill(0);
         return 0;
     }
-    let LogBuffers { a, b, raw } = buf;
-    if r == 1 {
-        // Two 3×3 boxes = the separable [1 2 3 2 1] kernel: two passes instead of four.
-        tent5(d, b, a, w, h);
+    let LogBuffers { a, b, raw, full } = buf;
+    // Rows are streamed: the horizontal pass into a ring of 5 rows (`a`), the smoothed map
+    // into a ring of `2s + 1` rows (`b`), the Laplacian test into a ring of 3 rows (`raw`), so
+    // that only the input and the mask span the whole frame. For `r > 1` the smoothed map is
+    // computed whole (two box sums) and `b` holds all of its rows.
+    let nb = if r == 1 {
+        b.resize((2 * s + 1) * w, f32::NAN);
+        a.resize(5 * w, f32::NAN);
+        2 * s + 1
     } else {
-        box_sum(d, b, a, w, h, r);
+        full.clear();
+        for _ in 0..h {
+            full.extend_from_slice(src.next_row());
+        }
+        box_sum(full, b, a, w, h, r);
         let b1 = std::mem::take(b);
         box_sum(&b1, b, a, w, h, r);
         *a = b1;
-    }
+        h
+    };
     let nwin = ((2 * r + 1) * (2 * r + 1)) as f32;
     let thr = threshold_px * nwin * nwin;
-    raw.resize(w * h, 0);
+    raw.resize(3 * w, 0);
     let inner = w - 2 * s;
-    for (y, out) in raw.chunks_exact_mut(w).enumerate() {
-        if y < s || y + s >= h {
-            out.fill(0);
-            continue;
-        }
-        let c = &b[y * w..(y + 1) * w];
-        let up = &b[(y - s) * w + s..(y - s) * w + s + inner];
-        let dn = &b[(y + s) * w + s..(y + s) * w + s + inner];
-        let (head, rest) = out.split_at_mut(s);
-        let (mid, tail) = rest.split_at_mut(inner);
-        head.fill(0);
-        tail.fill(0);
-        let (left, centre, right) = (&c[..inner], &c[s..s + inner], &c[2 * s..2 * s + inner]);
-        laplacian_row(mid, [left, centre, right, up, dn], thr);
-    }
-    // Erosion by the 4-neighbour cross.
+    // Next rows of the horizontal pass, the smoothed map and the Laplacian test to compute.
+    let (mut next_a, mut next_b, mut next_raw) = (0usize, if r == 1 { 0 } else { h }, 0usize);
     let mut count = 0usize;
     for (y, out) in mask.chunks_exact_mut(w).take(h).enumerate() {
+        // The mask row needs the Laplacian rows up to y + 1.
+        while next_raw <= (y + 1).min(h - 1) {
+            let k = next_raw;
+            next_raw += 1;
+            let out = &mut raw[(k % 3) * w..(k % 3 + 1) * w];
+            if k < s || k + s >= h {
+                out.fill(0);
+                continue;
+            }
+            // The Laplacian row needs the smoothed rows up to k + s.
+            while next_b <= k + s {
+                let m = next_b;
+                next_b += 1;
+                let out = &mut b[(m % nb) * w..(m % nb + 1) * w];
+                if m < 2 || m + 2 >= h {
+                    out.fill(f32::NAN);
+                    continue;
+                }
+                while next_a <= m + 2 {
+                    let row = src.next_row();
+                    let out = &mut a[(next_a % 5) * w..(next_a % 5 + 1) * w];
+                    next_a += 1;
+                    let (head, rest) = out.split_at_mut(2);
+                    let (mid, tail) = rest.split_at_mut(w - 4);
+                    head.fill(f32::NAN);
+                    tail.fill(f32::NAN);
+                    let n = w - 4;
+                    let (p, q, c, e, f) = (
+                        &row[..n],
+                        &row[1..1 + n],
+                        &row[2..2 + n],
+                        &row[3..3 + n],
+                        &row[4..4 + n],
+                    );
+                    tent_row(mid, [p, q, c, e, f]);
+                }
+                let t = |i: usize| &a[(i % 5) * w..(i % 5 + 1) * w];
+                tent_row(out, [t(m - 2), t(m - 1), t(m), t(m + 1), t(m + 2)]);
+            }
+            let row = |i: usize| &b[(i % nb) * w..(i % nb + 1) * w];
+            let (c, up, dn) = (row(k), &row(k - s)[s..s + inner], &row(k + s)[s..s + inner]);
+            let (head, rest) = out.split_at_mut(s);
+            let (mid, tail) = rest.split_at_mut(inner);
+            head.fill(0);
+            tail.fill(0);
+            let (left, centre, right) = (&c[..inner], &c[s..s + inner], &c[2 * s..2 * s + inner]);
+            laplacian_row(mid, [left, centre, right, up, dn], thr);
+        }
+        // Erosion by the 4-neighbour cross.
         if y == 0 || y + 1 == h {
             out.fill(0);
             continue;
         }
-        let (u, c, dn) = (
-            &raw[(y - 1) * w..y * w],
-            &raw[y * w..(y + 1) * w],
-            &raw[(y + 1) * w..(y + 2) * w],
-        );
+        let rr = |i: usize| &raw[(i % 3) * w..(i % 3 + 1) * w];
+        let (u, c, dn) = (rr(y - 1), rr(y), rr(y + 1));
         out[0] = 0;
         out[w - 1] = 0;
         for (((((o, &cl), &cm), &cr), &uu), &dd) in out[1..w - 1]
@@ -274,6 +359,64 @@ mod tests {
             if !u.is_nan() {
                 assert!((u - v).abs() <= 1e-4 * u.abs().max(1.0), "{u} vs {v}");
             }
+        }
+    }
+
+    /// The planarity mask the row-streamed filter must reproduce: whole-frame passes.
+    fn reference_mask(d: &[f32], w: usize, h: usize, s: usize, thr: f32) -> Vec<u8> {
+        let (mut b, mut tmp) = (Vec::new(), Vec::new());
+        tent5(d, &mut b, &mut tmp, w, h);
+        let thr = thr * 81.0;
+        let mut raw = vec![0u8; w * h];
+        for y in s..h - s {
+            for x in s..w - s {
+                let at = |x: usize, y: usize| b[y * w + x];
+                let lap =
+                    at(x - s, y) + at(x + s, y) + at(x, y - s) + at(x, y + s) - 4.0 * at(x, y);
+                raw[y * w + x] = u8::from(lap.abs() <= thr);
+            }
+        }
+        let mut mask = vec![0u8; w * h];
+        for y in 1..h - 1 {
+            for x in 1..w - 1 {
+                let i = y * w + x;
+                mask[i] = raw[i] & raw[i - 1] & raw[i + 1] & raw[i - w] & raw[i + w];
+            }
+        }
+        mask
+    }
+
+    #[test]
+    fn streamed_tent_matches_whole_frame_passes() {
+        let mut buf = LogBuffers::default();
+        let mut mask = Vec::new();
+        for (w, h, s) in [(31, 19, 1), (40, 33, 2), (37, 25, 3), (8, 9, 3)] {
+            let d: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f32, (i / w) as f32);
+                    // Holes and bumps in the right part only, an affine left part.
+                    let right = x as usize > w / 2;
+                    if right && i % 23 == 7 {
+                        f32::NAN
+                    } else {
+                        let bump = if right && (i * 7919) % 13 < 3 {
+                            0.3
+                        } else {
+                            0.0
+                        };
+                        20.0 + 0.1 * x - 0.05 * y + bump
+                    }
+                })
+                .collect();
+            let n = planar_mask(&d, w, h, 1, s, 0.05, &mut buf, &mut mask);
+            let want = if w <= 2 * s + 2 || h <= 2 * s + 2 {
+                vec![0u8; w * h]
+            } else {
+                reference_mask(&d, w, h, s, 0.05)
+            };
+            assert_eq!(mask, want, "{w}x{h}, s = {s}");
+            assert_eq!(n, want.iter().map(|&v| usize::from(v)).sum::<usize>());
+            assert!(n > 0 || w < 30, "{w}x{h}: nothing planar");
         }
     }
 
