@@ -251,7 +251,7 @@ pub struct PlaneExtractor {
     need: Vec<u8>,
     hruns: Vec<(u32, u32, u16)>,
     pre_row: Vec<u16>,
-    lrow: Vec<u16>,
+    drow: Vec<f32>,
     ukeep: Vec<u8>,
     chunks: Vec<(u32, u64)>,
     near_tag: Vec<u32>,
@@ -275,12 +275,56 @@ pub struct PlaneExtractor {
 enum Source<'a> {
     /// Disparity (pixels; non-positive or non-finite = invalid), used in place.
     Disparity(&'a [f32]),
-    /// Depth (metres), converted into `d` row by row.
+    /// Depth (metres), converted row pair by row pair into `d` (two rows).
     Depth {
         z: &'a [f32],
         d: &'a mut [f32],
         fb: f32,
     },
+}
+
+/// The full-resolution disparity for the final pass: the input disparity, or the depth, whose
+/// rows are converted again where they are used (the same conversion, so the same bits, without
+/// writing and re-reading a full-resolution disparity image).
+#[derive(Clone, Copy)]
+enum FullDisparity<'a> {
+    /// Disparity (pixels; non-positive or non-finite = invalid).
+    Disparity(&'a [f32]),
+    /// Depth (metres) and `f·B`.
+    Depth { z: &'a [f32], fb: f32 },
+}
+
+impl<'a> FullDisparity<'a> {
+    /// Row `y` (width `w`) of the disparity, converted into `scratch` (length `w`) for depth.
+    #[inline]
+    fn row<'s>(self, y: usize, w: usize, scratch: &'s mut [f32]) -> &'s [f32]
+    where
+        'a: 's,
+    {
+        match self {
+            FullDisparity::Disparity(d) => &d[y * w..(y + 1) * w],
+            FullDisparity::Depth { z, fb } => {
+                depth_to_disparity_row(&z[y * w..(y + 1) * w], scratch, fb);
+                scratch
+            }
+        }
+    }
+
+    /// The disparity of pixel `i` (the scalar form of `depth_to_disparity_row` for depth).
+    #[inline]
+    fn at(self, i: usize) -> f32 {
+        match self {
+            FullDisparity::Disparity(d) => d[i],
+            FullDisparity::Depth { z, fb } => {
+                let zv = z[i];
+                if zv > 0.0 && zv < f32::INFINITY {
+                    fb / zv
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
 }
 
 /// The half-resolution disparity (2×2 means, NaN = invalid) produced row by row for the LoG,
@@ -306,7 +350,7 @@ impl<'a> HalfRows<'a, '_> {
         let r2: &[f32] = match &mut self.src {
             Source::Disparity(d) => &d[pair],
             Source::Depth { z, d, fb } => {
-                let (zp, dp) = (&z[pair.clone()], &mut d[pair]);
+                let (zp, dp) = (&z[pair], &mut d[..2 * w]);
                 for (zr, dr) in zp.chunks_exact(w).zip(dp.chunks_exact_mut(w)) {
                     depth_to_disparity_row(zr, dr, *fb);
                 }
@@ -334,22 +378,14 @@ impl<'a> HalfRows<'a, '_> {
     }
 
     /// Produces the rows the LoG left (all of `dh` and `dq` are then done) and returns the
-    /// full-resolution disparity (height `h`).
-    fn finish(mut self, h: usize) -> &'a [f32] {
+    /// full-resolution disparity.
+    fn finish(mut self, h: usize) -> FullDisparity<'a> {
         while self.next < h / 2 {
             self.produce();
         }
         match self.src {
-            Source::Disparity(d) => d,
-            Source::Depth { z, d, fb } => {
-                // The last row of an odd height.
-                if !h.is_multiple_of(2) {
-                    let w = self.w;
-                    let y = h - 1;
-                    depth_to_disparity_row(&z[y * w..(y + 1) * w], &mut d[y * w..(y + 1) * w], fb);
-                }
-                d
-            }
+            Source::Disparity(d) => FullDisparity::Disparity(d),
+            Source::Depth { z, fb, .. } => FullDisparity::Depth { z, fb },
         }
     }
 }
@@ -416,8 +452,9 @@ impl PlaneExtractor {
         self.times = StageTimes::default();
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
+        // Scratch for one row pair: the full-resolution disparity is never stored.
         let mut d = std::mem::take(&mut self.d);
-        d.resize(w * h, 0.0);
+        d.resize(2 * w, 0.0);
         let src = Source::Depth {
             z: depth.data(),
             d: &mut d,
@@ -937,19 +974,18 @@ impl PlaneExtractor {
     #[inline(never)]
     fn final_pass(
         &mut self,
-        d: &[f32],
+        d: FullDisparity<'_>,
         w: usize,
         h: usize,
         wq: usize,
         tau: f32,
         labels: &mut Vec<u16>,
     ) {
-        // Each row is labelled in a scratch row, then appended to `labels` (which holds the
-        // rows above on entry to the row).
+        // Each row is labelled in place: the row is appended as zeros to `labels` (which holds
+        // the rows above on entry to the row), then written.
         labels.clear();
-        let mut lrow = std::mem::take(&mut self.lrow);
-        lrow.clear();
-        lrow.resize(w, 0);
+        let mut drow = std::mem::take(&mut self.drow);
+        drow.resize(w, 0.0);
         self.acc.clear();
         self.acc.resize(
             self.planes.len(),
@@ -1014,9 +1050,9 @@ impl PlaneExtractor {
                     i = e;
                 }
             }
-            let row_d = &d[y * w..(y + 1) * w];
-            let row_l = &mut lrow[..w];
-            row_l.fill(0);
+            let row_d = d.row(y, w, &mut drow[..w]);
+            labels.resize((y + 1) * w, 0);
+            let row_l = &mut labels[y * w..(y + 1) * w];
             let keep = &mut self.keep[..];
             // keep: 1 = labelled or stays unlabelled, 0 = search.
             for &(i, e, v) in &self.hruns {
@@ -1171,15 +1207,14 @@ impl PlaneExtractor {
                     }
                 }
             }
-            labels.extend_from_slice(row_l);
         }
-        self.lrow = lrow;
+        self.drow = drow;
     }
 
     /// Pixels within the threshold of two planes take the label that dominates their
     /// 8-neighbourhood (ties keep the smaller residual); the statistics follow.
     #[inline(never)]
-    fn resolve_ambiguous(&mut self, d: &[f32], w: usize, h: usize, labels: &mut [u16]) {
+    fn resolve_ambiguous(&mut self, d: FullDisparity<'_>, w: usize, h: usize, labels: &mut [u16]) {
         for &(i, k1, k2) in &self.amb {
             let i = i as usize;
             let (x, y) = (i % w, i / w);
@@ -1201,7 +1236,7 @@ impl PlaneExtractor {
                 self.acc[u2].pixels += 1;
                 self.acc[u2].add_rows(y);
                 if is_sample_row(y) {
-                    let (xf, yf, df) = (x as f64, y as f64, f64::from(d[i]));
+                    let (xf, yf, df) = (x as f64, y as f64, f64::from(d.at(i)));
                     let (f1, f2) = (self.full[u1], self.full[u2]);
                     let a1 = &mut self.acc[u1];
                     a1.sums.remove(xf, yf, df);
@@ -1604,6 +1639,34 @@ fn union_box(a: &[u32; 4], b: &[u32; 4]) -> [u32; 4] {
 mod tests {
     use super::*;
     use sl_core::{Camera, Intrinsics, SensorModel};
+
+    /// The depth rows converted for the final pass and the per-pixel conversion of the
+    /// disambiguation agree bit for bit, invalid depths (0, negative, NaN, ∞) included.
+    #[test]
+    fn depth_rows_and_pixels_agree() {
+        let (w, h, fb) = (13usize, 3usize, 43.5f32);
+        let specials = [0.0, -1.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+        let z: Vec<f32> = (0..w * h)
+            .map(|i| {
+                if i % 5 == 0 {
+                    specials[(i / 5) % specials.len()]
+                } else {
+                    0.3 + 0.0173 * i as f32
+                }
+            })
+            .collect();
+        let full = FullDisparity::Depth { z: &z, fb };
+        let mut scratch = vec![0.0; w];
+        for y in 0..h {
+            let row = full.row(y, w, &mut scratch).to_vec();
+            for (x, &d) in row.iter().enumerate() {
+                let i = y * w + x;
+                assert_eq!(d.to_bits(), full.at(i).to_bits(), "pixel {i}");
+                let ok = z[i] > 0.0 && z[i].is_finite();
+                assert_eq!(d > 0.0, ok, "pixel {i}");
+            }
+        }
+    }
 
     /// Two tilted planes with a depth step between them, on frames whose sizes are not
     /// multiples of the cell (tail columns and rows), through both entry points.
