@@ -128,6 +128,27 @@ fn laplacian_row(o: &mut [u8], s: [&[f32]; 5], thr: f32) {
     }
 }
 
+/// The horizontal `[1 2 3 2 1]` pass of one row (`row.len() == out.len() > 4`) into `out`: NaN
+/// in the two columns at each end, where the window leaves the image.
+#[inline(always)]
+fn tent_row_horizontal(out: &mut [f32], row: &[f32]) {
+    let n = out.len() - 4;
+    let (head, rest) = out.split_at_mut(2);
+    let (mid, tail) = rest.split_at_mut(n);
+    head.fill(f32::NAN);
+    tail.fill(f32::NAN);
+    tent_row(
+        mid,
+        [
+            &row[..n],
+            &row[1..1 + n],
+            &row[2..2 + n],
+            &row[3..3 + n],
+            &row[4..4 + n],
+        ],
+    );
+}
+
 /// The separable `[1 2 3 2 1]` filter (two 3×3 box sums) of `src` into `dst` via `tmp`; NaN
 /// where the 5×5 window leaves the image.
 #[cfg(test)]
@@ -139,20 +160,8 @@ fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize
         dst[..n].fill(f32::NAN);
         return;
     }
-    let inner = w - 4;
     for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
-        let (head, rest) = out.split_at_mut(2);
-        let (mid, tail) = rest.split_at_mut(inner);
-        head.fill(f32::NAN);
-        tail.fill(f32::NAN);
-        let (a, b, c, d, e) = (
-            &row[..inner],
-            &row[1..1 + inner],
-            &row[2..2 + inner],
-            &row[3..3 + inner],
-            &row[4..4 + inner],
-        );
-        tent_row(mid, [a, b, c, d, e]);
+        tent_row_horizontal(out, row);
     }
     for (y, out) in dst.chunks_exact_mut(w).enumerate() {
         if y < 2 || y + 2 >= h {
@@ -282,19 +291,7 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
                     let row = src.next_row();
                     let out = &mut a[(next_a % 5) * w..(next_a % 5 + 1) * w];
                     next_a += 1;
-                    let (head, rest) = out.split_at_mut(2);
-                    let (mid, tail) = rest.split_at_mut(w - 4);
-                    head.fill(f32::NAN);
-                    tail.fill(f32::NAN);
-                    let n = w - 4;
-                    let (p, q, c, e, f) = (
-                        &row[..n],
-                        &row[1..1 + n],
-                        &row[2..2 + n],
-                        &row[3..3 + n],
-                        &row[4..4 + n],
-                    );
-                    tent_row(mid, [p, q, c, e, f]);
+                    tent_row_horizontal(out, row);
                 }
                 let t = |i: usize| &a[(i % 5) * w..(i % 5 + 1) * w];
                 tent_row(out, [t(m - 2), t(m - 1), t(m), t(m + 1), t(m + 2)]);
