@@ -2,7 +2,11 @@
 
 /// Everything that can go wrong in `sl-core`.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum CoreError {
+    /// A camera preset name that is not in the table.
+    #[error("unknown camera preset {0}")]
+    UnknownPreset(String),
     /// Camera intrinsics that cannot describe a real camera.
     #[error("invalid intrinsics: {0}")]
     InvalidIntrinsics(String),

@@ -75,24 +75,13 @@ impl Intrinsics {
 
     /// The `kinect-v1` preset: 640×480, f = 580 px, principal point (319.5, 239.5).
     pub fn kinect_v1() -> Self {
-        Self {
-            width: 640,
-            height: 480,
-            fx: 580.0,
-            fy: 580.0,
-            cx: 319.5,
-            cy: 239.5,
-        }
+        crate::preset::KINECT_V1.intrinsics()
     }
 
     /// The camera of the paper: 640×480, f = 587 px (the paper's calibration), centred
     /// principal point.
     pub fn paper_kinect() -> Self {
-        Self {
-            fx: 587.0,
-            fy: 587.0,
-            ..Self::kinect_v1()
-        }
+        crate::preset::PAPER_KINECT.intrinsics()
     }
 
     /// Number of pixels, `width * height`.

@@ -29,7 +29,9 @@ pub mod error;
 pub mod image;
 pub mod intrinsics;
 pub mod pose;
+pub mod preset;
 pub mod sensor;
+pub mod view;
 
 pub use camera::Camera;
 pub use error::{CoreError, Result};
@@ -38,7 +40,9 @@ pub use intrinsics::Intrinsics;
 pub use pose::{
     Pose, pose_from_matrix, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
 };
+pub use preset::SensorPreset;
 pub use sensor::SensorModel;
+pub use view::DepthView;
 
 /// Re-export of the nalgebra version used in the public API.
 pub use nalgebra;

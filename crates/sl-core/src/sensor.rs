@@ -75,20 +75,12 @@ impl SensorModel {
 
     /// The Kinect of the paper: f = 587 px, B = 75 mm, 1/8 px disparity steps.
     pub fn paper_kinect() -> Self {
-        Self {
-            focal_px: 587.0,
-            baseline_m: 0.075,
-            subpixel_steps: 8,
-            sigma_d_px: DEFAULT_SIGMA_D_PX,
-        }
+        crate::preset::PAPER_KINECT.sensor()
     }
 
     /// The `kinect-v1` default: f = 580 px, B = 0.075 m, 1/8 px steps.
     pub fn kinect_v1() -> Self {
-        Self {
-            focal_px: 580.0,
-            ..Self::paper_kinect()
-        }
+        crate::preset::KINECT_V1.sensor()
     }
 
     /// `f·B` in pixel·metres: depth (m) times disparity (px).

@@ -3,7 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use sl_core::{DepthImage, SensorModel};
+use sl_core::{DepthImage, DepthView, SensorModel};
 
 use crate::error::{FilterError, Result};
 use crate::fastexp::{LOG2_E, TapExp};
@@ -312,13 +312,20 @@ impl DepthFilter {
 
     /// Filters `depth` (using the best instruction set of this CPU and all rayon threads; run it
     /// inside `ThreadPool::install` to choose the threads).
-    pub fn apply(&self, depth: &DepthImage) -> Result<DepthImage> {
+    ///
+    /// `depth` is a `&DepthImage` or a [`DepthView`] over a buffer the caller owns (no copy).
+    pub fn apply<'a>(&self, depth: impl Into<DepthView<'a>>) -> Result<DepthImage> {
         self.apply_with_isa(depth, Isa::detect())
     }
 
     /// Like [`DepthFilter::apply`] with an explicit instruction set (for tests and benchmarks;
     /// an unsupported one falls back to the portable code).
-    pub fn apply_with_isa(&self, depth: &DepthImage, isa: Isa) -> Result<DepthImage> {
+    pub fn apply_with_isa<'a>(
+        &self,
+        depth: impl Into<DepthView<'a>>,
+        isa: Isa,
+    ) -> Result<DepthImage> {
+        let depth: DepthView<'a> = depth.into();
         self.validate()?;
         let (w, h) = (depth.width(), depth.height());
         if w.checked_mul(h).is_none_or(|n| n > MAX_PIXELS) {
@@ -402,7 +409,7 @@ impl DepthFilter {
 }
 
 /// The error for the first valid depth outside `[MIN_DEPTH_M, MAX_DEPTH_M]`.
-fn out_of_range(depth: &DepthImage) -> FilterError {
+fn out_of_range(depth: DepthView<'_>) -> FilterError {
     let w = depth.width().max(1);
     let found = depth
         .data()

@@ -141,6 +141,7 @@
 //! contiguous holes, 3.7 % of the groups skipped, the 5×5 one-thread ratio was 0.38.)
 #![deny(missing_docs)]
 
+pub mod config;
 pub mod error;
 pub mod eval;
 pub mod fastexp;
@@ -149,6 +150,7 @@ pub mod kernel;
 pub mod reference;
 pub mod render;
 
+pub use config::FilterConfig;
 pub use error::{FilterError, Result};
 pub use filter::{
     BILATERAL_DEFAULT_DEPTH_M, DEFAULT_K_MULTIPLIER, DEFAULT_RADIUS_PX, DepthFilter, MAX_DEPTH_M,

@@ -596,29 +596,24 @@ pub fn nyu_raw_to_disparity(raw: &Image<u16>, doff: f64) -> DisparityImage {
 }
 
 /// The NYU Depth v2 depth camera (toolbox `camera_params.m`): 640×480, fx 582.62, fy 582.69,
-/// cx 313.04, cy 238.44.
+/// cx 313.04, cy 238.44 — the `nyu-v2` preset of [`sl_core::preset`].
 pub fn nyu_intrinsics() -> Intrinsics {
-    Intrinsics {
-        width: 640,
-        height: 480,
-        fx: 582.624_481_677_379_6,
-        fy: 582.691_032_709_886_4,
-        cx: 313.044_758_708_047_3,
-        cy: 238.443_896_266_203_9,
-    }
+    nyu_preset().intrinsics()
 }
 
-/// The sensor model implied by the NYU constants: focal length fx of [`nyu_intrinsics`],
-/// baseline `NYU_FB_PX_M / fx` (≈ 0.07537 m) so that `f·B = 43.9125` px·m, 8 sub-pixel steps,
-/// the default σ_D.
+/// The sensor model implied by the NYU constants (the `nyu-v2` preset): focal length fx of
+/// [`nyu_intrinsics`], baseline `NYU_FB_PX_M / fx` (≈ 0.07537 m) so that `f·B = 43.9125` px·m,
+/// 8 sub-pixel steps, the default σ_D.
 pub fn nyu_sensor_model() -> SensorModel {
-    let f = nyu_intrinsics().fx;
-    SensorModel {
-        focal_px: f,
-        baseline_m: NYU_FB_PX_M / f,
-        subpixel_steps: KINECT_RAW_STEPS_PER_PX,
-        sigma_d_px: sl_core::sensor::DEFAULT_SIGMA_D_PX,
-    }
+    nyu_preset().sensor()
+}
+
+fn nyu_preset() -> &'static sl_core::SensorPreset {
+    // The preset table is a constant of sl-core; its tests check this entry exists.
+    sl_core::preset::PRESETS
+        .iter()
+        .find(|p| p.name == "nyu-v2")
+        .unwrap_or(&sl_core::preset::KINECT_V1)
 }
 
 #[cfg(test)]

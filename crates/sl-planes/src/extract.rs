@@ -40,7 +40,9 @@
 use std::time::Instant;
 
 use nalgebra::Point3;
-use sl_core::{Camera, DepthImage, DisparityImage, Image, Intrinsics};
+#[cfg(test)]
+use sl_core::DepthImage;
+use sl_core::{Camera, DepthView, DisparityImage, Image, Intrinsics};
 use wide::{CmpEq, i16x8};
 
 use crate::components::RunLabeler;
@@ -399,8 +401,8 @@ impl RowSource for HalfRows<'_, '_> {
 }
 
 /// Extracts planes from a depth image (metres) with a new extractor.
-pub fn extract_planes(
-    depth: &DepthImage,
+pub fn extract_planes<'a>(
+    depth: impl Into<DepthView<'a>>,
     camera: &Camera,
     cfg: &PlaneConfig,
 ) -> Result<PlaneSegmentation> {
@@ -441,11 +443,14 @@ impl PlaneExtractor {
 
     /// Extracts planes from a depth image (metres, 0 = invalid); the disparity is `f·B / Z` with
     /// the camera's sensor model.
-    pub fn extract_depth(
+    ///
+    /// `depth` is a `&DepthImage` or a [`DepthView`] over a buffer the caller owns (no copy).
+    pub fn extract_depth<'a>(
         &mut self,
-        depth: &DepthImage,
+        depth: impl Into<DepthView<'a>>,
         camera: &Camera,
     ) -> Result<PlaneSegmentation> {
+        let depth: DepthView<'a> = depth.into();
         let (w, h) = (depth.width(), depth.height());
         Self::check(w, h, &camera.intrinsics)?;
         let mut t0 = Instant::now();

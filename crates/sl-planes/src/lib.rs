@@ -42,6 +42,7 @@
 #![deny(missing_docs)]
 
 pub mod components;
+pub mod depth_motion;
 pub mod error;
 pub mod extract;
 pub mod fit;
@@ -54,6 +55,7 @@ pub mod ransac;
 pub mod segcomp;
 mod verify;
 
+pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{PlanesError, Result};
 pub use extract::{
     PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, Stage, StageTimes, extract_planes,

@@ -4,7 +4,9 @@ use nalgebra::{Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
-use sl_core::{DepthImage, Intrinsics, Pose};
+#[cfg(test)]
+use sl_core::DepthImage;
+use sl_core::{DepthView, Intrinsics, Pose};
 
 use crate::error::{Result, TsdfError};
 use crate::hash::{BlockMap, pack, unpack};
@@ -303,12 +305,15 @@ impl TsdfVolume {
     /// line-of-sight signed distance of eq. 11 and the weight of eq. 13.
     ///
     /// On error (size mismatch, memory budget, geometry out of range) the volume is unchanged.
-    pub fn integrate(
+    ///
+    /// `depth` is a `&DepthImage` or a [`DepthView`] over a buffer the caller owns (no copy).
+    pub fn integrate<'a>(
         &mut self,
-        depth: &DepthImage,
+        depth: impl Into<DepthView<'a>>,
         k: &Intrinsics,
         pose: &Pose,
     ) -> Result<IntegrateStats> {
+        let depth: DepthView<'a> = depth.into();
         if depth.width() != k.width || depth.height() != k.height {
             return Err(TsdfError::SizeMismatch {
                 expected_width: k.width,
@@ -338,7 +343,7 @@ impl TsdfVolume {
     fn integrate_with(
         &mut self,
         table: &mut Vec<[f32; 2]>,
-        depth: &DepthImage,
+        depth: DepthView<'_>,
         k: &Intrinsics,
         pose: &Pose,
     ) -> Result<IntegrateStats> {

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use serde_json::json;
-use sl_filter::{DepthFilter, Isa, Method, RangeKernel, default_sigma_s_px};
+use sl_filter::{DepthFilter, FilterConfig, Isa, Method, RangeKernel};
 
 use crate::common::{InputArgs, load_depth, print_json, round_to, save_depth};
 
@@ -60,43 +60,13 @@ fn parse_method(s: &str) -> std::result::Result<Method, String> {
 
 /// The filter the options describe, for a camera's sensor model.
 pub fn build_filter(args: &Args, sensor: &sl_core::SensorModel) -> Result<DepthFilter> {
-    let m = args.method;
-    if args.k_per_m.is_some() && m != Method::Adaptive {
-        bail!("--k applies to --method adaptive (got --method {m})");
-    }
-    if args.sigma_d_m.is_some() && m != Method::Bilateral {
-        bail!("--sigma-d-m applies to --method bilateral (got --method {m})");
-    }
-    if args.sigma_disp_px.is_some() && m != Method::Disparity {
-        bail!("--sigma-disp-px applies to --method disparity (got --method {m})");
-    }
-    let mut f = DepthFilter::default_for(m, sensor);
-    let radius = match (args.radius, args.sigma_s) {
-        (Some(r), _) => r,
-        (None, Some(s)) if s.is_finite() && s > 0.0 => ((2.0 * s).ceil() as usize).max(1),
-        _ => f.radius_px,
-    };
-    f = f
-        .with_radius(radius)
-        .with_sigma_s(args.sigma_s.unwrap_or_else(|| default_sigma_s_px(radius)));
-    f.range = match f.range {
-        RangeKernel::Fixed { sigma_d_m } => RangeKernel::Fixed {
-            sigma_d_m: args.sigma_d_m.unwrap_or(sigma_d_m),
-        },
-        RangeKernel::Adaptive { k_per_m } => RangeKernel::Adaptive {
-            k_per_m: args.k_per_m.unwrap_or(k_per_m),
-        },
-        RangeKernel::Disparity {
-            sigma_disp_px,
-            fb_px_m,
-        } => RangeKernel::Disparity {
-            sigma_disp_px: args.sigma_disp_px.unwrap_or(sigma_disp_px),
-            fb_px_m,
-        },
-        RangeKernel::None => RangeKernel::None,
-    };
-    f.validate()?;
-    Ok(f)
+    let mut config = FilterConfig::new(args.method);
+    config.radius_px = args.radius;
+    config.sigma_s_px = args.sigma_s;
+    config.sigma_d_m = args.sigma_d_m;
+    config.k_per_m = args.k_per_m;
+    config.sigma_disp_px = args.sigma_disp_px;
+    Ok(config.build(sensor)?)
 }
 
 /// Runs `sldepth filter`.

@@ -18,11 +18,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use serde_json::{Value, json};
 use sl_core::nalgebra::{Isometry3, Vector3};
-use sl_planes::{
-    IcpConfig, IcpOutcome, MotionConfig, MotionFrame, PlaneConfig, PlaneExtractor, PlaneMotion,
-    PlanesError, VerifyConfig, estimate_motion, estimate_motion_verified,
-    refine_motion_icp_verified,
-};
+use sl_planes::{DepthMotionConfig, IcpOutcome, PlaneConfig, PlanesError, motion_between_depths};
 
 use crate::common::{InputArgs, load_depth, print_json, round_to};
 
@@ -121,77 +117,41 @@ pub fn run(args: Args) -> Result<()> {
     {
         bail!("the two frames must come from the same camera and have the same size");
     }
-    let cfg = PlaneConfig {
+    let mut cfg = DepthMotionConfig::default();
+    cfg.planes = PlaneConfig {
         threshold_px: args.threshold_px,
         min_pixels: args.min_pixels,
         ..PlaneConfig::default()
     };
-    let mut ex = PlaneExtractor::new(cfg)?;
-    let pa = ex.extract_depth(&a.depth, &a.camera)?;
-    let pb = ex.extract_depth(&b.depth, &b.camera)?;
-    let mcfg = MotionConfig::default();
-    let estimate: std::result::Result<PlaneMotion, PlanesError> = if args.no_verify {
-        estimate_motion(&pa.planes, &pb.planes, None, &mcfg)
-    } else {
-        estimate_motion_verified(
-            MotionFrame {
-                depth: &a.depth,
-                planes: &pa.planes,
-            },
-            MotionFrame {
-                depth: &b.depth,
-                planes: &pb.planes,
-            },
-            &a.camera,
-            None,
-            &mcfg,
-            &VerifyConfig::default(),
-        )
-    };
-    let m = match estimate {
+    cfg.verify = !args.no_verify;
+    cfg.icp = args.icp;
+    let mcfg = cfg.motion;
+    let result = motion_between_depths(&a.depth, &b.depth, &a.camera, &cfg)?;
+    let (pa, pb) = (&result.planes_a, &result.planes_b);
+    let m = match &result.motion {
         Ok(m) => m,
-        Err(e @ (PlanesError::MotionNotVerified { .. } | PlanesError::MotionUndetermined(_))) => {
+        Err(e) => {
             if args.json {
-                print_json(&undetermined_json(&e, pa.planes.len(), pb.planes.len()));
+                print_json(&undetermined_json(e, pa.len(), pb.len()));
             } else {
                 println!(
                     "planes: {} in A, {} in B; motion undetermined",
-                    pa.planes.len(),
-                    pb.planes.len()
+                    pa.len(),
+                    pb.len()
                 );
             }
             bail!("{e}");
         }
-        Err(e) => return Err(e.into()),
     };
-    let vcfg = VerifyConfig::default();
-    let outcome = if args.icp {
-        // From a verified alignment a tight correspondence gate; from the plane estimate alone
-        // (`--no-verify`) the wide default.
-        let icp_cfg = if m.verification.is_some() {
-            IcpConfig::refinement()
-        } else {
-            IcpConfig::default()
-        };
-        Some(refine_motion_icp_verified(
-            &a.depth, &b.depth, &a.camera, &m, &icp_cfg, &mcfg, &vcfg,
-        )?)
-    } else {
-        None
-    };
-    let icp_json = outcome.as_ref().map_or(Value::Null, icp_outcome_json);
-    let icp_accepted = outcome.as_ref().is_some_and(|o| o.accepted);
-    let pose = outcome.as_ref().map_or_else(|| m.isometry(), |o| o.pose);
+    let outcome = result.icp.as_ref();
+    let icp_json = outcome.map_or(Value::Null, icp_outcome_json);
+    let pose = result.pose().unwrap_or_else(|| m.isometry());
     let rotation_deg = pose.rotation.angle().to_degrees();
-    let translation = if icp_accepted {
-        Some(pose.translation.vector)
-    } else {
-        m.translation_m
-    };
+    let translation = result.translation_m();
     let matched: Vec<_> = m
         .matches
         .iter()
-        .map(|mt| json!({ "a": pa.planes[mt.a].id, "b": pb.planes[mt.b].id, "weight": mt.weight }))
+        .map(|mt| json!({ "a": pa[mt.a].id, "b": pb[mt.b].id, "weight": mt.weight }))
         .collect();
     let verification = m.verification.as_ref().map_or(Value::Null, |v| {
         json!({
@@ -211,15 +171,14 @@ pub fn run(args: Args) -> Result<()> {
             "rotation_deg": round_to(rotation_deg, 4),
             "translation_m": translation.map(|t| vec3(&t, 5)),
             "matched_planes": matched,
-            "planes_a": pa.planes.len(),
-            "planes_b": pb.planes.len(),
+            "planes_a": pa.len(),
+            "planes_b": pb.len(),
             "rms_angle_deg": round_to(m.rms_angle_deg, 4),
             "runner_up_support": round_to(m.runner_up_support, 4),
             "inlier_fraction": m.verification.as_ref().map(|v| round_to(v.inlier_fraction, 4)),
             "verification": verification,
-            "icp_accepted": outcome.as_ref().map(|o| o.accepted),
+            "icp_accepted": outcome.map(|o| o.accepted),
             "icp_inlier_fraction": outcome
-                .as_ref()
                 .and_then(|o| o.inlier_fraction_after)
                 .map(|f| round_to(f, 4)),
             "icp": icp_json,
@@ -227,8 +186,8 @@ pub fn run(args: Args) -> Result<()> {
     } else {
         println!(
             "planes: {} in A, {} in B, {} matched; confidence: {}",
-            pa.planes.len(),
-            pb.planes.len(),
+            pa.len(),
+            pb.len(),
             m.matches.len(),
             m.confidence.as_str()
         );
@@ -242,7 +201,7 @@ pub fn run(args: Args) -> Result<()> {
                 100.0 * v.turned_inlier_fraction
             );
         }
-        if let Some(o) = &outcome {
+        if let Some(o) = outcome {
             let after = o
                 .inlier_fraction_after
                 .map_or("–".to_string(), |f| format!("{:.1} %", 100.0 * f));

@@ -1,0 +1,202 @@
+"""Type stubs of sldepth: shapes and units are in the docstrings."""
+
+from os import PathLike
+from typing import List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Path = Union[str, PathLike]
+#: Depth: (H, W) float32/float64 metres, or uint16 with ``depth_scale`` units per metre.
+_Depth = npt.NDArray[Union[np.float32, np.float64, np.uint16]]
+_Pose = Union[npt.NDArray[np.floating], Sequence[Sequence[float]]]
+
+class SlDepthError(ValueError): ...
+class SlDepthIOError(OSError): ...
+
+class Camera:
+    """Pinhole intrinsics (pixels) plus the disparity noise model."""
+    def __init__(
+        self,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        *,
+        baseline_m: float = 0.075,
+        subpixel: int = 8,
+        sigma_d_px: float = 0.07,
+    ) -> None: ...
+    @staticmethod
+    def preset(name: str) -> Camera:
+        """A named camera: "kinect-v1", "tum-fr1", "d435", ... (see presets())."""
+    @staticmethod
+    def presets() -> List[str]: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def fx(self) -> float: ...
+    @property
+    def fy(self) -> float: ...
+    @property
+    def cx(self) -> float: ...
+    @property
+    def cy(self) -> float: ...
+    @property
+    def baseline_m(self) -> float: ...
+    @property
+    def subpixel(self) -> int: ...
+    @property
+    def sigma_d_px(self) -> float: ...
+    @property
+    def fb(self) -> float:
+        """f*B in pixel-metres."""
+    def sigma_z(self, z_m: float) -> float:
+        """Depth noise (metres) at depth z_m: z**2 * sigma_D / (f*B)."""
+    def depth_to_disparity(self, z_m: float) -> float: ...
+    def disparity_to_depth(self, d_px: float) -> float: ...
+    def intrinsic_matrix(self) -> List[List[float]]: ...
+
+def read_depth(
+    path: _Path, depth_scale: Optional[float] = None, format: Optional[str] = None
+) -> npt.NDArray[np.float32]:
+    """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun"."""
+
+def write_depth(
+    path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
+) -> None:
+    """16-bit PNG/TIFF at depth_scale units per metre, written atomically."""
+
+class Analysis:
+    valid_pixels: int
+    unique_depths: int
+    slope: float
+    slope_robust: float
+    quantum_per_m: float
+    fb_px_m: Optional[float]
+    subpixel_steps: Optional[int]
+
+def analyze(
+    depth: _Depth, camera: Optional[Camera] = None, *, depth_scale: Optional[float] = None
+) -> Analysis: ...
+def simulate(
+    scene: str, seed: int = 0, camera: Optional[Camera] = None
+) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.uint16]]:
+    """(depth, truth, labels) of a named scene through the Kinect noise model."""
+
+def filter(
+    depth: _Depth,
+    camera: Optional[Camera] = None,
+    method: str = "adaptive",
+    *,
+    radius: Optional[int] = None,
+    sigma_s: Optional[float] = None,
+    k_per_m: Optional[float] = None,
+    sigma_d_m: Optional[float] = None,
+    sigma_disp_px: Optional[float] = None,
+    depth_scale: Optional[float] = None,
+) -> npt.NDArray[np.float32]:
+    """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity."""
+
+class Mesh:
+    @property
+    def vertices(self) -> npt.NDArray[np.float32]:
+        """(N, 3) metres."""
+    @property
+    def triangles(self) -> npt.NDArray[np.uint32]:
+        """(M, 3) vertex indices."""
+    @property
+    def normals(self) -> npt.NDArray[np.float32]:
+        """(N, 3) unit normals."""
+    @property
+    def confidence(self) -> npt.NDArray[np.float32]:
+        """(N,) accumulated fusion weight."""
+    def write_ply(self, path: _Path, ascii: bool = False) -> None: ...
+    def __len__(self) -> int: ...
+
+class TsdfVolume:
+    def __init__(
+        self,
+        voxel_m: float = 0.004,
+        trunc_m: float = 0.02,
+        weight: str = "inv-z4",
+        *,
+        max_depth_m: float = 4.0,
+        min_depth_m: float = 0.1,
+        memory_budget_bytes: int = 4 << 30,
+    ) -> None: ...
+    def integrate(
+        self,
+        depth: _Depth,
+        camera: Camera,
+        pose: _Pose,
+        *,
+        depth_scale: Optional[float] = None,
+    ) -> int:
+        """pose: (4, 4) camera-to-world. Returns blocks allocated."""
+    def extract_mesh(self, min_weight: float = 0.0) -> Mesh: ...
+    def write_ply(self, path: _Path, min_weight: float = 0.0, ascii: bool = False) -> None: ...
+    def slice(
+        self, axis: str, coord_m: float, pixels_per_voxel: int = 2
+    ) -> npt.NDArray[np.float32]:
+        """Signed distance (metres, NaN unobserved) on the plane axis = coord_m."""
+    @property
+    def block_count(self) -> int: ...
+    @property
+    def frame_count(self) -> int: ...
+    @property
+    def memory_bytes(self) -> int: ...
+
+class Plane:
+    id: int
+    normal: Tuple[float, float, float]
+    offset_m: float
+    disparity_affine: Tuple[float, float, float]
+    pixels: int
+    rms_px: float
+    rms_m: float
+    centroid_m: Tuple[float, float, float]
+
+def extract_planes(
+    depth: _Depth,
+    camera: Optional[Camera] = None,
+    *,
+    threshold_px: Optional[float] = None,
+    min_pixels: Optional[int] = None,
+    depth_scale: Optional[float] = None,
+) -> Tuple[npt.NDArray[np.uint16], List[Plane]]: ...
+
+class Motion:
+    determined: bool
+    matrix: Optional[npt.NDArray[np.float64]]
+    rotation_deg: Optional[float]
+    translation_determined: bool
+    confidence: str
+    reason: Optional[str]
+    inlier_fraction: Optional[float]
+    icp_accepted: Optional[bool]
+    planes_a: int
+    planes_b: int
+    matched_planes: int
+
+def motion(
+    depth_a: _Depth,
+    depth_b: _Depth,
+    camera: Optional[Camera] = None,
+    *,
+    icp: bool = True,
+    verify: bool = True,
+    depth_scale: Optional[float] = None,
+) -> Motion:
+    """X_a = T X_b between two frames of one camera; determined=False when undetermined."""
+
+def set_num_threads(n: Optional[int] = None) -> None: ...
+def get_num_threads() -> int: ...
+def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:
+    """Whether the array would be read in place (C-contiguous float32)."""

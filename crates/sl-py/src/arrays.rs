@@ -1,0 +1,186 @@
+//! NumPy arrays in and out. A C-contiguous `float32` (H, W) depth array is borrowed without a
+//! copy; `float64`, `uint16` (with a `depth_scale`) and non-contiguous arrays are converted into
+//! one new `float32` buffer (one pass over the pixels; about 0.1–0.3 ms for 640×480).
+//! Outputs are new arrays that take ownership of the Rust buffer (no copy).
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use sl_core::{Camera, DepthImage, DepthView, Image};
+
+use crate::errors::value_error;
+
+/// A depth map received from Python: borrowed when it already is C-contiguous `float32`.
+pub(crate) enum DepthInput<'py> {
+    /// The caller's buffer, read in place.
+    Borrowed(PyReadonlyArray2<'py, f32>),
+    /// A converted copy.
+    Owned(DepthImage),
+}
+
+impl DepthInput<'_> {
+    /// The pixels as a borrowed view.
+    pub(crate) fn view(&self) -> PyResult<DepthView<'_>> {
+        match self {
+            Self::Borrowed(a) => {
+                let (h, w) = (a.shape()[0], a.shape()[1]);
+                let data = a.as_slice().map_err(value_error)?;
+                DepthView::new(w, h, data).map_err(value_error)
+            }
+            Self::Owned(d) => Ok(d.view()),
+        }
+    }
+
+    /// Whether the input is read in place (no copy was made).
+    pub(crate) fn is_borrowed(&self) -> bool {
+        matches!(self, Self::Borrowed(_))
+    }
+}
+
+fn shape_of(obj: &Bound<'_, PyAny>) -> PyResult<(usize, usize, String)> {
+    let arr = obj.cast::<PyUntypedArray>().map_err(|_| {
+        value_error(format!(
+            "depth must be a NumPy array of shape (H, W), got {}",
+            obj.get_type()
+                .name()
+                .map_or_else(|_| "?".into(), |n| n.to_string())
+        ))
+    })?;
+    let dtype = arr.dtype().str()?.to_string();
+    if arr.ndim() != 2 {
+        return Err(value_error(format!(
+            "depth must be 2-D (H, W), got an array of shape {:?}",
+            arr.shape()
+        )));
+    }
+    Ok((arr.shape()[0], arr.shape()[1], dtype))
+}
+
+fn owned(h: usize, w: usize, values: impl Iterator<Item = f32>) -> PyResult<DepthInput<'static>> {
+    let data: Vec<f32> = values.collect();
+    DepthImage::from_vec(w, h, data)
+        .map(DepthInput::Owned)
+        .map_err(value_error)
+}
+
+/// Reads a depth array in metres (float32/float64), or in sensor units (uint16) with
+/// `depth_scale` units per metre.
+pub(crate) fn depth_input<'py>(
+    obj: &Bound<'py, PyAny>,
+    depth_scale: Option<f64>,
+) -> PyResult<DepthInput<'py>> {
+    let (h, w, dtype) = shape_of(obj)?;
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
+        if depth_scale.is_some() {
+            return Err(value_error(
+                "depth_scale applies to integer depth; float depth is already in metres",
+            ));
+        }
+        if a.is_c_contiguous() {
+            return Ok(DepthInput::Borrowed(a));
+        }
+        return owned(h, w, a.as_array().iter().copied());
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f64>>() {
+        if depth_scale.is_some() {
+            return Err(value_error(
+                "depth_scale applies to integer depth; float depth is already in metres",
+            ));
+        }
+        return owned(h, w, a.as_array().iter().map(|&v| v as f32));
+    }
+    if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, u16>>() {
+        let Some(scale) = depth_scale else {
+            return Err(value_error(
+                "uint16 depth needs depth_scale (units per metre: 1000 for millimetres, 5000 for TUM)",
+            ));
+        };
+        if !(scale.is_finite() && scale > 0.0) {
+            return Err(value_error(format!(
+                "depth_scale must be a positive number of units per metre, got {scale}"
+            )));
+        }
+        let inv = 1.0 / scale;
+        return owned(
+            h,
+            w,
+            a.as_array().iter().map(|&v| (f64::from(v) * inv) as f32),
+        );
+    }
+    Err(value_error(format!(
+        "depth must be float32, float64 (metres) or uint16 (with depth_scale), got dtype {dtype}"
+    )))
+}
+
+/// Checks that a depth map has the camera's size.
+pub(crate) fn check_camera(view: &DepthView<'_>, camera: &Camera) -> PyResult<()> {
+    let k = &camera.intrinsics;
+    if view.width() != k.width || view.height() != k.height {
+        return Err(value_error(format!(
+            "depth is {}x{} (W x H) but the camera is {}x{}; pass a Camera of the depth's size",
+            view.width(),
+            view.height(),
+            k.width,
+            k.height
+        )));
+    }
+    Ok(())
+}
+
+/// A new (H, W) array that owns `image`'s buffer.
+pub(crate) fn image_array<'py, T: numpy::Element>(
+    py: Python<'py>,
+    image: Image<T>,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let (w, h) = image.dimensions();
+    let a = Array2::from_shape_vec((h, w), image.into_vec()).map_err(value_error)?;
+    Ok(a.into_pyarray(py))
+}
+
+/// A new (H, W) float32 array of depth in metres.
+pub(crate) fn depth_array<'py>(
+    py: Python<'py>,
+    depth: DepthImage,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    image_array(py, depth.into_image())
+}
+
+/// A new (N, 3) array from rows of three values.
+pub(crate) fn rows3_array<'py, T: numpy::Element + Copy>(
+    py: Python<'py>,
+    rows: impl ExactSizeIterator<Item = [T; 3]>,
+) -> PyResult<Bound<'py, PyArray2<T>>> {
+    let n = rows.len();
+    let flat: Vec<T> = rows.flat_map(|r| r.into_iter()).collect();
+    let a = Array2::from_shape_vec((n, 3), flat).map_err(value_error)?;
+    Ok(a.into_pyarray(py))
+}
+
+/// A 4×4 camera-to-world pose from a NumPy (4, 4) array (any float dtype) or nested lists.
+pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::Pose> {
+    let m: Vec<Vec<f64>> = obj
+        .call_method0("tolist")
+        .and_then(|l| l.extract())
+        .or_else(|_| obj.extract())
+        .map_err(|_| value_error("pose must be a (4, 4) array of floats (camera-to-world)"))?;
+    if m.len() != 4 || m.iter().any(|r| r.len() != 4) {
+        return Err(value_error(
+            "pose must be a (4, 4) array of floats (camera-to-world)",
+        ));
+    }
+    let mut flat = [0.0; 16];
+    for (i, v) in m.iter().flatten().enumerate() {
+        flat[i] = *v;
+    }
+    sl_core::pose_from_row_major(&flat).map_err(value_error)
+}
+
+/// A NumPy (4, 4) float64 array of a pose.
+pub(crate) fn pose_array<'py>(
+    py: Python<'py>,
+    pose: &sl_core::Pose,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let m = pose.to_homogeneous();
+    let a = Array2::from_shape_fn((4, 4), |(i, j)| m[(i, j)]);
+    Ok(a.into_pyarray(py))
+}

@@ -1,0 +1,141 @@
+//! `sldepth.Camera`: pinhole intrinsics plus the disparity noise model.
+
+use pyo3::prelude::*;
+use sl_core::{Camera, Intrinsics, SensorModel, preset};
+
+use crate::errors::value_error;
+
+/// A depth camera: pinhole intrinsics (pixels) and the disparity noise model
+/// (``σ_Z = Z²·σ_D/(f·B)``).
+///
+/// ``Camera(width, height, fx, fy, cx, cy, baseline_m=0.075, subpixel=8, sigma_d_px=0.07)`` takes
+/// Open3D-style intrinsics; ``Camera.preset("kinect-v1")`` one of ``Camera.presets()``.
+#[pyclass(name = "Camera", module = "sldepth", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyCamera {
+    pub(crate) inner: Camera,
+}
+
+#[pymethods]
+impl PyCamera {
+    #[new]
+    #[pyo3(signature = (width, height, fx, fy, cx, cy, *, baseline_m = 0.075, subpixel = 8, sigma_d_px = sl_core::sensor::DEFAULT_SIGMA_D_PX))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        width: usize,
+        height: usize,
+        fx: f64,
+        fy: f64,
+        cx: f64,
+        cy: f64,
+        baseline_m: f64,
+        subpixel: u32,
+        sigma_d_px: f64,
+    ) -> PyResult<Self> {
+        let intrinsics = Intrinsics::new(width, height, fx, fy, cx, cy).map_err(value_error)?;
+        let sensor = SensorModel::new(fx, baseline_m, subpixel, sigma_d_px).map_err(value_error)?;
+        Ok(Self {
+            inner: Camera { intrinsics, sensor },
+        })
+    }
+
+    /// The camera of a named preset (``"kinect-v1"``, ``"tum-fr1"``, ``"d435"``, …; see
+    /// ``Camera.presets()``). An unknown name raises ``ValueError`` listing the known ones.
+    #[staticmethod]
+    fn preset(name: &str) -> PyResult<Self> {
+        Ok(Self {
+            inner: Camera::preset(name).map_err(value_error)?,
+        })
+    }
+
+    /// The names of every preset.
+    #[staticmethod]
+    fn presets() -> Vec<&'static str> {
+        preset::names().collect()
+    }
+
+    /// Image width, pixels.
+    #[getter]
+    fn width(&self) -> usize {
+        self.inner.intrinsics.width
+    }
+    /// Image height, pixels.
+    #[getter]
+    fn height(&self) -> usize {
+        self.inner.intrinsics.height
+    }
+    /// Focal length x, pixels.
+    #[getter]
+    fn fx(&self) -> f64 {
+        self.inner.intrinsics.fx
+    }
+    /// Focal length y, pixels.
+    #[getter]
+    fn fy(&self) -> f64 {
+        self.inner.intrinsics.fy
+    }
+    /// Principal point x, pixels.
+    #[getter]
+    fn cx(&self) -> f64 {
+        self.inner.intrinsics.cx
+    }
+    /// Principal point y, pixels.
+    #[getter]
+    fn cy(&self) -> f64 {
+        self.inner.intrinsics.cy
+    }
+    /// Projector–camera baseline, metres.
+    #[getter]
+    fn baseline_m(&self) -> f64 {
+        self.inner.sensor.baseline_m
+    }
+    /// Disparity sub-pixel steps per pixel (8 = 1/8 px).
+    #[getter]
+    fn subpixel(&self) -> u32 {
+        self.inner.sensor.subpixel_steps
+    }
+    /// Disparity noise σ_D, pixels.
+    #[getter]
+    fn sigma_d_px(&self) -> f64 {
+        self.inner.sensor.sigma_d_px
+    }
+    /// ``f·B``, pixel·metres.
+    #[getter]
+    fn fb(&self) -> f64 {
+        self.inner.sensor.fb()
+    }
+
+    /// Depth noise σ_Z at depth ``z_m`` (metres): ``z²·σ_D/(f·B)``.
+    fn sigma_z(&self, z_m: f64) -> f64 {
+        self.inner.sensor.sigma_z(z_m)
+    }
+
+    /// Disparity (pixels) of depth ``z_m`` (metres): ``f·B/Z``.
+    fn depth_to_disparity(&self, z_m: f64) -> f64 {
+        self.inner.sensor.depth_to_disparity(z_m)
+    }
+
+    /// Depth (metres) of disparity ``d_px`` (pixels): ``f·B/D``.
+    fn disparity_to_depth(&self, d_px: f64) -> f64 {
+        self.inner.sensor.disparity_to_depth(d_px)
+    }
+
+    /// The 3×3 intrinsic matrix as nested lists (``numpy.array(cam.intrinsic_matrix())``).
+    fn intrinsic_matrix(&self) -> [[f64; 3]; 3] {
+        let k = &self.inner.intrinsics;
+        [[k.fx, 0.0, k.cx], [0.0, k.fy, k.cy], [0.0, 0.0, 1.0]]
+    }
+
+    fn __repr__(&self) -> String {
+        let (k, s) = (&self.inner.intrinsics, &self.inner.sensor);
+        format!(
+            "Camera(width={}, height={}, fx={}, fy={}, cx={}, cy={}, baseline_m={}, subpixel={}, sigma_d_px={})",
+            k.width, k.height, k.fx, k.fy, k.cx, k.cy, s.baseline_m, s.subpixel_steps, s.sigma_d_px
+        )
+    }
+}
+
+/// The Python camera argument, or the `kinect-v1` default.
+pub(crate) fn camera_or_default(camera: Option<&PyCamera>) -> Camera {
+    camera.map_or_else(Camera::kinect_v1, |c| c.inner)
+}

@@ -1,0 +1,47 @@
+//! `sldepth.filter`: the depth filters of sl-filter.
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use sl_filter::{FilterConfig, Method};
+
+use crate::arrays::{check_camera, depth_array, depth_input};
+use crate::camera::{PyCamera, camera_or_default};
+use crate::errors::value_error;
+use crate::threads::compute;
+
+/// Smooths a depth map (metres) and returns a new float32 (H, W) array; 0 stays invalid.
+///
+/// ``method``: ``"adaptive"`` (the paper's bilateral filter with range σ_d = k·Z², k from the
+/// camera's noise model), ``"bilateral"`` (fixed σ_d), ``"gaussian"``, ``"disparity"`` (bilateral
+/// in disparity). ``radius`` (pixels, window 2r+1, default 3), ``sigma_s`` (pixels), and the
+/// method's range parameter (``k_per_m``, ``sigma_d_m`` or ``sigma_disp_px``) override the
+/// defaults. ``depth_scale`` converts uint16 input (units per metre).
+#[pyfunction]
+#[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, depth_scale = None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn filter<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    camera: Option<&PyCamera>,
+    method: &str,
+    radius: Option<usize>,
+    sigma_s: Option<f64>,
+    k_per_m: Option<f64>,
+    sigma_d_m: Option<f64>,
+    sigma_disp_px: Option<f64>,
+    depth_scale: Option<f64>,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let camera = camera_or_default(camera);
+    let mut config = FilterConfig::new(method.parse::<Method>().map_err(value_error)?);
+    config.radius_px = radius;
+    config.sigma_s_px = sigma_s;
+    config.k_per_m = k_per_m;
+    config.sigma_d_m = sigma_d_m;
+    config.sigma_disp_px = sigma_disp_px;
+    let f = config.build(&camera.sensor).map_err(value_error)?;
+    let input = depth_input(depth, depth_scale)?;
+    let view = input.view()?;
+    check_camera(&view, &camera)?;
+    let out = compute(py, || f.apply(view)).map_err(value_error)?;
+    depth_array(py, out)
+}

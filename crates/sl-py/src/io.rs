@@ -1,0 +1,71 @@
+//! Depth files: `read_depth` and `write_depth`.
+
+use std::path::PathBuf;
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
+
+use crate::arrays::{depth_array, depth_input};
+use crate::errors::{io_error, value_error};
+use crate::threads::compute;
+
+fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
+    format
+        .map(|f| f.parse::<DepthFormat>().map_err(value_error))
+        .transpose()
+}
+
+/// Reads a depth map (16-bit PNG/TIFF at ``depth_scale`` units per metre — 1000 by default,
+/// 5000 for TUM —, NYU raw disparity ``.pgm``, or SUN RGB-D ``format="sun"``) into a float32
+/// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
+#[pyfunction]
+#[pyo3(signature = (path, depth_scale = None, format = None))]
+pub(crate) fn read_depth<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    depth_scale: Option<f64>,
+    format: Option<&str>,
+) -> PyResult<Bound<'py, PyArray2<f32>>> {
+    let opts = ReadOptions {
+        format: parse_format(format)?,
+        scale_units_per_m: depth_scale,
+    };
+    let loaded = compute(py, || sl_io::depth::read_depth(&path, &opts)).map_err(io_error)?;
+    depth_array(py, loaded.depth)
+}
+
+/// Writes a depth map (metres) as 16-bit PNG or TIFF (by extension or ``format``) at
+/// ``depth_scale`` units per metre (1000 = millimetres), atomically. Invalid pixels (0, NaN,
+/// negative) are stored as 0; a depth the encoding cannot hold raises ``ValueError``/``OSError``.
+#[pyfunction]
+#[pyo3(signature = (path, depth, depth_scale = 1000.0, format = None))]
+pub(crate) fn write_depth(
+    py: Python<'_>,
+    path: PathBuf,
+    depth: &Bound<'_, PyAny>,
+    depth_scale: f64,
+    format: Option<&str>,
+) -> PyResult<()> {
+    let format = match parse_format(format)? {
+        Some(f) => f,
+        None => DepthFormat::from_path(&path).ok_or_else(|| {
+            value_error(format!(
+                "{}: cannot tell the format from the extension; pass format=\"png\" or \"tiff\"",
+                path.display()
+            ))
+        })?,
+    };
+    let encoding = match format {
+        DepthFormat::Png => DepthEncoding::png(depth_scale),
+        DepthFormat::Tiff => DepthEncoding::tiff(depth_scale),
+        other => {
+            return Err(value_error(format!(
+                "writing {other} depth is not supported; use png or tiff"
+            )));
+        }
+    };
+    let input = depth_input(depth, None)?;
+    let image = input.view()?.to_image();
+    compute(py, || sl_io::depth::write_depth(&path, &image, &encoding)).map_err(io_error)
+}

@@ -1,0 +1,193 @@
+//! `sldepth.extract_planes` and `sldepth.motion`: disparity-domain planes and the camera motion
+//! they give.
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use sl_planes::{DepthMotionConfig, PlaneConfig, PlaneExtractor, PlaneInfo};
+
+use crate::arrays::{check_camera, depth_input, image_array, pose_array};
+use crate::camera::{PyCamera, camera_or_default};
+use crate::errors::value_error;
+use crate::repr::{py_bool, py_opt};
+use crate::threads::compute;
+
+/// One plane found in a depth map (camera frame, metres; read-only attributes).
+#[pyclass(name = "Plane", module = "sldepth", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub struct PyPlane {
+    /// Label of the plane's pixels in the label image (1, 2, …).
+    id: u16,
+    /// Unit normal (x, y, z), pointing towards the camera: ``normal·X + offset_m = 0``.
+    normal: (f64, f64, f64),
+    /// Distance of the plane from the camera centre, metres.
+    offset_m: f64,
+    /// Disparity as an affine function of the pixel, ``d = a·x + b·y + c`` (pixels).
+    disparity_affine: (f64, f64, f64),
+    /// Number of pixels.
+    pixels: usize,
+    /// RMS disparity residual, pixels.
+    rms_px: f64,
+    /// RMS distance of the pixels' points from the plane, metres.
+    rms_m: f64,
+    /// Centroid of the pixels' points, metres.
+    centroid_m: (f64, f64, f64),
+}
+
+#[pymethods]
+impl PyPlane {
+    fn __repr__(&self) -> String {
+        let n = self.normal;
+        format!(
+            "Plane(id={}, normal=({:.4}, {:.4}, {:.4}), offset_m={:.4}, pixels={}, rms_px={:.4})",
+            self.id, n.0, n.1, n.2, self.offset_m, self.pixels, self.rms_px
+        )
+    }
+}
+
+impl From<&PlaneInfo> for PyPlane {
+    fn from(p: &PlaneInfo) -> Self {
+        let n = p.plane.normal;
+        let c = p.centroid_m;
+        Self {
+            id: p.id,
+            normal: (n.x, n.y, n.z),
+            offset_m: p.plane.offset_m,
+            disparity_affine: (p.affine.a, p.affine.b, p.affine.c),
+            pixels: p.pixels,
+            rms_px: p.rms_px,
+            rms_m: p.rms_m,
+            centroid_m: (c.x, c.y, c.z),
+        }
+    }
+}
+
+fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneConfig {
+    let d = PlaneConfig::default();
+    PlaneConfig {
+        threshold_px: threshold_px.unwrap_or(d.threshold_px),
+        min_pixels: min_pixels.unwrap_or(d.min_pixels),
+        ..d
+    }
+}
+
+/// Extracts planes in the disparity domain (one fixed threshold at every depth, the paper's
+/// section 3.4). Returns ``(labels, planes)``: a uint16 (H, W) label image (0 = no plane,
+/// i = ``planes[i-1]``) and a list of ``Plane``.
+#[pyfunction]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, depth_scale = None))]
+pub(crate) fn extract_planes<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    camera: Option<&PyCamera>,
+    threshold_px: Option<f64>,
+    min_pixels: Option<usize>,
+    depth_scale: Option<f64>,
+) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
+    let camera = camera_or_default(camera);
+    let mut extractor =
+        PlaneExtractor::new(plane_config(threshold_px, min_pixels)).map_err(value_error)?;
+    let input = depth_input(depth, depth_scale)?;
+    let view = input.view()?;
+    check_camera(&view, &camera)?;
+    let seg = compute(py, || extractor.extract_depth(view, &camera)).map_err(value_error)?;
+    let planes = seg.planes.iter().map(PyPlane::from).collect();
+    Ok((image_array(py, seg.labels)?, planes))
+}
+
+/// The camera motion between two depth frames (read-only attributes).
+#[pyclass(name = "Motion", module = "sldepth", frozen, get_all)]
+#[derive(Debug)]
+pub struct PyMotion {
+    /// Whether a motion was determined (verified on the depth data unless ``verify=False``).
+    determined: bool,
+    /// (4, 4) float64 matrix with ``X_a = T·X_b`` (frame B's camera coordinates into frame A's),
+    /// or None when undetermined. Its translation is 0 when not determined by the planes.
+    matrix: Option<Py<PyArray2<f64>>>,
+    /// Rotation angle, degrees (None when undetermined).
+    rotation_deg: Option<f64>,
+    /// Whether the translation is determined.
+    translation_determined: bool,
+    /// ``"verified"``, ``"unverified"``, ``"ambiguous"`` … or ``"undetermined"``.
+    confidence: String,
+    /// Why the motion is undetermined (None when determined).
+    reason: Option<String>,
+    /// Share of the overlapping points the estimate explains (verified estimates).
+    inlier_fraction: Option<f64>,
+    /// Whether the ICP refinement was kept (None without ``icp``).
+    icp_accepted: Option<bool>,
+    /// Planes found in frame A and B.
+    planes_a: usize,
+    /// Planes found in frame B.
+    planes_b: usize,
+    /// Matched plane pairs.
+    matched_planes: usize,
+}
+
+#[pymethods]
+impl PyMotion {
+    fn __repr__(&self) -> String {
+        format!(
+            "Motion(determined={}, confidence={:?}, rotation_deg={}, icp_accepted={})",
+            py_bool(self.determined),
+            self.confidence,
+            py_opt(self.rotation_deg),
+            py_opt(self.icp_accepted.map(py_bool))
+        )
+    }
+}
+
+/// Camera motion between two depth frames of one camera from matched planes (the paper's
+/// section 3.5), verified against both depth maps (``verify``), optionally refined by
+/// point-to-plane ICP that is kept only when the depth data confirm it (``icp``). An
+/// undetermined motion is returned with ``determined = False`` and the reason, never a guess.
+#[pyfunction]
+#[pyo3(signature = (depth_a, depth_b, camera = None, *, icp = true, verify = true, depth_scale = None))]
+pub(crate) fn motion(
+    py: Python<'_>,
+    depth_a: &Bound<'_, PyAny>,
+    depth_b: &Bound<'_, PyAny>,
+    camera: Option<&PyCamera>,
+    icp: bool,
+    verify: bool,
+    depth_scale: Option<f64>,
+) -> PyResult<PyMotion> {
+    let camera = camera_or_default(camera);
+    let a = depth_input(depth_a, depth_scale)?;
+    let b = depth_input(depth_b, depth_scale)?;
+    let (va, vb) = (a.view()?, b.view()?);
+    check_camera(&va, &camera)?;
+    check_camera(&vb, &camera)?;
+    let (da, db) = (va.to_image(), vb.to_image());
+    let mut cfg = DepthMotionConfig::default();
+    cfg.icp = icp;
+    cfg.verify = verify;
+    let r = compute(py, || {
+        sl_planes::motion_between_depths(&da, &db, &camera, &cfg)
+    })
+    .map_err(value_error)?;
+    let pose = r.pose();
+    Ok(PyMotion {
+        determined: pose.is_some(),
+        matrix: pose
+            .as_ref()
+            .map(|p| pose_array(py, p))
+            .transpose()?
+            .map(Bound::unbind),
+        rotation_deg: pose.map(|p| p.rotation.angle().to_degrees()),
+        translation_determined: r.translation_m().is_some(),
+        confidence: match &r.motion {
+            Ok(m) => m.confidence.as_str().to_string(),
+            Err(_) => "undetermined".to_string(),
+        },
+        reason: r.motion.as_ref().err().map(ToString::to_string),
+        inlier_fraction: r
+            .motion
+            .as_ref()
+            .ok()
+            .and_then(|m| m.verification.as_ref().map(|v| v.inlier_fraction)),
+        icp_accepted: r.icp.as_ref().map(|o| o.accepted),
+        planes_a: r.planes_a.len(),
+        planes_b: r.planes_b.len(),
+        matched_planes: r.motion.as_ref().map_or(0, |m| m.matches.len()),
+    })
+}

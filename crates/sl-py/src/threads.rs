@@ -1,0 +1,51 @@
+//! The one parallelism policy, seen from Python: every computation releases the GIL and runs
+//! on one rayon pool — the global pool, or the pool `set_num_threads(n)` made.
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use pyo3::prelude::*;
+
+use crate::errors::value_error;
+
+/// The pool chosen by `set_num_threads`, or `None` for rayon's global pool (one thread per
+/// core).
+static POOL: Mutex<Option<Arc<rayon::ThreadPool>>> = Mutex::new(None);
+
+fn current_pool() -> Option<Arc<rayon::ThreadPool>> {
+    POOL.lock().unwrap_or_else(PoisonError::into_inner).clone()
+}
+
+/// Runs `f` with the GIL released, inside the chosen rayon pool.
+pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> T {
+    let pool = current_pool();
+    py.detach(move || match pool {
+        Some(p) => p.install(f),
+        None => f(),
+    })
+}
+
+/// Sets how many threads sldepth's computations use (``n >= 1``); ``None`` or ``0`` returns to
+/// one thread per core. Affects calls started after it returns.
+#[pyfunction]
+#[pyo3(signature = (n = None))]
+pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
+    let pool = match n {
+        None | Some(0) => None,
+        Some(n) if n > 1024 => return Err(value_error(format!("{n} threads is too many"))),
+        Some(n) => Some(Arc::new(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .thread_name(|i| format!("sldepth-{i}"))
+                .build()
+                .map_err(value_error)?,
+        )),
+    };
+    *POOL.lock().unwrap_or_else(PoisonError::into_inner) = pool;
+    Ok(())
+}
+
+/// The number of threads sldepth's computations use now.
+#[pyfunction]
+pub(crate) fn get_num_threads() -> usize {
+    current_pool().map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
+}

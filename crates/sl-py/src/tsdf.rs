@@ -1,0 +1,273 @@
+//! `sldepth.TsdfVolume` and `sldepth.Mesh`: 1/Z⁴-weighted TSDF fusion and marching cubes.
+
+use std::path::PathBuf;
+
+use numpy::ndarray::Array1;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
+use pyo3::prelude::*;
+use sl_io::PlyFormat;
+use sl_tsdf::{Axis, ExtractOptions, Mesh, SliceSpec, TsdfParams, TsdfVolume, WeightMode};
+
+use crate::arrays::{check_camera, depth_input, image_array, pose_input, rows3_array};
+use crate::camera::PyCamera;
+use crate::errors::{SlDepthIOError, value_error};
+use crate::threads::compute;
+
+/// A sparse TSDF volume (8³-voxel blocks allocated near observed surfaces) that merges depth
+/// frames with noise weights and extracts a mesh by marching cubes.
+///
+/// ``weight``: ``"inv-z4"`` (the paper's 1/Z⁴ = 1/σ_Z² weights, default), ``"inv-z2"``,
+/// ``"uniform"``, or ``"sensor"`` (inverse σ_Z² of the camera given to ``integrate``).
+/// ``memory_budget_bytes`` caps the blocks; integration past it raises ``ValueError`` and leaves
+/// the volume unchanged.
+#[pyclass(name = "TsdfVolume", module = "sldepth")]
+#[derive(Debug)]
+pub struct PyTsdfVolume {
+    volume: TsdfVolume,
+    sensor_weight: bool,
+}
+
+#[pymethods]
+impl PyTsdfVolume {
+    #[new]
+    #[pyo3(signature = (voxel_m = 0.004, trunc_m = 0.02, weight = "inv-z4", *, max_depth_m = 4.0, min_depth_m = 0.1, memory_budget_bytes = 4usize << 30))]
+    fn new(
+        voxel_m: f64,
+        trunc_m: f64,
+        weight: &str,
+        max_depth_m: f64,
+        min_depth_m: f64,
+        memory_budget_bytes: usize,
+    ) -> PyResult<Self> {
+        let sensor_weight = weight == "sensor";
+        let weight = if sensor_weight {
+            // Replaced by the camera's model at the first integration.
+            WeightMode::sensor_variance(sl_core::SensorModel::kinect_v1())
+        } else {
+            WeightMode::parse(weight).map_err(value_error)?
+        };
+        let params = TsdfParams {
+            voxel_m,
+            trunc_m,
+            weight,
+            max_depth_m,
+            min_depth_m,
+            memory_budget_bytes,
+            ..TsdfParams::default()
+        };
+        Ok(Self {
+            volume: TsdfVolume::new(params).map_err(value_error)?,
+            sensor_weight,
+        })
+    }
+
+    /// Integrates one depth frame (metres, (H, W)) seen by ``camera`` at ``pose``, a (4, 4)
+    /// camera-to-world matrix. Returns the number of blocks allocated by this frame.
+    #[pyo3(signature = (depth, camera, pose, *, depth_scale = None))]
+    fn integrate(
+        &mut self,
+        py: Python<'_>,
+        depth: &Bound<'_, PyAny>,
+        camera: &PyCamera,
+        pose: &Bound<'_, PyAny>,
+        depth_scale: Option<f64>,
+    ) -> PyResult<usize> {
+        let camera = camera.inner;
+        let pose = pose_input(pose)?;
+        let input = depth_input(depth, depth_scale)?;
+        let view = input.view()?;
+        check_camera(&view, &camera)?;
+        if self.sensor_weight && self.volume.frame_count() == 0 {
+            let params = TsdfParams {
+                weight: WeightMode::sensor_variance(camera.sensor),
+                ..*self.volume.params()
+            };
+            self.volume = TsdfVolume::new(params).map_err(value_error)?;
+        }
+        let volume = &mut self.volume;
+        let stats = compute(py, || volume.integrate(view, &camera.intrinsics, &pose))
+            .map_err(value_error)?;
+        Ok(stats.blocks_allocated)
+    }
+
+    /// Extracts the zero crossing as a triangle mesh (marching cubes over the observed voxels;
+    /// cubes with a corner weight below ``min_weight`` are skipped).
+    #[pyo3(signature = (min_weight = 0.0))]
+    fn extract_mesh(&self, py: Python<'_>, min_weight: f32) -> PyResult<PyMesh> {
+        let opts = extract_options(min_weight)?;
+        let volume = &self.volume;
+        let mesh = compute(py, || volume.extract_mesh(&opts));
+        PyMesh::from_mesh(py, mesh)
+    }
+
+    /// Extracts the mesh and writes it as PLY (binary unless ``ascii``), atomically.
+    #[pyo3(signature = (path, min_weight = 0.0, ascii = false))]
+    fn write_ply(
+        &self,
+        py: Python<'_>,
+        path: PathBuf,
+        min_weight: f32,
+        ascii: bool,
+    ) -> PyResult<()> {
+        let opts = extract_options(min_weight)?;
+        let volume = &self.volume;
+        compute(py, || {
+            let mesh = volume.extract_mesh(&opts);
+            sl_tsdf::io::write_mesh_ply(&path, &mesh, ply_format(ascii))
+        })
+        .map_err(|e| SlDepthIOError::new_err(e.to_string()))
+    }
+
+    /// The signed distance F (metres, NaN where unobserved) on the axis-aligned plane
+    /// ``axis = coord_m`` (``axis`` is ``"x"``, ``"y"`` or ``"z"``), as a float32 image with row 0
+    /// at the largest in-plane coordinate.
+    #[pyo3(signature = (axis, coord_m, pixels_per_voxel = 2))]
+    fn slice<'py>(
+        &self,
+        py: Python<'py>,
+        axis: &str,
+        coord_m: f64,
+        pixels_per_voxel: usize,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let spec = SliceSpec {
+            pixels_per_voxel,
+            ..SliceSpec::new(Axis::parse(axis).map_err(value_error)?, coord_m)
+        };
+        let volume = &self.volume;
+        let slice = compute(py, || volume.slice(&spec)).map_err(value_error)?;
+        image_array(py, slice.values)
+    }
+
+    /// Number of allocated voxel blocks.
+    #[getter]
+    fn block_count(&self) -> usize {
+        self.volume.block_count()
+    }
+
+    /// Number of integrated frames.
+    #[getter]
+    fn frame_count(&self) -> usize {
+        self.volume.frame_count()
+    }
+
+    /// Memory used by the blocks and their index, bytes.
+    #[getter]
+    fn memory_bytes(&self) -> usize {
+        self.volume.memory_bytes()
+    }
+
+    fn __repr__(&self) -> String {
+        let p = self.volume.params();
+        format!(
+            "TsdfVolume(voxel_m={}, trunc_m={}, weight={:?}, frames={}, blocks={})",
+            p.voxel_m,
+            p.trunc_m,
+            p.weight.name(),
+            self.volume.frame_count(),
+            self.volume.block_count()
+        )
+    }
+}
+
+fn extract_options(min_weight: f32) -> PyResult<ExtractOptions> {
+    if !(min_weight.is_finite() && min_weight >= 0.0) {
+        return Err(value_error(format!(
+            "min_weight must be a non-negative number, got {min_weight}"
+        )));
+    }
+    Ok(ExtractOptions {
+        min_weight,
+        ..ExtractOptions::default()
+    })
+}
+
+fn ply_format(ascii: bool) -> PlyFormat {
+    if ascii {
+        PlyFormat::Ascii
+    } else {
+        PlyFormat::BinaryLittleEndian
+    }
+}
+
+/// A triangle mesh (world frame, metres) as NumPy arrays: ``vertices`` (N, 3) float32,
+/// ``triangles`` (M, 3) uint32 (counter-clockwise seen from outside), ``normals`` (N, 3)
+/// float32, ``confidence`` (N,) float32 (accumulated fusion weight). Hand them to Open3D with
+/// ``o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(m.vertices), …)`` or to trimesh.
+#[pyclass(name = "Mesh", module = "sldepth", frozen)]
+#[derive(Debug)]
+pub struct PyMesh {
+    vertices: Py<PyArray2<f32>>,
+    triangles: Py<PyArray2<u32>>,
+    normals: Py<PyArray2<f32>>,
+    confidence: Py<PyArray1<f32>>,
+}
+
+impl PyMesh {
+    fn from_mesh(py: Python<'_>, mesh: Mesh) -> PyResult<Self> {
+        Ok(Self {
+            vertices: rows3_array(py, mesh.positions.into_iter())?.unbind(),
+            triangles: rows3_array(py, mesh.triangles.into_iter())?.unbind(),
+            normals: rows3_array(py, mesh.normals.into_iter())?.unbind(),
+            confidence: Array1::from_vec(mesh.confidence).into_pyarray(py).unbind(),
+        })
+    }
+}
+
+fn rows<T: numpy::Element + Copy + Default>(a: &PyReadonlyArray2<'_, T>) -> PyResult<Vec<[T; 3]>> {
+    let v = a.as_array();
+    if v.ncols() != 3 {
+        return Err(value_error("expected an (N, 3) array"));
+    }
+    Ok(v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+#[pymethods]
+impl PyMesh {
+    /// Vertex positions, (N, 3) float32, metres.
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        self.vertices.bind(py).clone()
+    }
+    /// Triangles as vertex indices, (M, 3) uint32.
+    #[getter]
+    fn triangles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<u32>> {
+        self.triangles.bind(py).clone()
+    }
+    /// Unit vertex normals, (N, 3) float32.
+    #[getter]
+    fn normals<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        self.normals.bind(py).clone()
+    }
+    /// Per-vertex fusion confidence (accumulated weight), (N,) float32.
+    #[getter]
+    fn confidence<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        self.confidence.bind(py).clone()
+    }
+
+    /// Writes the mesh as PLY (binary unless ``ascii``), atomically.
+    #[pyo3(signature = (path, ascii = false))]
+    fn write_ply(&self, py: Python<'_>, path: PathBuf, ascii: bool) -> PyResult<()> {
+        let mesh = Mesh {
+            positions: rows(&self.vertices.bind(py).readonly())?,
+            normals: rows(&self.normals.bind(py).readonly())?,
+            confidence: self.confidence.bind(py).readonly().as_array().to_vec(),
+            triangles: rows(&self.triangles.bind(py).readonly())?,
+        };
+        compute(py, || {
+            sl_tsdf::io::write_mesh_ply(&path, &mesh, ply_format(ascii))
+        })
+        .map_err(|e| SlDepthIOError::new_err(e.to_string()))
+    }
+
+    fn __len__(&self, py: Python<'_>) -> usize {
+        self.vertices.bind(py).readonly().as_array().nrows()
+    }
+
+    fn __repr__(&self, py: Python<'_>) -> String {
+        format!(
+            "Mesh(vertices={}, triangles={})",
+            self.vertices.bind(py).readonly().as_array().nrows(),
+            self.triangles.bind(py).readonly().as_array().nrows()
+        )
+    }
+}

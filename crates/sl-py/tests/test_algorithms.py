@@ -1,0 +1,146 @@
+"""Every algorithm on small synthetic frames with known answers."""
+
+import numpy as np
+import pytest
+
+import sldepth
+
+
+def test_filter_keeps_a_flat_wall_and_holes(small_cam, wall):
+    z = wall.copy()
+    z[10, 10] = 0.0
+    for method in ["adaptive", "bilateral", "gaussian", "disparity"]:
+        out = sldepth.filter(z, small_cam, method=method)
+        assert out.dtype == np.float32 and out.shape == z.shape
+        assert out[10, 10] == 0.0
+        valid = z > 0
+        assert np.allclose(out[valid], 2.0, atol=1e-5), method
+
+
+def test_filter_reduces_simulated_noise(kinect, three_planes):
+    depth, truth, _ = three_planes
+    out = sldepth.filter(depth, kinect)
+    m = (truth > 0) & (depth > 0) & (out > 0)
+    raw = np.sqrt(np.mean((depth[m] - truth[m]) ** 2))
+    filtered = np.sqrt(np.mean((out[m] - truth[m]) ** 2))
+    assert filtered < 0.7 * raw
+
+
+def test_filter_options_and_errors(small_cam, wall):
+    out = sldepth.filter(wall, small_cam, method="adaptive", radius=2, k_per_m=0.05)
+    assert np.allclose(out, 2.0)
+    with pytest.raises(ValueError, match="unknown method"):
+        sldepth.filter(wall, small_cam, method="median")
+    with pytest.raises(ValueError, match="adaptive"):
+        sldepth.filter(wall, small_cam, method="bilateral", k_per_m=0.05)
+
+
+def test_conversions_give_the_same_answer(kinect, three_planes):
+    depth = three_planes[0]
+    ref = sldepth.filter(depth, kinect)
+    assert np.array_equal(sldepth.filter(depth.astype(np.float64), kinect), ref)
+    fortran = np.asfortranarray(depth)
+    assert not sldepth.input_is_borrowed(fortran)
+    assert np.array_equal(sldepth.filter(fortran, kinect), ref)
+
+
+def test_bad_arrays_raise_valueerror(small_cam, wall):
+    with pytest.raises(ValueError, match="2-D"):
+        sldepth.filter(wall[None], small_cam)
+    with pytest.raises(ValueError, match="camera"):
+        sldepth.filter(wall[:, :32].copy(), small_cam)
+    with pytest.raises(ValueError, match="NumPy array"):
+        sldepth.filter([[1.0, 2.0]], small_cam)
+    with pytest.raises(ValueError, match="dtype"):
+        sldepth.filter(np.ones((48, 64), dtype=np.int8), small_cam)
+
+
+def test_planes_of_the_three_plane_scene(kinect, three_planes):
+    depth, _, truth_labels = three_planes
+    labels, planes = sldepth.extract_planes(depth, kinect)
+    assert labels.dtype == np.uint16 and labels.shape == depth.shape
+    assert len(planes) >= 3
+    for p in planes:
+        assert np.linalg.norm(p.normal) == pytest.approx(1.0, abs=1e-9)
+        assert p.offset_m > 0 and p.pixels == int(np.sum(labels == p.id))
+        a, b, c = p.disparity_affine
+        assert np.isfinite([a, b, c]).all()
+    # The largest plane covers most of one true surface.
+    big = max(planes, key=lambda p: p.pixels)
+    surf = np.bincount(truth_labels[labels == big.id]).argmax()
+    assert np.mean(truth_labels[labels == big.id] == surf) > 0.95
+
+
+def test_motion_of_a_frame_with_itself_is_identity(kinect, three_planes):
+    depth = three_planes[0]
+    m = sldepth.motion(depth, depth, kinect, icp=True)
+    assert m.determined and m.matrix.shape == (4, 4)
+    assert np.allclose(m.matrix, np.eye(4), atol=1e-6)
+    assert m.rotation_deg == pytest.approx(0.0, abs=1e-6)
+
+
+def test_motion_undetermined_is_reported_not_guessed(small_cam, wall):
+    m = sldepth.motion(wall, wall, small_cam)
+    assert not m.determined and m.matrix is None and m.reason
+
+
+def test_tsdf_of_a_wall(small_cam, wall, tmp_path):
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.05, weight="inv-z4")
+    assert vol.integrate(wall, small_cam, np.eye(4)) > 0
+    mesh = vol.extract_mesh()
+    assert mesh.vertices.dtype == np.float32 and mesh.vertices.shape[1] == 3
+    assert mesh.triangles.dtype == np.uint32 and mesh.triangles.shape[1] == 3
+    assert mesh.normals.shape == mesh.vertices.shape and len(mesh.confidence) == len(mesh)
+    assert np.allclose(mesh.vertices[:, 2], 2.0, atol=0.01)
+    assert mesh.triangles.max() < len(mesh)
+    # Normals point back at the camera (-z).
+    assert np.mean(mesh.normals[:, 2]) < -0.9
+    s = vol.slice("z", 2.0)
+    assert s.dtype == np.float32 and np.nanmax(np.abs(s)) <= 0.05 + 1e-6
+    mesh.write_ply(tmp_path / "m.ply")
+    vol.write_ply(tmp_path / "v.ply")
+    assert (tmp_path / "m.ply").read_bytes()[:3] == b"ply"
+    assert (tmp_path / "m.ply").read_bytes() == (tmp_path / "v.ply").read_bytes()
+
+
+def test_tsdf_pose_moves_the_surface(small_cam, wall):
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.05)
+    pose = np.eye(4)
+    pose[:3, 3] = [0.0, 0.0, 1.0]
+    vol.integrate(wall, small_cam, pose)
+    assert np.allclose(vol.extract_mesh().vertices[:, 2], 3.0, atol=0.01)
+
+
+def test_tsdf_errors(small_cam, wall):
+    with pytest.raises(ValueError):
+        sldepth.TsdfVolume(voxel_m=-0.01)
+    with pytest.raises(ValueError, match="weight"):
+        sldepth.TsdfVolume(weight="inv-z3")
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.05)
+    bad = np.eye(4)
+    bad[0, 0] = np.nan
+    with pytest.raises(ValueError):
+        vol.integrate(wall, small_cam, bad)
+    with pytest.raises(ValueError, match="4, 4"):
+        vol.integrate(wall, small_cam, np.eye(3))
+    tiny = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.05, memory_budget_bytes=1000)
+    with pytest.raises(ValueError, match="budget"):
+        tiny.integrate(wall, small_cam, np.eye(4))
+    assert tiny.block_count == 0 and tiny.frame_count == 0
+
+
+def test_analyze_finds_the_square_law(kinect):
+    depth, _, _ = sldepth.simulate("floor", seed=1)
+    a = sldepth.analyze(depth, kinect)
+    assert a.slope == pytest.approx(2.0, abs=0.15)
+    assert a.subpixel_steps == 8
+    assert a.fb_px_m == pytest.approx(43.5, rel=0.05)
+
+
+def test_simulate_is_seeded():
+    a = sldepth.simulate("wall", seed=5)[0]
+    b = sldepth.simulate("wall", seed=5)[0]
+    c = sldepth.simulate("wall", seed=6)[0]
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+    with pytest.raises(ValueError, match="floor"):
+        sldepth.simulate("no-such-scene")

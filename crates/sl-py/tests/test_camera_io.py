@@ -1,0 +1,75 @@
+"""Camera model, presets and depth files."""
+
+import numpy as np
+import pytest
+
+import sldepth
+
+
+def test_presets_include_the_documented_cameras():
+    names = sldepth.Camera.presets()
+    for n in ["kinect-v1", "tum-fr1", "7-scenes", "nyu-v2", "icl-nuim", "primesense", "d415", "d435", "d455", "oak-d"]:
+        assert n in names
+    d435 = sldepth.Camera.preset("d435")
+    assert (d435.width, d435.height, d435.subpixel) == (848, 480, 32)
+    assert d435.baseline_m == pytest.approx(0.050)
+
+
+def test_unknown_preset_lists_the_names():
+    with pytest.raises(ValueError, match="kinect-v1.*d435"):
+        sldepth.Camera.preset("kinect-v9")
+    with pytest.raises(sldepth.SlDepthError):
+        sldepth.Camera.preset("nope")
+
+
+def test_sigma_z_follows_the_square_law(kinect):
+    # sigma_Z = Z^2 sigma_D / (f B): 0.07 / (580 * 0.075) = 1.609 mm at 1 m.
+    assert kinect.sigma_z(1.0) == pytest.approx(0.07 / (580 * 0.075))
+    assert kinect.sigma_z(3.0) / kinect.sigma_z(1.5) == pytest.approx(4.0)
+    d = kinect.depth_to_disparity(2.0)
+    assert d == pytest.approx(580 * 0.075 / 2.0)
+    assert kinect.disparity_to_depth(d) == pytest.approx(2.0)
+    assert kinect.fb == pytest.approx(43.5)
+
+
+def test_open3d_style_constructor_and_validation():
+    cam = sldepth.Camera(320, 240, 290.0, 290.0, 159.5, 119.5, baseline_m=0.05, subpixel=32)
+    assert cam.intrinsic_matrix() == [[290.0, 0.0, 159.5], [0.0, 290.0, 119.5], [0.0, 0.0, 1.0]]
+    assert cam == sldepth.Camera(320, 240, 290.0, 290.0, 159.5, 119.5, baseline_m=0.05, subpixel=32)
+    with pytest.raises(ValueError):
+        sldepth.Camera(320, 240, -1.0, 290.0, 159.5, 119.5)
+    with pytest.raises(ValueError):
+        sldepth.Camera(320, 240, 290.0, 290.0, 159.5, 119.5, baseline_m=float("nan"))
+
+
+@pytest.mark.parametrize("ext", ["png", "tiff"])
+def test_depth_round_trip(tmp_path, ext):
+    rng = np.random.default_rng(1)
+    z = rng.uniform(0.5, 4.0, size=(48, 64)).astype(np.float32)
+    z[5, 7] = 0.0
+    path = tmp_path / f"d.{ext}"
+    sldepth.write_depth(path, z, depth_scale=5000)
+    back = sldepth.read_depth(path, depth_scale=5000)
+    assert back.dtype == np.float32 and back.shape == (48, 64)
+    assert back[5, 7] == 0.0
+    # Stored at 0.2 mm units: round-trip error at most half a unit.
+    assert np.max(np.abs(back - z)) <= 0.5 / 5000 + 1e-6
+
+
+def test_uint16_input_needs_a_scale(small_cam):
+    mm = np.full((48, 64), 2000, dtype=np.uint16)
+    with pytest.raises(ValueError, match="depth_scale"):
+        sldepth.filter(mm, small_cam)
+    out = sldepth.filter(mm, small_cam, depth_scale=1000)
+    assert np.allclose(out, 2.0)
+
+
+def test_file_errors_are_oserrors(tmp_path):
+    with pytest.raises(OSError):
+        sldepth.read_depth(tmp_path / "missing.png")
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(b"not a png")
+    with pytest.raises(sldepth.SlDepthIOError, match="bad.png"):
+        sldepth.read_depth(bad)
+    with pytest.raises(ValueError, match="extension"):
+        sldepth.write_depth(tmp_path / "x.unknown", np.ones((4, 4), np.float32))

@@ -1,0 +1,79 @@
+"""Zero-copy input, GIL release and the thread pool."""
+
+import threading
+import time
+
+import numpy as np
+
+import sldepth
+
+
+def test_c_contiguous_float32_is_borrowed(three_planes):
+    depth = three_planes[0]
+    assert depth.flags.c_contiguous and depth.dtype == np.float32
+    assert sldepth.input_is_borrowed(depth)
+    assert not sldepth.input_is_borrowed(depth.astype(np.float64))
+    assert not sldepth.input_is_borrowed(depth[:, ::2])
+    assert not sldepth.input_is_borrowed(np.full((4, 4), 1000, np.uint16), depth_scale=1000)
+
+
+def test_outputs_own_their_memory(kinect, three_planes):
+    depth = three_planes[0]
+    out = sldepth.filter(depth, kinect)
+    assert out.flags.c_contiguous and out.flags.writeable
+    assert not np.shares_memory(out, depth)
+
+
+def test_gil_is_released_during_computation(kinect):
+    depth, _, _ = sldepth.simulate("figure-walls", seed=2)
+    ticks = []
+    stop = threading.Event()
+
+    def count():
+        while not stop.is_set():
+            ticks.append(1)
+            time.sleep(0)
+
+    sldepth.set_num_threads(1)
+    try:
+        t = threading.Thread(target=count)
+        t.start()
+        time.sleep(0.01)
+        before = len(ticks)
+        start = time.perf_counter()
+        calls = 0
+        while time.perf_counter() - start < 0.5:
+            sldepth.filter(depth, kinect, radius=8)  # long enough to be preempted
+            calls += 1
+        during = len(ticks) - before
+        stop.set()
+        t.join()
+    finally:
+        sldepth.set_num_threads(None)
+    # The counting thread kept running while the filter held no GIL.
+    assert calls > 0 and during > 10 * calls
+
+
+def test_set_num_threads():
+    sldepth.set_num_threads(1)
+    assert sldepth.get_num_threads() == 1
+    sldepth.set_num_threads(2)
+    assert sldepth.get_num_threads() == 2
+    sldepth.set_num_threads(None)
+    assert sldepth.get_num_threads() >= 1
+
+
+def test_two_python_threads_share_the_pool(kinect, three_planes):
+    depth = three_planes[0]
+    ref = sldepth.filter(depth, kinect)
+    results = [None, None]
+
+    def work(i):
+        results[i] = sldepth.filter(depth, kinect)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert all(np.array_equal(r, ref) for r in results)
