@@ -16,8 +16,13 @@ Compared:
   (same voxel, truncation and depth range) on the ICL living-room frames;
 - planes: ``sldepth.extract_planes`` vs ``cv2.findPlanes`` (its Kinect ``sensor_error_a =
   0.0075``; points from the depth map computed outside the timing, normals left to it);
-- call overhead: ``sldepth.filter`` / ``extract_planes`` against the Rust-internal timing the
-  CLI reports for the same frame (``sldepth filter --repeat``, ``sldepth planes --json``).
+- call overhead: ``sldepth.filter`` against the Rust-internal timing the CLI reports for the
+  same frame (``sldepth filter --repeat``), and ``extract_planes`` against the extractor's own
+  minimum (``target/release/examples/planes_timing time``).
+
+Open3D: use ``open3d-cpu==0.19.0``. The PyPI ``open3d==0.20.0`` wheel's legacy
+``ScalableTSDFVolume`` integrates nothing on our machines (0 vertices, ~2 ms per frame), so its
+times would be meaningless.
 """
 
 import argparse
@@ -76,7 +81,7 @@ def bench_filter(name, z, cam, rounds, reps, threads):
     for r in (2, 3):
         k = 10.0 * cam.sigma_d_px / cam.fb  # the default k of the adaptive filter (multiplier 10)
         sigma_color = k * med * med
-        sigma_space = r / 1.5 if r else 1.0
+        sigma_space = r / 2.0  # sldepth's default sigma_s for radius r
         ours_cfg = dict(method="adaptive", radius=r)
         for nt in threads:
             sldepth.set_num_threads(nt)
@@ -97,11 +102,9 @@ def bench_filter(name, z, cam, rounds, reps, threads):
 
 
 def bench_planes(name, z, cam, rounds, reps):
-    K = np.array(cam.intrinsic_matrix())
-    h, w = z.shape
-    xs, ys = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
-    pts = np.dstack([(xs - K[0, 2]) * z / K[0, 0], (ys - K[1, 2]) * z / K[1, 1], z]).astype(np.float32)
-    pts[z <= 0] = np.nan
+    # findPlanes wants the 4-channel organised cloud of cv2.depthTo3d (made outside the timing;
+    # its normals are left to findPlanes, whose time includes them).
+    pts = cv2.depthTo3d(z, np.array(cam.intrinsic_matrix(), dtype=np.float32))
     ratios, ours_t, cv_t = [], [], []
     sldepth.set_num_threads(1)
     cv2.setNumThreads(1)
@@ -119,48 +122,61 @@ def bench_planes(name, z, cam, rounds, reps):
                 ours_planes=len(planes), peer_planes=0 if coeffs is None else len(coeffs))
 
 
-def bench_tsdf(data, rounds):
+def read_log(path):
+    lines = [l for l in path.read_text().split("\n") if l.strip()]
+    return [np.array([[float(v) for v in lines[i + j].split()] for j in range(1, 5)])
+            for i in range(0, len(lines) - 4, 5)]
+
+
+def tsdf_sequences(data, max_frames):
     icl = data / "open3d-testdata/icl-livingroom"
-    if not icl.exists():
-        return []
-    depth_files = sorted((icl / "depth").glob("*.png"))
-    lines = (icl / "odometry.log").read_text().split("\n")
-    poses = []
-    for i in range(0, len(lines) - 4, 5):
-        if lines[i].strip():
-            poses.append(np.array([[float(v) for v in lines[i + j].split()] for j in range(1, 5)]))
-    n = min(len(depth_files), len(poses))
-    cam = sldepth.Camera.preset("icl-nuim")
-    zs = [sldepth.read_depth(f, 1000) for f in depth_files[:n]]
-    intr = o3d.camera.PinholeCameraIntrinsic(640, 480, 525.0, 525.0, 319.5, 239.5)
-    o3d_depths = [o3d.geometry.Image((z * 1000).astype(np.uint16)) for z in zs]
-    colors = [o3d.geometry.Image(np.zeros((480, 640, 3), np.uint8)) for _ in zs]
+    if icl.exists():
+        files = sorted((icl / "depth").glob("*.png"))
+        poses = read_log(icl / "odometry.log")
+        yield "icl", sldepth.Camera.preset("icl-nuim"), files[:len(poses)], poses
+    seven = data / "7scenes-redkitchen"
+    if seven.exists():
+        files = sorted(seven.glob("frame-*.depth.png"))[:max_frames]
+        poses = [np.loadtxt(str(f).replace(".depth.png", ".pose.txt")) for f in files]
+        yield "7-scenes", sldepth.Camera.preset("7-scenes"), files, poses
+
+
+def bench_tsdf(data, rounds, max_frames=20):
+    """Open3D's legacy ScalableTSDFVolume (NoColor), as in docs/bench/open3d_tsdf.py."""
     rows = []
-    for _ in range(rounds):
-        vol = sldepth.TsdfVolume(voxel_m=0.004, trunc_m=0.02, weight="inv-z4", max_depth_m=4.0)
-        t = []
-        for z, p in zip(zs, poses):
+    for name, cam, files, poses in tsdf_sequences(data, max_frames):
+        zs = [sldepth.read_depth(f, 1000) for f in files]
+        intr = o3d.camera.PinholeCameraIntrinsic(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy)
+        black = o3d.geometry.Image(np.zeros((cam.height, cam.width, 3), np.uint8))
+        rgbds = [o3d.geometry.RGBDImage.create_from_color_and_depth(
+            black, o3d.geometry.Image(np.round(z * 1000).astype(np.uint16)), depth_scale=1000.0,
+            depth_trunc=4.0, convert_rgb_to_intensity=False) for z in zs]
+        for _ in range(rounds):
+            vol = sldepth.TsdfVolume(voxel_m=0.004, trunc_m=0.02, weight="inv-z4", max_depth_m=4.0)
+            t = []
+            for z, p in zip(zs, poses):
+                t0 = time.perf_counter()
+                vol.integrate(z, cam, p)
+                t.append((time.perf_counter() - t0) * 1e3)
             t0 = time.perf_counter()
-            vol.integrate(z, cam, p)
-            t.append((time.perf_counter() - t0) * 1e3)
-        t0 = time.perf_counter()
-        mesh = vol.extract_mesh()
-        ours_mc = (time.perf_counter() - t0) * 1e3
-        ovol = o3d.pipelines.integration.ScalableTSDFVolume(
-            voxel_length=0.004, sdf_trunc=0.02, color_type=o3d.pipelines.integration.TSDFVolumeColorType.NoColor)
-        ot = []
-        for d, c, p in zip(o3d_depths, colors, poses):
-            rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(c, d, depth_scale=1000.0, depth_trunc=4.0, convert_rgb_to_intensity=False)
+            mesh = vol.extract_mesh()
+            ours_mc = (time.perf_counter() - t0) * 1e3
+            ovol = o3d.pipelines.integration.ScalableTSDFVolume(
+                voxel_length=0.004, sdf_trunc=0.02,
+                color_type=o3d.pipelines.integration.TSDFVolumeColorType.NoColor)
+            ot = []
+            for rgbd, p in zip(rgbds, poses):
+                t0 = time.perf_counter()
+                ovol.integrate(rgbd, intr, np.linalg.inv(p))
+                ot.append((time.perf_counter() - t0) * 1e3)
             t0 = time.perf_counter()
-            ovol.integrate(rgbd, intr, np.linalg.inv(p))
-            ot.append((time.perf_counter() - t0) * 1e3)
-        t0 = time.perf_counter()
-        omesh = ovol.extract_triangle_mesh()
-        o3d_mc = (time.perf_counter() - t0) * 1e3
-        rows.append(dict(frames=n, ours_integrate_ms=statistics.median(t), peer_integrate_ms=statistics.median(ot),
-                         integrate_ratio=statistics.median(t) / statistics.median(ot),
-                         ours_mesh_ms=ours_mc, peer_mesh_ms=o3d_mc, mesh_ratio=ours_mc / o3d_mc,
-                         ours_vertices=len(mesh), peer_vertices=len(omesh.vertices)))
+            omesh = ovol.extract_triangle_mesh()
+            o3d_mc = (time.perf_counter() - t0) * 1e3
+            rows.append(dict(sequence=name, frames=len(zs), ours_integrate_ms=statistics.median(t),
+                             peer_integrate_ms=statistics.median(ot),
+                             integrate_ratio=statistics.median(t) / statistics.median(ot),
+                             ours_mesh_ms=ours_mc, peer_mesh_ms=o3d_mc, mesh_ratio=ours_mc / o3d_mc,
+                             ours_vertices=len(mesh), peer_vertices=len(omesh.vertices)))
     return rows
 
 
@@ -174,6 +190,7 @@ def bench_overhead(data, rounds, reps):
     z = sldepth.read_depth(person, 1000)
     rows = []
     for _ in range(rounds):
+        sldepth.set_num_threads(None)
         out = subprocess.run([str(binary), "filter", str(person), "/tmp/_sl_bench.png", "--repeat", str(reps), "--json"],
                              capture_output=True, text=True, check=True)
         rust = json.loads(out.stdout)
@@ -181,15 +198,22 @@ def bench_overhead(data, rounds, reps):
         rows.append(dict(stage="filter 7x7 adaptive", rust_min_ms=rust["ms_min"], python_min_ms=py[0],
                          rust_median_ms=rust["ms_median"], python_median_ms=py[1],
                          overhead_min=py[0] / rust["ms_min"] - 1.0))
-        planes_rust = min(
-            json.loads(subprocess.run([str(binary), "planes", str(person), "-o", "/tmp/_sl_bench.png", "--json"],
-                                      capture_output=True, text=True, check=True).stdout)["ms"]
-            for _ in range(reps // 5 or 1))
-        sldepth.set_num_threads(1)
-        py = timed(lambda: sldepth.extract_planes(z, cam), reps)
-        sldepth.set_num_threads(None)
-        rows.append(dict(stage="planes", rust_min_ms=planes_rust, python_min_ms=py[0],
-                         overhead_min=py[0] / planes_rust - 1.0))
+    timing = ROOT / "target/release/examples/planes_timing"
+    if timing.exists():
+        # The Rust extractor's own per-frame minimum (one thread, a kept extractor) on the
+        # frames bench_planes uses, against the Python call on the same frame.
+        out = subprocess.run([str(timing), "time", str(reps)], capture_output=True, text=True,
+                             env={**os.environ, "RAYON_NUM_THREADS": "1"}, check=True).stdout
+        rust = {l.split(":")[0]: float(l.split("min ")[1].split(" ms")[0])
+                for l in out.splitlines() if " min " in l and not l.startswith(" ")}
+        for name, z, cam in frames(data):
+            key = {"tum-fr1": "tum-fr1-rpy", "7-scenes": "7scenes"}.get(name)
+            if key in rust:
+                sldepth.set_num_threads(1)
+                py = timed(lambda: sldepth.extract_planes(z, cam), reps)
+                sldepth.set_num_threads(None)
+                rows.append(dict(stage=f"planes {name}", rust_min_ms=rust[key], python_min_ms=py[0],
+                                 overhead_min=py[0] / rust[key] - 1.0))
     return rows
 
 

@@ -1,6 +1,8 @@
 //! `sldepth.extract_planes` and `sldepth.motion`: disparity-domain planes and the camera motion
 //! they give.
 
+use std::cell::RefCell;
+
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_planes::{DepthMotionConfig, PlaneConfig, PlaneExtractor, PlaneInfo};
@@ -61,6 +63,28 @@ impl From<&PlaneInfo> for PyPlane {
     }
 }
 
+thread_local! {
+    /// One extractor per thread, kept between calls: its scratch buffers (a few MB for
+    /// 640×480) are then allocated once, as a Rust user keeping a `PlaneExtractor` would.
+    static EXTRACTOR: RefCell<Option<PlaneExtractor>> = const { RefCell::new(None) };
+}
+
+/// Runs `f` with this thread's extractor for `config` (made or replaced as needed).
+fn with_extractor<T>(
+    config: PlaneConfig,
+    f: impl FnOnce(&mut PlaneExtractor) -> sl_planes::Result<T>,
+) -> sl_planes::Result<T> {
+    EXTRACTOR.with(|cell| {
+        let mut slot = cell.borrow_mut();
+        let extractor = match slot.take() {
+            Some(e) if *e.config() == config => e,
+            _ => PlaneExtractor::new(config)?,
+        };
+        let extractor = slot.insert(extractor);
+        f(extractor)
+    })
+}
+
 fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneConfig {
     let d = PlaneConfig::default();
     PlaneConfig {
@@ -84,12 +108,13 @@ pub(crate) fn extract_planes<'py>(
     depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
     let camera = camera_or_default(camera);
-    let mut extractor =
-        PlaneExtractor::new(plane_config(threshold_px, min_pixels)).map_err(value_error)?;
+    let config = plane_config(threshold_px, min_pixels);
+    config.validate().map_err(value_error)?;
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
     check_camera(&view, &camera)?;
-    let seg = compute(py, || extractor.extract_depth(view, &camera)).map_err(value_error)?;
+    let seg = compute(py, || with_extractor(config, |e| e.extract_depth(view, &camera)))
+        .map_err(value_error)?;
     let planes = seg.planes.iter().map(PyPlane::from).collect();
     Ok((image_array(py, seg.labels)?, planes))
 }
