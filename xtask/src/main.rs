@@ -7,6 +7,7 @@
 //!   (`--check` verifies the committed files instead of writing them).
 
 mod testdata;
+mod tidy;
 mod validate;
 
 use std::path::PathBuf;
@@ -25,6 +26,8 @@ enum Command {
     /// Reproduce the paper's experiments and write target/validate/REPORT.md.
     Validate(validate::Args),
     /// Regenerate the seeded synthetic frames in testdata/ (or verify them with --check).
+    /// Check the architecture invariants of docs/ARCHITECTURE.md (also run by `cargo test`).
+    Tidy,
     GenTestdata {
         /// Verify that the committed files equal freshly generated ones; write nothing.
         #[arg(long)]
@@ -39,6 +42,7 @@ fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Validate(args) => validate::main(args),
+        Command::Tidy => tidy::run(&workspace_root()),
         Command::GenTestdata { check, out } => {
             let dir = out.unwrap_or_else(|| workspace_root().join("testdata"));
             testdata::run(&dir, check)

@@ -2,6 +2,7 @@
 
 /// Everything that can go wrong in `sl-filter`.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum FilterError {
     /// A filter parameter outside its supported range (radius, σ_s, σ_d, k, σ_D).
     #[error("invalid filter parameter: {0}")]

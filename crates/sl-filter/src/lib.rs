@@ -121,24 +121,9 @@
 //! confirmed the features (the intrinsics are safe inside it; `bytemuck` converts between
 //! `[f32; 16]` and `__m512`).
 //!
-//! Measured on the 640×480 `person-depth.png` frame (16.5 % invalid pixels; 10.6 % of the
-//! 32-pixel groups are skipped) on a 2-core Skylake-SP VM (AVX-512) that other engineers were
-//! compiling on (load average 3.8–4.5), five interleaved rounds of 300 runs against
-//! `cv2.bilateralFilter` (opencv-python-headless 5.0.0.93, float32, fixed σ, same diameter;
-//! `docs/bench/opencv_bilateral.py`), minimum over the rounds (medians and the previous
-//! version in `docs/bench/README.md`):
-//!
-//! | window | threads | adaptive (ms) | OpenCV (ms) | ratio |
-//! |---|---|---|---|---|
-//! | 5×5 | 1 | 1.52 | 4.24 | 0.36 |
-//! | 5×5 | 2 | 0.85 | 2.24 | 0.38 |
-//! | 7×7 | 1 | 2.70 | 13.00 | 0.21 |
-//! | 7×7 | 2 | 1.47 | 8.35 | 0.18 |
-//!
-//! (OpenCV's `d = 5 / 7` window is a disc of 13 / 29 pixels; ours is the full square of 25 / 49.
-//! With two threads the minimum depends on both cores being free for a whole run, which on the
-//! shared machine happened in only some rounds, for both libraries. On a frame with fewer
-//! contiguous holes, 3.7 % of the groups skipped, the 5×5 one-thread ratio was 0.38.)
+//! Speed against OpenCV's `cv2.bilateralFilter` on real frames, with the CPU's instruction set
+//! and the machine's load for every figure, is in `docs/bench/README.md` (measurements are kept
+//! there, not in the API docs).
 #![deny(missing_docs)]
 
 pub mod config;

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 /// Every variant carries the path of the file, so the message alone tells the user which file
 /// is wrong and why; text formats also give the 1-based line number.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum IoError {
     /// The operating system refused to open, read, write or rename the file.
     #[error("{}: {source}", .path.display())]

@@ -50,7 +50,7 @@
 //! # }
 //! ```
 #![deny(missing_docs)]
-// Tests may unwrap / panic (CONVENTIONS.md); library code may not.
+// Tests may unwrap / panic; library code may not (docs/ARCHITECTURE.md, invariants).
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod atomic;

@@ -4,6 +4,7 @@ use sl_core::CoreError;
 
 /// Everything that can go wrong in `sl-noise`.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum NoiseError {
     /// A depth map with too few distinct depth values for a resolution analysis.
     #[error("too few distinct depths: found {found}, need at least {needed}")]

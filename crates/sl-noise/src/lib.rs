@@ -40,7 +40,7 @@
 //! # Ok::<(), sl_noise::NoiseError>(())
 //! ```
 #![deny(missing_docs)]
-// Tests may unwrap (CONVENTIONS): a failed unwrap is a failed test.
+// Tests may unwrap: a failed unwrap is a failed test.
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 pub mod algorithm1;

@@ -2,6 +2,7 @@
 
 /// Everything that can go wrong in `sl-planes`.
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
 pub enum PlanesError {
     /// A configuration value outside its valid range.
     #[error("invalid configuration: {0}")]

@@ -113,8 +113,10 @@ pub(crate) fn extract_planes<'py>(
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
     check_camera(&view, &camera)?;
-    let seg = compute(py, || with_extractor(config, |e| e.extract_depth(view, &camera)))
-        .map_err(value_error)?;
+    let seg = compute(py, || {
+        with_extractor(config, |e| e.extract_depth(view, &camera))
+    })
+    .map_err(value_error)?;
     let planes = seg.planes.iter().map(PyPlane::from).collect();
     Ok((image_array(py, seg.labels)?, planes))
 }

@@ -2,6 +2,7 @@
 
 /// Everything that can go wrong while fusing depth frames or extracting a mesh.
 #[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
 pub enum TsdfError {
     /// A parameter outside its valid range (non-positive voxel size, truncation, ...).
     #[error("invalid parameter: {0}")]

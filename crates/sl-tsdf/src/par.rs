@@ -1,51 +1,24 @@
-//! Fork-join on scoped OS threads, for the few long parallel phases of a frame.
+//! Data-parallel map on the caller's rayon pool, for the few long parallel phases of a frame
+//! (block discovery and voxel updates of integration, the passes of marching cubes).
 
-use std::sync::Mutex;
+use rayon::prelude::*;
 
-/// Runs `f` on every item on `rayon::current_num_threads()` threads — the calling thread and
-/// scoped OS threads started for the call — which take the items one at a time from a shared
-/// queue; each thread has its own state from `init`. The results come back in item order, so
-/// the output does not depend on the number of threads.
-///
-/// Used for the parallel phases of integration and marching cubes instead of rayon's pool:
-/// rayon's idle workers spin with `yield_now` before they sleep, and on a loaded machine a
-/// worker that yielded can be away for a whole time slice while a phase of a few milliseconds
-/// runs on the other thread alone; a freshly started thread, like a woken one, gets a
-/// processor promptly. Starting the threads costs tens of microseconds per phase.
+/// Runs `f` on every item on the current rayon pool — the global pool, or the one the caller
+/// chose with `ThreadPool::install`, so a program embedding the library (or Python through
+/// `sldepth.set_num_threads`) bounds the threads and several callers share one set of them.
+/// Each rayon task has its own state from `init` (scratch buffers reused across the items it
+/// takes). The results come back in item order, so the output does not depend on the number of
+/// threads.
 pub(crate) fn run_on_threads<S, I: Send, R: Send>(
     items: Vec<I>,
-    init: impl Fn() -> S + Sync,
-    f: impl Fn(&mut S, I) -> R + Sync,
+    init: impl Fn() -> S + Sync + Send,
+    f: impl Fn(&mut S, I) -> R + Sync + Send,
 ) -> Vec<R> {
-    let n = items.len();
-    let queue = Mutex::new(items.into_iter().enumerate());
-    let work = || {
-        let mut state = init();
-        let mut out = Vec::new();
-        loop {
-            // A panic in `f` on another thread poisons nothing we rely on: take the queue.
-            let next = queue.lock().unwrap_or_else(|e| e.into_inner()).next();
-            match next {
-                Some((i, item)) => out.push((i, f(&mut state, item))),
-                None => return out,
-            }
-        }
-    };
-    let threads = rayon::current_num_threads().clamp(1, n.max(1));
-    let parts = std::thread::scope(|s| {
-        // If the system refuses a thread, the others (at least this one) do its share.
-        let helpers: Vec<_> = (1..threads)
-            .filter_map(|_| std::thread::Builder::new().spawn_scoped(s, work).ok())
-            .collect();
-        let mut parts = vec![work()];
-        for h in helpers {
-            parts.push(h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
-        }
-        parts
-    });
-    let mut all: Vec<(usize, R)> = parts.into_iter().flatten().collect();
-    all.sort_unstable_by_key(|&(i, _)| i);
-    all.into_iter().map(|(_, r)| r).collect()
+    items
+        .into_par_iter()
+        .with_max_len(1)
+        .map_init(init, |state, item| f(state, item))
+        .collect()
 }
 
 #[cfg(test)]
@@ -75,5 +48,21 @@ mod tests {
             assert_eq!(out, (0..1000u64).map(|i| i * i).collect::<Vec<_>>());
         }
         assert!(run_on_threads(Vec::<u8>::new(), || (), |_, i| i).is_empty());
+    }
+
+    #[test]
+    fn runs_on_the_callers_pool() {
+        let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(3).build() else {
+            return;
+        };
+        let ids = pool.install(|| {
+            run_on_threads(
+                (0..64).collect(),
+                || (),
+                |_, _: i32| rayon::current_thread_index(),
+            )
+        });
+        // Every item ran on one of the pool's three workers.
+        assert!(ids.iter().all(|i| matches!(i, Some(0..=2))), "{ids:?}");
     }
 }

@@ -10,11 +10,13 @@ use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
 /// Input options common to every command that reads a depth map.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct InputArgs {
-    /// Camera JSON: Open3D `PinholeCameraIntrinsic` format (`width`, `height`, column-major
-    /// `intrinsic_matrix`) with optional `baseline_m` (metres) and `subpixel` (disparity steps per
-    /// pixel). Default: the `kinect-v1` preset (640x480, f = 580 px, c = (319.5, 239.5),
-    /// B = 0.075 m, 1/8 px).
-    #[arg(long, value_name = "FILE", global = true)]
+    /// Camera: a preset name (`sldepth cameras` lists them: kinect-v1, tum-fr1, 7-scenes,
+    /// nyu-v2, icl-nuim, primesense, d435, oak-d, ...) or a camera JSON file (Open3D
+    /// `PinholeCameraIntrinsic` format: `width`, `height`, column-major `intrinsic_matrix`, with
+    /// optional `baseline_m` (metres) and `subpixel` (disparity steps per pixel)). An existing
+    /// file wins over a preset of the same name. Default: the `kinect-v1` preset (640x480,
+    /// f = 580 px, c = (319.5, 239.5), B = 0.075 m, 1/8 px).
+    #[arg(long, value_name = "NAME|FILE", global = true)]
     pub camera: Option<PathBuf>,
     /// Depth units per metre of 16-bit PNG/TIFF depth (1000 = millimetres, the default;
     /// 5000 = TUM RGB-D).
@@ -37,13 +39,30 @@ pub struct Loaded {
     pub encoding: DepthEncoding,
 }
 
-/// The camera of `--camera`, or the `kinect-v1` preset.
+/// The camera of `--camera` (a file, else a preset name), or the `kinect-v1` preset.
 pub fn load_camera(args: &InputArgs) -> Result<Camera> {
     match &args.camera {
-        Some(p) => sl_io::camera::read_camera_json(p)
-            .with_context(|| format!("reading camera {}", p.display())),
+        Some(p) => camera_from_arg(p),
         None => Ok(Camera::kinect_v1()),
     }
+}
+
+/// A `--camera` value: an existing file is read as camera JSON; anything else must name a
+/// preset (the error lists them, and says the file does not exist when it looks like a path).
+pub fn camera_from_arg(value: &Path) -> Result<Camera> {
+    if value.is_file() {
+        return sl_io::camera::read_camera_json(value)
+            .with_context(|| format!("reading camera {}", value.display()));
+    }
+    let name = value.to_string_lossy();
+    Camera::preset(&name).map_err(|e| {
+        let looks_like_file = name.contains('/') || name.ends_with(".json");
+        if looks_like_file {
+            anyhow::anyhow!("--camera {name}: no such file, and not a preset ({e})")
+        } else {
+            anyhow::anyhow!("--camera: {e}")
+        }
+    })
 }
 
 /// Parses `--format`.

@@ -38,7 +38,9 @@ enum Command {
     /// Camera motion between two depth frames from matched planes (section 3.5), optionally
     /// refined by point-to-plane ICP.
     Motion(cmd::motion::Args),
-    // @commands-variants (add `Name(cmd::name::Args),` with a doc comment above this line)
+    /// List the camera presets `--camera NAME` accepts: intrinsics, baseline, disparity
+    /// sub-pixel steps, noise, range and the source of the numbers.
+    Cameras(cmd::cameras::Args),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -52,6 +54,6 @@ fn main() -> anyhow::Result<()> {
         Command::Filter(a) => cmd::filter::run(a),
         Command::Planes(a) => cmd::planes::run(a),
         Command::Motion(a) => cmd::motion::run(a),
-        // @commands-arms (add `Command::Name(a) => cmd::name::run(a),` above this line)
+        Command::Cameras(a) => cmd::cameras::run(a),
     }
 }

@@ -12,7 +12,6 @@ mod filter;
 mod noise;
 mod planes;
 mod tsdf;
-// @experiment-modules (add `mod name;` above this line)
 
 /// One experiment: a name (for `--only`) and its entry point.
 type Experiment = (&'static str, fn(&mut Context) -> Result<()>);
@@ -23,7 +22,6 @@ const EXPERIMENTS: &[Experiment] = &[
     ("tsdf", tsdf::run),
     ("filter", filter::run),
     ("planes", planes::run),
-    // @experiments (add `("name", name::run),` above this line)
 ];
 
 /// Options of `cargo xtask validate`.

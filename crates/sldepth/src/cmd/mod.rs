@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod analyze;
+pub mod cameras;
 pub mod cloud;
 pub mod filter;
 pub mod fuse;
@@ -8,4 +9,3 @@ pub mod info;
 pub mod motion;
 pub mod planes;
 pub mod simulate;
-// @commands-modules (add `pub mod name;` above this line)

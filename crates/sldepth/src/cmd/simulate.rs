@@ -29,9 +29,9 @@ pub struct Args {
     /// Depth units per metre of the written files (default 1000 = millimetres).
     #[arg(long, value_name = "UNITS_PER_M", default_value_t = 1000.0)]
     pub depth_scale: f64,
-    /// Sensor/camera JSON to simulate instead of the scene's kinect-v1 camera (its intrinsics,
-    /// baseline and sub-pixel steps are used).
-    #[arg(long, value_name = "FILE")]
+    /// Camera to simulate instead of the scene's kinect-v1 camera: a preset name (`sldepth
+    /// cameras`) or a camera JSON file (its intrinsics, baseline and sub-pixel steps are used).
+    #[arg(long, value_name = "NAME|FILE")]
     pub camera: Option<PathBuf>,
     /// Disparity noise sigma, pixels (default: the sensor model's 0.07 px).
     #[arg(long, value_name = "PX")]
