@@ -20,9 +20,10 @@ use std::collections::HashSet;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-/// Library crates that may use `std::fs` and print: sl-io (all file I/O goes through it).
-/// Binaries (`sldepth`, `xtask`) are not library crates.
-const IO_CRATES: &[&str] = &["sl-io"];
+/// Library crates that may use `std::fs` and print: sl-io (all file I/O goes through it) and the
+/// dev-only sl-testkit (finds the shared data, says why a test skips). Binaries (`sldepth`,
+/// `xtask`) are not library crates.
+const IO_CRATES: &[&str] = &["sl-io", "sl-testkit"];
 /// Binary crates: exempt from the library rules.
 const BINARY_CRATES: &[&str] = &["sldepth"];
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.

@@ -10,6 +10,8 @@
 //! | `tum-fr1` / `tum-fr2` / `tum-fr3` | TUM RGB-D (Kinect v1) | 640×480 | 517.3 / 520.9 / 535.4 | 0.075 | 1/8 | 0.5–5 | 5000 | TUM RGB-D benchmark, "Camera calibration" (depth = ROS default for fr3) |
 //! | `7-scenes` | Microsoft 7-Scenes (Kinect v1) | 640×480 | 585 | 0.075 | 1/8 | 0.5–5 | 1000 | 7-Scenes `camera-intrinsics.txt` (nominal) |
 //! | `nyu-v2` | NYU Depth v2 raw (Kinect v1) | 640×480 | 582.6 | 0.07537 | 1/8 | 0.5–5 | raw disparity | NYU toolbox `camera_params.m`; f·B = 43.9125 px·m from its depth conversion |
+//! | `ros-default` | ROS/OpenNI default Kinect intrinsics | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | ROS `openni_camera` default; Open3D `PrimeSenseDefault` |
+//! | `pcl-openni` | PCL's OpenNI grabber default | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | PCL OpenNI grabber, c = (320, 240) |
 //! | `icl-nuim` | ICL-NUIM (synthetic, Kinect-like noise) | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | ICL-NUIM `camera.json` |
 //! | `d415` | Intel RealSense D415 | 1280×720 | 912 | 0.055 | 1/32 | 0.3–10 | 1000 | D400 datasheet (baseline, 1/32 px sub-pixel); typical factory fx — calibrate your unit |
 //! | `d435` | Intel RealSense D435 / D435i | 848×480 | 426 | 0.050 | 1/32 | 0.3–10 | 1000 | D400 datasheet; typical fx at 848×480 — calibrate your unit |
@@ -203,6 +205,20 @@ pub const PRESETS: &[SensorPreset] = &[
             "NYU Depth v2 toolbox camera_params.m (depth camera); f·B from its depth conversion 351.3/(1092.5 − raw)",
         )
     },
+    kinect(
+        "ros-default",
+        "the default Kinect intrinsics of ROS/OpenNI (Open3D's PrimeSenseDefault, TUM's ROS default)",
+        (525.0, 525.0, 319.5, 239.5),
+        MM,
+        "ROS openni_camera default calibration; Open3D PinholeCameraIntrinsicParameters.PrimeSenseDefault",
+    ),
+    kinect(
+        "pcl-openni",
+        "PCL's OpenNI grabber default (PrimeSense/Kinect via OpenNI)",
+        (525.0, 525.0, 320.0, 240.0),
+        MM,
+        "PCL OpenNI grabber default intrinsics (fx = fy = 525, c = (320, 240))",
+    ),
     kinect(
         "icl-nuim",
         "ICL-NUIM synthetic living room / office (Kinect-like noise)",

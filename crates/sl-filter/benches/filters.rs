@@ -8,29 +8,15 @@
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use std::hint::black_box;
-use std::path::PathBuf;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::{DepthImage, SensorModel};
 use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
 
 fn frame() -> DepthImage {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/open3d-testdata/person-depth.png");
-    if let Ok(img) = image::ImageReader::open(&path).and_then(|r| r.with_guessed_format())
-        && let Ok(img) = img.decode()
-    {
-        let img = img.to_luma16();
-        let (w, h) = img.dimensions();
-        let data = img
-            .as_raw()
-            .iter()
-            .map(|&v| f32::from(v) / 1000.0)
-            .collect();
-        if let Ok(d) = DepthImage::from_vec(w as usize, h as usize, data) {
-            eprintln!("benchmark frame: {}", path.display());
-            return d;
-        }
+    if let Some(person) = sl_testkit::person() {
+        eprintln!("benchmark frame: {}", person.path.display());
+        return person.depth;
     }
     eprintln!("skipping real frame: ../shared/data not found; using a synthetic 640x480 plane");
     let mut state = 0x9E37_79B9_7F4A_7C15u64;

@@ -10,17 +10,17 @@
 
 use std::time::Instant;
 
-use sl_core::{DepthImage, SensorModel};
+use sl_core::SensorModel;
 use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let path = args.get(1).cloned().unwrap_or_else(|| {
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/data/open3d-testdata/person-depth.png"
-        )
-        .to_string()
+        sl_testkit::data_dir()
+            .unwrap_or_default()
+            .join("open3d-testdata/person-depth.png")
+            .to_string_lossy()
+            .into_owned()
     });
     let reps: usize = args.get(2).map(|s| s.parse()).transpose()?.unwrap_or(100);
     let scale: f32 = args
@@ -28,25 +28,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|s| s.parse())
         .transpose()?
         .unwrap_or(1000.0);
-    let img = image::ImageReader::open(&path)?
-        .with_guessed_format()?
-        .decode()?
-        .to_luma16();
-    let (w, h) = img.dimensions();
-    let depth = DepthImage::from_vec(
-        w as usize,
-        h as usize,
-        img.as_raw()
-            .iter()
-            .map(|&v| {
-                if v == 65535 {
-                    0.0
-                } else {
-                    f32::from(v) / scale
-                }
-            })
-            .collect(),
-    )?;
+    let depth = sl_testkit::read_depth(std::path::Path::new(&path), Some(f64::from(scale)))?;
+    let (w, h) = (depth.width(), depth.height());
     let sensor = SensorModel::kinect_v1();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let methods: Vec<Method> = match std::env::var("METHODS") {

@@ -29,10 +29,15 @@
 const MAGIC: f32 = 12_583_039.0;
 
 /// Minimax-relative-error coefficients of `2^f` on `[−½, ½]`, degree 4.
+#[cfg(test)]
 const C0: f32 = 0.999_999_3;
+#[cfg(test)]
 const C1: f32 = 0.693_121_8;
+#[cfg(test)]
 const C2: f32 = 0.240_247_44;
+#[cfg(test)]
 const C3: f32 = 0.055_917_86;
+#[cfg(test)]
 const C4: f32 = 0.009_570_101;
 /// Degree-3 coefficients (relative error 7.5·10⁻⁵), used for the filters' range weights.
 const D0: f32 = 0.999_928_06;
@@ -50,11 +55,13 @@ pub const LOG2_E: f32 = std::f32::consts::LOG2_E;
 
 /// Largest relative error of [`exp2_fast`] and [`exp_fast`] against the exact function on their
 /// domains (asserted by the tests of this module).
+#[cfg(test)]
 pub const MAX_RELATIVE_ERROR: f32 = 4.0e-6;
 
 /// `2^x` for `x ≤ 127` with relative error below [`MAX_RELATIVE_ERROR`]; `x < −126` (and NaN)
 /// give `2^−126`.
 #[inline(always)]
+#[cfg(test)]
 pub fn exp2_fast(x: f32) -> f32 {
     // `x > -126` is false for NaN, so NaN maps to the clamp value. Written as a select (not
     // `f32::max`) so that it compiles to a single `maxps`.
@@ -71,6 +78,7 @@ pub fn exp2_fast(x: f32) -> f32 {
 /// by the tests of this module. Its effect on a filtered depth is at most about twice this
 /// times the weighted spread of the depth differences in the window: < 0.2 µm for the 1–3 mm
 /// spreads the range kernel lets through at 1 m.
+#[cfg(test)]
 pub const RANGE_WEIGHT_RELATIVE_ERROR: f32 = 8.0e-5;
 
 /// Range weights `2^(t − e²)` whose exponent is below about −100 are exactly 0 (see
@@ -148,6 +156,7 @@ pub(crate) fn range_weight<const FMA: bool>(e: f32, k: &TapExp) -> f32 {
 /// `e^x` for `x ≤ 88` with relative error below [`MAX_RELATIVE_ERROR`] (plus the rounding of
 /// `x·log2 e`, i.e. `|x|·6·10⁻⁸`); `x < −87.3` gives `2^−126`.
 #[inline(always)]
+#[cfg(test)]
 pub fn exp_fast(x: f32) -> f32 {
     exp2_fast(x * LOG2_E)
 }

@@ -66,6 +66,8 @@ pub enum Method {
 }
 
 impl Method {
+    /// The names of [`Method::ALL`], in the same order (`--method` values).
+    pub const NAMES: [&'static str; 4] = ["gaussian", "bilateral", "adaptive", "disparity"];
     /// All methods, in the order of the docs.
     pub const ALL: [Method; 4] = [
         Method::Gaussian,
@@ -472,6 +474,15 @@ mod tests {
         let k = default_k_per_m(&s);
         for z in [0.8, 2.0, 4.0] {
             assert!((k * z * z - DEFAULT_K_MULTIPLIER * s.sigma_z(z)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn names_parse_and_print_the_same_way() {
+        for (m, n) in Method::ALL.into_iter().zip(Method::NAMES) {
+            assert_eq!(m.name(), n);
+            assert_eq!(m.to_string(), n);
+            assert_eq!(n.parse::<Method>().unwrap(), m);
         }
     }
 

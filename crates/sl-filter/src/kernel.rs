@@ -120,7 +120,7 @@ pub enum Isa {
     /// AVX2 + FMA, 16 lanes.
     Avx2,
     /// AVX-512F + DQ: the range filters' 3×3, 5×5 and 7×7 windows use an explicit AVX-512
-    /// kernel (see [`crate::kernel`]), the rest the compiler-vectorised code with 32 lanes.
+    /// kernel (the `kernel` module), the rest the compiler-vectorised code with 32 lanes.
     Avx512,
 }
 

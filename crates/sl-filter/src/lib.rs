@@ -109,7 +109,7 @@
 //! One padded copy of each block of 16 rows (in a reused per-thread buffer; the calling thread
 //! and `n − 1` rayon helpers take blocks from one queue), precomputed spatial exponents, the
 //! range weight `2^(t − e²)` with a bit-trick + polynomial `2^x` specialised per tap
-//! ([`fastexp`]; relative error < 8·10⁻⁵ for the weights, < 4·10⁻⁶ for the public `exp_fast`,
+//! (`fastexp`; relative error < 8·10⁻⁵ for the weights, < 4·10⁻⁶ for the public `exp_fast`,
 //! both tested against `f64::exp2` / `f32::exp`), no per-pixel allocation or branch,
 //! constant-radius fast paths for 3×3, 5×5 and 7×7 (the whole window unrolled, sums in
 //! registers), and AVX2+FMA / AVX-512 code selected at run time ([`Isa`]; the portable path is
@@ -129,9 +129,9 @@
 pub mod config;
 pub mod error;
 pub mod eval;
-pub mod fastexp;
+mod fastexp;
 pub mod filter;
-pub mod kernel;
+mod kernel;
 pub mod reference;
 pub mod render;
 

@@ -12,16 +12,7 @@ mod real_data;
 #[path = "sl_io/round_trip.rs"]
 mod round_trip;
 
-/// `../shared/data` relative to the workspace root, or `None` (after printing why) when absent.
+/// The shared data directory, or `None` (after printing why) when absent.
 pub fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        eprintln!(
-            "skipping: ../shared/data not found (looked in {})",
-            dir.display()
-        );
-        None
-    }
+    sl_testkit::data_dir_or_skip("sl-io real-data tests")
 }

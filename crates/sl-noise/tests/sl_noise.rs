@@ -3,7 +3,6 @@
 
 mod sl_noise {
     mod algorithm1;
-    pub mod common;
     mod geometry;
     mod real_frames;
     mod recovery;

@@ -5,7 +5,7 @@
 //!    LoG) and over 4×4 pixels (**cells**, for the seeds and the k-means refinement), invalid if
 //!    any pixel is. The mean of an affine function over a block is its value at the block's
 //!    centre, so plane parameters carry over exactly between the grids.
-//! 1. **Seeds.** The box-approximated LoG of the half-resolution disparity (see [`crate::log`])
+//! 1. **Seeds.** The box-approximated LoG of the half-resolution disparity (the `log` module)
 //!    is thresholded at a fixed value in disparity pixels; a cell is planar when its four blocks
 //!    are. 4-connected components of planar cells with at least `min_pixels` (full-resolution)
 //!    pixels are seeds. Each seed gets a least-squares affine fit `D = a·x + b·y + c` followed

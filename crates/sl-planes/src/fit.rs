@@ -67,6 +67,7 @@ impl AffineSums {
     /// Adds a horizontal run of pixels `x0..x1` on row `y` whose disparity sums are
     /// `Σd = sd`, `Σx·d = sxd`, `Σd² = sdd` (the x moments are closed-form).
     #[inline]
+    #[cfg(test)]
     pub fn add_run(&mut self, y: f64, x0: usize, x1: usize, sd: f64, sxd: f64, sdd: f64) {
         if x1 <= x0 {
             return;

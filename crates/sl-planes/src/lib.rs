@@ -41,13 +41,13 @@
 //! ```
 #![deny(missing_docs)]
 
-pub mod components;
+mod components;
 pub mod depth_motion;
 pub mod error;
 pub mod extract;
-pub mod fit;
+mod fit;
 mod kernels;
-pub mod log;
+mod log;
 pub mod motion;
 pub mod overlay;
 pub mod plane;
@@ -60,7 +60,6 @@ pub use error::{PlanesError, Result};
 pub use extract::{
     PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, Stage, StageTimes, extract_planes,
 };
-pub use fit::AffineSums;
 pub use motion::{
     ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,
     MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification, VerifyConfig,

@@ -48,12 +48,14 @@ pub(crate) trait RowSource {
 }
 
 /// The rows of a whole map.
+#[cfg(test)]
 struct FrameRows<'a> {
     d: &'a [f32],
     w: usize,
     next: usize,
 }
 
+#[cfg(test)]
 impl RowSource for FrameRows<'_> {
     fn next_row(&mut self) -> &[f32] {
         let y = self.next;
@@ -178,6 +180,7 @@ fn tent5(src: &[f32], dst: &mut Vec<f32>, tmp: &mut Vec<f32>, w: usize, h: usize
 /// `threshold_px` in magnitude, with a complete valid support. Returns the number of planar
 /// pixels.
 #[allow(clippy::too_many_arguments)]
+#[cfg(test)]
 pub fn planar_mask(
     d: &[f32],
     width: usize,

@@ -6,7 +6,7 @@ use numpy::ndarray::Array1;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use sl_io::PlyFormat;
-use sl_tsdf::{Axis, ExtractOptions, Mesh, SliceSpec, TsdfParams, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::arrays::{check_camera, depth_input, image_array, pose_input, rows3_array};
 use crate::camera::PyCamera;
@@ -46,14 +46,14 @@ impl PyTsdfVolume {
         } else {
             WeightMode::parse(weight).map_err(value_error)?
         };
-        let params = TsdfParams {
+        let params = TsdfConfig {
             voxel_m,
             trunc_m,
             weight,
             max_depth_m,
             min_depth_m,
             memory_budget_bytes,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         Ok(Self {
             volume: TsdfVolume::new(params).map_err(value_error)?,
@@ -78,7 +78,7 @@ impl PyTsdfVolume {
         let view = input.view()?;
         check_camera(&view, &camera)?;
         if self.sensor_weight && self.volume.frame_count() == 0 {
-            let params = TsdfParams {
+            let params = TsdfConfig {
                 weight: WeightMode::sensor_variance(camera.sensor),
                 ..*self.volume.params()
             };

@@ -8,14 +8,12 @@
 #![allow(clippy::expect_used)] // benchmark setup on fixed inputs
 
 use std::hint::black_box;
-use std::path::{Path, PathBuf};
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_core::nalgebra::{Matrix4, Point3, Vector3};
-use sl_core::{DepthImage, Intrinsics, Pose, pose_from_matrix};
-use sl_io::{ReadOptions, read_depth};
+use sl_core::nalgebra::{Point3, Vector3};
+use sl_core::{DepthImage, Intrinsics, Pose};
 use sl_tsdf::synth::AnalyticScene;
-use sl_tsdf::{ExtractOptions, TsdfParams, TsdfVolume};
+use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
 
 struct Sequence {
     name: &'static str,
@@ -23,67 +21,12 @@ struct Sequence {
     frames: Vec<(DepthImage, Pose)>,
 }
 
-fn data_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data")
-}
-
-fn matrix(nums: &[f64]) -> Option<Pose> {
-    (nums.len() == 16)
-        .then(|| pose_from_matrix(&Matrix4::from_row_slice(nums)).ok())
-        .flatten()
-}
-
-fn icl() -> Option<Sequence> {
-    let dir = data_dir().join("open3d-testdata/icl-livingroom");
-    let log = std::fs::read_to_string(dir.join("odometry.log")).ok()?;
-    let lines: Vec<&str> = log.lines().filter(|l| !l.trim().is_empty()).collect();
-    let mut frames = Vec::new();
-    for (i, chunk) in lines.chunks(5).enumerate() {
-        let nums: Vec<f64> = chunk[1..]
-            .iter()
-            .flat_map(|l| l.split_whitespace())
-            .filter_map(|t| t.parse().ok())
-            .collect();
-        let pose = matrix(&nums)?;
-        let depth = read_depth(
-            dir.join(format!("depth/{i:05}.png")),
-            &ReadOptions::default(),
-        )
-        .ok()?
-        .depth;
-        frames.push((depth, pose));
-    }
-    let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).ok()?;
-    Some(Sequence {
-        name: "icl",
-        k,
-        frames,
-    })
-}
-
-fn seven_scenes() -> Option<Sequence> {
-    let dir = data_dir().join("7scenes-redkitchen");
-    let mut frames = Vec::new();
-    for i in 150..200 {
-        let txt = std::fs::read_to_string(dir.join(format!("frame-{i:06}.pose.txt"))).ok()?;
-        let nums: Vec<f64> = txt
-            .split_whitespace()
-            .filter_map(|t| t.parse().ok())
-            .collect();
-        let pose = matrix(&nums)?;
-        let depth = read_depth(
-            dir.join(format!("frame-{i:06}.depth.png")),
-            &ReadOptions::default(),
-        )
-        .ok()?
-        .depth;
-        frames.push((depth, pose));
-    }
-    let k = Intrinsics::new(640, 480, 585.0, 585.0, 320.0, 240.0).ok()?;
-    Some(Sequence {
-        name: "7scenes",
-        k,
-        frames,
+/// A real sequence of `sl-testkit` (poses and camera of its dataset).
+fn real(seq: Option<sl_testkit::PosedSequence>) -> Option<Sequence> {
+    seq.map(|s| Sequence {
+        name: s.name,
+        k: s.camera.intrinsics,
+        frames: s.frames,
     })
 }
 
@@ -118,12 +61,12 @@ fn simulated() -> Sequence {
     }
 }
 
-fn params() -> TsdfParams {
-    TsdfParams {
+fn params() -> TsdfConfig {
+    TsdfConfig {
         voxel_m: 0.004,
         trunc_m: 0.02,
         max_depth_m: 4.0,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     }
 }
 
@@ -138,7 +81,13 @@ fn fuse(seq: &Sequence) -> TsdfVolume {
 
 fn bench(c: &mut Criterion) {
     // Whichever real sequences are present; simulated frames when there are none.
-    let mut seqs: Vec<Sequence> = [icl(), seven_scenes()].into_iter().flatten().collect();
+    let mut seqs: Vec<Sequence> = [
+        real(sl_testkit::icl_sequence(usize::MAX)),
+        real(sl_testkit::seven_scenes_sequence(50)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
     if seqs.is_empty() {
         eprintln!("skipping real data: ../shared/data not found; benchmarking simulated frames");
         seqs.push(simulated());

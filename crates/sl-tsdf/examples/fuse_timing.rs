@@ -7,54 +7,30 @@
 //! The JSON also carries `mesh_checksum`, an order-sensitive hash of the mesh's bits, to check
 //! that a change of implementation leaves the output unchanged.
 
-use std::path::Path;
 use std::time::Instant;
 
-use sl_io::{ReadOptions, read_depth};
-use sl_tsdf::{ExtractOptions, TsdfParams, TsdfVolume, WeightMode};
+use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume, WeightMode};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     let which = args.get(1).map(String::as_str).unwrap_or("icl");
     let weight = WeightMode::parse(args.get(2).map(String::as_str).unwrap_or("inv-z4"))?;
     let max_frames: usize = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(50);
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !data.is_dir() {
-        println!("skipping: ../shared/data not found");
-        return Ok(());
-    }
-    let (frames, k) = if which == "icl" {
-        let dir = data.join("open3d-testdata/icl-livingroom");
-        let f =
-            sl_io::trajectory::read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth"))?;
-        (
-            f,
-            sl_io::camera::read_camera_json(dir.join("camera.json"))?.intrinsics,
-        )
+    let seq = if which == "icl" {
+        sl_testkit::icl_sequence(max_frames)
     } else {
-        let dir = data.join("7scenes-redkitchen");
-        let f = sl_io::trajectory::read_7scenes_sequence(&dir)?;
-        (
-            f,
-            sl_io::camera::read_7scenes_intrinsics(dir.join("camera-intrinsics.txt"))?,
-        )
+        sl_testkit::seven_scenes_sequence(max_frames)
     };
-    let frames: Vec<_> = frames
-        .into_iter()
-        .take(max_frames)
-        .map(|f| {
-            Ok((
-                read_depth(&f.depth_path, &ReadOptions::default())?.depth,
-                f.pose,
-            ))
-        })
-        .collect::<Result<_, sl_io::IoError>>()?;
-    let params = TsdfParams {
+    let Some(seq) = seq else {
+        return Ok(());
+    };
+    let (frames, k) = (seq.frames, seq.camera.intrinsics);
+    let params = TsdfConfig {
         voxel_m: 0.004,
         trunc_m: 0.02,
         max_depth_m: 4.0,
         weight,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let mut vol = TsdfVolume::new(params)?;
     let mut ms = Vec::new();

@@ -18,7 +18,7 @@
 //!   many threads as rayon's pool has, `RAYON_NUM_THREADS`).
 //! * [`WeightMode`]: `inv-z4` (default), `uniform`, `inv-z2`, and the sensor-model variance;
 //!   weights are normalised at a reference depth so the f32 arithmetic stays O(1)
-//!   (see [`TsdfParams`]).
+//!   (see [`TsdfConfig`]).
 //! * [`TsdfVolume::extract_mesh`]: marching cubes across block borders, indexed mesh with shared
 //!   vertices, normals from the TSDF gradient and per-vertex confidence ([`Mesh`]).
 //! * [`TsdfVolume::slice`]: cross-sections of `F` with the zero crossing (the paper's Fig. 7).
@@ -33,7 +33,7 @@
 //! divided by the weight at a reference depth `z_ref` (1 m), so `w = (1 m / Z)⁴` is 16 at
 //! 0.5 m and 1/256 at 4 m instead of 16 and 0.004 in m⁻⁴ — or 10⁻¹² in mm⁻⁴, where f32 would
 //! lose it; the constant factor cancels in `F` (the paper's remark after eq. 13). `W` is capped
-//! at [`TsdfParams::max_weight`] (10⁶): below the cap `F` is the exact weighted mean, above it
+//! at [`TsdfConfig::max_weight`] (10⁶): below the cap `F` is the exact weighted mean, above it
 //! `F` becomes a moving average, and the cap keeps `w/W'` of any observation weighing more
 //! than 10⁻⁶ above the f32 resolution (2⁻²⁴ ≈ 6·10⁻⁸), so late observations still move `F`.
 //!
@@ -41,7 +41,7 @@
 //!
 //! A block is 8³ voxels of 8 bytes (4 KiB) plus its key and its worst-case share of the hash
 //! index ([`volume::BYTES_PER_BLOCK`]). Before allocating the blocks a frame needs, the volume
-//! checks `blocks × BYTES_PER_BLOCK` against [`TsdfParams::memory_budget_bytes`] and fails with
+//! checks `blocks × BYTES_PER_BLOCK` against [`TsdfConfig::memory_budget_bytes`] and fails with
 //! [`TsdfError::MemoryBudget`] (volume unchanged) if it would be exceeded; the allocations
 //! themselves use `try_reserve`, so an allocator failure is [`TsdfError::OutOfMemory`], never
 //! an abort. The blocks live in one arena (a vector indexed through the hash map) that grows
@@ -54,7 +54,7 @@
 //! use sl_core::{Camera, Pose};
 //! use sl_core::nalgebra::{Point3, Vector3};
 //! use sl_tsdf::synth::AnalyticScene;
-//! use sl_tsdf::{ExtractOptions, TsdfParams, TsdfVolume};
+//! use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
 //!
 //! // A wall 1 m in front of a small camera looking along +Z.
 //! let k = Camera::kinect_v1().intrinsics.scaled(0.25)?;
@@ -62,7 +62,7 @@
 //! let pose = Pose::identity();
 //! let depth = scene.render(&k, &pose);
 //!
-//! let params = TsdfParams { voxel_m: 0.02, trunc_m: 0.06, ..TsdfParams::default() };
+//! let params = TsdfConfig { voxel_m: 0.02, trunc_m: 0.06, ..TsdfConfig::default() };
 //! let mut volume = TsdfVolume::new(params)?;
 //! volume.integrate(&depth, &k, &pose)?;
 //! // In front of the wall F is positive, behind it negative.
@@ -77,9 +77,9 @@
 #![deny(missing_docs)]
 
 pub mod error;
-pub mod hash;
+mod hash;
 pub mod io;
-pub mod mc_table;
+mod mc_table;
 pub mod mesh;
 pub mod metrics;
 mod par;
@@ -92,6 +92,7 @@ pub mod volume;
 pub use error::{Result, TsdfError};
 pub use mesh::{ExtractOptions, Mesh, Topology};
 pub use metrics::DistanceStats;
-pub use params::{TsdfParams, WeightMode};
+#[allow(deprecated)]
+pub use params::{TsdfConfig, TsdfParams, WeightMode};
 pub use slice::{Axis, Slice, SliceSpec};
 pub use volume::{BLOCK_SIDE, Block, IntegrateStats, TsdfVolume, Voxel};

@@ -130,6 +130,7 @@ impl McTable {
     }
 
     /// The largest number of triangles of any case.
+    #[cfg(test)]
     pub fn max_triangles(&self) -> usize {
         (0..256)
             .map(|c| (self.offsets[c + 1] - self.offsets[c]) as usize)
@@ -239,6 +240,7 @@ pub fn table() -> &'static McTable {
 }
 
 /// The 24 rotations of the cube as corner permutations (`perm[c]` = image of corner `c`).
+#[cfg(test)]
 pub fn cube_rotations() -> Vec<[usize; 8]> {
     let rot_x = |c: usize| {
         // (x, y, z) -> (x, 1 - z, y)
@@ -267,6 +269,7 @@ pub fn cube_rotations() -> Vec<[usize; 8]> {
 }
 
 /// Applies a corner permutation to a case index.
+#[cfg(test)]
 pub fn permute_case(case: u8, perm: &[usize; 8]) -> u8 {
     (0..8)
         .filter(|&c| (case >> c) & 1 == 1)

@@ -136,18 +136,18 @@ impl WeightFn {
 
 /// Parameters of a [`crate::TsdfVolume`].
 ///
-/// Defaults (see [`TsdfParams::default`]): 4 mm voxels, a 2 cm truncation band, `inv-z4`
+/// Defaults (see [`TsdfConfig::default`]): 4 mm voxels, a 2 cm truncation band, `inv-z4`
 /// weights normalised at 1 m, 4 m maximum depth, weight cap 10⁶ and a 4 GiB memory budget.
 ///
 /// **Truncation.** The band must cover the sensor noise and a few voxels: a surface seen
 /// with noise `σ_Z` spreads its zero crossing over ±3σ_Z, and marching cubes needs the
 /// voxels on both sides of the surface to be observed. For a Kinect v1 `σ_Z` is 1.6 mm at 1 m,
 /// 6.4 mm at 2 m and 14 mm at 3 m, so 2 cm (5 voxels of 4 mm) covers ±3σ up to about 2 m and
-/// ±1.4σ at 3 m; [`TsdfParams::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for another
+/// ±1.4σ at 3 m; [`TsdfConfig::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for another
 /// voxel size or range. A wider band blurs thin structures (the two sides of a 1 cm board
 /// interfere) and costs memory.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TsdfParams {
+pub struct TsdfConfig {
     /// Edge of a voxel, metres.
     pub voxel_m: f64,
     /// Truncation `f_max = −f_min`, metres: signed distances are clipped to
@@ -171,7 +171,14 @@ pub struct TsdfParams {
     pub memory_budget_bytes: usize,
 }
 
-impl Default for TsdfParams {
+/// The former name of [`TsdfConfig`].
+#[deprecated(
+    since = "0.1.0",
+    note = "renamed `TsdfConfig` (every configuration is a `…Config`)"
+)]
+pub type TsdfParams = TsdfConfig;
+
+impl Default for TsdfConfig {
     fn default() -> Self {
         Self {
             voxel_m: 0.004,
@@ -186,7 +193,7 @@ impl Default for TsdfParams {
     }
 }
 
-impl TsdfParams {
+impl TsdfConfig {
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         let pos = |name: &str, v: f64| {
@@ -255,9 +262,9 @@ mod tests {
             WeightMode::InvZ2,
             WeightMode::sensor_variance(s),
         ] {
-            let p = TsdfParams {
+            let p = TsdfConfig {
                 weight: mode,
-                ..TsdfParams::default()
+                ..TsdfConfig::default()
             };
             assert!((p.weight_at(1.0) - 1.0).abs() < 1e-6, "{mode:?}");
         }
@@ -265,13 +272,13 @@ mod tests {
 
     #[test]
     fn inv_z4_ratio_matches_paper() {
-        let p = TsdfParams::default();
+        let p = TsdfConfig::default();
         // The paper's two scans: 0.75 m and 1.5 m -> the close one weighs 2^4 = 16 times more.
         let r = p.weight_at(0.75) / p.weight_at(1.5);
         assert!((r - 16.0).abs() < 1e-4, "{r}");
         // Far and near weights stay in a comfortable f32 range.
         assert!(p.weight_at(8.0) > 1e-4 && p.weight_at(0.2) < 1e4);
-        let p2 = TsdfParams {
+        let p2 = TsdfConfig {
             weight: WeightMode::InvZ2,
             ..p
         };
@@ -281,41 +288,41 @@ mod tests {
     #[test]
     fn sensor_variance_is_inv_z4_without_floor() {
         let s = SensorModel::kinect_v1();
-        let p = TsdfParams {
+        let p = TsdfConfig {
             weight: WeightMode::SensorVariance {
                 sensor: s,
                 floor_m: 0.0,
             },
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
-        let q = TsdfParams::default();
+        let q = TsdfConfig::default();
         for z in [0.5, 1.3, 3.0] {
             assert!((p.weight_at(z) / q.weight_at(z) - 1.0).abs() < 1e-4);
         }
         // With the floor, close observations gain less than 1/Z^4.
-        let f = TsdfParams {
+        let f = TsdfConfig {
             weight: WeightMode::sensor_variance(s),
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         assert!(f.weight_at(0.5) < q.weight_at(0.5));
     }
 
     #[test]
     fn validation() {
-        assert!(TsdfParams::default().validate().is_ok());
-        let bad = TsdfParams {
+        assert!(TsdfConfig::default().validate().is_ok());
+        let bad = TsdfConfig {
             voxel_m: 0.0,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         assert!(bad.validate().is_err());
-        let bad = TsdfParams {
+        let bad = TsdfConfig {
             trunc_m: 0.001,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         assert!(bad.validate().is_err());
         assert!(WeightMode::parse("inv-z4").is_ok());
         assert!(WeightMode::parse("foo").is_err());
-        let t = TsdfParams::suggested_trunc_m(0.004, &SensorModel::kinect_v1(), 2.0);
+        let t = TsdfConfig::suggested_trunc_m(0.004, &SensorModel::kinect_v1(), 2.0);
         assert!(t > 0.016 && t < 0.03, "{t}");
     }
 }

@@ -11,7 +11,7 @@ use sl_core::{DepthView, Intrinsics, Pose};
 use crate::error::{Result, TsdfError};
 use crate::hash::{BlockMap, pack, unpack};
 use crate::par::run_on_threads;
-use crate::params::{TsdfParams, WeightFn};
+use crate::params::{TsdfConfig, WeightFn};
 
 /// Voxels along one edge of a block.
 pub const BLOCK_SIDE: usize = 8;
@@ -24,7 +24,7 @@ pub const BLOCK_VOXELS: usize = BLOCK_SIDE * BLOCK_SIDE * BLOCK_SIDE;
 pub struct Voxel {
     /// Weighted mean of the truncated line-of-sight signed distances, metres.
     pub tsdf: f32,
-    /// Sum of the normalised weights (capped at [`TsdfParams::max_weight`]).
+    /// Sum of the normalised weights (capped at [`TsdfConfig::max_weight`]).
     pub weight: f32,
 }
 
@@ -76,7 +76,7 @@ pub fn local_index(x: usize, y: usize, z: usize) -> usize {
 /// grows by doubling, so right after a growth it holds up to about two slots per block (three
 /// slots for a single block): at most 51 bytes per block as [`TsdfVolume::memory_bytes`]
 /// counts it. With this cost [`TsdfVolume::memory_bytes`] stays within
-/// [`TsdfParams::memory_budget_bytes`] whenever the budget check passed.
+/// [`TsdfConfig::memory_budget_bytes`] whenever the budget check passed.
 pub const BYTES_PER_BLOCK: usize = std::mem::size_of::<Block>() + 8 + 56;
 
 /// What one call of [`TsdfVolume::integrate`] did.
@@ -97,7 +97,7 @@ pub struct IntegrateStats {
 /// Blocks exist only where some frame saw a surface within the truncation band.
 #[derive(Debug, Clone)]
 pub struct TsdfVolume {
-    params: TsdfParams,
+    params: TsdfConfig,
     index: BlockMap<u32>,
     keys: Vec<u64>,
     blocks: Vec<Block>,
@@ -128,7 +128,7 @@ impl std::fmt::Debug for Scratch {
 
 impl TsdfVolume {
     /// An empty volume.
-    pub fn new(params: TsdfParams) -> Result<Self> {
+    pub fn new(params: TsdfConfig) -> Result<Self> {
         params.validate()?;
         Ok(Self {
             params,
@@ -141,7 +141,7 @@ impl TsdfVolume {
     }
 
     /// The parameters.
-    pub fn params(&self) -> &TsdfParams {
+    pub fn params(&self) -> &TsdfConfig {
         &self.params
     }
 
@@ -227,7 +227,7 @@ impl TsdfVolume {
     /// unobserved where `field` returns `None`. For tests and for comparing against exact
     /// surfaces; fails like [`TsdfVolume::integrate`] when the budget is exceeded.
     pub fn from_field(
-        params: TsdfParams,
+        params: TsdfConfig,
         lo_m: [f64; 3],
         hi_m: [f64; 3],
         field: impl Fn(&nalgebra::Point3<f64>) -> Option<f32> + Sync,
@@ -543,7 +543,7 @@ struct BandFrame<'a> {
 impl<'a> BandFrame<'a> {
     /// The block space is shifted by half a voxel: a point belongs to the block of its nearest
     /// voxel, i.e. block coordinate = floor((x/v + 1/2) / 8).
-    fn new(p: &TsdfParams, k: &'a Intrinsics, pose: &Pose, rx: &'a [f32]) -> Result<Self> {
+    fn new(p: &TsdfConfig, k: &'a Intrinsics, pose: &Pose, rx: &'a [f32]) -> Result<Self> {
         let inv_bs = 1.0 / (p.voxel_m * BLOCK_SIDE as f64);
         let shift = 0.5 / BLOCK_SIDE as f64;
         let rot: Matrix3<f32> =
@@ -846,7 +846,7 @@ struct FrameConsts {
 }
 
 impl FrameConsts {
-    fn new(p: &TsdfParams, k: &Intrinsics, pose: &Pose) -> Self {
+    fn new(p: &TsdfConfig, k: &Intrinsics, pose: &Pose) -> Self {
         let inv = pose.inverse();
         let rt: Matrix3<f32> = inv.rotation.to_rotation_matrix().into_inner().cast::<f32>();
         let tt: Vector3<f32> = inv.translation.vector.cast::<f32>();
@@ -1163,10 +1163,10 @@ mod tests {
         // much shorter (long segments: the DDA path).
         for (case, &voxel_m) in [0.004, 0.01, 0.001, 0.0005].iter().enumerate() {
             for _ in 0..4 {
-                let p = TsdfParams {
+                let p = TsdfConfig {
                     voxel_m,
                     trunc_m: 0.02,
-                    ..TsdfParams::default()
+                    ..TsdfConfig::default()
                 };
                 let axis = Vector3::new(
                     rng.random_range(-1.0..1.0),
@@ -1205,10 +1205,10 @@ mod tests {
             }
         }
         // A depth too far for the block index is refused.
-        let p = TsdfParams {
+        let p = TsdfConfig {
             voxel_m: 0.001,
             max_depth_m: 1e9,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         let rx: Vec<f32> = (0..k.width)
             .map(|x| ((x as f64 - k.cx) / k.fx) as f32)
@@ -1240,7 +1240,7 @@ mod tests {
             }
         }
         let small: &[[f32; 2]; SMALL_TABLE] = table.first_chunk().unwrap();
-        let p = TsdfParams::default();
+        let p = TsdfConfig::default();
         let pose = Pose::new(Vector3::new(0.1, -0.2, 0.05), Vector3::new(0.1, 0.2, -0.1));
         let fc = FrameConsts::new(&p, &k, &pose);
         let mut n_updated = 0;
@@ -1299,14 +1299,14 @@ mod tests {
         let poses: Vec<Pose> = (0..6)
             .map(|i| Pose::new(Vector3::new(0.05 * i as f64, 0.0, 0.0), Vector3::zeros()))
             .collect();
-        let mut free = TsdfVolume::new(TsdfParams::default()).unwrap();
+        let mut free = TsdfVolume::new(TsdfConfig::default()).unwrap();
         for pose in &poses {
             free.integrate(&depth, &k, pose).unwrap();
         }
         let budget = free.block_count() * BYTES_PER_BLOCK;
-        let mut tight = TsdfVolume::new(TsdfParams {
+        let mut tight = TsdfVolume::new(TsdfConfig {
             memory_budget_bytes: budget,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         })
         .unwrap();
         for pose in &poses {
@@ -1317,9 +1317,9 @@ mod tests {
         }
         assert_eq!(tight.block_count(), free.block_count());
         // One more block than the budget allows is refused, the volume unchanged.
-        let mut over = TsdfVolume::new(TsdfParams {
+        let mut over = TsdfVolume::new(TsdfConfig {
             memory_budget_bytes: budget - 1,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         })
         .unwrap();
         let mut refused = false;
@@ -1402,7 +1402,7 @@ mod tests {
     #[test]
     fn voxel_addressing() {
         assert_eq!(local_index(7, 7, 7), BLOCK_VOXELS - 1);
-        let vol = TsdfVolume::new(TsdfParams::default()).unwrap();
+        let vol = TsdfVolume::new(TsdfConfig::default()).unwrap();
         assert_eq!(vol.voxel([-1, 0, 0]), None);
         assert_eq!(vol.block_count(), 0);
     }

@@ -7,7 +7,7 @@ use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, DepthImage, Intrinsics, Pose};
 use sl_tsdf::synth::AnalyticScene;
 use sl_tsdf::{
-    Axis, ExtractOptions, Mesh, SliceSpec, TsdfError, TsdfParams, TsdfVolume, WeightMode,
+    Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode,
 };
 
 fn small_camera() -> Intrinsics {
@@ -33,12 +33,12 @@ fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Pose {
     )
 }
 
-fn params(voxel_m: f64, trunc_m: f64, weight: WeightMode) -> TsdfParams {
-    TsdfParams {
+fn params(voxel_m: f64, trunc_m: f64, weight: WeightMode) -> TsdfConfig {
+    TsdfConfig {
         voxel_m,
         trunc_m,
         weight,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     }
 }
 

@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use clap::builder::PossibleValuesParser;
 use sl_core::{Camera, DepthImage};
 use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
 
@@ -24,7 +25,7 @@ pub struct InputArgs {
     pub depth_scale: Option<f64>,
     /// Depth file format where the extension does not tell: `png`, `tiff`, `nyu-raw` (NYU raw
     /// Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG).
-    #[arg(long, value_name = "FORMAT", global = true)]
+    #[arg(long, value_name = "FORMAT", global = true, value_parser = PossibleValuesParser::new(DepthFormat::NAMES))]
     pub format: Option<String>,
 }
 

@@ -422,14 +422,14 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
         "person-depth.png (wall)".into(),
         data.join("open3d-testdata/person-depth.png"),
         1000.0,
-        Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5)?,
+        Camera::preset("ros-default")?.intrinsics,
     )];
     if let Some(p) = pcl_first {
         frames.push((
             "pcl-floor-box (floor)".into(),
             p,
             1000.0,
-            Intrinsics::new(640, 480, 525.0, 525.0, 320.0, 240.0)?,
+            Camera::preset("pcl-openni")?.intrinsics,
         ));
     }
     if let Some(rel) = tum_first {
@@ -437,7 +437,7 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
             "tum-fr1-rpy frame 0".into(),
             data.join("tum-fr1-rpy").join(rel),
             5000.0,
-            Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3)?,
+            Camera::preset("tum-fr1")?.intrinsics,
         ));
     }
     let mut md = String::from(

@@ -136,10 +136,7 @@ pub fn main(args: Args) -> Result<()> {
             }
             Some(d)
         }
-        None => {
-            let d = root.join("..").join("shared").join("data");
-            d.is_dir().then_some(d)
-        }
+        None => sl_testkit::data_dir().ok(),
     };
     if data_dir.is_none() {
         eprintln!(

@@ -27,7 +27,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
-use sl_core::{Camera, DepthImage, Image, Intrinsics};
+use sl_core::{Camera, DepthImage, Image};
 use sl_noise::sim::{KinectSimulator, named_scene};
 use sl_planes::{
     IcpConfig, IcpOutcome, MotionConfidence, MotionConfig, MotionFrame, PlaneConfig,
@@ -220,19 +220,7 @@ fn three_planes_checks(
 }
 
 fn tum_camera() -> Result<Camera> {
-    Ok(Camera::from_intrinsics(
-        Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3)?,
-        None,
-        None,
-    )?)
-}
-
-fn fixed_camera(f: f64, cx: f64, cy: f64) -> Result<Camera> {
-    Ok(Camera::from_intrinsics(
-        Intrinsics::new(640, 480, f, f, cx, cy)?,
-        None,
-        None,
-    )?)
+    Ok(Camera::preset("tum-fr1")?)
 }
 
 fn rgb_flat(path: &Path) -> Option<Vec<u8>> {
@@ -311,29 +299,29 @@ fn real(ctx: &mut Context) -> Result<()> {
         report_real(ctx, &mut md, "nyu-raw", &depth, &seg, ms, &base, &mut imgs)?;
     }
     // Depth-only frames, drawn over the depth (7-Scenes depth is not registered to colour):
-    // (name, path under the data directory, units per metre, focal length and principal point).
+    // (name, path under the data directory, units per metre, camera preset).
     let depth_only = [
         (
             "7scenes-redkitchen",
             "7scenes-redkitchen/frame-000150.depth.png",
             1000.0,
-            (585.0, 320.0, 240.0),
+            "7-scenes",
         ),
         (
             "open3d-tum",
             "open3d-testdata/tum-depth.png",
             5000.0,
-            (525.0, 319.5, 239.5),
+            "ros-default",
         ),
     ];
-    for (name, rel, scale, (f, cx, cy)) in depth_only {
+    for (name, rel, scale, preset) in depth_only {
         let path = data.join(rel);
         if !path.exists() {
             continue;
         }
         let depth =
             sl_io::read_depth(&path, &sl_io::ReadOptions::default().with_scale(scale))?.depth;
-        let cam = fixed_camera(f, cx, cy)?;
+        let cam = Camera::preset(preset)?;
         let (seg, ms) = timed(reps, || Ok(ex.extract_depth(&depth, &cam)?))?;
         let base = overlay::depth_to_rgb(&depth);
         report_real(ctx, &mut md, name, &depth, &seg, ms, &base, &mut imgs)?;

@@ -21,7 +21,7 @@ use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Camera, Image, Intrinsics, Pose};
 use sl_noise::sim::{KinectSimulator, ReliefPlate, Scene, look_at};
 use sl_tsdf::slice::hconcat;
-use sl_tsdf::{Axis, DistanceStats, ExtractOptions, SliceSpec, TsdfParams, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, DistanceStats, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use super::Context;
 
@@ -126,12 +126,12 @@ fn simulated(ctx: &mut Context) -> Result<()> {
         let mut dists = Vec::new();
         let mut verts = 0;
         for (si, &seed) in seeds.iter().enumerate() {
-            let params = TsdfParams {
+            let params = TsdfConfig {
                 voxel_m,
                 trunc_m,
                 weight: *weight,
                 max_depth_m: 3.0,
-                ..TsdfParams::default()
+                ..TsdfConfig::default()
             };
             let mut vol = TsdfVolume::new(params)?;
             if *use_near {
@@ -462,12 +462,12 @@ fn real(ctx: &mut Context) -> Result<()> {
     let mut images = Vec::new();
     for seq in &seqs {
         for weight in weight_modes() {
-            let params = TsdfParams {
+            let params = TsdfConfig {
                 voxel_m: 0.004,
                 trunc_m: 0.02,
                 max_depth_m: 4.0,
                 weight,
-                ..TsdfParams::default()
+                ..TsdfConfig::default()
             };
             let mut vol = TsdfVolume::new(params)?;
             let mut ms = Vec::new();

@@ -1,41 +1,17 @@
 //! A real Kinect-class frame (skipped when ../shared/data is absent).
 
-use std::path::PathBuf;
-
-use sl_core::{Camera, DepthImage, Intrinsics};
 use sl_filter::eval::{dominant_plane_region, plane_residual_by_band};
 use sl_filter::{DEFAULT_RADIUS_PX, DepthFilter, Method};
-
-fn person_depth() -> Option<DepthImage> {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/open3d-testdata/person-depth.png");
-    if !path.exists() {
-        eprintln!("skipping: ../shared/data not found");
-        return None;
-    }
-    let img = image::ImageReader::open(&path)
-        .unwrap()
-        .decode()
-        .unwrap()
-        .to_luma16();
-    let (w, h) = img.dimensions();
-    let data = img
-        .as_raw()
-        .iter()
-        .map(|&v| f32::from(v) / 1000.0)
-        .collect();
-    Some(DepthImage::from_vec(w as usize, h as usize, data).unwrap())
-}
 
 /// On the wall behind the person, every filter keeps the valid mask and lowers the plane-fit
 /// residual; the adaptive default lowers it by at least 10 %.
 #[test]
 fn filters_flatten_the_wall_of_person_depth() {
-    let Some(depth) = person_depth() else {
+    let Some(person) = sl_testkit::person() else {
         return;
     };
-    let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap();
-    let cam = Camera::from_intrinsics(k, None, None).unwrap();
+    let (depth, cam) = (person.depth, person.camera);
+    let k = cam.intrinsics;
     let region = dominant_plane_region(&depth, &k, &cam.sensor, DEFAULT_RADIUS_PX + 1, 200, 3)
         .unwrap()
         .unwrap();

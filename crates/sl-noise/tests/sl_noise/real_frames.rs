@@ -3,8 +3,6 @@
 use sl_core::SensorModel;
 use sl_noise::analysis::{FbSource, ResolutionAnalysis, analyze};
 
-use super::common::{data_dir, read_depth};
-
 fn report(name: &str, a: &ResolutionAnalysis) {
     eprintln!(
         "{name}: unique {} slope {:.4} robust {:.4} c {:.6}/m (median {:.6}) fB implied {:.3} used {:?} ({:?}) sub-pixel {:?} (mode {:?}, max {:?}, nominal-fB count {:?}) far from {:.3} m ({} pairs)",
@@ -28,13 +26,13 @@ fn report(name: &str, a: &ResolutionAnalysis) {
 /// Analyse a frame with the nominal intrinsics of its data set (f from the README, B 75 mm,
 /// q = 8) and check the paper's claims: slope ≈ 2, eight disparity steps per pixel.
 fn check(rel: &str, units_per_m: f64, focal_px: f64) -> Option<ResolutionAnalysis> {
-    let dir = data_dir()?;
+    let dir = sl_testkit::data_dir_or_skip("sl-noise real-frame tests")?;
     let path = dir.join(rel);
     if !path.exists() {
         eprintln!("skipping: {} not found", path.display());
         return None;
     }
-    let depth = read_depth(&path, units_per_m);
+    let depth = sl_testkit::read_depth(&path, Some(units_per_m)).unwrap();
     let sensor = SensorModel {
         focal_px,
         ..SensorModel::kinect_v1()
@@ -68,7 +66,9 @@ fn person_frame_slope_near_two() {
 
 #[test]
 fn floor_scans_slope_near_two() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = sl_testkit::data_dir_or_skip("sl-noise real-frame tests") else {
+        return;
+    };
     let mut frames: Vec<_> = std::fs::read_dir(dir.join("pcl-floor-box"))
         .map(|rd| rd.filter_map(|e| e.ok().map(|e| e.path())).collect())
         .unwrap_or_default();
@@ -85,7 +85,9 @@ fn floor_scans_slope_near_two() {
 
 #[test]
 fn tum_sequence_and_7scenes_first_frames() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = sl_testkit::data_dir_or_skip("sl-noise real-frame tests") else {
+        return;
+    };
     for (sub, suffix, units, f) in [
         ("tum-fr1-rpy/depth", ".png", 5000.0, 517.3),
         ("7scenes-redkitchen", ".depth.png", 1000.0, 585.0),
@@ -107,7 +109,9 @@ fn tum_sequence_and_7scenes_first_frames() {
 /// (no 1 mm rounding by the device), so the analysis rounds them to 1 mm like a Kinect driver.
 #[test]
 fn nyu_raw_disparity_frame() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = sl_testkit::data_dir_or_skip("sl-noise real-frame tests") else {
+        return;
+    };
     let path = dir.join("open3d-testdata/nyu-raw-disparity.pgm");
     let Ok(bytes) = std::fs::read(&path) else {
         eprintln!("skipping: {} not found", path.display());

@@ -27,7 +27,7 @@ const EPS_PX: f64 = 2e-3;
 /// Voxels whose signed distance is this close (metres) to `−trunc` may be in or out.
 const EPS_SDF_M: f64 = 1e-5;
 
-fn valid_depth(p: &TsdfParams, d: f32) -> bool {
+fn valid_depth(p: &TsdfConfig, d: f32) -> bool {
     d > p.min_depth_m as f32 && d <= p.max_depth_m as f32
 }
 
@@ -114,7 +114,7 @@ fn segment_meets_box(a: &Vector3<f64>, b: &Vector3<f64>, c: [i32; 3], grow: f64)
 /// so block `c` is the box `[8c − 1/2, 8c + 15/2]` in voxel units. `grow` (block units) grows
 /// the boxes (negative: shrinks them).
 fn reference_band(
-    p: &TsdfParams,
+    p: &TsdfConfig,
     k: &Intrinsics,
     pose: &Pose,
     depth: &[f32],
@@ -151,7 +151,7 @@ fn reference_band(
 /// The bands with shrunk and grown boxes: the fast path must find every block of the first
 /// and no block outside the second.
 fn reference_bands(
-    p: &TsdfParams,
+    p: &TsdfConfig,
     k: &Intrinsics,
     pose: &Pose,
     depth: &[f32],
@@ -196,12 +196,12 @@ fn integrate_allocates_exactly_the_band_of_the_valid_pixels() {
         (0.001, 0.03, 0.3, 2.5),
     ];
     for (case, &(voxel_m, trunc_m, min_depth_m, max_depth_m)) in cases.iter().enumerate() {
-        let p = TsdfParams {
+        let p = TsdfConfig {
             voxel_m,
             trunc_m,
             min_depth_m,
             max_depth_m,
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         let pose = random_pose(&mut rng, 1.5, 3.0);
         let depth = patch_frame(&mut rng, w, h, (0.02, 5.0));
@@ -217,7 +217,7 @@ fn integrate_allocates_exactly_the_band_of_the_valid_pixels() {
         let used = depth.iter().filter(|&&d| valid_depth(&p, d)).count();
         assert_eq!(stats.pixels_used, used, "case {case}");
         // The depth range matters here: the pixels outside it would add blocks.
-        let all = TsdfParams {
+        let all = TsdfConfig {
             min_depth_m: 0.0,
             max_depth_m: 100.0,
             ..p
@@ -261,7 +261,7 @@ fn integrate_allocates_exactly_the_band_of_the_valid_pixels() {
 
 /// The weight of an observation at depth `d`, straight from the definitions (normalised at
 /// `z_ref`).
-fn reference_weight(p: &TsdfParams, d: f64) -> f64 {
+fn reference_weight(p: &TsdfConfig, d: f64) -> f64 {
     match p.weight {
         WeightMode::Uniform => 1.0,
         WeightMode::InvZ2 => (p.z_ref_m / d).powi(2),
@@ -286,7 +286,7 @@ impl ReferenceVolume {
     /// those of `outer` but not `inner` may or may not be (their voxels become ambiguous).
     fn integrate(
         &mut self,
-        p: &TsdfParams,
+        p: &TsdfConfig,
         k: &Intrinsics,
         pose: &Pose,
         depth: &[f32],
@@ -310,7 +310,7 @@ impl ReferenceVolume {
         }
     }
 
-    fn update(&mut self, p: &TsdfParams, k: &Intrinsics, inv: &Pose, depth: &[f32], g: [i64; 3]) {
+    fn update(&mut self, p: &TsdfConfig, k: &Intrinsics, inv: &Pose, depth: &[f32], g: [i64; 3]) {
         let pw = Point3::new(g[0] as f64, g[1] as f64, g[2] as f64) * p.voxel_m;
         let pc = inv * pw;
         if pc.z <= 0.0 {
@@ -428,7 +428,7 @@ fn room() -> AnalyticScene {
 /// Fuses `frames` into a fresh volume and into the reference, comparing after each frame.
 /// Returns the number of observed voxels compared after the last frame.
 fn fuse_and_compare(
-    p: &TsdfParams,
+    p: &TsdfConfig,
     k: &Intrinsics,
     frames: &[(Vec<f32>, Pose)],
     what: &str,
@@ -465,13 +465,13 @@ fn integration_matches_the_scalar_reference_for_every_weight_mode() {
         WeightMode::sensor_variance(SensorModel::kinect_v1()),
     ];
     for (m, &weight) in modes.iter().enumerate() {
-        let p = TsdfParams {
+        let p = TsdfConfig {
             voxel_m: 0.02,
             trunc_m: 0.06,
             weight,
             // The cap in the uniform case turns the second observation into a moving average.
             max_weight: if m == 0 { 1.5 } else { 1e6 },
-            ..TsdfParams::default()
+            ..TsdfConfig::default()
         };
         let frames: Vec<(Vec<f32>, Pose)> = (0..2)
             .map(|_| {
@@ -493,10 +493,10 @@ fn integration_matches_the_scalar_reference_with_the_large_pixel_table() {
     assert!((k.width + 2) * (k.height + 2) > SMALL_TABLE);
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let scene = room();
-    let p = TsdfParams {
+    let p = TsdfConfig {
         voxel_m: 0.01,
         trunc_m: 0.04,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let frames: Vec<(Vec<f32>, Pose)> = (0..2)
         .map(|_| {
@@ -521,12 +521,12 @@ fn integration_matches_the_scalar_reference_next_to_the_camera() {
     // and others do not.
     let k = small_camera();
     let mut rng = ChaCha8Rng::seed_from_u64(13);
-    let p = TsdfParams {
+    let p = TsdfConfig {
         voxel_m: 0.005,
         trunc_m: 0.04,
         min_depth_m: 0.0,
         weight: WeightMode::InvZ2,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let frames: Vec<(Vec<f32>, Pose)> = (0..2)
         .map(|_| {
@@ -582,10 +582,10 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
     let k = small_camera();
     let scene = room();
     let mut rng = ChaCha8Rng::seed_from_u64(17);
-    let p = TsdfParams {
+    let p = TsdfConfig {
         voxel_m: 0.008,
         trunc_m: 0.03,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let pose_a = Pose::identity();
     let pose_b = Pose::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.3, 0.0));
@@ -599,7 +599,7 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
     assert!(n > n_a + 10, "{n_a} -> {n}");
 
     // A budget of exactly n blocks takes both frames, and the memory held stays within it.
-    let exact = TsdfParams {
+    let exact = TsdfConfig {
         memory_budget_bytes: n * BYTES_PER_BLOCK,
         ..p
     };
@@ -611,7 +611,7 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
 
     // One block less: the second frame (n blocks) is refused with the sizes in the error.
     let budget = (n - 1) * BYTES_PER_BLOCK;
-    let tight = TsdfParams {
+    let tight = TsdfConfig {
         memory_budget_bytes: budget,
         ..p
     };
@@ -661,16 +661,16 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
     // Volumes of exactly n blocks under a budget of n blocks, built by `from_field` and by
     // integration: the capacities (blocks, keys, hash index) stay within the budget; one byte
     // less is refused.
-    let p = TsdfParams {
+    let p = TsdfConfig {
         voxel_m: 0.01,
         trunc_m: 0.03,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let bs = p.voxel_m * BLOCK_SIDE as f64;
     for n in 1..=70usize {
         let hi = [0.5 * bs, 0.5 * bs, (n as f64 - 0.5) * bs];
         let budget = n * BYTES_PER_BLOCK;
-        let fits = TsdfParams {
+        let fits = TsdfConfig {
             memory_budget_bytes: budget,
             ..p
         };
@@ -681,7 +681,7 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
             "{n} blocks: {} > {budget}",
             vol.memory_bytes()
         );
-        let short = TsdfParams {
+        let short = TsdfConfig {
             memory_budget_bytes: budget - 1,
             ..p
         };
@@ -702,7 +702,7 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
         free.integrate(d, &k, q).unwrap();
     }
     let budget = free.block_count() * BYTES_PER_BLOCK;
-    let mut vol = TsdfVolume::new(TsdfParams {
+    let mut vol = TsdfVolume::new(TsdfConfig {
         memory_budget_bytes: budget,
         ..p
     })
@@ -722,7 +722,7 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
 fn non_finite_pose_is_refused() {
     let k = small_camera();
     let depth = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
-    let mut vol = TsdfVolume::new(TsdfParams::default()).unwrap();
+    let mut vol = TsdfVolume::new(TsdfConfig::default()).unwrap();
     for pose in [
         Pose::new(Vector3::new(f64::NAN, 0.0, 0.0), Vector3::zeros()),
         Pose::new(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0)),

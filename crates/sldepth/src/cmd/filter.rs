@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use serde_json::json;
 use sl_filter::{DepthFilter, FilterConfig, Isa, Method, RangeKernel};
 
@@ -21,7 +22,7 @@ pub struct Args {
     pub output: PathBuf,
     /// Filter: `gaussian`, `bilateral` (fixed range σ), `adaptive` (σ_d = k·Z², from the sensor
     /// model: no tuning needed) or `disparity` (bilateral on D = f·B/Z with a constant σ).
-    #[arg(long, default_value = "adaptive", value_parser = parse_method)]
+    #[arg(long, default_value = "adaptive", value_parser = PossibleValuesParser::new(Method::NAMES).try_map(|s| s.parse::<Method>()))]
     pub method: Method,
     /// Window radius, pixels (window = 2r+1 square; 2 and 3 are the fast paths). Default 3, or
     /// ceil(2·σ_s) when only --sigma-s is given.
@@ -52,10 +53,6 @@ pub struct Args {
     pub normals: Option<PathBuf>,
     #[command(flatten)]
     pub input: InputArgs,
-}
-
-fn parse_method(s: &str) -> std::result::Result<Method, String> {
-    s.parse::<Method>().map_err(|e| e.to_string())
 }
 
 /// The filter the options describe, for a camera's sensor model.

@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, DepthImage, Pose, pose_from_row_major};
 use sl_io::depth::{ReadOptions, read_depth};
 use sl_io::trajectory::Frame;
-use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfParams, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::common::{InputArgs, load_camera, parse_format, print_json, round_to};
 
@@ -42,12 +42,12 @@ pub struct Args {
     #[arg(long, value_name = "M", default_value_t = 0.004)]
     pub voxel_m: f64,
     /// Truncation band (f_max = -f_min), metres. Default: 5 voxels (2 cm at 4 mm), which covers
-    /// ±3σ of Kinect depth noise up to about 2 m; see `TsdfParams`.
+    /// ±3σ of Kinect depth noise up to about 2 m; see `TsdfConfig`.
     #[arg(long, value_name = "M")]
     pub trunc_m: Option<f64>,
     /// Observation weight: `inv-z4` (the paper, 1/Z^4), `uniform`, `inv-z2`, or `sensor`
     /// (inverse sensor-model variance with a 1 mm/sqrt(12) floor).
-    #[arg(long, value_name = "W", default_value = "inv-z4")]
+    #[arg(long, value_name = "W", default_value = "inv-z4", value_parser = ["inv-z4", "uniform", "inv-z2", "sensor"])]
     pub weight: String,
     /// Ignore depths beyond this, metres.
     #[arg(long, value_name = "M", default_value_t = 4.0)]
@@ -70,7 +70,7 @@ pub struct Args {
     #[arg(long)]
     pub ascii: bool,
     /// Cross-section axis (x, y or z) for --slice-png.
-    #[arg(long, value_name = "AXIS", default_value = "z")]
+    #[arg(long, value_name = "AXIS", default_value = "z", value_parser = ["x", "y", "z"])]
     pub slice_axis: String,
     /// Cross-section plane coordinate, metres.
     #[arg(long, value_name = "M", default_value_t = 0.0)]
@@ -195,13 +195,13 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no frames to fuse");
     }
     let k = camera.intrinsics;
-    let params = TsdfParams {
+    let params = TsdfConfig {
         voxel_m: args.voxel_m,
         trunc_m: args.trunc_m.unwrap_or(5.0 * args.voxel_m),
         weight: parse_weight(&args.weight, &camera)?,
         max_depth_m: args.max_depth_m,
         memory_budget_bytes: args.memory_budget_bytes,
-        ..TsdfParams::default()
+        ..TsdfConfig::default()
     };
     let axis = Axis::parse(&args.slice_axis)?;
     if let Some(s) = args.input.depth_scale

@@ -32,7 +32,7 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// `disparity` (the paper's method) or `metric-ransac` (the fixed metric threshold baseline).
-    #[arg(long, default_value = "disparity")]
+    #[arg(long, default_value = "disparity", value_parser = ["disparity", "metric-ransac"])]
     pub method: String,
     /// Disparity residual threshold, pixels (disparity method).
     #[arg(long, default_value_t = PlaneConfig::default().threshold_px)]

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
+use clap::builder::PossibleValuesParser;
 use sl_noise::sim::{KinectSimulator, SCENE_NAMES, named_scene};
 
 use crate::common::{load_camera, print_json, save_depth};
@@ -11,7 +12,7 @@ use crate::common::{load_camera, print_json, save_depth};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Scene to render: floor, wall, figure-walls, three-planes, corridor, relief, boxes.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", value_parser = PossibleValuesParser::new(sl_noise::sim::SCENE_NAMES))]
     pub scene: String,
     /// Noisy depth output (16-bit PNG or TIFF, `--depth-scale` units per metre).
     #[arg(long, short, value_name = "DEPTH.png")]

@@ -1,0 +1,295 @@
+//! # sl-testkit — the real frames of `../shared/data`, for tests, benchmarks and xtask
+//!
+//! One place that knows where the shared real data lives and how each source is stored: the
+//! directory is `$SLDEPTH_DATA` when set, else `../shared/data` beside the workspace; every
+//! frame is read through `sl-io` (no hand-written decoders) and comes with the camera preset of
+//! its dataset. A test calls [`data_dir_or_skip`] (or a loader, which returns nothing when the
+//! data is absent) and returns early with one clear message instead of failing.
+//!
+//! Dev-only (`publish = false`): it prints skip messages, which library crates never do.
+//!
+//! ```
+//! // Absent data is not an error: the loaders return nothing and say why once.
+//! if let Some(person) = sl_testkit::person() {
+//!     assert_eq!(person.depth.width(), 640);
+//!     assert_eq!(person.camera, sl_core::Camera::preset("ros-default")?);
+//! }
+//! # Ok::<(), sl_core::CoreError>(())
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use sl_core::{Camera, DepthImage};
+use sl_io::depth::{DepthFormat, ReadOptions};
+
+/// Environment variable that overrides the data directory.
+pub const DATA_ENV: &str = "SLDEPTH_DATA";
+
+/// The shared data directory, or why there is none.
+pub fn data_dir() -> Result<PathBuf, String> {
+    if let Some(dir) = std::env::var_os(DATA_ENV) {
+        let dir = PathBuf::from(dir);
+        return if dir.is_dir() {
+            Ok(dir)
+        } else {
+            Err(format!("{DATA_ENV}={} is not a directory", dir.display()))
+        };
+    }
+    let dir = workspace_root().join("../shared/data");
+    if dir.is_dir() {
+        Ok(dir)
+    } else {
+        Err(format!(
+            "../shared/data not found (looked in {}; set {DATA_ENV} to use another copy)",
+            dir.display()
+        ))
+    }
+}
+
+/// The data directory, or `None` after printing `skipping <what>: <reason>` once.
+pub fn data_dir_or_skip(what: &str) -> Option<PathBuf> {
+    match data_dir() {
+        Ok(d) => Some(d),
+        Err(reason) => {
+            eprintln!("skipping {what}: {reason}");
+            None
+        }
+    }
+}
+
+/// The workspace root (two levels above this crate).
+pub fn workspace_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A real frame: where it is, its depth in metres and its dataset's camera.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RealFrame {
+    /// A short name: `source` or `source/index`.
+    pub name: String,
+    /// The file.
+    pub path: PathBuf,
+    /// Depth in metres, 0 = invalid.
+    pub depth: DepthImage,
+    /// The camera of the dataset (a preset of `sl_core::preset`).
+    pub camera: Camera,
+}
+
+/// Reads a depth file with `units_per_m` (or its format's own conversion for NYU raw).
+pub fn read_depth(path: &Path, units_per_m: Option<f64>) -> Result<DepthImage, sl_io::IoError> {
+    let opts = ReadOptions {
+        format: None,
+        scale_units_per_m: units_per_m,
+    };
+    Ok(sl_io::read_depth(path, &opts)?.depth)
+}
+
+fn frame(name: String, path: PathBuf, units_per_m: Option<f64>, preset: &str) -> Option<RealFrame> {
+    let depth = match read_depth(&path, units_per_m) {
+        Ok(d) => d,
+        Err(e) => {
+            eprintln!("skipping {name}: {e}");
+            return None;
+        }
+    };
+    let camera = Camera::preset(preset).ok()?;
+    Some(RealFrame {
+        name,
+        path,
+        depth,
+        camera,
+    })
+}
+
+fn sorted_pngs(dir: &Path) -> Vec<PathBuf> {
+    let mut files = sl_io::trajectory::list_depth_files(dir).unwrap_or_default();
+    files.sort();
+    files
+}
+
+fn indexed(source: &str, i: usize, count: usize) -> String {
+    if count == 1 {
+        source.to_string()
+    } else {
+        format!("{source}/{i:02}")
+    }
+}
+
+/// `open3d-testdata/person-depth.png`: a person before a wall (millimetres, ROS default camera).
+pub fn person() -> Option<RealFrame> {
+    let dir = data_dir_or_skip("person-depth.png")?;
+    frame(
+        "person".into(),
+        dir.join("open3d-testdata/person-depth.png"),
+        Some(1000.0),
+        "ros-default",
+    )
+}
+
+/// `open3d-testdata/tum-depth.png`: Open3D's TUM desk frame (5000 units/m, ROS default camera).
+pub fn open3d_tum() -> Option<RealFrame> {
+    let dir = data_dir_or_skip("open3d tum-depth.png")?;
+    frame(
+        "open3d-tum".into(),
+        dir.join("open3d-testdata/tum-depth.png"),
+        Some(5000.0),
+        "ros-default",
+    )
+}
+
+/// `open3d-testdata/nyu-raw-disparity.pgm`: NYU Depth v2 raw Kinect disparity (NYU camera).
+pub fn nyu_raw() -> Option<RealFrame> {
+    let dir = data_dir_or_skip("nyu-raw-disparity.pgm")?;
+    let path = dir.join("open3d-testdata/nyu-raw-disparity.pgm");
+    let depth = match sl_io::read_depth(
+        &path,
+        &ReadOptions::default().with_format(DepthFormat::NyuRaw),
+    ) {
+        Ok(l) => l.depth,
+        Err(e) => {
+            eprintln!("skipping nyu-raw: {e}");
+            return None;
+        }
+    };
+    Some(RealFrame {
+        name: "nyu-raw".into(),
+        path,
+        depth,
+        camera: Camera::preset("nyu-v2").ok()?,
+    })
+}
+
+/// The first `count` frames of the 30-frame TUM fr1/rpy set (5000 units/m, `tum-fr1` camera).
+pub fn tum_rpy(count: usize) -> Vec<RealFrame> {
+    tum_dir("tum-fr1-rpy", count)
+}
+
+/// The first `count` frames of the 200-frame TUM fr1/rpy sequence.
+pub fn tum_rpy_200(count: usize) -> Vec<RealFrame> {
+    tum_dir("tum-fr1-rpy-200", count)
+}
+
+fn tum_dir(source: &str, count: usize) -> Vec<RealFrame> {
+    let Some(dir) = data_dir_or_skip(source) else {
+        return Vec::new();
+    };
+    sorted_pngs(&dir.join(source).join("depth"))
+        .into_iter()
+        .take(count)
+        .enumerate()
+        .filter_map(|(i, p)| frame(indexed(source, i, count), p, Some(5000.0), "tum-fr1"))
+        .collect()
+}
+
+/// The first `count` (≤ 50) 7-Scenes red-kitchen frames, from frame 150 (millimetres, 0 invalid).
+pub fn seven_scenes(count: usize) -> Vec<RealFrame> {
+    let Some(dir) = data_dir_or_skip("7-scenes") else {
+        return Vec::new();
+    };
+    (0..count.min(50))
+        .filter_map(|i| {
+            let p = dir.join(format!("7scenes-redkitchen/frame-{:06}.depth.png", 150 + i));
+            frame(indexed("7scenes", i, count), p, Some(1000.0), "7-scenes")
+        })
+        .collect()
+}
+
+/// The ICL-NUIM living-room frames (millimetres, `icl-nuim` camera).
+pub fn icl(count: usize) -> Vec<RealFrame> {
+    let Some(dir) = data_dir_or_skip("icl-livingroom") else {
+        return Vec::new();
+    };
+    sorted_pngs(&dir.join("open3d-testdata/icl-livingroom/depth"))
+        .into_iter()
+        .take(count)
+        .enumerate()
+        .filter_map(|(i, p)| frame(indexed("icl", i, count), p, Some(1000.0), "icl-nuim"))
+        .collect()
+}
+
+/// The PCL floor-and-box scan frames (16-bit TIFF millimetres, `pcl-openni` camera).
+pub fn floor_scan(count: usize) -> Vec<RealFrame> {
+    let Some(dir) = data_dir_or_skip("pcl-floor-box") else {
+        return Vec::new();
+    };
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir.join("pcl-floor-box"))
+        .map(|rd| {
+            rd.filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.to_string_lossy().ends_with("_depth.tiff"))
+                .collect()
+        })
+        .unwrap_or_default();
+    files.sort();
+    files
+        .into_iter()
+        .take(count)
+        .enumerate()
+        .filter_map(|(i, p)| {
+            frame(
+                indexed("pcl-floor-box", i, count),
+                p,
+                Some(1000.0),
+                "pcl-openni",
+            )
+        })
+        .collect()
+}
+
+/// Depth frames with their camera-to-world poses, for fusion and tracking.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PosedSequence {
+    /// `icl` or `7scenes`.
+    pub name: &'static str,
+    /// The dataset's camera preset.
+    pub camera: Camera,
+    /// Depth (metres) and camera-to-world pose of each frame, in order.
+    pub frames: Vec<(DepthImage, sl_core::Pose)>,
+}
+
+fn posed(
+    name: &'static str,
+    preset: &str,
+    frames: Result<Vec<sl_io::Frame>, sl_io::IoError>,
+    max_frames: usize,
+) -> Option<PosedSequence> {
+    let frames = match frames {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("skipping {name}: {e}");
+            return None;
+        }
+    };
+    let mut out = Vec::new();
+    for f in frames.into_iter().take(max_frames) {
+        match read_depth(&f.depth_path, None) {
+            Ok(d) => out.push((d, f.pose)),
+            Err(e) => {
+                eprintln!("skipping {name}: {e}");
+                return None;
+            }
+        }
+    }
+    Some(PosedSequence {
+        name,
+        camera: Camera::preset(preset).ok()?,
+        frames: out,
+    })
+}
+
+/// The ICL-NUIM living-room frames with their Open3D `.log` poses (at most `max_frames`).
+pub fn icl_sequence(max_frames: usize) -> Option<PosedSequence> {
+    let dir = data_dir_or_skip("icl-livingroom")?.join("open3d-testdata/icl-livingroom");
+    let frames = sl_io::read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth"));
+    posed("icl", "icl-nuim", frames, max_frames)
+}
+
+/// The 7-Scenes red-kitchen frames with their poses (at most `max_frames`).
+pub fn seven_scenes_sequence(max_frames: usize) -> Option<PosedSequence> {
+    let dir = data_dir_or_skip("7-scenes")?.join("7scenes-redkitchen");
+    posed(
+        "7scenes",
+        "7-scenes",
+        sl_io::read_7scenes_sequence(&dir),
+        max_frames,
+    )
+}
