@@ -121,8 +121,9 @@ pub fn save_depth(path: &Path, depth: &DepthImage, encoding: &DepthEncoding) -> 
 }
 
 /// Prints a JSON value on one line to standard output.
-pub fn print_json(value: &serde_json::Value) {
-    println!("{value}");
+pub fn print_json(value: &serde_json::Value) -> Result<()> {
+    outln!("{value}")?;
+    Ok(())
 }
 
 /// Rounds to `digits` decimals for human-friendly JSON.

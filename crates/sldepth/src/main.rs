@@ -1,8 +1,20 @@
 //! `sldepth`: command-line tools for structured-light depth cameras (Kinect v1, PrimeSense,
 //! Xtion). Run `sldepth --help` for the list of commands; every option names its unit.
 
+/// `println!` that returns the write error (a closed pipe, a full disk) instead of panicking.
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+    }};
+}
+
 mod cmd;
 mod common;
+
+use std::process::ExitCode;
+
+use std::io::Write as _;
 
 use clap::{Parser, Subcommand};
 
@@ -43,8 +55,29 @@ enum Command {
     Cameras(cmd::cameras::Args),
 }
 
-fn main() -> anyhow::Result<()> {
-    let cli = Cli::parse();
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        // A reader that closed the pipe (`sldepth info x | head -c1`) wants no more output: stop
+        // quietly, as ripgrep does.
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
+        Err(e) => {
+            // The same report as `fn main() -> anyhow::Result<()>`; if even stderr is gone there
+            // is nobody to tell, but the exit code still says it failed.
+            let _ = writeln!(std::io::stderr(), "Error: {e:?}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    })
+}
+
+fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(a) => cmd::info::run(a),
         Command::Analyze(a) => cmd::analyze::run(a),

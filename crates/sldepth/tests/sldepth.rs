@@ -208,3 +208,88 @@ fn fuse_meshes_a_frame_and_refuses_past_the_budget() {
     let err = String::from_utf8_lossy(&o.stderr).to_lowercase();
     assert!(err.contains("budget"), "{err}");
 }
+
+/// A reader that closes the pipe early ends the program quietly, not with a panic.
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(["cameras", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader is gone before the first byte
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(0), "{stderr}");
+}
+
+/// A full disk on stdout is a clean error with a non-zero exit.
+#[test]
+fn full_stdout_is_a_clean_error() {
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        eprintln!("skipping: no /dev/full on this system");
+        return;
+    };
+    let out = Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(["info", path_str(&testdata("floor-seed1-depth.png"))])
+        .stdout(full)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("No space left"), "{stderr}");
+}
+
+/// `--camera` takes a preset name; an unknown one is told the valid names.
+#[test]
+fn camera_presets_by_name() {
+    let ok = sldepth(&[
+        "info",
+        path_str(&testdata("floor-seed1-depth.png")),
+        "--camera",
+        "kinect-v1",
+        "--json",
+    ]);
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    let bad = sldepth(&[
+        "info",
+        path_str(&testdata("floor-seed1-depth.png")),
+        "--camera",
+        "kinect-v9",
+    ]);
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(!bad.status.success());
+    assert!(
+        stderr.contains("tum-fr1") && stderr.contains("d435"),
+        "{stderr}"
+    );
+    let list = json_of(&sldepth(&["cameras", "--json"]));
+    let names: Vec<&str> = list
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    for n in [
+        "kinect-v1",
+        "tum-fr1",
+        "7-scenes",
+        "nyu-v2",
+        "icl-nuim",
+        "primesense",
+        "d415",
+        "d435",
+        "d455",
+        "oak-d",
+    ] {
+        assert!(names.contains(&n), "{n} missing from {names:?}");
+    }
+}

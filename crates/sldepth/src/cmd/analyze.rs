@@ -63,31 +63,32 @@ pub fn run(args: Args) -> Result<()> {
             "subpixel_steps": a.subpixel_steps,
             "camera_fb_px_m": round_to(sensor.fb(), 6),
             "camera_subpixel_steps": sensor.subpixel_steps,
-        }));
+        }))?;
     } else {
-        println!("{}", args.depth.display());
-        println!("  unique depths          {}", a.unique_depths);
-        println!(
+        outln!("{}", args.depth.display())?;
+        outln!("  unique depths          {}", a.unique_depths)?;
+        outln!(
             "  slope ln ΔZ vs ln Z    {:.3} (OLS), {:.3} (robust), {:.3} (OLS without {} coverage-gap pairs); the model predicts 2",
-            a.slope, a.slope_robust, a.slope_continuous, a.gap_pairs
-        );
-        println!("  quantum c (ΔZ ≈ c·Z²)  {:.6} 1/m", a.quantum_per_m);
+            a.slope,
+            a.slope_robust,
+            a.slope_continuous,
+            a.gap_pairs
+        )?;
+        outln!("  quantum c (ΔZ ≈ c·Z²)  {:.6} 1/m", a.quantum_per_m)?;
         match a.fb_px_m {
-            Some(fb) => println!(
+            Some(fb) => outln!(
                 "  implied f·B            {fb:.3} px·m with q = {} (camera: {:.3})",
                 sensor.subpixel_steps,
                 sensor.fb()
-            ),
-            None => println!("  implied f·B            undetermined (too few far depths)"),
+            )?,
+            None => outln!("  implied f·B            undetermined (too few far depths)")?,
         }
         match (a.subpixel_steps, a.fb_used_px_m) {
-            (Some(q), Some(fb)) => {
-                println!(
-                    "  disparity sub-pixel    1/{q} px (counted with f·B = {fb:.3} px·m, {:?})",
-                    a.fb_source
-                )
-            }
-            _ => println!("  disparity sub-pixel    undetermined (too few far depths)"),
+            (Some(q), Some(fb)) => outln!(
+                "  disparity sub-pixel    1/{q} px (counted with f·B = {fb:.3} px·m, {:?})",
+                a.fb_source
+            )?,
+            _ => outln!("  disparity sub-pixel    undetermined (too few far depths)")?,
         }
     }
     Ok(())

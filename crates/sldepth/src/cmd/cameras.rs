@@ -45,15 +45,22 @@ fn preset_json(p: &SensorPreset) -> Value {
 /// Runs `sldepth cameras`.
 pub fn run(args: Args) -> Result<()> {
     if args.json {
-        print_json(&Value::Array(PRESETS.iter().map(preset_json).collect()));
+        print_json(&Value::Array(PRESETS.iter().map(preset_json).collect()))?;
         return Ok(());
     }
-    println!(
+    outln!(
         "{:<13} {:>9} {:>7} {:>7} {:>6} {:>4} {:>9} {:>12}  description",
-        "name", "size", "fx px", "B mm", "1/q px", "σ_D", "range m", "σ_Z(2 m) mm"
-    );
+        "name",
+        "size",
+        "fx px",
+        "B mm",
+        "1/q px",
+        "σ_D",
+        "range m",
+        "σ_Z(2 m) mm"
+    )?;
     for p in PRESETS {
-        println!(
+        outln!(
             "{:<13} {:>9} {:>7.1} {:>7.1} {:>6} {:>4} {:>9} {:>12.1}  {}",
             p.name,
             format!("{}x{}", p.width, p.height),
@@ -64,7 +71,7 @@ pub fn run(args: Args) -> Result<()> {
             format!("{}-{}", p.min_depth_m, p.max_depth_m),
             p.sensor().sigma_z(2.0) * 1e3,
             p.description
-        );
+        )?;
     }
     Ok(())
 }

@@ -121,9 +121,9 @@ pub fn run(args: Args) -> Result<()> {
             "ms_min": round_to(min, 4),
             "threads": sl_filter::current_threads(),
             "isa": Isa::detect().name(),
-        }));
+        }))?;
     } else {
-        println!(
+        outln!(
             "{} -> {}: {} filter, {}x{} window, sigma_s {} px{}",
             args.input_path.display(),
             args.output.display(),
@@ -141,15 +141,15 @@ pub fn run(args: Args) -> Result<()> {
                 (_, _, Some(s)) => format!(", sigma_D {s:.3} px"),
                 _ => String::new(),
             }
-        );
-        println!(
+        )?;
+        outln!(
             "  {} valid pixels; filtering {:.3} ms (median of {reps}, min {:.3} ms, {} threads, {})",
             out.valid_count(),
             median,
             min,
             sl_filter::current_threads(),
             Isa::detect().name()
-        );
+        )?;
     }
     Ok(())
 }

@@ -304,7 +304,7 @@ pub fn run(args: Args) -> Result<()> {
             "max_depth_m": params.max_depth_m,
             "prefilter": args.prefilter,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
-        }));
+        }))?;
     } else {
         eprintln!(
             "fused {} frames ({:.1} ms/frame median): {} vertices, {} triangles, {} blocks ({:.1} MiB); marching cubes {:.0} ms",

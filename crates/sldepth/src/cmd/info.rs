@@ -45,25 +45,27 @@ pub fn run(args: Args) -> Result<()> {
             "z_median_m": zmed,
             "z_max_m": zmax,
             "encoding": loaded.encoding.to_string(),
-        }));
+        }))?;
     } else {
-        println!("{}", args.depth.display());
-        println!(
+        outln!("{}", args.depth.display())?;
+        outln!(
             "  size          {} x {} px ({})",
             d.width(),
             d.height(),
             loaded.encoding
-        );
-        println!(
+        )?;
+        outln!(
             "  valid pixels  {valid} of {total} ({:.1} %)",
             100.0 * valid as f64 / total.max(1) as f64
-        );
+        )?;
         match stats {
-            Some(s) => println!(
+            Some(s) => outln!(
                 "  depth         min {:.3} m, median {:.3} m, max {:.3} m",
-                s.min, s.median, s.max
-            ),
-            None => println!("  depth         no valid pixel"),
+                s.min,
+                s.median,
+                s.max
+            )?,
+            None => outln!("  depth         no valid pixel")?,
         }
     }
     Ok(())

@@ -132,13 +132,13 @@ pub fn run(args: Args) -> Result<()> {
         Ok(m) => m,
         Err(e) => {
             if args.json {
-                print_json(&undetermined_json(e, pa.len(), pb.len()));
+                print_json(&undetermined_json(e, pa.len(), pb.len()))?;
             } else {
-                println!(
+                outln!(
                     "planes: {} in A, {} in B; motion undetermined",
                     pa.len(),
                     pb.len()
-                );
+                )?;
             }
             bail!("{e}");
         }
@@ -182,51 +182,51 @@ pub fn run(args: Args) -> Result<()> {
                 .and_then(|o| o.inlier_fraction_after)
                 .map(|f| round_to(f, 4)),
             "icp": icp_json,
-        }));
+        }))?;
     } else {
-        println!(
+        outln!(
             "planes: {} in A, {} in B, {} matched; confidence: {}",
             pa.len(),
             pb.len(),
             m.matches.len(),
             m.confidence.as_str()
-        );
+        )?;
         if let Some(v) = &m.verification {
-            println!(
+            outln!(
                 "verified: {:.1} % of the overlapping points explained (best alternative {:.1} %, \
                  turned by {}° {:.1} %)",
                 100.0 * v.inlier_fraction,
                 100.0 * v.alternative_inlier_fraction,
                 mcfg.distinct_deg,
                 100.0 * v.turned_inlier_fraction
-            );
+            )?;
         }
         if let Some(o) = outcome {
             let after = o
                 .inlier_fraction_after
                 .map_or("–".to_string(), |f| format!("{:.1} %", 100.0 * f));
             match &o.rejection {
-                None => println!(
+                None => outln!(
                     "ICP refinement accepted: {after} of the overlapping points explained \
                      (before {:.1} %)",
                     100.0 * o.inlier_fraction_before
-                ),
-                Some(r) => println!(
+                )?,
+                Some(r) => outln!(
                     "ICP refinement rejected ({}): {after} of the overlapping points explained \
                      (before {:.1} %); keeping the plane estimate",
                     r.as_str(),
                     100.0 * o.inlier_fraction_before
-                ),
+                )?,
             }
         }
-        println!("rotation (X_a = R X_b + t), {rotation_deg:.3} deg:");
+        outln!("rotation (X_a = R X_b + t), {rotation_deg:.3} deg:")?;
         let r = rotation_rows(&pose);
         for row in r.chunks_exact(3) {
-            println!("  [{:+.6} {:+.6} {:+.6}]", row[0], row[1], row[2]);
+            outln!("  [{:+.6} {:+.6} {:+.6}]", row[0], row[1], row[2])?;
         }
         match translation {
-            Some(t) => println!("translation: [{:+.4} {:+.4} {:+.4}] m", t.x, t.y, t.z),
-            None => println!("translation: not determined (matched normals do not span 3D)"),
+            Some(t) => outln!("translation: [{:+.4} {:+.4} {:+.4}] m", t.x, t.y, t.z)?,
+            None => outln!("translation: not determined (matched normals do not span 3D)")?,
         }
     }
     Ok(())

@@ -101,17 +101,17 @@ pub fn run(args: Args) -> Result<()> {
         write_overlay(path, args.color.as_deref(), &loaded.depth, &seg)?;
     }
     if args.json {
-        print_json(&segmentation_json(&seg, ms));
+        print_json(&segmentation_json(&seg, ms))?;
     } else {
-        println!(
+        outln!(
             "{} planes in {:.2} ms ({})",
             seg.planes.len(),
             ms,
             args.method
-        );
+        )?;
         for p in &seg.planes {
             let n = p.plane.normal;
-            println!(
+            outln!(
                 "  #{:<3} {:>7} px  normal [{:+.3} {:+.3} {:+.3}]  offset {:.3} m  rms {:.3} px / {:.1} mm",
                 p.id,
                 p.pixels,
@@ -121,7 +121,7 @@ pub fn run(args: Args) -> Result<()> {
                 p.plane.offset_m,
                 p.rms_px,
                 p.rms_m * 1e3
-            );
+            )?;
         }
     }
     Ok(())

@@ -101,7 +101,7 @@ pub fn run(args: Args) -> Result<()> {
             "height": frame.depth.height(),
             "valid_pixels": valid,
             "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n})).collect::<Vec<_>>(),
-        }));
+        }))?;
     } else {
         eprintln!(
             "{}: {} ({} valid pixels) -> {}",
