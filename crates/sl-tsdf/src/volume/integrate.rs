@@ -1,0 +1,402 @@
+//! Integration of one depth frame: the argument checks, the per-pixel table of depth and
+//! weight, block discovery (see `discovery`), then the parallel voxel update of every touched
+//! block with the projective signed distance and the frame's weight (the per-block kernel and
+//! its per-frame constants live here).
+
+use nalgebra::{Matrix3, Vector3};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use sl_core::{DepthView, Intrinsics, Pose};
+
+use super::discovery::*;
+use super::*;
+use crate::par::run_on_threads;
+
+impl TsdfVolume {
+    /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world
+    /// `pose`: allocates the blocks within the truncation band of every valid pixel, then
+    /// updates every voxel of those blocks (in parallel, per block) with the projective
+    /// line-of-sight signed distance of eq. 11 and the weight of eq. 13.
+    ///
+    /// On error (size mismatch, memory budget, geometry out of range) the volume is unchanged.
+    ///
+    /// `depth` is a `&DepthImage` or a [`DepthView`] over a buffer the caller owns (no copy).
+    pub fn integrate<'a>(
+        &mut self,
+        depth: impl Into<DepthView<'a>>,
+        k: &Intrinsics,
+        pose: &Pose,
+    ) -> Result<IntegrateStats> {
+        let depth: DepthView<'a> = depth.into();
+        if depth.width() != k.width || depth.height() != k.height {
+            return Err(TsdfError::SizeMismatch {
+                expected_width: k.width,
+                expected_height: k.height,
+                width: depth.width(),
+                height: depth.height(),
+            });
+        }
+        k.validate()?;
+        // Pixel indices are computed exactly in f32 (< 2^23) and stored as u32.
+        if (k.width + 2) * (k.height + 2) >= 1 << 23 {
+            return Err(TsdfError::InvalidParameter(format!(
+                "image size {}x{} has too many pixels",
+                k.width, k.height
+            )));
+        }
+        let mut table = std::mem::take(&mut self.scratch.table);
+        let result = self.integrate_with(&mut table, depth, k, pose);
+        self.scratch.table = table;
+        result
+    }
+
+    /// [`TsdfVolume::integrate`] after the argument checks, with the per-pixel table as
+    /// scratch space: `(depth, weight)` of pixel `(x, y)` at `(y + 1)·(width + 2) + x + 1`,
+    /// `[0, 0]` on a one-pixel border around the image (voxels projecting outside the image
+    /// are clamped onto it) and where the pixel is invalid or outside the depth range.
+    fn integrate_with(
+        &mut self,
+        table: &mut Vec<[f32; 2]>,
+        depth: DepthView<'_>,
+        k: &Intrinsics,
+        pose: &Pose,
+    ) -> Result<IntegrateStats> {
+        let (w, h) = (k.width, k.height);
+        let tw = w + 2;
+        // The border stays 0. Small images get exactly `SMALL_TABLE` entries (the tail stays 0
+        // too and is never read).
+        let len = tw * (h + 2);
+        let len = if len <= SMALL_TABLE { SMALL_TABLE } else { len };
+        if table.len() != len {
+            table.clear();
+            table
+                .try_reserve(len)
+                .map_err(|_| TsdfError::OutOfMemory("pixel table"))?;
+            table.resize(len, [0.0; 2]);
+        }
+        let rx: Vec<f32> = (0..w).map(|x| ((x as f64 - k.cx) / k.fx) as f32).collect();
+        let band = BandFrame::new(&self.params, k, pose, &rx)?;
+        let p = &self.params;
+        let pixels = PixelFn {
+            weight: WeightFn::new(p.weight, p.z_ref_m),
+            min_d: p.min_depth_m as f32,
+            max_d: p.max_depth_m as f32,
+        };
+        // One parallel pass over strips of rows: each fills its rows of the pixel table, finds
+        // the blocks in the band of its pixels and marks those already allocated; the others
+        // are returned (with few duplicates).
+        let touched: Vec<AtomicBool> = (0..self.blocks.len())
+            .map(|_| AtomicBool::new(false))
+            .collect();
+        let index = &self.index;
+        let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
+            let used = pixels.fill(trows, drows, w);
+            let keys = band_rows(&band, trows, ci * BAND_ROWS)?;
+            let mut new = Vec::new();
+            for key in keys {
+                match index.get(&key) {
+                    Some(&slot) => touched[slot as usize].store(true, Ordering::Relaxed),
+                    None => new.push(key),
+                }
+            }
+            Ok((used, new))
+        };
+        let items: Vec<_> = table[tw..tw * (h + 1)]
+            .chunks_mut(tw * BAND_ROWS)
+            .zip(depth.data().chunks(w * BAND_ROWS))
+            .enumerate()
+            .collect();
+        let strips: Vec<Result<(usize, Vec<u64>)>> = run_on_threads(items, || (), |_, s| strip(s));
+        let mut pixels_used = 0;
+        let mut new_keys = Vec::new();
+        for s in strips {
+            let (used, new) = s?;
+            pixels_used += used;
+            new_keys.extend_from_slice(&new);
+        }
+        new_keys.sort_unstable();
+        new_keys.dedup();
+        let mut touched: Vec<bool> = touched.into_iter().map(AtomicBool::into_inner).collect();
+        let total = self.blocks.len() + new_keys.len();
+        let needed = total.saturating_mul(BYTES_PER_BLOCK);
+        if needed > self.params.memory_budget_bytes {
+            return Err(TsdfError::MemoryBudget {
+                blocks: total,
+                needed_bytes: needed,
+                budget_bytes: self.params.memory_budget_bytes,
+            });
+        }
+        // The block arena grows geometrically (few reallocations) but never past the number
+        // of blocks the budget allows, so that its capacity stays within the budget too.
+        if total > self.blocks.capacity() {
+            let cap_max = (self.params.memory_budget_bytes / BYTES_PER_BLOCK).max(total);
+            let cap = (2 * self.blocks.capacity()).clamp(total, cap_max);
+            self.blocks
+                .try_reserve_exact(cap - self.blocks.len())
+                .map_err(|_| TsdfError::OutOfMemory("voxel blocks"))?;
+        }
+        if total > self.keys.capacity() {
+            let cap = self.blocks.capacity().max(total);
+            self.keys
+                .try_reserve_exact(cap - self.keys.len())
+                .map_err(|_| TsdfError::OutOfMemory("block keys"))?;
+        }
+        self.index
+            .try_reserve(new_keys.len())
+            .map_err(|_| TsdfError::OutOfMemory("block index"))?;
+        for &key in &new_keys {
+            let slot = self.keys.len() as u32;
+            self.index.insert(key, slot);
+            self.keys.push(key);
+        }
+        self.blocks.resize(self.keys.len(), Block::default());
+        touched.resize(self.blocks.len(), true);
+        self.update_blocks(&touched, table, k, pose);
+        self.frames += 1;
+        Ok(IntegrateStats {
+            blocks_touched: touched.iter().filter(|&&t| t).count(),
+            blocks_allocated: new_keys.len(),
+            pixels_used,
+        })
+    }
+
+    /// Updates the voxels of the touched blocks from one frame.
+    fn update_blocks(&mut self, touched: &[bool], table: &[[f32; 2]], k: &Intrinsics, pose: &Pose) {
+        let frame = FrameConsts::new(&self.params, k, pose);
+        // A table of exactly `SMALL_TABLE` entries (see `integrate_with`) is indexed with a mask
+        // instead of a bounds check.
+        let small = table
+            .first_chunk::<SMALL_TABLE>()
+            .filter(|_| table.len() == SMALL_TABLE);
+        let keys = &self.keys;
+        const CHUNK: usize = 64;
+        let items: Vec<_> = self.blocks.chunks_mut(CHUNK).enumerate().collect();
+        run_on_threads(
+            items,
+            || (),
+            |_, (ci, blocks): (usize, &mut [Block])| {
+                for (j, blk) in blocks.iter_mut().enumerate() {
+                    let i = ci * CHUNK + j;
+                    if !touched.get(i).copied().unwrap_or(false) {
+                        continue;
+                    }
+                    let b = unpack(keys[i]);
+                    match small {
+                        Some(t) => integrate_block(blk, b, &frame, t),
+                        None => integrate_block(blk, b, &frame, table),
+                    }
+                }
+            },
+        );
+    }
+}
+
+/// Voxels in one z slice of a block.
+pub(super) const SLICE: usize = BLOCK_SIDE * BLOCK_SIDE;
+
+/// Per-frame constants of the voxel update (camera from world, intrinsics, band).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct FrameConsts {
+    pub(super) rt: Matrix3<f32>,
+    pub(super) tt: Vector3<f32>,
+    pub(super) step_x: Vector3<f32>,
+    pub(super) step_y: Vector3<f32>,
+    pub(super) step_z: Vector3<f32>,
+    /// Camera-frame offsets of the 64 voxels of a z slice from the slice's first voxel.
+    pub(super) off_x: [f32; SLICE],
+    pub(super) off_y: [f32; SLICE],
+    pub(super) off_z: [f32; SLICE],
+    pub(super) fx: f32,
+    pub(super) fy: f32,
+    /// Principal point plus one (the table's border column / row).
+    pub(super) cx1: f32,
+    pub(super) cy1: f32,
+    /// Largest clamped column / row in table coordinates: `width + 1`, `height + 1`.
+    pub(super) umax: f32,
+    pub(super) vmax: f32,
+    /// Table row length, `width + 2`.
+    pub(super) tw: f32,
+    pub(super) trunc: f32,
+    pub(super) max_w: f32,
+    pub(super) v: f32,
+}
+
+impl FrameConsts {
+    pub(super) fn new(p: &TsdfConfig, k: &Intrinsics, pose: &Pose) -> Self {
+        let inv = pose.inverse();
+        let rt: Matrix3<f32> = inv.rotation.to_rotation_matrix().into_inner().cast::<f32>();
+        let tt: Vector3<f32> = inv.translation.vector.cast::<f32>();
+        let v = p.voxel_m as f32;
+        let step_x = rt.column(0) * v;
+        let step_y = rt.column(1) * v;
+        let step_z = rt.column(2) * v;
+        let off = |a: usize| -> [f32; SLICE] {
+            std::array::from_fn(|i| {
+                step_y[a] * (i / BLOCK_SIDE) as f32 + step_x[a] * (i % BLOCK_SIDE) as f32
+            })
+        };
+        Self {
+            rt,
+            tt,
+            step_x,
+            step_y,
+            step_z,
+            off_x: off(0),
+            off_y: off(1),
+            off_z: off(2),
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx1: (k.cx + 1.0) as f32,
+            cy1: (k.cy + 1.0) as f32,
+            umax: (k.width + 1) as f32,
+            vmax: (k.height + 1) as f32,
+            tw: (k.width + 2) as f32,
+            trunc: p.trunc_m as f32,
+            max_w: p.max_weight,
+            v,
+        }
+    }
+}
+
+/// `2^23`: adding it to an `x` in `[0, 2^22]` rounds `x` to the nearest integer (ties to
+/// even), which is then in the low mantissa bits.
+pub(super) const MAGIC: f32 = 8_388_608.0;
+
+/// The nearest integer to `x ∈ [0, 2^22]` (ties to even), as f32; a plain add and subtract
+/// that vectorises (Rust does not reassociate floating-point arithmetic).
+#[inline(always)]
+pub(super) fn round_f32(x: f32) -> f32 {
+    (x + MAGIC) - MAGIC
+}
+
+/// `x as u32` for an integral `x ∈ [0, 2^23)`, without a (saturating, non-vectorising)
+/// float-to-int conversion.
+#[inline(always)]
+pub(super) fn exact_u32(x: f32) -> u32 {
+    (x + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits())
+}
+
+/// Entries of the per-pixel table for images up to about 720×720 pixels: a power of two, so
+/// that indices can be masked into range instead of bounds-checked.
+pub(super) const SMALL_TABLE: usize = 1 << 19;
+
+/// The per-pixel table as the voxel update reads it.
+pub(super) trait PixelTable: Sync {
+    /// Depth and weight of table entry `i` (`i` is always in range).
+    fn entry(&self, i: u32) -> [f32; 2];
+}
+
+impl PixelTable for [[f32; 2]; SMALL_TABLE] {
+    #[inline(always)]
+    fn entry(&self, i: u32) -> [f32; 2] {
+        self[i as usize & (SMALL_TABLE - 1)]
+    }
+}
+
+impl PixelTable for [[f32; 2]] {
+    #[inline(always)]
+    fn entry(&self, i: u32) -> [f32; 2] {
+        self.get(i as usize).copied().unwrap_or([0.0; 2])
+    }
+}
+
+/// Updates the 512 voxels of block `b` from one frame (`table`: per-pixel depth and weight
+/// with an invalid border, see [`PixelFn::fill`]).
+#[inline(always)]
+pub(super) fn integrate_block<T: PixelTable + ?Sized>(
+    blk: &mut Block,
+    b: [i32; 3],
+    fc: &FrameConsts,
+    table: &T,
+) {
+    // Camera z of the 8 corners: z is affine in the voxel, so if they are all positive, so
+    // are all voxels', and the per-voxel test is not needed.
+    let o = [0, 1, 2].map(|a| (b[a] * BLOCK_SIDE as i32) as f32 * fc.v);
+    let origin = fc.rt * Vector3::new(o[0], o[1], o[2]) + fc.tt;
+    let span = (BLOCK_SIDE - 1) as f32;
+    let z_min = origin.z
+        + span * ((fc.step_x.z).min(0.0) + (fc.step_y.z).min(0.0) + (fc.step_z.z).min(0.0));
+    if z_min > 0.0 {
+        integrate_block_with::<T, false>(blk, &origin, fc, table);
+    } else {
+        integrate_block_with::<T, true>(blk, &origin, fc, table);
+    }
+}
+
+/// [`integrate_block`] with the block's origin in camera coordinates; `CHECK_Z`: voxels may
+/// be behind the camera.
+#[inline(never)]
+pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
+    blk: &mut Block,
+    origin: &Vector3<f32>,
+    fc: &FrameConsts,
+    table: &T,
+) {
+    let (trunc, max_w) = (fc.trunc, fc.max_w);
+    let mut pix = [0u32; SLICE];
+    let mut zs = [0.0f32; SLICE];
+    let mut lam = [0.0f32; SLICE];
+    let mut xs = [0.0f32; SLICE];
+    let mut ys = [0.0f32; SLICE];
+    let mut dw = [[0.0f32; 2]; SLICE];
+    // One z slice (8×8 voxels, contiguous in the block) at a time: loops of 64 independent
+    // lanes that the compiler vectorises.
+    for lz in 0..BLOCK_SIDE {
+        let base = lz * SLICE;
+        let s = origin + fc.step_z * lz as f32;
+        // Stage 1 (pure f32 arithmetic): camera coordinates, λ = ‖P‖/z, and the pixel the
+        // voxel projects to (nearest pixel centre), clamped onto the table's invalid border
+        // when outside the image or behind the camera.
+        for i in 0..SLICE {
+            let z = s.z + fc.off_z[i];
+            let inv_z = 1.0 / z;
+            let xn = (s.x + fc.off_x[i]) * inv_z;
+            let yn = (s.y + fc.off_y[i]) * inv_z;
+            lam[i] = (xn * xn + yn * yn + 1.0).sqrt();
+            zs[i] = z;
+            xs[i] = xn;
+            ys[i] = yn;
+        }
+        for i in 0..SLICE {
+            // Plain compares instead of `f32::min`/`max` (whose NaN rules block
+            // vectorisation): NaN and z ≤ 0 go to column 0, the border.
+            let u = fc.fx * xs[i] + fc.cx1;
+            let u = if (u > 0.0) & (!CHECK_Z | (zs[i] > 0.0)) {
+                u
+            } else {
+                0.0
+            };
+            let u = if u < fc.umax { u } else { fc.umax };
+            let v = fc.fy * ys[i] + fc.cy1;
+            let v = if v > 0.0 { v } else { 0.0 };
+            let v = if v < fc.vmax { v } else { fc.vmax };
+            // Exact integers below 2^23 (checked in `integrate`).
+            pix[i] = exact_u32(round_f32(v) * fc.tw + round_f32(u));
+        }
+        // Stage 2 (scalar gather): depth and weight of each voxel's pixel.
+        for i in 0..SLICE {
+            dw[i] = table.entry(pix[i]);
+        }
+        // Stage 3 (branch-free): line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ
+        // along the voxel's own ray; an invalid pixel (weight 0) or a voxel more than `trunc`
+        // behind the surface gets weight 0 and is left unchanged: F + (f − F)·0 = F for the
+        // finite f = min(sdf, trunc) (sdf is NaN only for z ≤ 0, whose pixel is the border:
+        // then f = trunc).
+        let tsdf = &mut blk.tsdf[base..base + SLICE];
+        let weight = &mut blk.weight[base..base + SLICE];
+        for i in 0..SLICE {
+            let [d, wg] = dw[i];
+            let sdf = (d - zs[i]) * lam[i];
+            let wgt = if sdf >= -trunc { wg } else { 0.0 };
+            let f = if sdf < trunc { sdf } else { trunc };
+            let wn = weight[i] + wgt;
+            let den = if wn > f32::MIN_POSITIVE {
+                wn
+            } else {
+                f32::MIN_POSITIVE
+            };
+            tsdf[i] += (f - tsdf[i]) * (wgt / den);
+            weight[i] = if wn < max_w { wn } else { max_w };
+        }
+    }
+}
