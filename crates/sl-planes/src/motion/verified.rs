@@ -1,0 +1,379 @@
+//! The verified estimate ([`estimate_motion_verified`]): every hypothesis checked against both
+//! depth maps, the best refined and scored again, and the decision (determined, or not).
+
+use super::*;
+
+/// One frame for [`estimate_motion_verified`]: its depth map and its planes (extracted from
+/// that depth map).
+#[derive(Debug, Clone, Copy)]
+pub struct MotionFrame<'a> {
+    /// Depth map, metres (0 = invalid).
+    pub depth: &'a DepthImage,
+    /// Planes extracted from `depth`.
+    pub planes: &'a [PlaneInfo],
+}
+
+/// Fewest usable frame-B points for a verification.
+pub(super) const MIN_SAMPLES: usize = 100;
+
+/// Points per frame of the coarse score that ranks the unrefined hypotheses.
+pub(super) const COARSE_SAMPLES: usize = 300;
+
+/// Points per frame of the local refinement and of the perturbation check.
+pub(super) const SPARSE_SAMPLES: usize = 1000;
+
+/// Plane normals (besides the camera axes) about which the verified alignment is perturbed.
+pub(super) const MAX_PERTURB_PLANES: usize = 6;
+
+/// A plane hypothesis after the check against the data.
+#[derive(Debug, Clone)]
+pub(super) struct Checked {
+    /// The hypothesis after the local refinement on the data.
+    pub(super) aligned: Isometry3<f64>,
+    pub(super) score: Score,
+    /// Plane support of the hypothesis.
+    pub(super) support: f64,
+    /// Plane matches consistent with `aligned` (or the hypothesis' own, see below).
+    pub(super) matches: Vec<PlaneMatch>,
+    /// Weighted Kabsch rotation of `matches`.
+    pub(super) rotation: Rotation3<f64>,
+}
+
+/// Whether two of the matched planes (in A) are at least `min_spread_deg` from parallel: only
+/// then do the matches determine a rotation about every axis.
+pub(super) fn spread_ok(
+    planes_a: &[PlaneInfo],
+    matches: &[PlaneMatch],
+    cfg: &MotionConfig,
+) -> bool {
+    matches.iter().enumerate().any(|(k, m1)| {
+        matches[k + 1..].iter().any(|m2| {
+            let s = angle_deg(&planes_a[m1.a].plane.normal, &planes_a[m2.a].plane.normal);
+            s >= cfg.min_spread_deg && s <= 180.0 - cfg.min_spread_deg
+        })
+    })
+}
+
+/// Matches the planes of two frames, checks every rotation hypothesis against the depth maps
+/// and estimates the motion of B in A's coordinates (`X_a = R·X_b + t`). Frames A and B come
+/// from the same `camera`; `guess` is an optional initial motion (without it every rotation is
+/// considered).
+///
+/// Every plane hypothesis (see the module docs) is scored on grids of points of both frames,
+/// each moved into the other frame: points on the other frame's surface agree, points landing
+/// in front of or behind it contradict (see [`VerifyConfig`]). The best `refine_hypotheses`
+/// (agreement − `outlier_weight`·contradictions) are refined by a short point-to-plane ICP,
+/// scored again and kept when two non-parallel plane matches are consistent with them. The
+/// best one must
+/// * overlap the other frame with `min_overlap_fraction` of the points and explain
+///   `min_inlier_fraction` of the overlapping ones;
+/// * be the only such hypothesis: no alternative more than `distinct_deg` away may explain
+///   `min_inlier_fraction` of its overlapping points;
+/// * not stay consistent when turned by `distinct_deg` about the camera axes or a plane normal
+///   (through its inliers' centroid): otherwise the shared view (e.g. mostly one plane) cannot
+///   tell such rotations apart.
+///
+/// The returned rotation is then the weighted Kabsch over the plane matches consistent with
+/// the verified alignment, and the translation comes from their offsets.
+///
+/// # Errors
+/// [`PlanesError::MotionUndetermined`] when the planes propose no rotation (fewer than two
+/// non-parallel planes seen in both frames) or a frame has too few usable points;
+/// [`PlanesError::MotionNotVerified`] when no hypothesis explains the data with two plane
+/// matches, two distinct ones explain it, or the shared view does not constrain the
+/// rotation; size and configuration errors.
+///
+/// ```
+/// use sl_core::{Camera, DepthImage, nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3}};
+/// use sl_planes::{MotionConfidence, MotionConfig, MotionFrame, Plane3, PlaneConfig,
+///     PlaneExtractor, VerifyConfig, estimate_motion_verified};
+///
+/// // A room (floor, ceiling, three walls, none at right angles) seen by a wide 160x120 camera,
+/// // and the same room after the camera turned 35° about the vertical axis and moved 5 cm.
+/// let k = sl_core::Intrinsics::new(160, 120, 60.0, 60.0, 79.5, 59.5)?;
+/// let cam = Camera { intrinsics: k, sensor: sl_core::SensorModel::kinect_v1() };
+/// let room = [
+///     Plane3::new(Vector3::new(0.0, -1.0, 0.0), 0.8)?,
+///     Plane3::new(Vector3::new(-0.048, 0.999, -0.012), 1.6)?,
+///     Plane3::new(Vector3::new(-0.982, -0.1, 0.158), 1.5)?,
+///     Plane3::new(Vector3::new(0.856, -0.472, 0.213), 1.1)?,
+///     Plane3::new(Vector3::new(-0.213, 0.164, -0.963), 3.0)?,
+/// ];
+/// let render = |planes: &[Plane3]| {
+///     let z = (0..k.width * k.height).map(|i| {
+///         let (x, y) = ((i % k.width) as f64, (i / k.width) as f64);
+///         let z = planes.iter().filter_map(|p| p.depth_at(&k, x, y)).fold(f64::INFINITY, f64::min);
+///         if z.is_finite() { z as f32 } else { 0.0 }
+///     });
+///     DepthImage::from_vec(k.width, k.height, z.collect())
+/// };
+/// let truth = Isometry3::from_parts(
+///     Translation3::new(0.05, 0.0, 0.0),
+///     UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 35f64.to_radians()),
+/// );
+/// let room_b: Vec<Plane3> = room.iter().map(|p| p.transformed(&truth.inverse())).collect();
+/// let (da, db) = (render(&room)?, render(&room_b)?);
+/// let mut ex = PlaneExtractor::new(PlaneConfig { min_pixels: 200, ..PlaneConfig::default() })?;
+/// let (sa, sb) = (ex.extract_depth(&da, &cam)?, ex.extract_depth(&db, &cam)?);
+/// let m = estimate_motion_verified(
+///     MotionFrame { depth: &da, planes: &sa.planes },
+///     MotionFrame { depth: &db, planes: &sb.planes },
+///     &cam, None, &MotionConfig::default(), &VerifyConfig::default(),
+/// )?;
+/// assert_eq!(m.confidence, MotionConfidence::Verified);
+/// assert!(m.rotation.angle_to(&truth.rotation).to_degrees() < 0.5);
+/// assert!(m.verification.as_ref().is_some_and(|v| v.inlier_fraction > 0.9));
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn estimate_motion_verified(
+    a: MotionFrame<'_>,
+    b: MotionFrame<'_>,
+    camera: &Camera,
+    guess: Option<&Isometry3<f64>>,
+    cfg: &MotionConfig,
+    vcfg: &VerifyConfig,
+) -> Result<PlaneMotion> {
+    cfg.validate()?;
+    vcfg.validate()?;
+    let g = guess.copied().unwrap_or_else(Isometry3::identity);
+    let mt = Matcher::new(a.planes, b.planes, guess, cfg);
+    let hyps = mt.hypotheses();
+    if hyps.is_empty() {
+        return Err(mt.undetermined());
+    }
+    let mut check = TwoWay::new(
+        a.depth,
+        b.depth,
+        camera,
+        vcfg.max_samples,
+        (SPARSE_SAMPLES, COARSE_SAMPLES),
+    )?;
+    if check.samples() < MIN_SAMPLES {
+        return Err(PlanesError::MotionUndetermined(format!(
+            "only {} usable points in a frame (need {MIN_SAMPLES})",
+            check.samples()
+        )));
+    }
+    let w_out = vcfg.outlier_weight;
+    let tol = (vcfg.inlier_base_m, vcfg.inlier_sigmas);
+    // Coarse score of every hypothesis as proposed by the planes, on few samples
+    // (hypotheses that move the frames mostly out of each other's view are left out).
+    let mut coarse: Vec<(usize, Isometry3<f64>, f64)> = Vec::with_capacity(hyps.len());
+    for (i, h) in hyps.iter().enumerate() {
+        let pose = Isometry3::from_parts(
+            Translation3::from(h.translation),
+            UnitQuaternion::from_rotation_matrix(&h.rotation),
+        ) * g;
+        let s = check.score(&pose, (vcfg.coarse_inlier_m, 0.0), Density::Coarse);
+        if s.overlap_fraction() >= vcfg.min_overlap_fraction {
+            coarse.push((i, pose, s.evidence(w_out)));
+        }
+    }
+    coarse.sort_by(|x, y| y.2.total_cmp(&x.2).then(x.0.cmp(&y.0)));
+    let distinct = cfg.distinct_deg.to_radians();
+    // Local refinement and the final score of the best ones.
+    let mut checked: Vec<Checked> = Vec::new();
+    for (i, pose, _) in coarse.iter().take(vcfg.refine_hypotheses) {
+        let Ok(aligned) = check.refine(
+            pose,
+            vcfg.refine_iterations,
+            vcfg.refine_start_m,
+            vcfg.refine_end_m,
+        ) else {
+            continue;
+        };
+        let score = check.score(&aligned, tol, Density::Full);
+        if score.overlap_fraction() < vcfg.min_overlap_fraction {
+            continue;
+        }
+        // A motion from planes needs planes: two plane matches at least `min_spread_deg`
+        // apart, consistent with the refined alignment, or else those of the hypothesis itself
+        // if it lies within `distinct_deg` of the alignment (the bands of one bent desk
+        // determine no rotation about its normal).
+        let consistent = consistent_matches(a.planes, b.planes, &aligned, cfg);
+        let own = &hyps[*i].matches;
+        let own_rotation = UnitQuaternion::from_rotation_matrix(&hyps[*i].rotation) * g.rotation;
+        let Some((rotation, matches)) = [consistent, own.clone()]
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| *k == 0 || own_rotation.angle_to(&aligned.rotation) < distinct)
+            .find_map(|(_, ms)| {
+                spread_ok(a.planes, &ms, cfg)
+                    .then(|| kabsch_ab(a.planes, b.planes, &ms))
+                    .flatten()
+                    .map(|r| (r, ms))
+            })
+        else {
+            continue;
+        };
+        checked.push(Checked {
+            aligned,
+            score,
+            support: hyps[*i].support,
+            matches,
+            rotation,
+        });
+    }
+    checked.sort_by(|x, y| {
+        y.score
+            .evidence(w_out)
+            .total_cmp(&x.score.evidence(w_out))
+            .then(y.support.total_cmp(&x.support))
+    });
+    let Some(best) = checked.first() else {
+        return Err(PlanesError::MotionNotVerified {
+            reason: format!(
+                "none of the {} plane hypotheses, refined on the data, overlaps the other \
+                 frame with {:.0} % of the points and keeps two non-parallel plane matches",
+                hyps.len(),
+                100.0 * vcfg.min_overlap_fraction
+            ),
+            inlier_fraction: 0.0,
+            alternative_inlier_fraction: 0.0,
+        });
+    };
+    let aligned = best.aligned;
+    let inlier_fraction = best.score.inlier_fraction();
+    let overlap_fraction = best.score.overlap_fraction();
+    // A pose is consistent with the data when it explains `min_inlier_fraction` of the
+    // overlapping points; the winner must be, and no distinct alternative may be.
+    let consistent = |s: &Score| {
+        s.overlap_fraction() >= vcfg.min_overlap_fraction
+            && s.inlier_fraction() >= vcfg.min_inlier_fraction
+    };
+    let alternative = checked
+        .iter()
+        .filter(|c| c.aligned.rotation.angle_to(&aligned.rotation) > distinct)
+        .map(|c| c.score)
+        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
+    let alternative_inlier_fraction = alternative.map_or(0.0, |s| s.inlier_fraction());
+    let not_verified = |reason: String, alt: f64| PlanesError::MotionNotVerified {
+        reason,
+        inlier_fraction,
+        alternative_inlier_fraction: alt,
+    };
+    if !consistent(&best.score) {
+        return Err(not_verified(
+            format!(
+                "the best of {} plane hypotheses explains {:.0} % of the overlapping points \
+                 (< {:.0} %)",
+                hyps.len(),
+                100.0 * inlier_fraction,
+                100.0 * vcfg.min_inlier_fraction
+            ),
+            alternative_inlier_fraction,
+        ));
+    }
+    if alternative.as_ref().is_some_and(consistent) {
+        return Err(not_verified(
+            format!(
+                "ambiguous: a rotation more than {}° away from the best also explains {:.0} % \
+                 of its overlapping points",
+                cfg.distinct_deg,
+                100.0 * alternative_inlier_fraction
+            ),
+            alternative_inlier_fraction,
+        ));
+    }
+    // Can the data tell the winner from rotations `distinct_deg` away at all? Turning the
+    // alignment about the normal of a dominant plane (through the inliers' centroid) slides
+    // that plane in itself: when the shared view is mostly one plane such a turn stays
+    // consistent, and an alternative there could not have been rejected.
+    let mut axes: Vec<Vector3<f64>> = vec![Vector3::x(), Vector3::y(), Vector3::z()];
+    for p in a.planes {
+        if axes.len() >= 3 + MAX_PERTURB_PLANES {
+            break;
+        }
+        if axes[3..]
+            .iter()
+            .all(|n| angle_deg(n, &p.plane.normal) > cfg.distinct_deg)
+        {
+            axes.push(p.plane.normal);
+        }
+    }
+    let turned = check
+        .perturbed(&aligned, &axes, distinct, tol)
+        .into_iter()
+        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
+    let turned_inlier_fraction = turned.map_or(0.0, |s| s.inlier_fraction());
+    if turned.as_ref().is_some_and(consistent) {
+        return Err(not_verified(
+            format!(
+                "the shared view does not pin the rotation down (mostly one plane?): the \
+                 alignment turned by {}° still explains {:.0} % of the overlapping points",
+                cfg.distinct_deg,
+                100.0 * turned_inlier_fraction
+            ),
+            turned_inlier_fraction,
+        ));
+    }
+    // The plane estimate: weighted Kabsch over the matches consistent with the alignment.
+    let (r, matches) = (best.rotation, best.matches.clone());
+    let rotation = UnitQuaternion::from_rotation_matrix(&r);
+    let (translation_m, translation_partial_m, matches) =
+        solve_translation(a.planes, b.planes, &rotation, matches, cfg);
+    // The matches index the same planes in the guess-transformed frame of the matcher.
+    let runner_up_support = mt.runner_up(
+        &hyps,
+        &(r * g.rotation.to_rotation_matrix().inverse()),
+        &matches,
+    );
+    Ok(PlaneMotion {
+        rotation,
+        translation_m,
+        translation_partial_m,
+        rms_angle_deg: rms_angle(a.planes, b.planes, &rotation, &matches),
+        matches,
+        confidence: MotionConfidence::Verified,
+        runner_up_support,
+        verification: Some(Verification {
+            inlier_fraction,
+            overlap_fraction,
+            alternative_inlier_fraction,
+            turned_inlier_fraction,
+            hypotheses: hyps.len(),
+            samples: check.samples(),
+            aligned,
+        }),
+    })
+}
+
+/// Greedy one-to-one plane matches (by decreasing weight) consistent with a motion: normals
+/// within `inlier_angle_deg`, offsets within `inlier_offset_m`.
+pub(super) fn consistent_matches(
+    planes_a: &[PlaneInfo],
+    planes_b: &[PlaneInfo],
+    pose: &Isometry3<f64>,
+    cfg: &MotionConfig,
+) -> Vec<PlaneMatch> {
+    let mut cands: Vec<PlaneMatch> = Vec::new();
+    for (i, pa) in planes_a.iter().enumerate() {
+        for (j, pb) in planes_b.iter().enumerate() {
+            let n = pose.rotation * pb.plane.normal;
+            let d = pb.plane.offset_m - n.dot(&pose.translation.vector);
+            if angle_deg(&pa.plane.normal, &n) < cfg.inlier_angle_deg
+                && (d - pa.plane.offset_m).abs() < cfg.inlier_offset_m
+            {
+                cands.push(PlaneMatch {
+                    a: i,
+                    b: j,
+                    weight: pa.pixels.min(pb.pixels) as f64,
+                });
+            }
+        }
+    }
+    cands.sort_by(|x, y| y.weight.total_cmp(&x.weight));
+    let mut used_a = vec![false; planes_a.len()];
+    let mut used_b = vec![false; planes_b.len()];
+    cands
+        .into_iter()
+        .filter(|m| {
+            let free = !used_a[m.a] && !used_b[m.b];
+            if free {
+                used_a[m.a] = true;
+                used_b[m.b] = true;
+            }
+            free
+        })
+        .collect()
+}
