@@ -1,0 +1,392 @@
+//! The final per-pixel pass: every pixel tested against the planes of its neighbourhood, the
+//! labels and moments written row by row, ambiguous pixels resolved, small pieces dropped and
+//! the planes finished (3D plane, RMS, centroid).
+
+use super::*;
+
+impl PlaneExtractor {
+    /// The full-resolution assignment, with the final moments of the sample rows: each pixel
+    /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
+    /// tested in one vectorised sweep); otherwise, and for the pixels of unlabelled cells
+    /// touching a labelled cell, the planes of the cells around are searched, 8 pixels at a time
+    /// (pixels that fit two planes are recorded for the disambiguation). Pixels of unlabelled
+    /// cells away from planes stay unlabelled (coherence).
+    #[inline(never)]
+    pub(super) fn final_pass(
+        &mut self,
+        d: FullDisparity<'_>,
+        w: usize,
+        h: usize,
+        wq: usize,
+        tau: f32,
+        labels: &mut Vec<u16>,
+    ) {
+        // Each row is labelled in place: the row is appended as zeros to `labels` (which holds
+        // the rows above on entry to the row), then written.
+        labels.clear();
+        let mut drow = std::mem::take(&mut self.drow);
+        drow.resize(w, 0.0);
+        self.acc.clear();
+        self.acc.resize(
+            self.planes.len(),
+            FinalAcc {
+                y0: usize::MAX,
+                ..FinalAcc::default()
+            },
+        );
+        self.amb.clear();
+        self.full.clear();
+        self.full
+            .extend(self.planes.iter().map(|p| cell_to_full(&p.f)));
+        self.fa.clear();
+        self.fa.extend(self.full.iter().map(|f| f.a as f32));
+        let full: &[DisparityAffine] = &self.full;
+        let fa: &[f32] = &self.fa;
+        let acc = &mut self.acc;
+        let amb = &mut self.amb;
+        let empty: &[u16] = &[];
+        let hrow = |jj: usize| self.labq.get(jj * wq..(jj + 1) * wq).unwrap_or(empty);
+        let mut inv_dummy = InvSums::default();
+        let mut sums_dummy = AffineSums::default();
+        let nchunks = w.div_ceil(LANES);
+        // With at most 64 planes, labels are at most 64 (bit masks of the candidates).
+        let small = self.planes.len() <= 64;
+        self.near_tag.clear();
+        self.near_tag.resize(nchunks, 0);
+        self.near_set.resize(nchunks, [0; 16]);
+        self.near_len.resize(nchunks, 0);
+        self.need.clear();
+        self.need.resize(wq, 0);
+        self.zrow.clear();
+        self.zrow.resize(wq, 0);
+        for y in 0..h {
+            let yf = y as f64;
+            let (stats, metric) = (is_sample_row(y), is_metric_row(y));
+            self.rowc.clear();
+            self.rowc
+                .extend(full.iter().map(|f| (f.b * yf + f.c) as f32));
+            let rowc: &[f32] = &self.rowc;
+            let j = y / CELL;
+            let hint_row = hrow(j);
+            let up_row = if j > 0 { hrow(j - 1) } else { empty };
+            let dn_row = hrow(j + 1);
+            let zrow = &self.zrow[..];
+            let nh = hint_row.len();
+            let need = &mut self.need[..nh];
+            if y % CELL == 0 {
+                let up2 = if up_row.is_empty() { zrow } else { up_row };
+                let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
+                touching(hint_row, up2, dn2, need);
+                // The keep bytes of the pixels of unlabelled cells (0 = search).
+                self.ukeep.clear();
+                self.ukeep
+                    .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
+                // The runs of equal cell labels, shared by the rows of this cell row.
+                self.hruns.clear();
+                let mut i = 0;
+                while i < nh {
+                    let e = run_end(hint_row, i);
+                    self.hruns.push((i as u32, e as u32, hint_row[i]));
+                    i = e;
+                }
+            }
+            let row_d = d.row(y, w, &mut drow[..w]);
+            labels.resize((y + 1) * w, 0);
+            let row_l = &mut labels[y * w..(y + 1) * w];
+            let keep = &mut self.keep[..];
+            // keep: 1 = labelled or stays unlabelled, 0 = search.
+            for &(i, e, v) in &self.hruns {
+                let (i, e) = (i as usize, e as usize);
+                let (x0, x1) = (CELL * i, (CELL * e).min(w));
+                if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
+                    // The rest of the row: `fit_run` reads and writes ahead.
+                    let (seg, ks) = (&row_d[x0..], &mut keep[x0..]);
+                    let f = &full[v as usize - 1];
+                    let c_row = f.b * yf + f.c;
+                    let n = x1 - x0;
+                    let lab = &mut row_l[x0..];
+                    let kept = if metric {
+                        fit_run_labels::<true, true, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut a.sums,
+                            &mut a.inv,
+                        )
+                    } else if stats {
+                        fit_run_labels::<true, false, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut a.sums,
+                            &mut inv_dummy,
+                        )
+                    } else {
+                        fit_run_labels::<false, false, true>(
+                            seg,
+                            ks,
+                            lab,
+                            v,
+                            n,
+                            x0,
+                            yf,
+                            f.a,
+                            c_row,
+                            tau,
+                            &mut sums_dummy,
+                            &mut inv_dummy,
+                        )
+                    };
+                    a.pixels += kept;
+                    a.add_rows(y);
+                } else {
+                    // Unlabelled cells: searched only when touching a labelled cell (`x1` is
+                    // `CELL · e`, within the pattern of this cell row).
+                    let ks = &mut keep[x0..x1];
+                    match self.ukeep.get(x0..x1) {
+                        Some(u) => ks.copy_from_slice(u),
+                        None => ks.fill(1),
+                    }
+                }
+            }
+            // Columns beyond the cell grid (width not a multiple of the cell), or rows without
+            // one: unlabelled cells (after the runs, which may write ahead).
+            let g = |r: &[u16], ii: usize| r.get(ii).is_some_and(|&l| l != 0);
+            for (x, k) in keep.iter_mut().enumerate().take(w).skip(CELL * nh) {
+                let i = x / CELL;
+                let t = (i > 0 && g(hint_row, i - 1))
+                    || g(hint_row, i + 1)
+                    || g(up_row, i)
+                    || g(dn_row, i);
+                *k = u8::from(!t);
+            }
+            let keep = &keep[..w];
+            // Searches, 8 pixels at a time: first the chunks with a pixel to search.
+            let nch = w.div_ceil(LANES);
+            self.chunks.resize(nch + 1, (0, 0));
+            let mut count = 0usize;
+            let mut kw = keep.chunks_exact(LANES);
+            for (c, kc) in (&mut kw).enumerate() {
+                let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
+                if word != ALL_KEPT {
+                    self.chunks[count] = (c as u32, word);
+                    count += 1;
+                }
+            }
+            let tail = kw.remainder();
+            if !tail.is_empty() {
+                let word = u64::from_le_bytes(pad(tail, 1));
+                self.chunks[count] = ((w / LANES) as u32, word);
+                count += usize::from(word != ALL_KEPT);
+            }
+            for &(c, word) in &self.chunks[..count] {
+                let x0 = c as usize * LANES;
+                let x1 = (x0 + LANES).min(w);
+                let mut todo = byte_mask(!word & ALL_KEPT);
+                let (dc, lc) = (&row_d[x0..x1], &mut row_l[x0..x1]);
+                let d8 = <[f32; LANES]>::try_from(dc).unwrap_or_else(|_| pad(dc, f32::NAN));
+                todo &= valid_mask(&d8);
+                if todo == 0 {
+                    continue;
+                }
+                // Candidates: the planes of the cells around the chunk (coherence), the same
+                // for the rows of a cell row.
+                let ci = c as usize;
+                let tag = j as u32 + 1;
+                if self.near_tag[ci] != tag {
+                    let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
+                    let (a, b) = (c0.saturating_sub(1), c1 + 1);
+                    let nc = if small {
+                        let bits =
+                            or_bits(up_row, a, b) | or_bits(hint_row, a, b) | or_bits(dn_row, a, b);
+                        bits_to_planes(bits, &mut self.near_set[ci])
+                    } else {
+                        neighbour_planes([up_row, hint_row, dn_row], a, b, &mut self.near_set[ci])
+                    };
+                    self.near_len[ci] = nc as u8;
+                    self.near_tag[ci] = tag;
+                }
+                let near = &self.near_set[ci][..self.near_len[ci] as usize];
+                let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
+                todo &= nonzero_mask(&best);
+                while todo != 0 {
+                    let o = todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    let lab = best[o];
+                    let Some(a) = acc.get_mut((lab as usize).wrapping_sub(1)) else {
+                        continue;
+                    };
+                    lc[o] = lab;
+                    let x = x0 + o;
+                    a.pixels += 1;
+                    a.add_rows(y);
+                    if stats {
+                        let (xf, df) = (x as f64, f64::from(dc[o]));
+                        a.sums.add(xf, yf, df);
+                        if metric {
+                            let r = df - full[lab as usize - 1].eval(xf, yf);
+                            a.inv.add(xf, yf, df, r, 1.0);
+                        }
+                    }
+                    if second[o] != 0 {
+                        amb.push(((y * w + x) as u32, lab, second[o]));
+                    }
+                }
+            }
+        }
+        self.drow = drow;
+    }
+
+    /// Pixels within the threshold of two planes take the label that dominates their
+    /// 8-neighbourhood (ties keep the smaller residual); the statistics follow.
+    #[inline(never)]
+    pub(super) fn resolve_ambiguous(
+        &mut self,
+        d: FullDisparity<'_>,
+        w: usize,
+        h: usize,
+        labels: &mut [u16],
+    ) {
+        for &(i, k1, k2) in &self.amb {
+            let i = i as usize;
+            let (x, y) = (i % w, i / w);
+            let (mut c1, mut c2) = (0u32, 0u32);
+            for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                    if nx == x && ny == y {
+                        continue;
+                    }
+                    let l = labels[ny * w + nx];
+                    c1 += u32::from(l == k1);
+                    c2 += u32::from(l == k2);
+                }
+            }
+            let (u1, u2) = (k1 as usize - 1, k2 as usize - 1);
+            if c2 > c1 && labels[i] == k1 && u1 < self.acc.len() && u2 < self.acc.len() {
+                labels[i] = k2;
+                self.acc[u1].pixels -= 1;
+                self.acc[u2].pixels += 1;
+                self.acc[u2].add_rows(y);
+                if is_sample_row(y) {
+                    let (xf, yf, df) = (x as f64, y as f64, f64::from(d.at(i)));
+                    let (f1, f2) = (self.full[u1], self.full[u2]);
+                    let a1 = &mut self.acc[u1];
+                    a1.sums.remove(xf, yf, df);
+                    if is_metric_row(y) {
+                        a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
+                    }
+                    let a2 = &mut self.acc[u2];
+                    a2.sums.add(xf, yf, df);
+                    if is_metric_row(y) {
+                        a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Drops 4-connected pieces of a plane's cells smaller than `min_piece_pixels / 16` cells.
+    #[inline(never)]
+    pub(super) fn drop_small_pieces(&mut self, wq: usize, hq: usize) {
+        self.cc.label(&self.labq, wq, hq);
+        let min = self.cfg.min_piece_pixels.div_ceil(CELL * CELL);
+        for (ri, run) in self.cc.runs.iter().enumerate() {
+            if self.cc.sizes[self.cc.component[ri] as usize] >= min {
+                continue;
+            }
+            let y = run.y as usize;
+            self.labq[y * wq + run.x0 as usize..y * wq + run.x1 as usize].fill(0);
+        }
+    }
+
+    /// Final refit, 3D conversion, statistics, and compaction of the ids by decreasing size.
+    #[inline(never)]
+    pub(super) fn finish(
+        &mut self,
+        w: usize,
+        h: usize,
+        k: &Intrinsics,
+        fb: f64,
+        mut labels: Vec<u16>,
+    ) -> Result<PlaneSegmentation> {
+        let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
+        for (pi, a) in self.acc.iter().enumerate() {
+            let n = a.sums.n;
+            if a.pixels < self.cfg.min_pixels || n < 3.0 {
+                continue;
+            }
+            let Some(f) = a.sums.solve() else { continue };
+            let Ok(plane) = f.to_plane(k, fb) else {
+                continue;
+            };
+            let s = &a.inv;
+            let (centroid_m, rms_m) = if s.n >= 1.0 {
+                (
+                    Point3::new(
+                        fb * (s.sxi - k.cx * s.si) / (k.fx * s.n),
+                        fb * (s.syi - k.cy * s.si) / (k.fy * s.n),
+                        fb * s.si / s.n,
+                    ),
+                    plane.offset_m * (s.sr2.max(0.0) / s.n).sqrt(),
+                )
+            } else {
+                // No metric sample (a tiny plane): the point at the mean pixel.
+                let (mx, my) = (a.sums.sx / n, a.sums.sy / n);
+                let z = fb / f.eval(mx, my);
+                (
+                    Point3::new((mx - k.cx) * z / k.fx, (my - k.cy) * z / k.fy, z),
+                    plane.offset_m * a.sums.rms(&f) / (fb / z),
+                )
+            };
+            out.push((
+                pi,
+                PlaneInfo {
+                    id: 0,
+                    plane,
+                    affine: f,
+                    pixels: a.pixels,
+                    rms_px: a.sums.rms(&f),
+                    rms_m,
+                    centroid_m,
+                },
+            ));
+        }
+        out.sort_by_key(|o| std::cmp::Reverse(o.1.pixels));
+        self.lut.clear();
+        self.lut.resize(self.acc.len() + 1, 0);
+        for (new, (old, info)) in out.iter_mut().enumerate() {
+            info.id = new as u16 + 1;
+            self.lut[*old + 1] = info.id;
+        }
+        // Relabel only the rows of the planes whose id changes.
+        let (mut y0, mut y1) = (usize::MAX, 0);
+        for (i, a) in self.acc.iter().enumerate() {
+            if self.lut[i + 1] as usize != i + 1 && a.pixels > 0 {
+                y0 = y0.min(a.y0);
+                y1 = y1.max(a.y1);
+            }
+        }
+        if y0 < y1 && w > 0 {
+            relabel(&mut labels[y0 * w..(y1 * w).min(w * h)], &self.lut);
+        }
+        self.acc.clear();
+        Ok(PlaneSegmentation {
+            labels: Image::from_vec(w, h, labels)?,
+            planes: out.into_iter().map(|(_, p)| p).collect(),
+        })
+    }
+}

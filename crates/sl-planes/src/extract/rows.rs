@@ -1,0 +1,219 @@
+//! Row helpers of the label image: run ends, relabelling through a lookup table, the planes
+//! present in a 3-row neighbourhood, bit masks and bounding boxes.
+
+use super::*;
+
+/// End of the run of values equal to `row[i]` that starts at `i` (4 values per step).
+#[inline]
+pub(super) fn run_end(row: &[u16], i: usize) -> usize {
+    let v = row[i];
+    let vv = u64::from(v) * 0x0001_0001_0001_0001;
+    let rest = &row[i..];
+    let mut words = rest.chunks_exact(4);
+    let mut base = i;
+    for q in &mut words {
+        let w = u64::from(q[0])
+            | (u64::from(q[1]) << 16)
+            | (u64::from(q[2]) << 32)
+            | (u64::from(q[3]) << 48);
+        let x = w ^ vv;
+        if x != 0 {
+            return base + (x.trailing_zeros() / 16) as usize;
+        }
+        base += 4;
+    }
+    words
+        .remainder()
+        .iter()
+        .position(|&l| l != v)
+        .map_or(row.len(), |n| base + n)
+}
+
+/// Replaces every label `l` by `lut[l]` (0 beyond the table): when few labels change, 8 labels
+/// at a time are compared with each of them and blended with its new value (a chunk equal to
+/// the previous one reuses its result). Callers' labels are all within the table.
+pub(super) fn relabel(labels: &mut [u16], lut: &[u16]) {
+    let mut changed = [0i16; 16];
+    let mut nc = 0;
+    for (l, &v) in lut.iter().enumerate() {
+        if v as usize != l {
+            if nc == changed.len() {
+                remap(labels, lut);
+                return;
+            }
+            changed[nc] = l as i16;
+            nc += 1;
+        }
+    }
+    let from = changed.map(i16x8::splat);
+    let to = changed.map(|l| i16x8::splat(lut.get(l as u16 as usize).copied().unwrap_or(0) as i16));
+    let map = |v: i16x8| {
+        from[..nc]
+            .iter()
+            .zip(&to[..nc])
+            .fold(v, |r, (&f, &t)| v.cmp_eq(f).blend(t, r))
+    };
+    // Runs of equal chunks (inside a plane) reuse the previous chunk's result.
+    let (mut prev_v, mut prev_r) = (i16x8::ZERO, map(i16x8::ZERO));
+    let mut ch = labels.chunks_exact_mut(LANES);
+    for c in &mut ch {
+        let Ok(c8) = <&mut [u16; LANES]>::try_from(c) else {
+            continue;
+        };
+        let v = i16x8::from(c8.map(|l| l as i16));
+        if v.cmp_eq(prev_v).move_mask() & 0xff != 0xff {
+            prev_v = v;
+            prev_r = map(v);
+        }
+        *c8 = prev_r.to_array().map(|l| l as u16);
+    }
+    remap(ch.into_remainder(), lut);
+}
+
+/// Replaces every label `l` by `lut[l]` (0 beyond the table).
+pub(super) fn remap(labels: &mut [u16], lut: &[u16]) {
+    for l in labels.iter_mut() {
+        *l = lut.get(*l as usize).copied().unwrap_or(0);
+    }
+}
+
+/// Bit `l − 1` of label `l` for labels 1..=64 (0 for 0 and larger labels).
+static LABEL_BIT: [u64; 128] = {
+    let mut t = [0u64; 128];
+    let mut l = 1;
+    while l <= 64 {
+        t[l] = 1 << (l - 1);
+        l += 1;
+    }
+    t
+};
+
+/// The distinct planes (label − 1) of the cells `i0..i1` of `rows` (rows may be shorter or
+/// empty) into `out` (at most 16); returns their number.
+#[inline(always)]
+pub(super) fn neighbour_planes(
+    rows: [&[u16]; 3],
+    i0: usize,
+    i1: usize,
+    out: &mut [u16; 16],
+) -> usize {
+    // Labels up to 64 as bits, larger ones one by one.
+    let mut bits = 0u64;
+    let mut big = 0u16;
+    for r in rows {
+        for &l in r.get(i0.min(r.len())..i1.min(r.len())).unwrap_or(&[]) {
+            bits |= LABEL_BIT.get(l as usize).copied().unwrap_or(0);
+            big = big.max(l);
+        }
+    }
+    let mut n = 0;
+    while bits != 0 && n < out.len() {
+        out[n] = bits.trailing_zeros() as u16;
+        bits &= bits - 1;
+        n += 1;
+    }
+    if big > 64 {
+        for r in rows {
+            for &l in r.get(i0.min(r.len())..i1.min(r.len())).unwrap_or(&[]) {
+                if l > 64 && n < out.len() && !out[..n].contains(&(l - 1)) {
+                    out[n] = l - 1;
+                    n += 1;
+                }
+            }
+        }
+    }
+    n
+}
+
+/// The bits `l − 1` of the labels `l` of `row[a..b]` (labels ≤ 64; an empty or short row
+/// contributes its part of the range).
+#[inline(always)]
+pub(super) fn or_bits(row: &[u16], a: usize, b: usize) -> u64 {
+    // Callers have at most 64 planes: labels ≤ 64 < 128.
+    row.get(a..b.min(row.len()))
+        .unwrap_or(&[])
+        .iter()
+        .fold(0u64, |m, &l| m | LABEL_BIT[(l & 127) as usize])
+}
+
+/// The planes (label − 1) of a bit mask into `out` (at most 16); returns their number.
+#[inline(always)]
+pub(super) fn bits_to_planes(mut bits: u64, out: &mut [u16; 16]) -> usize {
+    let mut n = 0;
+    while bits != 0 && n < out.len() {
+        out[n] = bits.trailing_zeros() as u16;
+        bits &= bits - 1;
+        n += 1;
+    }
+    n
+}
+
+/// `s` padded to 8 elements with `fill`.
+#[inline]
+pub(super) fn pad<T: Copy>(s: &[T], fill: T) -> [T; LANES] {
+    let mut a = [fill; LANES];
+    let n = s.len().min(LANES);
+    a[..n].copy_from_slice(&s[..n]);
+    a
+}
+
+/// Bit mask of the non-zero bytes of a word whose bytes are 0 or 1.
+#[inline(always)]
+pub(super) fn byte_mask(v: u64) -> u32 {
+    (v.wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
+}
+
+/// Up to 8 bytes (0 or 1) as a little-endian word, zero-padded.
+#[inline(always)]
+pub(super) fn pad_word(s: &[u8]) -> u64 {
+    u64::from_le_bytes(<[u8; LANES]>::try_from(s).unwrap_or_else(|_| pad(s, 0)))
+}
+
+/// Bit mask of the non-zero values among up to 8 labels.
+#[inline(always)]
+pub(super) fn nonzero_mask(s: &[u16]) -> u32 {
+    let a = <[u16; LANES]>::try_from(s).unwrap_or_else(|_| pad(s, 0));
+    let v = i16x8::from(a.map(|l| l as i16));
+    (v.cmp_eq(i16x8::ZERO).move_mask() as u32 ^ 0xff) & 0xff
+}
+
+/// Keep bytes of 8 cells or pixels that all passed.
+pub(super) const ALL_KEPT: u64 = 0x0101_0101_0101_0101;
+
+/// `need[i]` = 1 for the unlabelled cells of `row` with a labelled 4-neighbour, else 0
+/// (`up` and `dn` have the length of `row`).
+pub(super) fn touching(row: &[u16], up: &[u16], dn: &[u16], need: &mut [u8]) {
+    for ((o, &u), &d) in need.iter_mut().zip(up).zip(dn) {
+        *o = u8::from((u | d) != 0);
+    }
+    if row.len() > 1 {
+        for (o, &l) in need[1..].iter_mut().zip(row) {
+            *o |= u8::from(l != 0);
+        }
+        for (o, &r) in need.iter_mut().zip(&row[1..]) {
+            *o |= u8::from(r != 0);
+        }
+    }
+    for (o, &c) in need.iter_mut().zip(row) {
+        *o &= u8::from(c == 0);
+    }
+}
+
+/// An empty support box.
+pub(super) const EMPTY_BOX: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
+
+pub(super) fn grow(bb: &mut [u32; 4], x0: usize, x1: usize, y: usize) {
+    bb[0] = bb[0].min(x0 as u32);
+    bb[1] = bb[1].min(y as u32);
+    bb[2] = bb[2].max(x1 as u32);
+    bb[3] = bb[3].max(y as u32);
+}
+
+pub(super) fn union_box(a: &[u32; 4], b: &[u32; 4]) -> [u32; 4] {
+    [
+        a[0].min(b[0]),
+        a[1].min(b[1]),
+        a[2].max(b[2]),
+        a[3].max(b[3]),
+    ]
+}

@@ -1,0 +1,138 @@
+//! Unit tests of the extractor.
+
+use super::*;
+use sl_core::{Camera, Intrinsics, SensorModel};
+
+/// The depth rows converted for the final pass and the per-pixel conversion of the
+/// disambiguation agree bit for bit, invalid depths (0, negative, NaN, ∞) included.
+#[test]
+fn depth_rows_and_pixels_agree() {
+    let (w, h, fb) = (13usize, 3usize, 43.5f32);
+    let specials = [0.0, -1.0, -0.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
+    let z: Vec<f32> = (0..w * h)
+        .map(|i| {
+            if i % 5 == 0 {
+                specials[(i / 5) % specials.len()]
+            } else {
+                0.3 + 0.0173 * i as f32
+            }
+        })
+        .collect();
+    let full = FullDisparity::Depth { z: &z, fb };
+    let mut scratch = vec![0.0; w];
+    for y in 0..h {
+        let row = full.row(y, w, &mut scratch).to_vec();
+        for (x, &d) in row.iter().enumerate() {
+            let i = y * w + x;
+            assert_eq!(d.to_bits(), full.at(i).to_bits(), "pixel {i}");
+            let ok = z[i] > 0.0 && z[i].is_finite();
+            assert_eq!(d > 0.0, ok, "pixel {i}");
+        }
+    }
+}
+
+/// Two tilted planes with a depth step between them, on frames whose sizes are not
+/// multiples of the cell (tail columns and rows), through both entry points.
+#[test]
+fn odd_sizes_and_disparity_input() {
+    for (w, h) in [(163usize, 125usize), (160, 120), (97, 61)] {
+        let k = Intrinsics::new(w, h, 150.0, 150.0, w as f64 / 2.0, h as f64 / 2.0).unwrap();
+        let cam = Camera {
+            intrinsics: k,
+            sensor: SensorModel::kinect_v1(),
+        };
+        let left = Plane3::new(nalgebra::Vector3::new(0.3, 0.0, -1.0), 1.5).unwrap();
+        let right = Plane3::new(nalgebra::Vector3::new(-0.3, 0.1, -1.0), 2.5).unwrap();
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f64, (i / w) as f64);
+                let p = if x < w as f64 / 2.0 { &left } else { &right };
+                p.depth_at(&k, x, y).unwrap_or(0.0) as f32
+            })
+            .collect();
+        let depth = DepthImage::from_vec(w, h, depth).unwrap();
+        let cfg = PlaneConfig {
+            min_pixels: 200,
+            min_piece_pixels: 64,
+            ..PlaneConfig::default()
+        };
+        let mut ex = PlaneExtractor::new(cfg).unwrap();
+        let seg = ex.extract_depth(&depth, &cam).unwrap();
+        assert_eq!(seg.planes.len(), 2, "{w}x{h}: {:?}", seg.planes);
+        let labelled = seg.labels.data().iter().filter(|&&l| l != 0).count();
+        assert!(
+            labelled as f64 > 0.9 * (w * h) as f64,
+            "{w}x{h}: {labelled}"
+        );
+        // Sorted by size, ids 1.., the label counts match.
+        for (i, p) in seg.planes.iter().enumerate() {
+            assert_eq!(p.id as usize, i + 1);
+            let n = seg.labels.data().iter().filter(|&&l| l == p.id).count();
+            assert_eq!(n, p.pixels);
+            let truth = if p.plane.normal.x > 0.0 {
+                &left
+            } else {
+                &right
+            };
+            assert!(p.plane.angle_deg(truth) < 0.1, "{:?}", p.plane);
+        }
+        // The same through the disparity entry point, also with garbage where invalid.
+        let disp = depth.to_disparity(&cam.sensor);
+        let seg2 = ex.extract_disparity(&disp, &cam).unwrap();
+        assert_eq!(seg2.planes.len(), 2);
+        assert_eq!(seg2.labels, seg.labels);
+        if w < 160 {
+            continue;
+        }
+        // (A hole of 8×8 pixels and a few isolated pixels.)
+        let is_bad = |i: usize| {
+            let (x, y) = (i % w, i / w);
+            (20..28).contains(&x) && (30..38).contains(&y) || i % 997 == 3
+        };
+        let mut bad = disp.data().to_vec();
+        for (i, v) in bad.iter_mut().enumerate().filter(|(i, _)| is_bad(*i)) {
+            *v = [f32::NAN, f32::INFINITY, -4.0, f32::NEG_INFINITY][i % 4];
+        }
+        let bad = DisparityImage::from_vec(w, h, bad).unwrap();
+        let seg3 = ex.extract_disparity(&bad, &cam).unwrap();
+        // (The isolated invalid pixels break the LoG support around them: fewer seeds,
+        // but never an invalid pixel labelled or a non-finite statistic.)
+        assert!(!seg3.planes.is_empty());
+        for (i, &l) in seg3.labels.data().iter().enumerate() {
+            if is_bad(i) {
+                assert_eq!(l, 0, "invalid pixel {i} labelled");
+            }
+        }
+        assert!(seg3.planes.iter().all(|p| p.rms_px.is_finite()
+            && p.rms_m.is_finite()
+            && p.centroid_m.iter().all(|c| c.is_finite())));
+    }
+}
+
+#[test]
+fn empty_and_tiny_frames() {
+    let cam = Camera::kinect_v1();
+    let k = cam.intrinsics;
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let seg = ex
+        .extract_depth(&DepthImage::invalid(k.width, k.height), &cam)
+        .unwrap();
+    assert!(seg.planes.is_empty());
+    assert!(seg.labels.data().iter().all(|&l| l == 0));
+    assert!(ex.stage_times().total_ns() > 0);
+    // Too small for the cell grid: no planes, no panic.
+    let tiny = Intrinsics::new(20, 12, 30.0, 30.0, 10.0, 6.0).unwrap();
+    let cam = Camera {
+        intrinsics: tiny,
+        sensor: SensorModel::kinect_v1(),
+    };
+    let seg = ex
+        .extract_depth(&DepthImage::from_vec(20, 12, vec![1.0; 240]).unwrap(), &cam)
+        .unwrap();
+    assert!(seg.planes.is_empty());
+    // A size mismatch is an error.
+    assert!(
+        ex.extract_depth(&DepthImage::invalid(10, 10), &cam)
+            .is_err()
+    );
+}
