@@ -20,10 +20,11 @@ use std::collections::HashSet;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-/// Library crates that may use `std::fs` and print: sl-io (all file I/O goes through it) and the
-/// dev-only sl-testkit (finds the shared data, says why a test skips). Binaries (`sldepth`,
+/// Library crates that may use `std::fs` and print: sl-io (all file I/O goes through it), the
+/// dev-only sl-testkit (finds the shared data, says why a test skips) and the unpublished
+/// evaluation support sl-eval (for xtask and the CLI, like the binaries). Binaries (`sldepth`,
 /// `xtask`) are not library crates.
-const IO_CRATES: &[&str] = &["sl-io", "sl-testkit"];
+const IO_CRATES: &[&str] = &["sl-io", "sl-testkit", "sl-eval"];
 /// Binary crates: exempt from the library rules.
 const BINARY_CRATES: &[&str] = &["sldepth"];
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.

@@ -128,12 +128,10 @@
 
 pub mod config;
 pub mod error;
-pub mod eval;
 mod fastexp;
 pub mod filter;
 mod kernel;
 pub mod reference;
-pub mod render;
 
 pub use config::FilterConfig;
 pub use error::{FilterError, Result};

@@ -9,7 +9,7 @@
 //!   disparity quantiser; the log-log slope of the depth steps, 1.946);
 //! * [`analysis`] — the depth-resolution analysis of any depth map (sorted unique depths,
 //!   `ln ΔZ` vs `ln Z` slopes, the quantum `c` of `ΔZ ≈ c·Z²`, the implied `f·B`, and the
-//!   disparity sub-pixel resolution), with [`plot`] drawing the paper's Figure 2;
+//!   disparity sub-pixel resolution; `sl-eval` draws it as the paper's Figure 2);
 //! * [`sim`] — a seeded Kinect simulator: analytic scenes (planes, rectangles, boxes, spheres,
 //!   cylinders, relief plates) rendered to exact depth, labels and normals, then through the
 //!   sensor (Gaussian disparity noise, `1/q` quantisation, 1 mm rounding, range limits,
@@ -35,8 +35,6 @@
 //! assert!((r.slope - 2.0).abs() < 0.1);
 //! assert!((r.fb_px_m.unwrap_or(0.0) / sim.sensor.fb() - 1.0).abs() < 0.01);
 //! assert_eq!(r.subpixel_steps, Some(8));
-//! let svg = sl_noise::plot::resolution_svg(&r);
-//! assert!(svg.starts_with("<svg"));
 //! # Ok::<(), sl_noise::NoiseError>(())
 //! ```
 #![deny(missing_docs)]
@@ -46,7 +44,6 @@
 pub mod algorithm1;
 pub mod analysis;
 pub mod error;
-pub mod plot;
 pub mod sim;
 
 pub use algorithm1::{Algorithm1, Algorithm1Params, algorithm1, algorithm1_with};

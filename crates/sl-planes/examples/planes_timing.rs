@@ -250,7 +250,7 @@ fn compare(dir: &std::path::Path) {
 
 /// Side-by-side overlays (saved labels | current labels) of the frames matching `filter`.
 fn view(dir: &std::path::Path, out: &std::path::Path, filter: &str) {
-    use sl_planes::overlay::{depth_to_rgb, overlay_rgb};
+    use sl_eval::planes::overlay::{depth_to_rgb, overlay_rgb};
     std::fs::create_dir_all(out).unwrap();
     let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
     for (name, input, cam) in load(50) {

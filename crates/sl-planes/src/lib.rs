@@ -14,7 +14,8 @@
 //!   frame on one core; reuse one extractor for a video ([`PlaneExtractor::stage_times`] gives
 //!   the time per stage).
 //! * [`ransac::metric_ransac`]: the fixed metric-threshold baseline (Open3D `segment_plane` style).
-//! * [`segcomp::segcomp`]: the Hoover et al. segmentation comparison.
+//!   (Scoring a segmentation — the Hoover et al. SegComp comparison — and colour overlays of the
+//!   labels are evaluation tools: they live in `sl-eval`.)
 //! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes,
 //!   [`estimate_motion_verified`] checking every plane hypothesis against both depth maps (no
 //!   prior needed; "not determined" rather than a wrong rotation), and point-to-plane ICP
@@ -49,10 +50,8 @@ mod fit;
 mod kernels;
 mod log;
 pub mod motion;
-pub mod overlay;
 pub mod plane;
 pub mod ransac;
-pub mod segcomp;
 mod verify;
 
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
@@ -67,4 +66,3 @@ pub use motion::{
 };
 pub use plane::{DisparityAffine, Plane3};
 pub use ransac::{RansacConfig, metric_ransac};
-pub use segcomp::{SegCompScore, segcomp};

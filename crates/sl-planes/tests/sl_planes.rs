@@ -4,10 +4,10 @@
 use proptest::prelude::*;
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, DepthImage, Image, Intrinsics, SensorModel};
+use sl_eval::planes::segcomp;
 use sl_noise::sim::KinectSimulator;
 use sl_planes::{
-    MotionConfig, Plane3, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion,
-    metric_ransac, segcomp,
+    MotionConfig, Plane3, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion, metric_ransac,
 };
 
 /// A 160x120 camera (focal length `f`) with the Kinect sensor model (f·B = 43.5 px·m).

@@ -12,7 +12,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{DepthImage, Intrinsics, Pose};
-use sl_tsdf::synth::AnalyticScene;
+use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
 
 struct Sequence {
@@ -32,7 +32,7 @@ fn real(seq: Option<sl_testkit::PosedSequence>) -> Option<Sequence> {
 
 /// A 4×3×2.5 m room with a few spheres, seen by 10 cameras moving along a wall.
 fn simulated() -> Sequence {
-    let mut scene = AnalyticScene::default();
+    let mut scene = Scene::new();
     for (n, d) in [
         (Vector3::x(), 2.0),
         (-Vector3::x(), 2.0),
@@ -40,10 +40,10 @@ fn simulated() -> Sequence {
         (Vector3::y(), 1.2),
         (-Vector3::y(), 1.3),
     ] {
-        scene.planes.push((n, d));
+        scene.add(Plane::from_normal_offset(n, d).expect("valid plane"));
     }
-    scene.spheres.push((Point3::new(0.3, 0.5, 1.8), 0.35));
-    scene.spheres.push((Point3::new(-0.8, 0.9, 2.2), 0.3));
+    scene.add(Sphere::new(Point3::new(0.3, 0.5, 1.8), 0.35).expect("valid sphere"));
+    scene.add(Sphere::new(Point3::new(-0.8, 0.9, 2.2), 0.3).expect("valid sphere"));
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).expect("valid intrinsics");
     let frames = (0..10)
         .map(|i| {
@@ -51,7 +51,7 @@ fn simulated() -> Sequence {
                 Vector3::new(-0.5 + 0.1 * i as f64, 0.0, -0.5),
                 Vector3::new(0.0, 0.05 * i as f64 - 0.2, 0.0),
             );
-            (scene.render(&k, &pose), pose)
+            (scene.render(&k, &pose).depth, pose)
         })
         .collect();
     Sequence {

@@ -22,8 +22,8 @@
 //! * [`TsdfVolume::extract_mesh`]: marching cubes across block borders, indexed mesh with shared
 //!   vertices, normals from the TSDF gradient and per-vertex confidence ([`Mesh`]).
 //! * [`TsdfVolume::slice`]: cross-sections of `F` with the zero crossing (the paper's Fig. 7).
-//! * [`render::render_mesh`], [`metrics`]: a software renderer and accuracy statistics for
-//!   reports; [`io`]: PLY meshes and PNG images through `sl-io`.
+//! * [`io`]: PLY meshes and PNG images through `sl-io`. (A software mesh renderer and
+//!   mesh-accuracy statistics for reports are evaluation tools: they live in `sl-eval`.)
 //!
 //! ## Numerics of the 1/Z⁴ average
 //!
@@ -53,14 +53,16 @@
 //! ```
 //! use sl_core::{Camera, Pose};
 //! use sl_core::nalgebra::{Point3, Vector3};
-//! use sl_tsdf::synth::AnalyticScene;
+//! use sl_noise::sim::{Plane, Scene};
 //! use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
 //!
-//! // A wall 1 m in front of a small camera looking along +Z.
+//! // A wall 1 m in front of a small camera looking along +Z (exact depth from the ray caster
+//! // of `sl-noise`'s simulator).
 //! let k = Camera::kinect_v1().intrinsics.scaled(0.25)?;
-//! let scene = AnalyticScene { planes: vec![(Vector3::z(), 1.0)], ..Default::default() };
+//! let mut scene = Scene::new();
+//! scene.add(Plane::from_normal_offset(Vector3::z(), 1.0)?);
 //! let pose = Pose::identity();
-//! let depth = scene.render(&k, &pose);
+//! let depth = scene.render(&k, &pose).depth;
 //!
 //! let params = TsdfConfig { voxel_m: 0.02, trunc_m: 0.06, ..TsdfConfig::default() };
 //! let mut volume = TsdfVolume::new(params)?;
@@ -72,7 +74,7 @@
 //! let mesh = volume.extract_mesh(&ExtractOptions::default());
 //! assert!(mesh.triangle_count() > 0);
 //! assert!(mesh.positions.iter().all(|p| (p[2] - 1.0).abs() < 1e-3));
-//! # Ok::<(), sl_tsdf::TsdfError>(())
+//! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 #![deny(missing_docs)]
 
@@ -81,17 +83,13 @@ mod hash;
 pub mod io;
 mod mc_table;
 pub mod mesh;
-pub mod metrics;
 mod par;
 pub mod params;
-pub mod render;
 pub mod slice;
-pub mod synth;
 pub mod volume;
 
 pub use error::{Result, TsdfError};
 pub use mesh::{ExtractOptions, Mesh, Topology};
-pub use metrics::DistanceStats;
 #[allow(deprecated)]
 pub use params::{TsdfConfig, TsdfParams, WeightMode};
 pub use slice::{Axis, Slice, SliceSpec};

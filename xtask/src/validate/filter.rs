@@ -9,7 +9,7 @@
 //!    The default multiplier `m` of `k = m·σ_D/(f·B)` is chosen here: a sweep of `m` on the
 //!    same frames, the best overall RMSE wins (and must be the constant in sl-filter).
 //! 2. Real frames (`person-depth.png`, the PCL floor scan, a TUM frame): the dominant plane
-//!    (RANSAC, see `sl_filter::eval::dominant_plane_region`) and the plane-fit residual per depth
+//!    (RANSAC, see `sl_eval::filter::dominant_plane_region`) and the plane-fit residual per depth
 //!    band before and after each filter.
 //!
 //! Checks (thresholds fixed before measuring): the adaptive filter beats raw in every band,
@@ -21,7 +21,7 @@ use std::path::Path;
 
 use anyhow::{Context as _, Result};
 use sl_core::{Camera, DepthImage, Intrinsics, SensorModel};
-use sl_filter::eval::{self, BandError, KINECT_BANDS_M};
+use sl_eval::filter::{self as eval, BandError, KINECT_BANDS_M};
 use sl_filter::{DEFAULT_K_MULTIPLIER, DEFAULT_RADIUS_PX, DepthFilter, default_sigma_s_px};
 use sl_noise::sim::{KinectSimulator, named_scene};
 
@@ -380,12 +380,12 @@ fn write_normals(
     k: &Intrinsics,
     filters: &[Option<DepthFilter>],
 ) -> Result<String> {
-    let mut imgs = vec![sl_filter::render::shaded_normals(depth, k)?];
+    let mut imgs = vec![sl_eval::render::shaded_normals(depth, k)?];
     for f in filters.iter().flatten() {
-        imgs.push(sl_filter::render::shaded_normals(&f.apply(depth)?, k)?);
+        imgs.push(sl_eval::render::shaded_normals(&f.apply(depth)?, k)?);
     }
     let refs: Vec<&_> = imgs.iter().collect();
-    let img = sl_filter::render::side_by_side(&refs)?;
+    let img = sl_eval::render::side_by_side(&refs)?;
     std::fs::create_dir_all(dir)?;
     sl_io::rgb::write_rgb_png(dir.join(name), &img)?;
     Ok(name.to_string())
@@ -443,7 +443,7 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
     let mut md = String::from(
         "Residual = RMS orthogonal distance to a least-squares plane fitted (per method) on the dominant \
          plane's region: RANSAC (500 samples) with an inlier band 3σ_Z(Z) + ΔZ(Z) + 2 mm, refitted, mask \
-         closed by 2 px and eroded by r + 1 = 4 px (see `sl_filter::eval::dominant_plane_region`). \
+         closed by 2 px and eroded by r + 1 = 4 px (see `sl_eval::filter::dominant_plane_region`). \
          Filters use the frame's camera (f from the intrinsics, B = 75 mm, σ_D = 0.07 px).\n\n",
     );
     let mut first_img = None;

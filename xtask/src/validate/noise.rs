@@ -123,10 +123,10 @@ fn first_matching(dir: &Path, suffix: &str) -> PathBuf {
 }
 
 fn write_plots(ctx: &Context, stem: &str, a: &ResolutionAnalysis) -> Result<String> {
-    let svg = sl_noise::plot::resolution_svg(a);
+    let svg = sl_eval::plot::resolution_svg(a);
     let svg_path = ctx.out_dir().join(format!("{stem}.svg"));
     sl_io::atomic::write_atomic(&svg_path, |w| w.write_all(svg.as_bytes()))?;
-    let png = sl_noise::plot::resolution_rgb(a, 900, 420);
+    let png = sl_eval::plot::resolution_rgb(a, 900, 420);
     sl_io::rgb::write_rgb_png(ctx.out_dir().join(format!("{stem}.png")), &png)?;
     Ok(format!("{stem}.svg"))
 }

@@ -28,12 +28,12 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use sl_core::{Camera, DepthImage, Image};
+use sl_eval::planes::{SegCompScore, overlay, segcomp};
 use sl_noise::sim::{KinectSimulator, named_scene};
 use sl_planes::{
     IcpConfig, IcpOutcome, MotionConfidence, MotionConfig, MotionFrame, PlaneConfig,
-    PlaneExtractor, PlaneSegmentation, RansacConfig, SegCompScore, Verification, VerifyConfig,
-    estimate_motion, estimate_motion_verified, icp_point_to_plane, metric_ransac, overlay,
-    refine_motion_icp_verified, segcomp,
+    PlaneExtractor, PlaneSegmentation, RansacConfig, Verification, VerifyConfig, estimate_motion,
+    estimate_motion_verified, icp_point_to_plane, metric_ransac, refine_motion_icp_verified,
 };
 
 use super::Context;

@@ -19,9 +19,10 @@ use std::time::Instant;
 use anyhow::{Context as _, Result};
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Camera, Image, Intrinsics, Pose};
+use sl_eval::DistanceStats;
 use sl_noise::sim::{KinectSimulator, ReliefPlate, Scene, look_at};
 use sl_tsdf::slice::hconcat;
-use sl_tsdf::{Axis, DistanceStats, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use super::Context;
 
@@ -144,7 +145,7 @@ fn simulated(ctx: &mut Context) -> Result<()> {
             }
             let mesh = vol.extract_mesh(&ExtractOptions::default());
             verts += mesh.vertex_count();
-            dists.extend(sl_tsdf::metrics::vertex_distances(&mesh, keep, |p| {
+            dists.extend(sl_eval::tsdf::vertex_distances(&mesh, keep, |p| {
                 scene.distance(p)
             }));
             if si == 0
@@ -488,7 +489,7 @@ fn real(ctx: &mut Context) -> Result<()> {
                 &mesh,
                 sl_io::PlyFormat::BinaryLittleEndian,
             )?;
-            let img = sl_tsdf::render::render_mesh(&mesh, &seq.k, &seq.frames[0].1)?;
+            let img = sl_eval::render::render_mesh(&mesh, &seq.k, &seq.frames[0].1)?;
             let png = format!("tsdf_{tag}.png");
             sl_tsdf::io::write_png(ctx.out_dir().join(&png), &img)?;
             images.push((tag.clone(), png));

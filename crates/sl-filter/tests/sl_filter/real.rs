@@ -1,6 +1,6 @@
 //! A real Kinect-class frame (skipped when ../shared/data is absent).
 
-use sl_filter::eval::{dominant_plane_region, plane_residual_by_band};
+use sl_eval::filter::{dominant_plane_region, plane_residual_by_band};
 use sl_filter::{DEFAULT_RADIUS_PX, DepthFilter, Method};
 
 /// On the wall behind the person, every filter keeps the valid mask and lowers the plane-fit

@@ -14,7 +14,7 @@ use sl_core::SensorModel;
 
 use super::*;
 use crate::params::WeightMode;
-use crate::synth::AnalyticScene;
+use sl_noise::sim::{Plane, Scene, Sphere};
 
 /// Allowance for the f32 arithmetic of the fast path, in block units (1/1000 of a block): a
 /// block whose box the segment misses or meets by less than this may go either way.
@@ -393,13 +393,8 @@ impl ReferenceVolume {
 
 /// A room-like scene (walls, floor, two spheres) rendered from `pose`, with holes and a few
 /// non-finite pixels.
-fn scene_frame(
-    rng: &mut ChaCha8Rng,
-    k: &Intrinsics,
-    pose: &Pose,
-    scene: &AnalyticScene,
-) -> Vec<f32> {
-    let mut depth = scene.render(k, pose).data().to_vec();
+fn scene_frame(rng: &mut ChaCha8Rng, k: &Intrinsics, pose: &Pose, scene: &Scene) -> Vec<f32> {
+    let mut depth = scene.render(k, pose).depth.data().to_vec();
     for d in depth.iter_mut() {
         let r: f32 = rng.random_range(0.0..1.0);
         if r < 0.04 {
@@ -411,18 +406,23 @@ fn scene_frame(
     depth
 }
 
-fn room() -> AnalyticScene {
-    AnalyticScene {
-        planes: vec![
-            (Vector3::z(), 1.6),
-            (Vector3::x(), 0.9),
-            (-Vector3::y(), 0.7),
-        ],
-        spheres: vec![
-            (Point3::new(0.1, 0.05, 1.1), 0.2),
-            (Point3::new(-0.4, -0.2, 1.3), 0.15),
-        ],
+/// Walls and a floor `n·x = d` and two spheres, ray-cast by `sl-noise`'s simulator.
+fn room() -> Scene {
+    let mut scene = Scene::new();
+    for (n, d) in [
+        (Vector3::z(), 1.6),
+        (Vector3::x(), 0.9),
+        (-Vector3::y(), 0.7),
+    ] {
+        scene.add(Plane::from_normal_offset(n, d).unwrap());
     }
+    for (c, r) in [
+        (Point3::new(0.1, 0.05, 1.1), 0.2),
+        (Point3::new(-0.4, -0.2, 1.3), 0.15),
+    ] {
+        scene.add(Sphere::new(c, r).unwrap());
+    }
+    scene
 }
 
 /// Fuses `frames` into a fresh volume and into the reference, comparing after each frame.
@@ -696,7 +696,7 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
     let poses: Vec<Pose> = (0..8)
         .map(|i| Pose::new(Vector3::new(0.03 * i as f64, 0.0, 0.0), Vector3::zeros()))
         .collect();
-    let frames: Vec<DepthImage> = poses.iter().map(|q| scene.render(&k, q)).collect();
+    let frames: Vec<DepthImage> = poses.iter().map(|q| scene.render(&k, q).depth).collect();
     let mut free = TsdfVolume::new(p).unwrap();
     for (d, q) in frames.iter().zip(&poses) {
         free.integrate(d, &k, q).unwrap();

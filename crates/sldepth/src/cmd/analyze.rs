@@ -39,12 +39,10 @@ pub fn run(args: Args) -> Result<()> {
             .unwrap_or_default();
         match ext.as_str() {
             "svg" => {
-                let svg = sl_noise::plot::resolution_svg(&a);
+                let svg = sl_eval::plot::resolution_svg(&a);
                 sl_io::atomic::write_atomic(plot, |w| w.write_all(svg.as_bytes()))?;
             }
-            "png" => {
-                sl_io::rgb::write_rgb_png(plot, &sl_noise::plot::resolution_rgb(&a, 900, 420))?
-            }
+            "png" => sl_io::rgb::write_rgb_png(plot, &sl_eval::plot::resolution_rgb(&a, 900, 420))?,
             _ => bail!("--plot {}: use a .svg or .png file name", plot.display()),
         }
     }

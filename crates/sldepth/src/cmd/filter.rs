@@ -91,7 +91,7 @@ pub fn run(args: Args) -> Result<()> {
     };
     save_depth(&args.output, &out, &loaded.encoding)?;
     if let Some(p) = &args.normals {
-        let img = sl_filter::render::shaded_normals(&out, &loaded.camera.intrinsics)?;
+        let img = sl_eval::render::shaded_normals(&out, &loaded.camera.intrinsics)?;
         sl_io::write_rgb_png(p, &img).with_context(|| format!("writing {}", p.display()))?;
     }
     times_ms.sort_by(f64::total_cmp);

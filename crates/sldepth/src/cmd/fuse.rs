@@ -283,7 +283,7 @@ pub fn run(args: Args) -> Result<()> {
         sl_tsdf::io::write_png(png, &img).with_context(|| format!("writing {}", png.display()))?;
     }
     if let (Some(png), Some(pose)) = (&args.render_png, first_pose) {
-        let img = sl_tsdf::render::render_mesh(&mesh, &k, &pose)?;
+        let img = sl_eval::render::render_mesh(&mesh, &k, &pose)?;
         sl_tsdf::io::write_png(png, &img).with_context(|| format!("writing {}", png.display()))?;
     }
     let total_ms: f64 = integrate_ms.iter().sum();

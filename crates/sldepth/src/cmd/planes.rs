@@ -7,10 +7,9 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use serde_json::json;
 use sl_core::Image;
+use sl_eval::planes::overlay;
 use sl_io::DepthFormat;
-use sl_planes::{
-    PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac, overlay,
-};
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac};
 
 use crate::common::{InputArgs, load_depth, print_json, round_to};
 

@@ -16,7 +16,7 @@ use std::collections::HashMap;
 
 use sl_core::Image;
 
-use crate::error::{PlanesError, Result};
+use crate::error::{EvalError, Result};
 
 /// The counts of a SegComp comparison.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -48,7 +48,7 @@ pub fn segcomp(
     min_gt_pixels: usize,
 ) -> Result<SegCompScore> {
     if gt.dimensions() != seg.dimensions() {
-        return Err(PlanesError::SizeMismatch {
+        return Err(EvalError::SizeMismatch {
             expected_width: gt.width(),
             expected_height: gt.height(),
             width: seg.width(),
@@ -58,12 +58,12 @@ pub fn segcomp(
     if let Some(v) = valid
         && v.len() != gt.data().len()
     {
-        return Err(PlanesError::InvalidConfig(
+        return Err(EvalError::InvalidParameter(
             "valid mask has the wrong length".into(),
         ));
     }
     if !(t > 0.5 && t <= 1.0) {
-        return Err(PlanesError::InvalidConfig(format!(
+        return Err(EvalError::InvalidParameter(format!(
             "tolerance {t} must be in (0.5, 1]"
         )));
     }

@@ -5,8 +5,7 @@
 use std::fmt::Write as _;
 
 use sl_core::Image;
-
-use crate::analysis::ResolutionAnalysis;
+use sl_noise::analysis::ResolutionAnalysis;
 
 /// Axis ticks: "nice" values (1, 2, 5 × 10ⁿ) covering `[lo, hi]`, about `target` of them.
 pub fn nice_ticks(lo: f64, hi: f64, target: usize) -> Vec<f64> {
@@ -368,8 +367,8 @@ fn draw_line(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::analysis::{AnalysisOptions, analyze_depths};
-    use crate::sim::KinectSimulator;
+    use sl_noise::analysis::{AnalysisOptions, analyze_depths};
+    use sl_noise::sim::KinectSimulator;
 
     fn analysis() -> ResolutionAnalysis {
         let sim = KinectSimulator {

@@ -1,4 +1,5 @@
-//! Shaded-normal renderings of depth maps: depth noise is far easier to see in surface normals
+//! Shaded-normal renderings of depth maps (the CLI's `sldepth filter --normals` and the filter
+//! report): depth noise is far easier to see in surface normals
 //! (which differentiate the depth) than in the depth itself.
 
 use rayon::prelude::*;

@@ -1,11 +1,12 @@
 //! A small software renderer: z-buffered, Lambert-shaded triangles to an RGB image, for
-//! looking at fused meshes in reports without a 3D viewer.
+//! looking at fused meshes in reports (and the CLI's `sldepth fuse --render-png`) without a 3D
+//! viewer.
 
-use nalgebra::{Point3, Vector3};
+use sl_core::nalgebra::{self, Point3, Vector3};
 use sl_core::{Image, Intrinsics, Pose};
+use sl_tsdf::Mesh;
 
-use crate::error::{Result, TsdfError};
-use crate::mesh::Mesh;
+use crate::error::{EvalError, Result};
 
 /// Background colour.
 pub const BACKGROUND_RGB: [u8; 3] = [255, 255, 255];
@@ -17,7 +18,7 @@ pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &Pose) -> Result<Image<[u8
     k.validate()?;
     let (w, h) = (k.width, k.height);
     if w.saturating_mul(h) > 64 << 20 {
-        return Err(TsdfError::InvalidParameter(format!(
+        return Err(EvalError::InvalidParameter(format!(
             "render size {w}x{h} too large"
         )));
     }
@@ -104,7 +105,7 @@ pub fn framing_camera(
 ) -> Result<(Intrinsics, Pose)> {
     let (lo, hi) = mesh
         .bounds()
-        .ok_or_else(|| TsdfError::InvalidParameter("cannot frame an empty mesh".into()))?;
+        .ok_or_else(|| EvalError::InvalidParameter("cannot frame an empty mesh".into()))?;
     let lo = Vector3::new(f64::from(lo[0]), f64::from(lo[1]), f64::from(lo[2]));
     let hi = Vector3::new(f64::from(hi[0]), f64::from(hi[1]), f64::from(hi[2]));
     let centre = (lo + hi) / 2.0;
@@ -122,11 +123,11 @@ pub fn framing_camera(
     let dist = radius / half_fov.sin() * 1.05;
     let z = view_dir
         .try_normalize(1e-12)
-        .ok_or_else(|| TsdfError::InvalidParameter("zero view direction".into()))?;
+        .ok_or_else(|| EvalError::InvalidParameter("zero view direction".into()))?;
     let x = (-up)
         .cross(&z)
         .try_normalize(1e-12)
-        .ok_or_else(|| TsdfError::InvalidParameter("view direction parallel to up".into()))?;
+        .ok_or_else(|| EvalError::InvalidParameter("view direction parallel to up".into()))?;
     let y = z.cross(&x);
     let rot =
         nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z]));

@@ -1,11 +1,11 @@
-//! Evaluation metrics for depth filters (used by `cargo xtask validate` and unit-tested here):
-//! RMSE against ground truth per depth band, depth-edge masks, and plane-fit residuals on a
-//! robustly chosen planar region of a real frame.
+//! Evaluation metrics for depth filters (used by `cargo xtask validate` and the `sl-filter`
+//! tests): RMSE against ground truth per depth band, depth-edge masks, and plane-fit residuals
+//! on a robustly chosen planar region of a real frame.
 
 use sl_core::nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use sl_core::{DepthImage, Intrinsics, SensorModel};
 
-use crate::error::{FilterError, Result};
+use crate::error::{EvalError, Result};
 
 /// The depth bands of the evaluation, metres: `< 1.5`, `1.5–2.5`, `> 2.5`.
 pub const KINECT_BANDS_M: [(f32, f32); 3] = [(0.0, 1.5), (1.5, 2.5), (2.5, f32::INFINITY)];
@@ -47,7 +47,7 @@ fn valid(z: f32) -> bool {
 
 fn same_size(a: &DepthImage, b: &DepthImage) -> Result<()> {
     if a.width() != b.width() || a.height() != b.height() {
-        return Err(FilterError::ImageSize(format!(
+        return Err(EvalError::ImageSize(format!(
             "{}x{} vs {}x{}",
             a.width(),
             a.height(),

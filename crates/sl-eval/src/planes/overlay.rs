@@ -1,4 +1,5 @@
-//! Colour overlays of plane labels (for the CLI and the validation report). No I/O.
+//! Colour overlays of plane labels (for the CLI's `sldepth planes --overlay` and the validation
+//! report). No I/O.
 
 use sl_core::{DepthImage, Image};
 

@@ -1,9 +1,9 @@
-//! Accuracy metrics: distances from a mesh to a reference surface.
+//! Accuracy of fused meshes: distances from the vertices of an `sl-tsdf` mesh to a reference
+//! surface, and their summary statistics.
 
-use nalgebra::Point3;
 use rayon::prelude::*;
-
-use crate::mesh::Mesh;
+use sl_core::nalgebra::Point3;
+use sl_tsdf::Mesh;
 
 /// Summary of unsigned distances, metres.
 #[derive(Debug, Clone, Copy, PartialEq)]
