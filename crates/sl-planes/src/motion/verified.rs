@@ -154,159 +154,18 @@ pub fn estimate_motion_verified(
             check.samples()
         )));
     }
-    let w_out = vcfg.outlier_weight;
-    let tol = (vcfg.inlier_base_m, vcfg.inlier_sigmas);
-    // Coarse score of every hypothesis as proposed by the planes, on few samples
-    // (hypotheses that move the frames mostly out of each other's view are left out).
-    let mut coarse: Vec<(usize, Isometry3<f64>, f64)> = Vec::with_capacity(hyps.len());
-    for (i, h) in hyps.iter().enumerate() {
-        let pose = Isometry3::from_parts(
-            Translation3::from(h.translation),
-            UnitQuaternion::from_rotation_matrix(&h.rotation),
-        ) * g;
-        let s = check.score(&pose, (vcfg.coarse_inlier_m, 0.0), Density::Coarse);
-        if s.overlap_fraction() >= vcfg.min_overlap_fraction {
-            coarse.push((i, pose, s.evidence(w_out)));
-        }
-    }
-    coarse.sort_by(|x, y| y.2.total_cmp(&x.2).then(x.0.cmp(&y.0)));
-    let distinct = cfg.distinct_deg.to_radians();
-    // Local refinement and the final score of the best ones.
-    let mut checked: Vec<Checked> = Vec::new();
-    for (i, pose, _) in coarse.iter().take(vcfg.refine_hypotheses) {
-        let Ok(aligned) = check.refine(
-            pose,
-            vcfg.refine_iterations,
-            vcfg.refine_start_m,
-            vcfg.refine_end_m,
-        ) else {
-            continue;
-        };
-        let score = check.score(&aligned, tol, Density::Full);
-        if score.overlap_fraction() < vcfg.min_overlap_fraction {
-            continue;
-        }
-        // A motion from planes needs planes: two plane matches at least `min_spread_deg`
-        // apart, consistent with the refined alignment, or else those of the hypothesis itself
-        // if it lies within `distinct_deg` of the alignment (the bands of one bent desk
-        // determine no rotation about its normal).
-        let consistent = consistent_matches(a.planes, b.planes, &aligned, cfg);
-        let own = &hyps[*i].matches;
-        let own_rotation = UnitQuaternion::from_rotation_matrix(&hyps[*i].rotation) * g.rotation;
-        let Some((rotation, matches)) = [consistent, own.clone()]
-            .into_iter()
-            .enumerate()
-            .filter(|(k, _)| *k == 0 || own_rotation.angle_to(&aligned.rotation) < distinct)
-            .find_map(|(_, ms)| {
-                spread_ok(a.planes, &ms, cfg)
-                    .then(|| kabsch_ab(a.planes, b.planes, &ms))
-                    .flatten()
-                    .map(|r| (r, ms))
-            })
-        else {
-            continue;
-        };
-        checked.push(Checked {
-            aligned,
-            score,
-            support: hyps[*i].support,
-            matches,
-            rotation,
-        });
-    }
-    checked.sort_by(|x, y| {
-        y.score
-            .evidence(w_out)
-            .total_cmp(&x.score.evidence(w_out))
-            .then(y.support.total_cmp(&x.support))
-    });
-    let Some(best) = checked.first() else {
-        return Err(PlanesError::MotionNotVerified {
-            reason: format!(
-                "none of the {} plane hypotheses, refined on the data, overlaps the other \
-                 frame with {:.0} % of the points and keeps two non-parallel plane matches",
-                hyps.len(),
-                100.0 * vcfg.min_overlap_fraction
-            ),
-            inlier_fraction: 0.0,
-            alternative_inlier_fraction: 0.0,
-        });
-    };
-    let aligned = best.aligned;
-    let inlier_fraction = best.score.inlier_fraction();
-    let overlap_fraction = best.score.overlap_fraction();
-    // A pose is consistent with the data when it explains `min_inlier_fraction` of the
-    // overlapping points; the winner must be, and no distinct alternative may be.
-    let consistent = |s: &Score| {
-        s.overlap_fraction() >= vcfg.min_overlap_fraction
-            && s.inlier_fraction() >= vcfg.min_inlier_fraction
-    };
-    let alternative = checked
-        .iter()
-        .filter(|c| c.aligned.rotation.angle_to(&aligned.rotation) > distinct)
-        .map(|c| c.score)
-        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
-    let alternative_inlier_fraction = alternative.map_or(0.0, |s| s.inlier_fraction());
-    let not_verified = |reason: String, alt: f64| PlanesError::MotionNotVerified {
-        reason,
+    // hypothesise (above) → rank → refine → decide → the plane estimate.
+    let coarse = rank(&hyps, &g, &mut check, vcfg);
+    let checked = refine(&coarse, &hyps, &g, &mut check, a, b, cfg, vcfg);
+    let decision = decide(&checked, hyps.len(), &mut check, a, cfg, vcfg)?;
+    let (best, aligned) = (&checked[decision.best], checked[decision.best].aligned);
+    let Decision {
         inlier_fraction,
-        alternative_inlier_fraction: alt,
-    };
-    if !consistent(&best.score) {
-        return Err(not_verified(
-            format!(
-                "the best of {} plane hypotheses explains {:.0} % of the overlapping points \
-                 (< {:.0} %)",
-                hyps.len(),
-                100.0 * inlier_fraction,
-                100.0 * vcfg.min_inlier_fraction
-            ),
-            alternative_inlier_fraction,
-        ));
-    }
-    if alternative.as_ref().is_some_and(consistent) {
-        return Err(not_verified(
-            format!(
-                "ambiguous: a rotation more than {}° away from the best also explains {:.0} % \
-                 of its overlapping points",
-                cfg.distinct_deg,
-                100.0 * alternative_inlier_fraction
-            ),
-            alternative_inlier_fraction,
-        ));
-    }
-    // Can the data tell the winner from rotations `distinct_deg` away at all? Turning the
-    // alignment about the normal of a dominant plane (through the inliers' centroid) slides
-    // that plane in itself: when the shared view is mostly one plane such a turn stays
-    // consistent, and an alternative there could not have been rejected.
-    let mut axes: Vec<Vector3<f64>> = vec![Vector3::x(), Vector3::y(), Vector3::z()];
-    for p in a.planes {
-        if axes.len() >= 3 + MAX_PERTURB_PLANES {
-            break;
-        }
-        if axes[3..]
-            .iter()
-            .all(|n| angle_deg(n, &p.plane.normal) > cfg.distinct_deg)
-        {
-            axes.push(p.plane.normal);
-        }
-    }
-    let turned = check
-        .perturbed(&aligned, &axes, distinct, tol)
-        .into_iter()
-        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
-    let turned_inlier_fraction = turned.map_or(0.0, |s| s.inlier_fraction());
-    if turned.as_ref().is_some_and(consistent) {
-        return Err(not_verified(
-            format!(
-                "the shared view does not pin the rotation down (mostly one plane?): the \
-                 alignment turned by {}° still explains {:.0} % of the overlapping points",
-                cfg.distinct_deg,
-                100.0 * turned_inlier_fraction
-            ),
-            turned_inlier_fraction,
-        ));
-    }
+        overlap_fraction,
+        alternative_inlier_fraction,
+        turned_inlier_fraction,
+        ..
+    } = decision;
     // The plane estimate: weighted Kabsch over the matches consistent with the alignment.
     let (r, matches) = (best.rotation, best.matches.clone());
     let rotation = UnitQuaternion::from_rotation_matrix(&r);
@@ -376,4 +235,218 @@ pub(super) fn consistent_matches(
             free
         })
         .collect()
+}
+
+/// Stage "rank": the coarse score of every hypothesis as proposed by the planes, on few
+/// samples (hypotheses that move the frames mostly out of each other's view are left out),
+/// best first.
+fn rank(
+    hyps: &[Hypothesis],
+    g: &Isometry3<f64>,
+    check: &mut TwoWay<'_>,
+    vcfg: &VerifyConfig,
+) -> Vec<(usize, Isometry3<f64>, f64)> {
+    let w_out = vcfg.outlier_weight;
+    let mut coarse: Vec<(usize, Isometry3<f64>, f64)> = Vec::with_capacity(hyps.len());
+    for (i, h) in hyps.iter().enumerate() {
+        let pose = Isometry3::from_parts(
+            Translation3::from(h.translation),
+            UnitQuaternion::from_rotation_matrix(&h.rotation),
+        ) * *g;
+        let s = check.score(&pose, (vcfg.coarse_inlier_m, 0.0), Density::Coarse);
+        if s.overlap_fraction() >= vcfg.min_overlap_fraction {
+            coarse.push((i, pose, s.evidence(w_out)));
+        }
+    }
+    coarse.sort_by(|x, y| y.2.total_cmp(&x.2).then(x.0.cmp(&y.0)));
+    coarse
+}
+
+/// Stage "refine": the best coarse hypotheses refined locally on the data, scored on all
+/// samples, and kept when they overlap enough and keep two non-parallel plane matches; best
+/// first.
+#[allow(clippy::too_many_arguments)]
+fn refine(
+    coarse: &[(usize, Isometry3<f64>, f64)],
+    hyps: &[Hypothesis],
+    g: &Isometry3<f64>,
+    check: &mut TwoWay<'_>,
+    a: MotionFrame<'_>,
+    b: MotionFrame<'_>,
+    cfg: &MotionConfig,
+    vcfg: &VerifyConfig,
+) -> Vec<Checked> {
+    let w_out = vcfg.outlier_weight;
+    let tol = (vcfg.inlier_base_m, vcfg.inlier_sigmas);
+    let distinct = cfg.distinct_deg.to_radians();
+    // Local refinement and the final score of the best ones.
+    let mut checked: Vec<Checked> = Vec::new();
+    for (i, pose, _) in coarse.iter().take(vcfg.refine_hypotheses) {
+        let Ok(aligned) = check.refine(
+            pose,
+            vcfg.refine_iterations,
+            vcfg.refine_start_m,
+            vcfg.refine_end_m,
+        ) else {
+            continue;
+        };
+        let score = check.score(&aligned, tol, Density::Full);
+        if score.overlap_fraction() < vcfg.min_overlap_fraction {
+            continue;
+        }
+        // A motion from planes needs planes: two plane matches at least `min_spread_deg`
+        // apart, consistent with the refined alignment, or else those of the hypothesis itself
+        // if it lies within `distinct_deg` of the alignment (the bands of one bent desk
+        // determine no rotation about its normal).
+        let consistent = consistent_matches(a.planes, b.planes, &aligned, cfg);
+        let own = &hyps[*i].matches;
+        let own_rotation = UnitQuaternion::from_rotation_matrix(&hyps[*i].rotation) * g.rotation;
+        let Some((rotation, matches)) = [consistent, own.clone()]
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| *k == 0 || own_rotation.angle_to(&aligned.rotation) < distinct)
+            .find_map(|(_, ms)| {
+                spread_ok(a.planes, &ms, cfg)
+                    .then(|| kabsch_ab(a.planes, b.planes, &ms))
+                    .flatten()
+                    .map(|r| (r, ms))
+            })
+        else {
+            continue;
+        };
+        checked.push(Checked {
+            aligned,
+            score,
+            support: hyps[*i].support,
+            matches,
+            rotation,
+        });
+    }
+    checked.sort_by(|x, y| {
+        y.score
+            .evidence(w_out)
+            .total_cmp(&x.score.evidence(w_out))
+            .then(y.support.total_cmp(&x.support))
+    });
+    checked
+}
+
+/// What stage "decide" found: the winner (an index into the refined hypotheses) and the shares
+/// of the overlapping points explained by it, by the best distinct alternative and by the
+/// winner turned by `distinct_deg`.
+struct Decision {
+    best: usize,
+    inlier_fraction: f64,
+    overlap_fraction: f64,
+    alternative_inlier_fraction: f64,
+    turned_inlier_fraction: f64,
+}
+
+/// Stage "decide": the best refined hypothesis must explain `min_inlier_fraction` of the
+/// overlapping points while no alternative more than `distinct_deg` away does — neither
+/// another hypothesis nor the winner turned about the camera axes or a dominant plane normal.
+fn decide(
+    checked: &[Checked],
+    hypotheses: usize,
+    check: &mut TwoWay<'_>,
+    a: MotionFrame<'_>,
+    cfg: &MotionConfig,
+    vcfg: &VerifyConfig,
+) -> Result<Decision> {
+    let tol = (vcfg.inlier_base_m, vcfg.inlier_sigmas);
+    let distinct = cfg.distinct_deg.to_radians();
+    let Some(best) = checked.first() else {
+        return Err(PlanesError::MotionNotVerified {
+            reason: format!(
+                "none of the {} plane hypotheses, refined on the data, overlaps the other \
+                 frame with {:.0} % of the points and keeps two non-parallel plane matches",
+                hypotheses,
+                100.0 * vcfg.min_overlap_fraction
+            ),
+            inlier_fraction: 0.0,
+            alternative_inlier_fraction: 0.0,
+        });
+    };
+    let aligned = best.aligned;
+    let inlier_fraction = best.score.inlier_fraction();
+    let overlap_fraction = best.score.overlap_fraction();
+    // A pose is consistent with the data when it explains `min_inlier_fraction` of the
+    // overlapping points; the winner must be, and no distinct alternative may be.
+    let consistent = |s: &Score| {
+        s.overlap_fraction() >= vcfg.min_overlap_fraction
+            && s.inlier_fraction() >= vcfg.min_inlier_fraction
+    };
+    let alternative = checked
+        .iter()
+        .filter(|c| c.aligned.rotation.angle_to(&aligned.rotation) > distinct)
+        .map(|c| c.score)
+        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
+    let alternative_inlier_fraction = alternative.map_or(0.0, |s| s.inlier_fraction());
+    let not_verified = |reason: String, alt: f64| PlanesError::MotionNotVerified {
+        reason,
+        inlier_fraction,
+        alternative_inlier_fraction: alt,
+    };
+    if !consistent(&best.score) {
+        return Err(not_verified(
+            format!(
+                "the best of {} plane hypotheses explains {:.0} % of the overlapping points \
+                 (< {:.0} %)",
+                hypotheses,
+                100.0 * inlier_fraction,
+                100.0 * vcfg.min_inlier_fraction
+            ),
+            alternative_inlier_fraction,
+        ));
+    }
+    if alternative.as_ref().is_some_and(consistent) {
+        return Err(not_verified(
+            format!(
+                "ambiguous: a rotation more than {}° away from the best also explains {:.0} % \
+                 of its overlapping points",
+                cfg.distinct_deg,
+                100.0 * alternative_inlier_fraction
+            ),
+            alternative_inlier_fraction,
+        ));
+    }
+    // Can the data tell the winner from rotations `distinct_deg` away at all? Turning the
+    // alignment about the normal of a dominant plane (through the inliers' centroid) slides
+    // that plane in itself: when the shared view is mostly one plane such a turn stays
+    // consistent, and an alternative there could not have been rejected.
+    let mut axes: Vec<Vector3<f64>> = vec![Vector3::x(), Vector3::y(), Vector3::z()];
+    for p in a.planes {
+        if axes.len() >= 3 + MAX_PERTURB_PLANES {
+            break;
+        }
+        if axes[3..]
+            .iter()
+            .all(|n| angle_deg(n, &p.plane.normal) > cfg.distinct_deg)
+        {
+            axes.push(p.plane.normal);
+        }
+    }
+    let turned = check
+        .perturbed(&aligned, &axes, distinct, tol)
+        .into_iter()
+        .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
+    let turned_inlier_fraction = turned.map_or(0.0, |s| s.inlier_fraction());
+    if turned.as_ref().is_some_and(consistent) {
+        return Err(not_verified(
+            format!(
+                "the shared view does not pin the rotation down (mostly one plane?): the \
+                 alignment turned by {}° still explains {:.0} % of the overlapping points",
+                cfg.distinct_deg,
+                100.0 * turned_inlier_fraction
+            ),
+            turned_inlier_fraction,
+        ));
+    }
+    Ok(Decision {
+        best: 0,
+        inlier_fraction,
+        overlap_fraction,
+        alternative_inlier_fraction,
+        turned_inlier_fraction,
+    })
 }
