@@ -33,7 +33,8 @@
 //!     .map(|i| wall.depth_at(&k, (i % k.width) as f64, (i / k.width) as f64).unwrap_or(0.0) as f32)
 //!     .collect();
 //! let depth = DepthImage::from_vec(k.width, k.height, depth)?;
-//! let cfg = PlaneConfig { min_pixels: 200, ..PlaneConfig::default() };
+//! let mut cfg = PlaneConfig::default();
+//! cfg.min_pixels = 200;
 //! let seg = extract_planes(&depth, &cam, &cfg)?;
 //! assert_eq!(seg.planes.len(), 1);
 //! assert!(seg.planes[0].plane.angle_deg(&wall) < 0.1);

@@ -18,6 +18,7 @@ use crate::plane::{DisparityAffine, Plane3};
 
 /// Parameters of the metric RANSAC baseline.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct RansacConfig {
     /// Point-to-plane inlier threshold, metres.
     pub threshold_m: f64,

@@ -28,6 +28,7 @@ use crate::error::{PlanesError, Result};
 /// Contradictions at the right motion come only from occlusions, depth edges and noise tails:
 /// a few per cent.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct VerifyConfig {
     /// Largest number of points used per frame (a regular pixel grid with at most this many
     /// points; only points with a valid normal, i.e. away from depth edges, are kept).

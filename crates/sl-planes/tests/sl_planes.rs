@@ -19,11 +19,10 @@ fn small_camera(f: f64) -> Camera {
 }
 
 fn cfg_small() -> PlaneConfig {
-    PlaneConfig {
-        min_pixels: 200,
-        min_piece_pixels: 64,
-        ..PlaneConfig::default()
-    }
+    let mut c = PlaneConfig::default();
+    c.min_pixels = 200;
+    c.min_piece_pixels = 64;
+    c
 }
 
 /// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels
@@ -146,15 +145,12 @@ fn two_planes_one_centimetre_apart_stay_separate() {
             .collect::<Vec<_>>()
     );
     // The metric baseline with 20 mm cannot tell the table from the book.
-    let rs = metric_ransac(
-        &depth,
-        &cam,
-        &RansacConfig {
-            threshold_m: 0.02,
-            min_pixels: 200,
-            ..RansacConfig::default()
-        },
-    )
+    let rs = metric_ransac(&depth, &cam, &{
+        let mut c = RansacConfig::default();
+        c.threshold_m = 0.02;
+        c.min_pixels = 200;
+        c
+    })
     .unwrap();
     let rscore = segcomp(&gt, &rs.labels, Some(&valid), 0.8, 100).unwrap();
     assert!(rscore.correct < 3, "{rscore:?}");

@@ -86,12 +86,10 @@ fn with_extractor<T>(
 }
 
 fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneConfig {
-    let d = PlaneConfig::default();
-    PlaneConfig {
-        threshold_px: threshold_px.unwrap_or(d.threshold_px),
-        min_pixels: min_pixels.unwrap_or(d.min_pixels),
-        ..d
-    }
+    let mut c = PlaneConfig::default();
+    c.threshold_px = threshold_px.unwrap_or(c.threshold_px);
+    c.min_pixels = min_pixels.unwrap_or(c.min_pixels);
+    c
 }
 
 /// Extracts planes in the disparity domain (one fixed threshold at every depth, the paper's

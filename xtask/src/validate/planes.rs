@@ -99,14 +99,11 @@ fn synthetic(ctx: &mut Context) -> Result<()> {
         let mut results = vec![("disparity".to_string(), disp, disp_ms)];
         for t_mm in [5.0, 20.0] {
             let t = Instant::now();
-            let seg = metric_ransac(
-                &frame.depth,
-                &cam,
-                &RansacConfig {
-                    threshold_m: t_mm / 1000.0,
-                    ..RansacConfig::default()
-                },
-            )?;
+            let seg = metric_ransac(&frame.depth, &cam, &{
+                let mut c = RansacConfig::default();
+                c.threshold_m = t_mm / 1000.0;
+                c
+            })?;
             results.push((
                 format!("metric-ransac {t_mm} mm"),
                 seg,

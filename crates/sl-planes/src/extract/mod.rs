@@ -57,6 +57,7 @@ use crate::plane::{DisparityAffine, Plane3};
 
 /// Parameters of the disparity-domain extractor.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct PlaneConfig {
     /// Fixed residual threshold `τ` in disparity pixels: a pixel belongs to a plane when
     /// `|D − D_plane| < τ`.

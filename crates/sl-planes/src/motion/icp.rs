@@ -5,6 +5,7 @@ use super::*;
 
 /// Parameters of point-to-plane ICP.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct IcpConfig {
     /// Iterations.
     pub iterations: usize,
@@ -229,7 +230,9 @@ pub struct IcpOutcome {
 /// );
 /// let room_b: Vec<Plane3> = room.iter().map(|p| p.transformed(&truth.inverse())).collect();
 /// let (da, db) = (render(&room)?, render(&room_b)?);
-/// let mut ex = PlaneExtractor::new(PlaneConfig { min_pixels: 200, ..PlaneConfig::default() })?;
+/// let mut cfg = PlaneConfig::default();
+/// cfg.min_pixels = 200;
+/// let mut ex = PlaneExtractor::new(cfg)?;
 /// let (sa, sb) = (ex.extract_depth(&da, &cam)?, ex.extract_depth(&db, &cam)?);
 /// let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
 /// let m = estimate_motion_verified(

@@ -61,6 +61,7 @@ use crate::verify::{self, Density, Score, Target, TwoWay};
 
 /// Parameters of plane matching and motion estimation.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct MotionConfig {
     /// Largest normal angle of a candidate match after the initial guess, degrees. Applies to
     /// [`estimate_motion`] always (the identity without a guess) and to

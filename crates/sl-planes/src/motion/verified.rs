@@ -113,7 +113,9 @@ pub(super) fn spread_ok(
 /// );
 /// let room_b: Vec<Plane3> = room.iter().map(|p| p.transformed(&truth.inverse())).collect();
 /// let (da, db) = (render(&room)?, render(&room_b)?);
-/// let mut ex = PlaneExtractor::new(PlaneConfig { min_pixels: 200, ..PlaneConfig::default() })?;
+/// let mut cfg = PlaneConfig::default();
+/// cfg.min_pixels = 200;
+/// let mut ex = PlaneExtractor::new(cfg)?;
 /// let (sa, sb) = (ex.extract_depth(&da, &cam)?, ex.extract_depth(&db, &cam)?);
 /// let m = estimate_motion_verified(
 ///     MotionFrame { depth: &da, planes: &sa.planes },

@@ -118,11 +118,8 @@ pub fn run(args: Args) -> Result<()> {
         bail!("the two frames must come from the same camera and have the same size");
     }
     let mut cfg = DepthMotionConfig::default();
-    cfg.planes = PlaneConfig {
-        threshold_px: args.threshold_px,
-        min_pixels: args.min_pixels,
-        ..PlaneConfig::default()
-    };
+    cfg.planes.threshold_px = args.threshold_px;
+    cfg.planes.min_pixels = args.min_pixels;
     cfg.verify = !args.no_verify;
     cfg.icp = args.icp;
     let mcfg = cfg.motion;

@@ -58,13 +58,11 @@ pub fn run(args: Args) -> Result<()> {
     let camera = loaded.camera;
     let (seg, ms) = match args.method.as_str() {
         "disparity" => {
-            let cfg = PlaneConfig {
-                threshold_px: args.threshold_px,
-                log_threshold_px: args.log_threshold_px,
-                log_sigma_px: args.log_sigma_px,
-                min_pixels: args.min_pixels,
-                ..PlaneConfig::default()
-            };
+            let mut cfg = PlaneConfig::default();
+            cfg.threshold_px = args.threshold_px;
+            cfg.log_threshold_px = args.log_threshold_px;
+            cfg.log_sigma_px = args.log_sigma_px;
+            cfg.min_pixels = args.min_pixels;
             let mut ex = PlaneExtractor::new(cfg)?;
             if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
@@ -83,11 +81,9 @@ pub fn run(args: Args) -> Result<()> {
             }
         }
         "metric-ransac" => {
-            let cfg = RansacConfig {
-                threshold_m: args.threshold_m,
-                min_pixels: args.min_pixels,
-                ..RansacConfig::default()
-            };
+            let mut cfg = RansacConfig::default();
+            cfg.threshold_m = args.threshold_m;
+            cfg.min_pixels = args.min_pixels;
             let t = Instant::now();
             let seg = metric_ransac(&loaded.depth, &camera, &cfg)?;
             (seg, t.elapsed().as_secs_f64() * 1e3)
