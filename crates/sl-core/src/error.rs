@@ -38,6 +38,12 @@ pub enum CoreError {
     /// A 4x4 matrix that is not a rigid transform.
     #[error("not a rigid transform: {0}")]
     NotRigid(String),
+    /// A plane with a zero or non-finite normal or offset.
+    #[error("degenerate plane: {0}")]
+    DegeneratePlane(String),
+    /// A mesh whose attributes or triangle indices do not match its vertices.
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
 }
 
 /// `Result` with [`CoreError`].

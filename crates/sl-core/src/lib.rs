@@ -2,8 +2,10 @@
 //!
 //! The foundation of the `sldepth` workspace: camera [`Intrinsics`], the disparity
 //! [`SensorModel`] of the paper (`Z = f·B/D`, `σ_Z = Z²·σ_D/(f·B)`), typed [`DepthImage`] (metres)
-//! and [`DisparityImage`] (pixels) with 0 as the invalid value, back-projection to points, and
-//! rigid camera poses. Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
+//! and [`DisparityImage`] (pixels) with 0 as the invalid value, back-projection to points, the
+//! geometry vocabulary of the workspace ([`Plane`] with the one plane fit [`fit_plane`], [`Mesh`])
+//! and rigid camera poses typed by direction ([`CameraToWorld`], [`WorldToCamera`],
+//! [`CameraToCamera`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
 //! crates) speaks these types. `sl-core` does no I/O.
 //!
 //! ```
@@ -28,6 +30,8 @@ pub mod camera;
 pub mod error;
 pub mod image;
 pub mod intrinsics;
+pub mod mesh;
+pub mod plane;
 pub mod pose;
 pub mod preset;
 pub mod sensor;
@@ -37,8 +41,11 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
+pub use mesh::{Mesh, VertexScalar};
+pub use plane::{Plane, PlaneFit, fit_plane};
 pub use pose::{
-    Pose, pose_from_matrix, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
+    CameraToCamera, CameraToWorld, Pose, WorldToCamera, pose_from_matrix, pose_from_row_major,
+    pose_from_translation_quaternion, pose_to_matrix,
 };
 pub use preset::SensorPreset;
 pub use sensor::SensorModel;

@@ -1,10 +1,21 @@
 //! Rigid camera poses (nalgebra `Isometry3<f64>`), and their construction from the 4×4 matrices
 //! and quaternions used by datasets.
 //!
-//! Convention: a pose maps camera coordinates to world coordinates, `X_w = R·X_c + t`
-//! (TUM `groundtruth.txt`, 7-Scenes `frame-*.pose.txt` and Open3D `.log` all store this).
+//! The typed poses say their direction in their name: [`CameraToWorld`] (`X_w = T·X_c`, what
+//! TUM `groundtruth.txt`, 7-Scenes `frame-*.pose.txt` and Open3D `.log` store),
+//! [`WorldToCamera`] (`X_c = T·X_w`, its inverse) and [`CameraToCamera`] (frame-to-frame motion,
+//! `X_a = T·X_b`). `inverse()` returns the opposite type and `*` only composes poses whose frames
+//! meet, so a direction mistake is a type error.
+//!
+//! The older untyped [`Pose`] alias (camera-to-world by convention) and its free functions remain
+//! for the code that has not moved to the typed poses yet.
 
-use nalgebra::{Isometry3, Matrix3, Matrix4, Quaternion, Rotation3, Translation3, UnitQuaternion};
+use std::ops::Mul;
+
+use nalgebra::{
+    Isometry3, Matrix3, Matrix4, Point3, Quaternion, Rotation3, Translation3, UnitQuaternion,
+    Vector3,
+};
 
 use crate::error::{CoreError, Result};
 
@@ -87,6 +98,184 @@ pub fn rotation_angle_deg(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> f
     a.angle_to(b).to_degrees()
 }
 
+/// Defines a pose newtype over `Isometry3<f64>` with the shared constructors and accessors.
+macro_rules! typed_pose {
+    ($(#[$doc:meta])* $name:ident, $from:literal, $to:literal) => {
+        $(#[$doc])*
+        #[derive(Debug, Clone, Copy, PartialEq)]
+        pub struct $name(Isometry3<f64>);
+
+        impl $name {
+            #[doc = concat!("The identity: the ", $from, " and ", $to, " frames coincide.")]
+            pub fn identity() -> Self {
+                Self(Isometry3::identity())
+            }
+
+            #[doc = concat!("Wraps an isometry that maps ", $from, " coordinates to ", $to, " coordinates.")]
+            pub fn from_isometry(iso: Isometry3<f64>) -> Self {
+                Self(iso)
+            }
+
+            /// Validated construction from a 4×4 matrix `[R t; 0 0 0 1]` (see [`pose_from_matrix`]).
+            pub fn from_matrix(m: &Matrix4<f64>) -> Result<Self> {
+                pose_from_matrix(m).map(Self)
+            }
+
+            /// Validated construction from 16 row-major numbers (see [`pose_from_row_major`]).
+            pub fn from_row_major(v: &[f64; 16]) -> Result<Self> {
+                pose_from_row_major(v).map(Self)
+            }
+
+            /// Construction from a translation and a `(qx, qy, qz, qw)` quaternion (TUM order; see
+            /// [`pose_from_translation_quaternion`]).
+            pub fn from_translation_quaternion(t: [f64; 3], q: [f64; 4]) -> Result<Self> {
+                pose_from_translation_quaternion(t, q).map(Self)
+            }
+
+            /// The 4×4 homogeneous matrix.
+            pub fn to_matrix(&self) -> Matrix4<f64> {
+                self.0.to_homogeneous()
+            }
+
+            /// The underlying isometry.
+            pub fn isometry(&self) -> &Isometry3<f64> {
+                &self.0
+            }
+
+            /// The underlying isometry, by value.
+            pub fn into_isometry(self) -> Isometry3<f64> {
+                self.0
+            }
+
+            /// The rotation part.
+            pub fn rotation(&self) -> UnitQuaternion<f64> {
+                self.0.rotation
+            }
+
+            /// The translation part, metres.
+            pub fn translation(&self) -> Vector3<f64> {
+                self.0.translation.vector
+            }
+
+            #[doc = concat!("Maps a point from ", $from, " to ", $to, " coordinates.")]
+            pub fn transform_point(&self, p: &Point3<f64>) -> Point3<f64> {
+                self.0.transform_point(p)
+            }
+
+            #[doc = concat!("Maps a direction from ", $from, " to ", $to, " coordinates (rotation only).")]
+            pub fn transform_vector(&self, v: &Vector3<f64>) -> Vector3<f64> {
+                self.0.transform_vector(v)
+            }
+        }
+
+        impl Default for $name {
+            fn default() -> Self {
+                Self::identity()
+            }
+        }
+    };
+}
+
+typed_pose!(
+    /// A camera pose that maps camera coordinates to world coordinates, `X_w = T·X_c`: its
+    /// translation is the camera centre in the world. This is what trajectory files store.
+    CameraToWorld,
+    "camera",
+    "world"
+);
+
+typed_pose!(
+    /// The extrinsics of a camera: maps world coordinates to camera coordinates, `X_c = T·X_w`
+    /// (the inverse of [`CameraToWorld`]).
+    WorldToCamera,
+    "world",
+    "camera"
+);
+
+typed_pose!(
+    /// Frame-to-frame camera motion from camera `b` to camera `a`: maps coordinates in camera
+    /// `b` to coordinates in camera `a`, `X_a = T·X_b`. With `a` the reference (earlier) frame and
+    /// `b` the current one, `pose_b = pose_a * T` ([`CameraToWorld`] composition).
+    CameraToCamera,
+    "camera-b",
+    "camera-a"
+);
+
+impl CameraToWorld {
+    /// The world-to-camera transform (extrinsics).
+    pub fn inverse(&self) -> WorldToCamera {
+        WorldToCamera(self.0.inverse())
+    }
+
+    /// The camera centre in world coordinates.
+    pub fn centre(&self) -> Point3<f64> {
+        Point3::from(self.0.translation.vector)
+    }
+}
+
+impl WorldToCamera {
+    /// The camera-to-world pose.
+    pub fn inverse(&self) -> CameraToWorld {
+        CameraToWorld(self.0.inverse())
+    }
+}
+
+impl CameraToCamera {
+    /// The motion the other way round: maps camera `a` to camera `b`, `X_b = T⁻¹·X_a`.
+    pub fn inverse(&self) -> CameraToCamera {
+        CameraToCamera(self.0.inverse())
+    }
+
+    /// The relative motion between two poses: `T = a⁻¹·b`, mapping camera `b` coordinates to
+    /// camera `a` coordinates, so that `a * T == b`.
+    pub fn between(a: &CameraToWorld, b: &CameraToWorld) -> Self {
+        Self(a.0.inverse() * b.0)
+    }
+
+    /// Rotation angle of the motion, degrees.
+    pub fn rotation_angle_deg(&self) -> f64 {
+        self.0.rotation.angle().to_degrees()
+    }
+
+    /// Length of the translation, metres.
+    pub fn translation_norm_m(&self) -> f64 {
+        self.0.translation.vector.norm()
+    }
+}
+
+/// `pose_a * motion_ab` = `pose_b`: camera `b`'s pose from camera `a`'s pose and the motion that
+/// maps camera `b` to camera `a`.
+impl Mul<CameraToCamera> for CameraToWorld {
+    type Output = CameraToWorld;
+    fn mul(self, rhs: CameraToCamera) -> CameraToWorld {
+        CameraToWorld(self.0 * rhs.0)
+    }
+}
+
+/// `motion_ab * motion_bc` = `motion_ac`.
+impl Mul for CameraToCamera {
+    type Output = CameraToCamera;
+    fn mul(self, rhs: CameraToCamera) -> CameraToCamera {
+        CameraToCamera(self.0 * rhs.0)
+    }
+}
+
+/// `motion_ab * extrinsics_b` = `extrinsics_a`.
+impl Mul<WorldToCamera> for CameraToCamera {
+    type Output = WorldToCamera;
+    fn mul(self, rhs: WorldToCamera) -> WorldToCamera {
+        WorldToCamera(self.0 * rhs.0)
+    }
+}
+
+/// `extrinsics_a * pose_b` = the motion mapping camera `b` to camera `a`.
+impl Mul<CameraToWorld> for WorldToCamera {
+    type Output = CameraToCamera;
+    fn mul(self, rhs: CameraToWorld) -> CameraToCamera {
+        CameraToCamera(self.0 * rhs.0)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -121,5 +310,50 @@ mod tests {
         let x = p * nalgebra::Point3::new(1.0, 0.0, 0.0);
         assert!((x - nalgebra::Point3::new(1.0, 3.0, 3.0)).norm() < 1e-12);
         assert!((rotation_angle_deg(&UnitQuaternion::identity(), &p.rotation) - 90.0).abs() < 1e-9);
+        let typed =
+            CameraToWorld::from_translation_quaternion([1.0, 2.0, 3.0], [0.0, 0.0, s, s]).unwrap();
+        assert_eq!(typed.isometry(), &p);
+        assert_eq!(typed.centre(), nalgebra::Point3::new(1.0, 2.0, 3.0));
+        assert!(CameraToWorld::from_row_major(&[0.0; 16]).is_err());
+    }
+
+    fn iso(v: [f64; 6]) -> Isometry3<f64> {
+        Isometry3::new(
+            Vector3::new(v[0], v[1], v[2]),
+            Vector3::new(v[3], v[4], v[5]),
+        )
+    }
+
+    fn close(a: &Matrix4<f64>, b: &Matrix4<f64>) -> bool {
+        (a - b).abs().max() < 1e-9
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn typed_round_trips_and_composition(
+            a in proptest::array::uniform6(-2.0..2.0f64),
+            b in proptest::array::uniform6(-2.0..2.0f64),
+            x in proptest::array::uniform3(-5.0..5.0f64),
+        ) {
+            let pose_a = CameraToWorld::from_isometry(iso(a));
+            let pose_b = CameraToWorld::from_isometry(iso(b));
+            let p = nalgebra::Point3::from(x);
+            // inverse() flips the type and undoes the mapping.
+            let ext = pose_a.inverse();
+            proptest::prop_assert!((ext.transform_point(&pose_a.transform_point(&p)) - p).norm() < 1e-9);
+            proptest::prop_assert!(close(&ext.inverse().to_matrix(), &pose_a.to_matrix()));
+            // Matrix round trip through the validated constructor.
+            let back = CameraToWorld::from_matrix(&pose_a.to_matrix()).unwrap();
+            proptest::prop_assert!(close(&back.to_matrix(), &pose_a.to_matrix()));
+            // Motion b -> a: X_a = T·X_b, and pose_a * T = pose_b.
+            let t_ab = CameraToCamera::between(&pose_a, &pose_b);
+            proptest::prop_assert!(close(&(pose_a * t_ab).to_matrix(), &pose_b.to_matrix()));
+            proptest::prop_assert!(close(&(ext * pose_b).to_matrix(), &t_ab.to_matrix()));
+            let x_b = pose_b.inverse().transform_point(&p);
+            let x_a = ext.transform_point(&p);
+            proptest::prop_assert!((t_ab.transform_point(&x_b) - x_a).norm() < 1e-9);
+            proptest::prop_assert!(close(&(t_ab * pose_b.inverse()).to_matrix(), &ext.to_matrix()));
+            proptest::prop_assert!(close(&(t_ab * t_ab.inverse()).to_matrix(), &Matrix4::identity()));
+        }
     }
 }

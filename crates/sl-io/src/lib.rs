@@ -72,7 +72,9 @@ pub use depth::{
     read_raw_depth, write_depth,
 };
 pub use error::{IoError, Result};
-pub use ply::{PlyData, PlyFormat, VertexScalar, read_ply, write_ply};
+pub use ply::{
+    PlyData, PlyFormat, VertexScalar, read_mesh_ply, read_ply, write_mesh_ply, write_ply,
+};
 pub use rgb::{read_gray16, read_rgb, write_gray8_png, write_gray16_png, write_rgb_png};
 pub use trajectory::{
     DEFAULT_MAX_DT_S, Frame, TimedPose, TumSequence, read_7scenes_sequence, read_open3d_log,

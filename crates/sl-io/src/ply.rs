@@ -40,14 +40,9 @@ const RESERVED: [&str; 10] = [
     "x", "y", "z", "nx", "ny", "nz", "red", "green", "blue", "alpha",
 ];
 
-/// A named per-vertex scalar.
-#[derive(Debug, Clone, PartialEq)]
-pub struct VertexScalar {
-    /// Property name, e.g. `confidence` (a PLY identifier: no whitespace, not `x`, `red`, ...).
-    pub name: String,
-    /// One value per vertex.
-    pub values: Vec<f32>,
-}
+/// A named per-vertex scalar: the `sl-core` type, shared with [`sl_core::Mesh`]. Its name must be
+/// a PLY identifier (no whitespace, not `x`, `red`, ...).
+pub use sl_core::VertexScalar;
 
 /// A point cloud or triangle mesh.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -111,6 +106,37 @@ impl PlyData {
                 values,
             }),
             ..self
+        }
+    }
+
+    /// A copy of an `sl-core` mesh (positions, normals if present, scalar, triangles).
+    pub fn from_mesh(mesh: &sl_core::Mesh) -> Self {
+        let xyz = |v: &[f32]| [v[0], v[1], v[2]];
+        Self {
+            positions: mesh
+                .positions
+                .iter()
+                .map(|p| xyz(p.coords.as_slice()))
+                .collect(),
+            normals: (!mesh.normals.is_empty())
+                .then(|| mesh.normals.iter().map(|n| xyz(n.as_slice())).collect()),
+            colors: None,
+            scalar: mesh.scalar.clone(),
+            faces: mesh.triangles.clone(),
+        }
+    }
+
+    /// The positions, normals, scalar and faces as an `sl-core` mesh (colours are dropped).
+    pub fn into_mesh(self) -> sl_core::Mesh {
+        use sl_core::nalgebra::{Point3, Vector3};
+        sl_core::Mesh {
+            positions: self.positions.into_iter().map(Point3::from).collect(),
+            normals: self
+                .normals
+                .map(|v| v.into_iter().map(Vector3::from).collect())
+                .unwrap_or_default(),
+            triangles: self.faces,
+            scalar: self.scalar,
         }
     }
 
@@ -386,6 +412,22 @@ pub fn write_ply(path: impl AsRef<Path>, data: &PlyData, format: PlyFormat) -> R
     data.validate()
         .map_err(|m| IoError::invalid_data(path, m))?;
     write_atomic(path, |w| write_body(w, data, format))
+}
+
+/// Writes an `sl-core` [`Mesh`](sl_core::Mesh) atomically (through [`PlyData::from_mesh`] and
+/// [`write_ply`], so the file is the same as for the equivalent [`PlyData`]).
+pub fn write_mesh_ply(
+    path: impl AsRef<Path>,
+    mesh: &sl_core::Mesh,
+    format: PlyFormat,
+) -> Result<()> {
+    write_ply(path, &PlyData::from_mesh(mesh), format)
+}
+
+/// Reads a PLY file as an `sl-core` [`Mesh`](sl_core::Mesh) (see [`read_ply`]; colours are
+/// dropped).
+pub fn read_mesh_ply(path: impl AsRef<Path>) -> Result<sl_core::Mesh> {
+    read_ply(path).map(PlyData::into_mesh)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -859,5 +901,33 @@ property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\
             let err = read_ply(&p).unwrap_err();
             assert!(err.to_string().contains("bad.ply"), "{err}");
         }
+    }
+
+    #[test]
+    fn core_mesh_round_trip_matches_ply_data() {
+        use sl_core::nalgebra::{Point3, Vector3};
+        let mesh = sl_core::Mesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 1.0),
+                Point3::new(1.0, 0.0, 1.5),
+                Point3::new(0.0, 1.0, 2.0),
+            ],
+            vec![[0, 1, 2]],
+        )
+        .with_normals(vec![Vector3::new(0.0, 0.0, -1.0); 3])
+        .with_scalar("confidence", vec![0.5, 1.0, 2.0]);
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a.ply"), dir.path().join("b.ply"));
+        for format in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+            write_mesh_ply(&a, &mesh, format).unwrap();
+            write_ply(&b, &PlyData::from_mesh(&mesh), format).unwrap();
+            assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+            assert_eq!(read_mesh_ply(&a).unwrap(), mesh);
+        }
+        let cloud = sl_core::Mesh::new(vec![Point3::new(1.0, 2.0, 3.0)], vec![]);
+        assert_eq!(PlyData::from_mesh(&cloud).normals, None);
+        let mut bad = mesh.clone();
+        bad.triangles.push([0, 1, 3]);
+        assert!(write_mesh_ply(&a, &bad, PlyFormat::Ascii).is_err());
     }
 }

@@ -13,7 +13,9 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use sl_core::{Pose, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix};
+use sl_core::{
+    CameraToWorld, Pose, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
+};
 
 use crate::atomic::write_atomic;
 use crate::camera::read_text;
@@ -34,6 +36,13 @@ pub struct Frame {
     pub timestamp: Option<f64>,
 }
 
+impl Frame {
+    /// The pose with its direction in its type.
+    pub fn camera_to_world(&self) -> CameraToWorld {
+        CameraToWorld::from_isometry(self.pose)
+    }
+}
+
 /// A pose with its timestamp (one line of a TUM trajectory).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TimedPose {
@@ -41,6 +50,13 @@ pub struct TimedPose {
     pub timestamp: f64,
     /// Camera-to-world pose.
     pub pose: Pose,
+}
+
+impl TimedPose {
+    /// The pose with its direction in its type.
+    pub fn camera_to_world(&self) -> CameraToWorld {
+        CameraToWorld::from_isometry(self.pose)
+    }
 }
 
 /// One line of a TUM `associations.txt`; paths are resolved against the file's directory.
@@ -245,6 +261,13 @@ pub struct LogEntry {
     pub metadata: [u64; 3],
     /// Camera-to-world pose.
     pub pose: Pose,
+}
+
+impl LogEntry {
+    /// The pose with its direction in its type.
+    pub fn camera_to_world(&self) -> CameraToWorld {
+        CameraToWorld::from_isometry(self.pose)
+    }
 }
 
 /// Reads an Open3D `.log` trajectory: per entry a line of three integers, then four lines of
@@ -490,6 +513,7 @@ mod tests {
         assert_eq!(back.len(), 5);
         for (a, b) in back.iter().zip(&poses) {
             assert!((a.timestamp - b.timestamp).abs() < 1e-6);
+            assert_eq!(a.camera_to_world().isometry(), &a.pose);
             assert!(
                 (a.pose.to_homogeneous() - b.pose.to_homogeneous())
                     .abs()

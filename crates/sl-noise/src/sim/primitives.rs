@@ -98,7 +98,12 @@ fn rectangle_frame(half_u: Vector3<f64>, half_v: Vector3<f64>) -> Result<Frame> 
 
 // ---------------------------------------------------------------------------------------------
 
-/// An infinite plane through a point with a normal.
+/// An infinite plane through a point with a normal: the ray-traced surface of an
+/// [`sl_core::Plane`] (see [`Plane::from_core`] and [`Plane::to_core`]).
+///
+/// It keeps its anchor point because the ray intersection is computed from it (changing that
+/// would change simulated depths at round-off level). Note the sign convention of
+/// [`Plane::offset`]: `n · x = offset`, whereas `sl_core::Plane` is `n·x + offset_m = 0`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Plane {
     point: Point3<f64>,
@@ -128,6 +133,20 @@ impl Plane {
             point: Point3::from(n.into_inner() * (offset / len)),
             normal: n,
         })
+    }
+
+    /// The surface of an `sl-core` plane `n·x + offset_m = 0` (same normal orientation; the
+    /// anchor point is `−offset_m·n`).
+    pub fn from_core(plane: &sl_core::Plane) -> Result<Self> {
+        Self::from_normal_offset(plane.normal, -plane.offset_m)
+    }
+
+    /// The plane in the workspace's convention, `n·x + offset_m = 0` with this plane's normal.
+    pub fn to_core(&self) -> sl_core::Plane {
+        sl_core::Plane {
+            normal: self.normal(),
+            offset_m: -self.offset(),
+        }
     }
 
     /// A point on the plane.
@@ -842,6 +861,28 @@ mod tests {
         assert!(close(q.offset(), 1.5, 1e-12));
         assert!(close(q.distance(&Point3::new(7.0, 1.0, -2.0)), 0.5, 1e-12));
         assert!(Plane::new(Point3::origin(), Vector3::zeros()).is_err());
+    }
+
+    #[test]
+    fn core_plane_conversion() {
+        // The wall Z = 2 with its normal towards the camera: n = −z, offset_m = 2.
+        let core = sl_core::Plane::new(Vector3::new(0.0, 0.0, -2.0), 4.0).unwrap();
+        let p = Plane::from_core(&core).unwrap();
+        assert_eq!(p.point(), Point3::new(0.0, 0.0, 2.0));
+        assert_eq!(p.to_core(), core);
+        let h = p.intersect(&Point3::origin(), &Vector3::z()).unwrap();
+        assert_eq!(h.t, 2.0);
+        let q = Plane::new(Point3::new(1.0, 2.0, 3.0), Vector3::new(0.3, -0.4, 1.0)).unwrap();
+        let x = Point3::new(-0.5, 0.25, 4.0);
+        assert!(close(
+            q.to_core().signed_distance_m(&x),
+            q.signed_distance(&x),
+            1e-12
+        ));
+        assert!(
+            p.intersect(&Point3::origin(), &Vector3::new(0.0, 0.0, -1.0))
+                .is_none()
+        );
     }
 
     #[test]
