@@ -7,7 +7,7 @@
 //! is the weakness the paper shows (Figure 8): too small for far planes, too large to separate
 //! close ones.
 
-use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+use nalgebra::{Point3, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sl_core::{Camera, DepthImage, Image};
@@ -47,26 +47,14 @@ impl Default for RansacConfig {
     }
 }
 
-/// Least-squares (PCA) plane of points; `None` for fewer than 3 or degenerate points.
+/// Least-squares (PCA) plane of points, facing the camera; `None` for fewer than 3 or
+/// degenerate points. The fit is `sl_core::fit_plane`.
 pub fn fit_plane_pca(points: &[Point3<f64>]) -> Option<Plane3> {
-    if points.len() < 3 {
-        return None;
-    }
-    let n = points.len() as f64;
-    let c = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
-    let mut m = Matrix3::zeros();
-    for p in points {
-        let d = p.coords - c;
-        m += d * d.transpose();
-    }
-    let eig = SymmetricEigen::new(m);
-    let (imin, _) = eig
-        .eigenvalues
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))?;
-    let normal = eig.eigenvectors.column(imin).into_owned();
-    Plane3::new(normal, -normal.dot(&c)).ok()
+    let plane = sl_core::fit_plane(points)?.plane.facing_origin();
+    Some(Plane3 {
+        normal: plane.normal,
+        offset_m: plane.offset_m,
+    })
 }
 
 /// Sequential metric RANSAC on a depth image. Returns the same structure as the disparity
