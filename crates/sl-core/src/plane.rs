@@ -13,6 +13,7 @@
 use nalgebra::{Isometry3, Matrix3, Point3, SymmetricEigen, Vector3};
 
 use crate::error::{CoreError, Result};
+use crate::intrinsics::Intrinsics;
 
 /// A plane `normal·X + offset_m = 0` (unit normal, metres).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -113,6 +114,46 @@ impl Plane {
         }
         let t = -self.signed_distance_m(origin) / denom;
         t.is_finite().then_some(t)
+    }
+
+    /// The plane of the paper's form `aX + bY + cZ + 1 = 0` from `(a, b, c)`: normal
+    /// `(a, b, c)/|(a, b, c)|`, offset `1/|(a, b, c)|`, so it faces the origin. An error for a
+    /// zero or non-finite triple (a plane at infinity).
+    pub fn from_paper_coefficients(abc: Vector3<f64>) -> Result<Self> {
+        let len = abc.norm();
+        if !(len.is_finite() && len > 1e-12) {
+            return Err(CoreError::DegeneratePlane(format!(
+                "paper coefficients {abc:?}"
+            )));
+        }
+        Ok(Self {
+            normal: abc / len,
+            offset_m: 1.0 / len,
+        })
+    }
+
+    /// The paper's coefficients `(a, b, c) = normal / offset_m` of `aX + bY + cZ + 1 = 0`
+    /// (the same for both orientations); an error for a plane through the origin.
+    pub fn paper_coefficients(&self) -> Result<Vector3<f64>> {
+        let off_centre = self.offset_m.abs() > 1e-12;
+        if !off_centre {
+            return Err(CoreError::DegeneratePlane(
+                "a plane through the camera centre has no aX+bY+cZ+1=0 form".into(),
+            ));
+        }
+        Ok(self.normal / self.offset_m)
+    }
+
+    /// Depth (Z, metres) of a camera-frame plane along the ray of pixel `(x, y)` of a camera with
+    /// intrinsics `k`; `None` when the ray does not hit the plane in front of the camera.
+    /// Expects the camera-facing orientation ([`Plane::facing_origin`]).
+    pub fn depth_at(&self, k: &Intrinsics, x: f64, y: f64) -> Option<f64> {
+        let ray = k.ray(x, y);
+        let denom = self.normal.dot(&ray);
+        if denom >= -1e-12 {
+            return None;
+        }
+        Some(-self.offset_m / denom)
     }
 }
 

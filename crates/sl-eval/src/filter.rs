@@ -2,8 +2,8 @@
 //! tests): RMSE against ground truth per depth band, depth-edge masks, and plane-fit residuals
 //! on a robustly chosen planar region of a real frame.
 
-use sl_core::nalgebra::{Matrix3, SymmetricEigen, Vector3};
-use sl_core::{DepthImage, Intrinsics, SensorModel};
+use sl_core::nalgebra::{Point3, Vector3};
+use sl_core::{DepthImage, Intrinsics, Plane, SensorModel};
 
 use crate::error::{EvalError, Result};
 
@@ -168,62 +168,22 @@ fn morph(mask: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
     pass(&a, false)
 }
 
-/// A plane `n·X = d` (unit normal, camera frame, metres).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PlaneFit {
-    /// Unit normal.
-    pub normal: [f64; 3],
-    /// Offset `d`, metres.
-    pub offset_m: f64,
+/// Least-squares plane through points: [`sl_core::fit_plane`] on `[x, y, z]` triples (metres).
+fn fit_plane(points: &[[f64; 3]]) -> Option<Plane> {
+    let points: Vec<Point3<f64>> = points.iter().map(|&p| Point3::from(p)).collect();
+    Some(sl_core::fit_plane(&points)?.plane)
 }
 
-impl PlaneFit {
-    /// Signed distance of a point to the plane, metres.
-    pub fn distance(&self, p: [f64; 3]) -> f64 {
-        self.normal[0] * p[0] + self.normal[1] * p[1] + self.normal[2] * p[2] - self.offset_m
-    }
-}
-
-/// Least-squares plane through points (smallest eigenvector of the scatter matrix), or `None`
-/// for fewer than 3 points or degenerate ones.
-pub fn fit_plane(points: &[[f64; 3]]) -> Option<PlaneFit> {
-    if points.len() < 3 {
-        return None;
-    }
-    let n = points.len() as f64;
-    let mut c = Vector3::zeros();
-    for p in points {
-        c += Vector3::new(p[0], p[1], p[2]);
-    }
-    c /= n;
-    let mut m = Matrix3::zeros();
-    for p in points {
-        let d = Vector3::new(p[0], p[1], p[2]) - c;
-        m += d * d.transpose();
-    }
-    let eig = SymmetricEigen::new(m);
-    let (i, _) = eig
-        .eigenvalues
-        .iter()
-        .enumerate()
-        .min_by(|a, b| a.1.total_cmp(b.1))?;
-    let nrm = eig.eigenvectors.column(i).into_owned();
-    let len = nrm.norm();
-    if !(len > 0.0 && len.is_finite()) {
-        return None;
-    }
-    let nrm = nrm / len;
-    Some(PlaneFit {
-        normal: [nrm.x, nrm.y, nrm.z],
-        offset_m: nrm.dot(&c),
-    })
+/// Signed distance of an `[x, y, z]` point from `plane`, metres.
+fn distance(plane: &Plane, p: [f64; 3]) -> f64 {
+    plane.signed_distance_m(&Point3::from(p))
 }
 
 /// The dominant plane of a frame and the pixels that belong to it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlaneRegion {
     /// Least-squares plane through the region of the input frame.
-    pub plane: PlaneFit,
+    pub plane: Plane,
     /// Row-major pixel mask of the region.
     pub mask: Vec<bool>,
 }
@@ -285,7 +245,7 @@ pub fn dominant_plane_region(
         return Ok(None);
     }
     let mut state = seed;
-    let mut best: Option<(usize, PlaneFit)> = None;
+    let mut best: Option<(usize, Plane)> = None;
     for _ in 0..iterations {
         let pick = |s: &mut u64| samples[(splitmix(s) % samples.len() as u64) as usize];
         let (a, b, c) = (pick(&mut state), pick(&mut state), pick(&mut state));
@@ -299,13 +259,13 @@ pub fn dominant_plane_region(
             continue;
         }
         let n = n / len;
-        let plane = PlaneFit {
-            normal: [n.x, n.y, n.z],
-            offset_m: n.dot(&Vector3::from(a)),
+        let plane = Plane {
+            normal: n,
+            offset_m: -n.dot(&Vector3::from(a)),
         };
         let count = samples
             .iter()
-            .filter(|p| plane.distance(**p).abs() < tau(p[2]))
+            .filter(|p| distance(&plane, **p).abs() < tau(p[2]))
             .count();
         if best.is_none_or(|(bc, _)| count > bc) {
             best = Some((count, plane));
@@ -314,12 +274,12 @@ pub fn dominant_plane_region(
     let Some((_, plane)) = best else {
         return Ok(None);
     };
-    let inlier = |plane: &PlaneFit| -> Vec<bool> {
+    let inlier = |plane: &Plane| -> Vec<bool> {
         (0..w * h)
             .map(|i| {
                 valid(z[i]) && {
                     let p = point(i % w, i / w);
-                    plane.distance(p).abs() < tau(p[2])
+                    distance(plane, p).abs() < tau(p[2])
                 }
             })
             .collect()
@@ -370,7 +330,7 @@ pub fn plane_residual_by_band(
         for p in &pts {
             let d = p[2] as f32;
             if let Some(b) = bands.iter().position(|&(lo, hi)| d >= lo && d < hi) {
-                let r = plane.distance(*p);
+                let r = distance(&plane, *p);
                 acc[b].0 += 1;
                 acc[b].1 += r * r;
             }

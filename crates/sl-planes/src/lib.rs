@@ -23,12 +23,12 @@
 //!
 //! ```
 //! use sl_core::{Camera, DepthImage, nalgebra::Vector3};
-//! use sl_planes::{Plane3, PlaneConfig, extract_planes};
+//! use sl_planes::{Plane, PlaneConfig, extract_planes};
 //!
 //! // A 160x120 camera looking at a wall 2 m away, tilted 20 degrees about the vertical axis.
 //! let k = sl_core::Intrinsics::kinect_v1().scaled(0.25)?;
 //! let cam = Camera { intrinsics: k, sensor: sl_core::SensorModel::kinect_v1() };
-//! let wall = Plane3::new(Vector3::new(20f64.to_radians().sin(), 0.0, -20f64.to_radians().cos()), 2.0)?;
+//! let wall = Plane::new(Vector3::new(20f64.to_radians().sin(), 0.0, -20f64.to_radians().cos()), 2.0)?.facing_origin();
 //! let depth: Vec<f32> = (0..k.width * k.height)
 //!     .map(|i| wall.depth_at(&k, (i % k.width) as f64, (i / k.width) as f64).unwrap_or(0.0) as f32)
 //!     .collect();
@@ -37,7 +37,7 @@
 //! cfg.min_pixels = 200;
 //! let seg = extract_planes(&depth, &cam, &cfg)?;
 //! assert_eq!(seg.planes.len(), 1);
-//! assert!(seg.planes[0].plane.angle_deg(&wall) < 0.1);
+//! assert!(seg.planes[0].plane.angle_to_deg(&wall) < 0.1);
 //! assert!((seg.planes[0].plane.offset_m - 2.0).abs() < 0.01);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
@@ -65,5 +65,7 @@ pub use motion::{
     MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification, VerifyConfig,
     estimate_motion, estimate_motion_verified, icp_point_to_plane, refine_motion_icp_verified,
 };
-pub use plane::{DisparityAffine, Plane3};
+pub use plane::DisparityAffine;
 pub use ransac::{RansacConfig, metric_ransac};
+/// The workspace's plane type (re-exported from sl-core), which extraction reports facing the camera.
+pub use sl_core::Plane;

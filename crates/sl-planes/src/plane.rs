@@ -1,8 +1,10 @@
 //! 3D planes and their image in the disparity domain (paper eq. 14).
 //!
-//! A plane in camera coordinates is stored in Hesse normal form `n·X + d = 0` with a unit
-//! normal `n` pointing towards the camera and `d > 0` its distance from the camera centre
-//! (metres). The paper writes the same plane as `aX + bY + cZ + 1 = 0`, i.e. `(a, b, c) = n / d`.
+//! A plane in camera coordinates is sl-core's [`Plane`] in Hesse normal form `n·X + d = 0`; plane
+//! extraction reports it facing the camera (unit normal `n` pointing towards the camera, `d > 0`
+//! its distance from the camera centre, metres; [`Plane::facing_origin`]). The paper writes the
+//! same plane as `aX + bY + cZ + 1 = 0`, i.e. `(a, b, c) = n / d`
+//! ([`Plane::paper_coefficients`]).
 //!
 //! With `x = fx·X/Z + cx`, `y = fy·Y/Z + cy` and the disparity `D = f·B / Z` (`fb` = `f·B` of
 //! the sensor, pixel·metres), dividing the plane equation by `Z` gives
@@ -16,118 +18,10 @@
 //! and back `a = −α·fx/fb`, `b = −β·fy/fb`, `c = −(γ + α·cx + β·cy)/fb`. For `fx = fy = f` and
 //! `fb = f·B` this is the paper's `a·x + b·y + D/B + (c·f − a·u − b·v) = 0`.
 
-use nalgebra::{Isometry3, Point3, Vector3};
-use sl_core::Intrinsics;
+use nalgebra::Vector3;
+use sl_core::{Intrinsics, Plane};
 
 use crate::error::{PlanesError, Result};
-
-/// A 3D plane `normal·X + offset_m = 0` in camera coordinates (metres).
-///
-/// `normal` has unit length and points towards the camera centre; `offset_m ≥ 0` is the distance
-/// of the plane from the camera centre.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Plane3 {
-    /// Unit normal, oriented towards the camera (`normal·X < 0` for points on the plane).
-    pub normal: Vector3<f64>,
-    /// Distance from the camera centre, metres.
-    pub offset_m: f64,
-}
-
-impl Plane3 {
-    /// A plane from any (non-zero) normal and offset of `n·X + d = 0`; normalises and orients it.
-    pub fn new(normal: Vector3<f64>, offset_m: f64) -> Result<Self> {
-        let len = normal.norm();
-        if !(len.is_finite() && len > 1e-12 && offset_m.is_finite()) {
-            return Err(PlanesError::DegeneratePlane(format!(
-                "normal {normal:?} / offset {offset_m} cannot describe a plane"
-            )));
-        }
-        let (mut n, mut d) = (normal / len, offset_m / len);
-        if d < 0.0 {
-            n = -n;
-            d = -d;
-        }
-        Ok(Self {
-            normal: n,
-            offset_m: d,
-        })
-    }
-
-    /// The plane through `point` with the given normal.
-    pub fn through_point(normal: Vector3<f64>, point: &Point3<f64>) -> Result<Self> {
-        Self::new(normal, -normal.dot(&point.coords))
-    }
-
-    /// The paper's form `aX + bY + cZ + 1 = 0`, from `(a, b, c)`.
-    pub fn from_paper(abc: Vector3<f64>) -> Result<Self> {
-        let len = abc.norm();
-        if !(len.is_finite() && len > 1e-12) {
-            return Err(PlanesError::DegeneratePlane(format!(
-                "paper coefficients {abc:?}"
-            )));
-        }
-        Ok(Self {
-            normal: abc / len,
-            offset_m: 1.0 / len,
-        })
-    }
-
-    /// The paper's coefficients `(a, b, c) = n / d`; an error for a plane through the camera
-    /// centre.
-    pub fn paper_coefficients(&self) -> Result<Vector3<f64>> {
-        let off_centre = self.offset_m > 1e-12;
-        if !off_centre {
-            return Err(PlanesError::DegeneratePlane(
-                "a plane through the camera centre has no aX+bY+cZ+1=0 form".into(),
-            ));
-        }
-        Ok(self.normal / self.offset_m)
-    }
-
-    /// Signed distance of a point (positive on the camera's side).
-    pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
-        self.normal.dot(&p.coords) + self.offset_m
-    }
-
-    /// Angle between the two normals, degrees (orientation-aware: 0 for equal normals).
-    pub fn angle_deg(&self, other: &Plane3) -> f64 {
-        self.normal
-            .dot(&other.normal)
-            .clamp(-1.0, 1.0)
-            .acos()
-            .to_degrees()
-    }
-
-    /// The plane expressed in another frame: if `t` maps this plane's frame B into frame A
-    /// (`X_a = R·X_b + t`), the result is the same plane in A's coordinates
-    /// (`n_a = R·n_b`, `d_a = d_b − n_a·t`). The orientation is re-normalised towards A's camera.
-    pub fn transformed(&self, t: &Isometry3<f64>) -> Plane3 {
-        let n = t.rotation * self.normal;
-        let d = self.offset_m - n.dot(&t.translation.vector);
-        if d < 0.0 {
-            Plane3 {
-                normal: -n,
-                offset_m: -d,
-            }
-        } else {
-            Plane3 {
-                normal: n,
-                offset_m: d,
-            }
-        }
-    }
-
-    /// Depth (Z, metres) of the plane along the ray of pixel `(x, y)`; `None` when the ray does
-    /// not hit the plane in front of the camera.
-    pub fn depth_at(&self, k: &Intrinsics, x: f64, y: f64) -> Option<f64> {
-        let ray = k.ray(x, y);
-        let denom = self.normal.dot(&ray);
-        if denom >= -1e-12 {
-            return None;
-        }
-        Some(-self.offset_m / denom)
-    }
-}
 
 /// The disparity of a plane as an affine function of the pixel: `D(x, y) = a·x + b·y + c`
 /// (pixels of disparity, pixel coordinates as in [`Intrinsics`]).
@@ -150,7 +44,7 @@ impl DisparityAffine {
 
     /// The disparity function of a 3D plane seen by a camera with intrinsics `k` and
     /// `fb = f·B` (pixel·metres): see the module docs.
-    pub fn from_plane(plane: &Plane3, k: &Intrinsics, fb: f64) -> Result<Self> {
+    pub fn from_plane(plane: &Plane, k: &Intrinsics, fb: f64) -> Result<Self> {
         let m = plane.paper_coefficients()?;
         if !(fb.is_finite() && fb > 0.0) {
             return Err(PlanesError::InvalidConfig(format!(
@@ -165,7 +59,7 @@ impl DisparityAffine {
 
     /// The 3D plane of a disparity function (inverse of [`DisparityAffine::from_plane`]).
     /// An error when the function is (numerically) zero everywhere: a plane at infinity.
-    pub fn to_plane(&self, k: &Intrinsics, fb: f64) -> Result<Plane3> {
+    pub fn to_plane(&self, k: &Intrinsics, fb: f64) -> Result<Plane> {
         if !(fb.is_finite() && fb > 0.0) {
             return Err(PlanesError::InvalidConfig(format!(
                 "f·B = {fb} must be positive"
@@ -181,7 +75,7 @@ impl DisparityAffine {
                 "{self:?} is not finite"
             )));
         }
-        Plane3::from_paper(m)
+        Ok(Plane::from_paper_coefficients(m)?)
     }
 
     /// The paper's eq. 14 coefficients `(a, b, 1/B, c·f − a·u − b·v)` of
@@ -199,12 +93,15 @@ impl DisparityAffine {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::{Isometry3, Point3};
 
     #[test]
     fn affine_round_trip_and_consistency() {
         let k = Intrinsics::new(640, 480, 517.3, 516.5, 318.6, 255.3).unwrap();
         let fb = 580.0 * 0.075;
-        let plane = Plane3::new(Vector3::new(0.2, -0.7, -0.6), 1.3).unwrap();
+        let plane = Plane::new(Vector3::new(0.2, -0.7, -0.6), 1.3)
+            .unwrap()
+            .facing_origin();
         let aff = DisparityAffine::from_plane(&plane, &k, fb).unwrap();
         // Every pixel's disparity equals fb / Z of the plane's depth there.
         for (x, y) in [(0.0, 0.0), (100.0, 400.0), (639.0, 12.0), (320.5, 240.25)] {
@@ -221,7 +118,7 @@ mod tests {
         // fx = fy = f, fb = f·B: a x + b y + D/B + (c f − a u − b v) = 0.
         let k = Intrinsics::paper_kinect();
         let (f, bl) = (587.0, 0.075);
-        let plane = Plane3::from_paper(Vector3::new(0.1, 0.3, -0.5)).unwrap();
+        let plane = Plane::from_paper_coefficients(Vector3::new(0.1, 0.3, -0.5)).unwrap();
         let m = plane.paper_coefficients().unwrap();
         let aff = DisparityAffine::from_plane(&plane, &k, f * bl).unwrap();
         let e = aff.paper_eq14(bl);
@@ -234,15 +131,28 @@ mod tests {
 
     #[test]
     fn transform_moves_plane_with_points() {
-        let plane = Plane3::new(Vector3::new(0.0, 0.3, -1.0), 2.0).unwrap();
+        let plane = Plane::new(Vector3::new(0.0, 0.3, -1.0), 2.0)
+            .unwrap()
+            .facing_origin();
         let t = Isometry3::new(Vector3::new(0.1, -0.2, 0.3), Vector3::new(0.05, -0.1, 0.2));
         // A point on the plane in B, moved into A, lies on the transformed plane.
         let p_b = Point3::new(0.4, 0.0, 0.0)
-            + plane.normal * -plane.signed_distance(&Point3::new(0.4, 0.0, 0.0));
-        assert!(plane.signed_distance(&p_b).abs() < 1e-12);
+            + plane.normal * -plane.signed_distance_m(&Point3::new(0.4, 0.0, 0.0));
+        assert!(plane.signed_distance_m(&p_b).abs() < 1e-12);
         let pa = t * p_b;
-        assert!(plane.transformed(&t).signed_distance(&pa).abs() < 1e-12);
-        assert!(Plane3::new(Vector3::zeros(), 1.0).is_err());
+        assert!(
+            plane
+                .transformed(&t)
+                .facing_origin()
+                .signed_distance_m(&pa)
+                .abs()
+                < 1e-12
+        );
+        assert!(
+            Plane::new(Vector3::zeros(), 1.0)
+                .map(Plane::facing_origin)
+                .is_err()
+        );
         assert!(
             DisparityAffine::default()
                 .to_plane(&Intrinsics::kinect_v1(), 43.5)

@@ -14,7 +14,8 @@ use sl_core::{Camera, DepthImage, Image};
 
 use crate::error::{PlanesError, Result};
 use crate::extract::{PlaneInfo, PlaneSegmentation};
-use crate::plane::{DisparityAffine, Plane3};
+use crate::plane::DisparityAffine;
+use sl_core::Plane;
 
 /// Parameters of the metric RANSAC baseline.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,12 +50,8 @@ impl Default for RansacConfig {
 
 /// Least-squares (PCA) plane of points, facing the camera; `None` for fewer than 3 or
 /// degenerate points. The fit is `sl_core::fit_plane`.
-pub fn fit_plane_pca(points: &[Point3<f64>]) -> Option<Plane3> {
-    let plane = sl_core::fit_plane(points)?.plane.facing_origin();
-    Some(Plane3 {
-        normal: plane.normal,
-        offset_m: plane.offset_m,
-    })
+pub fn fit_plane_pca(points: &[Point3<f64>]) -> Option<Plane> {
+    Some(sl_core::fit_plane(points)?.plane.facing_origin())
 }
 
 /// Sequential metric RANSAC on a depth image. Returns the same structure as the disparity
@@ -99,7 +96,7 @@ pub fn metric_ransac(
         let subset: Vec<usize> = (0..cfg.score_samples.min(nr))
             .map(|_| remaining[rng.random_range(0..nr)])
             .collect();
-        let mut best: Option<(usize, Plane3)> = None;
+        let mut best: Option<(usize, Plane)> = None;
         for _ in 0..cfg.iterations {
             let (a, b, c) = (
                 remaining[rng.random_range(0..nr)],
@@ -108,12 +105,12 @@ pub fn metric_ransac(
             );
             let (pa, pb, pc) = (pts[a], pts[b], pts[c]);
             let nrm = (pb - pa).cross(&(pc - pa));
-            let Ok(pl) = Plane3::new(nrm, -nrm.dot(&pa.coords)) else {
+            let Ok(pl) = Plane::new(nrm, -nrm.dot(&pa.coords)).map(Plane::facing_origin) else {
                 continue;
             };
             let score = subset
                 .iter()
-                .filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr)
+                .filter(|&&i| pl.signed_distance_m(&pts[i]).abs() < thr)
                 .count();
             if best.is_none_or(|(s, _)| score > s) {
                 best = Some((score, pl));
@@ -124,7 +121,7 @@ pub fn metric_ransac(
         for _ in 0..2 {
             let inl: Vec<Point3<f64>> = remaining
                 .iter()
-                .filter(|&&i| pl.signed_distance(&pts[i]).abs() < thr)
+                .filter(|&&i| pl.signed_distance_m(&pts[i]).abs() < thr)
                 .map(|&i| pts[i])
                 .collect();
             match fit_plane_pca(&inl) {
@@ -134,7 +131,7 @@ pub fn metric_ransac(
         }
         let (inl, rest): (Vec<usize>, Vec<usize>) = remaining
             .iter()
-            .partition(|&&i| pl.signed_distance(&pts[i]).abs() < thr);
+            .partition(|&&i| pl.signed_distance_m(&pts[i]).abs() < thr);
         if inl.len() < cfg.min_pixels {
             break;
         }
@@ -146,7 +143,7 @@ pub fn metric_ransac(
         for &i in &inl {
             let p = idx[i] as usize;
             labels[p] = id;
-            let dist = pl.signed_distance(&pts[i]);
+            let dist = pl.signed_distance_m(&pts[i]);
             ss += dist * dist;
             let d = fb / pts[i].z;
             let r = d - affine.eval((p % w) as f64, (p / w) as f64);

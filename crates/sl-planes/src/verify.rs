@@ -542,16 +542,18 @@ impl<'d> TwoWay<'d> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plane::Plane3;
+    use sl_core::Plane;
 
     /// A 160x120 camera looking at a tilted wall 2 m away.
-    fn wall() -> (Camera, DepthImage, Plane3) {
+    fn wall() -> (Camera, DepthImage, Plane) {
         let k = Intrinsics::new(160, 120, 120.0, 120.0, 79.5, 59.5).unwrap();
         let cam = Camera {
             intrinsics: k,
             sensor: SensorModel::kinect_v1(),
         };
-        let plane = Plane3::new(Vector3::new(0.3, -0.2, -1.0), 2.0).unwrap();
+        let plane = Plane::new(Vector3::new(0.3, -0.2, -1.0), 2.0)
+            .unwrap()
+            .facing_origin();
         let z: Vec<f32> = (0..k.width * k.height)
             .map(|i| {
                 plane

@@ -7,7 +7,7 @@ use sl_core::{Camera, DepthImage, Image, Intrinsics, SensorModel};
 use sl_eval::planes::segcomp;
 use sl_noise::sim::KinectSimulator;
 use sl_planes::{
-    MotionConfig, Plane3, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion, metric_ransac,
+    MotionConfig, Plane, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion, metric_ransac,
 };
 
 /// A 160x120 camera (focal length `f`) with the Kinect sensor model (f·B = 43.5 px·m).
@@ -27,7 +27,7 @@ fn cfg_small() -> PlaneConfig {
 
 /// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels
 /// (1-based plane index); pixels beyond `max_z` are left invalid.
-fn render(k: &Intrinsics, planes: &[Plane3], max_z: f64) -> (DepthImage, Image<u16>) {
+fn render(k: &Intrinsics, planes: &[Plane], max_z: f64) -> (DepthImage, Image<u16>) {
     let mut depth = vec![0f32; k.width * k.height];
     let mut labels = vec![0u16; k.width * k.height];
     for y in 0..k.height {
@@ -75,13 +75,13 @@ proptest! {
         let cam = small_camera(f);
         let (t, a) = (tilt_deg.to_radians(), azimuth);
         let n = Vector3::new(t.sin() * a.cos(), t.sin() * a.sin(), -t.cos());
-        let plane = Plane3::new(n, dist).unwrap();
+        let plane = Plane::new(n, dist).unwrap().facing_origin();
         let (truth, _) = render(&cam.intrinsics, &[plane], 8.0);
         let depth = noisy(&truth, seed);
         let seg = PlaneExtractor::new(cfg_small()).unwrap().extract_depth(&depth, &cam).unwrap();
         prop_assert!(!seg.planes.is_empty());
         let p = &seg.planes[0];
-        let ang = p.plane.angle_deg(&plane);
+        let ang = p.plane.angle_to_deg(&plane);
         prop_assert!(ang < 0.5, "normal off by {ang}°");
         let rel = (p.plane.offset_m - dist).abs() / dist;
         prop_assert!(rel < 0.01, "offset {} vs {dist}", p.plane.offset_m);
@@ -104,9 +104,15 @@ fn two_planes_one_centimetre_apart_stay_separate() {
         -(45f64.to_radians().sin()),
         -(45f64.to_radians().cos()),
     );
-    let table = Plane3::new(n, 0.6 * 45f64.to_radians().cos()).unwrap();
-    let book = Plane3::new(n, table.offset_m - 0.01).unwrap();
-    let wall = Plane3::new(Vector3::new(0.0, 0.0, -1.0), 3.0).unwrap();
+    let table = Plane::new(n, 0.6 * 45f64.to_radians().cos())
+        .unwrap()
+        .facing_origin();
+    let book = Plane::new(n, table.offset_m - 0.01)
+        .unwrap()
+        .facing_origin();
+    let wall = Plane::new(Vector3::new(0.0, 0.0, -1.0), 3.0)
+        .unwrap()
+        .facing_origin();
     let (truth_t, _) = render(&k, &[table], 2.0);
     let (truth_b, _) = render(&k, &[book], 2.0);
     let (truth_w, _) = render(&k, &[wall], 5.0);
@@ -163,7 +169,9 @@ fn a_deep_plane_is_one_plane() {
     let cam = small_camera(145.0);
     let k = cam.intrinsics;
     let phi = 60.9f64.to_radians();
-    let plane = Plane3::new(Vector3::new(0.0, -phi.sin(), -phi.cos()), 0.508).unwrap();
+    let plane = Plane::new(Vector3::new(0.0, -phi.sin(), -phi.cos()), 0.508)
+        .unwrap()
+        .facing_origin();
     let (truth, _) = render(&k, &[plane], 4.5);
     let stats = truth.stats().unwrap();
     assert!(stats.min < 0.65 && stats.max > 3.8, "{stats:?}");
@@ -179,16 +187,24 @@ fn a_deep_plane_is_one_plane() {
         seg.planes.iter().map(|p| p.pixels).collect::<Vec<_>>()
     );
     assert!(seg.planes[0].pixels as f64 > 0.9 * depth.valid_count() as f64);
-    assert!(seg.planes[0].plane.angle_deg(&plane) < 0.5);
+    assert!(seg.planes[0].plane.angle_to_deg(&plane) < 0.5);
 }
 
 /// A room corner in frame A's coordinates: floor, two side walls and a back wall.
-fn room() -> Vec<Plane3> {
+fn room() -> Vec<Plane> {
     vec![
-        Plane3::new(Vector3::new(0.0, -1.0, 0.0), 0.8).unwrap(),
-        Plane3::new(Vector3::new(1.0, 0.0, 0.0), 1.0).unwrap(),
-        Plane3::new(Vector3::new(-1.0, 0.0, 0.0), 1.2).unwrap(),
-        Plane3::new(Vector3::new(0.0, 0.0, -1.0), 3.0).unwrap(),
+        Plane::new(Vector3::new(0.0, -1.0, 0.0), 0.8)
+            .unwrap()
+            .facing_origin(),
+        Plane::new(Vector3::new(1.0, 0.0, 0.0), 1.0)
+            .unwrap()
+            .facing_origin(),
+        Plane::new(Vector3::new(-1.0, 0.0, 0.0), 1.2)
+            .unwrap()
+            .facing_origin(),
+        Plane::new(Vector3::new(0.0, 0.0, -1.0), 3.0)
+            .unwrap()
+            .facing_origin(),
     ]
 }
 
@@ -214,7 +230,7 @@ proptest! {
         let planes_a = room();
         // The room in B's coordinates.
         let inv = b_in_a.inverse();
-        let planes_b: Vec<Plane3> = planes_a.iter().map(|p| p.transformed(&inv)).collect();
+        let planes_b: Vec<Plane> = planes_a.iter().map(|p| p.transformed(&inv).facing_origin()).collect();
         let (ta, _) = render(&k, &planes_a, 8.0);
         let (tb, _) = render(&k, &planes_b, 8.0);
         let (da, db) = (noisy(&ta, seed), noisy(&tb, seed + 1));

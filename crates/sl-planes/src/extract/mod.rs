@@ -53,7 +53,8 @@ use crate::kernels::{
     search8_two, valid_mask,
 };
 use crate::log::{LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
-use crate::plane::{DisparityAffine, Plane3};
+use crate::plane::DisparityAffine;
+use sl_core::Plane;
 
 /// Parameters of the disparity-domain extractor.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -128,7 +129,7 @@ pub struct PlaneInfo {
     /// Label in the label image (1-based; planes are sorted by decreasing size).
     pub id: u16,
     /// The 3D plane in camera coordinates.
-    pub plane: Plane3,
+    pub plane: Plane,
     /// The disparity function `D = a·x + b·y + c` of the plane.
     pub affine: DisparityAffine,
     /// Number of pixels with this label.

@@ -41,8 +41,12 @@ fn odd_sizes_and_disparity_input() {
             intrinsics: k,
             sensor: SensorModel::kinect_v1(),
         };
-        let left = Plane3::new(nalgebra::Vector3::new(0.3, 0.0, -1.0), 1.5).unwrap();
-        let right = Plane3::new(nalgebra::Vector3::new(-0.3, 0.1, -1.0), 2.5).unwrap();
+        let left = Plane::new(nalgebra::Vector3::new(0.3, 0.0, -1.0), 1.5)
+            .unwrap()
+            .facing_origin();
+        let right = Plane::new(nalgebra::Vector3::new(-0.3, 0.1, -1.0), 2.5)
+            .unwrap()
+            .facing_origin();
         let depth: Vec<f32> = (0..w * h)
             .map(|i| {
                 let (x, y) = ((i % w) as f64, (i / w) as f64);
@@ -74,7 +78,7 @@ fn odd_sizes_and_disparity_input() {
             } else {
                 &right
             };
-            assert!(p.plane.angle_deg(truth) < 0.1, "{:?}", p.plane);
+            assert!(p.plane.angle_to_deg(truth) < 0.1, "{:?}", p.plane);
         }
         // The same through the disparity entry point, also with garbage where invalid.
         let disp = depth.to_disparity(&cam.sensor);

@@ -18,7 +18,7 @@ pub(super) struct Matcher<'p> {
     pub(super) planes_a: &'p [PlaneInfo],
     pub(super) planes_b: &'p [PlaneInfo],
     /// B's planes after the guess.
-    pub(super) bt: Vec<Plane3>,
+    pub(super) bt: Vec<Plane>,
     /// Candidate pairs, by decreasing weight.
     pub(super) cands: Vec<PlaneMatch>,
     pub(super) cfg: MotionConfig,
@@ -33,11 +33,14 @@ impl<'p> Matcher<'p> {
         cfg: &MotionConfig,
     ) -> Self {
         let g = prior.copied().unwrap_or_else(Isometry3::identity);
-        let bt: Vec<Plane3> = planes_b.iter().map(|p| p.plane.transformed(&g)).collect();
+        let bt: Vec<Plane> = planes_b
+            .iter()
+            .map(|p| p.plane.transformed(&g).facing_origin())
+            .collect();
         let mut cands = Vec::new();
         for (i, pa) in planes_a.iter().enumerate() {
             for (j, pb) in bt.iter().enumerate() {
-                let near = pa.plane.angle_deg(pb) < cfg.max_angle_deg
+                let near = pa.plane.angle_to_deg(pb) < cfg.max_angle_deg
                     && (pa.plane.offset_m - pb.offset_m).abs() < cfg.max_offset_m;
                 if prior.is_none() || near {
                     cands.push(PlaneMatch {

@@ -55,9 +55,9 @@ use sl_core::{Camera, DepthImage};
 
 use crate::error::{PlanesError, Result};
 use crate::extract::PlaneInfo;
-use crate::plane::Plane3;
 pub use crate::verify::VerifyConfig;
 use crate::verify::{self, Density, Score, Target, TwoWay};
+use sl_core::Plane;
 
 /// Parameters of plane matching and motion estimation.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -85,7 +85,7 @@ pub(super) fn spread_ok(
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage, nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3}};
-/// use sl_planes::{MotionConfidence, MotionConfig, MotionFrame, Plane3, PlaneConfig,
+/// use sl_planes::{MotionConfidence, MotionConfig, MotionFrame, Plane, PlaneConfig,
 ///     PlaneExtractor, VerifyConfig, estimate_motion_verified};
 ///
 /// // A room (floor, ceiling, three walls, none at right angles) seen by a wide 160x120 camera,
@@ -93,13 +93,13 @@ pub(super) fn spread_ok(
 /// let k = sl_core::Intrinsics::new(160, 120, 60.0, 60.0, 79.5, 59.5)?;
 /// let cam = Camera { intrinsics: k, sensor: sl_core::SensorModel::kinect_v1() };
 /// let room = [
-///     Plane3::new(Vector3::new(0.0, -1.0, 0.0), 0.8)?,
-///     Plane3::new(Vector3::new(-0.048, 0.999, -0.012), 1.6)?,
-///     Plane3::new(Vector3::new(-0.982, -0.1, 0.158), 1.5)?,
-///     Plane3::new(Vector3::new(0.856, -0.472, 0.213), 1.1)?,
-///     Plane3::new(Vector3::new(-0.213, 0.164, -0.963), 3.0)?,
+///     Plane::new(Vector3::new(0.0, -1.0, 0.0), 0.8)?.facing_origin(),
+///     Plane::new(Vector3::new(-0.048, 0.999, -0.012), 1.6)?.facing_origin(),
+///     Plane::new(Vector3::new(-0.982, -0.1, 0.158), 1.5)?.facing_origin(),
+///     Plane::new(Vector3::new(0.856, -0.472, 0.213), 1.1)?.facing_origin(),
+///     Plane::new(Vector3::new(-0.213, 0.164, -0.963), 3.0)?.facing_origin(),
 /// ];
-/// let render = |planes: &[Plane3]| {
+/// let render = |planes: &[Plane]| {
 ///     let z = (0..k.width * k.height).map(|i| {
 ///         let (x, y) = ((i % k.width) as f64, (i / k.width) as f64);
 ///         let z = planes.iter().filter_map(|p| p.depth_at(&k, x, y)).fold(f64::INFINITY, f64::min);
@@ -111,7 +111,7 @@ pub(super) fn spread_ok(
 ///     Translation3::new(0.05, 0.0, 0.0),
 ///     UnitQuaternion::from_axis_angle(&Vector3::y_axis(), 35f64.to_radians()),
 /// );
-/// let room_b: Vec<Plane3> = room.iter().map(|p| p.transformed(&truth.inverse())).collect();
+/// let room_b: Vec<Plane> = room.iter().map(|p| p.transformed(&truth.inverse()).facing_origin()).collect();
 /// let (da, db) = (render(&room)?, render(&room_b)?);
 /// let mut cfg = PlaneConfig::default();
 /// cfg.min_pixels = 200;

@@ -6,7 +6,7 @@ use sl_core::{Camera, DepthImage};
 use sl_noise::sim::{KinectSimulator, Plane as SimPlane, Scene, Sphere};
 use sl_planes::{
     ICP_INLIER_TOLERANCE, IcpConfig, IcpRejection, MotionConfidence, MotionConfig, MotionFrame,
-    Plane3, PlaneExtractor, PlanesError, VerifyConfig, estimate_motion_verified,
+    Plane, PlaneExtractor, PlanesError, VerifyConfig, estimate_motion_verified,
     refine_motion_icp_verified,
 };
 
@@ -15,7 +15,7 @@ use super::{cfg_small, small_camera};
 /// A closed, irregular room around the camera of frame A: six faces at different distances
 /// and no two pairs of faces at the same angle (in a rectangular box every corner looks
 /// alike, and a partial view of two faces fits several rotations equally well).
-fn irregular_room() -> Vec<Plane3> {
+fn irregular_room() -> Vec<Plane> {
     [
         ((0.0, -1.0, 0.0), 0.8),
         ((-0.048, 0.999, -0.012), 1.6),
@@ -25,7 +25,11 @@ fn irregular_room() -> Vec<Plane3> {
         ((0.324, 0.4, 0.857), 2.2),
     ]
     .iter()
-    .map(|&((x, y, z), d)| Plane3::new(Vector3::new(x, y, z), d).unwrap())
+    .map(|&((x, y, z), d)| {
+        Plane::new(Vector3::new(x, y, z), d)
+            .unwrap()
+            .facing_origin()
+    })
     .collect()
 }
 
