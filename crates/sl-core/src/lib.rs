@@ -41,7 +41,7 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
-pub use mesh::{Mesh, VertexScalar};
+pub use mesh::{Mesh, Topology, VertexScalar};
 pub use plane::{Plane, PlaneFit, fit_plane};
 pub use pose::{
     CameraToCamera, CameraToWorld, Pose, WorldToCamera, pose_from_matrix, pose_from_row_major,

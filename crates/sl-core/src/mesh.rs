@@ -133,6 +133,97 @@ impl Mesh {
     }
 }
 
+/// Edge statistics of a mesh: the checks of a closed, manifold, consistently oriented surface
+/// ([`Mesh::topology`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Topology {
+    /// Undirected edges.
+    pub edges: usize,
+    /// Edges with one triangle (holes or the border of the observed region).
+    pub boundary_edges: usize,
+    /// Edges with more than two triangles.
+    pub nonmanifold_edges: usize,
+    /// Edges with two triangles traversing them in the same direction.
+    pub inconsistent_edges: usize,
+    /// Triangles with a repeated vertex index.
+    pub degenerate_triangles: usize,
+}
+
+impl Topology {
+    /// No boundary, every edge shared by exactly two triangles in opposite directions.
+    pub fn is_closed_oriented_manifold(&self) -> bool {
+        self.boundary_edges == 0 && self.nonmanifold_edges == 0 && self.inconsistent_edges == 0
+    }
+}
+
+impl Mesh {
+    /// The values of the per-vertex scalar called `name`, if the mesh has it.
+    pub fn scalar_values(&self, name: &str) -> Option<&[f32]> {
+        self.scalar
+            .as_ref()
+            .filter(|s| s.name == name)
+            .map(|s| s.values.as_slice())
+    }
+
+    /// Edge-based topology checks (one sort of the `3·triangles` directed edges).
+    pub fn topology(&self) -> Topology {
+        let mut undirected: Vec<(u32, u32, bool)> = Vec::with_capacity(self.triangles.len() * 3);
+        let mut degenerate = 0;
+        for t in &self.triangles {
+            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
+                degenerate += 1;
+            }
+            for i in 0..3 {
+                let (a, b) = (t[i], t[(i + 1) % 3]);
+                undirected.push(if a < b { (a, b, true) } else { (b, a, false) });
+            }
+        }
+        undirected.sort_unstable();
+        let mut topo = Topology {
+            degenerate_triangles: degenerate,
+            ..Topology::default()
+        };
+        for run in undirected.chunk_by(|x, y| x.0 == y.0 && x.1 == y.1) {
+            topo.edges += 1;
+            match run {
+                [_] => topo.boundary_edges += 1,
+                [x, y] => {
+                    if x.2 == y.2 {
+                        topo.inconsistent_edges += 1;
+                    }
+                }
+                _ => topo.nonmanifold_edges += 1,
+            }
+        }
+        topo
+    }
+
+    /// Signed enclosed volume, in the positions' unit cubed (positive when the triangles face
+    /// outwards of a closed surface). Computed in `f64`; triangles with an index out of range
+    /// are skipped.
+    pub fn signed_volume(&self) -> f64 {
+        (0..self.triangles.len())
+            .filter_map(|i| self.triangle_corners(i))
+            .map(|[a, b, c]| {
+                let [a, b, c] = [a, b, c].map(|p| p.coords.cast::<f64>());
+                a.dot(&b.cross(&c)) / 6.0
+            })
+            .sum()
+    }
+
+    /// Total surface area, in the positions' unit squared (computed in `f64`; triangles with an
+    /// index out of range are skipped).
+    pub fn area(&self) -> f64 {
+        (0..self.triangles.len())
+            .filter_map(|i| self.triangle_corners(i))
+            .map(|[a, b, c]| {
+                let [a, b, c] = [a, b, c].map(|p| p.coords.cast::<f64>());
+                0.5 * (b - a).cross(&(c - a)).norm()
+            })
+            .sum()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

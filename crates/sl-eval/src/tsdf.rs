@@ -2,8 +2,8 @@
 //! surface, and their summary statistics.
 
 use rayon::prelude::*;
+use sl_core::Mesh;
 use sl_core::nalgebra::Point3;
-use sl_tsdf::Mesh;
 
 /// Summary of unsigned distances, metres.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -5,8 +5,10 @@ use std::path::PathBuf;
 use numpy::ndarray::Array1;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
+use sl_core::nalgebra::{Point3, Vector3};
+use sl_core::{Mesh, VertexScalar};
 use sl_io::PlyFormat;
-use sl_tsdf::{Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::arrays::{check_camera, depth_input, image_array, pose_input, rows3_array};
 use crate::camera::PyCamera;
@@ -205,10 +207,16 @@ pub struct PyMesh {
 impl PyMesh {
     fn from_mesh(py: Python<'_>, mesh: Mesh) -> PyResult<Self> {
         Ok(Self {
-            vertices: rows3_array(py, mesh.positions.into_iter())?.unbind(),
-            triangles: rows3_array(py, mesh.triangles.into_iter())?.unbind(),
-            normals: rows3_array(py, mesh.normals.into_iter())?.unbind(),
-            confidence: Array1::from_vec(mesh.confidence).into_pyarray(py).unbind(),
+            vertices: rows3_array(py, mesh.positions.iter().map(|p| p.coords.into()))?.unbind(),
+            triangles: rows3_array(py, mesh.triangles.iter().copied())?.unbind(),
+            normals: rows3_array(py, mesh.normals.iter().map(|&n| n.into()))?.unbind(),
+            confidence: Array1::from_vec(
+                mesh.scalar_values(sl_tsdf::CONFIDENCE_PROPERTY)
+                    .map(<[f32]>::to_vec)
+                    .unwrap_or_default(),
+            )
+            .into_pyarray(py)
+            .unbind(),
         })
     }
 }
@@ -247,11 +255,21 @@ impl PyMesh {
     /// Writes the mesh as PLY (binary unless ``ascii``), atomically.
     #[pyo3(signature = (path, ascii = false))]
     fn write_ply(&self, py: Python<'_>, path: PathBuf, ascii: bool) -> PyResult<()> {
+        let confidence = self.confidence.bind(py).readonly().as_array().to_vec();
         let mesh = Mesh {
-            positions: rows(&self.vertices.bind(py).readonly())?,
-            normals: rows(&self.normals.bind(py).readonly())?,
-            confidence: self.confidence.bind(py).readonly().as_array().to_vec(),
+            positions: rows(&self.vertices.bind(py).readonly())?
+                .into_iter()
+                .map(Point3::from)
+                .collect(),
+            normals: rows(&self.normals.bind(py).readonly())?
+                .into_iter()
+                .map(Vector3::from)
+                .collect(),
             triangles: rows(&self.triangles.bind(py).readonly())?,
+            scalar: (!confidence.is_empty()).then(|| VertexScalar {
+                name: sl_tsdf::CONFIDENCE_PROPERTY.to_owned(),
+                values: confidence,
+            }),
         };
         compute(py, || {
             sl_tsdf::io::write_mesh_ply(&path, &mesh, ply_format(ascii))

@@ -48,10 +48,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         h ^= u64::from(v);
         h = h.wrapping_mul(0x0100_0000_01b3);
     };
-    for p in mesh.positions.iter().chain(&mesh.normals) {
+    let coords = mesh.positions.iter().map(|p| &p.coords);
+    for p in coords.chain(&mesh.normals) {
         p.iter().for_each(|c| eat(c.to_bits()));
     }
-    mesh.confidence.iter().for_each(|c| eat(c.to_bits()));
+    let confidence = mesh.scalar_values(sl_tsdf::CONFIDENCE_PROPERTY);
+    confidence
+        .unwrap_or_default()
+        .iter()
+        .for_each(|c| eat(c.to_bits()));
     mesh.triangles.iter().flatten().for_each(|&i| eat(i));
     let mut sorted = ms.clone();
     sorted.sort_by(f64::total_cmp);

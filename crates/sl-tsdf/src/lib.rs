@@ -89,8 +89,11 @@ pub mod slice;
 pub mod volume;
 
 pub use error::{Result, TsdfError};
-pub use mesh::{ExtractOptions, Mesh, Topology};
+pub use io::CONFIDENCE_PROPERTY;
+pub use mesh::ExtractOptions;
 #[allow(deprecated)]
 pub use params::{TsdfConfig, TsdfParams, WeightMode};
+/// The mesh type [`TsdfVolume::extract_mesh`] returns (sl-core's, re-exported).
+pub use sl_core::{Mesh, Topology};
 pub use slice::{Axis, Slice, SliceSpec};
 pub use volume::{BLOCK_SIDE, Block, IntegrateStats, TsdfVolume, Voxel};

@@ -10,6 +10,12 @@ use sl_tsdf::{
     Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode,
 };
 
+/// The mesh's per-vertex confidence (empty when it was not extracted).
+fn confidence(mesh: &Mesh) -> &[f32] {
+    mesh.scalar_values(sl_tsdf::CONFIDENCE_PROPERTY)
+        .unwrap_or_default()
+}
+
 fn small_camera() -> Intrinsics {
     Camera::kinect_v1().intrinsics.scaled(0.25).unwrap() // 160x120, f = 145
 }
@@ -234,7 +240,7 @@ fn sphere_is_closed_manifold_oriented_and_accurate() {
     let topo = mesh.topology();
     assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
     assert_eq!(mesh.normals.len(), mesh.vertex_count());
-    assert_eq!(mesh.confidence.len(), mesh.vertex_count());
+    assert_eq!(confidence(&mesh).len(), mesh.vertex_count());
     // Vertices on the sphere within voxel/10.
     let worst = mesh
         .positions
@@ -252,7 +258,11 @@ fn sphere_is_closed_manifold_oriented_and_accurate() {
         assert!(dot > 0.98, "normal {n:?} at {p:?}");
     }
     // No duplicated vertices.
-    let mut keys: Vec<[u32; 3]> = mesh.positions.iter().map(|p| p.map(f32::to_bits)).collect();
+    let mut keys: Vec<[u32; 3]> = mesh
+        .positions
+        .iter()
+        .map(|p| p.coords.map(f32::to_bits).into())
+        .collect();
     keys.sort_unstable();
     keys.dedup();
     assert_eq!(keys.len(), mesh.vertex_count());
@@ -305,7 +315,7 @@ fn random_fields_give_crack_free_oriented_meshes() {
                 *count.entry((a, b)).or_insert(0) += 1;
             }
         }
-        let on_border = |p: &[f32; 3]| {
+        let on_border = |p: &Point3<f32>| {
             p.iter()
                 .any(|&c| ((c as f64) - lo).abs() < 1e-5 || ((c as f64) - hi).abs() < 1e-5)
         };
@@ -383,7 +393,7 @@ fn extraction_is_deterministic_and_has_no_unused_vertices() {
         }
         assert!(used.iter().all(|&u| u), "unused vertices");
         assert_eq!(mesh.normals.len(), mesh.vertex_count());
-        assert_eq!(mesh.confidence.len(), mesh.vertex_count());
+        assert_eq!(confidence(mesh).len(), mesh.vertex_count());
     }
 }
 
@@ -434,7 +444,7 @@ fn ambiguous_shared_face_has_no_crack() {
             *count.entry((a, b)).or_insert(0) += 1;
         }
     }
-    let outer = |p: &[f32; 3], q: &[f32; 3]| {
+    let outer = |p: &Point3<f32>, q: &Point3<f32>| {
         (0..3).any(|ax| {
             let bounds = if ax == 0 { [0.0, 0.2] } else { [0.0, 0.1] };
             bounds
@@ -618,7 +628,7 @@ fn fused_mesh_survives_a_ply_round_trip() {
         let back = sl_tsdf::io::read_mesh_ply(&path).unwrap();
         assert_eq!(back.triangles, mesh.triangles);
         assert_eq!(back.positions.len(), mesh.positions.len());
-        assert_eq!(back.confidence.len(), mesh.confidence.len());
+        assert_eq!(confidence(&back).len(), confidence(&mesh).len());
         assert_eq!(back.normals.len(), mesh.normals.len());
         let close = |a: &[f32], b: &[f32]| {
             a.iter()
@@ -626,12 +636,15 @@ fn fused_mesh_survives_a_ply_round_trip() {
                 .all(|(x, y)| (x - y).abs() <= 1e-6 * x.abs().max(1.0))
         };
         for (a, b) in back.positions.iter().zip(&mesh.positions) {
-            assert!(close(a, b), "{a:?} vs {b:?}");
+            assert!(
+                close(a.coords.as_slice(), b.coords.as_slice()),
+                "{a:?} vs {b:?}"
+            );
         }
         for (a, b) in back.normals.iter().zip(&mesh.normals) {
-            assert!(close(a, b));
+            assert!(close(a.as_slice(), b.as_slice()));
         }
-        assert!(close(&back.confidence, &mesh.confidence));
+        assert!(close(confidence(&back), confidence(&mesh)));
         assert_eq!(back.topology(), mesh.topology());
     }
 }

@@ -2,9 +2,9 @@
 //! looking at fused meshes in reports (and the CLI's `sldepth fuse --render-png`) without a 3D
 //! viewer.
 
+use sl_core::Mesh;
 use sl_core::nalgebra::{self, Point3, Vector3};
 use sl_core::{Image, Intrinsics, Pose};
-use sl_tsdf::Mesh;
 
 use crate::error::{EvalError, Result};
 
@@ -104,7 +104,7 @@ pub fn framing_camera(
     height: usize,
 ) -> Result<(Intrinsics, Pose)> {
     let (lo, hi) = mesh
-        .bounds()
+        .bounding_box()
         .ok_or_else(|| EvalError::InvalidParameter("cannot frame an empty mesh".into()))?;
     let lo = Vector3::new(f64::from(lo[0]), f64::from(lo[1]), f64::from(lo[2]));
     let hi = Vector3::new(f64::from(hi[0]), f64::from(hi[1]), f64::from(hi[2]));

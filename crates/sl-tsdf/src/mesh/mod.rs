@@ -1,27 +1,14 @@
 //! Indexed triangle meshes and marching-cubes extraction over the sparse blocks.
 
-use rayon::prelude::*;
+use sl_core::nalgebra::{Point3, Vector3};
+use sl_core::{Mesh, VertexScalar};
 
+use crate::io::CONFIDENCE_PROPERTY;
 use crate::par::run_on_threads;
 
 use crate::hash::unpack;
 use crate::mc_table::{CORNERS, EDGES, McTable, table};
 use crate::volume::{BLOCK_SIDE, BLOCK_VOXELS, Block, TsdfVolume, local_index};
-
-/// An indexed triangle mesh (world frame, metres). Triangles are counter-clockwise seen from
-/// the outside (the side with F > 0, towards the cameras); normals point the same way.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Mesh {
-    /// Vertex positions.
-    pub positions: Vec<[f32; 3]>,
-    /// Unit vertex normals (the normalised TSDF gradient); empty if not requested.
-    pub normals: Vec<[f32; 3]>,
-    /// Per-vertex confidence: the accumulated weight interpolated along the edge; empty if not
-    /// requested.
-    pub confidence: Vec<f32>,
-    /// Triangles as vertex indices.
-    pub triangles: Vec<[u32; 3]>,
-}
 
 /// Options of [`TsdfVolume::extract_mesh`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,7 +19,8 @@ pub struct ExtractOptions {
     pub min_weight: f32,
     /// Compute vertex normals.
     pub normals: bool,
-    /// Compute per-vertex confidence.
+    /// Compute per-vertex confidence (the mesh's scalar named
+    /// [`CONFIDENCE_PROPERTY`](crate::CONFIDENCE_PROPERTY)).
     pub confidence: bool,
 }
 
@@ -44,141 +32,6 @@ impl Default for ExtractOptions {
             confidence: true,
         }
     }
-}
-
-/// Edge statistics of a mesh: the checks of a closed, manifold, consistently oriented surface.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct Topology {
-    /// Undirected edges.
-    pub edges: usize,
-    /// Edges with one triangle (holes or the border of the observed region).
-    pub boundary_edges: usize,
-    /// Edges with more than two triangles.
-    pub nonmanifold_edges: usize,
-    /// Edges with two triangles traversing them in the same direction.
-    pub inconsistent_edges: usize,
-    /// Triangles with a repeated vertex index.
-    pub degenerate_triangles: usize,
-}
-
-impl Topology {
-    /// No boundary, every edge shared by exactly two triangles in opposite directions.
-    pub fn is_closed_oriented_manifold(&self) -> bool {
-        self.boundary_edges == 0 && self.nonmanifold_edges == 0 && self.inconsistent_edges == 0
-    }
-}
-
-impl Mesh {
-    /// Number of vertices.
-    pub fn vertex_count(&self) -> usize {
-        self.positions.len()
-    }
-
-    /// Number of triangles.
-    pub fn triangle_count(&self) -> usize {
-        self.triangles.len()
-    }
-
-    /// Edge-based topology checks.
-    pub fn topology(&self) -> Topology {
-        let mut directed: Vec<(u32, u32)> = Vec::with_capacity(self.triangles.len() * 3);
-        let mut degenerate = 0;
-        for t in &self.triangles {
-            if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] {
-                degenerate += 1;
-            }
-            for i in 0..3 {
-                directed.push((t[i], t[(i + 1) % 3]));
-            }
-        }
-        let mut undirected: Vec<(u32, u32, bool)> = directed
-            .iter()
-            .map(|&(a, b)| if a < b { (a, b, true) } else { (b, a, false) })
-            .collect();
-        undirected.par_sort_unstable();
-        let mut topo = Topology {
-            degenerate_triangles: degenerate,
-            ..Topology::default()
-        };
-        let mut i = 0;
-        while i < undirected.len() {
-            let mut j = i;
-            while j < undirected.len()
-                && undirected[j].0 == undirected[i].0
-                && undirected[j].1 == undirected[i].1
-            {
-                j += 1;
-            }
-            topo.edges += 1;
-            match j - i {
-                1 => topo.boundary_edges += 1,
-                2 => {
-                    if undirected[i].2 == undirected[i + 1].2 {
-                        topo.inconsistent_edges += 1;
-                    }
-                }
-                _ => topo.nonmanifold_edges += 1,
-            }
-            i = j;
-        }
-        topo
-    }
-
-    /// Signed enclosed volume (positive when the triangles face outwards of a closed surface).
-    pub fn signed_volume(&self) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| self.positions[i as usize].map(f64::from));
-                let cross = [
-                    b[1] * c[2] - b[2] * c[1],
-                    b[2] * c[0] - b[0] * c[2],
-                    b[0] * c[1] - b[1] * c[0],
-                ];
-                (a[0] * cross[0] + a[1] * cross[1] + a[2] * cross[2]) / 6.0
-            })
-            .sum()
-    }
-
-    /// Total surface area, m².
-    pub fn area(&self) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| 0.5 * norm(&face_normal(self, t)))
-            .sum()
-    }
-
-    /// Axis-aligned bounds `(min, max)`, or `None` for an empty mesh.
-    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
-        let first = *self.positions.first()?;
-        Some(
-            self.positions
-                .iter()
-                .fold((first, first), |(mut lo, mut hi), p| {
-                    for i in 0..3 {
-                        lo[i] = lo[i].min(p[i]);
-                        hi[i] = hi[i].max(p[i]);
-                    }
-                    (lo, hi)
-                }),
-        )
-    }
-}
-
-/// Unnormalised normal (twice the area) of a triangle, f64.
-pub(crate) fn face_normal(m: &Mesh, t: &[u32; 3]) -> [f64; 3] {
-    let [a, b, c] = t.map(|i| m.positions[i as usize].map(f64::from));
-    let u = [b[0] - a[0], b[1] - a[1], b[2] - a[2]];
-    let v = [c[0] - a[0], c[1] - a[1], c[2] - a[2]];
-    [
-        u[1] * v[2] - u[2] * v[1],
-        u[2] * v[0] - u[0] * v[2],
-        u[0] * v[1] - u[1] * v[0],
-    ]
-}
-
-pub(crate) fn norm(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 impl TsdfVolume {
@@ -252,23 +105,27 @@ impl TsdfVolume {
         // its vertices, written in place.
         let n = total as usize;
         let mut mesh = Mesh {
-            positions: vec![[0.0; 3]; n],
+            positions: bytemuck::zeroed_vec::<Point3<f32>>(n),
             normals: if opts.normals {
-                vec![[0.0; 3]; n]
-            } else {
-                Vec::new()
-            },
-            confidence: if opts.confidence {
-                vec![0.0; n]
+                bytemuck::zeroed_vec::<Vector3<f32>>(n)
             } else {
                 Vec::new()
             },
             triangles: Vec::new(),
+            scalar: opts.confidence.then(|| VertexScalar {
+                name: CONFIDENCE_PROPERTY.to_owned(),
+                values: vec![0.0; n],
+            }),
         };
         let lens = || per_block.iter().map(|bv| bv.count as usize);
         let pos = split_chunks(&mut mesh.positions, lens());
         let mut nrm = split_chunks(&mut mesh.normals, lens());
-        let mut conf = split_chunks(&mut mesh.confidence, lens());
+        let mut no_confidence = Vec::new();
+        let confidence = match mesh.scalar.as_mut() {
+            Some(s) => &mut s.values,
+            None => &mut no_confidence,
+        };
+        let mut conf = split_chunks(confidence, lens());
         nrm.resize_with(per_block.len(), || &mut []);
         conf.resize_with(per_block.len(), || &mut []);
         let mut outs = pos.into_iter().zip(nrm).zip(conf).enumerate();

@@ -185,8 +185,8 @@ pub(super) fn block_vertex_data(
     grid: &mut BlockGrid,
     slot: usize,
     bv: &BlockVertices,
-    pos: &mut [[f32; 3]],
-    nrm: &mut [[f32; 3]],
+    pos: &mut [Point3<f32>],
+    nrm: &mut [Vector3<f32>],
     conf: &mut [f32],
 ) {
     let (Some(mask), Some(around)) = (bv.mask.as_deref(), bv.around.as_deref()) else {
@@ -225,7 +225,7 @@ pub(super) fn block_vertex_data(
             ];
             p[axis] += t;
             if let Some(d) = pos.get_mut(k) {
-                *d = p.map(|c| c * v);
+                *d = Point3::from(p.map(|c| c * v));
             }
             if let Some(d) = nrm.get_mut(k) {
                 let gr1 = gradient(grid, g1, min_w);
@@ -234,14 +234,14 @@ pub(super) fn block_vertex_data(
                     g[i] = gr0[i] * (1.0 - t) + gr1[i] * t;
                 }
                 let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
-                *d = if len > 0.0 {
+                *d = Vector3::from(if len > 0.0 {
                     g.map(|c| c / len)
                 } else {
                     // No usable gradient: the edge direction, towards F > 0.
                     let mut e = [0.0f32; 3];
                     e[axis] = if f1 > f0 { 1.0 } else { -1.0 };
                     e
-                };
+                });
             }
             if let Some(d) = conf.get_mut(k) {
                 *d = grid.weight[g0] * (1.0 - t) + grid.weight[g1] * t;
