@@ -24,78 +24,83 @@ impl PlaneExtractor {
         // Each row is labelled in place: the row is appended as zeros to `labels` (which holds
         // the rows above on entry to the row), then written.
         labels.clear();
-        let mut drow = std::mem::take(&mut self.drow);
+        let mut drow = std::mem::take(&mut self.disparity_row);
         drow.resize(w, 0.0);
-        self.acc.clear();
-        self.acc.resize(
+        self.final_sums.clear();
+        self.final_sums.resize(
             self.planes.len(),
             FinalAcc {
                 y0: usize::MAX,
                 ..FinalAcc::default()
             },
         );
-        self.amb.clear();
-        self.full.clear();
-        self.full
+        self.ambiguous.clear();
+        self.full_res_fits.clear();
+        self.full_res_fits
             .extend(self.planes.iter().map(|p| cell_to_full(&p.f)));
-        self.fa.clear();
-        self.fa.extend(self.full.iter().map(|f| f.a as f32));
-        let full: &[DisparityAffine] = &self.full;
-        let fa: &[f32] = &self.fa;
-        let acc = &mut self.acc;
-        let amb = &mut self.amb;
+        self.slope_x.clear();
+        self.slope_x
+            .extend(self.full_res_fits.iter().map(|f| f.a as f32));
+        let full: &[DisparityAffine] = &self.full_res_fits;
+        let fa: &[f32] = &self.slope_x;
+        let acc = &mut self.final_sums;
+        let amb = &mut self.ambiguous;
         let empty: &[u16] = &[];
-        let hrow = |jj: usize| self.labq.get(jj * wq..(jj + 1) * wq).unwrap_or(empty);
+        let hrow = |jj: usize| {
+            self.cell_labels
+                .get(jj * wq..(jj + 1) * wq)
+                .unwrap_or(empty)
+        };
         let mut inv_dummy = InvSums::default();
         let mut sums_dummy = AffineSums::default();
         let nchunks = w.div_ceil(LANES);
         // With at most 64 planes, labels are at most 64 (bit masks of the candidates).
         let small = self.planes.len() <= 64;
-        self.near_tag.clear();
-        self.near_tag.resize(nchunks, 0);
-        self.near_set.resize(nchunks, [0; 16]);
-        self.near_len.resize(nchunks, 0);
-        self.need.clear();
-        self.need.resize(wq, 0);
-        self.zrow.clear();
-        self.zrow.resize(wq, 0);
+        self.candidates_cell_row.clear();
+        self.candidates_cell_row.resize(nchunks, 0);
+        self.candidate_planes.resize(nchunks, [0; 16]);
+        self.candidate_count.resize(nchunks, 0);
+        self.cells_touching_plane.clear();
+        self.cells_touching_plane.resize(wq, 0);
+        self.zero_cell_row.clear();
+        self.zero_cell_row.resize(wq, 0);
         for y in 0..h {
             let yf = y as f64;
             let (stats, metric) = (is_sample_row(y), is_metric_row(y));
-            self.rowc.clear();
-            self.rowc
+            self.row_offsets.clear();
+            self.row_offsets
                 .extend(full.iter().map(|f| (f.b * yf + f.c) as f32));
-            let rowc: &[f32] = &self.rowc;
+            let rowc: &[f32] = &self.row_offsets;
             let j = y / CELL;
             let hint_row = hrow(j);
             let up_row = if j > 0 { hrow(j - 1) } else { empty };
             let dn_row = hrow(j + 1);
-            let zrow = &self.zrow[..];
+            let zrow = &self.zero_cell_row[..];
             let nh = hint_row.len();
-            let need = &mut self.need[..nh];
+            let need = &mut self.cells_touching_plane[..nh];
             if y % CELL == 0 {
                 let up2 = if up_row.is_empty() { zrow } else { up_row };
                 let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
                 touching(hint_row, up2, dn2, need);
                 // The keep bytes of the pixels of unlabelled cells (0 = search).
-                self.ukeep.clear();
-                self.ukeep
+                self.unlabelled_keep.clear();
+                self.unlabelled_keep
                     .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
                 // The runs of equal cell labels, shared by the rows of this cell row.
-                self.hruns.clear();
+                self.cell_label_runs.clear();
                 let mut i = 0;
                 while i < nh {
                     let e = run_end(hint_row, i);
-                    self.hruns.push((i as u32, e as u32, hint_row[i]));
+                    self.cell_label_runs.push((i as u32, e as u32, hint_row[i]));
                     i = e;
                 }
             }
             let row_d = d.row(y, w, &mut drow[..w]);
             labels.resize((y + 1) * w, 0);
             let row_l = &mut labels[y * w..(y + 1) * w];
-            let keep = &mut self.keep[..];
+            let keep = &mut self.keep_row[..];
             // keep: 1 = labelled or stays unlabelled, 0 = search.
-            for &(i, e, v) in &self.hruns {
+            for &(i, e, v) in &self.cell_label_runs {
                 let (i, e) = (i as usize, e as usize);
                 let (x0, x1) = (CELL * i, (CELL * e).min(w));
                 if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
@@ -157,7 +162,7 @@ impl PlaneExtractor {
                     // Unlabelled cells: searched only when touching a labelled cell (`x1` is
                     // `CELL · e`, within the pattern of this cell row).
                     let ks = &mut keep[x0..x1];
-                    match self.ukeep.get(x0..x1) {
+                    match self.unlabelled_keep.get(x0..x1) {
                         Some(u) => ks.copy_from_slice(u),
                         None => ks.fill(1),
                     }
@@ -177,23 +182,23 @@ impl PlaneExtractor {
             let keep = &keep[..w];
             // Searches, 8 pixels at a time: first the chunks with a pixel to search.
             let nch = w.div_ceil(LANES);
-            self.chunks.resize(nch + 1, (0, 0));
+            self.search_chunks.resize(nch + 1, (0, 0));
             let mut count = 0usize;
             let mut kw = keep.chunks_exact(LANES);
             for (c, kc) in (&mut kw).enumerate() {
                 let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
                 if word != ALL_KEPT {
-                    self.chunks[count] = (c as u32, word);
+                    self.search_chunks[count] = (c as u32, word);
                     count += 1;
                 }
             }
             let tail = kw.remainder();
             if !tail.is_empty() {
                 let word = u64::from_le_bytes(pad(tail, 1));
-                self.chunks[count] = ((w / LANES) as u32, word);
+                self.search_chunks[count] = ((w / LANES) as u32, word);
                 count += usize::from(word != ALL_KEPT);
             }
-            for &(c, word) in &self.chunks[..count] {
+            for &(c, word) in &self.search_chunks[..count] {
                 let x0 = c as usize * LANES;
                 let x1 = (x0 + LANES).min(w);
                 let mut todo = byte_mask(!word & ALL_KEPT);
@@ -207,20 +212,20 @@ impl PlaneExtractor {
                 // for the rows of a cell row.
                 let ci = c as usize;
                 let tag = j as u32 + 1;
-                if self.near_tag[ci] != tag {
+                if self.candidates_cell_row[ci] != tag {
                     let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
                     let (a, b) = (c0.saturating_sub(1), c1 + 1);
-                    let nc = if small {
-                        let bits =
-                            or_bits(up_row, a, b) | or_bits(hint_row, a, b) | or_bits(dn_row, a, b);
-                        bits_to_planes(bits, &mut self.near_set[ci])
-                    } else {
-                        neighbour_planes([up_row, hint_row, dn_row], a, b, &mut self.near_set[ci])
-                    };
-                    self.near_len[ci] = nc as u8;
-                    self.near_tag[ci] = tag;
+                    let nc = candidate_planes_around(
+                        [up_row, hint_row, dn_row],
+                        a,
+                        b,
+                        small,
+                        &mut self.candidate_planes[ci],
+                    );
+                    self.candidate_count[ci] = nc as u8;
+                    self.candidates_cell_row[ci] = tag;
                 }
-                let near = &self.near_set[ci][..self.near_len[ci] as usize];
+                let near = &self.candidate_planes[ci][..self.candidate_count[ci] as usize];
                 let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
                 todo &= nonzero_mask(&best);
                 while todo != 0 {
@@ -248,7 +253,7 @@ impl PlaneExtractor {
                 }
             }
         }
-        self.drow = drow;
+        self.disparity_row = drow;
     }
 
     /// Pixels within the threshold of two planes take the label that dominates their
@@ -261,7 +266,7 @@ impl PlaneExtractor {
         h: usize,
         labels: &mut [u16],
     ) {
-        for &(i, k1, k2) in &self.amb {
+        for &(i, k1, k2) in &self.ambiguous {
             let i = i as usize;
             let (x, y) = (i % w, i / w);
             let (mut c1, mut c2) = (0u32, 0u32);
@@ -276,20 +281,24 @@ impl PlaneExtractor {
                 }
             }
             let (u1, u2) = (k1 as usize - 1, k2 as usize - 1);
-            if c2 > c1 && labels[i] == k1 && u1 < self.acc.len() && u2 < self.acc.len() {
+            if c2 > c1
+                && labels[i] == k1
+                && u1 < self.final_sums.len()
+                && u2 < self.final_sums.len()
+            {
                 labels[i] = k2;
-                self.acc[u1].pixels -= 1;
-                self.acc[u2].pixels += 1;
-                self.acc[u2].add_rows(y);
+                self.final_sums[u1].pixels -= 1;
+                self.final_sums[u2].pixels += 1;
+                self.final_sums[u2].add_rows(y);
                 if is_sample_row(y) {
                     let (xf, yf, df) = (x as f64, y as f64, f64::from(d.at(i)));
-                    let (f1, f2) = (self.full[u1], self.full[u2]);
-                    let a1 = &mut self.acc[u1];
+                    let (f1, f2) = (self.full_res_fits[u1], self.full_res_fits[u2]);
+                    let a1 = &mut self.final_sums[u1];
                     a1.sums.remove(xf, yf, df);
                     if is_metric_row(y) {
                         a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
                     }
-                    let a2 = &mut self.acc[u2];
+                    let a2 = &mut self.final_sums[u2];
                     a2.sums.add(xf, yf, df);
                     if is_metric_row(y) {
                         a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
@@ -302,14 +311,14 @@ impl PlaneExtractor {
     /// Drops 4-connected pieces of a plane's cells smaller than `min_piece_pixels / 16` cells.
     #[inline(never)]
     pub(super) fn drop_small_pieces(&mut self, wq: usize, hq: usize) {
-        self.cc.label(&self.labq, wq, hq);
+        self.components.label(&self.cell_labels, wq, hq);
         let min = self.cfg.min_piece_pixels.div_ceil(CELL * CELL);
-        for (ri, run) in self.cc.runs.iter().enumerate() {
-            if self.cc.sizes[self.cc.component[ri] as usize] >= min {
+        for (ri, run) in self.components.runs.iter().enumerate() {
+            if self.components.sizes[self.components.component[ri] as usize] >= min {
                 continue;
             }
             let y = run.y as usize;
-            self.labq[y * wq + run.x0 as usize..y * wq + run.x1 as usize].fill(0);
+            self.cell_labels[y * wq + run.x0 as usize..y * wq + run.x1 as usize].fill(0);
         }
     }
 
@@ -324,7 +333,7 @@ impl PlaneExtractor {
         mut labels: Vec<u16>,
     ) -> Result<PlaneSegmentation> {
         let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
-        for (pi, a) in self.acc.iter().enumerate() {
+        for (pi, a) in self.final_sums.iter().enumerate() {
             let n = a.sums.n;
             if a.pixels < self.cfg.min_pixels || n < 3.0 {
                 continue;
@@ -366,24 +375,24 @@ impl PlaneExtractor {
             ));
         }
         out.sort_by_key(|o| std::cmp::Reverse(o.1.pixels));
-        self.lut.clear();
-        self.lut.resize(self.acc.len() + 1, 0);
+        self.relabel_lut.clear();
+        self.relabel_lut.resize(self.final_sums.len() + 1, 0);
         for (new, (old, info)) in out.iter_mut().enumerate() {
             info.id = new as u16 + 1;
-            self.lut[*old + 1] = info.id;
+            self.relabel_lut[*old + 1] = info.id;
         }
         // Relabel only the rows of the planes whose id changes.
         let (mut y0, mut y1) = (usize::MAX, 0);
-        for (i, a) in self.acc.iter().enumerate() {
-            if self.lut[i + 1] as usize != i + 1 && a.pixels > 0 {
+        for (i, a) in self.final_sums.iter().enumerate() {
+            if self.relabel_lut[i + 1] as usize != i + 1 && a.pixels > 0 {
                 y0 = y0.min(a.y0);
                 y1 = y1.max(a.y1);
             }
         }
         if y0 < y1 && w > 0 {
-            relabel(&mut labels[y0 * w..(y1 * w).min(w * h)], &self.lut);
+            relabel(&mut labels[y0 * w..(y1 * w).min(w * h)], &self.relabel_lut);
         }
-        self.acc.clear();
+        self.final_sums.clear();
         Ok(PlaneSegmentation {
             labels: Image::from_vec(w, h, labels)?,
             planes: out.into_iter().map(|(_, p)| p).collect(),

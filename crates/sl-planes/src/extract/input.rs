@@ -61,12 +61,12 @@ impl<'a> FullDisparity<'a> {
 
 /// The half-resolution disparity (2×2 means, NaN = invalid) produced row by row for the LoG,
 /// from the full-resolution rows (converted from depth on the way) while they are in L1; after
-/// each odd row, the row of the cells `dq` (2×2 means of the half-resolution map).
+/// each odd row, the row of the cells `cell_disparity` (2×2 means of the half-resolution map).
 pub(super) struct HalfRows<'a, 'b> {
     pub(super) src: Source<'a>,
     /// The last two half-resolution rows.
-    pub(super) dh: &'b mut [f32],
-    pub(super) dq: &'b mut [f32],
+    pub(super) half_res_rows: &'b mut [f32],
+    pub(super) cell_disparity: &'b mut [f32],
     /// Full-resolution width.
     pub(super) w: usize,
     /// Next half-resolution row.
@@ -91,13 +91,13 @@ impl<'a> HalfRows<'a, '_> {
         };
         let (r0, r1) = r2.split_at(w);
         let w2 = w / 2;
-        let (q0, q1) = self.dh.split_at_mut(w2);
+        let (q0, q1) = self.half_res_rows.split_at_mut(w2);
         let out = if y2.is_multiple_of(2) { q0 } else { q1 };
         downsample_rows(r0, r1, out);
         if !y2.is_multiple_of(2) {
-            let (q0, q1) = self.dh.split_at(w2);
+            let (q0, q1) = self.half_res_rows.split_at(w2);
             let (wq, j) = (w2 / 2, y2 / 2);
-            let out = &mut self.dq[j * wq..(j + 1) * wq];
+            let out = &mut self.cell_disparity[j * wq..(j + 1) * wq];
             for ((o, p), q) in out
                 .iter_mut()
                 .zip(q0.chunks_exact(2))
@@ -109,7 +109,7 @@ impl<'a> HalfRows<'a, '_> {
         y2
     }
 
-    /// Produces the rows the LoG left (all of `dh` and `dq` are then done) and returns the
+    /// Produces the rows the LoG left (all of `half_res_rows` and `cell_disparity` are then done) and returns the
     /// full-resolution disparity.
     pub(super) fn finish(mut self, h: usize) -> FullDisparity<'a> {
         while self.next < h / 2 {
@@ -126,6 +126,6 @@ impl RowSource for HalfRows<'_, '_> {
     fn next_row(&mut self) -> &[f32] {
         let y2 = self.produce();
         let w2 = self.w / 2;
-        &self.dh[(y2 % 2) * w2..(y2 % 2 + 1) * w2]
+        &self.half_res_rows[(y2 % 2) * w2..(y2 % 2 + 1) * w2]
     }
 }

@@ -65,10 +65,10 @@ impl PlaneExtractor {
     #[inline(never)]
     pub(super) fn compact(&mut self) {
         let n = self.planes.len();
-        self.lut.clear();
-        self.lut.resize(n + 1, 0);
+        self.relabel_lut.clear();
+        self.relabel_lut.resize(n + 1, 0);
         let mut next = 0u16;
-        let newidx = &mut self.cursor;
+        let newidx = &mut self.plane_order;
         newidx.clear();
         newidx.resize(n, 0);
         for (i, p) in self.planes.iter().enumerate() {
@@ -84,14 +84,19 @@ impl PlaneExtractor {
                 r = self.planes[r].into as usize;
                 guard += 1;
             }
-            self.lut[i + 1] = if self.planes[r].alive {
+            self.relabel_lut[i + 1] = if self.planes[r].alive {
                 newidx[r] as u16
             } else {
                 0
             };
         }
-        if self.lut.iter().enumerate().any(|(i, &v)| v as usize != i) {
-            relabel(&mut self.labq, &self.lut);
+        if self
+            .relabel_lut
+            .iter()
+            .enumerate()
+            .any(|(i, &v)| v as usize != i)
+        {
+            relabel(&mut self.cell_labels, &self.relabel_lut);
         }
         self.planes.retain(|p| p.alive);
         for p in self.planes.iter_mut() {
@@ -104,7 +109,7 @@ impl PlaneExtractor {
     #[inline(never)]
     pub(super) fn order_by_size(&mut self) {
         let n = self.planes.len();
-        let order = &mut self.cursor;
+        let order = &mut self.plane_order;
         order.clear();
         order.extend(0..n as u32);
         order.sort_by(|&a, &b| {
@@ -116,14 +121,14 @@ impl PlaneExtractor {
         if order.iter().enumerate().all(|(i, &o)| o as usize == i) {
             return;
         }
-        self.lut.clear();
-        self.lut.resize(n + 1, 0);
-        self.spare.clear();
+        self.relabel_lut.clear();
+        self.relabel_lut.resize(n + 1, 0);
+        self.planes_spare.clear();
         for (new, &old) in order.iter().enumerate() {
-            self.lut[old as usize + 1] = new as u16 + 1;
-            self.spare.push(self.planes[old as usize]);
+            self.relabel_lut[old as usize + 1] = new as u16 + 1;
+            self.planes_spare.push(self.planes[old as usize]);
         }
-        std::mem::swap(&mut self.planes, &mut self.spare);
-        relabel(&mut self.labq, &self.lut);
+        std::mem::swap(&mut self.planes, &mut self.planes_spare);
+        relabel(&mut self.cell_labels, &self.relabel_lut);
     }
 }

@@ -239,39 +239,73 @@ impl FinalAcc {
 /// ```
 #[derive(Debug, Clone, Default)]
 pub struct PlaneExtractor {
+    /// The configuration.
     cfg: PlaneConfig,
-    d: Vec<f32>,
-    dh: Vec<f32>,
-    dq: Vec<f32>,
-    maskq: Vec<u8>,
-    labq: Vec<u16>,
-    mask: Vec<u8>,
-    log: LogBuffers,
-    cc: RunLabeler,
+    /// Full-resolution disparity of the frame (pixels), row-major.
+    full_disparity: Vec<f32>,
+    /// Two rolling rows of half-resolution disparity (input of the cell grid and the LoG).
+    half_res_rows: Vec<f32>,
+    /// Cell-averaged disparity on the 4×4 cell grid.
+    cell_disparity: Vec<f32>,
+    /// Planarity mask of the cells (1 = the LoG says locally planar).
+    cell_planar: Vec<u8>,
+    /// Plane label per cell (0 = none), the working segmentation of the coarse stages.
+    cell_labels: Vec<u16>,
+    /// Planarity mask produced by the LoG, before it is reduced to cells.
+    log_mask: Vec<u8>,
+    /// Work rows of the box-approximated LoG.
+    log_buffers: LogBuffers,
+    /// Connected components of cell masks (seeds, regrowth, piece filtering).
+    components: RunLabeler,
+    /// The plane candidates (affine fits, sums, boxes, merge links).
     planes: Vec<Cand>,
-    spare: Vec<Cand>,
-    free: Vec<u8>,
-    keep: Vec<u8>,
-    need: Vec<u8>,
-    hruns: Vec<(u32, u32, u16)>,
-    pre_row: Vec<u16>,
-    drow: Vec<f32>,
-    ukeep: Vec<u8>,
-    chunks: Vec<(u32, u64)>,
-    near_tag: Vec<u32>,
-    near_set: Vec<[u16; 16]>,
-    near_len: Vec<u8>,
-    zrow: Vec<u16>,
-    cursor: Vec<u32>,
-    fa: Vec<f32>,
-    rowc: Vec<f32>,
-    full: Vec<DisparityAffine>,
-    acc: Vec<FinalAcc>,
-    amb: Vec<(u32, u16, u16)>,
-    comp_sums: Vec<AffineSums>,
-    comp_box: Vec<[u32; 4]>,
-    comp_fit: Vec<Option<DisparityAffine>>,
-    lut: Vec<u16>,
+    /// Second candidate buffer, swapped with `planes` when they are renumbered.
+    planes_spare: Vec<Cand>,
+    /// Cells that are planar but unassigned after a coarse pass (1 = free).
+    free_cells: Vec<u8>,
+    /// Per-pixel (or per-cell) keep bytes of the row being assigned: 1 = done, 0 = search.
+    keep_row: Vec<u8>,
+    /// Per cell of the current cell row: 1 when an unlabelled cell touches a labelled one.
+    cells_touching_plane: Vec<u8>,
+    /// Runs `(start, end, label)` of equal cell labels of the current cell row.
+    cell_label_runs: Vec<(u32, u32, u16)>,
+    /// Copy of the current cell-label row taken before its searches (coarse pass).
+    cell_labels_before_search: Vec<u16>,
+    /// One full-resolution disparity row (final pass).
+    disparity_row: Vec<f32>,
+    /// Keep bytes of the pixels of unlabelled cells of the current cell row (0 = search).
+    unlabelled_keep: Vec<u8>,
+    /// The 8-pixel chunks of the current row that have pixels to search, with their keep words.
+    search_chunks: Vec<(u32, u64)>,
+    /// Per chunk: the cell row (+1) its candidate list was computed for.
+    candidates_cell_row: Vec<u32>,
+    /// Per chunk: the candidate planes (label − 1) of the cells around it.
+    candidate_planes: Vec<[u16; 16]>,
+    /// Per chunk: how many entries of `candidate_planes` are used.
+    candidate_count: Vec<u8>,
+    /// A row of zero cell labels (stands in for a missing row above or below).
+    zero_cell_row: Vec<u16>,
+    /// Plane indices in merge / renumbering order.
+    plane_order: Vec<u32>,
+    /// Per plane: ∂D/∂x as `f32`, for the vectorised searches.
+    slope_x: Vec<f32>,
+    /// Per plane: the disparity of the current row at x = 0 as `f32`.
+    row_offsets: Vec<f32>,
+    /// Per plane: its affine fit converted to full-resolution pixel coordinates.
+    full_res_fits: Vec<DisparityAffine>,
+    /// Per plane: pixels, rows and moments accumulated by the final pass.
+    final_sums: Vec<FinalAcc>,
+    /// Pixels that fit two planes: `(pixel index, best label, second label)`.
+    ambiguous: Vec<(u32, u16, u16)>,
+    /// Per component: affine moment sums of its cells (seeding).
+    component_sums: Vec<AffineSums>,
+    /// Per component: bounding box on the cell grid (seeding).
+    component_box: Vec<[u32; 4]>,
+    /// Per component: its robust affine fit, if it has one (seeding).
+    component_fit: Vec<Option<DisparityAffine>>,
+    /// Label lookup table for renumbering (old label → new label).
+    relabel_lut: Vec<u16>,
+    /// Wall-clock time per stage of the last frame.
     times: StageTimes,
 }
 
@@ -333,7 +367,7 @@ impl PlaneExtractor {
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
         // Scratch for one row pair: the full-resolution disparity is never stored.
-        let mut d = std::mem::take(&mut self.d);
+        let mut d = std::mem::take(&mut self.full_disparity);
         d.resize(2 * w, 0.0);
         let src = Source::Depth {
             z: depth.data(),
@@ -342,7 +376,7 @@ impl PlaneExtractor {
         };
         self.times.add(Stage::Disparity, &mut t0);
         let out = self.run(src, w, h, &camera.intrinsics, fb, t0);
-        self.d = d;
+        self.full_disparity = d;
         out
     }
 
@@ -376,7 +410,7 @@ impl PlaneExtractor {
         let cfg = self.cfg;
         let tau = cfg.threshold_px as f32;
         self.planes.clear();
-        self.acc.clear();
+        self.final_sums.clear();
         let (w2, h2) = (w / 2, h / 2);
         let (wq, hq) = (w2 / 2, h2 / 2);
         // The final pass appends the rows of the label image (no zeroing of the whole image).
@@ -386,17 +420,17 @@ impl PlaneExtractor {
             return self.finish(w, h, k, fb, labels);
         }
         // 0. The disparity and its 2×2 means, row pair by row pair as the LoG consumes them.
-        self.dh.resize(2 * w2, f32::NAN);
-        self.dq.resize(wq * hq, f32::NAN);
+        self.half_res_rows.resize(2 * w2, f32::NAN);
+        self.cell_disparity.resize(wq * hq, f32::NAN);
         let mut rows = HalfRows {
             src,
-            dh: &mut self.dh,
-            dq: &mut self.dq,
+            half_res_rows: &mut self.half_res_rows,
+            cell_disparity: &mut self.cell_disparity,
             w,
             next: 0,
         };
         // Row scratch; `fit_run` may write up to 7 bytes past a run.
-        self.keep.resize(w + LANES, 0);
+        self.keep_row.resize(w + LANES, 0);
         // 1. Seeds: the LoG on the half-resolution map, components on the cell grid.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
         planar_mask_uncounted(
@@ -406,13 +440,13 @@ impl PlaneExtractor {
             r,
             s,
             cfg.log_threshold_px as f32,
-            &mut self.log,
-            &mut self.mask,
+            &mut self.log_buffers,
+            &mut self.log_mask,
         );
         let d = rows.finish(h);
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
-        self.cc.label(&self.maskq, wq, hq);
+        self.components.label(&self.cell_planar, wq, hq);
         self.times.add(Stage::Components, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
         self.seed_from_components(wq, min_q);
@@ -441,7 +475,7 @@ impl PlaneExtractor {
             self.compact();
             self.times.add(Stage::Merge, &mut t0);
             if it + 1 < cfg.max_iterations && free >= min_q {
-                self.cc.label(&self.free, wq, hq);
+                self.components.label(&self.free_cells, wq, hq);
                 self.times.add(Stage::Components, &mut t0);
                 let before = self.planes.len();
                 self.seed_from_components(wq, min_q);

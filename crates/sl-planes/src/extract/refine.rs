@@ -16,8 +16,9 @@ impl PlaneExtractor {
             p.sums = AffineSums::default();
             p.bbox = EMPTY_BOX;
         }
-        self.fa.clear();
-        self.fa.extend(self.planes.iter().map(|p| p.f.a as f32));
+        self.slope_x.clear();
+        self.slope_x
+            .extend(self.planes.iter().map(|p| p.f.a as f32));
         // With at most 64 planes, the planes around a chunk are the bits of the labels of the
         // three rows around it (above: this pass's labels; this row: a copy from before its
         // searches; below: not yet searched).
@@ -27,24 +28,24 @@ impl PlaneExtractor {
         let (mut changed, mut free) = (0usize, 0usize);
         for j in 0..hq {
             if small {
-                self.pre_row.clear();
-                self.pre_row
-                    .extend_from_slice(&self.labq[j * wq..(j + 1) * wq]);
+                self.cell_labels_before_search.clear();
+                self.cell_labels_before_search
+                    .extend_from_slice(&self.cell_labels[j * wq..(j + 1) * wq]);
             }
             let jf = j as f64;
-            self.rowc.clear();
-            self.rowc
+            self.row_offsets.clear();
+            self.row_offsets
                 .extend(planes.iter().map(|p| (p.f.b * jf + p.f.c) as f32));
-            let rowc: &[f32] = &self.rowc;
-            let fa: &[f32] = &self.fa;
-            let row = &self.dq[j * wq..(j + 1) * wq];
-            let mrow = &self.maskq[j * wq..(j + 1) * wq];
-            let (above, rest) = self.labq.split_at_mut(j * wq);
+            let rowc: &[f32] = &self.row_offsets;
+            let fa: &[f32] = &self.slope_x;
+            let row = &self.cell_disparity[j * wq..(j + 1) * wq];
+            let mrow = &self.cell_planar[j * wq..(j + 1) * wq];
+            let (above, rest) = self.cell_labels.split_at_mut(j * wq);
             let (lrow, below) = rest.split_at_mut(wq);
             let up: &[u16] = if j > 0 { &above[(j - 1) * wq..] } else { &[] };
             let dn: &[u16] = below.get(..wq).unwrap_or(&[]);
-            let frow = &mut self.free[j * wq..(j + 1) * wq];
-            let keep = &mut self.keep[..];
+            let frow = &mut self.free_cells[j * wq..(j + 1) * wq];
+            let keep = &mut self.keep_row[..];
             let mut near = [0u16; 16];
             // Incumbents.
             let mut i = 0;
@@ -94,13 +95,14 @@ impl PlaneExtractor {
                     // Candidates: the planes of the cells around the chunk (spatial
                     // coherence; coplanar disconnected regions join by merging).
                     let (a, b) = (i0.saturating_sub(1), (i1 + 1).min(wq));
-                    let nc = if small {
-                        let bits =
-                            or_bits(up, a, b) | or_bits(&self.pre_row, a, b) | or_bits(dn, a, b);
-                        bits_to_planes(bits, &mut near)
+                    // This row: the labels from before its searches when the bits are
+                    // used, the live ones otherwise.
+                    let this_row: &[u16] = if small {
+                        &self.cell_labels_before_search
                     } else {
-                        neighbour_planes([up, &*lrow, dn], a, b, &mut near)
+                        lrow
                     };
+                    let nc = candidate_planes_around([up, this_row, dn], a, b, small, &mut near);
                     search8(&d8, i0 as f32, &near[..nc], fa, rowc, tau)
                 } else {
                     ([0u16; LANES], 0)

@@ -125,6 +125,26 @@ pub(super) fn neighbour_planes(
     n
 }
 
+/// The candidate planes (label − 1) of the cells `a..b` of three cell-label rows (above, this
+/// row, below; a row may be shorter or empty) into `out` (at most 16); returns their number.
+/// The one neighbour-candidate search of the coarse and the final pass: with at most 64 planes
+/// (`small`) the labels are OR-ed as bits, otherwise collected one by one.
+#[inline(always)]
+pub(super) fn candidate_planes_around(
+    rows: [&[u16]; 3],
+    a: usize,
+    b: usize,
+    small: bool,
+    out: &mut [u16; 16],
+) -> usize {
+    if small {
+        let bits = or_bits(rows[0], a, b) | or_bits(rows[1], a, b) | or_bits(rows[2], a, b);
+        bits_to_planes(bits, out)
+    } else {
+        neighbour_planes(rows, a, b, out)
+    }
+}
+
 /// The bits `l − 1` of the labels `l` of `row[a..b]` (labels ≤ 64; an empty or short row
 /// contributes its part of the range).
 #[inline(always)]
