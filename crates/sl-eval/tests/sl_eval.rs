@@ -11,12 +11,10 @@ use sl_tsdf::{ExtractOptions, Mesh, TsdfConfig, TsdfVolume, WeightMode};
 fn sphere_mesh(voxel: f64, r: f64, centre: Point3<f64>) -> Mesh {
     let lo = [0, 1, 2].map(|a| centre[a] - r - 3.0 * voxel);
     let hi = [0, 1, 2].map(|a| centre[a] + r + 3.0 * voxel);
-    let config = TsdfConfig {
-        voxel_m: voxel,
-        trunc_m: 4.0 * voxel,
-        weight: WeightMode::Uniform,
-        ..TsdfConfig::default()
-    };
+    let mut config = TsdfConfig::default();
+    config.voxel_m = voxel;
+    config.trunc_m = 4.0 * voxel;
+    config.weight = WeightMode::Uniform;
     TsdfVolume::from_field(config, lo, hi, |p| Some(((p - centre).norm() - r) as f32))
         .unwrap()
         .extract_mesh(&ExtractOptions::default())

@@ -48,15 +48,13 @@ impl PyTsdfVolume {
         } else {
             WeightMode::parse(weight).map_err(value_error)?
         };
-        let params = TsdfConfig {
-            voxel_m,
-            trunc_m,
-            weight,
-            max_depth_m,
-            min_depth_m,
-            memory_budget_bytes,
-            ..TsdfConfig::default()
-        };
+        let mut params = TsdfConfig::default();
+        params.voxel_m = voxel_m;
+        params.trunc_m = trunc_m;
+        params.weight = weight;
+        params.max_depth_m = max_depth_m;
+        params.min_depth_m = min_depth_m;
+        params.memory_budget_bytes = memory_budget_bytes;
         Ok(Self {
             volume: TsdfVolume::new(params).map_err(value_error)?,
             sensor_weight,
@@ -80,10 +78,8 @@ impl PyTsdfVolume {
         let view = input.view()?;
         check_camera(&view, &camera)?;
         if self.sensor_weight && self.volume.frame_count() == 0 {
-            let params = TsdfConfig {
-                weight: WeightMode::sensor_variance(camera.sensor),
-                ..*self.volume.params()
-            };
+            let mut params = *self.volume.params();
+            params.weight = WeightMode::sensor_variance(camera.sensor);
             self.volume = TsdfVolume::new(params).map_err(value_error)?;
         }
         let volume = &mut self.volume;

@@ -62,12 +62,11 @@ fn simulated() -> Sequence {
 }
 
 fn params() -> TsdfConfig {
-    TsdfConfig {
-        voxel_m: 0.004,
-        trunc_m: 0.02,
-        max_depth_m: 4.0,
-        ..TsdfConfig::default()
-    }
+    let mut config = TsdfConfig::default();
+    config.voxel_m = 0.004;
+    config.trunc_m = 0.02;
+    config.max_depth_m = 4.0;
+    config
 }
 
 fn fuse(seq: &Sequence) -> TsdfVolume {

@@ -25,13 +25,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         return Ok(());
     };
     let (frames, k) = (seq.frames, seq.camera.intrinsics);
-    let params = TsdfConfig {
-        voxel_m: 0.004,
-        trunc_m: 0.02,
-        max_depth_m: 4.0,
-        weight,
-        ..TsdfConfig::default()
-    };
+    let mut params = TsdfConfig::default();
+    params.voxel_m = 0.004;
+    params.trunc_m = 0.02;
+    params.max_depth_m = 4.0;
+    params.weight = weight;
     let mut vol = TsdfVolume::new(params)?;
     let mut ms = Vec::new();
     for (d, p) in &frames {

@@ -64,7 +64,9 @@
 //! let pose = Pose::identity();
 //! let depth = scene.render(&k, &pose).depth;
 //!
-//! let params = TsdfConfig { voxel_m: 0.02, trunc_m: 0.06, ..TsdfConfig::default() };
+//! let mut params = TsdfConfig::default();
+//! params.voxel_m = 0.02;
+//! params.trunc_m = 0.06;
 //! let mut volume = TsdfVolume::new(params)?;
 //! volume.integrate(&depth, &k, &pose)?;
 //! // In front of the wall F is positive, behind it negative.

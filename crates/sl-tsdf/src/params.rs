@@ -146,7 +146,10 @@ impl WeightFn {
 /// ±1.4σ at 3 m; [`TsdfConfig::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for another
 /// voxel size or range. A wider band blurs thin structures (the two sides of a 1 cm board
 /// interfere) and costs memory.
+///
+/// `#[non_exhaustive]`: start from [`TsdfConfig::default`] and assign the fields you need.
 #[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
 pub struct TsdfConfig {
     /// Edge of a voxel, metres.
     pub voxel_m: f64,

@@ -58,12 +58,11 @@ fn render(scene: &Scene, k: &Intrinsics, pose: &Pose) -> DepthImage {
 }
 
 fn params(voxel_m: f64, trunc_m: f64, weight: WeightMode) -> TsdfConfig {
-    TsdfConfig {
-        voxel_m,
-        trunc_m,
-        weight,
-        ..TsdfConfig::default()
-    }
+    let mut config = TsdfConfig::default();
+    config.voxel_m = voxel_m;
+    config.trunc_m = trunc_m;
+    config.weight = weight;
+    config
 }
 
 #[test]

@@ -127,13 +127,11 @@ fn simulated(ctx: &mut Context) -> Result<()> {
         let mut dists = Vec::new();
         let mut verts = 0;
         for (si, &seed) in seeds.iter().enumerate() {
-            let params = TsdfConfig {
-                voxel_m,
-                trunc_m,
-                weight: *weight,
-                max_depth_m: 3.0,
-                ..TsdfConfig::default()
-            };
+            let mut params = TsdfConfig::default();
+            params.voxel_m = voxel_m;
+            params.trunc_m = trunc_m;
+            params.weight = *weight;
+            params.max_depth_m = 3.0;
             let mut vol = TsdfVolume::new(params)?;
             if *use_near {
                 let f = sim.simulate(&scene, &k, &near, seed * 2);
@@ -463,13 +461,11 @@ fn real(ctx: &mut Context) -> Result<()> {
     let mut images = Vec::new();
     for seq in &seqs {
         for weight in weight_modes() {
-            let params = TsdfConfig {
-                voxel_m: 0.004,
-                trunc_m: 0.02,
-                max_depth_m: 4.0,
-                weight,
-                ..TsdfConfig::default()
-            };
+            let mut params = TsdfConfig::default();
+            params.voxel_m = 0.004;
+            params.trunc_m = 0.02;
+            params.max_depth_m = 4.0;
+            params.weight = weight;
             let mut vol = TsdfVolume::new(params)?;
             let mut ms = Vec::new();
             for (d, p) in &seq.frames {

@@ -195,14 +195,12 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no frames to fuse");
     }
     let k = camera.intrinsics;
-    let params = TsdfConfig {
-        voxel_m: args.voxel_m,
-        trunc_m: args.trunc_m.unwrap_or(5.0 * args.voxel_m),
-        weight: parse_weight(&args.weight, &camera)?,
-        max_depth_m: args.max_depth_m,
-        memory_budget_bytes: args.memory_budget_bytes,
-        ..TsdfConfig::default()
-    };
+    let mut params = TsdfConfig::default();
+    params.voxel_m = args.voxel_m;
+    params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
+    params.weight = parse_weight(&args.weight, &camera)?;
+    params.max_depth_m = args.max_depth_m;
+    params.memory_budget_bytes = args.memory_budget_bytes;
     let axis = Axis::parse(&args.slice_axis)?;
     if let Some(s) = args.input.depth_scale
         && !(s.is_finite() && s > 0.0)
