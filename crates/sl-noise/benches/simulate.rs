@@ -6,7 +6,7 @@ use sl_noise::analysis::analyze;
 use sl_noise::sim::{KinectSimulator, named_scene};
 
 fn bench(c: &mut Criterion) {
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     for name in ["floor", "boxes", "relief"] {
         let ns = named_scene(name).unwrap();
         c.bench_function(&format!("render {name} 640x480"), |b| {

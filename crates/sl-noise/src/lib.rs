@@ -45,6 +45,7 @@ pub mod algorithm1;
 pub mod analysis;
 pub mod error;
 pub mod sim;
+pub mod stats;
 
 pub use algorithm1::{Algorithm1, Algorithm1Params, algorithm1, algorithm1_with};
 pub use analysis::{AnalysisOptions, ResolutionAnalysis, analyze, analyze_with};

@@ -95,9 +95,9 @@ pub(crate) fn simulate<'py>(
     let (intrinsics, sim) = match camera {
         Some(c) => (
             c.inner.intrinsics,
-            KinectSimulator::with_sensor(c.inner.sensor),
+            KinectSimulator::with_sensor(c.inner.sensor).white(),
         ),
-        None => (named.intrinsics, KinectSimulator::kinect_v1()),
+        None => (named.intrinsics, KinectSimulator::kinect_v1().white()),
     };
     let frame = compute(py, || {
         sim.simulate(&named.scene, &intrinsics, &named.pose, seed)

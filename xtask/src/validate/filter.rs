@@ -89,7 +89,7 @@ impl Acc {
 
 /// Runs the experiment.
 pub fn run(ctx: &mut Context) -> Result<()> {
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let sensor = sim.sensor;
     let seeds: u64 = if ctx.quick() { 1 } else { 3 };
     let mut frames = Vec::new();

@@ -73,7 +73,7 @@ fn save_overlay(path: &Path, seg: &PlaneSegmentation, base: &[u8]) -> Result<()>
 }
 
 fn synthetic(ctx: &mut Context) -> Result<()> {
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let mut md = String::from(
         "Simulated Kinect frames (σ_D = 0.07 px, 1/8 px quantisation, 1 mm depth rounding) with \
          ground-truth labels; SegComp (Hoover et al.) at 80 % overlap, ground-truth regions \
