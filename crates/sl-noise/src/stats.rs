@@ -650,3 +650,85 @@ fn solve3(a: &[f64; 6], b: &[f64; 3]) -> Option<[f64; 3]> {
     let c = m.lu().solve(&v)?;
     c.iter().all(|x| x.is_finite()).then(|| [c[0], c[1], c[2]])
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fronto-parallel plane at disparity `d0` with a checkerboard residual `±a` px.
+    fn checker(w: usize, h: usize, fb: f64, d0: f64, a: f64) -> DepthImage {
+        let data = (0..w * h)
+            .map(|i| {
+                let s = if (i % w + i / w) % 2 == 0 { a } else { -a };
+                (fb / (d0 + s)) as f32
+            })
+            .collect();
+        DepthImage::from_vec(w, h, data).unwrap()
+    }
+
+    #[test]
+    fn checkerboard_residual_sigma_and_correlation() {
+        let (w, h, fb) = (128, 128, 43.5);
+        let depth = checker(w, h, fb, 20.0, 0.05);
+        let labels = Image::filled(w, h, 1u16);
+        let s = noise_stats(&depth, fb, &labels, &NoiseStatsOptions::default()).unwrap();
+        assert!((s.sigma_d_px - 0.05).abs() < 1e-4, "{}", s.sigma_d_px);
+        let (x1, y1) = s.acf_at(1).unwrap();
+        let (x2, y2) = s.acf_at(2).unwrap();
+        assert!(x1 < -0.99 && y1 < -0.99, "{x1} {y1}");
+        assert!(x2 > 0.99 && y2 > 0.99, "{x2} {y2}");
+        // Depth ≈ 2.175 m: the band 2.0–2.5 m holds every tile.
+        let band = s.bands.iter().find(|b| b.z_lo_m == 2.0).unwrap();
+        assert_eq!(band.tiles, 4);
+        assert_eq!(band.pixels, w * h);
+        // Every pixel differs from its neighbours: all terraces are 1 px wide.
+        assert_eq!(s.terraces.widths.median_px, 1.0);
+        assert_eq!(s.terraces.fractions[0], 1.0);
+    }
+
+    #[test]
+    fn occlusion_bands_by_side() {
+        // A board at 1 m over x in 30..50, a wall at 2 m; 6 invalid pixels left of the board,
+        // 2 on its right, in every row.
+        let (w, h) = (80, 10);
+        let mut data = vec![2.0f32; w * h];
+        for y in 0..h {
+            for x in 30..50 {
+                data[y * w + x] = 1.0;
+            }
+            for x in 24..30 {
+                data[y * w + x] = 0.0;
+            }
+            for x in 50..52 {
+                data[y * w + x] = 0.0;
+            }
+        }
+        let depth = DepthImage::from_vec(w, h, data).unwrap();
+        let b = occlusion_bands(&depth, 43.5, 0.15, 64);
+        assert_eq!(b.left.widths.count, h);
+        assert_eq!(b.left.widths.median_px, 6.0);
+        assert_eq!(b.right.widths.median_px, 2.0);
+        assert!((b.left.median_shadow_px - 21.75).abs() < 1e-9);
+        assert_eq!((b.left.median_fg_m, b.left.median_bg_m), (1.0, 2.0));
+        assert_eq!(b.left.direct_edges + b.right.direct_edges, 0);
+        // A smaller jump than the threshold is no occlusion edge.
+        let none = occlusion_bands(&depth, 43.5, 1.5, 64);
+        assert_eq!(none.left.widths.count + none.right.widths.count, 0);
+    }
+
+    #[test]
+    fn bad_inputs_are_errors() {
+        let depth = checker(16, 16, 43.5, 20.0, 0.0);
+        let wrong = Image::filled(8, 8, 1u16);
+        assert!(noise_stats(&depth, 43.5, &wrong, &NoiseStatsOptions::default()).is_err());
+        let labels = Image::filled(16, 16, 1u16);
+        assert!(noise_stats(&depth, -1.0, &labels, &NoiseStatsOptions::default()).is_err());
+        let mut o = NoiseStatsOptions::default();
+        o.tile_px = 0;
+        assert!(noise_stats(&depth, 43.5, &labels, &o).is_err());
+        // Too small to fit: no tiles, NaN statistics, no panic.
+        let s = noise_stats(&depth, 43.5, &labels, &NoiseStatsOptions::default()).unwrap();
+        assert_eq!(s.regions, 0);
+        assert!(s.sigma_d_px.is_nan());
+    }
+}

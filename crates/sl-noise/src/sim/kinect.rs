@@ -75,9 +75,11 @@ pub const KINECT_MAX_DEPTH_M: f64 = 5.0;
 
 impl KinectSimulator {
     /// The `kinect-v1` sensor (f = 580 px, B = 0.075 m, q = 8, σ_D = 0.07 px), range
-    /// 0.5–5 m, 1 mm output steps, and **no random dropout** (`dropout = 0`: invalid pixels come
-    /// only from the range limits and the background, which keeps ground-truth comparisons simple;
-    /// set `dropout` for a realistic ~1 % of holes).
+    /// 0.5–5 m, 1 mm output steps, **no random dropout** (`dropout = 0`), and the realistic
+    /// noise model ([`NoiseModel::Realistic`] with [`RealisticNoise::default`]: the raw IR view
+    /// with projector shadows, grazing-angle drop-outs and correlated error). Call
+    /// [`KinectSimulator::white`] for the paper's model, whose invalid pixels come only from the
+    /// range limits and the background.
     pub fn kinect_v1() -> Self {
         Self::with_sensor(SensorModel::kinect_v1())
     }
@@ -301,7 +303,9 @@ impl KinectSimulator {
 impl KinectSimulator {
     /// The realistic model's occlusion bands and grazing drop-outs: points the projector
     /// cannot light, points the IR camera cannot see (registered frames) and surfaces seen at
-    /// grazing angles are set invalid.
+    /// grazing angles are set invalid. Candidates are found by marching along the rows of the
+    /// exact depth (the epipolar lines, O(pixels)); only they get an exact scene ray test, as in
+    /// [`KinectSimulator::projector_shadows`].
     fn invalidate_unmeasurable(
         &self,
         scene: &Scene,
@@ -314,21 +318,24 @@ impl KinectSimulator {
         let b_rgb = cfg.registration_baseline_m;
         let mut masks: Vec<Vec<bool>> = Vec::new();
         if cfg.projector_shadows {
-            let projector = nalgebra::Vector3::new(self.sensor.baseline_m - b_rgb, 0.0, 0.0);
-            let mut shadow =
-                realistic::hidden_from(scene, k, camera_to_world, &render.depth, projector)
-                    .data()
-                    .to_vec();
+            let mut shadow = realistic::hidden_from(
+                scene,
+                k,
+                camera_to_world,
+                &render.depth,
+                self.sensor.baseline_m - b_rgb,
+            );
             realistic::fill_shadow_edges(&mut shadow, depth, &render.depth, cfg.shadow_fill_px);
             masks.push(shadow);
         }
         if b_rgb != 0.0 {
-            let ir = nalgebra::Vector3::new(-b_rgb, 0.0, 0.0);
-            masks.push(
-                realistic::hidden_from(scene, k, camera_to_world, &render.depth, ir)
-                    .data()
-                    .to_vec(),
-            );
+            masks.push(realistic::hidden_from(
+                scene,
+                k,
+                camera_to_world,
+                &render.depth,
+                -b_rgb,
+            ));
         }
         masks.push(realistic::grazing_mask(
             k,
@@ -591,5 +598,161 @@ mod tests {
                 .iter()
                 .all(|z| (f64::from(*z) - 1.5).abs() <= half_step)
         );
+    }
+
+    fn realistic_sim() -> KinectSimulator {
+        KinectSimulator::kinect_v1()
+    }
+
+    fn board_before_wall(zf: f64, zb: f64) -> Scene {
+        let mut scene = Scene::new();
+        scene.add(Plane::new(Point3::new(0.0, 0.0, zb), Vector3::z()).unwrap());
+        scene.add(
+            crate::sim::Quad::new(
+                Point3::new(0.0, 0.0, zf),
+                Vector3::new(0.15, 0.0, 0.0),
+                Vector3::new(0.0, 2.0, 0.0),
+            )
+            .unwrap(),
+        );
+        scene
+    }
+
+    #[test]
+    fn realistic_is_the_default_and_deterministic_for_any_thread_count() {
+        assert!(matches!(
+            KinectSimulator::default().noise,
+            NoiseModel::Realistic(_)
+        ));
+        let ns = crate::sim::named_scene("figure-walls").unwrap();
+        let k = ns.intrinsics.scaled(0.5).unwrap();
+        let sim = realistic_sim();
+        let a = sim.simulate(&ns.scene, &k, &ns.pose, 9);
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap()
+            .install(|| sim.simulate(&ns.scene, &k, &ns.pose, 9));
+        assert_eq!(a, one);
+        assert_ne!(a.depth, sim.simulate(&ns.scene, &k, &ns.pose, 10).depth);
+        // Valid realistic output stays on the sensor's representable set.
+        let set = sim.representable_depths();
+        for &z in a.depth.data().iter().filter(|z| **z > 0.0) {
+            let z = f64::from(z);
+            let i = set.partition_point(|s| *s < z - 1e-6);
+            assert!((set[i] - z).abs() < 1e-6, "{z}");
+        }
+    }
+
+    #[test]
+    fn realistic_error_is_correlated_and_white_is_not() {
+        // A floor: the residual of the realistic model is shared by neighbours, the white
+        // model's is not; both have σ_D near the sensor's (plus quantisation).
+        let ns = crate::sim::named_scene("floor").unwrap();
+        let (k, pose) = (ns.intrinsics, ns.pose);
+        let opts = crate::stats::NoiseStatsOptions::default();
+        let stats = |sim: &KinectSimulator| {
+            let f = sim.simulate(&ns.scene, &k, &pose, 4);
+            crate::stats::noise_stats(&f.depth, sim.sensor.fb(), &f.labels, &opts).unwrap()
+        };
+        let real = stats(&realistic_sim());
+        let white = stats(&KinectSimulator::kinect_v1().white());
+        let (rx, ry) = real.acf_at(1).unwrap();
+        let (wx, wy) = white.acf_at(1).unwrap();
+        assert!(rx > 0.5 && ry > 0.5, "realistic ρ(1) = {rx}, {ry}");
+        assert!(wx.abs() < 0.2 && wy.abs() < 0.2, "white ρ(1) = {wx}, {wy}");
+        for s in [&real, &white] {
+            assert!((0.06..0.1).contains(&s.sigma_d_px), "σ_D {}", s.sigma_d_px);
+        }
+        // Terraces: wider with the correlated error.
+        assert!(real.terraces.widths.mean_px > white.terraces.widths.mean_px);
+    }
+
+    #[test]
+    fn occlusion_bands_follow_the_geometry() {
+        // Board at 1 m before a wall at 2 m: the projector shadow is f·B·(1/1 − 1/2) = 21.75 px
+        // on the left of the board, minus the filled pixels; no band on the right of a raw IR
+        // frame; a registered frame (colour camera 2.5 cm right) has f·b·0.5 = 7.25 px on the
+        // right and f·(B − b)·0.5 = 14.5 px of shadow on the left.
+        let k = Intrinsics::kinect_v1();
+        let scene = board_before_wall(1.0, 2.0);
+        let raw = realistic_sim();
+        let cfg = RealisticNoise::default();
+        let f = raw.simulate(&scene, &k, &Pose::identity(), 2);
+        let b = crate::stats::occlusion_bands(&f.depth, raw.sensor.fb(), 0.15, 64);
+        let fill = cfg.shadow_fill_px as f64;
+        assert!(
+            (b.left.widths.median_px - (21.75 - fill)).abs() <= 1.0,
+            "{b:?}"
+        );
+        assert_eq!(b.right.widths.count, 0);
+        assert!(b.right.direct_edges > 400);
+        let reg = raw.with_noise(NoiseModel::Realistic(RealisticNoise::for_camera("tum-fr1")));
+        let f = reg.simulate(&scene, &k, &Pose::identity(), 2);
+        let b = crate::stats::occlusion_bands(&f.depth, reg.sensor.fb(), 0.15, 64);
+        assert!(
+            (b.left.widths.median_px - (14.5 - fill)).abs() <= 1.0,
+            "{b:?}"
+        );
+        assert!((b.right.widths.median_px - 7.25).abs() <= 1.0, "{b:?}");
+    }
+
+    #[test]
+    fn grazing_surfaces_and_edges_drop_out() {
+        // A floor seen nearly edge-on: the far rows exceed 80° of incidence and are invalid.
+        let k = Intrinsics::kinect_v1().scaled(0.25).unwrap();
+        let mut scene = Scene::new();
+        scene.add(Plane::new(Point3::new(0.0, 0.3, 0.0), Vector3::y()).unwrap());
+        let sim = realistic_sim();
+        let f = sim.simulate(&scene, &k, &Pose::identity(), 1);
+        let valid_truth = f.truth.valid_count();
+        assert!(valid_truth > 0);
+        assert!(f.depth.valid_count() < valid_truth);
+        let mut no_graze = RealisticNoise::default();
+        no_graze.max_incidence_deg = 90.0;
+        let g = sim.with_noise(NoiseModel::Realistic(no_graze)).simulate(
+            &scene,
+            &k,
+            &Pose::identity(),
+            1,
+        );
+        assert!(g.depth.valid_count() > f.depth.valid_count());
+        // Edge invalidation: `edge_px` pixels on each side of the board's edges.
+        let mut edges = RealisticNoise::default();
+        edges.edge_px = 2;
+        edges.projector_shadows = false;
+        let scene = board_before_wall(1.0, 2.0);
+        let k = Intrinsics::kinect_v1();
+        let e =
+            sim.with_noise(NoiseModel::Realistic(edges))
+                .simulate(&scene, &k, &Pose::identity(), 1);
+        let b = crate::stats::occlusion_bands(&e.depth, sim.sensor.fb(), 0.15, 64);
+        assert_eq!(b.left.widths.median_px, 4.0);
+        assert_eq!(b.right.widths.median_px, 4.0);
+        assert!(edges.validate().is_ok());
+        edges.window_x = 0;
+        assert!(edges.validate().is_err());
+    }
+
+    #[test]
+    fn row_marching_with_ray_tests_equals_scene_ray_tests() {
+        // The candidates of the row march, checked by scene ray tests, are exactly the pixels
+        // the ray test of every pixel (`projector_shadows`) finds; the row march alone also
+        // shadows the wall behind the thin arms, which the projector's light passes behind.
+        let ns = crate::sim::named_scene("figure-walls").unwrap();
+        let k = ns.intrinsics.scaled(0.5).unwrap();
+        let sim = realistic_sim();
+        let truth = ns.scene.render(&k, &ns.pose).depth;
+        let exact = sim.projector_shadows(&ns.scene, &k, &ns.pose, &truth);
+        let fast = realistic::hidden_from(&ns.scene, &k, &ns.pose, &truth, sim.sensor.baseline_m);
+        assert!(exact.data().iter().filter(|m| **m).count() > 500);
+        assert_eq!(exact.data(), &fast[..]);
+        let marched = realistic::hidden_along_rows(&truth, k.fx, sim.sensor.baseline_m);
+        let extra = marched
+            .iter()
+            .zip(exact.data())
+            .filter(|(m, e)| **m && !**e)
+            .count();
+        assert!(extra > 0);
     }
 }

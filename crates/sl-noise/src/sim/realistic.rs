@@ -1,5 +1,5 @@
 //! The realistic structured-light sensor (issue 11): correlated block-matching disparity error,
-//! `1/q` quantisation and 1 mm rounding (terraces), occlusion bands from ray tests, and
+//! `1/q` quantisation and 1 mm rounding (terraces), occlusion bands from ray marching, and
 //! drop-outs at grazing angles and depth discontinuities.
 //!
 //! **Physics.** A Kinect-class camera finds the disparity of a pixel by matching a window of
@@ -17,7 +17,8 @@
 //! Open3D's person frame) see the scene from the colour camera, `b_rgb` further right: the IR
 //! camera, now `b_rgb` to the left, cannot see the background just right of a foreground object
 //! (a band on the right), and the projector is only `B − b_rgb` away (a narrower band on the
-//! left). Both bands are found by ray tests against the scene, so their widths follow from the
+//! left). Both bands are found by ray tests of the candidates that a march along the image
+//! row (the epipolar line) through the exact depth proposes, so their widths follow from the
 //! geometry. Pixels whose matching window straddles a depth discontinuity are invalid within
 //! [`RealisticNoise::edge_px`] of it; surfaces seen at more than
 //! [`RealisticNoise::max_incidence_deg`] from their normal return no pattern.
@@ -44,7 +45,7 @@ pub struct RealisticNoise {
     /// foreground's depth (its window still sees the foreground's pattern: foreground
     /// fattening); 0 = none.
     pub shadow_fill_px: usize,
-    /// Invalidate points the projector cannot light (ray test from the projector).
+    /// Invalidate points the projector cannot light (ray march towards the projector).
     pub projector_shadows: bool,
     /// Offset of the output (colour) camera from the IR camera along +x, metres, for frames
     /// registered to the colour camera (0 = the IR camera's own view, no registration).
@@ -269,39 +270,102 @@ pub fn edge_mask(truth: &DepthImage, fb: f64, edge_px: usize, jump_px: f64) -> V
     mask
 }
 
-/// `true` where the scene point seen at a pixel (exact depth `truth` through `k` from
-/// `camera_to_world`) is hidden from the viewpoint at `offset` (camera coordinates, metres).
+/// `true` where the surface point seen at a pixel is hidden from a viewpoint `offset_m` along
+/// the camera's x axis (the projector, or the IR camera of a registered frame), found by
+/// ray-marching the exact depth `truth` along the pixel's row (the epipolar line).
+///
+/// The segment from the point `P` (disparity `d = f_x·b/Z` for the offset `b`) to the viewpoint
+/// projects onto the same row, and at `Δu` pixels towards the viewpoint it has disparity
+/// `d + Δu` exactly (a pinhole with a pure x offset). It is blocked when the surface seen there
+/// is nearer: `f_x·b/Z(u + Δu) > d + Δu`. One pass per row keeps the running maximum of
+/// `f_x·b/Z(u') − u'` (or `+ u'` for a viewpoint on the left), so the test is O(width) per row.
+/// Occluders outside the image are not seen.
+pub(crate) fn hidden_along_rows(truth: &DepthImage, fx: f64, offset_m: f64) -> Vec<bool> {
+    let (w, h) = (truth.width(), truth.height());
+    let mut mask = vec![false; w * h];
+    if w == 0 || offset_m == 0.0 || !(fx.is_finite() && offset_m.is_finite()) {
+        return mask;
+    }
+    let fb = fx * offset_m.abs();
+    let right = offset_m > 0.0;
+    // A blocker must be nearer by more than this, pixels (ignores rounding on one surface).
+    const TOL: f64 = 1e-6;
+    mask.par_chunks_mut(w)
+        .zip(truth.data().par_chunks(w))
+        .for_each(|(mrow, trow)| {
+            let disp = |x: usize| {
+                let z = f64::from(trow[x]);
+                if z > 0.0 && z.is_finite() {
+                    fb / z
+                } else {
+                    f64::NEG_INFINITY
+                }
+            };
+            let mut best = f64::NEG_INFINITY;
+            if right {
+                for x in (0..w).rev() {
+                    let d = disp(x);
+                    let key = d - x as f64;
+                    if d.is_finite() && best > key + TOL {
+                        mrow[x] = true;
+                    }
+                    best = best.max(key);
+                }
+            } else {
+                for x in 0..w {
+                    let d = disp(x);
+                    let key = d + x as f64;
+                    if d.is_finite() && best > key + TOL {
+                        mrow[x] = true;
+                    }
+                    best = best.max(key);
+                }
+            }
+        });
+    mask
+}
+
+/// `true` where the surface point seen at a pixel is hidden from the viewpoint `offset_m` along
+/// the camera's x axis, by an exact ray test against `scene` — run only on the candidates of
+/// [`hidden_along_rows`] (a superset: a blocker of the ray is always nearer than the ray at its
+/// pixel) widened by one pixel on each side for sampling. The row march alone would also
+/// shadow points whose ray passes *behind* a thin nearer object (an arm before a wall).
 pub(crate) fn hidden_from(
     scene: &crate::sim::Scene,
     k: &Intrinsics,
     camera_to_world: &Pose,
     truth: &DepthImage,
-    offset: nalgebra::Vector3<f64>,
-) -> Image<bool> {
+    offset_m: f64,
+) -> Vec<bool> {
     let (w, h) = (truth.width(), truth.height());
+    let candidates = hidden_along_rows(truth, k.fx, offset_m);
     let mut mask = vec![false; w * h];
-    let eye = camera_to_world * nalgebra::Point3::from(offset);
-    if w > 0 {
-        mask.par_chunks_mut(w)
-            .zip(truth.data().par_chunks(w))
-            .enumerate()
-            .for_each(|(y, (mrow, trow))| {
-                for (x, (m, &z)) in mrow.iter_mut().zip(trow).enumerate() {
-                    if !(z > 0.0 && z.is_finite()) {
-                        continue;
-                    }
-                    let p = camera_to_world * k.back_project(x as f64, y as f64, f64::from(z));
-                    let dir = p - eye;
-                    // Hidden when something lies between the viewpoint and the point (the
-                    // tolerance ignores the point's own surface).
-                    let tol = 1e-6 + 1e-4 / dir.norm().max(1e-9);
-                    *m = scene
-                        .trace(&eye, &dir)
-                        .is_some_and(|(_, hit)| hit.t < 1.0 - tol);
-                }
-            });
+    if w == 0 {
+        return mask;
     }
-    Image::from_vec(w, h, mask).unwrap_or_else(|_| Image::filled(w, h, false))
+    let eye = camera_to_world * nalgebra::Point3::new(offset_m, 0.0, 0.0);
+    mask.par_chunks_mut(w)
+        .zip(truth.data().par_chunks(w))
+        .zip(candidates.par_chunks(w))
+        .enumerate()
+        .for_each(|(y, ((mrow, trow), crow))| {
+            for x in 0..w {
+                let near = crow[x] || (x > 0 && crow[x - 1]) || (x + 1 < w && crow[x + 1]);
+                let z = trow[x];
+                if !near || !(z > 0.0 && z.is_finite()) {
+                    continue;
+                }
+                let p = camera_to_world * k.back_project(x as f64, y as f64, f64::from(z));
+                let dir = p - eye;
+                // Hidden when something lies between the viewpoint and the point (the
+                // tolerance ignores the point's own surface).
+                let tol = 1e-6 + 1e-4 / dir.norm().max(1e-9);
+                mrow[x] = scene
+                    .trace(&eye, &dir)
+                    .is_some_and(|(_, hit)| hit.t < 1.0 - tol);
+            }
+        });
+    mask
 }
 
 /// `true` where the surface is seen at more than `max_deg` from its normal.
