@@ -378,7 +378,11 @@ pub fn noise_stats(
             opts.jump_m
         )));
     }
-    if opts.band_edges_m.windows(2).any(|e| !(e[0] < e[1])) {
+    if opts
+        .band_edges_m
+        .windows(2)
+        .any(|e| e[0].partial_cmp(&e[1]) != Some(std::cmp::Ordering::Less))
+    {
         return Err(NoiseError::InvalidParameter(
             "band edges must be ascending".into(),
         ));
@@ -659,7 +663,11 @@ mod tests {
     fn checker(w: usize, h: usize, fb: f64, d0: f64, a: f64) -> DepthImage {
         let data = (0..w * h)
             .map(|i| {
-                let s = if (i % w + i / w) % 2 == 0 { a } else { -a };
+                let s = if (i % w + i / w).is_multiple_of(2) {
+                    a
+                } else {
+                    -a
+                };
                 (fb / (d0 + s)) as f32
             })
             .collect();
@@ -723,8 +731,10 @@ mod tests {
         assert!(noise_stats(&depth, 43.5, &wrong, &NoiseStatsOptions::default()).is_err());
         let labels = Image::filled(16, 16, 1u16);
         assert!(noise_stats(&depth, -1.0, &labels, &NoiseStatsOptions::default()).is_err());
-        let mut o = NoiseStatsOptions::default();
-        o.tile_px = 0;
+        let o = NoiseStatsOptions {
+            tile_px: 0,
+            ..NoiseStatsOptions::default()
+        };
         assert!(noise_stats(&depth, 43.5, &labels, &o).is_err());
         // Too small to fit: no tiles, NaN statistics, no panic.
         let s = noise_stats(&depth, 43.5, &labels, &NoiseStatsOptions::default()).unwrap();

@@ -79,7 +79,9 @@ type SimResult<'py> = (
 );
 
 /// Renders a named scene (``"floor"``, ``"wall"``, ``"three-planes"``, ``"corridor"``, …) through
-/// the Kinect noise model: returns ``(depth, truth, labels)`` — float32 metres with noise,
+/// the paper's white-noise Kinect model (independent Gaussian disparity noise, 1/8 px, 1 mm; the
+/// Rust simulator's and `sldepth simulate`'s default is now the realistic model, which this
+/// binding does not expose yet): returns ``(depth, truth, labels)`` — float32 metres with noise,
 /// float32 exact metres, uint16 surface labels. Seeded and deterministic. ``camera`` replaces
 /// the scene's Kinect intrinsics and noise model.
 #[pyfunction]

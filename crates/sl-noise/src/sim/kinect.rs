@@ -708,8 +708,10 @@ mod tests {
         let valid_truth = f.truth.valid_count();
         assert!(valid_truth > 0);
         assert!(f.depth.valid_count() < valid_truth);
-        let mut no_graze = RealisticNoise::default();
-        no_graze.max_incidence_deg = 90.0;
+        let no_graze = RealisticNoise {
+            max_incidence_deg: 90.0,
+            ..RealisticNoise::default()
+        };
         let g = sim.with_noise(NoiseModel::Realistic(no_graze)).simulate(
             &scene,
             &k,
@@ -718,9 +720,11 @@ mod tests {
         );
         assert!(g.depth.valid_count() > f.depth.valid_count());
         // Edge invalidation: `edge_px` pixels on each side of the board's edges.
-        let mut edges = RealisticNoise::default();
-        edges.edge_px = 2;
-        edges.projector_shadows = false;
+        let mut edges = RealisticNoise {
+            edge_px: 2,
+            projector_shadows: false,
+            ..RealisticNoise::default()
+        };
         let scene = board_before_wall(1.0, 2.0);
         let k = Intrinsics::kinect_v1();
         let e =

@@ -312,11 +312,11 @@ pub(crate) fn hidden_along_rows(truth: &DepthImage, fx: f64, offset_m: f64) -> V
                     best = best.max(key);
                 }
             } else {
-                for x in 0..w {
+                for (x, m) in mrow.iter_mut().enumerate() {
                     let d = disp(x);
                     let key = d + x as f64;
                     if d.is_finite() && best > key + TOL {
-                        mrow[x] = true;
+                        *m = true;
                     }
                     best = best.max(key);
                 }
@@ -352,7 +352,7 @@ pub(crate) fn hidden_from(
             for x in 0..w {
                 let near = crow[x] || (x > 0 && crow[x - 1]) || (x + 1 < w && crow[x + 1]);
                 let z = trow[x];
-                if !near || !(z > 0.0 && z.is_finite()) {
+                if !(near && z > 0.0 && z.is_finite()) {
                     continue;
                 }
                 let p = camera_to_world * k.back_project(x as f64, y as f64, f64::from(z));
