@@ -5,13 +5,15 @@
 //! (1.. = region, 0 = none; e.g. the planes `sl-planes` extracts, or a simulator's surface
 //! labels) and reports:
 //!
-//! * **σ_D per depth band**: each region's disparity `D = f·B/Z` is fitted by an affine function
-//!   of the pixel (exact for a plane, eq. 14 of the paper), with one robust refit (residuals
-//!   beyond 4 MAD-σ are dropped); the RMS residual in pixels per band of fitted depth;
+//! * **σ_D per depth band**: inside each region, tile by tile ([`NoiseStatsOptions::tile_px`],
+//!   64 px, so non-flat walls and low-frequency distortion do not count as noise), the disparity
+//!   `D = f·B/Z` is fitted by an affine function of the pixel (exact for a plane, eq. 14 of the
+//!   paper) with one robust refit (residuals beyond 4 MAD-σ are dropped); the RMS residual of
+//!   each tile, median over the tiles of a band of fitted depth (and over all tiles);
 //! * **residual autocorrelation** at lags 1, 2, 4, 8, 16 px along x and along y (Pearson
-//!   correlation of residual pairs inside one region);
+//!   correlation of residual pairs inside one tile, median over tiles);
 //! * **terrace widths**: runs of identical depth along rows inside a region (complete runs only,
-//!   bounded on both sides by a different valid depth of the same region);
+//!   bounded on both sides by a different valid depth of the same region and fitted tiles);
 //! * **occlusion bands**: per row, the runs of invalid pixels between a valid foreground pixel
 //!   and a valid background pixel more than [`NoiseStatsOptions::jump_m`] deeper, split by the
 //!   side of the foreground the band lies on; with the width the projector shadow alone would
@@ -244,25 +246,24 @@ pub fn disparity_residuals(
     }
     let zs = depth.data();
     let labels = regions.data();
-    // Compact keys: one per (label present, tile).
-    let mut present = vec![u32::MAX; usize::from(u16::MAX) + 1];
-    let mut n_labels = 0u32;
-    for &l in labels {
-        if l != 0 && present[usize::from(l)] == u32::MAX {
-            present[usize::from(l)] = n_labels;
-            n_labels += 1;
-        }
-    }
-    let (tw, th) = (w.div_ceil(tile_px), h.div_ceil(tile_px));
-    let n_tiles = tw * th;
-    let n_keys = n_labels as usize * n_tiles;
-    let key_of = |i: usize| -> Option<usize> {
-        let l = labels[i];
+    // Compact keys: one per (label, tile) that occurs, so memory follows the pixels, not the
+    // number of labels times the number of tiles.
+    let tw = w.div_ceil(tile_px);
+    let mut ids: std::collections::HashMap<(u16, usize), u32> = std::collections::HashMap::new();
+    let mut pixel_key = vec![u32::MAX; labels.len()];
+    for (i, &l) in labels.iter().enumerate() {
         if l == 0 {
-            return None;
+            continue;
         }
         let (x, y) = (i % w, i / w);
-        Some(present[usize::from(l)] as usize * n_tiles + (y / tile_px) * tw + x / tile_px)
+        let tile = (y / tile_px) * tw + x / tile_px;
+        let next = u32::try_from(ids.len()).unwrap_or(u32::MAX);
+        pixel_key[i] = *ids.entry((l, tile)).or_insert(next);
+    }
+    let n_keys = ids.len();
+    let key_of = |i: usize| -> Option<usize> {
+        let k = pixel_key[i];
+        (k != u32::MAX).then_some(k as usize)
     };
     let disp = |i: usize| -> Option<f64> {
         let z = f64::from(zs[i]);
