@@ -37,7 +37,7 @@ struct Generated {
 
 fn generate(scene: &str, seed: u64) -> Result<Generated> {
     let named = named_scene(scene)?;
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let f = sim.simulate(&named.scene, &named.intrinsics, &named.pose, seed);
     Ok(Generated {
         depth: f.depth,

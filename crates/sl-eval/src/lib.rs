@@ -29,10 +29,11 @@
 //! use sl_filter::{DepthFilter, Method};
 //! use sl_noise::sim::{KinectSimulator, named_scene};
 //!
-//! // A simulated Kinect frame (quarter resolution) of a wall, with its exact depth and labels.
+//! // A simulated Kinect frame (quarter resolution, the paper's white noise) of a wall, with its
+//! // exact depth and labels.
 //! let wall = named_scene("wall")?;
 //! let k = wall.intrinsics.scaled(0.25)?;
-//! let sim = KinectSimulator::kinect_v1();
+//! let sim = KinectSimulator::kinect_v1().white();
 //! let frame = sim.simulate(&wall.scene, &k, &wall.pose, 7);
 //!
 //! // Does the adaptive filter bring the depth closer to the truth? (7.3 mm → 1.5 mm RMSE)

@@ -374,7 +374,7 @@ mod tests {
         let sim = KinectSimulator {
             min_depth_m: 0.5,
             max_depth_m: 3.0,
-            ..KinectSimulator::kinect_v1()
+            ..KinectSimulator::kinect_v1().white()
         };
         analyze_depths(sim.representable_depths(), &AnalysisOptions::default()).unwrap()
     }

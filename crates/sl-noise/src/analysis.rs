@@ -548,7 +548,7 @@ mod tests {
         let sim = KinectSimulator {
             min_depth_m: z0,
             max_depth_m: z1,
-            ..KinectSimulator::with_sensor(sensor)
+            ..KinectSimulator::with_sensor(sensor).white()
         };
         sim.representable_depths()
     }
@@ -601,7 +601,7 @@ mod tests {
     #[test]
     fn coverage_gap_is_left_out_of_the_continuous_slope() {
         let sensor = SensorModel::kinect_v1();
-        let sim = crate::sim::KinectSimulator::kinect_v1();
+        let sim = crate::sim::KinectSimulator::kinect_v1().white();
         let z: Vec<f64> = sim
             .representable_depths()
             .into_iter()
@@ -673,7 +673,7 @@ mod tests {
         for (name, seed) in [("floor", 3), ("corridor", 8), ("floor", 21)] {
             let ns = crate::sim::named_scene(name).unwrap();
             let k = ns.intrinsics.scaled(0.25).unwrap();
-            let sim = KinectSimulator::kinect_v1();
+            let sim = KinectSimulator::kinect_v1().white();
             let f = sim.simulate(&ns.scene, &k, &ns.pose, seed);
             let a = analyze(&f.depth, &sim.sensor).unwrap();
             assert!(

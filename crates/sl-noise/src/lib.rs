@@ -12,8 +12,13 @@
 //!   disparity sub-pixel resolution; `sl-eval` draws it as the paper's Figure 2);
 //! * [`sim`] — a seeded Kinect simulator: analytic scenes (planes, rectangles, boxes, spheres,
 //!   cylinders, relief plates) rendered to exact depth, labels and normals, then through the
-//!   sensor (Gaussian disparity noise, `1/q` quantisation, 1 mm rounding, range limits,
-//!   dropout). Later stages use it for ground truth.
+//!   sensor (by default the realistic model of [`sim::realistic`]: block-matching-correlated
+//!   disparity error, `1/q` quantisation, 1 mm rounding, occlusion bands, drop-outs; or the
+//!   paper's white Gaussian noise, [`sim::NoiseModel::White`]). Later stages use it for ground
+//!   truth;
+//! * [`stats`] — the noise statistics of a depth map on planar regions (σ_D per depth band,
+//!   residual autocorrelation, terrace widths, occlusion-band widths), to compare real frames
+//!   with the simulator.
 //!
 //! Where it sits: depth frames → `sl-io` → `sl-core` types → **`sl-noise`** (analysis and
 //! simulation, beside the pipeline) → `sl-filter` → `sl-tsdf` / `sl-planes`, which test
@@ -29,7 +34,7 @@
 //! // Simulate the tilted floor of the paper's Figure 1 (quarter resolution) and analyse it.
 //! let floor = named_scene("floor")?;
 //! let k = floor.intrinsics.scaled(0.25)?;
-//! let sim = KinectSimulator::kinect_v1();
+//! let sim = KinectSimulator::kinect_v1().white();
 //! let frame = sim.simulate(&floor.scene, &k, &floor.pose, 7);
 //! let r = analysis::analyze(&frame.depth, &sim.sensor)?;
 //! assert!((r.slope - 2.0).abs() < 0.1);
@@ -45,6 +50,7 @@ pub mod algorithm1;
 pub mod analysis;
 pub mod error;
 pub mod sim;
+pub mod stats;
 
 pub use algorithm1::{Algorithm1, Algorithm1Params, algorithm1, algorithm1_with};
 pub use analysis::{AnalysisOptions, ResolutionAnalysis, analyze, analyze_with};

@@ -54,7 +54,7 @@ fn render(k: &Intrinsics, planes: &[Plane], max_z: f64) -> (DepthImage, Image<u1
 }
 
 fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
-    KinectSimulator::kinect_v1().apply(truth, seed)
+    KinectSimulator::kinect_v1().white().apply(truth, seed)
 }
 
 #[path = "sl_planes/motion.rs"]

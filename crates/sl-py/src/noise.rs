@@ -79,7 +79,9 @@ type SimResult<'py> = (
 );
 
 /// Renders a named scene (``"floor"``, ``"wall"``, ``"three-planes"``, ``"corridor"``, …) through
-/// the Kinect noise model: returns ``(depth, truth, labels)`` — float32 metres with noise,
+/// the paper's white-noise Kinect model (independent Gaussian disparity noise, 1/8 px, 1 mm; the
+/// Rust simulator's and `sldepth simulate`'s default is now the realistic model, which this
+/// binding does not expose yet): returns ``(depth, truth, labels)`` — float32 metres with noise,
 /// float32 exact metres, uint16 surface labels. Seeded and deterministic. ``camera`` replaces
 /// the scene's Kinect intrinsics and noise model.
 #[pyfunction]
@@ -95,9 +97,9 @@ pub(crate) fn simulate<'py>(
     let (intrinsics, sim) = match camera {
         Some(c) => (
             c.inner.intrinsics,
-            KinectSimulator::with_sensor(c.inner.sensor),
+            KinectSimulator::with_sensor(c.inner.sensor).white(),
         ),
-        None => (named.intrinsics, KinectSimulator::kinect_v1()),
+        None => (named.intrinsics, KinectSimulator::kinect_v1().white()),
     };
     let frame = compute(py, || {
         sim.simulate(&named.scene, &intrinsics, &named.pose, seed)

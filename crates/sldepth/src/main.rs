@@ -34,6 +34,9 @@ enum Command {
     /// Depth resolution analysis (the paper's Figure 2): unique depths, log-log slope, quantum,
     /// implied f·B, disparity sub-pixel steps.
     Analyze(cmd::analyze::Args),
+    /// Noise statistics of a depth map with planar regions: σ_D per depth band, residual
+    /// autocorrelation, terrace widths, occlusion-band widths.
+    NoiseStats(cmd::noise_stats::Args),
     /// Render a seeded synthetic scene through the Kinect noise model.
     Simulate(cmd::simulate::Args),
     /// Back-project a depth map to a PLY point cloud.
@@ -81,6 +84,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(a) => cmd::info::run(a),
         Command::Analyze(a) => cmd::analyze::run(a),
+        Command::NoiseStats(a) => cmd::noise_stats::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::Cloud(a) => cmd::cloud::run(a),
         Command::Fuse(a) => cmd::fuse::run(a),

@@ -68,7 +68,8 @@ fn analyze_recovers_the_simulated_sensor_from_testdata() {
     assert!(v["unique_depths"].as_u64().unwrap_or(0) > 200);
 }
 
-/// Regression: simulating the same scene and seed again gives exactly the committed frame.
+/// Regression: simulating the same scene and seed again gives exactly the committed frame
+/// (the committed frames are the paper's white-noise model).
 #[test]
 fn simulate_reproduces_committed_frames() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
@@ -77,6 +78,8 @@ fn simulate_reproduces_committed_frames() {
         let labels = dir.path().join(format!("{scene}-labels.png"));
         let o = sldepth(&[
             "simulate",
+            "--noise",
+            "white",
             "--scene",
             scene,
             "--seed",
@@ -103,6 +106,38 @@ fn simulate_reproduces_committed_frames() {
             .unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(l1, l2);
     }
+}
+
+/// The default simulator is the realistic one: `noise-stats` finds its error correlated
+/// between neighbours and occlusion bands beside the figure; the white model's error is not
+/// correlated.
+#[test]
+fn simulate_realistic_by_default_and_noise_stats_measures_it() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let stats = |noise: &str| {
+        let out = dir.path().join(format!("{noise}.png"));
+        let o = sldepth(&[
+            "simulate",
+            "--scene",
+            "figure-walls",
+            "--noise",
+            noise,
+            "--output",
+            path_str(&out),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let o = sldepth(&["noise-stats", path_str(&out), "--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let real = stats("realistic");
+    let white = stats("white");
+    let acf1 = |v: &serde_json::Value| v["acf"][0]["x"].as_f64().unwrap_or(f64::NAN);
+    assert!(acf1(&real) > 0.5, "realistic ρ_x(1) = {}", acf1(&real));
+    assert!(acf1(&white).abs() < 0.2, "white ρ_x(1) = {}", acf1(&white));
+    let left = |v: &serde_json::Value| v["occlusion"]["left"]["widths"]["count"].as_u64();
+    assert!(left(&real).unwrap_or(0) > 100, "{}", real["occlusion"]);
+    assert_eq!(left(&white), Some(0));
 }
 
 #[test]

@@ -11,6 +11,7 @@ use serde::Serialize;
 mod filter;
 mod noise;
 mod planes;
+mod realism;
 mod tsdf;
 
 /// One experiment: a name (for `--only`) and its entry point.
@@ -22,6 +23,7 @@ const EXPERIMENTS: &[Experiment] = &[
     ("tsdf", tsdf::run),
     ("filter", filter::run),
     ("planes", planes::run),
+    ("realism", realism::run),
 ];
 
 /// Options of `cargo xtask validate`.

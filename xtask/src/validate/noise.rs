@@ -284,7 +284,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         md,
         "### Simulated frames\n\n| scene | seed | true f·B | implied f·B | error | sub-pixel steps |\n|---|---|---|---|---|---|"
     );
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let seeds: &[u64] = if ctx.quick() { &[1] } else { &[1, 2, 3] };
     for scene in ["floor", "corridor", "figure-walls"] {
         let named = named_scene(scene)?;

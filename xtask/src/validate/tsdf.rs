@@ -59,7 +59,7 @@ fn simulated(ctx: &mut Context) -> Result<()> {
     scene.add(plate);
     let camera = Camera::kinect_v1();
     let k = camera.intrinsics;
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     // The plate faces +z; the close scan from 0.75 m, the distant one from 1.5 m, both a little
     // off-axis so the two pixel grids do not line up.
     let near = look_at(

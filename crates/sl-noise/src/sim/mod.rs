@@ -9,8 +9,11 @@
 //!   camera-frame normals (rows in parallel), [`Scene::distance`] for ground-truth
 //!   point-to-surface errors (e.g. of a fused mesh), [`look_at`] for camera poses.
 //! * [`KinectSimulator`]: disparity noise, `1/q` quantisation, 1 mm rounding, range limits,
-//!   dropout, and optionally projector shadows ([`KinectSimulator::simulate_with_shadows`]);
-//!   seeded per row so results do not depend on threads.
+//!   dropout; by default the [`realistic`] model ([`NoiseModel::Realistic`] with
+//!   [`RealisticNoise`]: block-matching-correlated error, occlusion bands, drop-outs), or the
+//!   paper's white noise ([`NoiseModel::White`], [`KinectSimulator::white`], optionally with
+//!   projector shadows: [`KinectSimulator::simulate_with_shadows`]); seeded per row so results
+//!   do not depend on threads.
 //! * [`named_scene`]: the scenes of the paper's figures by name ([`SCENE_NAMES`]).
 //!
 //! ```
@@ -32,10 +35,14 @@
 
 mod kinect;
 mod primitives;
+pub mod realistic;
 mod scene;
 mod scenes;
 
-pub use kinect::{KINECT_MAX_DEPTH_M, KINECT_MIN_DEPTH_M, KinectSimulator, SimulatedFrame};
+pub use kinect::{
+    KINECT_MAX_DEPTH_M, KINECT_MIN_DEPTH_M, KinectSimulator, NoiseModel, SimulatedFrame,
+};
 pub use primitives::{Cuboid, Cylinder, Hit, Plane, Quad, ReliefPlate, Sphere, Surface, T_MIN};
+pub use realistic::RealisticNoise;
 pub use scene::{MAX_RENDER_PIXELS, MAX_SURFACES, Render, Scene, look_at};
 pub use scenes::{NamedScene, SCENE_NAMES, named_scene};

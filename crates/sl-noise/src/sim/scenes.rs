@@ -292,7 +292,7 @@ mod tests {
 
     #[test]
     fn every_named_scene_renders_in_range() {
-        let sim = KinectSimulator::kinect_v1();
+        let sim = KinectSimulator::kinect_v1().white();
         for name in SCENE_NAMES {
             let ns = named_scene(name).unwrap();
             assert_eq!(ns.name, *name);

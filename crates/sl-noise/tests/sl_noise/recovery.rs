@@ -43,8 +43,8 @@ fn named_scenes_recover_fb_and_steps() {
         let ns = named_scene(name).unwrap();
         let k = ns.intrinsics.scaled(0.5).unwrap();
         for sim in [
-            KinectSimulator::kinect_v1(),
-            KinectSimulator::paper_kinect(),
+            KinectSimulator::kinect_v1().white(),
+            KinectSimulator::paper_kinect().white(),
         ] {
             let f = sim.simulate(&ns.scene, &k, &ns.pose, seed);
             check_recovery(
@@ -66,7 +66,8 @@ fn other_sensors_are_recovered_too() {
             baseline_m,
             subpixel_steps: steps,
             ..SensorModel::kinect_v1()
-        });
+        })
+        .white();
         let f = sim.simulate(&ns.scene, &k, &ns.pose, 11);
         check_recovery(&sim, &f.depth, &format!("B {baseline_m} q {steps}"));
     }
@@ -78,7 +79,7 @@ fn dropout_and_small_frames() {
     let k = ns.intrinsics.scaled(0.25).unwrap();
     let sim = KinectSimulator {
         dropout: 0.05,
-        ..KinectSimulator::kinect_v1()
+        ..KinectSimulator::kinect_v1().white()
     };
     let f = sim.simulate(&ns.scene, &k, &ns.pose, 9);
     check_recovery(&sim, &f.depth, "floor 160x120 dropout 5 %");
@@ -120,7 +121,7 @@ proptest! {
             focal_px: focal,
             baseline_m: baseline,
             ..SensorModel::kinect_v1()
-        });
+        }).white();
         let f = sim.simulate(&scene, &k, &pose, seed);
         let a = analyze(&f.depth, &sim.sensor).unwrap();
         let fb = a.fb_px_m.unwrap();

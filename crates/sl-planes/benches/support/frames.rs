@@ -39,7 +39,7 @@ pub fn load(per_source: usize) -> Vec<(String, Input, Camera)> {
         out.extend(sl_testkit::floor_scan(per_source).into_iter().map(depth));
     }
     if per_source > 1 || out.is_empty() {
-        let sim = sl_noise::sim::KinectSimulator::kinect_v1();
+        let sim = sl_noise::sim::KinectSimulator::kinect_v1().white();
         for name in sl_noise::sim::SCENE_NAMES.iter().filter(|_| per_source > 1) {
             let ns = sl_noise::sim::named_scene(name).unwrap();
             let f = sim.simulate(&ns.scene, &ns.intrinsics, &ns.pose, 7);
@@ -52,7 +52,7 @@ pub fn load(per_source: usize) -> Vec<(String, Input, Camera)> {
     }
     if out.is_empty() {
         eprintln!("../shared/data not found: benchmarking simulated frames");
-        let sim = sl_noise::sim::KinectSimulator::kinect_v1();
+        let sim = sl_noise::sim::KinectSimulator::kinect_v1().white();
         for name in ["three-planes", "corridor", "boxes"] {
             let ns = sl_noise::sim::named_scene(name).unwrap();
             let f = sim.simulate(&ns.scene, &ns.intrinsics, &ns.pose, 1);

@@ -112,7 +112,7 @@ proptest! {
         let rot = UnitQuaternion::from_axis_angle(&Unit::new_normalize(ax), angle_deg.to_radians());
         let b_in_a = Isometry3::from_parts(Translation3::new(t.0, t.1, t.2), rot);
         let scene = cluttered_room();
-        let sim = KinectSimulator::kinect_v1();
+        let sim = KinectSimulator::kinect_v1().white();
         let k = cam.intrinsics;
         let da = sim.simulate(&scene, &k, &Isometry3::identity(), seed).depth;
         let db = sim.simulate(&scene, &k, &b_in_a, seed + 1).depth;
@@ -147,7 +147,7 @@ proptest! {
         let rot = UnitQuaternion::from_axis_angle(&Unit::new_normalize(ax), angle_deg.to_radians());
         let b_in_a = Isometry3::from_parts(Translation3::new(t.0, t.1, t.2), rot);
         let scene = cluttered_room();
-        let sim = KinectSimulator::kinect_v1();
+        let sim = KinectSimulator::kinect_v1().white();
         let da = sim.simulate(&scene, &cam.intrinsics, &Isometry3::identity(), seed).depth;
         let db = sim.simulate(&scene, &cam.intrinsics, &b_in_a, seed + 1).depth;
         match verified_from_depths(&cam, &da, &db) {
@@ -193,7 +193,7 @@ fn shared_floor_only_is_not_a_wrong_rotation() {
     let a_in_world = Isometry3::from_parts(Translation3::identity(), yaw(-45.0) * down);
     let b_in_world = Isometry3::from_parts(Translation3::identity(), yaw(5.0) * down);
     let b_in_a = a_in_world.inverse() * b_in_world;
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let da = sim.simulate(&scene, &cam.intrinsics, &a_in_world, 7).depth;
     let db = sim.simulate(&scene, &cam.intrinsics, &b_in_world, 8).depth;
     let r = verified_from_depths(&cam, &da, &db);
@@ -231,7 +231,7 @@ fn verified_room_motion() -> (
         UnitQuaternion::from_axis_angle(&axis, 25f64.to_radians()),
     );
     let scene = cluttered_room();
-    let sim = KinectSimulator::kinect_v1();
+    let sim = KinectSimulator::kinect_v1().white();
     let k = cam.intrinsics;
     let da = sim.simulate(&scene, &k, &Isometry3::identity(), 3).depth;
     let db = sim.simulate(&scene, &k, &truth, 4).depth;

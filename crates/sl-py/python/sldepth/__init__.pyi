@@ -88,7 +88,7 @@ def analyze(
 def simulate(
     scene: str, seed: int = 0, camera: Optional[Camera] = None
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.uint16]]:
-    """(depth, truth, labels) of a named scene through the Kinect noise model."""
+    """(depth, truth, labels) of a named scene through the paper's white-noise Kinect model."""
 
 def filter(
     depth: _Depth,

@@ -7,5 +7,6 @@ pub mod filter;
 pub mod fuse;
 pub mod info;
 pub mod motion;
+pub mod noise_stats;
 pub mod planes;
 pub mod simulate;
