@@ -157,7 +157,7 @@ pub(crate) fn rows3_array<'py, T: numpy::Element + Copy>(
 }
 
 /// A 4×4 camera-to-world pose from a NumPy (4, 4) array (any float dtype) or nested lists.
-pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::Pose> {
+pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::CameraToWorld> {
     let m: Vec<Vec<f64>> = obj
         .call_method0("tolist")
         .and_then(|l| l.extract())
@@ -172,7 +172,7 @@ pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::Pose> {
     for (i, v) in m.iter().flatten().enumerate() {
         flat[i] = *v;
     }
-    sl_core::pose_from_row_major(&flat).map_err(value_error)
+    sl_core::CameraToWorld::from_row_major(&flat).map_err(value_error)
 }
 
 /// A NumPy (4, 4) float64 array of a pose.

@@ -11,7 +11,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{DepthImage, Intrinsics, Pose};
+use sl_core::{CameraToWorld, DepthImage, Intrinsics, Pose};
 use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
 
@@ -72,7 +72,7 @@ fn params() -> TsdfConfig {
 fn fuse(seq: &Sequence) -> TsdfVolume {
     let mut vol = TsdfVolume::new(params()).expect("valid parameters");
     for (d, p) in &seq.frames {
-        vol.integrate(d, &seq.k, p)
+        vol.integrate(d, &seq.k, &CameraToWorld::from_isometry(*p))
             .expect("integration within budget");
     }
     vol

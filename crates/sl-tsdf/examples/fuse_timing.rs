@@ -9,6 +9,7 @@
 
 use std::time::Instant;
 
+use sl_core::CameraToWorld;
 use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume, WeightMode};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -34,7 +35,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut ms = Vec::new();
     for (d, p) in &frames {
         let t0 = Instant::now();
-        vol.integrate(d, &k, p)?;
+        vol.integrate(d, &k, &CameraToWorld::from_isometry(*p))?;
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
     }
     let t0 = Instant::now();

@@ -51,7 +51,7 @@
 //! per-pixel table, about 4 MiB for 640×480) is not counted.
 //!
 //! ```
-//! use sl_core::{Camera, Pose};
+//! use sl_core::{Camera, CameraToWorld};
 //! use sl_core::nalgebra::{Point3, Vector3};
 //! use sl_noise::sim::{Plane, Scene};
 //! use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
@@ -61,8 +61,8 @@
 //! let k = Camera::kinect_v1().intrinsics.scaled(0.25)?;
 //! let mut scene = Scene::new();
 //! scene.add(Plane::from_normal_offset(Vector3::z(), 1.0)?);
-//! let pose = Pose::identity();
-//! let depth = scene.render(&k, &pose).depth;
+//! let pose = CameraToWorld::identity();
+//! let depth = scene.render(&k, pose.isometry()).depth;
 //!
 //! let mut params = TsdfConfig::default();
 //! params.voxel_m = 0.02;

@@ -4,7 +4,7 @@
 
 use proptest::prelude::*;
 use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, DepthImage, Intrinsics, Pose};
+use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, Pose};
 use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{
     Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode,
@@ -73,7 +73,9 @@ fn plane_tsdf_is_the_analytic_line_of_sight_distance() {
     let depth = render(&scene, &k, &pose);
     let (v, trunc) = (0.01, 0.05);
     let mut vol = TsdfVolume::new(params(v, trunc, WeightMode::InvZ4)).unwrap();
-    let stats = vol.integrate(&depth, &k, &pose).unwrap();
+    let stats = vol
+        .integrate(&depth, &k, &CameraToWorld::from_isometry(pose))
+        .unwrap();
     assert_eq!(stats.pixels_used, k.pixel_count());
     assert!(stats.blocks_allocated > 0 && stats.blocks_touched == stats.blocks_allocated);
     let mut checked = 0;
@@ -122,8 +124,10 @@ fn weighted_average_of_two_frames() {
         (WeightMode::InvZ2, 1.0 / 2.01f64.powi(2)),
     ] {
         let mut vol = TsdfVolume::new(params(0.01, 0.04, mode)).unwrap();
-        vol.integrate(&d1, &k, &near).unwrap();
-        vol.integrate(&d2, &k, &far).unwrap();
+        vol.integrate(&d1, &k, &CameraToWorld::from_isometry(near))
+            .unwrap();
+        vol.integrate(&d2, &k, &CameraToWorld::from_isometry(far))
+            .unwrap();
         assert_eq!(vol.frame_count(), 2);
         // On the optical axis, f1 = 1 − z, f2 = 1.01 − z.
         for kz in [98i64, 100, 101, 103] {
@@ -154,13 +158,13 @@ fn weight_cap_turns_into_moving_average() {
     let mut vol = TsdfVolume::new(p).unwrap();
     let d = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
     for _ in 0..10 {
-        vol.integrate(&d, &k, &Pose::identity()).unwrap();
+        vol.integrate(&d, &k, &CameraToWorld::identity()).unwrap();
     }
     assert_eq!(vol.voxel([0, 0, 50]).unwrap().weight, 4.0);
     // A new observation now moves the value by w/(W+w) = 1/5 of the difference.
     let d2 = DepthImage::from_vec(k.width, k.height, vec![1.02; k.pixel_count()]).unwrap();
     let before = vol.voxel([0, 0, 50]).unwrap().tsdf;
-    vol.integrate(&d2, &k, &Pose::identity()).unwrap();
+    vol.integrate(&d2, &k, &CameraToWorld::identity()).unwrap();
     let after = vol.voxel([0, 0, 50]).unwrap().tsdf;
     assert!(
         (after - before - 0.02 / 5.0).abs() < 1e-6,
@@ -176,7 +180,7 @@ fn errors_leave_the_volume_unchanged() {
     let mut p = params(0.01, 0.03, WeightMode::InvZ4);
     p.memory_budget_bytes = 10 * sl_tsdf::volume::BYTES_PER_BLOCK;
     let mut vol = TsdfVolume::new(p).unwrap();
-    match vol.integrate(&depth, &k, &Pose::identity()) {
+    match vol.integrate(&depth, &k, &CameraToWorld::identity()) {
         Err(TsdfError::MemoryBudget { blocks, .. }) => assert!(blocks > 10),
         other => panic!("expected a budget error, got {other:?}"),
     }
@@ -184,13 +188,13 @@ fn errors_leave_the_volume_unchanged() {
     assert_eq!(vol.frame_count(), 0);
     let wrong = DepthImage::invalid(10, 10);
     assert!(matches!(
-        vol.integrate(&wrong, &k, &Pose::identity()),
+        vol.integrate(&wrong, &k, &CameraToWorld::identity()),
         Err(TsdfError::SizeMismatch { .. })
     ));
     let far_away = Pose::translation(1e9, 0.0, 0.0);
     let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
     assert!(matches!(
-        vol.integrate(&depth, &k, &far_away),
+        vol.integrate(&depth, &k, &CameraToWorld::from_isometry(far_away)),
         Err(TsdfError::OutOfRange(_))
     ));
 }
@@ -201,10 +205,11 @@ fn memory_grows_with_surface_not_bounding_box() {
     let k = small_camera();
     let near = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
     let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
-    vol.integrate(&near, &k, &Pose::identity()).unwrap();
+    vol.integrate(&near, &k, &CameraToWorld::identity())
+        .unwrap();
     let one = vol.block_count();
     let far = DepthImage::from_vec(k.width, k.height, vec![3.0; k.pixel_count()]).unwrap();
-    vol.integrate(&far, &k, &Pose::identity()).unwrap();
+    vol.integrate(&far, &k, &CameraToWorld::identity()).unwrap();
     // The band is 6 cm thick: at most 2-3 block layers per wall.
     let zs: std::collections::BTreeSet<i32> = vol.block_coords().map(|b| b[2]).collect();
     assert!(
@@ -509,8 +514,12 @@ fn fused_sphere_from_views_around_it() {
     ];
     for e in eyes {
         let pose = look_at(e, c);
-        vol.integrate(&render(&scene, &k, &pose), &k, &pose)
-            .unwrap();
+        vol.integrate(
+            &render(&scene, &k, &pose),
+            &k,
+            &CameraToWorld::from_isometry(pose),
+        )
+        .unwrap();
     }
     let mesh = vol.extract_mesh(&ExtractOptions::default());
     let topo = mesh.topology();
@@ -529,7 +538,8 @@ fn slice_shows_the_zero_crossing_at_the_wall() {
     let k = small_camera();
     let depth = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
     let mut vol = TsdfVolume::new(params(0.01, 0.04, WeightMode::InvZ4)).unwrap();
-    vol.integrate(&depth, &k, &Pose::identity()).unwrap();
+    vol.integrate(&depth, &k, &CameraToWorld::identity())
+        .unwrap();
     let spec = SliceSpec {
         axis: Axis::X,
         coord_m: 0.0,
@@ -581,7 +591,7 @@ proptest! {
             let eye = foot - dir * d;
             let pose = look_at(eye, foot);
             let depth = render(&scene, &k, &pose);
-            vol.integrate(&depth, &k, &pose).unwrap();
+            vol.integrate(&depth, &k, &CameraToWorld::from_isometry(pose)).unwrap();
             max_px_m = max_px_m.max(d / k.fx);
         }
         let mesh = vol.extract_mesh(&ExtractOptions::default());
@@ -612,7 +622,7 @@ fn fused_mesh_survives_a_ply_round_trip() {
     vol.integrate(
         &render(&scene, &k, &Pose::identity()),
         &k,
-        &Pose::identity(),
+        &CameraToWorld::identity(),
     )
     .unwrap();
     let mesh = vol.extract_mesh(&ExtractOptions::default());

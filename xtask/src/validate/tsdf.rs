@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{Camera, Image, Intrinsics, Pose};
+use sl_core::{Camera, CameraToWorld, Image, Intrinsics, Pose};
 use sl_eval::DistanceStats;
 use sl_noise::sim::{KinectSimulator, ReliefPlate, Scene, look_at};
 use sl_tsdf::slice::hconcat;
@@ -135,11 +135,11 @@ fn simulated(ctx: &mut Context) -> Result<()> {
             let mut vol = TsdfVolume::new(params)?;
             if *use_near {
                 let f = sim.simulate(&scene, &k, &near, seed * 2);
-                vol.integrate(&f.depth, &k, &near)?;
+                vol.integrate(&f.depth, &k, &CameraToWorld::from_isometry(near))?;
             }
             if *use_far {
                 let f = sim.simulate(&scene, &k, &far, seed * 2 + 1);
-                vol.integrate(&f.depth, &k, &far)?;
+                vol.integrate(&f.depth, &k, &CameraToWorld::from_isometry(far))?;
             }
             let mesh = vol.extract_mesh(&ExtractOptions::default());
             verts += mesh.vertex_count();
@@ -470,7 +470,7 @@ fn real(ctx: &mut Context) -> Result<()> {
             let mut ms = Vec::new();
             for (d, p) in &seq.frames {
                 let t0 = Instant::now();
-                vol.integrate(d, &seq.k, p)?;
+                vol.integrate(d, &seq.k, &CameraToWorld::from_isometry(*p))?;
                 ms.push(t0.elapsed().as_secs_f64() * 1e3);
             }
             ms.sort_by(f64::total_cmp);
@@ -485,7 +485,11 @@ fn real(ctx: &mut Context) -> Result<()> {
                 &mesh,
                 sl_io::PlyFormat::BinaryLittleEndian,
             )?;
-            let img = sl_eval::render::render_mesh(&mesh, &seq.k, &seq.frames[0].1)?;
+            let img = sl_eval::render::render_mesh(
+                &mesh,
+                &seq.k,
+                &CameraToWorld::from_isometry(seq.frames[0].1),
+            )?;
             let png = format!("tsdf_{tag}.png");
             sl_tsdf::io::write_png(ctx.out_dir().join(&png), &img)?;
             images.push((tag.clone(), png));

@@ -4,7 +4,7 @@
 
 use sl_core::Mesh;
 use sl_core::nalgebra::{self, Point3, Vector3};
-use sl_core::{Image, Intrinsics, Pose};
+use sl_core::{CameraToWorld, Image, Intrinsics};
 
 use crate::error::{EvalError, Result};
 
@@ -14,7 +14,7 @@ pub const BACKGROUND_RGB: [u8; 3] = [255, 255, 255];
 /// Renders `mesh` seen by a pinhole camera `k` at camera-to-world `pose` (camera looks along
 /// +Z, y down). Front faces are light grey, back faces (seen from behind, which reveals
 /// orientation errors) tinted blue; shading is a head light, `0.2 + 0.8·|cos|`.
-pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &Pose) -> Result<Image<[u8; 3]>> {
+pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &CameraToWorld) -> Result<Image<[u8; 3]>> {
     k.validate()?;
     let (w, h) = (k.width, k.height);
     if w.saturating_mul(h) > 64 << 20 {
@@ -22,7 +22,7 @@ pub fn render_mesh(mesh: &Mesh, k: &Intrinsics, pose: &Pose) -> Result<Image<[u8
             "render size {w}x{h} too large"
         )));
     }
-    let inv = pose.inverse();
+    let inv = *pose.inverse().isometry();
     let cam: Vec<Point3<f64>> = mesh
         .positions
         .iter()
@@ -102,7 +102,7 @@ pub fn framing_camera(
     up: Vector3<f64>,
     width: usize,
     height: usize,
-) -> Result<(Intrinsics, Pose)> {
+) -> Result<(Intrinsics, CameraToWorld)> {
     let (lo, hi) = mesh
         .bounding_box()
         .ok_or_else(|| EvalError::InvalidParameter("cannot frame an empty mesh".into()))?;
@@ -132,9 +132,9 @@ pub fn framing_camera(
     let rot =
         nalgebra::Rotation3::from_matrix_unchecked(nalgebra::Matrix3::from_columns(&[x, y, z]));
     let eye = centre - z * dist;
-    let pose = Pose::from_parts(
+    let pose = CameraToWorld::from_isometry(nalgebra::Isometry3::from_parts(
         nalgebra::Translation3::from(eye),
         nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
-    );
+    ));
     Ok((k, pose))
 }

@@ -6,7 +6,7 @@
 use nalgebra::{Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use sl_core::{DepthView, Intrinsics, Pose};
+use sl_core::{CameraToWorld, DepthView, Intrinsics, Pose};
 
 use super::discovery::*;
 use super::*;
@@ -25,9 +25,10 @@ impl TsdfVolume {
         &mut self,
         depth: impl Into<DepthView<'a>>,
         k: &Intrinsics,
-        pose: &Pose,
+        pose: &CameraToWorld,
     ) -> Result<IntegrateStats> {
         let depth: DepthView<'a> = depth.into();
+        let pose = pose.isometry();
         if depth.width() != k.width || depth.height() != k.height {
             return Err(TsdfError::SizeMismatch {
                 expected_width: k.width,

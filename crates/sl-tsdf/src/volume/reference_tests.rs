@@ -10,7 +10,7 @@ use std::collections::{BTreeSet, HashMap, HashSet};
 use nalgebra::Point3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sl_core::SensorModel;
+use sl_core::{CameraToWorld, SensorModel};
 
 use super::*;
 use crate::params::WeightMode;
@@ -206,7 +206,9 @@ fn integrate_allocates_exactly_the_band_of_the_valid_pixels() {
         let pose = random_pose(&mut rng, 1.5, 3.0);
         let depth = patch_frame(&mut rng, w, h, (0.02, 5.0));
         let mut vol = TsdfVolume::new(p).unwrap();
-        let stats = vol.integrate(&image(&k, &depth), &k, &pose).unwrap();
+        let stats = vol
+            .integrate(&image(&k, &depth), &k, &CameraToWorld::from_isometry(pose))
+            .unwrap();
         let got: BTreeSet<[i32; 3]> = vol.block_coords().collect();
         let (inner, outer) = reference_bands(&p, &k, &pose, &depth);
         assert!(inner.len() > 100, "case {case}: {}", inner.len());
@@ -233,7 +235,13 @@ fn integrate_allocates_exactly_the_band_of_the_valid_pixels() {
         let pose2 = pose * random_pose(&mut rng, 0.5 * voxel_m, 0.002);
         let mut depth2 = depth.clone();
         border_only(&mut depth2, w, h);
-        let stats2 = vol.integrate(&image(&k, &depth2), &k, &pose2).unwrap();
+        let stats2 = vol
+            .integrate(
+                &image(&k, &depth2),
+                &k,
+                &CameraToWorld::from_isometry(pose2),
+            )
+            .unwrap();
         let got2: BTreeSet<[i32; 3]> = vol.block_coords().collect();
         let (inner2, outer2) = reference_bands(&p, &k, &pose2, &depth2);
         assert!(inner2.len() > 20, "case {case}: {}", inner2.len());
@@ -438,7 +446,8 @@ fn fuse_and_compare(
     let mut observed = 0;
     let mut bands_union = BTreeSet::new();
     for (i, (depth, pose)) in frames.iter().enumerate() {
-        vol.integrate(&image(k, depth), k, pose).unwrap();
+        vol.integrate(&image(k, depth), k, &CameraToWorld::from_isometry(*pose))
+            .unwrap();
         let bands = reference_bands(p, k, pose, depth);
         // Every block allocated so far is in some frame's (grown) band.
         bands_union.extend(bands.1.iter().copied());
@@ -592,9 +601,11 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
     let a = image(&k, &scene_frame(&mut rng, &k, &pose_a, &scene));
     let b = image(&k, &scene_frame(&mut rng, &k, &pose_b, &scene));
     let mut free = TsdfVolume::new(p).unwrap();
-    free.integrate(&a, &k, &pose_a).unwrap();
+    free.integrate(&a, &k, &CameraToWorld::from_isometry(pose_a))
+        .unwrap();
     let n_a = free.block_count();
-    free.integrate(&b, &k, &pose_b).unwrap();
+    free.integrate(&b, &k, &CameraToWorld::from_isometry(pose_b))
+        .unwrap();
     let n = free.block_count();
     assert!(n > n_a + 10, "{n_a} -> {n}");
 
@@ -604,8 +615,10 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
         ..p
     };
     let mut vol = TsdfVolume::new(exact).unwrap();
-    vol.integrate(&a, &k, &pose_a).unwrap();
-    vol.integrate(&b, &k, &pose_b).unwrap();
+    vol.integrate(&a, &k, &CameraToWorld::from_isometry(pose_a))
+        .unwrap();
+    vol.integrate(&b, &k, &CameraToWorld::from_isometry(pose_b))
+        .unwrap();
     assert_eq!(vol.block_count(), n);
     assert!(vol.memory_bytes() <= exact.memory_budget_bytes);
 
@@ -616,9 +629,12 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
         ..p
     };
     let mut vol = TsdfVolume::new(tight).unwrap();
-    vol.integrate(&a, &k, &pose_a).unwrap();
+    vol.integrate(&a, &k, &CameraToWorld::from_isometry(pose_a))
+        .unwrap();
     let before = snapshot(&vol);
-    let err = vol.integrate(&b, &k, &pose_b).unwrap_err();
+    let err = vol
+        .integrate(&b, &k, &CameraToWorld::from_isometry(pose_b))
+        .unwrap_err();
     match err {
         TsdfError::MemoryBudget {
             blocks,
@@ -643,10 +659,19 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
     // that never saw the refused frame.
     let pose_c = Pose::new(Vector3::new(0.01, 0.0, 0.0), Vector3::zeros());
     let c = image(&k, &scene_frame(&mut rng, &k, &pose_c, &scene));
-    let stats = vol.integrate(&c, &k, &pose_c).unwrap();
+    let stats = vol
+        .integrate(&c, &k, &CameraToWorld::from_isometry(pose_c))
+        .unwrap();
     let mut fresh = TsdfVolume::new(p).unwrap();
-    fresh.integrate(&a, &k, &pose_a).unwrap();
-    assert_eq!(fresh.integrate(&c, &k, &pose_c).unwrap(), stats);
+    fresh
+        .integrate(&a, &k, &CameraToWorld::from_isometry(pose_a))
+        .unwrap();
+    assert_eq!(
+        fresh
+            .integrate(&c, &k, &CameraToWorld::from_isometry(pose_c))
+            .unwrap(),
+        stats
+    );
     assert!(vol.block_count() < n);
     assert_eq!(vol.frame_count(), 2);
     assert!(snapshot(&vol).3 == snapshot(&fresh).3);
@@ -699,7 +724,8 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
     let frames: Vec<DepthImage> = poses.iter().map(|q| scene.render(&k, q).depth).collect();
     let mut free = TsdfVolume::new(p).unwrap();
     for (d, q) in frames.iter().zip(&poses) {
-        free.integrate(d, &k, q).unwrap();
+        free.integrate(d, &k, &CameraToWorld::from_isometry(*q))
+            .unwrap();
     }
     let budget = free.block_count() * BYTES_PER_BLOCK;
     let mut vol = TsdfVolume::new(TsdfConfig {
@@ -708,7 +734,8 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
     })
     .unwrap();
     for (d, q) in frames.iter().zip(&poses) {
-        vol.integrate(d, &k, q).unwrap();
+        vol.integrate(d, &k, &CameraToWorld::from_isometry(*q))
+            .unwrap();
         assert!(
             vol.memory_bytes() <= budget,
             "{} > {budget}",
@@ -728,7 +755,7 @@ fn non_finite_pose_is_refused() {
         Pose::new(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0)),
     ] {
         assert!(matches!(
-            vol.integrate(&depth, &k, &pose),
+            vol.integrate(&depth, &k, &CameraToWorld::from_isometry(pose)),
             Err(TsdfError::OutOfRange(_))
         ));
     }

@@ -3,6 +3,7 @@
 use super::*;
 use crate::params::WeightMode;
 use rand::{Rng, SeedableRng};
+use sl_core::CameraToWorld;
 
 /// A depth frame of random patches (steps between them), some invalid pixels.
 fn random_frame(
@@ -204,7 +205,8 @@ fn block_arena_stays_within_the_budget() {
         .collect();
     let mut free = TsdfVolume::new(TsdfConfig::default()).unwrap();
     for pose in &poses {
-        free.integrate(&depth, &k, pose).unwrap();
+        free.integrate(&depth, &k, &CameraToWorld::from_isometry(*pose))
+            .unwrap();
     }
     let budget = free.block_count() * BYTES_PER_BLOCK;
     let mut tight = TsdfVolume::new(TsdfConfig {
@@ -213,7 +215,9 @@ fn block_arena_stays_within_the_budget() {
     })
     .unwrap();
     for pose in &poses {
-        tight.integrate(&depth, &k, pose).unwrap();
+        tight
+            .integrate(&depth, &k, &CameraToWorld::from_isometry(*pose))
+            .unwrap();
         let arena = tight.blocks.capacity() * (std::mem::size_of::<Block>() + 8);
         assert!(arena <= budget, "{arena} > {budget}");
         assert!(tight.keys.capacity() <= tight.blocks.capacity());
@@ -227,7 +231,7 @@ fn block_arena_stays_within_the_budget() {
     .unwrap();
     let mut refused = false;
     for pose in &poses {
-        match over.integrate(&depth, &k, pose) {
+        match over.integrate(&depth, &k, &CameraToWorld::from_isometry(*pose)) {
             Ok(_) => {}
             Err(TsdfError::MemoryBudget { .. }) => {
                 refused = true;

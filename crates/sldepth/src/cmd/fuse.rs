@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use sl_core::{Camera, DepthImage, Pose, pose_from_row_major};
+use sl_core::{Camera, CameraToWorld, DepthImage, pose_from_row_major};
 use sl_io::depth::{ReadOptions, read_depth};
 use sl_io::trajectory::Frame;
 use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
@@ -230,7 +230,7 @@ pub fn run(args: Args) -> Result<()> {
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut integrate_ms = Vec::with_capacity(frames.len());
-    let mut first_pose: Option<Pose> = None;
+    let mut first_pose: Option<CameraToWorld> = None;
     for f in &frames {
         let loaded = read_depth(&f.depth_path, &read_opts)
             .with_context(|| format!("reading {}", f.depth_path.display()))?;
@@ -252,10 +252,10 @@ pub fn run(args: Args) -> Result<()> {
         }
         let t0 = Instant::now();
         volume
-            .integrate(&depth, &k, &f.pose)
+            .integrate(&depth, &k, &f.camera_to_world())
             .with_context(|| format!("integrating {}", f.depth_path.display()))?;
         integrate_ms.push(t0.elapsed().as_secs_f64() * 1e3);
-        first_pose.get_or_insert(f.pose);
+        first_pose.get_or_insert(f.camera_to_world());
         bar.inc(1);
     }
     bar.finish_and_clear();
