@@ -5,7 +5,7 @@
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_eval::render::{BACKGROUND_RGB, framing_camera, render_mesh};
 use sl_eval::{DistanceStats, vertex_distances};
-use sl_tsdf::{ExtractOptions, Mesh, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Mesh, MeshConfig, TsdfConfig, TsdfVolume, WeightMode};
 
 /// The marching-cubes mesh of an exact sphere distance field.
 fn sphere_mesh(voxel: f64, r: f64, centre: Point3<f64>) -> Mesh {
@@ -17,7 +17,7 @@ fn sphere_mesh(voxel: f64, r: f64, centre: Point3<f64>) -> Mesh {
     config.weight = WeightMode::Uniform;
     TsdfVolume::from_field(config, lo, hi, |p| Some(((p - centre).norm() - r) as f32))
         .unwrap()
-        .extract_mesh(&ExtractOptions::default())
+        .extract_mesh(&MeshConfig::default())
 }
 
 #[test]

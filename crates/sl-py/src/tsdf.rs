@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Mesh, VertexScalar};
 use sl_io::PlyFormat;
-use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::arrays::{check_camera, depth_input, image_array, pose_input, rows3_array};
 use crate::camera::PyCamera;
@@ -92,7 +92,7 @@ impl PyTsdfVolume {
     /// cubes with a corner weight below ``min_weight`` are skipped).
     #[pyo3(signature = (min_weight = 0.0))]
     fn extract_mesh(&self, py: Python<'_>, min_weight: f32) -> PyResult<PyMesh> {
-        let opts = extract_options(min_weight)?;
+        let opts = mesh_config(min_weight)?;
         let volume = &self.volume;
         let mesh = compute(py, || volume.extract_mesh(&opts));
         PyMesh::from_mesh(py, mesh)
@@ -107,7 +107,7 @@ impl PyTsdfVolume {
         min_weight: f32,
         ascii: bool,
     ) -> PyResult<()> {
-        let opts = extract_options(min_weight)?;
+        let opts = mesh_config(min_weight)?;
         let volume = &self.volume;
         compute(py, || {
             let mesh = volume.extract_mesh(&opts);
@@ -167,16 +167,11 @@ impl PyTsdfVolume {
     }
 }
 
-fn extract_options(min_weight: f32) -> PyResult<ExtractOptions> {
-    if !(min_weight.is_finite() && min_weight >= 0.0) {
-        return Err(value_error(format!(
-            "min_weight must be a non-negative number, got {min_weight}"
-        )));
-    }
-    Ok(ExtractOptions {
-        min_weight,
-        ..ExtractOptions::default()
-    })
+fn mesh_config(min_weight: f32) -> PyResult<MeshConfig> {
+    let mut config = MeshConfig::default();
+    config.min_weight = min_weight;
+    config.validate().map_err(value_error)?;
+    Ok(config)
 }
 
 fn ply_format(ascii: bool) -> PlyFormat {

@@ -13,7 +13,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{CameraToWorld, DepthImage, Intrinsics, Pose};
 use sl_noise::sim::{Plane, Scene, Sphere};
-use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
+use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume};
 
 struct Sequence {
     name: &'static str,
@@ -102,7 +102,7 @@ fn bench(c: &mut Criterion) {
         });
         let vol = fuse(seq);
         g.bench_function("extract_mesh", |b| {
-            b.iter(|| black_box(vol.extract_mesh(&ExtractOptions::default())).triangle_count())
+            b.iter(|| black_box(vol.extract_mesh(&MeshConfig::default())).triangle_count())
         });
         g.finish();
     }

@@ -10,7 +10,7 @@
 use std::time::Instant;
 
 use sl_core::CameraToWorld;
-use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume, WeightMode};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -39,7 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
     }
     let t0 = Instant::now();
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
     // Order-sensitive FNV-1a checksum of the mesh (to compare implementations).
     let mut h = 0xcbf2_9ce4_8422_2325u64;

@@ -54,7 +54,7 @@
 //! use sl_core::{Camera, CameraToWorld};
 //! use sl_core::nalgebra::{Point3, Vector3};
 //! use sl_noise::sim::{Plane, Scene};
-//! use sl_tsdf::{ExtractOptions, TsdfConfig, TsdfVolume};
+//! use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume};
 //!
 //! // A wall 1 m in front of a small camera looking along +Z (exact depth from the ray caster
 //! // of `sl-noise`'s simulator).
@@ -73,7 +73,7 @@
 //! assert!(volume.sample(&Point3::new(0.0, 0.0, 0.97)).unwrap() > 0.0);
 //! assert!(volume.sample(&Point3::new(0.0, 0.0, 1.03)).unwrap() < 0.0);
 //!
-//! let mesh = volume.extract_mesh(&ExtractOptions::default());
+//! let mesh = volume.extract_mesh(&MeshConfig::default());
 //! assert!(mesh.triangle_count() > 0);
 //! assert!(mesh.positions.iter().all(|p| (p[2] - 1.0).abs() < 1e-3));
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -92,7 +92,8 @@ pub mod volume;
 
 pub use error::{Result, TsdfError};
 pub use io::CONFIDENCE_PROPERTY;
-pub use mesh::ExtractOptions;
+#[allow(deprecated)]
+pub use mesh::{ExtractOptions, MeshConfig};
 #[allow(deprecated)]
 pub use params::{TsdfConfig, TsdfParams, WeightMode};
 /// The mesh type [`TsdfVolume::extract_mesh`] returns (sl-core's, re-exported).

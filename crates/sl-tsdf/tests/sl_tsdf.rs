@@ -6,9 +6,7 @@ use proptest::prelude::*;
 use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, Pose};
 use sl_noise::sim::{Plane, Scene, Sphere};
-use sl_tsdf::{
-    Axis, ExtractOptions, Mesh, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode,
-};
+use sl_tsdf::{Axis, Mesh, MeshConfig, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode};
 
 /// The mesh's per-vertex confidence (empty when it was not extracted).
 fn confidence(mesh: &Mesh) -> &[f32] {
@@ -239,7 +237,7 @@ fn sphere_is_closed_manifold_oriented_and_accurate() {
     // Off-grid centre spanning negative coordinates and block borders.
     let c = Point3::new(-0.0137, 0.0412, 0.0051);
     let vol = sphere_volume(voxel, r, c);
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     assert!(mesh.triangle_count() > 1000);
     let topo = mesh.topology();
     assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
@@ -304,7 +302,7 @@ fn random_fields_give_crack_free_oriented_meshes() {
             field,
         )
         .unwrap();
-        let mesh = vol.extract_mesh(&ExtractOptions::default());
+        let mesh = vol.extract_mesh(&MeshConfig::default());
         let topo = mesh.topology();
         assert_eq!(topo.nonmanifold_edges, 0, "trial {trial}: {topo:?}");
         assert_eq!(topo.inconsistent_edges, 0, "trial {trial}: {topo:?}");
@@ -366,10 +364,8 @@ fn extraction_is_deterministic_and_has_no_unused_vertices() {
     )
     .unwrap();
     for min_weight in [0.0, 1.0, 2.0] {
-        let opts = ExtractOptions {
-            min_weight,
-            ..ExtractOptions::default()
-        };
+        let mut opts = MeshConfig::default();
+        opts.min_weight = min_weight;
         let meshes: Vec<Mesh> = [1, 2, 5]
             .iter()
             .map(|&threads| {
@@ -433,7 +429,7 @@ fn ambiguous_shared_face_has_no_crack() {
         field,
     )
     .unwrap();
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     let topo = mesh.topology();
     assert_eq!(
         topo.nonmanifold_edges + topo.inconsistent_edges,
@@ -482,16 +478,15 @@ fn unobserved_and_light_corners_are_skipped() {
         (p.x <= 0.03).then(|| ((p - c).norm() - r) as f32)
     })
     .unwrap();
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     assert!(mesh.triangle_count() > 100);
     assert!(mesh.positions.iter().all(|p| p[0] <= 0.03 + 1e-6));
     let topo = mesh.topology();
     assert!(topo.boundary_edges > 0 && topo.nonmanifold_edges == 0 && topo.inconsistent_edges == 0);
     // All voxels weigh 1: a higher threshold removes everything.
-    let none = vol.extract_mesh(&ExtractOptions {
-        min_weight: 1.5,
-        ..ExtractOptions::default()
-    });
+    let mut heavy = MeshConfig::default();
+    heavy.min_weight = 1.5;
+    let none = vol.extract_mesh(&heavy);
     assert_eq!(none.triangle_count(), 0);
     assert_eq!(none.vertex_count(), 0);
 }
@@ -521,7 +516,7 @@ fn fused_sphere_from_views_around_it() {
         )
         .unwrap();
     }
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     let topo = mesh.topology();
     assert!(topo.is_closed_oriented_manifold(), "{topo:?}");
     assert!(mesh.signed_volume() > 0.0);
@@ -594,7 +589,7 @@ proptest! {
             vol.integrate(&depth, &k, &CameraToWorld::from_isometry(pose)).unwrap();
             max_px_m = max_px_m.max(d / k.fx);
         }
-        let mesh = vol.extract_mesh(&ExtractOptions::default());
+        let mesh = vol.extract_mesh(&MeshConfig::default());
         prop_assert!(mesh.vertex_count() > 50);
         // Error budget: the nearest-pixel depth lookup shifts the surface by up to half a pixel
         // footprint (range ρ ≤ 1.3·d at the image corners, footprint ρ/f) times tan(incidence)
@@ -625,7 +620,7 @@ fn fused_mesh_survives_a_ply_round_trip() {
         &CameraToWorld::identity(),
     )
     .unwrap();
-    let mesh = vol.extract_mesh(&ExtractOptions::default());
+    let mesh = vol.extract_mesh(&MeshConfig::default());
     assert!(mesh.triangle_count() > 100);
     let dir = tempfile::tempdir().unwrap();
     for (name, format) in [

@@ -22,7 +22,7 @@ use sl_core::{Camera, CameraToWorld, Image, Intrinsics, Pose};
 use sl_eval::DistanceStats;
 use sl_noise::sim::{KinectSimulator, ReliefPlate, Scene, look_at};
 use sl_tsdf::slice::hconcat;
-use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use super::Context;
 
@@ -141,7 +141,7 @@ fn simulated(ctx: &mut Context) -> Result<()> {
                 let f = sim.simulate(&scene, &k, &far, seed * 2 + 1);
                 vol.integrate(&f.depth, &k, &CameraToWorld::from_isometry(far))?;
             }
-            let mesh = vol.extract_mesh(&ExtractOptions::default());
+            let mesh = vol.extract_mesh(&MeshConfig::default());
             verts += mesh.vertex_count();
             dists.extend(sl_eval::tsdf::vertex_distances(&mesh, keep, |p| {
                 scene.distance(p)
@@ -476,7 +476,7 @@ fn real(ctx: &mut Context) -> Result<()> {
             ms.sort_by(f64::total_cmp);
             let med = ms[ms.len() / 2];
             let t0 = Instant::now();
-            let mesh = vol.extract_mesh(&ExtractOptions::default());
+            let mesh = vol.extract_mesh(&MeshConfig::default());
             let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
             let topo = mesh.topology();
             let tag = format!("{}_{}", seq.name, weight.name());

@@ -3,6 +3,7 @@
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Mesh, VertexScalar};
 
+use crate::error::{Result, TsdfError};
 use crate::io::CONFIDENCE_PROPERTY;
 use crate::par::run_on_threads;
 
@@ -10,9 +11,12 @@ use crate::hash::unpack;
 use crate::mc_table::{CORNERS, EDGES, McTable, table};
 use crate::volume::{BLOCK_SIDE, BLOCK_VOXELS, Block, TsdfVolume, local_index};
 
-/// Options of [`TsdfVolume::extract_mesh`].
+/// Configuration of [`TsdfVolume::extract_mesh`].
+///
+/// `#[non_exhaustive]`: start from [`MeshConfig::default`] and assign the fields you need.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ExtractOptions {
+#[non_exhaustive]
+pub struct MeshConfig {
     /// Cubes with a corner whose accumulated weight is below this are skipped (unobserved
     /// corners, weight 0, are always skipped). In normalised weight units: 1 = one observation
     /// at the reference depth.
@@ -24,7 +28,27 @@ pub struct ExtractOptions {
     pub confidence: bool,
 }
 
-impl Default for ExtractOptions {
+/// The former name of [`MeshConfig`].
+#[deprecated(
+    since = "0.1.0",
+    note = "renamed `MeshConfig` (every configuration is a `…Config`)"
+)]
+pub type ExtractOptions = MeshConfig;
+
+impl MeshConfig {
+    /// Checks the parameters: `min_weight` must be a finite, non-negative number.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.min_weight.is_finite() && self.min_weight >= 0.0) {
+            return Err(TsdfError::InvalidParameter(format!(
+                "min_weight = {} must be a finite, non-negative weight",
+                self.min_weight
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Default for MeshConfig {
     fn default() -> Self {
         Self {
             min_weight: 0.0,
@@ -51,7 +75,7 @@ impl TsdfVolume {
     /// indices are then the block's vertex offset plus the rank of the edge in its mask, the
     /// vertex data (positions, normals, confidence) is written in place, and the triangles of
     /// a block look their vertices up in a small window of edge indices.
-    pub fn extract_mesh(&self, opts: &ExtractOptions) -> Mesh {
+    pub fn extract_mesh(&self, opts: &MeshConfig) -> Mesh {
         // Blocks per work item of the parallel phases.
         const CHUNK: usize = 32;
         let min_w = opts.min_weight;

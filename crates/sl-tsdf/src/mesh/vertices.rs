@@ -36,7 +36,7 @@ pub(super) struct McFrame<'a> {
     pub(super) bits: &'a [BlockBits],
     /// Sign bits of each block (see [`BlockBits::signs`]).
     pub(super) signs: &'a [u8],
-    pub(super) opts: &'a ExtractOptions,
+    pub(super) opts: &'a MeshConfig,
 }
 
 /// Slot of the block at `b + d` (`u32::MAX` if not allocated).

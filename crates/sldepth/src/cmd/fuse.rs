@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld, DepthImage, pose_from_row_major};
 use sl_io::depth::{ReadOptions, read_depth};
 use sl_io::trajectory::Frame;
-use sl_tsdf::{Axis, ExtractOptions, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::common::{InputArgs, load_camera, parse_format, print_json, round_to};
 
@@ -261,10 +261,9 @@ pub fn run(args: Args) -> Result<()> {
     bar.finish_and_clear();
 
     let t0 = Instant::now();
-    let mesh = volume.extract_mesh(&ExtractOptions {
-        min_weight: args.min_weight,
-        ..ExtractOptions::default()
-    });
+    let mut mesh_config = MeshConfig::default();
+    mesh_config.min_weight = args.min_weight;
+    let mesh = volume.extract_mesh(&mesh_config);
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     if let Some(out) = &args.output {
