@@ -58,9 +58,19 @@ fn main() {
         ("depth_sun", "png", DepthEncoding::sun()),
     ] {
         let b = bytes_of(ext, |p| write_depth(p, &d, &enc).unwrap());
-        put(&root, target, &format!("ramp-{}.{ext}", enc.invalid_value), &b);
+        put(
+            &root,
+            target,
+            &format!("ramp-{}.{ext}", enc.invalid_value),
+            &b,
+        );
     }
-    put(&root, "depth_pgm", "p6.ppm", b"P6 2 1 255\n\x01\x02\x03\x04\x05\x06");
+    put(
+        &root,
+        "depth_pgm",
+        "p6.ppm",
+        b"P6 2 1 255\n\x01\x02\x03\x04\x05\x06",
+    );
 
     let cam = Camera::kinect_v1();
     let b = bytes_of("json", |p| sl_io::write_camera_json(p, &cam).unwrap());
@@ -71,7 +81,12 @@ fn main() {
         "open3d.json",
         br#"{"width": 64, "height": 48, "intrinsic_matrix": [52.5, 0, 0, 0, 52.5, 0, 31.5, 23.5, 1]}"#,
     );
-    put(&root, "intrinsics_txt", "7scenes.txt", b"585 0 320\n0 585 240\n0 0 1\n");
+    put(
+        &root,
+        "intrinsics_txt",
+        "7scenes.txt",
+        b"585 0 320\n0 585 240\n0 0 1\n",
+    );
     put(
         &root,
         "intrinsics_txt",
@@ -85,7 +100,9 @@ fn main() {
             pose: Pose::translation(0.01 * f64::from(i), 0.0, 0.0),
         })
         .collect();
-    let b = bytes_of("txt", |p| sl_io::trajectory::write_tum_trajectory(p, &poses).unwrap());
+    let b = bytes_of("txt", |p| {
+        sl_io::trajectory::write_tum_trajectory(p, &poses).unwrap()
+    });
     put(&root, "tum_trajectory", "groundtruth.txt", &b);
     put(
         &root,
@@ -94,7 +111,9 @@ fn main() {
         b"# rgb depth\n1.0 rgb/1.png 1.01 depth/1.png\n1.03 rgb/2.png 1.04 depth/2.png\n",
     );
     let plain: Vec<Pose> = poses.iter().map(|p| p.pose).collect();
-    let b = bytes_of("log", |p| sl_io::trajectory::write_open3d_log(p, &plain).unwrap());
+    let b = bytes_of("log", |p| {
+        sl_io::trajectory::write_open3d_log(p, &plain).unwrap()
+    });
     put(&root, "open3d_log", "trajectory.log", &b);
     put(
         &root,
@@ -106,8 +125,9 @@ fn main() {
     let cloud = PlyData::from_positions(vec![[0.0, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.1, 1.2]])
         .with_colors(vec![[255, 0, 0], [0, 255, 0], [0, 0, 255]])
         .with_scalar("confidence", vec![0.5, 1.0, 2.0]);
-    let mesh = PlyData::mesh(cloud.positions.clone(), vec![[0, 1, 2]])
-        .with_normals(vec![[0.0, 0.0, -1.0]; 3]);
+    let mesh =
+        PlyData::mesh(cloud.positions.clone(), vec![[0, 1, 2]])
+            .with_normals(vec![[0.0, 0.0, -1.0]; 3]);
     for (name, data, format) in [
         ("cloud-bin.ply", &cloud, PlyFormat::BinaryLittleEndian),
         ("cloud-ascii.ply", &cloud, PlyFormat::Ascii),
@@ -120,7 +140,9 @@ fn main() {
 
     // Algorithm targets: a wall, a slanted floor with a step, and a frame with holes.
     let wall = frame_bytes(16, 12, 10, |_, _| 1500);
-    let floor = frame_bytes(16, 12, 10, |x, y| 900 + 40 * y as u16 + if x > 8 { 100 } else { 0 });
+    let floor = frame_bytes(16, 12, 10, |x, y| {
+        900 + 40 * y as u16 + if x > 8 { 100 } else { 0 }
+    });
     let holes = frame_bytes(12, 12, 8, |x, y| if (x * y) % 3 == 0 { 0 } else { 2000 });
     for (name, f) in [("wall", &wall), ("floor", &floor), ("holes", &holes)] {
         for (i, method) in [0u8, 1, 2, 3].iter().enumerate() {

@@ -14,8 +14,8 @@ use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 
 use sl_core::{Camera, DepthImage, Intrinsics, Pose};
-use sl_io::depth::{DepthFormat, ReadOptions};
 use sl_io::Limits;
+use sl_io::depth::{DepthFormat, ReadOptions};
 
 /// A fuzz target body.
 pub type Target = fn(&[u8]);
@@ -237,8 +237,13 @@ pub fn planes(data: &[u8]) {
     if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
         let _ = ex.extract_depth(&depth, &camera);
     }
+    // Fewer hypotheses than the default 500 per plane: the code paths are the same, and a
+    // fuzzer needs many executions per second.
     let mut rcfg = sl_planes::RansacConfig::default();
     rcfg.min_pixels = 3;
+    rcfg.iterations = 16;
+    rcfg.max_planes = 4;
+    rcfg.score_samples = 256;
     let _ = sl_planes::metric_ransac(&depth, &camera, &rcfg);
 }
 
@@ -268,7 +273,13 @@ pub fn tsdf(data: &[u8]) {
     let mut b = Bytes(head);
     let voxel = 0.001 + f64::from(b.u8()) * 0.001;
     let trunc = voxel * (1.0 + f64::from(b.u8() % 16));
-    let t = [b.f32(), b.f32(), b.f32()].map(|v| if v.is_finite() { f64::from(v) % 10.0 } else { 0.0 });
+    let t = [b.f32(), b.f32(), b.f32()].map(|v| {
+        if v.is_finite() {
+            f64::from(v) % 10.0
+        } else {
+            0.0
+        }
+    });
     let angle = f64::from(b.u8()) / 40.0;
     let pose = Pose::from_parts(
         sl_core::nalgebra::Translation3::new(t[0], t[1], t[2]),

@@ -14,7 +14,12 @@ fn every_target_has_a_corpus_and_replays_it_without_panicking() {
     for (name, target) in sl_fuzz::TARGETS {
         let dir = root.join(name);
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .unwrap_or_else(|e| panic!("{}: {e} (run `cargo run -p sl-fuzz --example gen_corpus`)", dir.display()))
+            .unwrap_or_else(|e| {
+                panic!(
+                    "{}: {e} (run `cargo run -p sl-fuzz --example gen_corpus`)",
+                    dir.display()
+                )
+            })
             .map(|e| e.map(|e| e.path()))
             .collect::<Result<_, _>>()
             .unwrap_or_else(|e| panic!("{}: {e}", dir.display()));

@@ -98,7 +98,10 @@ impl Drop for TempGuard {
 /// call it for every output before doing any work, so that a bad output name fails early.
 pub fn check_output(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
-        return Err(IoError::invalid_data(path, "not a file path (no file name)"));
+        return Err(IoError::invalid_data(
+            path,
+            "not a file path (no file name)",
+        ));
     }
     match fs::symlink_metadata(path) {
         Ok(meta) => {
@@ -169,7 +172,10 @@ where
     let path = path.as_ref();
     check_output(path)?;
     let Some(file_name) = path.file_name() else {
-        return Err(IoError::invalid_data(path, "not a file path (no file name)"));
+        return Err(IoError::invalid_data(
+            path,
+            "not a file path (no file name)",
+        ));
     };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -224,7 +230,9 @@ fn create_temp(path: &Path, dir: &Path, file_name: &OsStr) -> Result<(TempGuard,
         }
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
             Ok(file) => {
-                live.paths.get_or_insert_with(HashSet::new).insert(tmp.clone());
+                live.paths
+                    .get_or_insert_with(HashSet::new)
+                    .insert(tmp.clone());
                 return Ok((
                     TempGuard {
                         path: tmp,
@@ -370,9 +378,19 @@ mod tests {
             assert!(matches!(err, IoError::UnsafeOutput { .. }), "{err}");
             assert_eq!(err.path(), p);
         }
-        assert!(fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
+        assert!(
+            fs::symlink_metadata(&link)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+        );
         assert_eq!(fs::read(&target).unwrap(), b"keep");
-        assert!(fs::metadata("/dev/null").unwrap().file_type().is_char_device());
+        assert!(
+            fs::metadata("/dev/null")
+                .unwrap()
+                .file_type()
+                .is_char_device()
+        );
     }
 
     #[test]

@@ -142,7 +142,9 @@ impl Limits {
     /// The `image` crate limits of these limits.
     pub(crate) fn image_limits(&self) -> image::Limits {
         let mut limits = image::Limits::default();
-        let side = (MAX_SIDE as u64).min(self.max_pixels).min(u64::from(u32::MAX)) as u32;
+        let side = (MAX_SIDE as u64)
+            .min(self.max_pixels)
+            .min(u64::from(u32::MAX)) as u32;
         limits.max_image_width = Some(side);
         limits.max_image_height = Some(side);
         limits.max_alloc = Some(self.max_decoded_bytes);

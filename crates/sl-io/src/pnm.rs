@@ -245,7 +245,8 @@ pub(crate) fn read_pnm(path: &Path, limits: &Limits) -> Result<(PnmHeader, Vec<u
                 header.height,
                 header.kind.channels(),
                 header.bytes_per_sample(),
-                regular_len.map_or(data.len() as u64, |l| l.saturating_sub(header.data_offset as u64))
+                regular_len.map_or(data.len() as u64, |l| l
+                    .saturating_sub(header.data_offset as u64))
             ),
         ));
     }

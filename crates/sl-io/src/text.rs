@@ -58,7 +58,9 @@ pub(crate) fn read_text_from(
     if buf.last().is_some_and(|&b| b != b'\n') && lines + 1 > max_lines {
         return Err(IoError::too_large(
             path,
-            format!("more than {max_lines} lines, over the text limit (raise it with --max-memory)"),
+            format!(
+                "more than {max_lines} lines, over the text limit (raise it with --max-memory)"
+            ),
         ));
     }
     String::from_utf8(buf).map_err(|e| {

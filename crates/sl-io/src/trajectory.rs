@@ -322,7 +322,10 @@ pub fn read_open3d_log(path: impl AsRef<Path>) -> Result<Vec<LogEntry>> {
 }
 
 /// [`read_open3d_log`] within `limits` (text bytes and lines, frames).
-pub fn read_open3d_log_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<Vec<LogEntry>> {
+pub fn read_open3d_log_with_limits(
+    path: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<LogEntry>> {
     let path = path.as_ref();
     let text = read_limited(path, limits)?;
     let lines: Vec<(usize, &str)> = text
@@ -494,7 +497,10 @@ pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
 }
 
 /// [`read_7scenes_sequence`] within `limits` (frames).
-pub fn read_7scenes_sequence_with_limits(dir: impl AsRef<Path>, limits: &Limits) -> Result<Vec<Frame>> {
+pub fn read_7scenes_sequence_with_limits(
+    dir: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<Frame>> {
     let dir = dir.as_ref();
     let mut pose_files = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {

@@ -650,7 +650,10 @@ fn candidate_blocks_are_counted_against_the_budget_while_they_are_found() {
             candidates,
             max_candidates,
         }) => {
-            assert!(candidates > max_candidates, "{candidates} <= {max_candidates}");
+            assert!(
+                candidates > max_candidates,
+                "{candidates} <= {max_candidates}"
+            );
             assert!(max_candidates <= (16 << 20) / 24, "{max_candidates}");
         }
         other => panic!("expected a candidate budget error, got {other:?}"),
@@ -670,7 +673,10 @@ fn mesh_extraction_is_counted_against_the_budget() {
     let mesh = vol.extract_mesh(&opts);
     assert!(mesh.triangle_count() > 0);
     // Enough budget: the same mesh.
-    assert_eq!(vol.extract_mesh_within(&opts, usize::MAX - 1).unwrap(), mesh);
+    assert_eq!(
+        vol.extract_mesh_within(&opts, usize::MAX - 1).unwrap(),
+        mesh
+    );
     // The volume alone fits, the mesh does not.
     match vol.extract_mesh_within(&opts, vol.memory_bytes() + 1) {
         Err(TsdfError::MeshBudget {

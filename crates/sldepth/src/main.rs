@@ -72,7 +72,10 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    common::set_limits(cli.max_memory.map_or_else(sl_io::Limits::default, sl_io::Limits::for_memory));
+    common::set_limits(
+        cli.max_memory
+            .map_or_else(sl_io::Limits::default, sl_io::Limits::for_memory),
+    );
     install_signal_handler();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -94,7 +97,9 @@ fn main() -> ExitCode {
 fn install_signal_handler() {
     use signal_hook::consts::{SIGINT, SIGTERM};
     let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
-        errln!("warning: cannot install the signal handler; an interrupted write may leave a temporary file");
+        errln!(
+            "warning: cannot install the signal handler; an interrupted write may leave a temporary file"
+        );
         return;
     };
     let spawned = std::thread::Builder::new()
@@ -106,7 +111,9 @@ fn install_signal_handler() {
             }
         });
     if spawned.is_err() {
-        errln!("warning: cannot start the signal thread; an interrupted write may leave a temporary file");
+        errln!(
+            "warning: cannot start the signal thread; an interrupted write may leave a temporary file"
+        );
     }
 }
 

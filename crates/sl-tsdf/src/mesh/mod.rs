@@ -218,7 +218,11 @@ impl TsdfVolume {
         self.extract_mesh_inner(opts, budget_bytes)
     }
 
-    fn extract_mesh_inner(&self, opts: &ExtractOptions, budget_bytes: usize) -> crate::Result<Mesh> {
+    fn extract_mesh_inner(
+        &self,
+        opts: &ExtractOptions,
+        budget_bytes: usize,
+    ) -> crate::Result<Mesh> {
         // Blocks per work item of the parallel phases.
         const CHUNK: usize = 32;
         let min_w = opts.min_weight;
@@ -276,15 +280,16 @@ impl TsdfVolume {
                 .map(|&(_, case)| tab.triangles(case).len())
                 .sum();
             let vertices = total as usize;
-            let per_vertex = 12
-                + if opts.normals { 12 } else { 0 }
-                + if opts.confidence { 4 } else { 0 };
+            let per_vertex =
+                12 + if opts.normals { 12 } else { 0 } + if opts.confidence { 4 } else { 0 };
             let tables: usize = per_block
                 .iter()
                 .map(|bv| {
                     std::mem::size_of::<BlockVertices>()
                         + bv.cubes.capacity() * std::mem::size_of::<(u16, u8)>()
-                        + bv.mask.as_ref().map_or(0, |_| std::mem::size_of::<EdgeMask>())
+                        + bv.mask
+                            .as_ref()
+                            .map_or(0, |_| std::mem::size_of::<EdgeMask>())
                         + bv.around.as_ref().map_or(0, |_| 27 * 4)
                 })
                 .sum::<usize>()

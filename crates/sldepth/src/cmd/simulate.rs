@@ -7,8 +7,7 @@ use clap::builder::PossibleValuesParser;
 use sl_noise::sim::{KinectSimulator, SCENE_NAMES, named_scene};
 
 use crate::common::{
-    check_depth_scale, check_output, limits, load_camera, output_encoding, print_json,
-    save_depth,
+    check_depth_scale, check_output, limits, load_camera, output_encoding, print_json, save_depth,
 };
 
 /// Options of `sldepth simulate`.
