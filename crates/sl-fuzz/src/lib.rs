@@ -267,12 +267,12 @@ pub fn motion(data: &[u8]) {
 }
 
 /// TSDF integration (voxel, band and pose from the first bytes) and mesh extraction, within a
-/// 64 MiB budget.
+/// 1 MiB budget (small, so that the budget checks are hit often and an execution stays short).
 pub fn tsdf(data: &[u8]) {
     let (head, rest) = data.split_at(data.len().min(16));
     let mut b = Bytes(head);
-    let voxel = 0.001 + f64::from(b.u8()) * 0.001;
-    let trunc = voxel * (1.0 + f64::from(b.u8() % 16));
+    let voxel = 0.001 + f64::from(b.u8()) * 0.002;
+    let trunc = voxel * (1.0 + f64::from(b.u8() % 8));
     let t = [b.f32(), b.f32(), b.f32()].map(|v| {
         if v.is_finite() {
             f64::from(v) % 10.0
@@ -285,7 +285,7 @@ pub fn tsdf(data: &[u8]) {
         sl_core::nalgebra::Translation3::new(t[0], t[1], t[2]),
         sl_core::nalgebra::UnitQuaternion::from_euler_angles(angle, -angle / 2.0, angle / 3.0),
     );
-    let budget = fuzz_limits().tsdf_budget_bytes;
+    let budget = 1 << 20;
     let params = sl_tsdf::TsdfConfig {
         voxel_m: voxel,
         trunc_m: trunc,
