@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 /// dev-only sl-testkit (finds the shared data, says why a test skips) and the unpublished
 /// evaluation support sl-eval (for xtask and the CLI, like the binaries). Binaries (`sldepth`,
 /// `xtask`) are not library crates.
-const IO_CRATES: &[&str] = &["sl-io", "sl-testkit", "sl-eval"];
+const IO_CRATES: &[&str] = &["sl-io", "sl-testkit", "sl-eval", "sl-fuzz"];
 /// Binary crates: exempt from the library rules.
 const BINARY_CRATES: &[&str] = &["sldepth"];
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.

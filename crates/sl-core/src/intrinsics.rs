@@ -27,6 +27,13 @@ pub struct Intrinsics {
     pub cy: f64,
 }
 
+/// Largest focal length [`Intrinsics::validate`] accepts, pixels (10⁷: a 65536-pixel-wide image
+/// with a 0.4° field of view; beyond that the numbers only produce overflowing geometry).
+pub const MAX_FOCAL_PX: f64 = 1e7;
+
+/// Largest principal-point coordinate magnitude [`Intrinsics::validate`] accepts, pixels.
+pub const MAX_PRINCIPAL_PX: f64 = 1e7;
+
 impl Intrinsics {
     /// Validated constructor: sizes must be non-zero and focal lengths positive and finite.
     pub fn new(width: usize, height: usize, fx: f64, fy: f64, cx: f64, cy: f64) -> Result<Self> {
@@ -57,16 +64,16 @@ impl Intrinsics {
             )));
         }
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
-            if !(v.is_finite() && v > 0.0) {
+            if !(v.is_finite() && v > 0.0 && v <= MAX_FOCAL_PX) {
                 return Err(CoreError::InvalidIntrinsics(format!(
-                    "{name} = {v} must be positive and finite"
+                    "{name} = {v:e} must be in (0, {MAX_FOCAL_PX:e}] pixels"
                 )));
             }
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
-            if !v.is_finite() {
+            if !(v.is_finite() && v.abs() <= MAX_PRINCIPAL_PX) {
                 return Err(CoreError::InvalidIntrinsics(format!(
-                    "{name} = {v} must be finite"
+                    "{name} = {v:e} must be in [-{MAX_PRINCIPAL_PX:e}, {MAX_PRINCIPAL_PX:e}] pixels"
                 )));
             }
         }

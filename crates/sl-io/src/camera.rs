@@ -16,8 +16,6 @@
 //! file reads. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
 //! length differs from `fx` (it defaults to `fx`).
 
-use std::fs::File;
-use std::io::Read;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -27,7 +25,8 @@ use sl_core::{Camera, Intrinsics, SensorModel};
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
-use crate::limits::MAX_TEXT_BYTES;
+use crate::limits::Limits;
+use crate::text::read_text;
 
 /// Largest camera file we read (they are a few hundred bytes).
 const MAX_CAMERA_BYTES: u64 = 1 << 20;
@@ -53,23 +52,6 @@ struct CameraJson {
     sigma_d_px: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     sensor_focal_px: Option<f64>,
-}
-
-/// Reads a whole text file of at most `max` bytes.
-pub(crate) fn read_text(path: &Path, max: u64) -> Result<String> {
-    let file = File::open(path).map_err(|e| IoError::io(path, e))?;
-    let len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
-    if len > max {
-        return Err(IoError::too_large(
-            path,
-            format!("{len} bytes, over the {max}-byte limit for this file type"),
-        ));
-    }
-    let mut s = String::new();
-    file.take(max + 1)
-        .read_to_string(&mut s)
-        .map_err(|e| IoError::io(path, e))?;
-    Ok(s)
 }
 
 /// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern.
@@ -104,8 +86,18 @@ fn intrinsics_from_k(
 /// from the optional `baseline_m`, `subpixel`, `sigma_d_px` and `sensor_focal_px` keys, with
 /// Kinect defaults.
 pub fn read_camera_json(path: impl AsRef<Path>) -> Result<Camera> {
+    read_camera_json_with_limits(path, &Limits::default())
+}
+
+/// [`read_camera_json`] with explicit [`Limits`]: a camera whose image would exceed
+/// [`Limits::max_pixels`] is refused here, before any command allocates a frame of its size.
+pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<Camera> {
     let path = path.as_ref();
-    let text = read_text(path, MAX_CAMERA_BYTES)?;
+    let text = read_text(
+        path,
+        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
+        limits.max_text_lines,
+    )?;
     let json: CameraJson = serde_json::from_str(&text).map_err(|source| IoError::Json {
         path: path.to_path_buf(),
         source,
@@ -113,6 +105,9 @@ pub fn read_camera_json(path: impl AsRef<Path>) -> Result<Camera> {
     let m = json.intrinsic_matrix;
     // Column-major: m[col * 3 + row].
     let k = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
+    limits
+        .check_pixels(json.width as u64, json.height as u64)
+        .map_err(|m| IoError::too_large(path, m))?;
     let intrinsics = intrinsics_from_k(path, json.width, json.height, k)?;
     let sensor = SensorModel::new(
         json.sensor_focal_px.unwrap_or(intrinsics.fx),
@@ -165,7 +160,15 @@ pub fn read_intrinsics_txt(
     height: usize,
 ) -> Result<Intrinsics> {
     let path = path.as_ref();
-    let text = read_text(path, MAX_CAMERA_BYTES.min(MAX_TEXT_BYTES))?;
+    let limits = Limits::default();
+    limits
+        .check_pixels(width as u64, height as u64)
+        .map_err(|m| IoError::too_large(path, m))?;
+    let text = read_text(
+        path,
+        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
+        limits.max_text_lines,
+    )?;
     let mut values = Vec::with_capacity(9);
     for (i, line) in text.lines().enumerate() {
         for tok in line.split_whitespace() {

@@ -24,6 +24,7 @@ use sl_core::{DepthImage, DisparityImage, Image, Intrinsics, SensorModel};
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
+use crate::limits::Limits;
 use crate::pnm::{PnmKind, read_pnm};
 use crate::raster::{Container, check_writable_size, decode_l16, write_png_l16, write_tiff_l16};
 
@@ -31,6 +32,12 @@ use crate::raster::{Container, check_writable_size, decode_l16, write_png_l16, w
 pub const DEFAULT_UNITS_PER_M: f64 = 1000.0;
 /// The TUM RGB-D depth scale (value / 5000 = metres).
 pub const TUM_UNITS_PER_M: f64 = 5000.0;
+/// Smallest depth scale accepted: 1 unit per metre (a 16-bit file then spans 65 km).
+pub const MIN_UNITS_PER_M: f64 = 1.0;
+/// Largest depth scale accepted: 10⁶ units per metre (micrometres: a 16-bit file spans 65 mm).
+/// Outside `MIN_UNITS_PER_M..=MAX_UNITS_PER_M` every stored value would be an invalid or
+/// meaningless depth, so the scale is refused instead.
+pub const MAX_UNITS_PER_M: f64 = 1e6;
 /// The 16-bit value that some datasets (7-Scenes) use for "no depth"; always invalid on read.
 pub const INVALID_SENTINEL: u16 = u16::MAX;
 /// Largest stored unit that reads back as a valid depth (65535 is the invalid sentinel).
@@ -235,7 +242,9 @@ impl DepthEncoding {
 
     /// Checks the scale and the invalid value.
     fn validate(&self, path: &Path) -> Result<()> {
-        if self.format.has_scale() && !(self.units_per_m.is_finite() && self.units_per_m > 0.0) {
+        if self.format.has_scale()
+            && !(MIN_UNITS_PER_M..=MAX_UNITS_PER_M).contains(&self.units_per_m)
+        {
             return Err(IoError::InvalidScale {
                 path: path.to_path_buf(),
                 units_per_m: self.units_per_m,
@@ -431,6 +440,16 @@ fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthForma
 
 /// Reads the stored integer values of a depth file (see [`RawDepth`]).
 pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<RawDepth> {
+    read_raw_depth_with_limits(path, options, &Limits::default())
+}
+
+/// [`read_raw_depth`] within `limits`: the image size is checked from the header, before
+/// anything is decoded.
+pub fn read_raw_depth_with_limits(
+    path: impl AsRef<Path>,
+    options: &ReadOptions,
+    limits: &Limits,
+) -> Result<RawDepth> {
     let path = path.as_ref();
     let format = resolve_format(path, options.format)?;
     let mut encoding = DepthEncoding::for_format(format);
@@ -448,9 +467,9 @@ pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<R
     }
     encoding.validate(path)?;
     let values = match format {
-        DepthFormat::Png | DepthFormat::Sun => decode_l16(path, Container::Png)?,
-        DepthFormat::Tiff => decode_l16(path, Container::Tiff)?,
-        DepthFormat::NyuRaw => read_nyu_raw(path)?,
+        DepthFormat::Png | DepthFormat::Sun => decode_l16(path, Container::Png, limits)?,
+        DepthFormat::Tiff => decode_l16(path, Container::Tiff, limits)?,
+        DepthFormat::NyuRaw => read_nyu_raw_with_limits(path, limits)?,
     };
     let values = match format {
         DepthFormat::Sun => values.map(|v| v.rotate_right(3)),
@@ -468,8 +487,17 @@ pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<R
 /// `options.scale_units_per_m` (default 1000). Non-16-bit or multi-channel images are rejected
 /// with [`IoError::UnsupportedImage`]; decoding is bounded by [`crate::limits`].
 pub fn read_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<LoadedDepth> {
+    read_depth_with_limits(path, options, &Limits::default())
+}
+
+/// [`read_depth`] within `limits` (see [`read_raw_depth_with_limits`]).
+pub fn read_depth_with_limits(
+    path: impl AsRef<Path>,
+    options: &ReadOptions,
+    limits: &Limits,
+) -> Result<LoadedDepth> {
     let path = path.as_ref();
-    let RawDepth { values, encoding } = read_raw_depth(path, options)?;
+    let RawDepth { values, encoding } = read_raw_depth_with_limits(path, options, limits)?;
     // `values` is already un-rotated for SUN: decode it as a plain PNG at the same scale.
     let plain = DepthEncoding {
         format: if encoding.format == DepthFormat::Sun {
@@ -515,8 +543,13 @@ pub fn write_depth(
 /// order is checked: if some little-endian value exceeds 2047 but every big-endian one fits, the
 /// file was written spec-conformingly and is read big-endian; if neither fits it is rejected.
 pub fn read_nyu_raw(path: impl AsRef<Path>) -> Result<Image<u16>> {
+    read_nyu_raw_with_limits(path, &Limits::default())
+}
+
+/// [`read_nyu_raw`] within `limits`.
+pub fn read_nyu_raw_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<Image<u16>> {
     let path = path.as_ref();
-    let (header, bytes) = read_pnm(path)?;
+    let (header, bytes) = read_pnm(path, limits)?;
     if header.kind != PnmKind::Gray || header.bytes_per_sample() != 2 {
         return Err(IoError::UnsupportedImage {
             path: path.to_path_buf(),

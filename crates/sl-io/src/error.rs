@@ -72,8 +72,10 @@ pub enum IoError {
         /// What is wrong.
         message: String,
     },
-    /// A depth scale (integer units per metre) that is zero, negative or not finite.
-    #[error("{}: invalid depth scale {units_per_m} units per metre (must be positive and finite)", .path.display())]
+    /// A depth scale (integer units per metre) outside
+    /// [`crate::depth::MIN_UNITS_PER_M`]`..=`[`crate::depth::MAX_UNITS_PER_M`] (zero, negative,
+    /// not finite, or so extreme that no stored value would be a meaningful depth).
+    #[error("{}: invalid depth scale {units_per_m:e} units per metre (valid: 1 to 1e6 units per metre)", .path.display())]
     InvalidScale {
         /// The file.
         path: PathBuf,
@@ -128,6 +130,15 @@ pub enum IoError {
         #[source]
         source: serde_json::Error,
     },
+    /// An output name that must not be replaced: it exists and is not a regular file (a
+    /// symbolic link, directory, device, FIFO or socket), see [`crate::atomic::check_output`].
+    #[error("{}: refusing to write: {message}", .path.display())]
+    UnsafeOutput {
+        /// The output name.
+        path: PathBuf,
+        /// What the name refers to.
+        message: String,
+    },
     /// A PLY file that ply-rs cannot parse, or PLY content that does not fit [`crate::ply::PlyData`].
     #[error("{}: invalid PLY: {message}", .path.display())]
     Ply {
@@ -166,6 +177,7 @@ impl IoError {
             | Self::InvalidData { path, .. }
             | Self::Core { path, .. }
             | Self::Json { path, .. }
+            | Self::UnsafeOutput { path, .. }
             | Self::Ply { path, .. } => path,
         }
     }

@@ -21,8 +21,10 @@
 //!   rename), so readers never see half-written output.
 //!
 //! Every malformed input gives an [`IoError`] naming the file and the problem (with the line
-//! number for text formats); decoders are bounded by [`limits`], and no buffer is sized from an
-//! unchecked header.
+//! number for text formats). Every reader is bounded by a [`Limits`] value (the plain functions
+//! use [`Limits::default`], the `*_with_limits` ones take it): image headers are checked before
+//! decoding, camera sizes at load, text is counted while it streams in, and no buffer is sized
+//! from an unchecked header.
 //!
 //! ```
 //! use sl_io::{DepthEncoding, ReadOptions, read_depth, write_depth};
@@ -62,6 +64,7 @@ pub mod ply;
 mod pnm;
 mod raster;
 pub mod rgb;
+mod text;
 pub mod trajectory;
 
 pub use camera::{
@@ -72,6 +75,7 @@ pub use depth::{
     read_raw_depth, write_depth,
 };
 pub use error::{IoError, Result};
+pub use limits::Limits;
 pub use ply::{
     PlyData, PlyFormat, VertexScalar, read_mesh_ply, read_ply, write_mesh_ply, write_ply,
 };

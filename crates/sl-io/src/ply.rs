@@ -34,6 +34,7 @@ use ply_rs::writer::Writer;
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
+use crate::limits::Limits;
 
 /// Vertex property names with a fixed meaning (never taken as the scalar).
 const RESERVED: [&str; 10] = [
@@ -578,7 +579,12 @@ struct VertexLayout {
 
 /// Checks the header against what [`PlyData`] can hold, and that the declared element counts
 /// fit in the file (so nothing is sized by an unchecked count).
-fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLayout> {
+fn check_header(
+    path: &Path,
+    header: &Header,
+    file_len: Option<u64>,
+    limits: &Limits,
+) -> Result<VertexLayout> {
     let err = |m: String| IoError::Ply {
         path: path.to_path_buf(),
         message: m,
@@ -587,7 +593,18 @@ fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLay
         return Err(err("no `vertex` element".into()));
     };
     let mut min_payload: u64 = 0;
+    let mut entries: u64 = 0;
     for (name, e) in &header.elements {
+        entries = entries.saturating_add(e.count as u64);
+        if entries > limits.max_ply_elements {
+            return Err(IoError::too_large(
+                path,
+                format!(
+                    "the header declares more than {} elements, over the PLY limit (raise it with --max-memory)",
+                    limits.max_ply_elements
+                ),
+            ));
+        }
         if e.properties.is_empty() && e.count > 0 {
             return Err(err(format!(
                 "element `{name}` declares {} entries but no properties",
@@ -610,7 +627,9 @@ fn check_header(path: &Path, header: &Header, file_len: u64) -> Result<VertexLay
             .and_then(|b| b.checked_add(min_payload))
             .ok_or_else(|| err(format!("element `{name}` count {} overflows", e.count)))?;
     }
-    if min_payload > file_len {
+    if let Some(file_len) = file_len
+        && min_payload > file_len
+    {
         return Err(err(format!(
             "the header declares at least {min_payload} bytes of data, the file has {file_len} bytes (truncated?)"
         )));
@@ -683,14 +702,21 @@ fn ply_err(path: &Path, e: &ply_rs::parser::ParseError) -> IoError {
 
 /// Reads a PLY cloud or mesh (see the module docs for what is accepted).
 pub fn read_ply(path: impl AsRef<Path>) -> Result<PlyData> {
+    read_ply_with_limits(path, &Limits::default())
+}
+
+/// [`read_ply`] within `limits`: element counts are checked from the header, before any
+/// element is read (and, for a regular file, against the file's length).
+pub fn read_ply_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<PlyData> {
     let path = path.as_ref();
     let file = File::open(path).map_err(|e| IoError::io(path, e))?;
-    let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
+    let meta = file.metadata().map_err(|e| IoError::io(path, e))?;
+    let file_len = meta.is_file().then_some(meta.len());
     let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
     let header = Parser::<Skip>::new()
         .read_header(&mut reader)
         .map_err(|e| ply_err(path, &e))?;
-    let layout = check_header(path, &header, file_len)?;
+    let layout = check_header(path, &header, file_len, limits)?;
 
     let mut data = PlyData::default();
     for (name, element) in &header.elements {

@@ -1,15 +1,16 @@
 //! A strict, bounded reader for binary PNM files (`P5` grey, `P6` colour).
 //!
 //! The header is parsed from at most [`MAX_HEADER_BYTES`] bytes, the sizes are checked (at most
-//! [`crate::limits::MAX_SIDE`] per side, the sample data within [`crate::limits::MAX_DECODE_BYTES`]) and
-//! the data length is checked against the file length *before* the sample buffer is allocated.
+//! [`crate::limits::MAX_SIDE`] per side, the pixels within [`Limits::max_pixels`], the sample
+//! data within [`Limits::max_decoded_bytes`]) *before* the sample buffer is allocated; the
+//! samples are then read as they arrive (a pipe works too) and a short file is an error.
 
 use std::fs::File;
-use std::io::{Read, Seek, SeekFrom};
+use std::io::Read;
 use std::path::Path;
 
 use crate::error::{IoError, Result};
-use crate::limits::{MAX_DECODE_BYTES, MAX_SIDE};
+use crate::limits::{Limits, MAX_SIDE};
 
 /// The longest header we accept (magic, sizes, maxval and comments).
 pub(crate) const MAX_HEADER_BYTES: usize = 4096;
@@ -174,9 +175,8 @@ pub(crate) fn parse_header(buf: &[u8]) -> std::result::Result<PnmHeader, HeaderE
 
 /// Reads a binary PNM file: the header, then exactly the sample bytes it declares (trailing
 /// bytes, which the format allows for further images, are ignored).
-pub(crate) fn read_pnm(path: &Path) -> Result<(PnmHeader, Vec<u8>)> {
+pub(crate) fn read_pnm(path: &Path, limits: &Limits) -> Result<(PnmHeader, Vec<u8>)> {
     let mut file = File::open(path).map_err(|e| IoError::io(path, e))?;
-    let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
     let mut prefix = Vec::with_capacity(MAX_HEADER_BYTES);
     (&mut file)
         .take(MAX_HEADER_BYTES as u64)
@@ -195,37 +195,61 @@ pub(crate) fn read_pnm(path: &Path) -> Result<(PnmHeader, Vec<u8>)> {
             return Err(IoError::malformed(path, "truncated PGM/PPM header"));
         }
     };
+    limits
+        .check_pixels(header.width as u64, header.height as u64)
+        .map_err(|m| IoError::too_large(path, m))?;
     let Some(data_len) = header.data_len() else {
         return Err(IoError::too_large(path, "image size overflows"));
     };
-    if data_len as u64 > MAX_DECODE_BYTES {
+    if data_len as u64 > limits.max_decoded_bytes {
         return Err(IoError::too_large(
             path,
             format!(
-                "{}x{} image needs {data_len} bytes, over the {MAX_DECODE_BYTES}-byte decode budget",
-                header.width, header.height
+                "{}x{} image needs {data_len} bytes, over the {}-byte decode limit",
+                header.width, header.height, limits.max_decoded_bytes
             ),
         ));
     }
-    let available = file_len.saturating_sub(header.data_offset as u64);
-    if available < data_len as u64 {
+    // The samples: what followed the header in the prefix, then the rest as it arrives (no
+    // seek, no metadata: a FIFO reads the same way), never more than the header declares.
+    // A regular file's length tells a truncated file before the buffer is allocated; a pipe's
+    // buffer grows as data arrives.
+    let regular_len = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    let declared_end = header.data_offset as u64 + data_len as u64;
+    let mut data = match regular_len {
+        Some(len) if len < declared_end => Vec::new(),
+        Some(_) => Vec::with_capacity(data_len),
+        None => Vec::with_capacity(data_len.min(1 << 20)),
+    };
+    let head = prefix.get(header.data_offset..).unwrap_or(&[]);
+    data.extend_from_slice(&head[..head.len().min(data_len)]);
+    let missing = (data_len - data.len()) as u64;
+    if regular_len.is_none_or(|len| len >= declared_end) {
+        file.take(missing)
+            .read_to_end(&mut data)
+            .map_err(|e| IoError::io(path, e))?;
+    } else {
+        data.clear();
+    }
+    if data.len() < data_len {
         return Err(IoError::malformed(
             path,
             format!(
                 "truncated data: the header declares {}x{}x{} samples of {} byte(s) = {data_len} bytes, \
-                 the file holds {available}",
+                 the file holds {}",
                 header.width,
                 header.height,
                 header.kind.channels(),
-                header.bytes_per_sample()
+                header.bytes_per_sample(),
+                regular_len.map_or(data.len() as u64, |l| l
+                    .saturating_sub(header.data_offset as u64))
             ),
         ));
     }
-    file.seek(SeekFrom::Start(header.data_offset as u64))
-        .map_err(|e| IoError::io(path, e))?;
-    let mut data = vec![0u8; data_len];
-    file.read_exact(&mut data)
-        .map_err(|e| IoError::io(path, e))?;
     Ok((header, data))
 }
 

@@ -11,7 +11,7 @@ use sl_core::Image;
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
-use crate::limits::{MAX_SIDE, image_limits};
+use crate::limits::{Limits, MAX_SIDE};
 
 /// Raster containers we decode ourselves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -25,7 +25,7 @@ pub(crate) fn image_error(path: &Path, e: ImageError) -> IoError {
     match e {
         ImageError::Limits(l) => IoError::too_large(
             path,
-            format!("{l} (decode limits: {MAX_SIDE} px per side, 512 MiB)"),
+            format!("{l} (decode limits: {MAX_SIDE} px per side; raise them with --max-memory)"),
         ),
         ImageError::IoError(io) => IoError::io(path, io),
         other => IoError::Decode {
@@ -55,19 +55,21 @@ fn open(path: &Path) -> Result<BufReader<File>> {
 
 /// Decodes a 16-bit single-channel PNG or TIFF; any other layout is
 /// [`IoError::UnsupportedImage`].
-pub(crate) fn decode_l16(path: &Path, container: Container) -> Result<Image<u16>> {
+pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> Result<Image<u16>> {
     let reader = open(path)?;
     let img = match container {
         Container::Png => {
-            let dec = PngDecoder::with_limits(reader, image_limits())
+            let dec = PngDecoder::with_limits(reader, limits.image_limits())
                 .map_err(|e| image_error(path, e))?;
+            check_dimensions(path, &dec, limits)?;
             check_l16(path, dec.color_type())?;
             DynamicImage::from_decoder(dec)
         }
         Container::Tiff => {
             let mut dec = TiffDecoder::new(reader).map_err(|e| image_error(path, e))?;
-            dec.set_limits(image_limits())
+            dec.set_limits(limits.image_limits())
                 .map_err(|e| image_error(path, e))?;
+            check_dimensions(path, &dec, limits)?;
             check_l16(path, dec.color_type())?;
             DynamicImage::from_decoder(dec)
         }
@@ -79,6 +81,15 @@ pub(crate) fn decode_l16(path: &Path, container: Container) -> Result<Image<u16>
     };
     let (w, h) = (buf.width() as usize, buf.height() as usize);
     Image::from_vec(w, h, buf.into_raw()).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Checks the size a decoder read from the header against [`Limits::max_pixels`], before
+/// anything is decoded.
+fn check_dimensions(path: &Path, dec: &impl ImageDecoder, limits: &Limits) -> Result<()> {
+    let (w, h) = dec.dimensions();
+    limits
+        .check_pixels(u64::from(w), u64::from(h))
+        .map_err(|m| IoError::too_large(path, m))
 }
 
 fn unsupported_l16(path: &Path, found: String) -> IoError {
@@ -98,7 +109,7 @@ fn check_l16(path: &Path, ct: ColorType) -> Result<()> {
 }
 
 /// Decodes any PNG or TIFF the `image` crate understands and converts it to 8-bit RGB.
-pub(crate) fn decode_rgb8(path: &Path) -> Result<Image<[u8; 3]>> {
+pub(crate) fn decode_rgb8(path: &Path, limits: &Limits) -> Result<Image<[u8; 3]>> {
     let mut reader = image::ImageReader::new(open(path)?)
         .with_guessed_format()
         .map_err(|e| IoError::io(path, e))?;
@@ -108,9 +119,10 @@ pub(crate) fn decode_rgb8(path: &Path) -> Result<Image<[u8; 3]>> {
             message: "unrecognised image format (supported: PNG, TIFF, binary PPM/PGM)".into(),
         });
     }
-    reader.limits(image_limits());
-    let img = reader
-        .decode()
+    reader.limits(limits.image_limits());
+    let dec = reader.into_decoder().map_err(|e| image_error(path, e))?;
+    check_dimensions(path, &dec, limits)?;
+    let img = DynamicImage::from_decoder(dec)
         .map_err(|e| image_error(path, e))?
         .into_rgb8();
     let (w, h) = (img.width() as usize, img.height() as usize);

@@ -9,6 +9,7 @@ use image::ExtendedColorType;
 use sl_core::Image;
 
 use crate::error::{IoError, Result};
+use crate::limits::Limits;
 use crate::pnm::{PnmKind, read_pnm};
 use crate::raster::{decode_rgb8, write_png_l16, write_png_u8};
 
@@ -16,20 +17,25 @@ use crate::raster::{decode_rgb8, write_png_l16, write_png_u8};
 /// replicated, alpha dropped, 16-bit scaled to 8), and binary PPM/PGM (`P6`/`P5`, maxval up to
 /// 65535, scaled to 0..=255). The format is recognised from the file's content.
 pub fn read_rgb(path: impl AsRef<Path>) -> Result<Image<[u8; 3]>> {
+    read_rgb_with_limits(path, &Limits::default())
+}
+
+/// [`read_rgb`] within `limits` (the size is checked from the header before decoding).
+pub fn read_rgb_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<Image<[u8; 3]>> {
     let path = path.as_ref();
     let mut magic = [0u8; 2];
     let n = File::open(path)
         .and_then(|mut f| f.read(&mut magic))
         .map_err(|e| IoError::io(path, e))?;
     if n == 2 && (magic == *b"P5" || magic == *b"P6") {
-        read_pnm_rgb(path)
+        read_pnm_rgb(path, limits)
     } else {
-        decode_rgb8(path)
+        decode_rgb8(path, limits)
     }
 }
 
-fn read_pnm_rgb(path: &Path) -> Result<Image<[u8; 3]>> {
-    let (header, bytes) = read_pnm(path)?;
+fn read_pnm_rgb(path: &Path, limits: &Limits) -> Result<Image<[u8; 3]>> {
+    let (header, bytes) = read_pnm(path, limits)?;
     let maxval = header.maxval;
     let scale = |v: u32| -> u8 {
         // Round to nearest; values above maxval (malformed but harmless) saturate.
@@ -90,5 +96,5 @@ pub fn read_gray16(path: impl AsRef<Path>) -> Result<Image<u16>> {
         Some(crate::depth::DepthFormat::Tiff) => crate::raster::Container::Tiff,
         _ => crate::raster::Container::Png,
     };
-    crate::raster::decode_l16(path, container)
+    crate::raster::decode_l16(path, container, &Limits::default())
 }

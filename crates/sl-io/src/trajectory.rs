@@ -18,9 +18,28 @@ use sl_core::{
 };
 
 use crate::atomic::write_atomic;
-use crate::camera::read_text;
 use crate::error::{IoError, Result};
-use crate::limits::MAX_TEXT_BYTES;
+use crate::limits::Limits;
+use crate::text::read_text;
+
+/// Reads a text input within `limits`.
+fn read_limited(path: &Path, limits: &Limits) -> Result<String> {
+    read_text(path, limits.max_text_bytes, limits.max_text_lines)
+}
+
+/// Fails when a sequence has more than [`Limits::max_frames`] frames.
+fn check_frames(path: &Path, n: usize, limits: &Limits) -> Result<()> {
+    if n > limits.max_frames {
+        return Err(IoError::too_large(
+            path,
+            format!(
+                "more than {} frames, over the frame limit (raise it with --max-memory)",
+                limits.max_frames
+            ),
+        ));
+    }
+    Ok(())
+}
 
 /// Default largest |depth timestamp − pose timestamp| for TUM association, seconds.
 pub const DEFAULT_MAX_DT_S: f64 = 0.02;
@@ -126,8 +145,16 @@ fn parse_n<const N: usize>(
 /// Reads a TUM trajectory (`groundtruth.txt` or any `timestamp tx ty tz qx qy qz qw` file),
 /// sorted by timestamp.
 pub fn read_tum_trajectory(path: impl AsRef<Path>) -> Result<Vec<TimedPose>> {
+    read_tum_trajectory_with_limits(path, &Limits::default())
+}
+
+/// [`read_tum_trajectory`] within `limits` (text bytes and lines).
+pub fn read_tum_trajectory_with_limits(
+    path: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<TimedPose>> {
     let path = path.as_ref();
-    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let text = read_limited(path, limits)?;
     let mut poses = Vec::new();
     for (n, line) in data_lines(&text) {
         let toks: Vec<&str> = line.split_whitespace().collect();
@@ -162,11 +189,20 @@ pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Resu
 /// Reads a TUM `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`, extra columns
 /// ignored); relative paths are resolved against the file's directory.
 pub fn read_tum_associations(path: impl AsRef<Path>) -> Result<Vec<Association>> {
+    read_tum_associations_with_limits(path, &Limits::default())
+}
+
+/// [`read_tum_associations`] within `limits` (text bytes and lines, frames).
+pub fn read_tum_associations_with_limits(
+    path: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<Association>> {
     let path = path.as_ref();
     let base = path.parent().unwrap_or(Path::new(""));
-    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let text = read_limited(path, limits)?;
     let mut out = Vec::new();
     for (n, line) in data_lines(&text) {
+        check_frames(path, out.len() + 1, limits)?;
         let toks: Vec<&str> = line.split_whitespace().collect();
         if toks.len() < 4 {
             return Err(IoError::parse(
@@ -237,6 +273,15 @@ pub fn associate(depth: &[(f64, PathBuf)], poses: &[TimedPose], max_dt_s: f64) -
 /// ([`DEFAULT_MAX_DT_S`] = 0.02 s is the usual choice). A non-positive or non-finite tolerance
 /// is an error naming `associations.txt`.
 pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequence> {
+    read_tum_sequence_with_limits(dir, max_dt_s, &Limits::default())
+}
+
+/// [`read_tum_sequence`] within `limits`.
+pub fn read_tum_sequence_with_limits(
+    dir: impl AsRef<Path>,
+    max_dt_s: f64,
+    limits: &Limits,
+) -> Result<TumSequence> {
     let dir = dir.as_ref();
     let assoc_path = dir.join("associations.txt");
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
@@ -245,8 +290,8 @@ pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequ
             message: format!("maximum time difference {max_dt_s} s must be positive"),
         });
     }
-    let poses = read_tum_trajectory(dir.join("groundtruth.txt"))?;
-    let assoc = read_tum_associations(&assoc_path)?;
+    let poses = read_tum_trajectory_with_limits(dir.join("groundtruth.txt"), limits)?;
+    let assoc = read_tum_associations_with_limits(&assoc_path, limits)?;
     let depth: Vec<(f64, PathBuf)> = assoc
         .into_iter()
         .map(|a| (a.depth_timestamp, a.depth_path))
@@ -273,14 +318,23 @@ impl LogEntry {
 /// Reads an Open3D `.log` trajectory: per entry a line of three integers, then four lines of
 /// four numbers (a camera-to-world matrix).
 pub fn read_open3d_log(path: impl AsRef<Path>) -> Result<Vec<LogEntry>> {
+    read_open3d_log_with_limits(path, &Limits::default())
+}
+
+/// [`read_open3d_log`] within `limits` (text bytes and lines, frames).
+pub fn read_open3d_log_with_limits(
+    path: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<LogEntry>> {
     let path = path.as_ref();
-    let text = read_text(path, MAX_TEXT_BYTES)?;
+    let text = read_limited(path, limits)?;
     let lines: Vec<(usize, &str)> = text
         .lines()
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty())
         .collect();
+    check_frames(path, lines.len().div_ceil(5), limits)?;
     let mut out = Vec::with_capacity(lines.len() / 5);
     for chunk in lines.chunks(5) {
         let (n0, head) = chunk[0];
@@ -368,8 +422,17 @@ pub fn read_open3d_log_frames(
     log_path: impl AsRef<Path>,
     depth_dir: impl AsRef<Path>,
 ) -> Result<Vec<Frame>> {
+    read_open3d_log_frames_with_limits(log_path, depth_dir, &Limits::default())
+}
+
+/// [`read_open3d_log_frames`] within `limits`.
+pub fn read_open3d_log_frames_with_limits(
+    log_path: impl AsRef<Path>,
+    depth_dir: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<Frame>> {
     let log_path = log_path.as_ref();
-    let entries = read_open3d_log(log_path)?;
+    let entries = read_open3d_log_with_limits(log_path, limits)?;
     let files = list_depth_files(depth_dir.as_ref())?;
     entries
         .iter()
@@ -399,7 +462,7 @@ pub fn read_open3d_log_frames(
 /// Reads one 4×4 row-major pose file (7-Scenes `frame-XXXXXX.pose.txt`).
 pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
     let path = path.as_ref();
-    let text = read_text(path, 1 << 20)?;
+    let text = read_text(path, 1 << 20, 1 << 10)?;
     let mut m = [0.0; 16];
     let mut k = 0;
     let mut last_line = 1;
@@ -430,6 +493,14 @@ pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
 /// Reads a 7-Scenes sequence directory: every `frame-XXXXXX.pose.txt`, sorted by name, with its
 /// `frame-XXXXXX.depth.png` (which must exist).
 pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
+    read_7scenes_sequence_with_limits(dir, &Limits::default())
+}
+
+/// [`read_7scenes_sequence`] within `limits` (frames).
+pub fn read_7scenes_sequence_with_limits(
+    dir: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<Frame>> {
     let dir = dir.as_ref();
     let mut pose_files = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
@@ -441,6 +512,7 @@ pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
             .strip_prefix("frame-")
             .and_then(|s| s.strip_suffix(".pose.txt"))
         {
+            check_frames(dir, pose_files.len() + 1, limits)?;
             pose_files.push((stem.to_string(), path));
         }
     }
@@ -462,6 +534,47 @@ pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
             })
         })
         .collect()
+}
+
+/// Reads a frame list (the `sldepth fuse --frames` format): per line a depth image path
+/// (relative to the list's directory) and the 16 numbers of a row-major 4×4 camera-to-world
+/// pose; `#` starts a comment. Bounded by `limits` (text bytes and lines, frames).
+pub fn read_frame_list(path: impl AsRef<Path>, limits: &Limits) -> Result<Vec<Frame>> {
+    let path = path.as_ref();
+    let text = read_limited(path, limits)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let mut frames = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        check_frames(path, frames.len() + 1, limits)?;
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        if toks.len() != 17 {
+            return Err(IoError::parse(
+                path,
+                i + 1,
+                format!(
+                    "expected a depth path and 16 pose numbers, found {} fields",
+                    toks.len()
+                ),
+            ));
+        }
+        let mut m = [0.0; 16];
+        for (v, t) in m.iter_mut().zip(&toks[1..]) {
+            *v = t
+                .parse()
+                .map_err(|_| IoError::parse(path, i + 1, format!("{t:?} is not a number")))?;
+        }
+        let pose = pose_from_row_major(&m).map_err(|e| IoError::core(path, Some(i + 1), e))?;
+        frames.push(Frame {
+            depth_path: base.join(toks[0]),
+            pose,
+            timestamp: None,
+        });
+    }
+    Ok(frames)
 }
 
 #[cfg(test)]

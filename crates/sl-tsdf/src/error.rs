@@ -32,6 +32,32 @@ pub enum TsdfError {
         /// The configured budget.
         budget_bytes: usize,
     },
+    /// Finding the blocks a frame touches listed more candidate blocks than the memory budget
+    /// can hold (checked while they are listed, so the lists stay within the budget). The
+    /// volume is left unchanged.
+    #[error(
+        "memory budget exceeded: the frame touches more than {max_candidates} candidate voxel blocks ({candidates} listed), more than the budget can hold (raise the budget or the voxel size)"
+    )]
+    CandidateBudget {
+        /// Candidate blocks listed when integration stopped.
+        candidates: usize,
+        /// The most the budget allows.
+        max_candidates: usize,
+    },
+    /// Extracting the mesh would need more memory than the budget allows.
+    #[error(
+        "memory budget exceeded: the mesh ({vertices} vertices, {triangles} triangles) and the volume would need {needed_bytes} bytes, budget is {budget_bytes} bytes"
+    )]
+    MeshBudget {
+        /// Vertices of the mesh.
+        vertices: usize,
+        /// Triangles of the mesh.
+        triangles: usize,
+        /// Bytes the volume, the extraction tables and the mesh would need.
+        needed_bytes: usize,
+        /// The budget.
+        budget_bytes: usize,
+    },
     /// The allocator refused memory (reported instead of aborting).
     #[error("out of memory while allocating {0}")]
     OutOfMemory(&'static str),

@@ -652,3 +652,61 @@ fn fused_mesh_survives_a_ply_round_trip() {
         assert_eq!(back.topology(), mesh.topology());
     }
 }
+
+#[test]
+fn candidate_blocks_are_counted_against_the_budget_while_they_are_found() {
+    // Issue 15: a 0.1 mm voxel with a 1 m band lists billions of candidate blocks; the budget
+    // stops the listing long before (the process would otherwise hold gigabytes of keys).
+    let k = small_camera();
+    let depth = DepthImage::from_vec(k.width, k.height, vec![1.5; k.pixel_count()]).unwrap();
+    let mut p = params(0.0001, 1.0, WeightMode::InvZ4);
+    p.memory_budget_bytes = 16 << 20;
+    let mut vol = TsdfVolume::new(p).unwrap();
+    match vol.integrate(&depth, &k, &CameraToWorld::identity()) {
+        Err(TsdfError::CandidateBudget {
+            candidates,
+            max_candidates,
+        }) => {
+            assert!(
+                candidates > max_candidates,
+                "{candidates} <= {max_candidates}"
+            );
+            assert!(max_candidates <= (16 << 20) / 24, "{max_candidates}");
+        }
+        other => panic!("expected a candidate budget error, got {other:?}"),
+    }
+    assert_eq!(vol.block_count(), 0);
+    assert_eq!(vol.frame_count(), 0);
+}
+
+#[test]
+fn mesh_extraction_is_counted_against_the_budget() {
+    let k = small_camera();
+    let scene = analytic_scene(&[(Vector3::z(), 1.0)], &[]);
+    let depth = render(&scene, &k, &Pose::identity());
+    let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
+    vol.integrate(&depth, &k, &CameraToWorld::identity())
+        .unwrap();
+    let opts = MeshConfig::default();
+    let mesh = vol.extract_mesh(&opts);
+    assert!(mesh.triangle_count() > 0);
+    // Enough budget: the same mesh.
+    assert_eq!(
+        vol.extract_mesh_within(&opts, usize::MAX - 1).unwrap(),
+        mesh
+    );
+    // The volume alone fits, the mesh does not.
+    match vol.extract_mesh_within(&opts, vol.memory_bytes() + 1) {
+        Err(TsdfError::MeshBudget {
+            vertices,
+            triangles,
+            needed_bytes,
+            budget_bytes,
+        }) => {
+            assert_eq!(vertices, mesh.vertex_count());
+            assert_eq!(triangles, mesh.triangle_count());
+            assert!(needed_bytes > budget_bytes);
+        }
+        other => panic!("expected a mesh budget error, got {other:?}"),
+    }
+}

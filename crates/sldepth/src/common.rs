@@ -2,11 +2,123 @@
 //! in the input's encoding, JSON output.
 
 use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
 
 use anyhow::{Context, Result, bail};
 use clap::builder::PossibleValuesParser;
 use sl_core::{Camera, DepthImage};
-use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
+use sl_io::Limits;
+use sl_io::depth::{DepthEncoding, DepthFormat, MAX_UNITS_PER_M, MIN_UNITS_PER_M, ReadOptions};
+
+static LIMITS: OnceLock<Limits> = OnceLock::new();
+
+/// Sets the limits of this run (from `--max-memory`); the first call wins.
+pub fn set_limits(limits: Limits) {
+    let _ = LIMITS.set(limits);
+}
+
+/// The limits of this run ([`Limits::default`] unless `--max-memory` was given).
+pub fn limits() -> Limits {
+    LIMITS.get().copied().unwrap_or_default()
+}
+
+/// Parses a byte count: digits with an optional K, M, G or T suffix (powers of 1024; `KiB`,
+/// `MB`, ... are read the same way).
+pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
+    let t = s.trim();
+    let split = t.find(|c: char| !c.is_ascii_digit()).unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let n: u64 = num
+        .parse()
+        .map_err(|_| format!("{s:?} is not a byte count (e.g. 512M, 8G, 1073741824)"))?;
+    let shift = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 0,
+        "k" | "kb" | "kib" => 10,
+        "m" | "mb" | "mib" => 20,
+        "g" | "gb" | "gib" => 30,
+        "t" | "tb" | "tib" => 40,
+        _ => return Err(format!("{s:?}: unknown unit (use K, M, G or T)")),
+    };
+    n.checked_mul(1u64 << shift)
+        .ok_or_else(|| format!("{s:?} is too large"))
+}
+
+/// Checks a `--depth-scale` value: finite and within what a 16-bit depth file can mean.
+pub fn check_depth_scale(s: f64) -> Result<()> {
+    if !(MIN_UNITS_PER_M..=MAX_UNITS_PER_M).contains(&s) {
+        bail!(
+            "--depth-scale {s:e}: must be between {MIN_UNITS_PER_M} and {MAX_UNITS_PER_M:e} units per metre \
+             (1000 = millimetres, 5000 = TUM)"
+        );
+    }
+    Ok(())
+}
+
+/// Checks a numeric option: finite and within `range` (inclusive), else an error naming the
+/// option and the valid range.
+pub fn check_range(name: &str, v: f64, range: std::ops::RangeInclusive<f64>) -> Result<()> {
+    if !range.contains(&v) {
+        bail!(
+            "{name} {v}: must be a number from {} to {}",
+            range.start(),
+            range.end()
+        );
+    }
+    Ok(())
+}
+
+/// Checks an output name before any work: its extension is one of `exts` (case-insensitive),
+/// and it is a new name or an existing regular file (see `sl_io::atomic::check_output`).
+pub fn check_output(option: &str, path: &Path, exts: &[&str]) -> Result<()> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    if !exts.contains(&ext.as_str()) {
+        bail!(
+            "{option} {}: unknown output format {}; use a file name ending in {}",
+            path.display(),
+            if ext.is_empty() {
+                "(no extension)".to_string()
+            } else {
+                format!(".{ext}")
+            },
+            exts.iter()
+                .map(|e| format!(".{e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    sl_io::atomic::check_output(path).with_context(|| format!("{option} {}", path.display()))?;
+    Ok(())
+}
+
+/// Extensions of depth outputs.
+pub const DEPTH_EXTS: [&str; 4] = ["png", "tif", "tiff", "pgm"];
+
+/// The encoding to write a depth output in: the output's extension picks the container (a
+/// `.png` keeps SUN RGB-D's bit rotation when the input had it), the rest (scale, invalid
+/// value) follows `input`.
+pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncoding> {
+    let Some(format) = DepthFormat::from_path(path) else {
+        bail!(
+            "{}: unknown depth output format; use .png, .tif, .tiff or .pgm",
+            path.display()
+        );
+    };
+    Ok(match (format, input.format) {
+        (DepthFormat::Png, DepthFormat::Png | DepthFormat::Sun) => *input,
+        (DepthFormat::Tiff, DepthFormat::Tiff) => *input,
+        (DepthFormat::NyuRaw, DepthFormat::NyuRaw) => *input,
+        (DepthFormat::NyuRaw, _) => DepthEncoding::nyu_raw(),
+        (f, DepthFormat::NyuRaw) => DepthEncoding::for_format(f),
+        (f, _) => DepthEncoding {
+            format: f,
+            ..*input
+        },
+    })
+}
 
 /// Input options common to every command that reads a depth map.
 #[derive(Debug, Clone, Default, clap::Args)]
@@ -52,7 +164,7 @@ pub fn load_camera(args: &InputArgs) -> Result<Camera> {
 /// preset (the error lists them, and says the file does not exist when it looks like a path).
 pub fn camera_from_arg(value: &Path) -> Result<Camera> {
     if value.is_file() {
-        return sl_io::camera::read_camera_json(value)
+        return sl_io::camera::read_camera_json_with_limits(value, &limits())
             .with_context(|| format!("reading camera {}", value.display()));
     }
     let name = value.to_string_lossy();
@@ -76,17 +188,15 @@ pub fn parse_format(args: &InputArgs) -> Result<Option<DepthFormat>> {
 
 /// Reads a depth map with the options of `args` and checks it against the camera.
 pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
-    if let Some(s) = args.depth_scale
-        && !(s.is_finite() && s > 0.0)
-    {
-        bail!("--depth-scale must be a positive number of units per metre, got {s}");
+    if let Some(s) = args.depth_scale {
+        check_depth_scale(s)?;
     }
     let format = parse_format(args)?;
     let opts = ReadOptions {
         format,
         scale_units_per_m: args.depth_scale,
     };
-    let loaded = sl_io::depth::read_depth(path, &opts)?;
+    let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
     let camera = match (&args.camera, loaded.encoding.format) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the
         // f·B of the NYU toolbox conversion), which is the right default for it.

@@ -9,6 +9,15 @@ macro_rules! outln {
     }};
 }
 
+/// `eprintln!` that never panics: a message to a closed or full stderr is dropped (there is
+/// nobody to tell; the exit code still reports failures).
+macro_rules! errln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr().lock(), $($arg)*);
+    }};
+}
+
 mod cmd;
 mod common;
 
@@ -23,6 +32,12 @@ use clap::{Parser, Subcommand};
 #[derive(Debug, Parser)]
 #[command(name = "sldepth", version, about, long_about = None)]
 struct Cli {
+    /// Memory budget, bytes (suffixes K, M, G: powers of 1024). Every input is checked
+    /// against limits derived from it before anything is allocated: pixels per image (budget /
+    /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
+    /// elements, and the TSDF of `fuse` (3/4 of it). Default 4G.
+    #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_bytes)]
+    max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -59,7 +74,13 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    match run(Cli::parse()) {
+    let cli = Cli::parse();
+    common::set_limits(
+        cli.max_memory
+            .map_or_else(sl_io::Limits::default, sl_io::Limits::for_memory),
+    );
+    install_signal_handler();
+    match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         // A reader that closed the pipe (`sldepth info x | head -c1`) wants no more output: stop
         // quietly, as ripgrep does.
@@ -72,6 +93,35 @@ fn main() -> ExitCode {
         }
     }
 }
+
+/// On SIGINT / SIGTERM: remove the temporary files being written (the destinations are never
+/// partial anyway) and exit with 128 + the signal number, as a shell reports it.
+#[cfg(unix)]
+fn install_signal_handler() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        errln!(
+            "warning: cannot install the signal handler; an interrupted write may leave a temporary file"
+        );
+        return;
+    };
+    let spawned = std::thread::Builder::new()
+        .name("signals".into())
+        .spawn(move || {
+            if let Some(sig) = signals.forever().next() {
+                sl_io::atomic::remove_live_temps();
+                std::process::exit(128 + sig);
+            }
+        });
+    if spawned.is_err() {
+        errln!(
+            "warning: cannot start the signal thread; an interrupted write may leave a temporary file"
+        );
+    }
+}
+
+#[cfg(not(unix))]
+fn install_signal_handler() {}
 
 fn is_broken_pipe(e: &anyhow::Error) -> bool {
     e.chain().any(|c| {

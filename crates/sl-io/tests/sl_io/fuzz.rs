@@ -112,8 +112,9 @@ fn oversized_headers_do_not_allocate() {
     std::fs::write(&p, b"P5 65536 65536 65535\n\x00\x00\x00\x00").unwrap();
     let e = read_depth(&p, &ReadOptions::default()).unwrap_err();
     assert!(e.to_string().contains("huge.pgm"), "{e}");
-    // 10000 x 10000 (200 MB declared, within budget) but truncated: rejected before allocating.
-    std::fs::write(&p, b"P5 10000 10000 65535\n\x00\x00").unwrap();
+    // 4000 x 4000 (32 MB declared, within the default limits) but truncated: rejected before
+    // allocating.
+    std::fs::write(&p, b"P5 4000 4000 65535\n\x00\x00").unwrap();
     assert!(
         read_depth(&p, &ReadOptions::default())
             .unwrap_err()

@@ -125,7 +125,8 @@ fn extension_inference_and_sentinel() {
     assert!(read_depth(&odd, &ReadOptions::default().with_format(DepthFormat::Png)).is_ok());
     let e = read_depth(&pgm, &ReadOptions::default().with_scale(1000.0)).unwrap_err();
     assert!(e.to_string().contains("d.pgm"), "{e}");
-    for bad in [0.0, -1.0, f64::INFINITY, f64::NAN] {
+    // 1e-300 and 1e300 units per metre would make every pixel invalid (issue 15).
+    for bad in [0.0, -1.0, f64::INFINITY, f64::NAN, 1e-300, 1e300] {
         let e = read_depth(&png, &ReadOptions::default().with_scale(bad)).unwrap_err();
         assert!(matches!(e, IoError::InvalidScale { .. }), "{e}");
         let e =

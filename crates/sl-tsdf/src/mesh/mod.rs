@@ -76,6 +76,26 @@ impl TsdfVolume {
     /// vertex data (positions, normals, confidence) is written in place, and the triangles of
     /// a block look their vertices up in a small window of edge indices.
     pub fn extract_mesh(&self, opts: &MeshConfig) -> Mesh {
+        // Without a budget nothing can fail.
+        self.extract_mesh_inner(opts, usize::MAX)
+            .unwrap_or_default()
+    }
+
+    /// [`TsdfVolume::extract_mesh`] within a memory budget: after the per-block tables are
+    /// built (a fixed cost per block) and before any mesh buffer is allocated, the volume, the
+    /// tables and the mesh (vertices with their attributes, triangles twice: per-block lists and
+    /// the final array) are counted against `budget_bytes`; past it the result is
+    /// [`TsdfError::MeshBudget`](crate::TsdfError::MeshBudget). The mesh is the same as
+    /// [`TsdfVolume::extract_mesh`]'s.
+    pub fn extract_mesh_within(
+        &self,
+        opts: &MeshConfig,
+        budget_bytes: usize,
+    ) -> crate::Result<Mesh> {
+        self.extract_mesh_inner(opts, budget_bytes)
+    }
+
+    fn extract_mesh_inner(&self, opts: &MeshConfig, budget_bytes: usize) -> crate::Result<Mesh> {
         // Blocks per work item of the parallel phases.
         const CHUNK: usize = 32;
         let min_w = opts.min_weight;
@@ -125,6 +145,43 @@ impl TsdfVolume {
         }
         offsets.push(total);
 
+        let tab = table();
+        if budget_bytes != usize::MAX {
+            let triangles: usize = per_block
+                .iter()
+                .flat_map(|bv| bv.cubes.iter())
+                .map(|&(_, case)| tab.triangles(case).len())
+                .sum();
+            let vertices = total as usize;
+            let per_vertex =
+                12 + if opts.normals { 12 } else { 0 } + if opts.confidence { 4 } else { 0 };
+            let tables: usize = per_block
+                .iter()
+                .map(|bv| {
+                    std::mem::size_of::<BlockVertices>()
+                        + bv.cubes.capacity() * std::mem::size_of::<(u16, u8)>()
+                        + bv.mask
+                            .as_ref()
+                            .map_or(0, |_| std::mem::size_of::<EdgeMask>())
+                        + bv.around.as_ref().map_or(0, |_| 27 * 4)
+                })
+                .sum::<usize>()
+                + n_blocks * (std::mem::size_of::<BlockBits>() + 1 + 4);
+            let needed = self
+                .memory_bytes()
+                .saturating_add(tables)
+                .saturating_add(vertices.saturating_mul(per_vertex))
+                .saturating_add(triangles.saturating_mul(2 * 12));
+            if needed > budget_bytes {
+                return Err(crate::TsdfError::MeshBudget {
+                    vertices,
+                    triangles,
+                    needed_bytes: needed,
+                    budget_bytes,
+                });
+            }
+        }
+
         // Phases C and D, per block: the triangles of its cubes (global vertex indices), and
         // its vertices, written in place.
         let n = total as usize;
@@ -161,7 +218,6 @@ impl TsdfVolume {
             }
             items.push(chunk);
         }
-        let tab = table();
         let tri_lists: Vec<Vec<[u32; 3]>> = run_on_threads(
             items,
             || (BlockGrid::new(), EdgeWindow::new()),
@@ -182,7 +238,7 @@ impl TsdfVolume {
             || (),
             |_, (dst, src)| dst.copy_from_slice(src),
         );
-        mesh
+        Ok(mesh)
     }
 }
 

@@ -2,6 +2,9 @@
 //! each valid pixel's truncation segment along its ray is traversed cell by cell
 //! (Amanatides & Woo) and the keys of the blocks it crosses are emitted once per band.
 
+use std::cell::Cell;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use nalgebra::{Matrix3, Vector3};
 
 use sl_core::{Intrinsics, Pose};
@@ -57,6 +60,17 @@ impl PixelFn {
     }
 }
 
+/// The candidate block keys a frame may list before its integration is refused: all strips
+/// add to one counter (in steps of [`KEY_FLUSH`]), so the lists stay within the memory
+/// budget while they are being built.
+pub(super) struct KeyBudget {
+    pub(super) emitted: AtomicUsize,
+    pub(super) max_keys: usize,
+}
+
+/// Keys a strip lists between two updates of the shared [`KeyBudget`] counter.
+pub(super) const KEY_FLUSH: usize = 4096;
+
 /// What [`band_rows`] needs of a frame (block-space pose, band).
 pub(super) struct BandFrame<'a> {
     /// Camera-to-world rotation scaled to block units.
@@ -69,6 +83,8 @@ pub(super) struct BandFrame<'a> {
     /// Ray x (at z = 1) of each column.
     pub(super) rx: &'a [f32],
     pub(super) k: &'a Intrinsics,
+    /// Bound on the candidate keys (`None`: unbounded).
+    pub(super) keys: Option<&'a KeyBudget>,
 }
 
 impl<'a> BandFrame<'a> {
@@ -109,6 +125,7 @@ impl<'a> BandFrame<'a> {
             trunc: p.trunc_m as f32,
             rx,
             k,
+            keys: None,
         })
     }
 }
@@ -133,20 +150,39 @@ pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Res
         trunc,
         rx,
         k,
+        keys,
     } = *f;
     let w = k.width;
     let tw = w + 2;
     let mut out: Vec<u64> = Vec::with_capacity(1024);
     // Direct-mapped cache of the keys already emitted by this strip.
     let mut seen = vec![u64::MAX; SEEN_SLOTS];
+    // Keys already added to the shared counter, and whether the budget is exhausted.
+    let flushed = Cell::new(0usize);
+    let over = Cell::new(false);
     let mut emit = |c: [i32; 3]| {
+        if over.get() {
+            return;
+        }
         // In range: every coordinate was checked against `lim`.
         let key = pack_unchecked(c);
         let s = seen_slot(key);
         if seen[s] != key {
             seen[s] = key;
             out.push(key);
+            let fresh = out.len() - flushed.get();
+            if fresh >= KEY_FLUSH
+                && let Some(kb) = keys
+            {
+                let total = kb.emitted.fetch_add(fresh, Ordering::Relaxed) + fresh;
+                flushed.set(out.len());
+                over.set(total > kb.max_keys);
+            }
         }
+    };
+    let over_budget = |kb: &KeyBudget| TsdfError::CandidateBudget {
+        candidates: kb.emitted.load(Ordering::Relaxed),
+        max_candidates: kb.max_keys,
     };
     let rx_max = rx.iter().fold(0.0f32, |m, r| m.max(r.abs()));
     // This row's end cells and flags (locals, so that pass 1 vectorises), and the previous
@@ -265,6 +301,11 @@ pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Res
                 let (near, far) = ends(x);
                 let dir = base + col * rx[x];
                 traverse(&(t + dir * near), &(t + dir * far), &mut emit);
+            }
+            if over.get()
+                && let Some(kb) = keys
+            {
+                return Err(over_budget(kb));
             }
         }
         std::mem::swap(&mut cur, &mut prev);

@@ -76,7 +76,18 @@ impl TsdfVolume {
             table.resize(len, [0.0; 2]);
         }
         let rx: Vec<f32> = (0..w).map(|x| ((x as f64 - k.cx) / k.fx) as f32).collect();
-        let band = BandFrame::new(&self.params, k, pose, &rx)?;
+        // Candidate keys are held three times at most (a strip's list, its new keys, all new
+        // keys): bound them to what the budget leaves after the current blocks.
+        let remaining = self
+            .params
+            .memory_budget_bytes
+            .saturating_sub(self.blocks.len().saturating_mul(BYTES_PER_BLOCK));
+        let key_budget = KeyBudget {
+            emitted: std::sync::atomic::AtomicUsize::new(0),
+            max_keys: remaining / (3 * std::mem::size_of::<u64>()),
+        };
+        let mut band = BandFrame::new(&self.params, k, pose, &rx)?;
+        band.keys = Some(&key_budget);
         let p = &self.params;
         let pixels = PixelFn {
             weight: WeightFn::new(p.weight, p.z_ref_m),

@@ -6,7 +6,7 @@ use anyhow::{Context, Result, bail};
 use serde_json::json;
 use sl_noise::analysis::analyze;
 
-use crate::common::{InputArgs, load_depth, print_json, round_to};
+use crate::common::{InputArgs, check_output, load_depth, print_json, round_to};
 
 /// Options of `sldepth analyze`.
 #[derive(Debug, clap::Args)]
@@ -27,6 +27,9 @@ pub struct Args {
 
 /// Runs `sldepth analyze`.
 pub fn run(args: Args) -> Result<()> {
+    if let Some(plot) = &args.plot {
+        check_output("--plot", plot, &["svg", "png"])?;
+    }
     let loaded = load_depth(&args.depth, &args.input)?;
     let sensor = loaded.camera.sensor;
     let a = analyze(&loaded.depth, &sensor)

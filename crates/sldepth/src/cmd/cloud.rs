@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use crate::common::{InputArgs, load_depth};
+use crate::common::{InputArgs, check_output, load_depth};
 
 /// Options of `sldepth cloud`.
 #[derive(Debug, clap::Args)]
@@ -24,6 +24,7 @@ pub struct Args {
 
 /// Runs `sldepth cloud`.
 pub fn run(args: Args) -> Result<()> {
+    check_output("--output", &args.output, &["ply"])?;
     let loaded = load_depth(&args.depth, &args.input)?;
     let points = loaded.depth.to_points(&loaded.camera.intrinsics)?;
     let ply = sl_io::ply::PlyData {
@@ -37,6 +38,6 @@ pub fn run(args: Args) -> Result<()> {
     };
     sl_io::ply::write_ply(&args.output, &ply, format)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    eprintln!("wrote {} points to {}", points.len(), args.output.display());
+    errln!("wrote {} points to {}", points.len(), args.output.display());
     Ok(())
 }

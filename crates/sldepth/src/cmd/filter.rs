@@ -9,7 +9,13 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use serde_json::json;
 use sl_filter::{DepthFilter, FilterConfig, Isa, Method, RangeKernel};
 
-use crate::common::{InputArgs, load_depth, print_json, round_to, save_depth};
+use crate::common::{
+    DEPTH_EXTS, InputArgs, check_output, load_depth, output_encoding, print_json, round_to,
+    save_depth,
+};
+
+/// Most `--repeat` runs (a timing loop, not a way to keep the machine busy for days).
+const MAX_REPEAT: usize = 100_000;
 
 /// Options of `sldepth filter`.
 #[derive(Debug, clap::Args)]
@@ -68,12 +74,17 @@ pub fn build_filter(args: &Args, sensor: &sl_core::SensorModel) -> Result<DepthF
 
 /// Runs `sldepth filter`.
 pub fn run(args: Args) -> Result<()> {
+    check_output("OUT", &args.output, &DEPTH_EXTS)?;
+    if let Some(p) = &args.normals {
+        check_output("--normals", p, &["png"])?;
+    }
+    let reps = args.repeat.unwrap_or(1);
+    if !(1..=MAX_REPEAT).contains(&reps) {
+        bail!("--repeat {reps}: must be from 1 to {MAX_REPEAT}");
+    }
     let loaded = load_depth(&args.input_path, &args.input)?;
     let filter = build_filter(&args, &loaded.camera.sensor)?;
-    let reps = args.repeat.unwrap_or(1);
-    if reps == 0 {
-        bail!("--repeat must be at least 1");
-    }
+    let out_encoding = output_encoding(&args.output, &loaded.encoding)?;
     let mut times_ms = Vec::with_capacity(reps);
     if args.repeat.is_some() {
         // Warm-up: page in the buffers and the per-thread scratch.
@@ -89,10 +100,17 @@ pub fn run(args: Args) -> Result<()> {
     let Some(out) = out else {
         bail!("no filter run");
     };
-    save_depth(&args.output, &out, &loaded.encoding)?;
-    if let Some(p) = &args.normals {
-        let img = sl_eval::render::shaded_normals(&out, &loaded.camera.intrinsics)?;
-        sl_io::write_rgb_png(p, &img).with_context(|| format!("writing {}", p.display()))?;
+    // Everything that can fail is computed before the first byte is written.
+    let normals = match &args.normals {
+        Some(p) => Some((
+            p,
+            sl_eval::render::shaded_normals(&out, &loaded.camera.intrinsics)?,
+        )),
+        None => None,
+    };
+    save_depth(&args.output, &out, &out_encoding)?;
+    if let Some((p, img)) = &normals {
+        sl_io::write_rgb_png(p, img).with_context(|| format!("writing {}", p.display()))?;
     }
     times_ms.sort_by(f64::total_cmp);
     let median = times_ms[times_ms.len() / 2];

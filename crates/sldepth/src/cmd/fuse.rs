@@ -2,16 +2,19 @@
 //! TSDF with the 1/Z⁴ noise weights, then marching cubes.
 
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use sl_core::{Camera, CameraToWorld, DepthImage, pose_from_row_major};
-use sl_io::depth::{ReadOptions, read_depth};
+use sl_core::{Camera, CameraToWorld, DepthImage};
+use sl_io::depth::{ReadOptions, read_depth_with_limits};
 use sl_io::trajectory::Frame;
 use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
-use crate::common::{InputArgs, load_camera, parse_format, print_json, round_to};
+use crate::common::{
+    InputArgs, check_depth_scale, check_output, check_range, limits, load_camera, parse_format,
+    print_json, round_to,
+};
 
 /// Options of `sldepth fuse`.
 #[derive(Debug, clap::Args)]
@@ -56,9 +59,10 @@ pub struct Args {
     /// observation at 1 m).
     #[arg(long, value_name = "W", default_value_t = 0.0)]
     pub min_weight: f32,
-    /// Memory the voxel blocks may use, bytes; exceeding it stops with an error.
-    #[arg(long, value_name = "BYTES", default_value_t = 4usize << 30)]
-    pub memory_budget_bytes: usize,
+    /// Memory the voxel blocks, the candidate blocks of a frame and the mesh extraction may use,
+    /// bytes; exceeding it stops with an error. Default (and maximum): 3/4 of --max-memory.
+    #[arg(long, value_name = "BYTES")]
+    pub memory_budget_bytes: Option<usize>,
     /// Smooth every frame with sl-filter's adaptive bilateral filter (σ_d = k·Z², default k of
     /// the camera's sensor model) before fusing.
     #[arg(long)]
@@ -96,59 +100,36 @@ fn parse_weight(name: &str, camera: &Camera) -> Result<WeightMode> {
     Ok(WeightMode::parse(name)?)
 }
 
-/// Reads a `--frames` list.
-fn read_frame_list(path: &Path) -> Result<Vec<Frame>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let mut frames = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.split('#').next().unwrap_or("").trim();
-        if line.is_empty() {
-            continue;
-        }
-        let toks: Vec<&str> = line.split_whitespace().collect();
-        if toks.len() != 17 {
-            bail!(
-                "{}:{}: expected a depth path and 16 pose numbers, found {} fields",
-                path.display(),
-                i + 1,
-                toks.len()
-            );
-        }
-        let mut m = [0.0; 16];
-        for (v, t) in m.iter_mut().zip(&toks[1..]) {
-            *v = t
-                .parse()
-                .with_context(|| format!("{}:{}: {t:?} is not a number", path.display(), i + 1))?;
-        }
-        let pose =
-            pose_from_row_major(&m).with_context(|| format!("{}:{}", path.display(), i + 1))?;
-        frames.push(Frame {
-            depth_path: base.join(toks[0]),
-            pose,
-            timestamp: None,
-        });
-    }
-    Ok(frames)
-}
-
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     let camera_or = |default: Option<PathBuf>| -> Result<Camera> {
         match (&args.input.camera, default) {
             (Some(_), _) => load_camera(&args.input),
-            (None, Some(p)) if p.is_file() => sl_io::camera::read_camera(&p)
-                .with_context(|| format!("reading camera {}", p.display())),
+            (None, Some(p)) if p.is_file() => {
+                let is_json = p
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+                if is_json {
+                    sl_io::camera::read_camera_json_with_limits(&p, &limits())
+                } else {
+                    sl_io::camera::read_camera(&p)
+                }
+                .with_context(|| format!("reading camera {}", p.display()))
+            }
             _ => load_camera(&args.input),
         }
     };
     if let Some(list) = &args.frames {
-        Ok((read_frame_list(list)?, camera_or(None)?, None))
+        let frames = sl_io::trajectory::read_frame_list(list, &limits())?;
+        Ok((frames, camera_or(None)?, None))
     } else if let Some(dir) = &args.tum {
-        let seq = sl_io::trajectory::read_tum_sequence(dir, sl_io::trajectory::DEFAULT_MAX_DT_S)?;
+        let seq = sl_io::trajectory::read_tum_sequence_with_limits(
+            dir,
+            sl_io::trajectory::DEFAULT_MAX_DT_S,
+            &limits(),
+        )?;
         if !seq.without_pose.is_empty() {
-            eprintln!(
+            errln!(
                 "note: {} depth frames have no pose within 20 ms and are skipped",
                 seq.without_pose.len()
             );
@@ -158,11 +139,12 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         let Some(depth_dir) = &args.depth_dir else {
             bail!("--o3d-log needs --depth-dir");
         };
-        let frames = sl_io::trajectory::read_open3d_log_frames(log, depth_dir)?;
+        let frames =
+            sl_io::trajectory::read_open3d_log_frames_with_limits(log, depth_dir, &limits())?;
         let cam = camera_or(log.parent().map(|d| d.join("camera.json")))?;
         Ok((frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
-        let frames = sl_io::trajectory::read_7scenes_sequence(dir)?;
+        let frames = sl_io::trajectory::read_7scenes_sequence_with_limits(dir, &limits())?;
         let cam = camera_or(Some(dir.join("camera-intrinsics.txt")))?;
         Ok((frames, cam, None))
     } else {
@@ -187,6 +169,30 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// Runs `sldepth fuse`.
 pub fn run(args: Args) -> Result<()> {
+    // Every argument is checked before any work, so that a failing command writes nothing.
+    if let Some(out) = &args.output {
+        check_output("--output", out, &["ply"])?;
+    }
+    if let Some(png) = &args.slice_png {
+        check_output("--slice-png", png, &["png"])?;
+    }
+    if let Some(png) = &args.render_png {
+        check_output("--render-png", png, &["png"])?;
+    }
+    check_range("--min-weight", f64::from(args.min_weight), 0.0..=1e30)?;
+    check_range("--slice-m", args.slice_m, -1e6..=1e6)?;
+    if let Some(s) = args.input.depth_scale {
+        check_depth_scale(s)?;
+    }
+    let axis = Axis::parse(&args.slice_axis)?;
+    let tsdf_budget = limits().tsdf_budget_bytes;
+    let budget = match args.memory_budget_bytes {
+        None => tsdf_budget,
+        Some(b) if b <= tsdf_budget => b,
+        Some(b) => bail!(
+            "--memory-budget-bytes {b}: over the TSDF share of the memory budget ({tsdf_budget} bytes); raise --max-memory"
+        ),
+    };
     let (mut frames, camera, default_scale) = load_source(&args)?;
     if let Some(n) = args.max_frames {
         frames.truncate(n);
@@ -195,18 +201,15 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no frames to fuse");
     }
     let k = camera.intrinsics;
+    limits()
+        .check_pixels(k.width as u64, k.height as u64)
+        .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
     params.weight = parse_weight(&args.weight, &camera)?;
     params.max_depth_m = args.max_depth_m;
-    params.memory_budget_bytes = args.memory_budget_bytes;
-    let axis = Axis::parse(&args.slice_axis)?;
-    if let Some(s) = args.input.depth_scale
-        && !(s.is_finite() && s > 0.0)
-    {
-        bail!("--depth-scale must be a positive number of units per metre, got {s}");
-    }
+    params.memory_budget_bytes = budget;
     let read_opts = ReadOptions {
         format: parse_format(&args.input)?,
         scale_units_per_m: args.input.depth_scale.or(default_scale),
@@ -232,7 +235,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut integrate_ms = Vec::with_capacity(frames.len());
     let mut first_pose: Option<CameraToWorld> = None;
     for f in &frames {
-        let loaded = read_depth(&f.depth_path, &read_opts)
+        let loaded = read_depth_with_limits(&f.depth_path, &read_opts, &limits())
             .with_context(|| format!("reading {}", f.depth_path.display()))?;
         let mut depth: DepthImage = loaded.depth;
         if depth.width() != k.width || depth.height() != k.height {
@@ -263,9 +266,18 @@ pub fn run(args: Args) -> Result<()> {
     let t0 = Instant::now();
     let mut mesh_config = MeshConfig::default();
     mesh_config.min_weight = args.min_weight;
-    let mesh = volume.extract_mesh(&mesh_config);
+    let mesh = volume.extract_mesh_within(&mesh_config, params.memory_budget_bytes)?;
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
 
+    // The images are made before the first byte is written: a failure writes nothing.
+    let slice = match &args.slice_png {
+        Some(png) => Some((png, volume.slice_rgb(&SliceSpec::new(axis, args.slice_m))?)),
+        None => None,
+    };
+    let render = match (&args.render_png, first_pose) {
+        (Some(png), Some(pose)) => Some((png, sl_eval::render::render_mesh(&mesh, &k, &pose)?)),
+        _ => None,
+    };
     if let Some(out) = &args.output {
         let format = if args.ascii {
             sl_io::ply::PlyFormat::Ascii
@@ -275,13 +287,8 @@ pub fn run(args: Args) -> Result<()> {
         sl_tsdf::io::write_mesh_ply(out, &mesh, format)
             .with_context(|| format!("writing {}", out.display()))?;
     }
-    if let Some(png) = &args.slice_png {
-        let img = volume.slice_rgb(&SliceSpec::new(axis, args.slice_m))?;
-        sl_tsdf::io::write_png(png, &img).with_context(|| format!("writing {}", png.display()))?;
-    }
-    if let (Some(png), Some(pose)) = (&args.render_png, first_pose) {
-        let img = sl_eval::render::render_mesh(&mesh, &k, &pose)?;
-        sl_tsdf::io::write_png(png, &img).with_context(|| format!("writing {}", png.display()))?;
+    for (png, img) in slice.iter().chain(render.iter()) {
+        sl_tsdf::io::write_png(png, img).with_context(|| format!("writing {}", png.display()))?;
     }
     let total_ms: f64 = integrate_ms.iter().sum();
     let med = median(&mut integrate_ms.clone());
@@ -303,7 +310,7 @@ pub fn run(args: Args) -> Result<()> {
             "output": args.output.as_ref().map(|p| p.display().to_string()),
         }))?;
     } else {
-        eprintln!(
+        errln!(
             "fused {} frames ({:.1} ms/frame median): {} vertices, {} triangles, {} blocks ({:.1} MiB); marching cubes {:.0} ms",
             frames.len(),
             med,

@@ -20,7 +20,7 @@ use serde_json::{Value, json};
 use sl_core::nalgebra::{Isometry3, Vector3};
 use sl_planes::{DepthMotionConfig, IcpOutcome, PlaneConfig, PlanesError, motion_between_depths};
 
-use crate::common::{InputArgs, load_depth, print_json, round_to};
+use crate::common::{InputArgs, check_range, load_depth, print_json, round_to};
 
 /// Arguments of `sldepth motion`.
 #[derive(clap::Args, Debug)]
@@ -109,6 +109,7 @@ fn icp_outcome_json(o: &IcpOutcome) -> Value {
 
 /// Runs `sldepth motion`.
 pub fn run(args: Args) -> Result<()> {
+    check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
     let a = load_depth(&args.depth_a, &args.input)?;
     let b = load_depth(&args.depth_b, &args.input)?;
     if a.camera != b.camera

@@ -11,7 +11,7 @@ use sl_eval::planes::overlay;
 use sl_io::DepthFormat;
 use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac};
 
-use crate::common::{InputArgs, load_depth, print_json, round_to};
+use crate::common::{InputArgs, check_output, check_range, load_depth, print_json, round_to};
 
 /// Arguments of `sldepth planes`.
 #[derive(clap::Args, Debug)]
@@ -54,6 +54,14 @@ pub struct Args {
 
 /// Runs `sldepth planes`.
 pub fn run(args: Args) -> Result<()> {
+    check_output("--output", &args.output, &["png"])?;
+    if let Some(p) = &args.overlay {
+        check_output("--overlay", p, &["png"])?;
+    }
+    check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
+    check_range("--log-threshold-px", args.log_threshold_px, 0.0..=1e3)?;
+    check_range("--log-sigma-px", args.log_sigma_px, 0.0..=1e3)?;
+    check_range("--threshold-m", args.threshold_m, 1e-9..=1e3)?;
     let loaded = load_depth(&args.depth, &args.input)?;
     let camera = loaded.camera;
     let (seg, ms) = match args.method.as_str() {
@@ -66,9 +74,10 @@ pub fn run(args: Args) -> Result<()> {
             let mut ex = PlaneExtractor::new(cfg)?;
             if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
-                let raw = sl_io::read_raw_depth(
+                let raw = sl_io::depth::read_raw_depth_with_limits(
                     &args.depth,
                     &sl_io::ReadOptions::default().with_format(DepthFormat::NyuRaw),
+                    &crate::common::limits(),
                 )?;
                 let disp = sl_io::depth::nyu_raw_to_disparity(&raw.values, sl_io::depth::NYU_DOFF);
                 let t = Instant::now();
@@ -90,10 +99,18 @@ pub fn run(args: Args) -> Result<()> {
         }
         other => bail!("unknown --method {other:?}: use disparity or metric-ransac"),
     };
+    // The overlay (which reads --color) is built before the first byte is written.
+    let overlay = match &args.overlay {
+        Some(path) => Some((
+            path,
+            build_overlay(args.color.as_deref(), &loaded.depth, &seg)?,
+        )),
+        None => None,
+    };
     sl_io::write_gray16_png(&args.output, &seg.labels)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    if let Some(path) = &args.overlay {
-        write_overlay(path, args.color.as_deref(), &loaded.depth, &seg)?;
+    if let Some((path, img)) = &overlay {
+        sl_io::write_rgb_png(path, img).with_context(|| format!("writing {}", path.display()))?;
     }
     if args.json {
         print_json(&segmentation_json(&seg, ms))?;
@@ -143,16 +160,16 @@ pub fn segmentation_json(seg: &PlaneSegmentation, ms: f64) -> serde_json::Value 
     json!({ "planes": planes, "ms": round_to(ms, 3) })
 }
 
-fn write_overlay(
-    path: &std::path::Path,
+fn build_overlay(
     color: Option<&std::path::Path>,
     depth: &sl_core::DepthImage,
     seg: &PlaneSegmentation,
-) -> Result<()> {
+) -> Result<Image<[u8; 3]>> {
     let (w, h) = seg.labels.dimensions();
     let base: Vec<u8> = match color {
         Some(c) => {
-            let img = sl_io::read_rgb(c).with_context(|| format!("reading {}", c.display()))?;
+            let img = sl_io::rgb::read_rgb_with_limits(c, &crate::common::limits())
+                .with_context(|| format!("reading {}", c.display()))?;
             if img.dimensions() != (w, h) {
                 bail!(
                     "{}: colour image is {}x{}, depth is {w}x{h}",
@@ -167,7 +184,5 @@ fn write_overlay(
     };
     let rgb = overlay::overlay_rgb(&seg.labels, &base, 0.6).context("overlay size mismatch")?;
     let pixels: Vec<[u8; 3]> = rgb.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    let img = Image::from_vec(w, h, pixels)?;
-    sl_io::write_rgb_png(path, &img).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    Ok(Image::from_vec(w, h, pixels)?)
 }

@@ -6,7 +6,9 @@ use anyhow::{Context, Result, bail};
 use clap::builder::PossibleValuesParser;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, SCENE_NAMES, named_scene};
 
-use crate::common::{load_camera, print_json, save_depth};
+use crate::common::{
+    check_depth_scale, check_output, limits, load_camera, output_encoding, print_json, save_depth,
+};
 
 /// Options of `sldepth simulate`.
 #[derive(Debug, clap::Args)]
@@ -62,8 +64,13 @@ pub fn run(args: Args) -> Result<()> {
             SCENE_NAMES.join(", ")
         );
     }
-    if !(args.depth_scale.is_finite() && args.depth_scale > 0.0) {
-        bail!("--depth-scale must be positive, got {}", args.depth_scale);
+    check_depth_scale(args.depth_scale)?;
+    check_output("--output", &args.output, &["png", "tif", "tiff"])?;
+    if let Some(t) = &args.truth {
+        check_output("--truth", t, &["png", "tif", "tiff"])?;
+    }
+    if let Some(l) = &args.labels {
+        check_output("--labels", l, &["png"])?;
     }
     let named = named_scene(&args.scene)?;
     let (intrinsics, mut sim) = match &args.camera {
@@ -104,27 +111,23 @@ pub fn run(args: Args) -> Result<()> {
         _ => NoiseModel::Realistic(realistic),
     };
     if let Some(s) = args.sigma_d_px {
-        if !(s.is_finite() && s >= 0.0) {
-            bail!("--sigma-d-px must be non-negative, got {s}");
+        if !(s.is_finite() && (0.0..=100.0).contains(&s)) {
+            bail!("--sigma-d-px {s}: must be a number from 0 to 100 pixels");
         }
         sim.sensor.sigma_d_px = s;
     }
+    // The frame, the truth and the labels are allocated at the camera's size: check it first.
+    limits()
+        .check_pixels(intrinsics.width as u64, intrinsics.height as u64)
+        .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     let frame = sim.simulate(&named.scene, &intrinsics, &named.pose, args.seed);
     let encoding = sl_io::depth::DepthEncoding::png(args.depth_scale);
-    let enc_for = |p: &PathBuf| {
-        let is_tiff = p
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("tif") || e.eq_ignore_ascii_case("tiff"));
-        if is_tiff {
-            sl_io::depth::DepthEncoding::tiff(args.depth_scale)
-        } else {
-            encoding
-        }
-    };
-    save_depth(&args.output, &frame.depth, &enc_for(&args.output))?;
-    if let Some(t) = &args.truth {
-        save_depth(t, &frame.truth, &enc_for(t))?;
+    let enc_for = |p: &PathBuf| output_encoding(p, &encoding);
+    let out_enc = enc_for(&args.output)?;
+    let truth_enc = args.truth.as_ref().map(enc_for).transpose()?;
+    save_depth(&args.output, &frame.depth, &out_enc)?;
+    if let (Some(t), Some(enc)) = (&args.truth, truth_enc) {
+        save_depth(t, &frame.truth, &enc)?;
     }
     if let Some(l) = &args.labels {
         sl_io::rgb::write_gray16_png(l, &frame.labels)
@@ -142,7 +145,7 @@ pub fn run(args: Args) -> Result<()> {
             "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n})).collect::<Vec<_>>(),
         }))?;
     } else {
-        eprintln!(
+        errln!(
             "{}: {} ({} valid pixels) -> {}",
             named.name,
             named.description,

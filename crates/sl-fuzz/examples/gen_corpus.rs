@@ -1,0 +1,167 @@
+//! Writes the seed corpus of the fuzz targets into `fuzz/corpus/<target>/` from
+//! project-generated data (small synthetic frames, cameras, trajectories and meshes written by
+//! sl-io's own writers). Run: `cargo run -p sl-fuzz --example gen_corpus`.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::{Path, PathBuf};
+
+use sl_core::{Camera, DepthImage, Image, Pose};
+use sl_io::depth::{DepthEncoding, write_depth};
+use sl_io::ply::{PlyData, PlyFormat, write_ply};
+
+fn ramp(w: usize, h: usize) -> DepthImage {
+    DepthImage::from_image(Image::from_fn(w, h, |x, y| {
+        if (x + 2 * y) % 5 == 0 {
+            0.0
+        } else {
+            0.8 + 0.01 * (x + w * y) as f32
+        }
+    }))
+}
+
+fn put(root: &Path, target: &str, name: &str, bytes: &[u8]) {
+    let dir = root.join(target);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join(name), bytes).unwrap();
+}
+
+/// Writes with an sl-io writer into a temporary file and returns the bytes.
+fn bytes_of(ext: &str, write: impl FnOnce(&Path)) -> Vec<u8> {
+    let dir = std::env::temp_dir().join(format!("sl-fuzz-gen-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let p = dir.join(format!("seed.{ext}"));
+    write(&p);
+    let b = std::fs::read(&p).unwrap();
+    std::fs::remove_file(&p).unwrap();
+    b
+}
+
+/// A tiny frame in the encoding of `sl_fuzz::tiny_frame` (16-bit millimetres).
+fn frame_bytes(w: u8, h: u8, f: u8, depth: impl Fn(usize, usize) -> u16) -> Vec<u8> {
+    let mut b = vec![0, w - 1, h - 1, f];
+    for y in 0..usize::from(h) {
+        for x in 0..usize::from(w) {
+            b.extend_from_slice(&depth(x, y).to_le_bytes());
+        }
+    }
+    b
+}
+
+fn main() {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus");
+    let d = ramp(8, 6);
+    for (target, ext, enc) in [
+        ("depth_png", "png", DepthEncoding::png(1000.0)),
+        ("depth_png", "png", DepthEncoding::seven_scenes()),
+        ("depth_tiff", "tif", DepthEncoding::tiff(5000.0)),
+        ("depth_pgm", "pgm", DepthEncoding::nyu_raw()),
+        ("depth_sun", "png", DepthEncoding::sun()),
+    ] {
+        let b = bytes_of(ext, |p| write_depth(p, &d, &enc).unwrap());
+        put(
+            &root,
+            target,
+            &format!("ramp-{}.{ext}", enc.invalid_value),
+            &b,
+        );
+    }
+    put(
+        &root,
+        "depth_pgm",
+        "p6.ppm",
+        b"P6 2 1 255\n\x01\x02\x03\x04\x05\x06",
+    );
+
+    let cam = Camera::kinect_v1();
+    let b = bytes_of("json", |p| sl_io::write_camera_json(p, &cam).unwrap());
+    put(&root, "camera_json", "kinect.json", &b);
+    put(
+        &root,
+        "camera_json",
+        "open3d.json",
+        br#"{"width": 64, "height": 48, "intrinsic_matrix": [52.5, 0, 0, 0, 52.5, 0, 31.5, 23.5, 1]}"#,
+    );
+    put(
+        &root,
+        "intrinsics_txt",
+        "7scenes.txt",
+        b"585 0 320\n0 585 240\n0 0 1\n",
+    );
+    put(
+        &root,
+        "intrinsics_txt",
+        "pose.txt",
+        b"1 0 0 0.1\n0 1 0 0.2\n0 0 1 0.3\n0 0 0 1\n",
+    );
+
+    let poses: Vec<sl_io::TimedPose> = (0..4)
+        .map(|i| sl_io::TimedPose {
+            timestamp: 1.0 + f64::from(i) * 0.03,
+            pose: Pose::translation(0.01 * f64::from(i), 0.0, 0.0),
+        })
+        .collect();
+    let b = bytes_of("txt", |p| {
+        sl_io::trajectory::write_tum_trajectory(p, &poses).unwrap()
+    });
+    put(&root, "tum_trajectory", "groundtruth.txt", &b);
+    put(
+        &root,
+        "tum_associations",
+        "associations.txt",
+        b"# rgb depth\n1.0 rgb/1.png 1.01 depth/1.png\n1.03 rgb/2.png 1.04 depth/2.png\n",
+    );
+    let plain: Vec<Pose> = poses.iter().map(|p| p.pose).collect();
+    let b = bytes_of("log", |p| {
+        sl_io::trajectory::write_open3d_log(p, &plain).unwrap()
+    });
+    put(&root, "open3d_log", "trajectory.log", &b);
+    put(
+        &root,
+        "frame_list",
+        "frames.txt",
+        b"# path and row-major pose\nd/0.png 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\nd/1.png 1 0 0 0.1 0 1 0 0 0 0 1 0 0 0 0 1 # moved\n",
+    );
+
+    let cloud = PlyData::from_positions(vec![[0.0, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.1, 1.2]])
+        .with_colors(vec![[255, 0, 0], [0, 255, 0], [0, 0, 255]])
+        .with_scalar("confidence", vec![0.5, 1.0, 2.0]);
+    let mesh =
+        PlyData::mesh(cloud.positions.clone(), vec![[0, 1, 2]])
+            .with_normals(vec![[0.0, 0.0, -1.0]; 3]);
+    for (name, data, format) in [
+        ("cloud-bin.ply", &cloud, PlyFormat::BinaryLittleEndian),
+        ("cloud-ascii.ply", &cloud, PlyFormat::Ascii),
+        ("mesh-bin.ply", &mesh, PlyFormat::BinaryLittleEndian),
+        ("mesh-ascii.ply", &mesh, PlyFormat::Ascii),
+    ] {
+        let b = bytes_of("ply", |p| write_ply(p, data, format).unwrap());
+        put(&root, "ply", name, &b);
+    }
+
+    // Algorithm targets: a wall, a slanted floor with a step, and a frame with holes.
+    let wall = frame_bytes(16, 12, 10, |_, _| 1500);
+    let floor = frame_bytes(16, 12, 10, |x, y| {
+        900 + 40 * y as u16 + if x > 8 { 100 } else { 0 }
+    });
+    let holes = frame_bytes(12, 12, 8, |x, y| if (x * y) % 3 == 0 { 0 } else { 2000 });
+    for (name, f) in [("wall", &wall), ("floor", &floor), ("holes", &holes)] {
+        for (i, method) in [0u8, 1, 2, 3].iter().enumerate() {
+            if i == 0 || name == "floor" {
+                let mut b = vec![*method, 2, 16, 3, 0, 0];
+                b.extend_from_slice(f);
+                put(&root, "filter", &format!("{name}-{method}"), &b);
+            }
+        }
+        put(&root, "planes", name, f);
+        let mut tsdf = vec![4, 5, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0];
+        tsdf.extend_from_slice(f);
+        put(&root, "tsdf", name, &tsdf);
+    }
+    let mut pair = floor.clone();
+    pair.extend_from_slice(&floor);
+    put(&root, "motion", "floor-floor", &pair);
+    let mut pair = wall.clone();
+    pair.extend_from_slice(&floor);
+    put(&root, "motion", "wall-floor", &pair);
+    println!("wrote the seed corpus under {}", root.display());
+}

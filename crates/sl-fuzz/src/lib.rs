@@ -1,0 +1,322 @@
+//! Dev-only: the bodies of the cargo-fuzz targets of `fuzz/`, as plain functions over bytes.
+//!
+//! Each function takes arbitrary bytes and must return without panicking (errors are the
+//! expected outcome for most inputs). [`TARGETS`] names them; `fuzz/fuzz_targets/*.rs` call
+//! them from libFuzzer, and `tests/corpus.rs` replays the committed corpus on stable.
+//!
+//! Readers see the bytes as a file in a per-thread scratch directory (they take paths); every
+//! call runs under [`fuzz_limits`] (64 MiB), so that an input can only be refused, never make
+//! the fuzzer run out of memory. Algorithm targets decode the bytes into a tiny frame
+//! ([`tiny_frame`]: at most 24×24 pixels) and parameters.
+#![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+use std::cell::RefCell;
+use std::path::{Path, PathBuf};
+
+use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics};
+use sl_io::Limits;
+use sl_io::depth::{DepthFormat, ReadOptions};
+
+/// A fuzz target body.
+pub type Target = fn(&[u8]);
+
+/// Every target, by the name of its `fuzz/fuzz_targets/<name>.rs` and corpus directory.
+pub const TARGETS: &[(&str, Target)] = &[
+    ("depth_png", depth_png),
+    ("depth_tiff", depth_tiff),
+    ("depth_pgm", depth_pgm),
+    ("depth_sun", depth_sun),
+    ("camera_json", camera_json),
+    ("intrinsics_txt", intrinsics_txt),
+    ("tum_trajectory", tum_trajectory),
+    ("tum_associations", tum_associations),
+    ("open3d_log", open3d_log),
+    ("frame_list", frame_list),
+    ("ply", ply),
+    ("filter", filter),
+    ("planes", planes),
+    ("motion", motion),
+    ("tsdf", tsdf),
+];
+
+/// The limits every target runs under: a 64 MiB budget.
+pub fn fuzz_limits() -> Limits {
+    Limits::for_memory(64 << 20)
+}
+
+thread_local! {
+    static SCRATCH: RefCell<Option<PathBuf>> = const { RefCell::new(None) };
+}
+
+/// A per-thread scratch directory (in `/dev/shm` where it exists, for speed).
+fn scratch_dir() -> PathBuf {
+    SCRATCH.with(|s| {
+        s.borrow_mut()
+            .get_or_insert_with(|| {
+                let shm = Path::new("/dev/shm");
+                let base = if shm.is_dir() {
+                    shm.to_path_buf()
+                } else {
+                    std::env::temp_dir()
+                };
+                let dir = base.join(format!(
+                    "sl-fuzz-{}-{:?}",
+                    std::process::id(),
+                    std::thread::current().id()
+                ));
+                let _ = std::fs::create_dir_all(&dir);
+                dir
+            })
+            .clone()
+    })
+}
+
+/// Writes `data` to the scratch file `name` and gives its path (`None` if the scratch space
+/// cannot be written: nothing to test then).
+fn with_file(name: &str, data: &[u8], f: impl FnOnce(&Path)) {
+    let path = scratch_dir().join(name);
+    if std::fs::write(&path, data).is_ok() {
+        f(&path);
+    }
+}
+
+fn read_depth_as(name: &str, data: &[u8], format: DepthFormat) {
+    with_file(name, data, |p| {
+        let opts = ReadOptions::default().with_format(format);
+        let _ = sl_io::depth::read_depth_with_limits(p, &opts, &fuzz_limits());
+        let _ = sl_io::depth::read_raw_depth_with_limits(p, &opts, &fuzz_limits());
+    });
+}
+
+/// 16-bit PNG depth.
+pub fn depth_png(data: &[u8]) {
+    read_depth_as("d.png", data, DepthFormat::Png);
+    with_file("c.png", data, |p| {
+        let _ = sl_io::rgb::read_rgb_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// 16-bit TIFF depth.
+pub fn depth_tiff(data: &[u8]) {
+    read_depth_as("d.tif", data, DepthFormat::Tiff);
+}
+
+/// NYU raw disparity PGM (and PNM colour images).
+pub fn depth_pgm(data: &[u8]) {
+    read_depth_as("d.pgm", data, DepthFormat::NyuRaw);
+    with_file("c.ppm", data, |p| {
+        let _ = sl_io::rgb::read_rgb_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// SUN RGB-D bit-rotated PNG.
+pub fn depth_sun(data: &[u8]) {
+    read_depth_as("d.sun.png", data, DepthFormat::Sun);
+}
+
+/// Open3D camera JSON.
+pub fn camera_json(data: &[u8]) {
+    with_file("camera.json", data, |p| {
+        let _ = sl_io::camera::read_camera_json_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// 3×3 intrinsics text (7-Scenes) and 4×4 pose text.
+pub fn intrinsics_txt(data: &[u8]) {
+    with_file("camera-intrinsics.txt", data, |p| {
+        let _ = sl_io::camera::read_7scenes_intrinsics(p);
+        let _ = sl_io::trajectory::read_pose_txt(p);
+    });
+}
+
+/// TUM `groundtruth.txt`.
+pub fn tum_trajectory(data: &[u8]) {
+    with_file("groundtruth.txt", data, |p| {
+        let _ = sl_io::trajectory::read_tum_trajectory_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// TUM `associations.txt`.
+pub fn tum_associations(data: &[u8]) {
+    with_file("associations.txt", data, |p| {
+        let _ = sl_io::trajectory::read_tum_associations_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// Open3D `.log` trajectory.
+pub fn open3d_log(data: &[u8]) {
+    with_file("trajectory.log", data, |p| {
+        let _ = sl_io::trajectory::read_open3d_log_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// `sldepth fuse --frames` list.
+pub fn frame_list(data: &[u8]) {
+    with_file("frames.txt", data, |p| {
+        let _ = sl_io::trajectory::read_frame_list(p, &fuzz_limits());
+    });
+}
+
+/// PLY cloud or mesh.
+pub fn ply(data: &[u8]) {
+    with_file("m.ply", data, |p| {
+        let _ = sl_io::ply::read_ply_with_limits(p, &fuzz_limits());
+    });
+}
+
+/// Reads bytes as a little cursor (zeros past the end).
+#[derive(Debug)]
+struct Bytes<'a>(&'a [u8]);
+
+impl Bytes<'_> {
+    fn u8(&mut self) -> u8 {
+        match self.0.split_first() {
+            Some((&b, rest)) => {
+                self.0 = rest;
+                b
+            }
+            None => 0,
+        }
+    }
+    fn u16(&mut self) -> u16 {
+        u16::from_le_bytes([self.u8(), self.u8()])
+    }
+    fn f32(&mut self) -> f32 {
+        f32::from_le_bytes([self.u8(), self.u8(), self.u8(), self.u8()])
+    }
+}
+
+/// A tiny frame from bytes: width and height 1..=24, then per pixel a 16-bit value in
+/// millimetres, or (when the first byte is odd) raw `f32` metres, so NaN, infinities and
+/// negative depths occur too. Returns the depth and a camera of its size.
+pub fn tiny_frame(data: &[u8]) -> (DepthImage, Camera) {
+    let mut b = Bytes(data);
+    let mode = b.u8();
+    let w = usize::from(b.u8() % 24) + 1;
+    let h = usize::from(b.u8() % 24) + 1;
+    let f = 0.5 + f64::from(b.u8()) * 2.0;
+    let raw_f32 = mode & 1 == 1;
+    let values: Vec<f32> = (0..w * h)
+        .map(|_| {
+            if raw_f32 {
+                b.f32()
+            } else {
+                f32::from(b.u16()) / 1000.0
+            }
+        })
+        .collect();
+    let depth = DepthImage::from_vec(w, h, values).unwrap_or_else(|_| DepthImage::invalid(w, h));
+    let camera = Intrinsics::new(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0)
+        .and_then(|k| Camera::from_intrinsics(k, None, None))
+        .unwrap_or_else(|_| Camera::kinect_v1());
+    (depth, camera)
+}
+
+/// Every filter method with parameters from the first bytes, on a tiny frame.
+pub fn filter(data: &[u8]) {
+    let (head, rest) = data.split_at(data.len().min(6));
+    let mut b = Bytes(head);
+    let method = sl_filter::Method::ALL[usize::from(b.u8()) % sl_filter::Method::ALL.len()];
+    let mut cfg = sl_filter::FilterConfig::new(method);
+    cfg.radius_px = Some(usize::from(b.u8() % 6));
+    let s = b.u8();
+    cfg.sigma_s_px = (s != 0).then(|| f64::from(s) / 16.0);
+    let k = b.u8();
+    cfg.k_per_m = (k != 0).then(|| f64::from(k) / 1000.0);
+    let (depth, camera) = tiny_frame(rest);
+    if let Ok(filter) = cfg.build(&camera.sensor) {
+        let _ = filter.apply(&depth);
+    }
+}
+
+/// Plane extraction (disparity method and the metric RANSAC baseline) on a tiny frame.
+pub fn planes(data: &[u8]) {
+    let (depth, camera) = tiny_frame(data);
+    let mut cfg = sl_planes::PlaneConfig::default();
+    cfg.min_pixels = 3;
+    if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
+        let _ = ex.extract_depth(&depth, &camera);
+    }
+    // Fewer hypotheses than the default 500 per plane: the code paths are the same, and a
+    // fuzzer needs many executions per second.
+    let mut rcfg = sl_planes::RansacConfig::default();
+    rcfg.min_pixels = 3;
+    rcfg.iterations = 16;
+    rcfg.max_planes = 4;
+    rcfg.score_samples = 256;
+    let _ = sl_planes::metric_ransac(&depth, &camera, &rcfg);
+}
+
+/// Motion between two tiny frames (the second half of the bytes is frame B, same size).
+pub fn motion(data: &[u8]) {
+    let (a_bytes, b_bytes) = data.split_at(data.len() / 2);
+    let (a, camera) = tiny_frame(a_bytes);
+    let (b_raw, _) = tiny_frame(b_bytes);
+    let b = DepthImage::from_vec(
+        a.width(),
+        a.height(),
+        (0..a.width() * a.height())
+            .map(|i| b_raw.data().get(i).copied().unwrap_or(0.0))
+            .collect(),
+    )
+    .unwrap_or_else(|_| a.clone());
+    let mut cfg = sl_planes::DepthMotionConfig::default();
+    cfg.planes.min_pixels = 3;
+    cfg.icp = data.first().is_some_and(|&m| m & 2 == 2);
+    let _ = sl_planes::motion_between_depths(&a, &b, &camera, &cfg);
+}
+
+/// TSDF integration (voxel, band and pose from the first bytes) and mesh extraction, within a
+/// 1 MiB budget (small, so that the budget checks are hit often and an execution stays short).
+pub fn tsdf(data: &[u8]) {
+    let (head, rest) = data.split_at(data.len().min(16));
+    let mut b = Bytes(head);
+    let voxel = 0.001 + f64::from(b.u8()) * 0.002;
+    let trunc = voxel * (1.0 + f64::from(b.u8() % 8));
+    let t = [b.f32(), b.f32(), b.f32()].map(|v| {
+        if v.is_finite() {
+            f64::from(v) % 10.0
+        } else {
+            0.0
+        }
+    });
+    let angle = f64::from(b.u8()) / 40.0;
+    let pose = CameraToWorld::from_isometry(sl_core::nalgebra::Isometry3::from_parts(
+        sl_core::nalgebra::Translation3::new(t[0], t[1], t[2]),
+        sl_core::nalgebra::UnitQuaternion::from_euler_angles(angle, -angle / 2.0, angle / 3.0),
+    ));
+    let budget = 1 << 20;
+    let mut params = sl_tsdf::TsdfConfig::default();
+    params.voxel_m = voxel;
+    params.trunc_m = trunc;
+    params.memory_budget_bytes = budget;
+    let (depth, camera) = tiny_frame(rest);
+    let Ok(mut vol) = sl_tsdf::TsdfVolume::new(params) else {
+        return;
+    };
+    let _ = vol.integrate(&depth, &camera.intrinsics, &pose);
+    let _ = vol.integrate(&depth, &camera.intrinsics, &CameraToWorld::identity());
+    let _ = vol.extract_mesh_within(&sl_tsdf::MeshConfig::default(), budget);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_and_small_inputs_do_not_panic() {
+        for (_, t) in TARGETS {
+            t(&[]);
+            t(&[0xff; 7]);
+            t(&[1; 64]);
+        }
+    }
+
+    #[test]
+    fn tiny_frame_has_the_declared_size() {
+        let (d, c) = tiny_frame(&[0, 3, 1, 100, 0xe8, 0x03]);
+        assert_eq!((d.width(), d.height()), (4, 2));
+        assert_eq!(c.intrinsics.width, 4);
+        assert_eq!(d.data()[0], 1.0);
+    }
+}

@@ -1,0 +1,106 @@
+//! Bounded text input: files, pipes and FIFOs are read in chunks and counted as they arrive,
+//! so a limit holds whatever the file's metadata says.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::Path;
+
+use crate::error::{IoError, Result};
+
+/// Bytes read per chunk.
+const CHUNK_BYTES: usize = 64 << 10;
+
+/// Reads a whole UTF-8 text input of at most `max_bytes` bytes and `max_lines` lines (a last
+/// line without a newline counts), failing with [`IoError::TooLarge`] as soon as either limit
+/// is passed — before the excess is held in memory.
+pub(crate) fn read_text(path: &Path, max_bytes: u64, max_lines: u64) -> Result<String> {
+    let file = File::open(path).map_err(|e| IoError::io(path, e))?;
+    read_text_from(path, file, max_bytes, max_lines)
+}
+
+/// [`read_text`] from any reader (`path` names it in errors).
+pub(crate) fn read_text_from(
+    path: &Path,
+    mut input: impl Read,
+    max_bytes: u64,
+    max_lines: u64,
+) -> Result<String> {
+    let mut buf: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; CHUNK_BYTES];
+    let mut lines: u64 = 0;
+    loop {
+        let n = match input.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(IoError::io(path, e)),
+        };
+        let got = &chunk[..n];
+        if buf.len() as u64 + n as u64 > max_bytes {
+            return Err(IoError::too_large(
+                path,
+                format!(
+                    "more than {max_bytes} bytes, over the text limit (raise it with --max-memory)"
+                ),
+            ));
+        }
+        lines += got.iter().filter(|&&b| b == b'\n').count() as u64;
+        if lines > max_lines {
+            return Err(IoError::too_large(
+                path,
+                format!(
+                    "more than {max_lines} lines, over the text limit (raise it with --max-memory)"
+                ),
+            ));
+        }
+        buf.extend_from_slice(got);
+    }
+    if buf.last().is_some_and(|&b| b != b'\n') && lines + 1 > max_lines {
+        return Err(IoError::too_large(
+            path,
+            format!(
+                "more than {max_lines} lines, over the text limit (raise it with --max-memory)"
+            ),
+        ));
+    }
+    String::from_utf8(buf).map_err(|e| {
+        IoError::io(
+            path,
+            std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                format!("not UTF-8 text: {e}"),
+            ),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_bytes_and_lines_while_reading() {
+        let p = Path::new("t.txt");
+        let ok = read_text_from(p, &b"a\nb\nc"[..], 5, 3).unwrap();
+        assert_eq!(ok, "a\nb\nc");
+        assert!(matches!(
+            read_text_from(p, &b"a\nb\nc"[..], 4, 3),
+            Err(IoError::TooLarge { .. })
+        ));
+        assert!(matches!(
+            read_text_from(p, &b"a\nb\nc"[..], 5, 2),
+            Err(IoError::TooLarge { .. })
+        ));
+        assert!(matches!(
+            read_text_from(p, &b"\n\n\n"[..], 100, 2),
+            Err(IoError::TooLarge { .. })
+        ));
+        // An endless stream stops at the limit.
+        let endless = std::io::repeat(b'x');
+        assert!(matches!(
+            read_text_from(p, endless, 1 << 20, 10),
+            Err(IoError::TooLarge { .. })
+        ));
+        assert!(read_text_from(p, &[0xffu8, 0xfe][..], 10, 10).is_err());
+    }
+}
