@@ -518,6 +518,7 @@ fn multiscale_real(ctx: &mut Context) -> Result<()> {
          distortion).\n\n| frame | method | residual < 1.5 m | 1.5–2 m | ≥ 2 m | spread < 2 m | spread ≥ 2 m |\n|---|---|---|---|---|---|---|\n",
     );
     let mut lowpass = String::new();
+    let mut lowpass_img = String::new();
     for fr in &frames {
         let k = fr.camera.intrinsics;
         let sensor = fr.camera.sensor;
@@ -541,8 +542,8 @@ fn multiscale_real(ctx: &mut Context) -> Result<()> {
                 &sl_eval::render::side_by_side(&refs)?,
             )?;
             writeln!(
-                md,
-                "![person-depth.png normals: raw | adaptive 7×7 | multiscale](filter_person_multiscale_normals.png)\n"
+                lowpass_img,
+                "\n![person-depth.png normals: raw | adaptive 7×7 | multiscale](filter_person_multiscale_normals.png)"
             )?;
         }
         let mut raw = [f64::NAN; 3];
@@ -599,7 +600,7 @@ fn multiscale_real(ctx: &mut Context) -> Result<()> {
     }
     ctx.section(
         "Depth filters: multi-scale filter on real frames (issue 11 §3)",
-        format!("{md}\n**Raw residual split by scale** (σ = 16 px masked Gaussian):\n\n| frame | band | raw residual | low-pass part | high-pass part |\n|---|---|---|---|---|\n{lowpass}"),
+        format!("{md}\n**Raw residual split by scale** (σ = 16 px masked Gaussian):\n\n| frame | band | raw residual | low-pass part | high-pass part |\n|---|---|---|---|---|\n{lowpass}{lowpass_img}"),
     );
     Ok(())
 }
