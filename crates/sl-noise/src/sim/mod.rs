@@ -36,13 +36,15 @@
 mod kinect;
 mod primitives;
 pub mod realistic;
+mod relief;
 mod scene;
 mod scenes;
 
 pub use kinect::{
     KINECT_MAX_DEPTH_M, KINECT_MIN_DEPTH_M, KinectSimulator, NoiseModel, SimulatedFrame,
 };
-pub use primitives::{Cuboid, Cylinder, Hit, Plane, Quad, ReliefPlate, Sphere, Surface, T_MIN};
+pub use primitives::{Cuboid, Cylinder, Hit, Plane, Quad, Sphere, Surface, T_MIN};
 pub use realistic::RealisticNoise;
+pub use relief::ReliefPlate;
 pub use scene::{MAX_RENDER_PIXELS, MAX_SURFACES, Render, Scene, look_at};
 pub use scenes::{NamedScene, SCENE_NAMES, named_scene};

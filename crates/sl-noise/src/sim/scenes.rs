@@ -8,7 +8,8 @@ use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
 use sl_core::{Intrinsics, Pose};
 
 use crate::error::{NoiseError, Result};
-use crate::sim::primitives::{Cylinder, Plane, Quad, ReliefPlate, Sphere};
+use crate::sim::primitives::{Cylinder, Plane, Quad, Sphere};
+use crate::sim::relief::ReliefPlate;
 use crate::sim::scene::{Scene, look_at};
 
 /// Names accepted by [`named_scene`].
