@@ -168,17 +168,6 @@ fn morph(mask: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
     pass(&a, false)
 }
 
-/// Least-squares plane through points: [`sl_core::fit_plane`] on `[x, y, z]` triples (metres).
-fn fit_plane(points: &[[f64; 3]]) -> Option<Plane> {
-    let points: Vec<Point3<f64>> = points.iter().map(|&p| Point3::from(p)).collect();
-    Some(sl_core::fit_plane(&points)?.plane)
-}
-
-/// Signed distance of an `[x, y, z]` point from `plane`, metres.
-fn distance(plane: &Plane, p: [f64; 3]) -> f64 {
-    plane.signed_distance_m(&Point3::from(p))
-}
-
 /// The dominant plane of a frame and the pixels that belong to it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlaneRegion {
@@ -224,13 +213,13 @@ pub fn dominant_plane_region(
     depth.as_image().check_size(k)?;
     let (w, h) = (depth.width(), depth.height());
     let z = depth.data();
-    let point = |x: usize, y: usize| -> [f64; 3] {
+    let point = |x: usize, y: usize| -> Point3<f64> {
         let d = f64::from(z[y * w + x]);
-        [
+        Point3::new(
             (x as f64 - k.cx) / k.fx * d,
             (y as f64 - k.cy) / k.fy * d,
             d,
-        ]
+        )
     };
     let tau = |d: f64| 3.0 * sensor.sigma_z(d) + sensor.depth_step_m(d) + 0.002;
     let mut samples = Vec::new();
@@ -249,10 +238,7 @@ pub fn dominant_plane_region(
     for _ in 0..iterations {
         let pick = |s: &mut u64| samples[(splitmix(s) % samples.len() as u64) as usize];
         let (a, b, c) = (pick(&mut state), pick(&mut state), pick(&mut state));
-        let (u, v) = (
-            Vector3::from(b) - Vector3::from(a),
-            Vector3::from(c) - Vector3::from(a),
-        );
+        let (u, v) = (b - a, c - a);
         let n = u.cross(&v);
         let len = n.norm();
         if len.is_nan() || len <= 1e-9 {
@@ -261,11 +247,11 @@ pub fn dominant_plane_region(
         let n = n / len;
         let plane = Plane {
             normal: n,
-            offset_m: -n.dot(&Vector3::from(a)),
+            offset_m: -n.dot(&a.coords),
         };
         let count = samples
             .iter()
-            .filter(|p| distance(&plane, **p).abs() < tau(p[2]))
+            .filter(|p| plane.signed_distance_m(p).abs() < tau(p.z))
             .count();
         if best.is_none_or(|(bc, _)| count > bc) {
             best = Some((count, plane));
@@ -279,19 +265,20 @@ pub fn dominant_plane_region(
             .map(|i| {
                 valid(z[i]) && {
                     let p = point(i % w, i / w);
-                    distance(plane, p).abs() < tau(p[2])
+                    plane.signed_distance_m(&p).abs() < tau(p.z)
                 }
             })
             .collect()
     };
     let first = inlier(&plane);
-    let pts: Vec<[f64; 3]> = (0..w * h)
+    let pts: Vec<Point3<f64>> = (0..w * h)
         .filter(|&i| first[i])
         .map(|i| point(i % w, i / w))
         .collect();
-    let Some(plane) = fit_plane(&pts) else {
+    let Some(fit) = sl_core::fit_plane(&pts) else {
         return Ok(None);
     };
+    let plane = fit.plane;
     let mask = inlier(&plane);
     let closed = erode(&dilate(&mask, w, h, 2), w, h, 2);
     let region = erode(&closed, w, h, erode_px);
@@ -318,19 +305,20 @@ pub fn plane_residual_by_band(
     let idx: Vec<usize> = (0..w * h)
         .filter(|&i| mask.get(i).copied().unwrap_or(false) && valid(z[i]))
         .collect();
-    let pts: Vec<[f64; 3]> = idx
+    let pts: Vec<Point3<f64>> = idx
         .iter()
         .map(|&i| {
             let (x, y, d) = ((i % w) as f64, (i / w) as f64, f64::from(z[i]));
-            [(x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d]
+            Point3::new((x - k.cx) / k.fx * d, (y - k.cy) / k.fy * d, d)
         })
         .collect();
     let mut acc = vec![(0usize, 0.0f64); bands.len()];
-    if let Some(plane) = fit_plane(&pts) {
+    if let Some(fit) = sl_core::fit_plane(&pts) {
+        let plane = fit.plane;
         for p in &pts {
-            let d = p[2] as f32;
+            let d = p.z as f32;
             if let Some(b) = bands.iter().position(|&(lo, hi)| d >= lo && d < hi) {
-                let r = distance(&plane, *p);
+                let r = plane.signed_distance_m(p);
                 acc[b].0 += 1;
                 acc[b].1 += r * r;
             }

@@ -104,16 +104,15 @@ impl MultiScale {
         self.validate()?;
         let mut cur = self.base.apply(depth)?;
         for &s in &self.dilations {
-            let coarse = apply_dilated(&self.coarse, &cur, s)?;
+            let mut coarse = apply_dilated(&self.coarse, &cur, s)?;
             let keep = interior(&cur, &self.coarse.range, self.coarse.radius_px * s);
-            let merged: Vec<f32> = coarse
-                .data()
-                .iter()
-                .zip(cur.data())
-                .zip(&keep)
-                .map(|((&c, &b), &k)| if k { c } else { b })
-                .collect();
-            cur = DepthImage::from_vec(cur.width(), cur.height(), merged)?;
+            // Outside the interior the finer result stays.
+            for ((c, &b), &k) in coarse.data_mut().iter_mut().zip(cur.data()).zip(&keep) {
+                if !k {
+                    *c = b;
+                }
+            }
+            cur = coarse;
         }
         Ok(cur)
     }

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use numpy::ndarray::Array1;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
-use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Mesh, VertexScalar};
 use sl_io::PlyFormat;
 use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
@@ -212,12 +211,18 @@ impl PyMesh {
     }
 }
 
-fn rows<T: numpy::Element + Copy + Default>(a: &PyReadonlyArray2<'_, T>) -> PyResult<Vec<[T; 3]>> {
+/// The rows of an (N, 3) array, each as `R` (`[T; 3]`, a point or a vector).
+fn rows<T: numpy::Element + Copy, R: From<[T; 3]>>(
+    a: &PyReadonlyArray2<'_, T>,
+) -> PyResult<Vec<R>> {
     let v = a.as_array();
     if v.ncols() != 3 {
         return Err(value_error("expected an (N, 3) array"));
     }
-    Ok(v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+    Ok(v.rows()
+        .into_iter()
+        .map(|r| R::from([r[0], r[1], r[2]]))
+        .collect())
 }
 
 #[pymethods]
@@ -248,14 +253,8 @@ impl PyMesh {
     fn write_ply(&self, py: Python<'_>, path: PathBuf, ascii: bool) -> PyResult<()> {
         let confidence = self.confidence.bind(py).readonly().as_array().to_vec();
         let mesh = Mesh {
-            positions: rows(&self.vertices.bind(py).readonly())?
-                .into_iter()
-                .map(Point3::from)
-                .collect(),
-            normals: rows(&self.normals.bind(py).readonly())?
-                .into_iter()
-                .map(Vector3::from)
-                .collect(),
+            positions: rows(&self.vertices.bind(py).readonly())?,
+            normals: rows(&self.normals.bind(py).readonly())?,
             triangles: rows(&self.triangles.bind(py).readonly())?,
             scalar: (!confidence.is_empty()).then(|| VertexScalar {
                 name: sl_tsdf::CONFIDENCE_PROPERTY.to_owned(),

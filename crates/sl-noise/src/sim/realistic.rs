@@ -409,7 +409,7 @@ pub(crate) fn fill_shadow_edges(
     if fill == 0 || w == 0 {
         return;
     }
-    let t = truth.data().to_vec();
+    let t = truth.data();
     let d = depth.data_mut();
     for (y, srow) in shadow.chunks_mut(w).enumerate() {
         let row = y * w;
