@@ -20,8 +20,16 @@ const BUDGET_BYTES: u64 = 64 << 20;
 /// space in total; see docs/ARCHITECTURE.md, "Limits").
 const CONSTANT_BYTES: u64 = 128 << 20;
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_sldepth")
+/// The binary under test: this build's `sldepth`, or the one named by `SLDEPTH_HOSTILE_BIN`
+/// (to show that an older build fails these tests; see docs/ARCHITECTURE.md, "Limits").
+fn bin() -> String {
+    std::env::var("SLDEPTH_HOSTILE_BIN").unwrap_or_else(|_| env!("CARGO_BIN_EXE_sldepth").into())
+}
+
+/// Whether the binary under test predates `--max-memory` (`SLDEPTH_HOSTILE_LEGACY=1`): the
+/// bounded runs then give it the same inputs and address-space limit without the option.
+fn legacy() -> bool {
+    std::env::var_os("SLDEPTH_HOSTILE_LEGACY").is_some_and(|v| v == "1")
 }
 
 fn have_prlimit() -> bool {
@@ -34,7 +42,11 @@ fn have_prlimit() -> bool {
 /// Runs `sldepth --max-memory BUDGET args` with its address space limited to the budget plus
 /// the constant (without the limit, and saying so, where `prlimit` is missing).
 fn run_bounded(args: &[&str]) -> Output {
-    let mut full = vec!["--max-memory", BUDGET];
+    let mut full = if legacy() {
+        vec![]
+    } else {
+        vec!["--max-memory", BUDGET]
+    };
     full.extend_from_slice(args);
     let mut cmd = if have_prlimit() {
         let mut c = Command::new("prlimit");
@@ -609,6 +621,15 @@ fn sigterm_and_sigint_during_a_write_remove_the_temporary_file() {
     let png = dir.path().join("big.png");
     sl_io::write_depth(&png, &depth, &sl_io::DepthEncoding::default()).unwrap();
     let cam = camera_json(dir.path(), w as u64, h as u64, 1500.0);
+    // Any entry beyond these is a temporary file, whatever its naming scheme.
+    let before = entries(dir.path());
+    let extra = |dir: &Path| -> Vec<String> {
+        entries(dir)
+            .into_iter()
+            .filter(|n| !before.contains(n) && n != "cloud.ply")
+            .collect()
+    };
+    let mut interrupted = 0;
     for signal in ["TERM", "INT"] {
         let out = dir.path().join("cloud.ply");
         let mut child = Command::new(bin())
@@ -628,10 +649,7 @@ fn sigterm_and_sigint_during_a_write_remove_the_temporary_file() {
         let start = std::time::Instant::now();
         let mut seen = false;
         while start.elapsed().as_secs() < 60 {
-            if entries(dir.path())
-                .iter()
-                .any(|n| n.contains("sldepth-tmp"))
-            {
+            if !extra(dir.path()).is_empty() {
                 seen = true;
                 break;
             }
@@ -653,10 +671,7 @@ fn sigterm_and_sigint_during_a_write_remove_the_temporary_file() {
             .unwrap();
         assert!(killed.success());
         let status = child.wait().unwrap();
-        let left: Vec<String> = entries(dir.path())
-            .into_iter()
-            .filter(|n| n.contains("sldepth-tmp"))
-            .collect();
+        let left = extra(dir.path());
         if status.success() {
             // The write won the race; the temp was renamed into place.
             let _ = std::fs::remove_file(&out);
@@ -666,6 +681,10 @@ fn sigterm_and_sigint_during_a_write_remove_the_temporary_file() {
             assert!(!out.exists(), "SIG{signal}: a partial destination");
         }
         assert!(left.is_empty(), "SIG{signal} left {left:?}");
+        interrupted += 1;
+    }
+    if interrupted == 0 {
+        eprintln!("note: no write could be interrupted on this machine; nothing was checked");
     }
 }
 
