@@ -523,6 +523,31 @@ fn a_failing_argument_writes_nothing() {
     ]);
     assert_typed_error(&o, &["missing.png"]);
     assert!(!labels.exists());
+    // Two outputs naming one file (however spelled): refused before anything is written.
+    let sub = dir.path().join("sub");
+    std::fs::create_dir(&sub).unwrap();
+    let depth = sub.join("d.png");
+    let same = dir.path().join("sub/../sub/d.png");
+    let o = run(&[
+        "simulate",
+        "--scene",
+        "floor",
+        "-o",
+        s(&depth),
+        "--truth",
+        s(&same),
+    ]);
+    assert_typed_error(&o, &["--output and --truth both name"]);
+    assert!(!depth.exists());
+    let o = run(&[
+        "filter",
+        s(&testdata("floor-seed1-depth.png")),
+        s(&depth),
+        "--normals",
+        s(&depth),
+    ]);
+    assert_typed_error(&o, &["OUT and --normals both name"]);
+    assert!(!depth.exists());
 }
 
 #[test]

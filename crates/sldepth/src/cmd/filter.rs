@@ -10,8 +10,8 @@ use serde_json::json;
 use sl_filter::{DepthFilter, FilterConfig, Isa, Method, MultiScale, RangeKernel};
 
 use crate::common::{
-    DEPTH_EXTS, InputArgs, check_output, load_depth, output_encoding, print_json, round_to,
-    save_depth,
+    DEPTH_EXTS, InputArgs, check_distinct_outputs, check_output, load_depth, output_encoding,
+    print_json, round_to, save_depth,
 };
 
 /// Most `--repeat` runs (a timing loop, not a way to keep the machine busy for days).
@@ -83,6 +83,10 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.normals {
         check_output("--normals", p, &["png"])?;
     }
+    check_distinct_outputs(&[
+        ("OUT", Some(&args.output)),
+        ("--normals", args.normals.as_deref()),
+    ])?;
     let reps = args.repeat.unwrap_or(1);
     if !(1..=MAX_REPEAT).contains(&reps) {
         bail!("--repeat {reps}: must be from 1 to {MAX_REPEAT}");

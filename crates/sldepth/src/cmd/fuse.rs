@@ -12,8 +12,8 @@ use sl_io::trajectory::Frame;
 use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::common::{
-    InputArgs, check_depth_scale, check_output, check_range, limits, load_camera, parse_format,
-    print_json, round_to,
+    InputArgs, check_depth_scale, check_distinct_outputs, check_output, check_range, limits,
+    load_camera, parse_format, print_json, round_to,
 };
 
 /// Options of `sldepth fuse`.
@@ -179,6 +179,11 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(png) = &args.render_png {
         check_output("--render-png", png, &["png"])?;
     }
+    check_distinct_outputs(&[
+        ("--output", args.output.as_deref()),
+        ("--slice-png", args.slice_png.as_deref()),
+        ("--render-png", args.render_png.as_deref()),
+    ])?;
     check_range("--min-weight", f64::from(args.min_weight), 0.0..=1e30)?;
     check_range("--slice-m", args.slice_m, -1e6..=1e6)?;
     if let Some(s) = args.input.depth_scale {
