@@ -106,9 +106,11 @@ def filter(
     k_per_m: Optional[float] = None,
     sigma_d_m: Optional[float] = None,
     sigma_disp_px: Optional[float] = None,
+    window: str = "square",
     depth_scale: Optional[float] = None,
 ) -> npt.NDArray[np.float32]:
-    """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity."""
+    """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity;
+    window: "square" (2r+1 square) or "disc" (dx² + dy² ≤ r², as OpenCV's bilateralFilter)."""
 
 class Mesh:
     @property
