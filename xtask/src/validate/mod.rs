@@ -13,6 +13,7 @@ mod noise;
 mod planes;
 mod realism;
 mod tsdf;
+mod tsdf_trunc;
 
 /// One experiment: a name (for `--only`) and its entry point.
 type Experiment = (&'static str, fn(&mut Context) -> Result<()>);
