@@ -130,6 +130,9 @@ impl RayFrame {
         // Through unobserved voxels of an allocated block: one voxel per step (a sample needs
         // all 8 voxels of its cell observed, so no observed region is thinner than that).
         let voxel_dt = self.voxel_m / len;
+        // Nearest-voxel values above this (√3 voxels: the largest distance from a point to its
+        // nearest voxel is √3/2 voxel, and |∇F| ≤ 1) are certainly in front of the surface.
+        let coarse_f = self.voxel_m * 1.75;
         // The last observed sample `(t, F)`; `fine`: stepping back from a positive sample
         // whose long step landed in unobserved voxels, one shortest step at a time.
         let mut prev: Option<(f32, f32)> = None;
@@ -148,7 +151,15 @@ impl RayFrame {
                 fine = false;
                 continue;
             }
-            match s.cell(g) {
+            // Far in front of the surface (the nearest voxel's F above `coarse_f`, so the
+            // trilinear F is positive too: it differs by less than one voxel diagonal) one voxel
+            // read decides the step; near the surface, behind it, or where the nearest voxel is
+            // unobserved, the trilinear cell.
+            let sample = match s.nearest(g) {
+                Some((f, w)) if w > 0.0 && f > coarse_f => Some(f),
+                _ => s.cell(g).map(|c| c.value()),
+            };
+            match sample {
                 None => {
                     if let Some((tp, fp)) = prev
                         && fp > 0.0
@@ -164,12 +175,14 @@ impl RayFrame {
                     prev = None;
                     t += voxel_dt;
                 }
-                Some(cell) => {
-                    let f = cell.value();
+                Some(f) => {
                     if let Some((tp, fp)) = prev
                         && fp > 0.0
                         && f <= 0.0
                     {
+                        // The last positive sample may be a coarse one: bracket with its
+                        // trilinear value where that is observed (and positive, as it must be).
+                        let fp = s.value(at(tp)).filter(|v| *v > 0.0).unwrap_or(fp);
                         return self.hit(s, &at, (tp, fp), (t, f), &dir);
                     }
                     prev = Some((t, f));

@@ -2,6 +2,7 @@
 //! grid units (voxel `(i, j, k)` at grid point `(i, j, k)`), fetched through a one-block cache
 //! with a fast path when they all lie in one block, and the interpolant's gradient.
 
+use crate::hash::pack;
 use crate::volume::{BLOCK_SIDE, Block, TsdfVolume, local_index};
 
 /// Grid coordinates beyond this magnitude are outside any block the index can hold.
@@ -89,14 +90,19 @@ impl Cell {
     }
 }
 
-/// Block lookups for one worker (one image row at a time): the last block found is cached,
-/// so consecutive samples of a ray cost no hash lookup while they stay in one block.
+/// Entries of a sampler's block cache (a power of two).
+const CACHE: usize = 32;
+
+/// Block lookups for one worker (one image row at a time) through a small direct-mapped cache
+/// of recent lookups (allocated or not): the rays of a row cross the same few blocks, and a
+/// cell straddling blocks needs up to 8 of them, so most lookups cost no hash probe.
 pub(super) struct Sampler<'a> {
     vol: &'a TsdfVolume,
     blocks: &'a [Block],
-    key: [i32; 3],
-    slot: Option<usize>,
-    cached: bool,
+    /// Packed block keys (`u64::MAX`: empty; no packed key has all bits set).
+    keys: [u64; CACHE],
+    /// Block index per key (`u32::MAX`: not allocated).
+    slots: [u32; CACHE],
 }
 
 impl<'a> Sampler<'a> {
@@ -104,21 +110,25 @@ impl<'a> Sampler<'a> {
         Self {
             vol,
             blocks: vol.blocks(),
-            key: [0; 3],
-            slot: None,
-            cached: false,
+            keys: [u64::MAX; CACHE],
+            slots: [u32::MAX; CACHE],
         }
     }
 
     /// The block at block coordinates `b`, if allocated.
     #[inline(always)]
     pub(super) fn block(&mut self, b: [i32; 3]) -> Option<&'a Block> {
-        if !self.cached || self.key != b {
-            self.key = b;
-            self.slot = self.vol.block_slot(b);
-            self.cached = true;
+        let key = pack(b)?;
+        let e = ((key ^ (key >> 21) ^ (key >> 42)) as usize) & (CACHE - 1);
+        if self.keys[e] != key {
+            self.keys[e] = key;
+            self.slots[e] = self
+                .vol
+                .block_slot(b)
+                .and_then(|s| u32::try_from(s).ok())
+                .unwrap_or(u32::MAX);
         }
-        self.slot.and_then(|s| self.blocks.get(s))
+        self.blocks.get(self.slots[e] as usize)
     }
 
     /// The cell around grid point `g` (voxel units), or `None` where any of its 8 voxels is
@@ -145,23 +155,14 @@ impl<'a> Sampler<'a> {
                 w[c] = blk.weight[i];
             }
         } else {
-            // The cell straddles up to 8 blocks: look each up once.
-            let mut found: [Option<Option<&'a Block>>; 8] = [None; 8];
+            // The cell straddles up to 8 blocks (each a cache hit after the first).
             for c in 0..8 {
-                let o = [c & 1, (c >> 1) & 1, (c >> 2) & 1].map(|b| b as i32);
-                let v = [base[0] + o[0], base[1] + o[1], base[2] + o[2]];
-                let b = v.map(|c| c >> 3);
-                let d = (0..3)
-                    .map(|a| usize::from(b[a] != base[a] >> 3) << a)
-                    .sum::<usize>();
-                let blk = match found[d] {
-                    Some(x) => x,
-                    None => {
-                        let x = self.block(b);
-                        found[d] = Some(x);
-                        x
-                    }
-                }?;
+                let v = [
+                    base[0] + (c & 1) as i32,
+                    base[1] + ((c >> 1) & 1) as i32,
+                    base[2] + (c >> 2) as i32,
+                ];
+                let blk = self.block(v.map(|c| c >> 3))?;
                 let l = v.map(|c| (c & (BLOCK_SIDE as i32 - 1)) as usize);
                 let i = local_index(l[0], l[1], l[2]);
                 f[c] = blk.tsdf[i];
@@ -172,6 +173,20 @@ impl<'a> Sampler<'a> {
             return None;
         }
         Some(Cell { f, w, t })
+    }
+
+    /// `F` and weight of the voxel nearest to grid point `g` (one voxel, one block: the cheap
+    /// read of the coarse march), or `None` where its block is unallocated.
+    #[inline]
+    pub(super) fn nearest(&mut self, g: [f32; 3]) -> Option<(f32, f32)> {
+        if !g.iter().all(|c| c.abs() < GRID_LIMIT) {
+            return None;
+        }
+        let v = g.map(|c| floor_i32(c + 0.5));
+        let blk = self.block(v.map(|c| c >> 3))?;
+        let l = v.map(|c| (c & (BLOCK_SIDE as i32 - 1)) as usize);
+        let i = local_index(l[0], l[1], l[2]);
+        Some((*blk.tsdf.get(i)?, *blk.weight.get(i)?))
     }
 
     /// Interpolated `F` at grid point `g`.
