@@ -38,6 +38,9 @@ use sl_planes::{
 
 use super::Context;
 
+mod repeat;
+mod rooms;
+
 const EXP: &str = "planes";
 /// Ground-truth regions smaller than this (valid pixels) are ignored by SegComp.
 const MIN_GT_PIXELS: usize = 500;
@@ -47,7 +50,9 @@ const TOLERANCE: f64 = 0.8;
 /// Runs the experiment.
 pub fn run(ctx: &mut Context) -> Result<()> {
     synthetic(ctx)?;
+    rooms::rooms(ctx)?;
     real(ctx)?;
+    repeat::repeat(ctx)?;
     motion(ctx)?;
     Ok(())
 }
