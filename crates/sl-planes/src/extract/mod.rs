@@ -76,6 +76,13 @@ pub struct PlaneConfig {
     pub merge_px: f64,
     /// Disconnected pieces of a plane smaller than this are dropped (0 keeps all).
     pub min_piece_pixels: usize,
+    /// Width of the window over which the disparity error is correlated, pixels (the
+    /// block-matching window of a Kinect-class camera; 1 = white noise). With the sensor's
+    /// `σ_D` and `q` it sets the noise of the patch fits that seed the planes (see
+    /// `docs/NOISE_MODEL.md`: 9 × 11 px fitted on real frames).
+    pub noise_window_x_px: f64,
+    /// Height of that window, pixels.
+    pub noise_window_y_px: f64,
 }
 
 impl Default for PlaneConfig {
@@ -88,6 +95,8 @@ impl Default for PlaneConfig {
             max_iterations: 3,
             merge_px: 0.3,
             min_piece_pixels: 256,
+            noise_window_x_px: 9.0,
+            noise_window_y_px: 11.0,
         }
     }
 }
@@ -108,6 +117,16 @@ impl PlaneConfig {
         pos("log_threshold_px", self.log_threshold_px)?;
         pos("merge_px", self.merge_px)?;
         pos("log_sigma_px", self.log_sigma_px)?;
+        for (name, v) in [
+            ("noise_window_x_px", self.noise_window_x_px),
+            ("noise_window_y_px", self.noise_window_y_px),
+        ] {
+            if !(v.is_finite() && (1.0..=64.0).contains(&v)) {
+                return Err(PlanesError::InvalidConfig(format!(
+                    "{name} = {v} must be in [1, 64]"
+                )));
+            }
+        }
         if self.log_sigma_px > 16.0 {
             return Err(PlanesError::InvalidConfig(format!(
                 "log_sigma_px = {} must be at most 16",
@@ -305,6 +324,18 @@ pub struct PlaneExtractor {
     component_fit: Vec<Option<DisparityAffine>>,
     /// Label lookup table for renumbering (old label → new label).
     relabel_lut: Vec<u16>,
+    /// Noise of a cell's mean disparity (from the sensor model and the configuration).
+    noise: CellNoise,
+    /// Per patch (then per set of patches): moments of its planar cells.
+    patch_sums: Vec<AffineSums>,
+    /// Per patch (set): the residual sum of squares of its fit (NaN = not a planar patch).
+    patch_rss: Vec<f64>,
+    /// Edges between neighbouring patches: `(ΔRSS, patch, patch)`.
+    patch_edges: Vec<(f32, u32, u32)>,
+    /// Union-find parents of the patches.
+    patch_parent: Vec<u32>,
+    /// Per root patch: its plane label (0 = none).
+    patch_plane: Vec<u16>,
     /// Wall-clock time per stage of the last frame.
     times: StageTimes,
 }
@@ -338,6 +369,15 @@ impl PlaneExtractor {
         &self.times
     }
 
+    fn set_noise(&mut self, camera: &Camera) {
+        self.noise = CellNoise::new(
+            camera.sensor.sigma_d_px,
+            camera.sensor.subpixel_steps,
+            self.cfg.noise_window_x_px,
+            self.cfg.noise_window_y_px,
+        );
+    }
+
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
         if w != k.width || h != k.height {
             return Err(PlanesError::SizeMismatch {
@@ -366,6 +406,7 @@ impl PlaneExtractor {
         self.times = StageTimes::default();
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
+        self.set_noise(camera);
         // Scratch for one row pair: the full-resolution disparity is never stored.
         let mut d = std::mem::take(&mut self.full_disparity);
         d.resize(2 * w, 0.0);
@@ -394,6 +435,7 @@ impl PlaneExtractor {
         // The disparity is used in place: every test treats non-positive and non-finite values
         // as invalid.
         let src = Source::Disparity(disparity.data());
+        self.set_noise(camera);
         self.times.add(Stage::Disparity, &mut t0);
         self.run(src, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
     }
@@ -446,10 +488,8 @@ impl PlaneExtractor {
         let d = rows.finish(h);
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
-        self.components.label(&self.cell_planar, wq, hq);
-        self.times.add(Stage::Components, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
-        self.seed_from_components(wq, min_q);
+        self.seed_from_patches(wq, hq, min_q);
         self.times.add(Stage::SeedFits, &mut t0);
         self.merge();
         self.compact();
@@ -514,6 +554,7 @@ impl PlaneExtractor {
 mod assign;
 mod input;
 mod merge;
+mod patches;
 mod refine;
 mod rows;
 mod seeds;
@@ -522,5 +563,6 @@ mod stages;
 mod tests;
 
 use input::*;
+use patches::CellNoise;
 use rows::*;
 pub use stages::{Stage, StageTimes};
