@@ -5,20 +5,29 @@
 //!    LoG) and over 4×4 pixels (**cells**, for the seeds and the k-means refinement), invalid if
 //!    any pixel is. The mean of an affine function over a block is its value at the block's
 //!    centre, so plane parameters carry over exactly between the grids.
-//! 1. **Seeds.** The box-approximated LoG of the half-resolution disparity (the `log` module)
-//!    is thresholded at a fixed value in disparity pixels; a cell is planar when its four blocks
-//!    are. 4-connected components of planar cells with at least `min_pixels` (full-resolution)
-//!    pixels are seeds. Each seed gets a least-squares affine fit `D = a·x + b·y + c` followed
-//!    by a trimmed refit (residuals below `2τ`); the k-means iterations then refit on the cells
-//!    within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
+//! 1. **Seeds** (issue 12, `patches`). The box-approximated LoG of the half-resolution
+//!    disparity (the `log` module) is thresholded at a fixed value in disparity pixels; a cell
+//!    is planar when its four blocks are (the LoG finds jumps and sharp creases). The cell grid
+//!    is cut into patches of 4×4 cells; each patch gets a least-squares affine fit
+//!    `D = a·x + b·y + c` of its planar cells and is used when its residual is what the noise
+//!    allows. Neighbouring patches merge, most similar first, while one affine function explains
+//!    the union: the extra residual sum of squares of the joint fit, in units of the noise of a
+//!    cell (from the sensor's `σ_D`, the `1/q` quantisation and the correlation window of the
+//!    disparity error, `noise_window_x_px × noise_window_y_px`), stays below the 99.9 % quantile
+//!    of χ² with 3 degrees of freedom. Sets of at least `min_pixels` are seeds. This is what the
+//!    LoG alone cannot do: a crease between a floor and a wall far away bends the disparity by
+//!    hundredths of a pixel per pixel, far below a LoG threshold above the noise, but the two
+//!    sides' affine fits differ by many standard deviations (without it, one "plane" swallowed
+//!    rings of several surfaces at the same disparity). The k-means iterations then refit on the
+//!    cells within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
 //! 2. **k-means refinement** on the cells: a cell keeps its incumbent label (its seed's, or the
 //!    previous pass's) while that plane fits it within `τ`; any other valid cell goes to the
 //!    plane with the smallest disparity residual if it is below the fixed threshold `τ`, among
 //!    the planes of its neighbouring cells (spatial coherence: a plane grows into adjacent cells;
 //!    coplanar but disconnected regions join by merging). Planes are refitted from moment sums
 //!    accumulated run by run, planes that one affine function explains jointly (each within
-//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds (so
-//!    a component spanning a shallow crease splits into its planes). Repeats until the labels
+//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds
+//!    (patches of the free cells, merged by the same test). Repeats until the labels
 //!    settle or `max_iterations`.
 //! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
 //!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its cell's label if
@@ -322,6 +331,8 @@ pub struct PlaneExtractor {
     component_box: Vec<[u32; 4]>,
     /// Per component: its robust affine fit, if it has one (seeding).
     component_fit: Vec<Option<DisparityAffine>>,
+    /// Per root patch: bounding box of its set on the cell grid (seeding).
+    patch_box: Vec<[u32; 4]>,
     /// Label lookup table for renumbering (old label → new label).
     relabel_lut: Vec<u16>,
     /// Noise of a cell's mean disparity (from the sensor model and the configuration).
@@ -489,7 +500,10 @@ impl PlaneExtractor {
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
-        self.seed_from_patches(wq, hq, min_q);
+        self.seed_from_patches(wq, hq, min_q, false);
+        if std::env::var("SLP_NOCOMP").is_err() {
+            self.seed_leftover_components(wq, hq, min_q);
+        }
         self.times.add(Stage::SeedFits, &mut t0);
         self.merge();
         self.compact();
@@ -515,10 +529,8 @@ impl PlaneExtractor {
             self.compact();
             self.times.add(Stage::Merge, &mut t0);
             if it + 1 < cfg.max_iterations && free >= min_q {
-                self.components.label(&self.free_cells, wq, hq);
-                self.times.add(Stage::Components, &mut t0);
                 let before = self.planes.len();
-                self.seed_from_components(wq, min_q);
+                self.seed_from_patches(wq, hq, min_q, true);
                 self.times.add(Stage::SeedFits, &mut t0);
                 if self.planes.len() > before {
                     self.merge();

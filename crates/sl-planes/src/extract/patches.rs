@@ -93,7 +93,7 @@ impl CellNoise {
     }
 
     /// Whether a patch fit with residual sum of squares `rss` over `n` cells is planar.
-    fn planar(&self, rss: f64, n: f64) -> bool {
+    pub(super) fn planar(&self, rss: f64, n: f64) -> bool {
         let nu = (n - 3.0) / self.kappa;
         rss / (n - 3.0) <= self.var_cell * Self::chi2_ratio(nu)
     }
@@ -121,10 +121,16 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 
 impl PlaneExtractor {
     /// Seeds the planes from merged patches (see the module docs): sets of at least `min`
-    /// cells become planes, their planar cells labelled.
+    /// cells become planes, their planar cells labelled. `free` restricts the cells to the
+    /// planar cells that the last refinement pass left unassigned.
     #[inline(never)]
-    pub(super) fn seed_from_patches(&mut self, wq: usize, hq: usize, min: usize) {
+    pub(super) fn seed_from_patches(&mut self, wq: usize, hq: usize, min: usize, free: bool) {
         let noise = self.noise;
+        let mask: &[u8] = if free {
+            &self.free_cells
+        } else {
+            &self.cell_planar
+        };
         let (wp, hp) = (wq / PATCH, hq / PATCH);
         let np = wp * hp;
         let sums = &mut self.patch_sums;
@@ -139,7 +145,7 @@ impl PlaneExtractor {
                 for j in pj * PATCH..(pj + 1) * PATCH {
                     for i in pi * PATCH..(pi + 1) * PATCH {
                         let d = self.cell_disparity[j * wq + i];
-                        if self.cell_planar[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
+                        if mask[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
                             s.add(i as f64, j as f64, f64::from(d));
                         }
                     }
@@ -195,7 +201,11 @@ impl PlaneExtractor {
             let Some(ru) = min_rss(&u) else { continue };
             if noise.same(ru - rss[a] - rss[b]) {
                 // Union by size: the larger root stays.
-                let (keep, gone) = if sums[a].n >= sums[b].n { (a, b) } else { (b, a) };
+                let (keep, gone) = if sums[a].n >= sums[b].n {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
                 parent[gone] = keep as u32;
                 sums[keep] = u;
                 rss[keep] = ru;
@@ -205,7 +215,7 @@ impl PlaneExtractor {
         let plane_of = &mut self.patch_plane;
         plane_of.clear();
         plane_of.resize(np, 0);
-        let boxes = &mut self.component_box;
+        let boxes = &mut self.patch_box;
         boxes.clear();
         boxes.resize(np, [u32::MAX, u32::MAX, 0, 0]);
         for p in 0..np {
@@ -214,12 +224,7 @@ impl PlaneExtractor {
             }
             let r = find(parent, p as u32) as usize;
             let (pi, pj) = (p % wp, p / wp);
-            grow(
-                &mut boxes[r],
-                pi * PATCH,
-                (pi + 1) * PATCH - 1,
-                pj * PATCH,
-            );
+            grow(&mut boxes[r], pi * PATCH, (pi + 1) * PATCH - 1, pj * PATCH);
             grow(
                 &mut boxes[r],
                 pi * PATCH,
@@ -256,7 +261,7 @@ impl PlaneExtractor {
             for j in pj * PATCH..(pj + 1) * PATCH {
                 for i in pi * PATCH..(pi + 1) * PATCH {
                     let d = self.cell_disparity[j * wq + i];
-                    if self.cell_planar[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
+                    if mask[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
                         self.cell_labels[j * wq + i] = lab;
                     }
                 }

@@ -1,0 +1,152 @@
+"""Plane-extraction peers on the real-frame repeatability benchmark of issue 12.
+
+The same metric as ``cargo xtask validate --only planes`` (xtask/src/validate/planes/repeat.rs):
+planes of at least 5,000 pixels in frame i, moved to world coordinates with the ground-truth
+poses, count as found again in frame i + k (k = 1, 5, 10) when a plane of frame i + k has its
+normal within 3 degrees and passes within 3 cm of the centroid of frame i's plane.
+
+Peer: OpenCV 5 ``cv2.findPlanes`` (RgbdPlane) on ``cv2.depthTo3d`` clouds, with its Kinect
+``sensor_error_a = 0.0075``. Not run: Open3D ``detect_planar_patches`` (it returns oriented
+boxes, not per-pixel labels) and CAPE.
+
+Usage (a venv with opencv-python-headless 5 and numpy)::
+
+    python docs/bench/planes_peers.py [DATA_DIR]    # default ../shared/data
+
+Tests never need this script.
+"""
+
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+MIN_PIXELS = 5000
+MAX_DEG = 3.0
+MAX_OFFSET_M = 0.03
+GAPS = (1, 5, 10)
+
+
+def quat_pose(tx, ty, tz, qx, qy, qz, qw):
+    x, y, z, w = qx, qy, qz, qw
+    r = np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ])
+    t = np.eye(4)
+    t[:3, :3] = r
+    t[:3, 3] = (tx, ty, tz)
+    return t
+
+
+def tum200(data):
+    d = data / "tum-fr1-rpy-200"
+    if not (d / "depth.txt").exists():
+        return None
+    gt = np.array([[float(v) for v in l.split()] for l in (d / "groundtruth.txt").read_text().splitlines()
+                   if l and not l.startswith("#")])
+    frames = []
+    for l in (d / "depth.txt").read_text().splitlines():
+        if not l or l.startswith("#"):
+            continue
+        ts, name = l.split()[:2]
+        i = np.argmin(np.abs(gt[:, 0] - float(ts)))
+        if abs(gt[i, 0] - float(ts)) <= 0.02:
+            frames.append((d / name, quat_pose(*gt[i, 1:8])))
+    k = np.array([[517.3, 0, 318.6], [0, 516.5, 255.3], [0, 0, 1]], dtype=np.float32)
+    return "tum-fr1-rpy-200", frames, k, 5000.0
+
+
+def seven_scenes(data):
+    d = data / "7scenes-redkitchen"
+    if not d.exists():
+        return None
+    frames = []
+    for p in sorted(d.glob("frame-*.depth.png")):
+        pose = np.loadtxt(str(p).replace(".depth.png", ".pose.txt"))
+        frames.append((p, pose))
+    k = np.array([[585, 0, 320], [0, 585, 240], [0, 0, 1]], dtype=np.float32)
+    return "7scenes-redkitchen", frames, k, 1000.0
+
+
+def planes_cv(z, k):
+    """World-independent planes of one frame: (unit normal, offset, centroid, pixels)."""
+    pts = cv2.depthTo3d(z, k)
+    mask, coeffs = cv2.findPlanes(pts, None, sensor_error_a=0.0075)
+    out = []
+    if coeffs is None:
+        return out
+    coeffs = np.asarray(coeffs).reshape(-1, 4)
+    for i, c in enumerate(coeffs):
+        sel = mask == i
+        n = int(sel.sum())
+        if n == 0:
+            continue
+        p = pts[sel][:, :3]
+        p = p[np.isfinite(p).all(axis=1)]
+        if len(p) == 0:
+            continue
+        nrm = np.linalg.norm(c[:3])
+        out.append((c[:3] / nrm, c[3] / nrm, p.mean(axis=0), n))
+    return out
+
+
+def to_world(planes, pose):
+    r, t = pose[:3, :3], pose[:3, 3]
+    out = []
+    for n, d, cen, px in planes:
+        nw = r @ n
+        out.append((nw, d - nw @ t, r @ cen + t, px))
+    return out
+
+
+def same(a, b):
+    cos = abs(float(a[0] @ b[0]))
+    dist = abs(float(b[0] @ a[2] + b[1]))
+    return np.degrees(np.arccos(min(1.0, cos))) <= MAX_DEG and dist <= MAX_OFFSET_M
+
+
+def main():
+    data = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[3] / "shared/data"
+    cv2.setNumThreads(1)
+    print("| sequence | method | k | planes tested | found again | planes | pixels |")
+    print("|---|---|---|---|---|---|---|")
+    summary = []
+    for seq in (tum200(data), seven_scenes(data)):
+        if seq is None:
+            continue
+        name, frames, k, scale = seq
+        world, times, counts = [], [], []
+        for path, pose in frames:
+            z = cv2.imread(str(path), cv2.IMREAD_UNCHANGED).astype(np.float32) / scale
+            t0 = time.perf_counter()
+            planes = planes_cv(z, k)
+            times.append((time.perf_counter() - t0) * 1e3)
+            counts.append(len(planes))
+            world.append(to_world(planes, pose))
+        for gap in GAPS:
+            tested = found = px = fpx = 0
+            for i in range(len(world) - gap):
+                for p in world[i]:
+                    if p[3] < MIN_PIXELS:
+                        continue
+                    tested += 1
+                    px += p[3]
+                    if any(same(p, q) for q in world[i + gap]):
+                        found += 1
+                        fpx += p[3]
+            print(f"| {name} | cv2.findPlanes | {gap} | {tested} | {found} | "
+                  f"{100 * found / max(tested, 1):.1f} % | {100 * fpx / max(px, 1):.1f} % |")
+        summary.append((name, np.mean(counts), max(times), np.median(times)))
+    print()
+    print("| sequence | method | planes per frame | worst ms (incl. normals) | median ms |")
+    print("|---|---|---|---|---|")
+    for name, c, worst, med in summary:
+        print(f"| {name} | cv2.findPlanes | {c:.2f} | {worst:.1f} | {med:.1f} |")
+
+
+if __name__ == "__main__":
+    main()
