@@ -59,7 +59,8 @@ mod verify;
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{PlanesError, Result};
 pub use extract::{
-    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, Stage, StageTimes, extract_planes,
+    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, RegionExplanation, RejectReason,
+    Stage, StageTimes, extract_planes,
 };
 pub use motion::{
     ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,

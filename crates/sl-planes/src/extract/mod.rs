@@ -347,6 +347,8 @@ pub struct PlaneExtractor {
     patch_parent: Vec<u32>,
     /// Per root patch: its plane label (0 = none).
     patch_plane: Vec<u16>,
+    /// Per patch: what the first seeding made of it (for [`PlaneExtractor::explain_unlabelled`]).
+    patch_status: Vec<PatchStatus>,
     /// Wall-clock time per stage of the last frame.
     times: StageTimes,
 }
@@ -564,6 +566,7 @@ impl PlaneExtractor {
 }
 
 mod assign;
+mod explain;
 mod input;
 mod merge;
 mod patches;
@@ -574,7 +577,8 @@ mod stages;
 #[cfg(test)]
 mod tests;
 
+pub use explain::{RegionExplanation, RejectReason};
 use input::*;
-use patches::CellNoise;
+use patches::{CellNoise, PatchStatus};
 use rows::*;
 pub use stages::{Stage, StageTimes};

@@ -17,7 +17,19 @@ use super::*;
 use crate::fit::AffineSums;
 
 /// Side of a patch, cells.
-const PATCH: usize = 4;
+pub(super) const PATCH: usize = 4;
+
+/// What the seeding made of a patch (kept for `explain`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(super) enum PatchStatus {
+    /// Fewer than 12 planar cells.
+    #[default]
+    TooFewCells,
+    /// Its fit's residual exceeds the noise.
+    Residual,
+    /// Planar.
+    Planar,
+}
 /// Fewest usable cells of a patch (of 16).
 const PATCH_MIN_CELLS: f64 = 12.0;
 /// Standard-normal quantile of the tests (99.9 %, one-sided).
@@ -136,6 +148,10 @@ impl PlaneExtractor {
         let sums = &mut self.patch_sums;
         sums.clear();
         sums.resize(np, AffineSums::default());
+        if !free {
+            self.patch_status.clear();
+            self.patch_status.resize(np, PatchStatus::TooFewCells);
+        }
         let rss = &mut self.patch_rss;
         rss.clear();
         rss.resize(np, f64::NAN);
@@ -150,11 +166,18 @@ impl PlaneExtractor {
                         }
                     }
                 }
+                let mut status = PatchStatus::TooFewCells;
                 if s.n >= PATCH_MIN_CELLS
                     && let Some(r) = min_rss(s)
-                    && noise.planar(r, s.n)
                 {
-                    rss[pj * wp + pi] = r;
+                    status = PatchStatus::Residual;
+                    if noise.planar(r, s.n) {
+                        rss[pj * wp + pi] = r;
+                        status = PatchStatus::Planar;
+                    }
+                }
+                if !free {
+                    self.patch_status[pj * wp + pi] = status;
                 }
             }
         }
