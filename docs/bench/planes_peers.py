@@ -9,9 +9,16 @@ Peer: OpenCV 5 ``cv2.findPlanes`` (RgbdPlane) on ``cv2.depthTo3d`` clouds, with 
 ``sensor_error_a = 0.0075``. Not run: Open3D ``detect_planar_patches`` (it returns oriented
 boxes, not per-pixel labels) and CAPE.
 
+Rooms: ``--rooms DIR`` scores the peer on the randomised room benchmark instead, the frames
+written by ``cargo run --release -p sl-planes --example export_rooms -- DIR``, with the rules of
+the validate experiment (xtask/src/validate/planes/rooms.rs): SegComp (Hoover et al.) at 80 %
+overlap for ground-truth planes of at least 2,000 valid pixels, spurious = noise regions of at
+least 2,000 pixels.
+
 Usage (a venv with opencv-python-headless 5 and numpy)::
 
     python docs/bench/planes_peers.py [DATA_DIR]    # default ../shared/data
+    python docs/bench/planes_peers.py --rooms DIR
 
 Tests never need this script.
 """
@@ -109,7 +116,80 @@ def same(a, b):
     return np.degrees(np.arccos(min(1.0, cos))) <= MAX_DEG and dist <= MAX_OFFSET_M
 
 
+def segcomp(gt, seg, valid, t=0.8, min_gt=2000):
+    """Hoover et al. SegComp, as sl_eval::planes::segcomp_detail: counts and noise-region sizes."""
+    g = gt[valid].astype(np.int64)
+    m = seg[valid].astype(np.int64)
+    gl, gc = np.unique(g[g != 0], return_counts=True)
+    gsize = {int(a): int(b) for a, b in zip(gl, gc) if b >= min_gt}
+    ml, mc = np.unique(m[m != 0], return_counts=True)
+    msize = {int(a): int(b) for a, b in zip(ml, mc)}
+    keep = (m != 0) & np.isin(g, list(gsize)) if gsize else np.zeros_like(m, bool)
+    pairs, cnt = np.unique(np.stack([m[keep], g[keep]]), axis=1, return_counts=True)
+    ov = {(int(a), int(b)): int(c) for (a, b), c in zip(pairs.T, cnt)}
+    o = lambda a, b: ov.get((a, b), 0)
+    gk, mk = sorted(gsize), sorted(msize)
+    gu = {x: False for x in gk}
+    mu = {x: False for x in mk}
+    res = dict(gt=len(gk), correct=0, over=0, under=0)
+    for gg in gk:
+        for mm in mk:
+            if not mu[mm] and o(mm, gg) >= t * msize[mm] and o(mm, gg) >= t * gsize[gg]:
+                res["correct"] += 1
+                gu[gg] = mu[mm] = True
+                break
+    for gg in gk:
+        if gu[gg]:
+            continue
+        parts = [mm for mm in mk if not mu[mm] and o(mm, gg) > 0 and o(mm, gg) >= t * msize[mm]]
+        if len(parts) >= 2 and sum(o(mm, gg) for mm in parts) >= t * gsize[gg]:
+            res["over"] += 1
+            gu[gg] = True
+            for mm in parts:
+                mu[mm] = True
+    for mm in mk:
+        if mu[mm]:
+            continue
+        parts = [gg for gg in gk if not gu[gg] and o(mm, gg) > 0 and o(mm, gg) >= t * gsize[gg]]
+        if len(parts) >= 2 and sum(o(mm, gg) for mm in parts) >= t * msize[mm]:
+            res["under"] += 1
+            mu[mm] = True
+            for gg in parts:
+                gu[gg] = True
+    res["missed"] = sum(1 for v in gu.values() if not v)
+    noise = [msize[mm] for mm in mk if not mu[mm]]
+    res["noise"] = len(noise)
+    res["spurious"] = sum(1 for n in noise if n >= min_gt)
+    return res
+
+
+def rooms(d):
+    cams = {l.split()[0]: [float(v) for v in l.split()[1:]] for l in (d / "cameras.txt").read_text().splitlines()}
+    total = dict(gt=0, correct=0, over=0, under=0, missed=0, noise=0, spurious=0)
+    worst = 0.0
+    for name, (fx, fy, cx, cy) in sorted(cams.items()):
+        z = cv2.imread(str(d / f"{name}-depth.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 1000.0
+        gt = cv2.imread(str(d / f"{name}-labels.png"), cv2.IMREAD_UNCHANGED)
+        k = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]], dtype=np.float32)
+        pts = cv2.depthTo3d(z, k)
+        t0 = time.perf_counter()
+        mask, _ = cv2.findPlanes(pts, None, sensor_error_a=0.0075)
+        worst = max(worst, (time.perf_counter() - t0) * 1e3)
+        seg = np.where(mask == 255, 0, mask.astype(np.int64) + 1)
+        r = segcomp(gt, seg, z > 0)
+        for key in total:
+            total[key] += r[key]
+    print("| method | GT planes | correct | over | under | missed | noise | spurious >= 2000 px | worst ms |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    print(f"| cv2.findPlanes | {total['gt']} | {total['correct']} ({100 * total['correct'] / max(total['gt'], 1):.1f} %) | "
+          f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | {worst:.0f} |")
+
+
 def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--rooms":
+        cv2.setNumThreads(1)
+        rooms(Path(sys.argv[2]))
+        return
     data = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[3] / "shared/data"
     cv2.setNumThreads(1)
     print("| sequence | method | k | planes tested | found again | planes | pixels |")

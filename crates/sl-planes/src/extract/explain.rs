@@ -160,7 +160,7 @@ impl PlaneExtractor {
                 rms_px: rms,
             });
         }
-        out.sort_by(|a, b| b.pixels.cmp(&a.pixels));
+        out.sort_by_key(|r| std::cmp::Reverse(r.pixels));
         out
     }
 }

@@ -241,8 +241,8 @@ impl PlaneExtractor {
         let boxes = &mut self.patch_box;
         boxes.clear();
         boxes.resize(np, [u32::MAX, u32::MAX, 0, 0]);
-        for p in 0..np {
-            if rss[p].is_nan() {
+        for (p, rp) in rss.iter().enumerate() {
+            if rp.is_nan() {
                 continue;
             }
             let r = find(parent, p as u32) as usize;
