@@ -239,7 +239,8 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
          (both moved to world coordinates with the ground-truth poses; normal within \
          {REPEAT_MAX_DEG}°, the centroid of frame i's plane within {:.0} cm of frame i + k's plane). Default parameters. *planes* = share of the \
          tested planes found again, *pixels* = share of their pixels. Time: worst frame of the \
-         sequence, best of {reps} runs on one thread.\n\n\
+         sequence, best of {reps} runs on one thread, in validate's build on a shared machine (the \
+         reference timing is `cargo run --release -p sl-planes --example planes_timing -- sweep`).\n\n\
          | sequence | frames | k | planes tested | found again | planes | pixels |\n|---|---|---|---|---|---|---|\n",
         REPEAT_MAX_OFFSET_M * 100.0
     );
