@@ -6,8 +6,8 @@ poses, count as found again in frame i + k (k = 1, 5, 10) when a plane of frame 
 normal within 3 degrees and passes within 3 cm of the centroid of frame i's plane.
 
 Peer: OpenCV 5 ``cv2.findPlanes`` (RgbdPlane) on ``cv2.depthTo3d`` clouds, with its Kinect
-``sensor_error_a = 0.0075``. Not run: Open3D ``detect_planar_patches`` (it returns oriented
-boxes, not per-pixel labels) and CAPE.
+``sensor_error_a = 0.0075``. On the rooms also Open3D ``detect_planar_patches`` (oriented boxes,
+turned into labels by box containment; not on the repeatability benchmark). Not run: CAPE.
 
 Rooms: ``--rooms DIR`` scores the peer on the randomised room benchmark instead, the frames
 written by ``cargo run --release -p sl-planes --example export_rooms -- DIR``, with the rules of
@@ -19,6 +19,7 @@ Usage (a venv with opencv-python-headless 5 and numpy)::
 
     python docs/bench/planes_peers.py [DATA_DIR]    # default ../shared/data
     python docs/bench/planes_peers.py --rooms DIR
+    python docs/bench/planes_peers.py --rooms-open3d DIR   # needs open3d (slow: seconds a frame)
 
 Tests never need this script.
 """
@@ -185,7 +186,52 @@ def rooms(d):
           f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | {worst:.0f} |")
 
 
+def planes_open3d(z, fx, fy, cx, cy):
+    """Open3D ``detect_planar_patches`` (default parameters, normals from 30 neighbours) as a
+    label image: a pixel takes the smallest oriented box that contains its point."""
+    import open3d as o3d
+
+    h, w = z.shape
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    valid = z > 0
+    pts = np.stack([(u - cx) * z / fx, (v - cy) * z / fy, z], -1)[valid].astype(np.float64)
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+    pc.estimate_normals(o3d.geometry.KDTreeSearchParamKNN(30))
+    boxes = pc.detect_planar_patches(search_param=o3d.geometry.KDTreeSearchParamKNN(30))
+    flat = np.zeros(len(pts), np.int64)
+    best = np.full(len(pts), np.inf)
+    for i, b in enumerate(boxes):
+        idx = np.asarray(b.get_point_indices_within_bounding_box(pc.points), np.int64)
+        vol = b.volume()
+        sel = idx[vol < best[idx]]
+        flat[sel] = i + 1
+        best[sel] = vol
+    seg = np.zeros((h, w), np.int64)
+    seg[valid] = flat
+    return seg
+
+
+def rooms_open3d(d):
+    cams = {l.split()[0]: [float(v) for v in l.split()[1:]] for l in (d / "cameras.txt").read_text().splitlines()}
+    total = dict(gt=0, correct=0, over=0, under=0, missed=0, noise=0, spurious=0)
+    worst = 0.0
+    for name, (fx, fy, cx, cy) in sorted(cams.items()):
+        z = cv2.imread(str(d / f"{name}-depth.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 1000.0
+        gt = cv2.imread(str(d / f"{name}-labels.png"), cv2.IMREAD_UNCHANGED)
+        t0 = time.perf_counter()
+        seg = planes_open3d(z, fx, fy, cx, cy)
+        worst = max(worst, (time.perf_counter() - t0) * 1e3)
+        r = segcomp(gt, seg, z > 0)
+        for key in total:
+            total[key] += r[key]
+    print(f"| open3d detect_planar_patches | {total['gt']} | {total['correct']} ({100 * total['correct'] / max(total['gt'], 1):.1f} %) | "
+          f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | {worst:.0f} |")
+
+
 def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--rooms-open3d":
+        rooms_open3d(Path(sys.argv[2]))
+        return
     if len(sys.argv) > 2 and sys.argv[1] == "--rooms":
         cv2.setNumThreads(1)
         rooms(Path(sys.argv[2]))
