@@ -7,8 +7,9 @@
 //!
 //! Pipeline position: depth frames → `sl-io` → `sl-core` types → (`sl-filter`) → **`sl-planes`**.
 //!
-//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → connected components of
-//!   planar 4×4-pixel cells → robust affine fits → k-means refinement on the cells with merging
+//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → affine fits of 16×16-pixel
+//!   patches of planar 4×4-pixel cells, merged while a χ² test from the noise model (σ_D, 1/q,
+//!   the correlation of the disparity error) accepts one plane → k-means refinement on the cells with merging
 //!   → per-pixel assignment with neighbour disambiguation → label image + [`PlaneInfo`] (3D
 //!   normal/offset, disparity-affine coefficients, RMS in px and m). About 3 ms per 640×480
 //!   frame on one core; reuse one extractor for a video ([`PlaneExtractor::stage_times`] gives
@@ -58,7 +59,8 @@ mod verify;
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{PlanesError, Result};
 pub use extract::{
-    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, Stage, StageTimes, extract_planes,
+    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, RegionExplanation, RejectReason,
+    Stage, StageTimes, extract_planes,
 };
 pub use motion::{
     ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,

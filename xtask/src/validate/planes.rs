@@ -6,7 +6,12 @@
 //!    ceiling, walls from 0.6 to 4.5 m), `boxes` and `figure-walls`. Scored with the Hoover et
 //!    al. SegComp metric at 80 % overlap (ground-truth regions under 500 valid pixels ignored)
 //!    for the disparity method and sequential metric RANSAC at 5 mm and 20 mm.
-//! 2. Real frames (TUM fr1/rpy, NYU raw disparity, 7-Scenes): overlays and timings.
+//!    Then the randomised room benchmark (issue 12, `rooms`): 60 seeded rooms and corridors
+//!    (`sl_noise::sim::room_scene`) through the realistic simulator, SegComp for ground-truth
+//!    planes of at least 2,000 pixels and spurious planes, ours and metric RANSAC.
+//! 2. Real frames (TUM fr1/rpy, NYU raw disparity, 7-Scenes): overlays and timings; then the
+//!    repeatability benchmark (issue 12, `repeat`): planes of frame i found again in frame i + k
+//!    (k = 1, 5, 10) with the ground-truth poses, TUM fr1/rpy 200 and 7-Scenes.
 //! 3. Motion on TUM fr1/rpy pairs 5–20 frames apart (rotations of 8–43°): rotation error against
 //!    motion capture for the identity (initial error), plane matching alone, the plane estimate
 //!    verified against the depth data (or "undetermined"), and planes + point-to-plane ICP
@@ -38,6 +43,9 @@ use sl_planes::{
 
 use super::Context;
 
+mod repeat;
+mod rooms;
+
 const EXP: &str = "planes";
 /// Ground-truth regions smaller than this (valid pixels) are ignored by SegComp.
 const MIN_GT_PIXELS: usize = 500;
@@ -47,7 +55,9 @@ const TOLERANCE: f64 = 0.8;
 /// Runs the experiment.
 pub fn run(ctx: &mut Context) -> Result<()> {
     synthetic(ctx)?;
+    rooms::rooms(ctx)?;
     real(ctx)?;
+    repeat::repeat(ctx)?;
     motion(ctx)?;
     Ok(())
 }

@@ -8,4 +8,4 @@ pub mod overlay;
 pub mod segcomp;
 
 pub use overlay::{depth_to_rgb, label_color, overlay_rgb};
-pub use segcomp::{SegCompScore, segcomp};
+pub use segcomp::{SegCompDetail, SegCompScore, segcomp, segcomp_detail};

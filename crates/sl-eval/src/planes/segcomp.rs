@@ -47,6 +47,39 @@ pub fn segcomp(
     t: f64,
     min_gt_pixels: usize,
 ) -> Result<SegCompScore> {
+    segcomp_detail(gt, seg, valid, t, min_gt_pixels).map(|d| d.score)
+}
+
+/// A SegComp comparison with the regions behind the counts.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SegCompDetail {
+    /// The counts.
+    pub score: SegCompScore,
+    /// The machine regions classified as noise: `(label, valid pixels)`, by label.
+    pub noise_regions: Vec<(u16, usize)>,
+    /// The ground-truth regions missed: `(label, valid pixels)`, by label.
+    pub missed_regions: Vec<(u16, usize)>,
+}
+
+impl SegCompDetail {
+    /// Noise regions (machine regions matching no ground truth) of at least `min_pixels`:
+    /// spurious planes.
+    pub fn spurious(&self, min_pixels: usize) -> usize {
+        self.noise_regions
+            .iter()
+            .filter(|(_, n)| *n >= min_pixels)
+            .count()
+    }
+}
+
+/// [`segcomp`] with the lists of noise and missed regions.
+pub fn segcomp_detail(
+    gt: &Image<u16>,
+    seg: &Image<u16>,
+    valid: Option<&[bool]>,
+    t: f64,
+    min_gt_pixels: usize,
+) -> Result<SegCompDetail> {
     if gt.dimensions() != seg.dimensions() {
         return Err(EvalError::SizeMismatch {
             expected_width: gt.width(),
@@ -151,9 +184,23 @@ pub fn segcomp(
             }
         }
     }
-    score.missed = g_used.values().filter(|u| !**u).count();
-    score.noise = m_used.values().filter(|u| !**u).count();
-    Ok(score)
+    let missed_regions: Vec<(u16, usize)> = gkeys
+        .iter()
+        .filter(|g| !g_used[g])
+        .map(|g| (*g, gsize[g]))
+        .collect();
+    let noise_regions: Vec<(u16, usize)> = mkeys
+        .iter()
+        .filter(|m| !m_used[m])
+        .map(|m| (*m, msize[m]))
+        .collect();
+    score.missed = missed_regions.len();
+    score.noise = noise_regions.len();
+    Ok(SegCompDetail {
+        score,
+        noise_regions,
+        missed_regions,
+    })
 }
 
 #[cfg(test)]
@@ -219,6 +266,10 @@ mod tests {
         });
         let s = segcomp(&gt3, &partial, None, 0.8, 1).unwrap();
         assert_eq!((s.correct, s.missed, s.noise), (1, 1, 2));
+        let d = segcomp_detail(&gt3, &partial, None, 0.8, 1).unwrap();
+        assert_eq!(d.noise_regions, vec![(2, 15), (9, 50)]);
+        assert_eq!(d.missed_regions, vec![(2, 50)]);
+        assert_eq!((d.spurious(16), d.spurious(15)), (1, 2));
         // The valid mask removes pixels from both images.
         let valid: Vec<bool> = (0..200).map(|i| (i % 20) < 10 || (i / 20) < 3).collect();
         let s = segcomp(&gt3, &partial, Some(&valid), 0.8, 1).unwrap();

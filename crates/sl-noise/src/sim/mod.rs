@@ -14,7 +14,9 @@
 //!   paper's white noise ([`NoiseModel::White`], [`KinectSimulator::white`], optionally with
 //!   projector shadows: [`KinectSimulator::simulate_with_shadows`]); seeded per row so results
 //!   do not depend on threads.
-//! * [`named_scene`]: the scenes of the paper's figures by name ([`SCENE_NAMES`]).
+//! * [`named_scene`]: the scenes of the paper's figures by name ([`SCENE_NAMES`]);
+//!   [`room_scene`]: the seeded random rooms and corridors of the room benchmark
+//!   ([`ROOM_BENCHMARK_SEEDS`] of them, issue 12).
 //!
 //! ```
 //! use sl_noise::sim::{KinectSimulator, Plane, Scene, Sphere};
@@ -37,6 +39,7 @@ mod kinect;
 mod primitives;
 pub mod realistic;
 mod relief;
+mod rooms;
 mod scene;
 mod scenes;
 
@@ -46,5 +49,6 @@ pub use kinect::{
 pub use primitives::{Cuboid, Cylinder, Hit, Plane, Quad, Sphere, Surface, T_MIN};
 pub use realistic::RealisticNoise;
 pub use relief::ReliefPlate;
+pub use rooms::{ROOM_BENCHMARK_SEEDS, RoomKind, RoomScene, room_scene};
 pub use scene::{MAX_RENDER_PIXELS, MAX_SURFACES, Render, Scene, look_at};
 pub use scenes::{NamedScene, SCENE_NAMES, named_scene};

@@ -11,9 +11,31 @@ pub enum Input {
     Disparity(DisparityImage),
 }
 
-/// `(name, input, camera)` of the benchmark frames: one per source.
+/// `(name, input, camera)` of the benchmark frames: one per source, and two scenes of the
+/// randomised room benchmark (issue 12: a room and a corridor, realistic noise).
 pub fn frames() -> Vec<(String, Input, Camera)> {
-    load(1)
+    let mut out = load(1);
+    out.extend(rooms());
+    out
+}
+
+/// Two scenes of the room benchmark (`sl_noise::sim::room_scene`), realistic noise.
+pub fn rooms() -> Vec<(String, Input, Camera)> {
+    [0u64, 2]
+        .into_iter()
+        .map(|seed| {
+            let rs = sl_noise::sim::room_scene(seed).unwrap();
+            let mut sensor = sl_core::SensorModel::kinect_v1();
+            sensor.focal_px = rs.intrinsics.fx;
+            let sim = sl_noise::sim::KinectSimulator::with_sensor(sensor);
+            let f = sim.simulate(&rs.scene, &rs.intrinsics, &rs.pose, seed);
+            let c = Camera {
+                intrinsics: rs.intrinsics,
+                sensor,
+            };
+            (format!("room-{seed}"), Input::Depth(f.depth), c)
+        })
+        .collect()
 }
 
 /// Up to `per_source` frames of each real source (or the simulated frames), with names

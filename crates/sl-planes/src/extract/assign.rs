@@ -4,6 +4,11 @@
 
 use super::*;
 
+/// Cell row `jj` of the cell labels (empty outside the grid).
+fn cell_row(labels: &[u16], jj: usize, wq: usize) -> &[u16] {
+    labels.get(jj * wq..(jj + 1) * wq).unwrap_or(&[])
+}
+
 impl PlaneExtractor {
     /// The full-resolution assignment, with the final moments of the sample rows: each pixel
     /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
@@ -11,6 +16,10 @@ impl PlaneExtractor {
     /// touching a labelled cell, the planes of the cells around are searched, 8 pixels at a time
     /// (pixels that fit two planes are recorded for the disambiguation). Pixels of unlabelled
     /// cells away from planes stay unlabelled (coherence).
+    ///
+    /// Stages, row by row: [`Self::prepare_cell_row`] (once per cell row),
+    /// [`Self::assign_incumbents`], [`Self::mark_tail_columns`], [`Self::collect_search_chunks`]
+    /// and [`Self::search_row`].
     #[inline(never)]
     pub(super) fn final_pass(
         &mut self,
@@ -26,6 +35,26 @@ impl PlaneExtractor {
         labels.clear();
         let mut drow = std::mem::take(&mut self.disparity_row);
         drow.resize(w, 0.0);
+        self.prepare_final(w, wq);
+        for y in 0..h {
+            let j = y / CELL;
+            if y.is_multiple_of(CELL) {
+                self.prepare_cell_row(j, wq);
+            }
+            let row_d = d.row(y, w, &mut drow[..w]);
+            labels.resize((y + 1) * w, 0);
+            let row_l = &mut labels[y * w..(y + 1) * w];
+            self.assign_incumbents(row_d, row_l, y, w, tau);
+            self.mark_tail_columns(j, wq, w);
+            let count = self.collect_search_chunks(w);
+            self.search_row(row_d, row_l, y, w, wq, count, tau);
+        }
+        self.disparity_row = drow;
+    }
+
+    /// Fresh accumulators, the planes in full-resolution coordinates and the per-chunk
+    /// candidate caches.
+    fn prepare_final(&mut self, w: usize, wq: usize) {
         self.final_sums.clear();
         self.final_sums.resize(
             self.planes.len(),
@@ -41,21 +70,7 @@ impl PlaneExtractor {
         self.slope_x.clear();
         self.slope_x
             .extend(self.full_res_fits.iter().map(|f| f.a as f32));
-        let full: &[DisparityAffine] = &self.full_res_fits;
-        let fa: &[f32] = &self.slope_x;
-        let acc = &mut self.final_sums;
-        let amb = &mut self.ambiguous;
-        let empty: &[u16] = &[];
-        let hrow = |jj: usize| {
-            self.cell_labels
-                .get(jj * wq..(jj + 1) * wq)
-                .unwrap_or(empty)
-        };
-        let mut inv_dummy = InvSums::default();
-        let mut sums_dummy = AffineSums::default();
         let nchunks = w.div_ceil(LANES);
-        // With at most 64 planes, labels are at most 64 (bit masks of the candidates).
-        let small = self.planes.len() <= 64;
         self.candidates_cell_row.clear();
         self.candidates_cell_row.resize(nchunks, 0);
         self.candidate_planes.resize(nchunks, [0; 16]);
@@ -64,196 +79,249 @@ impl PlaneExtractor {
         self.cells_touching_plane.resize(wq, 0);
         self.zero_cell_row.clear();
         self.zero_cell_row.resize(wq, 0);
-        for y in 0..h {
-            let yf = y as f64;
-            let (stats, metric) = (is_sample_row(y), is_metric_row(y));
-            self.row_offsets.clear();
-            self.row_offsets
-                .extend(full.iter().map(|f| (f.b * yf + f.c) as f32));
-            let rowc: &[f32] = &self.row_offsets;
-            let j = y / CELL;
-            let hint_row = hrow(j);
-            let up_row = if j > 0 { hrow(j - 1) } else { empty };
-            let dn_row = hrow(j + 1);
-            let zrow = &self.zero_cell_row[..];
-            let nh = hint_row.len();
-            let need = &mut self.cells_touching_plane[..nh];
-            if y % CELL == 0 {
-                let up2 = if up_row.is_empty() { zrow } else { up_row };
-                let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
-                touching(hint_row, up2, dn2, need);
-                // The keep bytes of the pixels of unlabelled cells (0 = search).
-                self.unlabelled_keep.clear();
-                self.unlabelled_keep
-                    .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
-                // The runs of equal cell labels, shared by the rows of this cell row.
-                self.cell_label_runs.clear();
-                let mut i = 0;
-                while i < nh {
-                    let e = run_end(hint_row, i);
-                    self.cell_label_runs.push((i as u32, e as u32, hint_row[i]));
-                    i = e;
-                }
-            }
-            let row_d = d.row(y, w, &mut drow[..w]);
-            labels.resize((y + 1) * w, 0);
-            let row_l = &mut labels[y * w..(y + 1) * w];
-            let keep = &mut self.keep_row[..];
-            // keep: 1 = labelled or stays unlabelled, 0 = search.
-            for &(i, e, v) in &self.cell_label_runs {
-                let (i, e) = (i as usize, e as usize);
-                let (x0, x1) = (CELL * i, (CELL * e).min(w));
-                if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
-                    // The rest of the row: `fit_run` reads and writes ahead.
-                    let (seg, ks) = (&row_d[x0..], &mut keep[x0..]);
-                    let f = &full[v as usize - 1];
-                    let c_row = f.b * yf + f.c;
-                    let n = x1 - x0;
-                    let lab = &mut row_l[x0..];
-                    let kept = if metric {
-                        fit_run_labels::<true, true, true>(
-                            seg,
-                            ks,
-                            lab,
-                            v,
-                            n,
-                            x0,
-                            yf,
-                            f.a,
-                            c_row,
-                            tau,
-                            &mut a.sums,
-                            &mut a.inv,
-                        )
-                    } else if stats {
-                        fit_run_labels::<true, false, true>(
-                            seg,
-                            ks,
-                            lab,
-                            v,
-                            n,
-                            x0,
-                            yf,
-                            f.a,
-                            c_row,
-                            tau,
-                            &mut a.sums,
-                            &mut inv_dummy,
-                        )
-                    } else {
-                        fit_run_labels::<false, false, true>(
-                            seg,
-                            ks,
-                            lab,
-                            v,
-                            n,
-                            x0,
-                            yf,
-                            f.a,
-                            c_row,
-                            tau,
-                            &mut sums_dummy,
-                            &mut inv_dummy,
-                        )
-                    };
-                    a.pixels += kept;
-                    a.add_rows(y);
+    }
+
+    /// Once per cell row: which unlabelled cells touch a labelled one (their pixels are
+    /// searched), as keep bytes per pixel, and the runs of equal cell labels.
+    fn prepare_cell_row(&mut self, j: usize, wq: usize) {
+        let cl: &[u16] = &self.cell_labels;
+        let hint_row = cell_row(cl, j, wq);
+        let up_row = if j > 0 { cell_row(cl, j - 1, wq) } else { &[] };
+        let dn_row = cell_row(cl, j + 1, wq);
+        let zrow = &self.zero_cell_row[..];
+        let nh = hint_row.len();
+        let need = &mut self.cells_touching_plane[..nh];
+        let up2 = if up_row.is_empty() { zrow } else { up_row };
+        let dn2 = if dn_row.is_empty() { zrow } else { dn_row };
+        touching(hint_row, up2, dn2, need);
+        // The keep bytes of the pixels of unlabelled cells (0 = search).
+        self.unlabelled_keep.clear();
+        self.unlabelled_keep
+            .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
+        // The runs of equal cell labels, shared by the rows of this cell row.
+        self.cell_label_runs.clear();
+        let mut i = 0;
+        while i < nh {
+            let e = run_end(hint_row, i);
+            self.cell_label_runs.push((i as u32, e as u32, hint_row[i]));
+            i = e;
+        }
+    }
+
+    /// The runs of labelled cells: their pixels within `τ` of the cell's plane take its label
+    /// (and feed its moments on the sample rows); keep bytes: 1 = labelled or stays
+    /// unlabelled, 0 = search.
+    fn assign_incumbents(
+        &mut self,
+        row_d: &[f32],
+        row_l: &mut [u16],
+        y: usize,
+        w: usize,
+        tau: f32,
+    ) {
+        let yf = y as f64;
+        let (stats, metric) = (is_sample_row(y), is_metric_row(y));
+        let full: &[DisparityAffine] = &self.full_res_fits;
+        let acc = &mut self.final_sums;
+        let keep = &mut self.keep_row[..];
+        let mut inv_dummy = InvSums::default();
+        let mut sums_dummy = AffineSums::default();
+        for &(i, e, v) in &self.cell_label_runs {
+            let (i, e) = (i as usize, e as usize);
+            let (x0, x1) = (CELL * i, (CELL * e).min(w));
+            if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
+                // The rest of the row: `fit_run` reads and writes ahead.
+                let (seg, ks) = (&row_d[x0..], &mut keep[x0..]);
+                let f = &full[v as usize - 1];
+                let c_row = f.b * yf + f.c;
+                let n = x1 - x0;
+                let lab = &mut row_l[x0..];
+                let kept = if metric {
+                    fit_run_labels::<true, true, true>(
+                        seg,
+                        ks,
+                        lab,
+                        v,
+                        n,
+                        x0,
+                        yf,
+                        f.a,
+                        c_row,
+                        tau,
+                        &mut a.sums,
+                        &mut a.inv,
+                    )
+                } else if stats {
+                    fit_run_labels::<true, false, true>(
+                        seg,
+                        ks,
+                        lab,
+                        v,
+                        n,
+                        x0,
+                        yf,
+                        f.a,
+                        c_row,
+                        tau,
+                        &mut a.sums,
+                        &mut inv_dummy,
+                    )
                 } else {
-                    // Unlabelled cells: searched only when touching a labelled cell (`x1` is
-                    // `CELL · e`, within the pattern of this cell row).
-                    let ks = &mut keep[x0..x1];
-                    match self.unlabelled_keep.get(x0..x1) {
-                        Some(u) => ks.copy_from_slice(u),
-                        None => ks.fill(1),
-                    }
-                }
-            }
-            // Columns beyond the cell grid (width not a multiple of the cell), or rows without
-            // one: unlabelled cells (after the runs, which may write ahead).
-            let g = |r: &[u16], ii: usize| r.get(ii).is_some_and(|&l| l != 0);
-            for (x, k) in keep.iter_mut().enumerate().take(w).skip(CELL * nh) {
-                let i = x / CELL;
-                let t = (i > 0 && g(hint_row, i - 1))
-                    || g(hint_row, i + 1)
-                    || g(up_row, i)
-                    || g(dn_row, i);
-                *k = u8::from(!t);
-            }
-            let keep = &keep[..w];
-            // Searches, 8 pixels at a time: first the chunks with a pixel to search.
-            let nch = w.div_ceil(LANES);
-            self.search_chunks.resize(nch + 1, (0, 0));
-            let mut count = 0usize;
-            let mut kw = keep.chunks_exact(LANES);
-            for (c, kc) in (&mut kw).enumerate() {
-                let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
-                if word != ALL_KEPT {
-                    self.search_chunks[count] = (c as u32, word);
-                    count += 1;
-                }
-            }
-            let tail = kw.remainder();
-            if !tail.is_empty() {
-                let word = u64::from_le_bytes(pad(tail, 1));
-                self.search_chunks[count] = ((w / LANES) as u32, word);
-                count += usize::from(word != ALL_KEPT);
-            }
-            for &(c, word) in &self.search_chunks[..count] {
-                let x0 = c as usize * LANES;
-                let x1 = (x0 + LANES).min(w);
-                let mut todo = byte_mask(!word & ALL_KEPT);
-                let (dc, lc) = (&row_d[x0..x1], &mut row_l[x0..x1]);
-                let d8 = <[f32; LANES]>::try_from(dc).unwrap_or_else(|_| pad(dc, f32::NAN));
-                todo &= valid_mask(&d8);
-                if todo == 0 {
-                    continue;
-                }
-                // Candidates: the planes of the cells around the chunk (coherence), the same
-                // for the rows of a cell row.
-                let ci = c as usize;
-                let tag = j as u32 + 1;
-                if self.candidates_cell_row[ci] != tag {
-                    let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
-                    let (a, b) = (c0.saturating_sub(1), c1 + 1);
-                    let nc = candidate_planes_around(
-                        [up_row, hint_row, dn_row],
-                        a,
-                        b,
-                        small,
-                        &mut self.candidate_planes[ci],
-                    );
-                    self.candidate_count[ci] = nc as u8;
-                    self.candidates_cell_row[ci] = tag;
-                }
-                let near = &self.candidate_planes[ci][..self.candidate_count[ci] as usize];
-                let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
-                todo &= nonzero_mask(&best);
-                while todo != 0 {
-                    let o = todo.trailing_zeros() as usize;
-                    todo &= todo - 1;
-                    let lab = best[o];
-                    let Some(a) = acc.get_mut((lab as usize).wrapping_sub(1)) else {
-                        continue;
-                    };
-                    lc[o] = lab;
-                    let x = x0 + o;
-                    a.pixels += 1;
-                    a.add_rows(y);
-                    if stats {
-                        let (xf, df) = (x as f64, f64::from(dc[o]));
-                        a.sums.add(xf, yf, df);
-                        if metric {
-                            let r = df - full[lab as usize - 1].eval(xf, yf);
-                            a.inv.add(xf, yf, df, r, 1.0);
-                        }
-                    }
-                    if second[o] != 0 {
-                        amb.push(((y * w + x) as u32, lab, second[o]));
-                    }
+                    fit_run_labels::<false, false, true>(
+                        seg,
+                        ks,
+                        lab,
+                        v,
+                        n,
+                        x0,
+                        yf,
+                        f.a,
+                        c_row,
+                        tau,
+                        &mut sums_dummy,
+                        &mut inv_dummy,
+                    )
+                };
+                a.pixels += kept;
+                a.add_rows(y);
+            } else {
+                // Unlabelled cells: searched only when touching a labelled cell (`x1` is
+                // `CELL · e`, within the pattern of this cell row).
+                let ks = &mut keep[x0..x1];
+                match self.unlabelled_keep.get(x0..x1) {
+                    Some(u) => ks.copy_from_slice(u),
+                    None => ks.fill(1),
                 }
             }
         }
-        self.disparity_row = drow;
+    }
+
+    /// Columns beyond the cell grid (width not a multiple of the cell), or rows without one:
+    /// unlabelled cells, searched when a neighbouring cell is labelled (after the runs, which
+    /// may write ahead).
+    fn mark_tail_columns(&mut self, j: usize, wq: usize, w: usize) {
+        let cl: &[u16] = &self.cell_labels;
+        let hint_row = cell_row(cl, j, wq);
+        let up_row = if j > 0 { cell_row(cl, j - 1, wq) } else { &[] };
+        let dn_row = cell_row(cl, j + 1, wq);
+        let nh = hint_row.len();
+        let g = |r: &[u16], ii: usize| r.get(ii).is_some_and(|&l| l != 0);
+        for (x, k) in self.keep_row.iter_mut().enumerate().take(w).skip(CELL * nh) {
+            let i = x / CELL;
+            let t =
+                (i > 0 && g(hint_row, i - 1)) || g(hint_row, i + 1) || g(up_row, i) || g(dn_row, i);
+            *k = u8::from(!t);
+        }
+    }
+
+    /// The 8-pixel chunks of the row with a pixel to search, with their keep words, into
+    /// `search_chunks`; returns how many.
+    fn collect_search_chunks(&mut self, w: usize) -> usize {
+        let keep = &self.keep_row[..w];
+        let nch = w.div_ceil(LANES);
+        self.search_chunks.resize(nch + 1, (0, 0));
+        let mut count = 0usize;
+        let mut kw = keep.chunks_exact(LANES);
+        for (c, kc) in (&mut kw).enumerate() {
+            let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
+            if word != ALL_KEPT {
+                self.search_chunks[count] = (c as u32, word);
+                count += 1;
+            }
+        }
+        let tail = kw.remainder();
+        if !tail.is_empty() {
+            let word = u64::from_le_bytes(pad(tail, 1));
+            self.search_chunks[count] = ((w / LANES) as u32, word);
+            count += usize::from(word != ALL_KEPT);
+        }
+        count
+    }
+
+    /// The searches, 8 pixels at a time, of the first `count` chunks of `search_chunks`: each
+    /// valid pixel to search takes the best plane of the cells around its chunk within `τ`
+    /// (pixels fitting two planes are recorded in `ambiguous`).
+    #[allow(clippy::too_many_arguments)]
+    fn search_row(
+        &mut self,
+        row_d: &[f32],
+        row_l: &mut [u16],
+        y: usize,
+        w: usize,
+        wq: usize,
+        count: usize,
+        tau: f32,
+    ) {
+        let yf = y as f64;
+        let (stats, metric) = (is_sample_row(y), is_metric_row(y));
+        let j = y / CELL;
+        self.row_offsets.clear();
+        self.row_offsets
+            .extend(self.full_res_fits.iter().map(|f| (f.b * yf + f.c) as f32));
+        // With at most 64 planes, labels are at most 64 (bit masks of the candidates).
+        let small = self.planes.len() <= 64;
+        let cl: &[u16] = &self.cell_labels;
+        let up_row = if j > 0 { cell_row(cl, j - 1, wq) } else { &[] };
+        let hint_row = cell_row(cl, j, wq);
+        let dn_row = cell_row(cl, j + 1, wq);
+        let full: &[DisparityAffine] = &self.full_res_fits;
+        let (fa, rowc): (&[f32], &[f32]) = (&self.slope_x, &self.row_offsets);
+        let acc = &mut self.final_sums;
+        let amb = &mut self.ambiguous;
+        for &(c, word) in &self.search_chunks[..count] {
+            let x0 = c as usize * LANES;
+            let x1 = (x0 + LANES).min(w);
+            let mut todo = byte_mask(!word & ALL_KEPT);
+            let (dc, lc) = (&row_d[x0..x1], &mut row_l[x0..x1]);
+            let d8 = <[f32; LANES]>::try_from(dc).unwrap_or_else(|_| pad(dc, f32::NAN));
+            todo &= valid_mask(&d8);
+            if todo == 0 {
+                continue;
+            }
+            // Candidates: the planes of the cells around the chunk (coherence), the same for
+            // the rows of a cell row.
+            let ci = c as usize;
+            let tag = j as u32 + 1;
+            if self.candidates_cell_row[ci] != tag {
+                let (c0, c1) = (x0 / CELL, (x0 + LANES).div_ceil(CELL));
+                let (a, b) = (c0.saturating_sub(1), c1 + 1);
+                let nc = candidate_planes_around(
+                    [up_row, hint_row, dn_row],
+                    a,
+                    b,
+                    small,
+                    &mut self.candidate_planes[ci],
+                );
+                self.candidate_count[ci] = nc as u8;
+                self.candidates_cell_row[ci] = tag;
+            }
+            let near = &self.candidate_planes[ci][..self.candidate_count[ci] as usize];
+            let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
+            todo &= nonzero_mask(&best);
+            while todo != 0 {
+                let o = todo.trailing_zeros() as usize;
+                todo &= todo - 1;
+                let lab = best[o];
+                let Some(a) = acc.get_mut((lab as usize).wrapping_sub(1)) else {
+                    continue;
+                };
+                lc[o] = lab;
+                let x = x0 + o;
+                a.pixels += 1;
+                a.add_rows(y);
+                if stats {
+                    let (xf, df) = (x as f64, f64::from(dc[o]));
+                    a.sums.add(xf, yf, df);
+                    if metric {
+                        let r = df - full[lab as usize - 1].eval(xf, yf);
+                        a.inv.add(xf, yf, df, r, 1.0);
+                    }
+                }
+                if second[o] != 0 {
+                    amb.push(((y * w + x) as u32, lab, second[o]));
+                }
+            }
+        }
     }
 
     /// Pixels within the threshold of two planes take the label that dominates their

@@ -5,20 +5,29 @@
 //!    LoG) and over 4×4 pixels (**cells**, for the seeds and the k-means refinement), invalid if
 //!    any pixel is. The mean of an affine function over a block is its value at the block's
 //!    centre, so plane parameters carry over exactly between the grids.
-//! 1. **Seeds.** The box-approximated LoG of the half-resolution disparity (the `log` module)
-//!    is thresholded at a fixed value in disparity pixels; a cell is planar when its four blocks
-//!    are. 4-connected components of planar cells with at least `min_pixels` (full-resolution)
-//!    pixels are seeds. Each seed gets a least-squares affine fit `D = a·x + b·y + c` followed
-//!    by a trimmed refit (residuals below `2τ`); the k-means iterations then refit on the cells
-//!    within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
+//! 1. **Seeds** (issue 12, `patches`). The box-approximated LoG of the half-resolution
+//!    disparity (the `log` module) is thresholded at a fixed value in disparity pixels; a cell
+//!    is planar when its four blocks are (the LoG finds jumps and sharp creases). The cell grid
+//!    is cut into patches of 4×4 cells; each patch gets a least-squares affine fit
+//!    `D = a·x + b·y + c` of its planar cells and is used when its residual is what the noise
+//!    allows. Neighbouring patches merge, most similar first, while one affine function explains
+//!    the union: the extra residual sum of squares of the joint fit, in units of the noise of a
+//!    cell (from the sensor's `σ_D`, the `1/q` quantisation and the correlation window of the
+//!    disparity error, `noise_window_x_px × noise_window_y_px`), stays below the 99.9 % quantile
+//!    of χ² with 3 degrees of freedom. Sets of at least `min_pixels` are seeds. This is what the
+//!    LoG alone cannot do: a crease between a floor and a wall far away bends the disparity by
+//!    hundredths of a pixel per pixel, far below a LoG threshold above the noise, but the two
+//!    sides' affine fits differ by many standard deviations (without it, one "plane" swallowed
+//!    rings of several surfaces at the same disparity). The k-means iterations then refit on the
+//!    cells within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
 //! 2. **k-means refinement** on the cells: a cell keeps its incumbent label (its seed's, or the
 //!    previous pass's) while that plane fits it within `τ`; any other valid cell goes to the
 //!    plane with the smallest disparity residual if it is below the fixed threshold `τ`, among
 //!    the planes of its neighbouring cells (spatial coherence: a plane grows into adjacent cells;
 //!    coplanar but disconnected regions join by merging). Planes are refitted from moment sums
 //!    accumulated run by run, planes that one affine function explains jointly (each within
-//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds (so
-//!    a component spanning a shallow crease splits into its planes). Repeats until the labels
+//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds
+//!    (patches of the free cells, merged by the same test). Repeats until the labels
 //!    settle or `max_iterations`.
 //! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
 //!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its cell's label if
@@ -76,6 +85,13 @@ pub struct PlaneConfig {
     pub merge_px: f64,
     /// Disconnected pieces of a plane smaller than this are dropped (0 keeps all).
     pub min_piece_pixels: usize,
+    /// Width of the window over which the disparity error is correlated, pixels (the
+    /// block-matching window of a Kinect-class camera; 1 = white noise). With the sensor's
+    /// `σ_D` and `q` it sets the noise of the patch fits that seed the planes (see
+    /// `docs/NOISE_MODEL.md`: 9 × 11 px fitted on real frames).
+    pub noise_window_x_px: f64,
+    /// Height of that window, pixels.
+    pub noise_window_y_px: f64,
 }
 
 impl Default for PlaneConfig {
@@ -88,6 +104,8 @@ impl Default for PlaneConfig {
             max_iterations: 3,
             merge_px: 0.3,
             min_piece_pixels: 256,
+            noise_window_x_px: 9.0,
+            noise_window_y_px: 11.0,
         }
     }
 }
@@ -108,6 +126,16 @@ impl PlaneConfig {
         pos("log_threshold_px", self.log_threshold_px)?;
         pos("merge_px", self.merge_px)?;
         pos("log_sigma_px", self.log_sigma_px)?;
+        for (name, v) in [
+            ("noise_window_x_px", self.noise_window_x_px),
+            ("noise_window_y_px", self.noise_window_y_px),
+        ] {
+            if !(v.is_finite() && (1.0..=64.0).contains(&v)) {
+                return Err(PlanesError::InvalidConfig(format!(
+                    "{name} = {v} must be in [1, 64]"
+                )));
+            }
+        }
         if self.log_sigma_px > 16.0 {
             return Err(PlanesError::InvalidConfig(format!(
                 "log_sigma_px = {} must be at most 16",
@@ -303,8 +331,24 @@ pub struct PlaneExtractor {
     component_box: Vec<[u32; 4]>,
     /// Per component: its robust affine fit, if it has one (seeding).
     component_fit: Vec<Option<DisparityAffine>>,
+    /// Per root patch: bounding box of its set on the cell grid (seeding).
+    patch_box: Vec<[u32; 4]>,
     /// Label lookup table for renumbering (old label → new label).
     relabel_lut: Vec<u16>,
+    /// Noise of a cell's mean disparity (from the sensor model and the configuration).
+    noise: CellNoise,
+    /// Per patch (then per set of patches): moments of its planar cells.
+    patch_sums: Vec<AffineSums>,
+    /// Per patch (set): the residual sum of squares of its fit (NaN = not a planar patch).
+    patch_rss: Vec<f64>,
+    /// Edges between neighbouring patches: `(ΔRSS, patch, patch)`.
+    patch_edges: Vec<(f32, u32, u32)>,
+    /// Union-find parents of the patches.
+    patch_parent: Vec<u32>,
+    /// Per root patch: its plane label (0 = none).
+    patch_plane: Vec<u16>,
+    /// Per patch: what the first seeding made of it (for [`PlaneExtractor::explain_unlabelled`]).
+    patch_status: Vec<PatchStatus>,
     /// Wall-clock time per stage of the last frame.
     times: StageTimes,
 }
@@ -338,6 +382,15 @@ impl PlaneExtractor {
         &self.times
     }
 
+    fn set_noise(&mut self, camera: &Camera) {
+        self.noise = CellNoise::new(
+            camera.sensor.sigma_d_px,
+            camera.sensor.subpixel_steps,
+            self.cfg.noise_window_x_px,
+            self.cfg.noise_window_y_px,
+        );
+    }
+
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
         if w != k.width || h != k.height {
             return Err(PlanesError::SizeMismatch {
@@ -366,6 +419,7 @@ impl PlaneExtractor {
         self.times = StageTimes::default();
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
+        self.set_noise(camera);
         // Scratch for one row pair: the full-resolution disparity is never stored.
         let mut d = std::mem::take(&mut self.full_disparity);
         d.resize(2 * w, 0.0);
@@ -394,6 +448,7 @@ impl PlaneExtractor {
         // The disparity is used in place: every test treats non-positive and non-finite values
         // as invalid.
         let src = Source::Disparity(disparity.data());
+        self.set_noise(camera);
         self.times.add(Stage::Disparity, &mut t0);
         self.run(src, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
     }
@@ -446,10 +501,11 @@ impl PlaneExtractor {
         let d = rows.finish(h);
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
-        self.components.label(&self.cell_planar, wq, hq);
-        self.times.add(Stage::Components, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
-        self.seed_from_components(wq, min_q);
+        self.seed_from_patches(wq, hq, min_q, false);
+        if std::env::var("SLP_NOCOMP").is_err() {
+            self.seed_leftover_components(wq, hq, min_q);
+        }
         self.times.add(Stage::SeedFits, &mut t0);
         self.merge();
         self.compact();
@@ -475,10 +531,8 @@ impl PlaneExtractor {
             self.compact();
             self.times.add(Stage::Merge, &mut t0);
             if it + 1 < cfg.max_iterations && free >= min_q {
-                self.components.label(&self.free_cells, wq, hq);
-                self.times.add(Stage::Components, &mut t0);
                 let before = self.planes.len();
-                self.seed_from_components(wq, min_q);
+                self.seed_from_patches(wq, hq, min_q, true);
                 self.times.add(Stage::SeedFits, &mut t0);
                 if self.planes.len() > before {
                     self.merge();
@@ -512,8 +566,10 @@ impl PlaneExtractor {
 }
 
 mod assign;
+mod explain;
 mod input;
 mod merge;
+mod patches;
 mod refine;
 mod rows;
 mod seeds;
@@ -521,6 +577,8 @@ mod stages;
 #[cfg(test)]
 mod tests;
 
+pub use explain::{RegionExplanation, RejectReason};
 use input::*;
+use patches::{CellNoise, PatchStatus};
 use rows::*;
 pub use stages::{Stage, StageTimes};

@@ -103,6 +103,32 @@ impl PlaneExtractor {
         }
     }
 
+    /// Seeds the regions the patches could not: 4-connected components of the planar cells
+    /// left unlabelled (strips narrower than a patch, the rims of surfaces) with at least
+    /// `min` cells, each with its robust fit.
+    #[inline(never)]
+    pub(super) fn seed_leftover_components(&mut self, wq: usize, hq: usize, min: usize) {
+        for ((f, &p), &l) in self
+            .free_cells
+            .iter_mut()
+            .zip(&self.cell_planar)
+            .zip(&self.cell_labels)
+        {
+            *f = u8::from(p != 0 && l == 0);
+        }
+        self.components.label(&self.free_cells, wq, hq);
+        let before = self.planes.len();
+        self.seed_from_components(wq, min);
+        // A component is a plane only when one affine function explains it within the noise
+        // (the patches' test): rings of several surfaces at one disparity are not.
+        let noise = self.noise;
+        for p in &mut self.planes[before..] {
+            if !noise.planar(p.sums.rss(&p.f), p.sums.n) {
+                p.alive = false;
+            }
+        }
+    }
+
     /// The planarity of the cells (all four of their half-resolution blocks planar), and fresh
     /// label and free-cell grids.
     #[inline(never)]

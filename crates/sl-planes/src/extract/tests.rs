@@ -140,3 +140,33 @@ fn empty_and_tiny_frames() {
             .is_err()
     );
 }
+
+/// A wall with a bumpy square in the middle: the square is on no plane and `explain` says the
+/// LoG turned it down; a frame of one clean wall leaves nothing to explain.
+#[test]
+fn explain_names_the_bumpy_region() {
+    let cam = Camera::kinect_v1();
+    let k = cam.intrinsics;
+    let z: Vec<f32> = (0..k.width * k.height)
+        .map(|i| {
+            let (x, y) = ((i % k.width) as f32, (i / k.width) as f32);
+            if (200.0..400.0).contains(&x) && (150.0..330.0).contains(&y) {
+                2.0 + 0.3 * (x * 0.4).sin() * (y * 0.4).cos()
+            } else {
+                2.0
+            }
+        })
+        .collect();
+    let depth = DepthImage::from_vec(k.width, k.height, z).unwrap();
+    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let seg = ex.extract_depth(&depth, &cam).unwrap();
+    let regions = ex.explain_unlabelled(&seg, 1000);
+    assert!(!regions.is_empty(), "{} planes", seg.planes.len());
+    let r = &regions[0];
+    assert!(r.pixels > 20_000, "{r:?}");
+    assert!(r.bbox_px[0] >= 190 && r.bbox_px[2] <= 410, "{r:?}");
+    assert_eq!(r.reason, RejectReason::NotPlanarLog, "{r:?}");
+    let flat = DepthImage::from_vec(k.width, k.height, vec![2.0; k.width * k.height]).unwrap();
+    let seg = ex.extract_depth(&flat, &cam).unwrap();
+    assert!(ex.explain_unlabelled(&seg, 1000).is_empty());
+}

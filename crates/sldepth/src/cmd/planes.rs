@@ -9,7 +9,9 @@ use serde_json::json;
 use sl_core::Image;
 use sl_eval::planes::overlay;
 use sl_io::DepthFormat;
-use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac};
+use sl_planes::{
+    PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, RegionExplanation, metric_ransac,
+};
 
 use crate::common::{
     InputArgs, check_distinct_outputs, check_output, check_range, load_depth, print_json, round_to,
@@ -32,6 +34,11 @@ pub struct Args {
     /// Print the planes as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also say why each unlabelled region of at least `--min-pixels` valid pixels is on no
+    /// plane (LoG test, residual above the noise, several surfaces, too small a seed); with
+    /// `--json`, an `unlabelled` list (disparity method).
+    #[arg(long)]
+    pub explain: bool,
     /// `disparity` (the paper's method) or `metric-ransac` (the fixed metric threshold baseline).
     #[arg(long, default_value = "disparity", value_parser = ["disparity", "metric-ransac"])]
     pub method: String,
@@ -70,6 +77,7 @@ pub fn run(args: Args) -> Result<()> {
     check_range("--threshold-m", args.threshold_m, 1e-9..=1e3)?;
     let loaded = load_depth(&args.depth, &args.input)?;
     let camera = loaded.camera;
+    let mut explained = Vec::new();
     let (seg, ms) = match args.method.as_str() {
         "disparity" => {
             let mut cfg = PlaneConfig::default();
@@ -78,7 +86,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg.log_sigma_px = args.log_sigma_px;
             cfg.min_pixels = args.min_pixels;
             let mut ex = PlaneExtractor::new(cfg)?;
-            if loaded.encoding.format == DepthFormat::NyuRaw {
+            let out = if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
                 let raw = sl_io::depth::read_raw_depth_with_limits(
                     &args.depth,
@@ -93,7 +101,11 @@ pub fn run(args: Args) -> Result<()> {
                 let t = Instant::now();
                 let seg = ex.extract_depth(&loaded.depth, &camera)?;
                 (seg, t.elapsed().as_secs_f64() * 1e3)
+            };
+            if args.explain {
+                explained = ex.explain_unlabelled(&out.0, args.min_pixels);
             }
+            out
         }
         "metric-ransac" => {
             let mut cfg = RansacConfig::default();
@@ -119,7 +131,11 @@ pub fn run(args: Args) -> Result<()> {
         sl_io::write_rgb_png(path, img).with_context(|| format!("writing {}", path.display()))?;
     }
     if args.json {
-        print_json(&segmentation_json(&seg, ms))?;
+        let mut v = segmentation_json(&seg, ms);
+        if args.explain {
+            v["unlabelled"] = explain_json(&explained);
+        }
+        print_json(&v)?;
     } else {
         outln!(
             "{} planes in {:.2} ms ({})",
@@ -141,8 +157,47 @@ pub fn run(args: Args) -> Result<()> {
                 p.rms_m * 1e3
             )?;
         }
+        if args.explain {
+            outln!(
+                "{} unlabelled regions of at least {} px:",
+                explained.len(),
+                args.min_pixels
+            )?;
+            for r in &explained {
+                outln!(
+                    "  {:>7} px  box [{} {} {} {}]  LoG-rejected {:.0} %  residual-rejected {:.0} %  rms {:.2} px: {}",
+                    r.pixels,
+                    r.bbox_px[0],
+                    r.bbox_px[1],
+                    r.bbox_px[2],
+                    r.bbox_px[3],
+                    100.0 * r.log_rejected_fraction,
+                    100.0 * r.residual_rejected_fraction,
+                    r.rms_px,
+                    r.reason.describe()
+                )?;
+            }
+        }
     }
     Ok(())
+}
+
+/// The JSON list of the unlabelled regions and why.
+fn explain_json(regions: &[RegionExplanation]) -> serde_json::Value {
+    regions
+        .iter()
+        .map(|r| {
+            json!({
+                "pixels": r.pixels,
+                "bbox_px": r.bbox_px,
+                "reason": format!("{:?}", r.reason),
+                "why": r.reason.describe(),
+                "log_rejected_fraction": round_to(r.log_rejected_fraction, 4),
+                "residual_rejected_fraction": round_to(r.residual_rejected_fraction, 4),
+                "rms_px": if r.rms_px.is_finite() { json!(round_to(r.rms_px, 4)) } else { serde_json::Value::Null },
+            })
+        })
+        .collect()
 }
 
 /// The JSON description of a segmentation.

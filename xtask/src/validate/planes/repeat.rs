@@ -1,0 +1,344 @@
+//! Real-frame repeatability (issue 12), a benchmark without annotations: planes are extracted
+//! in frame `i` and frame `i + k` of a sequence with ground-truth poses, both moved to world
+//! coordinates, and a plane of at least 5,000 pixels of frame `i` counts as found again when a
+//! plane of frame `i + k` has its normal within 3° and its offset within 3 cm. A true plane is
+//! repeatable; a ring spanning several surfaces or a band of one surface is not.
+//!
+//! The offset is compared where the plane is: the distance from the centroid of frame `i`'s
+//! plane to frame `i + k`'s plane. (The difference of the planes' world offsets `d` would depend
+//! on where the motion-capture origin lies: a 0.5° pose error moves `d` by `|t|·0.5°`, 2.6 cm
+//! for a camera 3 m from the origin.)
+//!
+//! Sequences: the 200-frame TUM fr1/rpy (`depth.txt`, `groundtruth.txt`; motion capture) and
+//! the 50 7-Scenes red-kitchen frames (`frame-*.pose.txt`). Also reported: planes per frame,
+//! and the worst per-frame extraction time (best of 5 runs, one thread) over the frames.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context as _, Result};
+use sl_core::{Camera, DepthImage, Plane, Pose};
+use sl_planes::{PlaneConfig, PlaneExtractor};
+
+use super::EXP;
+use crate::validate::Context;
+
+/// Planes of frame `i` at least this large (pixels) are tested.
+pub const REPEAT_MIN_PIXELS: usize = 5000;
+/// Largest normal difference of a repeated plane, degrees.
+pub const REPEAT_MAX_DEG: f64 = 3.0;
+/// Largest offset difference of a repeated plane, metres.
+pub const REPEAT_MAX_OFFSET_M: f64 = 0.03;
+/// Frame gaps.
+pub const REPEAT_GAPS: [usize; 3] = [1, 5, 10];
+/// The issue's target at k = 5 (share of planes found again).
+const TARGET_K5: f64 = 0.85;
+
+/// A plane of a frame in world coordinates, with its size.
+#[derive(Debug, Clone, Copy)]
+pub struct WorldPlane {
+    /// The plane in world coordinates.
+    pub plane: Plane,
+    /// Its pixels in its frame.
+    pub pixels: usize,
+    /// Centroid of its pixels, world coordinates.
+    pub centroid: sl_core::nalgebra::Point3<f64>,
+}
+
+/// Repeatability at one gap.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Repeat {
+    /// Planes ≥ `REPEAT_MIN_PIXELS` tested.
+    pub planes: usize,
+    /// Of which found again.
+    pub repeated: usize,
+    /// Pixels of the tested planes.
+    pub pixels: usize,
+    /// Pixels of the repeated ones.
+    pub repeated_pixels: usize,
+}
+
+impl Repeat {
+    /// Share of planes found again.
+    pub fn plane_rate(&self) -> f64 {
+        self.repeated as f64 / self.planes.max(1) as f64
+    }
+    /// Share of pixels (of tested planes) on planes found again.
+    pub fn pixel_rate(&self) -> f64 {
+        self.repeated_pixels as f64 / self.pixels.max(1) as f64
+    }
+}
+
+/// Whether `b` is the plane `a` within the tolerances (either orientation): normals within
+/// [`REPEAT_MAX_DEG`], `a`'s centroid within [`REPEAT_MAX_OFFSET_M`] of `b`.
+pub fn same_plane(a: &WorldPlane, b: &Plane) -> bool {
+    let c = a.plane.normal.dot(&b.normal).abs();
+    c.clamp(-1.0, 1.0).acos().to_degrees() <= REPEAT_MAX_DEG
+        && b.signed_distance_m(&a.centroid).abs() <= REPEAT_MAX_OFFSET_M
+}
+
+/// Repeatability of per-frame world planes at gap `k`.
+pub fn repeatability(frames: &[Vec<WorldPlane>], k: usize) -> Repeat {
+    let mut r = Repeat::default();
+    for i in 0..frames.len().saturating_sub(k) {
+        for p in frames[i].iter().filter(|p| p.pixels >= REPEAT_MIN_PIXELS) {
+            r.planes += 1;
+            r.pixels += p.pixels;
+            if frames[i + k].iter().any(|q| same_plane(p, &q.plane)) {
+                r.repeated += 1;
+                r.repeated_pixels += p.pixels;
+            }
+        }
+    }
+    r
+}
+
+/// A posed depth sequence.
+struct Sequence {
+    name: &'static str,
+    camera: Camera,
+    frames: Vec<(PathBuf, Pose)>,
+    units_per_m: f64,
+}
+
+/// The 200-frame TUM fr1/rpy: `depth.txt` associated with `groundtruth.txt` (20 ms).
+fn tum200(data: &Path) -> Result<Option<Sequence>> {
+    let dir = data.join("tum-fr1-rpy-200");
+    let list = dir.join("depth.txt");
+    if !list.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&list).with_context(|| list.display().to_string())?;
+    let depth: Vec<(f64, PathBuf)> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .filter_map(|l| {
+            let mut it = l.split_whitespace();
+            let t: f64 = it.next()?.parse().ok()?;
+            Some((t, dir.join(it.next()?)))
+        })
+        .collect();
+    let poses = sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt"))?;
+    let seq = sl_io::trajectory::associate(&depth, &poses, 0.02);
+    Ok(Some(Sequence {
+        name: "tum-fr1-rpy-200",
+        camera: Camera::preset("tum-fr1")?,
+        frames: seq
+            .frames
+            .into_iter()
+            .map(|f| (f.depth_path, f.pose))
+            .collect(),
+        units_per_m: 5000.0,
+    }))
+}
+
+/// The 50 7-Scenes red-kitchen frames with their poses.
+fn seven_scenes(data: &Path) -> Result<Option<Sequence>> {
+    let dir = data.join("7scenes-redkitchen");
+    if !dir.exists() {
+        return Ok(None);
+    }
+    let frames = sl_io::read_7scenes_sequence(&dir)?;
+    Ok(Some(Sequence {
+        name: "7scenes-redkitchen",
+        camera: Camera::preset("7-scenes")?,
+        frames: frames.into_iter().map(|f| (f.depth_path, f.pose)).collect(),
+        units_per_m: 1000.0,
+    }))
+}
+
+/// Per-sequence result.
+struct SeqResult {
+    name: &'static str,
+    frames: usize,
+    gaps: Vec<(usize, Repeat)>,
+    planes_per_frame: f64,
+    large_per_frame: f64,
+    worst_ms: f64,
+    worst_frame: String,
+}
+
+fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
+    let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
+    let opts = sl_io::ReadOptions::default().with_scale(seq.units_per_m);
+    let mut world = Vec::with_capacity(seq.frames.len());
+    let (mut planes, mut large) = (0usize, 0usize);
+    let (mut worst_ms, mut worst_frame) = (0f64, String::new());
+    for (path, pose) in &seq.frames {
+        let depth: DepthImage = sl_io::read_depth(path, &opts)?.depth;
+        let mut best = f64::INFINITY;
+        let mut seg = None;
+        for _ in 0..reps.max(1) {
+            let t = Instant::now();
+            let s = ex.extract_depth(&depth, &seq.camera)?;
+            best = best.min(t.elapsed().as_secs_f64() * 1e3);
+            seg = Some(s);
+        }
+        let seg = seg.context("no extraction")?;
+        if best > worst_ms {
+            worst_ms = best;
+            worst_frame = path
+                .file_name()
+                .map(|f| f.to_string_lossy().into_owned())
+                .unwrap_or_default();
+        }
+        planes += seg.planes.len();
+        large += seg
+            .planes
+            .iter()
+            .filter(|p| p.pixels >= REPEAT_MIN_PIXELS)
+            .count();
+        world.push(
+            seg.planes
+                .iter()
+                .map(|p| WorldPlane {
+                    plane: p.plane.transformed(pose),
+                    pixels: p.pixels,
+                    centroid: pose * p.centroid_m,
+                })
+                .collect::<Vec<_>>(),
+        );
+    }
+    let n = world.len().max(1) as f64;
+    Ok(SeqResult {
+        name: seq.name,
+        frames: world.len(),
+        gaps: REPEAT_GAPS
+            .iter()
+            .map(|&k| (k, repeatability(&world, k)))
+            .collect(),
+        planes_per_frame: planes as f64 / n,
+        large_per_frame: large as f64 / n,
+        worst_ms,
+        worst_frame,
+    })
+}
+
+/// Runs the repeatability benchmark and writes its section (skipped without the data).
+pub fn repeat(ctx: &mut Context) -> Result<()> {
+    const TITLE: &str = "Plane extraction: real-frame repeatability (issue 12)";
+    let Some(data) = ctx.data_dir().map(Path::to_path_buf) else {
+        ctx.section(TITLE, "Skipped: ../shared/data not found.");
+        return Ok(());
+    };
+    let reps = if ctx.quick() { 1 } else { 5 };
+    let mut seqs = Vec::new();
+    for s in [tum200(&data)?, seven_scenes(&data)?].into_iter().flatten() {
+        seqs.push(s);
+    }
+    if seqs.is_empty() {
+        ctx.section(
+            TITLE,
+            "Skipped: neither tum-fr1-rpy-200 nor 7scenes-redkitchen found.",
+        );
+        return Ok(());
+    }
+    let mut md = format!(
+        "Planes of at least {REPEAT_MIN_PIXELS} pixels in frame i, found again in frame i + k \
+         (both moved to world coordinates with the ground-truth poses; normal within \
+         {REPEAT_MAX_DEG}°, the centroid of frame i's plane within {:.0} cm of frame i + k's plane). Default parameters. *planes* = share of the \
+         tested planes found again, *pixels* = share of their pixels. Time: worst frame of the \
+         sequence, best of {reps} runs on one thread, in validate's build on a shared machine (the \
+         reference timing is `cargo run --release -p sl-planes --example planes_timing -- sweep`).\n\n\
+         | sequence | frames | k | planes tested | found again | planes | pixels |\n|---|---|---|---|---|---|---|\n",
+        REPEAT_MAX_OFFSET_M * 100.0
+    );
+    let mut results = Vec::new();
+    for s in &seqs {
+        results.push(run_sequence(s, reps)?);
+    }
+    for r in &results {
+        for (k, g) in &r.gaps {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {k} | {} | {} | {:.1} % | {:.1} % |",
+                r.name,
+                r.frames,
+                g.planes,
+                g.repeated,
+                100.0 * g.plane_rate(),
+                100.0 * g.pixel_rate()
+            );
+            ctx.row(
+                EXP,
+                &format!("{} repeat k={k} planes", r.name),
+                g.plane_rate(),
+                "",
+            );
+            ctx.row(
+                EXP,
+                &format!("{} repeat k={k} pixels", r.name),
+                g.pixel_rate(),
+                "",
+            );
+        }
+    }
+    md.push_str(
+        "\n| sequence | planes per frame | planes ≥ 5000 px per frame | worst frame ms | worst frame |\n|---|---|---|---|---|\n",
+    );
+    for r in &results {
+        let _ = writeln!(
+            md,
+            "| {} | {:.2} | {:.2} | {:.2} | {} |",
+            r.name, r.planes_per_frame, r.large_per_frame, r.worst_ms, r.worst_frame
+        );
+        ctx.row(
+            EXP,
+            &format!("{} planes per frame", r.name),
+            r.planes_per_frame,
+            "",
+        );
+        ctx.row(
+            EXP,
+            &format!("{} worst frame time", r.name),
+            r.worst_ms,
+            "ms",
+        );
+    }
+    if let Some(tum) = results.iter().find(|r| r.name == "tum-fr1-rpy-200")
+        && let Some((_, g)) = tum.gaps.iter().find(|(k, _)| *k == 5)
+    {
+        let rate = g.plane_rate();
+        let _ = writeln!(
+            md,
+            "\nIssue-12 target: ≥ {:.0} % of the TUM planes found again at k = 5 — {:.1} %, **{}**.",
+            100.0 * TARGET_K5,
+            100.0 * rate,
+            if rate >= TARGET_K5 { "met" } else { "not met" }
+        );
+    }
+    ctx.section(TITLE, md);
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sl_core::nalgebra::{Point3, Vector3};
+
+    fn wp(plane: Plane, pixels: usize) -> WorldPlane {
+        WorldPlane {
+            plane,
+            pixels,
+            centroid: plane.project(&Point3::origin()),
+        }
+    }
+
+    #[test]
+    fn same_plane_tolerances() {
+        let a = Plane::new(Vector3::new(0.0, 0.0, 1.0), -2.0).unwrap();
+        let tilt = 2.5f64.to_radians();
+        let b = Plane::new(Vector3::new(tilt.sin(), 0.0, tilt.cos()), -2.02).unwrap();
+        assert!(same_plane(&wp(a, 1), &b));
+        assert!(same_plane(&wp(a, 1), &b.flipped()));
+        let far = Plane::new(Vector3::new(0.0, 0.0, 1.0), -2.04).unwrap();
+        assert!(!same_plane(&wp(a, 1), &far));
+        let t = 3.5f64.to_radians();
+        let tilted = Plane::new(Vector3::new(t.sin(), 0.0, t.cos()), -2.0).unwrap();
+        assert!(!same_plane(&wp(a, 1), &tilted));
+        let frames = vec![vec![wp(a, 6000), wp(far, 100)], vec![wp(b, 6000)]];
+        let r = repeatability(&frames, 1);
+        assert_eq!((r.planes, r.repeated, r.pixels), (1, 1, 6000));
+    }
+}
