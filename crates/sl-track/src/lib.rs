@@ -51,7 +51,7 @@
 //! assert_eq!(first.status, TrackStatus::Initialised);
 //! let second = tracker.track(&render(&moved)?, None)?;
 //! assert_eq!(second.status, TrackStatus::Tracked);
-//! let err = (second.pose.0.translation.vector - moved.translation.vector).norm();
+//! let err = (second.pose.translation() - moved.translation.vector).norm();
 //! assert!(err < 1e-3, "translation error {err} m");
 //! # let _: CameraToWorld = second.pose;
 //! # Ok::<(), Box<dyn std::error::Error>>(())
@@ -61,7 +61,7 @@
 pub mod depth_motion;
 pub mod error;
 pub mod motion;
-//TMP pub mod track;
+pub mod track;
 mod verify;
 
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
@@ -73,6 +73,6 @@ pub use motion::{
 };
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};
-//TMP pub use track::{
-//TMP    FrameResult, ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode,
-//TMP };
+pub use track::{
+   FrameResult, ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode,
+};
