@@ -68,6 +68,9 @@ enum Command {
     /// Camera motion between two depth frames from matched planes (section 3.5), optionally
     /// refined by point-to-plane ICP.
     Motion(cmd::motion::Args),
+    /// Track the camera through a raw depth recording (no poses given): noise-weighted
+    /// point-to-plane tracking, fusion of every tracked frame, trajectory and mesh output.
+    Track(cmd::track::Args),
     /// List the camera presets `--camera NAME` accepts: intrinsics, baseline, disparity
     /// sub-pixel steps, noise, range and the source of the numbers.
     Cameras(cmd::cameras::Args),
@@ -141,6 +144,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Filter(a) => cmd::filter::run(a),
         Command::Planes(a) => cmd::planes::run(a),
         Command::Motion(a) => cmd::motion::run(a),
+        Command::Track(a) => cmd::track::run(a),
         Command::Cameras(a) => cmd::cameras::run(a),
     }
 }

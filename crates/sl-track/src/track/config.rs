@@ -62,9 +62,11 @@ pub struct TrackerConfig {
     pub gate_sigmas: f64,
     /// Metric allowance of the gate at full resolution, metres (doubled per coarser level).
     pub allowance_fine_m: f64,
-    /// Largest angle between a frame normal and its reference normal, degrees. Normals from
-    /// central differences are noisy at distance (σ_Z over two pixel footprints: about 40° at
-    /// 3 m for a Kinect), so the gate is loose; it separates the two sides of thin objects.
+    /// Largest angle between a frame normal and its reference normal where the normals are
+    /// precise, degrees. Normals from central differences are noisy at distance, so the gate
+    /// widens to 3× the normals' noise from the sensor model (σ_Z(z)·f/(4·z) per normal over
+    /// ±2 pixels, √2 for two: 42° at 1 m, 60° at 2 m for a Kinect); it separates the two
+    /// sides of thin objects nearby.
     pub max_normal_angle_deg: f64,
     /// Threshold of the Huber kernel on the normalised residual.
     pub huber_k: f64,
@@ -97,7 +99,7 @@ impl Default for TrackerConfig {
             weighting: WeightMode::InvVar,
             gate_sigmas: 3.0,
             allowance_fine_m: 0.01,
-            max_normal_angle_deg: 45.0,
+            max_normal_angle_deg: 30.0,
             huber_k: 2.0,
             z_ref_m: 1.0,
             min_inlier_fraction: 0.3,

@@ -209,7 +209,8 @@ impl Tracker {
             }
         }
         if first.failure.is_some() && self.cfg.plane_fallback {
-            let planes = motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
+            let planes =
+                motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
                 let start = last * m;
                 let again = self.align(&start, reference);
@@ -240,7 +241,11 @@ impl Tracker {
                 TrackStatus::Lost
             }
         };
-        let pose = if result.is_tracked() { first.pose } else { last };
+        let pose = if result.is_tracked() {
+            first.pose
+        } else {
+            last
+        };
         Ok(FrameResult {
             status: result,
             pose: CameraToWorld::from_isometry(pose),
@@ -337,7 +342,7 @@ impl Tracker {
                 }
                 pose = solve::apply(&pose, &xi, &centre);
                 let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
-                if w < 1e-5 && v < 1e-5 {
+                if w < 1e-4 && v < 1e-4 {
                     break;
                 }
             }

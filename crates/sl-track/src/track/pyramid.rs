@@ -83,8 +83,11 @@ fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &Senso
         });
 }
 
-/// Vertex and normal maps of one level from its depth.
-fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel) {
+/// Vertex and normal maps of one level from its depth. Normals are central differences over
+/// `±r` pixels: Kinect depth is quantised into terraces (1 cm steps at 2 m) and one-pixel
+/// differences give normals tens of degrees off; at full resolution `r = 2` (the coarser levels
+/// are already averaged, `r = 1`).
+fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: usize) {
     let (w, h) = (k.width, k.height);
     let nan_p = Point3::new(f32::NAN, f32::NAN, f32::NAN);
     let nan_n = Vector3::new(f32::NAN, f32::NAN, f32::NAN);
@@ -115,7 +118,7 @@ fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel) {
         .for_each(|(y, row)| {
             for (x, n) in row.iter_mut().enumerate() {
                 *n = nan_n;
-                if x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+                if x < r || y < r || x + r >= w || y + r >= h {
                     continue;
                 }
                 let i = y * w + x;
@@ -125,13 +128,16 @@ fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel) {
                 }
                 // A jump larger than a surface at 80° to the line of sight plus 3σ of noise is
                 // a depth edge.
-                let gate = z / fx * MAX_SLANT_TAN + 3.0 * c * z * z;
-                let nb = [i - 1, i + 1, i - w, i + w];
-                if nb.iter().any(|&j| !(depth[j] > 0.0) || (depth[j] - z).abs() > gate) {
+                let gate = r as f32 * z / fx * MAX_SLANT_TAN + 3.0 * c * z * z;
+                let nb = [i - r, i + r, i - r * w, i + r * w];
+                if nb
+                    .iter()
+                    .any(|&j| !(depth[j] > 0.0) || (depth[j] - z).abs() > gate)
+                {
                     continue;
                 }
-                let dx = points[i + 1] - points[i - 1];
-                let dy = points[i + w] - points[i - w];
+                let dx = points[i + r] - points[i - r];
+                let dy = points[i + r * w] - points[i - r * w];
                 let m = dx.cross(&dy);
                 let len = m.norm();
                 if !(len > 0.0) {
@@ -173,7 +179,7 @@ impl Pyramid {
             }
             let lv = &mut self.levels[l];
             lv.k = Some(kl);
-            vertices_normals(lv, &kl, sensor);
+            vertices_normals(lv, &kl, sensor, if l == 0 { 2 } else { 1 });
         }
         Ok(())
     }

@@ -2,7 +2,9 @@
 //! a pyramid level's points with the reference maps, the 6×6 normal equations summed per row in
 //! parallel (rayon, no allocation per pixel), and the SE(3) update.
 
-use nalgebra::{Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{
+    Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+};
 use rayon::prelude::*;
 use sl_core::SensorModel;
 
@@ -118,6 +120,8 @@ pub(crate) fn pass(
     let (fx, fy, cx, cy) = (kr.fx as f32, kr.fy as f32, kr.cx as f32, kr.cy as f32);
     let (rw, rh) = (kr.width as f32, kr.height as f32);
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
+    // Focal length of the full-resolution frame (normals are computed there).
+    let fl = kr.fx as f32;
     let gate_sigmas = cfg.gate_sigmas as f32;
     let huber_k = cfg.huber_k as f32;
     let uniform_sigma = sensor.sigma_z(cfg.z_ref_m) as f32;
@@ -150,13 +154,18 @@ pub(crate) fn pass(
                 }
                 let q = reference.points[j].coords;
                 let nw = rot * nc;
-                if nw.dot(&n) < p.min_cos {
+                // The normal gate widens with the normals' own noise: central differences over
+                // ±2 pixels at depth z have an angular error of about σ_Z(z)·f/(2·2·z) each
+                // (√2 for two normals), gated at 3σ and never tighter than `min_cos`.
+                let z = pc.z;
+                let tan_g = 3.0 * std::f32::consts::SQRT_2 * c * z * fl / 4.0;
+                let cos_g = (1.0 / (1.0 + tan_g * tan_g).sqrt()).min(p.min_cos);
+                if nw.dot(&n) < cos_g {
                     continue;
                 }
                 let diff = xw - q;
                 let r = n.dot(&diff);
                 // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|.
-                let z = pc.z;
                 let ray_len = pc.coords.norm();
                 let cos = n.dot(&(rot * pc.coords)) / ray_len;
                 let s_src = c * z * z * cos;
@@ -206,7 +215,11 @@ pub(crate) fn step(s: &Sums) -> Option<Vector6<f64>> {
 }
 
 /// Applies a step about `centre`: `T ← C·exp(ξ)·C⁻¹·T` with `C` the translation to the centre.
-pub(crate) fn apply(pose: &Isometry3<f64>, xi: &Vector6<f64>, centre: &Vector3<f64>) -> Isometry3<f64> {
+pub(crate) fn apply(
+    pose: &Isometry3<f64>,
+    xi: &Vector6<f64>,
+    centre: &Vector3<f64>,
+) -> Isometry3<f64> {
     let w = Vector3::new(xi[0], xi[1], xi[2]);
     let v = Vector3::new(xi[3], xi[4], xi[5]);
     let rot = UnitQuaternion::from_scaled_axis(w);

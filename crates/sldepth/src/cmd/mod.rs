@@ -10,3 +10,4 @@ pub mod motion;
 pub mod noise_stats;
 pub mod planes;
 pub mod simulate;
+pub mod track;
