@@ -21,6 +21,10 @@
 //!   (see [`TsdfConfig`]).
 //! * [`TsdfVolume::extract_mesh`]: marching cubes across block borders, indexed mesh with shared
 //!   vertices, normals from the TSDF gradient and per-vertex confidence ([`Mesh`]).
+//! * [`TsdfVolume::raycast`] ([`RaycastConfig`], [`Raycast`]): the fused surface seen from a
+//!   pose — depth, world points, normals from the trilinear gradient and fused weights of the
+//!   first front-facing zero crossing of every pixel's ray, rows in parallel;
+//!   [`TsdfVolume::raycast_into`] reuses the buffers of a tracking loop.
 //! * [`TsdfVolume::slice`]: cross-sections of `F` with the zero crossing (the paper's Fig. 7).
 //! * [`io`]: PLY meshes and PNG images through `sl-io`. (A software mesh renderer and
 //!   mesh-accuracy statistics for reports are evaluation tools: they live in `sl-eval`.)
@@ -87,6 +91,7 @@ mod mc_table;
 pub mod mesh;
 mod par;
 pub mod params;
+pub mod raycast;
 pub mod slice;
 pub mod volume;
 
@@ -96,6 +101,7 @@ pub use io::CONFIDENCE_PROPERTY;
 pub use mesh::{ExtractOptions, MeshConfig};
 #[allow(deprecated)]
 pub use params::{TsdfConfig, TsdfParams, WeightMode};
+pub use raycast::{Raycast, RaycastConfig};
 /// The mesh type [`TsdfVolume::extract_mesh`] returns (sl-core's, re-exported).
 pub use sl_core::{Mesh, Topology};
 pub use slice::{Axis, Slice, SliceSpec};

@@ -1,0 +1,140 @@
+//! Where rays need to look: every allocated block is projected into the image, and each tile
+//! of `TILE × TILE` pixels keeps the smallest and largest camera depth of the blocks that may
+//! cover it (InfiniTAM's range image, at tile resolution). A ray marches only through its
+//! tile's interval, so the empty space between the camera and the first block, and the
+//! unallocated space beyond the last, cost nothing.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use sl_core::Intrinsics;
+
+use super::RaycastConfig;
+use super::march::RayFrame;
+use crate::error::{Result, TsdfError};
+use crate::hash::unpack;
+use crate::volume::{BLOCK_SIDE, TsdfVolume};
+
+/// Per-tile depth intervals, reused across frames (cloning gives an empty one: it is scratch
+/// space, not a result).
+#[derive(Debug, Default)]
+pub(super) struct Tiles(Vec<AtomicU32>);
+
+impl Clone for Tiles {
+    fn clone(&self) -> Self {
+        Self::default()
+    }
+}
+
+/// Tile edge, pixels.
+pub(super) const TILE: usize = 8;
+
+/// Tiles per row of an image `width` pixels wide.
+fn tiles_x(width: usize) -> usize {
+    width.div_ceil(TILE)
+}
+
+/// Fills `tiles` (two `f32` bit patterns per tile: nearest and farthest depth, metres) with the
+/// depth intervals of the allocated blocks seen by `frame`. Depths are positive, so their bit
+/// patterns order like the values and the parallel updates are atomic integer min / max.
+pub(super) fn tile_ranges(
+    vol: &TsdfVolume,
+    frame: &RayFrame,
+    k: &Intrinsics,
+    config: &RaycastConfig,
+    tiles: &mut Tiles,
+) -> Result<()> {
+    let tiles = &mut tiles.0;
+    let (tx, ty) = (tiles_x(k.width), k.height.div_ceil(TILE));
+    let n = 2 * tx * ty;
+    if tiles.len() != n {
+        tiles.clear();
+        tiles
+            .try_reserve_exact(n)
+            .map_err(|_| TsdfError::OutOfMemory("raycast tiles"))?;
+        tiles.resize_with(n, || AtomicU32::new(0));
+    }
+    let empty_lo = f32::INFINITY.to_bits();
+    for pair in tiles.chunks_exact_mut(2) {
+        *pair[0].get_mut() = empty_lo;
+        *pair[1].get_mut() = 0;
+    }
+    let min_z = config.min_depth_m as f32;
+    let max_z = config.max_depth_m as f32;
+    let side = (BLOCK_SIDE as f64 * vol.params().voxel_m) as f32;
+    let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
+    let (w, h) = (k.width as f32, k.height as f32);
+    let tiles: &[AtomicU32] = tiles;
+    let update = |i0: usize, i1: usize, j0: usize, j1: usize, lo: f32, hi: f32| {
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                let t = 2 * (j * tx + i);
+                tiles[t].fetch_min(lo.to_bits(), Ordering::Relaxed);
+                tiles[t + 1].fetch_max(hi.to_bits(), Ordering::Relaxed);
+            }
+        }
+    };
+    vol.keys().par_chunks(256).for_each(|keys| {
+        for &key in keys {
+            let b = unpack(key);
+            let o = Point3::new(b[0] as f32, b[1] as f32, b[2] as f32) * side;
+            let (mut zlo, mut zhi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let (mut ulo, mut uhi) = (f32::INFINITY, f32::NEG_INFINITY);
+            let (mut vlo, mut vhi) = (f32::INFINITY, f32::NEG_INFINITY);
+            for c in 0..8 {
+                let d = Vector3::new((c & 1) as f32, ((c >> 1) & 1) as f32, (c >> 2) as f32);
+                let p = frame.world_to_camera(&(o + d * side));
+                zlo = zlo.min(p.z);
+                zhi = zhi.max(p.z);
+                let inv = 1.0 / p.z;
+                let (u, v) = (fx * p.x * inv + cx, fy * p.y * inv + cy);
+                ulo = ulo.min(u);
+                uhi = uhi.max(u);
+                vlo = vlo.min(v);
+                vhi = vhi.max(v);
+            }
+            if !(zhi >= min_z && zlo <= max_z) {
+                continue; // behind the camera or beyond the range (or NaN)
+            }
+            if zlo < min_z {
+                // Straddles the near plane: its projection is unbounded, so every tile may see it.
+                update(0, tx - 1, 0, ty - 1, min_z, zhi.min(max_z));
+                continue;
+            }
+            // Pixel centres x with ulo ≤ x ≤ uhi (likewise y).
+            if !(uhi >= 0.0 && ulo <= w - 1.0 && vhi >= 0.0 && vlo <= h - 1.0) {
+                continue;
+            }
+            let px = |u: f32, lim: f32| u.clamp(0.0, lim) as usize;
+            let (x0, x1) = (px(ulo.ceil(), w - 1.0), px(uhi.floor(), w - 1.0));
+            let (y0, y1) = (px(vlo.ceil(), h - 1.0), px(vhi.floor(), h - 1.0));
+            if x0 > x1 || y0 > y1 {
+                continue;
+            }
+            update(
+                x0 / TILE,
+                x1 / TILE,
+                y0 / TILE,
+                y1 / TILE,
+                zlo,
+                zhi.min(max_z),
+            );
+        }
+    });
+    Ok(())
+}
+
+/// The depth interval `[lo, hi]` (metres) pixel `(x, y)` marches through (`lo > hi`: nothing
+/// to see).
+#[inline]
+pub(super) fn pixel_range(tiles: &Tiles, width: usize, x: usize, y: usize) -> (f32, f32) {
+    let t = 2 * ((y / TILE) * tiles_x(width) + x / TILE);
+    match (tiles.0.get(t), tiles.0.get(t + 1)) {
+        (Some(lo), Some(hi)) => (
+            f32::from_bits(lo.load(Ordering::Relaxed)),
+            f32::from_bits(hi.load(Ordering::Relaxed)),
+        ),
+        _ => (1.0, 0.0),
+    }
+}

@@ -1,0 +1,321 @@
+//! Raycast tests: analytic TSDFs of a plane and a sphere (depth and normal errors against the
+//! exact intersections), a scene fused from simulated frames, buffer reuse, thread-count
+//! independence and argument checks.
+
+use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, CameraToWorld, Intrinsics};
+
+use super::*;
+use crate::TsdfConfig;
+
+fn small_camera() -> Intrinsics {
+    Camera::kinect_v1().intrinsics.scaled(0.25).unwrap() // 160x120, f = 145
+}
+
+fn config(voxel_m: f64, trunc_m: f64) -> TsdfConfig {
+    TsdfConfig {
+        voxel_m,
+        trunc_m,
+        ..TsdfConfig::default()
+    }
+}
+
+/// The exact ray parameter (camera depth) of pixel `(x, y)` hitting a surface, and errors.
+struct Errors {
+    hits: usize,
+    expected: usize,
+    max_depth_err_m: f64,
+    rms_depth_err_m: f64,
+    max_normal_err_deg: f64,
+    mean_normal_err_deg: f64,
+}
+
+/// Compares a raycast with exact intersections: `exact(origin, dir)` gives the camera depth
+/// of the hit and the world unit normal there (None: no hit, or too grazing to judge).
+fn compare(
+    r: &Raycast,
+    k: &Intrinsics,
+    pose: &CameraToWorld,
+    exact: impl Fn(&Point3<f64>, &Vector3<f64>) -> Option<(f64, Vector3<f64>)>,
+) -> Errors {
+    let c = pose.centre();
+    let mut e = Errors {
+        hits: 0,
+        expected: 0,
+        max_depth_err_m: 0.0,
+        rms_depth_err_m: 0.0,
+        max_normal_err_deg: 0.0,
+        mean_normal_err_deg: 0.0,
+    };
+    for y in 0..k.height {
+        for x in 0..k.width {
+            let dir = pose.transform_vector(&k.ray(x as f64, y as f64));
+            let Some((z, n)) = exact(&c, &dir) else {
+                continue;
+            };
+            e.expected += 1;
+            let i = y * k.width + x;
+            let got = f64::from(r.depth.data()[i]);
+            if got <= 0.0 {
+                continue;
+            }
+            e.hits += 1;
+            let dz = (got - z).abs();
+            e.max_depth_err_m = e.max_depth_err_m.max(dz);
+            e.rms_depth_err_m += dz * dz;
+            let p = r.points[i].cast::<f64>();
+            let expect_p = c + dir * z;
+            assert!((p - expect_p).norm() < 1e-2, "point {p:?} vs {expect_p:?}");
+            let got_n = r.normals[i].cast::<f64>();
+            assert!((got_n.norm() - 1.0).abs() < 1e-4);
+            let ang = got_n.dot(&n).clamp(-1.0, 1.0).acos().to_degrees();
+            e.max_normal_err_deg = e.max_normal_err_deg.max(ang);
+            e.mean_normal_err_deg += ang;
+            assert!(r.weights[i] > 0.0);
+        }
+    }
+    if e.hits > 0 {
+        e.rms_depth_err_m = (e.rms_depth_err_m / e.hits as f64).sqrt();
+        e.mean_normal_err_deg /= e.hits as f64;
+    }
+    e
+}
+
+fn tilted_pose() -> CameraToWorld {
+    CameraToWorld::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.05, -0.03, 0.02),
+        UnitQuaternion::from_euler_angles(0.08, -0.12, 0.05),
+    ))
+}
+
+#[test]
+fn plane_field_depth_and_normals_are_exact_to_a_small_fraction_of_a_voxel() {
+    let (v, trunc) = (0.01, 0.04);
+    let n = Vector3::new(0.3, 0.2, -1.0).normalize(); // faces the camera at the origin
+    let p0 = Point3::new(0.0, 0.0, 1.2);
+    let vol = TsdfVolume::from_field(config(v, trunc), [-1.0, -1.0, 0.2], [1.0, 1.0, 2.0], |p| {
+        let sd = n.dot(&(p - p0));
+        (sd >= -trunc).then_some(sd.min(trunc) as f32)
+    })
+    .unwrap();
+    let k = small_camera();
+    let pose = tilted_pose();
+    let r = vol.raycast(&pose, &k, &RaycastConfig::default()).unwrap();
+    let e = compare(&r, &k, &pose, |c, dir| {
+        let t = n.dot(&(p0 - c)) / n.dot(dir);
+        let hit = c + dir * t;
+        // Only where the whole band around the hit is inside the field's box.
+        let inside = hit.x.abs() < 0.9 && hit.y.abs() < 0.9 && hit.z > 0.3 && hit.z < 1.9;
+        (t > 0.0 && inside).then_some((t, n))
+    });
+    eprintln!(
+        "plane: {}/{} hits, depth error max {:.2e} m rms {:.2e} m, normal error max {:.4}°",
+        e.hits, e.expected, e.max_depth_err_m, e.rms_depth_err_m, e.max_normal_err_deg
+    );
+    assert_eq!(e.hits, e.expected);
+    assert!(e.expected > k.pixel_count() * 9 / 10);
+    // The trilinear interpolant of an affine field is exact: only f32 rounding remains.
+    assert!(e.max_depth_err_m < 0.01 * v, "{}", e.max_depth_err_m);
+    assert!(e.max_normal_err_deg < 0.1, "{}", e.max_normal_err_deg);
+}
+
+#[test]
+fn sphere_field_depth_and_normals_are_accurate() {
+    let (v, trunc) = (0.01, 0.04);
+    let (c0, rad) = (Point3::new(0.05, -0.02, 1.3), 0.35);
+    let vol = TsdfVolume::from_field(config(v, trunc), [-0.5, -0.5, 0.8], [0.5, 0.5, 1.8], |p| {
+        let sd = (p - c0).norm() - rad;
+        (sd >= -trunc).then_some(sd.min(trunc) as f32)
+    })
+    .unwrap();
+    let k = small_camera();
+    let pose = tilted_pose();
+    let r = vol.raycast(&pose, &k, &RaycastConfig::default()).unwrap();
+    let e = compare(&r, &k, &pose, |c, dir| {
+        // Ray-sphere: |c + dir·t − c0|² = r².
+        let oc = c - c0;
+        let (a, b, cc) = (dir.dot(dir), 2.0 * dir.dot(&oc), oc.dot(&oc) - rad * rad);
+        let disc = b * b - 4.0 * a * cc;
+        if disc <= 0.0 {
+            return None;
+        }
+        let t = (-b - disc.sqrt()) / (2.0 * a);
+        let nrm = (c + dir * t - c0) / rad;
+        // Judge only where the ray meets the sphere at least 30° from grazing.
+        (-nrm.dot(&dir.normalize()) > 0.5).then_some((t, nrm))
+    });
+    eprintln!(
+        "sphere: {}/{} hits, depth error max {:.2e} m rms {:.2e} m, normal error max {:.3}° mean {:.3}°",
+        e.hits,
+        e.expected,
+        e.max_depth_err_m,
+        e.rms_depth_err_m,
+        e.max_normal_err_deg,
+        e.mean_normal_err_deg
+    );
+    assert_eq!(e.hits, e.expected);
+    assert!(e.expected > 1000);
+    assert!(e.max_depth_err_m < 0.1 * v, "{}", e.max_depth_err_m);
+    assert!(e.rms_depth_err_m < 0.03 * v, "{}", e.rms_depth_err_m);
+    // The gradient of a trilinear cell is first-order accurate on a curved field: its error is
+    // of the order of the angle a voxel subtends from the centre of curvature, h/(2r) rad
+    // (0.82° here) on average, at most twice that.
+    let bound_deg = (v / (2.0 * rad)).to_degrees();
+    assert!(
+        e.mean_normal_err_deg < bound_deg,
+        "{}",
+        e.mean_normal_err_deg
+    );
+    assert!(
+        e.max_normal_err_deg < 2.0 * bound_deg,
+        "{}",
+        e.max_normal_err_deg
+    );
+}
+
+#[test]
+fn only_front_faces_are_hit_and_empty_space_gives_nothing() {
+    let (v, trunc) = (0.01, 0.04);
+    // A wall at z = 1 whose positive side faces away from the camera (+z): seen from the
+    // origin the ray meets − then +, a back face.
+    let vol = TsdfVolume::from_field(config(v, trunc), [-1.0, -1.0, 0.8], [1.0, 1.0, 1.2], |p| {
+        let sd = p.z - 1.0;
+        (sd >= -trunc).then_some(sd.min(trunc) as f32)
+    })
+    .unwrap();
+    let k = small_camera();
+    let r = vol
+        .raycast(&CameraToWorld::identity(), &k, &RaycastConfig::default())
+        .unwrap();
+    assert_eq!(r.hit_count(), 0);
+    assert!(r.depth.data().iter().all(|&d| d == 0.0));
+    assert!(r.points.iter().all(|p| p.x.is_nan()));
+    // An empty volume: no hits.
+    let empty = TsdfVolume::new(config(v, trunc)).unwrap();
+    let r = empty
+        .raycast(&CameraToWorld::identity(), &k, &RaycastConfig::default())
+        .unwrap();
+    assert_eq!((r.width, r.height, r.hit_count()), (k.width, k.height, 0));
+}
+
+/// A room with a sphere, fused from exact simulated frames.
+fn fused_room(k: &Intrinsics, v: f64, trunc: f64) -> (TsdfVolume, sl_noise::sim::Scene) {
+    use sl_noise::sim::{Plane, Scene, Sphere};
+    let mut scene = Scene::new();
+    for (n, d) in [
+        (Vector3::x(), 1.5),
+        (-Vector3::x(), 1.5),
+        (Vector3::z(), 2.5),
+        (Vector3::y(), 1.0),
+        (-Vector3::y(), 1.2),
+    ] {
+        scene.add(Plane::from_normal_offset(n, d).unwrap());
+    }
+    scene.add(Sphere::new(Point3::new(0.2, 0.3, 1.6), 0.3).unwrap());
+    let mut vol = TsdfVolume::new(config(v, trunc)).unwrap();
+    for i in 0..5 {
+        let pose = Isometry3::new(
+            Vector3::new(-0.2 + 0.1 * i as f64, 0.0, 0.0),
+            Vector3::new(0.0, 0.06 * i as f64 - 0.12, 0.0),
+        );
+        let depth = scene.render(k, &pose).depth;
+        vol.integrate(&depth, k, &CameraToWorld::from_isometry(pose))
+            .unwrap();
+    }
+    (vol, scene)
+}
+
+#[test]
+fn fused_scene_raycast_matches_the_exact_depth_from_a_new_pose() {
+    let k = small_camera();
+    let v = 0.01;
+    let (vol, scene) = fused_room(&k, v, 0.04);
+    // A pose between the fused ones.
+    let iso = Isometry3::new(Vector3::new(0.05, 0.02, 0.0), Vector3::new(0.01, 0.03, 0.0));
+    let pose = CameraToWorld::from_isometry(iso);
+    let r = vol.raycast(&pose, &k, &RaycastConfig::default()).unwrap();
+    let truth = scene.render(&k, &iso).depth;
+    let mut errs = Vec::new();
+    let mut valid = 0;
+    for (&t, &d) in truth.data().iter().zip(r.depth.data()) {
+        if t > 0.0 && t < 4.0 {
+            valid += 1;
+            if d > 0.0 {
+                errs.push((f64::from(d) - f64::from(t)).abs());
+            }
+        }
+    }
+    errs.sort_by(f64::total_cmp);
+    let med = errs[errs.len() / 2];
+    let p95 = errs[errs.len() * 95 / 100];
+    eprintln!(
+        "fused room: {}/{valid} hits, |depth error| median {med:.2e} m, p95 {p95:.2e} m",
+        errs.len()
+    );
+    assert!(errs.len() * 100 >= valid * 97, "{} of {valid}", errs.len());
+    assert!(med < 0.1 * v, "{med}");
+    assert!(p95 < 0.5 * v, "{p95}");
+    // Normals face the camera (but in the room's corners and at the sphere's silhouette,
+    // where the fused fields of two surfaces meet).
+    let c = pose.centre().coords.cast::<f32>();
+    let away = r
+        .points
+        .iter()
+        .zip(&r.normals)
+        .filter(|(p, n)| p.x.is_finite() && n.dot(&(c - p.coords)) <= 0.0)
+        .count();
+    eprintln!("fused room: {away} normals facing away");
+    assert!(away * 1000 < r.hit_count(), "{away}");
+}
+
+#[test]
+fn raycast_into_reuses_buffers_and_threads_do_not_change_the_result() {
+    let k = small_camera();
+    let (vol, _) = fused_room(&k, 0.02, 0.08);
+    let pose = CameraToWorld::identity();
+    let cfg = RaycastConfig::default();
+    let a = vol.raycast(&pose, &k, &cfg).unwrap();
+    let mut out = Raycast::default();
+    vol.raycast_into(&pose, &k, &cfg, &mut out).unwrap();
+    let ptr = out.points.as_ptr();
+    vol.raycast_into(&pose, &k, &cfg, &mut out).unwrap();
+    assert_eq!(ptr, out.points.as_ptr(), "buffers reallocated");
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| vol.raycast(&pose, &k, &cfg).unwrap());
+    for r in [&out, &one] {
+        assert_eq!(a.depth.data(), r.depth.data());
+        assert_eq!(a.weights, r.weights);
+        let bits = |v: &[Vector3<f32>]| v.iter().map(|n| n.map(f32::to_bits)).collect::<Vec<_>>();
+        assert_eq!(bits(&a.normals), bits(&r.normals));
+    }
+    assert!(a.hit_count() > k.pixel_count() / 2);
+}
+
+#[test]
+fn bad_arguments_are_errors() {
+    let k = small_camera();
+    let vol = TsdfVolume::new(config(0.01, 0.04)).unwrap();
+    let pose = CameraToWorld::identity();
+    let cfg = RaycastConfig {
+        min_depth_m: 5.0,
+        ..RaycastConfig::default()
+    };
+    assert!(vol.raycast(&pose, &k, &cfg).is_err());
+    let cfg = RaycastConfig {
+        step_fraction: f64::NAN,
+        ..RaycastConfig::default()
+    };
+    assert!(vol.raycast(&pose, &k, &cfg).is_err());
+    let cfg = RaycastConfig {
+        min_step_voxels: 0.0,
+        ..RaycastConfig::default()
+    };
+    assert!(cfg.validate().is_err());
+    let far = CameraToWorld::from_isometry(Isometry3::translation(1e12, 0.0, 0.0));
+    assert!(vol.raycast(&far, &k, &RaycastConfig::default()).is_err());
+    let nan = CameraToWorld::from_isometry(Isometry3::translation(f64::NAN, 0.0, 0.0));
+    assert!(vol.raycast(&nan, &k, &RaycastConfig::default()).is_err());
+}
