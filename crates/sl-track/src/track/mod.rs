@@ -69,8 +69,10 @@ pub struct FrameResult {
     pub status: TrackStatus,
     /// The camera-to-world pose; for a lost frame the last good pose.
     pub pose: CameraToWorld,
-    /// Fraction of the frame's points (with a normal, full resolution) that are inliers at the
-    /// final pose.
+    /// Fraction of the frame's points (with a normal, full resolution) that land on a surface
+    /// of the reference at the final pose.
+    pub overlap_fraction: f64,
+    /// Fraction of those overlapping points that are inliers (within the gates).
     pub inlier_fraction: f64,
     /// RMS point-to-plane residual of the inliers, metres.
     pub rms_m: f64,
@@ -249,7 +251,8 @@ impl Tracker {
         Ok(FrameResult {
             status: result,
             pose: CameraToWorld::from_isometry(pose),
-            inlier_fraction: ratio(first.stats.inliers, first.stats.valid),
+            overlap_fraction: ratio(first.stats.associated, first.stats.valid),
+            inlier_fraction: ratio(first.stats.inliers, first.stats.associated),
             rms_m: (ratio(first.stats.r2_m2, first.stats.inliers)).sqrt(),
             rms_normalised: (ratio(first.stats.chi2, first.stats.inliers)).sqrt(),
             condition: first.condition,
@@ -271,6 +274,7 @@ impl Tracker {
             return FrameResult {
                 status: TrackStatus::Lost,
                 pose: self.initial_pose,
+                overlap_fraction: 0.0,
                 inlier_fraction: 0.0,
                 rms_m: 0.0,
                 rms_normalised: 0.0,
@@ -285,6 +289,7 @@ impl Tracker {
         FrameResult {
             status: TrackStatus::Initialised,
             pose: self.initial_pose,
+            overlap_fraction: 1.0,
             inlier_fraction: 1.0,
             rms_m: 0.0,
             rms_normalised: 0.0,
@@ -358,7 +363,7 @@ impl Tracker {
         let scale_m = mean_depth(level0);
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
-        let frac = ratio(stats.inliers, stats.valid);
+        let frac = ratio(stats.inliers, stats.associated);
         let failure = if (stats.inliers as usize) < self.min_points(0) {
             Some(format!("{} inliers, too few", stats.inliers))
         } else if frac < cfg.min_inlier_fraction {

@@ -111,6 +111,69 @@ impl ReferenceMaps {
             });
     }
 
+    /// Maps of a raycast of the fused model ([`sl_tsdf::TsdfVolume::raycast`]) seen from
+    /// `pose` with intrinsics `k`: the raycast's world points and normals, and for the variance
+    /// [`ReferenceMaps::model_variance_m2`] of the fused weight at the hit (the volume's
+    /// weights must be `inv-z4` normalised at `z_ref_m`).
+    pub fn from_model(
+        raycast: &sl_tsdf::Raycast,
+        pose: &CameraToWorld,
+        k: &Intrinsics,
+        sensor: &SensorModel,
+        z_ref_m: f64,
+    ) -> crate::Result<Self> {
+        let mut out = Self::empty(k);
+        out.set_from_model(raycast, pose, k, sensor, z_ref_m)?;
+        Ok(out)
+    }
+
+    /// [`ReferenceMaps::from_model`] into these maps, reusing the buffers.
+    pub fn set_from_model(
+        &mut self,
+        raycast: &sl_tsdf::Raycast,
+        pose: &CameraToWorld,
+        k: &Intrinsics,
+        sensor: &SensorModel,
+        z_ref_m: f64,
+    ) -> crate::Result<()> {
+        let n = k.width * k.height;
+        if raycast.width != k.width
+            || raycast.height != k.height
+            || raycast.points.len() != n
+            || raycast.normals.len() != n
+            || raycast.weights.len() != n
+        {
+            return Err(crate::TrackError::SizeMismatch {
+                expected_width: k.width,
+                expected_height: k.height,
+                width: raycast.width,
+                height: raycast.height,
+            });
+        }
+        self.pose = *pose;
+        self.intrinsics = *k;
+        self.points.clear();
+        self.points.extend_from_slice(&raycast.points);
+        self.normals.clear();
+        self.normals.extend_from_slice(&raycast.normals);
+        self.variance_m2.resize(n, 0.0);
+        let s2 = sensor.sigma_z(z_ref_m) as f32;
+        let s2 = s2 * s2;
+        self.variance_m2
+            .par_iter_mut()
+            .zip(raycast.weights.par_iter())
+            .zip(self.normals.par_iter_mut())
+            .for_each(|((v, w), nrm)| {
+                if *w > 0.0 && nrm.x.is_finite() {
+                    *v = s2 / *w;
+                } else {
+                    *v = 0.0;
+                    *nrm = Vector3::new(f32::NAN, f32::NAN, f32::NAN);
+                }
+            });
+        Ok(())
+    }
+
     /// The model's variance along the normal for a fused TSDF weight `weight` under 1/Z⁴
     /// weights normalised at `z_ref_m`: one observation at depth `Z` weighs
     /// `w = (z_ref/Z)⁴` and has variance `σ_Z(Z)² = σ_Z(z_ref)²·(Z/z_ref)⁴ = σ_Z(z_ref)²/w`,

@@ -19,6 +19,8 @@ pub(crate) struct Sums {
     g: [f64; 6],
     /// Points of the level with a valid normal.
     pub valid: f64,
+    /// Points that land on a reference pixel with a surface (the overlap).
+    pub associated: f64,
     /// Points associated and within the gates.
     pub inliers: f64,
     /// Σ of squared normalised residuals `(r/σ)²` of the inliers.
@@ -33,6 +35,7 @@ impl Sums {
             h: [0.0; 21],
             g: [0.0; 6],
             valid: 0.0,
+            associated: 0.0,
             inliers: 0.0,
             chi2: 0.0,
             r2_m2: 0.0,
@@ -47,6 +50,7 @@ impl Sums {
             *a += b;
         }
         self.valid += o.valid;
+        self.associated += o.associated;
         self.inliers += o.inliers;
         self.chi2 += o.chi2;
         self.r2_m2 += o.r2_m2;
@@ -153,6 +157,7 @@ pub(crate) fn pass(
                     continue;
                 }
                 let q = reference.points[j].coords;
+                s.associated += 1.0;
                 let nw = rot * nc;
                 // The normal gate widens with the normals' own noise: central differences over
                 // ±2 pixels at depth z have an angular error of about σ_Z(z)·f/(2·2·z) each

@@ -21,7 +21,8 @@ use sl_core::{Camera, CameraToWorld};
 use sl_io::depth::{ReadOptions, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume};
+use sl_track::ReferenceMaps;
+use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
 
 use crate::common::{
     InputArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits, parse_format,
@@ -69,6 +70,10 @@ pub struct Args {
     /// `uniform`.
     #[arg(long, value_name = "MODE", default_value = "inv-var")]
     pub weighting: String,
+    /// Track each frame against the previous tracked frame instead of the fused model's
+    /// raycast (frame-to-model, the default).
+    #[arg(long)]
+    pub frame_to_frame: bool,
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
@@ -237,16 +242,28 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(v) = env_f("SLDEPTH_TRACK_HUBER") {
         tcfg.huber_k = v;
     }
+    if let Some(v) = env_f("SLDEPTH_TRACK_COND") {
+        tcfg.min_condition = v;
+    }
     if let Some(v) = env_f("SLDEPTH_TRACK_MININL") {
         tcfg.min_inlier_fraction = v;
     }
     let mut tracker = Tracker::new(camera, tcfg)?;
+    tracker.set_initial_pose(CameraToWorld::identity());
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = limits().tsdf_budget_bytes;
     let mut volume = TsdfVolume::new(params)?;
+    let mut rc_cfg = RaycastConfig::default();
+    rc_cfg.min_depth_m = params.min_depth_m;
+    rc_cfg.max_depth_m = params.max_depth_m;
+    let mut raycast = Raycast::default();
+    let mut model = ReferenceMaps::empty(&k);
+    let mut have_model = false;
+    let mut raycast_ms = Vec::new();
+    let mut step_ms = Vec::new();
     let read_opts = ReadOptions {
         format: parse_format(&args.input)?,
         scale_units_per_m: Some(args.input.depth_scale.unwrap_or(default_scale)),
@@ -297,14 +314,15 @@ pub fn run(args: Args) -> Result<()> {
         }
         let t0 = Instant::now();
         let r = tracker
-            .track(&depth, None)
+            .track(&depth, have_model.then_some(&model))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
         track_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         counts[r.status as usize] += 1;
         if debug {
             errln!(
-                "frame {i}: {} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} it {} {:.1} ms {}",
+                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} it {} {:.1} ms {}",
                 r.status.as_str(),
+                r.overlap_fraction,
                 r.inlier_fraction,
                 r.rms_m,
                 r.rms_normalised,
@@ -320,12 +338,21 @@ pub fn run(args: Args) -> Result<()> {
                 .integrate(&depth, &k, &r.pose)
                 .with_context(|| format!("integrating {}", f.depth_path.display()))?;
             integrate_ms.push(t1.elapsed().as_secs_f64() * 1e3);
+            if !args.frame_to_frame {
+                // The model seen from this pose is the next frame's reference.
+                let t2 = Instant::now();
+                volume.raycast_into(&r.pose, &k, &rc_cfg, &mut raycast)?;
+                model.set_from_model(&raycast, &r.pose, &k, &camera.sensor, params.z_ref_m)?;
+                have_model = true;
+                raycast_ms.push(t2.elapsed().as_secs_f64() * 1e3);
+            }
             rows.push((t, Row::Pose(r.pose)));
         } else {
             lost_frames.push(i);
             let why = r.failure.unwrap_or_default();
             rows.push((t, Row::Lost(why)));
         }
+        step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         bar.set_message(format!("{} lost", lost_frames.len()));
         bar.inc(1);
     }
@@ -359,7 +386,9 @@ pub fn run(args: Args) -> Result<()> {
             "skipped_frames": skipped_frames,
             "recovered": counts[TrackStatus::Recovered as usize],
             "relocalised": counts[TrackStatus::Relocalised as usize],
-            "reference": "frame",
+            "reference": if args.frame_to_frame { "frame" } else { "model" },
+            "raycast_ms_median": round_to(median(&raycast_ms), 3),
+            "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
             "track_ms_median": round_to(tm, 3),
             "integrate_ms_median": round_to(im, 3),
