@@ -194,16 +194,17 @@ impl Tracker {
             return Ok(self.initialise(depth));
         };
         let reference = model.unwrap_or(&self.last_ref);
-        let predicted = if self.lost_run == 0 {
-            last * self.velocity
-        } else {
-            last
-        };
+        // Constant velocity, also across lost frames (the camera kept moving while they were
+        // lost): the last good pose moved by one step per frame since.
+        let mut predicted = last;
+        for _ in 0..=self.lost_run.min(30) {
+            predicted *= self.velocity;
+        }
         let mut iterations = 0;
         let mut first = self.align(&predicted, reference);
         iterations += first.iterations;
         let mut recovered = false;
-        if first.failure.is_some() && self.lost_run == 0 {
+        if first.failure.is_some() {
             let again = self.align(&last, reference);
             iterations += again.iterations;
             if again.failure.is_none() {
@@ -239,7 +240,11 @@ impl Tracker {
             }
             Some(_) => {
                 self.lost_run += 1;
-                self.velocity = Isometry3::identity();
+                // After a few lost frames the old velocity says little; relocalise from the
+                // last good pose.
+                if self.lost_run > 3 {
+                    self.velocity = Isometry3::identity();
+                }
                 TrackStatus::Lost
             }
         };

@@ -20,8 +20,8 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld};
 use sl_io::depth::{ReadOptions, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
-use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
 use sl_track::ReferenceMaps;
+use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
 
 use crate::common::{
