@@ -132,7 +132,7 @@ fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: 
                 let nb = [i - r, i + r, i - r * w, i + r * w];
                 if nb
                     .iter()
-                    .any(|&j| !(depth[j] > 0.0) || (depth[j] - z).abs() > gate)
+                    .any(|&j| depth[j] <= 0.0 || depth[j].is_nan() || (depth[j] - z).abs() > gate)
                 {
                     continue;
                 }
@@ -140,7 +140,7 @@ fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: 
                 let dy = points[i + r * w] - points[i - r * w];
                 let m = dx.cross(&dy);
                 let len = m.norm();
-                if !(len > 0.0) {
+                if len <= 0.0 || len.is_nan() {
                     continue;
                 }
                 let mut m = m / len;

@@ -264,6 +264,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut have_model = false;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
+    let mut track_ms_tracked = Vec::new();
     let read_opts = ReadOptions {
         format: parse_format(&args.input)?,
         scale_units_per_m: Some(args.input.depth_scale.unwrap_or(default_scale)),
@@ -333,6 +334,7 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if r.status.is_tracked() {
+            track_ms_tracked.push(t0.elapsed().as_secs_f64() * 1e3);
             let t1 = Instant::now();
             volume
                 .integrate(&depth, &k, &r.pose)
@@ -391,6 +393,7 @@ pub fn run(args: Args) -> Result<()> {
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
             "track_ms_median": round_to(tm, 3),
+            "track_ms_median_tracked": round_to(median(&track_ms_tracked), 3),
             "integrate_ms_median": round_to(im, 3),
             "wall_s": round_to(wall_s, 3),
             "voxel_m": params.voxel_m,
