@@ -242,6 +242,12 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(v) = env_f("SLDEPTH_TRACK_HUBER") {
         tcfg.huber_k = v;
     }
+    if let Some(v) = env_f("SLDEPTH_TRACK_LEVELS") {
+        tcfg.levels = v as usize;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_ITER") {
+        tcfg.max_iterations = v as usize;
+    }
     if let Some(v) = env_f("SLDEPTH_TRACK_COND") {
         tcfg.min_condition = v;
     }
