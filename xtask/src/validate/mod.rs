@@ -12,6 +12,7 @@ mod filter;
 mod noise;
 mod planes;
 mod realism;
+mod track;
 mod tsdf;
 
 /// One experiment: a name (for `--only`) and its entry point.
@@ -24,6 +25,7 @@ const EXPERIMENTS: &[Experiment] = &[
     ("filter", filter::run),
     ("planes", planes::run),
     ("realism", realism::run),
+    ("track", track::run),
 ];
 
 /// Options of `cargo xtask validate`.
