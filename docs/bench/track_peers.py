@@ -1,138 +1,272 @@
-#!/usr/bin/env python3
-"""Open3D peers of `sldepth track` on the same depth frames (issue 13), ATE/RPE side by side.
+"""Open3D's camera trackers on the real sequences of ../shared/data, for the side-by-side
+trajectory table of issue 13 (never needed by tests).
 
-    /work/peers-venv/bin/python docs/bench/track_peers.py tum DIR      # depth.txt + groundtruth.txt
-    /work/peers-venv/bin/python docs/bench/track_peers.py 7scenes DIR  # frame-*.depth.png + .pose.txt
-    /work/peers-venv/bin/python docs/bench/track_peers.py icl DIR      # depth/*.png + odometry.log
+    python docs/bench/track_peers.py [--data ../shared/data] [--out /tmp/track-peers] [--json out.json]
+                                     [--voxel-m 0.008] [--only tum|7scenes|icl ...]
 
-Runs Open3D's tensor `rgbd_odometry_multi_scale` (PointToPlane, frame to frame; Hybrid needs
-colour and is skipped: the comparison is depth only) and the dense SLAM `o3d.t.pipelines.slam.Model`
-(frame to model, 8 mm voxels like the issue's reference run) with a constant grey colour image,
-and prints ATE RMSE (Horn alignment) and RPE per frame. Optional `--ours TRAJ.txt` evaluates a
-`sldepth track --output` trajectory the same way. Needs open3d (0.19 tested) and numpy; tests
-never run it.
+Needs numpy and ``open3d-cpu==0.19.0`` (the PyPI ``open3d==0.20.0`` wheel's volumes integrate
+nothing on our machines; see python_peers.py). Runs, on the depth frames alone (no colour: the
+200-frame TUM sequence ships without RGB, so Open3D's Hybrid odometry, which needs intensity, is
+not run):
+
+- ``frame-to-frame``: ``o3d.t.pipelines.odometry.rgbd_odometry_multi_scale`` (PointToPlane,
+  three levels with 20/10/5 iterations, as Open3D's defaults), each frame against the previous
+  one, chained;
+- ``dense-slam``: ``o3d.t.pipelines.slam.Model`` (frame to model: track against the raycast of
+  the fused volume, then integrate), as Open3D's ``examples/python/t_reconstruction_system/
+  dense_slam.py`` does, with the voxel size given (8 mm by default) and the same depth range as
+  ours (0.1 to 4 m).
+
+Every trajectory is written in TUM format (``timestamp tx ty tz qx qy qz qw``, camera-to-world,
+first frame at the identity) to ``--out``, so that ``sldepth eval-traj EST GT`` can score it the
+same way as ours; the script also prints its own ATE (RMSE after Horn's closed-form rigid
+alignment, the TUM benchmark's definition) and ms per frame. Timestamps: TUM's own; 7-Scenes and
+ICL number their frames, so the frame index / 30 s is used for both the estimate and the
+reference written beside it (``*-gt.txt``).
 """
-import argparse, glob, os, sys, time
+
+import argparse
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
 import numpy as np
 import open3d as o3d
-import open3d.core as o3c
+
+DEPTH_MIN_M = 0.1
+DEPTH_MAX_M = 4.0
 
 
-def quat_to_R(q):
+def quat_to_matrix(q):
     x, y, z, w = q
-    return np.array([[1-2*(y*y+z*z), 2*(x*y-z*w), 2*(x*z+y*w)],
-                     [2*(x*y+z*w), 1-2*(x*x+z*z), 2*(y*z-x*w)],
-                     [2*(x*z-y*w), 2*(y*z+x*w), 1-2*(x*x+y*y)]])
+    return np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+        ]
+    )
 
 
-def mat(t, q):
-    m = np.eye(4); m[:3, :3] = quat_to_R(q); m[:3, 3] = t; return m
+def matrix_to_quat(r):
+    # Shepperd's method, returns (x, y, z, w) with w >= 0.
+    t = np.trace(r)
+    if t > 0:
+        s = np.sqrt(t + 1.0) * 2
+        q = [(r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s, (r[1, 0] - r[0, 1]) / s, 0.25 * s]
+    elif r[0, 0] > r[1, 1] and r[0, 0] > r[2, 2]:
+        s = np.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2]) * 2
+        q = [0.25 * s, (r[0, 1] + r[1, 0]) / s, (r[0, 2] + r[2, 0]) / s, (r[2, 1] - r[1, 2]) / s]
+    elif r[1, 1] > r[2, 2]:
+        s = np.sqrt(1.0 + r[1, 1] - r[0, 0] - r[2, 2]) * 2
+        q = [(r[0, 1] + r[1, 0]) / s, 0.25 * s, (r[1, 2] + r[2, 1]) / s, (r[0, 2] - r[2, 0]) / s]
+    else:
+        s = np.sqrt(1.0 + r[2, 2] - r[0, 0] - r[1, 1]) * 2
+        q = [(r[0, 2] + r[2, 0]) / s, (r[1, 2] + r[2, 1]) / s, 0.25 * s, (r[1, 0] - r[0, 1]) / s]
+    q = np.array(q)
+    q /= np.linalg.norm(q)
+    return q if q[3] >= 0 else -q
 
 
-def load(kind, d):
-    """(depth paths, timestamps or indices, ground truth {stamp: 4x4}, K, depth scale)"""
-    if kind == 'tum':
-        rows = [l.split() for l in open(os.path.join(d, 'depth.txt')) if l.strip() and not l.startswith('#')]
-        paths = [os.path.join(d, r[1]) for r in rows]; stamps = [float(r[0]) for r in rows]
-        gt = {}
-        for l in open(os.path.join(d, 'groundtruth.txt')):
-            if l.strip() and not l.startswith('#'):
-                v = [float(x) for x in l.split()]; gt[v[0]] = mat(v[1:4], v[4:8])
-        return paths, stamps, gt, (517.3, 516.5, 318.6, 255.3), 5000.0
-    if kind == '7scenes':
-        paths = sorted(glob.glob(os.path.join(d, 'frame-*.depth.png')))
-        gt = {float(i): np.loadtxt(p.replace('.depth.png', '.pose.txt')) for i, p in enumerate(paths)}
-        return paths, [float(i) for i in range(len(paths))], gt, (585.0, 585.0, 320.0, 240.0), 1000.0
-    paths = sorted(glob.glob(os.path.join(d, 'depth', '*.png')))
-    lines = [l for l in open(os.path.join(d, 'odometry.log')).read().split('\n') if l.strip()]
-    gt = {float(i // 5): np.array([[float(x) for x in lines[i + 1 + r].split()] for r in range(4)])
-          for i in range(0, len(lines), 5)}
-    return paths, [float(i) for i in range(len(paths))], gt, (525.0, 525.0, 319.5, 239.5), 1000.0
+def write_tum(path, stamps, poses):
+    with open(path, "w") as f:
+        f.write("# timestamp tx ty tz qx qy qz qw (camera-to-world)\n")
+        for t, p in zip(stamps, poses):
+            q = matrix_to_quat(p[:3, :3])
+            f.write(
+                f"{t:.6f} {p[0, 3]:.6f} {p[1, 3]:.6f} {p[2, 3]:.6f} "
+                f"{q[0]:.6f} {q[1]:.6f} {q[2]:.6f} {q[3]:.6f}\n"
+            )
 
 
-def evaluate(est, gt):
-    """est, gt: {stamp: 4x4}. ATE RMSE after Horn alignment, RPE per consecutive pair."""
-    gts = np.array(sorted(gt)); pairs = []
-    for t in sorted(est):
-        i = int(np.argmin(abs(gts - t)))
-        if abs(gts[i] - t) < 0.02:
-            pairs.append((t, gts[i]))
-    A = np.array([est[t][:3, 3] for t, _ in pairs]); B = np.array([gt[g][:3, 3] for _, g in pairs])
-    ma, mb = A.mean(0), B.mean(0)
-    U, _, Vt = np.linalg.svd((A - ma).T @ (B - mb))
-    D = np.diag([1, 1, np.sign(np.linalg.det(Vt.T @ U.T))]); R = Vt.T @ D @ U.T
-    E = (R @ A.T).T + (mb - R @ ma) - B
-    tr, rot = [], []
-    for (t1, g1), (t2, g2) in zip(pairs, pairs[1:]):
-        e = np.linalg.inv(np.linalg.inv(gt[g1]) @ gt[g2]) @ (np.linalg.inv(est[t1]) @ est[t2])
-        tr.append(np.linalg.norm(e[:3, 3]))
-        rot.append(np.degrees(np.arccos(np.clip((np.trace(e[:3, :3]) - 1) / 2, -1, 1))))
-    return len(pairs), np.sqrt((E ** 2).sum(1).mean()), np.sqrt(np.mean(np.square(tr))), np.sqrt(np.mean(np.square(rot)))
+def read_tum(path):
+    out = []
+    for line in open(path):
+        if line.startswith("#") or not line.strip():
+            continue
+        v = [float(x) for x in line.split()]
+        m = np.eye(4)
+        m[:3, :3] = quat_to_matrix(v[4:8])
+        m[:3, 3] = v[1:4]
+        out.append((v[0], m))
+    return out
 
 
-def grey(depth):
-    return o3d.t.geometry.Image(o3c.Tensor(np.full((depth.rows, depth.columns, 3), 128, np.uint8)))
+def associate(stamps, gt, max_gap_s=0.02):
+    """Nearest ground-truth pose for each stamp within max_gap_s (TUM's associate.py rule,
+    each reference used once)."""
+    gt_t = np.array([t for t, _ in gt])
+    pairs, used = [], set()
+    for i, t in enumerate(stamps):
+        j = int(np.argmin(np.abs(gt_t - t)))
+        if abs(gt_t[j] - t) <= max_gap_s and j not in used:
+            used.add(j)
+            pairs.append((i, j))
+    return pairs
 
 
-def odometry(paths, K, scale, depth_max):
-    dev = o3c.Device('CPU:0'); intr = o3c.Tensor(K)
-    crit = [o3d.t.pipelines.odometry.OdometryConvergenceCriteria(i) for i in (6, 3, 1)]
-    pose = np.eye(4); poses = [pose.copy()]; prev = None; times = []
-    for p in paths:
-        d = o3d.t.io.read_image(p).to(dev); cur = o3d.t.geometry.RGBDImage(grey(d), d)
+def ate_rmse(est_xyz, gt_xyz):
+    """RMSE of the translations after Horn's closed-form rigid alignment (no scale)."""
+    mu_e, mu_g = est_xyz.mean(0), gt_xyz.mean(0)
+    h = (est_xyz - mu_e).T @ (gt_xyz - mu_g)
+    u, _, vt = np.linalg.svd(h)
+    d = np.eye(3)
+    d[2, 2] = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ d @ u.T
+    aligned = (r @ (est_xyz - mu_e).T).T + mu_g
+    return float(np.sqrt(np.mean(np.sum((aligned - gt_xyz) ** 2, axis=1))))
+
+
+def sequences(data, only):
+    seqs = []
+    tum = data / "tum-fr1-rpy-200"
+    if tum.is_dir() and (not only or "tum" in only):
+        files, stamps = [], []
+        for line in open(tum / "depth.txt"):
+            if line.startswith("#") or not line.strip():
+                continue
+            t, f = line.split()[:2]
+            stamps.append(float(t))
+            files.append(tum / f)
+        k = [[517.3, 0, 318.6], [0, 516.5, 255.3], [0, 0, 1]]
+        seqs.append(("tum-fr1-rpy-200", files, stamps, k, 5000.0, read_tum(tum / "groundtruth.txt")))
+    sc = data / "7scenes-redkitchen"
+    if sc.is_dir() and (not only or "7scenes" in only):
+        files = sorted(sc.glob("frame-*.depth.png"))
+        stamps = [i / 30.0 for i in range(len(files))]
+        gt = []
+        for t, f in zip(stamps, files):
+            m = np.loadtxt(str(f).replace(".depth.png", ".pose.txt"))
+            gt.append((t, m))
+        k = [[585.0, 0, 320.0], [0, 585.0, 240.0], [0, 0, 1]]
+        seqs.append(("7scenes-redkitchen", files, stamps, k, 1000.0, gt))
+    icl = data / "open3d-testdata" / "icl-livingroom"
+    if icl.is_dir() and (not only or "icl" in only):
+        files = sorted((icl / "depth").glob("*.png"))
+        stamps = [i / 30.0 for i in range(len(files))]
+        lines = [l.split() for l in open(icl / "odometry.log") if l.strip()]
+        gt = []
+        for i in range(len(files)):
+            rows = lines[5 * i + 1 : 5 * i + 5]
+            gt.append((stamps[i], np.array([[float(x) for x in r] for r in rows])))
+        k = [[525.0, 0, 319.5], [0, 525.0, 239.5], [0, 0, 1]]
+        seqs.append(("icl-livingroom", files, stamps, k, 1000.0, gt))
+    return seqs
+
+
+def read_depth(path):
+    img = o3d.t.io.read_image(str(path))
+    return img
+
+
+def frame_to_frame(files, k, scale):
+    intr = o3d.core.Tensor(k, o3d.core.Dtype.Float64)
+    criteria = [
+        o3d.t.pipelines.odometry.OdometryConvergenceCriteria(n)
+        for n in (20, 10, 5)
+    ]
+    poses = [np.eye(4)]
+    times = []
+    prev = None
+    for f in files:
+        depth = read_depth(f)
+        h, w = depth.rows, depth.columns
+        color = o3d.t.geometry.Image(np.zeros((h, w, 3), np.uint8))
+        cur = o3d.t.geometry.RGBDImage(color, depth)
         if prev is not None:
-            t0 = time.time()
-            r = o3d.t.pipelines.odometry.rgbd_odometry_multi_scale(
-                cur, prev, intr, o3c.Tensor(np.eye(4)), scale, depth_max, crit,
-                o3d.t.pipelines.odometry.Method.PointToPlane)
-            times.append(time.time() - t0)
-            pose = pose @ r.transformation.numpy(); poses.append(pose.copy())
+            t0 = time.perf_counter()
+            res = o3d.t.pipelines.odometry.rgbd_odometry_multi_scale(
+                cur,
+                prev,
+                intr,
+                o3d.core.Tensor(np.eye(4)),
+                scale,
+                DEPTH_MAX_M,
+                criteria,
+                o3d.t.pipelines.odometry.Method.PointToPlane,
+            )
+            times.append((time.perf_counter() - t0) * 1e3)
+            poses.append(poses[-1] @ res.transformation.numpy())
         prev = cur
-    return poses, np.median(times) * 1e3
+    return poses, times
 
 
-def dense_slam(paths, K, scale, depth_max, voxel):
-    dev = o3c.Device('CPU:0'); intr = o3c.Tensor(K)
-    T = o3c.Tensor(np.eye(4)); poses = []; times = []
-    model = o3d.t.pipelines.slam.Model(voxel, 16, 40000, T, dev)
-    d0 = o3d.t.io.read_image(paths[0])
-    frame = o3d.t.pipelines.slam.Frame(d0.rows, d0.columns, intr, dev)
-    ray = o3d.t.pipelines.slam.Frame(d0.rows, d0.columns, intr, dev)
-    for i, p in enumerate(paths):
-        d = o3d.t.io.read_image(p).to(dev)
-        frame.set_data_from_image('depth', d); frame.set_data_from_image('color', grey(d))
-        t0 = time.time()
+def dense_slam(files, k, scale, voxel_m):
+    device = o3d.core.Device("CPU:0")
+    intr = o3d.core.Tensor(k, o3d.core.Dtype.Float64)
+    t_frame_to_model = o3d.core.Tensor(np.identity(4))
+    model = o3d.t.pipelines.slam.Model(voxel_m, 16, 50000, t_frame_to_model, device)
+    first = read_depth(files[0])
+    inp = o3d.t.pipelines.slam.Frame(first.rows, first.columns, intr, device)
+    ray = o3d.t.pipelines.slam.Frame(first.rows, first.columns, intr, device)
+    color = o3d.t.geometry.Image(np.zeros((first.rows, first.columns, 3), np.uint8))
+    poses, times = [], []
+    trunc_mult = 8.0
+    for i, f in enumerate(files):
+        depth = read_depth(f)
+        inp.set_data_from_image("depth", depth)
+        inp.set_data_from_image("color", color)
+        t0 = time.perf_counter()
         if i > 0:
-            r = model.track_frame_to_model(frame, ray, scale, depth_max, 0.07)
-            T = T @ r.transformation
-        poses.append(T.cpu().numpy())
-        model.update_frame_pose(i, T)
-        model.integrate(frame, scale, depth_max, 8.0)
-        model.synthesize_model_frame(ray, scale, 0.1, depth_max, 8.0, False)
-        times.append(time.time() - t0)
-    return poses, np.median(times) * 1e3
+            res = model.track_frame_to_model(inp, ray, scale, DEPTH_MAX_M, 0.07)
+            t_frame_to_model = t_frame_to_model @ res.transformation
+        poses.append(t_frame_to_model.cpu().numpy())
+        model.update_frame_pose(i, t_frame_to_model)
+        model.integrate(inp, scale, DEPTH_MAX_M, trunc_mult)
+        model.synthesize_model_frame(ray, scale, DEPTH_MIN_M, DEPTH_MAX_M, trunc_mult, False)
+        times.append((time.perf_counter() - t0) * 1e3)
+    return poses, times
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument('kind', choices=['tum', '7scenes', 'icl']); ap.add_argument('dir')
-    ap.add_argument('--ours', action='append', default=[]); ap.add_argument('--depth-max', type=float, default=4.0)
-    a = ap.parse_args()
-    paths, stamps, gt, (fx, fy, cx, cy), scale = load(a.kind, a.dir)
-    K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
-    for o in a.ours:
-        est = {}
-        for l in open(o):
-            if l.strip() and not l.startswith('#'):
-                v = [float(x) for x in l.split()]; est[v[0]] = mat(v[1:4], v[4:8])
-        n, ate, rt, rr = evaluate(est, gt)
-        print(f'{o}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg')
-    for name, run in [('open3d odometry PointToPlane', lambda: odometry(paths, K, scale, a.depth_max)),
-                      ('open3d dense SLAM 8 mm', lambda: dense_slam(paths, K, scale, a.depth_max, 0.008))]:
-        poses, ms = run()
-        n, ate, rt, rr = evaluate(dict(zip(stamps, poses)), gt)
-        print(f'{name}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg, {ms:.0f} ms/frame median')
+    ap.add_argument("--data", default=str(Path(__file__).resolve().parents[3] / "shared" / "data"))
+    ap.add_argument("--out", default="/tmp/track-peers")
+    ap.add_argument("--json")
+    ap.add_argument("--voxel-m", type=float, default=0.008)
+    ap.add_argument("--only", action="append")
+    args = ap.parse_args()
+    data = Path(args.data)
+    if not data.is_dir():
+        data = Path("../shared/data")
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    o3d.core.Device("CPU:0")
+    print(f"open3d {o3d.__version__}, {platform.processor() or platform.machine()}, "
+          f"{os.cpu_count()} cpus")
+    rows = []
+    for name, files, stamps, k, scale, gt in sequences(data, args.only):
+        # The reference in TUM format beside the estimates.
+        write_tum(out / f"{name}-gt.txt", [t for t, _ in gt], [m for _, m in gt])
+        for method in ("frame-to-frame", "dense-slam"):
+            if method == "frame-to-frame":
+                poses, times = frame_to_frame(files, k, scale)
+            else:
+                poses, times = dense_slam(files, k, scale, args.voxel_m)
+            path = out / f"{name}-open3d-{method}.txt"
+            write_tum(path, stamps, poses)
+            pairs = associate(stamps, gt)
+            est = np.array([poses[i][:3, 3] for i, _ in pairs])
+            ref = np.array([gt[j][1][:3, 3] for _, j in pairs])
+            ate = ate_rmse(est, ref)
+            row = {
+                "sequence": name,
+                "method": f"open3d {method}",
+                "frames": len(files),
+                "associated": len(pairs),
+                "ate_rmse_m": ate,
+                "ms_per_frame_median": float(np.median(times)) if times else None,
+                "trajectory": str(path),
+            }
+            rows.append(row)
+            print(f"{name:20s} {method:15s} ATE {ate * 100:6.2f} cm  "
+                  f"{row['ms_per_frame_median']:.1f} ms/frame  -> {path}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(rows, f, indent=2)
 
 
-if __name__ == '__main__':
-    sys.exit(main())
+if __name__ == "__main__":
+    main()

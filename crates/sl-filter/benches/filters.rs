@@ -4,14 +4,14 @@
 //! paper's Figure 4 situation) when the shared data is present, otherwise a synthetic noisy
 //! tilted plane of the same size. Radius 2 (5×5) and 3 (7×7), every method, with one thread (a
 //! local rayon pool) and with all threads; the adaptive filter also with the portable (non-AVX)
-//! kernel. Compare with OpenCV using `docs/bench/opencv_bilateral.py`.
+//! kernel, and with the disc window (OpenCV's) on this CPU's best kernel and on AVX2. Compare with OpenCV using `docs/bench/opencv_bilateral.py`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::{DepthImage, SensorModel};
-use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
+use sl_filter::{DepthFilter, Isa, Method, Window, default_sigma_s_px};
 
 fn frame() -> DepthImage {
     if let Some(person) = sl_testkit::person() {
@@ -72,6 +72,19 @@ fn bench(c: &mut Criterion) {
                     2 * r + 1
                 ),
                 |b| one.install(|| b.iter(|| f.apply_with_isa(black_box(&depth), isa).unwrap())),
+            );
+        }
+        // The disc window (OpenCV's), with this CPU's best kernel and with the AVX2 one.
+        let disc = f.with_window(Window::Disc);
+        for isa in [Isa::detect(), Isa::Avx2] {
+            g.bench_function(
+                format!(
+                    "adaptive-disc-{}/{}x{}/1thread",
+                    isa.name(),
+                    2 * r + 1,
+                    2 * r + 1
+                ),
+                |b| one.install(|| b.iter(|| disc.apply_with_isa(black_box(&depth), isa).unwrap())),
             );
         }
     }

@@ -5,7 +5,7 @@
 use sl_core::SensorModel;
 
 use crate::error::{FilterError, Result};
-use crate::filter::{DepthFilter, Method, RangeKernel, default_sigma_s_px};
+use crate::filter::{DepthFilter, Method, RangeKernel, Window, default_sigma_s_px};
 
 /// A filter choice: the method and any parameter the user set; everything left `None` takes
 /// the sensor-derived default of [`DepthFilter::default_for`].
@@ -18,6 +18,8 @@ pub struct FilterConfig {
     pub radius_px: Option<usize>,
     /// Spatial σ, pixels; default from the radius ([`default_sigma_s_px`]).
     pub sigma_s_px: Option<f64>,
+    /// The window's shape (default [`Window::Square`]).
+    pub window: Window,
     /// Range σ of the fixed bilateral filter, metres (bilateral only).
     pub sigma_d_m: Option<f64>,
     /// `k` of the adaptive range σ `σ_d = k·Z²`, per metre (adaptive only).
@@ -39,6 +41,7 @@ impl FilterConfig {
             method,
             radius_px: None,
             sigma_s_px: None,
+            window: Window::Square,
             sigma_d_m: None,
             k_per_m: None,
             sigma_disp_px: None,
@@ -75,7 +78,7 @@ impl FilterConfig {
             (None, Some(s)) if s.is_finite() && s > 0.0 => ((2.0 * s).ceil() as usize).max(1),
             _ => f.radius_px,
         };
-        f = f.with_radius(radius).with_sigma_s(
+        f = f.with_radius(radius).with_window(self.window).with_sigma_s(
             self.sigma_s_px
                 .unwrap_or_else(|| default_sigma_s_px(radius)),
         );

@@ -198,6 +198,9 @@ pub(crate) fn stride_for(width: usize, radius: usize) -> usize {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Taps<'a> {
     pub radius: usize,
+    /// The window is the disc `dx² + dy² ≤ r²` (OpenCV's rule) rather than the full square:
+    /// the taps outside it are skipped, not weighted 0.
+    pub disc: bool,
     /// `(2r+1)²` linear spatial weights, row-major (the Gaussian).
     pub taps: &'a [f32],
     /// `(2r+1)²` range-weight constants with the spatial weights folded in, row-major (the
@@ -362,11 +365,14 @@ macro_rules! pad_and_filter {
             width: $src.width,
         };
         let p = &p;
-        match $taps.radius {
-            1 => block::<1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            2 => block::<2, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            3 => block::<3, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            _ => block::<0, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+        match ($taps.radius, $taps.disc) {
+            (1, false) => block::<1, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, false) => block::<2, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (3, false) => block::<3, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (1, true) => block::<1, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, true) => block::<2, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (3, true) => block::<3, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            _ => block::<0, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
         }
         ok
     }};
@@ -422,10 +428,13 @@ fn block_avx512<M: RangeMode, const DISP: bool>(
             stride,
             width: src.width,
         };
-        match taps.radius {
-            1 => x512::block::<1, M, DISP>(taps, &p, out, mode, fb),
-            2 => x512::block::<2, M, DISP>(taps, &p, out, mode, fb),
-            _ => x512::block::<3, M, DISP>(taps, &p, out, mode, fb),
+        match (taps.radius, taps.disc) {
+            (1, false) => x512::block::<1, false, M, DISP>(taps, &p, out, mode, fb),
+            (2, false) => x512::block::<2, false, M, DISP>(taps, &p, out, mode, fb),
+            (3, false) => x512::block::<3, false, M, DISP>(taps, &p, out, mode, fb),
+            (1, true) => x512::block::<1, true, M, DISP>(taps, &p, out, mode, fb),
+            (2, true) => x512::block::<2, true, M, DISP>(taps, &p, out, mode, fb),
+            _ => x512::block::<3, true, M, DISP>(taps, &p, out, mode, fb),
         }
         return ok;
     }
@@ -444,7 +453,7 @@ const CW: usize = CHUNK + 2 * MAX_FAST_RADIUS;
 
 /// Filters the block of whole rows `out` from its padded block `p`. `R = 0`: runtime radius.
 #[inline(always)]
-fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn block<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -452,7 +461,7 @@ fn block<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
     fb: f32,
 ) {
     if R > 0 {
-        block_fast::<R, FMA, M, DISP>(taps, p, out, mode, fb);
+        block_fast::<R, DISC, FMA, M, DISP>(taps, p, out, mode, fb);
     } else {
         block_any::<FMA, M, DISP>(taps, p, out, mode, fb);
     }
@@ -487,11 +496,13 @@ const fn class<const R: usize>(dy: usize, dx: usize) -> usize {
     }
 }
 
-/// Whether `(dx, dy)` (0-based, `0..=2R`) is a non-centre tap of the `(2R+1)²` window (the
-/// unrolled fast paths list the 7×7 positions and drop the others at compile time).
+/// Whether `(dx, dy)` (0-based, `0..=2R`) is a non-centre tap of the `(2R+1)²` window, or with
+/// `DISC` of the disc `|δ|² ≤ R²` inside it (the unrolled fast paths list the 7×7 positions
+/// and drop the others at compile time).
 #[inline(always)]
-const fn is_tap<const R: usize>(dy: usize, dx: usize) -> bool {
-    is_row::<R>(dy) && dx <= 2 * R && !(dy == R && dx == R)
+const fn is_tap<const R: usize, const DISC: bool>(dy: usize, dx: usize) -> bool {
+    let (a, b) = (dy.abs_diff(R), dx.abs_diff(R));
+    is_row::<R>(dy) && dx <= 2 * R && !(dy == R && dx == R) && (!DISC || a * a + b * b <= R * R)
 }
 
 /// Whether `dy` is a row of the `(2R+1)²` window.
@@ -507,7 +518,7 @@ const MAX_CLASSES: usize = (MAX_FAST_RADIUS + 1) * (MAX_FAST_RADIUS + 1);
 /// the whole `(2R+1)²` window is unrolled, so the sums stay in registers and the two divisions
 /// per pixel overlap with the taps' multiply-adds.
 #[inline(always)]
-fn block_fast<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn block_fast<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -554,7 +565,7 @@ fn block_fast<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
                     Ok(d) => d,
                     Err(_) => &mut res,
                 };
-            chunk::<R, FMA, M, DISP>(
+            chunk::<R, DISC, FMA, M, DISP>(
                 rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6], cls, lin, dst, mode,
                 fb,
             );
@@ -571,7 +582,7 @@ fn block_fast<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
 /// not alias `dst` and vectorises without runtime alias checks.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn chunk<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn chunk<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
     r0: &[f32; CW],
     r1: &[f32; CW],
     r2: &[f32; CW],
@@ -598,7 +609,7 @@ fn chunk<const R: usize, const FMA: bool, M: RangeMode, const DISP: bool>(
         // `(2R+1)²` window or at the centre are removed at compile time.
         macro_rules! tap {
             ($dy:literal, $dx:literal) => {
-                if is_tap::<R>($dy, $dx) {
+                if is_tap::<R, DISC>($dy, $dx) {
                     // Indexing the tap's shifted row (rather than `row[i + dx]`) keeps GVN
                     // from carrying loads from one lane to the next (its load PRE would turn
                     // them into loop-carried values that the loop vectoriser rejects).
@@ -675,7 +686,8 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
             for dy in 0..k {
                 let row = &win[dy * stride + x0..];
                 for dx in 0..k {
-                    if dy == r && dx == r {
+                    let d2 = dy.abs_diff(r).pow(2) + dx.abs_diff(r).pow(2);
+                    if d2 == 0 || (taps.disc && d2 > r * r) {
                         continue;
                     }
                     let nb = &row[dx..dx + CHUNK];

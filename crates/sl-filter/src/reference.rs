@@ -45,6 +45,9 @@ pub fn filter_reference(filter: &DepthFilter, depth: &DepthImage) -> Result<Dept
                     if !valid(zq) {
                         continue;
                     }
+                    if !filter.window.contains(qx - x, qy - y, r) {
+                        continue;
+                    }
                     let vq = value(zq);
                     let d2s = ((qx - x) * (qx - x) + (qy - y) * (qy - y)) as f64;
                     let ws = (-d2s / (2.0 * ss * ss)).exp();

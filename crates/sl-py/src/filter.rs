@@ -2,7 +2,7 @@
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_filter::{FilterConfig, Method};
+use sl_filter::{FilterConfig, Method, Window};
 
 use crate::arrays::{check_camera, depth_array, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
@@ -15,9 +15,11 @@ use crate::threads::compute;
 /// camera's noise model), ``"bilateral"`` (fixed σ_d), ``"gaussian"``, ``"disparity"`` (bilateral
 /// in disparity). ``radius`` (pixels, window 2r+1, default 3), ``sigma_s`` (pixels), and the
 /// method's range parameter (``k_per_m``, ``sigma_d_m`` or ``sigma_disp_px``) override the
-/// defaults. ``depth_scale`` converts uint16 input (units per metre).
+/// defaults. ``window``: ``"square"`` (default, the full 2r+1 square) or ``"disc"`` (dx² + dy²
+/// ≤ r², OpenCV's ``bilateralFilter`` window, about half the taps). ``depth_scale`` converts
+/// uint16 input (units per metre).
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, window = "square", depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter<'py>(
     py: Python<'py>,
@@ -29,6 +31,7 @@ pub(crate) fn filter<'py>(
     k_per_m: Option<f64>,
     sigma_d_m: Option<f64>,
     sigma_disp_px: Option<f64>,
+    window: &str,
     depth_scale: Option<f64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let camera = camera_or_default(camera);
@@ -38,6 +41,7 @@ pub(crate) fn filter<'py>(
     config.k_per_m = k_per_m;
     config.sigma_d_m = sigma_d_m;
     config.sigma_disp_px = sigma_disp_px;
+    config.window = window.parse::<Window>().map_err(value_error)?;
     let f = config.build(&camera.sensor).map_err(value_error)?;
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;

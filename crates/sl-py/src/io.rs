@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
+use sl_io::Limits;
 use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
 
 use crate::arrays::{depth_array, depth_input};
@@ -19,19 +20,27 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 /// Reads a depth map (16-bit PNG/TIFF at ``depth_scale`` units per metre — 1000 by default,
 /// 5000 for TUM —, NYU raw disparity ``.pgm``, or SUN RGB-D ``format="sun"``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
+/// ``max_memory_bytes`` bounds what reading may allocate (the CLI's ``--max-memory``; default
+/// 4 GiB): an image whose header declares more pixels than the budget allows is refused with
+/// ``OSError`` before it is decoded.
 #[pyfunction]
-#[pyo3(signature = (path, depth_scale = None, format = None))]
+#[pyo3(signature = (path, depth_scale = None, format = None, *, max_memory_bytes = None))]
 pub(crate) fn read_depth<'py>(
     py: Python<'py>,
     path: PathBuf,
     depth_scale: Option<f64>,
     format: Option<&str>,
+    max_memory_bytes: Option<u64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let opts = ReadOptions {
         format: parse_format(format)?,
         scale_units_per_m: depth_scale,
     };
-    let loaded = compute(py, || sl_io::depth::read_depth(&path, &opts)).map_err(io_error)?;
+    let limits = max_memory_bytes.map_or_else(Limits::default, Limits::for_memory);
+    let loaded = compute(py, || {
+        sl_io::depth::read_depth_with_limits(&path, &opts, &limits)
+    })
+    .map_err(io_error)?;
     depth_array(py, loaded.depth)
 }
 

@@ -33,6 +33,18 @@ def test_filter_options_and_errors(small_cam, wall):
         sldepth.filter(wall, small_cam, method="median")
     with pytest.raises(ValueError, match="adaptive"):
         sldepth.filter(wall, small_cam, method="bilateral", k_per_m=0.05)
+    with pytest.raises(ValueError, match="unknown window"):
+        sldepth.filter(wall, small_cam, window="round")
+
+
+def test_disc_window_ignores_the_square_corners(small_cam, wall):
+    # A pixel 1 cm deeper at offset (2, 2): inside the 5x5 square, outside the radius-2 disc.
+    z = wall.copy()
+    z[12, 12] += 0.01
+    square = sldepth.filter(z, small_cam, radius=2, window="square")
+    disc = sldepth.filter(z, small_cam, radius=2, window="disc")
+    assert square[10, 10] > 2.0
+    assert disc[10, 10] == 2.0
 
 
 def test_conversions_give_the_same_answer(kinect, three_planes):

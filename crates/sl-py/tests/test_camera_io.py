@@ -73,3 +73,12 @@ def test_file_errors_are_oserrors(tmp_path):
         sldepth.read_depth(bad)
     with pytest.raises(ValueError, match="extension"):
         sldepth.write_depth(tmp_path / "x.unknown", np.ones((4, 4), np.float32))
+
+
+def test_max_memory_refuses_an_image_from_its_header(tmp_path):
+    # 640x480 needs 307,200 pixels; a 16 MiB budget allows 16 MiB / 256 = 65,536.
+    path = tmp_path / "d.png"
+    sldepth.write_depth(path, np.full((480, 640), 1.5, np.float32))
+    assert sldepth.read_depth(path, max_memory_bytes=1 << 30).shape == (480, 640)
+    with pytest.raises(OSError, match="too large"):
+        sldepth.read_depth(path, max_memory_bytes=16 << 20)

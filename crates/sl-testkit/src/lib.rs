@@ -238,7 +238,7 @@ pub fn floor_scan(count: usize) -> Vec<RealFrame> {
 /// Depth frames with their camera-to-world poses, for fusion and tracking.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PosedSequence {
-    /// `icl` or `7scenes`.
+    /// `icl`, `7scenes` or `tum-fr1-rpy`.
     pub name: &'static str,
     /// The dataset's camera preset.
     pub camera: Camera,
@@ -292,4 +292,51 @@ pub fn seven_scenes_sequence(max_frames: usize) -> Option<PosedSequence> {
         sl_io::read_7scenes_sequence(&dir),
         max_frames,
     )
+}
+
+/// The 200 TUM fr1/rpy frames (`tum-fr1-rpy-200`: `depth.txt` + `groundtruth.txt`, depth
+/// at 5000 units per metre) with their ground-truth poses associated within 0.02 s (at most
+/// `max_frames`).
+pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
+    let dir = data_dir_or_skip("tum-fr1-rpy-200")?.join("tum-fr1-rpy-200");
+    // `depth.txt` as TUM ships it: `timestamp path` lines, `#` comments.
+    let list = match std::fs::read_to_string(dir.join("depth.txt")) {
+        Ok(t) => t,
+        Err(e) => {
+            eprintln!("skipping tum-fr1-rpy-200: depth.txt: {e}");
+            return None;
+        }
+    };
+    let depth: Vec<(f64, PathBuf)> = list
+        .lines()
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .filter_map(|l| {
+            let mut it = l.split_whitespace();
+            let t = it.next()?.parse::<f64>().ok()?;
+            Some((t, dir.join(it.next()?)))
+        })
+        .collect();
+    let poses = match sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt")) {
+        Ok(p) => p,
+        Err(e) => {
+            eprintln!("skipping tum-fr1-rpy-200: {e}");
+            return None;
+        }
+    };
+    let frames = sl_io::trajectory::associate(&depth, &poses, 0.02).frames;
+    let mut out = Vec::new();
+    for f in frames.into_iter().take(max_frames) {
+        match read_depth(&f.depth_path, Some(5000.0)) {
+            Ok(d) => out.push((d, f.pose)),
+            Err(e) => {
+                eprintln!("skipping tum-fr1-rpy-200: {e}");
+                return None;
+            }
+        }
+    }
+    Some(PosedSequence {
+        name: "tum-fr1-rpy",
+        camera: Camera::preset("tum-fr1").ok()?,
+        frames: out,
+    })
 }

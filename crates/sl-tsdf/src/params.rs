@@ -68,6 +68,95 @@ impl WeightMode {
     }
 }
 
+/// How wide the truncation band of one observation is.
+///
+/// The band must hold the spread of the zero crossing: a surface seen at depth `Z` by a
+/// structured-light sensor lands at `Z ± σ_Z(Z)` with `σ_Z = Z²·σ_D/(f·B)`, Gaussian to a
+/// good approximation (the disparity error is), so `±3σ_Z` holds 99.7 % of the observations
+/// and a band of `3σ_Z` keeps every one of them on the correct side of its voxels. A fixed
+/// band is either wider than needed close to the camera (thin structures blur) or narrower
+/// than the noise far away: with 2 cm, beyond about 2.1 m for a Kinect v1 (`3σ_Z(2.1 m)` =
+/// 2 cm), observations scatter past the band, far voxels are overwritten with
+/// inconsistent clamped values, and marching cubes finds spurious crossings (the "foam" of
+/// issue 13).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Truncation {
+    /// Every observation uses [`TsdfConfig::trunc_m`].
+    Fixed,
+    /// The band of an observation at depth `Z` is
+    /// `min(max(trunc_m, sigmas·σ_Z(Z)), max(max_m, trunc_m))`: [`TsdfConfig::trunc_m`] is the
+    /// floor (a few voxels, so that marching cubes sees both sides of the surface),
+    /// `sigmas·σ_Z(Z)` follows the sensor noise, `max_m` bounds the memory far away (a
+    /// `trunc_m` above it wins: the band is then `trunc_m` everywhere). Default, with the `kinect-v1`
+    /// sensor, 3σ and a 0.12 m cap (3σ_Z at 4.9 m).
+    SensorAdaptive {
+        /// The sensor model giving `σ_Z(Z)`.
+        sensor: SensorModel,
+        /// Multiple of `σ_Z` (3: 99.7 % of the zero crossings).
+        sigmas: f64,
+        /// Widest band, metres.
+        max_m: f64,
+    },
+}
+
+impl Truncation {
+    /// The sensor-adaptive band with 3σ and a 0.12 m cap.
+    pub fn sensor_adaptive(sensor: SensorModel) -> Self {
+        Self::SensorAdaptive {
+            sensor,
+            sigmas: 3.0,
+            max_m: 0.12,
+        }
+    }
+
+    /// The CLI name of the mode.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Fixed => "fixed",
+            Self::SensorAdaptive { .. } => "sensor-adaptive",
+        }
+    }
+}
+
+/// The band as a function of the observed depth: `min(max(floor, c·Z²), max)`, with `c = 0`
+/// and `max = floor` for a fixed band (so one branch-free formula serves both modes).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct BandFn {
+    pub(crate) floor: f32,
+    pub(crate) c: f32,
+    pub(crate) max: f32,
+}
+
+impl BandFn {
+    pub(crate) fn new(p: &TsdfConfig) -> Self {
+        let floor = p.trunc_m as f32;
+        match p.truncation {
+            Truncation::Fixed => Self {
+                floor,
+                c: 0.0,
+                max: floor,
+            },
+            Truncation::SensorAdaptive {
+                sensor,
+                sigmas,
+                max_m,
+            } => Self {
+                floor,
+                c: (sigmas * sensor.sigma_d_px / sensor.fb()) as f32,
+                max: (max_m as f32).max(floor),
+            },
+        }
+    }
+
+    /// The band of an observation at depth `z`, metres (plain compares: vectorises).
+    #[inline(always)]
+    pub(crate) fn band(&self, z: f32) -> f32 {
+        let b = self.c * z * z;
+        let b = if b > self.floor { b } else { self.floor };
+        if b < self.max { b } else { self.max }
+    }
+}
+
 /// A per-frame weight function, precomputed from a [`WeightMode`] and the reference depth so
 /// that the inner loop costs a few multiplications.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -136,16 +225,30 @@ impl WeightFn {
 
 /// Parameters of a [`crate::TsdfVolume`].
 ///
-/// Defaults (see [`TsdfConfig::default`]): 4 mm voxels, a 2 cm truncation band, `inv-z4`
-/// weights normalised at 1 m, 4 m maximum depth, weight cap 10⁶ and a 4 GiB memory budget.
+/// Defaults (see [`TsdfConfig::default`]): 4 mm voxels, a sensor-adaptive truncation band of
+/// `max(2 cm, 3σ_Z(Z))` up to 12 cm (the `kinect-v1` sensor), `inv-z4` weights normalised at
+/// 1 m, 4 m maximum depth, weight cap 10⁶ and a 4 GiB memory budget.
 ///
 /// **Truncation.** The band must cover the sensor noise and a few voxels: a surface seen
-/// with noise `σ_Z` spreads its zero crossing over ±3σ_Z, and marching cubes needs the
-/// voxels on both sides of the surface to be observed. For a Kinect v1 `σ_Z` is 1.6 mm at 1 m,
-/// 6.4 mm at 2 m and 14 mm at 3 m, so 2 cm (5 voxels of 4 mm) covers ±3σ up to about 2 m and
-/// ±1.4σ at 3 m; [`TsdfConfig::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for another
-/// voxel size or range. A wider band blurs thin structures (the two sides of a 1 cm board
-/// interfere) and costs memory.
+/// with noise `σ_Z` spreads its zero crossing over ±3σ_Z (99.7 % of a Gaussian), and marching
+/// cubes needs the voxels on both sides of the surface to be observed. For a Kinect v1 `σ_Z`
+/// is 1.6 mm at 1 m, 6.4 mm at 2 m and 14 mm at 3 m, so a fixed 2 cm (5 voxels of 4 mm)
+/// covers ±3σ up to about 2 m and only ±1.4σ at 3 m. The default
+/// [`Truncation::SensorAdaptive`] therefore gives each observation its own band,
+/// `max(trunc_m, 3·σ_Z(Z))` capped at 12 cm: 2 cm up to 2.1 m, 4.3 cm at 3 m, 7.7 cm at 4 m;
+/// [`Truncation::Fixed`] keeps `trunc_m` for every depth.
+/// [`TsdfConfig::suggested_trunc_m`] computes `max(4·voxel, 3·σ_Z(z))` for one depth. A wider
+/// band blurs thin structures (the two sides of a 1 cm board interfere) and costs memory.
+///
+/// **Mixing bands.** A voxel stores `F` in metres (not normalised by the band), so
+/// observations with different bands average consistently: each contributes its line-of-sight
+/// distance clipped to its own band, `min(sdf, band_i)`, and only while the voxel is less than
+/// `band_i` behind its surface. Within the narrowest band of the observations (where the zero
+/// crossing is) every observation contributes its unclipped distance and `F` is the plain
+/// weighted mean; farther out `F` mixes clips of different widths, which keeps its sign
+/// (positive in front of the surface) and keeps `|F|` at most the line-of-sight distance, the
+/// two properties marching cubes and the raycaster's step rely on. The weights are untouched
+/// by the band (`inv-z4` already weighs a far, wide-band observation by its noise).
 ///
 /// `#[non_exhaustive]`: start from [`TsdfConfig::default`] and assign the fields you need.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -154,9 +257,14 @@ pub struct TsdfConfig {
     /// Edge of a voxel, metres.
     pub voxel_m: f64,
     /// Truncation `f_max = −f_min`, metres: signed distances are clipped to
-    /// `[−trunc_m, trunc_m]`; voxels more than `trunc_m` behind the observed surface are not
-    /// updated (they are occluded: Curless & Levoy's "unseen" region).
+    /// `[−band, band]`; voxels more than `band` behind the observed surface are not updated
+    /// (they are occluded: Curless & Levoy's "unseen" region). `band = trunc_m` with
+    /// [`Truncation::Fixed`]; with [`Truncation::SensorAdaptive`] `trunc_m` is the narrowest
+    /// band.
     pub trunc_m: f64,
+    /// How the band follows the depth of each observation (default
+    /// [`Truncation::SensorAdaptive`] with the `kinect-v1` sensor).
+    pub truncation: Truncation,
     /// The weighting scheme.
     pub weight: WeightMode,
     /// Reference depth at which every weight mode gives 1, metres.
@@ -186,6 +294,7 @@ impl Default for TsdfConfig {
         Self {
             voxel_m: 0.004,
             trunc_m: 0.02,
+            truncation: Truncation::sensor_adaptive(SensorModel::kinect_v1()),
             weight: WeightMode::InvZ4,
             z_ref_m: 1.0,
             max_depth_m: 4.0,
@@ -228,6 +337,24 @@ impl TsdfConfig {
                 self.trunc_m, self.voxel_m
             )));
         }
+        if let Truncation::SensorAdaptive {
+            sensor,
+            sigmas,
+            max_m,
+        } = self.truncation
+        {
+            sensor.validate()?;
+            if !(sigmas.is_finite() && sigmas > 0.0 && sigmas <= 100.0) {
+                return Err(TsdfError::InvalidParameter(format!(
+                    "truncation sigmas = {sigmas} must be in (0, 100]"
+                )));
+            }
+            if !(max_m.is_finite() && max_m > 0.0) {
+                return Err(TsdfError::InvalidParameter(format!(
+                    "truncation max_m = {max_m} must be positive and finite"
+                )));
+            }
+        }
         if let WeightMode::SensorVariance { sensor, floor_m } = self.weight {
             sensor.validate()?;
             if !(floor_m.is_finite() && floor_m >= 0.0) {
@@ -243,6 +370,11 @@ impl TsdfConfig {
     /// `max(4·voxel, 3·σ_Z(z))`.
     pub fn suggested_trunc_m(voxel_m: f64, sensor: &SensorModel, z_m: f64) -> f64 {
         (4.0 * voxel_m).max(3.0 * sensor.sigma_z(z_m))
+    }
+
+    /// The truncation band of one observation at depth `z_m` under these parameters, metres.
+    pub fn band_at(&self, z_m: f64) -> f64 {
+        f64::from(BandFn::new(self).band(z_m as f32))
     }
 
     /// The normalised weight of one observation at depth `z_m` under these parameters.
@@ -308,6 +440,48 @@ mod tests {
             ..TsdfConfig::default()
         };
         assert!(f.weight_at(0.5) < q.weight_at(0.5));
+    }
+
+    #[test]
+    fn adaptive_band_follows_three_sigma_between_floor_and_cap() {
+        let s = SensorModel::kinect_v1();
+        let p = TsdfConfig::default();
+        // Below 2.1 m the floor, beyond it 3σ_Z, the cap far away.
+        assert!((p.band_at(1.0) - 0.02).abs() < 1e-7);
+        for z in [3.0, 4.0] {
+            let want = 3.0 * s.sigma_z(z);
+            assert!(
+                want > 0.02 && (p.band_at(z) - want).abs() < 1e-6 * want.max(1.0),
+                "{z}"
+            );
+        }
+        assert!((p.band_at(8.0) - 0.12).abs() < 1e-7);
+        let fixed = TsdfConfig {
+            truncation: Truncation::Fixed,
+            ..p
+        };
+        for z in [0.5, 3.0, 8.0] {
+            assert!((fixed.band_at(z) - 0.02).abs() < 1e-7);
+        }
+        // A cap below the floor: the floor everywhere.
+        let capped = TsdfConfig {
+            truncation: Truncation::SensorAdaptive {
+                sensor: s,
+                sigmas: 3.0,
+                max_m: 0.01,
+            },
+            ..p
+        };
+        assert!((capped.band_at(4.0) - 0.02).abs() < 1e-7);
+        let bad = TsdfConfig {
+            truncation: Truncation::SensorAdaptive {
+                sensor: s,
+                sigmas: f64::NAN,
+                max_m: 0.1,
+            },
+            ..p
+        };
+        assert!(bad.validate().is_err());
     }
 
     #[test]

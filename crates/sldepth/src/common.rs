@@ -94,6 +94,36 @@ pub fn check_output(option: &str, path: &Path, exts: &[&str]) -> Result<()> {
     Ok(())
 }
 
+/// Checks that no two outputs of one command name the same file (`-o x.png --truth x.png` would
+/// otherwise keep only the last one written). Names are compared after resolving their
+/// directories, so `./x.png` and `x.png` are the same file; an unresolvable directory is left to
+/// the write to report.
+pub fn check_distinct_outputs(outputs: &[(&str, Option<&Path>)]) -> Result<()> {
+    let key = |p: &Path| -> PathBuf {
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        match (dir.canonicalize(), p.file_name()) {
+            (Ok(d), Some(name)) => d.join(name),
+            _ => p.to_path_buf(),
+        }
+    };
+    let given: Vec<(&str, &Path, PathBuf)> = outputs
+        .iter()
+        .filter_map(|(opt, p)| p.map(|p| (*opt, p, key(p))))
+        .collect();
+    for (i, (opt_a, path_a, key_a)) in given.iter().enumerate() {
+        if let Some((opt_b, _, _)) = given[i + 1..].iter().find(|(_, _, k)| k == key_a) {
+            bail!(
+                "{opt_a} and {opt_b} both name {}: give each output its own file",
+                path_a.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Extensions of depth outputs.
 pub const DEPTH_EXTS: [&str; 4] = ["png", "tif", "tiff", "pgm"];
 

@@ -71,6 +71,9 @@ enum Command {
     /// Track the camera through a raw depth recording (no poses given): noise-weighted
     /// point-to-plane tracking, fusion of every tracked frame, trajectory and mesh output.
     Track(cmd::track::Args),
+    /// Trajectory accuracy against ground truth (TUM benchmark definitions): ATE after rigid
+    /// alignment and RPE per frame or per second, from two TUM-format trajectory files.
+    EvalTraj(cmd::eval_traj::Args),
     /// List the camera presets `--camera NAME` accepts: intrinsics, baseline, disparity
     /// sub-pixel steps, noise, range and the source of the numbers.
     Cameras(cmd::cameras::Args),
@@ -145,6 +148,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Planes(a) => cmd::planes::run(a),
         Command::Motion(a) => cmd::motion::run(a),
         Command::Track(a) => cmd::track::run(a),
+        Command::EvalTraj(a) => cmd::eval_traj::run(a),
         Command::Cameras(a) => cmd::cameras::run(a),
     }
 }

@@ -14,6 +14,7 @@ mod planes;
 mod realism;
 mod track;
 mod tsdf;
+mod tsdf_trunc;
 
 /// One experiment: a name (for `--only`) and its entry point.
 type Experiment = (&'static str, fn(&mut Context) -> Result<()>);

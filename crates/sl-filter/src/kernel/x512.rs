@@ -27,7 +27,7 @@ fn load(a: &[f32]) -> __m512 {
 /// Filters the block of whole rows `out` (see [`super::block_fast`]).
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 #[inline]
-pub(super) fn block<const R: usize, M: RangeMode, const DISP: bool>(
+pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -63,7 +63,7 @@ pub(super) fn block<const R: usize, M: RangeMode, const DISP: bool>(
                     Ok(d) => d,
                     Err(_) => &mut res,
                 };
-            chunk::<R, M, DISP>(&rows, &t, dst, mode, fb, rows_on);
+            chunk::<R, DISC, M, DISP>(&rows, &t, dst, mode, fb, rows_on);
             if n < CHUNK {
                 out_row[x0..x0 + n].copy_from_slice(&res[..n]);
             }
@@ -77,7 +77,7 @@ pub(super) fn block<const R: usize, M: RangeMode, const DISP: bool>(
 /// sums and spills most of it to the stack (measured 1.7× slower).
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 #[inline(never)]
-fn chunk<const R: usize, M: RangeMode, const DISP: bool>(
+fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
     t: &[f32; MAX_CLASSES],
     dst: &mut [f32; CHUNK],
@@ -136,7 +136,7 @@ fn chunk<const R: usize, M: RangeMode, const DISP: bool>(
         // The window unrolled; taps outside it or at the centre vanish at compile time.
         macro_rules! tap {
             ($dy:literal, $dx:literal) => {
-                if is_tap::<R>($dy, $dx) {
+                if is_tap::<R, DISC>($dy, $dx) {
                     let tc = tv[class::<R>($dy, $dx)];
                     weigh!(load(&rows[$dy][i + $dx..]), sa, zsa, swa, sda, tc);
                     weigh!(load(&rows[$dy][i + 16 + $dx..]), sb, zsb, swb, sdb, tc);

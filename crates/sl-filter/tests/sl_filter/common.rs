@@ -3,7 +3,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sl_core::{DepthImage, Intrinsics, SensorModel};
-use sl_filter::{DepthFilter, Isa};
+use sl_filter::{DepthFilter, Isa, Window};
 
 /// A random depth image in `[lo, hi]` metres with a fraction `holes` of invalid pixels, some
 /// smooth structure and some depth edges.
@@ -27,14 +27,19 @@ pub fn random_image(w: usize, h: usize, lo: f32, hi: f32, holes: f64, seed: u64)
     DepthImage::from_vec(w, h, data).unwrap()
 }
 
-/// The filters tested everywhere: every method with a range that matters on `[0.5, 4]` m data.
+/// The filters tested everywhere: every method with a range that matters on `[0.5, 4]` m data,
+/// each with the square and the disc window.
 pub fn filters(radius: usize, sigma_s: f64, sensor: &SensorModel) -> Vec<DepthFilter> {
-    vec![
+    let square = [
         DepthFilter::gaussian(radius, sigma_s),
         DepthFilter::bilateral(radius, sigma_s, 0.02),
         DepthFilter::adaptive(radius, sigma_s, 0.01),
         DepthFilter::disparity(radius, sigma_s, 0.3, sensor),
-    ]
+    ];
+    square
+        .into_iter()
+        .flat_map(|f| [f, f.with_window(Window::Disc)])
+        .collect()
 }
 
 /// Every instruction set this CPU supports.

@@ -104,3 +104,31 @@ fn large_holes_and_image_borders_match_the_reference() {
         }
     }
 }
+
+#[test]
+fn the_disc_window_skips_the_corners_and_the_square_does_not() {
+    // A flat 1 m frame with one pixel 1 cm deeper at offset (2, 2) (corner of the 5x5 square,
+    // outside the radius-2 disc) and one at (0, 2) (inside both) of the centre (10, 10).
+    let sensor = SensorModel::kinect_v1();
+    let (w, h) = (21, 21);
+    let mut depth = sl_core::DepthImage::from_vec(w, h, vec![1.0; w * h]).unwrap();
+    depth.data_mut()[12 * w + 12] = 1.01;
+    for f in filters(2, 1.0, &sensor) {
+        for isa in isas() {
+            let out = f.apply_with_isa(&depth, isa).unwrap();
+            let centre = out.data()[10 * w + 10];
+            match f.window {
+                sl_filter::Window::Disc => assert_eq!(centre, 1.0, "{f:?} {isa:?}"),
+                sl_filter::Window::Square => assert!(centre > 1.0, "{f:?} {isa:?}: {centre}"),
+            }
+        }
+    }
+    depth.data_mut()[12 * w + 12] = 1.0;
+    depth.data_mut()[12 * w + 10] = 1.01;
+    for f in filters(2, 1.0, &sensor) {
+        for isa in isas() {
+            let centre = f.apply_with_isa(&depth, isa).unwrap().data()[10 * w + 10];
+            assert!(centre > 1.0, "{f:?} {isa:?}: {centre}");
+        }
+    }
+}

@@ -64,9 +64,15 @@ class Camera:
     def intrinsic_matrix(self) -> List[List[float]]: ...
 
 def read_depth(
-    path: _Path, depth_scale: Optional[float] = None, format: Optional[str] = None
+    path: _Path,
+    depth_scale: Optional[float] = None,
+    format: Optional[str] = None,
+    *,
+    max_memory_bytes: Optional[int] = None,
 ) -> npt.NDArray[np.float32]:
-    """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun"."""
+    """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun".
+    max_memory_bytes bounds the read (default 4 GiB); too large an image raises OSError
+    from its header, before decoding."""
 
 def write_depth(
     path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
@@ -100,9 +106,11 @@ def filter(
     k_per_m: Optional[float] = None,
     sigma_d_m: Optional[float] = None,
     sigma_disp_px: Optional[float] = None,
+    window: str = "square",
     depth_scale: Optional[float] = None,
 ) -> npt.NDArray[np.float32]:
-    """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity."""
+    """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity;
+    window: "square" (2r+1 square) or "disc" (dx² + dy² ≤ r², as OpenCV's bilateralFilter)."""
 
 class Mesh:
     @property

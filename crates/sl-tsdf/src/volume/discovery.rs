@@ -79,7 +79,8 @@ pub(super) struct BandFrame<'a> {
     pub(super) t: Vector3<f32>,
     /// Largest block coordinate magnitude accepted.
     pub(super) lim: f32,
-    pub(super) trunc: f32,
+    /// The band of each pixel's depth.
+    pub(super) band: crate::params::BandFn,
     /// Ray x (at z = 1) of each column.
     pub(super) rx: &'a [f32],
     pub(super) k: &'a Intrinsics,
@@ -122,7 +123,7 @@ impl<'a> BandFrame<'a> {
             rot,
             t,
             lim,
-            trunc: p.trunc_m as f32,
+            band: crate::params::BandFn::new(p),
             rx,
             k,
             keys: None,
@@ -147,7 +148,7 @@ pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Res
         rot,
         t,
         lim,
-        trunc,
+        band,
         rx,
         k,
         keys,
@@ -205,8 +206,8 @@ pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Res
         let ends = |x: usize| -> (f32, f32) {
             let d = row[x][0];
             let r = rx[x];
-            // ±trunc in range along the ray: dt = trunc/λ in depth, λ = ‖ray‖.
-            let dt = trunc / (r * r + ry2).sqrt();
+            // ±band in range along the ray: dt = band/λ in depth, λ = ‖ray‖.
+            let dt = band.band(d) / (r * r + ry2).sqrt();
             let n = d - dt;
             (if n > 0.0 { n } else { 0.0 }, d + dt)
         };

@@ -11,6 +11,7 @@ use sl_core::{CameraToWorld, DepthView, Intrinsics, Pose};
 use super::discovery::*;
 use super::*;
 use crate::par::run_on_threads;
+use crate::params::BandFn;
 
 impl TsdfVolume {
     /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world
@@ -228,7 +229,7 @@ pub(super) struct FrameConsts {
     pub(super) vmax: f32,
     /// Table row length, `width + 2`.
     pub(super) tw: f32,
-    pub(super) trunc: f32,
+    pub(super) band: BandFn,
     pub(super) max_w: f32,
     pub(super) v: f32,
 }
@@ -263,7 +264,7 @@ impl FrameConsts {
             umax: (k.width + 1) as f32,
             vmax: (k.height + 1) as f32,
             tw: (k.width + 2) as f32,
-            trunc: p.trunc_m as f32,
+            band: BandFn::new(p),
             max_w: p.max_weight,
             v,
         }
@@ -344,7 +345,7 @@ pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     fc: &FrameConsts,
     table: &T,
 ) {
-    let (trunc, max_w) = (fc.trunc, fc.max_w);
+    let (band, max_w) = (fc.band, fc.max_w);
     let mut pix = [0u32; SLICE];
     let mut zs = [0.0f32; SLICE];
     let mut lam = [0.0f32; SLICE];
@@ -390,14 +391,16 @@ pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
             dw[i] = table.entry(pix[i]);
         }
         // Stage 3 (branch-free): line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ
-        // along the voxel's own ray; an invalid pixel (weight 0) or a voxel more than `trunc`
-        // behind the surface gets weight 0 and is left unchanged: F + (f − F)·0 = F for the
+        // along the voxel's own ray, clipped to the observation's band `trunc` (see
+        // `Truncation`); an invalid pixel (weight 0) or a voxel more than `trunc` behind the
+        // surface gets weight 0 and is left unchanged: F + (f − F)·0 = F for the
         // finite f = min(sdf, trunc) (sdf is NaN only for z ≤ 0, whose pixel is the border:
         // then f = trunc).
         let tsdf = &mut blk.tsdf[base..base + SLICE];
         let weight = &mut blk.weight[base..base + SLICE];
         for i in 0..SLICE {
             let [d, wg] = dw[i];
+            let trunc = band.band(d);
             let sdf = (d - zs[i]) * lam[i];
             let wgt = if sdf >= -trunc { wg } else { 0.0 };
             let f = if sdf < trunc { sdf } else { trunc };

@@ -129,8 +129,8 @@ fn reference_band(
         }
         let (x, y) = (i % k.width, i / k.width);
         let ray = Vector3::new((x as f64 - k.cx) / k.fx, (y as f64 - k.cy) / k.fy, 1.0);
-        let dt = p.trunc_m / ray.norm();
         let d = f64::from(d);
+        let dt = p.band_at(d) / ray.norm();
         let at = |z: f64| (pose * Point3::from(ray * z)).coords / bs + shift;
         let (a, b) = (at((d - dt).max(0.0)), at(d + dt));
         let lo = a.inf(&b).map(|c| c.floor() as i32 - 1);
@@ -342,14 +342,15 @@ impl ReferenceVolume {
         }
         let d = f64::from(d);
         let sdf = (d - pc.z) * pc.coords.norm() / pc.z;
-        if (sdf + p.trunc_m).abs() < EPS_SDF_M {
+        let band = p.band_at(d);
+        if (sdf + band).abs() < EPS_SDF_M {
             self.ambiguous.insert(g);
             return;
         }
-        if sdf < -p.trunc_m {
+        if sdf < -band {
             return;
         }
-        let f = sdf.min(p.trunc_m);
+        let f = sdf.min(band);
         let w = reference_weight(p, d);
         let (tsdf, weight) = self.voxels.entry(g).or_insert((0.0, 0.0));
         let wn = *weight + w;

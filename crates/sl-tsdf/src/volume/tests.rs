@@ -41,7 +41,7 @@ fn band_reference(f: &BandFrame<'_>, depth: &[f32]) -> Vec<u64> {
         let (x, y) = (i % k.width, i / k.width);
         let ry = ((y as f64 - k.cy) / k.fy) as f32;
         let r = f.rx[x];
-        let dt = f.trunc / (r * r + (ry * ry + 1.0)).sqrt();
+        let dt = f.band.band(d) / (r * r + (ry * ry + 1.0)).sqrt();
         // The ray's direction rounded as in `band_rows`.
         let dir = f.rot * Vector3::new(0.0, ry, 1.0) + f.rot.column(0) * r;
         let a = f.t + dir * (d - dt).max(0.0);

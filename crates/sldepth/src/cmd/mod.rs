@@ -3,6 +3,7 @@
 pub mod analyze;
 pub mod cameras;
 pub mod cloud;
+pub mod eval_traj;
 pub mod filter;
 pub mod fuse;
 pub mod info;

@@ -11,7 +11,9 @@ use sl_eval::planes::overlay;
 use sl_io::DepthFormat;
 use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac};
 
-use crate::common::{InputArgs, check_output, check_range, load_depth, print_json, round_to};
+use crate::common::{
+    InputArgs, check_distinct_outputs, check_output, check_range, load_depth, print_json, round_to,
+};
 
 /// Arguments of `sldepth planes`.
 #[derive(clap::Args, Debug)]
@@ -58,6 +60,10 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.overlay {
         check_output("--overlay", p, &["png"])?;
     }
+    check_distinct_outputs(&[
+        ("--output", Some(&args.output)),
+        ("--overlay", args.overlay.as_deref()),
+    ])?;
     check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
     check_range("--log-threshold-px", args.log_threshold_px, 0.0..=1e3)?;
     check_range("--log-sigma-px", args.log_sigma_px, 0.0..=1e3)?;

@@ -7,7 +7,8 @@ use clap::builder::PossibleValuesParser;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, SCENE_NAMES, named_scene};
 
 use crate::common::{
-    check_depth_scale, check_output, limits, load_camera, output_encoding, print_json, save_depth,
+    check_depth_scale, check_distinct_outputs, check_output, limits, load_camera, output_encoding,
+    print_json, save_depth,
 };
 
 /// Options of `sldepth simulate`.
@@ -72,6 +73,11 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(l) = &args.labels {
         check_output("--labels", l, &["png"])?;
     }
+    check_distinct_outputs(&[
+        ("--output", Some(&args.output)),
+        ("--truth", args.truth.as_deref()),
+        ("--labels", args.labels.as_deref()),
+    ])?;
     let named = named_scene(&args.scene)?;
     let (intrinsics, mut sim) = match &args.camera {
         Some(_) => {

@@ -22,7 +22,7 @@ use sl_io::depth::{ReadOptions, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::ReferenceMaps;
 use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
+use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::common::{
     InputArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits, parse_format,
@@ -60,7 +60,8 @@ pub struct Args {
     /// Voxel edge of the fused volume, metres.
     #[arg(long, value_name = "M", default_value_t = 0.004)]
     pub voxel_m: f64,
-    /// Truncation band, metres (default 5 voxels, as `sldepth fuse`).
+    /// A fixed truncation band, metres. Default, as `sldepth fuse`: per observation
+    /// max(5 voxels, 3·σ_Z(Z)) up to 12 cm (the sensor-adaptive band).
     #[arg(long, value_name = "M")]
     pub trunc_m: Option<f64>,
     /// Ignore depths beyond this for fusion, metres.
@@ -259,6 +260,10 @@ pub fn run(args: Args) -> Result<()> {
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
+    params.truncation = match args.trunc_m {
+        Some(_) => Truncation::Fixed,
+        None => Truncation::sensor_adaptive(camera.sensor),
+    };
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = limits().tsdf_budget_bytes;
     let mut volume = TsdfVolume::new(params)?;
@@ -404,6 +409,7 @@ pub fn run(args: Args) -> Result<()> {
             "wall_s": round_to(wall_s, 3),
             "voxel_m": params.voxel_m,
             "trunc_m": params.trunc_m,
+            "truncation": params.truncation.name(),
             "vertices": mesh.as_ref().map(|m| m.vertex_count()),
             "triangles": mesh.as_ref().map(|m| m.triangle_count()),
             "output": args.output.as_ref().map(|p| p.display().to_string()),

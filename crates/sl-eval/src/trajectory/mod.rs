@@ -1,0 +1,110 @@
+//! Trajectory accuracy with the TUM RGB-D benchmark's definitions (Sturm et al., IROS 2012,
+//! and its tools `evaluate_ate.py` / `evaluate_rpe.py`): the absolute trajectory error after
+//! Horn's closed-form rigid alignment ([`ate`]) and the relative pose error over a fixed
+//! delta in frames or seconds ([`rpe`]), on poses matched by nearest timestamp
+//! ([`associate`]).
+//!
+//! Trajectories are `(timestamp_s, CameraToWorld)` lists in any order; timestamps must be
+//! finite and distinct within a trajectory (an error otherwise, never a panic).
+
+use sl_core::CameraToWorld;
+
+use crate::error::{EvalError, Result};
+
+mod align;
+mod associate;
+mod rpe;
+mod stats;
+
+pub use align::{AteResult, ate};
+pub use associate::associate;
+pub use rpe::{DeltaUnit, RpeResult, rpe};
+pub use stats::ErrorStats;
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
+mod tests;
+
+/// One pose of a trajectory: timestamp (seconds) and camera-to-world pose.
+pub type StampedPose = (f64, CameraToWorld);
+
+/// How two trajectories are compared.
+///
+/// Defaults: TUM's maximum timestamp gap of 0.02 s for the ATE association and an RPE delta
+/// of one frame.
+///
+/// `#[non_exhaustive]`: start from [`TrajectoryConfig::default`] and assign the fields you need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct TrajectoryConfig {
+    /// Largest timestamp difference of an associated pair (ATE), seconds (`evaluate_ate.py
+    /// --max_difference`).
+    pub max_gap_s: f64,
+    /// The RPE pair distance, in [`TrajectoryConfig::delta_unit`]s.
+    pub delta: f64,
+    /// Unit of [`TrajectoryConfig::delta`].
+    pub delta_unit: DeltaUnit,
+}
+
+impl Default for TrajectoryConfig {
+    fn default() -> Self {
+        Self {
+            max_gap_s: 0.02,
+            delta: 1.0,
+            delta_unit: DeltaUnit::Frames,
+        }
+    }
+}
+
+impl TrajectoryConfig {
+    /// Checks the configuration.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_gap_s.is_finite() && self.max_gap_s > 0.0) {
+            return Err(EvalError::InvalidParameter(format!(
+                "max_gap_s = {} must be positive and finite",
+                self.max_gap_s
+            )));
+        }
+        if !(self.delta.is_finite() && self.delta > 0.0) {
+            return Err(EvalError::InvalidParameter(format!(
+                "delta = {} must be positive and finite",
+                self.delta
+            )));
+        }
+        if self.delta_unit == DeltaUnit::Frames && self.delta.fract() != 0.0 {
+            return Err(EvalError::InvalidParameter(format!(
+                "delta = {} frames must be a whole number",
+                self.delta
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// The trajectory sorted by timestamp, after checking the timestamps and poses.
+pub(crate) fn sorted(traj: &[StampedPose], name: &str) -> Result<Vec<StampedPose>> {
+    let mut v = traj.to_vec();
+    for (t, p) in &v {
+        let iso = p.isometry();
+        if !t.is_finite() {
+            return Err(EvalError::InvalidParameter(format!(
+                "{name} trajectory: timestamp {t} is not finite"
+            )));
+        }
+        if !(iso.translation.vector.iter().all(|c| c.is_finite())
+            && iso.rotation.coords.iter().all(|c| c.is_finite()))
+        {
+            return Err(EvalError::InvalidParameter(format!(
+                "{name} trajectory: the pose at {t} s is not finite"
+            )));
+        }
+    }
+    v.sort_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some(w) = v.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(EvalError::InvalidParameter(format!(
+            "{name} trajectory: timestamp {} s appears twice",
+            w[0].0
+        )));
+    }
+    Ok(v)
+}

@@ -1,0 +1,221 @@
+//! Hand-computed ATE / RPE cases, invariance under a rigid change of world frame, the
+//! association rules and input errors.
+
+use sl_core::CameraToWorld;
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+use super::*;
+
+fn pose(t: [f64; 3], yaw_deg: f64) -> CameraToWorld {
+    CameraToWorld::from_isometry(Isometry3::from_parts(
+        Translation3::new(t[0], t[1], t[2]),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
+    ))
+}
+
+/// A wiggly trajectory of `n` poses, 30 Hz.
+fn wiggly(n: usize) -> Vec<StampedPose> {
+    (0..n)
+        .map(|i| {
+            let s = i as f64 * 0.1;
+            let iso = Isometry3::new(
+                Vector3::new(s.sin(), 0.3 * s, (0.7 * s).cos()),
+                Vector3::new(0.2 * s.cos(), 0.5 * s, 0.1 * s),
+            );
+            (1000.0 + i as f64 / 30.0, CameraToWorld::from_isometry(iso))
+        })
+        .collect()
+}
+
+#[test]
+fn a_rigidly_moved_trajectory_has_zero_ate_and_rpe() {
+    let gt = wiggly(60);
+    let t = Isometry3::new(Vector3::new(3.0, -1.0, 0.5), Vector3::new(0.4, -0.3, 1.1));
+    let est: Vec<StampedPose> = gt
+        .iter()
+        .map(|(s, p)| (*s, CameraToWorld::from_isometry(t * p.isometry())))
+        .collect();
+    let cfg = TrajectoryConfig::default();
+    let a = ate(&est, &gt, &cfg).unwrap();
+    assert_eq!((a.matched, a.estimated, a.ground_truth), (60, 60, 60));
+    assert!(
+        a.stats_m.rmse < 1e-9 && a.stats_m.max < 1e-9,
+        "{:?}",
+        a.stats_m
+    );
+    // The alignment found is the inverse of the applied motion.
+    let back = a.alignment.isometry() * t;
+    assert!(back.translation.vector.norm() < 1e-9 && back.rotation.angle() < 1e-9);
+    let r = rpe(&est, &gt, &cfg).unwrap();
+    assert_eq!(r.pairs, 58); // i = 0..=57 (j = 59, the last pose, is skipped as in TUM)
+    // acos((tr R − 1)/2) near 1 resolves angles only down to √(2·ε_f64) ≈ 2·10⁻⁸ rad.
+    assert!(
+        r.translation_m.max < 1e-9 && r.rotation_deg.max < 1e-5,
+        "{r:?}"
+    );
+    let per_s = TrajectoryConfig {
+        delta: 1.0,
+        delta_unit: DeltaUnit::Seconds,
+        ..cfg
+    };
+    let r = rpe(&est, &gt, &per_s).unwrap();
+    assert!(r.pairs > 20 && r.translation_m.max < 1e-9);
+}
+
+#[test]
+fn hand_worked_three_pose_ate() {
+    // Ground truth on the x axis; the middle estimate 0.3 m off in y. After the best rigid
+    // alignment (a translation by −0.1 m in y; rotations about x change nothing) the errors
+    // are 0.1, 0.2 and 0.1 m.
+    let gt = vec![
+        (0.0, pose([0.0, 0.0, 0.0], 0.0)),
+        (0.1, pose([1.0, 0.0, 0.0], 0.0)),
+        (0.2, pose([2.0, 0.0, 0.0], 0.0)),
+    ];
+    let est = vec![
+        (0.0, pose([0.0, 0.0, 0.0], 5.0)),
+        (0.1, pose([1.0, 0.3, 0.0], 0.0)),
+        (0.2, pose([2.0, 0.0, 0.0], -3.0)),
+    ];
+    let a = ate(&est, &gt, &TrajectoryConfig::default()).unwrap();
+    let s = a.stats_m;
+    assert_eq!(s.count, 3);
+    assert!((s.rmse - 0.02f64.sqrt()).abs() < 1e-12, "{s:?}");
+    assert!((s.mean - 0.4 / 3.0).abs() < 1e-12);
+    assert!((s.median - 0.1).abs() < 1e-12);
+    assert!((s.max - 0.2).abs() < 1e-12 && (s.min - 0.1).abs() < 1e-12);
+}
+
+#[test]
+fn a_constant_world_offset_is_removed_by_the_alignment_but_scale_is_not() {
+    let gt = wiggly(40);
+    let shifted: Vec<StampedPose> = gt
+        .iter()
+        .map(|(s, p)| {
+            let mut iso = *p.isometry();
+            iso.translation.vector += Vector3::new(0.5, 0.0, -0.2);
+            (*s, CameraToWorld::from_isometry(iso))
+        })
+        .collect();
+    let cfg = TrajectoryConfig::default();
+    assert!(ate(&shifted, &gt, &cfg).unwrap().stats_m.rmse < 1e-9);
+    // Positions scaled by 1.1 about their centroid: no rigid motion removes that, and the
+    // residual of each pose is 0.1 of its distance from the centroid.
+    let n = gt.len() as f64;
+    let c = gt
+        .iter()
+        .fold(Vector3::zeros(), |a, (_, p)| a + p.translation())
+        / n;
+    let scaled: Vec<StampedPose> = gt
+        .iter()
+        .map(|(s, p)| {
+            let mut iso = *p.isometry();
+            iso.translation.vector = c + (p.translation() - c) * 1.1;
+            (*s, CameraToWorld::from_isometry(iso))
+        })
+        .collect();
+    let expect = (gt
+        .iter()
+        .map(|(_, p)| (0.1 * (p.translation() - c).norm()).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    let got = ate(&scaled, &gt, &cfg).unwrap().stats_m.rmse;
+    assert!((got - expect).abs() < 1e-9, "{got} vs {expect}");
+}
+
+#[test]
+fn hand_worked_rpe_translation_and_rotation() {
+    // Four poses 1 m apart on x at 10 Hz; the second estimate is 0.3 m off in y. Per frame the
+    // pairs are (0, 1) and (1, 2) ((2, 3) ends at the last pose, which TUM skips); each
+    // relative motion is off by 0.3 m.
+    let gt: Vec<StampedPose> = (0..4)
+        .map(|i| (0.1 * i as f64, pose([i as f64, 0.0, 0.0], 0.0)))
+        .collect();
+    let mut est = gt.clone();
+    est[1].1 = pose([1.0, 0.3, 0.0], 0.0);
+    let r = rpe(&est, &gt, &TrajectoryConfig::default()).unwrap();
+    assert_eq!(r.pairs, 2);
+    assert!(
+        (r.translation_m.rmse - 0.3).abs() < 1e-12,
+        "{:?}",
+        r.translation_m
+    );
+    assert!(r.rotation_deg.max < 1e-9);
+    assert!((r.max_gap_s - 0.2).abs() < 1e-12);
+
+    // Estimates yawed by 10° more at every pose: each relative rotation is off by 10°, and
+    // E = Δ_est⁻¹·Δ_gt has translation R₀ᵀ(R₁ − I)(t₀ − t₁), of length 2·sin(θ₁/2)·1 m with
+    // θ₁ = 10°·(i + 1) the yaw of the pair's second pose.
+    let gt: Vec<StampedPose> = (0..6)
+        .map(|i| (0.1 * i as f64, pose([i as f64, 0.0, 0.0], 0.0)))
+        .collect();
+    let est: Vec<StampedPose> = (0..6)
+        .map(|i| (0.1 * i as f64, pose([i as f64, 0.0, 0.0], 10.0 * i as f64)))
+        .collect();
+    let r = rpe(&est, &gt, &TrajectoryConfig::default()).unwrap();
+    assert_eq!(r.pairs, 4);
+    assert!((r.rotation_deg.min - 10.0).abs() < 1e-9 && (r.rotation_deg.max - 10.0).abs() < 1e-9);
+    let expect: Vec<f64> = (1..=4)
+        .map(|j| 2.0 * (10f64 * j as f64 / 2.0).to_radians().sin())
+        .collect();
+    let e = ErrorStats::of(&expect);
+    assert!((r.translation_m.rmse - e.rmse).abs() < 1e-12);
+    assert!((r.translation_m.max - e.max).abs() < 1e-12);
+
+    // Per second with delta 0.3 s: pairs (0, 3), (1, 4); (2, 5) ends at the last pose.
+    let cfg = TrajectoryConfig {
+        delta: 0.3,
+        delta_unit: DeltaUnit::Seconds,
+        ..TrajectoryConfig::default()
+    };
+    let r = rpe(&est, &gt, &cfg).unwrap();
+    assert_eq!(r.pairs, 2);
+    assert!((r.rotation_deg.mean - 30.0).abs() < 1e-9);
+}
+
+#[test]
+fn association_is_greedy_by_time_difference_within_the_gap() {
+    let p = pose([0.0; 3], 0.0);
+    let gt = vec![(0.0, p), (0.015, p), (1.0, p)];
+    let est = vec![(0.01, p), (0.99, p), (2.0, p)];
+    // 0.01 is closer to 0.015 (5 ms) than to 0.0 (10 ms); 2.0 has no partner.
+    assert_eq!(associate(&gt, &est, 0.02), vec![(1, 0), (2, 1)]);
+    // A gap of 10 ms excludes the 10 ms pair but not the 5 ms one.
+    assert_eq!(associate(&gt, &est, 0.006), vec![(1, 0)]);
+    // Each pose at most once: two estimates near one ground-truth stamp.
+    let est = vec![(0.001, p), (0.002, p)];
+    assert_eq!(associate(&gt, &est, 0.02), vec![(0, 0), (1, 1)]);
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let gt = wiggly(10);
+    let cfg = TrajectoryConfig::default();
+    // Empty, too short, no overlap.
+    assert!(ate(&[], &gt, &cfg).is_err());
+    assert!(rpe(&gt[..1], &gt, &cfg).is_err());
+    let late: Vec<StampedPose> = gt.iter().map(|(s, p)| (s + 100.0, *p)).collect();
+    assert!(ate(&late, &gt, &cfg).is_err());
+    assert!(rpe(&late, &gt, &cfg).is_err());
+    // Duplicate and non-finite timestamps.
+    let mut dup = gt.clone();
+    dup[3].0 = dup[2].0;
+    assert!(ate(&dup, &gt, &cfg).is_err());
+    let mut nan = gt.clone();
+    nan[0].0 = f64::NAN;
+    assert!(rpe(&gt, &nan, &cfg).is_err());
+    // Bad configuration.
+    let bad = TrajectoryConfig {
+        max_gap_s: -1.0,
+        ..cfg
+    };
+    assert!(ate(&gt, &gt, &bad).is_err());
+    let bad = TrajectoryConfig { delta: 1.5, ..cfg };
+    assert!(bad.validate().is_err());
+    assert!(DeltaUnit::parse("minutes").is_err());
+    // Unordered input is sorted first.
+    let mut rev = gt.clone();
+    rev.reverse();
+    assert!(ate(&rev, &gt, &cfg).unwrap().stats_m.rmse < 1e-12);
+}

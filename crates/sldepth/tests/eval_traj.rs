@@ -1,0 +1,137 @@
+//! End-to-end tests of `sldepth eval-traj`: a hand-worked trajectory pair (text and JSON), a
+//! rigidly moved copy, and clear errors on bad input.
+
+// Test code: a panic is a failed test.
+#![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn sldepth(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(args)
+        .output()
+        .expect("the sldepth binary runs")
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> String {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p.to_str().unwrap().to_owned()
+}
+
+/// Four poses 1 m apart on x at 10 Hz, identity rotations; `dy` moves the second in y.
+fn four_poses(dy: f64) -> String {
+    let mut s = String::from("# timestamp tx ty tz qx qy qz qw\n");
+    for i in 0..4 {
+        let y = if i == 1 { dy } else { 0.0 };
+        s += &format!("{:.6} {i}.0 {y} 0.0 0 0 0 1\n", 100.0 + 0.1 * i as f64);
+    }
+    s
+}
+
+#[test]
+fn eval_traj_reports_hand_worked_ate_and_rpe() {
+    let dir = tempfile::tempdir().unwrap();
+    let gt = write(dir.path(), "gt.txt", &four_poses(0.0));
+    let est = write(dir.path(), "est.txt", &four_poses(0.3));
+    let o = sldepth(&["eval-traj", &est, &gt, "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["poses_matched"], 4);
+    // Per frame, pairs (0, 1) and (1, 2) (TUM skips the pair ending at the last pose): each
+    // relative motion is 0.3 m off, with no rotation error.
+    assert_eq!(j["rpe"]["pairs"], 2);
+    assert_eq!(j["rpe"]["translation_m"]["rmse"], 0.3);
+    assert_eq!(j["rpe"]["rotation_deg"]["max"], 0.0);
+    // ATE: positions (0,0), (1,0.3), (2,0), (3,0) against the x axis. The best rigid alignment
+    // is a small rotation plus a shift; its RMSE is below the 0.3 m / √4 = 0.15 m of the
+    // unaligned error and above zero.
+    let ate = j["ate_m"]["rmse"].as_f64().unwrap();
+    assert!(ate > 0.05 && ate < 0.15, "{ate}");
+    // Text output names both metrics.
+    let o = sldepth(&["eval-traj", &est, &gt]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && text.contains("ATE") && text.contains("RPE"),
+        "{text}"
+    );
+}
+
+#[test]
+fn eval_traj_of_a_moved_copy_is_zero_and_per_second_works() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut gt, mut est) = (String::new(), String::new());
+    for i in 0..90 {
+        let s = i as f64 / 30.0;
+        let (x, y, z) = (s.sin(), 0.2 * s, (0.5 * s).cos());
+        let h = 0.3 * s; // yaw, half angle h/2 in the quaternion
+        let (qz, qw) = ((h / 2.0).sin(), (h / 2.0).cos());
+        gt += &format!("{s:.6} {x} {y} {z} 0 0 {qz} {qw}\n");
+        // The same trajectory in a world frame moved by 2 m in x and turned 90° about z:
+        // (x, y) -> (−y + 2, x), yaw + 90°.
+        let h2 = h + std::f64::consts::FRAC_PI_2;
+        est += &format!(
+            "{s:.6} {} {x} {z} 0 0 {} {}\n",
+            2.0 - y,
+            (h2 / 2.0).sin(),
+            (h2 / 2.0).cos()
+        );
+    }
+    let gt = write(dir.path(), "gt.txt", &gt);
+    let est = write(dir.path(), "est.txt", &est);
+    let o = sldepth(&[
+        "eval-traj",
+        &est,
+        &gt,
+        "--json",
+        "--delta",
+        "1",
+        "--delta-unit",
+        "seconds",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["poses_matched"], 90);
+    assert!(j["ate_m"]["max"].as_f64().unwrap() < 1e-5);
+    assert!(j["rpe"]["translation_m"]["max"].as_f64().unwrap() < 1e-5);
+    assert_eq!(j["rpe"]["delta_unit"], "seconds");
+}
+
+#[test]
+fn eval_traj_errors_are_clear() {
+    let dir = tempfile::tempdir().unwrap();
+    let gt = write(dir.path(), "gt.txt", &four_poses(0.0));
+    let bad = write(dir.path(), "bad.txt", "1.0 0 0 0 0 0 0\n");
+    let late = write(
+        dir.path(),
+        "late.txt",
+        "500.0 0 0 0 0 0 0 1\n501.0 0 0 0 0 0 0 1\n502.0 0 0 0 0 0 0 1\n",
+    );
+    let dup = write(
+        dir.path(),
+        "dup.txt",
+        "100.0 0 0 0 0 0 0 1\n100.0 1 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n",
+    );
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["eval-traj", "/nonexistent/est.txt", &gt],
+            "/nonexistent/est.txt",
+        ),
+        (&["eval-traj", &bad, &gt], "bad.txt"),
+        (&["eval-traj", &late, &gt], "right files"),
+        (&["eval-traj", &dup, &gt], "twice"),
+        (&["eval-traj", &gt, &gt, "--max-gap-s", "0"], "max_gap_s"),
+        (
+            &["eval-traj", &gt, &gt, "--delta-unit", "minutes"],
+            "minutes",
+        ),
+    ];
+    for (args, needle) in cases {
+        let o = sldepth(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
