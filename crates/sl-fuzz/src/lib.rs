@@ -260,10 +260,10 @@ pub fn motion(data: &[u8]) {
             .collect(),
     )
     .unwrap_or_else(|_| a.clone());
-    let mut cfg = sl_planes::DepthMotionConfig::default();
+    let mut cfg = sl_track::DepthMotionConfig::default();
     cfg.planes.min_pixels = 3;
     cfg.icp = data.first().is_some_and(|&m| m & 2 == 2);
-    let _ = sl_planes::motion_between_depths(&a, &b, &camera, &cfg);
+    let _ = sl_track::motion_between_depths(&a, &b, &camera, &cfg);
 }
 
 /// TSDF integration (voxel, band and pose from the first bytes) and mesh extraction, within a

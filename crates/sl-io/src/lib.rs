@@ -64,6 +64,7 @@ pub mod ply;
 mod pnm;
 mod raster;
 pub mod rgb;
+pub mod sequence;
 mod text;
 pub mod trajectory;
 

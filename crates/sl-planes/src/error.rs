@@ -25,21 +25,6 @@ pub enum PlanesError {
     /// function that is zero everywhere).
     #[error("degenerate plane: {0}")]
     DegeneratePlane(String),
-    /// Too few matched planes or points to determine a motion.
-    #[error("motion not determined: {0}")]
-    MotionUndetermined(String),
-    /// No motion hypothesis passed the check against the depth data, or two distinct ones
-    /// passed about equally well: the motion is not determined (rather than guessed).
-    #[error("motion not verified: {reason}")]
-    MotionNotVerified {
-        /// Why the check failed.
-        reason: String,
-        /// Inlier fraction of the best hypothesis (of the overlapping points).
-        inlier_fraction: f64,
-        /// Largest inlier fraction of an alternative that is rotated more than
-        /// `distinct_deg` from the best (another hypothesis, or the best turned).
-        alternative_inlier_fraction: f64,
-    },
     /// An error from `sl-core`.
     #[error(transparent)]
     Core(#[from] sl_core::CoreError),

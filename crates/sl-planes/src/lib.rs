@@ -1,4 +1,4 @@
-//! # sl-planes — plane extraction in the disparity domain, and motion from planes
+//! # sl-planes — plane extraction in the disparity domain
 //!
 //! Section 3.4–3.5 of the paper. A structured-light camera measures disparity `D = f·B/Z` with
 //! a noise that is constant in pixels, and on a plane `D` is an affine function of the pixel
@@ -17,10 +17,8 @@
 //! * [`ransac::metric_ransac`]: the fixed metric-threshold baseline (Open3D `segment_plane` style).
 //!   (Scoring a segmentation — the Hoover et al. SegComp comparison — and colour overlays of the
 //!   labels are evaluation tools: they live in `sl-eval`.)
-//! * [`motion`]: plane matching, rotation (weighted Kabsch) and translation from planes,
-//!   [`estimate_motion_verified`] checking every plane hypothesis against both depth maps (no
-//!   prior needed; "not determined" rather than a wrong rotation), and point-to-plane ICP
-//!   ([`refine_motion_icp_verified`]: a refinement is kept only when the depth data verify it).
+//! * Motion between frames from these planes (plane matching, weighted Kabsch, the depth-data
+//!   verification, point-to-plane ICP) lives in the `sl-track` crate, which builds on this one.
 //!
 //! ```
 //! use sl_core::{Camera, DepthImage, nalgebra::Vector3};
@@ -45,27 +43,18 @@
 #![deny(missing_docs)]
 
 mod components;
-pub mod depth_motion;
 pub mod error;
 pub mod extract;
 mod fit;
 mod kernels;
 mod log;
-pub mod motion;
 pub mod plane;
 pub mod ransac;
-mod verify;
 
-pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{PlanesError, Result};
 pub use extract::{
     PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, RegionExplanation, RejectReason,
     Stage, StageTimes, extract_planes,
-};
-pub use motion::{
-    ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,
-    MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification, VerifyConfig,
-    estimate_motion, estimate_motion_verified, icp_point_to_plane, refine_motion_icp_verified,
 };
 pub use plane::DisparityAffine;
 pub use ransac::{RansacConfig, metric_ransac};

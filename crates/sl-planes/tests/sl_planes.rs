@@ -2,13 +2,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use proptest::prelude::*;
-use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sl_core::nalgebra::Vector3;
 use sl_core::{Camera, DepthImage, Image, Intrinsics, SensorModel};
 use sl_eval::planes::segcomp;
 use sl_noise::sim::KinectSimulator;
-use sl_planes::{
-    MotionConfig, Plane, PlaneConfig, PlaneExtractor, RansacConfig, estimate_motion, metric_ransac,
-};
+use sl_planes::{Plane, PlaneConfig, PlaneExtractor, RansacConfig, metric_ransac};
 
 /// A 160x120 camera (focal length `f`) with the Kinect sensor model (f·B = 43.5 px·m).
 fn small_camera(f: f64) -> Camera {
@@ -56,9 +54,6 @@ fn render(k: &Intrinsics, planes: &[Plane], max_z: f64) -> (DepthImage, Image<u1
 fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
     KinectSimulator::kinect_v1().white().apply(truth, seed)
 }
-
-#[path = "sl_planes/motion.rs"]
-mod motion;
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
@@ -188,60 +183,4 @@ fn a_deep_plane_is_one_plane() {
     );
     assert!(seg.planes[0].pixels as f64 > 0.9 * depth.valid_count() as f64);
     assert!(seg.planes[0].plane.angle_to_deg(&plane) < 0.5);
-}
-
-/// A room corner in frame A's coordinates: floor, two side walls and a back wall.
-fn room() -> Vec<Plane> {
-    vec![
-        Plane::new(Vector3::new(0.0, -1.0, 0.0), 0.8)
-            .unwrap()
-            .facing_origin(),
-        Plane::new(Vector3::new(1.0, 0.0, 0.0), 1.0)
-            .unwrap()
-            .facing_origin(),
-        Plane::new(Vector3::new(-1.0, 0.0, 0.0), 1.2)
-            .unwrap()
-            .facing_origin(),
-        Plane::new(Vector3::new(0.0, 0.0, -1.0), 3.0)
-            .unwrap()
-            .facing_origin(),
-    ]
-}
-
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 8, .. ProptestConfig::default() })]
-
-    /// Random rotations (≤ 12°) and translations (≤ 10 cm) of a simulated room are recovered
-    /// within 0.5° from planes alone, starting from the identity.
-    #[test]
-    fn motion_from_planes(
-        axis in (-1.0f64..1.0, -1.0f64..1.0, -1.0f64..1.0),
-        angle_deg in 1.0f64..12.0,
-        t in (-0.1f64..0.1, -0.1f64..0.1, -0.1f64..0.1),
-        seed in 0u64..1000,
-    ) {
-        let cam = small_camera(100.0);
-        let k = cam.intrinsics;
-        let ax = Vector3::new(axis.0, axis.1, axis.2);
-        prop_assume!(ax.norm() > 0.2);
-        let rot = UnitQuaternion::from_axis_angle(&sl_core::nalgebra::Unit::new_normalize(ax), angle_deg.to_radians());
-        // B's camera in A's coordinates: X_a = R X_b + t.
-        let b_in_a = Isometry3::from_parts(Translation3::new(t.0, t.1, t.2), rot);
-        let planes_a = room();
-        // The room in B's coordinates.
-        let inv = b_in_a.inverse();
-        let planes_b: Vec<Plane> = planes_a.iter().map(|p| p.transformed(&inv).facing_origin()).collect();
-        let (ta, _) = render(&k, &planes_a, 8.0);
-        let (tb, _) = render(&k, &planes_b, 8.0);
-        let (da, db) = (noisy(&ta, seed), noisy(&tb, seed + 1));
-        let mut ex = PlaneExtractor::new(cfg_small()).unwrap();
-        let sa = ex.extract_depth(&da, &cam).unwrap();
-        let sb = ex.extract_depth(&db, &cam).unwrap();
-        let m = estimate_motion(&sa.planes, &sb.planes, None, &MotionConfig::default()).unwrap();
-        let err = m.rotation.angle_to(&rot).to_degrees();
-        prop_assert!(err < 0.5, "rotation error {err}° (true {angle_deg}°), {} matches", m.matches.len());
-        if let Some(tr) = m.translation_m {
-            prop_assert!((tr - b_in_a.translation.vector).norm() < 0.03, "translation {tr:?}");
-        }
-    }
 }

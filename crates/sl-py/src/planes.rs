@@ -5,7 +5,8 @@ use std::cell::RefCell;
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_planes::{DepthMotionConfig, PlaneConfig, PlaneExtractor, PlaneInfo};
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo};
+use sl_track::DepthMotionConfig;
 
 use crate::arrays::{check_camera, depth_input, image_array, pose_array};
 use crate::camera::{PyCamera, camera_or_default};
@@ -187,7 +188,7 @@ pub(crate) fn motion(
     cfg.icp = icp;
     cfg.verify = verify;
     let r = compute(py, || {
-        sl_planes::motion_between_depths(&da, &db, &camera, &cfg)
+        sl_track::motion_between_depths(&da, &db, &camera, &cfg)
     })
     .map_err(value_error)?;
     let pose = r.pose();

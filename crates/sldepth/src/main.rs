@@ -68,6 +68,9 @@ enum Command {
     /// Camera motion between two depth frames from matched planes (section 3.5), optionally
     /// refined by point-to-plane ICP.
     Motion(cmd::motion::Args),
+    /// Track the camera through a raw depth recording (no poses given): noise-weighted
+    /// point-to-plane tracking, fusion of every tracked frame, trajectory and mesh output.
+    Track(cmd::track::Args),
     /// Trajectory accuracy against ground truth (TUM benchmark definitions): ATE after rigid
     /// alignment and RPE per frame or per second, from two TUM-format trajectory files.
     EvalTraj(cmd::eval_traj::Args),
@@ -144,6 +147,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Filter(a) => cmd::filter::run(a),
         Command::Planes(a) => cmd::planes::run(a),
         Command::Motion(a) => cmd::motion::run(a),
+        Command::Track(a) => cmd::track::run(a),
         Command::EvalTraj(a) => cmd::eval_traj::run(a),
         Command::Cameras(a) => cmd::cameras::run(a),
     }

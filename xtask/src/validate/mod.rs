@@ -12,6 +12,7 @@ mod filter;
 mod noise;
 mod planes;
 mod realism;
+mod track;
 mod tsdf;
 mod tsdf_trunc;
 
@@ -25,6 +26,7 @@ const EXPERIMENTS: &[Experiment] = &[
     ("filter", filter::run),
     ("planes", planes::run),
     ("realism", realism::run),
+    ("track", track::run),
 ];
 
 /// Options of `cargo xtask validate`.

@@ -35,10 +35,10 @@ use anyhow::{Context as _, Result};
 use sl_core::{Camera, DepthImage, Image};
 use sl_eval::planes::{SegCompScore, overlay, segcomp};
 use sl_noise::sim::{KinectSimulator, named_scene};
-use sl_planes::{
-    IcpConfig, IcpOutcome, MotionConfidence, MotionConfig, MotionFrame, PlaneConfig,
-    PlaneExtractor, PlaneSegmentation, RansacConfig, Verification, VerifyConfig, estimate_motion,
-    estimate_motion_verified, icp_point_to_plane, metric_ransac, refine_motion_icp_verified,
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, metric_ransac};
+use sl_track::{
+    IcpConfig, IcpOutcome, MotionConfidence, MotionConfig, MotionFrame, Verification, VerifyConfig,
+    estimate_motion, estimate_motion_verified, icp_point_to_plane, refine_motion_icp_verified,
 };
 
 use super::Context;

@@ -11,3 +11,4 @@ pub mod motion;
 pub mod noise_stats;
 pub mod planes;
 pub mod simulate;
+pub mod track;

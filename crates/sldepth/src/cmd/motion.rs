@@ -1,12 +1,12 @@
 //! `sldepth motion`: camera motion between two depth frames from matched planes (paper
 //! section 3.5), checked against the depth data, optionally refined by point-to-plane ICP.
 //!
-//! `--icp` refines through `sl_planes::refine_motion_icp_verified`: the ICP pose is kept only
+//! `--icp` refines through `sl_track::refine_motion_icp_verified`: the ICP pose is kept only
 //! when it is itself verified on the depth maps and explains no smaller a share of the
 //! overlapping points than the estimate (`icp_accepted`, `icp_inlier_fraction` in the JSON);
 //! otherwise the plane estimate is reported and the reason given.
 //!
-//! The plane hypotheses are verified on both depth maps (`sl_planes::estimate_motion_verified`):
+//! The plane hypotheses are verified on both depth maps (`sl_track::estimate_motion_verified`):
 //! when no rotation explains the data, or two distinct ones do, or the shared view is nearly one
 //! plane, the motion is reported as undetermined (with `--json`: `"determined": false`,
 //! `"rotation": null` and the reason) and the command fails, instead of printing a wrong
@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use anyhow::{Result, bail};
 use serde_json::{Value, json};
 use sl_core::nalgebra::{Isometry3, Vector3};
-use sl_planes::{DepthMotionConfig, IcpOutcome, PlaneConfig, PlanesError, motion_between_depths};
+use sl_track::{DepthMotionConfig, IcpOutcome, PlaneConfig, TrackError, motion_between_depths};
 
 use crate::common::{InputArgs, check_range, load_depth, print_json, round_to};
 
@@ -67,9 +67,9 @@ fn rotation_rows(pose: &Isometry3<f64>) -> Vec<f64> {
 }
 
 /// The JSON of an undetermined motion.
-fn undetermined_json(err: &PlanesError, planes_a: usize, planes_b: usize) -> Value {
+fn undetermined_json(err: &TrackError, planes_a: usize, planes_b: usize) -> Value {
     let (inlier, alternative) = match err {
-        PlanesError::MotionNotVerified {
+        TrackError::MotionNotVerified {
             inlier_fraction,
             alternative_inlier_fraction,
             ..
@@ -238,7 +238,7 @@ mod tests {
     fn icp_outcome_json_reports_the_decision() {
         let o = IcpOutcome {
             accepted: false,
-            rejection: Some(sl_planes::IcpRejection::LostInliers),
+            rejection: Some(sl_track::IcpRejection::LostInliers),
             pose: Isometry3::identity(),
             start: Isometry3::identity(),
             icp: None,
@@ -256,7 +256,7 @@ mod tests {
 
     #[test]
     fn undetermined_json_has_no_rotation() {
-        let e = PlanesError::MotionNotVerified {
+        let e = TrackError::MotionNotVerified {
             reason: "ambiguous".into(),
             inlier_fraction: 0.95,
             alternative_inlier_fraction: 0.93,

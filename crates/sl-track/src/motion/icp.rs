@@ -49,7 +49,7 @@ impl IcpConfig {
     /// Checks the ranges of the parameters.
     pub fn validate(&self) -> Result<()> {
         if self.iterations == 0 || self.stride == 0 {
-            return Err(PlanesError::InvalidConfig(
+            return Err(TrackError::InvalidConfig(
                 "ICP iterations and stride must be ≥ 1".into(),
             ));
         }
@@ -58,7 +58,7 @@ impl IcpConfig {
             && self.max_dist_m.is_finite()
             && self.max_dist_m >= self.min_dist_m)
         {
-            return Err(PlanesError::InvalidConfig(format!(
+            return Err(TrackError::InvalidConfig(format!(
                 "ICP needs 0 < min_dist_m ≤ max_dist_m, got {} and {}",
                 self.min_dist_m, self.max_dist_m
             )));
@@ -94,7 +94,7 @@ pub fn icp_point_to_plane(
     let mut target = Target::new(depth_a, camera)?;
     let k = &camera.intrinsics;
     if depth_b.width() != k.width || depth_b.height() != k.height {
-        return Err(PlanesError::SizeMismatch {
+        return Err(TrackError::SizeMismatch {
             expected_width: k.width,
             expected_height: k.height,
             width: depth_b.width(),
@@ -204,7 +204,7 @@ pub struct IcpOutcome {
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage, nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3}};
-/// use sl_planes::{IcpConfig, MotionConfig, MotionFrame, Plane, PlaneConfig, PlaneExtractor,
+/// use sl_track::{IcpConfig, MotionConfig, MotionFrame, Plane, PlaneConfig, PlaneExtractor,
 ///     VerifyConfig, estimate_motion_verified, refine_motion_icp_verified};
 ///
 /// // Floor, ceiling and two walls seen by a 160x120 camera, which then turns 10° and moves.
@@ -285,7 +285,7 @@ pub fn refine_motion_icp_verified(
     };
     let icp = match icp_point_to_plane(depth_a, depth_b, camera, &start, cfg) {
         Ok(r) => r,
-        Err(PlanesError::MotionUndetermined(why)) => {
+        Err(TrackError::MotionUndetermined(why)) => {
             outcome.rejection = Some(IcpRejection::Failed(why));
             return Ok(outcome);
         }

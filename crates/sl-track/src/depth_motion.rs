@@ -6,12 +6,12 @@
 use nalgebra::{Isometry3, Vector3};
 use sl_core::{Camera, DepthImage};
 
-use crate::error::{PlanesError, Result};
-use crate::extract::{PlaneConfig, PlaneExtractor, PlaneInfo};
+use crate::error::{Result, TrackError};
 use crate::motion::{
     IcpConfig, IcpOutcome, MotionConfig, MotionFrame, PlaneMotion, VerifyConfig, estimate_motion,
     estimate_motion_verified, refine_motion_icp_verified,
 };
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo};
 
 /// How [`motion_between_depths`] works.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,8 +55,8 @@ pub struct DepthMotion {
     /// Planes of frame B.
     pub planes_b: Vec<PlaneInfo>,
     /// The plane-based motion (`X_a = R·X_b + t`), or why it is undetermined
-    /// ([`PlanesError::MotionNotVerified`] / [`PlanesError::MotionUndetermined`]).
-    pub motion: std::result::Result<PlaneMotion, PlanesError>,
+    /// ([`TrackError::MotionNotVerified`] / [`TrackError::MotionUndetermined`]).
+    pub motion: std::result::Result<PlaneMotion, TrackError>,
     /// The ICP refinement and whether it was kept (with `icp` and a determined motion).
     pub icp: Option<IcpOutcome>,
 }
@@ -112,7 +112,7 @@ pub fn motion_between_depths(
     };
     let motion = match estimate {
         Ok(m) => Ok(m),
-        Err(e @ (PlanesError::MotionNotVerified { .. } | PlanesError::MotionUndetermined(_))) => {
+        Err(e @ (TrackError::MotionNotVerified { .. } | TrackError::MotionUndetermined(_))) => {
             Err(e)
         }
         Err(e) => return Err(e),

@@ -31,7 +31,7 @@
 //!   than `distinct_deg` away does — neither another proposal nor the winner itself turned by
 //!   `distinct_deg` about the camera axes or a plane normal (which catches views that share
 //!   mostly one plane, where a rotation about its normal is invisible). Otherwise the motion
-//!   is reported as not determined ([`PlanesError::MotionNotVerified`]) rather than guessed.
+//!   is reported as not determined ([`TrackError::MotionNotVerified`]) rather than guessed.
 //!   The returned rotation is the weighted Kabsch over the plane matches consistent with the
 //!   verified alignment; [`Verification`] gives the numbers.
 //! * **Rotation** from matches by weighted Kabsch (SVD of `Σ w·n_b·n_aᵀ`, weights = the smaller
@@ -53,11 +53,11 @@ use nalgebra::{
 };
 use sl_core::{Camera, DepthImage};
 
-use crate::error::{PlanesError, Result};
-use crate::extract::PlaneInfo;
+use crate::error::{Result, TrackError};
 pub use crate::verify::VerifyConfig;
 use crate::verify::{self, Density, Score, Target, TwoWay};
 use sl_core::Plane;
+use sl_planes::PlaneInfo;
 
 /// Parameters of plane matching and motion estimation.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,7 +118,7 @@ impl MotionConfig {
         ];
         for (name, v) in angles {
             if !(v > 0.0 && v <= 180.0) {
-                return Err(PlanesError::InvalidConfig(format!(
+                return Err(TrackError::InvalidConfig(format!(
                     "{name} must lie in (0, 180], got {v}"
                 )));
             }
@@ -128,7 +128,7 @@ impl MotionConfig {
             ("inlier_offset_m", self.inlier_offset_m),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(PlanesError::InvalidConfig(format!(
+                return Err(TrackError::InvalidConfig(format!(
                     "{name} must be positive, got {v}"
                 )));
             }
@@ -136,7 +136,7 @@ impl MotionConfig {
         if !(0.0..=1.0).contains(&self.ambiguity_ratio)
             || !(0.0..1.0).contains(&self.min_translation_eigen)
         {
-            return Err(PlanesError::InvalidConfig(
+            return Err(TrackError::InvalidConfig(
                 "ambiguity_ratio must lie in [0, 1] and min_translation_eigen in [0, 1)".into(),
             ));
         }

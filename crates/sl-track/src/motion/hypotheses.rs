@@ -190,8 +190,8 @@ impl<'p> Matcher<'p> {
             / own.max(1.0)
     }
 
-    pub(super) fn undetermined(&self) -> PlanesError {
-        PlanesError::MotionUndetermined(format!(
+    pub(super) fn undetermined(&self) -> TrackError {
+        TrackError::MotionUndetermined(format!(
             "need two matched non-parallel planes ({} planes in A, {} in B, {} candidate pairs)",
             self.planes_a.len(),
             self.planes_b.len(),
@@ -249,7 +249,7 @@ pub fn estimate_motion(
     let mut matches = best.matches.clone();
     let mut r = mt
         .kabsch(&matches)
-        .ok_or_else(|| PlanesError::MotionUndetermined("degenerate normals".into()))?;
+        .ok_or_else(|| TrackError::MotionUndetermined("degenerate normals".into()))?;
     let (_, again, _) = mt.inliers(&r);
     if again.len() >= 2
         && let Some(r2) = mt.kabsch(&again)

@@ -12,7 +12,7 @@
 use nalgebra::{Isometry3, Matrix6, Point3, Translation3, UnitQuaternion, Vector3, Vector6};
 use sl_core::{Camera, DepthImage, Intrinsics, SensorModel};
 
-use crate::error::{PlanesError, Result};
+use crate::error::{Result, TrackError};
 
 /// Parameters of the geometric verification of plane-based motion hypotheses
 /// ([`crate::motion::estimate_motion_verified`]).
@@ -93,7 +93,7 @@ impl VerifyConfig {
         ];
         for (name, v) in pos {
             if !(v.is_finite() && v > 0.0) {
-                return Err(PlanesError::InvalidConfig(format!(
+                return Err(TrackError::InvalidConfig(format!(
                     "{name} must be positive, got {v}"
                 )));
             }
@@ -104,25 +104,25 @@ impl VerifyConfig {
         ];
         for (name, v) in fracs {
             if !(0.0..=1.0).contains(&v) {
-                return Err(PlanesError::InvalidConfig(format!(
+                return Err(TrackError::InvalidConfig(format!(
                     "{name} must lie in [0, 1], got {v}"
                 )));
             }
         }
         if !(self.outlier_weight.is_finite() && self.outlier_weight >= 0.0) {
-            return Err(PlanesError::InvalidConfig(format!(
+            return Err(TrackError::InvalidConfig(format!(
                 "outlier_weight must be ≥ 0, got {}",
                 self.outlier_weight
             )));
         }
         if !(self.inlier_sigmas.is_finite() && self.inlier_sigmas >= 0.0) {
-            return Err(PlanesError::InvalidConfig(format!(
+            return Err(TrackError::InvalidConfig(format!(
                 "inlier_sigmas must be ≥ 0, got {}",
                 self.inlier_sigmas
             )));
         }
         if self.max_samples < 100 || self.refine_hypotheses == 0 {
-            return Err(PlanesError::InvalidConfig(
+            return Err(TrackError::InvalidConfig(
                 "max_samples must be ≥ 100 and refine_hypotheses ≥ 1".into(),
             ));
         }
@@ -132,7 +132,7 @@ impl VerifyConfig {
 
 fn check_size(d: &DepthImage, k: &Intrinsics) -> Result<()> {
     if d.width() != k.width || d.height() != k.height {
-        return Err(PlanesError::SizeMismatch {
+        return Err(TrackError::SizeMismatch {
             expected_width: k.width,
             expected_height: k.height,
             width: d.width(),
@@ -315,13 +315,13 @@ pub(crate) fn icp(
         }
         inliers = n_in;
         if n_in < 6 {
-            return Err(PlanesError::MotionUndetermined(format!(
+            return Err(TrackError::MotionUndetermined(format!(
                 "ICP found only {n_in} correspondences"
             )));
         }
         rms = (ss / n_in as f64).sqrt();
         let Some(x) = ata.cholesky().map(|c| c.solve(&atb)) else {
-            return Err(PlanesError::MotionUndetermined(
+            return Err(TrackError::MotionUndetermined(
                 "ICP normal equations are singular".into(),
             ));
         };

@@ -77,15 +77,15 @@ pub(super) fn spread_ok(
 /// the verified alignment, and the translation comes from their offsets.
 ///
 /// # Errors
-/// [`PlanesError::MotionUndetermined`] when the planes propose no rotation (fewer than two
+/// [`TrackError::MotionUndetermined`] when the planes propose no rotation (fewer than two
 /// non-parallel planes seen in both frames) or a frame has too few usable points;
-/// [`PlanesError::MotionNotVerified`] when no hypothesis explains the data with two plane
+/// [`TrackError::MotionNotVerified`] when no hypothesis explains the data with two plane
 /// matches, two distinct ones explain it, or the shared view does not constrain the
 /// rotation; size and configuration errors.
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage, nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3}};
-/// use sl_planes::{MotionConfidence, MotionConfig, MotionFrame, Plane, PlaneConfig,
+/// use sl_track::{MotionConfidence, MotionConfig, MotionFrame, Plane, PlaneConfig,
 ///     PlaneExtractor, VerifyConfig, estimate_motion_verified};
 ///
 /// // A room (floor, ceiling, three walls, none at right angles) seen by a wide 160x120 camera,
@@ -151,7 +151,7 @@ pub fn estimate_motion_verified(
         (SPARSE_SAMPLES, COARSE_SAMPLES),
     )?;
     if check.samples() < MIN_SAMPLES {
-        return Err(PlanesError::MotionUndetermined(format!(
+        return Err(TrackError::MotionUndetermined(format!(
             "only {} usable points in a frame (need {MIN_SAMPLES})",
             check.samples()
         )));
@@ -358,7 +358,7 @@ fn decide(
     let tol = (vcfg.inlier_base_m, vcfg.inlier_sigmas);
     let distinct = cfg.distinct_deg.to_radians();
     let Some(best) = checked.first() else {
-        return Err(PlanesError::MotionNotVerified {
+        return Err(TrackError::MotionNotVerified {
             reason: format!(
                 "none of the {} plane hypotheses, refined on the data, overlaps the other \
                  frame with {:.0} % of the points and keeps two non-parallel plane matches",
@@ -384,7 +384,7 @@ fn decide(
         .map(|c| c.score)
         .max_by(|x, y| x.inlier_fraction().total_cmp(&y.inlier_fraction()));
     let alternative_inlier_fraction = alternative.map_or(0.0, |s| s.inlier_fraction());
-    let not_verified = |reason: String, alt: f64| PlanesError::MotionNotVerified {
+    let not_verified = |reason: String, alt: f64| TrackError::MotionNotVerified {
         reason,
         inlier_fraction,
         alternative_inlier_fraction: alt,

@@ -1,0 +1,136 @@
+//! Depth sequences without poses, for tracking: the frames of a TUM RGB-D folder (`depth.txt`,
+//! or `associations.txt` when present), a 7-Scenes folder (`frame-XXXXXX.depth.png`) and an
+//! Open3D-style folder (`depth/*.png`). Timestamps must increase strictly: a sequence out of
+//! order is an error naming the line, never a silently reordered trajectory.
+
+use std::path::{Path, PathBuf};
+
+use crate::error::{IoError, Result};
+use crate::limits::Limits;
+use crate::text::read_text;
+
+/// One depth frame of a sequence.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SequenceFrame {
+    /// The depth image.
+    pub depth_path: PathBuf,
+    /// Timestamp, seconds (TUM); `None` where the layout has none.
+    pub timestamp: Option<f64>,
+}
+
+fn too_many(path: &Path, n: usize, limits: &Limits) -> Result<()> {
+    if n > limits.max_frames {
+        return Err(IoError::too_large(
+            path,
+            format!(
+                "more than {} frames, over the frame limit (raise it with --max-memory)",
+                limits.max_frames
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The depth frames of a TUM RGB-D sequence folder as TUM ships it: `associations.txt`
+/// (`rgb_ts rgb_path depth_ts depth_path`) when present, else `depth.txt`
+/// (`timestamp path`); `#` lines are comments, paths are relative to the folder. The RGB
+/// images are not needed. Timestamps must increase strictly.
+pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<Vec<SequenceFrame>> {
+    let dir = dir.as_ref();
+    let assoc = dir.join("associations.txt");
+    let (path, ts_col, path_col, min_cols) = if assoc.is_file() {
+        (assoc, 2, 3, 4)
+    } else {
+        (dir.join("depth.txt"), 0, 1, 2)
+    };
+    let text = read_text(&path, limits.max_text_bytes, limits.max_text_lines)?;
+    let mut out: Vec<SequenceFrame> = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        too_many(&path, out.len() + 1, limits)?;
+        let toks: Vec<&str> = line.split_whitespace().collect();
+        if toks.len() < min_cols {
+            return Err(IoError::parse(
+                &path,
+                i + 1,
+                format!("expected at least {min_cols} fields, found {}", toks.len()),
+            ));
+        }
+        let t: f64 = toks[ts_col]
+            .parse()
+            .ok()
+            .filter(|t: &f64| t.is_finite())
+            .ok_or_else(|| {
+                IoError::parse(
+                    &path,
+                    i + 1,
+                    format!("timestamp {:?} is not a number", toks[ts_col]),
+                )
+            })?;
+        if let Some(prev) = out.last().and_then(|f| f.timestamp)
+            && t <= prev
+        {
+            return Err(IoError::parse(
+                &path,
+                i + 1,
+                format!("timestamp {t} does not follow {prev}: frames out of order"),
+            ));
+        }
+        out.push(SequenceFrame {
+            depth_path: dir.join(toks[path_col]),
+            timestamp: Some(t),
+        });
+    }
+    Ok(out)
+}
+
+/// The `frame-XXXXXX.depth.png` images of a 7-Scenes sequence folder, sorted by name (poses,
+/// when present, are not read).
+pub fn read_7scenes_depth_frames(
+    dir: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<SequenceFrame>> {
+    let dir = dir.as_ref();
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+        let path = entry.map_err(|e| IoError::io(dir, e))?.path();
+        let is_depth = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.starts_with("frame-") && n.ends_with(".depth.png"));
+        if is_depth {
+            too_many(dir, files.len() + 1, limits)?;
+            files.push(path);
+        }
+    }
+    files.sort();
+    Ok(files
+        .into_iter()
+        .map(|depth_path| SequenceFrame {
+            depth_path,
+            timestamp: None,
+        })
+        .collect())
+}
+
+/// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`, sorted by name;
+/// `dir` itself when it has no `depth` subfolder).
+pub fn read_open3d_depth_frames(
+    dir: impl AsRef<Path>,
+    limits: &Limits,
+) -> Result<Vec<SequenceFrame>> {
+    let dir = dir.as_ref();
+    let sub = dir.join("depth");
+    let files = crate::trajectory::list_depth_files(if sub.is_dir() { &sub } else { dir })?;
+    too_many(dir, files.len(), limits)?;
+    Ok(files
+        .into_iter()
+        .map(|depth_path| SequenceFrame {
+            depth_path,
+            timestamp: None,
+        })
+        .collect())
+}

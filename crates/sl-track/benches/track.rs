@@ -1,0 +1,79 @@
+//! Tracking one 640×480 frame, and the whole per-frame step (track + integrate + raycast), on
+//! simulated Kinect frames of the `boxes` scene (1° and 1 cm between frames); real frames need
+//! `sldepth track` on `../shared/data` (see the validate report).
+#![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, DepthImage, SensorModel};
+use sl_noise::sim::{KinectSimulator, named_scene};
+use sl_track::{ReferenceMaps, Tracker, TrackerConfig};
+use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
+
+fn frames(n: usize) -> (Camera, Vec<DepthImage>) {
+    let scene = named_scene("boxes").unwrap();
+    let k = scene.intrinsics;
+    let sim = KinectSimulator::kinect_v1().white();
+    let step = Isometry3::from_parts(
+        Translation3::new(0.01, 0.0, 0.0),
+        UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
+    );
+    let mut pose = scene.pose;
+    let mut out = Vec::new();
+    for i in 0..n {
+        out.push(sim.apply(&scene.scene.render(&k, &pose).depth, i as u64));
+        pose *= step;
+    }
+    (
+        Camera {
+            intrinsics: k,
+            sensor: SensorModel::kinect_v1(),
+        },
+        out,
+    )
+}
+
+fn bench(c: &mut Criterion) {
+    let (cam, fr) = frames(2);
+    let k = cam.intrinsics;
+    let mut g = c.benchmark_group("track-640x480");
+    g.sample_size(20);
+    // Frame to frame: the reference is frame 0; each iteration tracks frame 1 from scratch.
+    g.bench_function("track-frame-to-frame", |b| {
+        b.iter(|| {
+            let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
+            t.track(&fr[0], None).unwrap();
+            black_box(t.track(black_box(&fr[1]), None).unwrap())
+        })
+    });
+    // The whole step against the model: track frame 1 against frame 0's raycast, integrate it
+    // and raycast the model for the next frame (the set-up, frame 0, is inside the loop too).
+    let mut tcfg = TsdfConfig::default();
+    tcfg.voxel_m = 0.008;
+    tcfg.trunc_m = 0.04;
+    g.bench_function("step-track-integrate-raycast-8mm", |b| {
+        b.iter(|| {
+            let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
+            let mut vol = TsdfVolume::new(tcfg).unwrap();
+            let mut rc = Raycast::default();
+            let mut maps = ReferenceMaps::empty(&k);
+            let r0 = t.track(&fr[0], None).unwrap();
+            vol.integrate(&fr[0], &k, &r0.pose).unwrap();
+            vol.raycast_into(&r0.pose, &k, &RaycastConfig::default(), &mut rc)
+                .unwrap();
+            maps.set_from_model(&rc, &r0.pose, &k, &cam.sensor, tcfg.z_ref_m)
+                .unwrap();
+            let r1 = t.track(&fr[1], Some(&maps)).unwrap();
+            vol.integrate(&fr[1], &k, &r1.pose).unwrap();
+            vol.raycast_into(&r1.pose, &k, &RaycastConfig::default(), &mut rc)
+                .unwrap();
+            black_box(r1)
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,58 @@
+//! The error type of `sl-track`.
+
+/// Everything that can go wrong in `sl-track`.
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum TrackError {
+    /// A configuration value outside its valid range.
+    #[error("invalid configuration: {0}")]
+    InvalidConfig(String),
+    /// Image and camera (or two images) of different sizes.
+    #[error(
+        "size mismatch: image is {width}x{height}, expected {expected_width}x{expected_height}"
+    )]
+    SizeMismatch {
+        /// Width that was expected.
+        expected_width: usize,
+        /// Height that was expected.
+        expected_height: usize,
+        /// Width that was found.
+        width: usize,
+        /// Height that was found.
+        height: usize,
+    },
+    /// Too few matched planes or points to determine a motion.
+    #[error("motion not determined: {0}")]
+    MotionUndetermined(String),
+    /// No motion hypothesis passed the check against the depth data, or two distinct ones
+    /// passed about equally well: the motion is not determined (rather than guessed).
+    #[error("motion not verified: {reason}")]
+    MotionNotVerified {
+        /// Why the check failed.
+        reason: String,
+        /// Inlier fraction of the best hypothesis (of the overlapping points).
+        inlier_fraction: f64,
+        /// Largest inlier fraction of an alternative that is rotated more than
+        /// `distinct_deg` from the best (another hypothesis, or the best turned).
+        alternative_inlier_fraction: f64,
+    },
+    /// An error from plane extraction (`sl-planes`).
+    #[error(transparent)]
+    Planes(#[from] sl_planes::PlanesError),
+    /// An error from the model (`sl-tsdf`), as its message (`TsdfError` is neither `Clone`
+    /// nor `PartialEq`).
+    #[error("model: {0}")]
+    Tsdf(String),
+    /// An error from `sl-core`.
+    #[error(transparent)]
+    Core(#[from] sl_core::CoreError),
+}
+
+impl From<sl_tsdf::TsdfError> for TrackError {
+    fn from(e: sl_tsdf::TsdfError) -> Self {
+        Self::Tsdf(e.to_string())
+    }
+}
+
+/// `Result` with [`TrackError`].
+pub type Result<T> = std::result::Result<T, TrackError>;

@@ -1,0 +1,168 @@
+//! [`TrackerConfig`] and [`WeightMode`].
+
+use crate::depth_motion::DepthMotionConfig;
+use crate::error::{Result, TrackError};
+
+/// How the point-to-plane residuals are weighted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum WeightMode {
+    /// Inverse variance from the sensor model (default): a residual's variance is the frame
+    /// point's `σ_Z(z)²` projected on the reference normal, `σ_Z² (n·r)²` with `r` the unit ray,
+    /// plus the reference's variance along its normal (the previous frame's own `σ_Z² (n·r)²`,
+    /// or `σ_Z(z_ref)²/W` for a model point of fused weight `W`; see
+    /// [`crate::ReferenceMaps::model_variance_m2`]). The robust kernel acts on `r/σ`.
+    #[default]
+    InvVar,
+    /// Every residual weighs the same (KinectFusion, Open3D): the kernel acts on `r/σ_Z(z_ref)`.
+    Uniform,
+}
+
+impl WeightMode {
+    /// Parses the CLI name (`inv-var`, `uniform`).
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "inv-var" => Ok(Self::InvVar),
+            "uniform" => Ok(Self::Uniform),
+            other => Err(TrackError::InvalidConfig(format!(
+                "unknown weighting {other:?} (expected inv-var or uniform)"
+            ))),
+        }
+    }
+
+    /// The CLI name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::InvVar => "inv-var",
+            Self::Uniform => "uniform",
+        }
+    }
+}
+
+/// Parameters of [`crate::Tracker`].
+///
+/// The gates follow the sensor model: a correspondence is kept when its point-to-plane
+/// residual is within `gate_sigmas·σ + allowance` (σ from the sensor model, see
+/// [`WeightMode::InvVar`]), where the allowance covers what the pose still has to correct at
+/// that level and what the noise model does not describe (the Kinect's low-frequency depth
+/// distortion of a few millimetres): `allowance_fine_m` at full resolution, doubled at every
+/// coarser level. The point distance must stay within twice the same bound.
+///
+/// `#[non_exhaustive]`: start from [`TrackerConfig::default`] and assign the fields you need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub struct TrackerConfig {
+    /// Pyramid levels (≥ 3 recommended; level 0 is full resolution).
+    pub levels: usize,
+    /// Gauss–Newton iterations per level at most (fewer when the step becomes negligible).
+    pub max_iterations: usize,
+    /// The residual weighting.
+    pub weighting: WeightMode,
+    /// Residuals within this many σ (plus the allowance) are inliers; 3σ keeps 99.7 % of a
+    /// Gaussian.
+    pub gate_sigmas: f64,
+    /// Metric allowance of the gate at full resolution, metres (doubled per coarser level).
+    pub allowance_fine_m: f64,
+    /// Largest angle between a frame normal and its reference normal where the normals are
+    /// precise, degrees. Normals from central differences are noisy at distance, so the gate
+    /// widens to 3× the normals' noise from the sensor model (σ_Z(z)·f/(4·z) per normal over
+    /// ±2 pixels, √2 for two: 42° at 1 m, 60° at 2 m for a Kinect); it separates the two
+    /// sides of thin objects nearby.
+    pub max_normal_angle_deg: f64,
+    /// Threshold of the Huber kernel on the normalised residual.
+    pub huber_k: f64,
+    /// Reference depth of the uniform weighting's σ and of the model's fused weights, metres.
+    pub z_ref_m: f64,
+    /// Tracking has failed when fewer than this fraction of the frame's points that land on a
+    /// reference surface are inliers at the final pose. At the right pose the gates keep
+    /// 99.7 % of a Gaussian residual; what remains are occlusions, depth edges, moving objects
+    /// and the model's unobserved fringe: well over half. Below half, most of the overlap
+    /// disagrees and the alignment is wrong. (Points landing where the reference has no surface
+    /// — new parts of the scene — do not count either way; too few inliers in absolute terms,
+    /// 1 % of the pixels, is a failure of its own.)
+    pub min_inlier_fraction: f64,
+    /// Tracking has failed when the smallest over the largest eigenvalue of the normal
+    /// equations (rotation in metres at the scene's depth) is below this: the geometry does
+    /// not constrain all six degrees of freedom (a single plane, a corridor).
+    pub min_condition: f64,
+    /// Tracking has failed when the final pose is further than this from where it started
+    /// (the constant-velocity prediction), metres: a hand-held camera moving at up to
+    /// 1.5 m/s covers 5 cm between two frames at 30 Hz, so even from a prediction of no
+    /// motion at all a larger correction came from a wrong association (real Kinect data:
+    /// ICP sliding 12 cm along a counter top between two 7-Scenes frames 3 mm apart)...
+    pub max_correction_m: f64,
+    /// ... or rotation, degrees (fast hand-held rotation, 300 °/s, is 10° per frame at 30 Hz;
+    /// twice that).
+    pub max_correction_deg: f64,
+    /// Try the verified plane-based estimate between the last good frame and this one when
+    /// ICP fails, then ICP again from it.
+    pub plane_fallback: bool,
+    /// The plane-based estimate's configuration.
+    pub fallback: DepthMotionConfig,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            levels: 3,
+            max_iterations: 10,
+            weighting: WeightMode::InvVar,
+            gate_sigmas: 3.0,
+            allowance_fine_m: 0.01,
+            max_normal_angle_deg: 30.0,
+            huber_k: 2.0,
+            z_ref_m: 1.0,
+            min_inlier_fraction: 0.5,
+            min_condition: 1e-3,
+            max_correction_m: 0.05,
+            max_correction_deg: 20.0,
+            plane_fallback: true,
+            fallback: DepthMotionConfig::default(),
+        }
+    }
+}
+
+impl TrackerConfig {
+    /// Checks the ranges of the parameters.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(TrackError::InvalidConfig(m));
+        if !(1..=6).contains(&self.levels) {
+            return bad(format!("levels must lie in 1..=6, got {}", self.levels));
+        }
+        if !(1..=100).contains(&self.max_iterations) {
+            return bad(format!(
+                "max_iterations must lie in 1..=100, got {}",
+                self.max_iterations
+            ));
+        }
+        for (name, v) in [
+            ("gate_sigmas", self.gate_sigmas),
+            ("huber_k", self.huber_k),
+            ("z_ref_m", self.z_ref_m),
+            ("max_correction_m", self.max_correction_m),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{name} must be positive, got {v}"));
+            }
+        }
+        if !(self.allowance_fine_m.is_finite() && self.allowance_fine_m >= 0.0) {
+            return bad(format!(
+                "allowance_fine_m must be >= 0, got {}",
+                self.allowance_fine_m
+            ));
+        }
+        for (name, v) in [
+            ("max_normal_angle_deg", self.max_normal_angle_deg),
+            ("max_correction_deg", self.max_correction_deg),
+        ] {
+            if !(v > 0.0 && v <= 180.0) {
+                return bad(format!("{name} must lie in (0, 180], got {v}"));
+            }
+        }
+        if !(0.0..=1.0).contains(&self.min_inlier_fraction)
+            || !(0.0..1.0).contains(&self.min_condition)
+        {
+            return bad("min_inlier_fraction must lie in [0, 1], min_condition in [0, 1)".into());
+        }
+        self.fallback.validate()
+    }
+}

@@ -1,0 +1,417 @@
+//! Frame-to-model tracking of a depth sequence ([`Tracker`]).
+//!
+//! Each frame is aligned to [`ReferenceMaps`] — a raycast of the fused model when the caller
+//! passes one ([`ReferenceMaps::from_model`]), else the last well-tracked frame — by
+//! point-to-plane Gauss–Newton on SE(3) over a depth pyramid (coarse to fine, a depth-aware 2×2
+//! downsample), with projective data association, a Huber kernel on the normalised residual and
+//! weights from the sensor model ([`WeightMode`]). The start is the constant-velocity
+//! prediction. A result is accepted only when enough of the frame's points are inliers, the
+//! normal equations constrain all six degrees of freedom and the correction from the start is
+//! plausible; otherwise the tracker tries again from the last good pose, then from the verified
+//! plane-based estimate between the last good frame and this one ([`crate::motion_between_depths`]),
+//! and when all fail reports the frame [`TrackStatus::Lost`] with the last good pose — never a
+//! pose it could not check. The next frames are aligned against the last good reference
+//! again (relocalisation).
+
+mod config;
+mod pyramid;
+mod reference;
+mod solve;
+
+pub use config::{TrackerConfig, WeightMode};
+pub use reference::ReferenceMaps;
+
+use nalgebra::Isometry3;
+use sl_core::{Camera, CameraToWorld, DepthImage};
+
+use crate::depth_motion::motion_between_depths;
+use crate::error::{Result, TrackError};
+use pyramid::Pyramid;
+use solve::{PassParams, Sums};
+
+/// What happened to a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TrackStatus {
+    /// The first frame (or the first with enough valid depth): it defines the world frame.
+    Initialised,
+    /// Aligned from the constant-velocity prediction (or the last good pose).
+    Tracked,
+    /// ICP failed from the prediction; the plane-based estimate started a successful ICP.
+    Recovered,
+    /// Aligned again after one or more lost frames.
+    Relocalised,
+    /// Not tracked: the pose is the last good one and must not be used as this frame's pose.
+    Lost,
+}
+
+impl TrackStatus {
+    /// Lower-case name.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Initialised => "initialised",
+            Self::Tracked => "tracked",
+            Self::Recovered => "recovered",
+            Self::Relocalised => "relocalised",
+            Self::Lost => "lost",
+        }
+    }
+
+    /// Whether the frame has a pose of its own (not [`TrackStatus::Lost`]).
+    pub fn is_tracked(&self) -> bool {
+        !matches!(self, Self::Lost)
+    }
+}
+
+/// The result of tracking one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameResult {
+    /// What happened.
+    pub status: TrackStatus,
+    /// The camera-to-world pose; for a lost frame the last good pose.
+    pub pose: CameraToWorld,
+    /// Fraction of the frame's points (with a normal, full resolution) that land on a surface
+    /// of the reference at the final pose.
+    pub overlap_fraction: f64,
+    /// Fraction of those overlapping points that are inliers (within the gates).
+    pub inlier_fraction: f64,
+    /// RMS point-to-plane residual of the inliers, metres.
+    pub rms_m: f64,
+    /// RMS of the inliers' residuals normalised by their σ from the sensor model.
+    pub rms_normalised: f64,
+    /// Smallest over largest eigenvalue of the final normal equations (see
+    /// [`TrackerConfig::min_condition`]).
+    pub condition: f64,
+    /// Gauss–Newton iterations, all levels and attempts together.
+    pub iterations: usize,
+    /// Why the last attempt failed (lost frames, or the attempts before a recovery).
+    pub failure: Option<String>,
+}
+
+/// One alignment attempt's outcome.
+struct Attempt {
+    pose: Isometry3<f64>,
+    stats: Sums,
+    condition: f64,
+    iterations: usize,
+    failure: Option<String>,
+}
+
+/// Tracks the camera through a depth sequence (see the module docs). Reuse one tracker for a
+/// sequence: its buffers (pyramid, reference maps, last frame) are kept between frames.
+#[derive(Debug)]
+pub struct Tracker {
+    camera: Camera,
+    cfg: TrackerConfig,
+    pyramid: Pyramid,
+    /// The last good frame as a reference.
+    last_ref: ReferenceMaps,
+    /// The last good frame's depth (for the plane-based fallback).
+    last_depth: DepthImage,
+    last_good: Option<Isometry3<f64>>,
+    /// Motion of the last step, `T_k = T_{k−1}·velocity`.
+    velocity: Isometry3<f64>,
+    lost_run: usize,
+    initial_pose: CameraToWorld,
+}
+
+impl Tracker {
+    /// A tracker for `camera`'s frames.
+    pub fn new(camera: Camera, cfg: TrackerConfig) -> Result<Self> {
+        cfg.validate()?;
+        camera.intrinsics.validate()?;
+        camera.sensor.validate()?;
+        let k = camera.intrinsics;
+        Ok(Self {
+            camera,
+            cfg,
+            pyramid: Pyramid::default(),
+            last_ref: ReferenceMaps::empty(&k),
+            last_depth: DepthImage::invalid(k.width, k.height),
+            last_good: None,
+            velocity: Isometry3::identity(),
+            lost_run: 0,
+            initial_pose: CameraToWorld::identity(),
+        })
+    }
+
+    /// The pose given to the first frame (identity by default). Call before the first frame.
+    pub fn set_initial_pose(&mut self, pose: CameraToWorld) {
+        self.initial_pose = pose;
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.cfg
+    }
+
+    /// The last well-tracked pose (`None` before the first frame with valid depth).
+    pub fn last_good_pose(&self) -> Option<CameraToWorld> {
+        self.last_good.map(CameraToWorld::from_isometry)
+    }
+
+    /// The last well-tracked frame as reference maps (what a frame is aligned to when no model
+    /// reference is given).
+    pub fn last_frame_reference(&self) -> &ReferenceMaps {
+        &self.last_ref
+    }
+
+    /// Tracks one frame against `model` (a raycast of the fused model from about the last
+    /// good pose) or, when `None`, against the last good frame.
+    ///
+    /// # Errors
+    /// A depth map of another size than the camera, or a model reference of another size;
+    /// a frame that cannot be tracked is not an error but [`TrackStatus::Lost`].
+    pub fn track(
+        &mut self,
+        depth: &DepthImage,
+        model: Option<&ReferenceMaps>,
+    ) -> Result<FrameResult> {
+        let k = self.camera.intrinsics;
+        let size_err = |w: usize, h: usize| TrackError::SizeMismatch {
+            expected_width: k.width,
+            expected_height: k.height,
+            width: w,
+            height: h,
+        };
+        if depth.width() != k.width || depth.height() != k.height {
+            return Err(size_err(depth.width(), depth.height()));
+        }
+        if let Some(m) = model {
+            let mk = &m.intrinsics;
+            if mk.width * mk.height != m.points.len()
+                || m.normals.len() != m.points.len()
+                || m.variance_m2.len() != m.points.len()
+            {
+                return Err(TrackError::InvalidConfig(
+                    "reference maps of inconsistent sizes".into(),
+                ));
+            }
+        }
+        let sensor = self.camera.sensor;
+        self.pyramid
+            .build(depth.data(), &k, &sensor, self.cfg.levels)?;
+        let Some(last) = self.last_good else {
+            return Ok(self.initialise(depth));
+        };
+        let reference = model.unwrap_or(&self.last_ref);
+        // Constant velocity, also across lost frames (the camera kept moving while they were
+        // lost): the last good pose moved by one step per frame since.
+        let mut predicted = last;
+        for _ in 0..=self.lost_run.min(30) {
+            predicted *= self.velocity;
+        }
+        let mut iterations = 0;
+        let mut first = self.align(&predicted, reference);
+        iterations += first.iterations;
+        let mut recovered = false;
+        if first.failure.is_some() {
+            let again = self.align(&last, reference);
+            iterations += again.iterations;
+            if again.failure.is_none() {
+                first = again;
+            }
+        }
+        if first.failure.is_some() && self.cfg.plane_fallback {
+            let planes =
+                motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
+            if let Some(m) = planes.pose() {
+                let start = last * m;
+                let again = self.align(&start, reference);
+                iterations += again.iterations;
+                if again.failure.is_none() {
+                    first = again;
+                    recovered = true;
+                }
+            }
+        }
+        let result = match first.failure {
+            None => {
+                let status = if self.lost_run > 0 {
+                    TrackStatus::Relocalised
+                } else if recovered {
+                    TrackStatus::Recovered
+                } else {
+                    TrackStatus::Tracked
+                };
+                self.velocity = last.inverse() * first.pose;
+                self.accept(depth, first.pose);
+                self.lost_run = 0;
+                status
+            }
+            Some(_) => {
+                self.lost_run += 1;
+                // After a few lost frames the old velocity says little; relocalise from the
+                // last good pose.
+                if self.lost_run > 3 {
+                    self.velocity = Isometry3::identity();
+                }
+                TrackStatus::Lost
+            }
+        };
+        let pose = if result.is_tracked() {
+            first.pose
+        } else {
+            last
+        };
+        Ok(FrameResult {
+            status: result,
+            pose: CameraToWorld::from_isometry(pose),
+            overlap_fraction: ratio(first.stats.associated, first.stats.valid),
+            inlier_fraction: ratio(first.stats.inliers, first.stats.associated),
+            rms_m: (ratio(first.stats.r2_m2, first.stats.inliers)).sqrt(),
+            rms_normalised: (ratio(first.stats.chi2, first.stats.inliers)).sqrt(),
+            condition: first.condition,
+            iterations,
+            failure: first.failure,
+        })
+    }
+
+    /// The first frame with enough valid depth defines the world frame.
+    fn initialise(&mut self, depth: &DepthImage) -> FrameResult {
+        let valid = self
+            .pyramid
+            .levels
+            .first()
+            .map_or(0, |l| l.normals.iter().filter(|n| n.x.is_finite()).count());
+        let min_points = self.min_points(0);
+        let pose = *self.initial_pose.isometry();
+        if valid < min_points {
+            return FrameResult {
+                status: TrackStatus::Lost,
+                pose: self.initial_pose,
+                overlap_fraction: 0.0,
+                inlier_fraction: 0.0,
+                rms_m: 0.0,
+                rms_normalised: 0.0,
+                condition: 0.0,
+                iterations: 0,
+                failure: Some(format!(
+                    "first frame: {valid} points with a normal, fewer than {min_points}"
+                )),
+            };
+        }
+        self.accept(depth, pose);
+        FrameResult {
+            status: TrackStatus::Initialised,
+            pose: self.initial_pose,
+            overlap_fraction: 1.0,
+            inlier_fraction: 1.0,
+            rms_m: 0.0,
+            rms_normalised: 0.0,
+            condition: 1.0,
+            iterations: 0,
+            failure: None,
+        }
+    }
+
+    /// Makes the current frame (level 0 of the pyramid) the last good one.
+    fn accept(&mut self, depth: &DepthImage, pose: Isometry3<f64>) {
+        let k = self.camera.intrinsics;
+        if let Some(l0) = self.pyramid.levels.first() {
+            self.last_ref.set_from_level(
+                l0,
+                &k,
+                &self.camera.sensor,
+                &CameraToWorld::from_isometry(pose),
+            );
+        }
+        self.last_depth.data_mut().copy_from_slice(depth.data());
+        self.last_good = Some(pose);
+    }
+
+    /// Fewest associated points for the normal equations of `level` to mean anything: 1 % of
+    /// the level's pixels.
+    fn min_points(&self, level: usize) -> usize {
+        let k = self.camera.intrinsics;
+        ((k.width * k.height) >> (2 * level)) / 100
+    }
+
+    /// Coarse-to-fine Gauss–Newton from `start`, then the acceptance checks.
+    fn align(&self, start: &Isometry3<f64>, reference: &ReferenceMaps) -> Attempt {
+        let cfg = &self.cfg;
+        let sensor = &self.camera.sensor;
+        let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
+        let mut pose = *start;
+        let mut iterations = 0;
+        for l in (0..self.pyramid.levels.len()).rev() {
+            let level = &self.pyramid.levels[l];
+            let params = PassParams {
+                allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
+                min_cos,
+            };
+            for _ in 0..cfg.max_iterations {
+                let centre = pose.translation.vector;
+                let s = solve::pass(level, reference, &pose, &centre, sensor, cfg, params);
+                iterations += 1;
+                if (s.inliers as usize) < self.min_points(l).max(6) {
+                    break;
+                }
+                let Some(xi) = solve::step(&s) else { break };
+                if !xi.iter().all(|v| v.is_finite()) {
+                    break;
+                }
+                pose = solve::apply(&pose, &xi, &centre);
+                let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
+                if w < 1e-4 && v < 1e-4 {
+                    break;
+                }
+            }
+        }
+        // The final statistics at full resolution.
+        let centre = pose.translation.vector;
+        let params = PassParams {
+            allowance_m: cfg.allowance_fine_m as f32,
+            min_cos,
+        };
+        let level0 = &self.pyramid.levels[0];
+        let stats = solve::pass(level0, reference, &pose, &centre, sensor, cfg, params);
+        let scale_m = mean_depth(level0);
+        let condition = solve::condition(&stats, scale_m);
+        let correction = start.inverse() * pose;
+        let frac = ratio(stats.inliers, stats.associated);
+        let failure = if (stats.inliers as usize) < self.min_points(0) {
+            Some(format!("{} inliers, too few", stats.inliers))
+        } else if frac < cfg.min_inlier_fraction {
+            Some(format!(
+                "inlier fraction {frac:.3} below {}",
+                cfg.min_inlier_fraction
+            ))
+        } else if condition < cfg.min_condition {
+            Some(format!(
+                "conditioning {condition:.2e} below {:.0e}",
+                cfg.min_condition
+            ))
+        } else if correction.translation.vector.norm() > cfg.max_correction_m
+            || correction.rotation.angle().to_degrees() > cfg.max_correction_deg
+        {
+            Some(format!(
+                "correction of {:.3} m / {:.1}° from the start is implausible",
+                correction.translation.vector.norm(),
+                correction.rotation.angle().to_degrees()
+            ))
+        } else {
+            None
+        };
+        Attempt {
+            pose,
+            stats,
+            condition,
+            iterations,
+            failure,
+        }
+    }
+}
+
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 { a / b } else { 0.0 }
+}
+
+/// Mean valid depth of a level (the scene's scale for the conditioning), metres.
+fn mean_depth(level: &pyramid::Level) -> f64 {
+    let (s, n) = level
+        .depth
+        .iter()
+        .filter(|z| **z > 0.0)
+        .fold((0.0f64, 0usize), |(s, n), z| (s + f64::from(*z), n + 1));
+    if n > 0 { s / n as f64 } else { 1.0 }
+}

@@ -1,0 +1,252 @@
+//! One Gauss–Newton iteration of noise-weighted point-to-plane ICP: projective association of
+//! a pyramid level's points with the reference maps, the 6×6 normal equations summed per row in
+//! parallel (rayon, no allocation per pixel), and the SE(3) update.
+
+use nalgebra::{
+    Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+};
+use rayon::prelude::*;
+use sl_core::SensorModel;
+
+use super::pyramid::Level;
+use super::reference::ReferenceMaps;
+use super::{TrackerConfig, WeightMode};
+
+/// Sums of one association pass: the upper triangle of `H = Σ w·J·Jᵀ`, `g = Σ w·J·r`, and counts.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Sums {
+    h: [f64; 21],
+    g: [f64; 6],
+    /// Points of the level with a valid normal.
+    pub valid: f64,
+    /// Points that land on a reference pixel with a surface (the overlap).
+    pub associated: f64,
+    /// Points associated and within the gates.
+    pub inliers: f64,
+    /// Σ of squared normalised residuals `(r/σ)²` of the inliers.
+    pub chi2: f64,
+    /// Σ of squared metric residuals of the inliers, m².
+    pub r2_m2: f64,
+}
+
+impl Sums {
+    fn zero() -> Self {
+        Self {
+            h: [0.0; 21],
+            g: [0.0; 6],
+            valid: 0.0,
+            associated: 0.0,
+            inliers: 0.0,
+            chi2: 0.0,
+            r2_m2: 0.0,
+        }
+    }
+
+    fn add(mut self, o: &Self) -> Self {
+        for (a, b) in self.h.iter_mut().zip(&o.h) {
+            *a += b;
+        }
+        for (a, b) in self.g.iter_mut().zip(&o.g) {
+            *a += b;
+        }
+        self.valid += o.valid;
+        self.associated += o.associated;
+        self.inliers += o.inliers;
+        self.chi2 += o.chi2;
+        self.r2_m2 += o.r2_m2;
+        self
+    }
+
+    #[inline(always)]
+    fn accumulate(&mut self, j: &[f64; 6], r: f64, w: f64) {
+        let mut k = 0;
+        for a in 0..6 {
+            let wa = w * j[a];
+            for jb in &j[a..] {
+                self.h[k] += wa * jb;
+                k += 1;
+            }
+            self.g[a] += wa * r;
+        }
+    }
+
+    /// The normal-equation matrix.
+    pub fn hessian(&self) -> Matrix6<f64> {
+        let mut m = Matrix6::zeros();
+        let mut k = 0;
+        for a in 0..6 {
+            for b in a..6 {
+                m[(a, b)] = self.h[k];
+                m[(b, a)] = self.h[k];
+                k += 1;
+            }
+        }
+        m
+    }
+
+    /// The gradient vector.
+    pub fn gradient(&self) -> Vector6<f64> {
+        Vector6::from_column_slice(&self.g)
+    }
+}
+
+/// Gates and weighting of one pass.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct PassParams {
+    /// Residuals within `gate_sigmas·σ + allowance_m` are inliers.
+    pub allowance_m: f32,
+    /// Cosine of the largest angle between the frame's and the reference's normals.
+    pub min_cos: f32,
+}
+
+/// Associates the level's points (camera frame) under the pose `pose` (camera to world, about
+/// the centre `centre`: the Jacobian is taken with respect to a rotation about it) and sums the
+/// normal equations.
+pub(crate) fn pass(
+    level: &Level,
+    reference: &ReferenceMaps,
+    pose: &Isometry3<f64>,
+    centre: &Vector3<f64>,
+    sensor: &SensorModel,
+    cfg: &TrackerConfig,
+    p: PassParams,
+) -> Sums {
+    let Some(k) = level.intrinsics() else {
+        return Sums::zero();
+    };
+    let w = k.width;
+    let rot = pose.rotation.to_rotation_matrix().matrix().cast::<f32>();
+    let tr = pose.translation.vector.cast::<f32>();
+    let to_ref = reference.pose.isometry().inverse();
+    let rr = to_ref.rotation.to_rotation_matrix().matrix().cast::<f32>();
+    let trr = to_ref.translation.vector.cast::<f32>();
+    let kr = &reference.intrinsics;
+    let (fx, fy, cx, cy) = (kr.fx as f32, kr.fy as f32, kr.cx as f32, kr.cy as f32);
+    let (rw, rh) = (kr.width as f32, kr.height as f32);
+    let c = (sensor.sigma_d_px / sensor.fb()) as f32;
+    // Focal length of the full-resolution frame (normals are computed there).
+    let fl = kr.fx as f32;
+    let gate_sigmas = cfg.gate_sigmas as f32;
+    let huber_k = cfg.huber_k as f32;
+    let uniform_sigma = sensor.sigma_z(cfg.z_ref_m) as f32;
+    let mode = cfg.weighting;
+    let ctr = centre.cast::<f32>();
+    level
+        .points
+        .par_chunks(w.max(1))
+        .zip(level.normals.par_chunks(w.max(1)))
+        .fold(Sums::zero, |mut s, (prow, nrow)| {
+            for (pc, nc) in prow.iter().zip(nrow) {
+                if !nc.x.is_finite() {
+                    continue;
+                }
+                s.valid += 1.0;
+                let xw = rot * pc.coords + tr;
+                let xr = rr * xw + trr;
+                if xr.z <= 0.0 {
+                    continue;
+                }
+                let u = (fx * xr.x / xr.z + cx).round();
+                let v = (fy * xr.y / xr.z + cy).round();
+                if !(u >= 0.0 && v >= 0.0 && u < rw && v < rh) {
+                    continue;
+                }
+                let j = v as usize * kr.width + u as usize;
+                let n = reference.normals[j];
+                if !n.x.is_finite() {
+                    continue;
+                }
+                let q = reference.points[j].coords;
+                s.associated += 1.0;
+                let nw = rot * nc;
+                // The normal gate widens with the normals' own noise: central differences over
+                // ±2 pixels at depth z have an angular error of about σ_Z(z)·f/(2·2·z) each
+                // (√2 for two normals), gated at 3σ and never tighter than `min_cos`.
+                let z = pc.z;
+                let tan_g = 3.0 * std::f32::consts::SQRT_2 * c * z * fl / 4.0;
+                let cos_g = (1.0 / (1.0 + tan_g * tan_g).sqrt()).min(p.min_cos);
+                if nw.dot(&n) < cos_g {
+                    continue;
+                }
+                let diff = xw - q;
+                let r = n.dot(&diff);
+                // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|.
+                let ray_len = pc.coords.norm();
+                let cos = n.dot(&(rot * pc.coords)) / ray_len;
+                let s_src = c * z * z * cos;
+                let var = s_src * s_src + reference.variance_m2[j];
+                let sigma = var.sqrt();
+                let gate = gate_sigmas * sigma + p.allowance_m;
+                if !(r.abs() <= gate && diff.norm() <= 2.0 * gate) {
+                    continue;
+                }
+                let scale = match mode {
+                    WeightMode::InvVar => sigma,
+                    WeightMode::Uniform => uniform_sigma,
+                };
+                let e = r / scale;
+                let hub = if e.abs() <= huber_k {
+                    1.0
+                } else {
+                    huber_k / e.abs()
+                };
+                let wgt = f64::from(hub / (scale * scale));
+                let pl = xw - ctr;
+                let cr = pl.cross(&n);
+                let jac = [
+                    f64::from(cr.x),
+                    f64::from(cr.y),
+                    f64::from(cr.z),
+                    f64::from(n.x),
+                    f64::from(n.y),
+                    f64::from(n.z),
+                ];
+                s.accumulate(&jac, f64::from(r), wgt);
+                s.inliers += 1.0;
+                let en = f64::from(r / sigma);
+                s.chi2 += en * en;
+                s.r2_m2 += f64::from(r) * f64::from(r);
+            }
+            s
+        })
+        .reduce(Sums::zero, |a, b| a.add(&b))
+}
+
+/// The Gauss–Newton step `ξ = (ω, v)` solving `H·ξ = −g`, or `None` when `H` is singular.
+pub(crate) fn step(s: &Sums) -> Option<Vector6<f64>> {
+    let h = s.hessian();
+    let g = s.gradient();
+    h.cholesky().map(|c| -c.solve(&g))
+}
+
+/// Applies a step about `centre`: `T ← C·exp(ξ)·C⁻¹·T` with `C` the translation to the centre.
+pub(crate) fn apply(
+    pose: &Isometry3<f64>,
+    xi: &Vector6<f64>,
+    centre: &Vector3<f64>,
+) -> Isometry3<f64> {
+    let w = Vector3::new(xi[0], xi[1], xi[2]);
+    let v = Vector3::new(xi[3], xi[4], xi[5]);
+    let rot = UnitQuaternion::from_scaled_axis(w);
+    let c = Translation3::from(*centre);
+    let delta = Isometry3::from_parts(Translation3::from(v), rot);
+    c * delta * c.inverse() * pose
+}
+
+/// Conditioning of the normal equations: the smallest over the largest eigenvalue of `H` with
+/// the rotation rows and columns divided by `scale_m` (making them metres like translation).
+pub(crate) fn condition(s: &Sums, scale_m: f64) -> f64 {
+    let mut h = s.hessian();
+    let inv = 1.0 / scale_m.max(1e-6);
+    for a in 0..6 {
+        for b in 0..6 {
+            let fa = if a < 3 { inv } else { 1.0 };
+            let fb = if b < 3 { inv } else { 1.0 };
+            h[(a, b)] *= fa * fb;
+        }
+    }
+    let e = SymmetricEigen::new(h).eigenvalues;
+    let max = e.iter().copied().fold(f64::MIN, f64::max);
+    let min = e.iter().copied().fold(f64::MAX, f64::min);
+    if max > 0.0 { (min / max).max(0.0) } else { 0.0 }
+}

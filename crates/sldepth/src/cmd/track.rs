@@ -1,0 +1,430 @@
+//! `sldepth track`: where was the camera — track a raw depth recording (no poses given) with
+//! `sl_track::Tracker`, fuse every tracked frame into a TSDF (1/Z⁴ weights) and write the
+//! trajectory and, with `--mesh`, the mesh.
+//!
+//! Trajectory output (`--output`, TUM format `timestamp tx ty tz qx qy qz qw`, camera to
+//! world): one line per input frame. A frame that could not be tracked gets a comment line
+//! `# <timestamp> lost: <reason>` (an unreadable frame `# <timestamp> skipped: <reason>`)
+//! instead of a pose — TUM tools skip comments, so a lost frame is missing from the
+//! evaluation rather than given a wrong pose. Frames without timestamps (7-Scenes, Open3D
+//! folders) use their index as the timestamp. `--output-log` writes the tracked frames as an
+//! Open3D `.log` (metadata `i i n`, `i` the frame index; lost frames are left out and listed in
+//! the JSON).
+
+use std::fmt::Write as _;
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use sl_core::{Camera, CameraToWorld};
+use sl_io::depth::{ReadOptions, read_depth_with_limits};
+use sl_io::sequence::SequenceFrame;
+use sl_track::ReferenceMaps;
+use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
+use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+
+use crate::common::{
+    InputArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits, parse_format,
+    print_json, round_to,
+};
+
+/// Options of `sldepth track`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
+    /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
+    /// and the `tum-fr1` camera unless given.
+    #[arg(long, value_name = "DIR", group = "source")]
+    pub tum: Option<PathBuf>,
+    /// A 7-Scenes sequence folder (`frame-XXXXXX.depth.png`, millimetres; poses are not read);
+    /// the `7-scenes` camera (fx = fy = 585, c = (320, 240)) unless given.
+    #[arg(long = "7scenes", value_name = "DIR", group = "source")]
+    pub seven_scenes: Option<PathBuf>,
+    /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, millimetres unless
+    /// --depth-scale) and an optional `DIR/camera.json`.
+    #[arg(long, value_name = "DIR", group = "source")]
+    pub o3d: Option<PathBuf>,
+    /// Use only the first N frames.
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<usize>,
+    /// Trajectory output, TUM format (camera to world; lost frames as `#` comment lines).
+    #[arg(long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Trajectory output, Open3D `.log` (tracked frames only).
+    #[arg(long, value_name = "FILE")]
+    pub output_log: Option<PathBuf>,
+    /// Write the fused mesh (binary PLY) at the end.
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
+    /// Voxel edge of the fused volume, metres.
+    #[arg(long, value_name = "M", default_value_t = 0.004)]
+    pub voxel_m: f64,
+    /// A fixed truncation band, metres. Default, as `sldepth fuse`: per observation
+    /// max(5 voxels, 3·σ_Z(Z)) up to 12 cm (the sensor-adaptive band).
+    #[arg(long, value_name = "M")]
+    pub trunc_m: Option<f64>,
+    /// Ignore depths beyond this for fusion, metres.
+    #[arg(long, value_name = "M", default_value_t = 4.0)]
+    pub max_depth_m: f64,
+    /// Residual weighting of the tracker: `inv-var` (the sensor model's variance, default) or
+    /// `uniform`.
+    #[arg(long, value_name = "MODE", default_value = "inv-var")]
+    pub weighting: String,
+    /// Track each frame against the previous tracked frame instead of the fused model's
+    /// raycast (frame-to-model, the default).
+    #[arg(long)]
+    pub frame_to_frame: bool,
+    /// No plane-based fallback when ICP fails.
+    #[arg(long)]
+    pub no_plane_fallback: bool,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+/// The frames, the camera and the default depth scale of the chosen source.
+fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
+    let lim = limits();
+    let camera = |default_preset: &str, file: Option<PathBuf>| -> Result<Camera> {
+        if let Some(c) = &args.input.camera {
+            return camera_from_arg(c);
+        }
+        match file {
+            Some(p) if p.is_file() => {
+                let is_json = p
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+                if is_json {
+                    sl_io::camera::read_camera_json_with_limits(&p, &lim)
+                } else {
+                    sl_io::camera::read_camera(&p)
+                }
+                .with_context(|| format!("reading camera {}", p.display()))
+            }
+            _ => Ok(Camera::preset(default_preset)?),
+        }
+    };
+    if let Some(dir) = &args.tum {
+        let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
+        Ok((frames, camera("tum-fr1", None)?, 5000.0))
+    } else if let Some(dir) = &args.seven_scenes {
+        let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
+        Ok((
+            frames,
+            camera("7-scenes", Some(dir.join("camera-intrinsics.txt")))?,
+            1000.0,
+        ))
+    } else if let Some(dir) = &args.o3d {
+        let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
+        Ok((
+            frames,
+            camera("kinect-v1", Some(dir.join("camera.json")))?,
+            1000.0,
+        ))
+    } else {
+        bail!("give the sequence with --tum DIR, --7scenes DIR or --o3d DIR")
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// One output row: a pose or why there is none.
+enum Row {
+    Pose(CameraToWorld),
+    Lost(String),
+    Skipped(String),
+}
+
+fn tum_text(rows: &[(f64, Row)]) -> String {
+    let mut s = String::from("# sldepth track: timestamp tx ty tz qx qy qz qw (camera to world)\n");
+    for (t, row) in rows {
+        match row {
+            Row::Pose(p) => {
+                let tr = p.translation();
+                let q = p.rotation();
+                let _ = writeln!(
+                    s,
+                    "{t:.6} {:.6} {:.6} {:.6} {:.7} {:.7} {:.7} {:.7}",
+                    tr.x, tr.y, tr.z, q.i, q.j, q.k, q.w
+                );
+            }
+            Row::Lost(why) => {
+                let _ = writeln!(s, "# {t:.6} lost: {why}");
+            }
+            Row::Skipped(why) => {
+                let _ = writeln!(s, "# {t:.6} skipped: {why}");
+            }
+        }
+    }
+    s
+}
+
+fn log_text(rows: &[(f64, Row)]) -> String {
+    let n = rows.len();
+    let mut s = String::new();
+    for (i, (_, row)) in rows.iter().enumerate() {
+        if let Row::Pose(p) = row {
+            let m = p.to_matrix();
+            let _ = writeln!(s, "{i} {i} {n}");
+            for r in 0..4 {
+                let _ = writeln!(
+                    s,
+                    "{:.9} {:.9} {:.9} {:.9}",
+                    m[(r, 0)],
+                    m[(r, 1)],
+                    m[(r, 2)],
+                    m[(r, 3)]
+                );
+            }
+        }
+    }
+    s
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    sl_io::atomic::write_atomic(path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Runs `sldepth track`.
+pub fn run(args: Args) -> Result<()> {
+    for (opt, path, exts) in [
+        ("--output", &args.output, &["txt"][..]),
+        ("--output-log", &args.output_log, &["log"][..]),
+        ("--mesh", &args.mesh, &["ply"][..]),
+    ] {
+        if let Some(p) = path {
+            check_output(opt, p, exts)?;
+        }
+    }
+    check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
+    check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
+    if let Some(s) = args.input.depth_scale {
+        check_depth_scale(s)?;
+    }
+    let weighting = WeightMode::parse(&args.weighting)?;
+    let (mut frames, camera, default_scale) = load_source(&args)?;
+    if let Some(n) = args.max_frames {
+        frames.truncate(n);
+    }
+    if frames.is_empty() {
+        bail!("no depth frames in the sequence");
+    }
+    let k = camera.intrinsics;
+    limits()
+        .check_pixels(k.width as u64, k.height as u64)
+        .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
+    let mut tcfg = TrackerConfig::default();
+    tcfg.weighting = weighting;
+    tcfg.plane_fallback = !args.no_plane_fallback;
+    // Development overrides (undocumented).
+    let env_f = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<f64>().ok());
+    if let Some(v) = env_f("SLDEPTH_TRACK_ANGLE") {
+        tcfg.max_normal_angle_deg = v;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_ALLOW") {
+        tcfg.allowance_fine_m = v;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_HUBER") {
+        tcfg.huber_k = v;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_LEVELS") {
+        tcfg.levels = v as usize;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_ITER") {
+        tcfg.max_iterations = v as usize;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_COND") {
+        tcfg.min_condition = v;
+    }
+    if let Some(v) = env_f("SLDEPTH_TRACK_MININL") {
+        tcfg.min_inlier_fraction = v;
+    }
+    let mut tracker = Tracker::new(camera, tcfg)?;
+    tracker.set_initial_pose(CameraToWorld::identity());
+    let mut params = TsdfConfig::default();
+    params.voxel_m = args.voxel_m;
+    params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
+    params.truncation = match args.trunc_m {
+        Some(_) => Truncation::Fixed,
+        None => Truncation::sensor_adaptive(camera.sensor),
+    };
+    params.max_depth_m = args.max_depth_m;
+    params.memory_budget_bytes = limits().tsdf_budget_bytes;
+    let mut volume = TsdfVolume::new(params)?;
+    let mut rc_cfg = RaycastConfig::default();
+    rc_cfg.min_depth_m = params.min_depth_m;
+    rc_cfg.max_depth_m = params.max_depth_m;
+    let mut raycast = Raycast::default();
+    let mut model = ReferenceMaps::empty(&k);
+    let mut have_model = false;
+    let mut raycast_ms = Vec::new();
+    let mut step_ms = Vec::new();
+    let mut track_ms_tracked = Vec::new();
+    let read_opts = ReadOptions {
+        format: parse_format(&args.input)?,
+        scale_units_per_m: Some(args.input.depth_scale.unwrap_or(default_scale)),
+    };
+
+    let bar = indicatif::ProgressBar::new(frames.len() as u64);
+    if !std::io::stderr().is_terminal() || args.json {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "tracking {bar:40} {pos}/{len} frames, {per_sec}, {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut rows: Vec<(f64, Row)> = Vec::with_capacity(frames.len());
+    let (mut track_ms, mut integrate_ms) = (Vec::new(), Vec::new());
+    let mut counts = [0usize; 5];
+    let mut lost_frames = Vec::new();
+    let mut skipped_frames = Vec::new();
+    let wall = Instant::now();
+    // Per-frame diagnostics on stderr (undocumented, for development).
+    let debug = std::env::var_os("SLDEPTH_TRACK_DEBUG").is_some();
+    for (i, f) in frames.iter().enumerate() {
+        let t = f.timestamp.unwrap_or(i as f64);
+        let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits()) {
+            Ok(d) => d.depth,
+            Err(e) => {
+                errln!(
+                    "warning: skipping frame {i} ({}): {e}",
+                    f.depth_path.display()
+                );
+                skipped_frames.push(i);
+                rows.push((t, Row::Skipped(e.to_string().replace('\n', " "))));
+                bar.inc(1);
+                continue;
+            }
+        };
+        if depth.width() != k.width || depth.height() != k.height {
+            bail!(
+                "{}: depth map is {}x{} but the camera is {}x{} (pass --camera)",
+                f.depth_path.display(),
+                depth.width(),
+                depth.height(),
+                k.width,
+                k.height
+            );
+        }
+        let t0 = Instant::now();
+        let r = tracker
+            .track(&depth, have_model.then_some(&model))
+            .with_context(|| format!("tracking {}", f.depth_path.display()))?;
+        track_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        counts[r.status as usize] += 1;
+        if debug {
+            errln!(
+                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} it {} {:.1} ms {}",
+                r.status.as_str(),
+                r.overlap_fraction,
+                r.inlier_fraction,
+                r.rms_m,
+                r.rms_normalised,
+                r.condition,
+                r.iterations,
+                track_ms.last().copied().unwrap_or(0.0),
+                r.failure.as_deref().unwrap_or("")
+            );
+        }
+        if r.status.is_tracked() {
+            track_ms_tracked.push(t0.elapsed().as_secs_f64() * 1e3);
+            let t1 = Instant::now();
+            volume
+                .integrate(&depth, &k, &r.pose)
+                .with_context(|| format!("integrating {}", f.depth_path.display()))?;
+            integrate_ms.push(t1.elapsed().as_secs_f64() * 1e3);
+            if !args.frame_to_frame {
+                // The model seen from this pose is the next frame's reference.
+                let t2 = Instant::now();
+                volume.raycast_into(&r.pose, &k, &rc_cfg, &mut raycast)?;
+                model.set_from_model(&raycast, &r.pose, &k, &camera.sensor, params.z_ref_m)?;
+                have_model = true;
+                raycast_ms.push(t2.elapsed().as_secs_f64() * 1e3);
+            }
+            rows.push((t, Row::Pose(r.pose)));
+        } else {
+            lost_frames.push(i);
+            let why = r.failure.unwrap_or_default();
+            rows.push((t, Row::Lost(why)));
+        }
+        step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        bar.set_message(format!("{} lost", lost_frames.len()));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let wall_s = wall.elapsed().as_secs_f64();
+
+    let mesh = match &args.mesh {
+        Some(_) => {
+            Some(volume.extract_mesh_within(&MeshConfig::default(), params.memory_budget_bytes)?)
+        }
+        None => None,
+    };
+    if let Some(p) = &args.output {
+        write_text(p, &tum_text(&rows))?;
+    }
+    if let Some(p) = &args.output_log {
+        write_text(p, &log_text(&rows))?;
+    }
+    if let (Some(p), Some(m)) = (&args.mesh, &mesh) {
+        sl_tsdf::io::write_mesh_ply(p, m, sl_io::ply::PlyFormat::BinaryLittleEndian)
+            .with_context(|| format!("writing {}", p.display()))?;
+    }
+    let (tm, im) = (median(&track_ms), median(&integrate_ms));
+    if args.json {
+        print_json(&serde_json::json!({
+            "frames": frames.len(),
+            "tracked": frames.len() - lost_frames.len() - skipped_frames.len(),
+            "lost": lost_frames.len(),
+            "lost_frames": lost_frames,
+            "skipped": skipped_frames.len(),
+            "skipped_frames": skipped_frames,
+            "recovered": counts[TrackStatus::Recovered as usize],
+            "relocalised": counts[TrackStatus::Relocalised as usize],
+            "reference": if args.frame_to_frame { "frame" } else { "model" },
+            "raycast_ms_median": round_to(median(&raycast_ms), 3),
+            "step_ms_median": round_to(median(&step_ms), 3),
+            "weighting": weighting.name(),
+            "track_ms_median": round_to(tm, 3),
+            "track_ms_median_tracked": round_to(median(&track_ms_tracked), 3),
+            "integrate_ms_median": round_to(im, 3),
+            "wall_s": round_to(wall_s, 3),
+            "voxel_m": params.voxel_m,
+            "trunc_m": params.trunc_m,
+            "truncation": params.truncation.name(),
+            "vertices": mesh.as_ref().map(|m| m.vertex_count()),
+            "triangles": mesh.as_ref().map(|m| m.triangle_count()),
+            "output": args.output.as_ref().map(|p| p.display().to_string()),
+            "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
+        }))?;
+    } else {
+        errln!(
+            "tracked {} of {} frames ({} lost, {} skipped); track {:.1} ms, integrate {:.1} ms per frame (median)",
+            frames.len() - lost_frames.len() - skipped_frames.len(),
+            frames.len(),
+            lost_frames.len(),
+            skipped_frames.len(),
+            tm,
+            im
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,157 @@
+//! `sldepth track` on a small simulated sequence written as a TUM folder: trajectory, `.log`,
+//! mesh and JSON; bad input (a missing frame, timestamps out of order) handled without a panic.
+#![allow(clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sl_io::depth::{DepthEncoding, write_depth};
+use sl_noise::sim::{KinectSimulator, named_scene};
+
+fn sldepth(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(args)
+        .output()
+        .expect("the sldepth binary runs")
+}
+
+/// Writes `n` frames of the simulated `boxes` scene (640×480 Kinect, the camera turning 1° and
+/// moving 1 cm per frame) as a TUM folder: `depth/<t>.png` (5000 units/m) and `depth.txt`.
+fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
+    let scene = named_scene("boxes").unwrap();
+    let sim = KinectSimulator::kinect_v1().white();
+    let step = Isometry3::from_parts(
+        Translation3::new(0.01, 0.0, 0.0),
+        UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
+    );
+    std::fs::create_dir_all(dir.join("depth")).unwrap();
+    let mut list = String::from("# depth maps\n# timestamp filename\n");
+    let mut pose = scene.pose;
+    let mut stamps = Vec::new();
+    for i in 0..n {
+        let t = 100.0 + i as f64 / 30.0;
+        let truth = scene.scene.render(&scene.intrinsics, &pose).depth;
+        let depth = sim.apply(&truth, i as u64);
+        let name = format!("depth/{t:.6}.png");
+        write_depth(dir.join(&name), &depth, &DepthEncoding::tum()).unwrap();
+        list.push_str(&format!("{t:.6} {name}\n"));
+        stamps.push(t);
+        pose *= step;
+    }
+    std::fs::write(dir.join("depth.txt"), list).unwrap();
+    stamps
+}
+
+#[test]
+fn track_writes_trajectory_log_mesh_and_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 6);
+    let (traj, log, mesh) = (
+        tmp.path().join("traj.txt"),
+        tmp.path().join("traj.log"),
+        tmp.path().join("mesh.ply"),
+    );
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        traj.to_str().unwrap(),
+        "--output-log",
+        log.to_str().unwrap(),
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["frames"], 6);
+    assert_eq!(v["lost"], 0);
+    assert_eq!(v["reference"], "model");
+    assert!(v["track_ms_median"].as_f64().unwrap() > 0.0);
+    assert!(v["integrate_ms_median"].as_f64().unwrap() > 0.0);
+    assert!(v["vertices"].as_u64().unwrap() > 1000);
+    // One pose line per frame, with the input's timestamps; the camera moved 1 cm per frame
+    // along its x axis.
+    let text = std::fs::read_to_string(&traj).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 6);
+    for (r, t) in rows.iter().zip(&stamps) {
+        assert_eq!(r.len(), 8);
+        assert!((r[0] - t).abs() < 1e-6);
+    }
+    let last = &rows[5];
+    let moved = (last[1] * last[1] + last[2] * last[2] + last[3] * last[3]).sqrt();
+    assert!(
+        (moved - 0.05).abs() < 0.01,
+        "moved {moved} m, expected about 0.05 m"
+    );
+    let entries = sl_io::trajectory::read_open3d_log(&log).unwrap();
+    assert_eq!(entries.len(), 6);
+    let m = sl_io::read_mesh_ply(&mesh).unwrap();
+    assert!(m.vertex_count() > 1000);
+}
+
+#[test]
+fn track_skips_a_missing_frame_and_rejects_unordered_timestamps() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 4);
+    // A frame listed but absent: logged, marked in the trajectory, the rest tracked.
+    let mut list = std::fs::read_to_string(seq.join("depth.txt")).unwrap();
+    list.push_str("200.000000 depth/missing.png\n");
+    std::fs::write(seq.join("depth.txt"), &list).unwrap();
+    let traj = tmp.path().join("traj.txt");
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.01",
+        "--output",
+        traj.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["skipped"], 1);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.png"));
+    let text = std::fs::read_to_string(&traj).unwrap();
+    assert!(text.lines().any(|l| l.starts_with("# 200.000000 skipped")));
+    // Timestamps out of order: a clear error naming the line, no output.
+    list.push_str("150.000000 depth/also-missing.png\n");
+    std::fs::write(seq.join("depth.txt"), &list).unwrap();
+    let traj2 = tmp.path().join("traj2.txt");
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--output",
+        traj2.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("out of order"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!traj2.exists());
+}

@@ -1,0 +1,197 @@
+//! Camera tracking (issue 13): `sl_track::Tracker` on a simulated sequence with a known
+//! trajectory and on the real 7-Scenes and ICL sequences (their poses as reference), with the
+//! sensor-model weights (`inv-var`) and uniform weights, frame-to-model (the fused volume's
+//! raycast) and frame-to-frame. ATE is the RMS position error after Horn's rigid alignment over
+//! the tracked frames (lost frames have no pose; their count is reported beside it).
+//!
+//! Checks (simulated sequence only, where the truth is exact): every frame tracked, the
+//! frame-to-model inv-var trajectory within 1 cm / 0.5° (one frame's pose noise is well under a
+//! millimetre from ~30 k points; 1 cm fails on any wrong association, which is centimetres
+//! off), and inv-var at least as accurate as uniform up to the spread of a 20-frame run (×1.5).
+//! The real sequences are reported, not checked: the issue's targets (no lost frame on
+//! fr1/rpy, ATE at most half of Open3D dense SLAM's) are not met yet (docs/bench/track.md).
+
+use anyhow::Result;
+use sl_core::nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, CameraToWorld, DepthImage, Pose, SensorModel};
+use sl_noise::sim::{KinectSimulator, named_scene};
+use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
+use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
+
+use super::Context;
+
+/// Tracks `frames`; `None` for a lost frame.
+fn track(
+    cam: &Camera,
+    frames: &[&DepthImage],
+    weighting: WeightMode,
+    model: bool,
+) -> Result<Vec<Option<CameraToWorld>>> {
+    let k = cam.intrinsics;
+    let mut cfg = TrackerConfig::default();
+    cfg.weighting = weighting;
+    let mut tracker = Tracker::new(*cam, cfg)?;
+    let mut vcfg = TsdfConfig::default();
+    vcfg.voxel_m = 0.008;
+    vcfg.trunc_m = 0.04;
+    let mut volume = TsdfVolume::new(vcfg)?;
+    let mut rc = Raycast::default();
+    let mut maps = ReferenceMaps::empty(&k);
+    let mut have = false;
+    let mut out = Vec::new();
+    for d in frames {
+        let r = tracker.track(d, have.then_some(&maps))?;
+        if r.status.is_tracked() {
+            if model {
+                volume.integrate(*d, &k, &r.pose)?;
+                volume.raycast_into(&r.pose, &k, &RaycastConfig::default(), &mut rc)?;
+                maps.set_from_model(&rc, &r.pose, &k, &cam.sensor, vcfg.z_ref_m)?;
+                have = true;
+            }
+            out.push(Some(r.pose));
+        } else {
+            out.push(None);
+        }
+    }
+    Ok(out)
+}
+
+/// ATE RMSE (m) after Horn's rigid alignment of the estimated positions to the true ones,
+/// over the frames with an estimate.
+fn ate_m(truth: &[Pose], est: &[Option<CameraToWorld>]) -> f64 {
+    let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = truth
+        .iter()
+        .zip(est)
+        .filter_map(|(t, e)| e.map(|e| (e.translation(), t.translation.vector)))
+        .collect();
+    if pairs.len() < 3 {
+        return f64::NAN;
+    }
+    let n = pairs.len() as f64;
+    let ma = pairs.iter().map(|p| p.0).sum::<Vector3<f64>>() / n;
+    let mb = pairs.iter().map(|p| p.1).sum::<Vector3<f64>>() / n;
+    let h: Matrix3<f64> = pairs
+        .iter()
+        .map(|(a, b)| (a - ma) * (b - mb).transpose())
+        .sum();
+    let svd = h.svd(true, true);
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return f64::NAN;
+    };
+    let mut d = Matrix3::identity();
+    if (vt.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = vt.transpose() * d * u.transpose();
+    let t = mb - r * ma;
+    (pairs
+        .iter()
+        .map(|(a, b)| (r * a + t - b).norm_squared())
+        .sum::<f64>()
+        / n)
+        .sqrt()
+}
+
+/// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame.
+fn simulated(n: usize) -> Result<(Camera, Vec<Pose>, Vec<DepthImage>)> {
+    let scene = named_scene("boxes")?;
+    let k = scene.intrinsics.scaled(0.5)?;
+    let sim = KinectSimulator::kinect_v1().white();
+    let step = Isometry3::from_parts(
+        Translation3::new(0.015, 0.002, 0.004),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.2, 1.0, 0.1).normalize() * 1.5f64.to_radians(),
+        ),
+    );
+    let (mut poses, mut frames, mut pose) = (Vec::new(), Vec::new(), scene.pose);
+    for i in 0..n {
+        frames.push(sim.apply(&scene.scene.render(&k, &pose).depth, 11 + i as u64));
+        poses.push(pose);
+        pose *= step;
+    }
+    let cam = Camera {
+        intrinsics: k,
+        sensor: SensorModel::kinect_v1(),
+    };
+    Ok((cam, poses, frames))
+}
+
+/// Runs the experiment.
+pub fn run(ctx: &mut Context) -> Result<()> {
+    let mut md = String::from(
+        "ATE = RMS position error after Horn alignment over the tracked frames; *lost* = frames \
+         without a pose. 8 mm voxels for the model. Real sequences with Open3D side by side: \
+         docs/bench/track.md.\n\n| sequence | reference | weights | frames | lost | ATE (mm) |\n|---|---|---|---|---|---|\n",
+    );
+    let (cam, truth, frames) = simulated(20)?;
+    let refs: Vec<&DepthImage> = frames.iter().collect();
+    let mut sim_ate = Vec::new();
+    for (model, name) in [(true, "model"), (false, "frame")] {
+        for w in [WeightMode::InvVar, WeightMode::Uniform] {
+            let est = track(&cam, &refs, w, model)?;
+            let lost = est.iter().filter(|e| e.is_none()).count();
+            let ate = ate_m(&truth, &est);
+            md.push_str(&format!(
+                "| simulated boxes | {name} | {} | {} | {lost} | {:.2} |\n",
+                w.name(),
+                est.len(),
+                ate * 1e3
+            ));
+            ctx.row(
+                "track-sim",
+                &format!("ate-{name}-{}", w.name()),
+                ate * 1e3,
+                "mm",
+            );
+            sim_ate.push((model, w, lost, ate));
+        }
+    }
+    let m_iv = sim_ate[0];
+    let m_u = sim_ate[1];
+    ctx.check(
+        "simulated: every frame tracked (all four configurations)",
+        sim_ate.iter().all(|s| s.2 == 0),
+        format!("lost {:?}", sim_ate.iter().map(|s| s.2).collect::<Vec<_>>()),
+    );
+    ctx.check(
+        "simulated: frame-to-model inv-var ATE below 1 cm",
+        m_iv.3 < 0.01,
+        format!("{:.2} mm", m_iv.3 * 1e3),
+    );
+    ctx.check(
+        "simulated: inv-var ATE at most 1.5x uniform's (frame to model)",
+        m_iv.3 <= 1.5 * m_u.3,
+        format!("{:.2} mm vs {:.2} mm", m_iv.3 * 1e3, m_u.3 * 1e3),
+    );
+    let quick = ctx.quick();
+    let real = [
+        sl_testkit::seven_scenes_sequence(if quick { 15 } else { 50 }),
+        sl_testkit::icl_sequence(5),
+    ];
+    for seq in real.into_iter().flatten() {
+        let truth: Vec<Pose> = seq.frames.iter().map(|f| f.1).collect();
+        let refs: Vec<&DepthImage> = seq.frames.iter().map(|f| &f.0).collect();
+        for (model, name) in [(true, "model"), (false, "frame")] {
+            for w in [WeightMode::InvVar, WeightMode::Uniform] {
+                let est = track(&seq.camera, &refs, w, model)?;
+                let lost = est.iter().filter(|e| e.is_none()).count();
+                let ate = ate_m(&truth, &est);
+                md.push_str(&format!(
+                    "| {} | {name} | {} | {} | {lost} | {:.1} |\n",
+                    seq.name,
+                    w.name(),
+                    est.len(),
+                    ate * 1e3
+                ));
+                ctx.row(
+                    &format!("track-{}", seq.name),
+                    &format!("ate-{name}-{}", w.name()),
+                    ate * 1e3,
+                    "mm",
+                );
+            }
+        }
+    }
+    ctx.section("Camera tracking (issue 13)", md);
+    Ok(())
+}
