@@ -67,9 +67,10 @@ mod verify;
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{Result, TrackError};
 pub use motion::{
-    ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, MotionConfidence,
-    MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification, VerifyConfig,
-    estimate_motion, estimate_motion_verified, icp_point_to_plane, refine_motion_icp_verified,
+    ICP_INLIER_TOLERANCE, ICP_LOSS_Z, IcpConfig, IcpOutcome, IcpRejection, IcpResult,
+    MotionConfidence, MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification,
+    VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
+    refine_motion_icp_verified, significant_loss,
 };
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};

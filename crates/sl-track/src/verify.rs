@@ -393,6 +393,43 @@ pub(crate) fn score(
     s
 }
 
+/// Whether sample `p` of B is an inlier of `pose` on A (the rule of [`score`]); `None` where it
+/// does not overlap A.
+fn is_inlier(
+    target: &mut Target<'_>,
+    p: &Point3<f64>,
+    pose: &Isometry3<f64>,
+    base_m: f64,
+    sigmas: f64,
+) -> Option<bool> {
+    let q = pose * p;
+    let (a, na) = target.at(&q)?;
+    let tol = base_m + sigmas * target.sensor.sigma_z(a.z);
+    let d = q - a;
+    Some(na.dot(&d).abs() < tol && d.norm() < 3.0 * tol)
+}
+
+/// The discordant samples of two poses (McNemar's pairs): how many samples are inliers of
+/// `first` only and how many of `second` only (a sample outside A's overlap counts as not an
+/// inlier).
+fn discordant(
+    target: &mut Target<'_>,
+    samples: &[Point3<f64>],
+    first: &Isometry3<f64>,
+    second: &Isometry3<f64>,
+    base_m: f64,
+    sigmas: f64,
+) -> (usize, usize) {
+    let (mut only_first, mut only_second) = (0, 0);
+    for p in samples {
+        let a = is_inlier(target, p, first, base_m, sigmas).unwrap_or(false);
+        let b = is_inlier(target, p, second, base_m, sigmas).unwrap_or(false);
+        only_first += usize::from(a && !b);
+        only_second += usize::from(b && !a);
+    }
+    (only_first, only_second)
+}
+
 /// Centroid (in A's coordinates) of the samples that are inliers of `pose` under the
 /// tolerance `(base_m, sigmas)`.
 fn inlier_centroid(
@@ -490,6 +527,32 @@ impl<'d> TwoWay<'d> {
             overlap: ab.overlap + ba.overlap,
             total: ab.total + ba.total,
         }
+    }
+
+    /// The discordant samples of `first` and `second` in both directions (sums of the two):
+    /// inliers of `first` only, inliers of `second` only.
+    pub(crate) fn discordant(
+        &mut self,
+        first: &Isometry3<f64>,
+        second: &Isometry3<f64>,
+        (base_m, sigmas): (f64, f64),
+        density: Density,
+    ) -> (usize, usize) {
+        let (sa, sb) = match density {
+            Density::Full => &self.sets[0],
+            Density::Sparse => &self.sets[1],
+            Density::Coarse => &self.sets[2],
+        };
+        let ab = discordant(&mut self.target_a, sb, first, second, base_m, sigmas);
+        let ba = discordant(
+            &mut self.target_b,
+            sa,
+            &first.inverse(),
+            &second.inverse(),
+            base_m,
+            sigmas,
+        );
+        (ab.0 + ba.0, ab.1 + ba.1)
     }
 
     /// Short point-to-plane ICP of B's sparse samples onto A from `pose`.

@@ -9,7 +9,7 @@ use sl_noise::sim::{KinectSimulator, Plane as SimPlane, Scene, Sphere};
 use sl_track::{
     ICP_INLIER_TOLERANCE, IcpConfig, IcpRejection, MotionConfidence, MotionConfig, MotionFrame,
     Plane, PlaneExtractor, TrackError, VerifyConfig, estimate_motion, estimate_motion_verified,
-    refine_motion_icp_verified,
+    refine_motion_icp_verified, significant_loss,
 };
 
 use common::{cfg_small, noisy, render, small_camera};
@@ -271,11 +271,17 @@ fn verified_icp_refinement_is_accepted() {
     assert!((out.pose.translation.vector - truth.translation.vector).norm() < 0.02);
 }
 
-/// A refinement that explains a smaller share of the overlap than the verified estimate is
-/// rejected and the plane estimate kept, while a loss within the tolerance is accepted. The
-/// verified estimate's share is set just above / just below what ICP reaches.
+/// A refinement is refused for lost inliers only when its share of the overlap is smaller than
+/// the verified estimate's (beyond the tolerance) *and* McNemar's test on the samples the two
+/// poses disagree about finds the loss significant: a share set above what ICP reaches, with no
+/// sample actually lost, is not enough, and a loss within the tolerance is accepted.
 #[test]
-fn icp_refinement_losing_inliers_is_rejected() {
+fn icp_refinement_losing_inliers_needs_a_significant_loss() {
+    assert!(significant_loss(100, 60)); // 40 > 3.09·√160 = 39.1
+    assert!(!significant_loss(100, 70)); // 30 < 3.09·√170 = 40.3
+    assert!(!significant_loss(0, 0));
+    assert!(!significant_loss(5, 500));
+    assert!(significant_loss(10, 0)); // 10 > 3.09·√10 = 9.8
     let (cam, da, db, _, m) = verified_room_motion();
     let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
     let icp_cfg = IcpConfig::refinement();
@@ -289,11 +295,11 @@ fn icp_refinement_losing_inliers_is_rejected() {
             m2,
         )
     };
-    let (lost, m2) = with_before(reached + 2.0 * ICP_INLIER_TOLERANCE);
-    assert!(!lost.accepted, "{lost:?}");
-    assert_eq!(lost.rejection, Some(IcpRejection::LostInliers));
-    assert_eq!(lost.pose, m2.isometry());
-    assert_eq!(lost.inlier_fraction_after, Some(reached));
+    // The estimate's share claimed higher, but the poses explain the same samples: no
+    // significant loss, the refinement stays.
+    let (claimed, _) = with_before(reached + 2.0 * ICP_INLIER_TOLERANCE);
+    assert!(claimed.accepted, "{claimed:?}");
+    assert_eq!(claimed.inlier_fraction_after, Some(reached));
     let (within, _) = with_before(reached + 0.5 * ICP_INLIER_TOLERANCE);
     assert!(within.accepted, "{within:?}");
 }

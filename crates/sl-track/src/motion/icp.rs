@@ -124,6 +124,21 @@ pub fn icp_point_to_plane(
 /// tolerance boundary either way; a loss beyond that is a real loss.
 pub const ICP_INLIER_TOLERANCE: f64 = 1e-3;
 
+/// One-sided 99.9 % quantile of the standard normal: [`refine_motion_icp_verified`] refuses an
+/// ICP refinement for lost inliers only when the net loss of the discordant samples exceeds
+/// this many standard deviations (McNemar's test).
+pub const ICP_LOSS_Z: f64 = 3.09;
+
+/// McNemar's test on the samples two poses disagree about: `only_before` are inliers of the
+/// estimate only, `only_after` of the refinement only. Under "both poses explain the data
+/// equally well" each discordant sample is as likely to favour either, so the net loss
+/// `only_before − only_after` is ~N(0, only_before + only_after); the loss is significant
+/// beyond the one-sided 99.9 % quantile ([`ICP_LOSS_Z`] standard deviations).
+pub fn significant_loss(only_before: usize, only_after: usize) -> bool {
+    let lost = only_before as f64 - only_after as f64;
+    lost > ICP_LOSS_Z * ((only_before + only_after) as f64).sqrt()
+}
+
 /// Why [`refine_motion_icp_verified`] kept the plane estimate.
 #[derive(Debug, Clone, PartialEq)]
 pub enum IcpRejection {
@@ -134,7 +149,8 @@ pub enum IcpRejection {
     /// than `min_overlap_fraction` of the points ([`VerifyConfig`]).
     NotVerified,
     /// The refined pose explains a smaller fraction of the overlapping points than the
-    /// verified estimate (by more than [`ICP_INLIER_TOLERANCE`]).
+    /// verified estimate (by more than [`ICP_INLIER_TOLERANCE`], and significantly by
+    /// McNemar's test, [`ICP_LOSS_Z`]).
     LostInliers,
     /// The refined rotation is more than [`MotionConfig::distinct_deg`] from the start: a
     /// distinct alternative that the verification did not rule in.
@@ -191,7 +207,8 @@ pub struct IcpOutcome {
 /// * it overlaps the other frame with `min_overlap_fraction` of the points and explains
 ///   `min_inlier_fraction` of the overlapping ones (it is itself verified);
 /// * it explains no smaller a fraction than the estimate did, up to
-///   [`ICP_INLIER_TOLERANCE`];
+///   [`ICP_INLIER_TOLERANCE`] or, beyond it, by a loss that McNemar's test on the two poses'
+///   discordant samples does not find significant ([`ICP_LOSS_Z`]);
 /// * its rotation lies within `mcfg.distinct_deg` of the start (a rotation further away is an
 ///   alternative that the verification's ambiguity checks never saw).
 ///
@@ -297,7 +314,10 @@ pub fn refine_motion_icp_verified(
     outcome.overlap_fraction_after = Some(ovl);
     outcome.rejection = if ovl < vcfg.min_overlap_fraction || inl < vcfg.min_inlier_fraction {
         Some(IcpRejection::NotVerified)
-    } else if inl + ICP_INLIER_TOLERANCE < inlier_fraction_before {
+    } else if inl + ICP_INLIER_TOLERANCE < inlier_fraction_before && {
+        let (only_before, only_after) = check.discordant(&start, &icp.pose, tol, Density::Full);
+        significant_loss(only_before, only_after)
+    } {
         Some(IcpRejection::LostInliers)
     } else if icp.pose.rotation.angle_to(&start.rotation) > mcfg.distinct_deg.to_radians() {
         Some(IcpRejection::MovedTooFar)

@@ -251,8 +251,8 @@ mod verified;
 pub use hypotheses::estimate_motion;
 use hypotheses::*;
 pub use icp::{
-    ICP_INLIER_TOLERANCE, IcpConfig, IcpOutcome, IcpRejection, IcpResult, icp_point_to_plane,
-    refine_motion_icp_verified,
+    ICP_INLIER_TOLERANCE, ICP_LOSS_Z, IcpConfig, IcpOutcome, IcpRejection, IcpResult,
+    icp_point_to_plane, refine_motion_icp_verified, significant_loss,
 };
 pub use kabsch::weighted_kabsch;
 use kabsch::*;

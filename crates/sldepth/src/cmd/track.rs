@@ -81,6 +81,10 @@ pub struct Args {
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,
+    /// Print one diagnostic line per frame on standard error (residual, inliers,
+    /// conditioning, the fallback taken).
+    #[arg(long)]
+    pub verbose: bool,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -232,29 +236,6 @@ pub fn run(args: Args) -> Result<()> {
     let mut tcfg = TrackerConfig::default();
     tcfg.weighting = weighting;
     tcfg.plane_fallback = !args.no_plane_fallback;
-    // Development overrides (undocumented).
-    let env_f = |name: &str| std::env::var(name).ok().and_then(|v| v.parse::<f64>().ok());
-    if let Some(v) = env_f("SLDEPTH_TRACK_ANGLE") {
-        tcfg.max_normal_angle_deg = v;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_ALLOW") {
-        tcfg.allowance_fine_m = v;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_HUBER") {
-        tcfg.huber_k = v;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_LEVELS") {
-        tcfg.levels = v as usize;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_ITER") {
-        tcfg.max_iterations = v as usize;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_COND") {
-        tcfg.min_condition = v;
-    }
-    if let Some(v) = env_f("SLDEPTH_TRACK_MININL") {
-        tcfg.min_inlier_fraction = v;
-    }
     let mut tracker = Tracker::new(camera, tcfg)?;
     tracker.set_initial_pose(CameraToWorld::identity());
     let mut params = TsdfConfig::default();
@@ -297,8 +278,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut lost_frames = Vec::new();
     let mut skipped_frames = Vec::new();
     let wall = Instant::now();
-    // Per-frame diagnostics on stderr (undocumented, for development).
-    let debug = std::env::var_os("SLDEPTH_TRACK_DEBUG").is_some();
+    let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
         let t = f.timestamp.unwrap_or(i as f64);
         let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits()) {
