@@ -32,6 +32,7 @@ mod noise;
 mod planes;
 mod repr;
 mod threads;
+mod track;
 mod tsdf;
 
 use pyo3::prelude::*;
@@ -44,6 +45,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<noise::PyAnalysis>()?;
     m.add_class::<tsdf::PyTsdfVolume>()?;
     m.add_class::<tsdf::PyMesh>()?;
+    m.add_class::<track::PyTracker>()?;
     m.add_class::<planes::PyPlane>()?;
     m.add_class::<planes::PyMotion>()?;
     m.add_function(wrap_pyfunction!(io::read_depth, m)?)?;

@@ -2,14 +2,14 @@
 
 use std::path::PathBuf;
 
-use numpy::ndarray::Array1;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
+use numpy::ndarray::{Array1, Array2, Array3};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use sl_core::{Mesh, VertexScalar};
 use sl_io::PlyFormat;
-use sl_tsdf::{Axis, MeshConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{Axis, MeshConfig, RaycastConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode};
 
-use crate::arrays::{check_camera, depth_input, image_array, pose_input, rows3_array};
+use crate::arrays::{check_camera, depth_array, depth_input, image_array, pose_input, rows3_array};
 use crate::camera::PyCamera;
 use crate::errors::{SlDepthIOError, value_error};
 use crate::threads::compute;
@@ -115,6 +115,50 @@ impl PyTsdfVolume {
         .map_err(|e| SlDepthIOError::new_err(e.to_string()))
     }
 
+    /// Renders the fused surface seen by ``camera`` at ``pose`` ((4, 4) camera-to-world): for
+    /// every pixel the first zero crossing of F along its ray between ``min_depth_m`` and
+    /// ``max_depth_m``. Returns ``(depth, points, normals, weights)``: depth (H, W) float32
+    /// camera-frame metres (0 = no hit), points and normals (H, W, 3) float32 in world
+    /// coordinates (NaN where no hit; normals are unit and face the camera), weights (H, W)
+    /// float32 fused weights (0 = no hit).
+    #[pyo3(signature = (camera, pose, *, min_depth_m = 0.1, max_depth_m = 4.0))]
+    #[allow(clippy::type_complexity)]
+    fn raycast<'py>(
+        &self,
+        py: Python<'py>,
+        camera: &PyCamera,
+        pose: &Bound<'_, PyAny>,
+        min_depth_m: f64,
+        max_depth_m: f64,
+    ) -> PyResult<(
+        Bound<'py, PyArray2<f32>>,
+        Bound<'py, PyArray3<f32>>,
+        Bound<'py, PyArray3<f32>>,
+        Bound<'py, PyArray2<f32>>,
+    )> {
+        let camera = camera.inner;
+        let pose = pose_input(pose)?;
+        let mut config = RaycastConfig::default();
+        config.min_depth_m = min_depth_m;
+        config.max_depth_m = max_depth_m;
+        let volume = &self.volume;
+        let r = compute(py, || volume.raycast(&pose, &camera.intrinsics, &config))
+            .map_err(value_error)?;
+        let (w, h) = (r.width, r.height);
+        let grid3 = |rows: Vec<[f32; 3]>| -> PyResult<Bound<'py, PyArray3<f32>>> {
+            let flat: Vec<f32> = rows.into_iter().flatten().collect();
+            Ok(Array3::from_shape_vec((h, w, 3), flat)
+                .map_err(value_error)?
+                .into_pyarray(py))
+        };
+        let points = grid3(r.points.iter().map(|p| [p.x, p.y, p.z]).collect())?;
+        let normals = grid3(r.normals.iter().map(|n| [n.x, n.y, n.z]).collect())?;
+        let weights = Array2::from_shape_vec((h, w), r.weights)
+            .map_err(value_error)?
+            .into_pyarray(py);
+        Ok((depth_array(py, r.depth)?, points, normals, weights))
+    }
+
     /// The signed distance F (metres, NaN where unobserved) on the axis-aligned plane
     /// ``axis = coord_m`` (``axis`` is ``"x"``, ``"y"`` or ``"z"``), as a float32 image with row 0
     /// at the largest in-plane coordinate.
@@ -195,7 +239,7 @@ pub struct PyMesh {
 }
 
 impl PyMesh {
-    fn from_mesh(py: Python<'_>, mesh: Mesh) -> PyResult<Self> {
+    pub(crate) fn from_mesh(py: Python<'_>, mesh: Mesh) -> PyResult<Self> {
         Ok(Self {
             vertices: rows3_array(py, mesh.positions.iter().map(|p| p.coords.into()))?.unbind(),
             triangles: rows3_array(py, mesh.triangles.iter().copied())?.unbind(),

@@ -123,6 +123,25 @@ def test_tsdf_pose_moves_the_surface(small_cam, wall):
     assert np.allclose(vol.extract_mesh().vertices[:, 2], 3.0, atol=0.01)
 
 
+def test_tsdf_raycast_sees_the_fused_wall(small_cam, wall):
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.05)
+    vol.integrate(wall, small_cam, np.eye(4))
+    pose = np.eye(4)
+    pose[:3, 3] = [0.05, 0.0, 0.3]  # 30 cm closer, 5 cm to the side
+    depth, points, normals, weights = vol.raycast(small_cam, pose)
+    assert depth.shape == (48, 64) and depth.dtype == np.float32
+    assert points.shape == (48, 64, 3) and normals.shape == (48, 64, 3)
+    hit = depth > 0
+    assert hit[10:38, 10:54].all()
+    assert np.allclose(depth[hit], 1.7, atol=0.005)
+    assert np.allclose(points[hit][:, 2], 2.0, atol=0.005)
+    assert np.all(normals[hit][:, 2] < -0.99)
+    assert np.all(weights[hit] > 0) and np.all(weights[~hit] == 0)
+    assert np.isnan(points[~hit]).all()
+    with pytest.raises(ValueError):
+        vol.raycast(small_cam, np.eye(3))
+
+
 def test_tsdf_errors(small_cam, wall):
     with pytest.raises(ValueError):
         sldepth.TsdfVolume(voxel_m=-0.01)
@@ -156,3 +175,21 @@ def test_simulate_is_seeded():
     assert np.array_equal(a, b) and not np.array_equal(a, c)
     with pytest.raises(ValueError, match="floor"):
         sldepth.simulate("no-such-scene")
+
+
+def test_tracker_follows_a_still_camera_and_fuses(kinect, three_planes):
+    depth = three_planes[0]
+    tracker = sldepth.Tracker(kinect)
+    pose, status = tracker.track(depth)
+    assert status == "initialised" and np.allclose(pose, np.eye(4))
+    for _ in range(2):
+        pose, status = tracker.track(depth)
+        assert status in ("tracked", "recovered"), status
+        assert np.abs(pose[:3, 3]).max() < 0.002
+        assert np.allclose(pose[:3, :3], np.eye(3), atol=1e-3)
+    mesh = tracker.extract_mesh()
+    assert len(mesh) > 1000
+    with pytest.raises(ValueError):
+        tracker.track(depth[:, :100])
+    with pytest.raises(ValueError, match="weighting"):
+        sldepth.Tracker(kinect, weighting="huber")

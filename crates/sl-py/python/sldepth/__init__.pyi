@@ -155,6 +155,16 @@ class TsdfVolume:
     ) -> npt.NDArray[np.float32]:
         """Signed distance (metres, NaN unobserved) on the plane axis = coord_m."""
     @property
+    def raycast(
+        self, camera: Camera, pose: _Pose, *, min_depth_m: float = 0.1, max_depth_m: float = 4.0
+    ) -> Tuple[
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.float32],
+    ]:
+        """(depth (H, W) metres 0 = no hit, world points (H, W, 3), unit normals (H, W, 3),
+        fused weights (H, W)) of the first zero crossing seen from pose (4x4 camera-to-world)."""
     def block_count(self) -> int: ...
     @property
     def frame_count(self) -> int: ...
@@ -208,3 +218,21 @@ def set_num_threads(n: Optional[int] = None) -> None: ...
 def get_num_threads() -> int: ...
 def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:
     """Whether the array would be read in place (C-contiguous float32)."""
+
+
+class Tracker:
+    """Noise-weighted camera tracking against the model being fused (sldepth track)."""
+
+    def __init__(
+        self,
+        camera: Camera,
+        *,
+        weighting: str = "inv-var",
+        frame_to_model: bool = True,
+        voxel_m: float = 0.004,
+    ) -> None: ...
+    def track(
+        self, depth: _Depth, depth_scale: Optional[float] = None
+    ) -> Tuple[npt.NDArray[np.float64], str]:
+        """(pose (4, 4) camera-to-world, status: initialised/tracked/recovered/relocalised/lost)."""
+    def extract_mesh(self) -> Mesh: ...

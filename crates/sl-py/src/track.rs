@@ -1,0 +1,132 @@
+//! `sldepth.Tracker`: noise-weighted camera tracking against the model being fused (sl-track
+//! and sl-tsdf), the loop `sldepth track` runs, one frame per call.
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use sl_core::{Camera, CameraToWorld};
+use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
+use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+
+use crate::arrays::{check_camera, depth_input, pose_array};
+use crate::camera::PyCamera;
+use crate::errors::value_error;
+use crate::threads::compute;
+use crate::tsdf::PyMesh;
+
+/// Tracks a depth camera through a sequence and fuses every tracked frame (1/Z⁴ weights,
+/// sensor-adaptive truncation): ``track(depth)`` returns ``(pose, status)`` with ``pose`` the
+/// (4, 4) float64 camera-to-world matrix (the first frame is the identity) and ``status`` one
+/// of ``"initialised"``, ``"tracked"``, ``"recovered"``, ``"relocalised"``, ``"lost"`` (a lost
+/// frame gets the last good pose and is not fused — never a silently wrong pose).
+///
+/// ``weighting``: ``"inv-var"`` (residuals weighted by the sensor model's variance, default) or
+/// ``"uniform"``; ``frame_to_model``: track against the raycast of the fused model (default)
+/// or against the previous frame; ``voxel_m``: the model's voxel size.
+#[pyclass(name = "Tracker", module = "sldepth")]
+#[derive(Debug)]
+pub struct PyTracker {
+    camera: Camera,
+    tracker: Tracker,
+    volume: TsdfVolume,
+    raycast: Raycast,
+    raycast_config: RaycastConfig,
+    model: ReferenceMaps,
+    have_model: bool,
+    frame_to_model: bool,
+}
+
+#[pymethods]
+impl PyTracker {
+    #[new]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004))]
+    fn new(
+        camera: &PyCamera,
+        weighting: &str,
+        frame_to_model: bool,
+        voxel_m: f64,
+    ) -> PyResult<Self> {
+        let camera = camera.inner;
+        let mut cfg = TrackerConfig::default();
+        cfg.weighting = WeightMode::parse(weighting).map_err(value_error)?;
+        let mut tracker = Tracker::new(camera, cfg).map_err(value_error)?;
+        tracker.set_initial_pose(CameraToWorld::identity());
+        let mut params = TsdfConfig::default();
+        params.voxel_m = voxel_m;
+        params.trunc_m = 5.0 * voxel_m;
+        params.truncation = Truncation::sensor_adaptive(camera.sensor);
+        let volume = TsdfVolume::new(params).map_err(value_error)?;
+        let mut raycast_config = RaycastConfig::default();
+        raycast_config.min_depth_m = params.min_depth_m;
+        raycast_config.max_depth_m = params.max_depth_m;
+        Ok(Self {
+            camera,
+            tracker,
+            volume,
+            raycast: Raycast::default(),
+            raycast_config,
+            model: ReferenceMaps::empty(&camera.intrinsics),
+            have_model: false,
+            frame_to_model,
+        })
+    }
+
+    /// Tracks one depth frame (float32 metres, or uint16 with ``depth_scale``), fuses it when
+    /// tracked, and returns ``(pose, status)``.
+    #[pyo3(signature = (depth, depth_scale = None))]
+    fn track<'py>(
+        &mut self,
+        py: Python<'py>,
+        depth: &Bound<'py, PyAny>,
+        depth_scale: Option<f64>,
+    ) -> PyResult<(Bound<'py, PyArray2<f64>>, &'static str)> {
+        let input = depth_input(depth, depth_scale)?;
+        let view = input.view()?;
+        check_camera(&view, &self.camera)?;
+        let depth = view.to_image();
+        let k = self.camera.intrinsics;
+        let sensor = self.camera.sensor;
+        let z_ref_m = self.volume.params().z_ref_m;
+        let Self {
+            tracker,
+            volume,
+            raycast,
+            raycast_config,
+            model,
+            have_model,
+            frame_to_model,
+            ..
+        } = self;
+        let result = compute(py, || -> Result<_, String> {
+            let r = tracker
+                .track(&depth, have_model.then_some(&*model))
+                .map_err(|e| e.to_string())?;
+            if r.status.is_tracked() {
+                volume
+                    .integrate(&depth, &k, &r.pose)
+                    .map_err(|e| e.to_string())?;
+                if *frame_to_model {
+                    volume
+                        .raycast_into(&r.pose, &k, raycast_config, raycast)
+                        .map_err(|e| e.to_string())?;
+                    model
+                        .set_from_model(raycast, &r.pose, &k, &sensor, z_ref_m)
+                        .map_err(|e| e.to_string())?;
+                    *have_model = true;
+                }
+            }
+            Ok(r)
+        })
+        .map_err(value_error)?;
+        Ok((
+            pose_array(py, result.pose.isometry())?,
+            result.status.as_str(),
+        ))
+    }
+
+    /// The mesh of everything fused so far (marching cubes).
+    fn extract_mesh(&self, py: Python<'_>) -> PyResult<PyMesh> {
+        let volume = &self.volume;
+        let mesh = compute(py, || volume.extract_mesh(&MeshConfig::default()));
+        PyMesh::from_mesh(py, mesh)
+    }
+}
