@@ -122,6 +122,13 @@ fn main() {
         b"# path and row-major pose\nd/0.png 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\nd/1.png 1 0 0 0.1 0 1 0 0 0 0 1 0 0 0 0 1 # moved\n",
     );
 
+    put(
+        &root,
+        "tum_depth_list",
+        "depth.txt",
+        b"# depth maps\n# timestamp filename\n1305031102.160407 depth/1305031102.160407.png\n1305031102.194330 depth/1305031102.194330.png\n",
+    );
+
     let cloud = PlyData::from_positions(vec![[0.0, 0.0, 1.0], [0.1, 0.0, 1.0], [0.0, 0.1, 1.2]])
         .with_colors(vec![[255, 0, 0], [0, 255, 0], [0, 0, 255]])
         .with_scalar("confidence", vec![0.5, 1.0, 2.0]);

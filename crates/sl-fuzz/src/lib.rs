@@ -32,6 +32,7 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("tum_associations", tum_associations),
     ("open3d_log", open3d_log),
     ("frame_list", frame_list),
+    ("tum_depth_list", tum_depth_list),
     ("ply", ply),
     ("filter", filter),
     ("planes", planes),
@@ -148,6 +149,16 @@ pub fn open3d_log(data: &[u8]) {
     with_file("trajectory.log", data, |p| {
         let _ = sl_io::trajectory::read_open3d_log_with_limits(p, &fuzz_limits());
     });
+}
+
+/// A TUM sequence folder's `depth.txt` (`sldepth track --tum`), read from a folder of its own
+/// (so that no `associations.txt` of another target is preferred).
+pub fn tum_depth_list(data: &[u8]) {
+    let dir = scratch_dir().join("tum-sequence");
+    if std::fs::create_dir_all(&dir).is_ok() && std::fs::write(dir.join("depth.txt"), data).is_ok()
+    {
+        let _ = sl_io::sequence::read_tum_depth_frames(&dir, &fuzz_limits());
+    }
 }
 
 /// `sldepth fuse --frames` list.
