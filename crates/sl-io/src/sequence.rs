@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 use crate::text::read_text;
+use crate::trajectory::check_frames;
 
 /// One depth frame of a sequence.
 #[derive(Debug, Clone, PartialEq)]
@@ -16,19 +17,6 @@ pub struct SequenceFrame {
     pub depth_path: PathBuf,
     /// Timestamp, seconds (TUM); `None` where the layout has none.
     pub timestamp: Option<f64>,
-}
-
-fn too_many(path: &Path, n: usize, limits: &Limits) -> Result<()> {
-    if n > limits.max_frames {
-        return Err(IoError::too_large(
-            path,
-            format!(
-                "more than {} frames, over the frame limit (raise it with --max-memory)",
-                limits.max_frames
-            ),
-        ));
-    }
-    Ok(())
 }
 
 /// The depth frames of a TUM RGB-D sequence folder as TUM ships it: `associations.txt`
@@ -50,7 +38,7 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        too_many(&path, out.len() + 1, limits)?;
+        check_frames(&path, out.len() + 1, limits)?;
         let toks: Vec<&str> = line.split_whitespace().collect();
         if toks.len() < min_cols {
             return Err(IoError::parse(
@@ -102,7 +90,7 @@ pub fn read_7scenes_depth_frames(
             .and_then(|n| n.to_str())
             .is_some_and(|n| n.starts_with("frame-") && n.ends_with(".depth.png"));
         if is_depth {
-            too_many(dir, files.len() + 1, limits)?;
+            check_frames(dir, files.len() + 1, limits)?;
             files.push(path);
         }
     }
@@ -125,7 +113,7 @@ pub fn read_open3d_depth_frames(
     let dir = dir.as_ref();
     let sub = dir.join("depth");
     let files = crate::trajectory::list_depth_files(if sub.is_dir() { &sub } else { dir })?;
-    too_many(dir, files.len(), limits)?;
+    check_frames(dir, files.len(), limits)?;
     Ok(files
         .into_iter()
         .map(|depth_path| SequenceFrame {

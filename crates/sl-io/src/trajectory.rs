@@ -28,7 +28,7 @@ fn read_limited(path: &Path, limits: &Limits) -> Result<String> {
 }
 
 /// Fails when a sequence has more than [`Limits::max_frames`] frames.
-fn check_frames(path: &Path, n: usize, limits: &Limits) -> Result<()> {
+pub(crate) fn check_frames(path: &Path, n: usize, limits: &Limits) -> Result<()> {
     if n > limits.max_frames {
         return Err(IoError::too_large(
             path,

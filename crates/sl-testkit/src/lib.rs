@@ -299,23 +299,18 @@ pub fn seven_scenes_sequence(max_frames: usize) -> Option<PosedSequence> {
 /// `max_frames`).
 pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
     let dir = data_dir_or_skip("tum-fr1-rpy-200")?.join("tum-fr1-rpy-200");
-    // `depth.txt` as TUM ships it: `timestamp path` lines, `#` comments.
-    let list = match std::fs::read_to_string(dir.join("depth.txt")) {
-        Ok(t) => t,
-        Err(e) => {
-            eprintln!("skipping tum-fr1-rpy-200: depth.txt: {e}");
-            return None;
-        }
-    };
-    let depth: Vec<(f64, PathBuf)> = list
-        .lines()
-        .filter(|l| !l.trim_start().starts_with('#'))
-        .filter_map(|l| {
-            let mut it = l.split_whitespace();
-            let t = it.next()?.parse::<f64>().ok()?;
-            Some((t, dir.join(it.next()?)))
-        })
-        .collect();
+    // `depth.txt` as TUM ships it (the folder has no `associations.txt`).
+    let depth: Vec<(f64, PathBuf)> =
+        match sl_io::sequence::read_tum_depth_frames(&dir, &sl_io::Limits::default()) {
+            Ok(frames) => frames
+                .into_iter()
+                .filter_map(|f| Some((f.timestamp?, f.depth_path)))
+                .collect(),
+            Err(e) => {
+                eprintln!("skipping tum-fr1-rpy-200: {e}");
+                return None;
+            }
+        };
     let poses = match sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt")) {
         Ok(p) => p,
         Err(e) => {

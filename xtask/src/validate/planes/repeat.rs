@@ -109,16 +109,11 @@ fn tum200(data: &Path) -> Result<Option<Sequence>> {
     if !list.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&list).with_context(|| list.display().to_string())?;
-    let depth: Vec<(f64, PathBuf)> = text
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .filter_map(|l| {
-            let mut it = l.split_whitespace();
-            let t: f64 = it.next()?.parse().ok()?;
-            Some((t, dir.join(it.next()?)))
-        })
-        .collect();
+    let depth: Vec<(f64, PathBuf)> =
+        sl_io::sequence::read_tum_depth_frames(&dir, &sl_io::Limits::default())?
+            .into_iter()
+            .filter_map(|f| Some((f.timestamp?, f.depth_path)))
+            .collect();
     let poses = sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt"))?;
     let seq = sl_io::trajectory::associate(&depth, &poses, 0.02);
     Ok(Some(Sequence {
