@@ -335,3 +335,37 @@ pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
         frames: out,
     })
 }
+
+/// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels
+/// (1-based plane index); pixels beyond `max_z` are left invalid.
+pub fn render_planes(
+    k: &sl_core::Intrinsics,
+    planes: &[sl_core::Plane],
+    max_z: f64,
+) -> (DepthImage, sl_core::Image<u16>) {
+    let mut depth = vec![0f32; k.width * k.height];
+    let mut labels = vec![0u16; k.width * k.height];
+    for y in 0..k.height {
+        for x in 0..k.width {
+            let mut best = f64::INFINITY;
+            for (i, p) in planes.iter().enumerate() {
+                if let Some(z) = p.depth_at(k, x as f64, y as f64)
+                    && z < best
+                    && z <= max_z
+                {
+                    best = z;
+                    labels[y * k.width + x] = i as u16 + 1;
+                }
+            }
+            if best.is_finite() {
+                depth[y * k.width + x] = best as f32;
+            }
+        }
+    }
+    (
+        DepthImage::from_vec(k.width, k.height, depth)
+            .unwrap_or_else(|_| DepthImage::invalid(k.width, k.height)),
+        sl_core::Image::from_vec(k.width, k.height, labels)
+            .unwrap_or_else(|_| sl_core::Image::filled(k.width, k.height, 0)),
+    )
+}

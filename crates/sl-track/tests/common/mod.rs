@@ -20,32 +20,9 @@ pub fn cfg_small() -> PlaneConfig {
     c
 }
 
-/// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels
-/// (1-based plane index); pixels beyond `max_z` are left invalid.
+/// Exact depth of the nearest of `planes` (see [`sl_testkit::render_planes`]).
 pub fn render(k: &Intrinsics, planes: &[Plane], max_z: f64) -> (DepthImage, Image<u16>) {
-    let mut depth = vec![0f32; k.width * k.height];
-    let mut labels = vec![0u16; k.width * k.height];
-    for y in 0..k.height {
-        for x in 0..k.width {
-            let mut best = f64::INFINITY;
-            for (i, p) in planes.iter().enumerate() {
-                if let Some(z) = p.depth_at(k, x as f64, y as f64)
-                    && z < best
-                    && z <= max_z
-                {
-                    best = z;
-                    labels[y * k.width + x] = i as u16 + 1;
-                }
-            }
-            if best.is_finite() {
-                depth[y * k.width + x] = best as f32;
-            }
-        }
-    }
-    (
-        DepthImage::from_vec(k.width, k.height, depth).unwrap(),
-        Image::from_vec(k.width, k.height, labels).unwrap(),
-    )
+    sl_testkit::render_planes(k, planes, max_z)
 }
 
 pub fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
