@@ -15,7 +15,7 @@
 //!   7-Scenes `camera-intrinsics.txt`.
 //! - [`ply`]: point clouds and triangle meshes (normals, colours, a per-vertex scalar), binary or
 //!   ASCII, through `ply-rs`.
-//! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt`, Open3D `.log`, 7-Scenes
+//! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`, 7-Scenes
 //!   `frame-*.pose.txt`, all as [`Frame`]s with camera-to-world [`sl_core::Pose`]s.
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
 //!   rename), so readers never see half-written output.

@@ -268,10 +268,12 @@ pub fn associate(depth: &[(f64, PathBuf)], poses: &[TimedPose], max_dt_s: f64) -
     seq
 }
 
-/// Reads a TUM sequence directory: `dir/groundtruth.txt` and `dir/associations.txt`, matching
-/// each associated depth frame to the nearest ground-truth pose within `max_dt_s` seconds
-/// ([`DEFAULT_MAX_DT_S`] = 0.02 s is the usual choice). A non-positive or non-finite tolerance
-/// is an error naming `associations.txt`.
+/// Reads a TUM sequence directory: `dir/groundtruth.txt` and the depth frames as TUM ships
+/// them (`associations.txt` when present, else `depth.txt`; see
+/// [`read_tum_depth_frames`](crate::sequence::read_tum_depth_frames)), matching each depth
+/// frame to the nearest ground-truth pose within `max_dt_s` seconds ([`DEFAULT_MAX_DT_S`] =
+/// 0.02 s is the usual choice). A non-positive or non-finite tolerance is an error naming
+/// `groundtruth.txt`.
 pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequence> {
     read_tum_sequence_with_limits(dir, max_dt_s, &Limits::default())
 }
@@ -283,18 +285,17 @@ pub fn read_tum_sequence_with_limits(
     limits: &Limits,
 ) -> Result<TumSequence> {
     let dir = dir.as_ref();
-    let assoc_path = dir.join("associations.txt");
+    let gt_path = dir.join("groundtruth.txt");
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
         return Err(IoError::Format {
-            path: assoc_path,
+            path: gt_path,
             message: format!("maximum time difference {max_dt_s} s must be positive"),
         });
     }
-    let poses = read_tum_trajectory_with_limits(dir.join("groundtruth.txt"), limits)?;
-    let assoc = read_tum_associations_with_limits(&assoc_path, limits)?;
-    let depth: Vec<(f64, PathBuf)> = assoc
+    let poses = read_tum_trajectory_with_limits(&gt_path, limits)?;
+    let depth: Vec<(f64, PathBuf)> = crate::sequence::read_tum_depth_frames(dir, limits)?
         .into_iter()
-        .map(|a| (a.depth_timestamp, a.depth_path))
+        .filter_map(|f| Some((f.timestamp?, f.depth_path)))
         .collect();
     Ok(associate(&depth, &poses, max_dt_s))
 }

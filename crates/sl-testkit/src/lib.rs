@@ -300,25 +300,13 @@ pub fn seven_scenes_sequence(max_frames: usize) -> Option<PosedSequence> {
 pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
     let dir = data_dir_or_skip("tum-fr1-rpy-200")?.join("tum-fr1-rpy-200");
     // `depth.txt` as TUM ships it (the folder has no `associations.txt`).
-    let depth: Vec<(f64, PathBuf)> =
-        match sl_io::sequence::read_tum_depth_frames(&dir, &sl_io::Limits::default()) {
-            Ok(frames) => frames
-                .into_iter()
-                .filter_map(|f| Some((f.timestamp?, f.depth_path)))
-                .collect(),
-            Err(e) => {
-                eprintln!("skipping tum-fr1-rpy-200: {e}");
-                return None;
-            }
-        };
-    let poses = match sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt")) {
-        Ok(p) => p,
+    let frames = match sl_io::trajectory::read_tum_sequence(&dir, 0.02) {
+        Ok(seq) => seq.frames,
         Err(e) => {
             eprintln!("skipping tum-fr1-rpy-200: {e}");
             return None;
         }
     };
-    let frames = sl_io::trajectory::associate(&depth, &poses, 0.02).frames;
     let mut out = Vec::new();
     for f in frames.into_iter().take(max_frames) {
         match read_depth(&f.depth_path, Some(5000.0)) {

@@ -23,8 +23,10 @@ pub struct Args {
     /// by the 16 numbers of a row-major 4x4 camera-to-world pose in metres; `#` starts a comment.
     #[arg(long, value_name = "LIST", group = "source")]
     pub frames: Option<PathBuf>,
-    /// A TUM RGB-D sequence directory (associations.txt + groundtruth.txt); the depth scale
-    /// defaults to 5000 units/m.
+    /// A TUM RGB-D sequence directory as TUM ships it (groundtruth.txt, and associations.txt
+    /// or depth.txt); the depth scale defaults to 5000 units/m and the camera to the
+    /// `tum-fr1`, `tum-fr2` or `tum-fr3` preset, whichever the folder's name says (fr1
+    /// when it names none).
     #[arg(long, value_name = "DIR", group = "source")]
     pub tum: Option<PathBuf>,
     /// An Open3D trajectory `.log` (camera-to-world); needs --depth-dir. A `camera.json` beside
@@ -140,7 +142,15 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
                 seq.without_pose.len()
             );
         }
-        Ok((seq.frames, camera_or(None)?, Some(5000.0)))
+        let camera = match &args.input.camera {
+            Some(_) => load_camera(&args.input)?,
+            None => {
+                let preset = crate::common::tum_preset_for(dir);
+                errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
+                Camera::preset(preset)?
+            }
+        };
+        Ok((seq.frames, camera, Some(5000.0)))
     } else if let Some(log) = &args.o3d_log {
         let Some(depth_dir) = &args.depth_dir else {
             bail!("--o3d-log needs --depth-dir");
