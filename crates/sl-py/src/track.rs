@@ -16,8 +16,9 @@ use crate::tsdf::PyMesh;
 /// Tracks a depth camera through a sequence and fuses every tracked frame (1/Z⁴ weights,
 /// sensor-adaptive truncation): ``track(depth)`` returns ``(pose, status)`` with ``pose`` the
 /// (4, 4) float64 camera-to-world matrix (the first frame is the identity) and ``status`` one
-/// of ``"initialised"``, ``"tracked"``, ``"recovered"``, ``"relocalised"``, ``"lost"`` (a lost
-/// frame gets the last good pose and is not fused — never a silently wrong pose).
+/// of ``"initialised"``, ``"tracked"``, ``"tracked-against-frame"``, ``"recovered"``,
+/// ``"relocalised"``, ``"lost"`` (a lost frame gets the last good pose and is not fused —
+/// never a silently wrong pose).
 ///
 /// ``weighting``: ``"inv-var"`` (residuals weighted by the sensor model's variance, default) or
 /// ``"uniform"``; ``frame_to_model``: track against the raycast of the fused model (default)

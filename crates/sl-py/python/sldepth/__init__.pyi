@@ -234,5 +234,5 @@ class Tracker:
     def track(
         self, depth: _Depth, depth_scale: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], str]:
-        """(pose (4, 4) camera-to-world, status: initialised/tracked/recovered/relocalised/lost)."""
+        """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost)."""
     def extract_mesh(self) -> Mesh: ...

@@ -28,9 +28,12 @@
 //!   agreement minus weighted contradictions; the best are refined by a short point-to-plane
 //!   ICP and scored again, and must keep two non-parallel consistent plane matches. The winner
 //!   must explain `min_inlier_fraction` of the overlapping points while no alternative more
-//!   than `distinct_deg` away does — neither another proposal nor the winner itself turned by
+//!   than `distinct_deg` away may — neither another proposal nor the winner itself turned by
 //!   `distinct_deg` about the camera axes or a plane normal (which catches views that share
-//!   mostly one plane, where a rotation about its normal is invisible). Otherwise the motion
+//!   mostly one plane, where a rotation about its normal is invisible). An alternative is ruled
+//!   out only when its share lies significantly below `min_inlier_fraction` given the few
+//!   hundred samples it was measured on (the upper end of the 99.9 % Wilson interval below
+//!   it), not merely below it. Otherwise the motion
 //!   is reported as not determined ([`TrackError::MotionNotVerified`]) rather than guessed.
 //!   The returned rotation is the weighted Kabsch over the plane matches consistent with the
 //!   verified alignment; [`Verification`] gives the numbers.

@@ -96,6 +96,25 @@ pub struct TrackerConfig {
     /// Try the verified plane-based estimate between the last good frame and this one when
     /// ICP fails, then ICP again from it.
     pub plane_fallback: bool,
+    /// Width of the window over which a structured-light camera's depth error is correlated,
+    /// pixels of the full-resolution frame (the block-matching window: 9 × 11 px fitted on
+    /// real Kinect frames, `docs/NOISE_MODEL.md`; the same window as
+    /// `sl_planes::PlaneConfig::noise_window_x_px`; 1 × 1 = white noise). The normal equations
+    /// count one independent measurement per window, not per pixel: otherwise a weakly
+    /// constrained direction (far walls, few planes) looks hundreds of times better known than
+    /// it is and outweighs the motion prior.
+    pub noise_window_x_px: f64,
+    /// Height of that window, pixels.
+    pub noise_window_y_px: f64,
+    /// The largest acceleration of the camera, m/s², and ...
+    pub max_acceleration_m_s2: f64,
+    /// ... the time between frames, seconds: they set the prior on the camera's position
+    /// when aligning from the constant-velocity prediction, a Gaussian about the predicted
+    /// position with σ = `max_acceleration_m_s2 · frame_interval_s²` per axis (1 g at 30 Hz:
+    /// 10.9 mm, how far a hand-held camera's path can leave the constant-velocity line in one
+    /// frame). Without a measured velocity (the first step, after a lost frame) and from any
+    /// other start, the prior's σ is `max_correction_m`.
+    pub frame_interval_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,
 }
@@ -116,6 +135,10 @@ impl Default for TrackerConfig {
             max_correction_m: 0.05,
             max_correction_deg: 20.0,
             plane_fallback: true,
+            noise_window_x_px: 9.0,
+            noise_window_y_px: 11.0,
+            max_acceleration_m_s2: 9.81,
+            frame_interval_s: 1.0 / 30.0,
             fallback: DepthMotionConfig::default(),
         }
     }
@@ -139,9 +162,19 @@ impl TrackerConfig {
             ("huber_k", self.huber_k),
             ("z_ref_m", self.z_ref_m),
             ("max_correction_m", self.max_correction_m),
+            ("max_acceleration_m_s2", self.max_acceleration_m_s2),
+            ("frame_interval_s", self.frame_interval_s),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("{name} must be positive, got {v}"));
+            }
+        }
+        for (name, v) in [
+            ("noise_window_x_px", self.noise_window_x_px),
+            ("noise_window_y_px", self.noise_window_y_px),
+        ] {
+            if !(v.is_finite() && (1.0..=1000.0).contains(&v)) {
+                return bad(format!("{name} must lie in [1, 1000], got {v}"));
             }
         }
         if !(self.allowance_fine_m.is_finite() && self.allowance_fine_m >= 0.0) {
@@ -164,5 +197,21 @@ impl TrackerConfig {
             return bad("min_inlier_fraction must lie in [0, 1], min_condition in [0, 1)".into());
         }
         self.fallback.validate()
+    }
+}
+
+impl TrackerConfig {
+    /// Pixels of pyramid level `level` over which the depth error is correlated (at least 1):
+    /// the noise window's area, divided by the 4^level full-resolution pixels of a pixel.
+    pub fn correlated_pixels(&self, level: usize) -> f64 {
+        let area = self.noise_window_x_px * self.noise_window_y_px;
+        (area / 4f64.powi(level.min(30) as i32)).max(1.0)
+    }
+
+    /// Variance per axis of the camera's departure from the constant-velocity prediction
+    /// over one frame, `(max_acceleration_m_s2 · frame_interval_s²)²`, m².
+    pub fn acceleration_variance_m2(&self) -> f64 {
+        let sigma = self.max_acceleration_m_s2 * self.frame_interval_s * self.frame_interval_s;
+        sigma * sigma
     }
 }

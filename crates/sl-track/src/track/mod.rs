@@ -4,14 +4,22 @@
 //! passes one ([`ReferenceMaps::from_model`]), else the last well-tracked frame — by
 //! point-to-plane Gauss–Newton on SE(3) over a depth pyramid (coarse to fine, a depth-aware 2×2
 //! downsample), with projective data association, a Huber kernel on the normalised residual and
-//! weights from the sensor model ([`WeightMode`]). The start is the constant-velocity
-//! prediction. A result is accepted only when enough of the frame's points are inliers, the
-//! normal equations constrain all six degrees of freedom and the correction from the start is
-//! plausible; otherwise the tracker tries again from the last good pose, then from the verified
-//! plane-based estimate between the last good frame and this one ([`crate::motion_between_depths`]),
-//! and when all fail reports the frame [`TrackStatus::Lost`] with the last good pose — never a
-//! pose it could not check. The next frames are aligned against the last good reference
-//! again (relocalisation).
+//! weights from the sensor model ([`WeightMode`]). The normal equations count one independent
+//! measurement per correlation window of the sensor's depth error
+//! ([`TrackerConfig::noise_window_x_px`]) and carry a Gaussian prior on the camera's position:
+//! about the constant-velocity prediction, σ from the camera's largest acceleration over one
+//! frame ([`TrackerConfig::max_acceleration_m_s2`]); without a measured velocity, and from
+//! any other start, σ = [`TrackerConfig::max_correction_m`].
+//!
+//! A result is accepted only when enough of the frame's points are inliers, the normal
+//! equations constrain all six degrees of freedom and the correction from the start is
+//! plausible. The attempts, until one passes: Gauss–Newton from the prediction; the same with
+//! Levenberg–Marquardt step control from the prediction and from the last good pose; when the
+//! reference is the model, both again against the last good frame
+//! ([`TrackStatus::TrackedAgainstFrame`]); then from the verified plane-based estimate between
+//! the last good frame and this one ([`crate::motion_between_depths`]). When all fail the frame
+//! is [`TrackStatus::Lost`] with the last good pose — never a pose it could not check — and the
+//! next frames are aligned against the last good reference again (relocalisation).
 
 mod config;
 mod pyramid;
@@ -38,6 +46,9 @@ pub enum TrackStatus {
     Tracked,
     /// ICP failed from the prediction; the plane-based estimate started a successful ICP.
     Recovered,
+    /// The model reference disagreed (every start failed its checks); the frame was aligned
+    /// to the last good frame instead.
+    TrackedAgainstFrame,
     /// Aligned again after one or more lost frames.
     Relocalised,
     /// Not tracked: the pose is the last good one and must not be used as this frame's pose.
@@ -51,6 +62,7 @@ impl TrackStatus {
             Self::Initialised => "initialised",
             Self::Tracked => "tracked",
             Self::Recovered => "recovered",
+            Self::TrackedAgainstFrame => "tracked-against-frame",
             Self::Relocalised => "relocalised",
             Self::Lost => "lost",
         }
@@ -110,6 +122,8 @@ pub struct Tracker {
     last_good: Option<Isometry3<f64>>,
     /// Motion of the last step, `T_k = T_{k−1}·velocity`.
     velocity: Isometry3<f64>,
+    /// Whether `velocity` was measured (false before the second frame and after a lost one).
+    velocity_known: bool,
     lost_run: usize,
     initial_pose: CameraToWorld,
 }
@@ -129,6 +143,7 @@ impl Tracker {
             last_depth: DepthImage::invalid(k.width, k.height),
             last_good: None,
             velocity: Isometry3::identity(),
+            velocity_known: false,
             lost_run: 0,
             initial_pose: CameraToWorld::identity(),
         })
@@ -200,15 +215,45 @@ impl Tracker {
         for _ in 0..=self.lost_run.min(30) {
             predicted *= self.velocity;
         }
+        // The position prior of an alignment from the prediction: how far the camera's path
+        // can leave the constant-velocity line in one frame; with no velocity known, and for
+        // every other start, the largest plausible motion.
+        let unknown_var = self.cfg.max_correction_m * self.cfg.max_correction_m;
+        let predicted_var = if self.velocity_known && self.lost_run == 0 {
+            self.cfg.acceleration_variance_m2()
+        } else {
+            unknown_var
+        };
         let mut iterations = 0;
-        let mut first = self.align(&predicted, reference);
+        let mut first = self.align(&predicted, reference, predicted_var, false);
         iterations += first.iterations;
         let mut recovered = false;
-        if first.failure.is_some() {
-            let again = self.align(&last, reference);
+        let mut against_frame = false;
+        for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
+            if first.failure.is_none() {
+                break;
+            }
+            let again = self.align(&start, reference, var, true);
             iterations += again.iterations;
             if again.failure.is_none() {
                 first = again;
+            }
+        }
+        // The model can disagree with a frame where the last frame does not. On TUM fr1/rpy
+        // (hand-held, turning at up to 120°/s), one step against a model fused with the
+        // motion-capture poses errs by 2–6 cm where the same step against the previous frame
+        // errs by 0.2–1 cm: likely the rolling shutter, which shears every frame by its own
+        // angular velocity while the model averages many shears and consecutive frames share
+        // theirs. Try the last good frame before the plane fallback.
+        if first.failure.is_some() && model.is_some() {
+            for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
+                let again = self.align(&start, &self.last_ref, var, true);
+                iterations += again.iterations;
+                if again.failure.is_none() {
+                    first = again;
+                    against_frame = true;
+                    break;
+                }
             }
         }
         if first.failure.is_some() && self.cfg.plane_fallback {
@@ -216,7 +261,7 @@ impl Tracker {
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
                 let start = last * m;
-                let again = self.align(&start, reference);
+                let again = self.align(&start, reference, unknown_var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
                     first = again;
@@ -230,10 +275,13 @@ impl Tracker {
                     TrackStatus::Relocalised
                 } else if recovered {
                     TrackStatus::Recovered
+                } else if against_frame {
+                    TrackStatus::TrackedAgainstFrame
                 } else {
                     TrackStatus::Tracked
                 };
                 self.velocity = last.inverse() * first.pose;
+                self.velocity_known = true;
                 self.accept(depth, first.pose);
                 self.lost_run = 0;
                 status
@@ -245,6 +293,7 @@ impl Tracker {
                 if self.lost_run > 3 {
                     self.velocity = Isometry3::identity();
                 }
+                self.velocity_known = false;
                 TrackStatus::Lost
             }
         };
@@ -326,8 +375,16 @@ impl Tracker {
         ((k.width * k.height) >> (2 * level)) / 100
     }
 
-    /// Coarse-to-fine Gauss–Newton from `start`, then the acceptance checks.
-    fn align(&self, start: &Isometry3<f64>, reference: &ReferenceMaps) -> Attempt {
+    /// Coarse-to-fine Gauss–Newton from `start` with a Gaussian prior of variance
+    /// `prior_var_m2` per axis on the camera's position about `start`'s, then the acceptance
+    /// checks.
+    fn align(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        prior_var_m2: f64,
+        damped: bool,
+    ) -> Attempt {
         let cfg = &self.cfg;
         let sensor = &self.camera.sensor;
         let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
@@ -339,21 +396,76 @@ impl Tracker {
                 allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
                 min_cos,
             };
-            for _ in 0..cfg.max_iterations {
-                let centre = pose.translation.vector;
-                let s = solve::pass(level, reference, &pose, &centre, sensor, cfg, params);
-                iterations += 1;
+            let prior = solve::Prior {
+                data_share: 1.0 / cfg.correlated_pixels(l),
+                info_t: 1.0 / prior_var_m2,
+                centre_t: start.translation.vector,
+            };
+            // With `damped`, Levenberg–Marquardt step control: a step is taken only when it
+            // lowers the objective (`Prior::cost`); one that does not is retried with the
+            // diagonal damped ten times more. Where the geometry constrains a direction weakly
+            // (far, noisy walls, few planes) the undamped step along it can be centimetres long
+            // and carry the pose out of the basin of convergence. Undamped (plain Gauss–Newton)
+            // every step is taken: on well-constrained frames it is the more accurate (the
+            // truncated loss is not smooth under the 1/8-pixel disparity quantisation, and
+            // rejected steps stop the iteration early), so it is the first attempt.
+            let pass_at = |p: &Isometry3<f64>| {
+                solve::pass(
+                    level,
+                    reference,
+                    p,
+                    &p.translation.vector,
+                    sensor,
+                    cfg,
+                    params,
+                )
+            };
+            let mut s = pass_at(&pose);
+            iterations += 1;
+            let mut lambda = 0.0;
+            // `max_iterations` counts the steps taken; rejected ones (at most six in a row
+            // before the damping gives up) do not use up the budget.
+            let mut taken = 0;
+            while taken < cfg.max_iterations {
                 if (s.inliers as usize) < self.min_points(l).max(6) {
                     break;
                 }
-                let Some(xi) = solve::step(&s) else { break };
+                let t = pose.translation.vector;
+                let Some(xi) = solve::step(&s, &prior, &t, lambda) else {
+                    break;
+                };
                 if !xi.iter().all(|v| v.is_finite()) {
                     break;
                 }
-                pose = solve::apply(&pose, &xi, &centre);
-                let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
-                if w < 1e-4 && v < 1e-4 {
-                    break;
+                let candidate = solve::apply(&pose, &xi, &t);
+                let sc = pass_at(&candidate);
+                iterations += 1;
+                let points = s.associated;
+                if !damped
+                    || prior.cost(&sc, points, &candidate.translation.vector)
+                        < prior.cost(&s, points, &t)
+                {
+                    pose = candidate;
+                    s = sc;
+                    taken += 1;
+                    lambda = if lambda > LM_LAMBDA_START {
+                        lambda / 10.0
+                    } else {
+                        0.0
+                    };
+                    let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
+                    if w < 1e-4 && v < 1e-4 {
+                        break;
+                    }
+                } else {
+                    lambda = if lambda == 0.0 {
+                        LM_LAMBDA_START
+                    } else {
+                        lambda * 10.0
+                    };
+                    if lambda > LM_LAMBDA_MAX {
+                        break;
+                    }
                 }
             }
         }
@@ -401,6 +513,11 @@ impl Tracker {
         }
     }
 }
+
+/// First damping of a Levenberg–Marquardt retry (relative to the diagonal of `H`).
+const LM_LAMBDA_START: f64 = 1e-3;
+/// Damping beyond which no step lowers the objective: the pose is a minimum at this level.
+const LM_LAMBDA_MAX: f64 = 1e4;
 
 fn ratio(a: f64, b: f64) -> f64 {
     if b > 0.0 { a / b } else { 0.0 }

@@ -27,6 +27,10 @@ pub(crate) struct Sums {
     pub chi2: f64,
     /// Σ of squared metric residuals of the inliers, m².
     pub r2_m2: f64,
+    /// Σ over the associated points of the truncated Huber loss of `r/σ`: an inlier's
+    /// `ρ(r/σ)` capped at `ρ(gate_sigmas)`, an associated point outside the gates the cap (see
+    /// [`Prior::cost`]).
+    pub loss: f64,
 }
 
 impl Sums {
@@ -39,6 +43,7 @@ impl Sums {
             inliers: 0.0,
             chi2: 0.0,
             r2_m2: 0.0,
+            loss: 0.0,
         }
     }
 
@@ -54,6 +59,7 @@ impl Sums {
         self.inliers += o.inliers;
         self.chi2 += o.chi2;
         self.r2_m2 += o.r2_m2;
+        self.loss += o.loss;
         self
     }
 
@@ -131,6 +137,7 @@ pub(crate) fn pass(
     let uniform_sigma = sensor.sigma_z(cfg.z_ref_m) as f32;
     let mode = cfg.weighting;
     let ctr = centre.cast::<f32>();
+    let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
     level
         .points
         .par_chunks(w.max(1))
@@ -158,6 +165,7 @@ pub(crate) fn pass(
                 }
                 let q = reference.points[j].coords;
                 s.associated += 1.0;
+                s.loss += cap;
                 let nw = rot * nc;
                 // The normal gate widens with the normals' own noise: central differences over
                 // ±2 pixels at depth z have an angular error of about σ_Z(z)·f/(2·2·z) each
@@ -205,6 +213,7 @@ pub(crate) fn pass(
                 s.inliers += 1.0;
                 let en = f64::from(r / sigma);
                 s.chi2 += en * en;
+                s.loss += huber_loss(en, cfg.huber_k).min(cap) - cap;
                 s.r2_m2 += f64::from(r) * f64::from(r);
             }
             s
@@ -212,10 +221,69 @@ pub(crate) fn pass(
         .reduce(Sums::zero, |a, b| a.add(&b))
 }
 
-/// The Gauss–Newton step `ξ = (ω, v)` solving `H·ξ = −g`, or `None` when `H` is singular.
-pub(crate) fn step(s: &Sums) -> Option<Vector6<f64>> {
-    let h = s.hessian();
-    let g = s.gradient();
+/// What the normal equations of one level are solved with besides the data: the data's
+/// share of independent information and a prior on the camera's position.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Prior {
+    /// `1/N`: the data terms are divided by the number `N` of pixels of the level over which
+    /// the depth error is correlated (see [`TrackerConfig::noise_window_x_px`]), so that `H`
+    /// counts independent measurements.
+    pub data_share: f64,
+    /// Information of the position prior, `1/σ_t²` per axis, 1/m².
+    pub info_t: f64,
+    /// The position the prior is centred on (world, metres).
+    pub centre_t: Vector3<f64>,
+}
+
+impl Prior {
+    /// The objective the step control compares between poses: the mean loss of the associated
+    /// points (so that points entering or leaving the overlap neither reward nor penalise a
+    /// pose), counted for `points` points and scaled by `data_share` like `H`, plus the prior's
+    /// `½·|t − centre|²/σ²` at camera centre `t`.
+    pub fn cost(&self, s: &Sums, points: f64, t: &Vector3<f64>) -> f64 {
+        let mean = if s.associated > 0.0 {
+            s.loss / s.associated
+        } else {
+            f64::INFINITY
+        };
+        self.data_share * points * mean + 0.5 * self.info_t * (t - self.centre_t).norm_squared()
+    }
+
+    /// `H` of the data (scaled by `data_share`) plus the prior's information.
+    fn information(&self, s: &Sums) -> Matrix6<f64> {
+        let mut h = s.hessian() * self.data_share;
+        for i in 3..6 {
+            h[(i, i)] += self.info_t;
+        }
+        h
+    }
+}
+
+/// Huber's loss of a normalised residual `e` with threshold `k`: `e²/2` within `±k`, linear
+/// beyond.
+pub(crate) fn huber_loss(e: f64, k: f64) -> f64 {
+    let a = e.abs();
+    if a <= k {
+        0.5 * a * a
+    } else {
+        k * a - 0.5 * k * k
+    }
+}
+
+/// The Levenberg–Marquardt step `ξ = (ω, v)` at a pose of camera centre `t` (the centre of the
+/// step's rotation, so `v` is the move of `t`): solves `(H + λ·diag H)·ξ = −g` with the data
+/// terms scaled by the prior's `data_share` and the position prior added (`λ = 0`: the
+/// Gauss–Newton step), or `None` when the matrix is singular.
+pub(crate) fn step(s: &Sums, prior: &Prior, t: &Vector3<f64>, lambda: f64) -> Option<Vector6<f64>> {
+    let mut h = prior.information(s);
+    for i in 0..6 {
+        h[(i, i)] *= 1.0 + lambda;
+    }
+    let mut g = s.gradient() * prior.data_share;
+    let off = t - prior.centre_t;
+    for i in 0..3 {
+        g[3 + i] += prior.info_t * off[i];
+    }
     h.cholesky().map(|c| -c.solve(&g))
 }
 

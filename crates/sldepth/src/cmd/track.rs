@@ -34,7 +34,8 @@ use crate::common::{
 pub struct Args {
     /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
     /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
-    /// and the `tum-fr1` camera unless given.
+    /// and the `tum-fr1`, `tum-fr2` or `tum-fr3` camera, whichever the folder's name says
+    /// (fr1 when it names none), unless given.
     #[arg(long, value_name = "DIR", group = "source")]
     pub tum: Option<PathBuf>,
     /// A 7-Scenes sequence folder (`frame-XXXXXX.depth.png`, millimetres; poses are not read);
@@ -113,7 +114,11 @@ fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     };
     if let Some(dir) = &args.tum {
         let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
-        Ok((frames, camera("tum-fr1", None)?, 5000.0))
+        let preset = crate::common::tum_preset_for(dir);
+        if args.input.camera.is_none() {
+            errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
+        }
+        Ok((frames, camera(preset, None)?, 5000.0))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
         Ok((
@@ -274,7 +279,7 @@ pub fn run(args: Args) -> Result<()> {
     );
     let mut rows: Vec<(f64, Row)> = Vec::with_capacity(frames.len());
     let (mut track_ms, mut integrate_ms) = (Vec::new(), Vec::new());
-    let mut counts = [0usize; 5];
+    let mut counts = [0usize; 6];
     let mut lost_frames = Vec::new();
     let mut skipped_frames = Vec::new();
     let wall = Instant::now();
@@ -379,6 +384,7 @@ pub fn run(args: Args) -> Result<()> {
             "skipped_frames": skipped_frames,
             "recovered": counts[TrackStatus::Recovered as usize],
             "relocalised": counts[TrackStatus::Relocalised as usize],
+            "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
             "reference": if args.frame_to_frame { "frame" } else { "model" },
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
