@@ -266,8 +266,10 @@ impl PlaneExtractor {
     }
 
     /// The searches, 8 pixels at a time, of the first `count` chunks of `search_chunks`: each
-    /// valid pixel to search takes the best plane of the cells around its chunk within `τ`
-    /// (pixels fitting two planes are recorded in `ambiguous`).
+    /// valid pixel to search takes the plane of the cells around its chunk with the smallest
+    /// residual when the noise explains it (`CellNoise::pixel_bound_px`), else its cell's plane
+    /// if within `τ`, else the best within `τ` (pixels that two planes explain are recorded in
+    /// `ambiguous`; see [`Self::final_pass`]).
     #[allow(clippy::too_many_arguments)]
     fn search_row(
         &mut self,
@@ -367,8 +369,9 @@ impl PlaneExtractor {
         }
     }
 
-    /// Pixels within the threshold of two planes take the label that dominates their
-    /// 8-neighbourhood (ties keep the smaller residual); the statistics follow.
+    /// Pixels that two planes explain (both within the noise, or both within `τ` when the
+    /// noise explains neither) take the label that dominates their 8-neighbourhood (ties keep
+    /// the smaller residual); the statistics follow.
     #[inline(never)]
     pub(super) fn resolve_ambiguous(
         &mut self,
