@@ -426,39 +426,20 @@ fn decode(v: &[f32x4; 2]) -> [u16; LANES] {
     [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]].map(|i| i as u16)
 }
 
-/// For 8 pixels (disparity `d`, NaN or 0 = invalid) at columns `x0 + k` of a row: the label
-/// (index + 1) of the candidate plane with the smallest |residual| under `tau` (0 if none),
-/// and the bit mask of the pixels that found one. The planes' predictions on this row are
-/// `fa[k]·x + rowc[k]`.
-#[inline]
-pub(crate) fn search8(
-    d: &[f32; LANES],
-    x0: f32,
-    cands: &[u16],
-    fa: &[f32],
-    rowc: &[f32],
-    tau: f32,
-) -> ([u16; LANES], u32) {
-    let e = Enc::new();
-    let dd = [load4(d, 0), load4(d, 4)];
-    let lim = e.limit(tau);
-    let mut best = [lim; 2];
-    for &k in cands {
-        let ku = k as usize;
-        let (Some(&a), Some(&c)) = (fa.get(ku), rowc.get(ku)) else {
-            continue;
-        };
-        let r = e.residuals(&dd, a, a * x0 + c, u32::from(k));
-        // `fast_min` keeps `best` when `r` is NaN (invalid pixel).
-        best[0] = r[0].fast_min(best[0]);
-        best[1] = r[1].fast_min(best[1]);
-    }
-    let found = best[0].cmp_lt(lim).move_mask() | (best[1].cmp_lt(lim).move_mask() << 4);
-    (decode(&best), found as u32 & 0xff)
+/// The two best candidates of 8 pixels ([`search8_two`]): labels (index + 1, 0 = none under
+/// `tau` or an invalid pixel) and absolute residuals (quantised to 2⁻¹¹ relative; meaningless
+/// where the label is 0).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Best2 {
+    pub best: [u16; LANES],
+    pub best_res: [f32; LANES],
+    pub second: [u16; LANES],
+    pub second_res: [f32; LANES],
 }
 
-/// As [`search8`], with the second-best candidate under `tau` (0 if none) instead of the mask;
-/// the results of invalid pixels are meaningless.
+/// For 8 pixels (disparity `d`, NaN or 0 = invalid) at columns `x0 + k` of a row: the labels
+/// (index + 1) of the two candidate planes with the smallest |residual| under `tau` (0 if
+/// none), and their residuals. The planes' predictions on this row are `fa[k]·x + rowc[k]`.
 #[inline]
 pub(crate) fn search8_two(
     d: &[f32; LANES],
@@ -467,7 +448,7 @@ pub(crate) fn search8_two(
     fa: &[f32],
     rowc: &[f32],
     tau: f32,
-) -> ([u16; LANES], [u16; LANES]) {
+) -> Best2 {
     let e = Enc::new();
     let dd = [load4(d, 0), load4(d, 4)];
     let lim = e.limit(tau);
@@ -479,12 +460,30 @@ pub(crate) fn search8_two(
             continue;
         };
         let r = e.residuals(&dd, a, a * x0 + c, u32::from(k));
+        // `fast_min` / `fast_max` return their argument when `r` is NaN (invalid pixel): the
+        // pixel keeps "no plane".
         for h in 0..2 {
-            second[h] = second[h].fast_min(best[h].fast_max(r[h]));
-            best[h] = best[h].fast_min(r[h]);
+            second[h] = r[h].fast_max(best[h]).fast_min(second[h]);
+            best[h] = r[h].fast_min(best[h]);
         }
     }
-    (decode(&best), decode(&second))
+    Best2 {
+        best: decode(&best),
+        best_res: decode_residual(&best),
+        second: decode(&second),
+        second_res: decode_residual(&second),
+    }
+}
+
+/// The absolute residuals of 8 encoded values (the index bits cleared, minus the offset 1).
+#[inline(always)]
+fn decode_residual(v: &[f32x4; 2]) -> [f32; LANES] {
+    let dec = |x: f32x4| {
+        x.to_array()
+            .map(|f| f32::from_bits(f.to_bits() & !IDX_MASK) - 1.0)
+    };
+    let (a, b) = (dec(v[0]), dec(v[1]));
+    [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]]
 }
 
 /// Depth (metres, any non-positive or non-finite value invalid) → disparity `f·B/Z` (0 when
@@ -641,8 +640,8 @@ mod tests {
                     _ => 38.0 + h as f32 * 0.006,
                 }
             });
-            let (labs, found) = search8(&d, x0, &cands, &fa, &rowc, 0.5);
-            let (b1, b2) = search8_two(&d, x0, &cands, &fa, &rowc, 0.5);
+            let two = search8_two(&d, x0, &cands, &fa, &rowc, 0.5);
+            let (b1, b2) = (two.best, two.second);
             for i in 0..LANES {
                 let res = |k: u16| {
                     let (a, c) = planes[k as usize - 1];
@@ -664,12 +663,10 @@ mod tests {
                     (g, Some(w)) => (res(g) - w).abs() <= q,
                 };
                 if d[i].is_nan() || d[i] <= 0.0 {
-                    assert_eq!(labs[i], 0, "invalid pixel");
+                    assert_eq!((two.best[i], two.second[i]), (0, 0), "invalid pixel");
                     continue;
                 }
                 let best = r.first().map(|p| p.0);
-                assert!(ok(labs[i], best), "{r:?} vs {}", labs[i]);
-                assert_eq!(found >> i & 1, u32::from(labs[i] != 0));
                 assert!(ok(b1[i], best), "{r:?} vs {}", b1[i]);
                 let second = r.get(1).map(|p| p.0);
                 assert!(
@@ -680,6 +677,10 @@ mod tests {
                 );
                 if b1[i] != 0 {
                     assert_ne!(b1[i], b2[i]);
+                    assert!((two.best_res[i] - res(b1[i])).abs() <= q, "{r:?}");
+                }
+                if b2[i] != 0 {
+                    assert!((two.second_res[i] - res(b2[i])).abs() <= q, "{r:?}");
                 }
             }
         }

@@ -12,10 +12,19 @@ fn cell_row(labels: &[u16], jj: usize, wq: usize) -> &[u16] {
 impl PlaneExtractor {
     /// The full-resolution assignment, with the final moments of the sample rows: each pixel
     /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
-    /// tested in one vectorised sweep); otherwise, and for the pixels of unlabelled cells
-    /// touching a labelled cell, the planes of the cells around are searched, 8 pixels at a time
-    /// (pixels that fit two planes are recorded for the disambiguation). Pixels of unlabelled
-    /// cells away from planes stay unlabelled (coherence).
+    /// tested in one vectorised sweep); otherwise, for the pixels of unlabelled cells touching
+    /// a labelled cell, and for every pixel of a cell at a border between planes (a cell of
+    /// another plane among its 8 neighbours), the planes of the cells around are searched, 8
+    /// pixels at a time. A searched pixel takes the plane with the smallest disparity residual
+    /// in units of its noise (`σ_D` and the `1/q` quantisation: the same for every plane, so the
+    /// smallest residual) when that residual is within the noise — the 99.9 % bound
+    /// `CellNoise::pixel_bound_px`, 0.26 px for the Kinect; the same confidence as the seeds'
+    /// χ² tests. Otherwise its cell's plane keeps it while within `τ`, as away from borders, or
+    /// the best plane within `τ` takes it. So a crease is where the two planes' disparities
+    /// cross, pixel by pixel, not where the 16-pixel seed patches met. Pixels that a second
+    /// plane also explains (within the noise when the best does, else within `τ`) are recorded
+    /// for the disambiguation. Pixels of unlabelled cells away from planes stay unlabelled
+    /// (coherence).
     ///
     /// Stages, row by row: [`Self::prepare_cell_row`] (once per cell row),
     /// [`Self::assign_incumbents`], [`Self::mark_tail_columns`], [`Self::collect_search_chunks`]
@@ -77,6 +86,8 @@ impl PlaneExtractor {
         self.candidate_count.resize(nchunks, 0);
         self.cells_touching_plane.clear();
         self.cells_touching_plane.resize(wq, 0);
+        self.border_cells.clear();
+        self.border_cells.resize(wq, 0);
         self.zero_cell_row.clear();
         self.zero_cell_row.resize(wq, 0);
     }
@@ -98,12 +109,25 @@ impl PlaneExtractor {
         self.unlabelled_keep.clear();
         self.unlabelled_keep
             .extend(need.iter().flat_map(|&nd| [1 - nd; CELL]));
-        // The runs of equal cell labels, shared by the rows of this cell row.
+        // The cells at a border between planes, and the runs of equal cell labels and border
+        // flags, shared by the rows of this cell row.
+        let border = &mut self.border_cells[..nh];
+        plane_borders(hint_row, up_row, dn_row, border);
         self.cell_label_runs.clear();
         let mut i = 0;
         while i < nh {
             let e = run_end(hint_row, i);
-            self.cell_label_runs.push((i as u32, e as u32, hint_row[i]));
+            let mut k = i;
+            while k < e {
+                let b = border[k];
+                let mut m = k + 1;
+                while m < e && border[m] == b {
+                    m += 1;
+                }
+                self.cell_label_runs
+                    .push((k as u32, m as u32, hint_row[i], b != 0));
+                k = m;
+            }
             i = e;
         }
     }
@@ -126,10 +150,13 @@ impl PlaneExtractor {
         let keep = &mut self.keep_row[..];
         let mut inv_dummy = InvSums::default();
         let mut sums_dummy = AffineSums::default();
-        for &(i, e, v) in &self.cell_label_runs {
+        for &(i, e, v, border) in &self.cell_label_runs {
             let (i, e) = (i as usize, e as usize);
             let (x0, x1) = (CELL * i, (CELL * e).min(w));
-            if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
+            if border {
+                // Cells at a border between planes: every pixel chooses (`search_row`).
+                keep[x0..x1].fill(0);
+            } else if let Some(a) = (v as usize).checked_sub(1).and_then(|ku| acc.get_mut(ku)) {
                 // The rest of the row: `fit_run` reads and writes ahead.
                 let (seg, ks) = (&row_d[x0..], &mut keep[x0..]);
                 let f = &full[v as usize - 1];
@@ -239,8 +266,10 @@ impl PlaneExtractor {
     }
 
     /// The searches, 8 pixels at a time, of the first `count` chunks of `search_chunks`: each
-    /// valid pixel to search takes the best plane of the cells around its chunk within `τ`
-    /// (pixels fitting two planes are recorded in `ambiguous`).
+    /// valid pixel to search takes the plane of the cells around its chunk with the smallest
+    /// residual when the noise explains it (`CellNoise::pixel_bound_px`), else its cell's plane
+    /// if within `τ`, else the best within `τ` (pixels that two planes explain are recorded in
+    /// `ambiguous`; see [`Self::final_pass`]).
     #[allow(clippy::too_many_arguments)]
     fn search_row(
         &mut self,
@@ -268,6 +297,7 @@ impl PlaneExtractor {
         let (fa, rowc): (&[f32], &[f32]) = (&self.slope_x, &self.row_offsets);
         let acc = &mut self.final_sums;
         let amb = &mut self.ambiguous;
+        let bound = self.noise.pixel_bound_px() as f32;
         for &(c, word) in &self.search_chunks[..count] {
             let x0 = c as usize * LANES;
             let x1 = (x0 + LANES).min(w);
@@ -296,17 +326,32 @@ impl PlaneExtractor {
                 self.candidates_cell_row[ci] = tag;
             }
             let near = &self.candidate_planes[ci][..self.candidate_count[ci] as usize];
-            let (best, second) = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
-            todo &= nonzero_mask(&best);
+            let two = search8_two(&d8, x0 as f32, near, fa, rowc, tau);
+            todo &= nonzero_mask(&two.best);
             while todo != 0 {
                 let o = todo.trailing_zeros() as usize;
                 todo &= todo - 1;
-                let lab = best[o];
+                let x = x0 + o;
+                let (mut lab, mut other) = (two.best[o], two.second[o]);
+                if two.best_res[o] > bound {
+                    // No plane explains the pixel within the noise: its cell's plane keeps it
+                    // while within τ (as away from borders), else the best within τ.
+                    let inc = hint_row.get(x / CELL).copied().unwrap_or(0);
+                    if inc != 0
+                        && inc != lab
+                        && let Some(f) = full.get(inc as usize - 1)
+                        && (f64::from(dc[o]) - f.eval(x as f64, yf)).abs() < f64::from(tau)
+                    {
+                        (lab, other) = (inc, 0);
+                    }
+                } else if two.second_res[o] > bound {
+                    // The best plane explains it within the noise and the second does not.
+                    other = 0;
+                }
                 let Some(a) = acc.get_mut((lab as usize).wrapping_sub(1)) else {
                     continue;
                 };
                 lc[o] = lab;
-                let x = x0 + o;
                 a.pixels += 1;
                 a.add_rows(y);
                 if stats {
@@ -317,15 +362,16 @@ impl PlaneExtractor {
                         a.inv.add(xf, yf, df, r, 1.0);
                     }
                 }
-                if second[o] != 0 {
-                    amb.push(((y * w + x) as u32, lab, second[o]));
+                if other != 0 {
+                    amb.push(((y * w + x) as u32, lab, other));
                 }
             }
         }
     }
 
-    /// Pixels within the threshold of two planes take the label that dominates their
-    /// 8-neighbourhood (ties keep the smaller residual); the statistics follow.
+    /// Pixels that two planes explain (both within the noise, or both within `τ` when the
+    /// noise explains neither) take the label that dominates their 8-neighbourhood (ties keep
+    /// the smaller residual); the statistics follow.
     #[inline(never)]
     pub(super) fn resolve_ambiguous(
         &mut self,

@@ -21,19 +21,23 @@
 //!    rings of several surfaces at the same disparity). The k-means iterations then refit on the
 //!    cells within `τ`: a truncated-quadratic (hard-redescending) robust estimate.
 //! 2. **k-means refinement** on the cells: a cell keeps its incumbent label (its seed's, or the
-//!    previous pass's) while that plane fits it within `τ`; any other valid cell goes to the
-//!    plane with the smallest disparity residual if it is below the fixed threshold `τ`, among
-//!    the planes of its neighbouring cells (spatial coherence: a plane grows into adjacent cells;
-//!    coplanar but disconnected regions join by merging). Planes are refitted from moment sums
+//!    previous pass's) while that plane fits it within `τ`, unless a cell of another plane
+//!    touches it; any other valid cell, and every cell at such a border, goes to the plane with
+//!    the smallest disparity residual if it is below the fixed threshold `τ`, among the planes
+//!    of its neighbouring cells (spatial coherence: a plane grows into adjacent cells; coplanar
+//!    but disconnected regions join by merging). A border cell that no plane explains within
+//!    the noise of a cell (99.9 %) keeps its incumbent while within `τ`. Planes are refitted from moment sums
 //!    accumulated run by run, planes that one affine function explains jointly (each within
 //!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds
 //!    (patches of the free cells, merged by the same test). Repeats until the labels
 //!    settle or `max_iterations`.
 //! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
 //!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its cell's label if
-//!    that plane fits it within `τ`; otherwise, and for the pixels of unlabelled cells touching
-//!    a labelled one, the best plane of the neighbouring cells within `τ`. Pixels fitting two
-//!    planes take the label that dominates their 8-neighbourhood. The planes are refitted on
+//!    that plane fits it within `τ`; otherwise, for the pixels of unlabelled cells touching a
+//!    labelled one, and for all pixels of cells at a border between planes, the plane of the
+//!    neighbouring cells with the smallest residual (in units of the pixel's noise, `σ_D` and
+//!    `1/q`) when it is within the noise (99.9 %), else as away from borders. Pixels fitting
+//!    two planes take the label that dominates their 8-neighbourhood. The planes are refitted on
 //!    the labelled pixels of every fourth row (which also gives the RMS residual in pixels; the
 //!    centroid and the RMS in metres come from every eighth row); pixel counts are exact.
 //!
@@ -58,8 +62,8 @@ use crate::components::RunLabeler;
 use crate::error::{PlanesError, Result};
 use crate::fit::AffineSums;
 use crate::kernels::{
-    InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8,
-    search8_two, valid_mask,
+    InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8_two,
+    valid_mask,
 };
 use crate::log::{LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
 use crate::plane::DisparityAffine;
@@ -295,8 +299,12 @@ pub struct PlaneExtractor {
     keep_row: Vec<u8>,
     /// Per cell of the current cell row: 1 when an unlabelled cell touches a labelled one.
     cells_touching_plane: Vec<u8>,
-    /// Runs `(start, end, label)` of equal cell labels of the current cell row.
-    cell_label_runs: Vec<(u32, u32, u16)>,
+    /// Per cell of the current cell row: 1 when it is labelled and a cell of another plane
+    /// touches it (its pixels choose between the planes around; final pass).
+    border_cells: Vec<u8>,
+    /// Runs `(start, end, label, border)` of equal cell labels and border flags of the current
+    /// cell row.
+    cell_label_runs: Vec<(u32, u32, u16, bool)>,
     /// Copy of the current cell-label row taken before its searches (coarse pass).
     cell_labels_before_search: Vec<u16>,
     /// One full-resolution disparity row (final pass).
@@ -503,9 +511,7 @@ impl PlaneExtractor {
         self.times.add(Stage::Log, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
         self.seed_from_patches(wq, hq, min_q, false);
-        if std::env::var("SLP_NOCOMP").is_err() {
-            self.seed_leftover_components(wq, hq, min_q);
-        }
+        self.seed_leftover_components(wq, hq, min_q);
         self.times.add(Stage::SeedFits, &mut t0);
         self.merge();
         self.compact();

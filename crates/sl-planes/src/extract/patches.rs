@@ -36,11 +36,17 @@ const PATCH_MIN_CELLS: f64 = 12.0;
 const Z_999: f64 = 3.090_232;
 /// The 99.9 % quantile of χ² with 3 degrees of freedom.
 const CHI2_3_999: f64 = 16.266;
+/// The 99.9 % quantile of χ² with 1 degree of freedom, squared standard-normal units: one
+/// pixel's residual is within the noise at the tests' confidence when `r² ≤ CHI2_1_999·σ²`
+/// (`|r| ≤ 3.29 σ`).
+const CHI2_1_999: f64 = 10.828;
 
 /// The disparity noise of one cell (a 4×4-pixel mean) from the sensor model and the
 /// correlation of the disparity error.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct CellNoise {
+    /// Variance of one pixel's disparity error, px² (`σ_D² + 1/(12q²)`).
+    pub(crate) var_px: f64,
     /// Variance of a cell's mean disparity, px².
     pub(crate) var_cell: f64,
     /// Correlation inflation of sums over cells: `Σ_lags ρ_cell` (1 for white noise), the ratio
@@ -92,6 +98,7 @@ impl CellNoise {
         let (vx, kx) = axis(window_x);
         let (vy, ky) = axis(window_y);
         Self {
+            var_px,
             var_cell: var_px * vx * vy,
             kappa: kx * ky,
         }
@@ -102,6 +109,20 @@ impl CellNoise {
         let nu = nu.max(0.5);
         let k = 2.0 / (9.0 * nu);
         (1.0 - k + Z_999 * k.sqrt()).powi(3)
+    }
+
+    /// The largest disparity residual of one pixel that the noise explains, px: the 99.9 %
+    /// two-sided bound `√(χ²₁(0.999)·(σ_D² + 1/(12q²)))`, 0.26 px for the Kinect's
+    /// `σ_D = 0.07 px`, `q = 8` (the pixel's error is the same at every depth in disparity; the
+    /// correlation of the error does not change its variance).
+    pub(crate) fn pixel_bound_px(&self) -> f64 {
+        (CHI2_1_999 * self.var_px).sqrt()
+    }
+
+    /// The largest residual of one cell's mean disparity that the noise explains, px (as
+    /// [`Self::pixel_bound_px`] for the variance of a cell).
+    pub(crate) fn cell_bound_px(&self) -> f64 {
+        (CHI2_1_999 * self.var_cell).sqrt()
     }
 
     /// Whether a patch fit with residual sum of squares `rss` over `n` cells is planar.

@@ -8,8 +8,16 @@ impl PlaneExtractor {
     /// of labels that changed and the number of planar but unassigned cells (marked in `free`).
     ///
     /// Runs of equal incumbent labels are tested against their plane in one vectorised sweep
-    /// (the cells that pass are accumulated there); the cells that fail, and unlabelled cells,
-    /// then take the best of the planes of the cells around them, searched 8 cells at a time.
+    /// (the cells that pass are accumulated there); the cells that fail, unlabelled cells and
+    /// the cells at a border between planes (a cell of another plane among their 8 neighbours)
+    /// then take the best of the planes of the cells around them, searched 8 cells at a time:
+    /// the smallest residual within `τ` (the cell noise is the same under every plane, so this
+    /// is the smallest residual in units of the noise). A border cell that no plane explains
+    /// within the noise (`CellNoise::cell_bound_px`, 99.9 %) keeps its plane while within `τ`,
+    /// as away from borders. Without the border rule a cell keeps whichever plane reached it
+    /// first while that plane is within `τ`: far away, where a crease bends the disparity by
+    /// less than `τ` over many cells, borders stayed where the 16-pixel seed patches put them,
+    /// and a "plane" seeded on patches straddling a crease kept its strip of both surfaces.
     #[inline(never)]
     pub(super) fn coarse_pass(&mut self, wq: usize, hq: usize, tau: f32) -> (usize, usize) {
         for p in self.planes.iter_mut() {
@@ -26,6 +34,8 @@ impl PlaneExtractor {
         let planes = &mut self.planes;
         let mut inv = InvSums::default();
         let (mut changed, mut free) = (0usize, 0usize);
+        let bound = self.noise.cell_bound_px() as f32;
+        self.border_cells.resize(wq, 0);
         for j in 0..hq {
             if small {
                 self.cell_labels_before_search.clear();
@@ -47,12 +57,20 @@ impl PlaneExtractor {
             let frow = &mut self.free_cells[j * wq..(j + 1) * wq];
             let keep = &mut self.keep_row[..];
             let mut near = [0u16; 16];
+            // Cells at a border between planes choose among the planes around them.
+            let border = &mut self.border_cells[..wq];
+            plane_borders(lrow, up, dn, border);
             // Incumbents.
             let mut i = 0;
             while i < wq {
-                let v = lrow[i];
-                let e = run_end(lrow, i);
+                let (v, b) = (lrow[i], border[i]);
+                // A run of equal labels and equal border flags.
+                let e = i + border[i..run_end(lrow, i)]
+                    .iter()
+                    .take_while(|&&x| x == b)
+                    .count();
                 match planes.get_mut((v as usize).wrapping_sub(1)) {
+                    Some(_) if b != 0 => keep[i..e].fill(0),
                     Some(p) => {
                         let kept = fit_run::<true, false>(
                             &row[i..],
@@ -91,7 +109,7 @@ impl PlaneExtractor {
                     continue;
                 }
                 let d8 = <[f32; LANES]>::try_from(dt).unwrap_or_else(|_| pad(dt, f32::NAN));
-                let (labs, found) = if searched & valid_mask(&d8) != 0 {
+                let (labs, found, res) = if searched & valid_mask(&d8) != 0 {
                     // Candidates: the planes of the cells around the chunk (spatial
                     // coherence; coplanar disconnected regions join by merging).
                     let (a, b) = (i0.saturating_sub(1), (i1 + 1).min(wq));
@@ -103,9 +121,10 @@ impl PlaneExtractor {
                         lrow
                     };
                     let nc = candidate_planes_around([up, this_row, dn], a, b, small, &mut near);
-                    search8(&d8, i0 as f32, &near[..nc], fa, rowc, tau)
+                    let two = search8_two(&d8, i0 as f32, &near[..nc], fa, rowc, tau);
+                    (two.best, nonzero_mask(&two.best), two.best_res)
                 } else {
-                    ([0u16; LANES], 0)
+                    ([0u16; LANES], 0, [0.0; LANES])
                 };
                 let (lt, mt) = (&mut lrow[i0..i1], &mrow[i0..i1]);
                 let mut todo = searched & (found | nonzero_mask(lt) | byte_mask(pad_word(mt)));
@@ -114,7 +133,18 @@ impl PlaneExtractor {
                 while todo != 0 {
                     let o = todo.trailing_zeros() as usize;
                     todo &= todo - 1;
-                    let (lab, old) = (labs[o], lt[o]);
+                    let (mut lab, old) = (labs[o], lt[o]);
+                    if lab != 0
+                        && res[o] > bound
+                        && old != 0
+                        && old != lab
+                        && let Some(p) = planes.get((old as usize).wrapping_sub(1))
+                        && (f64::from(dt[o]) - p.f.eval((i0 + o) as f64, jf)).abs() < f64::from(tau)
+                    {
+                        // No plane explains the cell within the noise: a border cell keeps its
+                        // plane while within τ, as away from borders.
+                        lab = old;
+                    }
                     changed += usize::from(lab != old);
                     lt[o] = lab;
                     let fr = lab == 0 && mt[o] == 1;

@@ -219,6 +219,39 @@ pub(super) fn touching(row: &[u16], up: &[u16], dn: &[u16], need: &mut [u8]) {
     }
 }
 
+/// `out[i] = 1` for the labelled cells of `row` with a cell of another plane among their 8
+/// neighbours (`up` and `dn` the rows above and below, empty or short at the grid's edges):
+/// the cells at a border between two planes.
+pub(super) fn plane_borders(row: &[u16], up: &[u16], dn: &[u16], out: &mut [u8]) {
+    let n = row.len().min(out.len());
+    let (row, out) = (&row[..n], &mut out[..n]);
+    out.fill(0);
+    // `out[i] |= nb[i]` is another plane than `row[i]`, for a neighbour row shifted by −1, 0, +1
+    // (a vectorisable loop each).
+    fn mark(out: &mut [u8], row: &[u16], nb: &[u16]) {
+        for ((o, &l), &m) in out.iter_mut().zip(row).zip(nb) {
+            *o |= u8::from((m != 0) & (m != l));
+        }
+    }
+    for (nb, centre) in [(up, true), (row, false), (dn, true)] {
+        let m = nb.len().min(n);
+        if m == 0 {
+            continue;
+        }
+        if centre {
+            mark(&mut out[..m], &row[..m], &nb[..m]);
+        }
+        // The neighbour to the left (`nb[i − 1]`) and to the right (`nb[i + 1]`).
+        mark(&mut out[1..], &row[1..], &nb[..m.min(n - 1)]);
+        if m > 1 {
+            mark(out, row, &nb[1..m]);
+        }
+    }
+    for (o, &l) in out.iter_mut().zip(row) {
+        *o &= u8::from(l != 0);
+    }
+}
+
 /// An empty support box.
 pub(super) const EMPTY_BOX: [u32; 4] = [u32::MAX, u32::MAX, 0, 0];
 

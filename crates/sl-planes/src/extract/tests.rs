@@ -170,3 +170,41 @@ fn explain_names_the_bumpy_region() {
     let seg = ex.extract_depth(&flat, &cam).unwrap();
     assert!(ex.explain_unlabelled(&seg, 1000).is_empty());
 }
+
+/// `plane_borders` against its definition: a labelled cell with a cell of another plane among
+/// its 8 neighbours (rows of any length, missing rows at the grid's edges).
+#[test]
+fn plane_borders_match_definition() {
+    let mut state = 12345u32;
+    let mut next = || {
+        state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+        (state >> 16) % 4
+    };
+    for n in [0usize, 1, 2, 3, 7, 16, 33] {
+        for _ in 0..50 {
+            let row: Vec<u16> = (0..n).map(|_| next() as u16).collect();
+            let up: Vec<u16> = (0..n).map(|_| next() as u16).collect();
+            let dn: Vec<u16> = if next() == 0 {
+                Vec::new()
+            } else {
+                (0..n).map(|_| next() as u16).collect()
+            };
+            let mut out = vec![7u8; n];
+            plane_borders(&row, &up, &dn, &mut out);
+            for i in 0..n {
+                let l = row[i];
+                let mut want = false;
+                for k in i.saturating_sub(1)..=(i + 1).min(n - 1) {
+                    for (r, skip) in [(&up, false), (&row, true), (&dn, false)] {
+                        if let Some(&m) = r.get(k)
+                            && !(skip && k == i)
+                        {
+                            want |= l != 0 && m != 0 && m != l;
+                        }
+                    }
+                }
+                assert_eq!(out[i], u8::from(want), "{row:?} {up:?} {dn:?} at {i}");
+            }
+        }
+    }
+}
