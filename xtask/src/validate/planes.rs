@@ -305,7 +305,7 @@ fn real(ctx: &mut Context) -> Result<()> {
     {
         let depth = sl_io::read_depth(
             &first.depth_path,
-            &sl_io::ReadOptions::default().with_scale(5000.0),
+            &sl_io::ReadConfig::default().with_scale(5000.0),
         )?
         .depth;
         let cam = tum_camera()?;
@@ -358,7 +358,7 @@ fn real(ctx: &mut Context) -> Result<()> {
             continue;
         }
         let depth =
-            sl_io::read_depth(&path, &sl_io::ReadOptions::default().with_scale(scale))?.depth;
+            sl_io::read_depth(&path, &sl_io::ReadConfig::default().with_scale(scale))?.depth;
         let cam = Camera::preset(preset)?;
         let (seg, ms) = timed(reps, || Ok(ex.extract_depth(&depth, &cam)?))?;
         let base = overlay::depth_to_rgb(&depth);
@@ -469,7 +469,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
     let mcfg = MotionConfig::default();
     let vcfg = VerifyConfig::default();
     let icp_cfg = IcpConfig::default();
-    let opts = sl_io::ReadOptions::default().with_scale(5000.0);
+    let opts = sl_io::ReadConfig::default().with_scale(5000.0);
     let mut results = Vec::new();
     for (i, j) in motion_pairs(n, ctx.quick()) {
         let (fa, fb) = (&seq.frames[i], &seq.frames[j]);

@@ -17,7 +17,7 @@ use anyhow::Result;
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Camera, DepthImage, Pose};
 use sl_noise::sim::{KinectSimulator, NoiseModel, Plane, Quad, RealisticNoise, Scene, named_scene};
-use sl_noise::stats::{NoiseStats, NoiseStatsOptions, noise_stats};
+use sl_noise::stats::{NoiseStats, NoiseStatsConfig, noise_stats};
 use sl_planes::{PlaneConfig, extract_planes};
 
 use super::Context;
@@ -67,7 +67,7 @@ fn stats_of(depth: &DepthImage, camera: &Camera) -> Result<NoiseStats> {
         depth,
         camera.sensor.fb(),
         &seg.labels,
-        &NoiseStatsOptions::default(),
+        &NoiseStatsConfig::default(),
     )?)
 }
 

@@ -402,7 +402,7 @@ fn load_real(data: &Path, quick: bool) -> Result<Vec<RealSeq>> {
     let mut out = Vec::new();
     let read = |p: &Path| -> Result<sl_core::DepthImage> {
         Ok(
-            sl_io::depth::read_depth(p, &sl_io::depth::ReadOptions::default())
+            sl_io::depth::read_depth(p, &sl_io::depth::ReadConfig::default())
                 .with_context(|| format!("reading {}", p.display()))?
                 .depth,
         )

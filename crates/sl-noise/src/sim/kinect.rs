@@ -650,7 +650,7 @@ mod tests {
         // model's is not; both have σ_D near the sensor's (plus quantisation).
         let ns = crate::sim::named_scene("floor").unwrap();
         let (k, pose) = (ns.intrinsics, ns.pose);
-        let opts = crate::stats::NoiseStatsOptions::default();
+        let opts = crate::stats::NoiseStatsConfig::default();
         let stats = |sim: &KinectSimulator| {
             let f = sim.simulate(&ns.scene, &k, &pose, 4);
             crate::stats::noise_stats(&f.depth, sim.sensor.fb(), &f.labels, &opts).unwrap()

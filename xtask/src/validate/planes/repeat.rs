@@ -156,7 +156,7 @@ struct SeqResult {
 
 fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
     let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
-    let opts = sl_io::ReadOptions::default().with_scale(seq.units_per_m);
+    let opts = sl_io::ReadConfig::default().with_scale(seq.units_per_m);
     let mut world = Vec::with_capacity(seq.frames.len());
     let (mut planes, mut large) = (0usize, 0usize);
     let (mut worst_ms, mut worst_frame) = (0f64, String::new());
