@@ -16,7 +16,7 @@
 //! - [`ply`]: point clouds and triangle meshes (normals, colours, a per-vertex scalar), binary or
 //!   ASCII, through `ply-rs`.
 //! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt`, Open3D `.log`, 7-Scenes
-//!   `frame-*.pose.txt`, all as [`Frame`]s with camera-to-world [`sl_core::Pose`]s.
+//!   `frame-*.pose.txt`, all as [`Frame`]s with [`sl_core::CameraToWorld`] poses.
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
 //!   rename), so readers never see half-written output.
 //!

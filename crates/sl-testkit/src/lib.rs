@@ -241,7 +241,7 @@ pub struct PosedSequence {
     /// The dataset's camera preset.
     pub camera: Camera,
     /// Depth (metres) and camera-to-world pose of each frame, in order.
-    pub frames: Vec<(DepthImage, sl_core::Pose)>,
+    pub frames: Vec<(DepthImage, sl_core::CameraToWorld)>,
 }
 
 fn posed(

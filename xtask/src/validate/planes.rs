@@ -477,7 +477,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
         let db = sl_io::read_depth(&fb.depth_path, &opts)?.depth;
         let gt = fa.pose.inverse() * fb.pose;
         let err =
-            |q: &sl_core::nalgebra::UnitQuaternion<f64>| q.angle_to(&gt.rotation).to_degrees();
+            |q: &sl_core::nalgebra::UnitQuaternion<f64>| q.angle_to(&gt.rotation()).to_degrees();
         let t0 = Instant::now();
         let sa = ex.extract_depth(&da, &cam)?;
         let sb = ex.extract_depth(&db, &cam)?;
@@ -499,8 +499,14 @@ fn motion(ctx: &mut Context) -> Result<()> {
         let unverified = estimate_motion(&sa.planes, &sb.planes, None, &mcfg)
             .ok()
             .map(|m| (err(&m.rotation), m.confidence));
-        let icp_only = icp_point_to_plane(&da, &db, &cam, &sl_core::Pose::identity(), &icp_cfg)
-            .map_or(f64::NAN, |r| err(&r.pose.rotation));
+        let icp_only = icp_point_to_plane(
+            &da,
+            &db,
+            &cam,
+            &sl_core::CameraToCamera::identity(),
+            &icp_cfg,
+        )
+        .map_or(f64::NAN, |r| err(&r.pose.rotation()));
         let (verified, icp_ms) = match verified {
             Ok(m) => {
                 let t1 = Instant::now();
@@ -513,7 +519,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
                     &mcfg,
                     &vcfg,
                 )?;
-                let refined = err(&outcome.pose.rotation);
+                let refined = err(&outcome.pose.rotation());
                 let icp_ms = t1.elapsed().as_secs_f64() * 1e3;
                 let Some(v) = m.verification.clone() else {
                     anyhow::bail!("a verified motion without its verification");
@@ -525,7 +531,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
         results.push(PairResult {
             from: i,
             to: j,
-            gt_deg: gt.rotation.angle().to_degrees(),
+            gt_deg: gt.rotation_angle_deg(),
             unverified,
             verified,
             icp_only,

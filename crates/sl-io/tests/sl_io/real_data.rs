@@ -56,11 +56,11 @@ fn tum_fr1_rpy_depth_and_trajectory() {
     // Ground-truth line nearest to the first depth frame (4.4 ms away).
     let f0 = &seq.frames[0];
     assert_eq!(f0.timestamp, Some(1305031229.528784));
-    let t = f0.pose.translation.vector;
+    let t = f0.pose.translation();
     assert!(
         (t.x - 1.2989).abs() < 1e-9 && (t.y - 0.688).abs() < 1e-9 && (t.z - 1.5734).abs() < 1e-9
     );
-    let q = f0.pose.rotation.coords;
+    let q = f0.pose.rotation().coords;
     let n = (0.6817f64.powi(2) + 0.5533f64.powi(2) + 0.018f64.powi(2) + 0.4784f64.powi(2)).sqrt();
     let sign = q.x.signum() / 0.6817f64.signum();
     assert!((q.x - sign * 0.6817 / n).abs() < 1e-9 && (q.w - sign * -0.4784 / n).abs() < 1e-9);
@@ -182,9 +182,9 @@ fn icl_livingroom_camera_and_log() {
     let frames = read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth")).unwrap();
     assert_eq!(frames.len(), 5);
     assert!(frames[4].depth_path.ends_with("00004.png"));
-    let t0 = frames[0].pose.translation.vector;
+    let t0 = frames[0].pose.translation();
     assert_eq!((t0.x, t0.y, t0.z), (2.0, 2.0, -0.3));
-    let t4 = frames[4].pose.translation.vector;
+    let t4 = frames[4].pose.translation();
     assert!((t4.x - 2.00124).abs() < 1e-9 && (t4.z + 0.305411).abs() < 1e-9);
     for f in &frames {
         let d = read_depth(&f.depth_path, &ReadConfig::default()).unwrap();
@@ -220,7 +220,7 @@ fn seven_scenes_sequence() {
     assert_eq!(frames.len(), 50);
     assert!(frames[0].depth_path.ends_with("frame-000150.depth.png"));
     assert!(frames[49].depth_path.ends_with("frame-000199.depth.png"));
-    let t = frames[0].pose.translation.vector;
+    let t = frames[0].pose.translation();
     assert!(
         (t.x + 0.91287065).abs() < 1e-9
             && (t.y + 0.34388667).abs() < 1e-9

@@ -273,10 +273,10 @@ pub fn run(args: Args) -> Result<()> {
         }
         let t0 = Instant::now();
         volume
-            .integrate(&depth, &k, &f.camera_to_world())
+            .integrate(&depth, &k, &f.pose)
             .with_context(|| format!("integrating {}", f.depth_path.display()))?;
         integrate_ms.push(t0.elapsed().as_secs_f64() * 1e3);
-        first_pose.get_or_insert(f.camera_to_world());
+        first_pose.get_or_insert(f.pose);
         bar.inc(1);
     }
     bar.finish_and_clear();

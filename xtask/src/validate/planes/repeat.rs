@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
-use sl_core::{Camera, DepthImage, Plane, Pose};
+use sl_core::{Camera, CameraToWorld, DepthImage, Plane};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::EXP;
@@ -98,7 +98,7 @@ pub fn repeatability(frames: &[Vec<WorldPlane>], k: usize) -> Repeat {
 struct Sequence {
     name: &'static str,
     camera: Camera,
-    frames: Vec<(PathBuf, Pose)>,
+    frames: Vec<(PathBuf, CameraToWorld)>,
     units_per_m: f64,
 }
 
@@ -188,9 +188,9 @@ fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
             seg.planes
                 .iter()
                 .map(|p| WorldPlane {
-                    plane: p.plane.transformed(pose),
+                    plane: p.plane.transformed(pose.isometry()),
                     pixels: p.pixels,
-                    centroid: pose * p.centroid_m,
+                    centroid: pose.isometry() * p.centroid_m,
                 })
                 .collect::<Vec<_>>(),
         );
