@@ -260,7 +260,7 @@ pub struct IcpOutcome {
 /// let out = refine_motion_icp_verified(&da, &db, &cam, &m, &IcpConfig::refinement(), &mcfg, &vcfg)?;
 /// assert!(out.accepted, "{:?}", out.rejection);
 /// assert!(out.inlier_fraction_after.is_some_and(|f| f + 1e-3 >= out.inlier_fraction_before));
-/// assert!(out.pose.rotation.angle_to(&truth.rotation).to_degrees() < 0.5);
+/// assert!(out.pose.rotation().angle_to(&truth.rotation).to_degrees() < 0.5);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn refine_motion_icp_verified(
