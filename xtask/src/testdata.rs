@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use sl_core::{DepthImage, Image};
-use sl_io::depth::{DepthEncoding, ReadOptions};
+use sl_io::depth::{DepthEncoding, ReadConfig};
 use sl_noise::sim::{KinectSimulator, named_scene};
 
 /// The committed frames: (scene, seed).
@@ -78,7 +78,7 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
             ] {
                 let read = sl_io::depth::read_depth(
                     path,
-                    &ReadOptions::default().with_scale(enc.units_per_m),
+                    &ReadConfig::default().with_scale(enc.units_per_m),
                 )
                 .with_context(|| format!("reading {}", path.display()))?;
                 if quantised(&read.depth, enc.units_per_m) != quantised(img, enc.units_per_m) {

@@ -43,8 +43,10 @@ pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
 pub use mesh::{Mesh, Topology, VertexScalar};
 pub use plane::{Plane, PlaneFit, fit_plane};
+#[allow(deprecated)]
+pub use pose::Pose;
 pub use pose::{
-    CameraToCamera, CameraToWorld, Pose, WorldToCamera, pose_from_matrix, pose_from_row_major,
+    CameraToCamera, CameraToWorld, WorldToCamera, pose_from_matrix, pose_from_row_major,
     pose_from_translation_quaternion, pose_to_matrix,
 };
 pub use preset::SensorPreset;

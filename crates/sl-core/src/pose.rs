@@ -7,8 +7,9 @@
 //! `X_a = T·X_b`). `inverse()` returns the opposite type and `*` only composes poses whose frames
 //! meet, so a direction mistake is a type error.
 //!
-//! The older untyped [`Pose`] alias (camera-to-world by convention) and its free functions remain
-//! for the code that has not moved to the typed poses yet.
+//! The free functions ([`pose_from_matrix`], [`pose_from_translation_quaternion`], …) build the
+//! plain `Isometry3<f64>` the typed constructors wrap. The older untyped `Pose` alias is
+//! deprecated: every public pose of the workspace is one of the three types.
 
 use std::ops::Mul;
 
@@ -19,7 +20,13 @@ use nalgebra::{
 
 use crate::error::{CoreError, Result};
 
-/// A camera-to-world rigid transform.
+/// A camera-to-world rigid transform, untyped.
+#[deprecated(
+    since = "0.1.0",
+    note = "say the direction in the type: `CameraToWorld` (camera poses), `WorldToCamera` \
+            (extrinsics) or `CameraToCamera` (frame-to-frame motion); `Isometry3<f64>` for a \
+            plain rigid transform"
+)]
 pub type Pose = Isometry3<f64>;
 
 /// How far from orthonormal (max |RᵀR − I| entry) a dataset's rotation may be before it is
@@ -28,7 +35,7 @@ pub type Pose = Isometry3<f64>;
 pub const RIGID_TOLERANCE: f64 = 1e-3;
 
 /// Builds a pose from a row-major 4×4 matrix `[R t; 0 0 0 1]`, re-orthonormalising `R`.
-pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Pose> {
+pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Isometry3<f64>> {
     if m.iter().any(|v| !v.is_finite()) {
         return Err(CoreError::NotRigid("matrix has non-finite entries".into()));
     }
@@ -68,18 +75,18 @@ pub fn pose_from_matrix(m: &Matrix4<f64>) -> Result<Pose> {
 }
 
 /// Builds a pose from a row-major array of 16 numbers.
-pub fn pose_from_row_major(v: &[f64; 16]) -> Result<Pose> {
+pub fn pose_from_row_major(v: &[f64; 16]) -> Result<Isometry3<f64>> {
     pose_from_matrix(&Matrix4::from_row_slice(v))
 }
 
 /// The 4×4 homogeneous matrix of a pose.
-pub fn pose_to_matrix(p: &Pose) -> Matrix4<f64> {
+pub fn pose_to_matrix(p: &Isometry3<f64>) -> Matrix4<f64> {
     p.to_homogeneous()
 }
 
 /// Builds a pose from a translation and a quaternion `(qx, qy, qz, qw)` (TUM order). The
 /// quaternion is normalised; a (near-)zero quaternion is an error.
-pub fn pose_from_translation_quaternion(t: [f64; 3], q: [f64; 4]) -> Result<Pose> {
+pub fn pose_from_translation_quaternion(t: [f64; 3], q: [f64; 4]) -> Result<Isometry3<f64>> {
     let quat = Quaternion::new(q[3], q[0], q[1], q[2]);
     let n = quat.norm();
     if !(n.is_finite() && n > 1e-9) || t.iter().any(|v| !v.is_finite()) {

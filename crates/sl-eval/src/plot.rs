@@ -367,7 +367,7 @@ fn draw_line(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sl_noise::analysis::{AnalysisOptions, analyze_depths};
+    use sl_noise::analysis::{AnalysisConfig, analyze_depths};
     use sl_noise::sim::KinectSimulator;
 
     fn analysis() -> ResolutionAnalysis {
@@ -376,7 +376,7 @@ mod tests {
             max_depth_m: 3.0,
             ..KinectSimulator::kinect_v1().white()
         };
-        analyze_depths(sim.representable_depths(), &AnalysisOptions::default()).unwrap()
+        analyze_depths(sim.representable_depths(), &AnalysisConfig::default()).unwrap()
     }
 
     #[test]

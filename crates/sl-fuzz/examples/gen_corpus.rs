@@ -5,7 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
-use sl_core::{Camera, DepthImage, Image, Pose};
+use sl_core::nalgebra::Isometry3;
+use sl_core::{Camera, CameraToWorld, DepthImage, Image};
 use sl_io::depth::{DepthEncoding, write_depth};
 use sl_io::ply::{PlyData, PlyFormat, write_ply};
 
@@ -97,7 +98,11 @@ fn main() {
     let poses: Vec<sl_io::TimedPose> = (0..4)
         .map(|i| sl_io::TimedPose {
             timestamp: 1.0 + f64::from(i) * 0.03,
-            pose: Pose::translation(0.01 * f64::from(i), 0.0, 0.0),
+            pose: CameraToWorld::from_isometry(Isometry3::translation(
+                0.01 * f64::from(i),
+                0.0,
+                0.0,
+            )),
         })
         .collect();
     let b = bytes_of("txt", |p| {
@@ -110,7 +115,7 @@ fn main() {
         "associations.txt",
         b"# rgb depth\n1.0 rgb/1.png 1.01 depth/1.png\n1.03 rgb/2.png 1.04 depth/2.png\n",
     );
-    let plain: Vec<Pose> = poses.iter().map(|p| p.pose).collect();
+    let plain: Vec<CameraToWorld> = poses.iter().map(|p| p.pose).collect();
     let b = bytes_of("log", |p| {
         sl_io::trajectory::write_open3d_log(p, &plain).unwrap()
     });

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics};
 use sl_io::Limits;
-use sl_io::depth::{DepthFormat, ReadOptions};
+use sl_io::depth::{DepthFormat, ReadConfig};
 
 /// A fuzz target body.
 pub type Target = fn(&[u8]);
@@ -83,7 +83,7 @@ fn with_file(name: &str, data: &[u8], f: impl FnOnce(&Path)) {
 
 fn read_depth_as(name: &str, data: &[u8], format: DepthFormat) {
     with_file(name, data, |p| {
-        let opts = ReadOptions::default().with_format(format);
+        let opts = ReadConfig::default().with_format(format);
         let _ = sl_io::depth::read_depth_with_limits(p, &opts, &fuzz_limits());
         let _ = sl_io::depth::read_raw_depth_with_limits(p, &opts, &fuzz_limits());
     });

@@ -9,7 +9,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::{DepthImage, Image};
 use sl_io::ply::{PlyData, PlyFormat, encode_ply};
-use sl_io::{DepthEncoding, ReadOptions, read_depth, write_depth, write_ply};
+use sl_io::{DepthEncoding, ReadConfig, read_depth, write_depth, write_ply};
 
 /// A Kinect-like 640×480 frame: a tilted plane with a bump, in millimetres, some holes.
 fn frame() -> DepthImage {
@@ -54,7 +54,7 @@ fn bench_depth_png(c: &mut Criterion) {
     });
     write_depth(&path, &depth, &enc).expect("write");
     c.bench_function("read_depth_png_640x480", |b| {
-        b.iter(|| read_depth(black_box(&path), &ReadOptions::default()).expect("read"))
+        b.iter(|| read_depth(black_box(&path), &ReadConfig::default()).expect("read"))
     });
 }
 

@@ -380,17 +380,30 @@ fn rebuild(w: usize, h: usize, data: Vec<f32>) -> Image<f32> {
 }
 
 /// How [`read_depth`] interprets a file.
+///
+/// `#[non_exhaustive]`: start from [`ReadConfig::default`] (format from the extension, 1000
+/// units per metre) and set what you need with [`ReadConfig::with_format`] /
+/// [`ReadConfig::with_scale`] or by assigning the fields.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct ReadOptions {
+#[non_exhaustive]
+pub struct ReadConfig {
     /// The format; `None` infers it from the extension ([`DepthFormat::from_path`]).
     pub format: Option<DepthFormat>,
-    /// Units per metre for PNG/TIFF/SUN; `None` = 1000 (millimetres). Must be positive; giving it
-    /// for `nyu-raw` (which stores disparity) is an error.
+    /// Units per metre for PNG/TIFF/SUN; `None` = 1000 (millimetres). Must lie in
+    /// [`MIN_UNITS_PER_M`]`..=`[`MAX_UNITS_PER_M`]; giving it for `nyu-raw` (which stores
+    /// disparity) is an error.
     pub scale_units_per_m: Option<f64>,
 }
 
-impl ReadOptions {
-    /// Options with an explicit format.
+/// The former name of [`ReadConfig`].
+#[deprecated(
+    since = "0.1.0",
+    note = "renamed `ReadConfig` (every configuration is a `…Config`)"
+)]
+pub type ReadOptions = ReadConfig;
+
+impl ReadConfig {
+    /// The configuration with an explicit format.
     pub fn with_format(self, format: DepthFormat) -> Self {
         Self {
             format: Some(format),
@@ -398,12 +411,38 @@ impl ReadOptions {
         }
     }
 
-    /// Options with an explicit scale.
+    /// The configuration with an explicit scale.
     pub fn with_scale(self, units_per_m: f64) -> Self {
         Self {
             scale_units_per_m: Some(units_per_m),
             ..self
         }
+    }
+
+    /// Checks what can be checked before a file is named: a scale outside
+    /// [`MIN_UNITS_PER_M`]`..=`[`MAX_UNITS_PER_M`] (zero, negative, not finite), or a scale
+    /// with the `nyu-raw` format, is an [`IoError::InvalidConfig`]. The readers make the same
+    /// checks per file (with the format inferred from the extension) and report them with the
+    /// file's path.
+    pub fn validate(&self) -> Result<()> {
+        let Some(s) = self.scale_units_per_m else {
+            return Ok(());
+        };
+        if self.format == Some(DepthFormat::NyuRaw) {
+            return Err(IoError::InvalidConfig {
+                message: "a depth scale does not apply to nyu-raw files (they store Kinect \
+                          disparity)"
+                    .into(),
+            });
+        }
+        if !(MIN_UNITS_PER_M..=MAX_UNITS_PER_M).contains(&s) {
+            return Err(IoError::InvalidConfig {
+                message: format!(
+                    "invalid depth scale {s:e} units per metre (valid: 1 to 1e6 units per metre)"
+                ),
+            });
+        }
+        Ok(())
     }
 }
 
@@ -439,7 +478,7 @@ fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthForma
 }
 
 /// Reads the stored integer values of a depth file (see [`RawDepth`]).
-pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<RawDepth> {
+pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadConfig) -> Result<RawDepth> {
     read_raw_depth_with_limits(path, options, &Limits::default())
 }
 
@@ -447,7 +486,7 @@ pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<R
 /// anything is decoded.
 pub fn read_raw_depth_with_limits(
     path: impl AsRef<Path>,
-    options: &ReadOptions,
+    options: &ReadConfig,
     limits: &Limits,
 ) -> Result<RawDepth> {
     let path = path.as_ref();
@@ -486,14 +525,14 @@ pub fn read_raw_depth_with_limits(
 /// The format comes from `options.format` or the extension; the scale from
 /// `options.scale_units_per_m` (default 1000). Non-16-bit or multi-channel images are rejected
 /// with [`IoError::UnsupportedImage`]; decoding is bounded by [`crate::limits`].
-pub fn read_depth(path: impl AsRef<Path>, options: &ReadOptions) -> Result<LoadedDepth> {
+pub fn read_depth(path: impl AsRef<Path>, options: &ReadConfig) -> Result<LoadedDepth> {
     read_depth_with_limits(path, options, &Limits::default())
 }
 
 /// [`read_depth`] within `limits` (see [`read_raw_depth_with_limits`]).
 pub fn read_depth_with_limits(
     path: impl AsRef<Path>,
-    options: &ReadOptions,
+    options: &ReadConfig,
     limits: &Limits,
 ) -> Result<LoadedDepth> {
     let path = path.as_ref();

@@ -5,8 +5,9 @@ use std::path::{Path, PathBuf};
 
 /// Everything that can go wrong while reading or writing a file.
 ///
-/// Every variant carries the path of the file, so the message alone tells the user which file
-/// is wrong and why; text formats also give the 1-based line number.
+/// Every variant but [`IoError::InvalidConfig`] (a configuration checked before any file is
+/// named) carries the path of the file, so the message alone tells the user which file is wrong
+/// and why; text formats also give the 1-based line number.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum IoError {
@@ -139,6 +140,14 @@ pub enum IoError {
         /// What the name refers to.
         message: String,
     },
+    /// A configuration that no file could satisfy, found by its `validate()` before any file
+    /// is named (e.g. [`crate::depth::ReadConfig::validate`]); the one variant without a path
+    /// ([`IoError::path`] is empty).
+    #[error("invalid configuration: {message}")]
+    InvalidConfig {
+        /// What is wrong.
+        message: String,
+    },
     /// A PLY file that ply-rs cannot parse, or PLY content that does not fit [`crate::ply::PlyData`].
     #[error("{}: invalid PLY: {message}", .path.display())]
     Ply {
@@ -179,6 +188,7 @@ impl IoError {
             | Self::Json { path, .. }
             | Self::UnsafeOutput { path, .. }
             | Self::Ply { path, .. } => path,
+            Self::InvalidConfig { .. } => Path::new(""),
         }
     }
 

@@ -15,8 +15,8 @@
 //!   7-Scenes `camera-intrinsics.txt`.
 //! - [`ply`]: point clouds and triangle meshes (normals, colours, a per-vertex scalar), binary or
 //!   ASCII, through `ply-rs`.
-//! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`, 7-Scenes
-//!   `frame-*.pose.txt`, all as [`Frame`]s with camera-to-world [`sl_core::Pose`]s.
+//! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`,
+//!   7-Scenes `frame-*.pose.txt`, all as [`Frame`]s with [`sl_core::CameraToWorld`] poses.
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
 //!   rename), so readers never see half-written output.
 //!
@@ -27,7 +27,7 @@
 //! from an unchecked header.
 //!
 //! ```
-//! use sl_io::{DepthEncoding, ReadOptions, read_depth, write_depth};
+//! use sl_io::{DepthEncoding, ReadConfig, read_depth, write_depth};
 //! use sl_core::DepthImage;
 //!
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -40,7 +40,7 @@
 //! write_depth(&path, &depth, &DepthEncoding::tum())?;
 //!
 //! // Reading needs the scale (a PNG does not record it); the encoding comes back for writing.
-//! let loaded = read_depth(&path, &ReadOptions::default().with_scale(5000.0))?;
+//! let loaded = read_depth(&path, &ReadConfig::default().with_scale(5000.0))?;
 //! assert_eq!(loaded.encoding, DepthEncoding::tum());
 //! assert_eq!(loaded.depth.valid_count(), 7);
 //! assert!((loaded.depth.get(0, 0).unwrap_or(0.0) - 1.2346).abs() < 1e-6);
@@ -71,8 +71,10 @@ pub mod trajectory;
 pub use camera::{
     read_7scenes_intrinsics, read_camera, read_camera_json, read_intrinsics_txt, write_camera_json,
 };
+#[allow(deprecated)]
+pub use depth::ReadOptions;
 pub use depth::{
-    DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadOptions, read_depth, read_nyu_raw,
+    DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadConfig, read_depth, read_nyu_raw,
     read_raw_depth, write_depth,
 };
 pub use error::{IoError, Result};

@@ -13,9 +13,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use sl_core::{
-    CameraToWorld, Pose, pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
-};
+use sl_core::CameraToWorld;
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
@@ -50,15 +48,16 @@ pub struct Frame {
     /// The depth image file.
     pub depth_path: PathBuf,
     /// Camera-to-world pose.
-    pub pose: Pose,
+    pub pose: CameraToWorld,
     /// Capture time in seconds, when the dataset has one (TUM).
     pub timestamp: Option<f64>,
 }
 
 impl Frame {
-    /// The pose with its direction in its type.
+    /// The camera-to-world pose (the same as the field `pose`).
+    #[deprecated(since = "0.1.0", note = "the field `pose` is a `CameraToWorld` now")]
     pub fn camera_to_world(&self) -> CameraToWorld {
-        CameraToWorld::from_isometry(self.pose)
+        self.pose
     }
 }
 
@@ -68,13 +67,14 @@ pub struct TimedPose {
     /// Seconds.
     pub timestamp: f64,
     /// Camera-to-world pose.
-    pub pose: Pose,
+    pub pose: CameraToWorld,
 }
 
 impl TimedPose {
-    /// The pose with its direction in its type.
+    /// The camera-to-world pose (the same as the field `pose`).
+    #[deprecated(since = "0.1.0", note = "the field `pose` is a `CameraToWorld` now")]
     pub fn camera_to_world(&self) -> CameraToWorld {
-        CameraToWorld::from_isometry(self.pose)
+        self.pose
     }
 }
 
@@ -159,8 +159,11 @@ pub fn read_tum_trajectory_with_limits(
     for (n, line) in data_lines(&text) {
         let toks: Vec<&str> = line.split_whitespace().collect();
         let v = parse_n::<8>(path, n, &toks, "timestamp tx ty tz qx qy qz qw")?;
-        let pose = pose_from_translation_quaternion([v[1], v[2], v[3]], [v[4], v[5], v[6], v[7]])
-            .map_err(|e| IoError::core(path, Some(n), e))?;
+        let pose = CameraToWorld::from_translation_quaternion(
+            [v[1], v[2], v[3]],
+            [v[4], v[5], v[6], v[7]],
+        )
+        .map_err(|e| IoError::core(path, Some(n), e))?;
         poses.push(TimedPose {
             timestamp: v[0],
             pose,
@@ -175,8 +178,8 @@ pub fn read_tum_trajectory_with_limits(
 pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Result<()> {
     let mut text = String::from("# timestamp tx ty tz qx qy qz qw\n");
     for p in poses {
-        let t = p.pose.translation.vector;
-        let q = p.pose.rotation.coords; // (i, j, k, w) = (qx, qy, qz, qw)
+        let t = p.pose.translation();
+        let q = p.pose.rotation().coords; // (i, j, k, w) = (qx, qy, qz, qw)
         let _ = writeln!(
             text,
             "{:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
@@ -306,13 +309,14 @@ pub struct LogEntry {
     /// The metadata line `i j n` (for a trajectory: frame index, frame index, frame count).
     pub metadata: [u64; 3],
     /// Camera-to-world pose.
-    pub pose: Pose,
+    pub pose: CameraToWorld,
 }
 
 impl LogEntry {
-    /// The pose with its direction in its type.
+    /// The camera-to-world pose (the same as the field `pose`).
+    #[deprecated(since = "0.1.0", note = "the field `pose` is a `CameraToWorld` now")]
     pub fn camera_to_world(&self) -> CameraToWorld {
-        CameraToWorld::from_isometry(self.pose)
+        self.pose
     }
 }
 
@@ -376,19 +380,20 @@ pub fn read_open3d_log_with_limits(
             let v = parse_n::<4>(path, n, &toks, "a matrix row")?;
             m[r * 4..r * 4 + 4].copy_from_slice(&v);
         }
-        let pose = pose_from_row_major(&m).map_err(|e| IoError::core(path, Some(n0), e))?;
+        let pose =
+            CameraToWorld::from_row_major(&m).map_err(|e| IoError::core(path, Some(n0), e))?;
         out.push(LogEntry { metadata, pose });
     }
     Ok(out)
 }
 
 /// Writes an Open3D `.log` trajectory (`i i n` metadata, as Open3D writes odometry), atomically.
-pub fn write_open3d_log(path: impl AsRef<Path>, poses: &[Pose]) -> Result<()> {
+pub fn write_open3d_log(path: impl AsRef<Path>, poses: &[CameraToWorld]) -> Result<()> {
     let mut text = String::new();
     let n = poses.len();
     for (i, p) in poses.iter().enumerate() {
         let _ = writeln!(text, "{i} {i} {n}");
-        let m = pose_to_matrix(p);
+        let m = p.to_matrix();
         for r in 0..4 {
             let _ = writeln!(
                 text,
@@ -461,7 +466,7 @@ pub fn read_open3d_log_frames_with_limits(
 }
 
 /// Reads one 4×4 row-major pose file (7-Scenes `frame-XXXXXX.pose.txt`).
-pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
+pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<CameraToWorld> {
     let path = path.as_ref();
     let text = read_text(path, 1 << 20, 1 << 10)?;
     let mut m = [0.0; 16];
@@ -488,7 +493,7 @@ pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<Pose> {
             format!("found {k} numbers, a 4x4 pose needs 16"),
         ));
     }
-    pose_from_row_major(&m).map_err(|e| IoError::core(path, None, e))
+    CameraToWorld::from_row_major(&m).map_err(|e| IoError::core(path, None, e))
 }
 
 /// Reads a 7-Scenes sequence directory: every `frame-XXXXXX.pose.txt`, sorted by name, with its
@@ -568,7 +573,8 @@ pub fn read_frame_list(path: impl AsRef<Path>, limits: &Limits) -> Result<Vec<Fr
                 .parse()
                 .map_err(|_| IoError::parse(path, i + 1, format!("{t:?} is not a number")))?;
         }
-        let pose = pose_from_row_major(&m).map_err(|e| IoError::core(path, Some(i + 1), e))?;
+        let pose =
+            CameraToWorld::from_row_major(&m).map_err(|e| IoError::core(path, Some(i + 1), e))?;
         frames.push(Frame {
             depth_path: base.join(toks[0]),
             pose,
@@ -583,10 +589,14 @@ mod tests {
     use super::*;
     use sl_core::nalgebra::{Isometry3, Vector3};
 
+    fn c2w(t: Vector3<f64>, r: Vector3<f64>) -> CameraToWorld {
+        CameraToWorld::from_isometry(Isometry3::new(t, r))
+    }
+
     fn tp(t: f64) -> TimedPose {
         TimedPose {
             timestamp: t,
-            pose: Isometry3::new(Vector3::new(t, 0.0, 0.0), Vector3::zeros()),
+            pose: c2w(Vector3::new(t, 0.0, 0.0), Vector3::zeros()),
         }
     }
 
@@ -605,7 +615,7 @@ mod tests {
             0.02,
         );
         assert_eq!(seq.frames.len(), 1);
-        assert_eq!(seq.frames[0].pose.translation.vector.x, 1.01);
+        assert_eq!(seq.frames[0].pose.translation().x, 1.01);
         assert_eq!(seq.without_pose, vec![(1.5, PathBuf::from("b"))]);
     }
 
@@ -616,7 +626,7 @@ mod tests {
         let poses: Vec<TimedPose> = (0..5)
             .map(|i| TimedPose {
                 timestamp: 100.0 + f64::from(i) * 0.01,
-                pose: Isometry3::new(
+                pose: c2w(
                     Vector3::new(1.0, -2.0, 0.5 * f64::from(i)),
                     Vector3::new(0.1, 0.2 * f64::from(i), -0.3),
                 ),
@@ -627,13 +637,7 @@ mod tests {
         assert_eq!(back.len(), 5);
         for (a, b) in back.iter().zip(&poses) {
             assert!((a.timestamp - b.timestamp).abs() < 1e-6);
-            assert_eq!(a.camera_to_world().isometry(), &a.pose);
-            assert!(
-                (a.pose.to_homogeneous() - b.pose.to_homogeneous())
-                    .abs()
-                    .max()
-                    < 1e-8
-            );
+            assert!((a.pose.to_matrix() - b.pose.to_matrix()).abs().max() < 1e-8);
         }
         std::fs::write(&p, "# c\n1 0 0 0 0 0 0 1\n2 0 0 0 0 0 0\n").unwrap();
         match read_tum_trajectory(&p).unwrap_err() {
@@ -651,15 +655,15 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("t.log");
         let poses = vec![
-            Isometry3::new(Vector3::new(2.0, 2.0, -0.3), Vector3::zeros()),
-            Isometry3::new(Vector3::new(1.0, 0.0, 0.5), Vector3::new(0.0, 0.3, 0.1)),
+            c2w(Vector3::new(2.0, 2.0, -0.3), Vector3::zeros()),
+            c2w(Vector3::new(1.0, 0.0, 0.5), Vector3::new(0.0, 0.3, 0.1)),
         ];
         write_open3d_log(&p, &poses).unwrap();
         let back = read_open3d_log(&p).unwrap();
         assert_eq!(back.len(), 2);
         assert_eq!(back[1].metadata, [1, 1, 2]);
         for (a, b) in back.iter().zip(&poses) {
-            assert!((a.pose.to_homogeneous() - b.to_homogeneous()).abs().max() < 1e-9);
+            assert!((a.pose.to_matrix() - b.to_matrix()).abs().max() < 1e-9);
         }
         std::fs::write(&p, "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n").unwrap();
         assert!(matches!(
@@ -693,7 +697,7 @@ mod tests {
         let frames = read_7scenes_sequence(d).unwrap();
         assert_eq!(frames.len(), 2);
         assert!(frames[0].depth_path.ends_with("frame-000001.depth.png"));
-        assert_eq!(frames[0].pose.translation.vector.x, 0.5);
+        assert_eq!(frames[0].pose.translation().x, 0.5);
         std::fs::write(
             d.join("frame-000002.pose.txt"),
             "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0\n",

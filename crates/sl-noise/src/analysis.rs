@@ -45,8 +45,12 @@ pub const FAR_RANGE_STEPS: f64 = 1.5;
 pub const REFINE_STEPS: f64 = 4.0;
 
 /// Settings of [`analyze_with`].
+///
+/// `#[non_exhaustive]`: start from [`AnalysisConfig::default`] (the `kinect-v1` sensor) or
+/// [`AnalysisConfig::for_sensor`] and assign the fields you need.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct AnalysisOptions {
+#[non_exhaustive]
+pub struct AnalysisConfig {
     /// The sensor's depth output step, metres (1 mm for a Kinect); depths are rounded to it.
     pub depth_step_m: f64,
     /// The camera's sub-pixel disparity steps `q`, if known (gives the implied `f·B`).
@@ -55,8 +59,16 @@ pub struct AnalysisOptions {
     pub nominal_fb_px_m: Option<f64>,
 }
 
-impl AnalysisOptions {
-    /// Options for a camera with the given sensor model: 1 mm steps, its `q` and its `f·B`.
+/// The former name of [`AnalysisConfig`].
+#[deprecated(
+    since = "0.1.0",
+    note = "renamed `AnalysisConfig` (every configuration is a `…Config`)"
+)]
+pub type AnalysisOptions = AnalysisConfig;
+
+impl AnalysisConfig {
+    /// The configuration for a camera with the given sensor model: 1 mm steps, its `q` and its
+    /// `f·B`.
     pub fn for_sensor(sensor: &SensorModel) -> Self {
         Self {
             depth_step_m: 0.001,
@@ -64,9 +76,26 @@ impl AnalysisOptions {
             nominal_fb_px_m: Some(sensor.fb()),
         }
     }
+
+    /// Checks the settings: the depth step must be a positive number and `q`, when given, at
+    /// least 1 ([`NoiseError::InvalidParameter`] otherwise). [`analyze_with`] checks the same.
+    pub fn validate(&self) -> Result<()> {
+        let step = self.depth_step_m;
+        if !(step.is_finite() && step > 0.0) {
+            return Err(NoiseError::InvalidParameter(format!(
+                "depth step {step} m must be positive"
+            )));
+        }
+        if self.subpixel_steps == Some(0) {
+            return Err(NoiseError::InvalidParameter(
+                "sub-pixel steps must be at least 1".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
-impl Default for AnalysisOptions {
+impl Default for AnalysisConfig {
     fn default() -> Self {
         Self::for_sensor(&SensorModel::kinect_v1())
     }
@@ -168,32 +197,23 @@ pub struct ResolutionAnalysis {
     pub disparity_bin_offset_px: f64,
 }
 
-/// Analyses a depth map with the options of a camera's sensor model ([`AnalysisOptions::for_sensor`]).
+/// Analyses a depth map with the options of a camera's sensor model ([`AnalysisConfig::for_sensor`]).
 pub fn analyze(depth: &DepthImage, sensor: &SensorModel) -> Result<ResolutionAnalysis> {
-    analyze_with(depth, &AnalysisOptions::for_sensor(sensor))
+    analyze_with(depth, &AnalysisConfig::for_sensor(sensor))
 }
 
 /// Analyses a depth map (0 / non-finite = invalid).
-pub fn analyze_with(depth: &DepthImage, opts: &AnalysisOptions) -> Result<ResolutionAnalysis> {
+pub fn analyze_with(depth: &DepthImage, opts: &AnalysisConfig) -> Result<ResolutionAnalysis> {
     analyze_depths(depth.data().iter().map(|z| f64::from(*z)), opts)
 }
 
 /// Analyses any collection of depths in metres (non-positive or non-finite values are ignored).
 pub fn analyze_depths(
     depths_m: impl IntoIterator<Item = f64>,
-    opts: &AnalysisOptions,
+    opts: &AnalysisConfig,
 ) -> Result<ResolutionAnalysis> {
+    opts.validate()?;
     let step = opts.depth_step_m;
-    if !(step.is_finite() && step > 0.0) {
-        return Err(NoiseError::InvalidParameter(format!(
-            "depth step {step} m must be positive"
-        )));
-    }
-    if opts.subpixel_steps == Some(0) {
-        return Err(NoiseError::InvalidParameter(
-            "sub-pixel steps must be at least 1".into(),
-        ));
-    }
     let mut valid_pixels = 0usize;
     let mut keys: Vec<i64> = Vec::new();
     for z in depths_m {
@@ -576,7 +596,7 @@ mod tests {
     fn perfect_ladder_recovers_quantum_and_steps() {
         for sensor in [SensorModel::kinect_v1(), SensorModel::paper_kinect()] {
             let z = ladder(sensor, 0.5, 4.0);
-            let opts = AnalysisOptions::for_sensor(&sensor);
+            let opts = AnalysisConfig::for_sensor(&sensor);
             let a = analyze_depths(z.iter().copied(), &opts).unwrap();
             let fb = a.fb_px_m.unwrap();
             assert!(
@@ -607,7 +627,7 @@ mod tests {
             .into_iter()
             .filter(|z| (0.8..1.8).contains(z) || (2.2..3.0).contains(z))
             .collect();
-        let a = analyze_depths(z.iter().copied(), &AnalysisOptions::for_sensor(&sensor)).unwrap();
+        let a = analyze_depths(z.iter().copied(), &AnalysisConfig::for_sensor(&sensor)).unwrap();
         assert_eq!(a.gap_pairs, 1);
         assert!(
             (a.slope_continuous - 2.0).abs() < 0.1,
@@ -626,8 +646,7 @@ mod tests {
             .into_iter()
             .filter(|z| (0.8..3.0).contains(z))
             .collect();
-        let b =
-            analyze_depths(full.iter().copied(), &AnalysisOptions::for_sensor(&sensor)).unwrap();
+        let b = analyze_depths(full.iter().copied(), &AnalysisConfig::for_sensor(&sensor)).unwrap();
         assert_eq!(b.gap_pairs, 0);
         assert_eq!(b.slope, b.slope_continuous);
     }
@@ -640,9 +659,9 @@ mod tests {
             ..SensorModel::kinect_v1()
         };
         let z = ladder(sensor, 0.8, 4.5);
-        let opts = AnalysisOptions {
+        let opts = AnalysisConfig {
             subpixel_steps: None,
-            ..AnalysisOptions::for_sensor(&sensor)
+            ..AnalysisConfig::for_sensor(&sensor)
         };
         let a = analyze_depths(z.iter().copied(), &opts).unwrap();
         assert_eq!(a.fb_source, FbSource::Nominal);
@@ -661,7 +680,7 @@ mod tests {
             .filter(|(i, z)| i % 17 != 3 && !(1.9..2.1).contains(z))
             .map(|(_, z)| z)
             .collect();
-        let a = analyze_depths(z, &AnalysisOptions::for_sensor(&sensor)).unwrap();
+        let a = analyze_depths(z, &AnalysisConfig::for_sensor(&sensor)).unwrap();
         assert!((a.fb_px_m.unwrap() / sensor.fb() - 1.0).abs() < 2e-3);
         assert!((a.slope_robust - 2.0).abs() < 0.15, "{}", a.slope_robust);
         assert_eq!(a.subpixel_steps_max, Some(8));
@@ -692,16 +711,21 @@ mod tests {
 
     #[test]
     fn errors() {
-        let opts = AnalysisOptions::default();
+        let opts = AnalysisConfig::default();
         let few = DepthImage::from_vec(4, 1, vec![1.0, 1.0, 2.0, 0.0]).unwrap();
         assert!(matches!(
             analyze_with(&few, &opts),
             Err(NoiseError::TooFewDepths { found: 2, .. })
         ));
-        let bad = AnalysisOptions {
+        assert!(opts.validate().is_ok());
+        let bad = AnalysisConfig {
             depth_step_m: 0.0,
             ..opts
         };
+        assert!(matches!(
+            bad.validate(),
+            Err(NoiseError::InvalidParameter(_))
+        ));
         assert!(matches!(
             analyze_with(&few, &bad),
             Err(NoiseError::InvalidParameter(_))

@@ -53,5 +53,7 @@ pub mod sim;
 pub mod stats;
 
 pub use algorithm1::{Algorithm1, Algorithm1Params, algorithm1, algorithm1_with};
-pub use analysis::{AnalysisOptions, ResolutionAnalysis, analyze, analyze_with};
+#[allow(deprecated)]
+pub use analysis::AnalysisOptions;
+pub use analysis::{AnalysisConfig, ResolutionAnalysis, analyze, analyze_with};
 pub use error::{NoiseError, Result};

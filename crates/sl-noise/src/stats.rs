@@ -5,7 +5,7 @@
 //! (1.. = region, 0 = none; e.g. the planes `sl-planes` extracts, or a simulator's surface
 //! labels) and reports:
 //!
-//! * **σ_D per depth band**: inside each region, tile by tile ([`NoiseStatsOptions::tile_px`],
+//! * **σ_D per depth band**: inside each region, tile by tile ([`NoiseStatsConfig::tile_px`],
 //!   64 px, so non-flat walls and low-frequency distortion do not count as noise), the disparity
 //!   `D = f·B/Z` is fitted by an affine function of the pixel (exact for a plane, eq. 14 of the
 //!   paper) with one robust refit (residuals beyond 4 MAD-σ are dropped); the RMS residual of
@@ -15,7 +15,7 @@
 //! * **terrace widths**: runs of identical depth along rows inside a region (complete runs only,
 //!   bounded on both sides by a different valid depth of the same region and fitted tiles);
 //! * **occlusion bands**: per row, the runs of invalid pixels between a valid foreground pixel
-//!   and a valid background pixel more than [`NoiseStatsOptions::jump_m`] deeper, split by the
+//!   and a valid background pixel more than [`NoiseStatsConfig::jump_m`] deeper, split by the
 //!   side of the foreground the band lies on; with the width the projector shadow alone would
 //!   have (`f·B·(1/Z_fg − 1/Z_bg)`), so the excess (edge invalidation) can be read off.
 //!
@@ -34,9 +34,11 @@ pub const MIN_TILE_RESIDUALS: usize = 256;
 pub const DEFAULT_LAGS: [usize; 5] = [1, 2, 4, 8, 16];
 
 /// Settings of [`noise_stats`].
+///
+/// `#[non_exhaustive]`: start from [`NoiseStatsConfig::default`] and assign the fields you need.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[non_exhaustive]
-pub struct NoiseStatsOptions {
+pub struct NoiseStatsConfig {
     /// Lags of the autocorrelation, pixels.
     pub lags: Vec<usize>,
     /// Edges of the depth bands for σ_D, metres, ascending.
@@ -51,7 +53,43 @@ pub struct NoiseStatsOptions {
     pub max_band_px: usize,
 }
 
-impl Default for NoiseStatsOptions {
+/// The former name of [`NoiseStatsConfig`].
+#[deprecated(
+    since = "0.1.0",
+    note = "renamed `NoiseStatsConfig` (every configuration is a `…Config`)"
+)]
+pub type NoiseStatsOptions = NoiseStatsConfig;
+
+impl NoiseStatsConfig {
+    /// Checks the settings: `jump_m` must be a positive number, the band edges ascending and
+    /// `tile_px` positive ([`NoiseError::InvalidParameter`] otherwise). [`noise_stats`] checks
+    /// the same first.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.jump_m.is_finite() && self.jump_m > 0.0) {
+            return Err(NoiseError::InvalidParameter(format!(
+                "jump_m = {} must be positive",
+                self.jump_m
+            )));
+        }
+        if self
+            .band_edges_m
+            .windows(2)
+            .any(|e| e[0].partial_cmp(&e[1]) != Some(std::cmp::Ordering::Less))
+        {
+            return Err(NoiseError::InvalidParameter(
+                "band edges must be ascending".into(),
+            ));
+        }
+        if self.tile_px == 0 {
+            return Err(NoiseError::InvalidParameter(
+                "tile_px must be positive".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Default for NoiseStatsConfig {
     fn default() -> Self {
         Self {
             lags: DEFAULT_LAGS.to_vec(),
@@ -371,23 +409,9 @@ pub fn noise_stats(
     depth: &DepthImage,
     fb_px_m: f64,
     regions: &Image<u16>,
-    opts: &NoiseStatsOptions,
+    opts: &NoiseStatsConfig,
 ) -> Result<NoiseStats> {
-    if !(opts.jump_m.is_finite() && opts.jump_m > 0.0) {
-        return Err(NoiseError::InvalidParameter(format!(
-            "jump_m = {} must be positive",
-            opts.jump_m
-        )));
-    }
-    if opts
-        .band_edges_m
-        .windows(2)
-        .any(|e| e[0].partial_cmp(&e[1]) != Some(std::cmp::Ordering::Less))
-    {
-        return Err(NoiseError::InvalidParameter(
-            "band edges must be ascending".into(),
-        ));
-    }
+    opts.validate()?;
     let res = disparity_residuals(depth, fb_px_m, regions, opts.tile_px, opts.min_tile_pixels)?;
     let (w, h) = (depth.width(), depth.height());
     let r = res.residual.data();
@@ -680,7 +704,7 @@ mod tests {
         let (w, h, fb) = (128, 128, 43.5);
         let depth = checker(w, h, fb, 20.0, 0.05);
         let labels = Image::filled(w, h, 1u16);
-        let s = noise_stats(&depth, fb, &labels, &NoiseStatsOptions::default()).unwrap();
+        let s = noise_stats(&depth, fb, &labels, &NoiseStatsConfig::default()).unwrap();
         assert!((s.sigma_d_px - 0.05).abs() < 1e-4, "{}", s.sigma_d_px);
         let (x1, y1) = s.acf_at(1).unwrap();
         let (x2, y2) = s.acf_at(2).unwrap();
@@ -729,16 +753,18 @@ mod tests {
     fn bad_inputs_are_errors() {
         let depth = checker(16, 16, 43.5, 20.0, 0.0);
         let wrong = Image::filled(8, 8, 1u16);
-        assert!(noise_stats(&depth, 43.5, &wrong, &NoiseStatsOptions::default()).is_err());
+        assert!(noise_stats(&depth, 43.5, &wrong, &NoiseStatsConfig::default()).is_err());
         let labels = Image::filled(16, 16, 1u16);
-        assert!(noise_stats(&depth, -1.0, &labels, &NoiseStatsOptions::default()).is_err());
-        let o = NoiseStatsOptions {
+        assert!(noise_stats(&depth, -1.0, &labels, &NoiseStatsConfig::default()).is_err());
+        let o = NoiseStatsConfig {
             tile_px: 0,
-            ..NoiseStatsOptions::default()
+            ..NoiseStatsConfig::default()
         };
         assert!(noise_stats(&depth, 43.5, &labels, &o).is_err());
+        assert!(matches!(o.validate(), Err(NoiseError::InvalidParameter(_))));
+        assert!(NoiseStatsConfig::default().validate().is_ok());
         // Too small to fit: no tiles, NaN statistics, no panic.
-        let s = noise_stats(&depth, 43.5, &labels, &NoiseStatsOptions::default()).unwrap();
+        let s = noise_stats(&depth, 43.5, &labels, &NoiseStatsConfig::default()).unwrap();
         assert_eq!(s.regions, 0);
         assert!(s.sigma_d_px.is_nan());
     }

@@ -175,12 +175,12 @@ pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::CameraToWo
     sl_core::CameraToWorld::from_row_major(&flat).map_err(value_error)
 }
 
-/// A NumPy (4, 4) float64 array of a pose.
+/// A NumPy (4, 4) float64 array of a pose's homogeneous matrix (`to_matrix()` of any of the
+/// typed poses).
 pub(crate) fn pose_array<'py>(
     py: Python<'py>,
-    pose: &sl_core::Pose,
+    m: &sl_core::nalgebra::Matrix4<f64>,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let m = pose.to_homogeneous();
     let a = Array2::from_shape_fn((4, 4), |(i, j)| m[(i, j)]);
     Ok(a.into_pyarray(py))
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_io::Limits;
-use sl_io::depth::{DepthEncoding, DepthFormat, ReadOptions};
+use sl_io::depth::{DepthEncoding, DepthFormat, ReadConfig};
 
 use crate::arrays::{depth_array, depth_input};
 use crate::errors::{io_error, value_error};
@@ -32,10 +32,9 @@ pub(crate) fn read_depth<'py>(
     format: Option<&str>,
     max_memory_bytes: Option<u64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-    let opts = ReadOptions {
-        format: parse_format(format)?,
-        scale_units_per_m: depth_scale,
-    };
+    let mut opts = ReadConfig::default();
+    opts.format = parse_format(format)?;
+    opts.scale_units_per_m = depth_scale;
     let limits = max_memory_bytes.map_or_else(Limits::default, Limits::for_memory);
     let loaded = compute(py, || {
         sl_io::depth::read_depth_with_limits(&path, &opts, &limits)

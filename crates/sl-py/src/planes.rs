@@ -196,10 +196,10 @@ pub(crate) fn motion(
         determined: pose.is_some(),
         matrix: pose
             .as_ref()
-            .map(|p| pose_array(py, p))
+            .map(|p| pose_array(py, &p.to_matrix()))
             .transpose()?
             .map(Bound::unbind),
-        rotation_deg: pose.map(|p| p.rotation.angle().to_degrees()),
+        rotation_deg: pose.map(|p| p.rotation_angle_deg()),
         translation_determined: r.translation_m().is_some(),
         confidence: match &r.motion {
             Ok(m) => m.confidence.as_str().to_string(),

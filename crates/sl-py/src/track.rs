@@ -119,7 +119,7 @@ impl PyTracker {
         })
         .map_err(value_error)?;
         Ok((
-            pose_array(py, result.pose.isometry())?,
+            pose_array(py, &result.pose.to_matrix())?,
             result.status.as_str(),
         ))
     }

@@ -20,7 +20,7 @@
 use std::path::{Path, PathBuf};
 
 use sl_core::{Camera, DepthImage};
-use sl_io::depth::{DepthFormat, ReadOptions};
+use sl_io::depth::{DepthFormat, ReadConfig};
 
 /// Environment variable that overrides the data directory.
 pub const DATA_ENV: &str = "SLDEPTH_DATA";
@@ -77,10 +77,8 @@ pub struct RealFrame {
 
 /// Reads a depth file with `units_per_m` (or its format's own conversion for NYU raw).
 pub fn read_depth(path: &Path, units_per_m: Option<f64>) -> Result<DepthImage, sl_io::IoError> {
-    let opts = ReadOptions {
-        format: None,
-        scale_units_per_m: units_per_m,
-    };
+    let mut opts = ReadConfig::default();
+    opts.scale_units_per_m = units_per_m;
     Ok(sl_io::read_depth(path, &opts)?.depth)
 }
 
@@ -143,7 +141,7 @@ pub fn nyu_raw() -> Option<RealFrame> {
     let path = dir.join("open3d-testdata/nyu-raw-disparity.pgm");
     let depth = match sl_io::read_depth(
         &path,
-        &ReadOptions::default().with_format(DepthFormat::NyuRaw),
+        &ReadConfig::default().with_format(DepthFormat::NyuRaw),
     ) {
         Ok(l) => l.depth,
         Err(e) => {
@@ -243,7 +241,7 @@ pub struct PosedSequence {
     /// The dataset's camera preset.
     pub camera: Camera,
     /// Depth (metres) and camera-to-world pose of each frame, in order.
-    pub frames: Vec<(DepthImage, sl_core::Pose)>,
+    pub frames: Vec<(DepthImage, sl_core::CameraToWorld)>,
 }
 
 fn posed(

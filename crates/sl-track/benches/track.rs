@@ -7,7 +7,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, DepthImage, SensorModel};
+use sl_core::{Camera, CameraToCamera, DepthImage, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
 use sl_track::{ReferenceMaps, Tracker, TrackerConfig};
 use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
@@ -16,15 +16,15 @@ fn frames(n: usize) -> (Camera, Vec<DepthImage>) {
     let scene = named_scene("boxes").unwrap();
     let k = scene.intrinsics;
     let sim = KinectSimulator::kinect_v1().white();
-    let step = Isometry3::from_parts(
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.01, 0.0, 0.0),
         UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
-    );
+    ));
     let mut pose = scene.pose;
     let mut out = Vec::new();
     for i in 0..n {
         out.push(sim.apply(&scene.scene.render(&k, &pose).depth, i as u64));
-        pose *= step;
+        pose = pose * step;
     }
     (
         Camera {

@@ -3,8 +3,8 @@
 //! refine with point-to-plane ICP that is kept only when the depth data confirm it. The
 //! `sldepth motion` command and the Python `sldepth.motion` are thin formatters of this.
 
-use nalgebra::{Isometry3, Vector3};
-use sl_core::{Camera, DepthImage};
+use nalgebra::Vector3;
+use sl_core::{Camera, CameraToCamera, DepthImage};
 
 use crate::error::{Result, TrackError};
 use crate::motion::{
@@ -64,16 +64,16 @@ pub struct DepthMotion {
 impl DepthMotion {
     /// The final pose `X_a = R·X_b + t`: the accepted ICP refinement, else the plane estimate;
     /// `None` when undetermined. Without a determined translation it is 0.
-    pub fn pose(&self) -> Option<Isometry3<f64>> {
+    pub fn pose(&self) -> Option<CameraToCamera> {
         let m = self.motion.as_ref().ok()?;
-        Some(self.icp.as_ref().map_or_else(|| m.isometry(), |o| o.pose))
+        Some(self.icp.as_ref().map_or_else(|| m.motion(), |o| o.pose))
     }
 
     /// The translation, when it is determined (the matched normals span 3D, or ICP was kept).
     pub fn translation_m(&self) -> Option<Vector3<f64>> {
         let m = self.motion.as_ref().ok()?;
         match &self.icp {
-            Some(o) if o.accepted => Some(o.pose.translation.vector),
+            Some(o) if o.accepted => Some(o.pose.translation()),
             _ => m.translation_m,
         }
     }

@@ -31,11 +31,11 @@
 //!     (Vector3::new(-0.8, 0.1, -0.6).normalize(), 1.5),
 //!     (Vector3::new(0.1, -0.9, -0.4).normalize(), 1.2),
 //! ];
-//! let render = |pose: &Isometry3<f64>| -> Result<DepthImage, sl_core::CoreError> {
+//! let render = |pose: &CameraToWorld| -> Result<DepthImage, sl_core::CoreError> {
 //!     let mut z = vec![0f32; k.width * k.height];
 //!     for (i, zi) in z.iter_mut().enumerate() {
-//!         let ray = pose.rotation * k.ray((i % k.width) as f64, (i / k.width) as f64);
-//!         let o = pose.translation.vector;
+//!         let ray = pose.rotation() * k.ray((i % k.width) as f64, (i / k.width) as f64);
+//!         let o = pose.translation();
 //!         let mut best = f64::INFINITY;
 //!         for (n, d) in &walls {
 //!             let s = -(n.dot(&o) + d) / n.dot(&ray);
@@ -45,13 +45,16 @@
 //!     }
 //!     DepthImage::from_vec(k.width, k.height, z)
 //! };
-//! let moved = Isometry3::from_parts(Translation3::new(0.01, 0.0, 0.0), UnitQuaternion::identity());
+//! let moved = CameraToWorld::from_isometry(Isometry3::from_parts(
+//!     Translation3::new(0.01, 0.0, 0.0),
+//!     UnitQuaternion::identity(),
+//! ));
 //! let mut tracker = Tracker::new(cam, TrackerConfig::default())?;
-//! let first = tracker.track(&render(&Isometry3::identity())?, None)?;
+//! let first = tracker.track(&render(&CameraToWorld::identity())?, None)?;
 //! assert_eq!(first.status, TrackStatus::Initialised);
 //! let second = tracker.track(&render(&moved)?, None)?;
 //! assert_eq!(second.status, TrackStatus::Tracked);
-//! let err = (second.pose.translation() - moved.translation.vector).norm();
+//! let err = (second.pose.translation() - moved.translation()).norm();
 //! assert!(err < 1e-3, "translation error {err} m");
 //! # let _: CameraToWorld = second.pose;
 //! # Ok::<(), Box<dyn std::error::Error>>(())

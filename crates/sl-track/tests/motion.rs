@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 use sl_core::nalgebra::{Isometry3, Point3, Translation3, Unit, UnitQuaternion, Vector3};
-use sl_core::{Camera, DepthImage};
+use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage};
 use sl_noise::sim::{KinectSimulator, Plane as SimPlane, Scene, Sphere};
 
 use sl_track::{
@@ -118,8 +118,8 @@ proptest! {
         let scene = cluttered_room();
         let sim = KinectSimulator::kinect_v1().white();
         let k = cam.intrinsics;
-        let da = sim.simulate(&scene, &k, &Isometry3::identity(), seed).depth;
-        let db = sim.simulate(&scene, &k, &b_in_a, seed + 1).depth;
+        let da = sim.simulate(&scene, &k, &CameraToWorld::identity(), seed).depth;
+        let db = sim.simulate(&scene, &k, &CameraToWorld::from_isometry(b_in_a), seed + 1).depth;
         let m = verified_from_depths(&cam, &da, &db).unwrap();
         let err = m.rotation.angle_to(&rot).to_degrees();
         prop_assert_eq!(m.confidence, MotionConfidence::Verified);
@@ -152,8 +152,8 @@ proptest! {
         let b_in_a = Isometry3::from_parts(Translation3::new(t.0, t.1, t.2), rot);
         let scene = cluttered_room();
         let sim = KinectSimulator::kinect_v1().white();
-        let da = sim.simulate(&scene, &cam.intrinsics, &Isometry3::identity(), seed).depth;
-        let db = sim.simulate(&scene, &cam.intrinsics, &b_in_a, seed + 1).depth;
+        let da = sim.simulate(&scene, &cam.intrinsics, &CameraToWorld::identity(), seed).depth;
+        let db = sim.simulate(&scene, &cam.intrinsics, &CameraToWorld::from_isometry(b_in_a), seed + 1).depth;
         match verified_from_depths(&cam, &da, &db) {
             Ok(m) => {
                 let err = m.rotation.angle_to(&rot).to_degrees();
@@ -198,8 +198,22 @@ fn shared_floor_only_is_not_a_wrong_rotation() {
     let b_in_world = Isometry3::from_parts(Translation3::identity(), yaw(5.0) * down);
     let b_in_a = a_in_world.inverse() * b_in_world;
     let sim = KinectSimulator::kinect_v1().white();
-    let da = sim.simulate(&scene, &cam.intrinsics, &a_in_world, 7).depth;
-    let db = sim.simulate(&scene, &cam.intrinsics, &b_in_world, 8).depth;
+    let da = sim
+        .simulate(
+            &scene,
+            &cam.intrinsics,
+            &CameraToWorld::from_isometry(a_in_world),
+            7,
+        )
+        .depth;
+    let db = sim
+        .simulate(
+            &scene,
+            &cam.intrinsics,
+            &CameraToWorld::from_isometry(b_in_world),
+            8,
+        )
+        .depth;
     let r = verified_from_depths(&cam, &da, &db);
     match r {
         Ok(m) => {
@@ -237,8 +251,12 @@ fn verified_room_motion() -> (
     let scene = cluttered_room();
     let sim = KinectSimulator::kinect_v1().white();
     let k = cam.intrinsics;
-    let da = sim.simulate(&scene, &k, &Isometry3::identity(), 3).depth;
-    let db = sim.simulate(&scene, &k, &truth, 4).depth;
+    let da = sim
+        .simulate(&scene, &k, &CameraToWorld::identity(), 3)
+        .depth;
+    let db = sim
+        .simulate(&scene, &k, &CameraToWorld::from_isometry(truth), 4)
+        .depth;
     let m = verified_from_depths(&cam, &da, &db).unwrap();
     assert_eq!(m.confidence, MotionConfidence::Verified);
     (cam, da, db, truth, m)
@@ -266,9 +284,9 @@ fn verified_icp_refinement_is_accepted() {
     );
     assert!(out.overlap_fraction_after.unwrap() >= vcfg.min_overlap_fraction);
     assert_eq!(Some(out.pose), out.icp.as_ref().map(|r| r.pose));
-    let err = out.pose.rotation.angle_to(&truth.rotation).to_degrees();
+    let err = out.pose.rotation().angle_to(&truth.rotation).to_degrees();
     assert!(err < 0.5, "refined rotation error {err}°");
-    assert!((out.pose.translation.vector - truth.translation.vector).norm() < 0.02);
+    assert!((out.pose.translation() - truth.translation.vector).norm() < 0.02);
 }
 
 /// A refinement is refused for lost inliers only when its share of the overlap is smaller than
@@ -312,12 +330,15 @@ fn icp_from_a_bad_start_is_rejected() {
     let (mcfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
     let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), 40f64.to_radians());
     let v = m.verification.as_mut().unwrap();
-    v.aligned = Isometry3::from_parts(v.aligned.translation, turn * v.aligned.rotation);
+    v.aligned = CameraToCamera::from_isometry(Isometry3::from_parts(
+        v.aligned.isometry().translation,
+        turn * v.aligned.rotation(),
+    ));
     let out =
         refine_motion_icp_verified(&da, &db, &cam, &m, &IcpConfig::refinement(), &mcfg, &vcfg)
             .unwrap();
     assert!(!out.accepted, "{out:?}");
-    assert_eq!(out.pose, m.isometry());
+    assert_eq!(out.pose, m.motion());
     match out.rejection {
         Some(IcpRejection::NotVerified) => {
             let inl = out.inlier_fraction_after.unwrap();
@@ -334,7 +355,7 @@ fn icp_from_a_bad_start_is_rejected() {
         .as_ref()
         .filter(|_| out.rejection != Some(IcpRejection::MovedTooFar))
     {
-        assert!(r.pose.rotation.angle_to(&truth.rotation).to_degrees() > 5.0);
+        assert!(r.pose.rotation().angle_to(&truth.rotation).to_degrees() > 5.0);
     }
     // The plane estimate that was kept is right.
     assert!(m.rotation.angle_to(&truth.rotation).to_degrees() < 1.0);

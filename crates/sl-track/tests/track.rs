@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, Pose, SensorModel};
+use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
 use sl_track::{ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
@@ -12,7 +12,7 @@ use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 /// A half-resolution Kinect (320×240) and the `boxes` scene (boxes, a sphere and a cylinder on
 /// a floor before a wall, 1.3–3.6 m) seen along a trajectory that turns 1.5° and moves 1.5 cm
 /// per frame (45 °/s and 0.45 m/s at 30 Hz).
-fn sequence(n: usize, seed: u64) -> (Camera, Vec<Pose>, Vec<DepthImage>) {
+fn sequence(n: usize, seed: u64) -> (Camera, Vec<CameraToWorld>, Vec<DepthImage>) {
     let scene = named_scene("boxes").unwrap();
     let k = scene.intrinsics.scaled(0.5).unwrap();
     let cam = Camera {
@@ -20,12 +20,12 @@ fn sequence(n: usize, seed: u64) -> (Camera, Vec<Pose>, Vec<DepthImage>) {
         sensor: SensorModel::kinect_v1(),
     };
     let sim = KinectSimulator::kinect_v1().white();
-    let step = Isometry3::from_parts(
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.015, 0.002, 0.004),
         UnitQuaternion::from_scaled_axis(
             Vector3::new(0.2, 1.0, 0.1).normalize() * 1.5f64.to_radians(),
         ),
-    );
+    ));
     let mut poses = Vec::new();
     let mut frames = Vec::new();
     let mut pose = scene.pose;
@@ -33,21 +33,21 @@ fn sequence(n: usize, seed: u64) -> (Camera, Vec<Pose>, Vec<DepthImage>) {
         let truth = scene.scene.render(&k, &pose).depth;
         frames.push(sim.apply(&truth, seed + i as u64));
         poses.push(pose);
-        pose *= step;
+        pose = pose * step;
     }
     (cam, poses, frames)
 }
 
 /// Per-frame translation (m) and rotation (°) errors of the estimated poses against the truth,
 /// both expressed relative to the first frame.
-fn errors(truth: &[Pose], est: &[CameraToWorld]) -> Vec<(f64, f64)> {
-    let t0 = truth[0].inverse();
+fn errors(truth: &[CameraToWorld], est: &[CameraToWorld]) -> Vec<(f64, f64)> {
+    let t0 = truth[0].isometry().inverse();
     let e0 = est[0].isometry().inverse();
     truth
         .iter()
         .zip(est)
         .map(|(t, e)| {
-            let rel_t = t0 * t;
+            let rel_t = t0 * t.isometry();
             let rel_e = e0 * e.isometry();
             let d = rel_t.inverse() * rel_e;
             (d.translation.vector.norm(), d.rotation.angle().to_degrees())

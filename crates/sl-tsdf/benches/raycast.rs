@@ -9,13 +9,13 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{CameraToWorld, DepthImage, Intrinsics, Pose};
+use sl_core::nalgebra::{Isometry3, Point3, Vector3};
+use sl_core::{CameraToWorld, DepthImage, Intrinsics};
 use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
 
 /// A 3×2.2×2.5 m room with two spheres, seen by ten cameras moving along a wall.
-fn simulated() -> (&'static str, Intrinsics, Vec<(DepthImage, Pose)>) {
+fn simulated() -> (&'static str, Intrinsics, Vec<(DepthImage, CameraToWorld)>) {
     let mut scene = Scene::new();
     for (n, d) in [
         (Vector3::x(), 1.5),
@@ -31,10 +31,10 @@ fn simulated() -> (&'static str, Intrinsics, Vec<(DepthImage, Pose)>) {
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).expect("valid intrinsics");
     let frames = (0..10)
         .map(|i| {
-            let pose = Pose::new(
+            let pose = CameraToWorld::from_isometry(Isometry3::new(
                 Vector3::new(-0.4 + 0.08 * i as f64, 0.0, -0.3),
                 Vector3::new(0.0, 0.05 * i as f64 - 0.2, 0.0),
-            );
+            ));
             (scene.render(&k, &pose).depth, pose)
         })
         .collect();
@@ -53,10 +53,9 @@ fn bench(c: &mut Criterion) {
     };
     let mut vol = TsdfVolume::new(TsdfConfig::default()).expect("valid parameters");
     for (d, p) in &frames {
-        vol.integrate(d, &k, &CameraToWorld::from_isometry(*p))
-            .expect("integration within budget");
+        vol.integrate(d, &k, p).expect("integration within budget");
     }
-    let pose = CameraToWorld::from_isometry(frames.last().expect("frames").1);
+    let pose = frames.last().expect("frames").1;
     let config = RaycastConfig::default();
     let mut out = Raycast::default();
     vol.raycast_into(&pose, &k, &config, &mut out)

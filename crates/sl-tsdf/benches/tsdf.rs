@@ -10,15 +10,15 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{CameraToWorld, DepthImage, Intrinsics, Pose};
+use sl_core::nalgebra::{Isometry3, Point3, Vector3};
+use sl_core::{CameraToWorld, DepthImage, Intrinsics};
 use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume};
 
 struct Sequence {
     name: &'static str,
     k: Intrinsics,
-    frames: Vec<(DepthImage, Pose)>,
+    frames: Vec<(DepthImage, CameraToWorld)>,
 }
 
 /// A real sequence of `sl-testkit` (poses and camera of its dataset).
@@ -47,10 +47,10 @@ fn simulated() -> Sequence {
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).expect("valid intrinsics");
     let frames = (0..10)
         .map(|i| {
-            let pose = Pose::new(
+            let pose = CameraToWorld::from_isometry(Isometry3::new(
                 Vector3::new(-0.5 + 0.1 * i as f64, 0.0, -0.5),
                 Vector3::new(0.0, 0.05 * i as f64 - 0.2, 0.0),
-            );
+            ));
             (scene.render(&k, &pose).depth, pose)
         })
         .collect();
@@ -72,7 +72,7 @@ fn params() -> TsdfConfig {
 fn fuse(seq: &Sequence) -> TsdfVolume {
     let mut vol = TsdfVolume::new(params()).expect("valid parameters");
     for (d, p) in &seq.frames {
-        vol.integrate(d, &seq.k, &CameraToWorld::from_isometry(*p))
+        vol.integrate(d, &seq.k, p)
             .expect("integration within budget");
     }
     vol

@@ -9,7 +9,6 @@
 
 use std::time::Instant;
 
-use sl_core::CameraToWorld;
 use sl_tsdf::{MeshConfig, TsdfConfig, TsdfVolume, WeightMode};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -35,7 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut ms = Vec::new();
     for (d, p) in &frames {
         let t0 = Instant::now();
-        vol.integrate(d, &k, &CameraToWorld::from_isometry(*p))?;
+        vol.integrate(d, &k, p)?;
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
     }
     let t0 = Instant::now();

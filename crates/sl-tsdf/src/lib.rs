@@ -66,7 +66,7 @@
 //! let mut scene = Scene::new();
 //! scene.add(Plane::from_normal_offset(Vector3::z(), 1.0)?);
 //! let pose = CameraToWorld::identity();
-//! let depth = scene.render(&k, pose.isometry()).depth;
+//! let depth = scene.render(&k, &pose).depth;
 //!
 //! let mut params = TsdfConfig::default();
 //! params.voxel_m = 0.02;

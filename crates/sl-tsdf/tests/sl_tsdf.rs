@@ -3,8 +3,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use proptest::prelude::*;
-use sl_core::nalgebra::{Point3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, Pose};
+use sl_core::nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics};
 use sl_noise::sim::{Plane, Scene, Sphere};
 use sl_tsdf::{Axis, Mesh, MeshConfig, SliceSpec, TsdfConfig, TsdfError, TsdfVolume, WeightMode};
 
@@ -19,7 +19,7 @@ fn small_camera() -> Intrinsics {
 }
 
 /// A camera at `eye` looking at `target` (y roughly along `up` downwards in the image).
-fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Pose {
+fn look_at(eye: Point3<f64>, target: Point3<f64>) -> CameraToWorld {
     let z = (target - eye).normalize();
     let up = if z.y.abs() > 0.9 {
         Vector3::x()
@@ -31,10 +31,10 @@ fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Pose {
     let r = sl_core::nalgebra::Rotation3::from_matrix_unchecked(
         sl_core::nalgebra::Matrix3::from_columns(&[x, y, z]),
     );
-    Pose::from_parts(
+    CameraToWorld::from_isometry(Isometry3::from_parts(
         Translation3::from(eye.coords),
         UnitQuaternion::from_rotation_matrix(&r),
-    )
+    ))
 }
 
 /// A ground-truth scene for `sl-noise`'s ray caster: planes `n·x = d` and spheres (centre,
@@ -51,7 +51,7 @@ fn analytic_scene(planes: &[(Vector3<f64>, f64)], spheres: &[(Point3<f64>, f64)]
 }
 
 /// The exact depth of `scene` seen by `k` at camera-to-world `pose`.
-fn render(scene: &Scene, k: &Intrinsics, pose: &Pose) -> DepthImage {
+fn render(scene: &Scene, k: &Intrinsics, pose: &CameraToWorld) -> DepthImage {
     scene.render(k, pose).depth
 }
 
@@ -67,13 +67,11 @@ fn params(voxel_m: f64, trunc_m: f64, weight: WeightMode) -> TsdfConfig {
 fn plane_tsdf_is_the_analytic_line_of_sight_distance() {
     let k = small_camera();
     let scene = analytic_scene(&[(Vector3::z(), 1.0)], &[]);
-    let pose = Pose::identity();
+    let pose = CameraToWorld::identity();
     let depth = render(&scene, &k, &pose);
     let (v, trunc) = (0.01, 0.05);
     let mut vol = TsdfVolume::new(params(v, trunc, WeightMode::InvZ4)).unwrap();
-    let stats = vol
-        .integrate(&depth, &k, &CameraToWorld::from_isometry(pose))
-        .unwrap();
+    let stats = vol.integrate(&depth, &k, &pose).unwrap();
     assert_eq!(stats.pixels_used, k.pixel_count());
     assert!(stats.blocks_allocated > 0 && stats.blocks_touched == stats.blocks_allocated);
     let mut checked = 0;
@@ -110,8 +108,8 @@ fn plane_tsdf_is_the_analytic_line_of_sight_distance() {
 #[test]
 fn weighted_average_of_two_frames() {
     let k = small_camera();
-    let near = Pose::identity();
-    let far = Pose::translation(0.0, 0.0, -1.0);
+    let near = CameraToWorld::identity();
+    let far = CameraToWorld::from_isometry(Isometry3::translation(0.0, 0.0, -1.0));
     // Frame 1 sees a constant-Z wall at world z = 1.00 from 1 m, frame 2 a wall at
     // z = 1.01 from 2.01 m.
     let d1 = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
@@ -122,10 +120,8 @@ fn weighted_average_of_two_frames() {
         (WeightMode::InvZ2, 1.0 / 2.01f64.powi(2)),
     ] {
         let mut vol = TsdfVolume::new(params(0.01, 0.04, mode)).unwrap();
-        vol.integrate(&d1, &k, &CameraToWorld::from_isometry(near))
-            .unwrap();
-        vol.integrate(&d2, &k, &CameraToWorld::from_isometry(far))
-            .unwrap();
+        vol.integrate(&d1, &k, &near).unwrap();
+        vol.integrate(&d2, &k, &far).unwrap();
         assert_eq!(vol.frame_count(), 2);
         // On the optical axis, f1 = 1 − z, f2 = 1.01 − z.
         for kz in [98i64, 100, 101, 103] {
@@ -174,7 +170,7 @@ fn weight_cap_turns_into_moving_average() {
 fn errors_leave_the_volume_unchanged() {
     let k = small_camera();
     let scene = analytic_scene(&[(Vector3::z(), 1.0)], &[]);
-    let depth = render(&scene, &k, &Pose::identity());
+    let depth = render(&scene, &k, &CameraToWorld::identity());
     let mut p = params(0.01, 0.03, WeightMode::InvZ4);
     p.memory_budget_bytes = 10 * sl_tsdf::volume::BYTES_PER_BLOCK;
     let mut vol = TsdfVolume::new(p).unwrap();
@@ -189,10 +185,10 @@ fn errors_leave_the_volume_unchanged() {
         vol.integrate(&wrong, &k, &CameraToWorld::identity()),
         Err(TsdfError::SizeMismatch { .. })
     ));
-    let far_away = Pose::translation(1e9, 0.0, 0.0);
+    let far_away = CameraToWorld::from_isometry(Isometry3::translation(1e9, 0.0, 0.0));
     let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
     assert!(matches!(
-        vol.integrate(&depth, &k, &CameraToWorld::from_isometry(far_away)),
+        vol.integrate(&depth, &k, &far_away),
         Err(TsdfError::OutOfRange(_))
     ));
 }
@@ -509,12 +505,8 @@ fn fused_sphere_from_views_around_it() {
     ];
     for e in eyes {
         let pose = look_at(e, c);
-        vol.integrate(
-            &render(&scene, &k, &pose),
-            &k,
-            &CameraToWorld::from_isometry(pose),
-        )
-        .unwrap();
+        vol.integrate(&render(&scene, &k, &pose), &k, &pose)
+            .unwrap();
     }
     let mesh = vol.extract_mesh(&MeshConfig::default());
     let topo = mesh.topology();
@@ -586,7 +578,7 @@ proptest! {
             let eye = foot - dir * d;
             let pose = look_at(eye, foot);
             let depth = render(&scene, &k, &pose);
-            vol.integrate(&depth, &k, &CameraToWorld::from_isometry(pose)).unwrap();
+            vol.integrate(&depth, &k, &pose).unwrap();
             max_px_m = max_px_m.max(d / k.fx);
         }
         let mesh = vol.extract_mesh(&MeshConfig::default());
@@ -615,7 +607,7 @@ fn fused_mesh_survives_a_ply_round_trip() {
     let scene = analytic_scene(&[(Vector3::z(), 1.4)], &[(Point3::new(0.0, 0.0, 1.0), 0.2)]);
     let mut vol = TsdfVolume::new(params(0.02, 0.06, WeightMode::InvZ4)).unwrap();
     vol.integrate(
-        &render(&scene, &k, &Pose::identity()),
+        &render(&scene, &k, &CameraToWorld::identity()),
         &k,
         &CameraToWorld::identity(),
     )
@@ -683,7 +675,7 @@ fn candidate_blocks_are_counted_against_the_budget_while_they_are_found() {
 fn mesh_extraction_is_counted_against_the_budget() {
     let k = small_camera();
     let scene = analytic_scene(&[(Vector3::z(), 1.0)], &[]);
-    let depth = render(&scene, &k, &Pose::identity());
+    let depth = render(&scene, &k, &CameraToWorld::identity());
     let mut vol = TsdfVolume::new(params(0.01, 0.03, WeightMode::InvZ4)).unwrap();
     vol.integrate(&depth, &k, &CameraToWorld::identity())
         .unwrap();

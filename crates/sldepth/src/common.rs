@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::builder::PossibleValuesParser;
 use sl_core::{Camera, DepthImage};
 use sl_io::Limits;
-use sl_io::depth::{DepthEncoding, DepthFormat, MAX_UNITS_PER_M, MIN_UNITS_PER_M, ReadOptions};
+use sl_io::depth::{DepthEncoding, DepthFormat, MAX_UNITS_PER_M, MIN_UNITS_PER_M, ReadConfig};
 
 static LIMITS: OnceLock<Limits> = OnceLock::new();
 
@@ -238,10 +238,9 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         check_depth_scale(s)?;
     }
     let format = parse_format(args)?;
-    let opts = ReadOptions {
-        format,
-        scale_units_per_m: args.depth_scale,
-    };
+    let mut opts = ReadConfig::default();
+    opts.format = format;
+    opts.scale_units_per_m = args.depth_scale;
     let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
     let camera = match (&args.camera, loaded.encoding.format) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the

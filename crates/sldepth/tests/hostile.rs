@@ -466,8 +466,8 @@ fn the_output_extension_decides_the_format_and_an_unknown_one_does_no_work() {
     // It reads back as TIFF with the input's scale, and matches the PNG output.
     let png = dir.path().join("out.png");
     assert!(run(&["filter", s(&input), s(&png)]).status.success());
-    let a = sl_io::read_depth(&tif, &sl_io::ReadOptions::default()).unwrap();
-    let b = sl_io::read_depth(&png, &sl_io::ReadOptions::default()).unwrap();
+    let a = sl_io::read_depth(&tif, &sl_io::ReadConfig::default()).unwrap();
+    let b = sl_io::read_depth(&png, &sl_io::ReadConfig::default()).unwrap();
     assert_eq!(a.depth, b.depth);
     for (cmd, out) in [
         (vec!["filter", s(&input)], dir.path().join("out.jpg")),

@@ -91,7 +91,7 @@ fn simulate_reproduces_committed_frames() {
         ]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let read = |p: &Path| {
-            sl_io::depth::read_depth(p, &sl_io::depth::ReadOptions::default())
+            sl_io::depth::read_depth(p, &sl_io::depth::ReadConfig::default())
                 .unwrap_or_else(|e| panic!("{e}"))
                 .depth
         };
@@ -230,7 +230,7 @@ fn fuse_meshes_a_frame_and_refuses_past_the_budget() {
     // The scene's surfaces are 0.5 to 3.5 m in front of the camera (identity pose: world = camera).
     // At silhouettes marching cubes may close the surface up to one truncation band behind the
     // farthest observed (noisy) depth: the default band there is max(5 voxels, 3σ_Z(Z)).
-    let frame = sl_io::depth::read_depth(&depth, &sl_io::depth::ReadOptions::default())
+    let frame = sl_io::depth::read_depth(&depth, &sl_io::depth::ReadConfig::default())
         .unwrap_or_else(|e| panic!("{e}"))
         .depth;
     let z_max = frame.data().iter().fold(0.0f32, |m, &z| m.max(z)).min(4.0);

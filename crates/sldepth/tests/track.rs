@@ -5,6 +5,7 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+use sl_core::CameraToCamera;
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_io::depth::{DepthEncoding, write_depth};
 use sl_noise::sim::{KinectSimulator, named_scene};
@@ -21,10 +22,10 @@ fn sldepth(args: &[&str]) -> Output {
 fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
     let scene = named_scene("boxes").unwrap();
     let sim = KinectSimulator::kinect_v1().white();
-    let step = Isometry3::from_parts(
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.01, 0.0, 0.0),
         UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
-    );
+    ));
     std::fs::create_dir_all(dir.join("depth")).unwrap();
     let mut list = String::from("# depth maps\n# timestamp filename\n");
     let mut pose = scene.pose;
@@ -37,7 +38,7 @@ fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
         write_depth(dir.join(&name), &depth, &DepthEncoding::tum()).unwrap();
         list.push_str(&format!("{t:.6} {name}\n"));
         stamps.push(t);
-        pose *= step;
+        pose = pose * step;
     }
     std::fs::write(dir.join("depth.txt"), list).unwrap();
     stamps

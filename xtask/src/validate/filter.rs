@@ -555,7 +555,7 @@ fn real_frames(ctx: &mut Context, methods: &[(String, Option<DepthFilter>)]) -> 
     for (name, path, scale, k) in frames {
         let loaded = match sl_io::depth::read_depth(
             &path,
-            &sl_io::depth::ReadOptions::default().with_scale(scale),
+            &sl_io::depth::ReadConfig::default().with_scale(scale),
         ) {
             Ok(l) => l,
             Err(e) => {

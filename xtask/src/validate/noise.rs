@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, Result};
 use sl_core::SensorModel;
-use sl_io::depth::{DepthFormat, ReadOptions};
+use sl_io::depth::{DepthFormat, ReadConfig};
 use sl_noise::analysis::{ResolutionAnalysis, analyze};
 use sl_noise::sim::{KinectSimulator, named_scene};
 
@@ -31,7 +31,7 @@ struct RealFrame {
     /// Path to the depth file.
     path: PathBuf,
     /// How to read it.
-    options: ReadOptions,
+    options: ReadConfig,
     /// Whether the frame is a real capture (ICL-NUIM is a synthetic render; NYU raw depth is a
     /// closed-form function of the raw disparity): only real captures are held to the slope range.
     real_capture: bool,
@@ -39,9 +39,9 @@ struct RealFrame {
 
 fn real_frames(data: &Path, quick: bool) -> Vec<RealFrame> {
     let mut v = Vec::new();
-    let png_mm = ReadOptions::default();
-    let tum = ReadOptions::default().with_scale(5000.0);
-    let mut push = |name: &str, path: PathBuf, options: ReadOptions, real: bool| {
+    let png_mm = ReadConfig::default();
+    let tum = ReadConfig::default().with_scale(5000.0);
+    let mut push = |name: &str, path: PathBuf, options: ReadConfig, real: bool| {
         if path.is_file() {
             v.push(RealFrame {
                 name: name.to_string(),
@@ -73,7 +73,7 @@ fn real_frames(data: &Path, quick: bool) -> Vec<RealFrame> {
     push(
         "NYU raw disparity",
         o3d.join("nyu-raw-disparity.pgm"),
-        ReadOptions::default().with_format(DepthFormat::NyuRaw),
+        ReadConfig::default().with_format(DepthFormat::NyuRaw),
         false,
     );
     let tum_dir = data.join("tum-fr1-rpy").join("depth");

@@ -305,7 +305,7 @@ fn real(ctx: &mut Context) -> Result<()> {
     {
         let depth = sl_io::read_depth(
             &first.depth_path,
-            &sl_io::ReadOptions::default().with_scale(5000.0),
+            &sl_io::ReadConfig::default().with_scale(5000.0),
         )?
         .depth;
         let cam = tum_camera()?;
@@ -358,7 +358,7 @@ fn real(ctx: &mut Context) -> Result<()> {
             continue;
         }
         let depth =
-            sl_io::read_depth(&path, &sl_io::ReadOptions::default().with_scale(scale))?.depth;
+            sl_io::read_depth(&path, &sl_io::ReadConfig::default().with_scale(scale))?.depth;
         let cam = Camera::preset(preset)?;
         let (seg, ms) = timed(reps, || Ok(ex.extract_depth(&depth, &cam)?))?;
         let base = overlay::depth_to_rgb(&depth);
@@ -469,7 +469,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
     let mcfg = MotionConfig::default();
     let vcfg = VerifyConfig::default();
     let icp_cfg = IcpConfig::default();
-    let opts = sl_io::ReadOptions::default().with_scale(5000.0);
+    let opts = sl_io::ReadConfig::default().with_scale(5000.0);
     let mut results = Vec::new();
     for (i, j) in motion_pairs(n, ctx.quick()) {
         let (fa, fb) = (&seq.frames[i], &seq.frames[j]);
@@ -477,7 +477,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
         let db = sl_io::read_depth(&fb.depth_path, &opts)?.depth;
         let gt = fa.pose.inverse() * fb.pose;
         let err =
-            |q: &sl_core::nalgebra::UnitQuaternion<f64>| q.angle_to(&gt.rotation).to_degrees();
+            |q: &sl_core::nalgebra::UnitQuaternion<f64>| q.angle_to(&gt.rotation()).to_degrees();
         let t0 = Instant::now();
         let sa = ex.extract_depth(&da, &cam)?;
         let sb = ex.extract_depth(&db, &cam)?;
@@ -499,8 +499,14 @@ fn motion(ctx: &mut Context) -> Result<()> {
         let unverified = estimate_motion(&sa.planes, &sb.planes, None, &mcfg)
             .ok()
             .map(|m| (err(&m.rotation), m.confidence));
-        let icp_only = icp_point_to_plane(&da, &db, &cam, &sl_core::Pose::identity(), &icp_cfg)
-            .map_or(f64::NAN, |r| err(&r.pose.rotation));
+        let icp_only = icp_point_to_plane(
+            &da,
+            &db,
+            &cam,
+            &sl_core::CameraToCamera::identity(),
+            &icp_cfg,
+        )
+        .map_or(f64::NAN, |r| err(&r.pose.rotation()));
         let (verified, icp_ms) = match verified {
             Ok(m) => {
                 let t1 = Instant::now();
@@ -513,7 +519,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
                     &mcfg,
                     &vcfg,
                 )?;
-                let refined = err(&outcome.pose.rotation);
+                let refined = err(&outcome.pose.rotation());
                 let icp_ms = t1.elapsed().as_secs_f64() * 1e3;
                 let Some(v) = m.verification.clone() else {
                     anyhow::bail!("a verified motion without its verification");
@@ -525,7 +531,7 @@ fn motion(ctx: &mut Context) -> Result<()> {
         results.push(PairResult {
             from: i,
             to: j,
-            gt_deg: gt.rotation.angle().to_degrees(),
+            gt_deg: gt.rotation_angle_deg(),
             unverified,
             verified,
             icp_only,

@@ -15,9 +15,9 @@ use std::fmt::Write as _;
 
 use anyhow::Result;
 use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{Camera, DepthImage, Pose};
+use sl_core::{Camera, CameraToWorld, DepthImage};
 use sl_noise::sim::{KinectSimulator, NoiseModel, Plane, Quad, RealisticNoise, Scene, named_scene};
-use sl_noise::stats::{NoiseStats, NoiseStatsOptions, noise_stats};
+use sl_noise::stats::{NoiseStats, NoiseStatsConfig, noise_stats};
 use sl_planes::{PlaneConfig, extract_planes};
 
 use super::Context;
@@ -67,7 +67,7 @@ fn stats_of(depth: &DepthImage, camera: &Camera) -> Result<NoiseStats> {
         depth,
         camera.sensor.fb(),
         &seg.labels,
-        &NoiseStatsOptions::default(),
+        &NoiseStatsConfig::default(),
     )?)
 }
 
@@ -219,7 +219,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
                 return Ok(f64::NAN);
             }
             let scene = board_scene(zf, zb)?;
-            let fr = sim.simulate(&scene, &camera.intrinsics, &Pose::identity(), 1);
+            let fr = sim.simulate(&scene, &camera.intrinsics, &CameraToWorld::identity(), 1);
             let st = stats_of(&fr.depth, &camera)?;
             let side = if left {
                 &st.occlusion.left

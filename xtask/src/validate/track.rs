@@ -13,7 +13,7 @@
 
 use anyhow::Result;
 use sl_core::nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToWorld, DepthImage, Pose, SensorModel};
+use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
 use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
@@ -58,11 +58,11 @@ fn track(
 
 /// ATE RMSE (m) after Horn's rigid alignment of the estimated positions to the true ones,
 /// over the frames with an estimate.
-fn ate_m(truth: &[Pose], est: &[Option<CameraToWorld>]) -> f64 {
+fn ate_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
     let pairs: Vec<(Vector3<f64>, Vector3<f64>)> = truth
         .iter()
         .zip(est)
-        .filter_map(|(t, e)| e.map(|e| (e.translation(), t.translation.vector)))
+        .filter_map(|(t, e)| e.map(|e| (e.translation(), t.translation())))
         .collect();
     if pairs.len() < 3 {
         return f64::NAN;
@@ -93,21 +93,21 @@ fn ate_m(truth: &[Pose], est: &[Option<CameraToWorld>]) -> f64 {
 }
 
 /// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame.
-fn simulated(n: usize) -> Result<(Camera, Vec<Pose>, Vec<DepthImage>)> {
+fn simulated(n: usize) -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> {
     let scene = named_scene("boxes")?;
     let k = scene.intrinsics.scaled(0.5)?;
     let sim = KinectSimulator::kinect_v1().white();
-    let step = Isometry3::from_parts(
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.015, 0.002, 0.004),
         UnitQuaternion::from_scaled_axis(
             Vector3::new(0.2, 1.0, 0.1).normalize() * 1.5f64.to_radians(),
         ),
-    );
+    ));
     let (mut poses, mut frames, mut pose) = (Vec::new(), Vec::new(), scene.pose);
     for i in 0..n {
         frames.push(sim.apply(&scene.scene.render(&k, &pose).depth, 11 + i as u64));
         poses.push(pose);
-        pose *= step;
+        pose = pose * step;
     }
     let cam = Camera {
         intrinsics: k,
@@ -169,7 +169,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         sl_testkit::icl_sequence(5),
     ];
     for seq in real.into_iter().flatten() {
-        let truth: Vec<Pose> = seq.frames.iter().map(|f| f.1).collect();
+        let truth: Vec<CameraToWorld> = seq.frames.iter().map(|f| f.1).collect();
         let refs: Vec<&DepthImage> = seq.frames.iter().map(|f| &f.0).collect();
         for (model, name) in [(true, "model"), (false, "frame")] {
             for w in [WeightMode::InvVar, WeightMode::Uniform] {

@@ -20,7 +20,7 @@ use std::time::Instant;
 
 use anyhow::{Context as _, Result};
 use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{Camera, CameraToWorld, Image, Intrinsics, Pose};
+use sl_core::{Camera, CameraToWorld, Image, Intrinsics};
 use sl_eval::DistanceStats;
 use sl_noise::sim::{KinectSimulator, ReliefPlate, Scene, look_at};
 use sl_tsdf::slice::hconcat;
@@ -138,11 +138,11 @@ fn simulated(ctx: &mut Context) -> Result<()> {
             let mut vol = TsdfVolume::new(params)?;
             if *use_near {
                 let f = sim.simulate(&scene, &k, &near, seed * 2);
-                vol.integrate(&f.depth, &k, &CameraToWorld::from_isometry(near))?;
+                vol.integrate(&f.depth, &k, &near)?;
             }
             if *use_far {
                 let f = sim.simulate(&scene, &k, &far, seed * 2 + 1);
-                vol.integrate(&f.depth, &k, &CameraToWorld::from_isometry(far))?;
+                vol.integrate(&f.depth, &k, &far)?;
             }
             let mesh = vol.extract_mesh(&MeshConfig::default());
             verts += mesh.vertex_count();
@@ -395,14 +395,14 @@ fn vstack(top: &Image<[u8; 3]>, bottom: &Image<[u8; 3]>, gap: usize) -> Image<[u
 struct RealSeq {
     name: &'static str,
     k: Intrinsics,
-    frames: Vec<(sl_core::DepthImage, Pose)>,
+    frames: Vec<(sl_core::DepthImage, CameraToWorld)>,
 }
 
 fn load_real(data: &Path, quick: bool) -> Result<Vec<RealSeq>> {
     let mut out = Vec::new();
     let read = |p: &Path| -> Result<sl_core::DepthImage> {
         Ok(
-            sl_io::depth::read_depth(p, &sl_io::depth::ReadOptions::default())
+            sl_io::depth::read_depth(p, &sl_io::depth::ReadConfig::default())
                 .with_context(|| format!("reading {}", p.display()))?
                 .depth,
         )
@@ -473,7 +473,7 @@ fn real(ctx: &mut Context) -> Result<()> {
             let mut ms = Vec::new();
             for (d, p) in &seq.frames {
                 let t0 = Instant::now();
-                vol.integrate(d, &seq.k, &CameraToWorld::from_isometry(*p))?;
+                vol.integrate(d, &seq.k, p)?;
                 ms.push(t0.elapsed().as_secs_f64() * 1e3);
             }
             ms.sort_by(f64::total_cmp);
@@ -488,11 +488,7 @@ fn real(ctx: &mut Context) -> Result<()> {
                 &mesh,
                 sl_io::PlyFormat::BinaryLittleEndian,
             )?;
-            let img = sl_eval::render::render_mesh(
-                &mesh,
-                &seq.k,
-                &CameraToWorld::from_isometry(seq.frames[0].1),
-            )?;
+            let img = sl_eval::render::render_mesh(&mesh, &seq.k, &seq.frames[0].1)?;
             let png = format!("tsdf_{tag}.png");
             sl_tsdf::io::write_png(ctx.out_dir().join(&png), &img)?;
             images.push((tag.clone(), png));

@@ -8,7 +8,7 @@
 use std::fmt::Write as _;
 
 use anyhow::Result;
-use sl_core::{CameraToWorld, DepthImage, Intrinsics, SensorModel};
+use sl_core::{DepthImage, Intrinsics, SensorModel};
 use sl_eval::filter::{dominant_plane_region, plane_residual_by_band, pooled};
 use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -43,14 +43,14 @@ fn fuse(
     let k = &seq.camera.intrinsics;
     let mut vol = TsdfVolume::new(p)?;
     for (d, pose) in &seq.frames {
-        vol.integrate(d, k, &CameraToWorld::from_isometry(*pose))?;
+        vol.integrate(d, k, pose)?;
     }
     let mesh = vol.extract_mesh(&MeshConfig::default());
     let mut rc = RaycastConfig::default();
     rc.max_depth_m = 4.0;
     let mut residual_m = Vec::new();
     for (i, mask) in eval {
-        let pose = CameraToWorld::from_isometry(seq.frames[*i].1);
+        let pose = seq.frames[*i].1;
         let r = vol.raycast(&pose, k, &rc)?;
         residual_m.push(residual(&r.depth, k, mask)?.0);
     }

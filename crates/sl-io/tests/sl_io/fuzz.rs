@@ -11,7 +11,7 @@ use sl_io::trajectory::{
     read_open3d_log, read_pose_txt, read_tum_associations, read_tum_trajectory,
 };
 use sl_io::{
-    DepthEncoding, ReadOptions, read_camera_json, read_depth, read_intrinsics_txt, read_ply,
+    DepthEncoding, ReadConfig, read_camera_json, read_depth, read_intrinsics_txt, read_ply,
     read_rgb, write_depth, write_ply,
 };
 
@@ -19,7 +19,7 @@ use sl_io::{
 fn run_all_readers(path: &Path) -> usize {
     let mut ok = 0;
     for f in DepthFormat::ALL {
-        ok += usize::from(read_depth(path, &ReadOptions::default().with_format(f)).is_ok());
+        ok += usize::from(read_depth(path, &ReadConfig::default().with_format(f)).is_ok());
     }
     ok += usize::from(read_rgb(path).is_ok());
     ok += usize::from(read_camera_json(path).is_ok());
@@ -92,7 +92,7 @@ fn truncated_binary_files_are_errors() {
             std::fs::write(&p, &bytes[..len]).unwrap();
             let r = match name {
                 "m.ply" | "a.ply" => read_ply(&p).map(|_| ()),
-                _ => read_depth(&p, &ReadOptions::default()).map(|_| ()),
+                _ => read_depth(&p, &ReadConfig::default()).map(|_| ()),
             };
             let e = r.expect_err(&format!(
                 "{name} truncated to {len} of {} bytes must be an error",
@@ -110,13 +110,13 @@ fn oversized_headers_do_not_allocate() {
     let p = dir.path().join("huge.pgm");
     // 65536 x 65536 x 2 bytes = 8 GiB declared, 4 bytes present.
     std::fs::write(&p, b"P5 65536 65536 65535\n\x00\x00\x00\x00").unwrap();
-    let e = read_depth(&p, &ReadOptions::default()).unwrap_err();
+    let e = read_depth(&p, &ReadConfig::default()).unwrap_err();
     assert!(e.to_string().contains("huge.pgm"), "{e}");
     // 4000 x 4000 (32 MB declared, within the default limits) but truncated: rejected before
     // allocating.
     std::fs::write(&p, b"P5 4000 4000 65535\n\x00\x00").unwrap();
     assert!(
-        read_depth(&p, &ReadOptions::default())
+        read_depth(&p, &ReadConfig::default())
             .unwrap_err()
             .to_string()
             .contains("truncated")
@@ -130,7 +130,7 @@ fn oversized_headers_do_not_allocate() {
     crc_input.extend_from_slice(&ihdr);
     bytes.extend_from_slice(&crc32(&crc_input).to_be_bytes());
     std::fs::write(&png, &bytes).unwrap();
-    assert!(read_depth(&png, &ReadOptions::default()).is_err());
+    assert!(read_depth(&png, &ReadConfig::default()).is_err());
     // A PLY declaring 10^9 binary vertices in a tiny file.
     let ply = dir.path().join("huge.ply");
     std::fs::write(
@@ -167,7 +167,7 @@ proptest! {
         std::fs::write(&p, &bytes).unwrap();
         run_all_readers(&p);
         for f in [DepthFormat::Png, DepthFormat::Tiff, DepthFormat::Sun] {
-            prop_assert!(read_depth(&p, &ReadOptions::default().with_format(f)).is_err());
+            prop_assert!(read_depth(&p, &ReadConfig::default().with_format(f)).is_err());
         }
     }
 

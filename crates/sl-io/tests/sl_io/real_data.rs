@@ -6,7 +6,7 @@ use sl_io::depth::{NYU_DOFF, NYU_FB_PX_M, TUM_UNITS_PER_M, nyu_raw_to_disparity}
 use sl_io::ply::{PlyData, PlyFormat, read_ply, write_ply};
 use sl_io::trajectory::list_depth_files;
 use sl_io::{
-    DEFAULT_MAX_DT_S, DepthEncoding, DepthFormat, IoError, ReadOptions, read_7scenes_intrinsics,
+    DEFAULT_MAX_DT_S, DepthEncoding, DepthFormat, IoError, ReadConfig, read_7scenes_intrinsics,
     read_7scenes_sequence, read_camera_json, read_depth, read_nyu_raw, read_open3d_log_frames,
     read_raw_depth, read_rgb, read_tum_sequence, write_depth,
 };
@@ -56,11 +56,11 @@ fn tum_fr1_rpy_depth_and_trajectory() {
     // Ground-truth line nearest to the first depth frame (4.4 ms away).
     let f0 = &seq.frames[0];
     assert_eq!(f0.timestamp, Some(1305031229.528784));
-    let t = f0.pose.translation.vector;
+    let t = f0.pose.translation();
     assert!(
         (t.x - 1.2989).abs() < 1e-9 && (t.y - 0.688).abs() < 1e-9 && (t.z - 1.5734).abs() < 1e-9
     );
-    let q = f0.pose.rotation.coords;
+    let q = f0.pose.rotation().coords;
     let n = (0.6817f64.powi(2) + 0.5533f64.powi(2) + 0.018f64.powi(2) + 0.4784f64.powi(2)).sqrt();
     let sign = q.x.signum() / 0.6817f64.signum();
     assert!((q.x - sign * 0.6817 / n).abs() < 1e-9 && (q.w - sign * -0.4784 / n).abs() < 1e-9);
@@ -69,7 +69,7 @@ fn tum_fr1_rpy_depth_and_trajectory() {
     assert_eq!(strict.frames.len() + strict.without_pose.len(), 30);
     assert!(!strict.without_pose.is_empty());
 
-    let opts = ReadOptions::default().with_scale(TUM_UNITS_PER_M);
+    let opts = ReadConfig::default().with_scale(TUM_UNITS_PER_M);
     let first = read_depth(&f0.depth_path, &opts).unwrap();
     assert_eq!(first.encoding, DepthEncoding::tum());
     assert_frame(&first.depth, 217_962..=217_962, 0.7358..=2.8138);
@@ -96,7 +96,7 @@ fn open3d_testdata_frames() {
     let dir = data.join("open3d-testdata");
     let tum = read_depth(
         dir.join("tum-depth.png"),
-        &ReadOptions::default().with_scale(5000.0),
+        &ReadConfig::default().with_scale(5000.0),
     )
     .unwrap();
     assert_frame(&tum.depth, 248_250..=248_250, 1.464..=9.331);
@@ -104,7 +104,7 @@ fn open3d_testdata_frames() {
     assert!(close(med, 12075.0 / 5000.0) && (0.5..=4.0).contains(&med));
     assert!(close(tum.depth.get(320, 240).unwrap(), 10920.0 / 5000.0));
 
-    let person = read_depth(dir.join("person-depth.png"), &ReadOptions::default()).unwrap();
+    let person = read_depth(dir.join("person-depth.png"), &ReadConfig::default()).unwrap();
     assert_eq!(person.encoding, DepthEncoding::png(1000.0));
     assert_frame(&person.depth, 256_497..=256_497, 0.649..=2.485);
     assert!(close(person.depth.get(320, 240).unwrap(), 0.766));
@@ -116,7 +116,7 @@ fn open3d_testdata_frames() {
     assert_eq!(nyu_rgb.get(0, 0), Some(&[220, 248, 235]));
     assert_eq!(nyu_rgb.get(320, 240), Some(&[98, 102, 112]));
     // A colour image is not a depth map.
-    let e = read_depth(dir.join("tum-color.png"), &ReadOptions::default()).unwrap_err();
+    let e = read_depth(dir.join("tum-color.png"), &ReadConfig::default()).unwrap_err();
     assert!(
         matches!(e, IoError::UnsupportedImage { .. }) && e.to_string().contains("tum-color.png"),
         "{e}"
@@ -134,7 +134,7 @@ fn nyu_raw_disparity() {
         (raw.data().iter().min(), raw.get(320, 240)),
         (Some(&839), Some(&977))
     );
-    let loaded = read_depth(&path, &ReadOptions::default()).unwrap();
+    let loaded = read_depth(&path, &ReadConfig::default()).unwrap();
     assert_eq!(loaded.encoding.format, DepthFormat::NyuRaw);
     assert_frame(&loaded.depth, 285_001..=285_001, 0.5..=10.0);
     let s = loaded.depth.stats().unwrap();
@@ -182,15 +182,15 @@ fn icl_livingroom_camera_and_log() {
     let frames = read_open3d_log_frames(dir.join("odometry.log"), dir.join("depth")).unwrap();
     assert_eq!(frames.len(), 5);
     assert!(frames[4].depth_path.ends_with("00004.png"));
-    let t0 = frames[0].pose.translation.vector;
+    let t0 = frames[0].pose.translation();
     assert_eq!((t0.x, t0.y, t0.z), (2.0, 2.0, -0.3));
-    let t4 = frames[4].pose.translation.vector;
+    let t4 = frames[4].pose.translation();
     assert!((t4.x - 2.00124).abs() < 1e-9 && (t4.z + 0.305411).abs() < 1e-9);
     for f in &frames {
-        let d = read_depth(&f.depth_path, &ReadOptions::default()).unwrap();
+        let d = read_depth(&f.depth_path, &ReadConfig::default()).unwrap();
         assert_frame(&d.depth, 200_000..=300_000, 0.5..=5.0);
     }
-    let d0 = read_depth(&frames[0].depth_path, &ReadOptions::default())
+    let d0 = read_depth(&frames[0].depth_path, &ReadConfig::default())
         .unwrap()
         .depth;
     assert_eq!(d0.valid_count(), 267_129);
@@ -220,19 +220,19 @@ fn seven_scenes_sequence() {
     assert_eq!(frames.len(), 50);
     assert!(frames[0].depth_path.ends_with("frame-000150.depth.png"));
     assert!(frames[49].depth_path.ends_with("frame-000199.depth.png"));
-    let t = frames[0].pose.translation.vector;
+    let t = frames[0].pose.translation();
     assert!(
         (t.x + 0.91287065).abs() < 1e-9
             && (t.y + 0.34388667).abs() < 1e-9
             && (t.z - 0.75986093).abs() < 1e-9
     );
-    let first = read_depth(&frames[0].depth_path, &ReadOptions::default()).unwrap();
+    let first = read_depth(&frames[0].depth_path, &ReadConfig::default()).unwrap();
     // These frames mark missing depth with 0 (none holds 65535), so the encoding reports 0.
     assert_eq!(first.encoding, DepthEncoding::png(1000.0));
     assert_frame(&first.depth, 270_326..=270_326, 0.939..=2.857);
     assert!(close(first.depth.get(320, 240).unwrap(), 1.556));
     for f in &frames {
-        let d = read_depth(&f.depth_path, &ReadOptions::default()).unwrap();
+        let d = read_depth(&f.depth_path, &ReadConfig::default()).unwrap();
         assert_frame(&d.depth, 200_000..=300_000, 0.5..=5.0);
     }
 }
@@ -248,23 +248,23 @@ fn pcl_floor_box_tiff() {
         .collect();
     assert_eq!(files.len(), 3);
     for f in &files {
-        let d = read_depth(f, &ReadOptions::default()).unwrap();
+        let d = read_depth(f, &ReadConfig::default()).unwrap();
         assert_eq!(d.encoding, DepthEncoding::tiff(1000.0));
         assert_frame(&d.depth, 250_000..=290_000, 0.5..=2.5);
     }
-    let first = read_depth(&files[0], &ReadOptions::default()).unwrap();
+    let first = read_depth(&files[0], &ReadConfig::default()).unwrap();
     assert_frame(&first.depth, 271_575..=271_575, 0.671..=1.713);
     assert!(close(first.depth.get(320, 240).unwrap(), 0.854));
     // The colour TIFF next to it is rejected as depth, and reads as colour.
     let rgb = dir.join("frame_20121214T142256.332395_rgb.tiff");
-    let e = read_depth(&rgb, &ReadOptions::default()).unwrap_err();
+    let e = read_depth(&rgb, &ReadConfig::default()).unwrap_err();
     assert!(matches!(e, IoError::UnsupportedImage { .. }), "{e}");
     assert_eq!(read_rgb(&rgb).unwrap().dimensions(), (640, 480));
     // Round trip in the input's encoding.
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("floor.tiff");
     write_depth(&out, &first.depth, &first.encoding).unwrap();
-    let o = ReadOptions::default();
+    let o = ReadConfig::default();
     assert_eq!(
         read_raw_depth(&out, &o).unwrap(),
         read_raw_depth(&files[0], &o).unwrap()

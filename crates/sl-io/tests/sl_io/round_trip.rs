@@ -5,7 +5,7 @@ use sl_core::{DepthImage, Image};
 use sl_io::depth::{INVALID_SENTINEL, nyu_raw_to_depth};
 use sl_io::ply::{PlyData, PlyFormat, read_ply, write_ply};
 use sl_io::{
-    DepthEncoding, DepthFormat, IoError, ReadOptions, read_depth, read_gray16, read_nyu_raw,
+    DepthEncoding, DepthFormat, IoError, ReadConfig, read_depth, read_gray16, read_nyu_raw,
     read_raw_depth, read_rgb, write_depth, write_gray16_png, write_rgb_png,
 };
 
@@ -20,8 +20,8 @@ fn plane(near: f32, far: f32) -> DepthImage {
     }))
 }
 
-fn options(enc: &DepthEncoding) -> ReadOptions {
-    let o = ReadOptions::default().with_format(enc.format);
+fn options(enc: &DepthEncoding) -> ReadConfig {
+    let o = ReadConfig::default().with_format(enc.format);
     if enc.format.has_scale() {
         o.with_scale(enc.units_per_m)
     } else {
@@ -88,7 +88,7 @@ fn extension_inference_and_sentinel() {
     let depth = plane(1.0, 2.0);
     let png = dir.path().join("d.PNG");
     write_depth(&png, &depth, &DepthEncoding::seven_scenes()).unwrap();
-    let raw = read_raw_depth(&png, &ReadOptions::default()).unwrap();
+    let raw = read_raw_depth(&png, &ReadConfig::default()).unwrap();
     let invalid = depth.data().iter().filter(|z| **z == 0.0).count();
     assert_eq!(
         raw.values
@@ -102,7 +102,7 @@ fn extension_inference_and_sentinel() {
     let pgm = dir.path().join("d.pgm");
     write_depth(&pgm, &depth, &DepthEncoding::nyu_raw()).unwrap();
     assert_eq!(
-        read_depth(&pgm, &ReadOptions::default())
+        read_depth(&pgm, &ReadConfig::default())
             .unwrap()
             .encoding
             .format,
@@ -112,22 +112,32 @@ fn extension_inference_and_sentinel() {
     let raw = read_nyu_raw(&pgm).unwrap();
     assert_eq!(
         nyu_raw_to_depth(&raw),
-        read_depth(&pgm, &ReadOptions::default()).unwrap().depth
+        read_depth(&pgm, &ReadConfig::default()).unwrap().depth
     );
     // Unknown extension without a format, scale on nyu-raw, zero scale: typed errors naming the file.
     let odd = dir.path().join("d.depth");
     std::fs::copy(&png, &odd).unwrap();
-    let e = read_depth(&odd, &ReadOptions::default()).unwrap_err();
+    let e = read_depth(&odd, &ReadConfig::default()).unwrap_err();
     assert!(
         matches!(e, IoError::Format { .. }) && e.to_string().contains("d.depth"),
         "{e}"
     );
-    assert!(read_depth(&odd, &ReadOptions::default().with_format(DepthFormat::Png)).is_ok());
-    let e = read_depth(&pgm, &ReadOptions::default().with_scale(1000.0)).unwrap_err();
+    assert!(read_depth(&odd, &ReadConfig::default().with_format(DepthFormat::Png)).is_ok());
+    let e = read_depth(&pgm, &ReadConfig::default().with_scale(1000.0)).unwrap_err();
     assert!(e.to_string().contains("d.pgm"), "{e}");
+    // A scale with an explicit nyu-raw format is refused before any file is named.
+    let nyu = ReadConfig::default()
+        .with_format(DepthFormat::NyuRaw)
+        .with_scale(1000.0);
+    assert!(matches!(nyu.validate(), Err(IoError::InvalidConfig { .. })));
+    assert!(ReadConfig::default().validate().is_ok());
+    assert!(ReadConfig::default().with_scale(5000.0).validate().is_ok());
     // 1e-300 and 1e300 units per metre would make every pixel invalid (issue 15).
     for bad in [0.0, -1.0, f64::INFINITY, f64::NAN, 1e-300, 1e300] {
-        let e = read_depth(&png, &ReadOptions::default().with_scale(bad)).unwrap_err();
+        let config = ReadConfig::default().with_scale(bad);
+        let e = config.validate().unwrap_err();
+        assert!(matches!(e, IoError::InvalidConfig { .. }), "{e}");
+        let e = read_depth(&png, &config).unwrap_err();
         assert!(matches!(e, IoError::InvalidScale { .. }), "{e}");
         let e =
             write_depth(dir.path().join("z.png"), &depth, &DepthEncoding::png(bad)).unwrap_err();
@@ -165,7 +175,7 @@ fn wrong_layouts_are_typed_errors() {
     let img = Image::from_fn(5, 4, |x, y| [x as u8 * 40, y as u8 * 60, 7]);
     write_rgb_png(&rgb, &img).unwrap();
     assert_eq!(read_rgb(&rgb).unwrap(), img);
-    let e = read_depth(&rgb, &ReadOptions::default()).unwrap_err();
+    let e = read_depth(&rgb, &ReadConfig::default()).unwrap_err();
     assert!(matches!(e, IoError::UnsupportedImage { .. }), "{e}");
     assert!(
         e.to_string().contains("rgb.png") && e.to_string().contains("8-bit RGB"),
@@ -174,7 +184,7 @@ fn wrong_layouts_are_typed_errors() {
     // A PNG named .tiff: the TIFF decoder rejects it with a message naming the file.
     let fake = dir.path().join("fake.tiff");
     std::fs::copy(&rgb, &fake).unwrap();
-    let e = read_depth(&fake, &ReadOptions::default()).unwrap_err();
+    let e = read_depth(&fake, &ReadConfig::default()).unwrap_err();
     assert!(e.to_string().contains("fake.tiff"), "{e}");
     // Empty images cannot be written.
     let e = write_depth(

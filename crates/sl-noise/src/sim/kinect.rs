@@ -4,7 +4,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use rayon::prelude::*;
-use sl_core::{DepthImage, Image, Intrinsics, Pose, SensorModel};
+use sl_core::{CameraToWorld, DepthImage, Image, Intrinsics, SensorModel};
 
 use crate::sim::realistic::{self, RealisticNoise};
 use crate::sim::scene::Scene;
@@ -270,7 +270,7 @@ impl KinectSimulator {
         &self,
         scene: &Scene,
         k: &Intrinsics,
-        camera_to_world: &Pose,
+        camera_to_world: &CameraToWorld,
         seed: u64,
     ) -> crate::Result<SimulatedFrame> {
         crate::sim::scene::check_render_size(k)?;
@@ -283,7 +283,7 @@ impl KinectSimulator {
         &self,
         scene: &Scene,
         k: &Intrinsics,
-        camera_to_world: &Pose,
+        camera_to_world: &CameraToWorld,
         seed: u64,
     ) -> SimulatedFrame {
         let render = scene.render(k, camera_to_world);
@@ -310,7 +310,7 @@ impl KinectSimulator {
         &self,
         scene: &Scene,
         k: &Intrinsics,
-        camera_to_world: &Pose,
+        camera_to_world: &CameraToWorld,
         render: &crate::sim::Render,
         cfg: &RealisticNoise,
         depth: &mut DepthImage,
@@ -362,12 +362,13 @@ impl KinectSimulator {
         &self,
         scene: &Scene,
         k: &Intrinsics,
-        camera_to_world: &Pose,
+        camera_to_world: &CameraToWorld,
         truth: &DepthImage,
     ) -> Image<bool> {
         let (w, h) = (truth.width(), truth.height());
         let mut mask = vec![false; w * h];
-        let projector = camera_to_world * nalgebra::Point3::new(self.sensor.baseline_m, 0.0, 0.0);
+        let projector =
+            camera_to_world.isometry() * nalgebra::Point3::new(self.sensor.baseline_m, 0.0, 0.0);
         if w > 0 {
             mask.par_chunks_mut(w)
                 .zip(truth.data().par_chunks(w))
@@ -377,7 +378,8 @@ impl KinectSimulator {
                         if !(z > 0.0 && z.is_finite()) {
                             continue;
                         }
-                        let p = camera_to_world * k.back_project(x as f64, y as f64, f64::from(z));
+                        let p = camera_to_world.isometry()
+                            * k.back_project(x as f64, y as f64, f64::from(z));
                         let dir = p - projector;
                         // Hidden when something lies between the projector and the point (the
                         // tolerance ignores the point's own surface).
@@ -397,7 +399,7 @@ impl KinectSimulator {
         &self,
         scene: &Scene,
         k: &Intrinsics,
-        camera_to_world: &Pose,
+        camera_to_world: &CameraToWorld,
         seed: u64,
     ) -> SimulatedFrame {
         let mut frame = self.simulate(scene, k, camera_to_world, seed);
@@ -552,8 +554,8 @@ mod tests {
         .unwrap();
         scene.add(board);
         let sim = KinectSimulator::kinect_v1().white();
-        let f = sim.simulate_with_shadows(&scene, &k, &Pose::identity(), 3);
-        let mask = sim.projector_shadows(&scene, &k, &Pose::identity(), &f.truth);
+        let f = sim.simulate_with_shadows(&scene, &k, &CameraToWorld::identity(), 3);
+        let mask = sim.projector_shadows(&scene, &k, &CameraToWorld::identity(), &f.truth);
         for y in [0, 100, 240, 479] {
             let row: Vec<usize> = (0..640).filter(|x| *mask.get(*x, y).unwrap()).collect();
             assert!(
@@ -578,7 +580,7 @@ mod tests {
         let mut scene = Scene::new();
         scene.add(Plane::new(Point3::new(0.0, 0.0, 1.5), Vector3::z()).unwrap());
         let sim = KinectSimulator::kinect_v1().white();
-        let f = sim.simulate(&scene, &k, &Pose::identity(), 5);
+        let f = sim.simulate(&scene, &k, &CameraToWorld::identity(), 5);
         assert!(f.truth.data().iter().all(|z| (*z - 1.5).abs() < 1e-6));
         assert!(f.labels.data().iter().all(|l| *l == 1));
         assert_eq!(f.depth, sim.apply(&f.truth, 5));
@@ -590,7 +592,7 @@ mod tests {
             },
             ..sim
         };
-        let g = exact.simulate(&scene, &k, &Pose::identity(), 5);
+        let g = exact.simulate(&scene, &k, &CameraToWorld::identity(), 5);
         let half_step = sim.sensor.depth_step_m(1.5) / 2.0 + 0.0005;
         assert!(
             g.depth
@@ -650,7 +652,7 @@ mod tests {
         // model's is not; both have σ_D near the sensor's (plus quantisation).
         let ns = crate::sim::named_scene("floor").unwrap();
         let (k, pose) = (ns.intrinsics, ns.pose);
-        let opts = crate::stats::NoiseStatsOptions::default();
+        let opts = crate::stats::NoiseStatsConfig::default();
         let stats = |sim: &KinectSimulator| {
             let f = sim.simulate(&ns.scene, &k, &pose, 4);
             crate::stats::noise_stats(&f.depth, sim.sensor.fb(), &f.labels, &opts).unwrap()
@@ -678,7 +680,7 @@ mod tests {
         let scene = board_before_wall(1.0, 2.0);
         let raw = realistic_sim();
         let cfg = RealisticNoise::default();
-        let f = raw.simulate(&scene, &k, &Pose::identity(), 2);
+        let f = raw.simulate(&scene, &k, &CameraToWorld::identity(), 2);
         let b = crate::stats::occlusion_bands(&f.depth, raw.sensor.fb(), 0.15, 64);
         let fill = cfg.shadow_fill_px as f64;
         assert!(
@@ -688,7 +690,7 @@ mod tests {
         assert_eq!(b.right.widths.count, 0);
         assert!(b.right.direct_edges > 400);
         let reg = raw.with_noise(NoiseModel::Realistic(RealisticNoise::for_camera("tum-fr1")));
-        let f = reg.simulate(&scene, &k, &Pose::identity(), 2);
+        let f = reg.simulate(&scene, &k, &CameraToWorld::identity(), 2);
         let b = crate::stats::occlusion_bands(&f.depth, reg.sensor.fb(), 0.15, 64);
         assert!(
             (b.left.widths.median_px - (14.5 - fill)).abs() <= 1.0,
@@ -704,7 +706,7 @@ mod tests {
         let mut scene = Scene::new();
         scene.add(Plane::new(Point3::new(0.0, 0.3, 0.0), Vector3::y()).unwrap());
         let sim = realistic_sim();
-        let f = sim.simulate(&scene, &k, &Pose::identity(), 1);
+        let f = sim.simulate(&scene, &k, &CameraToWorld::identity(), 1);
         let valid_truth = f.truth.valid_count();
         assert!(valid_truth > 0);
         assert!(f.depth.valid_count() < valid_truth);
@@ -715,7 +717,7 @@ mod tests {
         let g = sim.with_noise(NoiseModel::Realistic(no_graze)).simulate(
             &scene,
             &k,
-            &Pose::identity(),
+            &CameraToWorld::identity(),
             1,
         );
         assert!(g.depth.valid_count() > f.depth.valid_count());
@@ -727,9 +729,12 @@ mod tests {
         };
         let scene = board_before_wall(1.0, 2.0);
         let k = Intrinsics::kinect_v1();
-        let e =
-            sim.with_noise(NoiseModel::Realistic(edges))
-                .simulate(&scene, &k, &Pose::identity(), 1);
+        let e = sim.with_noise(NoiseModel::Realistic(edges)).simulate(
+            &scene,
+            &k,
+            &CameraToWorld::identity(),
+            1,
+        );
         let b = crate::stats::occlusion_bands(&e.depth, sim.sensor.fb(), 0.15, 64);
         assert_eq!(b.left.widths.median_px, 4.0);
         assert_eq!(b.right.widths.median_px, 4.0);

@@ -20,13 +20,13 @@
 //!
 //! ```
 //! use sl_noise::sim::{KinectSimulator, Plane, Scene, Sphere};
-//! use sl_core::{Intrinsics, Pose, nalgebra::{Point3, Vector3}};
+//! use sl_core::{CameraToWorld, Intrinsics, nalgebra::{Point3, Vector3}};
 //!
 //! let mut scene = Scene::new();
 //! let wall = scene.add(Plane::new(Point3::new(0.0, 0.0, 3.0), Vector3::z())?);
 //! let ball = scene.add(Sphere::new(Point3::new(0.0, 0.0, 1.5), 0.2)?);
 //! let k = Intrinsics::kinect_v1().scaled(0.25)?;
-//! let frame = KinectSimulator::kinect_v1().simulate(&scene, &k, &Pose::identity(), 42);
+//! let frame = KinectSimulator::kinect_v1().simulate(&scene, &k, &CameraToWorld::identity(), 42);
 //! assert_eq!(frame.labels.get(80, 60), Some(&ball));
 //! assert_eq!(frame.labels.get(0, 0), Some(&wall));
 //! // The sensor output is the truth plus quantised disparity noise, on a 1 mm grid.

@@ -27,7 +27,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rayon::prelude::*;
-use sl_core::{DepthImage, Image, Intrinsics, Pose};
+use sl_core::{CameraToWorld, DepthImage, Image, Intrinsics};
 
 /// Parameters of the realistic sensor. Start from [`RealisticNoise::default`] (a raw Kinect v1)
 /// or [`RealisticNoise::for_camera`] and assign fields.
@@ -333,7 +333,7 @@ pub(crate) fn hidden_along_rows(truth: &DepthImage, fx: f64, offset_m: f64) -> V
 pub(crate) fn hidden_from(
     scene: &crate::sim::Scene,
     k: &Intrinsics,
-    camera_to_world: &Pose,
+    camera_to_world: &CameraToWorld,
     truth: &DepthImage,
     offset_m: f64,
 ) -> Vec<bool> {
@@ -343,7 +343,7 @@ pub(crate) fn hidden_from(
     if w == 0 {
         return mask;
     }
-    let eye = camera_to_world * nalgebra::Point3::new(offset_m, 0.0, 0.0);
+    let eye = camera_to_world.isometry() * nalgebra::Point3::new(offset_m, 0.0, 0.0);
     mask.par_chunks_mut(w)
         .zip(truth.data().par_chunks(w))
         .zip(candidates.par_chunks(w))
@@ -355,7 +355,8 @@ pub(crate) fn hidden_from(
                 if !(near && z > 0.0 && z.is_finite()) {
                     continue;
                 }
-                let p = camera_to_world * k.back_project(x as f64, y as f64, f64::from(z));
+                let p =
+                    camera_to_world.isometry() * k.back_project(x as f64, y as f64, f64::from(z));
                 let dir = p - eye;
                 // Hidden when something lies between the viewpoint and the point (the
                 // tolerance ignores the point's own surface).

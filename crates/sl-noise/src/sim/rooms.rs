@@ -13,7 +13,7 @@
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sl_core::{Intrinsics, Pose};
+use sl_core::{CameraToWorld, Intrinsics};
 
 use crate::error::Result;
 use crate::sim::primitives::{Cuboid, Plane};
@@ -41,7 +41,7 @@ pub struct RoomScene {
     /// The surfaces (floor, ceiling, four walls, then the box faces).
     pub scene: Scene,
     /// Camera-to-world pose.
-    pub pose: Pose,
+    pub pose: CameraToWorld,
     /// The camera (640×480, random focal length).
     pub intrinsics: Intrinsics,
     /// Human-readable label names (`floor`, `ceiling`, `wall +x`, `box 1 face 4`, …).
@@ -117,8 +117,9 @@ pub fn room_scene(seed: u64) -> Result<RoomScene> {
         yaw.sin() * pitch.cos(),
         pitch.sin(),
     );
-    let mut pose = look_at(eye, eye + dir, Vector3::z())?;
+    let mut pose = look_at(eye, eye + dir, Vector3::z())?.into_isometry();
     pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::z_axis(), roll);
+    let pose = CameraToWorld::from_isometry(pose);
     // Boxes on the floor, clear of the camera and inside the walls.
     let n_boxes = match kind {
         RoomKind::Room => rng.random_range(1..=3),
@@ -185,7 +186,7 @@ mod tests {
             let f = s.intrinsics.fx;
             assert!((520.0..600.0).contains(&f), "seed {seed}: f = {f}");
             // The camera is inside the space, below the ceiling.
-            let t = s.pose.translation.vector;
+            let t = s.pose.translation();
             assert!(t.x.abs() < s.size_m[0] / 2.0 && t.y.abs() < s.size_m[1] / 2.0);
             assert!(t.z > 0.5 && t.z < s.size_m[2]);
         }

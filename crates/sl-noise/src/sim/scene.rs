@@ -1,8 +1,8 @@
 //! A [`Scene`] of labelled analytic surfaces and its ground-truth [`Render`].
 
-use nalgebra::{Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
-use sl_core::{DepthImage, Image, Intrinsics, Pose};
+use sl_core::{CameraToWorld, DepthImage, Image, Intrinsics};
 
 use crate::error::{NoiseError, Result};
 use crate::sim::primitives::{Hit, Surface, faces_of};
@@ -131,7 +131,7 @@ impl Scene {
 
     /// [`Scene::render`] after checking the image size against [`MAX_RENDER_PIXELS`]: use it
     /// when the intrinsics come from outside (a camera file).
-    pub fn try_render(&self, k: &Intrinsics, camera_to_world: &Pose) -> Result<Render> {
+    pub fn try_render(&self, k: &Intrinsics, camera_to_world: &CameraToWorld) -> Result<Render> {
         check_render_size(k)?;
         Ok(self.render(k, camera_to_world))
     }
@@ -141,13 +141,13 @@ impl Scene {
     /// pixel `(x, y)` is `R·((x − cx)/fx, (y − cy)/fy, 1)`, so the hit's ray parameter is the
     /// depth `Z` itself. Rows are rendered in parallel. Allocates 18 bytes per pixel without a
     /// size check: see [`Scene::try_render`] for untrusted intrinsics.
-    pub fn render(&self, k: &Intrinsics, camera_to_world: &Pose) -> Render {
+    pub fn render(&self, k: &Intrinsics, camera_to_world: &CameraToWorld) -> Render {
         let (w, h) = (k.width, k.height);
         let mut depth = vec![0.0f32; w * h];
         let mut labels = vec![0u16; w * h];
         let mut normals = vec![[0.0f32; 3]; w * h];
-        let origin = Point3::from(camera_to_world.translation.vector);
-        let rot = camera_to_world.rotation.to_rotation_matrix();
+        let origin = Point3::from(camera_to_world.translation());
+        let rot = camera_to_world.rotation().to_rotation_matrix();
         if w > 0 {
             depth
                 .par_chunks_mut(w)
@@ -197,7 +197,7 @@ fn image_from<T: Clone + Default>(w: usize, h: usize, data: Vec<T>) -> Image<T> 
 ///
 /// Camera axes follow `sl-core`: x right, y down, z forward. Fails when `eye == target` or the
 /// viewing direction is parallel to `up`.
-pub fn look_at(eye: Point3<f64>, target: Point3<f64>, up: Vector3<f64>) -> Result<Pose> {
+pub fn look_at(eye: Point3<f64>, target: Point3<f64>, up: Vector3<f64>) -> Result<CameraToWorld> {
     let fwd = target - eye;
     let fwd_n = fwd.norm();
     if !(fwd_n.is_finite() && fwd_n > 0.0) {
@@ -216,10 +216,10 @@ pub fn look_at(eye: Point3<f64>, target: Point3<f64>, up: Vector3<f64>) -> Resul
     let x = x / xn;
     let y = z.cross(&x);
     let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
-    Ok(Pose::from_parts(
+    Ok(CameraToWorld::from_isometry(Isometry3::from_parts(
         eye.coords.into(),
         UnitQuaternion::from_rotation_matrix(&r),
-    ))
+    )))
 }
 
 #[cfg(test)]
@@ -236,9 +236,9 @@ mod tests {
         )
         .unwrap();
         // Camera forward → world +y, right → world +x, down → world −z.
-        assert!((pose.rotation * Vector3::z() - Vector3::y()).norm() < 1e-12);
-        assert!((pose.rotation * Vector3::x() - Vector3::x()).norm() < 1e-12);
-        assert!((pose.rotation * Vector3::y() + Vector3::z()).norm() < 1e-12);
+        assert!((pose.rotation() * Vector3::z() - Vector3::y()).norm() < 1e-12);
+        assert!((pose.rotation() * Vector3::x() - Vector3::x()).norm() < 1e-12);
+        assert!((pose.rotation() * Vector3::y() + Vector3::z()).norm() < 1e-12);
         assert!(look_at(Point3::origin(), Point3::new(0.0, 0.0, 2.0), Vector3::z()).is_err());
     }
 
@@ -256,7 +256,7 @@ mod tests {
             )
             .unwrap(),
         );
-        let r = scene.render(&k, &Pose::identity());
+        let r = scene.render(&k, &CameraToWorld::identity());
         assert_eq!((wall, near), (1, 2));
         for y in 0..48 {
             for x in 0..64 {
@@ -291,7 +291,7 @@ mod tests {
         assert_eq!(*r.labels.get(20, 15).unwrap(), s);
         let ray = k.ray(20.0, 15.0);
         let expected = {
-            let d = pose.rotation * ray;
+            let d = pose.rotation() * ray;
             scene.trace(&Point3::new(1.0, 2.0, 0.0), &d).unwrap().1.t
         };
         assert!((f64::from(zc) - expected).abs() < 1e-6);
@@ -304,7 +304,7 @@ mod tests {
                 let l = *r.labels.get(x, y).unwrap();
                 if l != 0 {
                     let z = f64::from(r.depth.get(x, y).unwrap());
-                    let p = pose * k.back_project(x as f64, y as f64, z);
+                    let p = pose.isometry() * k.back_project(x as f64, y as f64, z);
                     assert!(scene.surface(l).unwrap().distance(&p) < 1e-5);
                 }
             }
@@ -321,7 +321,7 @@ mod tests {
         );
         assert_eq!(labels, [1, 2, 3, 4, 5, 6]);
         let k = Intrinsics::new(32, 32, 30.0, 30.0, 15.5, 15.5).unwrap();
-        let r = scene.render(&k, &Pose::identity());
+        let r = scene.render(&k, &CameraToWorld::identity());
         // Seen from the origin along +z: only the −z face (index 5).
         assert_eq!(*r.labels.get(16, 16).unwrap(), labels[5]);
         assert!((r.depth.get(16, 16).unwrap() - 2.5).abs() < 1e-6);
@@ -334,9 +334,9 @@ mod tests {
         assert_eq!(Scene::new().distance(&Point3::origin()), f64::INFINITY);
         let huge = Intrinsics::new(65536, 65536, 500.0, 500.0, 0.0, 0.0).unwrap();
         assert!(matches!(
-            scene.try_render(&huge, &Pose::identity()),
+            scene.try_render(&huge, &CameraToWorld::identity()),
             Err(NoiseError::TooLarge { .. })
         ));
-        assert_eq!(scene.try_render(&k, &Pose::identity()).unwrap(), r);
+        assert_eq!(scene.try_render(&k, &CameraToWorld::identity()).unwrap(), r);
     }
 }

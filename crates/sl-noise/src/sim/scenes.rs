@@ -5,7 +5,7 @@
 //! [`look_at`].
 
 use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
-use sl_core::{Intrinsics, Pose};
+use sl_core::{CameraToWorld, Intrinsics};
 
 use crate::error::{NoiseError, Result};
 use crate::sim::primitives::{Cylinder, Plane, Quad, Sphere};
@@ -33,7 +33,7 @@ pub struct NamedScene {
     /// The surfaces.
     pub scene: Scene,
     /// Camera-to-world pose of the camera.
-    pub pose: Pose,
+    pub pose: CameraToWorld,
     /// The camera intrinsics.
     pub intrinsics: Intrinsics,
     /// Human-readable names of the labels (e.g. `(2, "plane B (book)")`).
@@ -71,7 +71,7 @@ pub fn named_scene(name: &str) -> Result<NamedScene> {
     let mut scene = Scene::new();
     let mut label = |l: u16, n: &str| names.push((l, n.to_string()));
     let up = Vector3::z();
-    let (description, pose): (&'static str, Pose) = match name {
+    let (description, pose): (&'static str, CameraToWorld) = match name {
         "floor" => {
             let l = scene.add(Plane::new(Point3::origin(), up)?);
             label(l, "floor");

@@ -1,7 +1,7 @@
 //! Algorithm 1 of the paper through the public API.
 
 use sl_noise::algorithm1::{Algorithm1Params, algorithm1, algorithm1_with};
-use sl_noise::analysis::{AnalysisOptions, analyze_depths};
+use sl_noise::analysis::{AnalysisConfig, analyze_depths};
 
 #[test]
 fn algorithm1_slope_is_1_946() {
@@ -28,15 +28,11 @@ fn analysis_of_algorithm1_depths_agrees() {
     // The resolution analysis of Algorithm 1's unique depths gives the same OLS slope, and its
     // quantum gives back q·f·B = 8 · 587 · 0.075.
     let a = algorithm1();
-    let r = analyze_depths(
-        a.unique_depths_mm.iter().map(|mm| mm / 1000.0),
-        &AnalysisOptions {
-            depth_step_m: 0.001,
-            subpixel_steps: Some(8),
-            nominal_fb_px_m: Some(587.0 * 0.075),
-        },
-    )
-    .unwrap();
+    let mut config = AnalysisConfig::default();
+    config.depth_step_m = 0.001;
+    config.subpixel_steps = Some(8);
+    config.nominal_fb_px_m = Some(587.0 * 0.075);
+    let r = analyze_depths(a.unique_depths_mm.iter().map(|mm| mm / 1000.0), &config).unwrap();
     assert!(
         (r.slope - a.slope_ols).abs() < 1e-9,
         "{} vs {}",

@@ -5,7 +5,7 @@ use proptest::prelude::*;
 use proptest::test_runner::FileFailurePersistence;
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{Intrinsics, SensorModel};
-use sl_noise::analysis::{AnalysisOptions, analyze, analyze_with};
+use sl_noise::analysis::{AnalysisConfig, analyze, analyze_with};
 use sl_noise::sim::{KinectSimulator, Plane, Scene, look_at, named_scene};
 
 fn check_recovery(sim: &KinectSimulator, depth: &sl_core::DepthImage, what: &str) {
@@ -84,10 +84,8 @@ fn dropout_and_small_frames() {
     let f = sim.simulate(&ns.scene, &k, &ns.pose, 9);
     check_recovery(&sim, &f.depth, "floor 160x120 dropout 5 %");
     // Without q the analysis falls back to the nominal f·B for the count.
-    let opts = AnalysisOptions {
-        subpixel_steps: None,
-        ..AnalysisOptions::for_sensor(&sim.sensor)
-    };
+    let mut opts = AnalysisConfig::for_sensor(&sim.sensor);
+    opts.subpixel_steps = None;
     let a = analyze_with(&f.depth, &opts).unwrap();
     assert_eq!(a.fb_used_px_m, Some(sim.sensor.fb()));
     assert_eq!(a.subpixel_steps, Some(8));

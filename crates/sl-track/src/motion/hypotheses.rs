@@ -233,10 +233,11 @@ pub(super) fn rms_angle(
 pub fn estimate_motion(
     planes_a: &[PlaneInfo],
     planes_b: &[PlaneInfo],
-    guess: Option<&Isometry3<f64>>,
+    guess: Option<&CameraToCamera>,
     cfg: &MotionConfig,
 ) -> Result<PlaneMotion> {
     cfg.validate()?;
+    let guess = guess.map(CameraToCamera::isometry);
     // Without data to check against, plane matching needs a prior to break the symmetries of
     // man-made scenes (opposite walls, repeated structures): the identity when none is given.
     let g = guess.copied().unwrap_or_else(Isometry3::identity);

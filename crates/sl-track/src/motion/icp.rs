@@ -71,7 +71,7 @@ impl IcpConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct IcpResult {
     /// The motion `X_a = R·X_b + t`.
-    pub pose: Isometry3<f64>,
+    pub pose: CameraToCamera,
     /// Correspondences used in the last iteration.
     pub inliers: usize,
     /// RMS point-to-plane residual of the last iteration, metres.
@@ -88,7 +88,7 @@ pub fn icp_point_to_plane(
     depth_a: &DepthImage,
     depth_b: &DepthImage,
     camera: &Camera,
-    init: &Isometry3<f64>,
+    init: &CameraToCamera,
     cfg: &IcpConfig,
 ) -> Result<IcpResult> {
     let mut target = Target::new(depth_a, camera)?;
@@ -105,13 +105,13 @@ pub fn icp_point_to_plane(
     let (pose, inliers, rms_m) = verify::icp(
         &mut target,
         &src,
-        init,
+        init.isometry(),
         cfg.iterations,
         cfg.max_dist_m,
         cfg.min_dist_m,
     )?;
     Ok(IcpResult {
-        pose,
+        pose: CameraToCamera::from_isometry(pose),
         inliers,
         rms_m,
     })
@@ -177,11 +177,11 @@ pub struct IcpOutcome {
     /// Why it was not.
     pub rejection: Option<IcpRejection>,
     /// The motion to use: ICP's pose when accepted, else the plane estimate
-    /// ([`PlaneMotion::isometry`]).
-    pub pose: Isometry3<f64>,
+    /// ([`PlaneMotion::motion`]).
+    pub pose: CameraToCamera,
     /// Where ICP started: the verified alignment ([`Verification::aligned`]) when the motion
     /// has one, else the plane estimate.
-    pub start: Isometry3<f64>,
+    pub start: CameraToCamera,
     /// ICP's own result (also when rejected); `None` when ICP failed.
     pub icp: Option<IcpResult>,
     /// Inlier fraction of the estimate before the refinement: the verification's
@@ -260,7 +260,7 @@ pub struct IcpOutcome {
 /// let out = refine_motion_icp_verified(&da, &db, &cam, &m, &IcpConfig::refinement(), &mcfg, &vcfg)?;
 /// assert!(out.accepted, "{:?}", out.rejection);
 /// assert!(out.inlier_fraction_after.is_some_and(|f| f + 1e-3 >= out.inlier_fraction_before));
-/// assert!(out.pose.rotation.angle_to(&truth.rotation).to_degrees() < 0.5);
+/// assert!(out.pose.rotation().angle_to(&truth.rotation).to_degrees() < 0.5);
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub fn refine_motion_icp_verified(
@@ -275,7 +275,7 @@ pub fn refine_motion_icp_verified(
     cfg.validate()?;
     mcfg.validate()?;
     vcfg.validate()?;
-    let estimate = motion.isometry();
+    let estimate = motion.motion();
     let start = motion.verification.as_ref().map_or(estimate, |v| v.aligned);
     let mut check = TwoWay::new(
         depth_a,
@@ -288,7 +288,9 @@ pub fn refine_motion_icp_verified(
     // The verification scored `aligned` on these same samples and tolerances.
     let inlier_fraction_before = match &motion.verification {
         Some(v) => v.inlier_fraction,
-        None => check.score(&estimate, tol, Density::Full).inlier_fraction(),
+        None => check
+            .score(estimate.isometry(), tol, Density::Full)
+            .inlier_fraction(),
     };
     let mut outcome = IcpOutcome {
         accepted: false,
@@ -308,18 +310,19 @@ pub fn refine_motion_icp_verified(
         }
         Err(e) => return Err(e),
     };
-    let score = check.score(&icp.pose, tol, Density::Full);
+    let score = check.score(icp.pose.isometry(), tol, Density::Full);
     let (inl, ovl) = (score.inlier_fraction(), score.overlap_fraction());
     outcome.inlier_fraction_after = Some(inl);
     outcome.overlap_fraction_after = Some(ovl);
     outcome.rejection = if ovl < vcfg.min_overlap_fraction || inl < vcfg.min_inlier_fraction {
         Some(IcpRejection::NotVerified)
     } else if inl + ICP_INLIER_TOLERANCE < inlier_fraction_before && {
-        let (only_before, only_after) = check.discordant(&start, &icp.pose, tol, Density::Full);
+        let (only_before, only_after) =
+            check.discordant(start.isometry(), icp.pose.isometry(), tol, Density::Full);
         significant_loss(only_before, only_after)
     } {
         Some(IcpRejection::LostInliers)
-    } else if icp.pose.rotation.angle_to(&start.rotation) > mcfg.distinct_deg.to_radians() {
+    } else if icp.pose.rotation().angle_to(&start.rotation()) > mcfg.distinct_deg.to_radians() {
         Some(IcpRejection::MovedTooFar)
     } else {
         None

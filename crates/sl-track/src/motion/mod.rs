@@ -54,7 +54,7 @@
 use nalgebra::{
     Isometry3, Matrix3, Rotation3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
 };
-use sl_core::{Camera, DepthImage};
+use sl_core::{Camera, CameraToCamera, DepthImage};
 
 use crate::error::{Result, TrackError};
 pub use crate::verify::VerifyConfig;
@@ -206,8 +206,8 @@ pub struct Verification {
     /// Points used per frame (the fewer of the two).
     pub samples: usize,
     /// The winning hypothesis after the short data refinement (a coarse ICP result, not the
-    /// plane estimate).
-    pub aligned: Isometry3<f64>,
+    /// plane estimate), `X_a = T·X_b`.
+    pub aligned: CameraToCamera,
 }
 
 /// The motion of frame B relative to frame A estimated from planes.
@@ -234,13 +234,22 @@ pub struct PlaneMotion {
 }
 
 impl PlaneMotion {
-    /// The motion as an isometry (`translation_partial_m` when the translation is not fully
-    /// determined).
-    pub fn isometry(&self) -> Isometry3<f64> {
-        Isometry3::from_parts(
+    /// The motion mapping camera B to camera A, `X_a = T·X_b` (`translation_partial_m` when
+    /// the translation is not fully determined).
+    pub fn motion(&self) -> CameraToCamera {
+        CameraToCamera::from_isometry(Isometry3::from_parts(
             Translation3::from(self.translation_m.unwrap_or(self.translation_partial_m)),
             self.rotation,
-        )
+        ))
+    }
+
+    /// The motion as an untyped isometry.
+    #[deprecated(
+        since = "0.1.0",
+        note = "use `motion()`, which says its direction (camera B to camera A) in its type"
+    )]
+    pub fn isometry(&self) -> Isometry3<f64> {
+        self.motion().into_isometry()
     }
 }
 

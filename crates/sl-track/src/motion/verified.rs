@@ -131,12 +131,13 @@ pub fn estimate_motion_verified(
     a: MotionFrame<'_>,
     b: MotionFrame<'_>,
     camera: &Camera,
-    guess: Option<&Isometry3<f64>>,
+    guess: Option<&CameraToCamera>,
     cfg: &MotionConfig,
     vcfg: &VerifyConfig,
 ) -> Result<PlaneMotion> {
     cfg.validate()?;
     vcfg.validate()?;
+    let guess = guess.map(CameraToCamera::isometry);
     let g = guess.copied().unwrap_or_else(Isometry3::identity);
     let mt = Matcher::new(a.planes, b.planes, guess, cfg);
     let hyps = mt.hypotheses();
@@ -194,7 +195,7 @@ pub fn estimate_motion_verified(
             turned_inlier_fraction,
             hypotheses: hyps.len(),
             samples: check.samples(),
-            aligned,
+            aligned: CameraToCamera::from_isometry(aligned),
         }),
     })
 }

@@ -260,7 +260,7 @@ impl Tracker {
             let planes =
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
-                let start = last * m;
+                let start = last * m.into_isometry();
                 let again = self.align(&start, reference, unknown_var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {

@@ -218,7 +218,7 @@ fn fused_room(k: &Intrinsics, v: f64, trunc: f64) -> (TsdfVolume, sl_noise::sim:
             Vector3::new(-0.2 + 0.1 * i as f64, 0.0, 0.0),
             Vector3::new(0.0, 0.06 * i as f64 - 0.12, 0.0),
         );
-        let depth = scene.render(k, &pose).depth;
+        let depth = scene.render(k, &CameraToWorld::from_isometry(pose)).depth;
         vol.integrate(&depth, k, &CameraToWorld::from_isometry(pose))
             .unwrap();
     }
@@ -234,7 +234,7 @@ fn fused_scene_raycast_matches_the_exact_depth_from_a_new_pose() {
     let iso = Isometry3::new(Vector3::new(0.05, 0.02, 0.0), Vector3::new(0.01, 0.03, 0.0));
     let pose = CameraToWorld::from_isometry(iso);
     let r = vol.raycast(&pose, &k, &RaycastConfig::default()).unwrap();
-    let truth = scene.render(&k, &iso).depth;
+    let truth = scene.render(&k, &pose).depth;
     let mut errs = Vec::new();
     let mut valid = 0;
     for (&t, &d) in truth.data().iter().zip(r.depth.data()) {

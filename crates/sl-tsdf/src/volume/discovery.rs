@@ -5,9 +5,9 @@
 use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Vector3};
 
-use sl_core::{Intrinsics, Pose};
+use sl_core::Intrinsics;
 
 use super::*;
 
@@ -94,7 +94,7 @@ impl<'a> BandFrame<'a> {
     pub(super) fn new(
         p: &TsdfConfig,
         k: &'a Intrinsics,
-        pose: &Pose,
+        pose: &Isometry3<f64>,
         rx: &'a [f32],
     ) -> Result<Self> {
         let inv_bs = 1.0 / (p.voxel_m * BLOCK_SIDE as f64);

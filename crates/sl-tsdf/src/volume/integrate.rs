@@ -3,10 +3,10 @@
 //! block with the projective signed distance and the frame's weight (the per-block kernel and
 //! its per-frame constants live here).
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use sl_core::{CameraToWorld, DepthView, Intrinsics, Pose};
+use sl_core::{CameraToWorld, DepthView, Intrinsics};
 
 use super::discovery::*;
 use super::*;
@@ -61,7 +61,7 @@ impl TsdfVolume {
         table: &mut Vec<[f32; 2]>,
         depth: DepthView<'_>,
         k: &Intrinsics,
-        pose: &Pose,
+        pose: &Isometry3<f64>,
     ) -> Result<IntegrateStats> {
         let (w, h) = (k.width, k.height);
         let tw = w + 2;
@@ -174,7 +174,13 @@ impl TsdfVolume {
     }
 
     /// Updates the voxels of the touched blocks from one frame.
-    fn update_blocks(&mut self, touched: &[bool], table: &[[f32; 2]], k: &Intrinsics, pose: &Pose) {
+    fn update_blocks(
+        &mut self,
+        touched: &[bool],
+        table: &[[f32; 2]],
+        k: &Intrinsics,
+        pose: &Isometry3<f64>,
+    ) {
         let frame = FrameConsts::new(&self.params, k, pose);
         // A table of exactly `SMALL_TABLE` entries (see `integrate_with`) is indexed with a mask
         // instead of a bounds check.
@@ -235,7 +241,7 @@ pub(super) struct FrameConsts {
 }
 
 impl FrameConsts {
-    pub(super) fn new(p: &TsdfConfig, k: &Intrinsics, pose: &Pose) -> Self {
+    pub(super) fn new(p: &TsdfConfig, k: &Intrinsics, pose: &Isometry3<f64>) -> Self {
         let inv = pose.inverse();
         let rt: Matrix3<f32> = inv.rotation.to_rotation_matrix().into_inner().cast::<f32>();
         let tt: Vector3<f32> = inv.translation.vector.cast::<f32>();

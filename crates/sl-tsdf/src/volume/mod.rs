@@ -305,9 +305,9 @@ use discovery::*;
 #[cfg(test)]
 use integrate::*;
 #[cfg(test)]
-use nalgebra::Vector3;
+use nalgebra::{Isometry3, Vector3};
 #[cfg(test)]
-use sl_core::{Intrinsics, Pose};
+use sl_core::Intrinsics;
 
 #[cfg(test)]
 mod reference_tests;

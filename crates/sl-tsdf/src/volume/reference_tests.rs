@@ -35,13 +35,13 @@ fn small_camera() -> Intrinsics {
     Intrinsics::new(160, 120, 150.0, 147.0, 77.3, 61.9).unwrap()
 }
 
-fn random_pose(rng: &mut ChaCha8Rng, t_m: f64, angle: f64) -> Pose {
+fn random_pose(rng: &mut ChaCha8Rng, t_m: f64, angle: f64) -> Isometry3<f64> {
     let axis = Vector3::new(
         rng.random_range(-1.0..1.0),
         rng.random_range(-1.0..1.0),
         rng.random_range(-1.0..1.0),
     );
-    Pose::new(
+    Isometry3::new(
         Vector3::new(
             rng.random_range(-t_m..t_m),
             rng.random_range(-t_m..t_m),
@@ -116,7 +116,7 @@ fn segment_meets_box(a: &Vector3<f64>, b: &Vector3<f64>, c: [i32; 3], grow: f64)
 fn reference_band(
     p: &TsdfConfig,
     k: &Intrinsics,
-    pose: &Pose,
+    pose: &Isometry3<f64>,
     depth: &[f32],
     grow: f64,
 ) -> BTreeSet<[i32; 3]> {
@@ -153,7 +153,7 @@ fn reference_band(
 fn reference_bands(
     p: &TsdfConfig,
     k: &Intrinsics,
-    pose: &Pose,
+    pose: &Isometry3<f64>,
     depth: &[f32],
 ) -> (BTreeSet<[i32; 3]>, BTreeSet<[i32; 3]>) {
     let inner = reference_band(p, k, pose, depth, -EPS_BLOCKS);
@@ -296,7 +296,7 @@ impl ReferenceVolume {
         &mut self,
         p: &TsdfConfig,
         k: &Intrinsics,
-        pose: &Pose,
+        pose: &Isometry3<f64>,
         depth: &[f32],
         (inner, outer): &(BTreeSet<[i32; 3]>, BTreeSet<[i32; 3]>),
     ) {
@@ -318,7 +318,14 @@ impl ReferenceVolume {
         }
     }
 
-    fn update(&mut self, p: &TsdfConfig, k: &Intrinsics, inv: &Pose, depth: &[f32], g: [i64; 3]) {
+    fn update(
+        &mut self,
+        p: &TsdfConfig,
+        k: &Intrinsics,
+        inv: &Isometry3<f64>,
+        depth: &[f32],
+        g: [i64; 3],
+    ) {
         let pw = Point3::new(g[0] as f64, g[1] as f64, g[2] as f64) * p.voxel_m;
         let pc = inv * pw;
         if pc.z <= 0.0 {
@@ -402,8 +409,17 @@ impl ReferenceVolume {
 
 /// A room-like scene (walls, floor, two spheres) rendered from `pose`, with holes and a few
 /// non-finite pixels.
-fn scene_frame(rng: &mut ChaCha8Rng, k: &Intrinsics, pose: &Pose, scene: &Scene) -> Vec<f32> {
-    let mut depth = scene.render(k, pose).depth.data().to_vec();
+fn scene_frame(
+    rng: &mut ChaCha8Rng,
+    k: &Intrinsics,
+    pose: &Isometry3<f64>,
+    scene: &Scene,
+) -> Vec<f32> {
+    let mut depth = scene
+        .render(k, &CameraToWorld::from_isometry(*pose))
+        .depth
+        .data()
+        .to_vec();
     for d in depth.iter_mut() {
         let r: f32 = rng.random_range(0.0..1.0);
         if r < 0.04 {
@@ -439,7 +455,7 @@ fn room() -> Scene {
 fn fuse_and_compare(
     p: &TsdfConfig,
     k: &Intrinsics,
-    frames: &[(Vec<f32>, Pose)],
+    frames: &[(Vec<f32>, Isometry3<f64>)],
     what: &str,
 ) -> usize {
     let mut vol = TsdfVolume::new(*p).unwrap();
@@ -483,7 +499,7 @@ fn integration_matches_the_scalar_reference_for_every_weight_mode() {
             max_weight: if m == 0 { 1.5 } else { 1e6 },
             ..TsdfConfig::default()
         };
-        let frames: Vec<(Vec<f32>, Pose)> = (0..2)
+        let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)
             .map(|_| {
                 let pose = random_pose(&mut rng, 0.1, 0.3);
                 (scene_frame(&mut rng, &k, &pose, &scene), pose)
@@ -508,7 +524,7 @@ fn integration_matches_the_scalar_reference_with_the_large_pixel_table() {
         trunc_m: 0.04,
         ..TsdfConfig::default()
     };
-    let frames: Vec<(Vec<f32>, Pose)> = (0..2)
+    let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)
         .map(|_| {
             let pose = random_pose(&mut rng, 0.05, 0.1);
             let mut depth = scene_frame(&mut rng, &k, &pose, &scene);
@@ -538,7 +554,7 @@ fn integration_matches_the_scalar_reference_next_to_the_camera() {
         weight: WeightMode::InvZ2,
         ..TsdfConfig::default()
     };
-    let frames: Vec<(Vec<f32>, Pose)> = (0..2)
+    let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)
         .map(|_| {
             let pose = random_pose(&mut rng, 0.02, 0.2);
             (patch_frame(&mut rng, k.width, k.height, (0.02, 0.3)), pose)
@@ -597,8 +613,8 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
         trunc_m: 0.03,
         ..TsdfConfig::default()
     };
-    let pose_a = Pose::identity();
-    let pose_b = Pose::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.3, 0.0));
+    let pose_a = Isometry3::identity();
+    let pose_b = Isometry3::new(Vector3::new(0.3, 0.0, 0.0), Vector3::new(0.0, 0.3, 0.0));
     let a = image(&k, &scene_frame(&mut rng, &k, &pose_a, &scene));
     let b = image(&k, &scene_frame(&mut rng, &k, &pose_b, &scene));
     let mut free = TsdfVolume::new(p).unwrap();
@@ -658,7 +674,7 @@ fn budget_refuses_one_block_too_many_and_the_volume_stays_usable() {
 
     // Still usable: a frame within the budget integrates, and the result is that of a volume
     // that never saw the refused frame.
-    let pose_c = Pose::new(Vector3::new(0.01, 0.0, 0.0), Vector3::zeros());
+    let pose_c = Isometry3::new(Vector3::new(0.01, 0.0, 0.0), Vector3::zeros());
     let c = image(&k, &scene_frame(&mut rng, &k, &pose_c, &scene));
     let stats = vol
         .integrate(&c, &k, &CameraToWorld::from_isometry(pose_c))
@@ -719,10 +735,13 @@ fn memory_bytes_stays_within_an_exactly_fitting_budget() {
     // Integration, frame by frame, under a budget that the last frame fills exactly.
     let k = small_camera();
     let scene = room();
-    let poses: Vec<Pose> = (0..8)
-        .map(|i| Pose::new(Vector3::new(0.03 * i as f64, 0.0, 0.0), Vector3::zeros()))
+    let poses: Vec<Isometry3<f64>> = (0..8)
+        .map(|i| Isometry3::new(Vector3::new(0.03 * i as f64, 0.0, 0.0), Vector3::zeros()))
         .collect();
-    let frames: Vec<DepthImage> = poses.iter().map(|q| scene.render(&k, q).depth).collect();
+    let frames: Vec<DepthImage> = poses
+        .iter()
+        .map(|q| scene.render(&k, &CameraToWorld::from_isometry(*q)).depth)
+        .collect();
     let mut free = TsdfVolume::new(p).unwrap();
     for (d, q) in frames.iter().zip(&poses) {
         free.integrate(d, &k, &CameraToWorld::from_isometry(*q))
@@ -752,8 +771,8 @@ fn non_finite_pose_is_refused() {
     let depth = DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
     let mut vol = TsdfVolume::new(TsdfConfig::default()).unwrap();
     for pose in [
-        Pose::new(Vector3::new(f64::NAN, 0.0, 0.0), Vector3::zeros()),
-        Pose::new(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0)),
+        Isometry3::new(Vector3::new(f64::NAN, 0.0, 0.0), Vector3::zeros()),
+        Isometry3::new(Vector3::zeros(), Vector3::new(f64::NAN, 0.0, 0.0)),
     ] {
         assert!(matches!(
             vol.integrate(&depth, &k, &CameraToWorld::from_isometry(pose)),

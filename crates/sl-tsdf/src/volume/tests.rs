@@ -77,7 +77,7 @@ fn band_rows_matches_brute_force_traversal() {
                 rng.random_range(-1.0..1.0),
                 rng.random_range(-1.0..1.0),
             );
-            let pose = Pose::new(
+            let pose = Isometry3::new(
                 Vector3::new(
                     rng.random_range(-2.0..2.0),
                     rng.random_range(-2.0..2.0),
@@ -117,7 +117,7 @@ fn band_rows_matches_brute_force_traversal() {
     let rx: Vec<f32> = (0..k.width)
         .map(|x| ((x as f64 - k.cx) / k.fx) as f32)
         .collect();
-    let band = BandFrame::new(&p, &k, &Pose::identity(), &rx).unwrap();
+    let band = BandFrame::new(&p, &k, &Isometry3::identity(), &rx).unwrap();
     let tw = k.width + 2;
     let mut trows = vec![[0.0f32; 2]; tw * BAND_ROWS];
     trows[tw * 3 + 10] = [1e8, 1.0];
@@ -145,7 +145,7 @@ fn voxel_update_variants_agree() {
     }
     let small: &[[f32; 2]; SMALL_TABLE] = table.first_chunk().unwrap();
     let p = TsdfConfig::default();
-    let pose = Pose::new(Vector3::new(0.1, -0.2, 0.05), Vector3::new(0.1, 0.2, -0.1));
+    let pose = Isometry3::new(Vector3::new(0.1, -0.2, 0.05), Vector3::new(0.1, 0.2, -0.1));
     let fc = FrameConsts::new(&p, &k, &pose);
     let mut n_updated = 0;
     for _ in 0..200 {
@@ -200,8 +200,8 @@ fn voxel_update_variants_agree() {
 fn block_arena_stays_within_the_budget() {
     let k = Intrinsics::new(160, 120, 145.0, 145.0, 79.5, 59.5).unwrap();
     let depth = DepthImage::from_vec(k.width, k.height, vec![1.2; k.pixel_count()]).unwrap();
-    let poses: Vec<Pose> = (0..6)
-        .map(|i| Pose::new(Vector3::new(0.05 * i as f64, 0.0, 0.0), Vector3::zeros()))
+    let poses: Vec<Isometry3<f64>> = (0..6)
+        .map(|i| Isometry3::new(Vector3::new(0.05 * i as f64, 0.0, 0.0), Vector3::zeros()))
         .collect();
     let mut free = TsdfVolume::new(TsdfConfig::default()).unwrap();
     for pose in &poses {

@@ -42,10 +42,7 @@ pub struct Args {
 fn read(path: &Path, what: &str) -> Result<Vec<StampedPose>> {
     let poses = sl_io::trajectory::read_tum_trajectory_with_limits(path, &limits())
         .with_context(|| format!("reading the {what} trajectory"))?;
-    Ok(poses
-        .iter()
-        .map(|p| (p.timestamp, p.camera_to_world()))
-        .collect())
+    Ok(poses.iter().map(|p| (p.timestamp, p.pose)).collect())
 }
 
 /// JSON of error statistics, rounded.

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld, DepthImage};
-use sl_io::depth::{ReadOptions, read_depth_with_limits};
+use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::trajectory::Frame;
 use sl_tsdf::{Axis, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume, WeightMode};
 
@@ -239,10 +239,9 @@ pub fn run(args: Args) -> Result<()> {
     params.weight = parse_weight(&args.weight, &camera)?;
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = budget;
-    let read_opts = ReadOptions {
-        format: parse_format(&args.input)?,
-        scale_units_per_m: args.input.depth_scale.or(default_scale),
-    };
+    let mut read_opts = ReadConfig::default();
+    read_opts.format = parse_format(&args.input)?;
+    read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
     let filter = if args.prefilter {
         Some(sl_filter::DepthFilter::default_for(
             sl_filter::Method::Adaptive,
@@ -284,10 +283,10 @@ pub fn run(args: Args) -> Result<()> {
         }
         let t0 = Instant::now();
         volume
-            .integrate(&depth, &k, &f.camera_to_world())
+            .integrate(&depth, &k, &f.pose)
             .with_context(|| format!("integrating {}", f.depth_path.display()))?;
         integrate_ms.push(t0.elapsed().as_secs_f64() * 1e3);
-        first_pose.get_or_insert(f.camera_to_world());
+        first_pose.get_or_insert(f.pose);
         bar.inc(1);
     }
     bar.finish_and_clear();

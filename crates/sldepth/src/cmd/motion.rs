@@ -17,7 +17,8 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use serde_json::{Value, json};
-use sl_core::nalgebra::{Isometry3, Vector3};
+use sl_core::CameraToCamera;
+use sl_core::nalgebra::Vector3;
 use sl_track::{DepthMotionConfig, IcpOutcome, PlaneConfig, TrackError, motion_between_depths};
 
 use crate::common::{InputArgs, check_range, load_depth, print_json, round_to};
@@ -58,8 +59,8 @@ fn vec3(v: &Vector3<f64>, digits: i32) -> Value {
     ])
 }
 
-fn rotation_rows(pose: &Isometry3<f64>) -> Vec<f64> {
-    let rot = pose.rotation.to_rotation_matrix();
+fn rotation_rows(pose: &CameraToCamera) -> Vec<f64> {
+    let rot = pose.rotation().to_rotation_matrix();
     let rm = rot.matrix();
     (0..3)
         .flat_map(|i| (0..3).map(move |j| round_to(rm[(i, j)], 7)))
@@ -143,8 +144,8 @@ pub fn run(args: Args) -> Result<()> {
     };
     let outcome = result.icp.as_ref();
     let icp_json = outcome.map_or(Value::Null, icp_outcome_json);
-    let pose = result.pose().unwrap_or_else(|| m.isometry());
-    let rotation_deg = pose.rotation.angle().to_degrees();
+    let pose = result.pose().unwrap_or_else(|| m.motion());
+    let rotation_deg = pose.rotation_angle_deg();
     let translation = result.translation_m();
     let matched: Vec<_> = m
         .matches
@@ -239,8 +240,8 @@ mod tests {
         let o = IcpOutcome {
             accepted: false,
             rejection: Some(sl_track::IcpRejection::LostInliers),
-            pose: Isometry3::identity(),
-            start: Isometry3::identity(),
+            pose: CameraToCamera::identity(),
+            start: CameraToCamera::identity(),
             icp: None,
             inlier_fraction_before: 0.99,
             inlier_fraction_after: Some(0.95),

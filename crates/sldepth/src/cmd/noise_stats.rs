@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use serde_json::json;
-use sl_noise::stats::{NoiseStats, NoiseStatsOptions, noise_stats};
+use sl_noise::stats::{NoiseStats, NoiseStatsConfig, noise_stats};
 use sl_planes::{PlaneConfig, extract_planes};
 
 use crate::common::{InputArgs, load_depth, print_json};
@@ -36,7 +36,7 @@ pub fn stats_of(
     let mut cfg = PlaneConfig::default();
     cfg.min_pixels = min_plane_pixels.max(3);
     let seg = extract_planes(depth, camera, &cfg).context("extracting planes")?;
-    let opts = NoiseStatsOptions::default();
+    let opts = NoiseStatsConfig::default();
     Ok(noise_stats(depth, camera.sensor.fb(), &seg.labels, &opts)?)
 }
 

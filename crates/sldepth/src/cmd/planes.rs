@@ -90,7 +90,7 @@ pub fn run(args: Args) -> Result<()> {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
                 let raw = sl_io::depth::read_raw_depth_with_limits(
                     &args.depth,
-                    &sl_io::ReadOptions::default().with_format(DepthFormat::NyuRaw),
+                    &sl_io::ReadConfig::default().with_format(DepthFormat::NyuRaw),
                     &crate::common::limits(),
                 )?;
                 let disp = sl_io::depth::nyu_raw_to_disparity(&raw.values, sl_io::depth::NYU_DOFF);

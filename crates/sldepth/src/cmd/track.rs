@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld};
-use sl_io::depth::{ReadOptions, read_depth_with_limits};
+use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::ReferenceMaps;
 use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
@@ -262,10 +262,9 @@ pub fn run(args: Args) -> Result<()> {
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
     let mut track_ms_tracked = Vec::new();
-    let read_opts = ReadOptions {
-        format: parse_format(&args.input)?,
-        scale_units_per_m: Some(args.input.depth_scale.unwrap_or(default_scale)),
-    };
+    let mut read_opts = ReadConfig::default();
+    read_opts.format = parse_format(&args.input)?;
+    read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
 
     let bar = indicatif::ProgressBar::new(frames.len() as u64);
     if !std::io::stderr().is_terminal() || args.json {

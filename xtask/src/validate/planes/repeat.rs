@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context as _, Result};
-use sl_core::{Camera, DepthImage, Plane, Pose};
+use sl_core::{Camera, CameraToWorld, DepthImage, Plane};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::EXP;
@@ -98,7 +98,7 @@ pub fn repeatability(frames: &[Vec<WorldPlane>], k: usize) -> Repeat {
 struct Sequence {
     name: &'static str,
     camera: Camera,
-    frames: Vec<(PathBuf, Pose)>,
+    frames: Vec<(PathBuf, CameraToWorld)>,
     units_per_m: f64,
 }
 
@@ -156,7 +156,7 @@ struct SeqResult {
 
 fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
     let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
-    let opts = sl_io::ReadOptions::default().with_scale(seq.units_per_m);
+    let opts = sl_io::ReadConfig::default().with_scale(seq.units_per_m);
     let mut world = Vec::with_capacity(seq.frames.len());
     let (mut planes, mut large) = (0usize, 0usize);
     let (mut worst_ms, mut worst_frame) = (0f64, String::new());
@@ -188,9 +188,9 @@ fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
             seg.planes
                 .iter()
                 .map(|p| WorldPlane {
-                    plane: p.plane.transformed(pose),
+                    plane: p.plane.transformed(pose.isometry()),
                     pixels: p.pixels,
-                    centroid: pose * p.centroid_m,
+                    centroid: pose.isometry() * p.centroid_m,
                 })
                 .collect::<Vec<_>>(),
         );
