@@ -250,11 +250,12 @@ impl RayFrame {
     }
 }
 
-/// Where a ray leaves a block, with the per-ray divisions done once.
+/// Where a ray leaves a block: the per-ray choices of the exit face done once (the division
+/// stays per step: a reciprocal multiply would move the samples by round-off and change the
+/// output).
 struct BlockExit {
-    /// `1/d` per axis of the ray's direction `d` (grid units per metre of depth), 0 where
-    /// `d` is 0 (the ray never crosses that axis' planes).
-    inv: [f32; 3],
+    /// The ray's direction, grid units per metre of depth.
+    d: [f32; 3],
     /// The exit plane's offset from the block's low corner per axis: the block side where
     /// `d > 0`, else 0.
     off: [f32; 3],
@@ -264,7 +265,7 @@ impl BlockExit {
     fn new(d: &Vector3<f32>) -> Self {
         let side = BLOCK_SIDE as f32;
         Self {
-            inv: [0, 1, 2].map(|a| if d[a] != 0.0 { 1.0 / d[a] } else { 0.0 }),
+            d: [d.x, d.y, d.z],
             off: [0, 1, 2].map(|a| if d[a] > 0.0 { side } else { 0.0 }),
         }
     }
@@ -277,8 +278,8 @@ impl BlockExit {
         let side = BLOCK_SIDE as f32;
         let mut dt = f32::INFINITY;
         for a in 0..3 {
-            if self.inv[a] != 0.0 {
-                let ta = (b[a] as f32 * side + self.off[a] - g[a]) * self.inv[a];
+            if self.d[a] != 0.0 {
+                let ta = (b[a] as f32 * side + self.off[a] - g[a]) / self.d[a];
                 dt = dt.min(ta.max(0.0));
             }
         }
