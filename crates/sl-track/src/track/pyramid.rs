@@ -23,6 +23,57 @@ pub(crate) struct Level {
     pub points: Vec<Point3<f32>>,
     /// Camera-frame unit normals facing the camera (NaN where not computable).
     pub normals: Vec<Vector3<f32>>,
+    /// Per-pixel constants of the association pass (valid where the normal is).
+    pub aux: Vec<PointAux>,
+    /// The focal length `PointAux::cos_gate` was computed for (the full-resolution `fx`).
+    pub gate_fl: f32,
+}
+
+/// What the association pass needs of a frame point besides its position and normal, and
+/// does not depend on the pose: computed once per frame instead of once per iteration.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct PointAux {
+    /// `‖p‖`, the distance from the camera, metres.
+    pub ray_len: f32,
+    /// `c·z²` with `c = σ_D/(f·B)`: the point's depth σ, metres.
+    pub cz2: f32,
+    /// Cosine of the normal gate at the point's depth (see [`normal_gate_cos`]).
+    pub cos_gate: f32,
+}
+
+/// Cosine of the widest angle between the frame's and the reference's normals at depth `z`:
+/// central differences over ±2 pixels at depth z have an angular error of about
+/// `σ_Z(z)·f/(2·2·z)` each (√2 for two normals), gated at 3σ (`c = σ_D/(f·B)`, `fl` the
+/// full-resolution focal length, pixels). The caller caps it at the configured angle.
+#[inline]
+pub(crate) fn normal_gate_cos(c: f32, z: f32, fl: f32) -> f32 {
+    let tan_g = 3.0 * std::f32::consts::SQRT_2 * c * z * fl / 4.0;
+    1.0 / (1.0 + tan_g * tan_g).sqrt()
+}
+
+/// Fills `level.aux` from its points and normals.
+fn point_aux(level: &mut Level, sensor: &SensorModel, fl: f32) {
+    let c = (sensor.sigma_d_px / sensor.fb()) as f32;
+    let n = level.points.len();
+    level.aux.resize(n, PointAux::default());
+    level.gate_fl = fl;
+    level
+        .aux
+        .par_iter_mut()
+        .zip(level.points.par_iter())
+        .zip(level.normals.par_iter())
+        .for_each(|((a, pc), nc)| {
+            *a = if nc.x.is_finite() {
+                let z = pc.z;
+                PointAux {
+                    ray_len: pc.coords.norm(),
+                    cz2: c * z * z,
+                    cos_gate: normal_gate_cos(c, z, fl),
+                }
+            } else {
+                PointAux::default()
+            };
+        });
 }
 
 impl Level {
@@ -180,6 +231,7 @@ impl Pyramid {
             let lv = &mut self.levels[l];
             lv.k = Some(kl);
             vertices_normals(lv, &kl, sensor, if l == 0 { 2 } else { 1 });
+            point_aux(lv, sensor, k.fx as f32);
         }
         Ok(())
     }

@@ -8,7 +8,7 @@ use nalgebra::{
 use rayon::prelude::*;
 use sl_core::SensorModel;
 
-use super::pyramid::Level;
+use super::pyramid::{Level, normal_gate_cos};
 use super::reference::ReferenceMaps;
 use super::{TrackerConfig, WeightMode};
 
@@ -128,10 +128,13 @@ pub(crate) fn pass(
     let trr = to_ref.translation.vector.cast::<f32>();
     let kr = &reference.intrinsics;
     let (fx, fy, cx, cy) = (kr.fx as f32, kr.fy as f32, kr.cx as f32, kr.cy as f32);
+    // Image sides are at most 2^16 (`Intrinsics::validate`), so `n − 0.5` is exact.
     let (rw, rh) = (kr.width as f32, kr.height as f32);
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
     // Focal length of the full-resolution frame (normals are computed there).
     let fl = kr.fx as f32;
+    // The per-pixel gate of the level was computed for this focal length (the usual case).
+    let same_fl = fl == level.gate_fl;
     let gate_sigmas = cfg.gate_sigmas as f32;
     let huber_k = cfg.huber_k as f32;
     let uniform_sigma = sensor.sigma_z(cfg.z_ref_m) as f32;
@@ -142,8 +145,9 @@ pub(crate) fn pass(
         .points
         .par_chunks(w.max(1))
         .zip(level.normals.par_chunks(w.max(1)))
-        .fold(Sums::zero, |mut s, (prow, nrow)| {
-            for (pc, nc) in prow.iter().zip(nrow) {
+        .zip(level.aux.par_chunks(w.max(1)))
+        .fold(Sums::zero, |mut s, ((prow, nrow), arow)| {
+            for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow) {
                 if !nc.x.is_finite() {
                     continue;
                 }
@@ -153,12 +157,13 @@ pub(crate) fn pass(
                 if xr.z <= 0.0 {
                     continue;
                 }
-                let u = (fx * xr.x / xr.z + cx).round();
-                let v = (fy * xr.y / xr.z + cy).round();
-                if !(u >= 0.0 && v >= 0.0 && u < rw && v < rh) {
+                let (Some(u), Some(v)) = (
+                    round_index(fx * xr.x / xr.z + cx, rw),
+                    round_index(fy * xr.y / xr.z + cy, rh),
+                ) else {
                     continue;
-                }
-                let j = v as usize * kr.width + u as usize;
+                };
+                let j = v * kr.width + u;
                 let n = reference.normals[j];
                 if !n.x.is_finite() {
                     continue;
@@ -167,21 +172,23 @@ pub(crate) fn pass(
                 s.associated += 1.0;
                 s.loss += cap;
                 let nw = rot * nc;
-                // The normal gate widens with the normals' own noise: central differences over
-                // ±2 pixels at depth z have an angular error of about σ_Z(z)·f/(2·2·z) each
-                // (√2 for two normals), gated at 3σ and never tighter than `min_cos`.
-                let z = pc.z;
-                let tan_g = 3.0 * std::f32::consts::SQRT_2 * c * z * fl / 4.0;
-                let cos_g = (1.0 / (1.0 + tan_g * tan_g).sqrt()).min(p.min_cos);
+                // The normal gate widens with the normals' own noise (`normal_gate_cos`,
+                // precomputed per point for the usual focal length), never tighter than
+                // `min_cos`.
+                let cos_g0 = if same_fl {
+                    aux.cos_gate
+                } else {
+                    normal_gate_cos(c, pc.z, fl)
+                };
+                let cos_g = cos_g0.min(p.min_cos);
                 if nw.dot(&n) < cos_g {
                     continue;
                 }
                 let diff = xw - q;
                 let r = n.dot(&diff);
                 // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|.
-                let ray_len = pc.coords.norm();
-                let cos = n.dot(&(rot * pc.coords)) / ray_len;
-                let s_src = c * z * z * cos;
+                let cos = n.dot(&(rot * pc.coords)) / aux.ray_len;
+                let s_src = aux.cz2 * cos;
                 let var = s_src * s_src + reference.variance_m2[j];
                 let sigma = var.sqrt();
                 let gate = gate_sigmas * sigma + p.allowance_m;
@@ -219,6 +226,21 @@ pub(crate) fn pass(
             s
         })
         .reduce(Sums::zero, |a, b| a.add(&b))
+}
+
+/// `x.round()` (half away from zero) as an index when it lies in `[0, n)`, else `None` (also
+/// for NaN): the same pixel as `f32::round` without its libm call (the baseline x86-64 target
+/// has no rounding instruction). `round(x) ≥ 0 ⇔ x > −0.5` and `round(x) < n ⇔ x < n − 0.5`
+/// for an integer `n < 2^23`; in between, truncation plus one where the fraction is at least
+/// one half (`x − trunc(x)` is exact).
+#[inline(always)]
+fn round_index(x: f32, n: f32) -> Option<usize> {
+    if !(x > -0.5 && x < n - 0.5) {
+        return None;
+    }
+    let i = x as i32;
+    let r = i + i32::from(x - i as f32 >= 0.5);
+    usize::try_from(r).ok()
 }
 
 /// What the normal equations of one level are solved with besides the data: the data's

@@ -6,7 +6,7 @@ use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use sl_core::Intrinsics;
 
 use super::RaycastConfig;
-use super::sampler::{Sampler, floor_i32};
+use super::sampler::{Sampler, floor_i32, frac};
 use crate::error::{Result, TsdfError};
 use crate::volume::{BLOCK_SIDE, TsdfVolume};
 
@@ -137,6 +137,7 @@ impl RayFrame {
         // whose long step landed in unobserved voxels, one shortest step at a time.
         let mut prev: Option<(f32, f32)> = None;
         let mut fine = false;
+        let exit = BlockExit::new(&d);
         while t <= end {
             let g = at(t);
             if !g.iter().all(|c| c.is_finite() && c.abs() < 1.0e9) {
@@ -144,20 +145,25 @@ impl RayFrame {
             }
             let base = g.map(floor_i32);
             let b = base.map(|c| c >> 3);
-            if s.block(b).is_none() {
+            let Some(blk) = s.block(b) else {
                 // No sample whose base voxel is in this block is observed: jump to its exit.
-                t = self.block_exit(g, b, &d, t, min_dt);
+                t = exit.next(g, b, t, min_dt);
                 prev = None;
                 fine = false;
                 continue;
-            }
+            };
+            let ft = frac(g, base);
             // Far in front of the surface (the nearest voxel's F above `coarse_f`, so the
             // trilinear F is positive too: it differs by less than one voxel diagonal) one voxel
             // read decides the step; near the surface, behind it, or where the nearest voxel is
             // unobserved, the trilinear cell.
-            let sample = match s.nearest(g) {
-                Some((f, w)) if w > 0.0 && f > coarse_f => Some(f),
-                _ => s.cell(g).map(|c| c.value()),
+            let sample = match s.nearest_at(base, ft, b, blk) {
+                // The nearest voxel is a corner of the cell: where it is unallocated or
+                // unobserved, so is the cell.
+                None => None,
+                Some((_, w)) if w <= 0.0 => None,
+                Some((f, _)) if f > coarse_f => Some(f),
+                Some(_) => s.cell_at(base, ft).map(|c| c.value()),
             };
             match sample {
                 None => {
@@ -193,26 +199,6 @@ impl RayFrame {
             }
         }
         None
-    }
-
-    /// Camera depth just past the exit of the ray from the region of block `b` (the points
-    /// whose base voxel lies in it, `[8b, 8b + 8)` in grid units).
-    #[inline]
-    fn block_exit(&self, g: [f32; 3], b: [i32; 3], d: &Vector3<f32>, t: f32, min_dt: f32) -> f32 {
-        let side = BLOCK_SIDE as f32;
-        let mut dt = f32::INFINITY;
-        for a in 0..3 {
-            let lo = b[a] as f32 * side;
-            let ta = if d[a] > 0.0 {
-                (lo + side - g[a]) / d[a]
-            } else if d[a] < 0.0 {
-                (lo - g[a]) / d[a]
-            } else {
-                f32::INFINITY
-            };
-            dt = dt.min(ta.max(0.0));
-        }
-        t + dt + 0.01 * min_dt
     }
 
     /// Refines the crossing bracketed by `(t0, f0 > 0)` and `(t1, f1 ≤ 0)` and reads the hit.
@@ -261,5 +247,42 @@ impl RayFrame {
             normal,
             weight: cell.weight(),
         })
+    }
+}
+
+/// Where a ray leaves a block: the per-ray choices of the exit face done once (the division
+/// stays per step: a reciprocal multiply would move the samples by round-off and change the
+/// output).
+struct BlockExit {
+    /// The ray's direction, grid units per metre of depth.
+    d: [f32; 3],
+    /// The exit plane's offset from the block's low corner per axis: the block side where
+    /// `d > 0`, else 0.
+    off: [f32; 3],
+}
+
+impl BlockExit {
+    fn new(d: &Vector3<f32>) -> Self {
+        let side = BLOCK_SIDE as f32;
+        Self {
+            d: [d.x, d.y, d.z],
+            off: [0, 1, 2].map(|a| if d[a] > 0.0 { side } else { 0.0 }),
+        }
+    }
+
+    /// Camera depth just past the exit of the ray at depth `t` (grid point `g`) from the
+    /// region of block `b` (the points whose base voxel lies in it, `[8b, 8b + 8)` in grid
+    /// units).
+    #[inline]
+    fn next(&self, g: [f32; 3], b: [i32; 3], t: f32, min_dt: f32) -> f32 {
+        let side = BLOCK_SIDE as f32;
+        let mut dt = f32::INFINITY;
+        for a in 0..3 {
+            if self.d[a] != 0.0 {
+                let ta = (b[a] as f32 * side + self.off[a] - g[a]) / self.d[a];
+                dt = dt.min(ta.max(0.0));
+            }
+        }
+        t + dt + 0.01 * min_dt
     }
 }
