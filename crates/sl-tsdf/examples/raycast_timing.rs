@@ -14,7 +14,6 @@
 
 use std::time::Instant;
 
-use sl_core::CameraToWorld;
 use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
 
 fn maps(out: &Raycast) -> Vec<f32> {
@@ -96,9 +95,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (frames, k) = (seq.frames, seq.camera.intrinsics);
     let mut vol = TsdfVolume::new(TsdfConfig::default())?;
     for (d, p) in &frames {
-        vol.integrate(d, &k, &CameraToWorld::from_isometry(*p))?;
+        vol.integrate(d, &k, p)?;
     }
-    let pose = CameraToWorld::from_isometry(frames.last().ok_or("no frames")?.1);
+    let pose = frames.last().ok_or("no frames")?.1;
     let config = RaycastConfig::default();
     let mut out = Raycast::default();
     let mut ms = Vec::new();

@@ -141,12 +141,17 @@ pub(crate) fn pass(
     let mode = cfg.weighting;
     let ctr = centre.cast::<f32>();
     let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
-    level
+    // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
+    // result does not depend on how rayon splits the work, so a sequence tracks identically
+    // for any thread count and on every run (a `fold`/`reduce` splits where work is stolen).
+    let block = w.max(1) * ROWS_PER_BLOCK;
+    let blocks: Vec<Sums> = level
         .points
-        .par_chunks(w.max(1))
-        .zip(level.normals.par_chunks(w.max(1)))
-        .zip(level.aux.par_chunks(w.max(1)))
-        .fold(Sums::zero, |mut s, ((prow, nrow), arow)| {
+        .par_chunks(block)
+        .zip(level.normals.par_chunks(block))
+        .zip(level.aux.par_chunks(block))
+        .map(|((prow, nrow), arow)| {
+            let mut s = Sums::zero();
             for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow) {
                 if !nc.x.is_finite() {
                     continue;
@@ -225,8 +230,12 @@ pub(crate) fn pass(
             }
             s
         })
-        .reduce(Sums::zero, |a, b| a.add(&b))
+        .collect();
+    blocks.iter().fold(Sums::zero(), |a, b| a.add(b))
 }
+
+/// Rows of a level summed by one task of [`pass`] (30 blocks at 640×480).
+const ROWS_PER_BLOCK: usize = 16;
 
 /// `x.round()` (half away from zero) as an index when it lies in `[0, n)`, else `None` (also
 /// for NaN): the same pixel as `f32::round` without its libm call (the baseline x86-64 target
