@@ -190,20 +190,26 @@ pub fn load_camera(args: &InputArgs) -> Result<Camera> {
     }
 }
 
-/// The camera preset of a TUM RGB-D sequence folder when `--camera` is not given: `tum-fr2` or
-/// `tum-fr3` when a component of the folder's path names `freiburg2` / `freiburg3` (as TUM
-/// names its downloads, `rgbd_dataset_freiburg2_desk`), else `tum-fr1`. The three sensors'
-/// focal lengths differ by up to 3.5 %, enough to misalign fused frames.
-pub fn tum_preset_for(dir: &Path) -> &'static str {
+/// The camera of a TUM RGB-D sequence folder: `--camera` when given, else the `tum-fr2` or
+/// `tum-fr3` preset when a component of the folder's path names `freiburg2` / `freiburg3` (as
+/// TUM names its downloads, `rgbd_dataset_freiburg2_desk`), else `tum-fr1`, with a note on
+/// standard error saying which. The three sensors' focal lengths differ by up to 3.5 %, enough
+/// to misalign fused frames.
+pub fn tum_camera(dir: &Path, args: &InputArgs) -> Result<Camera> {
+    if args.camera.is_some() {
+        return load_camera(args);
+    }
     let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let names = full.to_string_lossy().to_ascii_lowercase();
-    if names.contains("freiburg2") {
+    let preset = if names.contains("freiburg2") {
         "tum-fr2"
     } else if names.contains("freiburg3") {
         "tum-fr3"
     } else {
         "tum-fr1"
-    }
+    };
+    errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
+    Ok(Camera::preset(preset)?)
 }
 
 /// A `--camera` value: an existing file is read as camera JSON; anything else must name a

@@ -122,7 +122,8 @@ pub struct Tracker {
     last_good: Option<Isometry3<f64>>,
     /// Motion of the last step, `T_k = T_{k−1}·velocity`.
     velocity: Isometry3<f64>,
-    /// Whether `velocity` was measured (false before the second frame and after a lost one).
+    /// Whether `velocity` was measured (false until a frame after the first is tracked; after
+    /// lost frames `lost_run` disables it until the next tracked one).
     velocity_known: bool,
     lost_run: usize,
     initial_pose: CameraToWorld,
@@ -242,9 +243,9 @@ impl Tracker {
         // The model can disagree with a frame where the last frame does not. On TUM fr1/rpy
         // (hand-held, turning at up to 120°/s), one step against a model fused with the
         // motion-capture poses errs by 2–6 cm where the same step against the previous frame
-        // errs by 0.2–1 cm: likely the rolling shutter, which shears every frame by its own
-        // angular velocity while the model averages many shears and consecutive frames share
-        // theirs. Try the last good frame before the plane fallback.
+        // errs by 0.2–1 cm: likely a view-dependent depth distortion or the rolling shutter,
+        // which differ between the views the model averages and agree between consecutive
+        // frames. Try the last good frame before the plane fallback.
         if first.failure.is_some() && model.is_some() {
             for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
                 let again = self.align(&start, &self.last_ref, var, true);
@@ -293,7 +294,6 @@ impl Tracker {
                 if self.lost_run > 3 {
                     self.velocity = Isometry3::identity();
                 }
-                self.velocity_known = false;
                 TrackStatus::Lost
             }
         };

@@ -142,14 +142,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
                 seq.without_pose.len()
             );
         }
-        let camera = match &args.input.camera {
-            Some(_) => load_camera(&args.input)?,
-            None => {
-                let preset = crate::common::tum_preset_for(dir);
-                errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
-                Camera::preset(preset)?
-            }
-        };
+        let camera = crate::common::tum_camera(dir, &args.input)?;
         Ok((seq.frames, camera, Some(5000.0)))
     } else if let Some(log) = &args.o3d_log {
         let Some(depth_dir) = &args.depth_dir else {

@@ -117,11 +117,7 @@ fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     };
     if let Some(dir) = &args.tum {
         let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
-        let preset = crate::common::tum_preset_for(dir);
-        if args.input.camera.is_none() {
-            errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
-        }
-        Ok((frames, camera(preset, None)?, 5000.0))
+        Ok((frames, crate::common::tum_camera(dir, &args.input)?, 5000.0))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
         Ok((
