@@ -46,6 +46,12 @@ for spec in "${frames[@]}"; do
     for m in adaptive bilateral gaussian disparity; do
         run "filter-$m $n" "$bin" filter "$f" "$out/o/out.png" --normals "$out/o/normals.png" --method "$m" "${s[@]}"
     done
+    # The multi-scale filter explicitly (every version since it exists), and the single pass of
+    # the default method (a flag added when the multi-scale filter became the default).
+    run "filter-multiscale $n" "$bin" filter "$f" "$out/o/out.png" --multiscale "${s[@]}"
+    if "$bin" filter --help | grep -q -- --single-scale; then
+        run "filter-adaptive-single $n" "$bin" filter "$f" "$out/o/out.png" --single-scale "${s[@]}"
+    fi
     run "planes $n" "$bin" planes "$f" --output "$out/o/labels.png" --overlay "$out/o/overlay.png" --json "${s[@]}"
     run "planes-ransac $n" "$bin" planes "$f" --method metric-ransac --output "$out/o/labels.png" --json "${s[@]}"
     run "cloud $n" "$bin" cloud "$f" --output "$out/o/cloud.ply" "${s[@]}"

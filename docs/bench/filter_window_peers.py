@@ -54,6 +54,7 @@ def main() -> int:
     import numpy as np
 
     sldepth = os.path.join(ROOT, "target", "release", "sldepth")
+    help_text = subprocess.run([sldepth, "filter", "--help"], capture_output=True, text=True).stdout
     rows = []
     print(f"OpenCV {cv2.__version__}, {platform.machine()}, {os.cpu_count()} cpus, isa {args.isa}, "
           f"OPENCV_CPU_DISABLE={os.environ.get('OPENCV_CPU_DISABLE', '')!r}")
@@ -74,6 +75,8 @@ def main() -> int:
                         cmd = [sldepth, "filter", path, "/tmp/filter_window_peers.png",
                                "--camera", camera, "--depth-scale", str(scale), "--radius", str(r),
                                "--window-shape", window, "--repeat", str(args.reps), "--json"]
+                        if "--single-scale" in help_text:
+                            cmd += ["--single-scale"]  # the one pass, as OpenCV's
                         if args.isa == "avx2":
                             cmd += ["--isa", "avx2"]
                         out = subprocess.run(cmd, capture_output=True, text=True,

@@ -9,7 +9,7 @@ the environment, and target/release/sldepth for the Rust-internal timings (cargo
 back to back on the same frame, and the ratio is taken per round, so a noisy machine moves both.
 
 Compared:
-- filter: ``sldepth.filter(method="adaptive", radius=r)`` vs ``cv2.bilateralFilter`` on float32
+- filter: ``sldepth.filter(method="adaptive", radius=r, multiscale=False)`` (the single pass) vs ``cv2.bilateralFilter`` on float32
   with the same diameter 2r+1 (sigmaColor from the paper's k at the frame's median depth,
   sigmaSpace as ours), one thread and all threads;
 - TSDF: ``TsdfVolume.integrate`` and ``extract_mesh`` vs Open3D's ``ScalableTSDFVolume``
@@ -82,7 +82,7 @@ def bench_filter(name, z, cam, rounds, reps, threads):
         k = 10.0 * cam.sigma_d_px / cam.fb  # the default k of the adaptive filter (multiplier 10)
         sigma_color = k * med * med
         sigma_space = r / 2.0  # sldepth's default sigma_s for radius r
-        ours_cfg = dict(method="adaptive", radius=r)
+        ours_cfg = dict(method="adaptive", radius=r, multiscale=False)
         for nt in threads:
             sldepth.set_num_threads(nt)
             cv2.setNumThreads(nt)
@@ -191,10 +191,10 @@ def bench_overhead(data, rounds, reps):
     rows = []
     for _ in range(rounds):
         sldepth.set_num_threads(None)
-        out = subprocess.run([str(binary), "filter", str(person), "/tmp/_sl_bench.png", "--repeat", str(reps), "--json"],
+        out = subprocess.run([str(binary), "filter", str(person), "/tmp/_sl_bench.png", "--repeat", str(reps), "--json", "--single-scale"],
                              capture_output=True, text=True, check=True)
         rust = json.loads(out.stdout)
-        py = timed(lambda: sldepth.filter(z, cam), reps)
+        py = timed(lambda: sldepth.filter(z, cam, multiscale=False), reps)
         rows.append(dict(stage="filter 7x7 adaptive", rust_min_ms=rust["ms_min"], python_min_ms=py[0],
                          rust_median_ms=rust["ms_median"], python_median_ms=py[1],
                          overhead_min=py[0] / rust["ms_min"] - 1.0))

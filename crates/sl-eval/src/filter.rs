@@ -3,9 +3,15 @@
 //! on a robustly chosen planar region of a real frame.
 
 use sl_core::nalgebra::{Point3, Vector3};
-use sl_core::{DepthImage, Intrinsics, Plane, SensorModel};
+use sl_core::{DepthImage, Intrinsics};
 
 use crate::error::{EvalError, Result};
+
+mod regions;
+pub use regions::{
+    MIN_REGION_PIXELS, MIN_REGION_SHARE, PlaneRegion, RegionSearch, dominant_plane_region,
+    plane_regions,
+};
 
 /// The depth bands of the evaluation, metres: `< 1.5`, `1.5–2.5`, `> 2.5`.
 pub const KINECT_BANDS_M: [(f32, f32); 3] = [(0.0, 1.5), (1.5, 2.5), (2.5, f32::INFINITY)];
@@ -168,127 +174,6 @@ fn morph(mask: &[bool], w: usize, h: usize, r: usize, dilate: bool) -> Vec<bool>
     pass(&a, false)
 }
 
-/// The dominant plane of a frame and the pixels that belong to it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PlaneRegion {
-    /// Least-squares plane through the region of the input frame.
-    pub plane: Plane,
-    /// Row-major pixel mask of the region.
-    pub mask: Vec<bool>,
-}
-
-/// Deterministic SplitMix64, for RANSAC sampling.
-fn splitmix(state: &mut u64) -> u64 {
-    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *state;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Finds the dominant plane of a (raw) depth frame and a robust region on it, for measuring how
-/// much a filter flattens a real planar surface.
-///
-/// 1. RANSAC (`iterations` samples of 3 points, seeded) over every 4th pixel in each direction;
-///    a point is an inlier when its distance to the plane is below
-///    `τ(Z) = 3·σ_Z(Z) + ΔZ(Z) + 2 mm` — three noise σ plus one depth quantum of the sensor
-///    model, so the band widens with `Z²` exactly like the noise and inliers are not selected
-///    by their (depth-dependent) noise.
-/// 2. The largest-consensus plane is refitted by least squares on all inlier pixels.
-/// 3. The pixel mask of inliers is *closed* (dilated then eroded by 2 px) so that isolated
-///    noisy pixels inside the surface are put back (otherwise the raw frame's residual would be
-///    truncated at `τ` and look better than it is), then *eroded* by `erode_px` (use the filter
-///    radius + 1) so the region keeps away from its boundaries, where filters legitimately mix
-///    in other surfaces.
-///
-/// Returns `None` when no plane with at least 1000 region pixels exists.
-pub fn dominant_plane_region(
-    depth: &DepthImage,
-    k: &Intrinsics,
-    sensor: &SensorModel,
-    erode_px: usize,
-    iterations: usize,
-    seed: u64,
-) -> Result<Option<PlaneRegion>> {
-    depth.as_image().check_size(k)?;
-    let (w, h) = (depth.width(), depth.height());
-    let z = depth.data();
-    let point = |x: usize, y: usize| -> Point3<f64> {
-        let d = f64::from(z[y * w + x]);
-        Point3::new(
-            (x as f64 - k.cx) / k.fx * d,
-            (y as f64 - k.cy) / k.fy * d,
-            d,
-        )
-    };
-    let tau = |d: f64| 3.0 * sensor.sigma_z(d) + sensor.depth_step_m(d) + 0.002;
-    let mut samples = Vec::new();
-    for y in (0..h).step_by(4) {
-        for x in (0..w).step_by(4) {
-            if valid(z[y * w + x]) {
-                samples.push(point(x, y));
-            }
-        }
-    }
-    if samples.len() < 3 {
-        return Ok(None);
-    }
-    let mut state = seed;
-    let mut best: Option<(usize, Plane)> = None;
-    for _ in 0..iterations {
-        let pick = |s: &mut u64| samples[(splitmix(s) % samples.len() as u64) as usize];
-        let (a, b, c) = (pick(&mut state), pick(&mut state), pick(&mut state));
-        let (u, v) = (b - a, c - a);
-        let n = u.cross(&v);
-        let len = n.norm();
-        if len.is_nan() || len <= 1e-9 {
-            continue;
-        }
-        let n = n / len;
-        let plane = Plane {
-            normal: n,
-            offset_m: -n.dot(&a.coords),
-        };
-        let count = samples
-            .iter()
-            .filter(|p| plane.signed_distance_m(p).abs() < tau(p.z))
-            .count();
-        if best.is_none_or(|(bc, _)| count > bc) {
-            best = Some((count, plane));
-        }
-    }
-    let Some((_, plane)) = best else {
-        return Ok(None);
-    };
-    let inlier = |plane: &Plane| -> Vec<bool> {
-        (0..w * h)
-            .map(|i| {
-                valid(z[i]) && {
-                    let p = point(i % w, i / w);
-                    plane.signed_distance_m(&p).abs() < tau(p.z)
-                }
-            })
-            .collect()
-    };
-    let first = inlier(&plane);
-    let pts: Vec<Point3<f64>> = (0..w * h)
-        .filter(|&i| first[i])
-        .map(|i| point(i % w, i / w))
-        .collect();
-    let Some(fit) = sl_core::fit_plane(&pts) else {
-        return Ok(None);
-    };
-    let plane = fit.plane;
-    let mask = inlier(&plane);
-    let closed = erode(&dilate(&mask, w, h, 2), w, h, 2);
-    let region = erode(&closed, w, h, erode_px);
-    let mask: Vec<bool> = region.iter().zip(z).map(|(&m, &d)| m && valid(d)).collect();
-    if mask.iter().filter(|&&m| m).count() < 1000 {
-        return Ok(None);
-    }
-    Ok(Some(PlaneRegion { plane, mask }))
-}
-
 /// Plane-fit residual of `depth` on `mask`, per depth band: a least-squares plane is fitted to
 /// the masked points of this (filtered) frame, and the RMS orthogonal distance of the points to
 /// it is reported per band of their depth. Each frame gets its own fit, so a filter is judged on
@@ -321,6 +206,29 @@ pub fn plane_residual_by_band(
                 let r = plane.signed_distance_m(p);
                 acc[b].0 += 1;
                 acc[b].1 += r * r;
+            }
+        }
+    }
+    Ok(band_errors(bands, &acc))
+}
+
+/// [`plane_residual_by_band`] over several planar regions, pooled: each region gets its own
+/// least-squares plane, and the squared distances of all regions are pooled per depth band.
+pub fn plane_residual_by_band_pooled(
+    depth: &DepthImage,
+    k: &Intrinsics,
+    regions: &[PlaneRegion],
+    bands: &[(f32, f32)],
+) -> Result<Vec<BandError>> {
+    let mut acc = vec![(0usize, 0.0f64); bands.len()];
+    for r in regions {
+        for (a, b) in acc
+            .iter_mut()
+            .zip(plane_residual_by_band(depth, k, &r.mask, bands)?)
+        {
+            if b.pixels > 0 {
+                a.0 += b.pixels;
+                a.1 += b.rmse_m * b.rmse_m * b.pixels as f64;
             }
         }
     }
@@ -417,7 +325,9 @@ pub fn normal_spread_by_band(
 
 #[cfg(test)]
 mod tests {
+    use super::regions::splitmix;
     use super::*;
+    use sl_core::SensorModel;
 
     #[test]
     fn normal_spread_of_a_tilted_plane_is_zero() {

@@ -14,8 +14,13 @@ use std::error::Error;
 use std::time::Instant;
 
 use sl_core::DepthImage;
-use sl_eval::filter::{self as eval, KINECT_BANDS_M};
+use sl_eval::filter as eval;
 use sl_filter::{DepthFilter, Isa, Method, MultiScale, current_threads};
+
+/// Planar regions measured per frame (walls, floors, desks).
+const PLANES: usize = 6;
+/// Depth bands, metres (the issue-11 target is at ≥ 2 m).
+const BANDS_M: [(f32, f32); 3] = [(0.0, 1.5), (1.5, 2.0), (2.0, f32::INFINITY)];
 
 type Res<T> = Result<T, Box<dyn Error>>;
 
@@ -36,6 +41,13 @@ fn main() -> Res<()> {
     frames.extend(sl_testkit::person());
     frames.extend(sl_testkit::floor_scan(3));
     frames.extend(sl_testkit::tum_rpy(30).into_iter().step_by(10));
+    frames.extend(sl_testkit::seven_scenes(30).into_iter().step_by(15));
+    frames.extend(
+        sl_testkit::tum_rpy_200(200)
+            .into_iter()
+            .skip(100)
+            .step_by(50),
+    );
     let Some(first) = frames.first() else {
         println!("no real frames (../shared/data not found)");
         return Ok(());
@@ -63,10 +75,19 @@ fn main() -> Res<()> {
     for fr in &frames {
         let k = fr.camera.intrinsics;
         let sensor = fr.camera.sensor;
-        let Some(region) = eval::dominant_plane_region(&fr.depth, &k, &sensor, 4, 500, 7)? else {
+        let regions = eval::plane_regions(
+            &fr.depth,
+            &k,
+            &sensor,
+            &eval::RegionSearch {
+                max_planes: PLANES,
+                ..eval::RegionSearch::default()
+            },
+        )?;
+        if regions.is_empty() {
             println!("{}: no plane", fr.name);
             continue;
-        };
+        }
         let mut cands: Vec<(String, MultiScale)> = Vec::new();
         let base = MultiScale {
             dilations: Vec::new(),
@@ -82,8 +103,13 @@ fn main() -> Res<()> {
                 },
             ));
         }
-        println!("{}", fr.name);
-        let raw = eval::plane_residual_by_band(&fr.depth, &k, &region.mask, &KINECT_BANDS_M)?;
+        println!(
+            "{} ({} planes, px per band {:?})",
+            fr.name,
+            regions.len(),
+            raw_px(&fr.depth, &k, &regions)?
+        );
+        let raw = eval::plane_residual_by_band_pooled(&fr.depth, &k, &regions, &BANDS_M)?;
         let line = |name: &str, res: &[eval::BandError]| {
             let mut s = format!("  {name:22}");
             for (b, r) in res.iter().zip(&raw) {
@@ -98,9 +124,17 @@ fn main() -> Res<()> {
         println!("{}", line("raw", &raw));
         for (name, f) in &cands {
             let out: DepthImage = f.apply(&fr.depth)?;
-            let res = eval::plane_residual_by_band(&out, &k, &region.mask, &KINECT_BANDS_M)?;
+            let res = eval::plane_residual_by_band_pooled(&out, &k, &regions, &BANDS_M)?;
             println!("{}", line(name, &res));
         }
     }
     Ok(())
+}
+
+/// Region pixels per band.
+fn raw_px(d: &DepthImage, k: &sl_core::Intrinsics, r: &[eval::PlaneRegion]) -> Res<Vec<usize>> {
+    Ok(eval::plane_residual_by_band_pooled(d, k, r, &BANDS_M)?
+        .iter()
+        .map(|b| b.pixels)
+        .collect())
 }

@@ -9,7 +9,7 @@
 //! | [`Method::Bilateral`] | fixed `σ_d` (metres), paper eq. 3–5 | one σ cannot fit near and far |
 //! | [`Method::Adaptive`] (default) | `σ_d(p) = k·Z(p)²`, paper eq. 6 | follows `σ_Z = Z²·σ_D/(f·B)` |
 //! | [`Method::Disparity`] | fixed σ on `D = f·B/Z` | the same idea in the domain where noise is constant |
-//! | [`MultiScale`] (opt-in) | adaptive 7×7, then dilated 5×5 disparity passes | real sensors' spatially correlated error (issue 11) |
+//! | [`MultiScale`] (CLI/Python default) | adaptive 7×7, then dilated 5×5 disparity passes | real sensors' spatially correlated error (issue 11) |
 //!
 //! Every filter works on a [`sl_core::DepthImage`] (`f32` metres, 0 = invalid). **Invalid
 //! pixels never contribute and are never filled**: the output is invalid exactly where the input
@@ -148,7 +148,7 @@ pub use filter::{
     default_sigma_s_px,
 };
 pub use kernel::Isa;
-pub use multiscale::MultiScale;
+pub use multiscale::{MultiScale, multiscale_by_default};
 
 /// Number of threads the filters use when called outside a custom rayon pool.
 pub fn current_threads() -> usize {

@@ -2,7 +2,7 @@
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_filter::{FilterConfig, Method, Window};
+use sl_filter::{FilterConfig, Method, MultiScale, Window, multiscale_by_default};
 
 use crate::arrays::{check_camera, depth_array, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
@@ -17,9 +17,12 @@ use crate::threads::compute;
 /// method's range parameter (``k_per_m``, ``sigma_d_m`` or ``sigma_disp_px``) override the
 /// defaults. ``window``: ``"square"`` (default, the full 2r+1 square) or ``"disc"`` (dx² + dy²
 /// ≤ r², OpenCV's ``bilateralFilter`` window, about half the taps). ``depth_scale`` converts
-/// uint16 input (units per metre).
+/// uint16 input (units per metre). ``multiscale``: follow the pass with the coarse
+/// disparity-domain passes (taps 2 and 4 px apart) that remove real sensors' spatially
+/// correlated error; ``None`` (default) means yes for ``"adaptive"`` and ``"disparity"`` and no
+/// for ``"gaussian"`` and ``"bilateral"``, as ``sldepth filter`` (``--single-scale``).
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, window = "square", depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, window = "square", depth_scale = None, multiscale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn filter<'py>(
     py: Python<'py>,
@@ -33,9 +36,11 @@ pub(crate) fn filter<'py>(
     sigma_disp_px: Option<f64>,
     window: &str,
     depth_scale: Option<f64>,
+    multiscale: Option<bool>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let camera = camera_or_default(camera);
-    let mut config = FilterConfig::new(method.parse::<Method>().map_err(value_error)?);
+    let method = method.parse::<Method>().map_err(value_error)?;
+    let mut config = FilterConfig::new(method);
     config.radius_px = radius;
     config.sigma_s_px = sigma_s;
     config.k_per_m = k_per_m;
@@ -46,6 +51,16 @@ pub(crate) fn filter<'py>(
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
     check_camera(&view, &camera)?;
-    let out = compute(py, || f.apply(view)).map_err(value_error)?;
+    let multi = multiscale
+        .unwrap_or_else(|| multiscale_by_default(method))
+        .then(|| MultiScale {
+            base: f.clone(),
+            ..MultiScale::default_for(&camera.sensor)
+        });
+    let out = compute(py, || match &multi {
+        Some(m) => m.apply(view),
+        None => f.apply(view),
+    })
+    .map_err(value_error)?;
     depth_array(py, out)
 }

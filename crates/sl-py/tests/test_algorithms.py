@@ -26,6 +26,19 @@ def test_filter_reduces_simulated_noise(kinect, three_planes):
     assert filtered < 0.7 * raw
 
 
+def test_multiscale_is_the_default_of_the_sensor_model_methods(kinect, three_planes):
+    depth, truth, _ = three_planes
+    m = (truth > 0) & (depth > 0)
+    rmse = lambda z: np.sqrt(np.mean((z[m] - truth[m]) ** 2))  # noqa: E731
+    default = sldepth.filter(depth, kinect)
+    single = sldepth.filter(depth, kinect, multiscale=False)
+    assert np.array_equal(default, sldepth.filter(depth, kinect, multiscale=True))
+    assert rmse(default) < rmse(single) < rmse(depth)
+    gauss = sldepth.filter(depth, kinect, method="gaussian")
+    assert np.array_equal(gauss, sldepth.filter(depth, kinect, method="gaussian", multiscale=False))
+    assert not np.array_equal(gauss, sldepth.filter(depth, kinect, method="gaussian", multiscale=True))
+
+
 def test_filter_options_and_errors(small_cam, wall):
     out = sldepth.filter(wall, small_cam, method="adaptive", radius=2, k_per_m=0.05)
     assert np.allclose(out, 2.0)
@@ -41,8 +54,8 @@ def test_disc_window_ignores_the_square_corners(small_cam, wall):
     # A pixel 1 cm deeper at offset (2, 2): inside the 5x5 square, outside the radius-2 disc.
     z = wall.copy()
     z[12, 12] += 0.01
-    square = sldepth.filter(z, small_cam, radius=2, window="square")
-    disc = sldepth.filter(z, small_cam, radius=2, window="disc")
+    square = sldepth.filter(z, small_cam, radius=2, window="square", multiscale=False)
+    disc = sldepth.filter(z, small_cam, radius=2, window="disc", multiscale=False)
     assert square[10, 10] > 2.0
     assert disc[10, 10] == 2.0
 

@@ -59,8 +59,9 @@ enum Command {
     /// Merge registered depth frames into a mesh: sparse TSDF with 1/Z^4 noise weights and
     /// crack-free marching cubes (paper section 3.3).
     Fuse(cmd::fuse::Args),
-    /// Smooth a depth map: Gaussian, bilateral, the paper's adaptive bilateral (σ_d = k·Z², the
-    /// default, tuned from the sensor model) or a disparity-domain bilateral (section 3.2).
+    /// Smooth a depth map: Gaussian, bilateral, the paper's adaptive bilateral (σ_d = k·Z², tuned
+    /// from the sensor model) or a disparity-domain bilateral (section 3.2); by default the
+    /// adaptive filter followed by coarse disparity passes for real sensors' correlated error.
     Filter(cmd::filter::Args),
     /// Extract planes with a fixed threshold in disparity (paper section 3.4), or with the
     /// fixed-metric-threshold RANSAC baseline; writes a 16-bit label image.

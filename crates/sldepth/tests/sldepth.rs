@@ -341,3 +341,38 @@ fn camera_presets_by_name() {
         assert!(names.contains(&n), "{n} missing from {names:?}");
     }
 }
+
+/// `sldepth filter` runs the multi-scale filter by default for the sensor-model methods and the
+/// single pass when asked (or for the classic methods), and says so in its JSON.
+#[test]
+fn filter_is_multiscale_by_default_and_single_scale_on_request() {
+    let input = testdata("three-planes-seed3-depth.png");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec!["filter", path_str(&input), path_str(&out), "--json"];
+        args.extend_from_slice(extra);
+        let v = json_of(&sldepth(&args));
+        (
+            std::fs::read(&out).unwrap(),
+            v["multiscale_dilations"].clone(),
+        )
+    };
+    let (default, dil) = run("default.png", &[]);
+    assert_eq!(dil, serde_json::json!([2, 4]));
+    let (multi, _) = run("multi.png", &["--multiscale"]);
+    assert_eq!(default, multi);
+    let (single, dil) = run("single.png", &["--single-scale"]);
+    assert!(dil.is_null());
+    assert_ne!(default, single);
+    let (_, dil) = run("gauss.png", &["--method", "gaussian"]);
+    assert!(dil.is_null());
+    let both = sldepth(&[
+        "filter",
+        path_str(&input),
+        path_str(&dir.path().join("x.png")),
+        "--multiscale",
+        "--single-scale",
+    ]);
+    assert!(!both.status.success());
+}

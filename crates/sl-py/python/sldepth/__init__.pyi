@@ -108,9 +108,12 @@ def filter(
     sigma_disp_px: Optional[float] = None,
     window: str = "square",
     depth_scale: Optional[float] = None,
+    multiscale: Optional[bool] = None,
 ) -> npt.NDArray[np.float32]:
     """A new (H, W) float32 depth map; method: adaptive, bilateral, gaussian, disparity;
-    window: "square" (2r+1 square) or "disc" (dx² + dy² ≤ r², as OpenCV's bilateralFilter)."""
+    window: "square" (2r+1 square) or "disc" (dx² + dy² ≤ r², as OpenCV's bilateralFilter);
+    multiscale: coarse disparity passes after the filter (None: yes for adaptive and
+    disparity, as ``sldepth filter``; False: the paper's single pass)."""
 
 class Mesh:
     @property

@@ -1,5 +1,7 @@
 //! `sldepth filter`: Gaussian, bilateral, adaptive bilateral (σ_d = k·Z², the paper's eq. 6) and
-//! disparity-domain bilateral smoothing of a depth map (paper section 3.1–3.2).
+//! disparity-domain bilateral smoothing of a depth map (paper section 3.1–3.2); `adaptive` (the
+//! default) and `disparity` are followed by the coarse passes of `sl_filter::MultiScale` unless
+//! `--single-scale` is given.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -56,8 +58,7 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub repeat: Option<usize>,
     /// Kernel instruction set, for benchmarks: `portable`, `avx2` or `avx512` (default: the best
-    /// this CPU supports; one it does not support falls back to `portable`). Not with
-    /// --multiscale.
+    /// this CPU supports; one it does not support falls back to `portable`), for every pass.
     #[arg(long, value_parser = ["portable", "avx2", "avx512"])]
     pub isa: Option<String>,
     /// Print a JSON summary (parameters and timing) instead of text.
@@ -67,10 +68,15 @@ pub struct Args {
     #[arg(long, value_name = "FILE.png")]
     pub normals: Option<PathBuf>,
     /// Follow the filter with the coarse passes of `sl_filter::MultiScale` (5×5 disparity-domain
-    /// bilateral passes with taps 2 and 4 px apart, range σ m·σ_D): removes the spatially
-    /// correlated error of real frames that a 7×7 window cannot (issue 11). Not the default.
-    #[arg(long)]
+    /// bilateral passes with taps 2 and 4 px apart, range σ m·σ_D), which remove the spatially
+    /// correlated error of real frames that a 7×7 window cannot. The default for `adaptive` and
+    /// `disparity`; this flag adds them to `gaussian` and `bilateral` too.
+    #[arg(long, conflicts_with = "single_scale")]
     pub multiscale: bool,
+    /// Only the one pass of `--method` (the paper's filter), without the coarse passes that
+    /// follow `adaptive` and `disparity` by default.
+    #[arg(long)]
+    pub single_scale: bool,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -104,13 +110,14 @@ pub fn run(args: Args) -> Result<()> {
     let loaded = load_depth(&args.input_path, &args.input)?;
     let filter = build_filter(&args, &loaded.camera.sensor)?;
     let out_encoding = output_encoding(&args.output, &loaded.encoding)?;
-    let multi = args.multiscale.then(|| MultiScale {
+    let multi = (args.multiscale
+        || (!args.single_scale && sl_filter::multiscale_by_default(args.method)))
+    .then(|| MultiScale {
         base: filter,
         ..MultiScale::default_for(&loaded.camera.sensor)
     });
     let isa = match args.isa.as_deref() {
         None => Isa::detect(),
-        Some(_) if multi.is_some() => bail!("--isa cannot be combined with --multiscale"),
         Some("avx512") => Isa::Avx512,
         Some("avx2") => Isa::Avx2,
         Some(_) => Isa::Portable,
@@ -121,7 +128,7 @@ pub fn run(args: Args) -> Result<()> {
         Isa::Portable
     };
     let apply = |d: &sl_core::DepthImage| match &multi {
-        Some(m) => m.apply(d),
+        Some(m) => m.apply_with_isa(d, isa),
         None => filter.apply_with_isa(d, isa),
     };
     let mut times_ms = Vec::with_capacity(reps);
