@@ -4,6 +4,7 @@
 use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_core::{Camera, CameraToWorld};
+use sl_filter::MultiScale;
 use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -22,7 +23,11 @@ use crate::tsdf::PyMesh;
 ///
 /// ``weighting``: ``"inv-var"`` (residuals weighted by the sensor model's variance, default) or
 /// ``"uniform"``; ``frame_to_model``: track against the raycast of the fused model (default)
-/// or against the previous frame; ``voxel_m``: the model's voxel size.
+/// or against the previous frame; ``voxel_m``: the model's voxel size; ``prefilter``: the
+/// smoothing of every frame before tracking and fusion, as ``sldepth track --prefilter``:
+/// ``"multiscale"`` (default: ``filter``'s default, which removes real sensors' spatially
+/// correlated error and keeps the tracker from losing frames on real recordings),
+/// ``"single"`` (the adaptive filter's single pass) or ``"none"``.
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -34,19 +39,36 @@ pub struct PyTracker {
     model: ReferenceMaps,
     have_model: bool,
     frame_to_model: bool,
+    prefilter: Option<MultiScale>,
 }
 
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, prefilter = "multiscale"))]
     fn new(
         camera: &PyCamera,
         weighting: &str,
         frame_to_model: bool,
         voxel_m: f64,
+        prefilter: &str,
     ) -> PyResult<Self> {
         let camera = camera.inner;
+        let default = MultiScale::default_for(&camera.sensor);
+        let prefilter = match prefilter {
+            "multiscale" => Some(default),
+            // The single pass is the multi-scale filter without its coarse passes.
+            "single" => Some(MultiScale {
+                dilations: Vec::new(),
+                ..default
+            }),
+            "none" => None,
+            other => {
+                return Err(value_error(format!(
+                    "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
+                )));
+            }
+        };
         let mut cfg = TrackerConfig::default();
         cfg.weighting = WeightMode::parse(weighting).map_err(value_error)?;
         let mut tracker = Tracker::new(camera, cfg).map_err(value_error)?;
@@ -68,6 +90,7 @@ impl PyTracker {
             model: ReferenceMaps::empty(&camera.intrinsics),
             have_model: false,
             frame_to_model,
+            prefilter,
         })
     }
 
@@ -83,7 +106,6 @@ impl PyTracker {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;
-        let depth = view.to_image();
         let k = self.camera.intrinsics;
         let sensor = self.camera.sensor;
         let z_ref_m = self.volume.params().z_ref_m;
@@ -95,9 +117,14 @@ impl PyTracker {
             model,
             have_model,
             frame_to_model,
+            prefilter,
             ..
         } = self;
         let result = compute(py, || -> Result<_, String> {
+            let depth = match prefilter {
+                Some(f) => f.apply(view).map_err(|e| e.to_string())?,
+                None => view.to_image(),
+            };
             let r = tracker
                 .track(&depth, have_model.then_some(&*model))
                 .map_err(|e| e.to_string())?;

@@ -206,3 +206,11 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect, three_planes):
         tracker.track(depth[:, :100])
     with pytest.raises(ValueError, match="weighting"):
         sldepth.Tracker(kinect, weighting="huber")
+    with pytest.raises(ValueError, match="prefilter"):
+        sldepth.Tracker(kinect, prefilter="median")
+    for prefilter in ("single", "none"):
+        t = sldepth.Tracker(kinect, prefilter=prefilter)
+        t.track(depth)
+        pose, status = t.track(depth)
+        assert status == "tracked" or status == "tracked-against-frame", (prefilter, status)
+        assert np.abs(pose[:3, 3]).max() < 0.002

@@ -233,7 +233,9 @@ class Tracker:
         weighting: str = "inv-var",
         frame_to_model: bool = True,
         voxel_m: float = 0.004,
-    ) -> None: ...
+        prefilter: str = "multiscale",
+    ) -> None:
+        """prefilter: "multiscale" (default, as sldepth track), "single" or "none"."""
     def track(
         self, depth: _Depth, depth_scale: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], str]:

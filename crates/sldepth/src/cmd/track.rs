@@ -73,12 +73,19 @@ pub struct Args {
     #[arg(long, value_name = "MODE", default_value = "inv-var")]
     pub weighting: String,
     /// Track each frame against the previous tracked frame instead of the fused model's
-    /// raycast (frame-to-model, the default). On real Kinect recordings this currently tracks
-    /// better (TUM fr1/rpy: no frame lost against 97; 7-Scenes: 1.9 against 2.2 cm ATE): the
-    /// fused model disagrees with each new frame by millimetres to centimetres growing with
-    /// depth (docs/bench/track.md)
+    /// raycast (frame-to-model, the default). With the default prefilter neither loses a frame
+    /// of TUM fr1/rpy-200; frame to frame is more accurate there (7.2 against 8.8 cm ATE) and
+    /// equal on 7-Scenes (1.9 against 2.0 cm): the fused model disagrees with each new frame by
+    /// millimetres to centimetres growing with depth (docs/bench/track.md).
     #[arg(long)]
     pub frame_to_frame: bool,
+    /// Smooth every frame before tracking and fusing it: `multiscale` (default: the default
+    /// filter of `sldepth filter`, which removes the spatially correlated error of real sensors;
+    /// on TUM fr1/rpy-200 it took frame to model from 97 lost frames to none and frame to frame
+    /// from 10.4 to 7.2 cm ATE), `single` (the adaptive filter's single 7×7 pass: there
+    /// 34 and 145 frames lost) or `none`.
+    #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
+    pub prefilter: String,
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
@@ -209,6 +216,23 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
+/// The smoothing applied to every frame before tracking and fusion (`--prefilter`).
+enum Prefilter {
+    Multi(sl_filter::MultiScale),
+    Single(sl_filter::DepthFilter),
+    None,
+}
+
+impl Prefilter {
+    fn apply(&self, depth: sl_core::DepthImage) -> Result<sl_core::DepthImage> {
+        Ok(match self {
+            Prefilter::Multi(m) => m.apply(&depth)?,
+            Prefilter::Single(f) => f.apply(&depth)?,
+            Prefilter::None => depth,
+        })
+    }
+}
+
 /// Runs `sldepth track`.
 pub fn run(args: Args) -> Result<()> {
     for (opt, path, exts) in [
@@ -242,6 +266,14 @@ pub fn run(args: Args) -> Result<()> {
     tcfg.plane_fallback = !args.no_plane_fallback;
     let mut tracker = Tracker::new(camera, tcfg)?;
     tracker.set_initial_pose(CameraToWorld::identity());
+    let prefilter = match args.prefilter.as_str() {
+        "multiscale" => Prefilter::Multi(sl_filter::MultiScale::default_for(&camera.sensor)),
+        "single" => Prefilter::Single(sl_filter::DepthFilter::default_for(
+            sl_filter::Method::Adaptive,
+            &camera.sensor,
+        )),
+        _ => Prefilter::None,
+    };
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
@@ -284,8 +316,11 @@ pub fn run(args: Args) -> Result<()> {
     let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
         let t = f.timestamp.unwrap_or(i as f64);
-        let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits()) {
-            Ok(d) => d.depth,
+        let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits())
+            .map_err(anyhow::Error::from)
+            .and_then(|d| prefilter.apply(d.depth))
+        {
+            Ok(d) => d,
             Err(e) => {
                 errln!(
                     "warning: skipping frame {i} ({}): {e}",
@@ -384,6 +419,7 @@ pub fn run(args: Args) -> Result<()> {
             "relocalised": counts[TrackStatus::Relocalised as usize],
             "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
             "reference": if args.frame_to_frame { "frame" } else { "model" },
+            "prefilter": args.prefilter,
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
