@@ -54,7 +54,7 @@ pub(crate) fn filter<'py>(
     let multi = multiscale
         .unwrap_or_else(|| multiscale_by_default(method))
         .then(|| MultiScale {
-            base: f.clone(),
+            base: f,
             ..MultiScale::default_for(&camera.sensor)
         });
     let out = compute(py, || match &multi {
