@@ -79,29 +79,19 @@ pub(super) fn tile_ranges(
         for &key in keys {
             let b = unpack(key);
             let o = Point3::new(b[0] as f32, b[1] as f32, b[2] as f32) * side;
+            let mut corners = [Vector3::zeros(); 8];
             let (mut zlo, mut zhi) = (f32::INFINITY, f32::NEG_INFINITY);
-            let (mut ulo, mut uhi) = (f32::INFINITY, f32::NEG_INFINITY);
-            let (mut vlo, mut vhi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for c in 0..8 {
+            for (c, corner) in corners.iter_mut().enumerate() {
                 let d = Vector3::new((c & 1) as f32, ((c >> 1) & 1) as f32, (c >> 2) as f32);
-                let p = frame.world_to_camera(&(o + d * side));
-                zlo = zlo.min(p.z);
-                zhi = zhi.max(p.z);
-                let inv = 1.0 / p.z;
-                let (u, v) = (fx * p.x * inv + cx, fy * p.y * inv + cy);
-                ulo = ulo.min(u);
-                uhi = uhi.max(u);
-                vlo = vlo.min(v);
-                vhi = vhi.max(v);
+                *corner = frame.world_to_camera(&(o + d * side));
+                zlo = zlo.min(corner.z);
+                zhi = zhi.max(corner.z);
             }
             if !(zhi >= min_z && zlo <= max_z) {
                 continue; // behind the camera or beyond the range (or NaN)
             }
-            if zlo < min_z {
-                // Straddles the near plane: its projection is unbounded, so every tile may see it.
-                update(0, tx - 1, 0, ty - 1, min_z, zhi.min(max_z));
-                continue;
-            }
+            let (ulo, uhi, vlo, vhi) = clipped_bounds(&corners, min_z, fx, fy, cx, cy);
+            let zlo = zlo.max(min_z);
             // Pixel centres x with ulo ≤ x ≤ uhi (likewise y).
             if !(uhi >= 0.0 && ulo <= w - 1.0 && vhi >= 0.0 && vlo <= h - 1.0) {
                 continue;
@@ -123,6 +113,53 @@ pub(super) fn tile_ranges(
         }
     });
     Ok(())
+}
+
+/// The image-plane bounds `(u_lo, u_hi, v_lo, v_hi)` of the part of a block in front of the
+/// near plane `z = min_z`, given its 8 corners in camera coordinates (index bit 0: x, bit 1: y,
+/// bit 2: z; at least one corner at `z ≥ min_z`). The clipped block is convex; its vertices are
+/// the corners in front of the plane and the points where the 12 edges cross it, and the
+/// projection of a convex body with `z > 0` is the convex hull of its vertices' projections.
+/// A block straddling the near plane therefore covers a bounded part of the image (the
+/// intersection points are at depth `min_z`), not every tile.
+pub(super) fn clipped_bounds(
+    corners: &[Vector3<f32>; 8],
+    min_z: f32,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+) -> (f32, f32, f32, f32) {
+    let (mut ulo, mut uhi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let (mut vlo, mut vhi) = (f32::INFINITY, f32::NEG_INFINITY);
+    let mut add = |p: &Vector3<f32>| {
+        let inv = 1.0 / p.z;
+        let (u, v) = (fx * p.x * inv + cx, fy * p.y * inv + cy);
+        ulo = ulo.min(u);
+        uhi = uhi.max(u);
+        vlo = vlo.min(v);
+        vhi = vhi.max(v);
+    };
+    for p in corners.iter().filter(|p| p.z >= min_z) {
+        add(p);
+    }
+    // The 12 edges: corner pairs that differ in one index bit.
+    for a in 0..8usize {
+        for bit in [1usize, 2, 4] {
+            let b = a | bit;
+            if b == a {
+                continue;
+            }
+            let (p, q) = (&corners[a], &corners[b]);
+            if (p.z < min_z) != (q.z < min_z) {
+                let t = (min_z - p.z) / (q.z - p.z);
+                let mut x = p + (q - p) * t;
+                x.z = min_z;
+                add(&x);
+            }
+        }
+    }
+    (ulo, uhi, vlo, vhi)
 }
 
 /// The depth interval `[lo, hi]` (metres) pixel `(x, y)` marches through (`lo > hi`: nothing

@@ -1,8 +1,9 @@
 //! Raycast tests: analytic TSDFs of a plane and a sphere (depth and normal errors against the
-//! exact intersections), a scene fused from simulated frames, buffer reuse, thread-count
-//! independence and argument checks.
+//! exact intersections), a scene fused from simulated frames, blocks straddling the near plane,
+//! buffer reuse, thread-count independence and argument checks.
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use proptest::prelude::*;
 use sl_core::{Camera, CameraToWorld, Intrinsics};
 
 use super::*;
@@ -266,6 +267,104 @@ fn fused_scene_raycast_matches_the_exact_depth_from_a_new_pose() {
         .count();
     eprintln!("fused room: {away} normals facing away");
     assert!(away * 1000 < r.hit_count(), "{away}");
+}
+
+/// A wall 1 m in front of the identity camera, fused from that camera.
+fn wall_volume(k: &Intrinsics, v: f64) -> TsdfVolume {
+    let mut vol = TsdfVolume::new(config(v, 4.0 * v)).unwrap();
+    let wall =
+        sl_core::DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
+    vol.integrate(&wall, k, &CameraToWorld::identity()).unwrap();
+    vol
+}
+
+#[test]
+fn a_block_straddling_the_near_plane_beside_the_view_does_not_widen_the_rays() {
+    // A small patch 0.1 m in front of the camera's plane but 0.2 m to its side (seen by
+    // another camera): its blocks straddle the near plane z = 0.1 m and project outside the
+    // image. They must not make every ray march from the near plane (the cost that made
+    // raycasts of real recordings 3-4x slower), nor change the rendering.
+    let k = small_camera();
+    let v = 0.01;
+    let wall_only = wall_volume(&k, v);
+    let mut vol = TsdfVolume::new(config(v, 4.0 * v)).unwrap();
+    let mut patch = sl_core::DepthImage::invalid(k.width, k.height);
+    let (cx, cy) = (k.cx as usize, k.cy as usize);
+    for y in cy - 5..cy + 5 {
+        for x in cx - 5..cx + 5 {
+            patch.data_mut()[y * k.width + x] = 0.6;
+        }
+    }
+    let side = CameraToWorld::from_isometry(Isometry3::translation(0.2, 0.0, -0.5));
+    vol.integrate(&patch, &k, &side).unwrap();
+    let wall =
+        sl_core::DepthImage::from_vec(k.width, k.height, vec![1.0; k.pixel_count()]).unwrap();
+    vol.integrate(&wall, &k, &CameraToWorld::identity())
+        .unwrap();
+    let block_m = crate::volume::BLOCK_SIDE as f64 * v;
+    let straddling = vol
+        .block_coords()
+        .filter(|b| {
+            let (z0, z1) = (f64::from(b[2]) * block_m, f64::from(b[2] + 1) * block_m);
+            z0 < 0.1 && z1 > 0.1
+        })
+        .count();
+    assert!(straddling > 0, "the patch allocated no straddling block");
+    let pose = CameraToWorld::identity();
+    let cfg = RaycastConfig::default();
+    let frame = march::RayFrame::new(&vol, pose.isometry(), &k, &cfg).unwrap();
+    let mut tiles = range::Tiles::default();
+    range::tile_ranges(&vol, &frame, &k, &cfg, &mut tiles).unwrap();
+    for y in 0..k.height {
+        for x in 0..k.width {
+            let (lo, _) = range::pixel_range(&tiles, k.width, x, y);
+            assert!(lo > 0.5, "pixel ({x}, {y}) marches from {lo} m");
+        }
+    }
+    let a = vol.raycast(&pose, &k, &cfg).unwrap();
+    let b = wall_only.raycast(&pose, &k, &cfg).unwrap();
+    assert!(
+        a.hit_count() * 10 > k.pixel_count() * 9,
+        "{}",
+        a.hit_count()
+    );
+    assert_eq!(a.depth.data(), b.depth.data());
+}
+
+proptest! {
+    /// Every point of a block in front of the near plane projects inside the block's clipped
+    /// bounds, for blocks in any orientation straddling the plane or not.
+    #[test]
+    fn clipped_bounds_contain_every_visible_point_of_the_block(
+        angles in prop::array::uniform3(-3.2f64..3.2),
+        centre in prop::array::uniform3(-0.3f64..0.3),
+        side in 0.01f64..0.2,
+        samples in prop::collection::vec(prop::array::uniform3(0.0f64..1.0), 32),
+    ) {
+        let min_z = 0.1f32;
+        let rot = UnitQuaternion::from_euler_angles(angles[0], angles[1], angles[2]);
+        let c = Vector3::new(centre[0], centre[1], 0.1 + centre[2]);
+        let at = |t: [f64; 3]| -> Vector3<f64> {
+            c + rot * (Vector3::new(t[0], t[1], t[2]).add_scalar(-0.5) * side)
+        };
+        let corners: [Vector3<f32>; 8] = std::array::from_fn(|i| {
+            at([(i & 1) as f64, ((i >> 1) & 1) as f64, (i >> 2) as f64]).cast::<f32>()
+        });
+        prop_assume!(corners.iter().any(|p| p.z >= min_z));
+        let (f, cxy) = (500.0f32, 320.0f32);
+        let (ulo, uhi, vlo, vhi) = range::clipped_bounds(&corners, min_z, f, f, cxy, cxy);
+        for t in samples {
+            let p = at(t).cast::<f32>();
+            if p.z < min_z {
+                continue;
+            }
+            let (u, v) = (f * p.x / p.z + cxy, f * p.y / p.z + cxy);
+            // Round-off of the corners and of the edge intersections: a relative 1e-4.
+            let tol = |a: f32| 1e-4 * (1.0 + a.abs());
+            prop_assert!(u >= ulo - tol(ulo) && u <= uhi + tol(uhi), "u {u} not in [{ulo}, {uhi}]");
+            prop_assert!(v >= vlo - tol(vlo) && v <= vhi + tol(vhi), "v {v} not in [{vlo}, {vhi}]");
+        }
+    }
 }
 
 #[test]
