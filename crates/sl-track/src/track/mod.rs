@@ -216,6 +216,7 @@ impl Tracker {
         for _ in 0..=self.lost_run.min(30) {
             predicted *= self.velocity;
         }
+        let predicted = solve::renormalized(predicted);
         // The position prior of an alignment from the prediction: how far the camera's path
         // can leave the constant-velocity line in one frame; with no velocity known, and for
         // every other start, the largest plausible motion.
@@ -261,7 +262,7 @@ impl Tracker {
             let planes =
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
-                let start = last * m.into_isometry();
+                let start = solve::renormalized(last * m.into_isometry());
                 let again = self.align(&start, reference, unknown_var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
@@ -281,7 +282,7 @@ impl Tracker {
                 } else {
                     TrackStatus::Tracked
                 };
-                self.velocity = last.inverse() * first.pose;
+                self.velocity = solve::renormalized(last.inverse() * first.pose);
                 self.velocity_known = true;
                 self.accept(depth, first.pose);
                 self.lost_run = 0;
