@@ -391,6 +391,9 @@ impl Tracker {
         let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
         let mut pose = *start;
         let mut iterations = 0;
+        // The sums of the finest level's last pass: they are the final statistics (same
+        // level, gates and pose), so the full-resolution pass is not repeated.
+        let mut finest: Option<Sums> = None;
         for l in (0..self.pyramid.levels.len()).rev() {
             let level = &self.pyramid.levels[l];
             let params = PassParams {
@@ -469,15 +472,23 @@ impl Tracker {
                     }
                 }
             }
+            if l == 0 {
+                finest = Some(s);
+            }
         }
         // The final statistics at full resolution.
-        let centre = pose.translation.vector;
-        let params = PassParams {
-            allowance_m: cfg.allowance_fine_m as f32,
-            min_cos,
-        };
         let level0 = &self.pyramid.levels[0];
-        let stats = solve::pass(level0, reference, &pose, &centre, sensor, cfg, params);
+        let stats = match finest {
+            Some(s) => s,
+            None => {
+                let params = PassParams {
+                    allowance_m: cfg.allowance_fine_m as f32,
+                    min_cos,
+                };
+                let centre = pose.translation.vector;
+                solve::pass(level0, reference, &pose, &centre, sensor, cfg, params)
+            }
+        };
         let scale_m = mean_depth(level0);
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
