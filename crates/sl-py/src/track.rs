@@ -5,8 +5,8 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_core::{Camera, CameraToWorld};
 use sl_filter::MultiScale;
-use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+use sl_track::{ModelReference, Tracker, TrackerConfig, WeightMode};
+use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::arrays::{check_camera, depth_input, pose_array};
 use crate::camera::PyCamera;
@@ -23,10 +23,11 @@ use crate::tsdf::PyMesh;
 ///
 /// ``weighting``: ``"inv-var"`` (residuals weighted by the sensor model's variance, default) or
 /// ``"uniform"``; ``frame_to_model``: track against the raycast of the fused model (default)
-/// or against the previous frame; ``voxel_m``: the model's voxel size; ``prefilter``: the
-/// smoothing of every frame before tracking and fusion, as ``sldepth track --prefilter``:
-/// ``"multiscale"`` (default: ``filter``'s default, which removes real sensors' spatially
-/// correlated error and keeps the tracker from losing frames on real recordings),
+/// or against the previous frame; ``voxel_m``: the model's voxel size; ``model_scale``: the
+/// fraction of the camera's resolution the model is rendered at for tracking (default 0.5,
+/// as ``sldepth track --model-scale``); ``prefilter``: the smoothing of every frame before
+/// tracking and fusion, as ``sldepth track --prefilter``: ``"multiscale"`` (default:
+/// ``filter``'s default, which removes real sensors' spatially correlated error),
 /// ``"single"`` (the adaptive filter's single pass) or ``"none"``.
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
@@ -34,10 +35,7 @@ pub struct PyTracker {
     camera: Camera,
     tracker: Tracker,
     volume: TsdfVolume,
-    raycast: Raycast,
-    raycast_config: RaycastConfig,
-    model: ReferenceMaps,
-    have_model: bool,
+    model: ModelReference,
     frame_to_model: bool,
     prefilter: Option<MultiScale>,
 }
@@ -45,12 +43,13 @@ pub struct PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, prefilter = "multiscale"))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = 0.5, prefilter = "multiscale"))]
     fn new(
         camera: &PyCamera,
         weighting: &str,
         frame_to_model: bool,
         voxel_m: f64,
+        model_scale: f64,
         prefilter: &str,
     ) -> PyResult<Self> {
         let camera = camera.inner;
@@ -81,14 +80,13 @@ impl PyTracker {
         let mut raycast_config = RaycastConfig::default();
         raycast_config.min_depth_m = params.min_depth_m;
         raycast_config.max_depth_m = params.max_depth_m;
+        let model = ModelReference::new(&camera.intrinsics, model_scale, raycast_config)
+            .map_err(value_error)?;
         Ok(Self {
             camera,
             tracker,
             volume,
-            raycast: Raycast::default(),
-            raycast_config,
-            model: ReferenceMaps::empty(&camera.intrinsics),
-            have_model: false,
+            model,
             frame_to_model,
             prefilter,
         })
@@ -108,14 +106,10 @@ impl PyTracker {
         check_camera(&view, &self.camera)?;
         let k = self.camera.intrinsics;
         let sensor = self.camera.sensor;
-        let z_ref_m = self.volume.params().z_ref_m;
         let Self {
             tracker,
             volume,
-            raycast,
-            raycast_config,
             model,
-            have_model,
             frame_to_model,
             prefilter,
             ..
@@ -126,20 +120,16 @@ impl PyTracker {
                 None => view.to_image(),
             };
             let r = tracker
-                .track(&depth, have_model.then_some(&*model))
+                .track(&depth, model.maps())
                 .map_err(|e| e.to_string())?;
             if r.status.is_tracked() {
                 volume
                     .integrate(&depth, &k, &r.pose)
                     .map_err(|e| e.to_string())?;
                 if *frame_to_model {
-                    volume
-                        .raycast_into(&r.pose, &k, raycast_config, raycast)
-                        .map_err(|e| e.to_string())?;
                     model
-                        .set_from_model(raycast, &r.pose, &k, &sensor, z_ref_m)
+                        .update(volume, &r.pose, &sensor)
                         .map_err(|e| e.to_string())?;
-                    *have_model = true;
                 }
             }
             Ok(r)

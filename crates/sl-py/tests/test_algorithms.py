@@ -209,6 +209,14 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         sldepth.Tracker(kinect, weighting="huber")
     with pytest.raises(ValueError, match="prefilter"):
         sldepth.Tracker(kinect, prefilter="median")
+    with pytest.raises(ValueError, match="scale"):
+        sldepth.Tracker(kinect, model_scale=0.0)
+    # The model rendered at full resolution tracks the still camera as well.
+    t = sldepth.Tracker(kinect, model_scale=1.0)
+    for _ in range(3):
+        pose, status = t.track(depth)
+    assert status == "tracked", status
+    assert np.abs(pose[:3, 3]).max() < 0.002
     for prefilter in ("single", "none"):
         t = sldepth.Tracker(kinect, prefilter=prefilter)
         t.track(depth)

@@ -77,4 +77,6 @@ pub use motion::{
 };
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};
-pub use track::{FrameResult, ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode};
+pub use track::{
+    FrameResult, ModelReference, ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode,
+};

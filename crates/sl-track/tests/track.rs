@@ -6,7 +6,7 @@
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
-use sl_track::{ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode};
+use sl_track::{ModelReference, TrackStatus, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 /// A half-resolution Kinect (320×240) and the `boxes` scene (boxes, a sphere and a cylinder on
@@ -68,19 +68,14 @@ fn track(
     tcfg.voxel_m = 0.01;
     tcfg.trunc_m = 0.05;
     let mut volume = TsdfVolume::new(tcfg).unwrap();
-    let mut maps = ReferenceMaps::empty(&k);
-    let mut have = false;
+    let mut reference =
+        ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default()).unwrap();
     let (mut poses, mut status) = (Vec::new(), Vec::new());
     for d in frames {
-        let r = tracker.track(d, have.then_some(&maps)).unwrap();
+        let r = tracker.track(d, reference.maps()).unwrap();
         if r.status.is_tracked() && model {
             volume.integrate(d, &k, &r.pose).unwrap();
-            let rc = volume
-                .raycast(&r.pose, &k, &RaycastConfig::default())
-                .unwrap();
-            maps.set_from_model(&rc, &r.pose, &k, &cam.sensor, tcfg.z_ref_m)
-                .unwrap();
-            have = true;
+            reference.update(&volume, &r.pose, &cam.sensor).unwrap();
         }
         poses.push(r.pose);
         status.push(r.status);
@@ -194,4 +189,56 @@ fn untrackable_frames_are_lost_and_tracking_resumes() {
     for i in [6, 7, 9, 10, 11] {
         assert!(e[i].0 < 0.01 && e[i].1 < 0.5, "frame {i}: {:?}", e[i]);
     }
+}
+
+/// The model reference renders at its own resolution, only after an update, and rejects
+/// scales outside (0, 1]; tracking against a full-resolution and a half-resolution rendering
+/// of the same model gives poses within the noise of each other.
+#[test]
+fn model_reference_renders_at_its_scale() {
+    let (cam, truth, frames) = sequence(3, 11);
+    let k = cam.intrinsics;
+    for bad in [0.0, -0.5, 1.5, f64::NAN] {
+        assert!(
+            ModelReference::new(&k, bad, RaycastConfig::default()).is_err(),
+            "{bad}"
+        );
+    }
+    let mut tcfg = TsdfConfig::default();
+    tcfg.voxel_m = 0.01;
+    tcfg.trunc_m = 0.05;
+    let mut volume = TsdfVolume::new(tcfg).unwrap();
+    volume.integrate(&frames[0], &k, &truth[0]).unwrap();
+    let mut poses = Vec::new();
+    for scale in [1.0, 0.5] {
+        let mut reference = ModelReference::new(&k, scale, RaycastConfig::default()).unwrap();
+        assert!(reference.maps().is_none());
+        reference.update(&volume, &truth[0], &cam.sensor).unwrap();
+        let maps = reference.maps().unwrap();
+        let want = k.scaled(scale).unwrap();
+        assert_eq!(maps.intrinsics.width, want.width);
+        assert_eq!(maps.points.len(), want.width * want.height);
+        assert!(
+            maps.valid_count() * 2 > maps.points.len(),
+            "{}",
+            maps.valid_count()
+        );
+        let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        tracker.set_initial_pose(truth[0]);
+        tracker.track(&frames[0], None).unwrap();
+        let r = tracker.track(&frames[1], reference.maps()).unwrap();
+        assert_eq!(r.status, TrackStatus::Tracked);
+        poses.push(r.pose);
+    }
+    let d = poses[0].isometry().inverse() * poses[1].isometry();
+    assert!(
+        d.translation.vector.norm() < 0.003,
+        "{}",
+        d.translation.vector.norm()
+    );
+    assert!(
+        d.rotation.angle().to_degrees() < 0.15,
+        "{}",
+        d.rotation.angle().to_degrees()
+    );
 }

@@ -15,8 +15,8 @@ use anyhow::Result;
 use sl_core::nalgebra::{Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
-use sl_track::{ReferenceMaps, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
+use sl_track::{ModelReference, Tracker, TrackerConfig, WeightMode};
+use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 use super::Context;
 
@@ -35,18 +35,15 @@ fn track(
     vcfg.voxel_m = 0.008;
     vcfg.trunc_m = 0.04;
     let mut volume = TsdfVolume::new(vcfg)?;
-    let mut rc = Raycast::default();
-    let mut maps = ReferenceMaps::empty(&k);
-    let mut have = false;
+    let mut reference =
+        ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default())?;
     let mut out = Vec::new();
     for d in frames {
-        let r = tracker.track(d, have.then_some(&maps))?;
+        let r = tracker.track(d, reference.maps())?;
         if r.status.is_tracked() {
             if model {
                 volume.integrate(*d, &k, &r.pose)?;
-                volume.raycast_into(&r.pose, &k, &RaycastConfig::default(), &mut rc)?;
-                maps.set_from_model(&rc, &r.pose, &k, &cam.sensor, vcfg.z_ref_m)?;
-                have = true;
+                reference.update(&volume, &r.pose, &cam.sensor)?;
             }
             out.push(Some(r.pose));
         } else {

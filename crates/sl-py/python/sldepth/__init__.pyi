@@ -233,9 +233,12 @@ class Tracker:
         weighting: str = "inv-var",
         frame_to_model: bool = True,
         voxel_m: float = 0.004,
+        model_scale: float = 0.5,
         prefilter: str = "multiscale",
     ) -> None:
-        """prefilter: "multiscale" (default, as sldepth track), "single" or "none"."""
+        """model_scale: fraction of the camera's resolution the model is rendered at for
+        tracking, in (0, 1] (as sldepth track --model-scale); prefilter: "multiscale"
+        (default, as sldepth track), "single" or "none"."""
     def track(
         self, depth: _Depth, depth_scale: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], str]:

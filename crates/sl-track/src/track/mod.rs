@@ -1,7 +1,8 @@
 //! Frame-to-model tracking of a depth sequence ([`Tracker`]).
 //!
 //! Each frame is aligned to [`ReferenceMaps`] — a raycast of the fused model when the caller
-//! passes one ([`ReferenceMaps::from_model`]), else the last well-tracked frame — by
+//! passes one ([`ModelReference`], or [`ReferenceMaps::from_model`] for a raycast of one's
+//! own), else the last well-tracked frame — by
 //! point-to-plane Gauss–Newton on SE(3) over a depth pyramid (coarse to fine, a depth-aware 2×2
 //! downsample), with projective data association, a Huber kernel on the normalised residual and
 //! weights from the sensor model ([`WeightMode`]). The normal equations count one independent
@@ -22,11 +23,13 @@
 //! next frames are aligned against the last good reference again (relocalisation).
 
 mod config;
+mod model;
 mod pyramid;
 mod reference;
 mod solve;
 
 pub use config::{TrackerConfig, WeightMode};
+pub use model::ModelReference;
 pub use reference::ReferenceMaps;
 
 use nalgebra::Isometry3;

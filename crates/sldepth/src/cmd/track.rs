@@ -20,9 +20,9 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
-use sl_track::ReferenceMaps;
+use sl_track::ModelReference;
 use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, Raycast, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::common::{
     InputArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits, parse_format,
@@ -73,17 +73,21 @@ pub struct Args {
     #[arg(long, value_name = "MODE", default_value = "inv-var")]
     pub weighting: String,
     /// Track each frame against the previous tracked frame instead of the fused model's
-    /// raycast (frame-to-model, the default). With the default prefilter neither loses a frame
-    /// of TUM fr1/rpy-200; frame to frame is more accurate there (7.2 against 8.8 cm ATE) and
-    /// equal on 7-Scenes (1.9 against 2.0 cm): the fused model disagrees with each new frame by
-    /// millimetres to centimetres growing with depth (docs/bench/track.md).
+    /// raycast (frame-to-model, the default). Neither loses a frame of TUM fr1/rpy-200 or
+    /// 7-Scenes; frame to frame is as accurate on TUM fr1/rpy-200 (3.9 against 4.3 cm ATE) and
+    /// less accurate on 7-Scenes (0.73 against 0.60 cm) (docs/bench/track.md).
     #[arg(long)]
     pub frame_to_frame: bool,
+    /// Render the fused model for tracking at this fraction of the camera's resolution, in
+    /// (0, 1]. The default 0.5 makes the raycast about 3x cheaper with the same accuracy on
+    /// TUM fr1/rpy and 7-Scenes (docs/bench/track.md); 1 renders at full resolution.
+    #[arg(long, value_name = "FRACTION", default_value_t = ModelReference::DEFAULT_SCALE)]
+    pub model_scale: f64,
     /// Smooth every frame before tracking and fusing it: `multiscale` (default: the default
-    /// filter of `sldepth filter`, which removes the spatially correlated error of real sensors;
-    /// on TUM fr1/rpy-200 it took frame to model from 97 lost frames to none and frame to frame
-    /// from 10.4 to 7.2 cm ATE), `single` (the adaptive filter's single 7×7 pass: there
-    /// 34 and 145 frames lost) or `none`.
+    /// filter of `sldepth filter`, which removes the spatially correlated error of real
+    /// sensors; on 7-Scenes it lowers the frame-to-frame ATE from 1.30 to 0.73 cm, elsewhere
+    /// the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
+    /// pass) or `none`.
     #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
     pub prefilter: String,
     /// No plane-based fallback when ICP fails.
@@ -287,9 +291,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut rc_cfg = RaycastConfig::default();
     rc_cfg.min_depth_m = params.min_depth_m;
     rc_cfg.max_depth_m = params.max_depth_m;
-    let mut raycast = Raycast::default();
-    let mut model = ReferenceMaps::empty(&k);
-    let mut have_model = false;
+    let mut model = ModelReference::new(&k, args.model_scale, rc_cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
     let mut track_ms_tracked = Vec::new();
@@ -344,7 +346,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         let t0 = Instant::now();
         let r = tracker
-            .track(&depth, have_model.then_some(&model))
+            .track(&depth, model.maps())
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
         track_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         counts[r.status as usize] += 1;
@@ -372,9 +374,7 @@ pub fn run(args: Args) -> Result<()> {
             if !args.frame_to_frame {
                 // The model seen from this pose is the next frame's reference.
                 let t2 = Instant::now();
-                volume.raycast_into(&r.pose, &k, &rc_cfg, &mut raycast)?;
-                model.set_from_model(&raycast, &r.pose, &k, &camera.sensor, params.z_ref_m)?;
-                have_model = true;
+                model.update(&volume, &r.pose, &camera.sensor)?;
                 raycast_ms.push(t2.elapsed().as_secs_f64() * 1e3);
             }
             rows.push((t, Row::Pose(r.pose)));
