@@ -9,8 +9,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, DepthImage, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
-use sl_track::{ReferenceMaps, Tracker, TrackerConfig};
-use sl_tsdf::{Raycast, RaycastConfig, TsdfConfig, TsdfVolume};
+use sl_track::{ModelReference, Tracker, TrackerConfig};
+use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 fn frames(n: usize) -> (Camera, Vec<DepthImage>) {
     let scene = named_scene("boxes").unwrap();
@@ -49,7 +49,8 @@ fn bench(c: &mut Criterion) {
         })
     });
     // The whole step against the model: track frame 1 against frame 0's raycast, integrate it
-    // and raycast the model for the next frame (the set-up, frame 0, is inside the loop too).
+    // and raycast the model for the next frame (the set-up, frame 0, is inside the loop too),
+    // the model rendered as `sldepth track` renders it (`ModelReference`, half resolution).
     let mut tcfg = TsdfConfig::default();
     tcfg.voxel_m = 0.008;
     tcfg.trunc_m = 0.04;
@@ -57,18 +58,15 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
             let mut vol = TsdfVolume::new(tcfg).unwrap();
-            let mut rc = Raycast::default();
-            let mut maps = ReferenceMaps::empty(&k);
+            let mut reference =
+                ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default())
+                    .unwrap();
             let r0 = t.track(&fr[0], None).unwrap();
             vol.integrate(&fr[0], &k, &r0.pose).unwrap();
-            vol.raycast_into(&r0.pose, &k, &RaycastConfig::default(), &mut rc)
-                .unwrap();
-            maps.set_from_model(&rc, &r0.pose, &k, &cam.sensor, tcfg.z_ref_m)
-                .unwrap();
-            let r1 = t.track(&fr[1], Some(&maps)).unwrap();
+            reference.update(&vol, &r0.pose, &cam.sensor).unwrap();
+            let r1 = t.track(&fr[1], reference.maps()).unwrap();
             vol.integrate(&fr[1], &k, &r1.pose).unwrap();
-            vol.raycast_into(&r1.pose, &k, &RaycastConfig::default(), &mut rc)
-                .unwrap();
+            reference.update(&vol, &r1.pose, &cam.sensor).unwrap();
             black_box(r1)
         })
     });
