@@ -6,6 +6,7 @@ use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use sl_core::Intrinsics;
 
 use super::RaycastConfig;
+use super::occupancy::{Occupancy, SUPER_SHIFT};
 use super::sampler::{Sampler, floor_i32, frac};
 use crate::error::{Result, TsdfError};
 use crate::volume::{BLOCK_SIDE, TsdfVolume};
@@ -96,10 +97,12 @@ impl RayFrame {
     }
 
     /// Marches the ray of pixel `(x, y)` through camera depths `[lo, hi]` (clipped to the
-    /// configured range) and returns its first front-facing zero crossing.
+    /// configured range) and returns its first front-facing zero crossing; `occ` lets it cross
+    /// empty super-blocks in one step.
     pub(super) fn cast(
         &self,
         s: &mut Sampler<'_>,
+        occ: &Occupancy,
         x: usize,
         y: usize,
         lo: f32,
@@ -137,7 +140,8 @@ impl RayFrame {
         // whose long step landed in unobserved voxels, one shortest step at a time.
         let mut prev: Option<(f32, f32)> = None;
         let mut fine = false;
-        let exit = BlockExit::new(&d);
+        let exit = BlockExit::new(&d, BLOCK_SIDE as f32);
+        let super_exit = BlockExit::new(&d, (BLOCK_SIDE << SUPER_SHIFT) as f32);
         while t <= end {
             let g = at(t);
             if !g.iter().all(|c| c.is_finite() && c.abs() < 1.0e9) {
@@ -146,8 +150,14 @@ impl RayFrame {
             let base = g.map(floor_i32);
             let b = base.map(|c| c >> 3);
             let Some(blk) = s.block(b) else {
-                // No sample whose base voxel is in this block is observed: jump to its exit.
-                t = exit.next(g, b, t, min_dt);
+                // No sample whose base voxel is in this block is observed: jump to its exit,
+                // or to the exit of its super-block when no block of that is allocated.
+                let sb = b.map(|c| c >> SUPER_SHIFT);
+                t = if occ.maybe_occupied(sb) {
+                    exit.next(g, b, t, min_dt)
+                } else {
+                    super_exit.next(g, sb, t, min_dt)
+                };
                 prev = None;
                 fine = false;
                 continue;
@@ -250,36 +260,37 @@ impl RayFrame {
     }
 }
 
-/// Where a ray leaves a block: the per-ray choices of the exit face done once (the division
-/// stays per step: a reciprocal multiply would move the samples by round-off and change the
-/// output).
+/// Where a ray leaves a block (or a super-block): the per-ray choices of the exit face done
+/// once (the division stays per step: a reciprocal multiply would move the samples by
+/// round-off and change the output).
 struct BlockExit {
     /// The ray's direction, grid units per metre of depth.
     d: [f32; 3],
-    /// The exit plane's offset from the block's low corner per axis: the block side where
-    /// `d > 0`, else 0.
+    /// The box's side, voxels.
+    side: f32,
+    /// The exit plane's offset from the box's low corner per axis: `side` where `d > 0`, else
+    /// 0.
     off: [f32; 3],
 }
 
 impl BlockExit {
-    fn new(d: &Vector3<f32>) -> Self {
-        let side = BLOCK_SIDE as f32;
+    fn new(d: &Vector3<f32>, side: f32) -> Self {
         Self {
             d: [d.x, d.y, d.z],
+            side,
             off: [0, 1, 2].map(|a| if d[a] > 0.0 { side } else { 0.0 }),
         }
     }
 
     /// Camera depth just past the exit of the ray at depth `t` (grid point `g`) from the
-    /// region of block `b` (the points whose base voxel lies in it, `[8b, 8b + 8)` in grid
-    /// units).
+    /// region of box `b` (the points whose base voxel lies in it, `[side·b, side·b + side)` in
+    /// grid units).
     #[inline]
     fn next(&self, g: [f32; 3], b: [i32; 3], t: f32, min_dt: f32) -> f32 {
-        let side = BLOCK_SIDE as f32;
         let mut dt = f32::INFINITY;
         for a in 0..3 {
             if self.d[a] != 0.0 {
-                let ta = (b[a] as f32 * side + self.off[a] - g[a]) / self.d[a];
+                let ta = (b[a] as f32 * self.side + self.off[a] - g[a]) / self.d[a];
                 dt = dt.min(ta.max(0.0));
             }
         }

@@ -1,7 +1,7 @@
 //! Rendering the fused surface from a pose: [`TsdfVolume::raycast`] marches one ray per pixel
-//! through the volume (block skipping in `range` and `march`, trilinear samples and gradients
-//! in `sampler`) and returns depth, world points, world normals and fused weights of the first
-//! front-facing zero crossing.
+//! through the volume (empty-space skipping in `range`, `occupancy` and `march`, trilinear
+//! samples and gradients in `sampler`) and returns depth, world points, world normals and fused
+//! weights of the first front-facing zero crossing.
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
@@ -11,6 +11,7 @@ use crate::error::{Result, TsdfError};
 use crate::volume::TsdfVolume;
 
 mod march;
+mod occupancy;
 mod range;
 mod sampler;
 
@@ -115,6 +116,8 @@ pub struct Raycast {
     pub weights: Vec<f32>,
     /// Per-tile depth intervals of the allocated blocks (scratch space reused across frames).
     tiles: range::Tiles,
+    /// Which super-blocks hold allocated blocks (scratch space reused across frames).
+    occupancy: occupancy::Occupancy,
 }
 
 impl Default for Raycast {
@@ -127,6 +130,7 @@ impl Default for Raycast {
             normals: Vec::new(),
             weights: Vec::new(),
             tiles: range::Tiles::default(),
+            occupancy: occupancy::Occupancy::default(),
         }
     }
 }
@@ -205,7 +209,9 @@ impl TsdfVolume {
         out.resize(k.width, k.height)?;
         let frame = march::RayFrame::new(self, iso, k, config)?;
         range::tile_ranges(self, &frame, k, config, &mut out.tiles)?;
+        out.occupancy.fill(self)?;
         let tiles = &out.tiles;
+        let occ = &out.occupancy;
         let w = k.width;
         out.depth
             .data_mut()
@@ -218,7 +224,7 @@ impl TsdfVolume {
                 let mut sampler = sampler::Sampler::new(self);
                 for x in 0..w {
                     let (lo, hi) = range::pixel_range(tiles, w, x, y);
-                    match frame.cast(&mut sampler, x, y, lo, hi) {
+                    match frame.cast(&mut sampler, occ, x, y, lo, hi) {
                         Some(hit) => {
                             depth[x] = hit.z_m;
                             points[x] = hit.point;

@@ -368,6 +368,39 @@ proptest! {
 }
 
 #[test]
+fn the_occupancy_map_has_no_false_empty_super_block() {
+    // Every super-block holding an allocated block must read "maybe occupied" (a false
+    // "empty" would let rays jump over surfaces); most empty ones read "empty".
+    let k = small_camera();
+    let (vol, _) = fused_room(&k, 0.01, 0.04);
+    let mut occ = occupancy::Occupancy::default();
+    occ.fill(&vol).unwrap();
+    let shift = occupancy::SUPER_SHIFT;
+    let mut occupied = std::collections::HashSet::new();
+    for b in vol.block_coords() {
+        let sb = b.map(|c| c >> shift);
+        assert!(occ.maybe_occupied(sb), "block {b:?}");
+        occupied.insert(sb);
+    }
+    let mut empty = 0;
+    let mut clear = 0;
+    for x in -40..40 {
+        for y in -40..40 {
+            for z in -40..40 {
+                if !occupied.contains(&[x, y, z]) {
+                    empty += 1;
+                    clear += usize::from(!occ.maybe_occupied([x, y, z]));
+                }
+            }
+        }
+    }
+    assert!(
+        clear * 10 > empty * 9,
+        "{clear} of {empty} empty super-blocks read empty"
+    );
+}
+
+#[test]
 fn raycast_into_reuses_buffers_and_threads_do_not_change_the_result() {
     let k = small_camera();
     let (vol, _) = fused_room(&k, 0.02, 0.08);
