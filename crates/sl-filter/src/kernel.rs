@@ -405,6 +405,23 @@ fn block_avx2<M: RangeMode, const DISP: bool>(
     mode: M,
     fb: f32,
 ) -> bool {
+    if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&taps.radius) {
+        let ok = fill_rows::<DISP>(src, y0, taps.radius, stride, buf, fb);
+        let p = Padded {
+            data: buf,
+            stride,
+            width: src.width,
+        };
+        match (taps.radius, taps.disc) {
+            (1, false) => x256::block::<1, false, M, DISP>(taps, &p, out, mode, fb),
+            (2, false) => x256::block::<2, false, M, DISP>(taps, &p, out, mode, fb),
+            (3, false) => x256::block::<3, false, M, DISP>(taps, &p, out, mode, fb),
+            (1, true) => x256::block::<1, true, M, DISP>(taps, &p, out, mode, fb),
+            (2, true) => x256::block::<2, true, M, DISP>(taps, &p, out, mode, fb),
+            _ => x256::block::<3, true, M, DISP>(taps, &p, out, mode, fb),
+        }
+        return ok;
+    }
     pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
 }
 
@@ -736,3 +753,7 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
 /// The explicit AVX-512 kernel of the range filters' constant-radius fast paths (its own file).
 #[cfg(target_arch = "x86_64")]
 mod x512;
+
+/// The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
+#[cfg(target_arch = "x86_64")]
+mod x256;

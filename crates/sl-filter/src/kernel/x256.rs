@@ -1,0 +1,376 @@
+//! The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
+//!
+//! Bit-identical to the compiler-vectorised `chunk` with `range_weight::<true>` (asserted by
+//! the tests below): every tap performs the same fused operations in the same order. What
+//! changes is only how they are scheduled and where they run:
+//!
+//! - **The scaling by `2^(−m)` is an integer add**, not a multiply. `range_weight` multiplies
+//!   the polynomial `p` by `2^(−m)` built from the low mantissa bits of `t1 = MAGIC − round(e²)`.
+//!   Here the magic constant is `MAGIC − 128`, so the shifted bits are `−(m + 1)` in the
+//!   exponent field, and the polynomial's coefficients are doubled (exact): `2p·2^(−(m+1))` is
+//!   `p·2^(−m)` exactly (every kept weight is a normal number), computed with `vpaddd` on the
+//!   bit patterns. The multiply-add pipes (two on current x86 cores, shared by 7 of each tap's
+//!   13 operations) lose one operation per tap. The cutoff compares the shifted `t1` with the
+//!   shifted cut (exact: both are integers below `2²⁴`, and 128 is even, so the ties of the
+//!   rounding to integers go the same way).
+//! - **The constants stay in registers or come from L1**: two 8-lane groups share each tap's
+//!   constants and hide each other's latency (the compiler-vectorised loop kept 16 lanes of
+//!   state and spilled, 21.6 instructions per tap for 13 operations).
+//! - **Groups of 16 pixels whose centres are all invalid are skipped** (their output is 0,
+//!   as in `finish`), as the AVX-512 kernel does.
+
+use std::arch::x86_64::*;
+
+use super::{
+    CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
+    class, is_row, is_tap,
+};
+use crate::fastexp::{MAGIC, TapExp};
+
+/// The magic rounding constant of `range_weight` minus 128 (see the module docs).
+const MAGIC_LOW: f32 = MAGIC - 128.0;
+
+/// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
+#[inline(always)]
+fn load(a: &[f32]) -> __m256 {
+    let mut v = [0.0f32; 8];
+    v.copy_from_slice(&a[..8]);
+    bytemuck::cast(v)
+}
+
+/// The per-class constants of one tap, broadcast: `2·c3, 2·c2, 2·c1, 2·c0` and `cut − 128`.
+#[derive(Clone, Copy)]
+struct Class {
+    c: [__m256; 4],
+    cut: __m256,
+}
+
+/// Filters the block of whole rows `out` (see [`super::block_fast`]).
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
+    let k = 2 * R + 1;
+    let stride = p.stride;
+    let width = p.width;
+    let mut cls = [TapExp::default(); MAX_CLASSES];
+    for dy in 0..k {
+        for dx in 0..k {
+            cls[class::<R>(dy, dx)] = taps.exps[dy * k + dx];
+        }
+    }
+    // Doubling is exact, and so is `cut − 128` (an integer below 2²⁴, or +∞).
+    let cls: [Class; MAX_CLASSES] = cls.map(|e| Class {
+        c: e.c.map(|c| _mm256_set1_ps(2.0 * c)),
+        cut: _mm256_set1_ps(e.cut - 128.0),
+    });
+    let mut res = [0.0f32; CHUNK];
+    let rows_on = std::hint::black_box(u32::MAX);
+    for (y, out_row) in out.chunks_mut(width).enumerate() {
+        let win = &p.data[y * stride..(y + k) * stride];
+        let mut x0 = 0;
+        while x0 < width {
+            let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
+            for (dy, row) in rows.iter_mut().enumerate().take(k) {
+                let Ok(r) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
+                else {
+                    return;
+                };
+                *row = r;
+            }
+            let n = CHUNK.min(width - x0);
+            let dst: &mut [f32; CHUNK] =
+                match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
+                    Ok(d) => d,
+                    Err(_) => &mut res,
+                };
+            chunk::<R, DISC, M, DISP>(&rows, &cls, dst, mode, fb, rows_on);
+            if n < CHUNK {
+                out_row[x0..x0 + n].copy_from_slice(&res[..n]);
+            }
+            x0 += CHUNK;
+        }
+    }
+}
+
+/// One chunk of `CHUNK` output pixels, two 8-lane groups at a time. Not inlined, for the same
+/// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+    rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
+    cls: &[Class; MAX_CLASSES],
+    dst: &mut [f32; CHUNK],
+    mode: M,
+    fb: f32,
+    rows_on: u32,
+) {
+    let coef = _mm256_set1_ps(mode.coef());
+    let max_scale = _mm256_set1_ps(MAX_SCALE);
+    let magic = _mm256_set1_ps(MAGIC_LOW);
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let inf = _mm256_set1_ps(f32::INFINITY);
+    let valid_limit = _mm256_set1_ps(VALID_LIMIT);
+    let fbv = _mm256_set1_ps(fb);
+    // `Adaptive::scale`: `coef / c²`, then `s < MAX_SCALE ? s : MAX_SCALE` (= `vminps`).
+    let scale = |c: __m256| {
+        if M::ADAPTIVE {
+            _mm256_min_ps(_mm256_div_ps(coef, _mm256_mul_ps(c, c)), max_scale)
+        } else {
+            coef
+        }
+    };
+    // `c > 0 && c < VALID_LIMIT` (the centre test of `super::finish`).
+    let valid = |c: __m256| {
+        _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(c, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(c, valid_limit),
+        )
+    };
+    for g in 0..CHUNK / 16 {
+        let i = 16 * g;
+        let ca = load(&rows[R][i + R..]);
+        let cb = load(&rows[R][i + 8 + R..]);
+        let (va, vb) = (valid(ca), valid(cb));
+        if _mm256_movemask_ps(_mm256_or_ps(va, vb)) == 0 {
+            // No valid centre among the 16: the output is 0 whatever the neighbours are.
+            dst[i..i + 16].fill(0.0);
+            continue;
+        }
+        let (sa, sb) = (scale(ca), scale(cb));
+        let (zsa, zsb) = (_mm256_mul_ps(sa, ca), _mm256_mul_ps(sb, cb));
+        // The centre tap (weight 1, difference 0) initialises the sums.
+        let (mut swa, mut swb) = (one, one);
+        let (mut sda, mut sdb) = (zero, zero);
+        macro_rules! weigh {
+            ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $k:ident) => {
+                // `range_weight::<true>` with the shifted magic constant (module docs).
+                let e = _mm256_fmsub_ps($nb, $s, $zs);
+                let t1 = _mm256_fnmadd_ps(e, e, magic);
+                let m = _mm256_sub_ps(magic, t1);
+                let g = _mm256_fnmadd_ps(e, e, m);
+                let p = _mm256_fmadd_ps(
+                    g,
+                    _mm256_fmadd_ps(g, _mm256_fmadd_ps(g, $k.c[0], $k.c[1]), $k.c[2]),
+                    $k.c[3],
+                );
+                // 2p · 2^(−(m+1)) on the bit patterns (the shifted bits are −(m+1) << 23).
+                let w = _mm256_add_epi32(
+                    _mm256_castps_si256(p),
+                    _mm256_slli_epi32::<23>(_mm256_castps_si256(t1)),
+                );
+                let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(t1, $k.cut);
+                let w = _mm256_and_ps(keep, _mm256_castsi256_ps(w));
+                $sw = _mm256_add_ps($sw, w);
+                $sd = _mm256_fmadd_ps(w, e, $sd);
+            };
+        }
+        // The window unrolled; taps outside it or at the centre vanish at compile time.
+        macro_rules! tap {
+            ($dy:literal, $dx:literal) => {
+                if is_tap::<R, DISC>($dy, $dx) {
+                    let kc = &cls[class::<R>($dy, $dx)];
+                    weigh!(load(&rows[$dy][i + $dx..]), sa, zsa, swa, sda, kc);
+                    weigh!(load(&rows[$dy][i + 8 + $dx..]), sb, zsb, swb, sdb, kc);
+                }
+            };
+        }
+        // One basic block per window row (`rows_on` is all ones but opaque), as in the
+        // AVX-512 kernel: it bounds how far the scheduler moves work ahead of the sums.
+        macro_rules! row {
+            ($dy:literal) => {
+                if is_row::<R>($dy) && rows_on & (1 << $dy) != 0 {
+                    tap!($dy, 0);
+                    tap!($dy, 1);
+                    tap!($dy, 2);
+                    tap!($dy, 3);
+                    tap!($dy, 4);
+                    tap!($dy, 5);
+                    tap!($dy, 6);
+                }
+            };
+        }
+        row!(0);
+        row!(1);
+        row!(2);
+        row!(3);
+        row!(4);
+        row!(5);
+        row!(6);
+        for (c, s, sw, sd, ok_c, off) in [(ca, sa, swa, sda, va, 0), (cb, sb, swb, sdb, vb, 8)] {
+            // The epilogue of `super::finish`, with masks.
+            let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
+            let (v, c_out) = if DISP {
+                (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
+            } else {
+                (v, c)
+            };
+            let ok = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
+            );
+            let v = _mm256_blendv_ps(c_out, v, ok);
+            let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(ok_c, v));
+            dst[i + off..i + off + 8].copy_from_slice(&v);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{
+        Adaptive, BLOCK_ROWS, Fixed, INVALID_FILL, Isa, Padded, RangeMode, Source, Taps, block,
+        dispatch, fill_rows, stride_for,
+    };
+    use crate::fastexp::{LOG2_E, TapExp};
+
+    /// The compiler-vectorised AVX2 + FMA code this kernel replaces (`pad_and_filter!`).
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    fn vectorised<M: RangeMode, const DISP: bool>(
+        taps: Taps<'_>,
+        src: &Source<'_>,
+        y0: usize,
+        stride: usize,
+        buf: &mut [f32],
+        out: &mut [f32],
+        mode: M,
+        fb: f32,
+    ) -> bool {
+        pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
+    }
+
+    /// Filters the whole image block by block with the explicit kernel (`new`) or the
+    /// compiler-vectorised one.
+    fn filter<M: RangeMode, const DISP: bool>(
+        taps: Taps<'_>,
+        src: &Source<'_>,
+        mode: M,
+        fb: f32,
+        new: bool,
+    ) -> Vec<f32> {
+        let (w, h) = (src.width, src.height);
+        let stride = stride_for(w, taps.radius);
+        let mut out = vec![0.0f32; w * h];
+        let mut buf = vec![0.0f32; stride * (BLOCK_ROWS + 2 * taps.radius)];
+        for (bi, block) in out.chunks_mut(w * BLOCK_ROWS).enumerate() {
+            let rows = block.len() / w;
+            let buf = &mut buf[..stride * (rows + 2 * taps.radius)];
+            let y0 = bi * BLOCK_ROWS;
+            if new {
+                dispatch::<M, DISP>(Isa::Avx2, taps, src, y0, stride, buf, block, mode, fb);
+            } else {
+                // SAFETY: the caller checked AVX2 and FMA support at run time.
+                #[allow(unsafe_code)]
+                unsafe {
+                    vectorised::<M, DISP>(taps, src, y0, stride, buf, block, mode, fb);
+                }
+            }
+        }
+        out
+    }
+
+    /// A frame with smooth surfaces, depth steps of every size (some range weights cut off,
+    /// some not), noise, isolated and large holes, and a width that is not a multiple of the
+    /// chunk.
+    fn frame(w: usize, h: usize) -> Vec<f32> {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let mut d = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let base = 0.6 + 0.01 * x as f32 + 0.004 * y as f32;
+                let step = if (x / 23 + y / 11) % 3 == 0 {
+                    0.002 * (x % 7) as f32 + 0.3 * ((y / 5) % 2) as f32
+                } else {
+                    0.0
+                };
+                let mut z = base + step + 0.003 * (rnd() - 0.5);
+                if rnd() < 0.05 || ((40..75).contains(&x) && (5..30).contains(&y)) {
+                    z = 0.0;
+                }
+                d[y * w + x] = z;
+            }
+        }
+        d
+    }
+
+    fn check<M: RangeMode, const DISP: bool>(src: &Source<'_>, mode: M, fb: f32) {
+        for r in 1..=3usize {
+            for disc in [false, true] {
+                let k = 2 * r + 1;
+                let sigma = r as f64 / 2.0;
+                let mut exps = Vec::new();
+                let mut texp = Vec::new();
+                for dy in 0..k {
+                    for dx in 0..k {
+                        let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
+                        let t = -d2 / (2.0 * sigma * sigma) * f64::from(LOG2_E);
+                        exps.push(TapExp::new(t));
+                        texp.push(t as f32);
+                    }
+                }
+                let taps = Taps {
+                    radius: r,
+                    disc,
+                    taps: &[],
+                    exps: &exps,
+                    texp: &texp,
+                };
+                let a = filter::<M, DISP>(taps, src, mode, fb, true);
+                let b = filter::<M, DISP>(taps, src, mode, fb, false);
+                let diff = a
+                    .iter()
+                    .zip(&b)
+                    .filter(|(x, y)| x.to_bits() != y.to_bits())
+                    .count();
+                assert_eq!(
+                    diff, 0,
+                    "r {r} disc {disc} DISP {DISP}: {diff} pixels differ"
+                );
+                assert!(a.iter().filter(|&&v| v > 0.0).count() > a.len() / 2);
+            }
+        }
+    }
+
+    #[test]
+    fn bit_identical_to_the_compiler_vectorised_code() {
+        if !Isa::Avx2.is_supported() {
+            return;
+        }
+        let (w, h) = (301, 37);
+        let data = frame(w, h);
+        let src = Source {
+            data: &data,
+            width: w,
+            height: h,
+            fill: INVALID_FILL,
+            disparity_fb: None,
+            min_m: 0.1,
+            max_m: 20.0,
+        };
+        let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma) as f32;
+        // Adaptive with the Kinect's k and a tenth of it (more cut-off weights), fixed σ.
+        check::<_, false>(&src, Adaptive(coef(0.0028)), 0.0);
+        check::<_, false>(&src, Adaptive(coef(0.00028)), 0.0);
+        check::<_, false>(&src, Fixed(coef(0.01)), 0.0);
+        // Disparity (fb / z) with a fixed σ in disparity pixels.
+        let fb = 580.0 * 0.075;
+        let disp = Source {
+            disparity_fb: Some(fb),
+            ..src
+        };
+        check::<_, true>(&disp, Fixed(coef(0.5)), fb);
+    }
+}
