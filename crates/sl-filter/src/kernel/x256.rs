@@ -13,17 +13,17 @@
 //!   13 operations) lose one operation per tap. The cutoff compares the shifted `t1` with the
 //!   shifted cut (exact: both are integers below `2²⁴`, and 128 is even, so the ties of the
 //!   rounding to integers go the same way).
-//! - **The constants stay in registers or come from L1**: two 8-lane groups share each tap's
-//!   constants and hide each other's latency (the compiler-vectorised loop kept 16 lanes of
-//!   state and spilled, 21.6 instructions per tap for 13 operations).
-//! - **Groups of 16 pixels whose centres are all invalid are skipped** (their output is 0,
+//! - **One 8-lane group at a time, software-pipelined** (see `chunk`): the per-tap constants
+//!   are folded into the multiply-adds as memory operands, and each tap costs its 13
+//!   operations plus one load, one register copy and the step's branch (19 instructions; the
+//!   compiler-vectorised loop took 21.6 per 8 lanes, spilling its state). Two interleaved
+//!   groups, as in the AVX-512 kernel, need more than AVX2's 16 registers (measured slower).
+//! - **Groups of 8 pixels whose centres are all invalid are skipped** (their output is 0,
 //!   as in `finish`), as the AVX-512 kernel does.
 
 use std::arch::x86_64::*;
 
-use super::{
-    CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_row, is_tap,
-};
+use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
 use crate::fastexp::{MAGIC, TapExp};
 
 /// The magic rounding constant of `range_weight` minus 128 (see the module docs).
@@ -41,6 +41,26 @@ fn load(a: &[f32]) -> __m256 {
 const FRAME: usize = 2 * MAX_FAST_RADIUS + 1;
 /// Positions of that frame.
 const TAPS: usize = FRAME * FRAME;
+
+/// Index `dy * FRAME + dx` of the `n`-th tap (row-major, centre excluded) of the window.
+const fn nth_tap<const R: usize, const DISC: bool>(n: usize) -> Option<usize> {
+    let mut count = 0;
+    let mut dy = 0;
+    while dy < FRAME {
+        let mut dx = 0;
+        while dx < FRAME {
+            if is_tap::<R, DISC>(dy, dx) {
+                if count == n {
+                    return Some(dy * FRAME + dx);
+                }
+                count += 1;
+            }
+            dx += 1;
+        }
+        dy += 1;
+    }
+    None
+}
 
 /// The constants of one tap, broadcast: `2·c3, 2·c2, 2·c1, 2·c0` and `cut − 128`.
 #[derive(Clone, Copy)]
@@ -104,10 +124,12 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     }
 }
 
-/// One chunk of `CHUNK` output pixels, two 8-lane groups at a time. Not inlined, for the same
+/// One chunk of `CHUNK` output pixels, one 8-lane group at a time. Not inlined, for the same
 /// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
+// The last steps assign pipeline registers that no later step reads.
+#[allow(unused_assignments)]
 fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
     cls: &[Class; TAPS],
@@ -139,14 +161,13 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             _mm256_cmp_ps::<_CMP_LT_OQ>(c, valid_limit),
         )
     };
-    for g in 0..CHUNK / 16 {
-        let i = 16 * g;
+    for g in 0..CHUNK / 8 {
+        let i = 8 * g;
         let ca = load(&rows[R][i + R..]);
-        let cb = load(&rows[R][i + 8 + R..]);
-        let (va, vb) = (valid(ca), valid(cb));
-        if _mm256_movemask_ps(_mm256_or_ps(va, vb)) == 0 {
-            // No valid centre among the 16: the output is 0 whatever the neighbours are.
-            dst[i..i + 16].fill(0.0);
+        let va = valid(ca);
+        if _mm256_movemask_ps(va) == 0 {
+            // No valid centre among the 8: the output is 0 whatever the neighbours are.
+            dst[i..i + 8].fill(0.0);
             continue;
         }
         // Opaque to the optimiser: the constants are reloaded for every group, where each tap
@@ -154,69 +175,123 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         // into 30 registers' worth of values that spill (measured: 1021 instructions per
         // 16 pixels at 5×5 with the hoisted constants).
         let cls = std::hint::black_box(cls);
-        let (sa, sb) = (scale(ca), scale(cb));
-        let (zsa, zsb) = (_mm256_mul_ps(sa, ca), _mm256_mul_ps(sb, cb));
+        let sa = scale(ca);
+        let zsa = _mm256_mul_ps(sa, ca);
         // The centre tap (weight 1, difference 0) initialises the sums.
-        let (mut swa, mut swb) = (one, one);
-        let (mut sda, mut sdb) = (zero, zero);
-        macro_rules! weigh {
-            ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $k:ident) => {
-                // `range_weight::<true>` with the shifted magic constant (module docs).
-                let e = _mm256_fmsub_ps($nb, $s, $zs);
-                let t1 = _mm256_fnmadd_ps(e, e, magic);
-                let m = _mm256_sub_ps(magic, t1);
-                let g = _mm256_fnmadd_ps(e, e, m);
-                let p = _mm256_fmadd_ps(
-                    g,
-                    _mm256_fmadd_ps(g, _mm256_fmadd_ps(g, $k.c[0], $k.c[1]), $k.c[2]),
-                    $k.c[3],
-                );
-                // 2p · 2^(−(m+1)) on the bit patterns (the shifted bits are −(m+1) << 23).
-                let w = _mm256_add_epi32(
-                    _mm256_castps_si256(p),
-                    _mm256_slli_epi32::<23>(_mm256_castps_si256(t1)),
-                );
-                let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(t1, $k.cut);
-                let w = _mm256_and_ps(keep, _mm256_castsi256_ps(w));
-                $sw = _mm256_add_ps($sw, w);
-                $sd = _mm256_fmadd_ps(w, e, $sd);
-            };
-        }
-        // The window unrolled; taps outside it or at the centre vanish at compile time.
-        macro_rules! tap {
-            ($dy:literal, $dx:literal) => {
-                if is_tap::<R, DISC>($dy, $dx) && taps_on & (1 << ($dy * FRAME + $dx)) != 0 {
-                    let kc = &cls[$dy * FRAME + $dx];
-                    weigh!(load(&rows[$dy][i + $dx..]), sa, zsa, swa, sda, kc);
-                    weigh!(load(&rows[$dy][i + 8 + $dx..]), sb, zsb, swb, sdb, kc);
+        let mut sw = one;
+        let mut sd = zero;
+        // Each tap's work in four stages, software-pipelined: step `n` accumulates tap
+        // `n − 3`, evaluates the polynomial of tap `n − 2`, splits `e²` of tap `n − 1` and
+        // loads tap `n` (every tap does the same operations in the same order as
+        // `range_weight`, and the sums are still accumulated tap by tap). In program order the
+        // operands of most instructions are then ready, so the out-of-order core needs a
+        // shorter window to overlap the taps' 40-cycle dependency chains.
+        let (mut e1, mut e2, mut e3) = (zero, zero, zero);
+        let (mut t2, mut t3, mut g2, mut p3) = (zero, zero, zero, zero);
+        macro_rules! step {
+            ($n:literal) => {
+                // One basic block per step (`taps_on` is all ones but opaque): it keeps the
+                // scheduler from hoisting later taps' work ahead and spilling it.
+                if taps_on & (1 << $n) != 0 {
+                    if let Some(q) = const {
+                        if $n >= 3 {
+                            nth_tap::<R, DISC>($n - 3)
+                        } else {
+                            None
+                        }
+                    } {
+                        // 2p · 2^(−(m+1)) on the bit patterns (the shifted bits are
+                        // −(m+1) << 23), 0 below the cutoff.
+                        let w = _mm256_add_epi32(
+                            _mm256_castps_si256(p3),
+                            _mm256_slli_epi32::<23>(_mm256_castps_si256(t3)),
+                        );
+                        let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(t3, cls[q].cut);
+                        let w = _mm256_and_ps(keep, _mm256_castsi256_ps(w));
+                        sw = _mm256_add_ps(sw, w);
+                        sd = _mm256_fmadd_ps(w, e3, sd);
+                    }
+                    if let Some(q) = const {
+                        if $n >= 2 {
+                            nth_tap::<R, DISC>($n - 2)
+                        } else {
+                            None
+                        }
+                    } {
+                        let k = &cls[q].c;
+                        e3 = e2;
+                        t3 = t2;
+                        p3 = _mm256_fmadd_ps(
+                            g2,
+                            _mm256_fmadd_ps(g2, _mm256_fmadd_ps(g2, k[0], k[1]), k[2]),
+                            k[3],
+                        );
+                    }
+                    if const { $n >= 1 && nth_tap::<R, DISC>($n - 1).is_some() } {
+                        // `range_weight::<true>` with the shifted magic constant: t1, −g.
+                        e2 = e1;
+                        t2 = _mm256_fnmadd_ps(e1, e1, magic);
+                        g2 = _mm256_fnmadd_ps(e1, e1, _mm256_sub_ps(magic, t2));
+                    }
+                    if let Some(q) = const { nth_tap::<R, DISC>($n) } {
+                        let nb = load(&rows[q / FRAME][i + q % FRAME..]);
+                        e1 = _mm256_fmsub_ps(nb, sa, zsa);
+                    }
                 }
             };
         }
-        // One basic block per tap (`taps_on` is all ones but opaque): this bounds how far
-        // the scheduler moves work ahead of the sums. With one block per window row (enough
-        // for the AVX-512 kernel's 32 registers), the taps of a row are computed first and
-        // spilled (measured 1171 instructions per 16 pixels at 5×5).
-        macro_rules! row {
-            ($dy:literal) => {
-                if is_row::<R>($dy) {
-                    tap!($dy, 0);
-                    tap!($dy, 1);
-                    tap!($dy, 2);
-                    tap!($dy, 3);
-                    tap!($dy, 4);
-                    tap!($dy, 5);
-                    tap!($dy, 6);
-                }
-            };
-        }
-        row!(0);
-        row!(1);
-        row!(2);
-        row!(3);
-        row!(4);
-        row!(5);
-        row!(6);
-        for (c, s, sw, sd, ok_c, off) in [(ca, sa, swa, sda, va, 0), (cb, sb, swb, sdb, vb, 8)] {
+        step!(0);
+        step!(1);
+        step!(2);
+        step!(3);
+        step!(4);
+        step!(5);
+        step!(6);
+        step!(7);
+        step!(8);
+        step!(9);
+        step!(10);
+        step!(11);
+        step!(12);
+        step!(13);
+        step!(14);
+        step!(15);
+        step!(16);
+        step!(17);
+        step!(18);
+        step!(19);
+        step!(20);
+        step!(21);
+        step!(22);
+        step!(23);
+        step!(24);
+        step!(25);
+        step!(26);
+        step!(27);
+        step!(28);
+        step!(29);
+        step!(30);
+        step!(31);
+        step!(32);
+        step!(33);
+        step!(34);
+        step!(35);
+        step!(36);
+        step!(37);
+        step!(38);
+        step!(39);
+        step!(40);
+        step!(41);
+        step!(42);
+        step!(43);
+        step!(44);
+        step!(45);
+        step!(46);
+        step!(47);
+        step!(48);
+        step!(49);
+        step!(50);
+        for (c, s, sw, sd, ok_c, off) in [(ca, sa, sw, sd, va, 0)] {
             // The epilogue of `super::finish`, with masks.
             let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
             let (v, c_out) = if DISP {
