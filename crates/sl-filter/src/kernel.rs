@@ -32,11 +32,13 @@
 //! **Speed.** Rows are processed in blocks of 16 by the calling thread and rayon helpers taking
 //! blocks from one queue (each block padded into a per-thread buffer). Radii 1, 2 and 3 (3×3,
 //! 5×5, 7×7) are monomorphised fast paths: for each group of output pixels the whole window is
-//! unrolled, so the sums stay in registers; the portable / AVX2 code lets the compiler vectorise
-//! 128 pixels at a time, the range filters' AVX-512 code (module `x512`) is written with
-//! intrinsics, two 16-lane groups interleaved, and skips groups of 32 pixels whose centres are
-//! all invalid (their output is 0 whatever the neighbours; 10.6 % of `person-depth.png`). Other
-//! radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
+//! unrolled, so the sums stay in registers; the portable code (and the Gaussian's AVX2 code)
+//! lets the compiler vectorise 128 pixels at a time. The range filters' AVX-512 code (module
+//! `x512`) is written with intrinsics, two 16-lane groups interleaved, and skips groups of 32
+//! pixels whose centres are all invalid (their output is 0 whatever the neighbours; 10.6 % of
+//! `person-depth.png`); their AVX2 code (module `x256`, bit-identical to the compiler-vectorised
+//! FMA code) works on one 8-lane group at a time, software-pipelined, and skips all-invalid
+//! groups of 8. Other radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
 //! selected at run time after checking the CPU; every path is tested against
 //! [`crate::reference`].
 
