@@ -26,7 +26,7 @@
 /// `1.5·2²³ + 127`: adding it to an `|x| < 2²¹` rounds `x` to an integer held in the low
 /// mantissa bits, already offset by the exponent bias 127; shifting those bits left by 23 then
 /// drops the constant high bits and leaves exactly the `f32` exponent field of `2^round(x)`.
-const MAGIC: f32 = 12_583_039.0;
+pub(crate) const MAGIC: f32 = 12_583_039.0;
 
 /// Minimax-relative-error coefficients of `2^f` on `[−½, ½]`, degree 4.
 #[cfg(test)]

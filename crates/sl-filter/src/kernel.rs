@@ -32,11 +32,13 @@
 //! **Speed.** Rows are processed in blocks of 16 by the calling thread and rayon helpers taking
 //! blocks from one queue (each block padded into a per-thread buffer). Radii 1, 2 and 3 (3×3,
 //! 5×5, 7×7) are monomorphised fast paths: for each group of output pixels the whole window is
-//! unrolled, so the sums stay in registers; the portable / AVX2 code lets the compiler vectorise
-//! 128 pixels at a time, the range filters' AVX-512 code (module `x512`) is written with
-//! intrinsics, two 16-lane groups interleaved, and skips groups of 32 pixels whose centres are
-//! all invalid (their output is 0 whatever the neighbours; 10.6 % of `person-depth.png`). Other
-//! radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
+//! unrolled, so the sums stay in registers; the portable code (and the Gaussian's AVX2 code)
+//! lets the compiler vectorise 128 pixels at a time. The range filters' AVX-512 code (module
+//! `x512`) is written with intrinsics, two 16-lane groups interleaved, and skips groups of 32
+//! pixels whose centres are all invalid (their output is 0 whatever the neighbours; 10.6 % of
+//! `person-depth.png`); their AVX2 code (module `x256`, bit-identical to the compiler-vectorised
+//! FMA code) works on one 8-lane group at a time, software-pipelined, and skips all-invalid
+//! groups of 8. Other radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
 //! selected at run time after checking the CPU; every path is tested against
 //! [`crate::reference`].
 
@@ -405,6 +407,23 @@ fn block_avx2<M: RangeMode, const DISP: bool>(
     mode: M,
     fb: f32,
 ) -> bool {
+    if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&taps.radius) {
+        let ok = fill_rows::<DISP>(src, y0, taps.radius, stride, buf, fb);
+        let p = Padded {
+            data: buf,
+            stride,
+            width: src.width,
+        };
+        match (taps.radius, taps.disc) {
+            (1, false) => x256::block::<1, false, M, DISP>(taps, &p, out, mode, fb),
+            (2, false) => x256::block::<2, false, M, DISP>(taps, &p, out, mode, fb),
+            (3, false) => x256::block::<3, false, M, DISP>(taps, &p, out, mode, fb),
+            (1, true) => x256::block::<1, true, M, DISP>(taps, &p, out, mode, fb),
+            (2, true) => x256::block::<2, true, M, DISP>(taps, &p, out, mode, fb),
+            _ => x256::block::<3, true, M, DISP>(taps, &p, out, mode, fb),
+        }
+        return ok;
+    }
     pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
 }
 
@@ -736,3 +755,7 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
 /// The explicit AVX-512 kernel of the range filters' constant-radius fast paths (its own file).
 #[cfg(target_arch = "x86_64")]
 mod x512;
+
+/// The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
+#[cfg(target_arch = "x86_64")]
+mod x256;

@@ -1,0 +1,464 @@
+//! The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
+//!
+//! Bit-identical to the compiler-vectorised `chunk` with `range_weight::<true>` (asserted by
+//! the tests below): every tap performs the same fused operations in the same order. What
+//! changes is only how they are scheduled and where they run:
+//!
+//! - **The scaling by `2^(−m)` is an integer add**, not a multiply. `range_weight` multiplies
+//!   the polynomial `p` by `2^(−m)` built from the low mantissa bits of `t1 = MAGIC − round(e²)`.
+//!   Here the magic constant is `MAGIC − 128`, so the shifted bits are `−(m + 1)` in the
+//!   exponent field, and the polynomial's coefficients are doubled (exact): `2p·2^(−(m+1))` is
+//!   `p·2^(−m)` exactly (every kept weight is a normal number), computed with `vpaddd` on the
+//!   bit patterns. The multiply-add pipes (two on current x86 cores, shared by 7 of each tap's
+//!   13 operations) lose one operation per tap. The cutoff compares the shifted `t1` with the
+//!   shifted cut (exact: both are integers below `2²⁴`, and 128 is even, so the ties of the
+//!   rounding to integers go the same way).
+//! - **One 8-lane group at a time, software-pipelined** (see `chunk`): the per-tap constants
+//!   are folded into the multiply-adds as memory operands, and each tap costs its 13
+//!   operations plus one load, one register copy and the step's branch (19 instructions; the
+//!   compiler-vectorised loop took 21.6 per 8 lanes, spilling its state). Two interleaved
+//!   groups, as in the AVX-512 kernel, need more than AVX2's 16 registers (measured slower).
+//! - **Groups of 8 pixels whose centres are all invalid are skipped** (their output is 0,
+//!   as in `finish`), as the AVX-512 kernel does.
+
+use std::arch::x86_64::*;
+
+use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
+use crate::fastexp::{MAGIC, TapExp};
+
+/// The magic rounding constant of `range_weight` minus 128 (see the module docs).
+const MAGIC_LOW: f32 = MAGIC - 128.0;
+
+/// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
+#[inline(always)]
+fn load(a: &[f32]) -> __m256 {
+    let mut v = [0.0f32; 8];
+    v.copy_from_slice(&a[..8]);
+    bytemuck::cast(v)
+}
+
+/// Side of the frame the unrolled windows are listed in (the 7×7 window of the largest radius).
+const FRAME: usize = 2 * MAX_FAST_RADIUS + 1;
+/// Positions of that frame.
+const TAPS: usize = FRAME * FRAME;
+
+/// Index `dy * FRAME + dx` of the `n`-th tap (row-major, centre excluded) of the window.
+const fn nth_tap<const R: usize, const DISC: bool>(n: usize) -> Option<usize> {
+    let mut count = 0;
+    let mut dy = 0;
+    while dy < FRAME {
+        let mut dx = 0;
+        while dx < FRAME {
+            if is_tap::<R, DISC>(dy, dx) {
+                if count == n {
+                    return Some(dy * FRAME + dx);
+                }
+                count += 1;
+            }
+            dx += 1;
+        }
+        dy += 1;
+    }
+    None
+}
+
+/// The constants of one tap, broadcast: `2·c3, 2·c2, 2·c1, 2·c0` and `cut − 128`.
+#[derive(Clone, Copy)]
+struct Class {
+    c: [__m256; 4],
+    cut: __m256,
+}
+
+/// Filters the block of whole rows `out` (see [`super::block_fast`]).
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    p: &Padded<'_>,
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
+    let k = 2 * R + 1;
+    let stride = p.stride;
+    let width = p.width;
+    // One entry per position of the 7×7 frame (`dy * 7 + dx`), not per tap class: each tap
+    // loads its own constants right where it uses them (see `chunk`).
+    let mut per_tap = [TapExp::default(); TAPS];
+    for dy in 0..k {
+        for dx in 0..k {
+            per_tap[dy * FRAME + dx] = taps.exps[dy * k + dx];
+        }
+    }
+    // Doubling is exact, and so is `cut − 128` (an integer below 2²⁴, or +∞).
+    let cls: [Class; TAPS] = per_tap.map(|e| Class {
+        c: e.c.map(|c| _mm256_set1_ps(2.0 * c)),
+        cut: _mm256_set1_ps(e.cut - 128.0),
+    });
+    let mut res = [0.0f32; CHUNK];
+    let taps_on = std::hint::black_box(u64::MAX);
+    for (y, out_row) in out.chunks_mut(width).enumerate() {
+        let win = &p.data[y * stride..(y + k) * stride];
+        let mut x0 = 0;
+        while x0 < width {
+            let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
+            for (dy, row) in rows.iter_mut().enumerate().take(k) {
+                let Ok(r) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
+                else {
+                    return;
+                };
+                *row = r;
+            }
+            let n = CHUNK.min(width - x0);
+            let dst: &mut [f32; CHUNK] =
+                match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
+                    Ok(d) => d,
+                    Err(_) => &mut res,
+                };
+            chunk::<R, DISC, M, DISP>(&rows, &cls, dst, mode, fb, taps_on);
+            if n < CHUNK {
+                out_row[x0..x0 + n].copy_from_slice(&res[..n]);
+            }
+            x0 += CHUNK;
+        }
+    }
+}
+
+/// One chunk of `CHUNK` output pixels, one 8-lane group at a time. Not inlined, for the same
+/// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
+#[target_feature(enable = "avx2,fma")]
+#[inline(never)]
+// The last steps assign pipeline registers that no later step reads.
+#[allow(unused_assignments)]
+fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+    rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
+    cls: &[Class; TAPS],
+    dst: &mut [f32; CHUNK],
+    mode: M,
+    fb: f32,
+    taps_on: u64,
+) {
+    let coef = _mm256_set1_ps(mode.coef());
+    let max_scale = _mm256_set1_ps(MAX_SCALE);
+    let magic = _mm256_set1_ps(MAGIC_LOW);
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let inf = _mm256_set1_ps(f32::INFINITY);
+    let valid_limit = _mm256_set1_ps(VALID_LIMIT);
+    let fbv = _mm256_set1_ps(fb);
+    // `Adaptive::scale`: `coef / c²`, then `s < MAX_SCALE ? s : MAX_SCALE` (= `vminps`).
+    let scale = |c: __m256| {
+        if M::ADAPTIVE {
+            _mm256_min_ps(_mm256_div_ps(coef, _mm256_mul_ps(c, c)), max_scale)
+        } else {
+            coef
+        }
+    };
+    // `c > 0 && c < VALID_LIMIT` (the centre test of `super::finish`).
+    let valid = |c: __m256| {
+        _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(c, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(c, valid_limit),
+        )
+    };
+    for g in 0..CHUNK / 8 {
+        let i = 8 * g;
+        let c = load(&rows[R][i + R..]);
+        let centre_ok = valid(c);
+        if _mm256_movemask_ps(centre_ok) == 0 {
+            // No valid centre among the 8: the output is 0 whatever the neighbours are.
+            dst[i..i + 8].fill(0.0);
+            continue;
+        }
+        // Opaque to the optimiser: the constants are reloaded for every group, where each tap
+        // uses them (folded into the multiply-adds), instead of being hoisted out of the loop
+        // into 30 registers' worth of values that spill (measured with two interleaved
+        // groups: 1021 instructions per 16 pixels at 5×5 hoisted, 987 reloaded).
+        let cls = std::hint::black_box(cls);
+        let s = scale(c);
+        let zs = _mm256_mul_ps(s, c);
+        // The centre tap (weight 1, difference 0) initialises the sums.
+        let mut sw = one;
+        let mut sd = zero;
+        // Each tap's work in four stages, software-pipelined: step `n` accumulates tap
+        // `n − 3`, evaluates the polynomial of tap `n − 2`, splits `e²` of tap `n − 1` and
+        // loads tap `n` (every tap does the same operations in the same order as
+        // `range_weight`, and the sums are still accumulated tap by tap). In program order the
+        // operands of most instructions are then ready, so the out-of-order core needs a
+        // shorter window to overlap the taps' 40-cycle dependency chains.
+        let (mut e1, mut e2, mut e3) = (zero, zero, zero);
+        let (mut t2, mut t3, mut g2, mut p3) = (zero, zero, zero, zero);
+        macro_rules! step {
+            ($n:literal) => {
+                // One basic block per three steps (`taps_on` is all ones but opaque): it keeps
+                // the scheduler from hoisting later taps' work ahead and spilling it. (Person
+                // frame, 5×5: a block per step 18.2 M instructions, 1.38 ms; per two steps
+                // 16.7 M; per three 16.3 M, 1.365 ms.)
+                if $n % 3 != 0 || taps_on & (1 << $n) != 0 {
+                    if let Some(q) = const {
+                        if $n >= 3 {
+                            nth_tap::<R, DISC>($n - 3)
+                        } else {
+                            None
+                        }
+                    } {
+                        // 2p · 2^(−(m+1)) on the bit patterns (the shifted bits are
+                        // −(m+1) << 23), 0 below the cutoff.
+                        let w = _mm256_add_epi32(
+                            _mm256_castps_si256(p3),
+                            _mm256_slli_epi32::<23>(_mm256_castps_si256(t3)),
+                        );
+                        let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(t3, cls[q].cut);
+                        let w = _mm256_and_ps(keep, _mm256_castsi256_ps(w));
+                        sw = _mm256_add_ps(sw, w);
+                        sd = _mm256_fmadd_ps(w, e3, sd);
+                    }
+                    if let Some(q) = const {
+                        if $n >= 2 {
+                            nth_tap::<R, DISC>($n - 2)
+                        } else {
+                            None
+                        }
+                    } {
+                        let k = &cls[q].c;
+                        e3 = e2;
+                        t3 = t2;
+                        p3 = _mm256_fmadd_ps(
+                            g2,
+                            _mm256_fmadd_ps(g2, _mm256_fmadd_ps(g2, k[0], k[1]), k[2]),
+                            k[3],
+                        );
+                    }
+                    if const { $n >= 1 && nth_tap::<R, DISC>($n - 1).is_some() } {
+                        // `range_weight::<true>` with the shifted magic constant: t1, −g.
+                        e2 = e1;
+                        t2 = _mm256_fnmadd_ps(e1, e1, magic);
+                        g2 = _mm256_fnmadd_ps(e1, e1, _mm256_sub_ps(magic, t2));
+                    }
+                    if let Some(q) = const { nth_tap::<R, DISC>($n) } {
+                        let nb = load(&rows[q / FRAME][i + q % FRAME..]);
+                        e1 = _mm256_fmsub_ps(nb, s, zs);
+                    }
+                }
+            };
+        }
+        step!(0);
+        step!(1);
+        step!(2);
+        step!(3);
+        step!(4);
+        step!(5);
+        step!(6);
+        step!(7);
+        step!(8);
+        step!(9);
+        step!(10);
+        step!(11);
+        step!(12);
+        step!(13);
+        step!(14);
+        step!(15);
+        step!(16);
+        step!(17);
+        step!(18);
+        step!(19);
+        step!(20);
+        step!(21);
+        step!(22);
+        step!(23);
+        step!(24);
+        step!(25);
+        step!(26);
+        step!(27);
+        step!(28);
+        step!(29);
+        step!(30);
+        step!(31);
+        step!(32);
+        step!(33);
+        step!(34);
+        step!(35);
+        step!(36);
+        step!(37);
+        step!(38);
+        step!(39);
+        step!(40);
+        step!(41);
+        step!(42);
+        step!(43);
+        step!(44);
+        step!(45);
+        step!(46);
+        step!(47);
+        step!(48);
+        step!(49);
+        step!(50);
+        // The epilogue of `super::finish`, with masks.
+        let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
+        let (v, c_out) = if DISP {
+            (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
+        } else {
+            (v, c)
+        };
+        let ok = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
+        );
+        let v = _mm256_blendv_ps(c_out, v, ok);
+        let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(centre_ok, v));
+        dst[i..i + 8].copy_from_slice(&v);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{
+        Adaptive, BLOCK_ROWS, Fixed, INVALID_FILL, Isa, Padded, RangeMode, Source, Taps, block,
+        dispatch, fill_rows, stride_for,
+    };
+    use crate::fastexp::{LOG2_E, TapExp};
+
+    /// The compiler-vectorised AVX2 + FMA code this kernel replaces (`pad_and_filter!`).
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    fn vectorised<M: RangeMode, const DISP: bool>(
+        taps: Taps<'_>,
+        src: &Source<'_>,
+        y0: usize,
+        stride: usize,
+        buf: &mut [f32],
+        out: &mut [f32],
+        mode: M,
+        fb: f32,
+    ) -> bool {
+        pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
+    }
+
+    /// Filters the whole image block by block with the explicit kernel (`new`) or the
+    /// compiler-vectorised one.
+    fn filter<M: RangeMode, const DISP: bool>(
+        taps: Taps<'_>,
+        src: &Source<'_>,
+        mode: M,
+        fb: f32,
+        new: bool,
+    ) -> Vec<f32> {
+        let (w, h) = (src.width, src.height);
+        let stride = stride_for(w, taps.radius);
+        let mut out = vec![0.0f32; w * h];
+        let mut buf = vec![0.0f32; stride * (BLOCK_ROWS + 2 * taps.radius)];
+        for (bi, block) in out.chunks_mut(w * BLOCK_ROWS).enumerate() {
+            let rows = block.len() / w;
+            let buf = &mut buf[..stride * (rows + 2 * taps.radius)];
+            let y0 = bi * BLOCK_ROWS;
+            if new {
+                dispatch::<M, DISP>(Isa::Avx2, taps, src, y0, stride, buf, block, mode, fb);
+            } else {
+                // SAFETY: the caller checked AVX2 and FMA support at run time.
+                #[allow(unsafe_code)]
+                unsafe {
+                    vectorised::<M, DISP>(taps, src, y0, stride, buf, block, mode, fb);
+                }
+            }
+        }
+        out
+    }
+
+    /// A frame with smooth surfaces, depth steps of every size (some range weights cut off,
+    /// some not), noise, isolated and large holes, and a width that is not a multiple of the
+    /// chunk.
+    fn frame(w: usize, h: usize) -> Vec<f32> {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f32) / (1u64 << 24) as f32
+        };
+        let mut d = vec![0.0f32; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let base = 0.6 + 0.01 * x as f32 + 0.004 * y as f32;
+                let step = if (x / 23 + y / 11) % 3 == 0 {
+                    0.002 * (x % 7) as f32 + 0.3 * ((y / 5) % 2) as f32
+                } else {
+                    0.0
+                };
+                let mut z = base + step + 0.003 * (rnd() - 0.5);
+                if rnd() < 0.05 || ((40..75).contains(&x) && (5..30).contains(&y)) {
+                    z = 0.0;
+                }
+                d[y * w + x] = z;
+            }
+        }
+        d
+    }
+
+    fn check<M: RangeMode, const DISP: bool>(src: &Source<'_>, mode: M, fb: f32) {
+        for r in 1..=3usize {
+            for disc in [false, true] {
+                let k = 2 * r + 1;
+                let sigma = r as f64 / 2.0;
+                let mut exps = Vec::new();
+                let mut texp = Vec::new();
+                for dy in 0..k {
+                    for dx in 0..k {
+                        let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
+                        let t = -d2 / (2.0 * sigma * sigma) * f64::from(LOG2_E);
+                        exps.push(TapExp::new(t));
+                        texp.push(t as f32);
+                    }
+                }
+                let taps = Taps {
+                    radius: r,
+                    disc,
+                    taps: &[],
+                    exps: &exps,
+                    texp: &texp,
+                };
+                let a = filter::<M, DISP>(taps, src, mode, fb, true);
+                let b = filter::<M, DISP>(taps, src, mode, fb, false);
+                let diff = a
+                    .iter()
+                    .zip(&b)
+                    .filter(|(x, y)| x.to_bits() != y.to_bits())
+                    .count();
+                assert_eq!(
+                    diff, 0,
+                    "r {r} disc {disc} DISP {DISP}: {diff} pixels differ"
+                );
+                assert!(a.iter().filter(|&&v| v > 0.0).count() > a.len() / 2);
+            }
+        }
+    }
+
+    #[test]
+    fn bit_identical_to_the_compiler_vectorised_code() {
+        if !Isa::Avx2.is_supported() {
+            return;
+        }
+        let (w, h) = (301, 37);
+        let data = frame(w, h);
+        let src = Source {
+            data: &data,
+            width: w,
+            height: h,
+            fill: INVALID_FILL,
+            disparity_fb: None,
+            min_m: 0.1,
+            max_m: 20.0,
+        };
+        let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma) as f32;
+        // Adaptive with the Kinect's k and a tenth of it (more cut-off weights), fixed σ.
+        check::<_, false>(&src, Adaptive(coef(0.0028)), 0.0);
+        check::<_, false>(&src, Adaptive(coef(0.00028)), 0.0);
+        check::<_, false>(&src, Fixed(coef(0.01)), 0.0);
+        // Disparity (fb / z) with a fixed σ in disparity pixels.
+        let fb = 580.0 * 0.075;
+        let disp = Source {
+            disparity_fb: Some(fb),
+            ..src
+        };
+        check::<_, true>(&disp, Fixed(coef(0.5)), fb);
+    }
+}
