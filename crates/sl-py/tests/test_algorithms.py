@@ -233,3 +233,24 @@ def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
     t = sldepth.Tracker(kinect)
     t.track(floor)
     assert t.track(floor)[1] == "lost"
+
+
+def test_track_sequence_from_arrays_and_files(kinect, tmp_path):
+    frames = [sldepth.simulate("boxes", seed=s)[0] for s in (3, 4, 5)]
+    poses, statuses, tracker = sldepth.track_sequence(frames, kinect)
+    assert poses.shape == (3, 4, 4) and poses.dtype == np.float64
+    assert statuses[0] == "initialised" and np.allclose(poses[0], np.eye(4))
+    assert all(s == "tracked" for s in statuses[1:]), statuses
+    assert np.abs(poses[:, :3, 3]).max() < 0.002
+    assert len(tracker.extract_mesh()) > 1000
+    # The same frames as 16-bit millimetre PNGs, read by path with their scale.
+    paths = []
+    for i, f in enumerate(frames):
+        p = tmp_path / f"{i}.png"
+        sldepth.write_depth(p, f, depth_scale=1000)
+        paths.append(p)
+    poses_f, statuses_f, _ = sldepth.track_sequence(paths, kinect, depth_scale=1000)
+    assert statuses_f == statuses
+    assert np.abs(poses_f - poses).max() < 0.002
+    with pytest.raises(ValueError, match="weighting"):
+        sldepth.track_sequence(frames, kinect, weighting="huber")

@@ -15,6 +15,8 @@ Every computation releases the GIL and runs on sldepth's thread pool
 ``sldepth.SlDepthIOError`` (an ``OSError``).
 """
 
+import os as _os
+
 from ._sldepth import (
     Analysis,
     Camera,
@@ -58,5 +60,35 @@ __all__ = [
     "read_depth",
     "set_num_threads",
     "simulate",
+    "track_sequence",
     "write_depth",
 ]
+
+
+def track_sequence(frames, camera, *, depth_scale=None, **tracker_options):
+    """Tracks a depth sequence from its first frame on and fuses it (``sldepth track`` in one call).
+
+    ``frames``: depth arrays (float32 metres, or uint16 with ``depth_scale`` units per metre) or
+    paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order.
+    ``tracker_options`` are those of ``Tracker`` (``weighting``, ``frame_to_model``,
+    ``voxel_m``, ``model_scale``, ``prefilter``).
+
+    Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
+    camera-to-world matrices (the first frame is the identity; a lost frame gets the last good
+    pose), ``statuses`` the N status strings of ``Tracker.track``, and the ``Tracker`` itself,
+    whose ``extract_mesh()`` is the fused model.
+    """
+    import numpy as np
+
+    tracker = Tracker(camera, **tracker_options)
+    poses = []
+    statuses = []
+    for frame in frames:
+        if isinstance(frame, (str, bytes, _os.PathLike)):
+            pose, status = tracker.track(read_depth(frame, depth_scale=depth_scale))
+        else:
+            pose, status = tracker.track(frame, depth_scale)
+        poses.append(pose)
+        statuses.append(status)
+    stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
+    return stacked, statuses, tracker

@@ -1,7 +1,7 @@
 """Type stubs of sldepth: shapes and units are in the docstrings."""
 
 from os import PathLike
-from typing import List, Optional, Sequence, Tuple, Union
+from typing import Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -244,3 +244,17 @@ class Tracker:
     ) -> Tuple[npt.NDArray[np.float64], str]:
         """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost)."""
     def extract_mesh(self) -> Mesh: ...
+
+def track_sequence(
+    frames: Iterable[Union[_Depth, _Path]],
+    camera: Camera,
+    *,
+    depth_scale: Optional[float] = None,
+    weighting: str = "inv-var",
+    frame_to_model: bool = True,
+    voxel_m: float = 0.004,
+    model_scale: float = 0.5,
+    prefilter: str = "multiscale",
+) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
+    """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order:
+    (poses (N, 4, 4) camera-to-world, statuses, the Tracker with the fused model)."""
