@@ -759,3 +759,41 @@ mod x512;
 /// The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
 #[cfg(target_arch = "x86_64")]
 mod x256;
+
+/// The compiler-vectorised AVX2 + FMA code that `x256` replaced (`pad_and_filter!`), kept for
+/// its bit-identity test; does nothing where the CPU lacks AVX2 or FMA (the test skips there).
+#[cfg(all(test, target_arch = "x86_64"))]
+#[allow(clippy::too_many_arguments)]
+fn vectorised_avx2_reference<M: RangeMode, const DISP: bool>(
+    taps: Taps<'_>,
+    src: &Source<'_>,
+    y0: usize,
+    stride: usize,
+    buf: &mut [f32],
+    out: &mut [f32],
+    mode: M,
+    fb: f32,
+) {
+    #[target_feature(enable = "avx2,fma")]
+    #[allow(clippy::too_many_arguments)]
+    fn vectorised<M: RangeMode, const DISP: bool>(
+        taps: Taps<'_>,
+        src: &Source<'_>,
+        y0: usize,
+        stride: usize,
+        buf: &mut [f32],
+        out: &mut [f32],
+        mode: M,
+        fb: f32,
+    ) -> bool {
+        pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
+    }
+    if Isa::Avx2.is_supported() {
+        // SAFETY: the only precondition of a `#[target_feature]` function is that the CPU
+        // supports the features, checked just above.
+        #[allow(unsafe_code)]
+        unsafe {
+            vectorised::<M, DISP>(taps, src, y0, stride, buf, out, mode, fb);
+        }
+    }
+}

@@ -313,26 +313,10 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 #[cfg(test)]
 mod tests {
     use super::super::{
-        Adaptive, BLOCK_ROWS, Fixed, INVALID_FILL, Isa, Padded, RangeMode, Source, Taps, block,
-        dispatch, fill_rows, stride_for,
+        Adaptive, BLOCK_ROWS, Fixed, INVALID_FILL, Isa, RangeMode, Source, Taps, dispatch,
+        stride_for, vectorised_avx2_reference,
     };
     use crate::fastexp::{LOG2_E, TapExp};
-
-    /// The compiler-vectorised AVX2 + FMA code this kernel replaces (`pad_and_filter!`).
-    #[target_feature(enable = "avx2,fma")]
-    #[allow(clippy::too_many_arguments)]
-    fn vectorised<M: RangeMode, const DISP: bool>(
-        taps: Taps<'_>,
-        src: &Source<'_>,
-        y0: usize,
-        stride: usize,
-        buf: &mut [f32],
-        out: &mut [f32],
-        mode: M,
-        fb: f32,
-    ) -> bool {
-        pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
-    }
 
     /// Filters the whole image block by block with the explicit kernel (`new`) or the
     /// compiler-vectorised one.
@@ -354,11 +338,8 @@ mod tests {
             if new {
                 dispatch::<M, DISP>(Isa::Avx2, taps, src, y0, stride, buf, block, mode, fb);
             } else {
-                // SAFETY: the caller checked AVX2 and FMA support at run time.
-                #[allow(unsafe_code)]
-                unsafe {
-                    vectorised::<M, DISP>(taps, src, y0, stride, buf, block, mode, fb);
-                }
+                // The caller checked AVX2 and FMA support at run time.
+                vectorised_avx2_reference::<M, DISP>(taps, src, y0, stride, buf, block, mode, fb);
             }
         }
         out
