@@ -9,6 +9,50 @@ fn cell_row(labels: &[u16], jj: usize, wq: usize) -> &[u16] {
     labels.get(jj * wq..(jj + 1) * wq).unwrap_or(&[])
 }
 
+/// How many of the 8 neighbours of pixel `(x, y)` carry label `k1` and how many `k2`.
+///
+/// Away from the image border the eight labels are read as three fixed-size windows (no loop
+/// over clipped ranges): the disambiguation visits every pixel that two planes explain, about
+/// 10 k a frame, and the general loop cost ~250 instructions per pixel.
+#[inline]
+fn neighbour_votes(
+    labels: &[u16],
+    w: usize,
+    h: usize,
+    x: usize,
+    y: usize,
+    k1: u16,
+    k2: u16,
+) -> (u32, u32) {
+    let count = |ls: &[u16]| {
+        ls.iter().fold((0u32, 0u32), |(a, b), &l| {
+            (a + u32::from(l == k1), b + u32::from(l == k2))
+        })
+    };
+    if x > 0 && x + 1 < w && y > 0 && y + 1 < h {
+        let i = y * w + x;
+        let (up, dn) = (&labels[i - w - 1..i - w + 2], &labels[i + w - 1..i + w + 2]);
+        let (u, d) = (count(up), count(dn));
+        let (l, r) = (labels[i - 1], labels[i + 1]);
+        return (
+            u.0 + d.0 + u32::from(l == k1) + u32::from(r == k1),
+            u.1 + d.1 + u32::from(l == k2) + u32::from(r == k2),
+        );
+    }
+    let (mut c1, mut c2) = (0u32, 0u32);
+    for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+        for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+            if nx == x && ny == y {
+                continue;
+            }
+            let l = labels[ny * w + nx];
+            c1 += u32::from(l == k1);
+            c2 += u32::from(l == k2);
+        }
+    }
+    (c1, c2)
+}
+
 impl PlaneExtractor {
     /// The full-resolution assignment, with the final moments of the sample rows: each pixel
     /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
@@ -383,17 +427,7 @@ impl PlaneExtractor {
         for &(i, k1, k2) in &self.ambiguous {
             let i = i as usize;
             let (x, y) = (i % w, i / w);
-            let (mut c1, mut c2) = (0u32, 0u32);
-            for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
-                for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                    if nx == x && ny == y {
-                        continue;
-                    }
-                    let l = labels[ny * w + nx];
-                    c1 += u32::from(l == k1);
-                    c2 += u32::from(l == k2);
-                }
-            }
+            let (c1, c2) = neighbour_votes(labels, w, h, x, y, k1, k2);
             let (u1, u2) = (k1 as usize - 1, k2 as usize - 1);
             if c2 > c1
                 && labels[i] == k1
