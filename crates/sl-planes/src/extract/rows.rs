@@ -224,6 +224,57 @@ pub(super) fn touching(row: &[u16], up: &[u16], dn: &[u16], need: &mut [u8]) {
 /// the cells at a border between two planes.
 pub(super) fn plane_borders(row: &[u16], up: &[u16], dn: &[u16], out: &mut [u8]) {
     let n = row.len().min(out.len());
+    if n >= 3 && up.len() >= n && dn.len() >= n {
+        // Inside the grid (both neighbour rows present): one fused pass over the interior
+        // cells, then the two end cells by the general rule.
+        borders_interior(row, up, dn, &mut out[..n]);
+        // The end cells: their two columns of neighbours.
+        let end = |k: usize, nb: usize| {
+            let v = row[k];
+            let other = |x: u16| (x != 0) & (x != v);
+            let any = other(up[k]) | other(up[nb]) | other(row[nb]) | other(dn[k]) | other(dn[nb]);
+            u8::from(any & (v != 0))
+        };
+        out[0] = end(0, 1);
+        out[n - 1] = end(n - 1, n - 2);
+        return;
+    }
+    plane_borders_general(row, up, dn, out);
+}
+
+/// [`plane_borders`] for cells `1..n − 1` of `out` (`n = out.len()`; `row`, `up`, `dn` at
+/// least as long): a cell is a border when it is labelled and one of its 8 neighbours carries
+/// another label. One pass with the nine labels side by side (the coarse and final passes
+/// call this for every cell row, ~500 times a frame; the general form makes seven passes).
+#[allow(clippy::needless_range_loop)]
+#[inline]
+fn borders_interior(row: &[u16], up: &[u16], dn: &[u16], out: &mut [u8]) {
+    let n = out.len();
+    let m = n - 2;
+    // Slices cut to the common length, so the loop has no bounds checks and vectorises.
+    let (ul, uc, ur) = (&up[..m], &up[1..m + 1], &up[2..m + 2]);
+    let (l, c, r) = (&row[..m], &row[1..m + 1], &row[2..m + 2]);
+    let (dl, dc, dr) = (&dn[..m], &dn[1..m + 1], &dn[2..m + 2]);
+    let o = &mut out[1..m + 1];
+    for i in 0..m {
+        let v = c[i];
+        let other = |x: u16| (x != 0) & (x != v);
+        let any = other(ul[i])
+            | other(uc[i])
+            | other(ur[i])
+            | other(l[i])
+            | other(r[i])
+            | other(dl[i])
+            | other(dc[i])
+            | other(dr[i]);
+        o[i] = u8::from(any & (v != 0));
+    }
+}
+
+/// [`plane_borders`] for rows of any length (missing or short neighbour rows at the grid's
+/// edges).
+fn plane_borders_general(row: &[u16], up: &[u16], dn: &[u16], out: &mut [u8]) {
+    let n = row.len().min(out.len());
     let (row, out) = (&row[..n], &mut out[..n]);
     out.fill(0);
     // `out[i] |= nb[i]` is another plane than `row[i]`, for a neighbour row shifted by −1, 0, +1
