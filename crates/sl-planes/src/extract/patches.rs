@@ -178,6 +178,19 @@ impl PlaneExtractor {
         rss.resize(np, f64::NAN);
         for pj in 0..hp {
             for pi in 0..wp {
+                // A patch with fewer than `PATCH_MIN_CELLS` cells in the mask cannot be used
+                // (its sums are never read): skip its sums. After the first refinement pass
+                // most patches have no free cell at all.
+                let in_mask: usize = (pj * PATCH..(pj + 1) * PATCH)
+                    .map(|j| {
+                        let r = &mask[j * wq + pi * PATCH..j * wq + (pi + 1) * PATCH];
+                        r.iter().filter(|&&m| m != 0).count()
+                    })
+                    .sum();
+                if (in_mask as f64) < PATCH_MIN_CELLS {
+                    // (`patch_status` is already `TooFewCells`.)
+                    continue;
+                }
                 let s = &mut sums[pj * wp + pi];
                 for j in pj * PATCH..(pj + 1) * PATCH {
                     for i in pi * PATCH..(pi + 1) * PATCH {
