@@ -380,6 +380,34 @@ macro_rules! pad_and_filter {
     }};
 }
 
+/// The body of an explicit-kernel block function: the range filters' constant-radius fast
+/// paths through the kernel module `$k` (`x256`, `x512`) with the radius and window shape as
+/// compile-time constants, everything else through `pad_and_filter!`. A macro, not a function,
+/// so that it is compiled inside each `#[target_feature]` block function with its features.
+macro_rules! explicit_kernel {
+    ($k:ident, $taps:ident, $src:ident, $y0:ident, $stride:ident, $buf:ident, $out:ident, $mode:ident, $fb:ident) => {{
+        if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&$taps.radius) {
+            let ok = fill_rows::<DISP>($src, $y0, $taps.radius, $stride, $buf, $fb);
+            let p = Padded {
+                data: $buf,
+                stride: $stride,
+                width: $src.width,
+            };
+            match ($taps.radius, $taps.disc) {
+                (1, false) => $k::block::<1, false, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, false) => $k::block::<2, false, M, DISP>($taps, &p, $out, $mode, $fb),
+                (3, false) => $k::block::<3, false, M, DISP>($taps, &p, $out, $mode, $fb),
+                (1, true) => $k::block::<1, true, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, true) => $k::block::<2, true, M, DISP>($taps, &p, $out, $mode, $fb),
+                _ => $k::block::<3, true, M, DISP>($taps, &p, $out, $mode, $fb),
+            }
+            ok
+        } else {
+            pad_and_filter!(true, $taps, $src, $y0, $stride, $buf, $out, $mode, $fb)
+        }
+    }};
+}
+
 #[allow(clippy::too_many_arguments)]
 fn block_portable<M: RangeMode, const DISP: bool>(
     taps: Taps<'_>,
@@ -407,24 +435,7 @@ fn block_avx2<M: RangeMode, const DISP: bool>(
     mode: M,
     fb: f32,
 ) -> bool {
-    if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&taps.radius) {
-        let ok = fill_rows::<DISP>(src, y0, taps.radius, stride, buf, fb);
-        let p = Padded {
-            data: buf,
-            stride,
-            width: src.width,
-        };
-        match (taps.radius, taps.disc) {
-            (1, false) => x256::block::<1, false, M, DISP>(taps, &p, out, mode, fb),
-            (2, false) => x256::block::<2, false, M, DISP>(taps, &p, out, mode, fb),
-            (3, false) => x256::block::<3, false, M, DISP>(taps, &p, out, mode, fb),
-            (1, true) => x256::block::<1, true, M, DISP>(taps, &p, out, mode, fb),
-            (2, true) => x256::block::<2, true, M, DISP>(taps, &p, out, mode, fb),
-            _ => x256::block::<3, true, M, DISP>(taps, &p, out, mode, fb),
-        }
-        return ok;
-    }
-    pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
+    explicit_kernel!(x256, taps, src, y0, stride, buf, out, mode, fb)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -440,24 +451,7 @@ fn block_avx512<M: RangeMode, const DISP: bool>(
     mode: M,
     fb: f32,
 ) -> bool {
-    if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&taps.radius) {
-        let ok = fill_rows::<DISP>(src, y0, taps.radius, stride, buf, fb);
-        let p = Padded {
-            data: buf,
-            stride,
-            width: src.width,
-        };
-        match (taps.radius, taps.disc) {
-            (1, false) => x512::block::<1, false, M, DISP>(taps, &p, out, mode, fb),
-            (2, false) => x512::block::<2, false, M, DISP>(taps, &p, out, mode, fb),
-            (3, false) => x512::block::<3, false, M, DISP>(taps, &p, out, mode, fb),
-            (1, true) => x512::block::<1, true, M, DISP>(taps, &p, out, mode, fb),
-            (2, true) => x512::block::<2, true, M, DISP>(taps, &p, out, mode, fb),
-            _ => x512::block::<3, true, M, DISP>(taps, &p, out, mode, fb),
-        }
-        return ok;
-    }
-    pad_and_filter!(true, taps, src, y0, stride, buf, out, mode, fb)
+    explicit_kernel!(x512, taps, src, y0, stride, buf, out, mode, fb)
 }
 
 /// Output pixels computed together: the lane loops run over `CHUNK` pixels, long enough for
