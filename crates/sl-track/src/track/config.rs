@@ -53,6 +53,11 @@ impl WeightMode {
 pub struct TrackerConfig {
     /// Pyramid levels (≥ 3 recommended; level 0 is full resolution).
     pub levels: usize,
+    /// The finest pyramid level aligned (0 = full resolution, the default). Level 1 makes a
+    /// step about 1.5× cheaper with the same accuracy on the real TUM fr1/rpy and 7-Scenes
+    /// sequences, but on simulated sequences with known poses it is 2–3× less accurate (the
+    /// benchmark in `docs/bench/track.md`), so full resolution stays the default.
+    pub finest_level: usize,
     /// Gauss–Newton iterations per level at most (fewer when the step becomes negligible).
     pub max_iterations: usize,
     /// The residual weighting.
@@ -123,6 +128,7 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             levels: 3,
+            finest_level: 0,
             max_iterations: 10,
             weighting: WeightMode::InvVar,
             gate_sigmas: 3.0,
@@ -150,6 +156,12 @@ impl TrackerConfig {
         let bad = |m: String| Err(TrackError::InvalidConfig(m));
         if !(1..=6).contains(&self.levels) {
             return bad(format!("levels must lie in 1..=6, got {}", self.levels));
+        }
+        if self.finest_level >= self.levels {
+            return bad(format!(
+                "finest_level must be below levels ({}), got {}",
+                self.levels, self.finest_level
+            ));
         }
         if !(1..=100).contains(&self.max_iterations) {
             return bad(format!(

@@ -397,7 +397,10 @@ impl Tracker {
         // The sums of the finest level's last pass: they are the final statistics (same
         // level, gates and pose), so the full-resolution pass is not repeated.
         let mut finest: Option<Sums> = None;
-        for l in (0..self.pyramid.levels.len()).rev() {
+        let finest_l = cfg
+            .finest_level
+            .min(self.pyramid.levels.len().saturating_sub(1));
+        for l in (finest_l..self.pyramid.levels.len()).rev() {
             let level = &self.pyramid.levels[l];
             let params = PassParams {
                 allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
@@ -445,6 +448,17 @@ impl Tracker {
                     break;
                 }
                 let candidate = solve::apply(&pose, &xi, &t);
+                let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
+                let negligible = w < STEP_NEGLIGIBLE && v < STEP_NEGLIGIBLE;
+                if negligible && !damped {
+                    // Converged: the step is taken without a pass at the pose it reaches, and
+                    // the sums at the pose it left stand for the final ones (0.1 mm / 0.006°
+                    // away: the same associations, statistics equal to their last digits).
+                    // This saves one pass per level — at full resolution about a third of the
+                    // tracker's time — and leaves every pose bit-identical.
+                    pose = candidate;
+                    break;
+                }
                 let sc = pass_at(&candidate);
                 iterations += 1;
                 let points = s.associated;
@@ -460,8 +474,7 @@ impl Tracker {
                     } else {
                         0.0
                     };
-                    let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
-                    if w < 1e-4 && v < 1e-4 {
+                    if negligible {
                         break;
                     }
                 } else {
@@ -475,17 +488,17 @@ impl Tracker {
                     }
                 }
             }
-            if l == 0 {
+            if l == finest_l {
                 finest = Some(s);
             }
         }
-        // The final statistics at full resolution.
-        let level0 = &self.pyramid.levels[0];
+        // The final statistics at the finest level aligned.
+        let level0 = &self.pyramid.levels[finest_l];
         let stats = match finest {
             Some(s) => s,
             None => {
                 let params = PassParams {
-                    allowance_m: cfg.allowance_fine_m as f32,
+                    allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << finest_l)) as f32,
                     min_cos,
                 };
                 let centre = pose.translation.vector;
@@ -496,7 +509,7 @@ impl Tracker {
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);
-        let failure = if (stats.inliers as usize) < self.min_points(0) {
+        let failure = if (stats.inliers as usize) < self.min_points(finest_l) {
             Some(format!("{} inliers, too few", stats.inliers))
         } else if frac < cfg.min_inlier_fraction {
             Some(format!(
@@ -528,6 +541,10 @@ impl Tracker {
         }
     }
 }
+
+/// A Gauss–Newton step shorter than this in rotation (radians) and in translation (metres)
+/// ends a level's iterations: 0.1 mm and 0.006°, a small fraction of one frame's pose noise.
+const STEP_NEGLIGIBLE: f64 = 1e-4;
 
 /// First damping of a Levenberg–Marquardt retry (relative to the diagonal of `H`).
 const LM_LAMBDA_START: f64 = 1e-3;

@@ -25,8 +25,6 @@ pub(crate) struct Level {
     pub normals: Vec<Vector3<f32>>,
     /// Per-pixel constants of the association pass (valid where the normal is).
     pub aux: Vec<PointAux>,
-    /// The focal length `PointAux::cos_gate` was computed for (the full-resolution `fx`).
-    pub gate_fl: f32,
 }
 
 /// What the association pass needs of a frame point besides its position and normal, and
@@ -56,7 +54,6 @@ fn point_aux(level: &mut Level, sensor: &SensorModel, fl: f32) {
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
     let n = level.points.len();
     level.aux.resize(n, PointAux::default());
-    level.gate_fl = fl;
     level
         .aux
         .par_iter_mut()
