@@ -128,7 +128,7 @@ impl PyTracker {
                     .map_err(|e| e.to_string())?;
                 if *frame_to_model {
                     model
-                        .update(volume, &r.pose, &sensor)
+                        .update_from_frame(volume, &r.pose, &sensor, &depth, &k)
                         .map_err(|e| e.to_string())?;
                 }
             }

@@ -75,7 +75,9 @@ fn track(
         let r = tracker.track(d, reference.maps()).unwrap();
         if r.status.is_tracked() && model {
             volume.integrate(d, &k, &r.pose).unwrap();
-            reference.update(&volume, &r.pose, &cam.sensor).unwrap();
+            reference
+                .update_from_frame(&volume, &r.pose, &cam.sensor, d, &k)
+                .unwrap();
         }
         poses.push(r.pose);
         status.push(r.status);

@@ -43,7 +43,7 @@ fn track(
         if r.status.is_tracked() {
             if model {
                 volume.integrate(*d, &k, &r.pose)?;
-                reference.update(&volume, &r.pose, &cam.sensor)?;
+                reference.update_from_frame(&volume, &r.pose, &cam.sensor, d, &k)?;
             }
             out.push(Some(r.pose));
         } else {

@@ -98,7 +98,10 @@ impl RayFrame {
 
     /// Marches the ray of pixel `(x, y)` through camera depths `[lo, hi]` (clipped to the
     /// configured range) and returns its first front-facing zero crossing; `occ` lets it cross
-    /// empty super-blocks in one step.
+    /// empty super-blocks in one step. `restart`: `lo` is a hinted start, and the ray is
+    /// marched again from this depth when its first observed sample is not in front of a
+    /// surface (the hint started it behind one).
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn cast(
         &self,
         s: &mut Sampler<'_>,
@@ -107,6 +110,7 @@ impl RayFrame {
         y: usize,
         lo: f32,
         hi: f32,
+        restart: Option<f32>,
     ) -> Option<Hit> {
         let dir = self.rot
             * Vector3::new(
@@ -140,6 +144,7 @@ impl RayFrame {
         // whose long step landed in unobserved voxels, one shortest step at a time.
         let mut prev: Option<(f32, f32)> = None;
         let mut fine = false;
+        let mut restart = restart;
         let exit = BlockExit::new(&d, BLOCK_SIDE as f32);
         let super_exit = BlockExit::new(&d, (BLOCK_SIDE << SUPER_SHIFT) as f32);
         while t <= end {
@@ -192,6 +197,11 @@ impl RayFrame {
                     t += voxel_dt;
                 }
                 Some(f) => {
+                    if f <= 0.0
+                        && let Some(lo0) = restart
+                    {
+                        return self.cast(s, occ, x, y, lo0, hi, None);
+                    }
                     if let Some((tp, fp)) = prev
                         && fp > 0.0
                         && f <= 0.0
@@ -202,6 +212,7 @@ impl RayFrame {
                         return self.hit(s, &at, (tp, fp), (t, f), &dir);
                     }
                     prev = Some((t, f));
+                    restart = None;
                     fine = false;
                     let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
                     t += step_m * inv_len;

@@ -195,6 +195,43 @@ impl TsdfVolume {
         config: &RaycastConfig,
         out: &mut Raycast,
     ) -> Result<()> {
+        self.raycast_hinted_into(pose, k, config, None, out)
+    }
+
+    /// [`TsdfVolume::raycast_into`] with a hint of where the surface is: `hint` (the size of
+    /// `k`) holds, per pixel, a depth at which a frame fused from this `pose` saw the nearest
+    /// surface (0 = no hint), e.g. the frame just integrated. A hinted ray starts at
+    /// `hint − band(hint) − 2 voxels` instead of the near end of its range: the fused surface
+    /// lies within the frame's band (3σ_Z) of the frame's measurement, plus the model's own,
+    /// smaller error, so the march through the empty space before it — most of a ray's
+    /// samples — is skipped. A ray whose first observed sample is behind a surface, or that
+    /// finds nothing, is marched again over its whole range. What differs from the plain
+    /// raycast: a surface the model still holds in front of what the frame saw (a silhouette
+    /// blurred by fusion, an object that has moved away) can be passed through for the one the
+    /// frame saw; a hint more than a band behind the true surface can miss it. On 160×120
+    /// renderings of a fused room, 0.1–0.2 % of the pixels change surface, mostly towards the
+    /// exact one (`a_hinted_raycast_finds_the_same_surface`).
+    ///
+    /// # Errors
+    /// As [`TsdfVolume::raycast_into`], and a hint whose size is not `k`'s.
+    pub fn raycast_hinted_into(
+        &self,
+        pose: &CameraToWorld,
+        k: &Intrinsics,
+        config: &RaycastConfig,
+        hint: Option<&DepthImage>,
+        out: &mut Raycast,
+    ) -> Result<()> {
+        if let Some(h) = hint
+            && (h.width() != k.width || h.height() != k.height)
+        {
+            return Err(TsdfError::SizeMismatch {
+                expected_width: k.width,
+                expected_height: k.height,
+                width: h.width(),
+                height: h.height(),
+            });
+        }
         config.validate()?;
         k.validate()?;
         let iso = pose.isometry();
@@ -213,6 +250,10 @@ impl TsdfVolume {
         let tiles = &out.tiles;
         let occ = &out.occupancy;
         let w = k.width;
+        let band = crate::params::BandFn::new(self.params());
+        let voxel = self.params().voxel_m as f32;
+        let margin = |z: f32| band.band(z) + 2.0 * voxel;
+        let hint = hint.map(DepthImage::data);
         out.depth
             .data_mut()
             .par_chunks_mut(w)
@@ -224,7 +265,20 @@ impl TsdfVolume {
                 let mut sampler = sampler::Sampler::new(self);
                 for x in 0..w {
                     let (lo, hi) = range::pixel_range(tiles, w, x, y);
-                    match frame.cast(&mut sampler, occ, x, y, lo, hi) {
+                    let (start, restart) = match hint.and_then(|h| h.get(y * w + x)) {
+                        Some(&z) if z > 0.0 && z - margin(z) > lo => (z - margin(z), Some(lo)),
+                        _ => (lo, None),
+                    };
+                    // A hinted ray that ends without a hit (it started behind the surface, in
+                    // unobserved space) is marched again over its whole range.
+                    let hit = match (
+                        frame.cast(&mut sampler, occ, x, y, start, hi, restart),
+                        restart,
+                    ) {
+                        (None, Some(lo)) => frame.cast(&mut sampler, occ, x, y, lo, hi, None),
+                        (hit, _) => hit,
+                    };
+                    match hit {
                         Some(hit) => {
                             depth[x] = hit.z_m;
                             points[x] = hit.point;

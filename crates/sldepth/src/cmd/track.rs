@@ -381,7 +381,7 @@ pub fn run(args: Args) -> Result<()> {
             if !args.frame_to_frame {
                 // The model seen from this pose is the next frame's reference.
                 let t2 = Instant::now();
-                model.update(&volume, &r.pose, &camera.sensor)?;
+                model.update_from_frame(&volume, &r.pose, &camera.sensor, &depth, &k)?;
                 raycast_ms.push(t2.elapsed().as_secs_f64() * 1e3);
             }
             rows.push((t, Row::Pose(r.pose)));
