@@ -50,7 +50,8 @@ fn bench(c: &mut Criterion) {
     });
     // The whole step against the model: track frame 1 against frame 0's raycast, integrate it
     // and raycast the model for the next frame (the set-up, frame 0, is inside the loop too),
-    // the model rendered as `sldepth track` renders it (`ModelReference`, half resolution).
+    // the model rendered as `sldepth track` renders it (`ModelReference`, half resolution,
+    // hinted by the frame just fused).
     let mut tcfg = TsdfConfig::default();
     tcfg.voxel_m = 0.008;
     tcfg.trunc_m = 0.04;
@@ -63,10 +64,14 @@ fn bench(c: &mut Criterion) {
                     .unwrap();
             let r0 = t.track(&fr[0], None).unwrap();
             vol.integrate(&fr[0], &k, &r0.pose).unwrap();
-            reference.update(&vol, &r0.pose, &cam.sensor).unwrap();
+            reference
+                .update_from_frame(&vol, &r0.pose, &cam.sensor, &fr[0], &k)
+                .unwrap();
             let r1 = t.track(&fr[1], reference.maps()).unwrap();
             vol.integrate(&fr[1], &k, &r1.pose).unwrap();
-            reference.update(&vol, &r1.pose, &cam.sensor).unwrap();
+            reference
+                .update_from_frame(&vol, &r1.pose, &cam.sensor, &fr[1], &k)
+                .unwrap();
             black_box(r1)
         })
     });

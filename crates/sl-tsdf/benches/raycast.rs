@@ -1,7 +1,8 @@
 //! Criterion benchmark of [`TsdfVolume::raycast_into`]: one 640×480 rendering of the volume
 //! fused from the five ICL-NUIM living-room frames of `../shared/data` (the default
 //! `TsdfConfig`, 4 mm voxels), seen from the last frame's pose — or, when the data is absent,
-//! of a simulated room fused from ten frames.
+//! of a simulated room fused from ten frames — plain and hinted by the last frame's depth
+//! ([`TsdfVolume::raycast_hinted_into`], as the tracker renders its model).
 //!
 //! Run: `cargo bench -p sl-tsdf --bench raycast`.
 #![allow(clippy::expect_used)] // benchmark setup on fixed inputs
@@ -55,7 +56,8 @@ fn bench(c: &mut Criterion) {
     for (d, p) in &frames {
         vol.integrate(d, &k, p).expect("integration within budget");
     }
-    let pose = frames.last().expect("frames").1;
+    let (last_depth, pose) = frames.last().expect("frames");
+    let pose = *pose;
     let config = RaycastConfig::default();
     let mut out = Raycast::default();
     vol.raycast_into(&pose, &k, &config, &mut out)
@@ -72,6 +74,13 @@ fn bench(c: &mut Criterion) {
     g.bench_function(format!("{}x{}", k.width, k.height), |b| {
         b.iter(|| {
             vol.raycast_into(&pose, &k, &config, &mut out)
+                .expect("raycast");
+            black_box(out.weights[0])
+        })
+    });
+    g.bench_function(format!("{}x{}-hinted", k.width, k.height), |b| {
+        b.iter(|| {
+            vol.raycast_hinted_into(&pose, &k, &config, Some(last_depth), &mut out)
                 .expect("raycast");
             black_box(out.weights[0])
         })
