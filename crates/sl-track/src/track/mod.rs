@@ -395,8 +395,8 @@ impl Tracker {
         let mut pose = *start;
         let mut iterations = 0;
         // The sums of the finest level's last pass: they are the final statistics (same
-        // level, gates and pose), so the full-resolution pass is not repeated.
-        let mut finest: Option<Sums> = None;
+        // level, gates and pose), so no pass is run for them.
+        let mut stats = Sums::zero();
         let finest_l = cfg
             .finest_level
             .min(self.pyramid.levels.len().saturating_sub(1));
@@ -489,23 +489,10 @@ impl Tracker {
                 }
             }
             if l == finest_l {
-                finest = Some(s);
+                stats = s;
             }
         }
-        // The final statistics at the finest level aligned.
-        let level0 = &self.pyramid.levels[finest_l];
-        let stats = match finest {
-            Some(s) => s,
-            None => {
-                let params = PassParams {
-                    allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << finest_l)) as f32,
-                    min_cos,
-                };
-                let centre = pose.translation.vector;
-                solve::pass(level0, reference, &pose, &centre, sensor, cfg, params)
-            }
-        };
-        let scale_m = mean_depth(level0);
+        let scale_m = mean_depth(&self.pyramid.levels[finest_l]);
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);

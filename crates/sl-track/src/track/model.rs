@@ -75,12 +75,7 @@ impl ModelReference {
         pose: &CameraToWorld,
         sensor: &SensorModel,
     ) -> Result<()> {
-        let z_ref_m = volume.params().z_ref_m;
-        volume.raycast_into(pose, &self.intrinsics, &self.config, &mut self.raycast)?;
-        self.maps
-            .set_from_model(&self.raycast, pose, &self.intrinsics, sensor, z_ref_m)?;
-        self.rendered = true;
-        Ok(())
+        self.render(volume, pose, sensor, false)
     }
 
     /// [`ModelReference::update`] right after `depth` (the camera's size, metres, 0 = invalid)
@@ -109,12 +104,23 @@ impl ModelReference {
             });
         }
         nearest_per_pixel(depth, &mut self.hint);
+        self.render(volume, pose, sensor, true)
+    }
+
+    /// Raycasts `volume` from `pose` (hinted by `self.hint` when `hinted`) into the maps.
+    fn render(
+        &mut self,
+        volume: &TsdfVolume,
+        pose: &CameraToWorld,
+        sensor: &SensorModel,
+        hinted: bool,
+    ) -> Result<()> {
         let z_ref_m = volume.params().z_ref_m;
         volume.raycast_hinted_into(
             pose,
             &self.intrinsics,
             &self.config,
-            Some(&self.hint),
+            hinted.then_some(&self.hint),
             &mut self.raycast,
         )?;
         self.maps

@@ -34,7 +34,7 @@ pub(crate) struct Sums {
 }
 
 impl Sums {
-    fn zero() -> Self {
+    pub(crate) fn zero() -> Self {
         Self {
             h: [0.0; 21],
             g: [0.0; 6],
@@ -266,7 +266,7 @@ pub(crate) fn pass(
                     s.inliers += 1;
                     let en = r / sigma;
                     s.chi2 += en * en;
-                    s.loss_below_cap += huber_loss_f32(en, huber_k).min(cap32) - cap32;
+                    s.loss_below_cap += huber_loss(en, huber_k).min(cap32) - cap32;
                     s.r2_m2 += r * r;
                 }
                 block_sums.add_row(&s, cap);
@@ -327,17 +327,6 @@ fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// [`huber_loss`] in `f32`.
-#[inline(always)]
-fn huber_loss_f32(e: f32, k: f32) -> f32 {
-    let a = e.abs();
-    if a <= k {
-        0.5 * a * a
-    } else {
-        k * a - 0.5 * k * k
-    }
-}
-
 /// What the normal equations of one level are solved with besides the data: the data's
 /// share of independent information and a prior on the camera's position.
 #[derive(Debug, Clone, Copy)]
@@ -378,12 +367,14 @@ impl Prior {
 
 /// Huber's loss of a normalised residual `e` with threshold `k`: `e²/2` within `±k`, linear
 /// beyond.
-pub(crate) fn huber_loss(e: f64, k: f64) -> f64 {
+#[inline(always)]
+fn huber_loss<T: nalgebra::RealField + Copy>(e: T, k: T) -> T {
     let a = e.abs();
+    let half: T = nalgebra::convert(0.5);
     if a <= k {
-        0.5 * a * a
+        half * a * a
     } else {
-        k * a - 0.5 * k * k
+        k * a - half * k * k
     }
 }
 

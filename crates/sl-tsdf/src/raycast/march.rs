@@ -98,9 +98,9 @@ impl RayFrame {
 
     /// Marches the ray of pixel `(x, y)` through camera depths `[lo, hi]` (clipped to the
     /// configured range) and returns its first front-facing zero crossing; `occ` lets it cross
-    /// empty super-blocks in one step. `restart`: `lo` is a hinted start, and the ray is
-    /// marched again from this depth when its first observed sample is not in front of a
-    /// surface (the hint started it behind one).
+    /// empty super-blocks in one step. `hinted`: `lo` is a hinted start, and the ray gives up
+    /// (`None`) when its first observed sample is not in front of a surface (the hint started
+    /// it behind one; the caller marches it again from the near end).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn cast(
         &self,
@@ -110,7 +110,7 @@ impl RayFrame {
         y: usize,
         lo: f32,
         hi: f32,
-        restart: Option<f32>,
+        hinted: bool,
     ) -> Option<Hit> {
         let dir = self.rot
             * Vector3::new(
@@ -144,7 +144,7 @@ impl RayFrame {
         // whose long step landed in unobserved voxels, one shortest step at a time.
         let mut prev: Option<(f32, f32)> = None;
         let mut fine = false;
-        let mut restart = restart;
+        let mut hinted = hinted;
         let exit = BlockExit::new(&d, BLOCK_SIDE as f32);
         let super_exit = BlockExit::new(&d, (BLOCK_SIDE << SUPER_SHIFT) as f32);
         while t <= end {
@@ -197,10 +197,8 @@ impl RayFrame {
                     t += voxel_dt;
                 }
                 Some(f) => {
-                    if f <= 0.0
-                        && let Some(lo0) = restart
-                    {
-                        return self.cast(s, occ, x, y, lo0, hi, None);
+                    if f <= 0.0 && hinted {
+                        return None;
                     }
                     if let Some((tp, fp)) = prev
                         && fp > 0.0
@@ -212,7 +210,7 @@ impl RayFrame {
                         return self.hit(s, &at, (tp, fp), (t, f), &dir);
                     }
                     prev = Some((t, f));
-                    restart = None;
+                    hinted = false;
                     fine = false;
                     let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
                     t += step_m * inv_len;

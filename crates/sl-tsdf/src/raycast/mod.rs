@@ -265,18 +265,19 @@ impl TsdfVolume {
                 let mut sampler = sampler::Sampler::new(self);
                 for x in 0..w {
                     let (lo, hi) = range::pixel_range(tiles, w, x, y);
-                    let (start, restart) = match hint.and_then(|h| h.get(y * w + x)) {
-                        Some(&z) if z > 0.0 && z - margin(z) > lo => (z - margin(z), Some(lo)),
-                        _ => (lo, None),
-                    };
-                    // A hinted ray that ends without a hit (it started behind the surface, in
-                    // unobserved space) is marched again over its whole range.
-                    let hit = match (
-                        frame.cast(&mut sampler, occ, x, y, start, hi, restart),
-                        restart,
-                    ) {
-                        (None, Some(lo)) => frame.cast(&mut sampler, occ, x, y, lo, hi, None),
-                        (hit, _) => hit,
+                    // A hinted ray starts just before the hint; one that gives up (its first
+                    // observed sample is behind a surface) or ends without a hit (it started in
+                    // unobserved space behind the surface) is marched again over its whole range.
+                    let start = hint
+                        .and_then(|h| h.get(y * w + x))
+                        .filter(|z| **z > 0.0)
+                        .map(|z| z - margin(*z))
+                        .filter(|s| *s > lo);
+                    let hit = match start {
+                        Some(s) => frame
+                            .cast(&mut sampler, occ, x, y, s, hi, true)
+                            .or_else(|| frame.cast(&mut sampler, occ, x, y, lo, hi, false)),
+                        None => frame.cast(&mut sampler, occ, x, y, lo, hi, false),
                     };
                     match hit {
                         Some(hit) => {
