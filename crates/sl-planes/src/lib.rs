@@ -44,6 +44,7 @@
 
 mod components;
 pub mod error;
+mod extend;
 pub mod extract;
 mod fit;
 mod kernels;

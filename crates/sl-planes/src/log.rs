@@ -12,8 +12,9 @@
 //!
 //! Invalid pixels are NaN in the input: any window touching one yields NaN, which fails the
 //! threshold test, so a pixel is planar only with a complete valid support (image borders count
-//! as invalid). Pixels near holes are therefore not seeds; the refinement assigns them
-//! afterwards by their residual.
+//! as invalid). The extractor therefore feeds it the half-resolution disparity extended across
+//! holes and a margin beyond the image border (`crate::extend`, exact for a plane), so that only
+//! the extended map's own NaN (far inside wide holes) cut the support.
 //!
 //! The passes are streamed row by row through rings of a few rows (for `r = 1`), so that only
 //! the input and the mask span the whole map, and the extractor produces the input rows
@@ -48,14 +49,15 @@ pub(crate) trait RowSource {
 }
 
 /// The rows of a whole map.
-#[cfg(test)]
-struct FrameRows<'a> {
-    d: &'a [f32],
-    w: usize,
-    next: usize,
+pub(crate) struct FrameRows<'a> {
+    /// The map, row-major.
+    pub(crate) d: &'a [f32],
+    /// Its width.
+    pub(crate) w: usize,
+    /// The next row to return.
+    pub(crate) next: usize,
 }
 
-#[cfg(test)]
 impl RowSource for FrameRows<'_> {
     fn next_row(&mut self) -> &[f32] {
         let y = self.next;

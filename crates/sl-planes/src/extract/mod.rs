@@ -7,7 +7,12 @@
 //!    centre, so plane parameters carry over exactly between the grids.
 //! 1. **Seeds** (issue 12, `patches`). The box-approximated LoG of the half-resolution
 //!    disparity (the `log` module) is thresholded at a fixed value in disparity pixels; a cell
-//!    is planar when its four blocks are (the LoG finds jumps and sharp creases). The cell grid
+//!    is planar when its four blocks are (the LoG finds jumps and sharp creases). The LoG reads
+//!    the map extended across holes and beyond the image border by least-squares lines through
+//!    the nearest valid values of each row and column (the `extend` module): exact for a plane,
+//!    so a strip of a surface along the border or between occlusion bands keeps planar cells
+//!    (without it every pixel within the LoG's reach, 8 px, of a hole or the border failed, and
+//!    a box face or a far ceiling seen as a 30-pixel strip was never seeded). The cell grid
 //!    is cut into patches of 4×4 cells; each patch gets a least-squares affine fit
 //!    `D = a·x + b·y + c` of its planar cells and is used when its residual is what the noise
 //!    allows. Neighbouring patches merge, most similar first, while one affine function explains
@@ -60,12 +65,13 @@ use wide::{CmpEq, i16x8};
 
 use crate::components::RunLabeler;
 use crate::error::{PlanesError, Result};
+use crate::extend::{ExtendBuffers, extend_map};
 use crate::fit::AffineSums;
 use crate::kernels::{
     InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8_two,
     valid_mask,
 };
-use crate::log::{LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
+use crate::log::{FrameRows, LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
 use crate::plane::DisparityAffine;
 use sl_core::Plane;
 
@@ -287,6 +293,13 @@ pub struct PlaneExtractor {
     log_mask: Vec<u8>,
     /// Work rows of the box-approximated LoG.
     log_buffers: LogBuffers,
+    /// The half-resolution disparity with a margin of the LoG's reach on every side, extended
+    /// across holes and the image border (`extend`), the LoG's input.
+    half_res_extended: Vec<f32>,
+    /// The planarity mask of `half_res_extended` (same size).
+    extended_mask: Vec<u8>,
+    /// Buffers of the extension.
+    extend_buffers: ExtendBuffers,
     /// Connected components of cell masks (seeds, regrowth, piece filtering).
     components: RunLabeler,
     /// The plane candidates (affine fits, sums, boxes, merge links).
@@ -494,19 +507,63 @@ impl PlaneExtractor {
         };
         // Row scratch; `fit_run` may write up to 7 bytes past a run.
         self.keep_row.resize(w + LANES, 0);
-        // 1. Seeds: the LoG on the half-resolution map, components on the cell grid.
+        // 1. Seeds: the LoG on the half-resolution map, extended across holes and the image
+        // border (exact for planes, see `extend`) so that pixels next to them can be planar;
+        // then components on the cell grid.
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
+        let m = 2 * r + s + 1;
+        let (we, he) = (w2 + 2 * m, h2 + 2 * m);
+        self.half_res_extended.clear();
+        self.half_res_extended.resize(we * he, f32::NAN);
+        for y2 in 0..h2 {
+            let row = rows.next_row();
+            let at = (y2 + m) * we + m;
+            self.half_res_extended[at..at + w2].copy_from_slice(&row[..w2]);
+        }
+        let d = rows.finish(h);
+        // Invalid half-resolution pixels (NaN) stay non-planar; the mask is cut back below.
+        self.log_mask.clear();
+        self.log_mask.resize(w2 * h2, 0);
+        for (out, row) in self
+            .log_mask
+            .chunks_exact_mut(w2)
+            .zip(self.half_res_extended.chunks_exact(we).skip(m))
+        {
+            for (o, v) in out.iter_mut().zip(&row[m..m + w2]) {
+                *o = u8::from(!v.is_nan());
+            }
+        }
+        extend_map(
+            &mut self.half_res_extended,
+            we,
+            he,
+            m,
+            &mut self.extend_buffers,
+        );
+        let mut extended_rows = FrameRows {
+            d: &self.half_res_extended,
+            w: we,
+            next: 0,
+        };
         planar_mask_uncounted(
-            &mut rows,
-            w2,
-            h2,
+            &mut extended_rows,
+            we,
+            he,
             r,
             s,
             cfg.log_threshold_px as f32,
             &mut self.log_buffers,
-            &mut self.log_mask,
+            &mut self.extended_mask,
         );
-        let d = rows.finish(h);
+        for (out, row) in self
+            .log_mask
+            .chunks_exact_mut(w2)
+            .zip(self.extended_mask.chunks_exact(we).skip(m))
+        {
+            for (o, &p) in out.iter_mut().zip(&row[m..m + w2]) {
+                *o &= p;
+            }
+        }
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);

@@ -208,3 +208,56 @@ fn plane_borders_match_definition() {
         }
     }
 }
+
+/// A surface seen only as a strip along the image border (a box face cut by the frame, 28 px
+/// tall) and one seen between two wide holes (24 px wide) are found: the LoG reads the map
+/// extended across holes and the border, so their pixels keep planar cells. Without the
+/// extension every pixel within 8 px of the border or a hole failed the LoG and neither strip
+/// had a seed.
+#[test]
+fn strips_along_the_border_and_between_holes_are_planes() {
+    let cam = Camera::kinect_v1();
+    let k = cam.intrinsics;
+    let (w, h) = (k.width, k.height);
+    let wall = Plane::new(nalgebra::Vector3::new(0.1, -0.05, -1.0), 3.0)
+        .unwrap()
+        .facing_origin();
+    let strip = Plane::new(nalgebra::Vector3::new(-0.2, 0.6, -1.0), 1.6)
+        .unwrap()
+        .facing_origin();
+    let column = Plane::new(nalgebra::Vector3::new(0.5, 0.1, -1.0), 2.0)
+        .unwrap()
+        .facing_origin();
+    let depth: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let p = if y >= h - 28 {
+                &strip
+            } else if (300..324).contains(&x) {
+                &column
+            } else if (260..300).contains(&x) || (324..364).contains(&x) {
+                return 0.0;
+            } else {
+                &wall
+            };
+            p.depth_at(&k, x as f64, y as f64).unwrap_or(0.0) as f32
+        })
+        .collect();
+    let depth = DepthImage::from_vec(w, h, depth).unwrap();
+    let seg = extract_planes(&depth, &cam, &PlaneConfig::default()).unwrap();
+    for (name, truth, pixels) in [
+        ("border strip", &strip, 28 * w),
+        ("column between holes", &column, 24 * (h - 28)),
+    ] {
+        let found = seg
+            .planes
+            .iter()
+            .find(|p| p.plane.angle_to_deg(truth) < 1.0)
+            .unwrap_or_else(|| panic!("{name} not found: {:?}", seg.planes));
+        assert!(
+            found.pixels as f64 > 0.9 * pixels as f64,
+            "{name}: {} of {pixels} px",
+            found.pixels
+        );
+    }
+}
