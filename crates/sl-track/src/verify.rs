@@ -47,6 +47,11 @@ pub struct VerifyConfig {
     /// Point-to-plane distance of the coarse score that ranks the unrefined plane hypotheses,
     /// metres (loose: a plane hypothesis is only a few degrees accurate).
     pub coarse_inlier_m: f64,
+    /// Angular accuracy assumed of an unrefined plane hypothesis, degrees: the coarse score
+    /// also allows `tan(coarse_angle_deg)` times a point's distance from the camera (a 3°
+    /// error moves a point 2 m away by 10 cm, twice `coarse_inlier_m`: with a fixed tolerance
+    /// the right motion, a few degrees off, lost to wrong ones that overlap little).
+    pub coarse_angle_deg: f64,
     /// Number of hypotheses (best coarse scores) refined on the data and scored.
     pub refine_hypotheses: usize,
     /// Point-to-plane ICP iterations of the local refinement of a hypothesis.
@@ -72,6 +77,7 @@ impl Default for VerifyConfig {
             inlier_sigmas: 3.0,
             outlier_weight: 8.0,
             coarse_inlier_m: 0.05,
+            coarse_angle_deg: 3.0,
             refine_hypotheses: 8,
             refine_iterations: 15,
             refine_start_m: 0.10,
@@ -88,6 +94,7 @@ impl VerifyConfig {
         let pos = [
             ("inlier_base_m", self.inlier_base_m),
             ("coarse_inlier_m", self.coarse_inlier_m),
+            ("coarse_angle_deg", self.coarse_angle_deg),
             ("refine_start_m", self.refine_start_m),
             ("refine_end_m", self.refine_end_m),
         ];
@@ -365,14 +372,14 @@ impl Score {
     }
 }
 
-/// Scores `pose` (`X_a = R·X_b + t`): samples within `base_m + sigmas·σ_Z` of A's tangent
-/// plane and within three times that of A's point.
+/// Scores `pose` (`X_a = R·X_b + t`): samples within `base_m + per_m·|X| + sigmas·σ_Z` of A's
+/// tangent plane and within three times that of A's point (`|X|`: the moved point's distance
+/// from A's camera).
 pub(crate) fn score(
     target: &mut Target<'_>,
     samples: &[Point3<f64>],
     pose: &Isometry3<f64>,
-    base_m: f64,
-    sigmas: f64,
+    (base_m, per_m, sigmas): (f64, f64, f64),
 ) -> Score {
     let mut s = Score {
         total: samples.len(),
@@ -384,7 +391,7 @@ pub(crate) fn score(
             continue;
         };
         s.overlap += 1;
-        let tol = base_m + sigmas * target.sensor.sigma_z(a.z);
+        let tol = base_m + per_m * q.coords.norm() + sigmas * target.sensor.sigma_z(a.z);
         let d = q - a;
         if na.dot(&d).abs() < tol && d.norm() < 3.0 * tol {
             s.inliers += 1;
@@ -508,11 +515,24 @@ impl<'d> TwoWay<'d> {
         self.sets[0].0.len().min(self.sets[0].1.len())
     }
 
-    /// The score of `pose` in both directions (sums of the two).
+    /// The score of `pose` in both directions (sums of the two), with the tolerance
+    /// `base_m + sigmas·σ_Z`.
     pub(crate) fn score(
         &mut self,
         pose: &Isometry3<f64>,
         (base_m, sigmas): (f64, f64),
+        density: Density,
+    ) -> Score {
+        self.score_ranging(pose, (base_m, 0.0, sigmas), density)
+    }
+
+    /// [`Self::score`] with a tolerance that also grows with the points' distance from the
+    /// camera, `base_m + per_m·|X| + sigmas·σ_Z` (an unrefined rotation error moves a point by
+    /// about its distance times the angle).
+    pub(crate) fn score_ranging(
+        &mut self,
+        pose: &Isometry3<f64>,
+        tol: (f64, f64, f64),
         density: Density,
     ) -> Score {
         let (sa, sb) = match density {
@@ -520,8 +540,8 @@ impl<'d> TwoWay<'d> {
             Density::Sparse => &self.sets[1],
             Density::Coarse => &self.sets[2],
         };
-        let ab = score(&mut self.target_a, sb, pose, base_m, sigmas);
-        let ba = score(&mut self.target_b, sa, &pose.inverse(), base_m, sigmas);
+        let ab = score(&mut self.target_a, sb, pose, tol);
+        let ba = score(&mut self.target_b, sa, &pose.inverse(), tol);
         Score {
             inliers: ab.inliers + ba.inliers,
             overlap: ab.overlap + ba.overlap,

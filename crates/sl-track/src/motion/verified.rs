@@ -256,7 +256,8 @@ fn rank(
             Translation3::from(h.translation),
             UnitQuaternion::from_rotation_matrix(&h.rotation),
         ) * *g;
-        let s = check.score(&pose, (vcfg.coarse_inlier_m, 0.0), Density::Coarse);
+        let per_m = vcfg.coarse_angle_deg.to_radians().tan();
+        let s = check.score_ranging(&pose, (vcfg.coarse_inlier_m, per_m, 0.0), Density::Coarse);
         if s.overlap_fraction() >= vcfg.min_overlap_fraction {
             coarse.push((i, pose, s.evidence(w_out)));
         }
