@@ -13,7 +13,7 @@ Rooms: ``--rooms DIR`` scores the peer on the randomised room benchmark instead,
 written by ``cargo run --release -p sl-planes --example export_rooms -- DIR``, with the rules of
 the validate experiment (xtask/src/validate/planes/rooms.rs): SegComp (Hoover et al.) at 80 %
 overlap for ground-truth planes of at least 2,000 valid pixels, spurious = noise regions of at
-least 2,000 pixels.
+least 2,000 pixels that detect no surface (not even one below the 2,000-pixel cut).
 
 Usage (a venv with opencv-python-headless 5 and numpy)::
 
@@ -158,9 +158,14 @@ def segcomp(gt, seg, valid, t=0.8, min_gt=2000):
             for gg in parts:
                 gu[gg] = True
     res["missed"] = sum(1 for v in gu.values() if not v)
-    noise = [msize[mm] for mm in mk if not mu[mm]]
+    noise = [mm for mm in mk if not mu[mm]]
     res["noise"] = len(noise)
-    res["spurious"] = sum(1 for n in noise if n >= min_gt)
+    # A noise region that correctly detects a surface too small to be scored is not spurious.
+    small = {int(a): int(b) for a, b in zip(gl, gc) if b < min_gt}
+    sk = (m != 0) & np.isin(g, list(small)) if small else np.zeros_like(m, bool)
+    sp, sc = np.unique(np.stack([m[sk], g[sk]]), axis=1, return_counts=True)
+    on_small = {int(a) for (a, b), c in zip(sp.T, sc) if c >= t * msize[int(a)] and c >= t * small[int(b)]}
+    res["spurious"] = sum(1 for mm in noise if msize[mm] >= min_gt and mm not in on_small)
     return res
 
 

@@ -59,15 +59,21 @@ pub struct SegCompDetail {
     pub noise_regions: Vec<(u16, usize)>,
     /// The ground-truth regions missed: `(label, valid pixels)`, by label.
     pub missed_regions: Vec<(u16, usize)>,
+    /// The noise regions that detect a ground-truth region *below* `min_gt_pixels` correctly
+    /// (`O ≥ T·|m|` and `O ≥ T·|g|`): `(label, valid pixels)`, by label. They are noise for the
+    /// counts (that ground truth is not scored) but match a surface, so they are not spurious.
+    pub small_surface_regions: Vec<(u16, usize)>,
 }
 
 impl SegCompDetail {
-    /// Noise regions (machine regions matching no ground truth) of at least `min_pixels`:
-    /// spurious planes.
+    /// Noise regions of at least `min_pixels` that match no surface at all (not even one too
+    /// small to be scored, see [`SegCompDetail::small_surface_regions`]): spurious planes.
     pub fn spurious(&self, min_pixels: usize) -> usize {
         self.noise_regions
             .iter()
-            .filter(|(_, n)| *n >= min_pixels)
+            .filter(|(m, n)| {
+                *n >= min_pixels && !self.small_surface_regions.iter().any(|(s, _)| s == m)
+            })
             .count()
     }
 }
@@ -107,9 +113,12 @@ pub fn segcomp_detail(
             *gsize.entry(g).or_default() += 1;
         }
     }
+    let mut small: HashMap<u16, usize> = gsize.clone();
     gsize.retain(|_, n| *n >= min_gt_pixels.max(1));
+    small.retain(|g, _| !gsize.contains_key(g));
     let mut msize: HashMap<u16, usize> = HashMap::new();
     let mut overlap: HashMap<(u16, u16), usize> = HashMap::new();
+    let mut small_overlap: HashMap<(u16, u16), usize> = HashMap::new();
     for (i, (&g, &m)) in gt.data().iter().zip(seg.data()).enumerate() {
         if m == 0 || !ok(i) {
             continue;
@@ -117,6 +126,8 @@ pub fn segcomp_detail(
         *msize.entry(m).or_default() += 1;
         if g != 0 && gsize.contains_key(&g) {
             *overlap.entry((m, g)).or_default() += 1;
+        } else if g != 0 {
+            *small_overlap.entry((m, g)).or_default() += 1;
         }
     }
     let mut gkeys: Vec<u16> = gsize.keys().copied().collect();
@@ -194,12 +205,22 @@ pub fn segcomp_detail(
         .filter(|m| !m_used[m])
         .map(|m| (*m, msize[m]))
         .collect();
+    let small_surface_regions: Vec<(u16, usize)> = noise_regions
+        .iter()
+        .copied()
+        .filter(|&(m, mn)| {
+            small_overlap.iter().any(|(&(mm, g), &ov)| {
+                mm == m && ov as f64 >= t * mn as f64 && ov as f64 >= t * small[&g] as f64
+            })
+        })
+        .collect();
     score.missed = missed_regions.len();
     score.noise = noise_regions.len();
     Ok(SegCompDetail {
         score,
         noise_regions,
         missed_regions,
+        small_surface_regions,
     })
 }
 
@@ -275,5 +296,30 @@ mod tests {
         let s = segcomp(&gt3, &partial, Some(&valid), 0.8, 1).unwrap();
         assert_eq!((s.correct, s.missed), (2, 0));
         assert!(segcomp(&gt, &img(5, 5, |_, _| 0), None, 0.8, 1).is_err());
+    }
+
+    #[test]
+    fn a_region_on_a_surface_too_small_to_score_is_noise_but_not_spurious() {
+        // Ground truth: a large region 1 (x < 16) and a small region 2 (x ≥ 16, 40 px).
+        let gt = img(20, 10, |x, _| if x < 16 { 1 } else { 2 });
+        // The machine finds both; region 2 is below the 50-pixel cut.
+        let d = segcomp_detail(&gt, &gt, None, 0.8, 50).unwrap();
+        assert_eq!(
+            (d.score.gt_regions, d.score.correct, d.score.noise),
+            (1, 1, 1)
+        );
+        assert_eq!(d.noise_regions, vec![(2, 40)]);
+        assert_eq!(d.small_surface_regions, vec![(2, 40)]);
+        assert_eq!(d.spurious(10), 0);
+        // A machine region straddling both surfaces matches neither: spurious.
+        let gt = img(40, 10, |x, _| if x < 36 { 1 } else { 2 });
+        let straddle = img(40, 10, |x, _| if x < 32 { 1 } else { 3 });
+        let d = segcomp_detail(&gt, &straddle, None, 0.8, 50).unwrap();
+        assert_eq!(
+            (d.score.correct, d.noise_regions.clone()),
+            (1, vec![(3, 80)])
+        );
+        assert!(d.small_surface_regions.is_empty());
+        assert_eq!(d.spurious(10), 1);
     }
 }
