@@ -16,25 +16,28 @@
 //! to the middle of the hole). Only the LoG sees the extended values: the extended pixels stay
 //! invalid for everything else (cells, fits, labels).
 
+use wide::{CmpNe, f32x4};
+
 /// Most valid values a line is fitted through.
 const FIT_LEN: usize = 6;
 
 /// Fills the NaN values of `line` that lie within `reach` of a finite value, each from the
 /// least-squares line through the (up to [`FIT_LEN`]) consecutive finite values on its side of
 /// the gap; a gap between two finite runs is filled from the left up to its middle and from the
-/// right beyond (ties from the left). The fits read only values that were finite on entry.
-fn extend_line(line: &mut [f32], reach: usize) {
+/// right beyond (ties from the left). `nan` holds one bit per value (set = NaN) on entry and
+/// the NaN left on return. The fits read only values that were finite on entry.
+fn extend_line(line: &mut [f32], nan: &mut [u64], reach: usize) {
     let n = line.len();
     // Start of the finite run before the current gap (values before it may have been filled).
     let mut run_start = 0;
     let mut i = 0;
     while i < n {
-        i = skip_while(line, i, false);
+        i = next_bit(nan, i, n, true);
         if i == n {
             break;
         }
         let a = i;
-        i = skip_while(line, i, true);
+        i = next_bit(nan, i, n, false);
         let b = i;
         let (left, right) = (a > 0, b < n);
         let mid = if left && right {
@@ -43,19 +46,18 @@ fn extend_line(line: &mut [f32], reach: usize) {
             b
         };
         let right_fit = right.then(|| {
-            let mut end = b + 1;
-            while end < n && end - b < FIT_LEN && !line[end].is_nan() {
-                end += 1;
-            }
+            let end = next_bit(nan, b, n.min(b + FIT_LEN), true);
             line_fit(&line[b..end])
         });
         if left {
             let start = run_start.max(a.saturating_sub(FIT_LEN));
             let (slope, mean, centre) = line_fit(&line[start..a]);
             let origin = start as f32 + centre;
-            for (x, v) in line.iter_mut().enumerate().take(mid.min(a + reach)).skip(a) {
+            let to = mid.min(a + reach);
+            for (x, v) in line.iter_mut().enumerate().take(to).skip(a) {
                 *v = mean + slope * (x as f32 - origin);
             }
+            clear_bits(nan, a, to);
         }
         if let Some((slope, mean, centre)) = right_fit {
             let origin = b as f32 + centre;
@@ -63,35 +65,50 @@ fn extend_line(line: &mut [f32], reach: usize) {
             for (x, v) in line.iter_mut().enumerate().take(b).skip(from) {
                 *v = mean + slope * (x as f32 - origin);
             }
+            clear_bits(nan, from, b);
         }
         run_start = b;
     }
 }
 
-/// The first index from `i` whose value is (`nan` = false) or is not (`nan` = true) NaN, or
-/// `line.len()`; eight values at a time while none qualifies.
-fn skip_while(line: &[f32], mut i: usize, nan: bool) -> usize {
-    while let Some(chunk) = line.get(i..i + 8) {
-        let stop = chunk.iter().fold(false, |a, v| a | (v.is_nan() != nan));
-        if stop {
-            break;
+/// The first index in `i..end` whose bit is `set` (or `end`).
+fn next_bit(bits: &[u64], mut i: usize, end: usize, set: bool) -> usize {
+    while i < end {
+        let word = if set { bits[i / 64] } else { !bits[i / 64] } >> (i % 64);
+        if word != 0 {
+            return (i + word.trailing_zeros() as usize).min(end);
         }
-        i += 8;
+        i = (i / 64 + 1) * 64;
     }
-    while i < line.len() && line[i].is_nan() == nan {
-        i += 1;
-    }
-    i
+    end
 }
 
-/// Whether any value of `v` is NaN (branch-free over chunks of eight).
-pub(crate) fn any_nan(v: &[f32]) -> bool {
-    let mut chunks = v.chunks_exact(8);
-    let mut any = false;
-    for c in &mut chunks {
-        any |= c.iter().fold(false, |a, x| a | x.is_nan());
+/// Clears the bits `a..b`.
+fn clear_bits(bits: &mut [u64], a: usize, b: usize) {
+    for i in a..b {
+        bits[i / 64] &= !(1u64 << (i % 64));
     }
-    any | chunks.remainder().iter().any(|x| x.is_nan())
+}
+
+/// One bit per value of `row` (set = NaN) into `out` (`row.len().div_ceil(64)` words); returns
+/// whether any is set.
+fn nan_bits(row: &[f32], out: &mut [u64]) -> bool {
+    let mut any = 0u64;
+    for (word, chunk) in out.iter_mut().zip(row.chunks(64)) {
+        let mut bits = 0u64;
+        let mut groups = chunk.chunks_exact(4);
+        for (k, g) in (&mut groups).enumerate() {
+            let v = f32x4::from([g[0], g[1], g[2], g[3]]);
+            bits |= (v.cmp_ne(v).move_mask() as u64) << (4 * k);
+        }
+        let done = chunk.len() - groups.remainder().len();
+        for (k, v) in groups.remainder().iter().enumerate() {
+            bits |= u64::from(v.is_nan()) << (done + k);
+        }
+        *word = bits;
+        any |= bits;
+    }
+    any != 0
 }
 
 /// Least-squares line through `v` at positions `0..v.len()`: (slope, mean value, mean
@@ -137,16 +154,6 @@ pub(crate) fn extend_map(d: &mut [f32], w: usize, h: usize, reach: usize, buf: &
     if w == 0 || h == 0 || reach == 0 || d.len() < w * h {
         return;
     }
-    let mut nan_left = false;
-    for row in d.chunks_exact_mut(w).take(h) {
-        if any_nan(row) {
-            extend_line(row, reach);
-            nan_left |= any_nan(row);
-        }
-    }
-    if !nan_left {
-        return;
-    }
     let words = w.div_ceil(64);
     let ExtendBuffers {
         nan,
@@ -155,20 +162,22 @@ pub(crate) fn extend_map(d: &mut [f32], w: usize, h: usize, reach: usize, buf: &
         below,
         values,
     } = buf;
+    // Rows: the NaN bits of each row, its gaps filled, the bits of what is left.
     nan.clear();
     nan.resize(words * h, 0);
-    for (row, bits) in d.chunks_exact(w).zip(nan.chunks_exact_mut(words)) {
-        for (c, chunk) in row.chunks(64).enumerate() {
-            let mut word = 0u64;
-            for (k, part) in chunk.chunks(8).enumerate() {
-                let byte = part
-                    .iter()
-                    .enumerate()
-                    .fold(0u64, |b, (j, v)| b | (u64::from(v.is_nan()) << j));
-                word |= byte << (8 * k);
-            }
-            bits[c] = word;
+    let mut nan_left = false;
+    for (row, bits) in d
+        .chunks_exact_mut(w)
+        .zip(nan.chunks_exact_mut(words))
+        .take(h)
+    {
+        if nan_bits(row, bits) {
+            extend_line(row, bits, reach);
+            nan_left |= bits.iter().any(|&b| b != 0);
         }
+    }
+    if !nan_left {
+        return;
     }
     // Finite within `reach` rows: the OR of the finite bits of the rows around.
     near.clear();
@@ -273,6 +282,16 @@ mod tests {
         }
     }
 
+    /// [`extend_line`] with the NaN bits computed here; checks the bits left.
+    fn extend(line: &mut [f32], reach: usize) {
+        let mut bits = vec![0u64; line.len().div_ceil(64)];
+        nan_bits(line, &mut bits);
+        extend_line(line, &mut bits, reach);
+        for (i, v) in line.iter().enumerate() {
+            assert_eq!(v.is_nan(), (bits[i / 64] >> (i % 64)) & 1 == 1, "bit {i}");
+        }
+    }
+
     #[test]
     fn each_side_of_a_gap_is_extended_from_its_own_side() {
         let mut line = vec![
@@ -286,17 +305,41 @@ mod tests {
             30.0,
             30.0,
         ];
-        extend_line(&mut line, 8);
+        extend(&mut line, 8);
         assert_eq!(
             line,
             vec![10.0, 10.0, 10.0, 10.0, 10.0, 30.0, 30.0, 30.0, 30.0]
         );
         // All invalid, or nothing to fill: unchanged.
         let mut none = vec![f32::NAN; 5];
-        extend_line(&mut none, 3);
+        extend(&mut none, 3);
         assert!(none.iter().all(|v| v.is_nan()));
         let mut one = vec![f32::NAN, 7.0, f32::NAN];
-        extend_line(&mut one, 3);
+        extend(&mut one, 3);
         assert_eq!(one, vec![7.0, 7.0, 7.0]);
+        // Longer than a word, gaps across word boundaries, a reach shorter than the gaps.
+        let mut long: Vec<f32> = (0..200)
+            .map(|i| {
+                if (60..75).contains(&i) || (120..130).contains(&i) || i >= 190 {
+                    f32::NAN
+                } else {
+                    0.5 * i as f32
+                }
+            })
+            .collect();
+        extend(&mut long, 4);
+        for (i, v) in long.iter().enumerate() {
+            let filled = (60..64).contains(&i)
+                || (71..75).contains(&i)
+                || (120..124).contains(&i)
+                || (126..130).contains(&i)
+                || (190..194).contains(&i);
+            let gap = (60..75).contains(&i) || (120..130).contains(&i) || i >= 190;
+            if !gap || filled {
+                assert!((v - 0.5 * i as f32).abs() < 1e-3, "{i}: {v}");
+            } else {
+                assert!(v.is_nan(), "{i}: {v}");
+            }
+        }
     }
 }
