@@ -1,5 +1,6 @@
 //! Writes the frames of the randomised room benchmark (issue 12) for peer libraries:
-//! `cargo run --release -p sl-planes --example export_rooms -- DIR` writes, per scene `NN`,
+//! `cargo run --release -p sl-planes --example export_rooms -- DIR [FIRST COUNT]` writes, per
+//! scene `NN` (seeds `FIRST..FIRST + COUNT`, default the benchmark's `0..60`),
 //! `NN-depth.png` (16-bit, millimetres, 0 = invalid), `NN-labels.png` (16-bit ground-truth
 //! surface labels) and a line `NN fx fy cx cy` of `DIR/cameras.txt`; `docs/bench/planes_peers.py
 //! --rooms DIR` scores peers on them with the same SegComp rules as `cargo xtask validate`.
@@ -15,7 +16,13 @@ fn main() {
     let dir = PathBuf::from(std::env::args().nth(1).expect("usage: export_rooms DIR"));
     std::fs::create_dir_all(&dir).unwrap();
     let mut cams = String::new();
-    for seed in 0..ROOM_BENCHMARK_SEEDS {
+    let arg = |i: usize, default: u64| {
+        std::env::args()
+            .nth(i)
+            .map_or(default, |a| a.parse().expect("seed numbers"))
+    };
+    let (first, count) = (arg(2, 0), arg(3, ROOM_BENCHMARK_SEEDS));
+    for seed in first..first + count {
         let rs = room_scene(seed).unwrap();
         let mut sensor = sl_core::SensorModel::kinect_v1();
         sensor.focal_px = rs.intrinsics.fx;
