@@ -39,7 +39,10 @@ fn extend_line(line: &mut [f32], nan: &mut [u64], reach: usize) {
         let a = i;
         i = next_bit(nan, i, n, false);
         let b = i;
-        let (left, right) = (a > 0, b < n);
+        // A side extends the gap when its finite run has at least two values (a line; one
+        // value alone would extend as a constant, which is not exact for a tilted plane).
+        let left = a >= 2 && run_start + 2 <= a;
+        let right = b + 1 < n && (nan[(b + 1) / 64] >> ((b + 1) % 64)) & 1 == 0;
         let mid = if left && right {
             a + (b - a).div_ceil(2)
         } else {
@@ -208,9 +211,14 @@ pub(crate) fn extend_map(d: &mut [f32], w: usize, h: usize, reach: usize, buf: &
             while todo != 0 {
                 let x = c * 64 + todo.trailing_zeros() as usize;
                 todo &= todo - 1;
-                // The nearest finite rows above and below within reach.
-                let up = (1..=reach.min(y)).find(|&t| !is_nan(nan, x, y - t));
-                let dn = (1..=reach.min(h - 1 - y)).find(|&t| !is_nan(nan, x, y + t));
+                // The nearest finite rows above and below within reach whose run in the
+                // column has at least two values (see `extend_line`).
+                let up = (1..=reach.min(y))
+                    .find(|&t| !is_nan(nan, x, y - t))
+                    .filter(|&t| y - t >= 1 && !is_nan(nan, x, y - t - 1));
+                let dn = (1..=reach.min(h - 1 - y))
+                    .find(|&t| !is_nan(nan, x, y + t))
+                    .filter(|&t| y + t + 1 < h && !is_nan(nan, x, y + t + 1));
                 let (t, from_above) = match (up, dn) {
                     (Some(u), Some(v)) if u <= v => (u, true),
                     (Some(u), None) => (u, true),
@@ -314,9 +322,13 @@ mod tests {
         let mut none = vec![f32::NAN; 5];
         extend(&mut none, 3);
         assert!(none.iter().all(|v| v.is_nan()));
+        // One value alone is no line: nothing is extended from it.
         let mut one = vec![f32::NAN, 7.0, f32::NAN];
         extend(&mut one, 3);
-        assert_eq!(one, vec![7.0, 7.0, 7.0]);
+        assert!(one[0].is_nan() && one[2].is_nan() && one[1] == 7.0);
+        let mut two = vec![f32::NAN, 7.0, 8.0, f32::NAN];
+        extend(&mut two, 3);
+        assert_eq!(two, vec![6.0, 7.0, 8.0, 9.0]);
         // Longer than a word, gaps across word boundaries, a reach shorter than the gaps.
         let mut long: Vec<f32> = (0..200)
             .map(|i| {
@@ -339,6 +351,47 @@ mod tests {
                 assert!((v - 0.5 * i as f32).abs() < 1e-3, "{i}: {v}");
             } else {
                 assert!(v.is_nan(), "{i}: {v}");
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Any hole pattern on a plane: every value the extension writes lies on the plane
+        /// (it is exact for affine maps), finite values are untouched, and every NaN within
+        /// `reach` of a finite value along its row is filled.
+        #[test]
+        fn extension_of_a_plane_stays_on_the_plane(
+            w in 3usize..90,
+            h in 3usize..40,
+            holes in proptest::collection::vec(proptest::bool::weighted(0.35), 3600),
+            a in -0.2f32..0.2,
+            b in -0.2f32..0.2,
+            reach in 1usize..6,
+        ) {
+            let plane = |x: usize, y: usize| 30.0 + a * x as f32 + b * y as f32;
+            let orig: Vec<f32> = (0..w * h)
+                .map(|i| if holes[i] { f32::NAN } else { plane(i % w, i / w) })
+                .collect();
+            let mut d = orig.clone();
+            extend_map(&mut d, w, h, reach, &mut ExtendBuffers::default());
+            for y in 0..h {
+                for x in 0..w {
+                    let (o, v) = (orig[y * w + x], d[y * w + x]);
+                    if !o.is_nan() {
+                        proptest::prop_assert_eq!(o.to_bits(), v.to_bits());
+                    } else if !v.is_nan() {
+                        proptest::prop_assert!((v - plane(x, y)).abs() < 1e-3, "({}, {}): {}", x, y, v);
+                    }
+                    // Two finite neighbours on one side within reach along the row: filled.
+                    let pair = |xx: usize, yy: usize| {
+                        xx + 1 < w && !orig[yy * w + xx].is_nan() && !orig[yy * w + xx + 1].is_nan()
+                    };
+                    let right_pair = (x + 1..(x + reach + 1).min(w)).find(|&xx| !orig[y * w + xx].is_nan())
+                        .is_some_and(|xx| pair(xx, y));
+                    if o.is_nan() && right_pair {
+                        proptest::prop_assert!(!v.is_nan(), "({}, {}) left NaN", x, y);
+                    }
+                }
             }
         }
     }
