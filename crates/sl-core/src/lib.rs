@@ -30,6 +30,7 @@ pub mod camera;
 pub mod error;
 pub mod image;
 pub mod intrinsics;
+pub mod lens;
 pub mod mesh;
 pub mod plane;
 pub mod pose;
@@ -41,6 +42,7 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
+pub use lens::{LensDistortion, Undistorter};
 pub use mesh::{Mesh, Topology, VertexScalar};
 pub use plane::{Plane, PlaneFit, fit_plane};
 #[allow(deprecated)]

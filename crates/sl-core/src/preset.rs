@@ -18,6 +18,10 @@
 //! | `d455` | Intel RealSense D455 | 1280×720 | 640 | 0.095 | 1/32 | 0.6–10 | 1000 | D400 datasheet; typical fx — calibrate your unit |
 //! | `oak-d` | Luxonis OAK-D (OV9282 stereo pair) | 1280×800 | 800 | 0.075 | 1/8 | 0.7–15 | 1000 | Luxonis docs: 7.5 cm baseline, 3-bit sub-pixel mode; typical fx — calibrate your unit |
 //!
+//! `tum-fr1` and `tum-fr2` also carry the lens distortion TUM publishes (their depth is
+//! registered to the distorted colour image; [`SensorPreset::lens`], used by `sldepth track
+//! --lens auto`, see [`crate::lens`]).
+//!
 //! σ_D is the paper's 0.07 px for the structured-light cameras. For the active-stereo cameras it
 //! is the 0.08 px "subpixel RMS" Intel quotes for a well-textured target (D400 tuning guide);
 //! OAK-D uses the same. Active-stereo depth follows the same `σ_Z = Z²·σ_D/(f·B)` law.
@@ -35,6 +39,7 @@
 use crate::camera::Camera;
 use crate::error::{CoreError, Result};
 use crate::intrinsics::Intrinsics;
+use crate::lens::LensDistortion;
 use crate::sensor::{DEFAULT_SIGMA_D_PX, SensorModel};
 
 /// Disparity noise of the active-stereo presets (D400 "subpixel RMS" of a textured target).
@@ -82,6 +87,9 @@ pub struct SensorPreset {
     pub max_depth_m: f64,
     /// How the dataset's files store depth.
     pub depth_units: DepthUnits,
+    /// The lens distortion of the images the depth is stored in (`None`: pinhole, or not
+    /// published): TUM fr1/fr2 depth is registered to the distorted colour image.
+    pub lens: Option<LensDistortion>,
     /// Where the numbers come from.
     pub source: &'static str,
 }
@@ -113,6 +121,7 @@ const fn kinect(
         min_depth_m: KINECT_MIN_DEPTH_M,
         max_depth_m: KINECT_MAX_DEPTH_M,
         depth_units,
+        lens: None,
         source,
     }
 }
@@ -161,20 +170,38 @@ pub const PRESETS: &[SensorPreset] = &[
         MM,
         "OpenNI default depth focal length 570.3 px",
     ),
-    kinect(
-        "tum-fr1",
-        "TUM RGB-D freiburg1 sequences (Kinect v1)",
-        (517.3, 516.5, 318.6, 255.3),
-        DepthUnits::UnitsPerMetre(5000.0),
-        "TUM RGB-D benchmark, file formats / camera calibration page (fr1 depth intrinsics)",
-    ),
-    kinect(
-        "tum-fr2",
-        "TUM RGB-D freiburg2 sequences (Kinect v1)",
-        (520.9, 521.0, 325.1, 249.7),
-        DepthUnits::UnitsPerMetre(5000.0),
-        "TUM RGB-D benchmark, camera calibration page (fr2 depth intrinsics)",
-    ),
+    SensorPreset {
+        lens: Some(LensDistortion {
+            k1: 0.2624,
+            k2: -0.9531,
+            p1: -0.0054,
+            p2: 0.0026,
+            k3: 1.1633,
+        }),
+        ..kinect(
+            "tum-fr1",
+            "TUM RGB-D freiburg1 sequences (Kinect v1; depth registered to the distorted colour image)",
+            (517.3, 516.5, 318.6, 255.3),
+            DepthUnits::UnitsPerMetre(5000.0),
+            "TUM RGB-D benchmark, file formats / camera calibration page (fr1 intrinsics and distortion d0–d4)",
+        )
+    },
+    SensorPreset {
+        lens: Some(LensDistortion {
+            k1: 0.2312,
+            k2: -0.7849,
+            p1: -0.0033,
+            p2: -0.0001,
+            k3: 0.9172,
+        }),
+        ..kinect(
+            "tum-fr2",
+            "TUM RGB-D freiburg2 sequences (Kinect v1; depth registered to the distorted colour image)",
+            (520.9, 521.0, 325.1, 249.7),
+            DepthUnits::UnitsPerMetre(5000.0),
+            "TUM RGB-D benchmark, camera calibration page (fr2 intrinsics and distortion d0–d4)",
+        )
+    },
     kinect(
         "tum-fr3",
         "TUM RGB-D freiburg3 sequences (Asus Xtion, registered depth)",
@@ -241,6 +268,7 @@ pub const PRESETS: &[SensorPreset] = &[
         min_depth_m: 0.3,
         max_depth_m: 10.0,
         depth_units: MM,
+        lens: None,
         source: "Intel RealSense D400 datasheet (55 mm baseline, 1/32 px sub-pixel); typical factory fx at 1280x720 - calibrate your unit",
     },
     SensorPreset {
@@ -258,6 +286,7 @@ pub const PRESETS: &[SensorPreset] = &[
         min_depth_m: 0.3,
         max_depth_m: 10.0,
         depth_units: MM,
+        lens: None,
         source: "Intel RealSense D400 datasheet (50 mm baseline, 1/32 px sub-pixel); typical factory fx at 848x480 - calibrate your unit",
     },
     SensorPreset {
@@ -275,6 +304,7 @@ pub const PRESETS: &[SensorPreset] = &[
         min_depth_m: 0.6,
         max_depth_m: 10.0,
         depth_units: MM,
+        lens: None,
         source: "Intel RealSense D400 datasheet (95 mm baseline, 1/32 px sub-pixel); typical factory fx at 1280x720 - calibrate your unit",
     },
     SensorPreset {
@@ -292,6 +322,7 @@ pub const PRESETS: &[SensorPreset] = &[
         min_depth_m: 0.7,
         max_depth_m: 15.0,
         depth_units: MM,
+        lens: None,
         source: "Luxonis OAK-D docs (7.5 cm baseline, 3 fractional bits in sub-pixel mode); typical fx at 1280x800 - calibrate your unit",
     },
 ];

@@ -199,17 +199,23 @@ pub fn tum_camera(dir: &Path, args: &InputArgs) -> Result<Camera> {
     if args.camera.is_some() {
         return load_camera(args);
     }
+    let preset = tum_preset(dir);
+    errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
+    Ok(Camera::preset(preset)?)
+}
+
+/// The TUM preset a folder's name implies: `tum-fr2` / `tum-fr3` when its path says
+/// `freiburg2` / `freiburg3`, else `tum-fr1`.
+pub fn tum_preset(dir: &Path) -> &'static str {
     let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let names = full.to_string_lossy().to_ascii_lowercase();
-    let preset = if names.contains("freiburg2") {
+    if names.contains("freiburg2") {
         "tum-fr2"
     } else if names.contains("freiburg3") {
         "tum-fr3"
     } else {
         "tum-fr1"
-    };
-    errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
-    Ok(Camera::preset(preset)?)
+    }
 }
 
 /// A `--camera` value: an existing file is read as camera JSON; anything else must name a

@@ -195,3 +195,42 @@ fn fuse_reads_a_tum_folder_with_depth_txt_and_picks_the_camera_by_name() {
         assert!(v["vertices"].as_u64().unwrap() > 1000, "{name}");
     }
 }
+
+/// With a camera preset that has a published lens distortion (`tum-fr1`), `--lens auto` (the
+/// default) resamples every frame into the pinhole image; `--lens none` and presets without a
+/// lens model leave the frames as they are. The JSON summary says which.
+#[test]
+fn track_undistorts_frames_of_a_camera_with_a_lens_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 3);
+    for (camera, lens, want) in [
+        ("tum-fr1", "auto", true),
+        ("tum-fr1", "none", false),
+        ("kinect-v1", "auto", false),
+    ] {
+        let traj = tmp.path().join(format!("{camera}-{lens}.txt"));
+        let out = sldepth(&[
+            "track",
+            "--tum",
+            seq.to_str().unwrap(),
+            "--camera",
+            camera,
+            "--lens",
+            lens,
+            "--output",
+            traj.to_str().unwrap(),
+            "--voxel-m",
+            "0.01",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{camera} {lens}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["undistorted"], want, "{camera} {lens}");
+        assert_eq!(v["frames"], 3);
+    }
+}

@@ -96,6 +96,12 @@ pub struct Args {
     /// pass) or `none`.
     #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
     pub prefilter: String,
+    /// Lens distortion: `auto` resamples every frame into the ideal pinhole image when the
+    /// camera is a preset with published distortion (`tum-fr1`, `tum-fr2`: their depth is
+    /// registered to the distorted colour image; nearest neighbour, depth values unchanged),
+    /// `none` uses the frames as they are. Trajectories are unaffected in form (same camera).
+    #[arg(long, value_name = "MODE", default_value = "auto", value_parser = ["auto", "none"])]
+    pub lens: String,
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
@@ -108,6 +114,23 @@ pub struct Args {
     pub verbose: bool,
     #[command(flatten)]
     pub input: InputArgs,
+}
+
+/// The lens distortion of the chosen camera, when it is a preset that has one (`--lens auto`).
+fn lens_of(args: &Args) -> Option<sl_core::LensDistortion> {
+    if args.lens == "none" {
+        return None;
+    }
+    let name = match (&args.input.camera, &args.tum) {
+        (Some(c), _) if c.is_file() => return None,
+        (Some(c), _) => c.to_string_lossy().into_owned(),
+        (None, Some(dir)) => crate::common::tum_preset(dir).to_string(),
+        (None, None) => return None,
+    };
+    sl_core::preset::find(&name)
+        .ok()
+        .and_then(|p| p.lens)
+        .filter(|l| !l.is_zero())
 }
 
 /// The frames, the camera and the default depth scale of the chosen source.
@@ -268,6 +291,10 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no depth frames in the sequence");
     }
     let k = camera.intrinsics;
+    let undistort = lens_of(&args).map(|lens| {
+        errln!("note: undistorting every frame with the camera's lens model (--lens none keeps them as they are)");
+        sl_core::Undistorter::new(&k, &lens)
+    });
     limits()
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
@@ -327,7 +354,11 @@ pub fn run(args: Args) -> Result<()> {
         let t = f.timestamp.unwrap_or(i as f64);
         let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits())
             .map_err(anyhow::Error::from)
-            .and_then(|d| prefilter.apply(d.depth))
+            .and_then(|d| match &undistort {
+                Some(u) => Ok(u.apply(&d.depth)?),
+                None => Ok(d.depth),
+            })
+            .and_then(|d| prefilter.apply(d))
         {
             Ok(d) => d,
             Err(e) => {
@@ -427,6 +458,7 @@ pub fn run(args: Args) -> Result<()> {
             "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
             "reference": if args.frame_to_frame { "frame" } else { "model" },
             "prefilter": args.prefilter,
+            "undistorted": undistort.is_some(),
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
