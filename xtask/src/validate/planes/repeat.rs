@@ -100,6 +100,9 @@ struct Sequence {
     camera: Camera,
     frames: Vec<(PathBuf, CameraToWorld)>,
     units_per_m: f64,
+    /// The camera's lens model, when the preset has one (TUM fr1): frames are resampled into
+    /// the pinhole image first, as `sldepth track` does.
+    lens: Option<sl_core::LensDistortion>,
 }
 
 /// The 200-frame TUM fr1/rpy: `depth.txt` associated with `groundtruth.txt` (20 ms).
@@ -125,6 +128,7 @@ fn tum200(data: &Path) -> Result<Option<Sequence>> {
             .map(|f| (f.depth_path, f.pose))
             .collect(),
         units_per_m: 5000.0,
+        lens: sl_core::preset::find("tum-fr1")?.lens,
     }))
 }
 
@@ -140,6 +144,7 @@ fn seven_scenes(data: &Path) -> Result<Option<Sequence>> {
         camera: Camera::preset("7-scenes")?,
         frames: frames.into_iter().map(|f| (f.depth_path, f.pose)).collect(),
         units_per_m: 1000.0,
+        lens: sl_core::preset::find("7-scenes")?.lens,
     }))
 }
 
@@ -157,11 +162,17 @@ struct SeqResult {
 fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
     let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
     let opts = sl_io::ReadConfig::default().with_scale(seq.units_per_m);
+    let undistort = seq
+        .lens
+        .map(|l| sl_core::Undistorter::new(&seq.camera.intrinsics, &l));
     let mut world = Vec::with_capacity(seq.frames.len());
     let (mut planes, mut large) = (0usize, 0usize);
     let (mut worst_ms, mut worst_frame) = (0f64, String::new());
     for (path, pose) in &seq.frames {
-        let depth: DepthImage = sl_io::read_depth(path, &opts)?.depth;
+        let mut depth: DepthImage = sl_io::read_depth(path, &opts)?.depth;
+        if let Some(u) = &undistort {
+            depth = u.apply(&depth)?;
+        }
         let mut best = f64::INFINITY;
         let mut seg = None;
         for _ in 0..reps.max(1) {
@@ -232,7 +243,7 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
     let mut md = format!(
         "Planes of at least {REPEAT_MIN_PIXELS} pixels in frame i, found again in frame i + k \
          (both moved to world coordinates with the ground-truth poses; normal within \
-         {REPEAT_MAX_DEG}°, the centroid of frame i's plane within {:.0} cm of frame i + k's plane). Default parameters. *planes* = share of the \
+         {REPEAT_MAX_DEG}°, the centroid of frame i's plane within {:.0} cm of frame i + k's plane). Default parameters; TUM frames resampled into the pinhole image with the `tum-fr1` lens model, as `sldepth track` does. *planes* = share of the \
          tested planes found again, *pixels* = share of their pixels. Time: worst frame of the \
          sequence, best of {reps} runs on one thread, in validate's build on a shared machine (the \
          reference timing is `cargo run --release -p sl-planes --example planes_timing -- sweep`).\n\n\
