@@ -53,6 +53,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(noise::analyze, m)?)?;
     m.add_function(wrap_pyfunction!(noise::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(filter::filter, m)?)?;
+    m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;
     m.add_function(wrap_pyfunction!(planes::motion, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;

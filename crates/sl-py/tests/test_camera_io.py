@@ -82,3 +82,23 @@ def test_max_memory_refuses_an_image_from_its_header(tmp_path):
     assert sldepth.read_depth(path, max_memory_bytes=1 << 30).shape == (480, 640)
     with pytest.raises(OSError, match="too large"):
         sldepth.read_depth(path, max_memory_bytes=16 << 20)
+
+
+def test_undistort_resamples_through_the_preset_lens():
+    tum = sldepth.Camera.preset("tum-fr1")
+    assert tum.lens == pytest.approx((0.2624, -0.9531, -0.0054, 0.0026, 1.1633))
+    assert sldepth.Camera.preset("kinect-v1").lens is None
+    # A depth ramp along x: the centre stays, a corner pixel comes from where the lens images
+    # it (farther out for this lens at the corner), and values are never blended.
+    z = np.tile(np.linspace(1.0, 2.0, 640, dtype=np.float32), (480, 1))
+    out = sldepth.undistort(z, tum)
+    assert out.shape == (480, 640) and out.dtype == np.float32
+    assert out[255, 319] == pytest.approx(z[255, 319], abs=2e-3)
+    assert set(np.unique(out[out > 0])) <= set(np.unique(z))
+    assert not np.array_equal(out, z)
+    # No lens: an unchanged copy; a wrong size raises ValueError.
+    k = sldepth.Camera.preset("kinect-v1")
+    same = sldepth.undistort(z, k)
+    assert np.array_equal(same, z) and same is not z
+    with pytest.raises(ValueError):
+        sldepth.undistort(z[:100], tum)

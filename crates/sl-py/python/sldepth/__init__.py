@@ -37,6 +37,7 @@ from ._sldepth import (
     read_depth,
     set_num_threads,
     simulate,
+    undistort,
     write_depth,
 )
 
@@ -61,6 +62,7 @@ __all__ = [
     "set_num_threads",
     "simulate",
     "track_sequence",
+    "undistort",
     "write_depth",
 ]
 

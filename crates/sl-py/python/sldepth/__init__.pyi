@@ -37,6 +37,9 @@ class Camera:
     @staticmethod
     def presets() -> List[str]: ...
     @property
+    def lens(self) -> Optional[Tuple[float, float, float, float, float]]:
+        """Lens distortion (k1, k2, p1, p2, k3) of the preset's images, or None (pinhole)."""
+    @property
     def width(self) -> int: ...
     @property
     def height(self) -> int: ...
@@ -95,6 +98,13 @@ def simulate(
     scene: str, seed: int = 0, camera: Optional[Camera] = None
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.uint16]]:
     """(depth, truth, labels) of a named scene through the paper's white-noise Kinect model."""
+
+def undistort(
+    depth: _Depth, camera: Camera, *, depth_scale: Optional[float] = None
+) -> npt.NDArray[np.float32]:
+    """(H, W) float32 metres resampled into the pinhole image through camera.lens (nearest
+    neighbour, values unchanged, 0 where the ray leaves the image); an unchanged copy when the
+    camera has no lens model. TUM fr1/fr2 depth is registered to the distorted colour image."""
 
 def filter(
     depth: _Depth,
