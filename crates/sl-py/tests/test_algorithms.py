@@ -225,6 +225,31 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_tracker_undistorts_with_the_cameras_lens_model():
+    # tum-fr1 has a lens model: "auto" resamples each frame, so the fused model differs from
+    # the one built from the frames as given; a still camera is tracked either way.
+    cam = sldepth.Camera.preset("tum-fr1")
+    assert cam.lens is not None
+    depth = sldepth.simulate("boxes", seed=3, camera=cam)[0]
+    meshes = {}
+    for lens in ("auto", "none"):
+        t = sldepth.Tracker(cam, lens=lens)
+        t.track(depth)
+        pose, status = t.track(depth)
+        assert status in ("tracked", "tracked-against-frame"), (lens, status)
+        assert np.abs(pose[:3, 3]).max() < 0.002
+        meshes[lens] = t.extract_mesh()
+    assert len(meshes["auto"]) != len(meshes["none"])
+    # With "auto" the fused frame is exactly what sldepth.undistort gives.
+    t = sldepth.Tracker(cam, lens="none", prefilter="none")
+    t.track(sldepth.undistort(depth, cam))
+    u = sldepth.Tracker(cam, prefilter="none")
+    u.track(depth)
+    assert len(t.extract_mesh()) == len(u.extract_mesh())
+    with pytest.raises(ValueError, match="lens"):
+        sldepth.Tracker(cam, lens="fisheye")
+
+
 def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
     # A tilted floor alone leaves the translation along it free. Smoothed (the default
     # prefilter) the normals are all the floor's and the tracker says "lost" instead of guessing;

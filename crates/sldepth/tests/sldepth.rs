@@ -157,6 +157,40 @@ fn cloud_writes_one_point_per_valid_pixel() {
     assert!(data.positions.iter().all(|p| p[2] > 0.4 && p[2] < 5.1));
 }
 
+/// `cloud --camera tum-fr1` undistorts the frame with the preset's lens model by default: the
+/// resampled image loses the pixels whose rays leave the distorted image, so fewer points come
+/// out than with `--lens none` (one per valid pixel), and the points lie in front of the camera.
+#[test]
+fn cloud_undistorts_with_the_lens_of_a_preset() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let p = testdata("three-planes-seed3-depth.png");
+    let info = json_of(&sldepth(&["info", path_str(&p), "--json"]));
+    let valid = info["valid_pixels"].as_u64().unwrap_or(0);
+    let mut counts = Vec::new();
+    for lens in ["auto", "none"] {
+        let ply = dir.path().join(format!("cloud-{lens}.ply"));
+        let o = sldepth(&[
+            "cloud",
+            path_str(&p),
+            "--camera",
+            "tum-fr1",
+            "--lens",
+            lens,
+            "--output",
+            path_str(&ply),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let data = sl_io::ply::read_ply(&ply).unwrap_or_else(|e| panic!("{e}"));
+        assert!(data.positions.iter().all(|p| p[2] > 0.4 && p[2] < 5.1));
+        counts.push(data.positions.len() as u64);
+    }
+    assert_eq!(counts[1], valid);
+    assert!(
+        counts[0] < valid && counts[0] > valid / 2,
+        "{counts:?} of {valid}"
+    );
+}
+
 #[test]
 fn errors_name_the_file_and_problem() {
     let o = sldepth(&["info", "/nonexistent/depth.png"]);

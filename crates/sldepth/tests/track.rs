@@ -234,3 +234,39 @@ fn track_undistorts_frames_of_a_camera_with_a_lens_model() {
         assert_eq!(v["frames"], 3);
     }
 }
+
+/// `fuse --tum` picks the `tum-fr1` preset for a folder that does not name another sensor and,
+/// with `--lens auto` (the default), undistorts every frame with its lens model before fusing;
+/// `--lens none` fuses the frames as they are. Both meshes are built, and they differ.
+#[test]
+fn fuse_undistorts_the_frames_of_a_tum_folder_by_default() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 2);
+    let mut pose_lines = String::new();
+    for t in [100.0, 100.0 + 1.0 / 30.0] {
+        pose_lines.push_str(&format!("{t:.6} 0 0 0 0 0 0 1\n"));
+    }
+    std::fs::write(seq.join("groundtruth.txt"), pose_lines).unwrap();
+    let mut vertices = Vec::new();
+    for (lens, want) in [("auto", true), ("none", false)] {
+        let out = sldepth(&[
+            "fuse",
+            "--tum",
+            seq.to_str().unwrap(),
+            "--lens",
+            lens,
+            "--voxel-m",
+            "0.02",
+            "--json",
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{lens}: {stderr}");
+        assert_eq!(stderr.contains("tum-fr1` lens model"), want, "{stderr}");
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["undistorted"], want, "{lens}");
+        vertices.push(v["vertices"].as_u64().unwrap());
+    }
+    assert!(vertices.iter().all(|&n| n > 1000), "{vertices:?}");
+    assert_ne!(vertices[0], vertices[1]);
+}

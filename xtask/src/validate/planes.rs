@@ -470,11 +470,23 @@ fn motion(ctx: &mut Context) -> Result<()> {
     let vcfg = VerifyConfig::default();
     let icp_cfg = IcpConfig::default();
     let opts = sl_io::ReadConfig::default().with_scale(5000.0);
+    // The frames are resampled into the pinhole image with the `tum-fr1` lens model, as
+    // `sldepth motion --camera tum-fr1` does by default.
+    let lens = sl_core::preset::find("tum-fr1")?
+        .lens
+        .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
+    let read = |path: &Path| -> Result<sl_core::DepthImage> {
+        let d = sl_io::read_depth(path, &opts)?.depth;
+        Ok(match &lens {
+            Some(u) => u.apply(&d)?,
+            None => d,
+        })
+    };
     let mut results = Vec::new();
     for (i, j) in motion_pairs(n, ctx.quick()) {
         let (fa, fb) = (&seq.frames[i], &seq.frames[j]);
-        let da = sl_io::read_depth(&fa.depth_path, &opts)?.depth;
-        let db = sl_io::read_depth(&fb.depth_path, &opts)?.depth;
+        let da = read(&fa.depth_path)?;
+        let db = read(&fb.depth_path)?;
         let gt = fa.pose.inverse() * fb.pose;
         let err =
             |q: &sl_core::nalgebra::UnitQuaternion<f64>| q.angle_to(&gt.rotation()).to_degrees();
@@ -546,7 +558,8 @@ fn motion(ctx: &mut Context) -> Result<()> {
 fn motion_report(ctx: &mut Context, results: &[PairResult]) {
     let mut md = String::from(
         "TUM fr1/rpy (camera rolling/pitching/yawing in place), frame pairs `i → j` several \
-         frames apart; rotation error = angle of `R_est⁻¹·R_gt` against motion capture (see the \
+         frames apart, resampled into the pinhole image with the `tum-fr1` lens model (as \
+         `sldepth motion --camera tum-fr1` does); rotation error = angle of `R_est⁻¹·R_gt` against motion capture (see the \
          module docs for the frame convention). *GT* is the true rotation angle, i.e. the error \
          of the identity. *planes (unverified)* is plane matching alone with the small-motion \
          prior (`estimate_motion`), with its confidence flag. *planes* is the verified plane \

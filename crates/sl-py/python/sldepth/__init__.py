@@ -73,7 +73,7 @@ def track_sequence(frames, camera, *, depth_scale=None, **tracker_options):
     ``frames``: depth arrays (float32 metres, or uint16 with ``depth_scale`` units per metre) or
     paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order.
     ``tracker_options`` are those of ``Tracker`` (``weighting``, ``frame_to_model``,
-    ``voxel_m``, ``model_scale``, ``prefilter``).
+    ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
     camera-to-world matrices (the first frame is the identity; a lost frame gets the last good

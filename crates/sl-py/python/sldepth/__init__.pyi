@@ -245,10 +245,13 @@ class Tracker:
         voxel_m: float = 0.004,
         model_scale: float = 0.5,
         prefilter: str = "multiscale",
+        lens: str = "auto",
     ) -> None:
         """model_scale: fraction of the camera's resolution the model is rendered at for
         tracking, in (0, 1] (as sldepth track --model-scale); prefilter: "multiscale"
-        (default, as sldepth track), "single" or "none"."""
+        (default, as sldepth track), "single" or "none"; lens: "auto" (default) undistorts
+        every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
+        the frames as given."""
     def track(
         self, depth: _Depth, depth_scale: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], str]:
@@ -265,6 +268,7 @@ def track_sequence(
     voxel_m: float = 0.004,
     model_scale: float = 0.5,
     prefilter: str = "multiscale",
+    lens: str = "auto",
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order:
     (poses (N, 4, 4) camera-to-world, statuses, the Tracker with the fused model)."""

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use crate::common::{InputArgs, check_output, load_depth};
+use crate::common::{InputArgs, LensArgs, check_output, load_depth};
 
 /// Options of `sldepth cloud`.
 #[derive(Debug, clap::Args)]
@@ -19,13 +19,18 @@ pub struct Args {
     #[arg(long)]
     pub ascii: bool,
     #[command(flatten)]
+    pub lens: LensArgs,
+    #[command(flatten)]
     pub input: InputArgs,
 }
 
 /// Runs `sldepth cloud`.
 pub fn run(args: Args) -> Result<()> {
     check_output("--output", &args.output, &["ply"])?;
-    let loaded = load_depth(&args.depth, &args.input)?;
+    let mut loaded = load_depth(&args.depth, &args.input)?;
+    if let Some(u) = crate::common::undistorter(&args.lens, &args.input, None, &loaded.camera) {
+        loaded.depth = u.apply(&loaded.depth)?;
+    }
     let points = loaded.depth.to_points(&loaded.camera.intrinsics)?;
     let ply = sl_io::ply::PlyData {
         positions: points.iter().map(|p| [p.x, p.y, p.z]).collect(),

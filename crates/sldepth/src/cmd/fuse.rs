@@ -12,8 +12,8 @@ use sl_io::trajectory::Frame;
 use sl_tsdf::{Axis, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume, WeightMode};
 
 use crate::common::{
-    InputArgs, check_depth_scale, check_distinct_outputs, check_output, check_range, limits,
-    load_camera, parse_format, print_json, round_to,
+    InputArgs, LensArgs, check_depth_scale, check_distinct_outputs, check_output, check_range,
+    limits, load_camera, parse_format, print_json, round_to,
 };
 
 /// Options of `sldepth fuse`.
@@ -97,6 +97,8 @@ pub struct Args {
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub lens: LensArgs,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -214,6 +216,8 @@ pub fn run(args: Args) -> Result<()> {
     if frames.is_empty() {
         bail!("no frames to fuse");
     }
+    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
@@ -268,6 +272,11 @@ pub fn run(args: Args) -> Result<()> {
                 k.width,
                 k.height
             );
+        }
+        if let Some(u) = &undistort {
+            depth = u
+                .apply(&depth)
+                .with_context(|| format!("undistorting {}", f.depth_path.display()))?;
         }
         if let Some(filt) = &filter {
             depth = filt
@@ -329,6 +338,7 @@ pub fn run(args: Args) -> Result<()> {
             "weight": params.weight.name(),
             "max_depth_m": params.max_depth_m,
             "prefilter": args.prefilter,
+            "undistorted": undistort.is_some(),
             "output": args.output.as_ref().map(|p| p.display().to_string()),
         }))?;
     } else {

@@ -21,7 +21,7 @@ use sl_core::CameraToCamera;
 use sl_core::nalgebra::Vector3;
 use sl_track::{DepthMotionConfig, IcpOutcome, PlaneConfig, TrackError, motion_between_depths};
 
-use crate::common::{InputArgs, check_range, load_depth, print_json, round_to};
+use crate::common::{InputArgs, LensArgs, check_range, load_depth, print_json, round_to};
 
 /// Arguments of `sldepth motion`.
 #[derive(clap::Args, Debug)]
@@ -47,6 +47,8 @@ pub struct Args {
     /// Minimum pixels of a plane.
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
     pub min_pixels: usize,
+    #[command(flatten)]
+    pub lens: LensArgs,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -111,13 +113,18 @@ fn icp_outcome_json(o: &IcpOutcome) -> Value {
 /// Runs `sldepth motion`.
 pub fn run(args: Args) -> Result<()> {
     check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
-    let a = load_depth(&args.depth_a, &args.input)?;
-    let b = load_depth(&args.depth_b, &args.input)?;
+    let mut a = load_depth(&args.depth_a, &args.input)?;
+    let mut b = load_depth(&args.depth_b, &args.input)?;
     if a.camera != b.camera
         || a.depth.width() != b.depth.width()
         || a.depth.height() != b.depth.height()
     {
         bail!("the two frames must come from the same camera and have the same size");
+    }
+    let undistorter = crate::common::undistorter(&args.lens, &args.input, None, &a.camera);
+    if let Some(u) = &undistorter {
+        a.depth = u.apply(&a.depth)?;
+        b.depth = u.apply(&b.depth)?;
     }
     let mut cfg = DepthMotionConfig::default();
     cfg.planes.threshold_px = args.threshold_px;
@@ -131,7 +138,9 @@ pub fn run(args: Args) -> Result<()> {
         Ok(m) => m,
         Err(e) => {
             if args.json {
-                print_json(&undetermined_json(e, pa.len(), pb.len()))?;
+                let mut v = undetermined_json(e, pa.len(), pb.len());
+                v["undistorted"] = json!(undistorter.is_some());
+                print_json(&v)?;
             } else {
                 outln!(
                     "planes: {} in A, {} in B; motion undetermined",
@@ -165,6 +174,7 @@ pub fn run(args: Args) -> Result<()> {
     if args.json {
         print_json(&json!({
             "determined": true,
+            "undistorted": undistorter.is_some(),
             "confidence": m.confidence.as_str(),
             "rotation": rotation_rows(&pose),
             "rotation_deg": round_to(rotation_deg, 4),

@@ -25,8 +25,8 @@ use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::common::{
-    InputArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits, parse_format,
-    print_json, round_to,
+    InputArgs, LensArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits,
+    parse_format, print_json, round_to,
 };
 
 /// Options of `sldepth track`.
@@ -96,12 +96,8 @@ pub struct Args {
     /// pass) or `none`.
     #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
     pub prefilter: String,
-    /// Lens distortion: `auto` resamples every frame into the ideal pinhole image when the
-    /// camera is a preset with published distortion (`tum-fr1`, `tum-fr2`: their depth is
-    /// registered to the distorted colour image; nearest neighbour, depth values unchanged),
-    /// `none` uses the frames as they are. Trajectories are unaffected in form (same camera).
-    #[arg(long, value_name = "MODE", default_value = "auto", value_parser = ["auto", "none"])]
-    pub lens: String,
+    #[command(flatten)]
+    pub lens: LensArgs,
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
@@ -114,23 +110,6 @@ pub struct Args {
     pub verbose: bool,
     #[command(flatten)]
     pub input: InputArgs,
-}
-
-/// The lens distortion of the chosen camera, when it is a preset that has one (`--lens auto`).
-fn lens_of(args: &Args) -> Option<sl_core::LensDistortion> {
-    if args.lens == "none" {
-        return None;
-    }
-    let name = match (&args.input.camera, &args.tum) {
-        (Some(c), _) if c.is_file() => return None,
-        (Some(c), _) => c.to_string_lossy().into_owned(),
-        (None, Some(dir)) => crate::common::tum_preset(dir).to_string(),
-        (None, None) => return None,
-    };
-    sl_core::preset::find(&name)
-        .ok()
-        .and_then(|p| p.lens)
-        .filter(|l| !l.is_zero())
 }
 
 /// The frames, the camera and the default depth scale of the chosen source.
@@ -291,10 +270,8 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no depth frames in the sequence");
     }
     let k = camera.intrinsics;
-    let undistort = lens_of(&args).map(|lens| {
-        errln!("note: undistorting every frame with the camera's lens model (--lens none keeps them as they are)");
-        sl_core::Undistorter::new(&k, &lens)
-    });
+    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     limits()
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
