@@ -7,7 +7,10 @@ normal within 3 degrees and passes within 3 cm of the centroid of frame i's plan
 
 Peer: OpenCV 5 ``cv2.findPlanes`` (RgbdPlane) on ``cv2.depthTo3d`` clouds, with its Kinect
 ``sensor_error_a = 0.0075``. On the rooms also Open3D ``detect_planar_patches`` (oriented boxes,
-turned into labels by box containment; not on the repeatability benchmark). Not run: CAPE.
+turned into labels by box containment; not on the repeatability benchmark). Any other
+program's label images (CAPE, run by a driver described in docs/bench/README.md) are scored by
+``--rooms-labels`` and ``--labels-root``. TUM frames are resampled with the ``tum-fr1`` lens model
+(nearest neighbour, as ``sl_core::Undistorter``) unless ``--raw-tum`` is given, as validate does.
 
 Rooms: ``--rooms DIR`` scores the peer on the randomised room benchmark instead, the frames
 written by ``cargo run --release -p sl-planes --example export_rooms -- DIR``, with the rules of
@@ -20,6 +23,9 @@ Usage (a venv with opencv-python-headless 5 and numpy)::
     python docs/bench/planes_peers.py [DATA_DIR]    # default ../shared/data
     python docs/bench/planes_peers.py --rooms DIR
     python docs/bench/planes_peers.py --rooms-open3d DIR   # needs open3d (slow: seconds a frame)
+    python docs/bench/planes_peers.py --rooms-labels DIR LABEL_DIR NAME   # score NN-labels.png files
+    python docs/bench/planes_peers.py DATA_DIR --export-frames OUT        # frames + list for a driver
+    python docs/bench/planes_peers.py DATA_DIR --labels-root OUT --method NAME   # score its output
 
 Tests never need this script.
 """
@@ -50,6 +56,17 @@ def quat_pose(tx, ty, tz, qx, qy, qz, qw):
     return t
 
 
+# TUM fr1's published lens (OpenCV order k1, k2, p1, p2, k3), as the `tum-fr1` preset carries it.
+TUM_FR1_LENS = np.array([0.2624, -0.9531, -0.0054, 0.0026, 1.1633])
+
+
+def nearest_undistorter(k, dist, size):
+    """The nearest-neighbour resampling into the pinhole image of the same intrinsics
+    (``sl_core::Undistorter``): depth values unchanged, 0 where the ray leaves the image."""
+    mx, my = cv2.initUndistortRectifyMap(k, dist, None, k, size, cv2.CV_32FC1)
+    return lambda z: cv2.remap(z, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+
 def tum200(data):
     d = data / "tum-fr1-rpy-200"
     if not (d / "depth.txt").exists():
@@ -65,7 +82,7 @@ def tum200(data):
         if abs(gt[i, 0] - float(ts)) <= 0.02:
             frames.append((d / name, quat_pose(*gt[i, 1:8])))
     k = np.array([[517.3, 0, 318.6], [0, 516.5, 255.3], [0, 0, 1]], dtype=np.float32)
-    return "tum-fr1-rpy-200", frames, k, 5000.0
+    return "tum-fr1-rpy-200", frames, k, 5000.0, TUM_FR1_LENS
 
 
 def seven_scenes(data):
@@ -77,7 +94,7 @@ def seven_scenes(data):
         pose = np.loadtxt(str(p).replace(".depth.png", ".pose.txt"))
         frames.append((p, pose))
     k = np.array([[585, 0, 320], [0, 585, 240], [0, 0, 1]], dtype=np.float32)
-    return "7scenes-redkitchen", frames, k, 1000.0
+    return "7scenes-redkitchen", frames, k, 1000.0, None
 
 
 def planes_cv(z, k):
@@ -100,6 +117,31 @@ def planes_cv(z, k):
         nrm = np.linalg.norm(c[:3])
         out.append((c[:3] / nrm, c[3] / nrm, p.mean(axis=0), n))
     return out
+
+
+def planes_from_labels(z, k, labels, params):
+    """Planes of an external segmentation: ``params`` maps a label to (unit normal, offset m)
+    of ``n·p + d = 0``; centroid and pixel count come from the label image."""
+    pts = cv2.depthTo3d(z, k)
+    out = []
+    for lab, (n, d) in params.items():
+        sel = (labels == lab) & (z > 0)
+        px = int(sel.sum())
+        if px == 0:
+            continue
+        out.append((n, d, pts[sel][:, :3].mean(axis=0), px))
+    return out
+
+
+def read_plane_params(path):
+    params = {}
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("#") or not line.strip():
+            continue
+        v = line.split()
+        n = np.array([float(x) for x in v[1:4]])
+        params[int(v[0])] = (n / np.linalg.norm(n), float(v[4]) / np.linalg.norm(n))
+    return params
 
 
 def to_world(planes, pose):
@@ -191,6 +233,22 @@ def rooms(d):
           f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | {worst:.0f} |")
 
 
+def rooms_labels(d, labels_dir, method):
+    """Scores label images made by another program (e.g. CAPE, see docs/bench/README.md): for
+    every room ``NN``, ``labels_dir/NN-labels.png`` (16-bit, 0 = no plane)."""
+    cams = {l.split()[0]: [float(v) for v in l.split()[1:]] for l in (d / "cameras.txt").read_text().splitlines()}
+    total = dict(gt=0, correct=0, over=0, under=0, missed=0, noise=0, spurious=0)
+    for name in sorted(cams):
+        z = cv2.imread(str(d / f"{name}-depth.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 1000.0
+        gt = cv2.imread(str(d / f"{name}-labels.png"), cv2.IMREAD_UNCHANGED)
+        seg = cv2.imread(str(labels_dir / f"{name}-labels.png"), cv2.IMREAD_UNCHANGED).astype(np.int64)
+        r = segcomp(gt, seg, z > 0)
+        for key in total:
+            total[key] += r[key]
+    print(f"| {method} | {total['gt']} | {total['correct']} ({100 * total['correct'] / max(total['gt'], 1):.1f} %) | "
+          f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | – |")
+
+
 def planes_open3d(z, fx, fy, cx, cy):
     """Open3D ``detect_planar_patches`` (default parameters, normals from 30 neighbours) as a
     label image: a pixel takes the smallest oriented box that contains its point."""
@@ -233,7 +291,27 @@ def rooms_open3d(d):
           f"{total['over']} | {total['under']} | {total['missed']} | {total['noise']} | {total['spurious']} | {worst:.0f} |")
 
 
+def option(name):
+    """The value after ``name`` on the command line (removed from it), or None."""
+    if name not in sys.argv:
+        return None
+    i = sys.argv.index(name)
+    value = sys.argv[i + 1]
+    del sys.argv[i:i + 2]
+    return value
+
+
+def flag(name):
+    if name in sys.argv:
+        sys.argv.remove(name)
+        return True
+    return False
+
+
 def main():
+    if len(sys.argv) > 4 and sys.argv[1] == "--rooms-labels":
+        rooms_labels(Path(sys.argv[2]), Path(sys.argv[3]), sys.argv[4])
+        return
     if len(sys.argv) > 2 and sys.argv[1] == "--rooms-open3d":
         rooms_open3d(Path(sys.argv[2]))
         return
@@ -241,21 +319,52 @@ def main():
         cv2.setNumThreads(1)
         rooms(Path(sys.argv[2]))
         return
+    raw_tum = flag("--raw-tum")
+    export = option("--export-frames")
+    labels_root = option("--labels-root")
+    method = option("--method") or ("external" if labels_root else "cv2.findPlanes")
     data = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[3] / "shared/data"
     cv2.setNumThreads(1)
-    print("| sequence | method | k | planes tested | found again | planes | pixels |")
-    print("|---|---|---|---|---|---|---|")
+    if not export:
+        print("| sequence | method | k | planes tested | found again | planes | pixels |")
+        print("|---|---|---|---|---|---|---|")
     summary = []
     for seq in (tum200(data), seven_scenes(data)):
         if seq is None:
             continue
-        name, frames, k, scale = seq
+        name, frames, k, scale, lens = seq
+        undistort = None
+        if lens is not None and not raw_tum:
+            undistort = nearest_undistorter(k, lens, (640, 480))
+        if export:
+            out = Path(export) / name
+            (out / "ext").mkdir(parents=True, exist_ok=True)
+            lines = []
+            for i, (path, _) in enumerate(frames):
+                raw = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+                if undistort is not None:
+                    raw = undistort(raw)
+                cv2.imwrite(str(out / f"{i:04}-depth.png"), raw)
+                lines.append(f"{out / f'{i:04}-depth.png'} {k[0, 0]} {k[1, 1]} {k[0, 2]} {k[1, 2]} {scale} {out / 'ext' / f'{i:04}'}")
+            (out / "list.txt").write_text("\n".join(lines) + "\n")
+            print(f"wrote {len(lines)} frames and {out / 'list.txt'}")
+            continue
         world, times, counts = [], [], []
-        for path, pose in frames:
-            z = cv2.imread(str(path), cv2.IMREAD_UNCHANGED).astype(np.float32) / scale
-            t0 = time.perf_counter()
-            planes = planes_cv(z, k)
-            times.append((time.perf_counter() - t0) * 1e3)
+        for i, (path, pose) in enumerate(frames):
+            z = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+            if undistort is not None:
+                z = undistort(z)
+            z = z.astype(np.float32) / scale
+            if labels_root:
+                base = Path(labels_root) / name / "ext" / f"{i:04}"
+                labels = cv2.imread(f"{base}-labels.png", cv2.IMREAD_UNCHANGED)
+                text = Path(f"{base}-planes.txt").read_text()
+                times.append(float(text.split()[2]))
+                planes = planes_from_labels(z, k, labels, read_plane_params(f"{base}-planes.txt"))
+            else:
+                t0 = time.perf_counter()
+                planes = planes_cv(z, k)
+                times.append((time.perf_counter() - t0) * 1e3)
             counts.append(len(planes))
             world.append(to_world(planes, pose))
         for gap in GAPS:
@@ -269,14 +378,16 @@ def main():
                     if any(same(p, q) for q in world[i + gap]):
                         found += 1
                         fpx += p[3]
-            print(f"| {name} | cv2.findPlanes | {gap} | {tested} | {found} | "
+            print(f"| {name} | {method} | {gap} | {tested} | {found} | "
                   f"{100 * found / max(tested, 1):.1f} % | {100 * fpx / max(px, 1):.1f} % |")
         summary.append((name, np.mean(counts), max(times), np.median(times)))
+    if export:
+        return
     print()
-    print("| sequence | method | planes per frame | worst ms (incl. normals) | median ms |")
+    print("| sequence | method | planes per frame | worst ms | median ms |")
     print("|---|---|---|---|---|")
     for name, c, worst, med in summary:
-        print(f"| {name} | cv2.findPlanes | {c:.2f} | {worst:.1f} | {med:.1f} |")
+        print(f"| {name} | {method} | {c:.2f} | {worst:.1f} | {med:.1f} |")
 
 
 if __name__ == "__main__":
