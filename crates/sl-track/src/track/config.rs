@@ -101,6 +101,14 @@ pub struct TrackerConfig {
     /// Try the verified plane-based estimate between the last good frame and this one when
     /// ICP fails, then ICP again from it.
     pub plane_fallback: bool,
+    /// Report a frame lost, before any alignment, when its geometry leaves some direction of
+    /// the pose less well determined than the motion prior does: the pose's standard
+    /// deviation along its least-constrained direction, from the sensor model with the normals
+    /// of the frame's planes (`sl-planes`; `FrameResult::weakest_sigma_m`), above
+    /// `max_acceleration_m_s2 · frame_interval_s²` (10.9 mm at 1 g and 30 Hz). A single wall
+    /// or floor, or a corridor with nothing but its four planes, is such a view. Costs one
+    /// plane extraction per frame (about 2 ms at 640×480 on one core).
+    pub degenerate_check: bool,
     /// Width of the window over which a structured-light camera's depth error is correlated,
     /// pixels of the full-resolution frame (the block-matching window: 9 × 11 px fitted on
     /// real Kinect frames, `docs/NOISE_MODEL.md`; the same window as
@@ -141,6 +149,7 @@ impl Default for TrackerConfig {
             max_correction_m: 0.05,
             max_correction_deg: 20.0,
             plane_fallback: true,
+            degenerate_check: true,
             noise_window_x_px: 9.0,
             noise_window_y_px: 11.0,
             max_acceleration_m_s2: 9.81,

@@ -27,6 +27,7 @@ mod model;
 mod pyramid;
 mod reference;
 mod solve;
+mod structure;
 
 pub use config::{TrackerConfig, WeightMode};
 pub use model::ModelReference;
@@ -39,6 +40,7 @@ use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
 use pyramid::Pyramid;
 use solve::{PassParams, Sums};
+use structure::StructureCheck;
 
 /// What happened to a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -98,6 +100,12 @@ pub struct FrameResult {
     pub condition: f64,
     /// Gauss–Newton iterations, all levels and attempts together.
     pub iterations: usize,
+    /// Standard deviation of the pose along its least-constrained direction that the frame's
+    /// geometry allows (the sensor model, the normals of the frame's planes; rotations as
+    /// displacements at the scene's depth), metres: infinite for a single plane. Above the
+    /// motion prior's σ the frame is lost ([`TrackerConfig::degenerate_check`]); NaN when not
+    /// checked (the first frame, or the check disabled).
+    pub weakest_sigma_m: f64,
     /// Why the last attempt failed (lost frames, or the attempts before a recovery).
     pub failure: Option<String>,
 }
@@ -130,6 +138,8 @@ pub struct Tracker {
     velocity_known: bool,
     lost_run: usize,
     initial_pose: CameraToWorld,
+    /// The degenerate-view check's plane extractor.
+    structure: StructureCheck,
 }
 
 impl Tracker {
@@ -150,6 +160,7 @@ impl Tracker {
             velocity_known: false,
             lost_run: 0,
             initial_pose: CameraToWorld::identity(),
+            structure: StructureCheck::default(),
         })
     }
 
@@ -212,6 +223,42 @@ impl Tracker {
         let Some(last) = self.last_good else {
             return Ok(self.initialise(depth));
         };
+        // A view whose geometry leaves some direction of the pose to the motion prior (a
+        // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
+        // an alignment returned would be the prior's guess along that direction.
+        let check_level = 1.min(self.pyramid.levels.len().saturating_sub(1));
+        let weakest_sigma_m = match (
+            self.cfg.degenerate_check,
+            self.pyramid.levels.get(check_level),
+        ) {
+            (true, Some(level)) => self.structure.weakest_sigma_m(
+                level,
+                check_level,
+                &self.camera.sensor,
+                &self.cfg,
+            )?,
+            _ => f64::NAN,
+        };
+        let prior_sigma_m = self.cfg.acceleration_variance_m2().sqrt();
+        if weakest_sigma_m > prior_sigma_m {
+            self.mark_lost();
+            return Ok(FrameResult {
+                status: TrackStatus::Lost,
+                pose: CameraToWorld::from_isometry(last),
+                overlap_fraction: 0.0,
+                inlier_fraction: 0.0,
+                rms_m: 0.0,
+                rms_normalised: 0.0,
+                condition: 0.0,
+                iterations: 0,
+                weakest_sigma_m,
+                failure: Some(format!(
+                    "degenerate view: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
+                    weakest_sigma_m * 1e3,
+                    prior_sigma_m * 1e3
+                )),
+            });
+        }
         let reference = model.unwrap_or(&self.last_ref);
         // Constant velocity, also across lost frames (the camera kept moving while they were
         // lost): the last good pose moved by one step per frame since.
@@ -292,12 +339,7 @@ impl Tracker {
                 status
             }
             Some(_) => {
-                self.lost_run += 1;
-                // After a few lost frames the old velocity says little; relocalise from the
-                // last good pose.
-                if self.lost_run > 3 {
-                    self.velocity = Isometry3::identity();
-                }
+                self.mark_lost();
                 TrackStatus::Lost
             }
         };
@@ -315,8 +357,18 @@ impl Tracker {
             rms_normalised: (ratio(first.stats.chi2, first.stats.inliers)).sqrt(),
             condition: first.condition,
             iterations,
+            weakest_sigma_m,
             failure: first.failure,
         })
+    }
+
+    /// The bookkeeping of a lost frame: after a few the old velocity says little, and the
+    /// next frames relocalise from the last good pose.
+    fn mark_lost(&mut self) {
+        self.lost_run += 1;
+        if self.lost_run > 3 {
+            self.velocity = Isometry3::identity();
+        }
     }
 
     /// The first frame with enough valid depth defines the world frame.
@@ -338,6 +390,7 @@ impl Tracker {
                 rms_normalised: 0.0,
                 condition: 0.0,
                 iterations: 0,
+                weakest_sigma_m: f64::NAN,
                 failure: Some(format!(
                     "first frame: {valid} points with a normal, fewer than {min_points}"
                 )),
@@ -353,6 +406,7 @@ impl Tracker {
             rms_normalised: 0.0,
             condition: 1.0,
             iterations: 0,
+            weakest_sigma_m: f64::NAN,
             failure: None,
         }
     }

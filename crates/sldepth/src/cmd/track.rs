@@ -367,13 +367,14 @@ pub fn run(args: Args) -> Result<()> {
         counts[r.status as usize] += 1;
         if debug {
             errln!(
-                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} it {} {:.1} ms {}",
+                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} weakest σ {:.2} mm it {} {:.1} ms {}",
                 r.status.as_str(),
                 r.overlap_fraction,
                 r.inlier_fraction,
                 r.rms_m,
                 r.rms_normalised,
                 r.condition,
+                r.weakest_sigma_m * 1e3,
                 r.iterations,
                 track_ms.last().copied().unwrap_or(0.0),
                 r.failure.as_deref().unwrap_or("")
