@@ -42,6 +42,10 @@ pub struct PyTracker {
     frame_to_model: bool,
     prefilter: Option<MultiScale>,
     undistorter: Option<Undistorter>,
+    /// Why the last frame was lost (or its attempts failed before a recovery).
+    last_failure: Option<String>,
+    /// The last frame's weakest-direction σ, metres (NaN when not checked).
+    last_weakest_sigma_m: f64,
 }
 
 #[pymethods]
@@ -108,6 +112,8 @@ impl PyTracker {
             frame_to_model,
             prefilter,
             undistorter,
+            last_failure: None,
+            last_weakest_sigma_m: f64::NAN,
         })
     }
 
@@ -160,10 +166,28 @@ impl PyTracker {
             Ok(r)
         })
         .map_err(value_error)?;
+        self.last_failure = result.failure.clone();
+        self.last_weakest_sigma_m = result.weakest_sigma_m;
         Ok((
             pose_array(py, &result.pose.to_matrix())?,
             result.status.as_str(),
         ))
+    }
+
+    /// Why the last frame was lost, or why the attempts before its recovery failed (for
+    /// instance ``"degenerate view: …"`` for a single wall); ``None`` when the first attempt
+    /// succeeded.
+    #[getter]
+    fn last_failure(&self) -> Option<String> {
+        self.last_failure.clone()
+    }
+
+    /// The last frame's standard deviation of the pose along its least-constrained direction,
+    /// metres, from the sensor model and the frame's planes (``inf`` for a single plane; a
+    /// frame is lost above the motion prior's 10.9 mm); ``nan`` for the first frame.
+    #[getter]
+    fn last_weakest_sigma_m(&self) -> f64 {
+        self.last_weakest_sigma_m
     }
 
     /// The mesh of everything fused so far (marching cubes).

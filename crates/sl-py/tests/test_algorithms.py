@@ -260,6 +260,15 @@ def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
         t = sldepth.Tracker(kinect, prefilter=prefilter)
         t.track(floor)
         assert t.track(floor)[1] == "lost", prefilter
+        assert "degenerate view" in t.last_failure
+        assert t.last_weakest_sigma_m == float("inf")
+    # The boxes: constrained every way, the weakest direction known to a few millimetres.
+    boxes = sldepth.simulate("boxes", seed=3)[0]
+    t = sldepth.Tracker(kinect)
+    t.track(boxes)
+    assert np.isnan(t.last_weakest_sigma_m) and t.last_failure is None
+    assert t.track(boxes)[1] == "tracked"
+    assert 0 < t.last_weakest_sigma_m < 0.005
 
 
 def test_track_sequence_from_arrays_and_files(kinect, tmp_path):

@@ -256,6 +256,12 @@ class Tracker:
         self, depth: _Depth, depth_scale: Optional[float] = None
     ) -> Tuple[npt.NDArray[np.float64], str]:
         """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost)."""
+    @property
+    def last_failure(self) -> Optional[str]:
+        """Why the last frame was lost (e.g. "degenerate view: ..."), or None."""
+    @property
+    def last_weakest_sigma_m(self) -> float:
+        """The last frame's pose sigma along its least-constrained direction, metres (inf: a single plane)."""
     def extract_mesh(self) -> Mesh: ...
 
 def track_sequence(
