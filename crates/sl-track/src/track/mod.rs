@@ -110,6 +110,24 @@ pub struct FrameResult {
     pub failure: Option<String>,
 }
 
+impl FrameResult {
+    /// A frame lost before any alignment ran, with `pose` (the last good or initial one).
+    fn lost_unaligned(pose: CameraToWorld, failure: String) -> Self {
+        Self {
+            status: TrackStatus::Lost,
+            pose,
+            overlap_fraction: 0.0,
+            inlier_fraction: 0.0,
+            rms_m: 0.0,
+            rms_normalised: 0.0,
+            condition: 0.0,
+            iterations: 0,
+            weakest_sigma_m: f64::NAN,
+            failure: Some(failure),
+        }
+    }
+}
+
 /// One alignment attempt's outcome.
 struct Attempt {
     pose: Isometry3<f64>,
@@ -242,22 +260,16 @@ impl Tracker {
         let prior_sigma_m = self.cfg.acceleration_variance_m2().sqrt();
         if weakest_sigma_m > prior_sigma_m {
             self.mark_lost();
-            return Ok(FrameResult {
-                status: TrackStatus::Lost,
-                pose: CameraToWorld::from_isometry(last),
-                overlap_fraction: 0.0,
-                inlier_fraction: 0.0,
-                rms_m: 0.0,
-                rms_normalised: 0.0,
-                condition: 0.0,
-                iterations: 0,
-                weakest_sigma_m,
-                failure: Some(format!(
+            let mut r = FrameResult::lost_unaligned(
+                CameraToWorld::from_isometry(last),
+                format!(
                     "degenerate view: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
                     weakest_sigma_m * 1e3,
                     prior_sigma_m * 1e3
-                )),
-            });
+                ),
+            );
+            r.weakest_sigma_m = weakest_sigma_m;
+            return Ok(r);
         }
         let reference = model.unwrap_or(&self.last_ref);
         // Constant velocity, also across lost frames (the camera kept moving while they were
@@ -381,20 +393,10 @@ impl Tracker {
         let min_points = self.min_points(0);
         let pose = *self.initial_pose.isometry();
         if valid < min_points {
-            return FrameResult {
-                status: TrackStatus::Lost,
-                pose: self.initial_pose,
-                overlap_fraction: 0.0,
-                inlier_fraction: 0.0,
-                rms_m: 0.0,
-                rms_normalised: 0.0,
-                condition: 0.0,
-                iterations: 0,
-                weakest_sigma_m: f64::NAN,
-                failure: Some(format!(
-                    "first frame: {valid} points with a normal, fewer than {min_points}"
-                )),
-            };
+            return FrameResult::lost_unaligned(
+                self.initial_pose,
+                format!("first frame: {valid} points with a normal, fewer than {min_points}"),
+            );
         }
         self.accept(depth, pose);
         FrameResult {
