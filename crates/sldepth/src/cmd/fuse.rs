@@ -216,12 +216,13 @@ pub fn run(args: Args) -> Result<()> {
     if frames.is_empty() {
         bail!("no frames to fuse");
     }
-    let implied = args.tum.as_deref().map(crate::common::tum_preset);
-    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
+    // After the size check: the map holds one index per pixel.
+    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);

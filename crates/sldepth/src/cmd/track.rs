@@ -270,11 +270,12 @@ pub fn run(args: Args) -> Result<()> {
         bail!("no depth frames in the sequence");
     }
     let k = camera.intrinsics;
-    let implied = args.tum.as_deref().map(crate::common::tum_preset);
-    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     limits()
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
+    // After the size check: the map holds one index per pixel.
+    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let mut tcfg = TrackerConfig::default();
     tcfg.weighting = weighting;
     tcfg.plane_fallback = !args.no_plane_fallback;
