@@ -187,7 +187,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             for w in [WeightMode::InvVar, WeightMode::Uniform] {
                 let (est, sigmas) = track_with_sigma(&seq.camera, &refs, w, model)?;
                 if model && w == WeightMode::InvVar {
-                    degenerate.push_str(&sigma_row(&seq.name, &sigmas));
+                    degenerate.push_str(&sigma_row(seq.name, &sigmas));
                 }
                 let lost = est.iter().filter(|e| e.is_none()).count();
                 let ate = ate_m(&truth, &est);
