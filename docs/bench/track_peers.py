@@ -2,7 +2,7 @@
 trajectory table of issue 13 (never needed by tests).
 
     python docs/bench/track_peers.py [--data ../shared/data] [--out /tmp/track-peers] [--json out.json]
-                                     [--voxel-m 0.008] [--only tum|7scenes|icl ...]
+                                     [--voxel-m 0.008] [--only tum|7scenes|icl ...] [--undistort-tum]
 
 Needs numpy and ``open3d-cpu==0.19.0`` (the PyPI ``open3d==0.20.0`` wheel's volumes integrate
 nothing on our machines; see python_peers.py). Runs, on the depth frames alone (no colour: the
@@ -156,12 +156,37 @@ def sequences(data, only):
     return seqs
 
 
-def read_depth(path):
+# TUM fr1's published lens (k1, k2, p1, p2, k3), as the `tum-fr1` preset carries it.
+TUM_FR1_LENS = (0.2624, -0.9531, -0.0054, 0.0026, 1.1633)
+
+
+def nearest_undistort_map(k, lens, w, h):
+    """Per pixel of the ideal pinhole image, the index of the distorted image's pixel it
+    comes from (nearest neighbour), or -1 where the ray leaves the image: what
+    ``sl_core::Undistorter`` and ``sldepth track --lens auto`` use."""
+    k1, k2, p1, p2, k3 = lens
+    fx, fy, cx, cy = k[0][0], k[1][1], k[0][2], k[1][2]
+    v, u = np.mgrid[0:h, 0:w].astype(np.float64)
+    x, y = (u - cx) / fx, (v - cy) / fy
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+    yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+    ud, vd = np.round(fx * xd + cx), np.round(fy * yd + cy)
+    inside = (ud >= 0) & (vd >= 0) & (ud < w) & (vd < h)
+    return np.where(inside, vd * w + ud, -1).astype(np.int64)
+
+
+def read_depth(path, undistort=None):
     img = o3d.t.io.read_image(str(path))
-    return img
+    if undistort is None:
+        return img
+    z = np.asarray(img).reshape(-1)
+    out = np.where(undistort >= 0, z[np.maximum(undistort, 0)], 0).astype(z.dtype)
+    return o3d.t.geometry.Image(out.reshape(img.rows, img.columns, 1))
 
 
-def frame_to_frame(files, k, scale):
+def frame_to_frame(files, k, scale, undistort=None):
     intr = o3d.core.Tensor(k, o3d.core.Dtype.Float64)
     criteria = [
         o3d.t.pipelines.odometry.OdometryConvergenceCriteria(n)
@@ -171,7 +196,7 @@ def frame_to_frame(files, k, scale):
     times = []
     prev = None
     for f in files:
-        depth = read_depth(f)
+        depth = read_depth(f, undistort)
         h, w = depth.rows, depth.columns
         color = o3d.t.geometry.Image(np.zeros((h, w, 3), np.uint8))
         cur = o3d.t.geometry.RGBDImage(color, depth)
@@ -193,19 +218,19 @@ def frame_to_frame(files, k, scale):
     return poses, times
 
 
-def dense_slam(files, k, scale, voxel_m):
+def dense_slam(files, k, scale, voxel_m, undistort=None):
     device = o3d.core.Device("CPU:0")
     intr = o3d.core.Tensor(k, o3d.core.Dtype.Float64)
     t_frame_to_model = o3d.core.Tensor(np.identity(4))
     model = o3d.t.pipelines.slam.Model(voxel_m, 16, 50000, t_frame_to_model, device)
-    first = read_depth(files[0])
+    first = read_depth(files[0], undistort)
     inp = o3d.t.pipelines.slam.Frame(first.rows, first.columns, intr, device)
     ray = o3d.t.pipelines.slam.Frame(first.rows, first.columns, intr, device)
     color = o3d.t.geometry.Image(np.zeros((first.rows, first.columns, 3), np.uint8))
     poses, times = [], []
     trunc_mult = 8.0
     for i, f in enumerate(files):
-        depth = read_depth(f)
+        depth = read_depth(f, undistort)
         inp.set_data_from_image("depth", depth)
         inp.set_data_from_image("color", color)
         t0 = time.perf_counter()
@@ -227,6 +252,9 @@ def main():
     ap.add_argument("--json")
     ap.add_argument("--voxel-m", type=float, default=0.008)
     ap.add_argument("--only", action="append")
+    ap.add_argument("--undistort-tum", action="store_true",
+                    help="resample the TUM frames with the tum-fr1 lens model first (nearest "
+                         "neighbour, as sldepth track --lens auto does)")
     args = ap.parse_args()
     data = Path(args.data)
     if not data.is_dir():
@@ -240,12 +268,17 @@ def main():
     for name, files, stamps, k, scale, gt in sequences(data, args.only):
         # The reference in TUM format beside the estimates.
         write_tum(out / f"{name}-gt.txt", [t for t, _ in gt], [m for _, m in gt])
+        undistort = None
+        if args.undistort_tum and name.startswith("tum"):
+            first = o3d.t.io.read_image(str(files[0]))
+            undistort = nearest_undistort_map(k, TUM_FR1_LENS, first.columns, first.rows)
+        tag = "-undistorted" if undistort is not None else ""
         for method in ("frame-to-frame", "dense-slam"):
             if method == "frame-to-frame":
-                poses, times = frame_to_frame(files, k, scale)
+                poses, times = frame_to_frame(files, k, scale, undistort)
             else:
-                poses, times = dense_slam(files, k, scale, args.voxel_m)
-            path = out / f"{name}-open3d-{method}.txt"
+                poses, times = dense_slam(files, k, scale, args.voxel_m, undistort)
+            path = out / f"{name}-open3d-{method}{tag}.txt"
             write_tum(path, stamps, poses)
             pairs = associate(stamps, gt)
             est = np.array([poses[i][:3, 3] for i, _ in pairs])
@@ -253,7 +286,7 @@ def main():
             ate = ate_rmse(est, ref)
             row = {
                 "sequence": name,
-                "method": f"open3d {method}",
+                "method": f"open3d {method}{tag}",
                 "frames": len(files),
                 "associated": len(pairs),
                 "ate_rmse_m": ate,
