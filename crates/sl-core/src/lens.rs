@@ -26,6 +26,7 @@
 use crate::error::{CoreError, Result};
 use crate::image::DepthImage;
 use crate::intrinsics::Intrinsics;
+use crate::view::DepthView;
 
 /// Radial (`k1`, `k2`, `k3`) and tangential (`p1`, `p2`) distortion coefficients, in OpenCV's
 /// order `(k1, k2, p1, p2, k3)`.
@@ -109,14 +110,19 @@ impl Undistorter {
     }
 
     /// The undistorted depth image (0 where the ray leaves the input image).
-    pub fn apply(&self, depth: &DepthImage) -> Result<DepthImage> {
+    pub fn apply<'a>(&self, depth: impl Into<DepthView<'a>>) -> Result<DepthImage> {
         let mut out = Vec::new();
         self.apply_into(depth, &mut out)?;
         DepthImage::from_vec(self.width, self.height, out)
     }
 
     /// [`Undistorter::apply`] into `out` (resized; no other allocation).
-    pub fn apply_into(&self, depth: &DepthImage, out: &mut Vec<f32>) -> Result<()> {
+    pub fn apply_into<'a>(
+        &self,
+        depth: impl Into<DepthView<'a>>,
+        out: &mut Vec<f32>,
+    ) -> Result<()> {
+        let depth: DepthView<'a> = depth.into();
         if (depth.width(), depth.height()) != (self.width, self.height) {
             return Err(CoreError::SizeMismatch {
                 expected_width: self.width,

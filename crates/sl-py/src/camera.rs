@@ -171,12 +171,9 @@ pub(crate) fn undistort<'py>(
     crate::arrays::check_camera(&view, &camera.inner)?;
     let k = camera.inner.intrinsics;
     let lens = camera.lens;
-    let out = crate::threads::compute(py, || {
-        let img = sl_core::DepthImage::from_vec(k.width, k.height, view.data().to_vec())?;
-        match lens {
-            Some(l) => sl_core::Undistorter::new(&k, &l).apply(&img),
-            None => Ok(img),
-        }
+    let out = crate::threads::compute(py, || match lens {
+        Some(l) => sl_core::Undistorter::new(&k, &l).apply(view),
+        None => Ok(view.to_image()),
     })
     .map_err(value_error)?;
     crate::arrays::depth_array(py, out)

@@ -142,7 +142,7 @@ impl PyTracker {
         } = self;
         let result = compute(py, || -> Result<_, String> {
             let undistorted = match undistorter {
-                Some(u) => Some(u.apply(&view.to_image()).map_err(|e| e.to_string())?),
+                Some(u) => Some(u.apply(view).map_err(|e| e.to_string())?),
                 None => None,
             };
             let view = undistorted.as_ref().map_or(view, |d| d.view());

@@ -423,10 +423,10 @@ pub(crate) fn apply(
     renormalized(c * delta * c.inverse() * pose)
 }
 
-/// Conditioning of the normal equations: the smallest over the largest eigenvalue of `H` with
-/// the rotation rows and columns divided by `scale_m` (making them metres like translation).
-pub(crate) fn condition(s: &Sums, scale_m: f64) -> f64 {
-    let mut h = s.hessian();
+/// Expresses the rotation part (rows and columns 0–2) of a 6×6 information matrix as
+/// displacements at depth `scale_m`: a rotation of θ moves a point at that depth by about
+/// `scale_m·θ`, so the rotation rows and columns are divided by `scale_m`.
+pub(crate) fn rotations_at_depth(h: &mut Matrix6<f64>, scale_m: f64) {
     let inv = 1.0 / scale_m.max(1e-6);
     for a in 0..6 {
         for b in 0..6 {
@@ -435,6 +435,13 @@ pub(crate) fn condition(s: &Sums, scale_m: f64) -> f64 {
             h[(a, b)] *= fa * fb;
         }
     }
+}
+
+/// Conditioning of the normal equations: the smallest over the largest eigenvalue of `H` with
+/// the rotation rows and columns divided by `scale_m` (making them metres like translation).
+pub(crate) fn condition(s: &Sums, scale_m: f64) -> f64 {
+    let mut h = s.hessian();
+    rotations_at_depth(&mut h, scale_m);
     let e = SymmetricEigen::new(h).eigenvalues;
     let max = e.iter().copied().fold(f64::MIN, f64::max);
     let min = e.iter().copied().fold(f64::MAX, f64::min);

@@ -27,6 +27,7 @@ use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
 use super::pyramid::Level;
+use super::solve::rotations_at_depth;
 use crate::error::Result;
 
 /// Pixels between samples, in both directions.
@@ -111,16 +112,8 @@ impl StructureCheck {
         if count < 6.0 {
             return Ok(f64::INFINITY);
         }
-        // Rotations as displacements at the mean depth: divide the rotation rows and columns
-        // by it (a rotation of θ moves a point at depth s by about s·θ).
-        let inv = count / z_sum;
-        for a in 0..6 {
-            for b in 0..6 {
-                let fa = if a < 3 { inv } else { 1.0 };
-                let fb = if b < 3 { inv } else { 1.0 };
-                info[(a, b)] *= fa * fb;
-            }
-        }
+        // Rotations as displacements at the mean depth.
+        rotations_at_depth(&mut info, z_sum / count);
         let min = SymmetricEigen::new(info)
             .eigenvalues
             .iter()
