@@ -118,13 +118,17 @@ impl PyTracker {
     }
 
     /// Tracks one depth frame (float32 metres, or uint16 with ``depth_scale``), fuses it when
-    /// tracked, and returns ``(pose, status)``.
-    #[pyo3(signature = (depth, depth_scale = None))]
+    /// tracked, and returns ``(pose, status)``. ``timestamp_s``: the frame's time in seconds
+    /// (any origin, increasing); with it, frames the recording dropped are predicted across
+    /// (the time since the previous frame in whole 1/30 s intervals); without it, the frame
+    /// follows the previous one by one interval.
+    #[pyo3(signature = (depth, depth_scale = None, *, timestamp_s = None))]
     fn track<'py>(
         &mut self,
         py: Python<'py>,
         depth: &Bound<'py, PyAny>,
         depth_scale: Option<f64>,
+        timestamp_s: Option<f64>,
     ) -> PyResult<(Bound<'py, PyArray2<f64>>, &'static str)> {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
@@ -150,9 +154,11 @@ impl PyTracker {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
             };
-            let r = tracker
-                .track(&depth, model.maps())
-                .map_err(|e| e.to_string())?;
+            let r = match timestamp_s {
+                Some(t) => tracker.track_at(&depth, model.maps(), t),
+                None => tracker.track(&depth, model.maps()),
+            }
+            .map_err(|e| e.to_string())?;
             if r.status.is_tracked() {
                 volume
                     .integrate(&depth, &k, &r.pose)

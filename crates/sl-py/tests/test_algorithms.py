@@ -290,3 +290,21 @@ def test_track_sequence_from_arrays_and_files(kinect, tmp_path):
     assert np.abs(poses_f - poses).max() < 0.002
     with pytest.raises(ValueError, match="weighting"):
         sldepth.track_sequence(frames, kinect, weighting="huber")
+
+
+def test_tracker_takes_timestamps(kinect):
+    frames = [sldepth.simulate("boxes", seed=s)[0] for s in (3, 4, 5)]
+    # A still camera with a dropped frame (0.1 s between the last two): tracked as before.
+    poses, statuses, _ = sldepth.track_sequence(frames, kinect, timestamps_s=[10.0, 10.033, 10.133])
+    assert all(s == "tracked" for s in statuses[1:]), statuses
+    assert np.abs(poses[:, :3, 3]).max() < 0.002
+    with pytest.raises(ValueError, match="timestamps_s has 2 entries for 3 frames"):
+        sldepth.track_sequence(frames, kinect, timestamps_s=[0.0, 1.0])
+    # Timestamps must increase; a rejected frame leaves the tracker as it was.
+    t = sldepth.Tracker(kinect)
+    t.track(frames[0], timestamp_s=5.0)
+    with pytest.raises(ValueError, match="not after the previous"):
+        t.track(frames[1], timestamp_s=4.0)
+    with pytest.raises(ValueError, match="not after the previous"):
+        t.track(frames[1], timestamp_s=float("nan"))
+    assert t.track(frames[1], timestamp_s=5.033)[1] == "tracked"

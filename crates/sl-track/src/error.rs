@@ -36,6 +36,14 @@ pub enum TrackError {
         /// `distinct_deg` from the best (another hypothesis, or the best turned).
         alternative_inlier_fraction: f64,
     },
+    /// A frame's timestamp is not finite or not after the previous frame's.
+    #[error("timestamp {timestamp_s} s is not after the previous frame's {previous_s} s")]
+    TimestampOrder {
+        /// The previous frame's timestamp, seconds.
+        previous_s: f64,
+        /// This frame's timestamp, seconds.
+        timestamp_s: f64,
+    },
     /// An error from plane extraction (`sl-planes`).
     #[error(transparent)]
     Planes(#[from] sl_planes::PlanesError),

@@ -320,3 +320,77 @@ fn a_single_wall_is_a_degenerate_view() {
         r.weakest_sigma_m
     );
 }
+
+/// A recording that dropped frames: of 22 frames of the sequence (1.5 cm and 1.5° per frame
+/// interval) only the first three and then every fifth are kept, so the camera moves 7.5 cm and
+/// 7.5° between kept frames while it kept 1.5 cm per interval before. Told the timestamps, the
+/// tracker predicts the whole gap and every frame is tracked at its first attempt within the
+/// noise; without them the frames after the first gap are not tracked at the first attempt
+/// (lost, in fact: the correction from a one-interval prediction is 6 cm, beyond the 5 cm a
+/// frame may be corrected by, and the camera is off by more at every later frame).
+#[test]
+fn timestamps_carry_the_prediction_across_dropped_frames() {
+    let (cam, truth, frames) = sequence(23, 17);
+    let kept: Vec<usize> = (0..3).chain((7..23).step_by(5)).collect();
+    let frame_interval_s = TrackerConfig::default().frame_interval_s;
+    let mut outcomes = Vec::new();
+    for timed in [true, false] {
+        let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        let (mut est, mut status, mut iterations) = (Vec::new(), Vec::new(), Vec::new());
+        for &i in &kept {
+            // Timestamps with a driver's jitter (±4 ms), which must not read as motion.
+            let t = 100.0 + i as f64 * frame_interval_s + if i % 2 == 0 { 0.004 } else { -0.004 };
+            let r = if timed {
+                tracker.track_at(&frames[i], None, t).unwrap()
+            } else {
+                tracker.track(&frames[i], None).unwrap()
+            };
+            est.push(r.pose);
+            status.push(r.status);
+            iterations.push(r.iterations);
+        }
+        let truth_kept: Vec<CameraToWorld> = kept.iter().map(|&i| truth[i]).collect();
+        let e = errors(&truth_kept, &est);
+        eprintln!("timed {timed}: {status:?} iterations {iterations:?} errors {e:?}");
+        outcomes.push((status, iterations, e));
+    }
+    let (status, iterations, e) = &outcomes[0];
+    assert!(
+        status[1..].iter().all(|s| *s == TrackStatus::Tracked),
+        "{status:?}"
+    );
+    for (i, (t, r)) in e.iter().enumerate() {
+        assert!(*t < 0.01 && *r < 0.5, "kept frame {i}: {t} m {r}°");
+    }
+    let (untimed_status, untimed_iterations, _) = &outcomes[1];
+    assert!(
+        untimed_status[3..]
+            .iter()
+            .all(|s| *s != TrackStatus::Tracked),
+        "without timestamps: {untimed_status:?} {untimed_iterations:?} (timed: {iterations:?})"
+    );
+}
+
+/// Timestamps must increase: an equal, earlier or non-finite one is an error that leaves the
+/// tracker as it was (the next frame in order tracks normally).
+#[test]
+fn timestamps_out_of_order_are_an_error() {
+    let (cam, _, frames) = sequence(3, 23);
+    let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+    let dt = TrackerConfig::default().frame_interval_s;
+    assert_eq!(
+        tracker.track_at(&frames[0], None, 5.0).unwrap().status,
+        TrackStatus::Initialised
+    );
+    for bad in [5.0, 4.9, f64::NAN, f64::INFINITY] {
+        let e = tracker.track_at(&frames[1], None, bad).unwrap_err();
+        assert!(
+            matches!(e, sl_track::TrackError::TimestampOrder { .. }),
+            "{bad}: {e}"
+        );
+    }
+    assert_eq!(
+        tracker.track_at(&frames[1], None, 5.0 + dt).unwrap().status,
+        TrackStatus::Tracked
+    );
+}

@@ -67,13 +67,15 @@ __all__ = [
 ]
 
 
-def track_sequence(frames, camera, *, depth_scale=None, **tracker_options):
+def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tracker_options):
     """Tracks a depth sequence from its first frame on and fuses it (``sldepth track`` in one call).
 
     ``frames``: depth arrays (float32 metres, or uint16 with ``depth_scale`` units per metre) or
     paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order.
-    ``tracker_options`` are those of ``Tracker`` (``weighting``, ``frame_to_model``,
-    ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``).
+    ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
+    recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
+    takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
+    (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
     camera-to-world matrices (the first frame is the identity; a lost frame gets the last good
@@ -83,13 +85,24 @@ def track_sequence(frames, camera, *, depth_scale=None, **tracker_options):
     import numpy as np
 
     tracker = Tracker(camera, **tracker_options)
+    frames = list(frames)
+    if timestamps_s is None:
+        times = [None] * len(frames)
+    else:
+        times = [float(t) for t in timestamps_s]
+        if len(times) != len(frames):
+            raise ValueError(
+                f"timestamps_s has {len(times)} entries for {len(frames)} frames"
+            )
     poses = []
     statuses = []
-    for frame in frames:
+    for frame, t in zip(frames, times):
         if isinstance(frame, (str, bytes, _os.PathLike)):
-            pose, status = tracker.track(read_depth(frame, depth_scale=depth_scale))
+            pose, status = tracker.track(
+                read_depth(frame, depth_scale=depth_scale), timestamp_s=t
+            )
         else:
-            pose, status = tracker.track(frame, depth_scale)
+            pose, status = tracker.track(frame, depth_scale, timestamp_s=t)
         poses.append(pose)
         statuses.append(status)
     stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))

@@ -253,9 +253,15 @@ class Tracker:
         every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
         the frames as given."""
     def track(
-        self, depth: _Depth, depth_scale: Optional[float] = None
+        self,
+        depth: _Depth,
+        depth_scale: Optional[float] = None,
+        *,
+        timestamp_s: Optional[float] = None,
     ) -> Tuple[npt.NDArray[np.float64], str]:
-        """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost)."""
+        """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost).
+        timestamp_s: the frame's time, seconds, increasing (frames dropped by the recording are
+        predicted across); None: one 1/30 s interval after the previous frame."""
     @property
     def last_failure(self) -> Optional[str]:
         """Why the last frame was lost (e.g. "degenerate view: ..."), or None."""
@@ -269,6 +275,7 @@ def track_sequence(
     camera: Camera,
     *,
     depth_scale: Optional[float] = None,
+    timestamps_s: Optional[Iterable[float]] = None,
     weighting: str = "inv-var",
     frame_to_model: bool = True,
     voxel_m: float = 0.004,
@@ -276,5 +283,6 @@ def track_sequence(
     prefilter: str = "multiscale",
     lens: str = "auto",
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
-    """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order:
-    (poses (N, 4, 4) camera-to-world, statuses, the Tracker with the fused model)."""
+    """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
+    their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the
+    Tracker with the fused model)."""

@@ -126,7 +126,9 @@ pub struct TrackerConfig {
     /// position with σ = `max_acceleration_m_s2 · frame_interval_s²` per axis (1 g at 30 Hz:
     /// 10.9 mm, how far a hand-held camera's path can leave the constant-velocity line in one
     /// frame). Without a measured velocity (the first step, after a lost frame) and from any
-    /// other start, the prior's σ is `max_correction_m`.
+    /// other start, the prior's σ is `max_correction_m`. It is also the unit in which
+    /// [`crate::Tracker::track_at`] counts the time between timestamped frames (a gap of `n`
+    /// intervals: the prediction spans `n` steps, the prior's σ grows `n²`-fold).
     pub frame_interval_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,

@@ -3,7 +3,7 @@
 //! parallel (rayon, no allocation per pixel), and the SE(3) update.
 
 use nalgebra::{
-    Isometry3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
 };
 use rayon::prelude::*;
 use sl_core::SensorModel;
@@ -409,6 +409,29 @@ pub(crate) fn renormalized(mut iso: Isometry3<f64>) -> Isometry3<f64> {
     iso
 }
 
+/// The motion `R` with `Rⁿ = m` (the same screw motion, a fraction `1/n` of it): the per-frame
+/// velocity of a camera that moved by `m` over `n` frame intervals. `n = 1` returns `m`.
+pub(crate) fn nth_root(m: &Isometry3<f64>, n: u32) -> Isometry3<f64> {
+    if n <= 1 {
+        return *m;
+    }
+    let rotation = UnitQuaternion::from_scaled_axis(m.rotation.scaled_axis() / f64::from(n));
+    // Rⁿ's translation is (I + R + … + Rⁿ⁻¹)·t: solve for t.
+    let r = rotation.to_rotation_matrix().into_inner();
+    let mut power = Matrix3::identity();
+    let mut sum = Matrix3::zeros();
+    for _ in 0..n.min(1000) {
+        sum += power;
+        power *= r;
+    }
+    let t = sum
+        .try_inverse()
+        .map_or(m.translation.vector / f64::from(n), |inv| {
+            inv * m.translation.vector
+        });
+    Isometry3::from_parts(Translation3::from(t), rotation)
+}
+
 /// Applies a step about `centre`: `T ← C·exp(ξ)·C⁻¹·T` with `C` the translation to the centre.
 pub(crate) fn apply(
     pose: &Isometry3<f64>,
@@ -446,4 +469,25 @@ pub(crate) fn condition(s: &Sums, scale_m: f64) -> f64 {
     let max = e.iter().copied().fold(f64::MIN, f64::max);
     let min = e.iter().copied().fold(f64::MAX, f64::min);
     if max > 0.0 { (min / max).max(0.0) } else { 0.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_nth_root_applied_n_times_is_the_motion() {
+        let m = Isometry3::new(Vector3::new(0.12, -0.05, 0.3), Vector3::new(0.2, -0.4, 0.1));
+        for n in [1u32, 2, 3, 7] {
+            let r = nth_root(&m, n);
+            let mut again = Isometry3::identity();
+            for _ in 0..n {
+                again *= r;
+            }
+            let d = again.inverse() * m;
+            assert!(d.translation.vector.norm() < 1e-12, "n = {n}: {d}");
+            assert!(d.rotation.angle() < 1e-12, "n = {n}: {d}");
+        }
+        assert_eq!(nth_root(&m, 1), m);
+    }
 }

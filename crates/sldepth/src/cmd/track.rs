@@ -7,7 +7,8 @@
 //! `# <timestamp> lost: <reason>` (an unreadable frame `# <timestamp> skipped: <reason>`)
 //! instead of a pose — TUM tools skip comments, so a lost frame is missing from the
 //! evaluation rather than given a wrong pose. Frames without timestamps (7-Scenes, Open3D
-//! folders) use their index as the timestamp. `--output-log` writes the tracked frames as an
+//! folders) use their index as the timestamp. The tracker is given the time between frames
+//! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder. `--output-log` writes the tracked frames as an
 //! Open3D `.log` (metadata `i i n`, `i` the frame index; lost frames are left out and listed in
 //! the JSON).
 
@@ -361,8 +362,14 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         let t0 = Instant::now();
+        // The tracker is told how many frame intervals passed: from the timestamps of a TUM
+        // recording (frames its driver dropped), else one per frame of the folder, so an
+        // unreadable frame skipped above is a longer step rather than a surprise.
+        let time_s = f
+            .timestamp
+            .unwrap_or(i as f64 * tracker.config().frame_interval_s);
         let r = tracker
-            .track(&depth, model.maps())
+            .track_at(&depth, model.maps(), time_s)
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
         track_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         counts[r.status as usize] += 1;
