@@ -190,7 +190,8 @@ impl PyTracker {
 
     /// The last frame's standard deviation of the pose along its least-constrained direction,
     /// metres, from the sensor model and the frame's planes (``inf`` for a single plane; a
-    /// frame is lost above the motion prior's 10.9 mm); ``nan`` for the first frame.
+    /// frame is lost above the motion prior's 10.9 mm): of the frame alone, and once it is
+    /// aligned, of the part of it that overlaps the reference (the larger is reported).
     #[getter]
     fn last_weakest_sigma_m(&self) -> f64 {
         self.last_weakest_sigma_m

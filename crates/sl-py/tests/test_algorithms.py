@@ -255,19 +255,23 @@ def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
     # (the pose's weakest direction from the sensor model with the floor plane's normal) says
     # "lost" instead of guessing, smoothed or raw (raw, the noise of per-pixel normals used to
     # make the floor look constrained).
+    # The floor does not start a sequence either: the tracker waits for a view that pins the pose.
     floor = sldepth.simulate("floor", seed=3)[0]
     for prefilter in ("multiscale", "none"):
         t = sldepth.Tracker(kinect, prefilter=prefilter)
-        t.track(floor)
+        assert t.track(floor)[1] == "lost", prefilter
+        assert t.last_failure.startswith("first frame: degenerate view")
         assert t.track(floor)[1] == "lost", prefilter
         assert "degenerate view" in t.last_failure
         assert t.last_weakest_sigma_m == float("inf")
-    # The boxes: constrained every way, the weakest direction known to a few millimetres.
+    # The boxes: constrained every way, the weakest direction known to a few millimetres (the
+    # frame alone at the first frame; then the part of it that overlaps the model).
     boxes = sldepth.simulate("boxes", seed=3)[0]
     t = sldepth.Tracker(kinect)
-    t.track(boxes)
-    assert np.isnan(t.last_weakest_sigma_m) and t.last_failure is None
-    assert t.track(boxes)[1] == "tracked"
+    assert t.track(boxes)[1] == "initialised"
+    assert 0 < t.last_weakest_sigma_m < 0.005 and t.last_failure is None
+    t.track(floor)  # a floor after a good frame: lost, the boxes' model kept
+    assert t.track(boxes)[1] == "relocalised"
     assert 0 < t.last_weakest_sigma_m < 0.005
 
 

@@ -8,8 +8,8 @@
 //! frame-to-model inv-var trajectory within 1 cm / 0.5° (one frame's pose noise is well under a
 //! millimetre from ~30 k points; 1 cm fails on any wrong association, which is centimetres
 //! off), and inv-var at least as accurate as uniform up to the spread of a 20-frame run (×1.5).
-//! A simulated camera sliding along a single wall must be lost after its first frame (the
-//! degenerate-view check); the real sequences' weakest-direction σ is reported beside the bound.
+//! A simulated camera sliding along a single wall must be lost at every frame, the first too
+//! (the degenerate-view check); the real sequences' weakest-direction σ is reported beside the bound.
 //! The real sequences are reported, not checked: the issue's targets (no lost frame on
 //! fr1/rpy, ATE at most half of Open3D dense SLAM's) are not met yet (docs/bench/track.md).
 
@@ -260,22 +260,24 @@ fn degenerate_views(ctx: &mut Context, rows: &str) -> Result<String> {
     }
     let refs: Vec<&DepthImage> = frames.iter().collect();
     let (est, sigmas) = track_with_sigma(&cam, &refs, WeightMode::InvVar, true)?;
-    let lost = est.iter().skip(1).filter(|e| e.is_none()).count();
+    let lost = est.iter().filter(|e| e.is_none()).count();
     ctx.check(
-        "degenerate view: a camera sliding along a single wall is lost after its first frame",
-        lost == est.len() - 1,
-        format!("{lost} of {} frames lost", est.len() - 1),
+        "degenerate view: a camera sliding along a single wall is lost, its first frame too",
+        lost == est.len(),
+        format!("{lost} of {} frames lost", est.len()),
     );
     Ok(format!(
         "\n**Degenerate views** (`TrackerConfig::degenerate_check`): the pose's σ along its \
          least-constrained direction from the sensor model with the normals of the frame's \
-         planes, against the motion prior's σ ({:.1} mm). Simulated wall, the camera sliding \
-         1 cm per frame: {lost} of {} frames lost (σ {}). Real sequences, frame to model, \
-         inv-var (σ in mm; *over* = frames above the bound, lost as degenerate):\n\n\
+         planes, against the motion prior's σ ({:.1} mm); after an alignment, the same for the \
+         frame's inliers of the reference. Simulated wall, the camera sliding 1 cm per frame: \
+         {lost} of {} frames lost (σ {}; the first frame waits for a view that pins the pose). \
+         Real sequences, frame to model, inv-var (σ in mm, the larger of the frame's and its \
+         overlap's; *over* = frames above the bound):\n\n\
          | sequence | frames | median σ | max σ | over |\n|---|---|---|---|---|\n{rows}",
         prior_sigma_m() * 1e3,
-        est.len() - 1,
-        if sigmas.iter().skip(1).all(|s| s.is_infinite()) {
+        est.len(),
+        if sigmas.iter().all(|s| s.is_infinite()) {
             "∞"
         } else {
             "finite"

@@ -106,8 +106,12 @@ pub struct TrackerConfig {
     /// deviation along its least-constrained direction, from the sensor model with the normals
     /// of the frame's planes (`sl-planes`; `FrameResult::weakest_sigma_m`), above
     /// `max_acceleration_m_s2 · frame_interval_s²` (10.9 mm at 1 g and 30 Hz). A single wall
-    /// or floor, or a corridor with nothing but its four planes, is such a view. Costs one
-    /// plane extraction per frame (about 2 ms at 640×480 on one core).
+    /// or floor, or a corridor with nothing but its four planes, is such a view; nor does
+    /// such a view start the sequence (the first frame waits for one that pins the pose). The
+    /// same bound holds for the part of the frame that overlaps the reference at an aligned
+    /// pose (inliers only, the reference's variance added): an alignment that fails it is
+    /// rejected like one that fails the other checks. Costs one plane extraction per frame at
+    /// half resolution (under 1 ms at 640×480 on one core).
     pub degenerate_check: bool,
     /// Width of the window over which a structured-light camera's depth error is correlated,
     /// pixels of the full-resolution frame (the block-matching window: 9 × 11 px fitted on

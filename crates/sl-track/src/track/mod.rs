@@ -135,6 +135,9 @@ struct Attempt {
     stats: Sums,
     condition: f64,
     iterations: usize,
+    /// The weakest-direction σ of the part of the frame that overlaps the reference at `pose`
+    /// (NaN when not checked).
+    overlap_sigma_m: f64,
     failure: Option<String>,
 }
 
@@ -281,35 +284,47 @@ impl Tracker {
         self.pyramid
             .build(depth.data(), &k, &sensor, self.cfg.levels)?;
         self.last_timestamp_s = timestamp_s;
-        let Some(last) = self.last_good else {
-            return Ok(self.initialise(depth));
-        };
-        self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
-        let n = self.intervals_since_good.max(1);
-        let span = f64::from(n);
         // A view whose geometry leaves some direction of the pose to the motion prior (a
         // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
-        // an alignment returned would be the prior's guess along that direction.
+        // an alignment returned would be the prior's guess along that direction. Nor does such
+        // a view start the sequence: a model of one wall cannot anchor the frames after it.
         let check_level = 1.min(self.pyramid.levels.len().saturating_sub(1));
         let weakest_sigma_m = match (
             self.cfg.degenerate_check,
             self.pyramid.levels.get(check_level),
         ) {
-            (true, Some(level)) => self.structure.weakest_sigma_m(
-                level,
-                check_level,
-                &self.camera.sensor,
-                &self.cfg,
-            )?,
+            (true, Some(level)) => {
+                self.structure
+                    .segment(level, check_level, &self.camera.sensor, &self.cfg)?;
+                self.structure.weakest_sigma_m(
+                    level,
+                    check_level,
+                    &self.camera.sensor,
+                    &self.cfg,
+                    |_, _| Some(0.0),
+                )
+            }
             _ => f64::NAN,
         };
-        let prior_sigma_m = self.cfg.acceleration_variance_m2().sqrt() * span * span;
+        let prior_sigma_m = self.cfg.acceleration_variance_m2().sqrt();
+        if self.last_good.is_some() {
+            self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
+        }
         if weakest_sigma_m > prior_sigma_m {
-            self.mark_lost();
+            let (pose, what) = match self.last_good {
+                Some(last) => {
+                    self.mark_lost();
+                    (CameraToWorld::from_isometry(last), "degenerate view")
+                }
+                None => (
+                    self.initial_pose,
+                    "first frame: degenerate view, waiting for one that pins the pose",
+                ),
+            };
             let mut r = FrameResult::lost_unaligned(
-                CameraToWorld::from_isometry(last),
+                pose,
                 format!(
-                    "degenerate view: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
+                    "{what}: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
                     weakest_sigma_m * 1e3,
                     prior_sigma_m * 1e3
                 ),
@@ -317,6 +332,13 @@ impl Tracker {
             r.weakest_sigma_m = weakest_sigma_m;
             return Ok(r);
         }
+        let Some(last) = self.last_good else {
+            let mut r = self.initialise(depth);
+            r.weakest_sigma_m = weakest_sigma_m;
+            return Ok(r);
+        };
+        let n = self.intervals_since_good.max(1);
+        let span = f64::from(n);
         let reference = model.unwrap_or(&self.last_ref);
         // Constant velocity, also across lost and dropped frames (the camera kept moving
         // meanwhile): the last good pose moved by one step per frame interval since.
@@ -424,7 +446,8 @@ impl Tracker {
             rms_normalised: (ratio(first.stats.chi2, first.stats.inliers)).sqrt(),
             condition: first.condition,
             iterations,
-            weakest_sigma_m,
+            // The binding one of the frame's own σ and its overlap's.
+            weakest_sigma_m: weakest_sigma_m.max(first.overlap_sigma_m),
             failure: first.failure,
         })
     }
@@ -652,11 +675,40 @@ impl Tracker {
         } else {
             None
         };
+        // The frame can pin the pose down while the part of it that overlaps the reference
+        // does not (a model that holds one wall of the room so far, surfaces beyond the fused
+        // range): the alignment is then as undetermined as a degenerate view's, whatever its
+        // residuals say. The degenerate-view bound, on the samples that are inliers of the
+        // reference at this pose, with the reference's variance added to theirs as in the
+        // alignment.
+        let mut overlap_sigma_m = f64::NAN;
+        let check_level = 1.min(self.pyramid.levels.len().saturating_sub(1));
+        let failure = match (failure, self.pyramid.levels.get(check_level)) {
+            (None, Some(level)) if cfg.degenerate_check => {
+                overlap_sigma_m = self.structure.weakest_sigma_m(
+                    level,
+                    check_level,
+                    sensor,
+                    cfg,
+                    solve::inlier_of(reference, &pose, sensor, cfg),
+                );
+                let bound = cfg.acceleration_variance_m2().sqrt();
+                (overlap_sigma_m > bound).then(|| {
+                    format!(
+                        "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",
+                        overlap_sigma_m * 1e3,
+                        bound * 1e3
+                    )
+                })
+            }
+            (failure, _) => failure,
+        };
         Attempt {
             pose,
             stats,
             condition,
             iterations,
+            overlap_sigma_m,
             failure,
         }
     }

@@ -3,7 +3,8 @@
 //! parallel (rayon, no allocation per pixel), and the SE(3) update.
 
 use nalgebra::{
-    Isometry3, Matrix3, Matrix6, SymmetricEigen, Translation3, UnitQuaternion, Vector3, Vector6,
+    Isometry3, Matrix3, Matrix6, Point3, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
+    Vector6,
 };
 use rayon::prelude::*;
 use sl_core::SensorModel;
@@ -407,6 +408,53 @@ pub(crate) fn step(s: &Sums, prior: &Prior, t: &Vector3<f64>, lambda: f64) -> Op
 pub(crate) fn renormalized(mut iso: Isometry3<f64>) -> Isometry3<f64> {
     iso.rotation.renormalize();
     iso
+}
+
+/// Whether a point of the frame (camera coordinates, with its normal) is an inlier of the
+/// reference at the camera-to-world `pose` — it lands on a reference surface within the
+/// alignment's gates (residual within `gate_sigmas·σ + allowance_fine_m`, normals within
+/// `max_normal_angle_deg`) — and if so the variance of the reference's surface there, m².
+pub(crate) fn inlier_of<'a>(
+    reference: &'a ReferenceMaps,
+    pose: &Isometry3<f64>,
+    sensor: &'a SensorModel,
+    cfg: &'a TrackerConfig,
+) -> impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64> + 'a {
+    let to_ref = reference.pose.isometry().inverse() * pose;
+    let to_world = *pose;
+    let k = reference.intrinsics;
+    let min_cos = cfg.max_normal_angle_deg.to_radians().cos();
+    move |p, n_own| {
+        let p = p.cast::<f64>();
+        let x = to_ref * p;
+        if x.z.is_nan() || x.z <= 0.0 {
+            return None;
+        }
+        let u = (k.fx * x.x / x.z + k.cx).round();
+        let v = (k.fy * x.y / x.z + k.cy).round();
+        if !(u >= 0.0 && v >= 0.0 && u < k.width as f64 && v < k.height as f64) {
+            return None;
+        }
+        let j = v as usize * k.width + u as usize;
+        let (Some(n), Some(q), Some(&var_ref)) = (
+            reference.normals.get(j),
+            reference.points.get(j),
+            reference.variance_m2.get(j),
+        ) else {
+            return None;
+        };
+        let (n, var_ref) = (n.cast::<f64>(), f64::from(var_ref));
+        if !(n.x.is_finite() && var_ref.is_finite()) {
+            return None;
+        }
+        if (to_world.rotation * n_own.cast::<f64>()).dot(&n) < min_cos {
+            return None;
+        }
+        let r = n.dot(&(to_world * p - q.cast::<f64>()));
+        let sigma_z = sensor.sigma_z(p.z);
+        let gate = cfg.gate_sigmas * (sigma_z * sigma_z + var_ref).sqrt() + cfg.allowance_fine_m;
+        (r.abs() <= gate).then_some(var_ref)
+    }
 }
 
 /// The motion `R` with `Rⁿ = m` (the same screw motion, a fraction `1/n` of it): the per-frame

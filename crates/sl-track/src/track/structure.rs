@@ -20,8 +20,16 @@
 //! this exceeds the σ of its own motion prior (`max_acceleration_m_s2 · frame_interval_s²`):
 //! along such a direction the data say less than the constant-velocity guess, so the pose
 //! there would be the guess, not a measurement.
+//!
+//! **Twice.** Before any alignment on the whole frame (a single wall; also the first frame,
+//! which must pin the pose to anchor a model), and after each alignment that passed its other
+//! checks on the samples that are inliers of the reference at the aligned pose, with the
+//! reference surface's variance added to the sample's (`solve::inlier_of`): a frame can be
+//! well constrained while the part of it the reference also holds is not (a model of one wall
+//! and the floor so far, surfaces beyond the fused range). Simulated rooms and corridors
+//! (`docs/bench/track.md`, session 13): tracked steps off by more than 2 cm fell from 19 to 11.
 
-use nalgebra::{Matrix6, SymmetricEigen, Vector6};
+use nalgebra::{Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
 use sl_core::{Camera, DepthView, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
@@ -33,27 +41,32 @@ use crate::error::Result;
 /// Pixels between samples, in both directions.
 pub(crate) const STEP: usize = 4;
 
-/// The plane extractor kept between frames (its buffers are reused).
+/// The plane extractor kept between frames (its buffers are reused) and the last frame's
+/// segmentation: its label image and its planes' normals.
 #[derive(Debug, Default)]
 pub(crate) struct StructureCheck {
     extractor: Option<PlaneExtractor>,
+    /// Plane label per pixel of the segmented level (0: on no plane).
+    labels: Vec<u16>,
+    /// Unit normal of plane `l` at index `l − 1`.
+    normals: Vec<Vector3<f64>>,
 }
 
 impl StructureCheck {
-    /// The pose's standard deviation along its least-constrained direction, metres
-    /// (`f64::INFINITY` when a direction gets no information at all: a single plane), from
-    /// pyramid level `index` of the frame (points, normals and depth; level 1, half
-    /// resolution, is where [`super::Tracker`] runs it: a plane's normal needs no more, and
-    /// the extraction costs a quarter).
-    pub(crate) fn weakest_sigma_m(
+    /// Extracts the planes of pyramid level `index` of the frame (level 1, half resolution, is
+    /// where [`super::Tracker`] runs it: a plane's normal needs no more, and the extraction
+    /// costs a quarter), for [`StructureCheck::weakest_sigma_m`].
+    pub(crate) fn segment(
         &mut self,
         level: &Level,
         index: usize,
         sensor: &SensorModel,
         cfg: &TrackerConfig,
-    ) -> Result<f64> {
+    ) -> Result<()> {
+        self.labels.clear();
+        self.normals.clear();
         let Some(k) = level.k else {
-            return Ok(f64::INFINITY);
+            return Ok(());
         };
         let scale = f64::from(1u32 << index.min(16));
         let extractor = match &mut self.extractor {
@@ -75,7 +88,32 @@ impl StructureCheck {
         };
         let seg =
             extractor.extract_depth(DepthView::new(k.width, k.height, &level.depth)?, &camera)?;
-        let labels = seg.labels.data();
+        self.labels.extend_from_slice(seg.labels.data());
+        self.normals
+            .extend(seg.planes.iter().map(|p| p.plane.normal));
+        Ok(())
+    }
+
+    /// The pose's standard deviation along its least-constrained direction, metres
+    /// (`f64::INFINITY` when a direction gets no information at all: a single plane), from the
+    /// samples of pyramid level `index` (point and normal) for which `other_variance` is
+    /// `Some` (the whole
+    /// frame, or the part that overlaps the reference at the aligned pose), with the planes of
+    /// the last [`StructureCheck::segment`] of that level. A sample's residual variance is
+    /// its own `σ_Z²` plus what `other_variance` gives (the reference surface's variance, as
+    /// in the alignment; 0 for the frame alone).
+    pub(crate) fn weakest_sigma_m(
+        &self,
+        level: &Level,
+        index: usize,
+        sensor: &SensorModel,
+        cfg: &TrackerConfig,
+        other_variance: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64>,
+    ) -> f64 {
+        let Some(k) = level.k else {
+            return f64::INFINITY;
+        };
+        let scale = f64::from(1u32 << index.min(16));
         let step = (STEP as f64 / scale).max(1.0) as usize;
         let share = (step * step) as f64 / cfg.correlated_pixels(index);
         let mut info = Matrix6::<f64>::zeros();
@@ -83,34 +121,38 @@ impl StructureCheck {
         for v in (step / 2..k.height).step_by(step) {
             for u in (step / 2..k.width).step_by(step) {
                 let i = v * k.width + u;
-                let (Some(p), Some(n_own)) = (level.points.get(i), level.normals.get(i)) else {
+                let (Some(p32), Some(n_own)) = (level.points.get(i), level.normals.get(i)) else {
                     continue;
                 };
-                if p.z.is_nan() || p.z <= 0.0 || !n_own.x.is_finite() {
+                if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
                     continue;
                 }
-                let p = p.cast::<f64>().coords;
-                let n = match labels.get(i).map(|&l| l as usize) {
-                    Some(l) if l > 0 => match seg.planes.get(l - 1) {
-                        Some(pl) if pl.plane.normal.dot(&p) > 0.0 => -pl.plane.normal,
-                        Some(pl) => pl.plane.normal,
+                let Some(var_other) = other_variance(p32, n_own) else {
+                    continue;
+                };
+                let p = p32.cast::<f64>().coords;
+                let n = match self.labels.get(i).map(|&l| l as usize) {
+                    Some(l) if l > 0 => match self.normals.get(l - 1) {
+                        Some(n) if n.dot(&p) > 0.0 => -n,
+                        Some(n) => *n,
                         None => n_own.cast::<f64>(),
                     },
                     _ => n_own.cast::<f64>(),
                 };
                 let sigma_z = sensor.sigma_z(p.z);
-                if sigma_z.is_nan() || sigma_z <= 0.0 {
+                let var = sigma_z * sigma_z + var_other;
+                if !(var > 0.0 && var.is_finite()) {
                     continue;
                 }
                 let r = p.cross(&n);
                 let j = Vector6::new(r.x, r.y, r.z, n.x, n.y, n.z);
-                info += j * j.transpose() * (share / (sigma_z * sigma_z));
+                info += j * j.transpose() * (share / var);
                 z_sum += p.z;
                 count += 1.0;
             }
         }
         if count < 6.0 {
-            return Ok(f64::INFINITY);
+            return f64::INFINITY;
         }
         // Rotations as displacements at the mean depth.
         rotations_at_depth(&mut info, z_sum / count);
@@ -121,10 +163,10 @@ impl StructureCheck {
             .fold(f64::INFINITY, f64::min);
         let largest = info.diagonal().max();
         // Round-off of a rank-deficient sum leaves |λ_min| ~ 1e-12 of the largest.
-        Ok(if min > largest * 1e-9 {
+        if min > largest * 1e-9 {
             1.0 / min.sqrt()
         } else {
             f64::INFINITY
-        })
+        }
     }
 }

@@ -1,0 +1,132 @@
+//! Tracking through the simulated rooms and corridors of the room benchmark: a check that the
+//! tracker never silently emits a wrong pose on geometry nobody tuned on.
+//!
+//! For each seed, `sl_noise::sim::room_scene` (rooms 3–6 × 3.5–7 m with boxes, corridors
+//! 1.4–2.2 m wide and 8–14 m long, camera anywhere, f = 520–600 px) is seen along a hand-held
+//! path (1.2 cm and 1.2° per frame) through the realistic simulator, tracked frame to model
+//! (8 mm voxels, the sensor-adaptive band), and scored: frames lost, and **bad steps** —
+//! tracked frames whose motion since the previous tracked frame is off by more than 2 cm or 1°
+//! (the real sequences' RPE is 2–6 mm per frame).
+//!
+//! ```text
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME]
+//! ```
+//! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
+//! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
+//! …: its intrinsics, baseline, sub-pixel step and noise) instead. Results:
+//! docs/bench/track.md ("Degenerate overlaps").
+#![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
+
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, CameraToCamera, SensorModel};
+use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, room_scene};
+use sl_track::{ModelReference, Tracker, TrackerConfig};
+use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+
+/// A tracked step off by more than this (metres) or [`BAD_STEP_DEG`] is a bad step.
+const BAD_STEP_M: f64 = 0.02;
+const BAD_STEP_DEG: f64 = 1.0;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let verbose = args.iter().any(|a| a == "--verbose");
+    let preset = args
+        .iter()
+        .position(|a| a == "--camera")
+        .and_then(|i| args.get(i + 1))
+        .map(|name| (name.clone(), Camera::preset(name).unwrap()));
+    let numbers: Vec<u64> = args.iter().filter_map(|a| a.parse().ok()).collect();
+    let first = numbers.first().copied().unwrap_or(3000);
+    let count = numbers.get(1).copied().unwrap_or(24);
+    let frames = numbers.get(2).copied().unwrap_or(30) as usize;
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.005, 0.002, 0.012),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
+        ),
+    ));
+    let (mut all_posed, mut all_bad, mut seeds_bad, mut worst_all) = (0, 0, 0, 0.0f64);
+    for seed in first..first + count {
+        let room = room_scene(seed).unwrap();
+        let (cam, sim) = match &preset {
+            Some((name, cam)) => (
+                *cam,
+                KinectSimulator::with_sensor(cam.sensor)
+                    .with_noise(NoiseModel::Realistic(RealisticNoise::for_camera(name))),
+            ),
+            None => (
+                Camera {
+                    intrinsics: room.intrinsics,
+                    sensor: SensorModel::kinect_v1(),
+                },
+                KinectSimulator::kinect_v1(),
+            ),
+        };
+        let k = cam.intrinsics;
+        let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        let mut vcfg = TsdfConfig::default();
+        vcfg.voxel_m = 0.008;
+        vcfg.trunc_m = 0.04;
+        vcfg.truncation = Truncation::sensor_adaptive(cam.sensor);
+        let mut volume = TsdfVolume::new(vcfg).unwrap();
+        let mut reference = ModelReference::new(&k, 0.5, RaycastConfig::default()).unwrap();
+        let mut pose = room.pose;
+        let (mut lost, mut bad, mut worst) = (0, 0, 0.0f64);
+        // The last tracked frame: its true and its estimated pose.
+        let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
+        for i in 0..frames {
+            let d = sim
+                .simulate(&room.scene, &k, &pose, seed * 1000 + i as u64)
+                .depth;
+            let r = tracker.track(&d, reference.maps()).unwrap();
+            if r.status.is_tracked() {
+                volume.integrate(&d, &k, &r.pose).unwrap();
+                reference
+                    .update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)
+                    .unwrap();
+                let (err_m, err_deg) = last.map_or((0.0, 0.0), |(t, e)| {
+                    let truth = t.inverse() * pose.isometry();
+                    let est = e.inverse() * r.pose.isometry();
+                    let d = truth.inverse() * est;
+                    (d.translation.vector.norm(), d.rotation.angle().to_degrees())
+                });
+                if err_m > BAD_STEP_M || err_deg > BAD_STEP_DEG {
+                    bad += 1;
+                }
+                worst = worst.max(err_m);
+                last = Some((*pose.isometry(), *r.pose.isometry()));
+                if verbose {
+                    println!(
+                        "  {i} {}: step off by {:.1} mm {:.2}°, σ {:.2} mm, inliers {:.3}",
+                        r.status.as_str(),
+                        err_m * 1e3,
+                        err_deg,
+                        r.weakest_sigma_m * 1e3,
+                        r.inlier_fraction
+                    );
+                }
+            } else {
+                lost += 1;
+                if verbose {
+                    println!("  {i} lost: {}", r.failure.as_deref().unwrap_or(""));
+                }
+            }
+            pose = pose * step;
+        }
+        println!(
+            "seed {seed} {:?} f {:.0} px: lost {lost} of {frames}, bad steps {bad} (worst step off by {:.1} mm)",
+            room.kind,
+            k.fx,
+            worst * 1e3
+        );
+        all_posed += frames - lost;
+        all_bad += bad;
+        seeds_bad += usize::from(bad > 0);
+        worst_all = worst_all.max(worst);
+    }
+    println!(
+        "all: {all_posed} of {} frames with a pose, {all_bad} bad steps in {seeds_bad} seeds (worst {:.1} mm)",
+        count as usize * frames,
+        worst_all * 1e3
+    );
+}
