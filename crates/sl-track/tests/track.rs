@@ -105,8 +105,15 @@ fn simulated_sequence_is_recovered_within_the_noise() {
     for model in [true, false] {
         let (est, status) = track(&cam, &frames, TrackerConfig::default(), model);
         assert_eq!(status[0], TrackStatus::Initialised);
+        // Frame to model, the last frames' inliers of the model shrink as the camera turns
+        // away from what it has fused (the weakest-direction σ of that overlap passes 10.9 mm
+        // at frame 19 of this 320×240 sequence), so those frames may be aligned to the last
+        // frame instead; frame to frame, every frame is tracked at its first attempt.
         assert!(
-            status[1..].iter().all(|s| *s == TrackStatus::Tracked),
+            status[1..]
+                .iter()
+                .all(|s| *s == TrackStatus::Tracked
+                    || (model && *s == TrackStatus::TrackedAgainstFrame)),
             "model {model}: {status:?}"
         );
         let e = errors(&truth, &est);
@@ -272,7 +279,7 @@ fn finest_level_is_checked_and_tracks_at_half_resolution() {
 /// model of one wall cannot anchor the frames after it: the tracker waits for a view that pins
 /// the pose), the others with the last good pose. Before session 12 they were reported tracked
 /// with the pose stuck. The `boxes` frames, with planes facing three ways, have a finite
-/// weakest σ well under the motion prior's; disabling the check gives the old behaviour back.
+/// weakest σ under the motion prior's; disabling the check gives the old behaviour back.
 #[test]
 fn a_single_wall_is_a_degenerate_view() {
     let scene = named_scene("wall").unwrap();
@@ -323,9 +330,11 @@ fn a_single_wall_is_a_degenerate_view() {
     tracker.track(&frames[0], None).unwrap();
     let r = tracker.track(&frames[1], None).unwrap();
     assert_eq!(r.status, TrackStatus::Tracked);
+    // Tracked, so below the bound (the larger of the frame's σ and its overlap's with the last
+    // frame, whose own noise doubles the variance): finite, and not zero.
     let prior = TrackerConfig::default().acceleration_variance_m2().sqrt();
     assert!(
-        r.weakest_sigma_m > 0.0 && r.weakest_sigma_m < prior / 2.0,
+        r.weakest_sigma_m > 0.0 && r.weakest_sigma_m < prior,
         "{} vs {prior}",
         r.weakest_sigma_m
     );
