@@ -233,11 +233,12 @@ impl Tracker {
     /// [`Tracker::track`] for a frame taken at `timestamp_s` (seconds, any origin). The time
     /// since the previous frame, in whole frame intervals ([`TrackerConfig::frame_interval_s`],
     /// rounded: the jitter of a driver's timestamps is not motion), scales what the tracker
-    /// expects of the motion: the constant-velocity prediction spans the gap, and the motion
-    /// prior's σ and the degenerate-view check's bound grow as the prior's model says
-    /// (∝ intervals²). A recording that dropped frames is then predicted across the gap
-    /// (TUM fr1/rpy every fourth frame: one frame lost with [`Tracker::track`], none with
-    /// timestamps; docs/bench/track.md). A frame given to [`Tracker::track`] after
+    /// expects of the motion: the constant-velocity prediction spans the gap, the velocity
+    /// measured over it is taken per interval, and the motion prior's σ grows as its model
+    /// says (∝ intervals²); the acceptance bounds (the largest correction, the degenerate-view
+    /// bound) stay those of one interval. A recording that dropped frames is then predicted
+    /// across the gap (TUM fr1/rpy every fourth frame: one frame lost with [`Tracker::track`],
+    /// none with timestamps; docs/bench/track.md). A frame given to [`Tracker::track`] after
     /// timestamped ones counts as one interval.
     ///
     /// # Errors
@@ -361,11 +362,8 @@ impl Tracker {
         } else {
             unknown_var
         };
-        let align = |start: &Isometry3<f64>, reference: &ReferenceMaps, var: f64, damped: bool| {
-            self.align(start, reference, var, damped)
-        };
         let mut iterations = 0;
-        let mut first = align(&predicted, reference, predicted_var, false);
+        let mut first = self.align(&predicted, reference, predicted_var, false);
         iterations += first.iterations;
         let mut recovered = false;
         let mut against_frame = false;
@@ -373,7 +371,7 @@ impl Tracker {
             if first.failure.is_none() {
                 break;
             }
-            let again = align(&start, reference, var, true);
+            let again = self.align(&start, reference, var, true);
             iterations += again.iterations;
             if again.failure.is_none() {
                 first = again;
@@ -387,7 +385,7 @@ impl Tracker {
         // frames. Try the last good frame before the plane fallback.
         if first.failure.is_some() && model.is_some() {
             for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
-                let again = align(&start, &self.last_ref, var, true);
+                let again = self.align(&start, &self.last_ref, var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
                     first = again;
@@ -401,7 +399,7 @@ impl Tracker {
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
                 let start = solve::renormalized(last * m.into_isometry());
-                let again = align(&start, reference, unknown_var, true);
+                let again = self.align(&start, reference, unknown_var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
                     first = again;
