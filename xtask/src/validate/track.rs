@@ -10,6 +10,8 @@
 //! off), and inv-var at least as accurate as uniform up to the spread of a 20-frame run (×1.5).
 //! A simulated camera sliding along a single wall must be lost at every frame, the first too
 //! (the degenerate-view check); the real sequences' weakest-direction σ is reported beside the bound.
+//! Simulated rooms and corridors (`rooms`): lost frames and wrong steps reported, and the
+//! reported σ checked against the errors it claims to bound.
 //! The real sequences are reported, not checked: the issue's targets (no lost frame on
 //! fr1/rpy, ATE at most half of Open3D dense SLAM's) are not met yet (docs/bench/track.md).
 
@@ -21,6 +23,8 @@ use sl_track::{ModelReference, Tracker, TrackerConfig, WeightMode};
 use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 use super::Context;
+
+mod rooms;
 
 /// Tracks `frames`; `None` for a lost frame.
 fn track(
@@ -208,6 +212,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         }
     }
     md.push_str(&degenerate_views(ctx, &degenerate)?);
+    md.push_str(&rooms::run(ctx)?);
     ctx.section("Camera tracking (issue 13)", md);
     Ok(())
 }
