@@ -97,11 +97,10 @@ impl StructureCheck {
     /// The pose's standard deviation along its least-constrained direction, metres
     /// (`f64::INFINITY` when a direction gets no information at all: a single plane), from the
     /// samples of pyramid level `index` (point and normal) for which `other_variance` is
-    /// `Some` (the whole
-    /// frame, or the part that overlaps the reference at the aligned pose), with the planes of
-    /// the last [`StructureCheck::segment`] of that level. A sample's residual variance is
-    /// its own `σ_Z²` plus what `other_variance` gives (the reference surface's variance, as
-    /// in the alignment; 0 for the frame alone).
+    /// `Some` (the whole frame, or its inliers of the reference at the aligned pose), with the
+    /// planes of the last [`StructureCheck::segment`] of that level. A sample's residual
+    /// variance is its own `σ_Z²` plus what `other_variance` gives (the reference surface's
+    /// variance, as in the alignment; 0 for the frame alone).
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,
