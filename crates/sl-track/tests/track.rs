@@ -332,7 +332,7 @@ fn a_single_wall_is_a_degenerate_view() {
     assert_eq!(r.status, TrackStatus::Tracked);
     // Tracked, so below the bound (the larger of the frame's σ and its overlap's with the last
     // frame, whose own noise doubles the variance): finite, and not zero.
-    let prior = TrackerConfig::default().acceleration_variance_m2().sqrt();
+    let prior = TrackerConfig::default().motion_prior_sigma_m();
     assert!(
         r.weakest_sigma_m > 0.0 && r.weakest_sigma_m < prior,
         "{} vs {prior}",

@@ -217,7 +217,8 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     Ok(())
 }
 
-/// A table row of the weakest-direction σ of a run's frames (the first frame has none).
+/// A table row of the weakest-direction σ of a run's frames (NaN ones, where the check did
+/// not run, left out).
 fn sigma_row(name: &str, sigmas: &[f64]) -> String {
     let mut v: Vec<f64> = sigmas.iter().copied().filter(|s| !s.is_nan()).collect();
     v.sort_by(f64::total_cmp);
@@ -236,11 +237,11 @@ fn sigma_row(name: &str, sigmas: &[f64]) -> String {
 
 /// The σ of the tracker's motion prior, the degenerate-view bound, metres.
 fn prior_sigma_m() -> f64 {
-    TrackerConfig::default().acceleration_variance_m2().sqrt()
+    TrackerConfig::default().motion_prior_sigma_m()
 }
 
 /// The degenerate-view check: a simulated camera sliding along a single wall (every frame
-/// after the first must be lost) and the real sequences' weakest-direction σ against the
+/// must be lost, the first too) and the real sequences' weakest-direction σ against the
 /// bound (`rows`, reported).
 fn degenerate_views(ctx: &mut Context, rows: &str) -> Result<String> {
     let scene = named_scene("wall")?;

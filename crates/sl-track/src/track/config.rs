@@ -238,7 +238,14 @@ impl TrackerConfig {
     /// Variance per axis of the camera's departure from the constant-velocity prediction
     /// over one frame, `(max_acceleration_m_s2 · frame_interval_s²)²`, m².
     pub fn acceleration_variance_m2(&self) -> f64 {
-        let sigma = self.max_acceleration_m_s2 * self.frame_interval_s * self.frame_interval_s;
+        let sigma = self.motion_prior_sigma_m();
         sigma * sigma
+    }
+
+    /// The motion prior's σ over one frame, `max_acceleration_m_s2 · frame_interval_s²`,
+    /// metres (10.9 mm at 1 g and 30 Hz): also the bound of the degenerate-view check
+    /// ([`TrackerConfig::degenerate_check`]).
+    pub fn motion_prior_sigma_m(&self) -> f64 {
+        self.max_acceleration_m_s2 * self.frame_interval_s * self.frame_interval_s
     }
 }

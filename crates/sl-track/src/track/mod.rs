@@ -289,7 +289,7 @@ impl Tracker {
         // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
         // an alignment returned would be the prior's guess along that direction. Nor does such
         // a view start the sequence: a model of one wall cannot anchor the frames after it.
-        let check_level = 1.min(self.pyramid.levels.len().saturating_sub(1));
+        let check_level = self.check_level();
         let weakest_sigma_m = match (
             self.cfg.degenerate_check,
             self.pyramid.levels.get(check_level),
@@ -307,7 +307,7 @@ impl Tracker {
             }
             _ => f64::NAN,
         };
-        let prior_sigma_m = self.cfg.acceleration_variance_m2().sqrt();
+        let prior_sigma_m = self.cfg.motion_prior_sigma_m();
         if self.last_good.is_some() {
             self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
         }
@@ -526,6 +526,12 @@ impl Tracker {
         }))
     }
 
+    /// The pyramid level the degenerate-view check runs on: 1 (half resolution; a plane's
+    /// normal needs no more), or 0 for a one-level pyramid.
+    fn check_level(&self) -> usize {
+        1.min(self.pyramid.levels.len().saturating_sub(1))
+    }
+
     /// Fewest associated points for the normal equations of `level` to mean anything: 1 % of
     /// the level's pixels.
     fn min_points(&self, level: usize) -> usize {
@@ -680,7 +686,7 @@ impl Tracker {
         // reference at this pose, with the reference's variance added to theirs as in the
         // alignment.
         let mut overlap_sigma_m = f64::NAN;
-        let check_level = 1.min(self.pyramid.levels.len().saturating_sub(1));
+        let check_level = self.check_level();
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
                 overlap_sigma_m = self.structure.weakest_sigma_m(
@@ -690,7 +696,7 @@ impl Tracker {
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
                 );
-                let bound = cfg.acceleration_variance_m2().sqrt();
+                let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {
                     format!(
                         "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",

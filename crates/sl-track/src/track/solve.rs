@@ -412,8 +412,10 @@ pub(crate) fn renormalized(mut iso: Isometry3<f64>) -> Isometry3<f64> {
 
 /// Whether a point of the frame (camera coordinates, with its normal) is an inlier of the
 /// reference at the camera-to-world `pose` — it lands on a reference surface within the
-/// alignment's gates (residual within `gate_sigmas·σ + allowance_fine_m`, normals within
-/// `max_normal_angle_deg`) — and if so the variance of the reference's surface there, m².
+/// alignment's gates in their plain form (residual within `gate_sigmas·σ + allowance_fine_m`
+/// with the frame's σ_Z taken whole rather than along the normal, normals within
+/// `max_normal_angle_deg` without [`pass`]'s per-point widening) — and if so the variance of
+/// the reference's surface there, m².
 pub(crate) fn inlier_of<'a>(
     reference: &'a ReferenceMaps,
     pose: &Isometry3<f64>,
@@ -468,7 +470,7 @@ pub(crate) fn nth_root(m: &Isometry3<f64>, n: u32) -> Isometry3<f64> {
     let r = rotation.to_rotation_matrix().into_inner();
     let mut power = Matrix3::identity();
     let mut sum = Matrix3::zeros();
-    for _ in 0..n.min(1000) {
+    for _ in 0..n {
         sum += power;
         power *= r;
     }

@@ -8,9 +8,9 @@
 //! instead of a pose — TUM tools skip comments, so a lost frame is missing from the
 //! evaluation rather than given a wrong pose. Frames without timestamps (7-Scenes, Open3D
 //! folders) use their index as the timestamp. The tracker is given the time between frames
-//! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder. `--output-log` writes the tracked frames as an
-//! Open3D `.log` (metadata `i i n`, `i` the frame index; lost frames are left out and listed in
-//! the JSON).
+//! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder.
+//! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
+//! frame index; lost frames are left out and listed in the JSON).
 
 use std::fmt::Write as _;
 use std::io::IsTerminal;
