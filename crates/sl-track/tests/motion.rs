@@ -424,6 +424,20 @@ proptest! {
 /// the result returns. **Known defect, not fixed**: either the result should carry the verified
 /// (refined) rotation or the verification should bound the plane estimate's own distance from
 /// the refined one. Ignored so that CI stays green; run with `--ignored` to see it.
+///
+/// Session 14 measured both ways out. (1) Returning the refined rotation instead: over 300
+/// random motions of this room (up to 60°, ±30 cm; the harness was temporary) the plane
+/// estimate is the more accurate one — white noise, 83 verified: plane median / p90 / max
+/// error 0.17 / 0.33 / 0.45°, refined 0.45 / 1.21 / 4.16°, the plane estimate better in 76;
+/// realistic noise, 86 verified: plane 0.36 / 0.83 / 1.58°, refined 0.54 / 1.49 / 2.66°, plane
+/// better in 61. On real TUM pairs 5 and 15 frames apart (39 verified, motion capture as the
+/// reference, its timing alone worth ~1°) the refined one is slightly better (median 1.19
+/// against 1.34°). (2) Verifying the plane estimate itself (the refined pose turned about its
+/// inliers' centroid to the plane rotation): here it still explains 95.9 % of the overlapping
+/// points against the refined pose's 97.8 %, above `min_inlier_fraction` — the depth check
+/// cannot resolve 2° on this 148-px camera; what "verified" guarantees is that no rotation
+/// `distinct_deg` (15°) away explains the data. Neither is a fix; the 1° bound of this test
+/// asks for more precision than three plane matches (RMS 0.65°) give.
 #[test]
 #[ignore = "known defect: the verified plane estimate can be 1.9° off (see the doc comment)"]
 fn verified_plane_estimate_of_a_large_rotation_with_translation() {
