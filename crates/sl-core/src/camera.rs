@@ -53,6 +53,32 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// The same sensor seen through an image resampled by `factor` (0.5: a 320×240 stream of a
+    /// 640×480 sensor, as a QVGA mode or a decimating driver delivers it). The intrinsics are
+    /// scaled ([`Intrinsics::scaled`]); the sensor model is kept, so the depth noise `σ_Z(Z)`
+    /// stays the sensor's and its pixel-sized quantities (the disparity step, the
+    /// block-matching window) stay in the sensor's own pixels
+    /// ([`Camera::pixels_per_sensor_pixel`] converts them).
+    ///
+    /// # Errors
+    /// A `factor` that is not positive and finite, or intrinsics that scale to no pixel.
+    pub fn resampled(&self, factor: f64) -> Result<Self> {
+        Ok(Self {
+            intrinsics: self.intrinsics.scaled(factor)?,
+            sensor: self.sensor,
+        })
+    }
+
+    /// Image pixels per pixel of the sensor, `fx / sensor.focal_px`: 1 for a camera at its
+    /// sensor's resolution, 0.5 for [`Camera::resampled`]`(0.5)`. Quantities the sensor defines
+    /// in its own pixels (the block-matching window over which its error is correlated) span
+    /// this many times as many image pixels along each axis.
+    pub fn pixels_per_sensor_pixel(&self) -> f64 {
+        self.intrinsics.fx / self.sensor.focal_px
+    }
+}
+
 impl Default for Camera {
     fn default() -> Self {
         Self::kinect_v1()

@@ -5,7 +5,7 @@
 
 use nalgebra::{Isometry3, Point3, Vector3};
 use proptest::prelude::*;
-use sl_core::{DepthImage, Intrinsics, SensorModel, pose_from_matrix, pose_to_matrix};
+use sl_core::{Camera, DepthImage, Intrinsics, SensorModel, pose_from_matrix, pose_to_matrix};
 
 fn camera() -> impl Strategy<Value = (Intrinsics, SensorModel)> {
     (
@@ -105,4 +105,20 @@ proptest! {
         let q = Point3::from(p);
         prop_assert!((pose * q - back * q).norm() < 1e-9);
     }
+}
+
+/// A camera resampled from its sensor keeps the sensor's noise model and says how its pixels
+/// relate to the sensor's.
+#[test]
+fn a_resampled_camera_keeps_its_sensor() {
+    let cam = Camera::kinect_v1();
+    assert_eq!(cam.pixels_per_sensor_pixel(), 1.0);
+    let half = cam.resampled(0.5).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!((half.intrinsics.width, half.intrinsics.height), (320, 240));
+    assert_eq!(half.intrinsics.fx, cam.intrinsics.fx / 2.0);
+    assert_eq!(half.sensor, cam.sensor);
+    assert_eq!(half.pixels_per_sensor_pixel(), 0.5);
+    assert_eq!(half.sensor.sigma_z(2.0), cam.sensor.sigma_z(2.0));
+    assert!(cam.resampled(0.0).is_err());
+    assert!(cam.resampled(f64::NAN).is_err());
 }

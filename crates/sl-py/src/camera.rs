@@ -132,6 +132,26 @@ impl PyCamera {
         self.inner.sensor.disparity_to_depth(d_px)
     }
 
+    /// Focal length of the sensor's own images, pixels: ``fx`` unless the camera was
+    /// ``resampled``.
+    #[getter]
+    fn sensor_focal_px(&self) -> f64 {
+        self.inner.sensor.focal_px
+    }
+
+    /// The same sensor seen through images resampled by ``factor`` (``0.5``: the 320×240
+    /// frames of a 640×480 sensor, a QVGA mode or a decimating driver): the intrinsics are
+    /// scaled, the sensor's noise model (``sigma_z``, its focal length, its block-matching
+    /// window) is kept, so the tracker and the plane extractor weigh the decimated frames as
+    /// the same sensor's. The lens model, if any, is kept (it acts on normalised
+    /// coordinates). A ``factor`` that is not positive raises ``ValueError``.
+    fn resampled(&self, factor: f64) -> PyResult<Self> {
+        Ok(Self {
+            inner: self.inner.resampled(factor).map_err(value_error)?,
+            lens: self.lens,
+        })
+    }
+
     /// The 3×3 intrinsic matrix as nested lists (``numpy.array(cam.intrinsic_matrix())``).
     fn intrinsic_matrix(&self) -> [[f64; 3]; 3] {
         let k = &self.inner.intrinsics;

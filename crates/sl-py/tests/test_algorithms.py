@@ -225,6 +225,28 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_a_resampled_camera_tracks_decimated_frames(kinect):
+    # A QVGA stream of the VGA sensor: intrinsics halved, the sensor's noise model kept.
+    half = kinect.resampled(0.5)
+    assert (half.width, half.height, half.fx) == (320, 240, kinect.fx / 2)
+    assert half.sensor_focal_px == kinect.sensor_focal_px == kinect.fx
+    assert half.sigma_z(2.0) == kinect.sigma_z(2.0)
+    with pytest.raises(ValueError):
+        kinect.resampled(0.0)
+    depth = sldepth.simulate("boxes", seed=3)[0][::2, ::2]
+    t = sldepth.Tracker(half)
+    assert t.track(depth)[1] == "initialised"
+    pose, status = t.track(depth)
+    assert status in ("tracked", "tracked-against-frame"), status
+    assert np.abs(pose[:3, 3]).max() < 0.002
+    # The pose is known about as well as at full resolution: the frame holds the same scene.
+    full = sldepth.Tracker(kinect)
+    for _ in range(2):
+        full.track(sldepth.simulate("boxes", seed=3)[0])
+    ratio = t.last_weakest_sigma_m / full.last_weakest_sigma_m
+    assert 0.75 < ratio < 1.33, ratio
+
+
 def test_tracker_undistorts_with_the_cameras_lens_model():
     # tum-fr1 has a lens model: "auto" resamples each frame, so the fused model differs from
     # the one built from the frames as given; a still camera is tracked either way.

@@ -470,3 +470,51 @@ fn a_frame_that_overlaps_the_reference_on_two_planes_is_not_aligned_to_it() {
         "the unchecked alignment is not off: {results:?}"
     );
 }
+
+/// Every `n`-th pixel of every `n`-th row.
+fn decimate(d: &DepthImage, n: usize) -> DepthImage {
+    let (w, h) = (d.width() / n, d.height() / n);
+    let data = (0..w * h)
+        .map(|j| d.data()[(j / w) * n * d.width() + (j % w) * n])
+        .collect();
+    DepthImage::from_vec(w, h, data).unwrap()
+}
+
+/// A frame of a sensor decimated by 2 (a QVGA stream of a VGA Kinect) holds as much about the
+/// pose as the full frame: its error is correlated over the same patch of the scene (the
+/// block-matching window, now half as many pixels across) and its depth noise is the sensor's.
+/// Told the camera is that sensor resampled ([`Camera::resampled`]), the tracker reports about
+/// the same weakest-direction σ as at full resolution; taken as a 320×240 sensor of its own
+/// (focal length halved: twice the depth noise, and a 9×11 px window over four times the
+/// scene), several times more (`boxes`: 1.46 mm full, 1.51 mm resampled, 6.1 mm as its own
+/// sensor) — which put 79 of 120 decimated TUM fr1/rpy frames past the degenerate-view bound
+/// before the camera could say so (docs/bench/track.md).
+#[test]
+fn decimated_frames_of_the_same_sensor_carry_the_same_information() {
+    let scene = named_scene("boxes").unwrap();
+    let full = Camera::from_intrinsics(scene.intrinsics, None, None).unwrap();
+    let sim = KinectSimulator::with_sensor(full.sensor);
+    let sigma = |cam: Camera, d: &DepthImage| {
+        let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        let r = t.track(d, None).unwrap();
+        assert_eq!(r.status, TrackStatus::Initialised, "{:?}", r.failure);
+        r.weakest_sigma_m
+    };
+    for seed in [7, 8] {
+        let depth = sim
+            .simulate(&scene.scene, &full.intrinsics, &scene.pose, seed)
+            .depth;
+        let half = decimate(&depth, 2);
+        let s_full = sigma(full, &depth);
+        let resampled = full.resampled(0.5).unwrap();
+        assert_eq!(resampled.pixels_per_sensor_pixel(), 0.5);
+        let s_resampled = sigma(resampled, &half);
+        let own = Camera::from_intrinsics(resampled.intrinsics, None, None).unwrap();
+        let s_own = sigma(own, &half);
+        assert!(
+            (0.75..1.33).contains(&(s_resampled / s_full)),
+            "full {s_full}, decimated {s_resampled}"
+        );
+        assert!(s_own > 2.0 * s_full, "full {s_full}, own sensor {s_own}");
+    }
+}

@@ -20,6 +20,12 @@ fn sldepth(args: &[&str]) -> Output {
 /// Writes `n` frames of the simulated `boxes` scene (640×480 Kinect, the camera turning 1° and
 /// moving 1 cm per frame) as a TUM folder: `depth/<t>.png` (5000 units/m) and `depth.txt`.
 fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
+    write_sequence_decimated(dir, n, 1)
+}
+
+/// [`write_sequence`] with every frame decimated by `every` (every `every`-th pixel of every
+/// `every`-th row, as a driver's decimation or a QVGA mode delivers them).
+fn write_sequence_decimated(dir: &Path, n: usize, every: usize) -> Vec<f64> {
     let scene = named_scene("boxes").unwrap();
     let sim = KinectSimulator::kinect_v1().white();
     let step = CameraToCamera::from_isometry(Isometry3::from_parts(
@@ -34,6 +40,11 @@ fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
         let t = 100.0 + i as f64 / 30.0;
         let truth = scene.scene.render(&scene.intrinsics, &pose).depth;
         let depth = sim.apply(&truth, i as u64);
+        let (w, h) = (depth.width() / every, depth.height() / every);
+        let data = (0..w * h)
+            .map(|j| depth.data()[(j / w) * every * depth.width() + (j % w) * every])
+            .collect();
+        let depth = sl_core::DepthImage::from_vec(w, h, data).unwrap();
         let name = format!("depth/{t:.6}.png");
         write_depth(dir.join(&name), &depth, &DepthEncoding::tum()).unwrap();
         list.push_str(&format!("{t:.6} {name}\n"));
@@ -42,6 +53,66 @@ fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
     }
     std::fs::write(dir.join("depth.txt"), list).unwrap();
     stamps
+}
+
+/// Frames a whole fraction of the camera's size (here 320×240 for the 640×480 `kinect-v1`) are
+/// the same sensor decimated: tracked with the camera scaled and the sensor's noise kept, said
+/// on standard error; a size that is no such fraction is still an error.
+#[test]
+fn track_treats_frames_a_fraction_of_the_camera_as_decimated() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence_decimated(&seq, 6, 2);
+    let traj = tmp.path().join("traj.txt");
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        traj.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("1/2 of the camera's 640x480"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["lost"], 0);
+    let text = std::fs::read_to_string(&traj).unwrap();
+    let last: Vec<f64> = text
+        .lines()
+        .rfind(|l| !l.starts_with('#'))
+        .unwrap()
+        .split_whitespace()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    let moved = (last[1] * last[1] + last[2] * last[2] + last[3] * last[3]).sqrt();
+    assert!(
+        (moved - 0.05).abs() < 0.01,
+        "moved {moved} m, expected about 0.05 m"
+    );
+    // Frames that are no whole fraction of the camera (another aspect ratio) are an error.
+    let seq2 = tmp.path().join("seq2");
+    write_sequence(&seq2, 2);
+    let cam = tmp.path().join("cam.json");
+    std::fs::write(
+        &cam,
+        r#"{"width": 1000, "height": 480, "intrinsic_matrix": [580, 0, 0, 0, 580, 0, 499.5, 239.5, 1]}"#,
+    )
+    .unwrap();
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq2.to_str().unwrap(),
+        "--camera",
+        cam.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("640x480 but the camera is 1000x480"), "{err}");
 }
 
 #[test]

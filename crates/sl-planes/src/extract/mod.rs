@@ -95,10 +95,12 @@ pub struct PlaneConfig {
     pub merge_px: f64,
     /// Disconnected pieces of a plane smaller than this are dropped (0 keeps all).
     pub min_piece_pixels: usize,
-    /// Width of the window over which the disparity error is correlated, pixels (the
-    /// block-matching window of a Kinect-class camera; 1 = white noise). With the sensor's
-    /// `σ_D` and `q` it sets the noise of the patch fits that seed the planes (see
-    /// `docs/NOISE_MODEL.md`: 9 × 11 px fitted on real frames).
+    /// Width of the window over which the disparity error is correlated, pixels of the sensor
+    /// (the block-matching window of a Kinect-class camera; 1 = white noise; a camera resampled
+    /// from its sensor, `sl_core::Camera::resampled`, sees it scaled by
+    /// `Camera::pixels_per_sensor_pixel`). With the sensor's `σ_D` and `q` it sets the noise of
+    /// the patch fits that seed the planes (see `docs/NOISE_MODEL.md`: 9 × 11 px fitted on real
+    /// frames).
     pub noise_window_x_px: f64,
     /// Height of that window, pixels.
     pub noise_window_y_px: f64,
@@ -403,12 +405,16 @@ impl PlaneExtractor {
         &self.times
     }
 
+    /// The cell noise of `camera`'s images: the window is given in the sensor's pixels, so a
+    /// camera resampled from its sensor ([`Camera::resampled`]) sees it scaled.
     fn set_noise(&mut self, camera: &Camera) {
+        let s = camera.pixels_per_sensor_pixel();
+        let s = if s.is_finite() && s > 0.0 { s } else { 1.0 };
         self.noise = CellNoise::new(
             camera.sensor.sigma_d_px,
             camera.sensor.subpixel_steps,
-            self.cfg.noise_window_x_px,
-            self.cfg.noise_window_y_px,
+            self.cfg.noise_window_x_px * s,
+            self.cfg.noise_window_y_px * s,
         );
     }
 

@@ -64,6 +64,12 @@ class Camera:
         """Depth noise (metres) at depth z_m: z**2 * sigma_D / (f*B)."""
     def depth_to_disparity(self, z_m: float) -> float: ...
     def disparity_to_depth(self, d_px: float) -> float: ...
+    @property
+    def sensor_focal_px(self) -> float:
+        """Focal length of the sensor's own images (fx unless resampled)."""
+    def resampled(self, factor: float) -> Camera:
+        """The same sensor through images resampled by factor (0.5: 320x240 frames of a
+        640x480 sensor): intrinsics scaled, noise model and lens kept."""
     def intrinsic_matrix(self) -> List[List[float]]: ...
 
 def read_depth(

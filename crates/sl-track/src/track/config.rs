@@ -114,9 +114,11 @@ pub struct TrackerConfig {
     /// half resolution (under 1 ms at 640×480 on one core).
     pub degenerate_check: bool,
     /// Width of the window over which a structured-light camera's depth error is correlated,
-    /// pixels of the full-resolution frame (the block-matching window: 9 × 11 px fitted on
-    /// real Kinect frames, `docs/NOISE_MODEL.md`; the same window as
-    /// `sl_planes::PlaneConfig::noise_window_x_px`; 1 × 1 = white noise). The normal equations
+    /// pixels of the sensor (the block-matching window: 9 × 11 px fitted on real Kinect frames,
+    /// `docs/NOISE_MODEL.md`; the same window as `sl_planes::PlaneConfig::noise_window_x_px`;
+    /// 1 × 1 = white noise). Frames of a camera resampled from its sensor
+    /// (`sl_core::Camera::resampled`: a 320×240 stream of a 640×480 Kinect) see it scaled by
+    /// `Camera::pixels_per_sensor_pixel`, so they carry the same information per solid angle. The normal equations
     /// count one independent measurement per window, not per pixel: otherwise a weakly
     /// constrained direction (far walls, few planes) looks hundreds of times better known than
     /// it is and outweighs the motion prior.
@@ -229,9 +231,17 @@ impl TrackerConfig {
 
 impl TrackerConfig {
     /// Pixels of pyramid level `level` over which the depth error is correlated (at least 1):
-    /// the noise window's area, divided by the 4^level full-resolution pixels of a pixel.
-    pub fn correlated_pixels(&self, level: usize) -> f64 {
-        let area = self.noise_window_x_px * self.noise_window_y_px;
+    /// the noise window's area (in the sensor's pixels) in image pixels, `pixel_scale²` of
+    /// them per sensor pixel ([`sl_core::Camera::pixels_per_sensor_pixel`]: 1 at the sensor's
+    /// resolution, 0.5 for frames decimated to half of it), divided by the 4^level
+    /// full-resolution pixels of a pixel of the level.
+    pub fn correlated_pixels(&self, level: usize, pixel_scale: f64) -> f64 {
+        let s2 = if pixel_scale.is_finite() && pixel_scale > 0.0 {
+            pixel_scale * pixel_scale
+        } else {
+            1.0
+        };
+        let area = self.noise_window_x_px * self.noise_window_y_px * s2;
         (area / 4f64.powi(level.min(30) as i32)).max(1.0)
     }
 

@@ -295,13 +295,20 @@ impl Tracker {
             self.pyramid.levels.get(check_level),
         ) {
             (true, Some(level)) => {
-                self.structure
-                    .segment(level, check_level, &self.camera.sensor, &self.cfg)?;
+                let pixel_scale = self.camera.pixels_per_sensor_pixel();
+                self.structure.segment(
+                    level,
+                    check_level,
+                    &self.camera.sensor,
+                    &self.cfg,
+                    pixel_scale,
+                )?;
                 self.structure.weakest_sigma_m(
                     level,
                     check_level,
                     &self.camera.sensor,
                     &self.cfg,
+                    pixel_scale,
                     |_, _| Some(0.0),
                 )
             }
@@ -567,7 +574,7 @@ impl Tracker {
                 min_cos,
             };
             let prior = solve::Prior {
-                data_share: 1.0 / cfg.correlated_pixels(l),
+                data_share: 1.0 / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
                 info_t: 1.0 / prior_var_m2,
                 centre_t: start.translation.vector,
             };
@@ -694,6 +701,7 @@ impl Tracker {
                     check_level,
                     sensor,
                     cfg,
+                    self.camera.pixels_per_sensor_pixel(),
                     solve::inlier_of(reference, &pose, sensor, cfg),
                 );
                 let bound = cfg.motion_prior_sigma_m();

@@ -55,13 +55,15 @@ pub(crate) struct StructureCheck {
 impl StructureCheck {
     /// Extracts the planes of pyramid level `index` of the frame (level 1, half resolution, is
     /// where [`super::Tracker`] runs it: a plane's normal needs no more, and the extraction
-    /// costs a quarter), for [`StructureCheck::weakest_sigma_m`].
+    /// costs a quarter), for [`StructureCheck::weakest_sigma_m`]. `pixel_scale`: the camera's
+    /// image pixels per sensor pixel ([`Camera::pixels_per_sensor_pixel`]).
     pub(crate) fn segment(
         &mut self,
         level: &Level,
         index: usize,
         sensor: &SensorModel,
         cfg: &TrackerConfig,
+        pixel_scale: f64,
     ) -> Result<()> {
         self.labels.clear();
         self.normals.clear();
@@ -72,17 +74,20 @@ impl StructureCheck {
         let extractor = match &mut self.extractor {
             Some(e) => e,
             None => {
-                // The correlation window of the sensor's error in this level's pixels.
+                // The correlation window of the sensor's error in sensor pixels at this level's
+                // scale (the extractor converts it to the level's pixels with the camera below).
                 let mut pc = PlaneConfig::default();
                 pc.noise_window_x_px = (cfg.noise_window_x_px / scale).max(1.0);
                 pc.noise_window_y_px = (cfg.noise_window_y_px / scale).max(1.0);
                 self.extractor.insert(PlaneExtractor::new(pc)?)
             }
         };
+        // The level's disparity in the level's pixels: the sensor's focal length scaled as the
+        // level's (equal to the level's focal length at the sensor's own resolution).
         let camera = Camera {
             intrinsics: k,
             sensor: SensorModel {
-                focal_px: k.fx,
+                focal_px: k.fx / pixel_scale,
                 ..*sensor
             },
         };
@@ -100,13 +105,16 @@ impl StructureCheck {
     /// `Some` (the whole frame, or its inliers of the reference at the aligned pose), with the
     /// planes of the last [`StructureCheck::segment`] of that level. A sample's residual
     /// variance is its own `σ_Z²` plus what `other_variance` gives (the reference surface's
-    /// variance, as in the alignment; 0 for the frame alone).
+    /// variance, as in the alignment; 0 for the frame alone). `pixel_scale` as in
+    /// [`StructureCheck::segment`].
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,
         index: usize,
         sensor: &SensorModel,
         cfg: &TrackerConfig,
+        pixel_scale: f64,
         other_variance: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64>,
     ) -> f64 {
         let Some(k) = level.k else {
@@ -114,7 +122,7 @@ impl StructureCheck {
         };
         let scale = f64::from(1u32 << index.min(16));
         let step = (STEP as f64 / scale).max(1.0) as usize;
-        let share = (step * step) as f64 / cfg.correlated_pixels(index);
+        let share = (step * step) as f64 / cfg.correlated_pixels(index, pixel_scale);
         let mut info = Matrix6::<f64>::zeros();
         let (mut z_sum, mut count) = (0.0f64, 0.0f64);
         for v in (step / 2..k.height).step_by(step) {

@@ -11,6 +11,11 @@
 //! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder.
 //! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
 //! frame index; lost frames are left out and listed in the JSON).
+//!
+//! Frames whose size is the camera's divided by a whole number (320×240 for a 640×480 preset:
+//! a QVGA stream, a driver's decimation) are tracked as that sensor decimated
+//! (`Camera::resampled`: intrinsics scaled, the sensor's noise model and block-matching window
+//! kept), with a note on standard error. A camera JSON says the same with `sensor_focal_px`.
 
 use std::fmt::Write as _;
 use std::io::IsTerminal;
@@ -246,6 +251,14 @@ impl Prefilter {
     }
 }
 
+/// The integer factor `n` (2 to 8) by which frames of `width`×`height` are the camera's image
+/// decimated (a QVGA stream of a VGA sensor, a driver's decimation), or `None` when they have
+/// the camera's size or are not such a fraction of it.
+fn decimation(camera: &Camera, width: usize, height: usize) -> Option<usize> {
+    let k = &camera.intrinsics;
+    (2..=8).find(|&n| width * n == k.width && height * n == k.height)
+}
+
 /// Runs `sldepth track`.
 pub fn run(args: Args) -> Result<()> {
     for (opt, path, exts) in [
@@ -270,6 +283,25 @@ pub fn run(args: Args) -> Result<()> {
     if frames.is_empty() {
         bail!("no depth frames in the sequence");
     }
+    let mut read_opts = ReadConfig::default();
+    read_opts.format = parse_format(&args.input)?;
+    read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
+    let camera = match frames
+        .first()
+        .and_then(|f| read_depth_with_limits(&f.depth_path, &read_opts, &limits()).ok())
+        .and_then(|d| decimation(&camera, d.depth.width(), d.depth.height()))
+    {
+        Some(n) => {
+            errln!(
+                "note: the frames are 1/{n} of the camera's {}x{}: tracking them as the same \
+                 sensor decimated by {n} (intrinsics scaled, the sensor's noise model kept)",
+                camera.intrinsics.width,
+                camera.intrinsics.height
+            );
+            camera.resampled(1.0 / n as f64)?
+        }
+        None => camera,
+    };
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
@@ -308,9 +340,6 @@ pub fn run(args: Args) -> Result<()> {
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
     let mut track_ms_tracked = Vec::new();
-    let mut read_opts = ReadConfig::default();
-    read_opts.format = parse_format(&args.input)?;
-    read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
 
     let bar = indicatif::ProgressBar::new(frames.len() as u64);
     if !std::io::stderr().is_terminal() || args.json {
