@@ -17,6 +17,25 @@ fn sldepth(args: &[&str]) -> Output {
         .expect("the sldepth binary runs")
 }
 
+/// The pose lines of a TUM trajectory file (comment lines skipped), as numbers.
+fn pose_rows(path: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
+        .collect()
+}
+
+/// The last frame of [`write_sequence`]'s six is 5 cm from the first (1 cm per frame).
+fn assert_moved_5_cm(row: &[f64]) {
+    let moved = (row[1] * row[1] + row[2] * row[2] + row[3] * row[3]).sqrt();
+    assert!(
+        (moved - 0.05).abs() < 0.01,
+        "moved {moved} m, expected about 0.05 m"
+    );
+}
+
 /// Writes `n` frames of the simulated `boxes` scene (640×480 Kinect, the camera turning 1° and
 /// moving 1 cm per frame) as a TUM folder: `depth/<t>.png` (5000 units/m) and `depth.txt`.
 fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
@@ -81,19 +100,8 @@ fn track_treats_frames_a_fraction_of_the_camera_as_decimated() {
     assert!(err.contains("1/2 of the camera's 640x480"), "{err}");
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["lost"], 0);
-    let text = std::fs::read_to_string(&traj).unwrap();
-    let last: Vec<f64> = text
-        .lines()
-        .rfind(|l| !l.starts_with('#'))
-        .unwrap()
-        .split_whitespace()
-        .map(|x| x.parse().unwrap())
-        .collect();
-    let moved = (last[1] * last[1] + last[2] * last[2] + last[3] * last[3]).sqrt();
-    assert!(
-        (moved - 0.05).abs() < 0.01,
-        "moved {moved} m, expected about 0.05 m"
-    );
+    let rows = pose_rows(&traj);
+    assert_moved_5_cm(&rows[rows.len() - 1]);
     // Frames that are no whole fraction of the camera (another aspect ratio) are an error.
     let seq2 = tmp.path().join("seq2");
     write_sequence(&seq2, 2);
@@ -155,23 +163,13 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert!(v["vertices"].as_u64().unwrap() > 1000);
     // One pose line per frame, with the input's timestamps; the camera moved 1 cm per frame
     // along its x axis.
-    let text = std::fs::read_to_string(&traj).unwrap();
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split_whitespace().map(|x| x.parse().unwrap()).collect())
-        .collect();
+    let rows = pose_rows(&traj);
     assert_eq!(rows.len(), 6);
     for (r, t) in rows.iter().zip(&stamps) {
         assert_eq!(r.len(), 8);
         assert!((r[0] - t).abs() < 1e-6);
     }
-    let last = &rows[5];
-    let moved = (last[1] * last[1] + last[2] * last[2] + last[3] * last[3]).sqrt();
-    assert!(
-        (moved - 0.05).abs() < 0.01,
-        "moved {moved} m, expected about 0.05 m"
-    );
+    assert_moved_5_cm(&rows[5]);
     let entries = sl_io::trajectory::read_open3d_log(&log).unwrap();
     assert_eq!(entries.len(), 6);
     let m = sl_io::read_mesh_ply(&mesh).unwrap();
