@@ -285,7 +285,29 @@ pub fn parse_format(args: &InputArgs) -> Result<Option<DepthFormat>> {
         .transpose()
 }
 
-/// Reads a depth map with the options of `args` and checks it against the camera.
+/// The camera for frames of `width`×`height` taken by `camera`'s sensor: `camera` itself at its
+/// own size; the same sensor decimated (`Camera::resampled`: intrinsics scaled, the sensor's
+/// noise model kept) when the frames are its size divided by a whole number from 2 to 8 (a
+/// QVGA stream of a VGA sensor, a driver's decimation), said in a note on standard error;
+/// `None` for any other size.
+pub fn camera_for_frames(camera: &Camera, width: usize, height: usize) -> Option<Camera> {
+    let k = &camera.intrinsics;
+    if (width, height) == (k.width, k.height) {
+        return Some(*camera);
+    }
+    let n = (2..=8usize).find(|&n| width * n == k.width && height * n == k.height)?;
+    let resampled = camera.resampled(1.0 / n as f64).ok()?;
+    errln!(
+        "note: the frames are 1/{n} of the camera's {}x{}: taken as the same sensor decimated by \
+         {n} (intrinsics scaled, the sensor's noise model kept)",
+        k.width,
+        k.height
+    );
+    Some(resampled)
+}
+
+/// Reads a depth map with the options of `args` and checks it against the camera (frames a
+/// whole fraction of the camera's size are its sensor decimated, see [`camera_for_frames`]).
 pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     if let Some(s) = args.depth_scale {
         check_depth_scale(s)?;
@@ -305,7 +327,8 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         _ => load_camera(args)?,
     };
     let k = &camera.intrinsics;
-    if loaded.depth.width() != k.width || loaded.depth.height() != k.height {
+    let Some(camera) = camera_for_frames(&camera, loaded.depth.width(), loaded.depth.height())
+    else {
         bail!(
             "{}: depth map is {}x{} but the camera is {}x{} (pass --camera with matching intrinsics)",
             path.display(),
@@ -314,7 +337,7 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
             k.width,
             k.height
         );
-    }
+    };
     Ok(Loaded {
         depth: loaded.depth,
         camera,

@@ -72,7 +72,7 @@ enum Command {
     /// Track the camera through a raw depth recording (no poses given): noise-weighted
     /// point-to-plane tracking, fusion of every tracked frame, trajectory and mesh output.
     /// Frames of a whole fraction of the camera's size (320x240 for a 640x480 camera) are
-    /// tracked as that sensor decimated.
+    /// tracked as that sensor decimated, as every command reads them.
     Track(cmd::track::Args),
     /// Trajectory accuracy against ground truth (TUM benchmark definitions): ATE after rigid
     /// alignment and RPE per frame or per second, from two TUM-format trajectory files.

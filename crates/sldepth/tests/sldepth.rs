@@ -410,3 +410,66 @@ fn filter_is_multiscale_by_default_and_single_scale_on_request() {
     ]);
     assert!(!both.status.success());
 }
+
+/// A frame a whole fraction of the camera's size (a 320×240 decimation of a 640×480 testdata
+/// frame) is the camera's sensor decimated: the single-frame commands take it with a note and
+/// find the same planes as at full resolution; any other size stays an error.
+#[test]
+fn a_decimated_frame_is_the_same_sensor() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let p = testdata("three-planes-seed3-depth.png");
+    let full = sl_io::read_depth(&p, &sl_io::ReadConfig::default())
+        .unwrap_or_else(|e| panic!("{e}"))
+        .depth;
+    let decimate = |n: usize, w: usize, h: usize| {
+        let data = (0..w * h)
+            .map(|j| full.data()[(j / w) * n * full.width() + (j % w) * n])
+            .collect();
+        sl_core::DepthImage::from_vec(w, h, data).unwrap_or_else(|e| panic!("{e}"))
+    };
+    let half = dir.path().join("half.png");
+    sl_io::depth::write_depth(
+        &half,
+        &decimate(2, 320, 240),
+        &sl_io::depth::DepthEncoding::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let labels = dir.path().join("labels.png");
+    let planes = |path: &Path| {
+        let o = sldepth(&[
+            "planes",
+            path_str(path),
+            "--camera",
+            "kinect-v1",
+            "--output",
+            path_str(&labels),
+            "--json",
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (json_of(&o), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    let (at_full, _) = planes(&p);
+    let (at_half, note) = planes(&half);
+    assert!(note.contains("1/2 of the camera's 640x480"), "{note}");
+    let count = |v: &serde_json::Value| v["planes"].as_array().map_or(0, Vec::len);
+    assert!(count(&at_full) >= 3);
+    assert_eq!(count(&at_half), count(&at_full));
+    // 320×200 is no whole fraction of 640×480.
+    let odd = dir.path().join("odd.png");
+    sl_io::depth::write_depth(
+        &odd,
+        &decimate(2, 320, 200),
+        &sl_io::depth::DepthEncoding::default(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let o = sldepth(&[
+        "planes",
+        path_str(&odd),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        path_str(&labels),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("320x200 but the camera is 640x480"));
+}

@@ -216,6 +216,16 @@ pub fn run(args: Args) -> Result<()> {
     if frames.is_empty() {
         bail!("no frames to fuse");
     }
+    let mut read_opts = ReadConfig::default();
+    read_opts.format = parse_format(&args.input)?;
+    read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
+    // Frames a whole fraction of the camera's size are its sensor decimated; any other size
+    // is an error at the frame.
+    let camera = frames
+        .first()
+        .and_then(|f| read_depth_with_limits(&f.depth_path, &read_opts, &limits()).ok())
+        .and_then(|d| crate::common::camera_for_frames(&camera, d.depth.width(), d.depth.height()))
+        .unwrap_or(camera);
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
@@ -237,9 +247,6 @@ pub fn run(args: Args) -> Result<()> {
     params.weight = parse_weight(&args.weight, &camera)?;
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = budget;
-    let mut read_opts = ReadConfig::default();
-    read_opts.format = parse_format(&args.input)?;
-    read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
     let filter = if args.prefilter {
         Some(sl_filter::DepthFilter::default_for(
             sl_filter::Method::Adaptive,

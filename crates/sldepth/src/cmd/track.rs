@@ -14,8 +14,9 @@
 //!
 //! Frames whose size is the camera's divided by a whole number (320×240 for a 640×480 preset:
 //! a QVGA stream, a driver's decimation) are tracked as that sensor decimated
-//! (`Camera::resampled`: intrinsics scaled, the sensor's noise model and block-matching window
-//! kept), with a note on standard error. A camera JSON says the same with `sensor_focal_px`.
+//! (`common::camera_for_frames`, `Camera::resampled`: intrinsics scaled, the sensor's noise
+//! model and block-matching window kept), with a note on standard error, as in every command
+//! that reads depth. A camera JSON says the same with `sensor_focal_px`.
 
 use std::fmt::Write as _;
 use std::io::IsTerminal;
@@ -251,14 +252,6 @@ impl Prefilter {
     }
 }
 
-/// The integer factor `n` (2 to 8) by which frames of `width`×`height` are the camera's image
-/// decimated (a QVGA stream of a VGA sensor, a driver's decimation), or `None` when they have
-/// the camera's size or are not such a fraction of it.
-fn decimation(camera: &Camera, width: usize, height: usize) -> Option<usize> {
-    let k = &camera.intrinsics;
-    (2..=8).find(|&n| width * n == k.width && height * n == k.height)
-}
-
 /// Runs `sldepth track`.
 pub fn run(args: Args) -> Result<()> {
     for (opt, path, exts) in [
@@ -286,22 +279,13 @@ pub fn run(args: Args) -> Result<()> {
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
     read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
-    let camera = match frames
+    // Frames a whole fraction of the camera's size are its sensor decimated; any other size
+    // is reported per frame below.
+    let camera = frames
         .first()
         .and_then(|f| read_depth_with_limits(&f.depth_path, &read_opts, &limits()).ok())
-        .and_then(|d| decimation(&camera, d.depth.width(), d.depth.height()))
-    {
-        Some(n) => {
-            errln!(
-                "note: the frames are 1/{n} of the camera's {}x{}: tracking them as the same \
-                 sensor decimated by {n} (intrinsics scaled, the sensor's noise model kept)",
-                camera.intrinsics.width,
-                camera.intrinsics.height
-            );
-            camera.resampled(1.0 / n as f64)?
-        }
-        None => camera,
-    };
+        .and_then(|d| crate::common::camera_for_frames(&camera, d.depth.width(), d.depth.height()))
+        .unwrap_or(camera);
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
