@@ -118,10 +118,10 @@ pub struct TrackerConfig {
     /// `docs/NOISE_MODEL.md`; the same window as `sl_planes::PlaneConfig::noise_window_x_px`;
     /// 1 × 1 = white noise). Frames of a camera resampled from its sensor
     /// (`sl_core::Camera::resampled`: a 320×240 stream of a 640×480 Kinect) see it scaled by
-    /// `Camera::pixels_per_sensor_pixel`, so they carry the same information per solid angle. The normal equations
-    /// count one independent measurement per window, not per pixel: otherwise a weakly
-    /// constrained direction (far walls, few planes) looks hundreds of times better known than
-    /// it is and outweighs the motion prior.
+    /// `Camera::pixels_per_sensor_pixel`, so they carry the same information per solid angle.
+    /// The normal equations count one independent measurement per window, not per pixel:
+    /// otherwise a weakly constrained direction (far walls, few planes) looks hundreds of times
+    /// better known than it is and outweighs the motion prior.
     pub noise_window_x_px: f64,
     /// Height of that window, pixels.
     pub noise_window_y_px: f64,
