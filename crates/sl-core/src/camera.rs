@@ -73,9 +73,11 @@ impl Camera {
     /// Image pixels per pixel of the sensor, `fx / sensor.focal_px`: 1 for a camera at its
     /// sensor's resolution, 0.5 for [`Camera::resampled`]`(0.5)`. Quantities the sensor defines
     /// in its own pixels (the block-matching window over which its error is correlated) span
-    /// this many times as many image pixels along each axis.
+    /// this many times as many image pixels along each axis. 1 when the ratio is not positive
+    /// and finite (a camera assembled from unvalidated fields).
     pub fn pixels_per_sensor_pixel(&self) -> f64 {
-        self.intrinsics.fx / self.sensor.focal_px
+        let s = self.intrinsics.fx / self.sensor.focal_px;
+        if s.is_finite() && s > 0.0 { s } else { 1.0 }
     }
 }
 

@@ -306,6 +306,24 @@ pub fn camera_for_frames(camera: &Camera, width: usize, height: usize) -> Option
     Some(resampled)
 }
 
+/// The camera for a sequence whose first frame is `first` ([`camera_for_frames`] at that
+/// frame's size; `camera` unchanged when the frame cannot be read, which the caller reports at
+/// the frame), and that frame's depth as read, so the caller need not read it again.
+pub fn camera_for_sequence(
+    camera: Camera,
+    first: Option<&Path>,
+    opts: &ReadConfig,
+) -> (Camera, Option<DepthImage>) {
+    let Some(depth) = first
+        .and_then(|p| sl_io::depth::read_depth_with_limits(p, opts, &limits()).ok())
+        .map(|l| l.depth)
+    else {
+        return (camera, None);
+    };
+    let camera = camera_for_frames(&camera, depth.width(), depth.height()).unwrap_or(camera);
+    (camera, Some(depth))
+}
+
 /// Reads a depth map with the options of `args` and checks it against the camera (frames a
 /// whole fraction of the camera's size are its sensor decimated, see [`camera_for_frames`]).
 pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {

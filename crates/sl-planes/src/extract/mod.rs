@@ -409,7 +409,6 @@ impl PlaneExtractor {
     /// camera resampled from its sensor ([`Camera::resampled`]) sees it scaled.
     fn set_noise(&mut self, camera: &Camera) {
         let s = camera.pixels_per_sensor_pixel();
-        let s = if s.is_finite() && s > 0.0 { s } else { 1.0 };
         self.noise = CellNoise::new(
             camera.sensor.sigma_d_px,
             camera.sensor.subpixel_steps,

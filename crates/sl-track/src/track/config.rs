@@ -236,12 +236,7 @@ impl TrackerConfig {
     /// resolution, 0.5 for frames decimated to half of it), divided by the 4^level
     /// full-resolution pixels of a pixel of the level.
     pub fn correlated_pixels(&self, level: usize, pixel_scale: f64) -> f64 {
-        let s2 = if pixel_scale.is_finite() && pixel_scale > 0.0 {
-            pixel_scale * pixel_scale
-        } else {
-            1.0
-        };
-        let area = self.noise_window_x_px * self.noise_window_y_px * s2;
+        let area = self.noise_window_x_px * self.noise_window_y_px * pixel_scale * pixel_scale;
         (area / 4f64.powi(level.min(30) as i32)).max(1.0)
     }
 

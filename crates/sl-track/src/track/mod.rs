@@ -295,20 +295,13 @@ impl Tracker {
             self.pyramid.levels.get(check_level),
         ) {
             (true, Some(level)) => {
-                let pixel_scale = self.camera.pixels_per_sensor_pixel();
-                self.structure.segment(
-                    level,
-                    check_level,
-                    &self.camera.sensor,
-                    &self.cfg,
-                    pixel_scale,
-                )?;
+                self.structure
+                    .segment(level, check_level, &self.camera, &self.cfg)?;
                 self.structure.weakest_sigma_m(
                     level,
                     check_level,
-                    &self.camera.sensor,
+                    &self.camera,
                     &self.cfg,
-                    pixel_scale,
                     |_, _| Some(0.0),
                 )
             }
@@ -699,9 +692,8 @@ impl Tracker {
                 overlap_sigma_m = self.structure.weakest_sigma_m(
                     level,
                     check_level,
-                    sensor,
+                    &self.camera,
                     cfg,
-                    self.camera.pixels_per_sensor_pixel(),
                     solve::inlier_of(reference, &pose, sensor, cfg),
                 );
                 let bound = cfg.motion_prior_sigma_m();

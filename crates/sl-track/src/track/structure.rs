@@ -55,15 +55,13 @@ pub(crate) struct StructureCheck {
 impl StructureCheck {
     /// Extracts the planes of pyramid level `index` of the frame (level 1, half resolution, is
     /// where [`super::Tracker`] runs it: a plane's normal needs no more, and the extraction
-    /// costs a quarter), for [`StructureCheck::weakest_sigma_m`]. `pixel_scale`: the camera's
-    /// image pixels per sensor pixel ([`Camera::pixels_per_sensor_pixel`]).
+    /// costs a quarter), for [`StructureCheck::weakest_sigma_m`]; `camera` is the frame's.
     pub(crate) fn segment(
         &mut self,
         level: &Level,
         index: usize,
-        sensor: &SensorModel,
+        camera: &Camera,
         cfg: &TrackerConfig,
-        pixel_scale: f64,
     ) -> Result<()> {
         self.labels.clear();
         self.normals.clear();
@@ -84,15 +82,17 @@ impl StructureCheck {
         };
         // The level's disparity in the level's pixels: the sensor's focal length scaled as the
         // level's (equal to the level's focal length at the sensor's own resolution).
-        let camera = Camera {
+        let level_camera = Camera {
             intrinsics: k,
             sensor: SensorModel {
-                focal_px: k.fx / pixel_scale,
-                ..*sensor
+                focal_px: k.fx / camera.pixels_per_sensor_pixel(),
+                ..camera.sensor
             },
         };
-        let seg =
-            extractor.extract_depth(DepthView::new(k.width, k.height, &level.depth)?, &camera)?;
+        let seg = extractor.extract_depth(
+            DepthView::new(k.width, k.height, &level.depth)?,
+            &level_camera,
+        )?;
         self.labels.extend_from_slice(seg.labels.data());
         self.normals
             .extend(seg.planes.iter().map(|p| p.plane.normal));
@@ -105,16 +105,13 @@ impl StructureCheck {
     /// `Some` (the whole frame, or its inliers of the reference at the aligned pose), with the
     /// planes of the last [`StructureCheck::segment`] of that level. A sample's residual
     /// variance is its own `σ_Z²` plus what `other_variance` gives (the reference surface's
-    /// variance, as in the alignment; 0 for the frame alone). `pixel_scale` as in
-    /// [`StructureCheck::segment`].
-    #[allow(clippy::too_many_arguments)]
+    /// variance, as in the alignment; 0 for the frame alone). `camera` is the frame's.
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,
         index: usize,
-        sensor: &SensorModel,
+        camera: &Camera,
         cfg: &TrackerConfig,
-        pixel_scale: f64,
         other_variance: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64>,
     ) -> f64 {
         let Some(k) = level.k else {
@@ -122,7 +119,8 @@ impl StructureCheck {
         };
         let scale = f64::from(1u32 << index.min(16));
         let step = (STEP as f64 / scale).max(1.0) as usize;
-        let share = (step * step) as f64 / cfg.correlated_pixels(index, pixel_scale);
+        let share =
+            (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
         let mut info = Matrix6::<f64>::zeros();
         let (mut z_sum, mut count) = (0.0f64, 0.0f64);
         for v in (step / 2..k.height).step_by(step) {
@@ -146,7 +144,7 @@ impl StructureCheck {
                     },
                     _ => n_own.cast::<f64>(),
                 };
-                let sigma_z = sensor.sigma_z(p.z);
+                let sigma_z = camera.sensor.sigma_z(p.z);
                 let var = sigma_z * sigma_z + var_other;
                 if !(var > 0.0 && var.is_finite()) {
                     continue;

@@ -220,12 +220,12 @@ pub fn run(args: Args) -> Result<()> {
     read_opts.format = parse_format(&args.input)?;
     read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
     // Frames a whole fraction of the camera's size are its sensor decimated; any other size
-    // is an error at the frame.
-    let camera = frames
-        .first()
-        .and_then(|f| read_depth_with_limits(&f.depth_path, &read_opts, &limits()).ok())
-        .and_then(|d| crate::common::camera_for_frames(&camera, d.depth.width(), d.depth.height()))
-        .unwrap_or(camera);
+    // is an error at the frame. The first frame, read for its size, is not read again.
+    let (camera, mut first_depth) = crate::common::camera_for_sequence(
+        camera,
+        frames.first().map(|f| f.depth_path.as_path()),
+        &read_opts,
+    );
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
@@ -268,9 +268,14 @@ pub fn run(args: Args) -> Result<()> {
     let mut integrate_ms = Vec::with_capacity(frames.len());
     let mut first_pose: Option<CameraToWorld> = None;
     for f in &frames {
-        let loaded = read_depth_with_limits(&f.depth_path, &read_opts, &limits())
-            .with_context(|| format!("reading {}", f.depth_path.display()))?;
-        let mut depth: DepthImage = loaded.depth;
+        let mut depth: DepthImage = match first_depth.take() {
+            Some(d) => d,
+            None => {
+                read_depth_with_limits(&f.depth_path, &read_opts, &limits())
+                    .with_context(|| format!("reading {}", f.depth_path.display()))?
+                    .depth
+            }
+        };
         if depth.width() != k.width || depth.height() != k.height {
             bail!(
                 "{}: depth map is {}x{} but the camera is {}x{} (pass --camera)",

@@ -280,12 +280,12 @@ pub fn run(args: Args) -> Result<()> {
     read_opts.format = parse_format(&args.input)?;
     read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
     // Frames a whole fraction of the camera's size are its sensor decimated; any other size
-    // is reported per frame below.
-    let camera = frames
-        .first()
-        .and_then(|f| read_depth_with_limits(&f.depth_path, &read_opts, &limits()).ok())
-        .and_then(|d| crate::common::camera_for_frames(&camera, d.depth.width(), d.depth.height()))
-        .unwrap_or(camera);
+    // is reported per frame below. The first frame, read for its size, is not read again.
+    let (camera, mut first_depth) = crate::common::camera_for_sequence(
+        camera,
+        frames.first().map(|f| f.depth_path.as_path()),
+        &read_opts,
+    );
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
@@ -344,11 +344,16 @@ pub fn run(args: Args) -> Result<()> {
     let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
         let t = f.timestamp.unwrap_or(i as f64);
-        let depth = match read_depth_with_limits(&f.depth_path, &read_opts, &limits())
-            .map_err(anyhow::Error::from)
+        let raw = match first_depth.take() {
+            Some(d) => Ok(d),
+            None => read_depth_with_limits(&f.depth_path, &read_opts, &limits())
+                .map(|l| l.depth)
+                .map_err(anyhow::Error::from),
+        };
+        let depth = match raw
             .and_then(|d| match &undistort {
-                Some(u) => Ok(u.apply(&d.depth)?),
-                None => Ok(d.depth),
+                Some(u) => Ok(u.apply(&d)?),
+                None => Ok(d),
             })
             .and_then(|d| prefilter.apply(d))
         {
