@@ -96,6 +96,21 @@ def test_planes_of_the_three_plane_scene(kinect, three_planes):
     assert np.mean(truth_labels[labels == big.id] == surf) > 0.95
 
 
+def test_planes_of_a_decimated_frame_are_those_of_the_full_one(kinect, three_planes):
+    # A QVGA stream of the VGA sensor: extracted on the sensor's grid, so the same planes.
+    depth = three_planes[0]
+    half = kinect.resampled(0.5)
+    _, full_planes = sldepth.extract_planes(depth, kinect)
+    labels, planes = sldepth.extract_planes(depth[::2, ::2].copy(), half)
+    assert labels.shape == (240, 320)
+    assert len(planes) == len(full_planes) >= 3
+    for p, q in zip(sorted(planes, key=lambda p: p.offset_m), sorted(full_planes, key=lambda p: p.offset_m)):
+        assert p.pixels == int(np.sum(labels == p.id))
+        assert abs(p.pixels * 4 - q.pixels) < 0.1 * q.pixels
+        assert np.degrees(np.arccos(min(1.0, float(np.dot(p.normal, q.normal))))) < 1.0
+        assert p.offset_m == pytest.approx(q.offset_m, abs=0.01)
+
+
 def test_motion_of_a_frame_with_itself_is_identity(kinect, three_planes):
     depth = three_planes[0]
     m = sldepth.motion(depth, depth, kinect, icp=True)

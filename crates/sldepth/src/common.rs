@@ -288,15 +288,19 @@ pub fn parse_format(args: &InputArgs) -> Result<Option<DepthFormat>> {
 /// The camera for frames of `width`×`height` taken by `camera`'s sensor: `camera` itself at its
 /// own size; the same sensor decimated (`Camera::resampled`: intrinsics scaled, the sensor's
 /// noise model kept) when the frames are its size divided by a whole number from 2 to 8 (a
-/// QVGA stream of a VGA sensor, a driver's decimation), said in a note on standard error;
-/// `None` for any other size.
+/// QVGA stream of a VGA sensor, a driver's decimation), said in a note on standard error (once
+/// per process: `motion` reads two frames); `None` for any other size.
 pub fn camera_for_frames(camera: &Camera, width: usize, height: usize) -> Option<Camera> {
+    static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
     let k = &camera.intrinsics;
     if (width, height) == (k.width, k.height) {
         return Some(*camera);
     }
     let n = (2..=8usize).find(|&n| width * n == k.width && height * n == k.height)?;
     let resampled = camera.resampled(1.0 / n as f64).ok()?;
+    if NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        return Some(resampled);
+    }
     errln!(
         "note: the frames are 1/{n} of the camera's {}x{}: taken as the same sensor decimated by \
          {n} (intrinsics scaled, the sensor's noise model kept)",

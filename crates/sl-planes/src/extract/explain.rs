@@ -62,18 +62,39 @@ pub struct RegionExplanation {
 impl PlaneExtractor {
     /// The regions of at least `min_pixels` valid pixels that the last extraction (whose result
     /// is `seg`) left on no plane, largest first, with the reason. Empty when `seg` is not the
-    /// last extraction's size.
+    /// last extraction's size. For a frame extracted on its sensor's grid (a decimated camera,
+    /// [`PlaneExtractor::extract_depth`]) the regions are found there and reported in the
+    /// frame's pixels; `min_pixels` counts the sensor's pixels there, as
+    /// [`PlaneConfig::min_pixels`] does.
     pub fn explain_unlabelled(
         &self,
         seg: &PlaneSegmentation,
         min_pixels: usize,
     ) -> Vec<RegionExplanation> {
+        let Some((n, grid)) = &self.sensor_grid else {
+            return self.explain_labels(&seg.labels, min_pixels);
+        };
+        let n = *n;
         let (w, h) = seg.labels.dimensions();
+        if grid.dimensions() != (w * n, h * n) {
+            return Vec::new();
+        }
+        let mut out = self.explain_labels(grid, min_pixels);
+        for r in &mut out {
+            r.pixels /= n * n;
+            r.bbox_px = r.bbox_px.map(|v| v / n);
+        }
+        out
+    }
+
+    /// [`PlaneExtractor::explain_unlabelled`] for the label image of the extractor's own grid.
+    fn explain_labels(&self, labels: &Image<u16>, min_pixels: usize) -> Vec<RegionExplanation> {
+        let (w, h) = labels.dimensions();
         let (wq, hq) = (w / 2 / 2, h / 2 / 2);
         if wq * hq == 0 || self.cell_disparity.len() < wq * hq || self.cell_planar.len() < wq * hq {
             return Vec::new();
         }
-        let labels = seg.labels.data();
+        let labels = labels.data();
         // Cells with a valid disparity and at most half of their pixels labelled.
         let mut free = vec![0u8; wq * hq];
         for j in 0..hq {

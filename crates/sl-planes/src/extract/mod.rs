@@ -86,7 +86,9 @@ pub struct PlaneConfig {
     pub log_threshold_px: f64,
     /// Scale of the LoG, pixels.
     pub log_sigma_px: f64,
-    /// Minimum pixels of a seed component and of an output plane.
+    /// Minimum pixels of a seed component and of an output plane, pixels of the sensor (a
+    /// frame decimated by `n` from its sensor, `sl_core::Camera::resampled`, is extracted on
+    /// the sensor's grid, where each of its pixels counts `n²`).
     pub min_pixels: usize,
     /// Maximum refinement iterations (coarse passes) before the final pass.
     pub max_iterations: usize,
@@ -374,6 +376,11 @@ pub struct PlaneExtractor {
     patch_status: Vec<PatchStatus>,
     /// Wall-clock time per stage of the last frame.
     times: StageTimes,
+    /// The frame replicated onto its sensor's grid (a decimated camera, `decimated`).
+    sensor_grid_input: Vec<f32>,
+    /// The decimation factor and sensor-grid labels of the last extraction when it ran on the
+    /// sensor's grid (for [`PlaneExtractor::explain_unlabelled`]).
+    sensor_grid: Option<(usize, Image<u16>)>,
 }
 
 /// Extracts planes from a depth image (metres) with a new extractor.
@@ -433,6 +440,10 @@ impl PlaneExtractor {
     /// the camera's sensor model.
     ///
     /// `depth` is a `&DepthImage` or a [`DepthView`] over a buffer the caller owns (no copy).
+    /// A camera whose frames are its sensor decimated by a whole factor of 2–8
+    /// ([`Camera::resampled`]) is extracted on the sensor's grid (each pixel replicated; see
+    /// the `decimated` module): every scale of the extractor, `min_pixels` included, is in the
+    /// sensor's pixels, so the same scene gives the same planes at either resolution.
     pub fn extract_depth<'a>(
         &mut self,
         depth: impl Into<DepthView<'a>>,
@@ -440,6 +451,29 @@ impl PlaneExtractor {
     ) -> Result<PlaneSegmentation> {
         let depth: DepthView<'a> = depth.into();
         let (w, h) = (depth.width(), depth.height());
+        Self::check(w, h, &camera.intrinsics)?;
+        self.sensor_grid = None;
+        let Some(n) = Self::sensor_factor(camera, w, h) else {
+            return self.extract_depth_rows(depth.data(), w, h, camera);
+        };
+        let mut grid = std::mem::take(&mut self.sensor_grid_input);
+        Self::replicate(depth.data(), w, h, n, &mut grid);
+        let seg = camera
+            .resampled(n as f64)
+            .map_err(PlanesError::from)
+            .and_then(|sensor| self.extract_depth_rows(&grid, w * n, h * n, &sensor));
+        self.sensor_grid_input = grid;
+        self.sample_back_to_frame(seg?, n, w, h)
+    }
+
+    /// [`PlaneExtractor::extract_depth`] on the frame's own pixels.
+    fn extract_depth_rows(
+        &mut self,
+        z: &[f32],
+        w: usize,
+        h: usize,
+        camera: &Camera,
+    ) -> Result<PlaneSegmentation> {
         Self::check(w, h, &camera.intrinsics)?;
         let mut t0 = Instant::now();
         self.times = StageTimes::default();
@@ -450,7 +484,7 @@ impl PlaneExtractor {
         let mut d = std::mem::take(&mut self.full_disparity);
         d.resize(2 * w, 0.0);
         let src = Source::Depth {
-            z: depth.data(),
+            z,
             d: &mut d,
             fb: fbf,
         };
@@ -461,7 +495,8 @@ impl PlaneExtractor {
     }
 
     /// Extracts planes from a disparity image (pixels, 0 = invalid), e.g. raw Kinect disparity
-    /// converted to pixels; `f·B` of the camera relates it to depth.
+    /// converted to pixels; `f·B` of the camera relates it to depth. A decimated camera is
+    /// handled as in [`PlaneExtractor::extract_depth`].
     pub fn extract_disparity(
         &mut self,
         disparity: &DisparityImage,
@@ -469,11 +504,34 @@ impl PlaneExtractor {
     ) -> Result<PlaneSegmentation> {
         let (w, h) = (disparity.width(), disparity.height());
         Self::check(w, h, &camera.intrinsics)?;
+        self.sensor_grid = None;
+        let Some(n) = Self::sensor_factor(camera, w, h) else {
+            return self.extract_disparity_rows(disparity.data(), w, h, camera);
+        };
+        let mut grid = std::mem::take(&mut self.sensor_grid_input);
+        Self::replicate(disparity.data(), w, h, n, &mut grid);
+        let seg = camera
+            .resampled(n as f64)
+            .map_err(PlanesError::from)
+            .and_then(|sensor| self.extract_disparity_rows(&grid, w * n, h * n, &sensor));
+        self.sensor_grid_input = grid;
+        self.sample_back_to_frame(seg?, n, w, h)
+    }
+
+    /// [`PlaneExtractor::extract_disparity`] on the frame's own pixels.
+    fn extract_disparity_rows(
+        &mut self,
+        d: &[f32],
+        w: usize,
+        h: usize,
+        camera: &Camera,
+    ) -> Result<PlaneSegmentation> {
+        Self::check(w, h, &camera.intrinsics)?;
         let mut t0 = Instant::now();
         self.times = StageTimes::default();
         // The disparity is used in place: every test treats non-positive and non-finite values
         // as invalid.
-        let src = Source::Disparity(disparity.data());
+        let src = Source::Disparity(d);
         self.set_noise(camera);
         self.times.add(Stage::Disparity, &mut t0);
         self.run(src, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
@@ -634,6 +692,7 @@ impl PlaneExtractor {
 }
 
 mod assign;
+mod decimated;
 mod explain;
 mod input;
 mod merge;
