@@ -24,8 +24,9 @@ use crate::tsdf::PyMesh;
 /// ``weighting``: ``"inv-var"`` (residuals weighted by the sensor model's variance, default) or
 /// ``"uniform"``; ``frame_to_model``: track against the raycast of the fused model (default)
 /// or against the previous frame; ``voxel_m``: the model's voxel size; ``model_scale``: the
-/// fraction of the camera's resolution the model is rendered at for tracking (default 0.5,
-/// as ``sldepth track --model-scale``); ``prefilter``: the smoothing of every frame before
+/// fraction of the camera's resolution the model is rendered at for tracking (default
+/// ``None``: one pixel per 4 of the sensor's, 0.25 for a 640×480 Kinect, as ``sldepth track
+/// --model-scale``); ``prefilter``: the smoothing of every frame before
 /// tracking and fusion, as ``sldepth track --prefilter``: ``"multiscale"`` (default:
 /// ``filter``'s default, which removes real sensors' spatially correlated error),
 /// ``"single"`` (the adaptive filter's single pass) or ``"none"``; ``lens``: ``"auto"``
@@ -51,14 +52,14 @@ pub struct PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = 0.5, prefilter = "multiscale", lens = "auto"))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
         weighting: &str,
         frame_to_model: bool,
         voxel_m: f64,
-        model_scale: f64,
+        model_scale: Option<f64>,
         prefilter: &str,
         lens: &str,
     ) -> PyResult<Self> {
@@ -102,6 +103,7 @@ impl PyTracker {
         let mut raycast_config = RaycastConfig::default();
         raycast_config.min_depth_m = params.min_depth_m;
         raycast_config.max_depth_m = params.max_depth_m;
+        let model_scale = model_scale.unwrap_or_else(|| ModelReference::default_scale(&camera));
         let model = ModelReference::new(&camera.intrinsics, model_scale, raycast_config)
             .map_err(value_error)?;
         Ok(Self {

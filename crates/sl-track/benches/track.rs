@@ -59,9 +59,12 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
             let mut vol = TsdfVolume::new(tcfg).unwrap();
-            let mut reference =
-                ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default())
-                    .unwrap();
+            let mut reference = ModelReference::new(
+                &k,
+                ModelReference::default_scale(&cam),
+                RaycastConfig::default(),
+            )
+            .unwrap();
             let r0 = t.track(&fr[0], None).unwrap();
             vol.integrate(&fr[0], &k, &r0.pose).unwrap();
             reference

@@ -69,7 +69,12 @@ fn main() {
         vcfg.trunc_m = 0.04;
         vcfg.truncation = Truncation::sensor_adaptive(cam.sensor);
         let mut volume = TsdfVolume::new(vcfg).unwrap();
-        let mut reference = ModelReference::new(&k, 0.5, RaycastConfig::default()).unwrap();
+        let mut reference = ModelReference::new(
+            &k,
+            ModelReference::default_scale(&cam),
+            RaycastConfig::default(),
+        )
+        .unwrap();
         let mut pose = room.pose;
         let (mut lost, mut bad, mut worst) = (0, 0, 0.0f64);
         // The last tracked frame: its true and its estimated pose.

@@ -68,8 +68,12 @@ fn track(
     tcfg.voxel_m = 0.01;
     tcfg.trunc_m = 0.05;
     let mut volume = TsdfVolume::new(tcfg).unwrap();
-    let mut reference =
-        ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default()).unwrap();
+    let mut reference = ModelReference::new(
+        &k,
+        ModelReference::default_scale(&cam),
+        RaycastConfig::default(),
+    )
+    .unwrap();
     let (mut poses, mut status) = (Vec::new(), Vec::new());
     for d in frames {
         let r = tracker.track(d, reference.maps()).unwrap();

@@ -51,8 +51,11 @@ fn track_with_sigma(
     vcfg.voxel_m = 0.008;
     vcfg.trunc_m = 0.04;
     let mut volume = TsdfVolume::new(vcfg)?;
-    let mut reference =
-        ModelReference::new(&k, ModelReference::DEFAULT_SCALE, RaycastConfig::default())?;
+    let mut reference = ModelReference::new(
+        &k,
+        ModelReference::default_scale(cam),
+        RaycastConfig::default(),
+    )?;
     let mut out = Vec::new();
     let mut sigmas = Vec::new();
     for d in frames {

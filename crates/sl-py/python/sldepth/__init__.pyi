@@ -249,12 +249,13 @@ class Tracker:
         weighting: str = "inv-var",
         frame_to_model: bool = True,
         voxel_m: float = 0.004,
-        model_scale: float = 0.5,
+        model_scale: Optional[float] = None,
         prefilter: str = "multiscale",
         lens: str = "auto",
     ) -> None:
         """model_scale: fraction of the camera's resolution the model is rendered at for
-        tracking, in (0, 1] (as sldepth track --model-scale); prefilter: "multiscale"
+        tracking, in (0, 1] (as sldepth track --model-scale; default: one pixel per 4 of the
+        sensor's, 0.25 for a 640x480 Kinect); prefilter: "multiscale"
         (default, as sldepth track), "single" or "none"; lens: "auto" (default) undistorts
         every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
         the frames as given."""
@@ -285,7 +286,7 @@ def track_sequence(
     weighting: str = "inv-var",
     frame_to_model: bool = True,
     voxel_m: float = 0.004,
-    model_scale: float = 0.5,
+    model_scale: Optional[float] = None,
     prefilter: str = "multiscale",
     lens: str = "auto",
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:

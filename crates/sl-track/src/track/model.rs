@@ -4,7 +4,7 @@
 //! `Tracker` share it, so both render the model the same way.
 
 use rayon::prelude::*;
-use sl_core::{CameraToWorld, DepthImage, Intrinsics, SensorModel};
+use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
 use sl_tsdf::{Raycast, RaycastConfig, TsdfVolume};
 
 use super::ReferenceMaps;
@@ -15,10 +15,14 @@ use crate::error::{Result, TrackError};
 ///
 /// The reference need not have the frame's resolution: association projects each frame point
 /// into the reference's own intrinsics, and the residual is measured to the reference point's
-/// tangent plane, which a coarser raycast samples just as well on smooth surfaces. At half the
-/// resolution ([`ModelReference::DEFAULT_SCALE`]) the raycast costs about a third (TUM fr1/rpy,
-/// 200 frames: 69 against 221 ms per frame) and the trajectories are as accurate
-/// (docs/bench/track.md).
+/// tangent plane, which a coarser raycast samples just as well on smooth surfaces. By default
+/// ([`ModelReference::default_scale`]) the model is rendered at one pixel per
+/// [`ModelReference::DEFAULT_PITCH_SENSOR_PX`] pixels of the sensor along each axis: a
+/// structured-light camera's depth is a block-matching estimate over a window of about 9 × 11 of
+/// its pixels (`docs/NOISE_MODEL.md`), so a frame holds no surface detail finer than that
+/// window, and a pitch of 4 px samples what it does hold at its Nyquist rate. On the real
+/// sequences the trajectories are as accurate as with a reference at the frame's resolution
+/// and the raycast costs a small part of it (docs/bench/track.md).
 #[derive(Debug, Clone)]
 pub struct ModelReference {
     intrinsics: Intrinsics,
@@ -31,8 +35,18 @@ pub struct ModelReference {
 }
 
 impl ModelReference {
-    /// Fraction of the camera's resolution the model is rendered at by default.
-    pub const DEFAULT_SCALE: f64 = 0.5;
+    /// Pixel pitch of the default rendering, pixels of the sensor: at most half the width of
+    /// the window over which the sensor's depth is a block-matching average (9 × 11 px for a
+    /// Kinect-class camera).
+    pub const DEFAULT_PITCH_SENSOR_PX: f64 = 4.0;
+
+    /// The default fraction of `camera`'s resolution the model is rendered at: one reference
+    /// pixel per [`ModelReference::DEFAULT_PITCH_SENSOR_PX`] sensor pixels
+    /// ([`Camera::pixels_per_sensor_pixel`]), at most the camera's own resolution — 0.25 for a
+    /// 640×480 Kinect, 0.5 for its 320×240 stream (the same 160×120 rendering).
+    pub fn default_scale(camera: &Camera) -> f64 {
+        (1.0 / (Self::DEFAULT_PITCH_SENSOR_PX * camera.pixels_per_sensor_pixel())).min(1.0)
+    }
 
     /// A reference for a camera with intrinsics `camera`, rendered at `scale` of its resolution
     /// (in `(0, 1]`), marching rays with `config`. Nothing is rendered until
@@ -181,6 +195,28 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default rendering has the same pixels whatever the sensor's decimation: one per
+    /// 4×4 sensor pixels, never finer than the camera's own.
+    #[test]
+    fn the_default_scale_is_a_pitch_in_sensor_pixels() {
+        let vga = Camera::kinect_v1();
+        let rendered = |c: &Camera| {
+            let k = c
+                .intrinsics
+                .scaled(ModelReference::default_scale(c))
+                .unwrap();
+            (k.width, k.height)
+        };
+        assert_eq!(ModelReference::default_scale(&vga), 0.25);
+        for f in [0.5, 0.25] {
+            assert_eq!(rendered(&vga.resampled(f).unwrap()), (160, 120), "{f}");
+        }
+        assert_eq!(
+            ModelReference::default_scale(&vga.resampled(0.125).unwrap()),
+            1.0
+        );
+    }
 
     /// Each reference pixel gets the nearest valid depth of the frame pixels that fall in it,
     /// 0 where none is valid; a frame of the reference's own size is copied.

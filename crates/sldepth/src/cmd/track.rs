@@ -86,10 +86,13 @@ pub struct Args {
     #[arg(long)]
     pub frame_to_frame: bool,
     /// Render the fused model for tracking at this fraction of the camera's resolution, in
-    /// (0, 1]. The default 0.5 makes the raycast about 3x cheaper with the same accuracy on
-    /// TUM fr1/rpy and 7-Scenes (docs/bench/track.md); 1 renders at full resolution.
-    #[arg(long, value_name = "FRACTION", default_value_t = ModelReference::DEFAULT_SCALE)]
-    pub model_scale: f64,
+    /// (0, 1]. Default: one pixel per 4 pixels of the sensor along each axis (0.25 for a
+    /// 640x480 Kinect, 0.5 for its 320x240 stream): the sensor resolves no detail finer than
+    /// its ~9x11-pixel block-matching window; the raycast costs a small part of a
+    /// full-resolution one with the same accuracy on TUM fr1/rpy and 7-Scenes
+    /// (docs/bench/track.md); 1 renders at full resolution.
+    #[arg(long, value_name = "FRACTION")]
+    pub model_scale: Option<f64>,
     /// The finest pyramid level the tracker aligns: 0 = full resolution (default), 1 = half,
     /// 2 = quarter. Level 1 makes a step about 1.5x cheaper at the same accuracy on TUM
     /// fr1/rpy and 7-Scenes, but is 2-3x less accurate on simulated sequences with known poses
@@ -320,7 +323,10 @@ pub fn run(args: Args) -> Result<()> {
     let mut rc_cfg = RaycastConfig::default();
     rc_cfg.min_depth_m = params.min_depth_m;
     rc_cfg.max_depth_m = params.max_depth_m;
-    let mut model = ModelReference::new(&k, args.model_scale, rc_cfg)?;
+    let model_scale = args
+        .model_scale
+        .unwrap_or_else(|| ModelReference::default_scale(&camera));
+    let mut model = ModelReference::new(&k, model_scale, rc_cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
     let mut track_ms_tracked = Vec::new();

@@ -48,7 +48,11 @@ fn track_scene(seed: u64, ratios: &mut Vec<f64>) -> Result<Outcome> {
     vcfg.trunc_m = 0.04;
     vcfg.truncation = Truncation::sensor_adaptive(cam.sensor);
     let mut volume = TsdfVolume::new(vcfg)?;
-    let mut reference = ModelReference::new(&k, 0.5, RaycastConfig::default())?;
+    let mut reference = ModelReference::new(
+        &k,
+        ModelReference::default_scale(&cam),
+        RaycastConfig::default(),
+    )?;
     // A hand-held path: 1.2 cm and 1.2° per frame.
     let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.005, 0.002, 0.012),
