@@ -70,7 +70,7 @@ fn track(
     let mut volume = TsdfVolume::new(tcfg).unwrap();
     let mut reference = ModelReference::new(
         &k,
-        ModelReference::default_scale(&cam),
+        ModelReference::default_scale(cam),
         RaycastConfig::default(),
     )
     .unwrap();
