@@ -51,6 +51,10 @@ pub struct NoiseStatsConfig {
     pub jump_m: f64,
     /// Longest invalid run counted as an occlusion band, pixels (longer runs are holes).
     pub max_band_px: usize,
+    /// Image pixels per pixel of the sensor (`sl_core::Camera::pixels_per_sensor_pixel`: 0.5
+    /// for a 320×240 stream of a 640×480 sensor): the predicted projector shadow, a disparity
+    /// in the sensor's pixels, is reported in the image's, like the measured band widths.
+    pub pixels_per_sensor_pixel: f64,
 }
 
 /// The former name of [`NoiseStatsConfig`].
@@ -80,6 +84,12 @@ impl NoiseStatsConfig {
                 "band edges must be ascending".into(),
             ));
         }
+        if !(self.pixels_per_sensor_pixel.is_finite() && self.pixels_per_sensor_pixel > 0.0) {
+            return Err(NoiseError::InvalidParameter(format!(
+                "pixels_per_sensor_pixel = {} must be positive",
+                self.pixels_per_sensor_pixel
+            )));
+        }
         if self.tile_px == 0 {
             return Err(NoiseError::InvalidParameter(
                 "tile_px must be positive".into(),
@@ -98,6 +108,7 @@ impl Default for NoiseStatsConfig {
             min_tile_pixels: 2048,
             jump_m: 0.15,
             max_band_px: 64,
+            pixels_per_sensor_pixel: 1.0,
         }
     }
 }
@@ -573,7 +584,12 @@ pub fn noise_stats(
         fractions: counts.iter().map(|c| *c as f64 / total).collect(),
     };
 
-    let occlusion = occlusion_bands(depth, fb_px_m, opts.jump_m, opts.max_band_px);
+    let occlusion = occlusion_bands(
+        depth,
+        fb_px_m * opts.pixels_per_sensor_pixel,
+        opts.jump_m,
+        opts.max_band_px,
+    );
     let invalid = zs.iter().filter(|z| !(**z > 0.0 && z.is_finite())).count();
     Ok(NoiseStats {
         regions: res.regions,
@@ -747,6 +763,16 @@ mod tests {
         // A smaller jump than the threshold is no occlusion edge.
         let none = occlusion_bands(&depth, 43.5, 1.5, 64);
         assert_eq!(none.left.widths.count + none.right.widths.count, 0);
+        // The same frame read as the sensor decimated by 2: the predicted shadow (a disparity
+        // in sensor pixels) is reported in the image's pixels, as the widths are.
+        let labels = Image::filled(w, h, 0u16);
+        let mut opts = NoiseStatsConfig::default();
+        opts.pixels_per_sensor_pixel = 0.5;
+        let s = noise_stats(&depth, 43.5, &labels, &opts).unwrap();
+        assert!((s.occlusion.left.median_shadow_px - 21.75 / 2.0).abs() < 1e-9);
+        assert_eq!(s.occlusion.left.widths.median_px, 6.0);
+        opts.pixels_per_sensor_pixel = 0.0;
+        assert!(noise_stats(&depth, 43.5, &labels, &opts).is_err());
     }
 
     #[test]

@@ -44,7 +44,8 @@ pub struct Args {
     /// Disparity residual threshold of the plane extraction, pixels.
     #[arg(long, default_value_t = PlaneConfig::default().threshold_px)]
     pub threshold_px: f64,
-    /// Minimum pixels of a plane.
+    /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,
+    /// extracted on its grid, count n² per pixel).
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
     pub min_pixels: usize,
     #[command(flatten)]

@@ -20,7 +20,8 @@ pub struct Args {
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Smallest plane used, pixels.
+    /// Smallest plane used, pixels of the sensor (a frame decimated by n from its sensor counts
+    /// n² per pixel, as `sldepth planes --min-pixels` does).
     #[arg(long, default_value_t = 2000)]
     pub min_plane_pixels: usize,
     #[command(flatten)]
@@ -36,7 +37,8 @@ pub fn stats_of(
     let mut cfg = PlaneConfig::default();
     cfg.min_pixels = min_plane_pixels.max(3);
     let seg = extract_planes(depth, camera, &cfg).context("extracting planes")?;
-    let opts = NoiseStatsConfig::default();
+    let mut opts = NoiseStatsConfig::default();
+    opts.pixels_per_sensor_pixel = camera.pixels_per_sensor_pixel();
     Ok(noise_stats(depth, camera.sensor.fb(), &seg.labels, &opts)?)
 }
 

@@ -54,7 +54,8 @@ pub struct Args {
     /// LoG scale, pixels (disparity method).
     #[arg(long, default_value_t = PlaneConfig::default().log_sigma_px)]
     pub log_sigma_px: f64,
-    /// Minimum pixels of a plane.
+    /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,
+    /// extracted on its grid, count n² per pixel).
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
     pub min_pixels: usize,
     #[command(flatten)]
