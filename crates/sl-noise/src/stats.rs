@@ -766,8 +766,10 @@ mod tests {
         // The same frame read as the sensor decimated by 2: the predicted shadow (a disparity
         // in sensor pixels) is reported in the image's pixels, as the widths are.
         let labels = Image::filled(w, h, 0u16);
-        let mut opts = NoiseStatsConfig::default();
-        opts.pixels_per_sensor_pixel = 0.5;
+        let mut opts = NoiseStatsConfig {
+            pixels_per_sensor_pixel: 0.5,
+            ..NoiseStatsConfig::default()
+        };
         let s = noise_stats(&depth, 43.5, &labels, &opts).unwrap();
         assert!((s.occlusion.left.median_shadow_px - 21.75 / 2.0).abs() < 1e-9);
         assert_eq!(s.occlusion.left.widths.median_px, 6.0);
