@@ -125,6 +125,12 @@ pub struct TrackerConfig {
     pub noise_window_x_px: f64,
     /// Height of that window, pixels.
     pub noise_window_y_px: f64,
+    /// Samples the alignment keeps across the narrower side of that window on each pyramid
+    /// level ([`TrackerConfig::sample_stride`]): 4 samples every second pixel of a 640×480
+    /// Kinect's full-resolution level (a step 1.5× cheaper; TUM fr1/rpy and 7-Scenes ATE equal
+    /// or slightly better, docs/bench/track.md); a value above the window's width in pixels
+    /// (64) uses every pixel.
+    pub samples_per_noise_window: f64,
     /// The largest acceleration of the camera, m/s², and ...
     pub max_acceleration_m_s2: f64,
     /// ... the time between frames, seconds: they set the prior on the camera's position
@@ -160,6 +166,7 @@ impl Default for TrackerConfig {
             degenerate_check: true,
             noise_window_x_px: 9.0,
             noise_window_y_px: 11.0,
+            samples_per_noise_window: 4.0,
             max_acceleration_m_s2: 9.81,
             frame_interval_s: 1.0 / 30.0,
             fallback: DepthMotionConfig::default(),
@@ -193,6 +200,7 @@ impl TrackerConfig {
             ("max_correction_m", self.max_correction_m),
             ("max_acceleration_m_s2", self.max_acceleration_m_s2),
             ("frame_interval_s", self.frame_interval_s),
+            ("samples_per_noise_window", self.samples_per_noise_window),
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!("{name} must be positive, got {v}"));
@@ -240,6 +248,25 @@ impl TrackerConfig {
         (area / 4f64.powi(level.min(30) as i32)).max(1.0)
     }
 
+    /// Every how many pixels (along rows and columns) of pyramid level `level` the alignment
+    /// samples the frame: the narrower side of the noise window in the level's pixels divided
+    /// by [`TrackerConfig::samples_per_noise_window`], at least 1 — 2 at full resolution for a 640×480
+    /// Kinect (9 px / 4), 1 on coarser levels, on decimated frames and for white noise.
+    /// Neighbours within a window share most of their error (correlation 0.7 / 0.57 at 1 / 2
+    /// px on real Kinect walls), so the skipped ones add little information; the normal
+    /// equations count each sample as `stride²` pixels, so the information they report is
+    /// unchanged.
+    pub fn sample_stride(&self, level: usize, pixel_scale: f64) -> usize {
+        let side = self.noise_window_x_px.min(self.noise_window_y_px) * pixel_scale
+            / 2f64.powi(level.min(30) as i32);
+        let stride = (side / self.samples_per_noise_window).floor();
+        if stride.is_finite() && stride >= 1.0 {
+            stride.min(64.0) as usize
+        } else {
+            1
+        }
+    }
+
     /// Variance per axis of the camera's departure from the constant-velocity prediction
     /// over one frame, `(max_acceleration_m_s2 · frame_interval_s²)²`, m².
     pub fn acceleration_variance_m2(&self) -> f64 {
@@ -252,5 +279,31 @@ impl TrackerConfig {
     /// ([`TrackerConfig::degenerate_check`]).
     pub fn motion_prior_sigma_m(&self) -> f64 {
         self.max_acceleration_m_s2 * self.frame_interval_s * self.frame_interval_s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every second pixel at a Kinect's full resolution; every pixel on coarser levels, on a
+    /// decimated stream, for white noise, and when asked for more samples than the window has.
+    #[test]
+    fn the_sample_stride_follows_the_noise_window() {
+        let cfg = TrackerConfig::default();
+        assert_eq!(cfg.sample_stride(0, 1.0), 2);
+        assert_eq!(cfg.sample_stride(1, 1.0), 1);
+        assert_eq!(cfg.sample_stride(0, 0.5), 1);
+        // A camera resampled finer than its sensor (pixel scale 2): every fourth pixel.
+        assert_eq!(cfg.sample_stride(0, 2.0), 4);
+        let mut white = cfg;
+        white.noise_window_x_px = 1.0;
+        white.noise_window_y_px = 1.0;
+        assert_eq!(white.sample_stride(0, 1.0), 1);
+        let mut all = cfg;
+        all.samples_per_noise_window = 64.0;
+        assert_eq!(all.sample_stride(0, 1.0), 1);
+        all.samples_per_noise_window = 0.0;
+        assert!(all.validate().is_err());
     }
 }

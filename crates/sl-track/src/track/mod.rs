@@ -560,14 +560,18 @@ impl Tracker {
         let finest_l = cfg
             .finest_level
             .min(self.pyramid.levels.len().saturating_sub(1));
+        let stride_of = |l: usize| cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel());
         for l in (finest_l..self.pyramid.levels.len()).rev() {
             let level = &self.pyramid.levels[l];
+            let stride = stride_of(l);
             let params = PassParams {
                 allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
                 min_cos,
+                stride,
             };
             let prior = solve::Prior {
-                data_share: 1.0 / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
+                data_share: (stride * stride) as f64
+                    / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
                 info_t: 1.0 / prior_var_m2,
                 centre_t: start.translation.vector,
             };
@@ -597,7 +601,7 @@ impl Tracker {
             // before the damping gives up) do not use up the budget.
             let mut taken = 0;
             while taken < cfg.max_iterations {
-                if (s.inliers as usize) < self.min_points(l).max(6) {
+                if (s.inliers as usize) < (self.min_points(l) / (stride * stride)).max(6) {
                     break;
                 }
                 let t = pose.translation.vector;
@@ -656,7 +660,10 @@ impl Tracker {
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);
-        let failure = if (stats.inliers as usize) < self.min_points(finest_l) {
+        let finest_stride = stride_of(finest_l);
+        let failure = if (stats.inliers as usize)
+            < self.min_points(finest_l) / (finest_stride * finest_stride)
+        {
             Some(format!("{} inliers, too few", stats.inliers))
         } else if frac < cfg.min_inlier_fraction {
             Some(format!(

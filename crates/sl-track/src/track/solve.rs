@@ -143,6 +143,8 @@ pub(crate) struct PassParams {
     pub allowance_m: f32,
     /// Cosine of the largest angle between the frame's and the reference's normals.
     pub min_cos: f32,
+    /// Every `stride`-th point of every `stride`-th row is used (1 = all).
+    pub stride: usize,
 }
 
 /// Associates the level's points (camera frame) under the pose `pose` (camera to world, about
@@ -181,6 +183,7 @@ pub(crate) fn pass(
     let cap32 = cap as f32;
     let allowance = p.allowance_m;
     let min_cos = p.min_cos;
+    let stride = p.stride.max(1);
     // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
     // result does not depend on how rayon splits the work, so a sequence tracks identically
     // for any thread count and on every run (a `fold`/`reduce` splits where work is stolen).
@@ -196,9 +199,10 @@ pub(crate) fn pass(
                 .chunks(w.max(1))
                 .zip(nblock.chunks(w.max(1)))
                 .zip(ablock.chunks(w.max(1)))
+                .step_by(stride)
             {
                 let mut s = RowSums::default();
-                for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow) {
+                for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow).step_by(stride) {
                     if !nc.x.is_finite() {
                         continue;
                     }
@@ -332,9 +336,10 @@ fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
 /// share of independent information and a prior on the camera's position.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Prior {
-    /// `1/N`: the data terms are divided by the number `N` of pixels of the level over which
-    /// the depth error is correlated (see [`TrackerConfig::noise_window_x_px`]), so that `H`
-    /// counts independent measurements.
+    /// `s²/N`: the data terms are divided by the number `N` of pixels of the level over which
+    /// the depth error is correlated (see [`TrackerConfig::noise_window_x_px`]) and multiplied
+    /// by the `s²` pixels each sample stands for (`s`: [`TrackerConfig::sample_stride`]), so
+    /// that `H` counts independent measurements.
     pub data_share: f64,
     /// Information of the position prior, `1/σ_t²` per axis, 1/m².
     pub info_t: f64,
