@@ -39,6 +39,32 @@ impl PlaneExtractor {
         (pixels <= MAX_SENSOR_PIXELS).then_some(n)
     }
 
+    /// Runs `extract` (the depth or the disparity path on the frame's own pixels) on the
+    /// `w × h` map `data` of `camera`, on the sensor's grid when the camera is its sensor
+    /// decimated ([`PlaneExtractor::sensor_factor`]), and returns the frame's segmentation.
+    pub(super) fn extract_on_sensor_grid(
+        &mut self,
+        data: &[f32],
+        w: usize,
+        h: usize,
+        camera: &Camera,
+        extract: fn(&mut Self, &[f32], usize, usize, &Camera) -> Result<PlaneSegmentation>,
+    ) -> Result<PlaneSegmentation> {
+        Self::check(w, h, &camera.intrinsics)?;
+        self.sensor_grid = None;
+        let Some(n) = Self::sensor_factor(camera, w, h) else {
+            return extract(self, data, w, h, camera);
+        };
+        let mut grid = std::mem::take(&mut self.sensor_grid_input);
+        Self::replicate(data, w, h, n, &mut grid);
+        let seg = camera
+            .resampled(n as f64)
+            .map_err(PlanesError::from)
+            .and_then(|sensor| extract(self, &grid, w * n, h * n, &sensor));
+        self.sensor_grid_input = grid;
+        self.sample_back_to_frame(seg?, n, w, h)
+    }
+
     /// Replicates each value of the `w × h` map `src` over `n × n` pixels into `out`.
     pub(super) fn replicate(src: &[f32], w: usize, h: usize, n: usize, out: &mut Vec<f32>) {
         out.clear();

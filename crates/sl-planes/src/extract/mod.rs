@@ -451,19 +451,7 @@ impl PlaneExtractor {
     ) -> Result<PlaneSegmentation> {
         let depth: DepthView<'a> = depth.into();
         let (w, h) = (depth.width(), depth.height());
-        Self::check(w, h, &camera.intrinsics)?;
-        self.sensor_grid = None;
-        let Some(n) = Self::sensor_factor(camera, w, h) else {
-            return self.extract_depth_rows(depth.data(), w, h, camera);
-        };
-        let mut grid = std::mem::take(&mut self.sensor_grid_input);
-        Self::replicate(depth.data(), w, h, n, &mut grid);
-        let seg = camera
-            .resampled(n as f64)
-            .map_err(PlanesError::from)
-            .and_then(|sensor| self.extract_depth_rows(&grid, w * n, h * n, &sensor));
-        self.sensor_grid_input = grid;
-        self.sample_back_to_frame(seg?, n, w, h)
+        self.extract_on_sensor_grid(depth.data(), w, h, camera, Self::extract_depth_rows)
     }
 
     /// [`PlaneExtractor::extract_depth`] on the frame's own pixels.
@@ -503,19 +491,7 @@ impl PlaneExtractor {
         camera: &Camera,
     ) -> Result<PlaneSegmentation> {
         let (w, h) = (disparity.width(), disparity.height());
-        Self::check(w, h, &camera.intrinsics)?;
-        self.sensor_grid = None;
-        let Some(n) = Self::sensor_factor(camera, w, h) else {
-            return self.extract_disparity_rows(disparity.data(), w, h, camera);
-        };
-        let mut grid = std::mem::take(&mut self.sensor_grid_input);
-        Self::replicate(disparity.data(), w, h, n, &mut grid);
-        let seg = camera
-            .resampled(n as f64)
-            .map_err(PlanesError::from)
-            .and_then(|sensor| self.extract_disparity_rows(&grid, w * n, h * n, &sensor));
-        self.sensor_grid_input = grid;
-        self.sample_back_to_frame(seg?, n, w, h)
+        self.extract_on_sensor_grid(disparity.data(), w, h, camera, Self::extract_disparity_rows)
     }
 
     /// [`PlaneExtractor::extract_disparity`] on the frame's own pixels.
