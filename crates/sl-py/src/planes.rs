@@ -95,7 +95,10 @@ fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneCo
 
 /// Extracts planes in the disparity domain (one fixed threshold at every depth, the paper's
 /// section 3.4). Returns ``(labels, planes)``: a uint16 (H, W) label image (0 = no plane,
-/// i = ``planes[i-1]``) and a list of ``Plane``.
+/// i = ``planes[i-1]``) and a list of ``Plane``. Frames of a camera resampled from its sensor
+/// by a whole factor (``Camera.resampled(0.5)``: a 320×240 stream of a 640×480 Kinect) are
+/// extracted on the sensor's grid and give the planes of the full frame; ``min_pixels``
+/// (default 1000) counts the sensor's pixels.
 #[pyfunction]
 #[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, depth_scale = None))]
 pub(crate) fn extract_planes<'py>(

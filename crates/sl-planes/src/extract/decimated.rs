@@ -102,14 +102,18 @@ impl PlaneExtractor {
             let row = &src[(y * n + n / 2) * ws..];
             labels.extend((0..w).map(|x| row[x * n + n / 2]));
         }
+        // Ids are 1..=planes.len() (`finish`); a label beyond them would count as none.
         let mut counts = vec![0usize; seg.planes.len() + 1];
         for &l in &labels {
-            counts[usize::from(l)] += 1;
+            if let Some(c) = counts.get_mut(usize::from(l)) {
+                *c += 1;
+            }
         }
+        let count = |id: u16| counts.get(usize::from(id)).copied().unwrap_or(0);
         let mut planes: Vec<PlaneInfo> = seg
             .planes
             .iter()
-            .filter(|p| counts[usize::from(p.id)] > 0)
+            .filter(|p| p.id != 0 && count(p.id) > 0)
             .map(|p| {
                 let (a, b) = (p.affine.a, p.affine.b);
                 let half = (n as f64 - 1.0) / 2.0;
@@ -119,7 +123,7 @@ impl PlaneExtractor {
                         b: b * n as f64,
                         c: p.affine.c + (a + b) * half,
                     },
-                    pixels: counts[usize::from(p.id)],
+                    pixels: count(p.id),
                     ..*p
                 }
             })
@@ -128,11 +132,13 @@ impl PlaneExtractor {
         planes.sort_by_key(|p| std::cmp::Reverse(p.pixels));
         let mut lut = vec![0u16; seg.planes.len() + 1];
         for (i, p) in planes.iter_mut().enumerate() {
-            lut[usize::from(p.id)] = i as u16 + 1;
+            if let Some(slot) = lut.get_mut(usize::from(p.id)) {
+                *slot = i as u16 + 1;
+            }
             p.id = i as u16 + 1;
         }
         for l in &mut labels {
-            *l = lut[usize::from(*l)];
+            *l = lut.get(usize::from(*l)).copied().unwrap_or(0);
         }
         self.sensor_grid = Some((n, seg.labels));
         Ok(PlaneSegmentation {

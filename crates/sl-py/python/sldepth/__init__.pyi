@@ -207,7 +207,10 @@ def extract_planes(
     threshold_px: Optional[float] = None,
     min_pixels: Optional[int] = None,
     depth_scale: Optional[float] = None,
-) -> Tuple[npt.NDArray[np.uint16], List[Plane]]: ...
+) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
+    """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
+    from its sensor by a whole factor (Camera.resampled(0.5)) is extracted on the sensor's
+    grid; min_pixels (default 1000) counts the sensor's pixels."""
 
 class Motion:
     determined: bool
