@@ -272,14 +272,7 @@ fn a_decimated_frame_gives_the_planes_of_the_full_one() {
         let depth = KinectSimulator::with_sensor(cam.sensor).apply(&truth, seed);
         let half_cam = cam.resampled(0.5).unwrap();
         let (w2, h2) = (half_cam.intrinsics.width, half_cam.intrinsics.height);
-        let half = DepthImage::from_vec(
-            w2,
-            h2,
-            (0..w2 * h2)
-                .map(|j| depth.data()[(j / w2) * 2 * k.width + (j % w2) * 2])
-                .collect(),
-        )
-        .unwrap();
+        let half = sl_testkit::decimate(&depth, 2);
         let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
         let full = ex.extract_depth(&depth, &cam).unwrap();
         let dec = ex.extract_depth(&half, &half_cam).unwrap();

@@ -355,3 +355,15 @@ pub fn render_planes(
             .unwrap_or_else(|_| sl_core::Image::filled(k.width, k.height, 0)),
     )
 }
+
+/// Every `n`-th pixel of every `n`-th row of `depth` (a driver's decimation, a QVGA mode of a
+/// VGA sensor): `width / n × height / n`, the pixel at `(n·x, n·y)` for `(x, y)`. `n = 0` is
+/// taken as 1.
+pub fn decimate(depth: &DepthImage, n: usize) -> DepthImage {
+    let n = n.max(1);
+    let (w, h) = (depth.width() / n, depth.height() / n);
+    let data = (0..w * h)
+        .map(|j| depth.data()[(j / w) * n * depth.width() + (j % w) * n])
+        .collect();
+    DepthImage::from_vec(w, h, data).unwrap_or_else(|_| DepthImage::invalid(w, h))
+}

@@ -475,15 +475,6 @@ fn a_frame_that_overlaps_the_reference_on_two_planes_is_not_aligned_to_it() {
     );
 }
 
-/// Every `n`-th pixel of every `n`-th row.
-fn decimate(d: &DepthImage, n: usize) -> DepthImage {
-    let (w, h) = (d.width() / n, d.height() / n);
-    let data = (0..w * h)
-        .map(|j| d.data()[(j / w) * n * d.width() + (j % w) * n])
-        .collect();
-    DepthImage::from_vec(w, h, data).unwrap()
-}
-
 /// A frame of a sensor decimated by 2 (a QVGA stream of a VGA Kinect) holds as much about the
 /// pose as the full frame: its error is correlated over the same patch of the scene (the
 /// block-matching window, now half as many pixels across) and its depth noise is the sensor's.
@@ -508,7 +499,7 @@ fn decimated_frames_of_the_same_sensor_carry_the_same_information() {
         let depth = sim
             .simulate(&scene.scene, &full.intrinsics, &scene.pose, seed)
             .depth;
-        let half = decimate(&depth, 2);
+        let half = sl_testkit::decimate(&depth, 2);
         let s_full = sigma(full, &depth);
         let resampled = full.resampled(0.5).unwrap();
         assert_eq!(resampled.pixels_per_sensor_pixel(), 0.5);

@@ -421,19 +421,14 @@ fn a_decimated_frame_is_the_same_sensor() {
     let full = sl_io::read_depth(&p, &sl_io::ReadConfig::default())
         .unwrap_or_else(|e| panic!("{e}"))
         .depth;
-    let decimate = |n: usize, w: usize, h: usize| {
-        let data = (0..w * h)
-            .map(|j| full.data()[(j / w) * n * full.width() + (j % w) * n])
-            .collect();
-        sl_core::DepthImage::from_vec(w, h, data).unwrap_or_else(|e| panic!("{e}"))
+    let write = |name: &str, depth: &sl_core::DepthImage| {
+        let path = dir.path().join(name);
+        sl_io::depth::write_depth(&path, depth, &sl_io::depth::DepthEncoding::default())
+            .unwrap_or_else(|e| panic!("{e}"));
+        path
     };
-    let half = dir.path().join("half.png");
-    sl_io::depth::write_depth(
-        &half,
-        &decimate(2, 320, 240),
-        &sl_io::depth::DepthEncoding::default(),
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let decimated = sl_testkit::decimate(&full, 2);
+    let half = write("half.png", &decimated);
     let labels = dir.path().join("labels.png");
     let planes = |path: &Path| {
         let o = sldepth(&[
@@ -454,14 +449,12 @@ fn a_decimated_frame_is_the_same_sensor() {
     let count = |v: &serde_json::Value| v["planes"].as_array().map_or(0, Vec::len);
     assert!(count(&at_full) >= 3);
     assert_eq!(count(&at_half), count(&at_full));
-    // 320×200 is no whole fraction of 640×480.
-    let odd = dir.path().join("odd.png");
-    sl_io::depth::write_depth(
-        &odd,
-        &decimate(2, 320, 200),
-        &sl_io::depth::DepthEncoding::default(),
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    // 320×200 (the decimated frame's first 200 rows) is no whole fraction of 640×480.
+    let rows = decimated.data()[..320 * 200].to_vec();
+    let odd = write(
+        "odd.png",
+        &sl_core::DepthImage::from_vec(320, 200, rows).unwrap_or_else(|e| panic!("{e}")),
+    );
     let o = sldepth(&[
         "planes",
         path_str(&odd),

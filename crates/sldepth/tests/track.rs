@@ -59,11 +59,7 @@ fn write_sequence_decimated(dir: &Path, n: usize, every: usize) -> Vec<f64> {
         let t = 100.0 + i as f64 / 30.0;
         let truth = scene.scene.render(&scene.intrinsics, &pose).depth;
         let depth = sim.apply(&truth, i as u64);
-        let (w, h) = (depth.width() / every, depth.height() / every);
-        let data = (0..w * h)
-            .map(|j| depth.data()[(j / w) * every * depth.width() + (j % w) * every])
-            .collect();
-        let depth = sl_core::DepthImage::from_vec(w, h, data).unwrap();
+        let depth = sl_testkit::decimate(&depth, every);
         let name = format!("depth/{t:.6}.png");
         write_depth(dir.join(&name), &depth, &DepthEncoding::tum()).unwrap();
         list.push_str(&format!("{t:.6} {name}\n"));

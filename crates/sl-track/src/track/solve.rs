@@ -193,13 +193,16 @@ pub(crate) fn pass(
         .par_chunks(block)
         .zip(level.normals.par_chunks(block))
         .zip(level.aux.par_chunks(block))
-        .map(|((pblock, nblock), ablock)| {
+        .enumerate()
+        .map(|(bi, ((pblock, nblock), ablock))| {
             let mut block_sums = Sums::zero();
-            for ((prow, nrow), arow) in pblock
+            // The rows whose index in the level is a multiple of the stride.
+            for (_, ((prow, nrow), arow)) in pblock
                 .chunks(w.max(1))
                 .zip(nblock.chunks(w.max(1)))
                 .zip(ablock.chunks(w.max(1)))
-                .step_by(stride)
+                .enumerate()
+                .filter(|(r, _)| (bi * ROWS_PER_BLOCK + r).is_multiple_of(stride))
             {
                 let mut s = RowSums::default();
                 for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow).step_by(stride) {
