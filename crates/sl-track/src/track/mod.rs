@@ -39,7 +39,7 @@ use sl_core::{Camera, CameraToWorld, DepthImage};
 
 use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
-use pyramid::Pyramid;
+use pyramid::{Level, Pyramid, normal_radius};
 use solve::{PassParams, Sums};
 use structure::StructureCheck;
 
@@ -148,8 +148,12 @@ pub struct Tracker {
     camera: Camera,
     cfg: TrackerConfig,
     pyramid: Pyramid,
-    /// The last good frame as a reference.
+    /// The last good frame as a reference, built from `last_level` when first needed
+    /// (`last_ref_stale`): most frames are tracked against the model and never need it.
     last_ref: ReferenceMaps,
+    /// Level 0 of the last good frame's pyramid (swapped out of the pyramid on acceptance).
+    last_level: Level,
+    last_ref_stale: bool,
     /// The last good frame's depth (for the plane-based fallback).
     last_depth: DepthImage,
     last_good: Option<Isometry3<f64>>,
@@ -181,6 +185,8 @@ impl Tracker {
             cfg,
             pyramid: Pyramid::default(),
             last_ref: ReferenceMaps::empty(&k),
+            last_level: Level::default(),
+            last_ref_stale: false,
             last_depth: DepthImage::invalid(k.width, k.height),
             last_good: None,
             velocity: Isometry3::identity(),
@@ -210,8 +216,29 @@ impl Tracker {
 
     /// The last well-tracked frame as reference maps (what a frame is aligned to when no model
     /// reference is given).
-    pub fn last_frame_reference(&self) -> &ReferenceMaps {
+    pub fn last_frame_reference(&mut self) -> &ReferenceMaps {
+        self.refresh_last_ref();
         &self.last_ref
+    }
+
+    /// Builds the last good frame's reference maps if they are not yet.
+    fn refresh_last_ref(&mut self) {
+        if !self.last_ref_stale {
+            return;
+        }
+        let Some(pose) = self.last_good else {
+            return;
+        };
+        let k = self.camera.intrinsics;
+        self.last_level
+            .complete_normals(&self.camera.sensor, k.fx as f32, normal_radius(0));
+        self.last_ref.set_from_level(
+            &self.last_level,
+            &k,
+            &self.camera.sensor,
+            &CameraToWorld::from_isometry(pose),
+        );
+        self.last_ref_stale = false;
     }
 
     /// Tracks one frame against `model` (a raycast of the fused model from about the last
@@ -282,8 +309,17 @@ impl Tracker {
         }
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
         let sensor = self.camera.sensor;
+        // Level 0 is sampled every `stride0` pixels by the alignment against a model: its
+        // normals are computed there only, the rest if the frame is ever needed as a reference
+        // (`refresh_last_ref`). Frame-to-frame tracking needs them all.
+        let stride0 = if model.is_some() {
+            self.cfg
+                .sample_stride(0, self.camera.pixels_per_sensor_pixel())
+        } else {
+            1
+        };
         self.pyramid
-            .build(depth.data(), &k, &sensor, self.cfg.levels)?;
+            .build(depth.data(), &k, &sensor, self.cfg.levels, stride0)?;
         self.last_timestamp_s = timestamp_s;
         // A view whose geometry leaves some direction of the pose to the motion prior (a
         // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
@@ -340,7 +376,9 @@ impl Tracker {
         };
         let n = self.intervals_since_good.max(1);
         let span = f64::from(n);
-        let reference = model.unwrap_or(&self.last_ref);
+        if model.is_none() {
+            self.refresh_last_ref();
+        }
         // Constant velocity, also across lost and dropped frames (the camera kept moving
         // meanwhile): the last good pose moved by one step per frame interval since.
         let mut predicted = last;
@@ -363,7 +401,12 @@ impl Tracker {
             unknown_var
         };
         let mut iterations = 0;
-        let mut first = self.align(&predicted, reference, predicted_var, false);
+        let mut first = self.align(
+            &predicted,
+            model.unwrap_or(&self.last_ref),
+            predicted_var,
+            false,
+        );
         iterations += first.iterations;
         let mut recovered = false;
         let mut against_frame = false;
@@ -371,7 +414,7 @@ impl Tracker {
             if first.failure.is_none() {
                 break;
             }
-            let again = self.align(&start, reference, var, true);
+            let again = self.align(&start, model.unwrap_or(&self.last_ref), var, true);
             iterations += again.iterations;
             if again.failure.is_none() {
                 first = again;
@@ -384,6 +427,7 @@ impl Tracker {
         // which differ between the views the model averages and agree between consecutive
         // frames. Try the last good frame before the plane fallback.
         if first.failure.is_some() && model.is_some() {
+            self.refresh_last_ref();
             for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
                 let again = self.align(&start, &self.last_ref, var, true);
                 iterations += again.iterations;
@@ -399,7 +443,7 @@ impl Tracker {
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
             if let Some(m) = planes.pose() {
                 let start = solve::renormalized(last * m.into_isometry());
-                let again = self.align(&start, reference, unknown_var, true);
+                let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
                     first = again;
@@ -461,11 +505,11 @@ impl Tracker {
 
     /// The first frame with enough valid depth defines the world frame.
     fn initialise(&mut self, depth: &DepthImage) -> FrameResult {
-        let valid = self
-            .pyramid
-            .levels
-            .first()
-            .map_or(0, |l| l.normals.iter().filter(|n| n.x.is_finite()).count());
+        let (sensor, fl) = (self.camera.sensor, self.camera.intrinsics.fx as f32);
+        let valid = self.pyramid.levels.first_mut().map_or(0, |l| {
+            l.complete_normals(&sensor, fl, normal_radius(0));
+            l.normals.iter().filter(|n| n.x.is_finite()).count()
+        });
         let min_points = self.min_points(0);
         let pose = *self.initial_pose.isometry();
         if valid < min_points {
@@ -489,16 +533,12 @@ impl Tracker {
         }
     }
 
-    /// Makes the current frame (level 0 of the pyramid) the last good one.
+    /// Makes the current frame (level 0 of the pyramid) the last good one: its level 0 is kept
+    /// (swapped with the pyramid's spare buffers) and its reference maps built when needed.
     fn accept(&mut self, depth: &DepthImage, pose: Isometry3<f64>) {
-        let k = self.camera.intrinsics;
-        if let Some(l0) = self.pyramid.levels.first() {
-            self.last_ref.set_from_level(
-                l0,
-                &k,
-                &self.camera.sensor,
-                &CameraToWorld::from_isometry(pose),
-            );
+        if let Some(l0) = self.pyramid.levels.first_mut() {
+            std::mem::swap(l0, &mut self.last_level);
+            self.last_ref_stale = true;
         }
         self.last_depth.data_mut().copy_from_slice(depth.data());
         self.last_good = Some(pose);

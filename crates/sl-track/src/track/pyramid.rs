@@ -25,6 +25,9 @@ pub(crate) struct Level {
     pub normals: Vec<Vector3<f32>>,
     /// Per-pixel constants of the association pass (valid where the normal is).
     pub aux: Vec<PointAux>,
+    /// Normals (and `aux`) are computed on the pixels whose column and row are multiples of
+    /// this (1: every pixel); elsewhere they are NaN until [`Level::complete_normals`].
+    pub normal_stride: usize,
 }
 
 /// What the association pass needs of a frame point besides its position and normal, and
@@ -49,27 +52,74 @@ pub(crate) fn normal_gate_cos(c: f32, z: f32, fl: f32) -> f32 {
     1.0 / (1.0 + tan_g * tan_g).sqrt()
 }
 
-/// Fills `level.aux` from its points and normals.
-fn point_aux(level: &mut Level, sensor: &SensorModel, fl: f32) {
+/// Which pixels of a level get a normal: those on the grid of every `stride`-th column and
+/// row (`off_grid = false`; `stride = 1`: all), or the others (`off_grid = true`, completing a
+/// level built on the grid).
+#[derive(Debug, Clone, Copy)]
+struct Select {
+    stride: usize,
+    off_grid: bool,
+}
+
+impl Select {
+    /// Sets the selected entries of image row `y` to `f(x)`; the others to `unset` when
+    /// selecting the grid, unchanged when completing it.
+    #[inline(always)]
+    fn apply<T: Copy>(&self, row: &mut [T], y: usize, unset: T, f: impl Fn(usize) -> T) {
+        let s = self.stride.max(1);
+        let row_on_grid = y.is_multiple_of(s);
+        match (self.off_grid, row_on_grid) {
+            (false, false) => row.fill(unset),
+            (false, true) => {
+                if s > 1 {
+                    row.fill(unset);
+                }
+                for (x, v) in row.iter_mut().enumerate().step_by(s) {
+                    *v = f(x);
+                }
+            }
+            (true, false) => {
+                for (x, v) in row.iter_mut().enumerate() {
+                    *v = f(x);
+                }
+            }
+            (true, true) => {
+                for (x, v) in row.iter_mut().enumerate() {
+                    if !x.is_multiple_of(s) {
+                        *v = f(x);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Fills `level.aux` from its points and normals on the selected pixels (the others: the
+/// default when selecting the grid, unchanged when completing it).
+fn point_aux(level: &mut Level, sensor: &SensorModel, fl: f32, w: usize, sel: Select) {
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
     let n = level.points.len();
     level.aux.resize(n, PointAux::default());
     level
         .aux
-        .par_iter_mut()
-        .zip(level.points.par_iter())
-        .zip(level.normals.par_iter())
-        .for_each(|((a, pc), nc)| {
-            *a = if nc.x.is_finite() {
-                let z = pc.z;
-                PointAux {
-                    ray_len: pc.coords.norm(),
-                    cz2: c * z * z,
-                    cos_gate: normal_gate_cos(c, z, fl),
+        .par_chunks_mut(w.max(1))
+        .zip(level.points.par_chunks(w.max(1)))
+        .zip(level.normals.par_chunks(w.max(1)))
+        .enumerate()
+        .for_each(|(y, ((arow, prow), nrow))| {
+            sel.apply(arow, y, PointAux::default(), |x| {
+                let (pc, nc) = (&prow[x], &nrow[x]);
+                if nc.x.is_finite() {
+                    let z = pc.z;
+                    PointAux {
+                        ray_len: pc.coords.norm(),
+                        cz2: c * z * z,
+                        cos_gate: normal_gate_cos(c, z, fl),
+                    }
+                } else {
+                    PointAux::default()
                 }
-            } else {
-                PointAux::default()
-            };
+            })
         });
 }
 
@@ -78,12 +128,37 @@ impl Level {
     pub fn intrinsics(&self) -> Option<&Intrinsics> {
         self.k.as_ref()
     }
+
+    /// Computes the normals (and `aux`) a level built on a grid ([`Pyramid::build`]'s
+    /// `stride0`) left out, so that every pixel has them: the same values a build on every
+    /// pixel gives. `fl`: the full-resolution focal length, pixels; `r`: the level's normal
+    /// baseline (2 at full resolution).
+    pub fn complete_normals(&mut self, sensor: &SensorModel, fl: f32, r: usize) {
+        if self.normal_stride <= 1 {
+            return;
+        }
+        let Some(k) = self.k else {
+            return;
+        };
+        let sel = Select {
+            stride: self.normal_stride,
+            off_grid: true,
+        };
+        normals(self, &k, sensor, r, sel);
+        point_aux(self, sensor, fl, k.width, sel);
+        self.normal_stride = 1;
+    }
 }
 
 /// The pyramid: level 0 is the input resolution, each further level half the previous one.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Pyramid {
     pub levels: Vec<Level>,
+}
+
+/// The baseline of level `l`'s central-difference normals, pixels (see [`normals`]).
+pub(crate) fn normal_radius(l: usize) -> usize {
+    if l == 0 { 2 } else { 1 }
 }
 
 /// Intrinsics of a 2×2-downsampled image (pixel-centre convention of `Intrinsics::scaled`).
@@ -131,16 +206,11 @@ fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &Senso
         });
 }
 
-/// Vertex and normal maps of one level from its depth. Normals are central differences over
-/// `±r` pixels: Kinect depth is quantised into terraces (1 cm steps at 2 m) and one-pixel
-/// differences give normals tens of degrees off; at full resolution `r = 2` (the coarser levels
-/// are already averaged, `r = 1`).
-fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: usize) {
+/// The vertex map of one level from its depth.
+fn vertices(level: &mut Level, k: &Intrinsics) {
     let (w, h) = (k.width, k.height);
     let nan_p = Point3::new(f32::NAN, f32::NAN, f32::NAN);
-    let nan_n = Vector3::new(f32::NAN, f32::NAN, f32::NAN);
     level.points.resize(w * h, nan_p);
-    level.normals.resize(w * h, nan_n);
     let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
     let depth = &level.depth;
     level
@@ -157,57 +227,73 @@ fn vertices_normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: 
                 };
             }
         });
+}
+
+/// The normal map of one level (on the pixels `sel` selects; NaN on the others when selecting
+/// a grid, unchanged when completing one) from its depth and vertices. Normals are central
+/// differences over `±r` pixels: Kinect depth is quantised into terraces (1 cm steps at 2 m)
+/// and one-pixel differences give normals tens of degrees off; at full resolution `r = 2` (the
+/// coarser levels are already averaged, `r = 1`).
+fn normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: usize, sel: Select) {
+    let (w, h) = (k.width, k.height);
+    let nan_n = Vector3::new(f32::NAN, f32::NAN, f32::NAN);
+    level.normals.resize(w * h, nan_n);
+    let fx = k.fx as f32;
+    let depth = &level.depth;
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
     let points = &level.points;
+    let normal_at = |x: usize, y: usize| -> Vector3<f32> {
+        if x < r || y < r || x + r >= w || y + r >= h {
+            return nan_n;
+        }
+        let i = y * w + x;
+        let z = depth[i];
+        if z <= 0.0 {
+            return nan_n;
+        }
+        // A jump larger than a surface at 80° to the line of sight plus 3σ of noise is a depth
+        // edge.
+        let gate = r as f32 * z / fx * MAX_SLANT_TAN + 3.0 * c * z * z;
+        let nb = [i - r, i + r, i - r * w, i + r * w];
+        if nb
+            .iter()
+            .any(|&j| depth[j] <= 0.0 || depth[j].is_nan() || (depth[j] - z).abs() > gate)
+        {
+            return nan_n;
+        }
+        let dx = points[i + r] - points[i - r];
+        let dy = points[i + r * w] - points[i - r * w];
+        let m = dx.cross(&dy);
+        let len = m.norm();
+        if len <= 0.0 || len.is_nan() {
+            return nan_n;
+        }
+        let m = m / len;
+        if m.dot(&points[i].coords) > 0.0 {
+            -m
+        } else {
+            m
+        }
+    };
     level
         .normals
-        .par_chunks_mut(w)
+        .par_chunks_mut(w.max(1))
         .enumerate()
-        .for_each(|(y, row)| {
-            for (x, n) in row.iter_mut().enumerate() {
-                *n = nan_n;
-                if x < r || y < r || x + r >= w || y + r >= h {
-                    continue;
-                }
-                let i = y * w + x;
-                let z = depth[i];
-                if z <= 0.0 {
-                    continue;
-                }
-                // A jump larger than a surface at 80° to the line of sight plus 3σ of noise is
-                // a depth edge.
-                let gate = r as f32 * z / fx * MAX_SLANT_TAN + 3.0 * c * z * z;
-                let nb = [i - r, i + r, i - r * w, i + r * w];
-                if nb
-                    .iter()
-                    .any(|&j| depth[j] <= 0.0 || depth[j].is_nan() || (depth[j] - z).abs() > gate)
-                {
-                    continue;
-                }
-                let dx = points[i + r] - points[i - r];
-                let dy = points[i + r * w] - points[i - r * w];
-                let m = dx.cross(&dy);
-                let len = m.norm();
-                if len <= 0.0 || len.is_nan() {
-                    continue;
-                }
-                let mut m = m / len;
-                if m.dot(&points[i].coords) > 0.0 {
-                    m = -m;
-                }
-                *n = m;
-            }
-        });
+        .for_each(|(y, row)| sel.apply(row, y, nan_n, |x| normal_at(x, y)));
 }
 
 impl Pyramid {
-    /// Builds `levels` levels from a depth map of `k`'s size (checked by the caller).
+    /// Builds `levels` levels from a depth map of `k`'s size (checked by the caller). Level 0
+    /// gets normals on the grid of every `stride0`-th column and row only (the pixels the
+    /// association pass samples there, [`crate::TrackerConfig::sample_stride`]; 1: all); see
+    /// [`Level::complete_normals`].
     pub fn build(
         &mut self,
         depth: &[f32],
         k: &Intrinsics,
         sensor: &SensorModel,
         levels: usize,
+        stride0: usize,
     ) -> Result<()> {
         self.levels.resize_with(levels, Level::default);
         let mut kl = *k;
@@ -227,9 +313,87 @@ impl Pyramid {
             }
             let lv = &mut self.levels[l];
             lv.k = Some(kl);
-            vertices_normals(lv, &kl, sensor, if l == 0 { 2 } else { 1 });
-            point_aux(lv, sensor, k.fx as f32);
+            let sel = Select {
+                stride: if l == 0 { stride0.max(1) } else { 1 },
+                off_grid: false,
+            };
+            lv.normal_stride = sel.stride;
+            vertices(lv, &kl);
+            normals(lv, &kl, sensor, normal_radius(l), sel);
+            point_aux(lv, sensor, k.fx as f32, kl.width, sel);
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used, clippy::expect_used)]
+mod tests {
+    use super::*;
+    use sl_core::Camera;
+
+    /// A slanted wall with a box in front and holes: depth edges, invalid pixels, borders.
+    fn scene(k: &Intrinsics) -> Vec<f32> {
+        let mut d = vec![0.0f32; k.width * k.height];
+        for y in 0..k.height {
+            for x in 0..k.width {
+                let (xf, yf) = (x as f32, y as f32);
+                let mut z = 2.0 + 0.002 * xf + 0.001 * yf;
+                if (200..400).contains(&x) && (150..300).contains(&y) {
+                    z = 1.2 + 0.0005 * (xf - 300.0).abs();
+                }
+                if (x * 7 + y * 13) % 97 == 0 {
+                    z = 0.0;
+                }
+                d[y * k.width + x] = z;
+            }
+        }
+        d
+    }
+
+    fn bits(v: &[Vector3<f32>]) -> Vec<[u32; 3]> {
+        v.iter()
+            .map(|n| [n.x.to_bits(), n.y.to_bits(), n.z.to_bits()])
+            .collect()
+    }
+
+    fn aux_bits(v: &[PointAux]) -> Vec<[u32; 3]> {
+        v.iter()
+            .map(|a| [a.ray_len.to_bits(), a.cz2.to_bits(), a.cos_gate.to_bits()])
+            .collect()
+    }
+
+    #[test]
+    fn a_level_built_on_a_grid_and_completed_equals_one_built_on_every_pixel() {
+        let cam = Camera::kinect_v1();
+        let (k, sensor) = (cam.intrinsics, cam.sensor);
+        let depth = scene(&k);
+        let mut full = Pyramid::default();
+        full.build(&depth, &k, &sensor, 3, 1).unwrap();
+        for stride in [2, 3] {
+            let mut grid = Pyramid::default();
+            grid.build(&depth, &k, &sensor, 3, stride).unwrap();
+            let (g0, f0) = (&grid.levels[0], &full.levels[0]);
+            let mut on_grid = 0;
+            for (i, (g, f)) in g0.normals.iter().zip(&f0.normals).enumerate() {
+                let (x, y) = (i % k.width, i / k.width);
+                if x % stride == 0 && y % stride == 0 {
+                    assert_eq!(bits(&[*g]), bits(&[*f]), "pixel ({x}, {y})");
+                    on_grid += usize::from(f.x.is_finite());
+                } else {
+                    assert!(g.x.is_nan(), "pixel ({x}, {y}) is off the grid");
+                }
+            }
+            assert!(on_grid > 1000, "{on_grid} grid normals");
+            // The coarser levels do not depend on the grid.
+            for l in 1..3 {
+                assert_eq!(bits(&grid.levels[l].normals), bits(&full.levels[l].normals));
+            }
+            let mut done = grid.levels[0].clone();
+            done.complete_normals(&sensor, k.fx as f32, normal_radius(0));
+            assert_eq!(done.normal_stride, 1);
+            assert_eq!(bits(&done.normals), bits(&f0.normals));
+            assert_eq!(aux_bits(&done.aux), aux_bits(&f0.aux));
+        }
     }
 }

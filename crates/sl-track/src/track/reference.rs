@@ -57,7 +57,7 @@ impl ReferenceMaps {
         pose: &CameraToWorld,
     ) -> crate::Result<Self> {
         let mut pyr = super::pyramid::Pyramid::default();
-        pyr.build(depth, k, sensor, 1)?;
+        pyr.build(depth, k, sensor, 1, 1)?;
         let mut out = Self::empty(k);
         if let Some(level) = pyr.levels.first() {
             out.set_from_level(level, k, sensor, pose);

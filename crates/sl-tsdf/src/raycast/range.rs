@@ -60,11 +60,7 @@ pub(super) fn tile_ranges(
         *pair[0].get_mut() = empty_lo;
         *pair[1].get_mut() = 0;
     }
-    let min_z = config.min_depth_m as f32;
-    let max_z = config.max_depth_m as f32;
-    let side = (BLOCK_SIDE as f64 * vol.params().voxel_m) as f32;
-    let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
-    let (w, h) = (k.width as f32, k.height as f32);
+    let view = BlockView::new(frame, k, config, vol.params().voxel_m);
     let tiles: &[AtomicU32] = tiles;
     let update = |i0: usize, i1: usize, j0: usize, j1: usize, lo: f32, hi: f32| {
         for j in j0..=j1 {
@@ -78,41 +74,145 @@ pub(super) fn tile_ranges(
     vol.keys().par_chunks(256).for_each(|keys| {
         for &key in keys {
             let b = unpack(key);
-            let o = Point3::new(b[0] as f32, b[1] as f32, b[2] as f32) * side;
-            let mut corners = [Vector3::zeros(); 8];
-            let (mut zlo, mut zhi) = (f32::INFINITY, f32::NEG_INFINITY);
-            for (c, corner) in corners.iter_mut().enumerate() {
-                let d = Vector3::new((c & 1) as f32, ((c >> 1) & 1) as f32, (c >> 2) as f32);
-                *corner = frame.world_to_camera(&(o + d * side));
-                zlo = zlo.min(corner.z);
-                zhi = zhi.max(corner.z);
-            }
-            if !(zhi >= min_z && zlo <= max_z) {
-                continue; // behind the camera or beyond the range (or NaN)
-            }
-            let (ulo, uhi, vlo, vhi) = clipped_bounds(&corners, min_z, fx, fy, cx, cy);
-            let zlo = zlo.max(min_z);
-            // Pixel centres x with ulo ≤ x ≤ uhi (likewise y).
-            if !(uhi >= 0.0 && ulo <= w - 1.0 && vhi >= 0.0 && vlo <= h - 1.0) {
+            if view.cull.outside(&view.centre(b)) {
                 continue;
             }
-            let px = |u: f32, lim: f32| u.clamp(0.0, lim) as usize;
-            let (x0, x1) = (px(ulo.ceil(), w - 1.0), px(uhi.floor(), w - 1.0));
-            let (y0, y1) = (px(vlo.ceil(), h - 1.0), px(vhi.floor(), h - 1.0));
-            if x0 > x1 || y0 > y1 {
-                continue;
+            if let Some(([x0, x1, y0, y1], zlo, zhi)) = view.footprint(b) {
+                update(x0 / TILE, x1 / TILE, y0 / TILE, y1 / TILE, zlo, zhi);
             }
-            update(
-                x0 / TILE,
-                x1 / TILE,
-                y0 / TILE,
-                y1 / TILE,
-                zlo,
-                zhi.min(max_z),
-            );
         }
     });
     Ok(())
+}
+
+/// How blocks project into one rendering: the frame, the image and the depth range.
+pub(super) struct BlockView<'a> {
+    frame: &'a RayFrame,
+    /// Block side, metres.
+    side: f32,
+    min_z: f32,
+    max_z: f32,
+    fx: f32,
+    fy: f32,
+    cx: f32,
+    cy: f32,
+    w: f32,
+    h: f32,
+    pub(super) cull: FrustumCull,
+}
+
+impl<'a> BlockView<'a> {
+    pub(super) fn new(
+        frame: &'a RayFrame,
+        k: &Intrinsics,
+        config: &RaycastConfig,
+        voxel_m: f64,
+    ) -> Self {
+        let min_z = config.min_depth_m as f32;
+        let max_z = config.max_depth_m as f32;
+        let side = (BLOCK_SIDE as f64 * voxel_m) as f32;
+        Self {
+            frame,
+            side,
+            min_z,
+            max_z,
+            fx: k.fx as f32,
+            fy: k.fy as f32,
+            cx: k.cx as f32,
+            cy: k.cy as f32,
+            w: k.width as f32,
+            h: k.height as f32,
+            cull: FrustumCull::new(k, min_z, max_z, side),
+        }
+    }
+
+    /// The world position of block `b`'s low corner, metres.
+    fn origin(&self, b: [i32; 3]) -> Point3<f32> {
+        Point3::new(b[0] as f32, b[1] as f32, b[2] as f32) * self.side
+    }
+
+    /// Block `b`'s centre in camera coordinates.
+    pub(super) fn centre(&self, b: [i32; 3]) -> Vector3<f32> {
+        self.frame
+            .world_to_camera(&(self.origin(b) + Vector3::repeat(0.5 * self.side)))
+    }
+
+    /// The pixels `[x0, x1, y0, y1]` whose centres block `b` may cover and its camera depth
+    /// interval within the range, or `None` when it is not seen (behind the camera, beyond
+    /// the range, outside the image).
+    pub(super) fn footprint(&self, b: [i32; 3]) -> Option<([usize; 4], f32, f32)> {
+        let (min_z, max_z, side) = (self.min_z, self.max_z, self.side);
+        let o = self.origin(b);
+        let mut corners = [Vector3::zeros(); 8];
+        let (mut zlo, mut zhi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for (c, corner) in corners.iter_mut().enumerate() {
+            let d = Vector3::new((c & 1) as f32, ((c >> 1) & 1) as f32, (c >> 2) as f32);
+            *corner = self.frame.world_to_camera(&(o + d * side));
+            zlo = zlo.min(corner.z);
+            zhi = zhi.max(corner.z);
+        }
+        if !(zhi >= min_z && zlo <= max_z) {
+            return None; // behind the camera or beyond the range (or NaN)
+        }
+        let (ulo, uhi, vlo, vhi) =
+            clipped_bounds(&corners, min_z, self.fx, self.fy, self.cx, self.cy);
+        let zlo = zlo.max(min_z);
+        let (w, h) = (self.w, self.h);
+        // Pixel centres x with ulo ≤ x ≤ uhi (likewise y).
+        if !(uhi >= 0.0 && ulo <= w - 1.0 && vhi >= 0.0 && vlo <= h - 1.0) {
+            return None;
+        }
+        let px = |u: f32, lim: f32| u.clamp(0.0, lim) as usize;
+        let (x0, x1) = (px(ulo.ceil(), w - 1.0), px(uhi.floor(), w - 1.0));
+        let (y0, y1) = (px(vlo.ceil(), h - 1.0), px(vhi.floor(), h - 1.0));
+        if x0 > x1 || y0 > y1 {
+            return None;
+        }
+        Some(([x0, x1, y0, y1], zlo, zhi.min(max_z)))
+    }
+}
+
+/// The planes through the camera centre just outside the image's sides (a pixel beyond the
+/// outermost pixel centres), the near and far planes, and a block's circumscribed radius: a
+/// block whose centre is farther than the radius outside one of them has no point that
+/// [`tile_ranges`] would keep (all of its points in front of the near plane project beyond the
+/// image, or none is in the depth range), so one transform of its centre rejects it before the
+/// eight of its corners.
+pub(super) struct FrustumCull {
+    /// Inward unit normals of the four side planes (through the origin).
+    sides: [Vector3<f32>; 4],
+    min_z: f32,
+    max_z: f32,
+    /// The circumscribed radius with a margin for round-off.
+    radius: f32,
+}
+
+impl FrustumCull {
+    fn new(k: &Intrinsics, min_z: f32, max_z: f32, side: f32) -> Self {
+        let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
+        let (w, h) = (k.width as f32, k.height as f32);
+        // u ≥ −1, u ≤ w, v ≥ −1, v ≤ h for z > 0, as `n·p ≥ 0`.
+        let sides = [
+            Vector3::new(fx, 0.0, cx + 1.0),
+            Vector3::new(-fx, 0.0, w - cx),
+            Vector3::new(0.0, fy, cy + 1.0),
+            Vector3::new(0.0, -fy, h - cy),
+        ]
+        .map(|n| n.normalize());
+        Self {
+            sides,
+            min_z,
+            max_z,
+            radius: side * 0.5 * 3.0f32.sqrt() * 1.001 + 1.0e-6,
+        }
+    }
+
+    /// Whether the block centred at camera point `c` is certainly not seen.
+    #[inline(always)]
+    pub(super) fn outside(&self, c: &Vector3<f32>) -> bool {
+        let r = self.radius;
+        c.z + r < self.min_z || c.z - r > self.max_z || self.sides.iter().any(|n| n.dot(c) < -r)
+    }
 }
 
 /// The image-plane bounds `(u_lo, u_hi, v_lo, v_hi)` of the part of a block in front of the
@@ -142,6 +242,9 @@ pub(super) fn clipped_bounds(
     };
     for p in corners.iter().filter(|p| p.z >= min_z) {
         add(p);
+    }
+    if corners.iter().all(|p| p.z >= min_z) {
+        return (ulo, uhi, vlo, vhi); // no edge crosses the near plane
     }
     // The 12 edges: corner pairs that differ in one index bit.
     for a in 0..8usize {

@@ -447,6 +447,41 @@ proptest! {
     }
 }
 
+proptest! {
+    /// The frustum cull in front of the tile ranges rejects only blocks the exact footprint
+    /// (eight projected corners, clipped at the near plane) rejects too, for any camera pose
+    /// and block, with the camera inside, beside or far from the block; and it rejects a large
+    /// share of the blocks around a camera (it is not vacuous).
+    #[test]
+    fn the_frustum_cull_rejects_only_unseen_blocks(
+        angles in prop::array::uniform3(-3.2f64..3.2),
+        centre in prop::array::uniform3(-1.0f64..1.0),
+        blocks in prop::collection::vec(prop::array::uniform3(-150i32..150), 400),
+        voxel_m in 0.002f64..0.02,
+    ) {
+        let k = small_camera();
+        let vol = TsdfVolume::new(config(voxel_m, 4.0 * voxel_m)).unwrap();
+        let pose = Isometry3::from_parts(
+            Translation3::new(centre[0], centre[1], centre[2]),
+            UnitQuaternion::from_euler_angles(angles[0], angles[1], angles[2]),
+        );
+        let cfg = RaycastConfig::default();
+        let frame = march::RayFrame::new(&vol, &pose, &k, &cfg).unwrap();
+        let view = range::BlockView::new(&frame, &k, &cfg, voxel_m);
+        let mut culled = 0;
+        for b in blocks {
+            // Also the blocks next to the camera (within a few blocks of it).
+            for b in [b, [b[0] / 40, b[1] / 40, b[2] / 40]] {
+                if view.cull.outside(&view.centre(b)) {
+                    culled += 1;
+                    prop_assert!(view.footprint(b).is_none(), "block {b:?} culled but seen");
+                }
+            }
+        }
+        prop_assert!(culled > 200, "only {culled} of 800 blocks culled");
+    }
+}
+
 #[test]
 fn the_occupancy_map_has_no_false_empty_super_block() {
     // Every super-block holding an allocated block must read "maybe occupied" (a false
