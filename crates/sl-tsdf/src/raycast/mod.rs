@@ -245,7 +245,7 @@ impl TsdfVolume {
         }
         out.resize(k.width, k.height)?;
         let frame = march::RayFrame::new(self, iso, k, config)?;
-        range::tile_ranges(self, &frame, k, config, &mut out.tiles)?;
+        range::tile_ranges(self, &frame, k, &mut out.tiles)?;
         out.occupancy.fill(self)?;
         let tiles = &out.tiles;
         let occ = &out.occupancy;

@@ -10,7 +10,6 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use sl_core::Intrinsics;
 
-use super::RaycastConfig;
 use super::march::RayFrame;
 use crate::error::{Result, TsdfError};
 use crate::hash::unpack;
@@ -36,13 +35,13 @@ fn tiles_x(width: usize) -> usize {
 }
 
 /// Fills `tiles` (two `f32` bit patterns per tile: nearest and farthest depth, metres) with the
-/// depth intervals of the allocated blocks seen by `frame`. Depths are positive, so their bit
-/// patterns order like the values and the parallel updates are atomic integer min / max.
+/// depth intervals of the allocated blocks seen by `frame` (made with `k`) within its depth
+/// range. Depths are positive, so their bit patterns order like the values and the parallel
+/// updates are atomic integer min / max.
 pub(super) fn tile_ranges(
     vol: &TsdfVolume,
     frame: &RayFrame,
     k: &Intrinsics,
-    config: &RaycastConfig,
     tiles: &mut Tiles,
 ) -> Result<()> {
     let tiles = &mut tiles.0;
@@ -60,7 +59,7 @@ pub(super) fn tile_ranges(
         *pair[0].get_mut() = empty_lo;
         *pair[1].get_mut() = 0;
     }
-    let view = BlockView::new(frame, k, config, vol.params().voxel_m);
+    let view = BlockView::new(frame, k);
     let tiles: &[AtomicU32] = tiles;
     let update = |i0: usize, i1: usize, j0: usize, j1: usize, lo: f32, hi: f32| {
         for j in j0..=j1 {
@@ -85,44 +84,27 @@ pub(super) fn tile_ranges(
     Ok(())
 }
 
-/// How blocks project into one rendering: the frame, the image and the depth range.
+/// How blocks project into one rendering: the frame (pose, intrinsics, depth range) and the
+/// image size.
 pub(super) struct BlockView<'a> {
     frame: &'a RayFrame,
     /// Block side, metres.
     side: f32,
-    min_z: f32,
-    max_z: f32,
-    fx: f32,
-    fy: f32,
-    cx: f32,
-    cy: f32,
     w: f32,
     h: f32,
     pub(super) cull: FrustumCull,
 }
 
 impl<'a> BlockView<'a> {
-    pub(super) fn new(
-        frame: &'a RayFrame,
-        k: &Intrinsics,
-        config: &RaycastConfig,
-        voxel_m: f64,
-    ) -> Self {
-        let min_z = config.min_depth_m as f32;
-        let max_z = config.max_depth_m as f32;
-        let side = (BLOCK_SIDE as f64 * voxel_m) as f32;
+    /// `k`: the intrinsics `frame` was made with.
+    pub(super) fn new(frame: &'a RayFrame, k: &Intrinsics) -> Self {
+        let side = BLOCK_SIDE as f32 * frame.voxel_m;
         Self {
             frame,
             side,
-            min_z,
-            max_z,
-            fx: k.fx as f32,
-            fy: k.fy as f32,
-            cx: k.cx as f32,
-            cy: k.cy as f32,
             w: k.width as f32,
             h: k.height as f32,
-            cull: FrustumCull::new(k, min_z, max_z, side),
+            cull: FrustumCull::new(k, frame.min_z, frame.max_z, side),
         }
     }
 
@@ -141,7 +123,8 @@ impl<'a> BlockView<'a> {
     /// interval within the range, or `None` when it is not seen (behind the camera, beyond
     /// the range, outside the image).
     pub(super) fn footprint(&self, b: [i32; 3]) -> Option<([usize; 4], f32, f32)> {
-        let (min_z, max_z, side) = (self.min_z, self.max_z, self.side);
+        let f = self.frame;
+        let (min_z, max_z, side) = (f.min_z, f.max_z, self.side);
         let o = self.origin(b);
         let mut corners = [Vector3::zeros(); 8];
         let (mut zlo, mut zhi) = (f32::INFINITY, f32::NEG_INFINITY);
@@ -154,8 +137,7 @@ impl<'a> BlockView<'a> {
         if !(zhi >= min_z && zlo <= max_z) {
             return None; // behind the camera or beyond the range (or NaN)
         }
-        let (ulo, uhi, vlo, vhi) =
-            clipped_bounds(&corners, min_z, self.fx, self.fy, self.cx, self.cy);
+        let (ulo, uhi, vlo, vhi) = clipped_bounds(&corners, min_z, f.fx, f.fy, f.cx, f.cy);
         let zlo = zlo.max(min_z);
         let (w, h) = (self.w, self.h);
         // Pixel centres x with ulo ≤ x ≤ uhi (likewise y).

@@ -394,7 +394,7 @@ fn a_block_straddling_the_near_plane_beside_the_view_does_not_widen_the_rays() {
     let cfg = RaycastConfig::default();
     let frame = march::RayFrame::new(&vol, pose.isometry(), &k, &cfg).unwrap();
     let mut tiles = range::Tiles::default();
-    range::tile_ranges(&vol, &frame, &k, &cfg, &mut tiles).unwrap();
+    range::tile_ranges(&vol, &frame, &k, &mut tiles).unwrap();
     for y in 0..k.height {
         for x in 0..k.width {
             let (lo, _) = range::pixel_range(&tiles, k.width, x, y);
@@ -467,7 +467,7 @@ proptest! {
         );
         let cfg = RaycastConfig::default();
         let frame = march::RayFrame::new(&vol, &pose, &k, &cfg).unwrap();
-        let view = range::BlockView::new(&frame, &k, &cfg, voxel_m);
+        let view = range::BlockView::new(&frame, &k);
         let mut culled = 0;
         for b in blocks {
             // Also the blocks next to the camera (within a few blocks of it).
