@@ -3,10 +3,10 @@
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_core::{Camera, CameraToWorld, Undistorter};
+use sl_core::{Camera, Undistorter};
 use sl_filter::MultiScale;
-use sl_track::{ModelReference, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+use sl_track::{Reconstruction, ReconstructionConfig, WeightMode};
+use sl_tsdf::{Mesh, MeshConfig};
 
 use crate::arrays::{check_camera, depth_input, pose_array};
 use crate::camera::PyCamera;
@@ -32,27 +32,32 @@ use crate::tsdf::PyMesh;
 /// ``"single"`` (the adaptive filter's single pass) or ``"none"``; ``lens``: ``"auto"``
 /// (default) resamples every frame into the ideal pinhole image first when the camera has a
 /// lens model (``camera.lens``: the ``tum-fr1``/``tum-fr2`` presets), as ``sldepth track
-/// --lens auto`` does (TUM fr1/rpy: ATE 4.31 → 2.95 cm); ``"none"`` uses the frames as given.
+/// --lens auto`` does (TUM fr1/rpy: ATE 4.31 → 2.95 cm); ``"none"`` uses the frames as given;
+/// ``new_fragment_after_s``: after this many seconds of frames that could be aligned but were
+/// lost, a new fragment starts (its own volume and world frame, its first camera; ``fragment``,
+/// ``frame_fragments``, ``extract_mesh(fragment=k)``), as ``sldepth track
+/// --new-fragment-after-s``; ``None`` never starts one.
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
     camera: Camera,
-    tracker: Tracker,
-    volume: TsdfVolume,
-    model: ModelReference,
-    frame_to_model: bool,
+    rec: Reconstruction,
     prefilter: Option<MultiScale>,
     undistorter: Option<Undistorter>,
     /// Why the last frame was lost (or its attempts failed before a recovery).
     last_failure: Option<String>,
     /// The last frame's weakest-direction σ, metres (NaN when not checked).
     last_weakest_sigma_m: f64,
+    /// The meshes of the finished fragments, in order.
+    finished: Vec<Mesh>,
+    /// The fragment of every frame given to `track`.
+    frame_fragments: Vec<usize>,
 }
 
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto"))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0)))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -62,6 +67,7 @@ impl PyTracker {
         model_scale: Option<f64>,
         prefilter: &str,
         lens: &str,
+        new_fragment_after_s: Option<f64>,
     ) -> PyResult<Self> {
         let undistorter = match lens {
             "auto" => camera
@@ -91,31 +97,23 @@ impl PyTracker {
                 )));
             }
         };
-        let mut cfg = TrackerConfig::default();
-        cfg.weighting = WeightMode::parse(weighting).map_err(value_error)?;
-        let mut tracker = Tracker::new(camera, cfg).map_err(value_error)?;
-        tracker.set_initial_pose(CameraToWorld::identity());
-        let mut params = TsdfConfig::default();
-        params.voxel_m = voxel_m;
-        params.trunc_m = 5.0 * voxel_m;
-        params.truncation = Truncation::sensor_adaptive(camera.sensor);
-        let volume = TsdfVolume::new(params).map_err(value_error)?;
-        let mut raycast_config = RaycastConfig::default();
-        raycast_config.min_depth_m = params.min_depth_m;
-        raycast_config.max_depth_m = params.max_depth_m;
-        let model_scale = model_scale.unwrap_or_else(|| ModelReference::default_scale(&camera));
-        let model = ModelReference::new(&camera.intrinsics, model_scale, raycast_config)
-            .map_err(value_error)?;
+        let mut cfg = ReconstructionConfig::default_for(camera.sensor);
+        cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
+        cfg.tsdf.voxel_m = voxel_m;
+        cfg.tsdf.trunc_m = 5.0 * voxel_m;
+        cfg.frame_to_model = frame_to_model;
+        cfg.model_scale = model_scale;
+        cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
+        let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,
-            tracker,
-            volume,
-            model,
-            frame_to_model,
+            rec,
             prefilter,
             undistorter,
             last_failure: None,
             last_weakest_sigma_m: f64::NAN,
+            finished: Vec::new(),
+            frame_fragments: Vec::new(),
         })
     }
 
@@ -135,18 +133,13 @@ impl PyTracker {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;
-        let k = self.camera.intrinsics;
-        let sensor = self.camera.sensor;
         let Self {
-            tracker,
-            volume,
-            model,
-            frame_to_model,
+            rec,
             prefilter,
             undistorter,
             ..
         } = self;
-        let result = compute(py, || -> Result<_, String> {
+        let (result, finished) = compute(py, || -> Result<_, String> {
             let undistorted = match undistorter {
                 Some(u) => Some(u.apply(view).map_err(|e| e.to_string())?),
                 None => None,
@@ -156,24 +149,17 @@ impl PyTracker {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
             };
-            let r = match timestamp_s {
-                Some(t) => tracker.track_at(&depth, model.maps(), t),
-                None => tracker.track(&depth, model.maps()),
-            }
-            .map_err(|e| e.to_string())?;
-            if r.status.is_tracked() {
-                volume
-                    .integrate(&depth, &k, &r.pose)
-                    .map_err(|e| e.to_string())?;
-                if *frame_to_model {
-                    model
-                        .update_from_frame(volume, &r.pose, &sensor, &depth, &k)
-                        .map_err(|e| e.to_string())?;
-                }
-            }
-            Ok(r)
+            let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
+            // A finished fragment's volume becomes its mesh at once (a small part of the
+            // volume's memory).
+            let finished = step
+                .finished
+                .map(|f| f.volume.extract_mesh(&MeshConfig::default()));
+            Ok((step.result, finished))
         })
         .map_err(value_error)?;
+        self.finished.extend(finished);
+        self.frame_fragments.push(self.rec.fragment());
         self.last_failure = result.failure.clone();
         self.last_weakest_sigma_m = result.weakest_sigma_m;
         Ok((
@@ -199,9 +185,38 @@ impl PyTracker {
         self.last_weakest_sigma_m
     }
 
-    /// The mesh of everything fused so far (marching cubes).
-    fn extract_mesh(&self, py: Python<'_>) -> PyResult<PyMesh> {
-        let volume = &self.volume;
+    /// The index of the current fragment: 0 until tracking stays lost for
+    /// ``new_fragment_after_s`` seconds of frames that could be aligned, then 1, … (each
+    /// fragment has its own volume and world frame, its first camera; the poses ``track``
+    /// returns are in the frame of the fragment they belong to).
+    #[getter]
+    fn fragment(&self) -> usize {
+        self.rec.fragment()
+    }
+
+    /// The fragment of every frame given to ``track``, in order (a list of ints).
+    #[getter]
+    fn frame_fragments(&self) -> Vec<usize> {
+        self.frame_fragments.clone()
+    }
+
+    /// The mesh of everything fused into fragment ``fragment`` (marching cubes): ``None``
+    /// (default) the current one, an earlier index a finished fragment's (its mesh was
+    /// extracted when it finished).
+    #[pyo3(signature = (fragment = None))]
+    fn extract_mesh(&self, py: Python<'_>, fragment: Option<usize>) -> PyResult<PyMesh> {
+        if let Some(f) = fragment
+            && f != self.rec.fragment()
+        {
+            let mesh = self.finished.get(f).ok_or_else(|| {
+                value_error(format!(
+                    "fragment {f} does not exist: the current fragment is {}",
+                    self.rec.fragment()
+                ))
+            })?;
+            return PyMesh::from_mesh(py, mesh.clone());
+        }
+        let volume = self.rec.volume();
         let mesh = compute(py, || volume.extract_mesh(&MeshConfig::default()));
         PyMesh::from_mesh(py, mesh)
     }

@@ -240,6 +240,35 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_a_camera_carried_elsewhere_goes_on_in_a_new_fragment(kinect):
+    # Two places: the boxes, then the figure before walls. Frames of the second can be
+    # aligned but match nothing near the last good pose: lost in fragment 0 for
+    # new_fragment_after_s (two 1/30 s intervals here), then fragment 1 starts.
+    boxes = sldepth.simulate("boxes", seed=3)[0]
+    walls = sldepth.simulate("figure-walls", seed=4)[0]
+    t = sldepth.Tracker(kinect, new_fragment_after_s=2 / 30)
+    statuses = [t.track(boxes)[1] for _ in range(2)]
+    assert statuses[0] == "initialised" and t.fragment == 0
+    statuses += [t.track(walls)[1] for _ in range(3)]
+    assert statuses[2] == "lost", statuses
+    assert t.fragment == 1 and statuses[3] == "initialised", statuses
+    assert statuses[4] in ("tracked", "tracked-against-frame"), statuses
+    assert t.frame_fragments == [0, 0, 0, 1, 1]
+    assert len(t.extract_mesh(fragment=0)) > 1000
+    assert len(t.extract_mesh(fragment=1)) > 1000
+    assert len(t.extract_mesh()) == len(t.extract_mesh(fragment=1))
+    with pytest.raises(ValueError, match="fragment 2"):
+        t.extract_mesh(fragment=2)
+    # Never: every frame of the other place is lost in fragment 0.
+    t = sldepth.Tracker(kinect, new_fragment_after_s=None)
+    for _ in range(2):
+        t.track(boxes)
+    assert [t.track(walls)[1] for _ in range(3)] == ["lost"] * 3
+    assert t.fragment == 0
+    with pytest.raises(ValueError, match="new_fragment_after_s"):
+        sldepth.Tracker(kinect, new_fragment_after_s=0.0)
+
+
 def test_a_resampled_camera_tracks_decimated_frames(kinect):
     # A QVGA stream of the VGA sensor: intrinsics halved, the sensor's noise model kept.
     half = kinect.resampled(0.5)

@@ -17,6 +17,9 @@
 //!   residual normalised by its standard deviation from the sensor model ([`WeightMode`]),
 //!   a constant-velocity prior, failure detection and the verified plane-based estimate as
 //!   the fallback; a frame that cannot be tracked is reported lost, never given a wrong pose.
+//! * [`Reconstruction`]: the tracker and the fused model in one loop (`sldepth track`,
+//!   Python's `Tracker`), with a new fragment (own volume and world frame) when tracking stays
+//!   lost.
 //!
 //! ```
 //! use sl_core::{Camera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
@@ -64,6 +67,7 @@
 pub mod depth_motion;
 pub mod error;
 pub mod motion;
+pub mod reconstruction;
 pub mod track;
 mod verify;
 
@@ -75,6 +79,7 @@ pub use motion::{
     VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
     refine_motion_icp_verified, significant_loss,
 };
+pub use reconstruction::{Fragment, Reconstruction, ReconstructionConfig, Step, StepTimings};
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};
 pub use track::{

@@ -6,14 +6,22 @@
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
-use sl_track::{ModelReference, TrackStatus, Tracker, TrackerConfig, WeightMode};
+use sl_track::{
+    ModelReference, Reconstruction, ReconstructionConfig, TrackStatus, Tracker, TrackerConfig,
+    WeightMode,
+};
 use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 /// A half-resolution Kinect (320×240) and the `boxes` scene (boxes, a sphere and a cylinder on
 /// a floor before a wall, 1.3–3.6 m) seen along a trajectory that turns 1.5° and moves 1.5 cm
 /// per frame (45 °/s and 0.45 m/s at 30 Hz).
 fn sequence(n: usize, seed: u64) -> (Camera, Vec<CameraToWorld>, Vec<DepthImage>) {
-    let scene = named_scene("boxes").unwrap();
+    sequence_in("boxes", n, seed)
+}
+
+/// [`sequence`] in the named scene `name`.
+fn sequence_in(name: &str, n: usize, seed: u64) -> (Camera, Vec<CameraToWorld>, Vec<DepthImage>) {
+    let scene = named_scene(name).unwrap();
     let k = scene.intrinsics.scaled(0.5).unwrap();
     let cam = Camera {
         intrinsics: k,
@@ -512,4 +520,102 @@ fn decimated_frames_of_the_same_sensor_carry_the_same_information() {
         );
         assert!(s_own > 2.0 * s_full, "full {s_full}, own sensor {s_own}");
     }
+}
+
+/// The frames of a camera that was carried to another place while tracking was lost: those
+/// frames could be aligned (enough depth, six degrees of freedom pinned) but match nothing
+/// near the last good pose. With a new fragment after 0.1 s (3 frames at 30 Hz) the
+/// recording goes on in fragment 1, whose poses (in its own world frame, its first camera) are
+/// the truth's; fragment 0's poses are never wrong. Without fragments every later frame is lost.
+/// Frames without depth (the lens covered) do not count towards the time: the camera that
+/// comes back after 1.3 s of them relocalises in fragment 0.
+#[test]
+fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
+    let (cam, truth_a, frames_a) = sequence(8, 11);
+    let (cam_b, truth_b, frames_b) = sequence_in("figure-walls", 10, 41);
+    assert_eq!(cam, cam_b);
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    cfg.new_fragment_after_s = Some(0.1);
+    let dt = cfg.tracker.frame_interval_s;
+    let run = |cfg: ReconstructionConfig, frames: &[&DepthImage]| {
+        let mut rec = Reconstruction::new(cam, cfg).unwrap();
+        let mut out = Vec::new();
+        let mut finished = Vec::new();
+        for (i, d) in frames.iter().enumerate() {
+            let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+            if let Some(f) = step.finished {
+                finished.push((f.index, f.tracked_frames, f.volume.block_count()));
+            }
+            out.push((step.result.status, step.result.pose, step.fragment));
+        }
+        (out, finished, rec.finish())
+    };
+    let carried: Vec<&DepthImage> = frames_a.iter().chain(&frames_b).collect();
+    let (out, finished, last) = run(cfg, &carried);
+    let statuses: Vec<_> = out.iter().map(|o| (o.0, o.2)).collect();
+    eprintln!("{statuses:?}");
+    // Fragment 0: the first scene, tracked; no pose of it is wrong.
+    let a_est: Vec<_> = out[..8].iter().map(|o| o.1).collect();
+    assert!(out[..8].iter().all(|o| o.0.is_tracked() && o.2 == 0));
+    for (i, e) in errors(&truth_a, &a_est).iter().enumerate() {
+        assert!(e.0 < 0.01 && e.1 < 0.5, "frame {i}: {e:?}");
+    }
+    // The other place: lost in fragment 0 until 0.1 s of failed alignments, then fragment 1.
+    let first_b = out[8..]
+        .iter()
+        .position(|o| o.2 == 1)
+        .expect("a new fragment starts")
+        + 8;
+    assert!(
+        out[8..first_b]
+            .iter()
+            .all(|o| o.0 == TrackStatus::Lost && o.2 == 0)
+    );
+    assert_eq!(
+        first_b, 10,
+        "fragment 1 starts at the third failed alignment"
+    );
+    assert_eq!(out[first_b].0, TrackStatus::Initialised);
+    assert_eq!(finished, vec![(0, 8, finished[0].2)]);
+    assert!(finished[0].2 > 0, "fragment 0's volume is handed over");
+    let b: Vec<_> = out[first_b..].iter().collect();
+    assert!(
+        b.iter().all(|o| o.0.is_tracked() && o.2 == 1),
+        "{statuses:?}"
+    );
+    let b_est: Vec<_> = b.iter().map(|o| o.1).collect();
+    let b_truth = &truth_b[first_b - 8..];
+    for (i, e) in errors(b_truth, &b_est).iter().enumerate() {
+        assert!(e.0 < 0.01 && e.1 < 0.5, "fragment 1, frame {i}: {e:?}");
+    }
+    assert_eq!((last.index, last.tracked_frames), (1, b.len()));
+
+    // Never a new fragment: every frame after the carry is lost.
+    let mut never = cfg;
+    never.new_fragment_after_s = None;
+    let (out, finished, _) = run(never, &carried);
+    assert!(finished.is_empty());
+    assert!(
+        out[8..]
+            .iter()
+            .all(|o| o.0 == TrackStatus::Lost && o.2 == 0)
+    );
+
+    // The lens covered for 40 frames (1.3 s), the camera back where it was: relocalised in
+    // fragment 0 — frames without depth are not failed alignments.
+    let blank = DepthImage::invalid(w, h);
+    let mut covered: Vec<&DepthImage> = frames_a[..5].iter().collect();
+    covered.extend(std::iter::repeat_n(&blank, 40));
+    covered.extend(&frames_a[5..]);
+    let (out, finished, _) = run(cfg, &covered);
+    assert!(
+        finished.is_empty(),
+        "{:?}",
+        out.iter().map(|o| o.0).collect::<Vec<_>>()
+    );
+    assert_eq!(out[45].0, TrackStatus::Relocalised);
+    assert!(out.iter().all(|o| o.2 == 0));
 }

@@ -172,6 +172,108 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert!(m.vertex_count() > 1000);
 }
 
+/// A camera carried to another place while tracking was lost: four frames of `boxes`, then
+/// four of `figure-walls` (timestamps consecutive, so nothing says the camera jumped). With a
+/// new fragment after two frame intervals of failed alignments, the second place is fragment 1:
+/// its trajectory and mesh go to `.fragment-1` files and fragment 0's trajectory lists its
+/// frames as comments; the JSON lists both fragments.
+#[test]
+fn track_goes_on_in_a_new_fragment_and_writes_it_beside_the_first() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let sim = KinectSimulator::kinect_v1().white();
+    let mut list = String::from("# timestamp filename\n");
+    for (i, name) in ["boxes"; 4]
+        .into_iter()
+        .chain(["figure-walls"; 4])
+        .enumerate()
+    {
+        let scene = named_scene(name).unwrap();
+        let truth = scene.scene.render(&scene.intrinsics, &scene.pose).depth;
+        let t = 100.0 + i as f64 / 30.0;
+        let file = format!("depth/{t:.6}.png");
+        write_depth(
+            seq.join(&file),
+            &sim.apply(&truth, i as u64),
+            &DepthEncoding::tum(),
+        )
+        .unwrap();
+        list.push_str(&format!("{t:.6} {file}\n"));
+    }
+    std::fs::write(seq.join("depth.txt"), list).unwrap();
+    let (traj, mesh) = (tmp.path().join("traj.txt"), tmp.path().join("mesh.ply"));
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        traj.to_str().unwrap(),
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--new-fragment-after-s",
+        "0.067",
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("fragment 1 starts"), "{err}");
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let fragments = v["fragments"].as_array().unwrap();
+    assert_eq!(fragments.len(), 2, "{v}");
+    assert_eq!(fragments[1]["first_frame"], 5);
+    assert_eq!(fragments[0]["tracked"], 4);
+    assert_eq!(fragments[1]["tracked"], 3);
+    assert_eq!(v["lost"], 1);
+    let second = tmp.path().join("traj.fragment-1.txt");
+    assert_eq!(pose_rows(&traj).len(), 4);
+    assert_eq!(pose_rows(&second).len(), 3);
+    let text = std::fs::read_to_string(&traj).unwrap();
+    assert_eq!(text.matches("in fragment 1").count(), 3, "{text}");
+    assert!(
+        std::fs::read_to_string(&second)
+            .unwrap()
+            .contains("# fragment 1: its own world frame")
+    );
+    for m in [mesh, tmp.path().join("mesh.fragment-1.ply")] {
+        assert!(
+            sl_io::read_mesh_ply(&m).unwrap().vertex_count() > 1000,
+            "{}",
+            m.display()
+        );
+    }
+    // `inf` never starts a fragment: the second place is lost.
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.01",
+        "--new-fragment-after-s",
+        "inf",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        (v["lost"].as_u64(), v["fragments"].as_array().map(Vec::len)),
+        (Some(4), Some(1))
+    );
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--new-fragment-after-s",
+        "0",
+    ]);
+    assert!(!out.status.success());
+}
+
 #[test]
 fn track_skips_a_missing_frame_and_rejects_unordered_timestamps() {
     let tmp = tempfile::tempdir().unwrap();

@@ -75,12 +75,15 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
     takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
-    (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``).
+    (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``,
+    ``new_fragment_after_s``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
     camera-to-world matrices (the first frame is the identity; a lost frame gets the last good
     pose), ``statuses`` the N status strings of ``Tracker.track``, and the ``Tracker`` itself,
-    whose ``extract_mesh()`` is the fused model.
+    whose ``extract_mesh()`` is the fused model. When tracking stays lost the sequence goes on
+    in a new fragment with its own world frame: ``tracker.frame_fragments`` gives each frame's
+    fragment, ``tracker.extract_mesh(fragment=k)`` each fragment's mesh.
     """
     import numpy as np
 

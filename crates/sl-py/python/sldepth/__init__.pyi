@@ -255,8 +255,11 @@ class Tracker:
         model_scale: Optional[float] = None,
         prefilter: str = "multiscale",
         lens: str = "auto",
+        new_fragment_after_s: Optional[float] = 1.0,
     ) -> None:
-        """model_scale: fraction of the camera's resolution the model is rendered at for
+        """new_fragment_after_s: seconds of frames that could be aligned but were lost after
+        which a new fragment (own volume and world frame) starts; None or inf: never.
+        model_scale: fraction of the camera's resolution the model is rendered at for
         tracking, in (0, 1] (as sldepth track --model-scale; default: one pixel per 4 of the
         sensor's, 0.25 for a 640x480 Kinect); prefilter: "multiscale"
         (default, as sldepth track), "single" or "none"; lens: "auto" (default) undistorts
@@ -278,7 +281,14 @@ class Tracker:
     @property
     def last_weakest_sigma_m(self) -> float:
         """The last frame's pose sigma along its least-constrained direction, metres (inf: a single plane)."""
-    def extract_mesh(self) -> Mesh: ...
+    @property
+    def fragment(self) -> int:
+        """The current fragment's index (0 until tracking stays lost for new_fragment_after_s)."""
+    @property
+    def frame_fragments(self) -> List[int]:
+        """The fragment of every frame given to track(), in order."""
+    def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
+        """The fused mesh of fragment `fragment` (None: the current one)."""
 
 def track_sequence(
     frames: Iterable[Union[_Depth, _Path]],
@@ -292,6 +302,7 @@ def track_sequence(
     model_scale: Optional[float] = None,
     prefilter: str = "multiscale",
     lens: str = "auto",
+    new_fragment_after_s: Optional[float] = 1.0,
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the

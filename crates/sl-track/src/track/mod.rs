@@ -204,6 +204,20 @@ impl Tracker {
         self.initial_pose = pose;
     }
 
+    /// Forgets the sequence so far (the last good frame and pose, the velocity, the lost run
+    /// and the last timestamp), keeping the buffers: the next frame with enough structure is
+    /// [`TrackStatus::Initialised`] at the initial pose and defines a new world frame. This is
+    /// how [`crate::Reconstruction`] starts a new fragment after a long loss.
+    pub fn restart(&mut self) {
+        self.last_good = None;
+        self.last_ref_stale = false;
+        self.velocity = Isometry3::identity();
+        self.velocity_known = false;
+        self.lost_run = 0;
+        self.intervals_since_good = 0;
+        self.last_timestamp_s = None;
+    }
+
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.cfg

@@ -12,6 +12,13 @@
 //! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
 //! frame index; lost frames are left out and listed in the JSON).
 //!
+//! Fragments (`sl_track::Reconstruction`): when frames that could be aligned keep failing for
+//! `--new-fragment-after-s` (default 1 s), the recording goes on in a new fragment with its own
+//! volume and world frame (its first camera). Fragment 0 is written to the given `--output`,
+//! `--output-log` and `--mesh`; fragment k ≥ 1 to the same names with `.fragment-k` before the
+//! extension (a fragment's mesh as soon as it ends). In a fragment's trajectory the frames of the
+//! others are comment lines `# <timestamp> in fragment <k>`; the JSON lists the fragments.
+//!
 //! Frames whose size is the camera's divided by a whole number (320×240 for a 640×480 preset:
 //! a QVGA stream, a driver's decimation) are tracked as that sensor decimated
 //! (`common::camera_for_frames`, `Camera::resampled`: intrinsics scaled, the sensor's noise
@@ -27,9 +34,8 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
-use sl_track::ModelReference;
-use sl_track::{TrackStatus, Tracker, TrackerConfig, WeightMode};
-use sl_tsdf::{MeshConfig, RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus, WeightMode};
+use sl_tsdf::{MeshConfig, Truncation};
 
 use crate::common::{
     InputArgs, LensArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits,
@@ -111,6 +117,13 @@ pub struct Args {
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
+    /// Start a new fragment (its own volume, mesh and world frame: its first camera) after
+    /// this many seconds of frames that could be aligned but were lost (the camera has left the
+    /// place where tracking was lost and is not coming back); frames without depth or with a
+    /// degenerate view do not count. Fragment 0 goes to --output/--output-log/--mesh, fragment
+    /// k to the same names with `.fragment-k` before the extension. `inf`: never.
+    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    pub new_fragment_after_s: f64,
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,
@@ -182,16 +195,27 @@ fn median(v: &[f64]) -> f64 {
 
 /// One output row: a pose or why there is none.
 enum Row {
-    Pose(CameraToWorld),
+    /// A pose in the world frame of the fragment.
+    Pose(CameraToWorld, usize),
     Lost(String),
     Skipped(String),
 }
 
-fn tum_text(rows: &[(f64, Row)]) -> String {
+/// The TUM trajectory of fragment `fragment`: its poses, the other frames as comments.
+fn tum_text(rows: &[(f64, Row)], fragment: usize) -> String {
     let mut s = String::from("# sldepth track: timestamp tx ty tz qx qy qz qw (camera to world)\n");
+    if fragment > 0 {
+        let _ = writeln!(
+            s,
+            "# fragment {fragment}: its own world frame (its first camera); not registered to the other fragments"
+        );
+    }
     for (t, row) in rows {
         match row {
-            Row::Pose(p) => {
+            Row::Pose(_, f) if *f != fragment => {
+                let _ = writeln!(s, "# {t:.6} in fragment {f}");
+            }
+            Row::Pose(p, _) => {
                 let tr = p.translation();
                 let q = p.rotation();
                 let _ = writeln!(
@@ -211,11 +235,14 @@ fn tum_text(rows: &[(f64, Row)]) -> String {
     s
 }
 
-fn log_text(rows: &[(f64, Row)]) -> String {
+/// The Open3D `.log` of fragment `fragment`'s tracked frames.
+fn log_text(rows: &[(f64, Row)], fragment: usize) -> String {
     let n = rows.len();
     let mut s = String::new();
     for (i, (_, row)) in rows.iter().enumerate() {
-        if let Row::Pose(p) = row {
+        if let Row::Pose(p, f) = row
+            && *f == fragment
+        {
             let m = p.to_matrix();
             let _ = writeln!(s, "{i} {i} {n}");
             for r in 0..4 {
@@ -231,6 +258,51 @@ fn log_text(rows: &[(f64, Row)]) -> String {
         }
     }
     s
+}
+
+/// The file of fragment `fragment`: `path` itself for fragment 0, else `stem.fragment-k.ext`.
+fn fragment_path(path: &Path, fragment: usize) -> PathBuf {
+    if fragment == 0 {
+        return path.to_path_buf();
+    }
+    let stem = path.file_stem().map_or_else(
+        || "output".to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    let name = match path.extension() {
+        Some(e) => format!("{stem}.fragment-{fragment}.{}", e.to_string_lossy()),
+        None => format!("{stem}.fragment-{fragment}"),
+    };
+    path.with_file_name(name)
+}
+
+/// A fragment's mesh as written.
+struct WrittenMesh {
+    path: PathBuf,
+    vertices: usize,
+    triangles: usize,
+}
+
+/// Writes the mesh of a finished fragment (when `--mesh` was given).
+fn write_fragment_mesh(
+    args: &Args,
+    fragment: &sl_track::Fragment,
+    budget_bytes: usize,
+) -> Result<Option<WrittenMesh>> {
+    let Some(p) = &args.mesh else {
+        return Ok(None);
+    };
+    let mesh = fragment
+        .volume
+        .extract_mesh_within(&MeshConfig::default(), budget_bytes)?;
+    let path = fragment_path(p, fragment.index);
+    sl_tsdf::io::write_mesh_ply(&path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(Some(WrittenMesh {
+        path,
+        vertices: mesh.vertex_count(),
+        triangles: mesh.triangle_count(),
+    }))
 }
 
 fn write_text(path: &Path, text: &str) -> Result<()> {
@@ -296,12 +368,6 @@ pub fn run(args: Args) -> Result<()> {
     // After the size check: the map holds one index per pixel.
     let implied = args.tum.as_deref().map(crate::common::tum_preset);
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
-    let mut tcfg = TrackerConfig::default();
-    tcfg.weighting = weighting;
-    tcfg.plane_fallback = !args.no_plane_fallback;
-    tcfg.finest_level = usize::from(args.finest_level);
-    let mut tracker = Tracker::new(camera, tcfg)?;
-    tracker.set_initial_pose(CameraToWorld::identity());
     let prefilter = match args.prefilter.as_str() {
         "multiscale" => Prefilter::Multi(sl_filter::MultiScale::default_for(&camera.sensor)),
         "single" => Prefilter::Single(sl_filter::DepthFilter::default_for(
@@ -310,23 +376,32 @@ pub fn run(args: Args) -> Result<()> {
         )),
         _ => Prefilter::None,
     };
-    let mut params = TsdfConfig::default();
-    params.voxel_m = args.voxel_m;
-    params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
-    params.truncation = match args.trunc_m {
+    if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
+        bail!(
+            "--new-fragment-after-s must be positive (inf: never), got {}",
+            args.new_fragment_after_s
+        );
+    }
+    let mut cfg = ReconstructionConfig::default_for(camera.sensor);
+    cfg.tracker.weighting = weighting;
+    cfg.tracker.plane_fallback = !args.no_plane_fallback;
+    cfg.tracker.finest_level = usize::from(args.finest_level);
+    cfg.tsdf.voxel_m = args.voxel_m;
+    cfg.tsdf.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
+    cfg.tsdf.truncation = match args.trunc_m {
         Some(_) => Truncation::Fixed,
         None => Truncation::sensor_adaptive(camera.sensor),
     };
-    params.max_depth_m = args.max_depth_m;
-    params.memory_budget_bytes = limits().tsdf_budget_bytes;
-    let mut volume = TsdfVolume::new(params)?;
-    let mut rc_cfg = RaycastConfig::default();
-    rc_cfg.min_depth_m = params.min_depth_m;
-    rc_cfg.max_depth_m = params.max_depth_m;
-    let model_scale = args
-        .model_scale
-        .unwrap_or_else(|| ModelReference::default_scale(&camera));
-    let mut model = ModelReference::new(&k, model_scale, rc_cfg)?;
+    cfg.tsdf.max_depth_m = args.max_depth_m;
+    cfg.tsdf.memory_budget_bytes = limits().tsdf_budget_bytes;
+    cfg.frame_to_model = !args.frame_to_frame;
+    cfg.model_scale = args.model_scale;
+    cfg.new_fragment_after_s = args
+        .new_fragment_after_s
+        .is_finite()
+        .then_some(args.new_fragment_after_s);
+    let params = cfg.tsdf;
+    let mut rec = Reconstruction::new(camera, cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
     let mut track_ms_tracked = Vec::new();
@@ -346,6 +421,9 @@ pub fn run(args: Args) -> Result<()> {
     let mut counts = [0usize; 6];
     let mut lost_frames = Vec::new();
     let mut skipped_frames = Vec::new();
+    // Per fragment: its first frame, and its mesh once written.
+    let mut fragments: Vec<(usize, Option<WrittenMesh>)> = vec![(0, None)];
+    let mut finished_tracked = Vec::new();
     let wall = Instant::now();
     let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
@@ -385,17 +463,33 @@ pub fn run(args: Args) -> Result<()> {
                 k.height
             );
         }
-        let t0 = Instant::now();
         // The tracker is told how many frame intervals passed: from the timestamps of a TUM
         // recording (frames its driver dropped), else one per frame of the folder, so an
         // unreadable frame skipped above is a longer step rather than a surprise.
         let time_s = f
             .timestamp
-            .unwrap_or(i as f64 * tracker.config().frame_interval_s);
-        let r = tracker
-            .track_at(&depth, model.maps(), time_s)
+            .unwrap_or(i as f64 * rec.config().tracker.frame_interval_s);
+        let step = rec
+            .step(&depth, Some(time_s))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
-        track_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        if let Some(done) = &step.finished {
+            let mesh = write_fragment_mesh(&args, done, params.memory_budget_bytes)?;
+            if let Some(entry) = fragments.get_mut(done.index) {
+                entry.1 = mesh;
+            }
+            finished_tracked.push(done.tracked_frames);
+            fragments.push((i, None));
+            errln!(
+                "frame {i}: lost for over {} s, fragment {} starts (fragment {} tracked {} frames)",
+                args.new_fragment_after_s,
+                step.fragment,
+                done.index,
+                done.tracked_frames
+            );
+        }
+        let r = step.result;
+        let tm = step.timings;
+        track_ms.push(tm.track_ms);
         counts[r.status as usize] += 1;
         if debug {
             errln!(
@@ -408,52 +502,47 @@ pub fn run(args: Args) -> Result<()> {
                 r.condition,
                 r.weakest_sigma_m * 1e3,
                 r.iterations,
-                track_ms.last().copied().unwrap_or(0.0),
+                tm.track_ms,
                 r.failure.as_deref().unwrap_or("")
             );
         }
         if r.status.is_tracked() {
-            track_ms_tracked.push(t0.elapsed().as_secs_f64() * 1e3);
-            let t1 = Instant::now();
-            volume
-                .integrate(&depth, &k, &r.pose)
-                .with_context(|| format!("integrating {}", f.depth_path.display()))?;
-            integrate_ms.push(t1.elapsed().as_secs_f64() * 1e3);
-            if !args.frame_to_frame {
-                // The model seen from this pose is the next frame's reference.
-                let t2 = Instant::now();
-                model.update_from_frame(&volume, &r.pose, &camera.sensor, &depth, &k)?;
-                raycast_ms.push(t2.elapsed().as_secs_f64() * 1e3);
-            }
-            rows.push((t, Row::Pose(r.pose)));
+            track_ms_tracked.push(tm.track_ms);
+            integrate_ms.extend(tm.integrate_ms);
+            raycast_ms.extend(tm.raycast_ms);
+            rows.push((t, Row::Pose(r.pose, step.fragment)));
         } else {
             lost_frames.push(i);
             let why = r.failure.unwrap_or_default();
             rows.push((t, Row::Lost(why)));
         }
-        step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        step_ms.push(tm.step_ms);
         bar.set_message(format!("{} lost", lost_frames.len()));
         bar.inc(1);
     }
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
 
-    let mesh = match &args.mesh {
-        Some(_) => {
-            Some(volume.extract_mesh_within(&MeshConfig::default(), params.memory_budget_bytes)?)
+    let last = rec.finish();
+    finished_tracked.push(last.tracked_frames);
+    let last_mesh = write_fragment_mesh(&args, &last, params.memory_budget_bytes)?;
+    if let Some(entry) = fragments.get_mut(last.index) {
+        entry.1 = last_mesh;
+    }
+    for (index, _) in fragments.iter().enumerate() {
+        if let Some(p) = &args.output {
+            write_text(&fragment_path(p, index), &tum_text(&rows, index))?;
         }
-        None => None,
-    };
-    if let Some(p) = &args.output {
-        write_text(p, &tum_text(&rows))?;
+        if let Some(p) = &args.output_log {
+            write_text(&fragment_path(p, index), &log_text(&rows, index))?;
+        }
     }
-    if let Some(p) = &args.output_log {
-        write_text(p, &log_text(&rows))?;
-    }
-    if let (Some(p), Some(m)) = (&args.mesh, &mesh) {
-        sl_tsdf::io::write_mesh_ply(p, m, sl_io::ply::PlyFormat::BinaryLittleEndian)
-            .with_context(|| format!("writing {}", p.display()))?;
-    }
+    // The JSON's vertex and triangle counts are fragment 0's (the whole run's when there is
+    // one fragment).
+    let mesh_size = fragments
+        .first()
+        .and_then(|f| f.1.as_ref())
+        .map(|m| (m.vertices, m.triangles));
     let (tm, im) = (median(&track_ms), median(&integrate_ms));
     if args.json {
         print_json(&serde_json::json!({
@@ -479,8 +568,16 @@ pub fn run(args: Args) -> Result<()> {
             "voxel_m": params.voxel_m,
             "trunc_m": params.trunc_m,
             "truncation": params.truncation.name(),
-            "vertices": mesh.as_ref().map(|m| m.vertex_count()),
-            "triangles": mesh.as_ref().map(|m| m.triangle_count()),
+            "vertices": mesh_size.map(|m| m.0),
+            "triangles": mesh_size.map(|m| m.1),
+            "fragments": fragments.iter().enumerate().map(|(index, (first, mesh))| serde_json::json!({
+                "index": index,
+                "first_frame": first,
+                "tracked": finished_tracked.get(index),
+                "output": args.output.as_ref().map(|p| fragment_path(p, index).display().to_string()),
+                "mesh": mesh.as_ref().map(|m| m.path.display().to_string()),
+                "vertices": mesh.as_ref().map(|m| m.vertices),
+            })).collect::<Vec<_>>(),
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
         }))?;
@@ -494,6 +591,13 @@ pub fn run(args: Args) -> Result<()> {
             tm,
             im
         );
+        if fragments.len() > 1 {
+            errln!(
+                "{} fragments (tracked frames: {:?}), each in its own world frame",
+                fragments.len(),
+                finished_tracked
+            );
+        }
     }
     Ok(())
 }
