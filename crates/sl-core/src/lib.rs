@@ -5,7 +5,7 @@
 //! and [`DisparityImage`] (pixels) with 0 as the invalid value, back-projection to points, the
 //! geometry vocabulary of the workspace ([`Plane`] with the one plane fit [`fit_plane`], [`Mesh`])
 //! and rigid camera poses typed by direction ([`CameraToWorld`], [`WorldToCamera`],
-//! [`CameraToCamera`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
+//! [`CameraToCamera`], [`WorldToWorld`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
 //! crates) speaks these types. `sl-core` does no I/O.
 //!
 //! ```
@@ -48,8 +48,8 @@ pub use plane::{Plane, PlaneFit, fit_plane};
 #[allow(deprecated)]
 pub use pose::Pose;
 pub use pose::{
-    CameraToCamera, CameraToWorld, WorldToCamera, pose_from_matrix, pose_from_row_major,
-    pose_from_translation_quaternion, pose_to_matrix,
+    CameraToCamera, CameraToWorld, WorldToCamera, WorldToWorld, pose_from_matrix,
+    pose_from_row_major, pose_from_translation_quaternion, pose_to_matrix,
 };
 pub use preset::SensorPreset;
 pub use sensor::SensorModel;

@@ -5,7 +5,7 @@
 //! array without copying. Per-vertex attributes are either empty (absent) or hold one entry per
 //! vertex; [`Mesh::validate`] checks that, and that every triangle index is in range.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 use crate::error::{CoreError, Result};
 
@@ -38,6 +38,17 @@ impl Mesh {
             positions,
             triangles,
             ..Self::default()
+        }
+    }
+
+    /// Moves the mesh rigidly: positions by `iso`, normals by its rotation (computed in f64,
+    /// stored as f32).
+    pub fn transform(&mut self, iso: &Isometry3<f64>) {
+        for p in &mut self.positions {
+            *p = (iso * p.cast::<f64>()).cast::<f32>();
+        }
+        for n in &mut self.normals {
+            *n = (iso.rotation * n.cast::<f64>()).cast::<f32>();
         }
     }
 
@@ -227,6 +238,25 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A rigid move keeps the shape: positions and normals move together, lengths are kept.
+    #[test]
+    fn transform_moves_positions_and_normals() {
+        let mut m = Mesh::new(
+            vec![Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 2.0, 0.0)],
+            vec![],
+        )
+        .with_normals(vec![Vector3::x(), Vector3::z()]);
+        let iso = Isometry3::new(
+            nalgebra::Vector3::new(0.5, -1.0, 2.0),
+            nalgebra::Vector3::z() * std::f64::consts::FRAC_PI_2,
+        );
+        m.transform(&iso);
+        assert!((m.positions[0] - Point3::new(0.5, 0.0, 2.0)).norm() < 1e-6);
+        assert!((m.positions[1] - Point3::new(-1.5, -1.0, 2.0)).norm() < 1e-6);
+        assert!((m.normals[0] - Vector3::y()).norm() < 1e-6);
+        assert!((m.normals[1] - Vector3::z()).norm() < 1e-6);
+    }
     use proptest::prelude::*;
 
     fn square() -> Mesh {

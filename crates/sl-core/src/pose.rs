@@ -3,13 +3,14 @@
 //!
 //! The typed poses say their direction in their name: [`CameraToWorld`] (`X_w = T·X_c`, what
 //! TUM `groundtruth.txt`, 7-Scenes `frame-*.pose.txt` and Open3D `.log` store),
-//! [`WorldToCamera`] (`X_c = T·X_w`, its inverse) and [`CameraToCamera`] (frame-to-frame motion,
-//! `X_a = T·X_b`). `inverse()` returns the opposite type and `*` only composes poses whose frames
-//! meet, so a direction mistake is a type error.
+//! [`WorldToCamera`] (`X_c = T·X_w`, its inverse), [`CameraToCamera`] (frame-to-frame motion,
+//! `X_a = T·X_b`) and [`WorldToWorld`] (between the world frames of two reconstructions, for
+//! instance two fragments of one recording, `X_a = T·X_b`). `inverse()` returns the opposite type
+//! and `*` only composes poses whose frames meet, so a direction mistake is a type error.
 //!
 //! The free functions ([`pose_from_matrix`], [`pose_from_translation_quaternion`], …) build the
 //! plain `Isometry3<f64>` the typed constructors wrap. The older untyped `Pose` alias is
-//! deprecated: every public pose of the workspace is one of the three types.
+//! deprecated: every public pose of the workspace is one of the four types.
 
 use std::ops::Mul;
 
@@ -208,6 +209,44 @@ typed_pose!(
     "camera-a"
 );
 
+typed_pose!(
+    /// A transform between two world frames: maps coordinates in world `b` to coordinates in
+    /// world `a`, `X_a = T·X_b` — for instance from a fragment of a recording to the fragment it
+    /// rejoined. `T * pose_in_b` is the same camera's pose in world `a`.
+    WorldToWorld,
+    "world-b",
+    "world-a"
+);
+
+impl WorldToWorld {
+    /// The transform the other way round, world `a` to world `b`.
+    pub fn inverse(&self) -> WorldToWorld {
+        WorldToWorld(self.0.inverse())
+    }
+
+    /// The transform from world `b` to world `a` given one camera's pose in each:
+    /// `T = pose_in_a · pose_in_b⁻¹`, so that `T * pose_in_b == pose_in_a`.
+    pub fn between(pose_in_a: &CameraToWorld, pose_in_b: &CameraToWorld) -> Self {
+        Self(pose_in_a.0 * pose_in_b.0.inverse())
+    }
+}
+
+/// `world_ab * pose_in_b` = the camera's pose in world `a`.
+impl Mul<CameraToWorld> for WorldToWorld {
+    type Output = CameraToWorld;
+    fn mul(self, rhs: CameraToWorld) -> CameraToWorld {
+        CameraToWorld(self.0 * rhs.0)
+    }
+}
+
+/// `world_ab * world_bc` = `world_ac`.
+impl Mul for WorldToWorld {
+    type Output = WorldToWorld;
+    fn mul(self, rhs: WorldToWorld) -> WorldToWorld {
+        WorldToWorld(self.0 * rhs.0)
+    }
+}
+
 impl CameraToWorld {
     /// The world-to-camera transform (extrinsics).
     pub fn inverse(&self) -> WorldToCamera {
@@ -287,6 +326,26 @@ impl Mul<CameraToWorld> for WorldToCamera {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+
+    /// A transform between two worlds takes a camera's pose in one to its pose in the other.
+    #[test]
+    fn world_to_world_moves_poses_between_worlds() {
+        let in_a = CameraToWorld::from_isometry(Isometry3::new(
+            Vector3::new(1.0, -2.0, 0.5),
+            Vector3::new(0.1, 0.2, -0.3),
+        ));
+        let in_b = CameraToWorld::from_isometry(Isometry3::new(
+            Vector3::new(-0.3, 0.7, 2.0),
+            Vector3::new(-0.4, 0.0, 0.9),
+        ));
+        let ab = WorldToWorld::between(&in_a, &in_b);
+        let back = ab * in_b;
+        assert!((back.to_matrix() - in_a.to_matrix()).abs().max() < 1e-12);
+        let again = ab.inverse() * in_a;
+        assert!((again.to_matrix() - in_b.to_matrix()).abs().max() < 1e-12);
+        let id = ab * ab.inverse();
+        assert!((id.to_matrix() - Matrix4::identity()).abs().max() < 1e-12);
+    }
 
     #[test]
     fn matrix_round_trip() {

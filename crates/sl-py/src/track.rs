@@ -14,6 +14,9 @@ use crate::errors::value_error;
 use crate::threads::compute;
 use crate::tsdf::PyMesh;
 
+/// A join as Python sees it: (fragment, into, 4×4 transform).
+type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
+
 /// Tracks a depth camera through a sequence and fuses every tracked frame (1/Z⁴ weights,
 /// sensor-adaptive truncation): ``track(depth)`` returns ``(pose, status)`` with ``pose`` the
 /// (4, 4) float64 camera-to-world matrix (the first frame is the identity) and ``status`` one
@@ -36,7 +39,9 @@ use crate::tsdf::PyMesh;
 /// ``new_fragment_after_s``: after this many seconds of frames that could be aligned but were
 /// lost, a new fragment starts (its own volume and world frame, its first camera; ``fragment``,
 /// ``frame_fragments``, ``extract_mesh(fragment=k)``), as ``sldepth track
-/// --new-fragment-after-s``; ``None`` never starts one.
+/// --new-fragment-after-s``; ``None`` never starts one. The fragment that stayed lost is tried
+/// with every later frame; when the camera comes back to it, tracking goes on there and the
+/// newer fragment is joined to it (``joins``).
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -48,8 +53,10 @@ pub struct PyTracker {
     last_failure: Option<String>,
     /// The last frame's weakest-direction σ, metres (NaN when not checked).
     last_weakest_sigma_m: f64,
-    /// The meshes of the finished fragments, in order.
-    finished: Vec<Mesh>,
+    /// The meshes of the finished fragments, by index (`None`: not finished).
+    finished: Vec<Option<Mesh>>,
+    /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
+    joins: Vec<(usize, usize, sl_core::nalgebra::Matrix4<f64>)>,
     /// The fragment of every frame given to `track`.
     frame_fragments: Vec<usize>,
 }
@@ -113,6 +120,7 @@ impl PyTracker {
             last_failure: None,
             last_weakest_sigma_m: f64::NAN,
             finished: Vec::new(),
+            joins: Vec::new(),
             frame_fragments: Vec::new(),
         })
     }
@@ -152,13 +160,26 @@ impl PyTracker {
             let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
             // A finished fragment's volume becomes its mesh at once (a small part of the
             // volume's memory).
-            let finished = step
-                .finished
-                .map(|f| f.volume.extract_mesh(&MeshConfig::default()));
+            let finished = step.finished.map(|f| {
+                let mut mesh = f.volume.extract_mesh(&MeshConfig::default());
+                // A fragment that rejoined the one before is kept in that one's world frame.
+                if let Some(j) = &f.joined {
+                    mesh.transform(j.transform.isometry());
+                }
+                (f.index, mesh, f.joined)
+            });
             Ok((step.result, finished))
         })
         .map_err(value_error)?;
-        self.finished.extend(finished);
+        if let Some((index, mesh, joined)) = finished {
+            if self.finished.len() <= index {
+                self.finished.resize_with(index + 1, || None);
+            }
+            self.finished[index] = Some(mesh);
+            if let Some(j) = joined {
+                self.joins.push((index, j.into, j.transform.to_matrix()));
+            }
+        }
         self.frame_fragments.push(self.rec.fragment());
         self.last_failure = result.failure.clone();
         self.last_weakest_sigma_m = result.weakest_sigma_m;
@@ -200,20 +221,36 @@ impl PyTracker {
         self.frame_fragments.clone()
     }
 
+    /// The fragments that ended by rejoining the fragment before them (the camera came back
+    /// where that one was lost): a list of ``(fragment, into, transform)`` with ``transform``
+    /// the (4, 4) float64 matrix from ``fragment``'s world frame to ``into``'s
+    /// (``transform @ pose`` is a pose of ``fragment`` in ``into``'s world).
+    #[getter]
+    fn joins<'py>(&self, py: Python<'py>) -> PyResult<Vec<Join<'py>>> {
+        self.joins
+            .iter()
+            .map(|(f, into, m)| Ok((*f, *into, pose_array(py, m)?)))
+            .collect()
+    }
+
     /// The mesh of everything fused into fragment ``fragment`` (marching cubes): ``None``
-    /// (default) the current one, an earlier index a finished fragment's (its mesh was
-    /// extracted when it finished).
+    /// (default) the current one, another index a finished fragment's (extracted when it
+    /// finished; a fragment that rejoined the one before is in that one's world frame).
     #[pyo3(signature = (fragment = None))]
     fn extract_mesh(&self, py: Python<'_>, fragment: Option<usize>) -> PyResult<PyMesh> {
         if let Some(f) = fragment
             && f != self.rec.fragment()
         {
-            let mesh = self.finished.get(f).ok_or_else(|| {
-                value_error(format!(
-                    "fragment {f} does not exist: the current fragment is {}",
-                    self.rec.fragment()
-                ))
-            })?;
+            let mesh = self
+                .finished
+                .get(f)
+                .and_then(Option::as_ref)
+                .ok_or_else(|| {
+                    value_error(format!(
+                        "fragment {f} is neither finished nor the current one ({})",
+                        self.rec.fragment()
+                    ))
+                })?;
             return PyMesh::from_mesh(py, mesh.clone());
         }
         let volume = self.rec.volume();

@@ -79,7 +79,9 @@ pub use motion::{
     VerifyConfig, estimate_motion, estimate_motion_verified, icp_point_to_plane,
     refine_motion_icp_verified, significant_loss,
 };
-pub use reconstruction::{Fragment, Reconstruction, ReconstructionConfig, Step, StepTimings};
+pub use reconstruction::{
+    Fragment, FragmentJoin, Reconstruction, ReconstructionConfig, Step, StepTimings,
+};
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};
 pub use track::{

@@ -8,24 +8,34 @@
 //! After a lost frame the tracker aligns the next frames from the last good pose (relocalisation,
 //! see [`Tracker`]): that succeeds when the camera comes back to within a few centimetres and
 //! degrees of where tracking was lost — a hand over the lens, a short view of a bare wall. A
-//! camera that has moved on never comes back into that basin, and every later frame would be
-//! lost. So when frames that *could* be aligned (enough depth, a view that pins all six degrees
-//! of freedom) keep failing to align for [`ReconstructionConfig::new_fragment_after_s`]
-//! seconds of the recording, the fragment ends: its volume is handed to the caller
-//! ([`Step::finished`]), the tracker forgets the sequence ([`Tracker::restart`]) and the frame
-//! starts a new fragment, whose world frame is its first camera. Frames that cannot be aligned
-//! at all (no depth, a degenerate view) do not count: a camera that still looks at the same
-//! wall may well relocalise once it turns back. Fragments are not registered to each other
-//! (that needs place recognition, which sl-track does not have).
+//! camera that has moved on may not come back for a long time, and every frame until then would
+//! be lost. So when frames that *could* be aligned (enough depth, a view that pins all six
+//! degrees of freedom) keep failing to align for [`ReconstructionConfig::new_fragment_after_s`]
+//! seconds of the recording, a new fragment starts with this frame: a fresh tracker and volume,
+//! its world frame its first camera. Frames that cannot be aligned at all (no depth, a
+//! degenerate view) do not count: a camera that still looks at the same wall may well
+//! relocalise once it turns back.
 //!
-//! The time is a policy, not a property of the sensor: shorter loses less of a recording whose
-//! camera has moved on, longer leaves more time to relocalise. The default, one second, is two
-//! to three times the longest relocalisation measured on TUM fr1/rpy with the lens covered for
-//! 1.5 s (docs/bench/track.md, "Session 17").
+//! The fragment that stayed lost is **suspended**, not closed: every later frame is also aligned
+//! to its model from its last good pose, exactly as its tracker would have relocalised. When one
+//! succeeds, the camera is back: the reconstruction goes on in the suspended fragment (the frame
+//! is [`crate::TrackStatus::Relocalised`] there), and the fragment that ends is handed over with
+//! the transform between the two world frames ([`FragmentJoin`], from the frame's pose in each),
+//! so its poses and mesh can be put into the older one's frame. A fragment is handed to the
+//! caller ([`Step::finished`], [`Reconstruction::finish`]) when it rejoins the one before, or when
+//! a newer fragment's start pushes it out of suspension (one suspended fragment at a time: at
+//! most two volumes in memory, at most two alignments per frame). Fragments that never meet
+//! again are not registered to each other (that needs place recognition, which sl-track does not
+//! have).
+//!
+//! The time is a policy, not a property of the sensor: shorter starts tracking again sooner,
+//! longer makes fewer fragments. Rejoining makes a short time cheap — a fragment started too
+//! early is joined back when the camera returns. The default is one second (docs/bench/track.md,
+//! "Session 17").
 
 use std::time::Instant;
 
-use sl_core::{Camera, DepthImage, SensorModel};
+use sl_core::{Camera, DepthImage, SensorModel, WorldToWorld};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::error::{Result, TrackError};
@@ -91,12 +101,25 @@ impl ReconstructionConfig {
 /// A fragment of the sequence: its volume, in its own world frame (its first camera's).
 #[derive(Debug)]
 pub struct Fragment {
-    /// 0 for the first fragment, then in order.
+    /// 0 for the first fragment, then in order of their start.
     pub index: usize,
-    /// Everything fused into it.
+    /// Everything fused into it, in its own world frame.
     pub volume: TsdfVolume,
     /// Frames tracked (and fused) in it.
     pub tracked_frames: usize,
+    /// Set when the fragment ended because the camera came back to the fragment before it
+    /// (see the module docs), and a frame had a pose in both.
+    pub joined: Option<FragmentJoin>,
+}
+
+/// How a fragment that ended by rejoining the fragment before it relates to that one.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FragmentJoin {
+    /// The fragment it rejoined (whose world frame the poses go on in).
+    pub into: usize,
+    /// From this fragment's world frame to `into`'s: `transform * pose` is a pose of this
+    /// fragment in `into`'s world.
+    pub transform: WorldToWorld,
 }
 
 /// Wall-clock time of a step's stages, milliseconds.
@@ -163,16 +186,73 @@ pub struct Step {
 pub struct Reconstruction {
     camera: Camera,
     cfg: ReconstructionConfig,
-    tracker: Tracker,
-    volume: TsdfVolume,
-    model: ModelReference,
-    fragment: usize,
-    fragment_tracked: usize,
+    /// The fragment frames are tracked and fused in.
+    current: Live,
+    /// The fragment before it, while the camera may still come back to it: every frame is also
+    /// aligned to its model from its last good pose (its tracker's relocalisation).
+    suspended: Option<Live>,
+    /// The index of the next fragment to start.
+    next_index: usize,
     /// Frame intervals of frames lost after an alignment attempt since the last tracked frame
     /// (whole intervals, as the tracker counts time: a driver's timestamp jitter is not time).
     failed_intervals: u64,
     /// The previous frame's timestamp, seconds.
     last_time_s: Option<f64>,
+}
+
+/// A fragment being tracked (or suspended): its tracker, volume and model.
+#[derive(Debug)]
+struct Live {
+    index: usize,
+    tracker: Tracker,
+    volume: TsdfVolume,
+    model: ModelReference,
+    tracked: usize,
+}
+
+impl Live {
+    fn new(index: usize, camera: &Camera, cfg: &ReconstructionConfig) -> Result<Self> {
+        let mut raycast = RaycastConfig::default();
+        raycast.min_depth_m = cfg.tsdf.min_depth_m;
+        raycast.max_depth_m = cfg.tsdf.max_depth_m;
+        let scale = cfg
+            .model_scale
+            .unwrap_or_else(|| ModelReference::default_scale(camera));
+        Ok(Self {
+            index,
+            tracker: Tracker::new(*camera, cfg.tracker)?,
+            volume: TsdfVolume::new(cfg.tsdf)?,
+            model: ModelReference::new(&camera.intrinsics, scale, raycast)?,
+            tracked: 0,
+        })
+    }
+
+    /// Tracks `depth` against the model (or the last frame).
+    fn track(
+        &mut self,
+        depth: &DepthImage,
+        timestamp_s: Option<f64>,
+        frame_to_model: bool,
+    ) -> Result<FrameResult> {
+        let model = if frame_to_model {
+            self.model.maps()
+        } else {
+            None
+        };
+        match timestamp_s {
+            Some(t) => self.tracker.track_at(depth, model, t),
+            None => self.tracker.track(depth, model),
+        }
+    }
+
+    fn into_fragment(self, joined: Option<FragmentJoin>) -> Fragment {
+        Fragment {
+            index: self.index,
+            volume: self.volume,
+            tracked_frames: self.tracked,
+            joined,
+        }
+    }
 }
 
 impl Reconstruction {
@@ -182,23 +262,12 @@ impl Reconstruction {
     /// An invalid configuration or camera.
     pub fn new(camera: Camera, cfg: ReconstructionConfig) -> Result<Self> {
         cfg.validate()?;
-        let tracker = Tracker::new(camera, cfg.tracker)?;
-        let volume = TsdfVolume::new(cfg.tsdf)?;
-        let mut raycast = RaycastConfig::default();
-        raycast.min_depth_m = cfg.tsdf.min_depth_m;
-        raycast.max_depth_m = cfg.tsdf.max_depth_m;
-        let scale = cfg
-            .model_scale
-            .unwrap_or_else(|| ModelReference::default_scale(&camera));
-        let model = ModelReference::new(&camera.intrinsics, scale, raycast)?;
         Ok(Self {
+            current: Live::new(0, &camera, &cfg)?,
             camera,
             cfg,
-            tracker,
-            volume,
-            model,
-            fragment: 0,
-            fragment_tracked: 0,
+            suspended: None,
+            next_index: 1,
             failed_intervals: 0,
             last_time_s: None,
         })
@@ -207,8 +276,8 @@ impl Reconstruction {
     /// Tracks `depth` (the camera's size, metres, 0 = invalid; already undistorted and
     /// smoothed as wanted), fuses it when tracked and renders the model for the next frame.
     /// `timestamp_s`: the frame's time (see [`Tracker::track_at`]); `None` takes it to follow
-    /// the previous frame by one frame interval. May start a new fragment (see the module
-    /// docs); the frame is then its first.
+    /// the previous frame by one frame interval. May start a new fragment, or go back to the
+    /// one before (see the module docs).
     ///
     /// # Errors
     /// As [`Tracker::track_at`]; a volume over its memory budget
@@ -220,23 +289,48 @@ impl Reconstruction {
             (Some(t), Some(p)) => ((t - p) / frame_interval_s).round().clamp(1.0, 1e9) as u64,
             _ => 1,
         };
-        let mut result = self.track(depth, timestamp_s)?;
+        let to_model = self.cfg.frame_to_model;
+        let mut result = self.current.track(depth, timestamp_s, to_model)?;
         if timestamp_s.is_some() {
             self.last_time_s = timestamp_s;
         }
         let mut finished = None;
+        let mut rejoined = false;
+        if let Some(old) = &mut self.suspended {
+            let back = old.track(depth, timestamp_s, to_model)?;
+            if back.status.is_tracked() {
+                // The camera is back where the fragment before was lost: go on there. The
+                // fragment that ends is related to it through this frame's two poses.
+                let joined = result.status.is_tracked().then(|| FragmentJoin {
+                    into: old.index,
+                    transform: WorldToWorld::between(&back.pose, &result.pose),
+                });
+                if let Some(old) = self.suspended.take() {
+                    let ended = std::mem::replace(&mut self.current, old);
+                    finished = Some(ended.into_fragment(joined));
+                }
+                result = back;
+                rejoined = true;
+            }
+        }
         if result.status.is_tracked() {
             self.failed_intervals = 0;
-        } else if result.iterations > 0 {
+        } else if result.iterations > 0 && !rejoined {
             self.failed_intervals = self.failed_intervals.saturating_add(intervals);
             let limit = self
                 .cfg
                 .new_fragment_after_s
                 .map(|s| (s / frame_interval_s).round().max(1.0));
-            if self.fragment_tracked > 0 && limit.is_some_and(|l| self.failed_intervals as f64 >= l)
+            if self.current.tracked > 0 && limit.is_some_and(|l| self.failed_intervals as f64 >= l)
             {
-                finished = Some(self.new_fragment()?);
-                result = self.track(depth, timestamp_s)?;
+                let fresh = Live::new(self.next_index, &self.camera, &self.cfg)?;
+                self.next_index += 1;
+                self.failed_intervals = 0;
+                let ended = std::mem::replace(&mut self.current, fresh);
+                // The fragment that stayed lost may still be rejoined; the one suspended before
+                // it no longer (one suspended fragment at a time bounds memory and time).
+                finished = self.suspended.replace(ended).map(|f| f.into_fragment(None));
+                result = self.current.track(depth, timestamp_s, to_model)?;
             }
         }
         let track_ms = ms_since(t0);
@@ -244,12 +338,13 @@ impl Reconstruction {
         if result.status.is_tracked() {
             let t1 = Instant::now();
             let k = self.camera.intrinsics;
-            self.volume.integrate(depth, &k, &result.pose)?;
+            let live = &mut self.current;
+            live.volume.integrate(depth, &k, &result.pose)?;
             integrate_ms = Some(ms_since(t1));
-            if self.cfg.frame_to_model {
+            if to_model {
                 let t2 = Instant::now();
-                self.model.update_from_frame(
-                    &self.volume,
+                live.model.update_from_frame(
+                    &live.volume,
                     &result.pose,
                     &self.camera.sensor,
                     depth,
@@ -257,11 +352,11 @@ impl Reconstruction {
                 )?;
                 raycast_ms = Some(ms_since(t2));
             }
-            self.fragment_tracked += 1;
+            live.tracked += 1;
         }
         Ok(Step {
             result,
-            fragment: self.fragment,
+            fragment: self.current.index,
             finished,
             timings: StepTimings {
                 track_ms,
@@ -272,53 +367,29 @@ impl Reconstruction {
         })
     }
 
-    fn track(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<FrameResult> {
-        let model = if self.cfg.frame_to_model {
-            self.model.maps()
-        } else {
-            None
-        };
-        match timestamp_s {
-            Some(t) => self.tracker.track_at(depth, model, t),
-            None => self.tracker.track(depth, model),
-        }
-    }
-
-    /// Ends the current fragment and starts an empty one.
-    fn new_fragment(&mut self) -> Result<Fragment> {
-        let fresh = TsdfVolume::new(self.cfg.tsdf)?;
-        let volume = std::mem::replace(&mut self.volume, fresh);
-        let done = Fragment {
-            index: self.fragment,
-            volume,
-            tracked_frames: self.fragment_tracked,
-        };
-        self.tracker.restart();
-        self.model.clear();
-        self.fragment += 1;
-        self.fragment_tracked = 0;
-        self.failed_intervals = 0;
-        Ok(done)
-    }
-
     /// The current fragment's index.
     pub fn fragment(&self) -> usize {
-        self.fragment
+        self.current.index
+    }
+
+    /// The index of the fragment that may still be rejoined, if any.
+    pub fn suspended_fragment(&self) -> Option<usize> {
+        self.suspended.as_ref().map(|s| s.index)
     }
 
     /// The current fragment's volume.
     pub fn volume(&self) -> &TsdfVolume {
-        &self.volume
+        &self.current.volume
     }
 
-    /// The tracker.
+    /// The current fragment's tracker.
     pub fn tracker(&self) -> &Tracker {
-        &self.tracker
+        &self.current.tracker
     }
 
-    /// The model reference (the last rendering of the current fragment's model).
+    /// The current fragment's model reference (its last rendering).
     pub fn model(&self) -> &ModelReference {
-        &self.model
+        &self.current.model
     }
 
     /// The camera.
@@ -331,13 +402,17 @@ impl Reconstruction {
         &self.cfg
     }
 
-    /// Ends the reconstruction and hands over the current fragment.
-    pub fn finish(self) -> Fragment {
-        Fragment {
-            index: self.fragment,
-            volume: self.volume,
-            tracked_frames: self.fragment_tracked,
-        }
+    /// Ends the reconstruction and hands over the fragments not yet handed over (the current
+    /// one and a suspended one), in order of their index.
+    pub fn finish(self) -> Vec<Fragment> {
+        let mut out: Vec<Fragment> = self
+            .suspended
+            .into_iter()
+            .map(|f| f.into_fragment(None))
+            .collect();
+        out.push(self.current.into_fragment(None));
+        out.sort_by_key(|f| f.index);
+        out
     }
 }
 

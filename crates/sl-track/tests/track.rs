@@ -522,13 +522,37 @@ fn decimated_frames_of_the_same_sensor_carry_the_same_information() {
     }
 }
 
+/// Runs a reconstruction over `frames` (timestamps one frame interval apart): per frame the
+/// status, pose and fragment, the fragments handed over on the way, and those left at the end.
+#[allow(clippy::type_complexity)]
+fn reconstruct(
+    cam: Camera,
+    cfg: ReconstructionConfig,
+    frames: &[&DepthImage],
+) -> (
+    Vec<(TrackStatus, CameraToWorld, usize)>,
+    Vec<sl_track::Fragment>,
+    Vec<sl_track::Fragment>,
+) {
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    let (mut out, mut finished) = (Vec::new(), Vec::new());
+    for (i, d) in frames.iter().enumerate() {
+        let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+        finished.extend(step.finished);
+        out.push((step.result.status, step.result.pose, step.fragment));
+    }
+    (out, finished, rec.finish())
+}
+
 /// The frames of a camera that was carried to another place while tracking was lost: those
 /// frames could be aligned (enough depth, six degrees of freedom pinned) but match nothing
 /// near the last good pose. With a new fragment after 0.1 s (3 frames at 30 Hz) the
 /// recording goes on in fragment 1, whose poses (in its own world frame, its first camera) are
-/// the truth's; fragment 0's poses are never wrong. Without fragments every later frame is lost.
-/// Frames without depth (the lens covered) do not count towards the time: the camera that
-/// comes back after 1.3 s of them relocalises in fragment 0.
+/// the truth's; fragment 0's poses are never wrong, and it stays suspended (every frame is
+/// tried against it) until the end. Without fragments every later frame is lost. Frames without
+/// depth (the lens covered) do not count towards the time: the camera that comes back after
+/// 1.3 s of them relocalises in fragment 0.
 #[test]
 fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
     let (cam, truth_a, frames_a) = sequence(8, 11);
@@ -539,24 +563,9 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
     cfg.tsdf.voxel_m = 0.01;
     cfg.tsdf.trunc_m = 0.05;
     cfg.new_fragment_after_s = Some(0.1);
-    let dt = cfg.tracker.frame_interval_s;
-    let run = |cfg: ReconstructionConfig, frames: &[&DepthImage]| {
-        let mut rec = Reconstruction::new(cam, cfg).unwrap();
-        let mut out = Vec::new();
-        let mut finished = Vec::new();
-        for (i, d) in frames.iter().enumerate() {
-            let step = rec.step(d, Some(i as f64 * dt)).unwrap();
-            if let Some(f) = step.finished {
-                finished.push((f.index, f.tracked_frames, f.volume.block_count()));
-            }
-            out.push((step.result.status, step.result.pose, step.fragment));
-        }
-        (out, finished, rec.finish())
-    };
     let carried: Vec<&DepthImage> = frames_a.iter().chain(&frames_b).collect();
-    let (out, finished, last) = run(cfg, &carried);
+    let (out, finished, left) = reconstruct(cam, cfg, &carried);
     let statuses: Vec<_> = out.iter().map(|o| (o.0, o.2)).collect();
-    eprintln!("{statuses:?}");
     // Fragment 0: the first scene, tracked; no pose of it is wrong.
     let a_est: Vec<_> = out[..8].iter().map(|o| o.1).collect();
     assert!(out[..8].iter().all(|o| o.0.is_tracked() && o.2 == 0));
@@ -564,40 +573,42 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
         assert!(e.0 < 0.01 && e.1 < 0.5, "frame {i}: {e:?}");
     }
     // The other place: lost in fragment 0 until 0.1 s of failed alignments, then fragment 1.
-    let first_b = out[8..]
-        .iter()
-        .position(|o| o.2 == 1)
-        .expect("a new fragment starts")
-        + 8;
     assert!(
-        out[8..first_b]
+        out[8..10]
             .iter()
-            .all(|o| o.0 == TrackStatus::Lost && o.2 == 0)
+            .all(|o| o.0 == TrackStatus::Lost && o.2 == 0),
+        "{statuses:?}"
     );
-    assert_eq!(
-        first_b, 10,
-        "fragment 1 starts at the third failed alignment"
-    );
-    assert_eq!(out[first_b].0, TrackStatus::Initialised);
-    assert_eq!(finished, vec![(0, 8, finished[0].2)]);
-    assert!(finished[0].2 > 0, "fragment 0's volume is handed over");
-    let b: Vec<_> = out[first_b..].iter().collect();
+    assert_eq!(out[10].0, TrackStatus::Initialised, "{statuses:?}");
+    let b = &out[10..];
     assert!(
         b.iter().all(|o| o.0.is_tracked() && o.2 == 1),
         "{statuses:?}"
     );
     let b_est: Vec<_> = b.iter().map(|o| o.1).collect();
-    let b_truth = &truth_b[first_b - 8..];
-    for (i, e) in errors(b_truth, &b_est).iter().enumerate() {
+    for (i, e) in errors(&truth_b[2..], &b_est).iter().enumerate() {
         assert!(e.0 < 0.01 && e.1 < 0.5, "fragment 1, frame {i}: {e:?}");
     }
-    assert_eq!((last.index, last.tracked_frames), (1, b.len()));
+    // Fragment 0 was never rejoined: both are handed over at the end, neither joined.
+    assert!(finished.is_empty());
+    let left: Vec<_> = left
+        .iter()
+        .map(|f| {
+            (
+                f.index,
+                f.tracked_frames,
+                f.joined.is_some(),
+                f.volume.block_count() > 0,
+            )
+        })
+        .collect();
+    assert_eq!(left, vec![(0, 8, false, true), (1, b.len(), false, true)]);
 
     // Never a new fragment: every frame after the carry is lost.
     let mut never = cfg;
     never.new_fragment_after_s = None;
-    let (out, finished, _) = run(never, &carried);
-    assert!(finished.is_empty());
+    let (out, finished, left) = reconstruct(cam, never, &carried);
+    assert!(finished.is_empty() && left.len() == 1);
     assert!(
         out[8..]
             .iter()
@@ -610,12 +621,76 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
     let mut covered: Vec<&DepthImage> = frames_a[..5].iter().collect();
     covered.extend(std::iter::repeat_n(&blank, 40));
     covered.extend(&frames_a[5..]);
-    let (out, finished, _) = run(cfg, &covered);
-    assert!(
-        finished.is_empty(),
-        "{:?}",
-        out.iter().map(|o| o.0).collect::<Vec<_>>()
-    );
+    let (out, finished, left) = reconstruct(cam, cfg, &covered);
+    assert!(finished.is_empty() && left.len() == 1);
     assert_eq!(out[45].0, TrackStatus::Relocalised);
     assert!(out.iter().all(|o| o.2 == 0));
+}
+
+/// A camera that jumps 18 cm and 18° while tracking is lost (plane fallback off, so nothing
+/// bridges the jump), then walks back to where it was lost: fragment 1 starts after 0.1 s of
+/// failed alignments and tracks the way back; when a frame aligns to the suspended fragment 0
+/// again, the reconstruction goes back to fragment 0 (the frame is relocalised there) and
+/// fragment 1 is handed over joined into it. Its transform puts fragment 1's poses into
+/// fragment 0's world within the tracking noise of the truth.
+#[test]
+fn a_new_fragment_rejoins_the_one_before_when_the_camera_comes_back() {
+    let (cam, truth, frames) = sequence(20, 21);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    cfg.new_fragment_after_s = Some(0.1);
+    cfg.tracker.plane_fallback = false;
+    // Frames 0–7, then 19, 18, …, 8: the camera jumps 12 steps ahead and walks back.
+    let order: Vec<usize> = (0..8).chain((8..20).rev()).collect();
+    let seq: Vec<&DepthImage> = order.iter().map(|&i| &frames[i]).collect();
+    let (out, finished, left) = reconstruct(cam, cfg, &seq);
+    let statuses: Vec<_> = out.iter().map(|o| (o.0, o.2)).collect();
+    assert!(
+        out[8..10]
+            .iter()
+            .all(|o| o.0 == TrackStatus::Lost && o.2 == 0),
+        "{statuses:?}"
+    );
+    assert_eq!(
+        (out[10].0, out[10].2),
+        (TrackStatus::Initialised, 1),
+        "{statuses:?}"
+    );
+    let back = out
+        .iter()
+        .position(|o| o.0 == TrackStatus::Relocalised)
+        .expect("the camera comes back into fragment 0");
+    assert!(back > 10 && out[10..back].iter().all(|o| o.0.is_tracked() && o.2 == 1));
+    assert!(
+        out[back..].iter().all(|o| o.0.is_tracked() && o.2 == 0),
+        "{statuses:?}"
+    );
+    assert_eq!(finished.len(), 1);
+    let one = &finished[0];
+    assert_eq!((one.index, one.tracked_frames), (1, back - 10));
+    let join = one
+        .joined
+        .expect("the rejoining frame has a pose in both fragments");
+    assert_eq!(join.into, 0);
+    assert_eq!(left.len(), 1);
+    assert_eq!(
+        (left[0].index, left[0].tracked_frames),
+        (0, 8 + out.len() - back)
+    );
+    // Every pose, fragment 1's moved into fragment 0's world, against the truth.
+    let est: Vec<CameraToWorld> = out
+        .iter()
+        .map(|o| if o.2 == 1 { join.transform * o.1 } else { o.1 })
+        .collect();
+    let posed: Vec<usize> = (0..out.len()).filter(|&i| out[i].0.is_tracked()).collect();
+    let t: Vec<_> = posed.iter().map(|&i| truth[order[i]]).collect();
+    let e: Vec<_> = posed.iter().map(|&i| est[i]).collect();
+    for (i, err) in posed.iter().zip(errors(&t, &e)) {
+        assert!(
+            err.0 < 0.01 && err.1 < 0.5,
+            "frame {i} (truth {}): {err:?}",
+            order[*i]
+        );
+    }
 }

@@ -287,8 +287,11 @@ class Tracker:
     @property
     def frame_fragments(self) -> List[int]:
         """The fragment of every frame given to track(), in order."""
+    @property
+    def joins(self) -> List[Tuple[int, int, npt.NDArray[np.float64]]]:
+        """(fragment, into, (4, 4) transform from fragment's world to into's) for each fragment that rejoined the one before."""
     def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
-        """The fused mesh of fragment `fragment` (None: the current one)."""
+        """The fused mesh of fragment `fragment` (None: the current one; a rejoined fragment's is in the world of the one it rejoined)."""
 
 def track_sequence(
     frames: Iterable[Union[_Depth, _Path]],

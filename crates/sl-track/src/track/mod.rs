@@ -43,6 +43,10 @@ use pyramid::{Level, Pyramid, normal_radius};
 use solve::{PassParams, Sums};
 use structure::StructureCheck;
 
+/// How far the extra starts of a relocalisation are turned from the last good pose about the
+/// camera's horizontal and vertical axes, degrees.
+const RELOCALISATION_TURN_DEG: f64 = 3.0;
+
 /// What happened to a frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrackStatus {
@@ -202,20 +206,6 @@ impl Tracker {
     /// The pose given to the first frame (identity by default). Call before the first frame.
     pub fn set_initial_pose(&mut self, pose: CameraToWorld) {
         self.initial_pose = pose;
-    }
-
-    /// Forgets the sequence so far (the last good frame and pose, the velocity, the lost run
-    /// and the last timestamp), keeping the buffers: the next frame with enough structure is
-    /// [`TrackStatus::Initialised`] at the initial pose and defines a new world frame. This is
-    /// how [`crate::Reconstruction`] starts a new fragment after a long loss.
-    pub fn restart(&mut self) {
-        self.last_good = None;
-        self.last_ref_stale = false;
-        self.velocity = Isometry3::identity();
-        self.velocity_known = false;
-        self.lost_run = 0;
-        self.intervals_since_good = 0;
-        self.last_timestamp_s = None;
     }
 
     /// The configuration.
@@ -462,6 +452,33 @@ impl Tracker {
                 if again.failure.is_none() {
                     first = again;
                     recovered = true;
+                }
+            }
+        }
+        if first.failure.is_none() && self.lost_run > 0 {
+            // Relocalising: the start (the last good pose, or the prediction) may be several
+            // frames' motion from the camera, where point-to-plane ICP can settle in a wrong
+            // minimum that trades a rotation for a translation and still passes every check
+            // (docs/bench/track.md, "Session 17"). Align again from starts turned about the
+            // camera's horizontal and vertical axes and keep the best fit by the robust
+            // objective over all the frame's points.
+            let reference = if against_frame {
+                &self.last_ref
+            } else {
+                model.unwrap_or(&self.last_ref)
+            };
+            let cfg = &self.cfg;
+            let mut best = first.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
+            for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)] {
+                let mut turn = nalgebra::Vector3::zeros();
+                turn[axis] = sign * RELOCALISATION_TURN_DEG.to_radians();
+                let start = last * Isometry3::rotation(turn);
+                let alt = self.align(&start, reference, unknown_var, true);
+                iterations += alt.iterations;
+                let cost = alt.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
+                if alt.failure.is_none() && cost < best {
+                    best = cost;
+                    first = alt;
                 }
             }
         }

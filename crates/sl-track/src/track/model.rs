@@ -143,12 +143,6 @@ impl ModelReference {
         Ok(())
     }
 
-    /// Forgets the rendering (a new model, for instance a new fragment's): [`ModelReference::maps`]
-    /// is `None` until the next update. The buffers are kept.
-    pub fn clear(&mut self) {
-        self.rendered = false;
-    }
-
     /// The maps of the last [`ModelReference::update`], or `None` before the first.
     pub fn maps(&self) -> Option<&ReferenceMaps> {
         self.rendered.then_some(&self.maps)

@@ -35,6 +35,14 @@ pub(crate) struct Sums {
 }
 
 impl Sums {
+    /// The robust objective over every valid point of the level: the truncated Huber loss of
+    /// the associated points ([`Sums::loss`]) plus the cap for each point that lands on no
+    /// surface of the reference. Lower is better; alignments of one frame to one reference
+    /// from different starts compare by it (they share the valid points).
+    pub(crate) fn total_loss(&self, gate_sigmas: f64, huber_k: f64) -> f64 {
+        self.loss + huber_loss(gate_sigmas, huber_k) * (self.valid - self.associated).max(0.0)
+    }
+
     pub(crate) fn zero() -> Self {
         Self {
             h: [0.0; 21],

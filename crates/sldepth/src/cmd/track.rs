@@ -14,10 +14,14 @@
 //!
 //! Fragments (`sl_track::Reconstruction`): when frames that could be aligned keep failing for
 //! `--new-fragment-after-s` (default 1 s), the recording goes on in a new fragment with its own
-//! volume and world frame (its first camera). Fragment 0 is written to the given `--output`,
-//! `--output-log` and `--mesh`; fragment k ≥ 1 to the same names with `.fragment-k` before the
-//! extension (a fragment's mesh as soon as it ends). In a fragment's trajectory the frames of the
-//! others are comment lines `# <timestamp> in fragment <k>`; the JSON lists the fragments.
+//! volume and world frame (its first camera); when the camera comes back to the lost fragment,
+//! tracking goes on there and the newer fragment is joined to it. One trajectory per world
+//! frame: fragment 0's (with the fragments joined to it, moved into its frame) to the given
+//! `--output` and `--output-log`, any other fragment's to the same names with `.fragment-k`
+//! before the extension; each fragment's mesh to `--mesh` / `.fragment-k` (in the world of the
+//! fragment it joined), written as soon as the fragment is handed over. In a trajectory the
+//! frames of other worlds are comment lines `# <timestamp> in fragment <k>`; the JSON lists the
+//! fragments.
 //!
 //! Frames whose size is the camera's divided by a whole number (320×240 for a 640×480 preset:
 //! a QVGA stream, a driver's decimation) are tracked as that sensor decimated
@@ -31,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
-use sl_core::{Camera, CameraToWorld};
+use sl_core::{Camera, CameraToWorld, WorldToWorld};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus, WeightMode};
@@ -119,9 +123,11 @@ pub struct Args {
     pub no_plane_fallback: bool,
     /// Start a new fragment (its own volume, mesh and world frame: its first camera) after
     /// this many seconds of frames that could be aligned but were lost (the camera has left the
-    /// place where tracking was lost and is not coming back); frames without depth or with a
-    /// degenerate view do not count. Fragment 0 goes to --output/--output-log/--mesh, fragment
-    /// k to the same names with `.fragment-k` before the extension. `inf`: never.
+    /// place where tracking was lost); frames without depth or with a degenerate view do not
+    /// count. When the camera comes back to the lost fragment, tracking goes on there and the
+    /// newer fragment is joined to it (its poses go into the older one's trajectory). Fragment
+    /// 0 goes to --output/--output-log/--mesh, fragment k to the same names with `.fragment-k`
+    /// before the extension. `inf`: never.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub new_fragment_after_s: f64,
     /// Print a JSON summary on standard output.
@@ -201,29 +207,51 @@ enum Row {
     Skipped(String),
 }
 
-/// The TUM trajectory of fragment `fragment`: its poses, the other frames as comments.
-fn tum_text(rows: &[(f64, Row)], fragment: usize) -> String {
+/// Per fragment (by index): the fragment it rejoined and the transform into that one's world.
+type Joins = [Option<sl_track::FragmentJoin>];
+
+/// The fragment whose world frame fragment `f`'s poses are written in, and the transform there.
+fn world_of(f: usize, joins: &Joins) -> (usize, Option<WorldToWorld>) {
+    match joins.get(f).copied().flatten() {
+        Some(j) => (j.into, Some(j.transform)),
+        None => (f, None),
+    }
+}
+
+/// The pose of a row of fragment `f` in the world of fragment `world`, if it belongs there.
+fn pose_in(p: &CameraToWorld, f: usize, world: usize, joins: &Joins) -> Option<CameraToWorld> {
+    match world_of(f, joins) {
+        (w, t) if w == world => Some(t.map_or(*p, |t| t * *p)),
+        _ => None,
+    }
+}
+
+/// The TUM trajectory in fragment `world`'s frame: its poses and those of the fragments that
+/// rejoined it, the other frames as comments.
+fn tum_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
     let mut s = String::from("# sldepth track: timestamp tx ty tz qx qy qz qw (camera to world)\n");
-    if fragment > 0 {
+    if world > 0 {
         let _ = writeln!(
             s,
-            "# fragment {fragment}: its own world frame (its first camera); not registered to the other fragments"
+            "# fragment {world}: its own world frame (its first camera); not registered to the other fragments"
         );
     }
     for (t, row) in rows {
         match row {
-            Row::Pose(_, f) if *f != fragment => {
-                let _ = writeln!(s, "# {t:.6} in fragment {f}");
-            }
-            Row::Pose(p, _) => {
-                let tr = p.translation();
-                let q = p.rotation();
-                let _ = writeln!(
-                    s,
-                    "{t:.6} {:.6} {:.6} {:.6} {:.7} {:.7} {:.7} {:.7}",
-                    tr.x, tr.y, tr.z, q.i, q.j, q.k, q.w
-                );
-            }
+            Row::Pose(p, f) => match pose_in(p, *f, world, joins) {
+                None => {
+                    let _ = writeln!(s, "# {t:.6} in fragment {f}");
+                }
+                Some(p) => {
+                    let tr = p.translation();
+                    let q = p.rotation();
+                    let _ = writeln!(
+                        s,
+                        "{t:.6} {:.6} {:.6} {:.6} {:.7} {:.7} {:.7} {:.7}",
+                        tr.x, tr.y, tr.z, q.i, q.j, q.k, q.w
+                    );
+                }
+            },
             Row::Lost(why) => {
                 let _ = writeln!(s, "# {t:.6} lost: {why}");
             }
@@ -235,13 +263,13 @@ fn tum_text(rows: &[(f64, Row)], fragment: usize) -> String {
     s
 }
 
-/// The Open3D `.log` of fragment `fragment`'s tracked frames.
-fn log_text(rows: &[(f64, Row)], fragment: usize) -> String {
+/// The Open3D `.log` of the tracked frames in fragment `world`'s frame.
+fn log_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
     let n = rows.len();
     let mut s = String::new();
     for (i, (_, row)) in rows.iter().enumerate() {
         if let Row::Pose(p, f) = row
-            && *f == fragment
+            && let Some(p) = pose_in(p, *f, world, joins)
         {
             let m = p.to_matrix();
             let _ = writeln!(s, "{i} {i} {n}");
@@ -276,6 +304,28 @@ fn fragment_path(path: &Path, fragment: usize) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// What the run did with one fragment.
+struct FragmentOut {
+    first_frame: usize,
+    tracked: usize,
+    mesh: Option<WrittenMesh>,
+}
+
+impl FragmentOut {
+    fn starting_at(first_frame: usize) -> Self {
+        Self {
+            first_frame,
+            tracked: 0,
+            mesh: None,
+        }
+    }
+
+    fn finish(&mut self, done: &sl_track::Fragment, mesh: Option<WrittenMesh>) {
+        self.tracked = done.tracked_frames;
+        self.mesh = mesh;
+    }
+}
+
 /// A fragment's mesh as written.
 struct WrittenMesh {
     path: PathBuf,
@@ -292,9 +342,13 @@ fn write_fragment_mesh(
     let Some(p) = &args.mesh else {
         return Ok(None);
     };
-    let mesh = fragment
+    let mut mesh = fragment
         .volume
         .extract_mesh_within(&MeshConfig::default(), budget_bytes)?;
+    // A fragment that rejoined the one before is written in that one's world frame.
+    if let Some(j) = &fragment.joined {
+        mesh.transform(j.transform.isometry());
+    }
     let path = fragment_path(p, fragment.index);
     sl_tsdf::io::write_mesh_ply(&path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
         .with_context(|| format!("writing {}", path.display()))?;
@@ -422,8 +476,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut lost_frames = Vec::new();
     let mut skipped_frames = Vec::new();
     // Per fragment: its first frame, and its mesh once written.
-    let mut fragments: Vec<(usize, Option<WrittenMesh>)> = vec![(0, None)];
-    let mut finished_tracked = Vec::new();
+    let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
+    let mut joins: Vec<Option<sl_track::FragmentJoin>> = vec![None];
     let wall = Instant::now();
     let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
@@ -472,20 +526,36 @@ pub fn run(args: Args) -> Result<()> {
         let step = rec
             .step(&depth, Some(time_s))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
+        if step.fragment >= fragments.len() {
+            fragments.push(FragmentOut::starting_at(i));
+            joins.push(None);
+            errln!(
+                "frame {i}: lost for over {} s, fragment {} starts",
+                args.new_fragment_after_s,
+                step.fragment
+            );
+        }
         if let Some(done) = &step.finished {
             let mesh = write_fragment_mesh(&args, done, params.memory_budget_bytes)?;
-            if let Some(entry) = fragments.get_mut(done.index) {
-                entry.1 = mesh;
+            if let Some(out) = fragments.get_mut(done.index) {
+                out.finish(done, mesh);
             }
-            finished_tracked.push(done.tracked_frames);
-            fragments.push((i, None));
-            errln!(
-                "frame {i}: lost for over {} s, fragment {} starts (fragment {} tracked {} frames)",
-                args.new_fragment_after_s,
-                step.fragment,
-                done.index,
-                done.tracked_frames
-            );
+            if let Some(j) = joins.get_mut(done.index) {
+                *j = done.joined;
+            }
+            if done.index > step.fragment {
+                errln!(
+                    "frame {i}: back in fragment {}; fragment {} ({} frames) rejoins it{}",
+                    step.fragment,
+                    done.index,
+                    done.tracked_frames,
+                    if done.joined.is_some() {
+                        ""
+                    } else {
+                        " (no frame with a pose in both: kept in its own world frame)"
+                    }
+                );
+            }
         }
         let r = step.result;
         let tm = step.timings;
@@ -523,25 +593,29 @@ pub fn run(args: Args) -> Result<()> {
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
 
-    let last = rec.finish();
-    finished_tracked.push(last.tracked_frames);
-    let last_mesh = write_fragment_mesh(&args, &last, params.memory_budget_bytes)?;
-    if let Some(entry) = fragments.get_mut(last.index) {
-        entry.1 = last_mesh;
+    for done in rec.finish() {
+        let mesh = write_fragment_mesh(&args, &done, params.memory_budget_bytes)?;
+        if let Some(out) = fragments.get_mut(done.index) {
+            out.finish(&done, mesh);
+        }
     }
+    // One trajectory per world frame: fragment 0's, and each fragment's that rejoined none.
     for (index, _) in fragments.iter().enumerate() {
+        if joins.get(index).copied().flatten().is_some() {
+            continue;
+        }
         if let Some(p) = &args.output {
-            write_text(&fragment_path(p, index), &tum_text(&rows, index))?;
+            write_text(&fragment_path(p, index), &tum_text(&rows, index, &joins))?;
         }
         if let Some(p) = &args.output_log {
-            write_text(&fragment_path(p, index), &log_text(&rows, index))?;
+            write_text(&fragment_path(p, index), &log_text(&rows, index, &joins))?;
         }
     }
     // The JSON's vertex and triangle counts are fragment 0's (the whole run's when there is
     // one fragment).
     let mesh_size = fragments
         .first()
-        .and_then(|f| f.1.as_ref())
+        .and_then(|f| f.mesh.as_ref())
         .map(|m| (m.vertices, m.triangles));
     let (tm, im) = (median(&track_ms), median(&integrate_ms));
     if args.json {
@@ -570,14 +644,19 @@ pub fn run(args: Args) -> Result<()> {
             "truncation": params.truncation.name(),
             "vertices": mesh_size.map(|m| m.0),
             "triangles": mesh_size.map(|m| m.1),
-            "fragments": fragments.iter().enumerate().map(|(index, (first, mesh))| serde_json::json!({
-                "index": index,
-                "first_frame": first,
-                "tracked": finished_tracked.get(index),
-                "output": args.output.as_ref().map(|p| fragment_path(p, index).display().to_string()),
-                "mesh": mesh.as_ref().map(|m| m.path.display().to_string()),
-                "vertices": mesh.as_ref().map(|m| m.vertices),
-            })).collect::<Vec<_>>(),
+            "fragments": fragments.iter().enumerate().map(|(index, f)| {
+                let world = world_of(index, &joins).0;
+                serde_json::json!({
+                    "index": index,
+                    "first_frame": f.first_frame,
+                    "tracked": f.tracked,
+                    "joined_into": joins.get(index).copied().flatten().map(|j| j.into),
+                    "world": world,
+                    "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
+                    "mesh": f.mesh.as_ref().map(|m| m.path.display().to_string()),
+                    "vertices": f.mesh.as_ref().map(|m| m.vertices),
+                })
+            }).collect::<Vec<_>>(),
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
         }))?;
@@ -593,9 +672,14 @@ pub fn run(args: Args) -> Result<()> {
         );
         if fragments.len() > 1 {
             errln!(
-                "{} fragments (tracked frames: {:?}), each in its own world frame",
+                "{} fragments (tracked frames: {:?}; rejoined: {:?})",
                 fragments.len(),
-                finished_tracked
+                fragments.iter().map(|f| f.tracked).collect::<Vec<_>>(),
+                joins
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(k, j)| j.map(|j| (k, j.into)))
+                    .collect::<Vec<_>>()
             );
         }
     }
