@@ -16,17 +16,17 @@
 //! degenerate view) do not count: a camera that still looks at the same wall may well
 //! relocalise once it turns back.
 //!
-//! The fragment that stayed lost is **suspended**, not closed: every later frame is also aligned
-//! to its model from its last good pose, exactly as its tracker would have relocalised. When one
-//! succeeds, the camera is back: the reconstruction goes on in the suspended fragment (the frame
-//! is [`crate::TrackStatus::Relocalised`] there), and the fragment that ends is handed over with
-//! the transform between the two world frames ([`FragmentJoin`], from the frame's pose in each),
-//! so its poses and mesh can be put into the older one's frame. A fragment is handed to the
-//! caller ([`Step::finished`], [`Reconstruction::finish`]) when it rejoins the one before, or when
-//! a newer fragment's start pushes it out of suspension (one suspended fragment at a time: at
-//! most two volumes in memory, at most two alignments per frame). Fragments that never meet
-//! again are not registered to each other (that needs place recognition, which sl-track does not
-//! have).
+//! The fragment that stayed lost is **suspended**, not closed: a frame every sixth frame
+//! interval is also aligned to its model from its last good pose, exactly as its tracker would
+//! have relocalised (one try costs several tracked frames). When one succeeds, the camera is
+//! back: the reconstruction goes on in the suspended fragment (the frame is
+//! [`crate::TrackStatus::Relocalised`] there), and the fragment that ends is handed over with the
+//! transform between the two world frames ([`FragmentJoin`], from the frame's pose in each), so
+//! its poses and mesh can be put into the older one's frame. A fragment is handed to the caller
+//! ([`Step::finished`], [`Reconstruction::finish`]) when it rejoins the one before, or when a
+//! newer fragment's start pushes it out of suspension (one suspended fragment at a time: at most
+//! two volumes in memory). Fragments that never meet again are not registered to each other
+//! (that needs place recognition, which sl-track does not have).
 //!
 //! The time is a policy, not a property of the sensor: shorter starts tracking again sooner,
 //! longer makes fewer fragments. Rejoining makes a short time cheap — a fragment started too
@@ -198,7 +198,17 @@ pub struct Reconstruction {
     failed_intervals: u64,
     /// The previous frame's timestamp, seconds.
     last_time_s: Option<f64>,
+    /// Frame intervals until the suspended fragment is tried again.
+    rejoin_wait: u64,
 }
+
+/// Frame intervals between two tries of the suspended fragment (0.2 s at 30 Hz). A try is the
+/// tracker's whole relocalisation (every start, the plane-based fallback): several times a
+/// tracked frame's cost when it fails. Trying every frame made a new fragment's frames three
+/// to four times slower on TUM fr1/rpy; a rejoin found a few frames late loses nothing, since
+/// those frames are tracked in the new fragment and joined with it (docs/bench/track.md,
+/// "Session 17").
+const REJOIN_EVERY_INTERVALS: u64 = 6;
 
 /// A fragment being tracked (or suspended): its tracker, volume and model.
 #[derive(Debug)]
@@ -270,6 +280,7 @@ impl Reconstruction {
             next_index: 1,
             failed_intervals: 0,
             last_time_s: None,
+            rejoin_wait: 0,
         })
     }
 
@@ -296,7 +307,9 @@ impl Reconstruction {
         }
         let mut finished = None;
         let mut rejoined = false;
-        if let Some(old) = &mut self.suspended {
+        self.rejoin_wait = self.rejoin_wait.saturating_sub(intervals);
+        if let Some(old) = self.suspended.as_mut().filter(|_| self.rejoin_wait == 0) {
+            self.rejoin_wait = REJOIN_EVERY_INTERVALS;
             let back = old.track(depth, timestamp_s, to_model)?;
             if back.status.is_tracked() {
                 // The camera is back where the fragment before was lost: go on there. The
@@ -326,6 +339,7 @@ impl Reconstruction {
                 let fresh = Live::new(self.next_index, &self.camera, &self.cfg)?;
                 self.next_index += 1;
                 self.failed_intervals = 0;
+                self.rejoin_wait = REJOIN_EVERY_INTERVALS;
                 let ended = std::mem::replace(&mut self.current, fresh);
                 // The fragment that stayed lost may still be rejoined; the one suspended before
                 // it no longer (one suspended fragment at a time bounds memory and time).

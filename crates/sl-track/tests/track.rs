@@ -628,9 +628,9 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
 }
 
 /// A camera that jumps 18 cm and 18° while tracking is lost (plane fallback off, so nothing
-/// bridges the jump), then walks back to where it was lost: fragment 1 starts after 0.1 s of
-/// failed alignments and tracks the way back; when a frame aligns to the suspended fragment 0
-/// again, the reconstruction goes back to fragment 0 (the frame is relocalised there) and
+/// bridges the jump), then walks back to where it was lost and rests there: fragment 1 starts
+/// after 0.1 s of failed alignments and tracks the way back; when a frame aligns to the
+/// suspended fragment 0 again (tried every sixth frame), the reconstruction goes back to fragment 0 (the frame is relocalised there) and
 /// fragment 1 is handed over joined into it. Its transform puts fragment 1's poses into
 /// fragment 0's world within the tracking noise of the truth.
 #[test]
@@ -641,8 +641,12 @@ fn a_new_fragment_rejoins_the_one_before_when_the_camera_comes_back() {
     cfg.tsdf.trunc_m = 0.05;
     cfg.new_fragment_after_s = Some(0.1);
     cfg.tracker.plane_fallback = false;
-    // Frames 0–7, then 19, 18, …, 8: the camera jumps 12 steps ahead and walks back.
-    let order: Vec<usize> = (0..8).chain((8..20).rev()).collect();
+    // Frames 0–7, then 19, 18, …, 8: the camera jumps 12 steps ahead and walks back, then rests
+    // at frame 8 (the suspended fragment is tried every sixth frame).
+    let order: Vec<usize> = (0..8)
+        .chain((8..20).rev())
+        .chain(std::iter::repeat_n(8, 8))
+        .collect();
     let seq: Vec<&DepthImage> = order.iter().map(|&i| &frames[i]).collect();
     let (out, finished, left) = reconstruct(cam, cfg, &seq);
     let statuses: Vec<_> = out.iter().map(|o| (o.0, o.2)).collect();
