@@ -414,7 +414,12 @@ impl Tracker {
         iterations += first.iterations;
         let mut recovered = false;
         let mut against_frame = false;
-        for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
+        // The damped starts: the prediction and the last good pose. After a few lost frames
+        // the prediction is the last good pose with the same prior (the velocity is
+        // forgotten), and the same start would give the same result: it runs once.
+        let starts = [(predicted, predicted_var), (last, unknown_var)];
+        let distinct = if starts[0] == starts[1] { 1 } else { 2 };
+        for &(start, var) in &starts[..distinct] {
             if first.failure.is_none() {
                 break;
             }
@@ -432,7 +437,7 @@ impl Tracker {
         // frames. Try the last good frame before the plane fallback.
         if first.failure.is_some() && model.is_some() {
             self.refresh_last_ref();
-            for (start, var) in [(predicted, predicted_var), (last, unknown_var)] {
+            for &(start, var) in &starts[..distinct] {
                 let again = self.align(&start, &self.last_ref, var, true);
                 iterations += again.iterations;
                 if again.failure.is_none() {
