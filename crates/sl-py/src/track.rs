@@ -40,7 +40,7 @@ type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 /// lost, a new fragment starts (its own volume and world frame, its first camera; ``fragment``,
 /// ``frame_fragments``, ``extract_mesh(fragment=k)``), as ``sldepth track
 /// --new-fragment-after-s``; ``None`` never starts one. The fragment that stayed lost is tried
-/// with every later frame; when the camera comes back to it, tracking goes on there and the
+/// every sixth frame interval; when the camera comes back to it, tracking goes on there and the
 /// newer fragment is joined to it (``joins``).
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]

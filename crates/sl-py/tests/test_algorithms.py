@@ -281,6 +281,18 @@ def test_a_camera_carried_elsewhere_goes_on_in_a_new_fragment(kinect):
         sldepth.Tracker(kinect, new_fragment_after_s=0.0)
 
 
+def test_track_sequence_moves_joined_fragments_into_the_older_world():
+    from sldepth import _poses_in_joined_worlds
+
+    shift = np.eye(4)
+    shift[:3, 3] = [1.0, 2.0, 3.0]
+    poses = np.stack([np.eye(4)] * 4)
+    out = _poses_in_joined_worlds(poses, [0, 1, 1, 2], [(1, 0, shift)])
+    assert np.array_equal(out[0], np.eye(4)) and np.array_equal(out[3], np.eye(4))
+    assert np.array_equal(out[1], shift) and np.array_equal(out[2], shift)
+    assert np.array_equal(poses[1], np.eye(4)), "the input is not modified"
+
+
 def test_a_resampled_camera_tracks_decimated_frames(kinect):
     # A QVGA stream of the VGA sensor: intrinsics halved, the sensor's noise model kept.
     half = kinect.resampled(0.5)

@@ -83,7 +83,9 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     pose), ``statuses`` the N status strings of ``Tracker.track``, and the ``Tracker`` itself,
     whose ``extract_mesh()`` is the fused model. When tracking stays lost the sequence goes on
     in a new fragment with its own world frame: ``tracker.frame_fragments`` gives each frame's
-    fragment, ``tracker.extract_mesh(fragment=k)`` each fragment's mesh.
+    fragment, ``tracker.extract_mesh(fragment=k)`` each fragment's mesh. The poses of a fragment
+    that rejoined an older one (``tracker.joins``) are returned in that one's world, as
+    ``sldepth track`` writes them; those of a fragment that never rejoined one are in its own.
     """
     import numpy as np
 
@@ -109,4 +111,22 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
         poses.append(pose)
         statuses.append(status)
     stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
+    stacked = _poses_in_joined_worlds(stacked, tracker.frame_fragments, tracker.joins)
     return stacked, statuses, tracker
+
+
+def _poses_in_joined_worlds(poses, frame_fragments, joins):
+    """Moves the poses of frames in a fragment that rejoined an older one into that one's world.
+
+    ``poses`` (N, 4, 4), ``frame_fragments`` the fragment of each frame, ``joins`` the
+    ``Tracker.joins`` list of ``(fragment, into, transform)``. Returns a new array.
+    """
+    import numpy as np
+
+    out = np.array(poses, dtype=np.float64, copy=True)
+    into = {f: (j, np.asarray(t, dtype=np.float64)) for f, j, t in joins}
+    for i, f in enumerate(frame_fragments):
+        # A fragment rejoins the one suspended before it, which was live then: one step.
+        if f in into:
+            out[i] = into[f][1] @ out[i]
+    return out
