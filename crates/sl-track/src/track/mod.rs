@@ -21,7 +21,12 @@
 //! ([`TrackStatus::TrackedAgainstFrame`]); then from the verified plane-based estimate between
 //! the last good frame and this one ([`crate::motion_between_depths`]). When all fail the frame
 //! is [`TrackStatus::Lost`] with the last good pose — never a pose it could not check — and the
-//! next frames are aligned against the last good reference again (relocalisation).
+//! next frames are aligned against the last good reference again (relocalisation). A frame that
+//! relocalises is aligned again from the last good pose turned ±3° about the camera's horizontal
+//! and vertical axes, and the fit with the lowest robust objective over all its points is kept:
+//! from one start, point-to-plane ICP can settle in a wrong minimum that trades a rotation for a
+//! translation and still passes every check. [`crate::Reconstruction`] builds fragments on top
+//! of this when the relocalisation does not come.
 
 mod config;
 mod model;
