@@ -125,7 +125,8 @@ pub struct FragmentJoin {
 /// Wall-clock time of a step's stages, milliseconds.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepTimings {
-    /// Tracking (both attempts when the frame started a new fragment).
+    /// Tracking, with the try of the suspended fragment and the second attempt of a frame that
+    /// started a new fragment.
     pub track_ms: f64,
     /// Fusing the frame (`None`: not tracked, not fused).
     pub integrate_ms: Option<f64>,
@@ -142,8 +143,9 @@ pub struct Step {
     pub result: FrameResult,
     /// The fragment the frame belongs to.
     pub fragment: usize,
-    /// The fragment this frame closed, when it started a new one (its volume is the caller's
-    /// now: extract its mesh or drop it).
+    /// The fragment this frame handed over: the current one when the frame went back to the
+    /// suspended one (joined to it), or the suspended one when the frame started a new fragment.
+    /// Its volume is the caller's now: extract its mesh or drop it.
     pub finished: Option<Fragment>,
     /// Where the time went.
     pub timings: StepTimings,
@@ -188,8 +190,9 @@ pub struct Reconstruction {
     cfg: ReconstructionConfig,
     /// The fragment frames are tracked and fused in.
     current: Live,
-    /// The fragment before it, while the camera may still come back to it: every frame is also
-    /// aligned to its model from its last good pose (its tracker's relocalisation).
+    /// The fragment before it, while the camera may still come back to it: every
+    /// [`REJOIN_EVERY_INTERVALS`] a frame is also aligned to its model from its last good pose
+    /// (its tracker's relocalisation).
     suspended: Option<Live>,
     /// The index of the next fragment to start.
     next_index: usize,
@@ -237,18 +240,10 @@ impl Live {
         })
     }
 
-    /// Tracks `depth` against the model (or the last frame).
-    fn track(
-        &mut self,
-        depth: &DepthImage,
-        timestamp_s: Option<f64>,
-        frame_to_model: bool,
-    ) -> Result<FrameResult> {
-        let model = if frame_to_model {
-            self.model.maps()
-        } else {
-            None
-        };
+    /// Tracks `depth` against the model, or against the last frame before the model's first
+    /// rendering (never rendered when tracking frame to frame).
+    fn track(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<FrameResult> {
+        let model = self.model.maps();
         match timestamp_s {
             Some(t) => self.tracker.track_at(depth, model, t),
             None => self.tracker.track(depth, model),
@@ -295,22 +290,19 @@ impl Reconstruction {
     /// ([`TsdfConfig::memory_budget_bytes`]).
     pub fn step(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
         let t0 = Instant::now();
-        let frame_interval_s = self.cfg.tracker.frame_interval_s;
         let intervals = match (timestamp_s, self.last_time_s) {
-            (Some(t), Some(p)) => ((t - p) / frame_interval_s).round().clamp(1.0, 1e9) as u64,
+            (Some(t), Some(p)) => u64::from(self.cfg.tracker.whole_intervals(t - p)),
             _ => 1,
         };
-        let to_model = self.cfg.frame_to_model;
-        let mut result = self.current.track(depth, timestamp_s, to_model)?;
+        let mut result = self.current.track(depth, timestamp_s)?;
         if timestamp_s.is_some() {
             self.last_time_s = timestamp_s;
         }
         let mut finished = None;
-        let mut rejoined = false;
         self.rejoin_wait = self.rejoin_wait.saturating_sub(intervals);
         if let Some(old) = self.suspended.as_mut().filter(|_| self.rejoin_wait == 0) {
             self.rejoin_wait = REJOIN_EVERY_INTERVALS;
-            let back = old.track(depth, timestamp_s, to_model)?;
+            let back = old.track(depth, timestamp_s)?;
             if back.status.is_tracked() {
                 // The camera is back where the fragment before was lost: go on there. The
                 // fragment that ends is related to it through this frame's two poses.
@@ -323,19 +315,18 @@ impl Reconstruction {
                     finished = Some(ended.into_fragment(joined));
                 }
                 result = back;
-                rejoined = true;
             }
         }
         if result.status.is_tracked() {
             self.failed_intervals = 0;
-        } else if result.iterations > 0 && !rejoined {
+        } else if result.iterations > 0 {
+            // (A rejoined frame is tracked: this is the current fragment's failure.)
             self.failed_intervals = self.failed_intervals.saturating_add(intervals);
             let limit = self
                 .cfg
                 .new_fragment_after_s
-                .map(|s| (s / frame_interval_s).round().max(1.0));
-            if self.current.tracked > 0 && limit.is_some_and(|l| self.failed_intervals as f64 >= l)
-            {
+                .map(|s| u64::from(self.cfg.tracker.whole_intervals(s)));
+            if self.current.tracked > 0 && limit.is_some_and(|l| self.failed_intervals >= l) {
                 let fresh = Live::new(self.next_index, &self.camera, &self.cfg)?;
                 self.next_index += 1;
                 self.failed_intervals = 0;
@@ -344,7 +335,7 @@ impl Reconstruction {
                 // The fragment that stayed lost may still be rejoined; the one suspended before
                 // it no longer (one suspended fragment at a time bounds memory and time).
                 finished = self.suspended.replace(ended).map(|f| f.into_fragment(None));
-                result = self.current.track(depth, timestamp_s, to_model)?;
+                result = self.current.track(depth, timestamp_s)?;
             }
         }
         let track_ms = ms_since(t0);
@@ -355,7 +346,7 @@ impl Reconstruction {
             let live = &mut self.current;
             live.volume.integrate(depth, &k, &result.pose)?;
             integrate_ms = Some(ms_since(t1));
-            if to_model {
+            if self.cfg.frame_to_model {
                 let t2 = Instant::now();
                 live.model.update_from_frame(
                     &live.volume,

@@ -267,6 +267,14 @@ impl TrackerConfig {
         }
     }
 
+    /// A time span in whole frame intervals ([`TrackerConfig::frame_interval_s`], rounded: the
+    /// jitter of a driver's timestamps is not time), at least 1 and at most an hour of frames.
+    pub fn whole_intervals(&self, span_s: f64) -> u32 {
+        (span_s / self.frame_interval_s)
+            .round()
+            .clamp(1.0, 108_000.0) as u32
+    }
+
     /// Variance per axis of the camera's departure from the constant-velocity prediction
     /// over one frame, `(max_acceleration_m_s2 · frame_interval_s²)²`, m².
     pub fn acceleration_variance_m2(&self) -> f64 {

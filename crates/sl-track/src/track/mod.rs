@@ -599,12 +599,8 @@ impl Tracker {
                 timestamp_s: t,
             });
         }
-        Ok(previous.map_or(1, |p| {
-            // At most an hour of frames; the prediction itself stops at 31 intervals.
-            ((t - p) / self.cfg.frame_interval_s)
-                .round()
-                .clamp(1.0, 108_000.0) as u32
-        }))
+        // At most an hour of frames; the prediction itself stops at 31 intervals.
+        Ok(previous.map_or(1, |p| self.cfg.whole_intervals(t - p)))
     }
 
     /// The pyramid level the degenerate-view check runs on: 1 (half resolution; a plane's

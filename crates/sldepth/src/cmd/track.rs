@@ -207,20 +207,22 @@ enum Row {
     Skipped(String),
 }
 
-/// Per fragment (by index): the fragment it rejoined and the transform into that one's world.
-type Joins = [Option<sl_track::FragmentJoin>];
-
 /// The fragment whose world frame fragment `f`'s poses are written in, and the transform there.
-fn world_of(f: usize, joins: &Joins) -> (usize, Option<WorldToWorld>) {
-    match joins.get(f).copied().flatten() {
+fn world_of(f: usize, fragments: &[FragmentOut]) -> (usize, Option<WorldToWorld>) {
+    match fragments.get(f).and_then(|o| o.joined) {
         Some(j) => (j.into, Some(j.transform)),
         None => (f, None),
     }
 }
 
 /// The pose of a row of fragment `f` in the world of fragment `world`, if it belongs there.
-fn pose_in(p: &CameraToWorld, f: usize, world: usize, joins: &Joins) -> Option<CameraToWorld> {
-    match world_of(f, joins) {
+fn pose_in(
+    p: &CameraToWorld,
+    f: usize,
+    world: usize,
+    fragments: &[FragmentOut],
+) -> Option<CameraToWorld> {
+    match world_of(f, fragments) {
         (w, t) if w == world => Some(t.map_or(*p, |t| t * *p)),
         _ => None,
     }
@@ -228,7 +230,7 @@ fn pose_in(p: &CameraToWorld, f: usize, world: usize, joins: &Joins) -> Option<C
 
 /// The TUM trajectory in fragment `world`'s frame: its poses and those of the fragments that
 /// rejoined it, the other frames as comments.
-fn tum_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
+fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> String {
     let mut s = String::from("# sldepth track: timestamp tx ty tz qx qy qz qw (camera to world)\n");
     if world > 0 {
         let _ = writeln!(
@@ -238,7 +240,7 @@ fn tum_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
     }
     for (t, row) in rows {
         match row {
-            Row::Pose(p, f) => match pose_in(p, *f, world, joins) {
+            Row::Pose(p, f) => match pose_in(p, *f, world, fragments) {
                 None => {
                     let _ = writeln!(s, "# {t:.6} in fragment {f}");
                 }
@@ -264,12 +266,12 @@ fn tum_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
 }
 
 /// The Open3D `.log` of the tracked frames in fragment `world`'s frame.
-fn log_text(rows: &[(f64, Row)], world: usize, joins: &Joins) -> String {
+fn log_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> String {
     let n = rows.len();
     let mut s = String::new();
     for (i, (_, row)) in rows.iter().enumerate() {
         if let Row::Pose(p, f) = row
-            && let Some(p) = pose_in(p, *f, world, joins)
+            && let Some(p) = pose_in(p, *f, world, fragments)
         {
             let m = p.to_matrix();
             let _ = writeln!(s, "{i} {i} {n}");
@@ -308,6 +310,8 @@ fn fragment_path(path: &Path, fragment: usize) -> PathBuf {
 struct FragmentOut {
     first_frame: usize,
     tracked: usize,
+    /// The fragment it rejoined and the transform into that one's world.
+    joined: Option<sl_track::FragmentJoin>,
     mesh: Option<WrittenMesh>,
 }
 
@@ -316,12 +320,14 @@ impl FragmentOut {
         Self {
             first_frame,
             tracked: 0,
+            joined: None,
             mesh: None,
         }
     }
 
     fn finish(&mut self, done: &sl_track::Fragment, mesh: Option<WrittenMesh>) {
         self.tracked = done.tracked_frames;
+        self.joined = done.joined;
         self.mesh = mesh;
     }
 }
@@ -477,7 +483,6 @@ pub fn run(args: Args) -> Result<()> {
     let mut skipped_frames = Vec::new();
     // Per fragment: its first frame, and its mesh once written.
     let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
-    let mut joins: Vec<Option<sl_track::FragmentJoin>> = vec![None];
     let wall = Instant::now();
     let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
@@ -528,7 +533,6 @@ pub fn run(args: Args) -> Result<()> {
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
         if step.fragment >= fragments.len() {
             fragments.push(FragmentOut::starting_at(i));
-            joins.push(None);
             errln!(
                 "frame {i}: lost for over {} s, fragment {} starts",
                 args.new_fragment_after_s,
@@ -539,9 +543,6 @@ pub fn run(args: Args) -> Result<()> {
             let mesh = write_fragment_mesh(&args, done, params.memory_budget_bytes)?;
             if let Some(out) = fragments.get_mut(done.index) {
                 out.finish(done, mesh);
-            }
-            if let Some(j) = joins.get_mut(done.index) {
-                *j = done.joined;
             }
             if done.index > step.fragment {
                 errln!(
@@ -600,15 +601,21 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     // One trajectory per world frame: fragment 0's, and each fragment's that rejoined none.
-    for (index, _) in fragments.iter().enumerate() {
-        if joins.get(index).copied().flatten().is_some() {
+    for (index, out) in fragments.iter().enumerate() {
+        if out.joined.is_some() {
             continue;
         }
         if let Some(p) = &args.output {
-            write_text(&fragment_path(p, index), &tum_text(&rows, index, &joins))?;
+            write_text(
+                &fragment_path(p, index),
+                &tum_text(&rows, index, &fragments),
+            )?;
         }
         if let Some(p) = &args.output_log {
-            write_text(&fragment_path(p, index), &log_text(&rows, index, &joins))?;
+            write_text(
+                &fragment_path(p, index),
+                &log_text(&rows, index, &fragments),
+            )?;
         }
     }
     // The JSON's vertex and triangle counts are fragment 0's (the whole run's when there is
@@ -645,12 +652,12 @@ pub fn run(args: Args) -> Result<()> {
             "vertices": mesh_size.map(|m| m.0),
             "triangles": mesh_size.map(|m| m.1),
             "fragments": fragments.iter().enumerate().map(|(index, f)| {
-                let world = world_of(index, &joins).0;
+                let world = world_of(index, &fragments).0;
                 serde_json::json!({
                     "index": index,
                     "first_frame": f.first_frame,
                     "tracked": f.tracked,
-                    "joined_into": joins.get(index).copied().flatten().map(|j| j.into),
+                    "joined_into": f.joined.map(|j| j.into),
                     "world": world,
                     "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
                     "mesh": f.mesh.as_ref().map(|m| m.path.display().to_string()),
@@ -675,10 +682,10 @@ pub fn run(args: Args) -> Result<()> {
                 "{} fragments (tracked frames: {:?}; rejoined: {:?})",
                 fragments.len(),
                 fragments.iter().map(|f| f.tracked).collect::<Vec<_>>(),
-                joins
+                fragments
                     .iter()
                     .enumerate()
-                    .filter_map(|(k, j)| j.map(|j| (k, j.into)))
+                    .filter_map(|(k, f)| f.joined.map(|j| (k, j.into)))
                     .collect::<Vec<_>>()
             );
         }
