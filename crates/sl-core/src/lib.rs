@@ -5,7 +5,8 @@
 //! and [`DisparityImage`] (pixels) with 0 as the invalid value, back-projection to points, the
 //! geometry vocabulary of the workspace ([`Plane`] with the one plane fit [`fit_plane`], [`Mesh`])
 //! and rigid camera poses typed by direction ([`CameraToWorld`], [`WorldToCamera`],
-//! [`CameraToCamera`], [`WorldToWorld`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
+//! [`CameraToCamera`], [`WorldToWorld`]), and the instruction sets ([`Isa`]) hot loops are
+//! compiled for, chosen at run time ([`Isa::run`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
 //! crates) speaks these types. `sl-core` does no I/O.
 //!
 //! ```
@@ -30,6 +31,7 @@ pub mod camera;
 pub mod error;
 pub mod image;
 pub mod intrinsics;
+pub mod isa;
 pub mod lens;
 pub mod mesh;
 pub mod plane;
@@ -42,6 +44,7 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
+pub use isa::{Isa, IsaKernel};
 pub use lens::{LensDistortion, Undistorter};
 pub use mesh::{Mesh, Topology, VertexScalar};
 pub use plane::{Plane, PlaneFit, fit_plane};

@@ -114,57 +114,7 @@ impl RangeMode for Adaptive {
     }
 }
 
-/// Instruction set used by the kernel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Isa {
-    /// Portable code (whatever the compile target allows; SSE2 on a default x86-64 build).
-    Portable,
-    /// AVX2 + FMA, 16 lanes.
-    Avx2,
-    /// AVX-512F + DQ: the range filters' 3×3, 5×5 and 7×7 windows use an explicit AVX-512
-    /// kernel (the `kernel` module), the rest the compiler-vectorised code with 32 lanes.
-    Avx512,
-}
-
-impl Isa {
-    /// The best instruction set this CPU supports.
-    pub fn detect() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512dq")
-                && std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                return Isa::Avx512;
-            }
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-            {
-                return Isa::Avx2;
-            }
-        }
-        Isa::Portable
-    }
-
-    /// Whether this CPU can run `self`.
-    pub fn is_supported(self) -> bool {
-        match self {
-            Isa::Portable => true,
-            Isa::Avx2 => matches!(Isa::detect(), Isa::Avx2 | Isa::Avx512),
-            Isa::Avx512 => Isa::detect() == Isa::Avx512,
-        }
-    }
-
-    /// Short name (`portable`, `avx2`, `avx512`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Isa::Portable => "portable",
-            Isa::Avx2 => "avx2",
-            Isa::Avx512 => "avx512",
-        }
-    }
-}
+pub use sl_core::Isa;
 
 /// The input of one filter run: the depth image plus how to map it into the padded buffers.
 #[derive(Clone, Copy, Debug)]

@@ -698,3 +698,52 @@ fn a_new_fragment_rejoins_the_one_before_when_the_camera_comes_back() {
         );
     }
 }
+
+/// The tracker's association pass and the fusion's voxel update run compiled for every
+/// instruction set this CPU has (`TrackerConfig::isa`, `TsdfConfig::isa`): the poses, the
+/// statistics and every voxel of the fused volume are bit-identical to the portable code's.
+#[test]
+fn every_instruction_set_reconstructs_bit_identically() {
+    let (cam, _, frames) = sequence(8, 31);
+    let run = |isa: sl_core::Isa| {
+        let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+        cfg.tracker.isa = isa;
+        cfg.tsdf.isa = isa;
+        cfg.tsdf.voxel_m = 0.01;
+        let refs: Vec<&DepthImage> = frames.iter().collect();
+        let mut rec = Reconstruction::new(cam, cfg).unwrap();
+        let mut poses = Vec::new();
+        for (i, d) in refs.iter().enumerate() {
+            let step = rec.step(d, Some(i as f64 / 30.0)).unwrap();
+            let r = step.result;
+            poses.push((r.status, r.pose, r.iterations, r.inlier_fraction.to_bits()));
+        }
+        let vol = rec.volume();
+        let mut voxels: Vec<([i32; 3], Vec<u32>)> = vol
+            .block_coords()
+            .map(|b| {
+                let blk = vol.block(b).unwrap();
+                let bits = blk
+                    .tsdf
+                    .iter()
+                    .chain(blk.weight.iter())
+                    .map(|v| v.to_bits())
+                    .collect();
+                (b, bits)
+            })
+            .collect();
+        voxels.sort();
+        (poses, voxels)
+    };
+    let (base_poses, base_voxels) = run(sl_core::Isa::Portable);
+    assert!(
+        base_poses.iter().filter(|p| p.0.is_tracked()).count() >= 7,
+        "{base_poses:?}"
+    );
+    assert!(base_voxels.len() > 100, "{} blocks", base_voxels.len());
+    for isa in sl_core::Isa::ALL.into_iter().filter(|i| i.is_supported()) {
+        let (poses, voxels) = run(isa);
+        assert_eq!(poses, base_poses, "{isa}: poses differ");
+        assert!(voxels == base_voxels, "{isa}: the fused volume differs");
+    }
+}

@@ -1,6 +1,6 @@
 //! Fusion parameters: voxel size, truncation band, weighting scheme and memory budget.
 
-use sl_core::SensorModel;
+use sl_core::{Isa, SensorModel};
 
 use crate::error::{Result, TsdfError};
 
@@ -280,6 +280,10 @@ pub struct TsdfConfig {
     /// Memory the voxel blocks and their index may use, bytes. Integration that would exceed it
     /// fails with [`TsdfError::MemoryBudget`] and leaves the volume unchanged.
     pub memory_budget_bytes: usize,
+    /// The instruction set of the voxel update: by default the widest this CPU supports
+    /// ([`Isa::detect`]). Every instruction set gives bit-identical volumes (the update is
+    /// elementwise); a narrower one is for benchmarks.
+    pub isa: Isa,
 }
 
 /// The former name of [`TsdfConfig`].
@@ -301,6 +305,7 @@ impl Default for TsdfConfig {
             min_depth_m: 0.1,
             max_weight: 1.0e6,
             memory_budget_bytes: 4 << 30,
+            isa: Isa::detect(),
         }
     }
 }

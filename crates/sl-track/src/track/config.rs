@@ -1,5 +1,7 @@
 //! [`TrackerConfig`] and [`WeightMode`].
 
+use sl_core::Isa;
+
 use crate::depth_motion::DepthMotionConfig;
 use crate::error::{Result, TrackError};
 
@@ -144,6 +146,11 @@ pub struct TrackerConfig {
     pub frame_interval_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,
+    /// The instruction set the alignment's inner loop is run with: by default the widest this
+    /// CPU supports ([`Isa::detect`]). Every instruction set gives bit-identical poses (the
+    /// loop's arithmetic is elementwise and its sums are added in the same order); a narrower
+    /// one is for benchmarks.
+    pub isa: Isa,
 }
 
 impl Default for TrackerConfig {
@@ -170,6 +177,7 @@ impl Default for TrackerConfig {
             max_acceleration_m_s2: 9.81,
             frame_interval_s: 1.0 / 30.0,
             fallback: DepthMotionConfig::default(),
+            isa: Isa::detect(),
         }
     }
 }

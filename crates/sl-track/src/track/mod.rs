@@ -28,6 +28,7 @@
 //! translation and still passes every check. [`crate::Reconstruction`] builds fragments on top
 //! of this when the relocalisation does not come.
 
+mod associate;
 mod config;
 mod model;
 mod pyramid;

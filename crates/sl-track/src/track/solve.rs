@@ -7,9 +7,10 @@ use nalgebra::{
     Vector6,
 };
 use rayon::prelude::*;
-use sl_core::SensorModel;
+use sl_core::{IsaKernel, SensorModel};
 
-use super::pyramid::Level;
+use super::associate::{PassConsts, RowSums, row_sums};
+use super::pyramid::{Level, PointAux};
 use super::reference::ReferenceMaps;
 use super::{TrackerConfig, WeightMode};
 
@@ -92,40 +93,6 @@ impl Sums {
     }
 }
 
-/// One image row's share of [`Sums`], accumulated in `f32` (four products per SIMD
-/// instruction where `f64` gives two) and added to the block's `f64` sums at the end of the
-/// row. A row holds at most a few thousand terms, so the `f32` partial sums carry a relative
-/// error of about 10⁻⁶ — far below the noise of the data they sum — while the `f64` block and
-/// image sums keep the totals exact to the last digits that matter.
-#[derive(Debug, Clone, Copy, Default)]
-struct RowSums {
-    h: [f32; 21],
-    g: [f32; 6],
-    valid: u32,
-    associated: u32,
-    inliers: u32,
-    chi2: f32,
-    r2_m2: f32,
-    /// Σ of `huber(r/σ) − cap` over the inliers (the cap per associated point is added as a
-    /// count).
-    loss_below_cap: f32,
-}
-
-impl RowSums {
-    #[inline(always)]
-    fn accumulate(&mut self, j: &[f32; 6], r: f32, w: f32) {
-        let mut k = 0;
-        for a in 0..6 {
-            let wa = w * j[a];
-            for jb in &j[a..] {
-                self.h[k] += wa * jb;
-                k += 1;
-            }
-            self.g[a] += wa * r;
-        }
-    }
-}
-
 impl Sums {
     /// Adds a row's partial sums; `cap` is the loss of an associated point outside the gates.
     fn add_row(&mut self, r: &RowSums, cap: f64) {
@@ -171,26 +138,33 @@ pub(crate) fn pass(
         return Sums::zero();
     };
     let w = k.width;
-    let rot = mat3(&pose.rotation.to_rotation_matrix().into_inner());
-    let tr = vec3(&pose.translation.vector);
     let to_ref = reference.pose.isometry().inverse();
     // Frame point to reference camera in one transform: `M = R_ref·R`, `m = R_ref·t + t_ref`.
     let to_ref_frame = to_ref * pose;
-    let m = mat3(&to_ref_frame.rotation.to_rotation_matrix().into_inner());
-    let tm = vec3(&to_ref_frame.translation.vector);
     let kr = &reference.intrinsics;
-    let (fx, fy, cx, cy) = (kr.fx as f32, kr.fy as f32, kr.cx as f32, kr.cy as f32);
     // Image sides are at most 2^16 (`Intrinsics::validate`), so `n − 0.5` is exact.
-    let (rw, rh) = (kr.width as f32, kr.height as f32);
-    let gate_sigmas = cfg.gate_sigmas as f32;
-    let huber_k = cfg.huber_k as f32;
-    let uniform_sigma = sensor.sigma_z(cfg.z_ref_m) as f32;
-    let inv_var = cfg.weighting == WeightMode::InvVar;
-    let ctr = vec3(centre);
+    let consts = PassConsts {
+        rot: mat3(&pose.rotation.to_rotation_matrix().into_inner()),
+        tr: vec3(&pose.translation.vector),
+        m: mat3(&to_ref_frame.rotation.to_rotation_matrix().into_inner()),
+        tm: vec3(&to_ref_frame.translation.vector),
+        fx: kr.fx as f32,
+        fy: kr.fy as f32,
+        cx: kr.cx as f32,
+        cy: kr.cy as f32,
+        rw: kr.width as f32,
+        rh: kr.height as f32,
+        gate_sigmas: cfg.gate_sigmas as f32,
+        huber_k: cfg.huber_k as f32,
+        uniform_sigma: sensor.sigma_z(cfg.z_ref_m) as f32,
+        inv_var: cfg.weighting == WeightMode::InvVar,
+        ctr: vec3(centre),
+        cap: huber_loss(cfg.gate_sigmas, cfg.huber_k) as f32,
+        allowance: p.allowance_m,
+        min_cos: p.min_cos,
+        reference,
+    };
     let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
-    let cap32 = cap as f32;
-    let allowance = p.allowance_m;
-    let min_cos = p.min_cos;
     let stride = p.stride.max(1);
     // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
     // result does not depend on how rayon splits the work, so a sequence tracks identically
@@ -203,91 +177,16 @@ pub(crate) fn pass(
         .zip(level.aux.par_chunks(block))
         .enumerate()
         .map(|(bi, ((pblock, nblock), ablock))| {
-            let mut block_sums = Sums::zero();
-            // The rows whose index in the level is a multiple of the stride.
-            for (_, ((prow, nrow), arow)) in pblock
-                .chunks(w.max(1))
-                .zip(nblock.chunks(w.max(1)))
-                .zip(ablock.chunks(w.max(1)))
-                .enumerate()
-                .filter(|(r, _)| (bi * ROWS_PER_BLOCK + r).is_multiple_of(stride))
-            {
-                let mut s = RowSums::default();
-                for ((pc, nc), aux) in prow.iter().zip(nrow).zip(arow).step_by(stride) {
-                    if !nc.x.is_finite() {
-                        continue;
-                    }
-                    s.valid += 1;
-                    let pc = [pc.x, pc.y, pc.z];
-                    let xr = affine(&m, &tm, &pc);
-                    if xr[2] <= 0.0 {
-                        continue;
-                    }
-                    let iz = 1.0 / xr[2];
-                    let (Some(u), Some(v)) = (
-                        round_index(fx * xr[0] * iz + cx, rw),
-                        round_index(fy * xr[1] * iz + cy, rh),
-                    ) else {
-                        continue;
-                    };
-                    let j = v * kr.width + u;
-                    let Some(nr) = reference.normals.get(j) else {
-                        continue;
-                    };
-                    if !nr.x.is_finite() {
-                        continue;
-                    }
-                    let n = [nr.x, nr.y, nr.z];
-                    s.associated += 1;
-                    // The normal gate widens with the frame normals' own noise (precomputed per
-                    // point from the frame's focal length: `normal_gate_cos`), never tighter
-                    // than `min_cos`. The reference's resolution plays no part (a model
-                    // rendered at half resolution has smoother normals, not noisier ones).
-                    let cos_g = aux.cos_gate.min(min_cos);
-                    let nw = rotate(&rot, &[nc.x, nc.y, nc.z]);
-                    if dot(&nw, &n) < cos_g {
-                        continue;
-                    }
-                    let (Some(q), Some(&var_ref)) =
-                        (reference.points.get(j), reference.variance_m2.get(j))
-                    else {
-                        continue;
-                    };
-                    // The world point, and the ray's direction `R·p` (the centre's offset).
-                    let ray = rotate(&rot, &pc);
-                    let xw = [ray[0] + tr[0], ray[1] + tr[1], ray[2] + tr[2]];
-                    let diff = [xw[0] - q.x, xw[1] - q.y, xw[2] - q.z];
-                    let r = dot(&n, &diff);
-                    // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|.
-                    let cos = dot(&n, &ray) / aux.ray_len;
-                    let s_src = aux.cz2 * cos;
-                    let var = s_src * s_src + var_ref;
-                    let sigma = var.sqrt();
-                    let gate = gate_sigmas * sigma + allowance;
-                    let gate2 = 2.0 * gate;
-                    if !(r.abs() <= gate && dot(&diff, &diff) <= gate2 * gate2) {
-                        continue;
-                    }
-                    let scale = if inv_var { sigma } else { uniform_sigma };
-                    let e = (r / scale).abs();
-                    let hub = if e <= huber_k { 1.0 } else { huber_k / e };
-                    let wgt = hub / (scale * scale);
-                    let pl = [xw[0] - ctr[0], xw[1] - ctr[1], xw[2] - ctr[2]];
-                    let cr = [
-                        pl[1] * n[2] - pl[2] * n[1],
-                        pl[2] * n[0] - pl[0] * n[2],
-                        pl[0] * n[1] - pl[1] * n[0],
-                    ];
-                    s.accumulate(&[cr[0], cr[1], cr[2], n[0], n[1], n[2]], r, wgt);
-                    s.inliers += 1;
-                    let en = r / sigma;
-                    s.chi2 += en * en;
-                    s.loss_below_cap += huber_loss(en, huber_k).min(cap32) - cap32;
-                    s.r2_m2 += r * r;
-                }
-                block_sums.add_row(&s, cap);
-            }
-            block_sums
+            cfg.isa.run(BlockSums {
+                consts: &consts,
+                points: pblock,
+                normals: nblock,
+                aux: ablock,
+                width: w.max(1),
+                first_row: bi * ROWS_PER_BLOCK,
+                stride,
+                cap,
+            })
         })
         .collect();
     blocks.iter().fold(Sums::zero(), |a, b| a.add(b))
@@ -296,19 +195,41 @@ pub(crate) fn pass(
 /// Rows of a level summed by one task of [`pass`] (30 blocks at 640×480).
 const ROWS_PER_BLOCK: usize = 16;
 
-/// `x.round()` (half away from zero) as an index when it lies in `[0, n)`, else `None` (also
-/// for NaN): the same pixel as `f32::round` without its libm call (the baseline x86-64 target
-/// has no rounding instruction). `round(x) ≥ 0 ⇔ x > −0.5` and `round(x) < n ⇔ x < n − 0.5`
-/// for an integer `n < 2^23`; in between, truncation plus one where the fraction is at least
-/// one half (`x − trunc(x)` is exact).
-#[inline(always)]
-fn round_index(x: f32, n: f32) -> Option<usize> {
-    if !(x > -0.5 && x < n - 0.5) {
-        return None;
+/// The sums of one block of rows of a level (its rows whose index is a multiple of the
+/// stride), run with the tracker's instruction set.
+struct BlockSums<'a> {
+    consts: &'a PassConsts<'a>,
+    points: &'a [Point3<f32>],
+    normals: &'a [Vector3<f32>],
+    aux: &'a [PointAux],
+    width: usize,
+    /// The level's row index of the block's first row.
+    first_row: usize,
+    stride: usize,
+    /// The loss of an associated point outside the gates.
+    cap: f64,
+}
+
+impl IsaKernel for BlockSums<'_> {
+    type Output = Sums;
+
+    #[inline(always)]
+    fn run(self) -> Sums {
+        let mut block_sums = Sums::zero();
+        let w = self.width;
+        for (_, ((prow, nrow), arow)) in self
+            .points
+            .chunks(w)
+            .zip(self.normals.chunks(w))
+            .zip(self.aux.chunks(w))
+            .enumerate()
+            .filter(|(r, _)| (self.first_row + r).is_multiple_of(self.stride))
+        {
+            let s = row_sums(self.consts, prow, nrow, arow, self.stride);
+            block_sums.add_row(&s, self.cap);
+        }
+        block_sums
     }
-    let i = x as i32;
-    let r = i + i32::from(x - i as f32 >= 0.5);
-    usize::try_from(r).ok()
 }
 
 /// A rotation matrix as `f32`, row-major.
@@ -319,28 +240,6 @@ fn mat3(m: &nalgebra::Matrix3<f64>) -> [f32; 9] {
 /// A vector as `f32`.
 fn vec3(v: &Vector3<f64>) -> [f32; 3] {
     [v.x as f32, v.y as f32, v.z as f32]
-}
-
-/// `m·p` for a row-major 3×3 `m`.
-#[inline(always)]
-fn rotate(m: &[f32; 9], p: &[f32; 3]) -> [f32; 3] {
-    [
-        m[0] * p[0] + m[1] * p[1] + m[2] * p[2],
-        m[3] * p[0] + m[4] * p[1] + m[5] * p[2],
-        m[6] * p[0] + m[7] * p[1] + m[8] * p[2],
-    ]
-}
-
-/// `m·p + t`.
-#[inline(always)]
-fn affine(m: &[f32; 9], t: &[f32; 3], p: &[f32; 3]) -> [f32; 3] {
-    let r = rotate(m, p);
-    [r[0] + t[0], r[1] + t[1], r[2] + t[2]]
-}
-
-#[inline(always)]
-fn dot(a: &[f32; 3], b: &[f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// What the normal equations of one level are solved with besides the data: the data's

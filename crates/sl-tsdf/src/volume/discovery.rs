@@ -142,7 +142,7 @@ impl<'a> BandFrame<'a> {
 /// of the crossings: a pixel with the same end cells and order as its left neighbour adds
 /// nothing and is skipped. A scalar pass emits the cells of the remaining pixels (a DDA where
 /// an axis differs by more than one).
-#[inline(never)]
+#[inline(always)]
 pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Result<Vec<u64>> {
     let BandFrame {
         rot,

@@ -6,7 +6,7 @@
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use sl_core::{CameraToWorld, DepthView, Intrinsics};
+use sl_core::{CameraToWorld, DepthView, Intrinsics, IsaKernel};
 
 use super::discovery::*;
 use super::*;
@@ -102,9 +102,14 @@ impl TsdfVolume {
             .map(|_| AtomicBool::new(false))
             .collect();
         let index = &self.index;
+        let isa = self.params.isa;
         let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
             let used = pixels.fill(trows, drows, w);
-            let keys = band_rows(&band, trows, ci * BAND_ROWS)?;
+            let keys = isa.run(BandStrip {
+                frame: &band,
+                rows: trows,
+                y0: ci * BAND_ROWS,
+            })?;
             let mut new = Vec::new();
             for key in keys {
                 match index.get(&key) {
@@ -188,25 +193,75 @@ impl TsdfVolume {
             .first_chunk::<SMALL_TABLE>()
             .filter(|_| table.len() == SMALL_TABLE);
         let keys = &self.keys;
-        const CHUNK: usize = 64;
-        let items: Vec<_> = self.blocks.chunks_mut(CHUNK).enumerate().collect();
+        let isa = self.params.isa;
+        let items: Vec<_> = self.blocks.chunks_mut(UPDATE_CHUNK).enumerate().collect();
         run_on_threads(
             items,
             || (),
             |_, (ci, blocks): (usize, &mut [Block])| {
-                for (j, blk) in blocks.iter_mut().enumerate() {
-                    let i = ci * CHUNK + j;
-                    if !touched.get(i).copied().unwrap_or(false) {
-                        continue;
-                    }
-                    let b = unpack(keys[i]);
-                    match small {
-                        Some(t) => integrate_block(blk, b, &frame, t),
-                        None => integrate_block(blk, b, &frame, table),
-                    }
-                }
+                let first = ci * UPDATE_CHUNK;
+                isa.run(UpdateChunk {
+                    blocks,
+                    touched: touched.get(first..).unwrap_or(&[]),
+                    keys: keys.get(first..).unwrap_or(&[]),
+                    frame: &frame,
+                    small,
+                    table,
+                });
             },
         );
+    }
+}
+
+/// Block discovery over one strip of rows ([`band_rows`]), run with the volume's instruction
+/// set.
+struct BandStrip<'a, 'b> {
+    frame: &'a BandFrame<'b>,
+    rows: &'a [[f32; 2]],
+    /// Image row of the strip's first row.
+    y0: usize,
+}
+
+impl IsaKernel for BandStrip<'_, '_> {
+    type Output = Result<Vec<u64>>;
+
+    #[inline(always)]
+    fn run(self) -> Result<Vec<u64>> {
+        band_rows(self.frame, self.rows, self.y0)
+    }
+}
+
+/// Blocks of the arena updated by one task of [`TsdfVolume::integrate`].
+const UPDATE_CHUNK: usize = 64;
+
+/// The voxel update of one chunk of the block arena (the touched blocks among them), run with
+/// the volume's instruction set.
+struct UpdateChunk<'a> {
+    blocks: &'a mut [Block],
+    /// Whether each block of the chunk is touched, and its key (from the chunk's first).
+    touched: &'a [bool],
+    keys: &'a [u64],
+    frame: &'a FrameConsts,
+    /// The table when it has exactly `SMALL_TABLE` entries (indexed with a mask).
+    small: Option<&'a [[f32; 2]; SMALL_TABLE]>,
+    table: &'a [[f32; 2]],
+}
+
+impl IsaKernel for UpdateChunk<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        for ((blk, &touched), &key) in self.blocks.iter_mut().zip(self.touched).zip(self.keys) {
+            if !touched {
+                continue;
+            }
+            let b = unpack(key);
+            match self.small {
+                Some(t) => integrate_block(blk, b, self.frame, t),
+                None => integrate_block(blk, b, self.frame, self.table),
+            }
+        }
     }
 }
 
@@ -344,7 +399,7 @@ pub(super) fn integrate_block<T: PixelTable + ?Sized>(
 
 /// [`integrate_block`] with the block's origin in camera coordinates; `CHECK_Z`: voxels may
 /// be behind the camera.
-#[inline(never)]
+#[inline(always)]
 pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     blk: &mut Block,
     origin: &Vector3<f32>,

@@ -313,3 +313,57 @@ fn voxel_addressing() {
     assert_eq!(vol.voxel([-1, 0, 0]), None);
     assert_eq!(vol.block_count(), 0);
 }
+
+/// Discovery and the voxel update run with every instruction set this CPU has
+/// (`TsdfConfig::isa`) and give the same blocks and voxels, bit for bit, on frames of random
+/// patches from moving poses (voxels behind the camera and off the image included).
+#[test]
+fn every_instruction_set_fuses_bit_identically() {
+    let k = Intrinsics::new(160, 120, 145.0, 145.0, 79.5, 59.5).unwrap();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let frames: Vec<(DepthImage, CameraToWorld)> = (0..4)
+        .map(|i| {
+            let d = random_frame(&mut rng, k.width, k.height, (0.4, 3.5));
+            let pose = Isometry3::new(
+                Vector3::new(0.04 * i as f64, -0.01 * i as f64, 0.02),
+                Vector3::new(0.02 * i as f64, 0.05 * i as f64, 0.0),
+            );
+            (
+                DepthImage::from_vec(k.width, k.height, d).unwrap(),
+                CameraToWorld::from_isometry(pose),
+            )
+        })
+        .collect();
+    let fuse = |isa: sl_core::Isa| {
+        let mut vol = TsdfVolume::new(TsdfConfig {
+            voxel_m: 0.01,
+            isa,
+            ..TsdfConfig::default()
+        })
+        .unwrap();
+        for (d, pose) in &frames {
+            vol.integrate(d, &k, pose).unwrap();
+        }
+        let mut out: Vec<(u64, Vec<u32>)> = vol
+            .keys
+            .iter()
+            .zip(&vol.blocks)
+            .map(|(&key, b)| {
+                let bits = b
+                    .tsdf
+                    .iter()
+                    .chain(&b.weight)
+                    .map(|v| v.to_bits())
+                    .collect();
+                (key, bits)
+            })
+            .collect();
+        out.sort();
+        out
+    };
+    let base = fuse(sl_core::Isa::Portable);
+    assert!(base.len() > 500, "{} blocks", base.len());
+    for isa in sl_core::Isa::ALL.into_iter().filter(|i| i.is_supported()) {
+        assert!(fuse(isa) == base, "{isa}: the volume differs");
+    }
+}

@@ -121,6 +121,12 @@ pub struct Args {
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
+    /// Instruction set of the tracker's and the fusion's inner loops, for benchmarks:
+    /// `portable`, `avx2` or `avx512` (default: the widest this CPU supports; one it does not
+    /// support falls back to the widest it does). Every choice gives the same trajectory and
+    /// mesh, bit for bit. The prefilter's kernels always use the widest.
+    #[arg(long, value_parser = ["portable", "avx2", "avx512"])]
+    pub isa: Option<String>,
     /// Start a new fragment (its own volume, mesh and world frame: its first camera) after
     /// this many seconds of frames that could be aligned but were lost (the camera has left the
     /// place where tracking was lost); frames without depth or with a degenerate view do not
@@ -446,6 +452,10 @@ pub fn run(args: Args) -> Result<()> {
     cfg.tracker.weighting = weighting;
     cfg.tracker.plane_fallback = !args.no_plane_fallback;
     cfg.tracker.finest_level = usize::from(args.finest_level);
+    if let Some(isa) = args.isa.as_deref().and_then(sl_core::Isa::from_name) {
+        cfg.tracker.isa = isa;
+        cfg.tsdf.isa = isa;
+    }
     cfg.tsdf.voxel_m = args.voxel_m;
     cfg.tsdf.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
     cfg.tsdf.truncation = match args.trunc_m {
