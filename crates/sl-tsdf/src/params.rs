@@ -280,9 +280,11 @@ pub struct TsdfConfig {
     /// Memory the voxel blocks and their index may use, bytes. Integration that would exceed it
     /// fails with [`TsdfError::MemoryBudget`] and leaves the volume unchanged.
     pub memory_budget_bytes: usize,
-    /// The instruction set of the voxel update: by default the widest this CPU supports
-    /// ([`Isa::detect`]). Every instruction set gives bit-identical volumes (the update is
-    /// elementwise); a narrower one is for benchmarks.
+    /// The instruction set of block discovery and the voxel update: by default the widest this
+    /// CPU supports ([`Isa::detect`]). [`Isa::Avx512`] runs them compiled for AVX-512 (about
+    /// 1.3× faster on an AMD EPYC); [`Isa::Avx2`] runs the portable code, since compiled for
+    /// AVX2 they were no faster there (docs/bench/track.md). Every choice gives bit-identical
+    /// volumes (the update is elementwise).
     pub isa: Isa,
 }
 

@@ -142,8 +142,18 @@ impl<'a> BandFrame<'a> {
 /// of the crossings: a pixel with the same end cells and order as its left neighbour adds
 /// nothing and is skipped. A scalar pass emits the cells of the remaining pixels (a DDA where
 /// an axis differs by more than one).
-#[inline(always)]
+#[inline(never)]
 pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Result<Vec<u64>> {
+    band_rows_inline(f, trows, y0)
+}
+
+/// [`band_rows`], inlined into its caller (the AVX-512 kernel of `integrate`).
+#[inline(always)]
+pub(super) fn band_rows_inline(
+    f: &BandFrame<'_>,
+    trows: &[[f32; 2]],
+    y0: usize,
+) -> Result<Vec<u64>> {
     let BandFrame {
         rot,
         t,

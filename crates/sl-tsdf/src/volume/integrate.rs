@@ -6,7 +6,7 @@
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
-use sl_core::{CameraToWorld, DepthView, Intrinsics, IsaKernel};
+use sl_core::{CameraToWorld, DepthView, Intrinsics, Isa, IsaKernel};
 
 use super::discovery::*;
 use super::*;
@@ -105,11 +105,15 @@ impl TsdfVolume {
         let isa = self.params.isa;
         let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
             let used = pixels.fill(trows, drows, w);
-            let keys = isa.run(BandStrip {
-                frame: &band,
-                rows: trows,
-                y0: ci * BAND_ROWS,
-            })?;
+            let keys = if isa == Isa::Avx512 {
+                isa.run(BandStrip {
+                    frame: &band,
+                    rows: trows,
+                    y0: ci * BAND_ROWS,
+                })?
+            } else {
+                band_rows(&band, trows, ci * BAND_ROWS)?
+            };
             let mut new = Vec::new();
             for key in keys {
                 match index.get(&key) {
@@ -200,14 +204,19 @@ impl TsdfVolume {
             || (),
             |_, (ci, blocks): (usize, &mut [Block])| {
                 let first = ci * UPDATE_CHUNK;
-                isa.run(UpdateChunk {
+                let chunk = UpdateChunk {
                     blocks,
                     touched: touched.get(first..).unwrap_or(&[]),
                     keys: keys.get(first..).unwrap_or(&[]),
                     frame: &frame,
                     small,
                     table,
-                });
+                };
+                if isa == Isa::Avx512 {
+                    isa.run(chunk);
+                } else {
+                    chunk.update::<false>();
+                }
             },
         );
     }
@@ -227,7 +236,7 @@ impl IsaKernel for BandStrip<'_, '_> {
 
     #[inline(always)]
     fn run(self) -> Result<Vec<u64>> {
-        band_rows(self.frame, self.rows, self.y0)
+        band_rows_inline(self.frame, self.rows, self.y0)
     }
 }
 
@@ -247,21 +256,30 @@ struct UpdateChunk<'a> {
     table: &'a [[f32; 2]],
 }
 
-impl IsaKernel for UpdateChunk<'_> {
-    type Output = ();
-
+impl UpdateChunk<'_> {
+    /// The update; `INLINE`: with the per-block kernel inlined (into the AVX-512 trampoline),
+    /// else through its one out-of-line copy.
     #[inline(always)]
-    fn run(self) {
+    fn update<const INLINE: bool>(self) {
         for ((blk, &touched), &key) in self.blocks.iter_mut().zip(self.touched).zip(self.keys) {
             if !touched {
                 continue;
             }
             let b = unpack(key);
             match self.small {
-                Some(t) => integrate_block(blk, b, self.frame, t),
-                None => integrate_block(blk, b, self.frame, self.table),
+                Some(t) => integrate_block_as::<_, INLINE>(blk, b, self.frame, t),
+                None => integrate_block_as::<_, INLINE>(blk, b, self.frame, self.table),
             }
         }
+    }
+}
+
+impl IsaKernel for UpdateChunk<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self) {
+        self.update::<true>();
     }
 }
 
@@ -376,8 +394,21 @@ impl PixelTable for [[f32; 2]] {
 
 /// Updates the 512 voxels of block `b` from one frame (`table`: per-pixel depth and weight
 /// with an invalid border, see [`PixelFn::fill`]).
+#[cfg(test)]
 #[inline(always)]
 pub(super) fn integrate_block<T: PixelTable + ?Sized>(
+    blk: &mut Block,
+    b: [i32; 3],
+    fc: &FrameConsts,
+    table: &T,
+) {
+    integrate_block_as::<T, false>(blk, b, fc, table);
+}
+
+/// [`integrate_block`]; `INLINE`: the voxel loop inlined into the caller instead of its
+/// out-of-line copy [`integrate_block_with`].
+#[inline(always)]
+fn integrate_block_as<T: PixelTable + ?Sized, const INLINE: bool>(
     blk: &mut Block,
     b: [i32; 3],
     fc: &FrameConsts,
@@ -390,17 +421,29 @@ pub(super) fn integrate_block<T: PixelTable + ?Sized>(
     let span = (BLOCK_SIDE - 1) as f32;
     let z_min = origin.z
         + span * ((fc.step_x.z).min(0.0) + (fc.step_y.z).min(0.0) + (fc.step_z.z).min(0.0));
-    if z_min > 0.0 {
-        integrate_block_with::<T, false>(blk, &origin, fc, table);
-    } else {
-        integrate_block_with::<T, true>(blk, &origin, fc, table);
+    match (z_min > 0.0, INLINE) {
+        (true, false) => integrate_block_with::<T, false>(blk, &origin, fc, table),
+        (false, false) => integrate_block_with::<T, true>(blk, &origin, fc, table),
+        (true, true) => voxel_update::<T, false>(blk, &origin, fc, table),
+        (false, true) => voxel_update::<T, true>(blk, &origin, fc, table),
     }
 }
 
 /// [`integrate_block`] with the block's origin in camera coordinates; `CHECK_Z`: voxels may
 /// be behind the camera.
-#[inline(always)]
+#[inline(never)]
 pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
+    blk: &mut Block,
+    origin: &Vector3<f32>,
+    fc: &FrameConsts,
+    table: &T,
+) {
+    voxel_update::<T, CHECK_Z>(blk, origin, fc, table);
+}
+
+/// The body of [`integrate_block_with`], inlined into its callers.
+#[inline(always)]
+fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     blk: &mut Block,
     origin: &Vector3<f32>,
     fc: &FrameConsts,
