@@ -55,29 +55,38 @@ fn bench(c: &mut Criterion) {
     let mut tcfg = TsdfConfig::default();
     tcfg.voxel_m = 0.008;
     tcfg.trunc_m = 0.04;
-    g.bench_function("step-track-integrate-raycast-8mm", |b| {
-        b.iter(|| {
-            let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
-            let mut vol = TsdfVolume::new(tcfg).unwrap();
-            let mut reference = ModelReference::new(
-                &k,
-                ModelReference::default_scale(&cam),
-                RaycastConfig::default(),
-            )
-            .unwrap();
-            let r0 = t.track(&fr[0], None).unwrap();
-            vol.integrate(&fr[0], &k, &r0.pose).unwrap();
-            reference
-                .update_from_frame(&vol, &r0.pose, &cam.sensor, &fr[0], &k)
+    // Once per instruction set this CPU has (`TrackerConfig::isa`, `TsdfConfig::isa`): the
+    // same poses and volume on every one, so only the time differs.
+    for isa in sl_core::Isa::ALL.into_iter().filter(|i| i.is_supported()) {
+        let mut tcfg = tcfg;
+        tcfg.isa = isa;
+        let mut track_cfg = TrackerConfig::default();
+        track_cfg.isa = isa;
+        let name = format!("step-track-integrate-raycast-8mm-{isa}");
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let mut t = Tracker::new(cam, track_cfg).unwrap();
+                let mut vol = TsdfVolume::new(tcfg).unwrap();
+                let mut reference = ModelReference::new(
+                    &k,
+                    ModelReference::default_scale(&cam),
+                    RaycastConfig::default(),
+                )
                 .unwrap();
-            let r1 = t.track(&fr[1], reference.maps()).unwrap();
-            vol.integrate(&fr[1], &k, &r1.pose).unwrap();
-            reference
-                .update_from_frame(&vol, &r1.pose, &cam.sensor, &fr[1], &k)
-                .unwrap();
-            black_box(r1)
-        })
-    });
+                let r0 = t.track(&fr[0], None).unwrap();
+                vol.integrate(&fr[0], &k, &r0.pose).unwrap();
+                reference
+                    .update_from_frame(&vol, &r0.pose, &cam.sensor, &fr[0], &k)
+                    .unwrap();
+                let r1 = t.track(&fr[1], reference.maps()).unwrap();
+                vol.integrate(&fr[1], &k, &r1.pose).unwrap();
+                reference
+                    .update_from_frame(&vol, &r1.pose, &cam.sensor, &fr[1], &k)
+                    .unwrap();
+                black_box(r1)
+            })
+        });
+    }
     g.finish();
 }
 
