@@ -91,8 +91,24 @@ impl Isa {
         Isa::ALL.into_iter().find(|i| i.name() == name)
     }
 
+    /// The instruction set [`Isa::run`] runs a kernel with when asked for `self`: `self`, or
+    /// the widest narrower set this CPU supports.
+    pub fn effective(self) -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if self == Isa::Avx512 && pulp::x86::V4::is_available() {
+                return Isa::Avx512;
+            }
+            if self != Isa::Portable && pulp::x86::V3::is_available() {
+                return Isa::Avx2;
+            }
+        }
+        Isa::Portable
+    }
+
     /// Runs `kernel` compiled for `self`, or for the widest narrower set this CPU supports
-    /// (portable code at worst): asking for an instruction set never fails.
+    /// (portable code at worst, see [`Isa::effective`]): asking for an instruction set never
+    /// fails.
     #[inline(always)]
     pub fn run<K: IsaKernel>(self, kernel: K) -> K::Output {
         #[cfg(target_arch = "x86_64")]
@@ -170,5 +186,13 @@ mod tests {
         assert_eq!(Isa::from_name("sse9"), None);
         assert!(Isa::Portable.is_supported());
         assert!(Isa::detect().is_supported());
+        assert_eq!(Isa::Portable.effective(), Isa::Portable);
+        for isa in Isa::ALL {
+            let e = isa.effective();
+            assert!(
+                e.is_supported() && e as u8 <= isa as u8,
+                "{isa} runs as {e}"
+            );
+        }
     }
 }

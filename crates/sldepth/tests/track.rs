@@ -157,6 +157,8 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert!(v["track_ms_median"].as_f64().unwrap() > 0.0);
     assert!(v["integrate_ms_median"].as_f64().unwrap() > 0.0);
     assert!(v["vertices"].as_u64().unwrap() > 1000);
+    // The instruction set the tracker ran with: this CPU's widest.
+    assert_eq!(v["isa"], sl_core::Isa::detect().effective().name());
     // One pose line per frame, with the input's timestamps; the camera moved 1 cm per frame
     // along its x axis.
     let rows = pose_rows(&traj);

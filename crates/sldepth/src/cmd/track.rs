@@ -653,6 +653,9 @@ pub fn run(args: Args) -> Result<()> {
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
+            // The instruction set the tracker's pass ran with (the fusion's loops use it when
+            // it is AVX-512, else their portable code).
+            "isa": cfg.tracker.isa.effective().name(),
             "track_ms_median": round_to(tm, 3),
             "track_ms_median_tracked": round_to(median(&track_ms_tracked), 3),
             "integrate_ms_median": round_to(im, 3),
