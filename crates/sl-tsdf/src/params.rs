@@ -282,7 +282,8 @@ pub struct TsdfConfig {
     pub memory_budget_bytes: usize,
     /// The instruction set of block discovery and the voxel update: by default the widest this
     /// CPU supports ([`Isa::detect`]). [`Isa::Avx512`] runs them compiled for AVX-512 (about
-    /// 1.3× faster on an AMD EPYC); [`Isa::Avx2`] runs the portable code, since compiled for
+    /// 1.3× faster on an AMD EPYC; on a CPU without it, as portable code); [`Isa::Avx2`] runs
+    /// the portable code, since compiled for
     /// AVX2 they were no faster there (docs/bench/track.md). Every choice gives bit-identical
     /// volumes (the update is elementwise).
     pub isa: Isa,
@@ -313,6 +314,12 @@ impl Default for TsdfConfig {
 }
 
 impl TsdfConfig {
+    /// Whether discovery and the voxel update run compiled for AVX-512: [`TsdfConfig::isa`] asks
+    /// for it and this CPU has it (otherwise they run their portable code, see `isa`).
+    pub(crate) fn fused_with_avx512(&self) -> bool {
+        self.isa.effective() == Isa::Avx512
+    }
+
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         let pos = |name: &str, v: f64| {

@@ -113,8 +113,9 @@ fn ate_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
         .sqrt()
 }
 
-/// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame.
-fn simulated(n: usize) -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> {
+/// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame,
+/// `n` frames with noise seeds from `seed`.
+fn simulated(n: usize, seed: u64) -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> {
     let scene = named_scene("boxes")?;
     let k = scene.intrinsics.scaled(0.5)?;
     let sim = KinectSimulator::kinect_v1().white();
@@ -126,7 +127,7 @@ fn simulated(n: usize) -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> 
     ));
     let (mut poses, mut frames, mut pose) = (Vec::new(), Vec::new(), scene.pose);
     for i in 0..n {
-        frames.push(sim.apply(&scene.scene.render(&k, &pose).depth, 11 + i as u64));
+        frames.push(sim.apply(&scene.scene.render(&k, &pose).depth, seed + i as u64));
         poses.push(pose);
         pose = pose * step;
     }
@@ -144,7 +145,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
          without a pose. 8 mm voxels for the model. Real sequences with Open3D side by side: \
          docs/bench/track.md.\n\n| sequence | reference | weights | frames | lost | ATE (mm) |\n|---|---|---|---|---|---|\n",
     );
-    let (cam, truth, frames) = simulated(20)?;
+    let (cam, truth, frames) = simulated(20, 11)?;
     let refs: Vec<&DepthImage> = frames.iter().collect();
     let mut sim_ate = Vec::new();
     for (model, name) in [(true, "model"), (false, "frame")] {

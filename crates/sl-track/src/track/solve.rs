@@ -142,6 +142,7 @@ pub(crate) fn pass(
     // Frame point to reference camera in one transform: `M = R_ref·R`, `m = R_ref·t + t_ref`.
     let to_ref_frame = to_ref * pose;
     let kr = &reference.intrinsics;
+    let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
     // Image sides are at most 2^16 (`Intrinsics::validate`), so `n − 0.5` is exact.
     let consts = PassConsts {
         rot: mat3(&pose.rotation.to_rotation_matrix().into_inner()),
@@ -159,12 +160,11 @@ pub(crate) fn pass(
         uniform_sigma: sensor.sigma_z(cfg.z_ref_m) as f32,
         inv_var: cfg.weighting == WeightMode::InvVar,
         ctr: vec3(centre),
-        cap: huber_loss(cfg.gate_sigmas, cfg.huber_k) as f32,
+        cap: cap as f32,
         allowance: p.allowance_m,
         min_cos: p.min_cos,
         reference,
     };
-    let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
     let stride = p.stride.max(1);
     // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
     // result does not depend on how rayon splits the work, so a sequence tracks identically

@@ -102,11 +102,11 @@ impl TsdfVolume {
             .map(|_| AtomicBool::new(false))
             .collect();
         let index = &self.index;
-        let isa = self.params.isa;
+        let avx512 = self.params.fused_with_avx512();
         let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
             let used = pixels.fill(trows, drows, w);
-            let keys = if isa == Isa::Avx512 {
-                isa.run(BandStrip {
+            let keys = if avx512 {
+                Isa::Avx512.run(BandStrip {
                     frame: &band,
                     rows: trows,
                     y0: ci * BAND_ROWS,
@@ -197,7 +197,7 @@ impl TsdfVolume {
             .first_chunk::<SMALL_TABLE>()
             .filter(|_| table.len() == SMALL_TABLE);
         let keys = &self.keys;
-        let isa = self.params.isa;
+        let avx512 = self.params.fused_with_avx512();
         let items: Vec<_> = self.blocks.chunks_mut(UPDATE_CHUNK).enumerate().collect();
         run_on_threads(
             items,
@@ -212,8 +212,8 @@ impl TsdfVolume {
                     small,
                     table,
                 };
-                if isa == Isa::Avx512 {
-                    isa.run(chunk);
+                if avx512 {
+                    Isa::Avx512.run(chunk);
                 } else {
                     chunk.update::<false>();
                 }

@@ -118,9 +118,7 @@ pub fn run(args: Args) -> Result<()> {
     });
     let isa = match args.isa.as_deref() {
         None => Isa::detect(),
-        Some("avx512") => Isa::Avx512,
-        Some("avx2") => Isa::Avx2,
-        Some(_) => Isa::Portable,
+        Some(name) => Isa::from_name(name).unwrap_or(Isa::Portable),
     };
     let isa = if isa.is_supported() {
         isa

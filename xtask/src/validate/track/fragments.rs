@@ -14,9 +14,7 @@
 //! in fragment 0's world against the motion capture.
 
 use anyhow::Result;
-use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, SensorModel};
-use sl_noise::sim::{KinectSimulator, named_scene};
+use sl_core::{Camera, CameraToWorld, DepthImage};
 use sl_track::{Reconstruction, ReconstructionConfig};
 
 use super::super::Context;
@@ -72,38 +70,14 @@ fn run(cam: Camera, cfg: ReconstructionConfig, frames: &[&DepthImage]) -> Result
     })
 }
 
-/// The simulated camera that jumps while lost and walks back (see the module docs).
-fn simulated() -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> {
-    let scene = named_scene("boxes")?;
-    let k = scene.intrinsics.scaled(0.5)?;
-    let cam = Camera {
-        intrinsics: k,
-        sensor: SensorModel::kinect_v1(),
-    };
-    let sim = KinectSimulator::kinect_v1().white();
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.015, 0.002, 0.004),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.2, 1.0, 0.1).normalize() * 1.5f64.to_radians(),
-        ),
-    ));
-    let mut pose = scene.pose;
-    let (mut poses, mut frames) = (Vec::new(), Vec::new());
-    for i in 0..20u64 {
-        frames.push(sim.apply(&scene.scene.render(&k, &pose).depth, 21 + i));
-        poses.push(pose);
-        pose = pose * step;
-    }
-    Ok((cam, poses, frames))
-}
-
 pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
     let mut md = String::from(
         "\n**Fragments** (`sl_track::Reconstruction`, new fragment after 1 s of failed \
          alignments, joined back when the camera returns; docs/bench/track.md, \"Session 17\").\n\n",
     );
     // Simulated: the jump and the way back.
-    let (cam, truth, frames) = simulated()?;
+    // The sl-track tests' sequence (the jump and the way back are cut from it below).
+    let (cam, truth, frames) = super::simulated(20, 21)?;
     let order: Vec<usize> = (0..8)
         .chain((8..20).rev())
         .chain(std::iter::repeat_n(8, 8))
