@@ -68,6 +68,7 @@ pub mod depth_motion;
 pub mod error;
 pub mod motion;
 pub mod reconstruction;
+pub mod rolling_shutter;
 pub mod track;
 mod verify;
 

@@ -186,6 +186,8 @@ pub struct Step {
 /// ```
 #[derive(Debug)]
 pub struct Reconstruction {
+    /// The buffer of a rolling-shutter frame moved to its pose for fusion.
+    rectified: Option<DepthImage>,
     camera: Camera,
     cfg: ReconstructionConfig,
     /// The fragment frames are tracked and fused in.
@@ -221,6 +223,9 @@ struct Live {
     volume: TsdfVolume,
     model: ModelReference,
     tracked: usize,
+    /// A rolling-shutter fragment's first frame and pose, fused once the second frame gives
+    /// the camera's motion.
+    first_frame: Option<(DepthImage, sl_core::CameraToWorld)>,
 }
 
 impl Live {
@@ -237,6 +242,7 @@ impl Live {
             volume: TsdfVolume::new(cfg.tsdf)?,
             model: ModelReference::new(&camera.intrinsics, scale, raycast)?,
             tracked: 0,
+            first_frame: None,
         })
     }
 
@@ -276,6 +282,7 @@ impl Reconstruction {
             failed_intervals: 0,
             last_time_s: None,
             rejoin_wait: 0,
+            rectified: None,
         })
     }
 
@@ -344,9 +351,39 @@ impl Reconstruction {
             let t1 = Instant::now();
             let k = self.camera.intrinsics;
             let live = &mut self.current;
-            live.volume.integrate(depth, &k, &result.pose)?;
+            // A rolling-shutter frame is fused as the camera at its pose would have seen it.
+            // A fragment's first frame has no motion yet: it waits for the second's (the
+            // second is aligned to it as a whole, both skewed alike at constant velocity).
+            let readout =
+                self.cfg.tracker.rolling_shutter_readout_s / self.cfg.tracker.frame_interval_s;
+            let raw = depth;
+            let depth = match live.tracker.rolling_shutter_motion() {
+                Some(motion) => {
+                    if let Some((first, pose)) = live.first_frame.take() {
+                        let moved = self
+                            .rectified
+                            .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
+                        crate::rolling_shutter::rectify_depth(&first, &k, &motion, readout, moved);
+                        live.volume.integrate(&*moved, &k, &pose)?;
+                    }
+                    let moved = self
+                        .rectified
+                        .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
+                    crate::rolling_shutter::rectify_depth(depth, &k, &motion, readout, moved);
+                    Some(&*moved)
+                }
+                None if readout > 0.0 && live.tracked == 0 => {
+                    live.first_frame = Some((depth.clone(), result.pose));
+                    None
+                }
+                None => Some(depth),
+            };
+            if let Some(depth) = depth {
+                live.volume.integrate(depth, &k, &result.pose)?;
+            }
+            let depth = depth.unwrap_or(raw);
             integrate_ms = Some(ms_since(t1));
-            if self.cfg.frame_to_model {
+            if self.cfg.frame_to_model && live.first_frame.is_none() {
                 let t2 = Instant::now();
                 live.model.update_from_frame(
                     &live.volume,

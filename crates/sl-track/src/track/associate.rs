@@ -63,6 +63,20 @@ pub(super) struct RowSums {
 }
 
 impl RowSums {
+    /// Scales the row's Jacobians by `factor`: `H` by its square, `g` by it (the rows of a
+    /// rolling-shutter frame, see `solve::RowPoses`).
+    pub(super) fn scale_jacobian(&mut self, factor: f32) {
+        let f2 = factor * factor;
+        for h in &mut self.h {
+            *h *= f2;
+        }
+        for g in &mut self.g {
+            *g *= factor;
+        }
+    }
+}
+
+impl RowSums {
     #[inline(always)]
     fn accumulate(&mut self, j: &[f32; 6], r: f32, w: f32) {
         let mut k = 0;

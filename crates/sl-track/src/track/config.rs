@@ -144,6 +144,14 @@ pub struct TrackerConfig {
     /// [`crate::Tracker::track_at`] counts the time between timestamped frames (a gap of `n`
     /// intervals: the prediction spans `n` steps, the prior's σ grows `n²`-fold).
     pub frame_interval_s: f64,
+    /// The sensor's rolling-shutter readout time, seconds: from the exposure of the first image
+    /// row to the last (0, the default: a global shutter, every row at once). A moving camera
+    /// sees each row of such a sensor from another pose; with a readout time the alignment
+    /// gives each row its own pose on the constant-velocity path from the last good pose to the
+    /// frame's, and the frame's pose is the camera's at the middle of the readout. The Kinect
+    /// v1 family reads its IR sensor row by row over most of the frame interval (`sldepth
+    /// track --rolling-shutter`, docs/bench/track.md "Session 19").
+    pub rolling_shutter_readout_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,
     /// The instruction set the alignment's inner loop is run with: by default the widest this
@@ -176,6 +184,7 @@ impl Default for TrackerConfig {
             samples_per_noise_window: 4.0,
             max_acceleration_m_s2: 9.81,
             frame_interval_s: 1.0 / 30.0,
+            rolling_shutter_readout_s: 0.0,
             fallback: DepthMotionConfig::default(),
             isa: Isa::detect(),
         }
@@ -221,6 +230,14 @@ impl TrackerConfig {
             if !(v.is_finite() && (1.0..=1000.0).contains(&v)) {
                 return bad(format!("{name} must lie in [1, 1000], got {v}"));
             }
+        }
+        if !(self.rolling_shutter_readout_s.is_finite()
+            && (0.0..=self.frame_interval_s).contains(&self.rolling_shutter_readout_s))
+        {
+            return bad(format!(
+                "rolling_shutter_readout_s must lie in [0, frame_interval_s = {}], got {}",
+                self.frame_interval_s, self.rolling_shutter_readout_s
+            ));
         }
         if !(self.allowance_fine_m.is_finite() && self.allowance_fine_m >= 0.0) {
             return bad(format!(

@@ -181,6 +181,11 @@ pub struct Tracker {
     initial_pose: CameraToWorld,
     /// The degenerate-view check's plane extractor.
     structure: StructureCheck,
+    /// The rows' exposure times of the frame being aligned (a rolling shutter, tracked on
+    /// from the last good frame), `None` for one pose per frame.
+    row_timing: Option<solve::RowTiming>,
+    /// The per-interval motion the last frame was aligned with row by row (when it was).
+    rolling_motion: Option<Isometry3<f64>>,
 }
 
 impl Tracker {
@@ -206,6 +211,8 @@ impl Tracker {
             last_timestamp_s: None,
             initial_pose: CameraToWorld::identity(),
             structure: StructureCheck::default(),
+            row_timing: None,
+            rolling_motion: None,
         })
     }
 
@@ -217,6 +224,14 @@ impl Tracker {
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.cfg
+    }
+
+    /// When the last frame was tracked row by row (a rolling shutter,
+    /// [`TrackerConfig::rolling_shutter_readout_s`]): the camera's motion over one frame
+    /// interval it was aligned with (camera frame, `T_k = T_{k−1}·motion`), with which
+    /// [`crate::rolling_shutter::rectify_depth`] moves the frame to its pose for fusion.
+    pub fn rolling_shutter_motion(&self) -> Option<Isometry3<f64>> {
+        self.rolling_motion
     }
 
     /// The last well-tracked pose (`None` before the first frame with valid depth).
@@ -318,6 +333,8 @@ impl Tracker {
             }
         }
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
+        self.row_timing = None;
+        self.rolling_motion = None;
         let sensor = self.camera.sensor;
         // Level 0 is sampled every `stride0` pixels by the alignment against a model: its
         // normals are computed there only, the rest if the frame is ever needed as a reference
@@ -386,6 +403,19 @@ impl Tracker {
         };
         let n = self.intervals_since_good.max(1);
         let span = f64::from(n);
+        // A rolling shutter: the rows' poses on the constant-velocity path from the last good
+        // pose, once the reference holds frames moved to their poses (the second frame is
+        // aligned as a whole to the first, which is skewed alike at constant velocity; a
+        // relocalising frame's path from the last good pose is unknown).
+        self.row_timing = (self.cfg.rolling_shutter_readout_s > 0.0
+            && self.lost_run == 0
+            && self.velocity_known)
+            .then(|| solve::RowTiming {
+                last,
+                intervals: n,
+                readout_fraction: self.cfg.rolling_shutter_readout_s / self.cfg.frame_interval_s,
+                full_height: k.height,
+            });
         if model.is_none() {
             self.refresh_last_ref();
         }
@@ -507,6 +537,16 @@ impl Tracker {
                 self.velocity =
                     solve::renormalized(solve::nth_root(&(last.inverse() * first.pose), n));
                 self.velocity_known = true;
+                // The frame's rows as the camera at its pose would have measured them, for
+                // when it is the reference (frame to frame, the fallback to the last frame).
+                let readout_fraction =
+                    self.cfg.rolling_shutter_readout_s / self.cfg.frame_interval_s;
+                self.rolling_motion = (readout_fraction > 0.0).then(|| {
+                    if let Some(l0) = self.pyramid.levels.first_mut() {
+                        l0.undo_rolling_shutter(&self.velocity, readout_fraction);
+                    }
+                    self.velocity
+                });
                 self.accept(depth, first.pose);
                 self.lost_run = 0;
                 status
@@ -646,6 +686,7 @@ impl Tracker {
                 allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
                 min_cos,
                 stride,
+                timing: self.row_timing,
             };
             let prior = solve::Prior {
                 data_share: (stride * stride) as f64

@@ -120,6 +120,8 @@ pub(crate) struct PassParams {
     pub min_cos: f32,
     /// Every `stride`-th point of every `stride`-th row is used (1 = all).
     pub stride: usize,
+    /// The rows' exposure times of a rolling-shutter frame (`None`: one pose for all rows).
+    pub timing: Option<RowTiming>,
 }
 
 /// Associates the level's points (camera frame) under the pose `pose` (camera to world, about
@@ -165,6 +167,7 @@ pub(crate) fn pass(
         min_cos: p.min_cos,
         reference,
     };
+    let rows = p.timing.map(|t| RowPoses::new(&t, pose, &to_ref, k.height));
     let stride = p.stride.max(1);
     // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
     // result does not depend on how rayon splits the work, so a sequence tracks identically
@@ -179,6 +182,7 @@ pub(crate) fn pass(
         .map(|(bi, ((pblock, nblock), ablock))| {
             cfg.isa.run(BlockSums {
                 consts: &consts,
+                rows: rows.as_ref(),
                 points: pblock,
                 normals: nblock,
                 aux: ablock,
@@ -192,6 +196,78 @@ pub(crate) fn pass(
     blocks.iter().fold(Sums::zero(), |a, b| a.add(b))
 }
 
+/// When the rows of the frame being aligned were exposed: a rolling shutter reads the sensor's
+/// rows one after the other, so a moving camera sees each row from another pose. The camera is
+/// taken to move at constant velocity from the last good pose to the frame's (the same motion
+/// model as the tracker's prediction), so the row poses follow from the frame's pose alone and
+/// the alignment stays a 6-parameter problem.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RowTiming {
+    /// The last good pose (camera to world).
+    pub last: Isometry3<f64>,
+    /// Frame intervals from the last good frame to this one (≥ 1).
+    pub intervals: u32,
+    /// The sensor's readout time (first row to last) over the frame interval.
+    pub readout_fraction: f64,
+    /// Rows of the full-resolution image.
+    pub full_height: usize,
+}
+
+/// The per-row poses of one pass: row `y` (of a level `scale` times smaller than the sensor)
+/// is exposed `s = ((y + ½)·scale/H − ½)·readout_fraction` frame intervals after the middle of
+/// the readout, from the pose `T·Vˢ` (`V` the motion over one interval, `T` the frame's pose:
+/// the middle of the readout). A change `δ` of `T` moves row `y` by `(1 + s/n)·δ` to first
+/// order (`V = (T_last⁻¹·T)^(1/n)` changes with it), so its Jacobian is scaled by that factor.
+pub(crate) struct RowPoses {
+    pose: Isometry3<f64>,
+    to_ref: Isometry3<f64>,
+    /// `V` as a rotation vector and a translation, per frame interval (camera frame).
+    omega: Vector3<f64>,
+    t: Vector3<f64>,
+    /// Full-resolution rows per row of the level, over the full-resolution height.
+    row_scale: f64,
+    readout_fraction: f64,
+    intervals: f64,
+}
+
+impl RowPoses {
+    fn new(
+        timing: &RowTiming,
+        pose: &Isometry3<f64>,
+        to_ref: &Isometry3<f64>,
+        level_height: usize,
+    ) -> Self {
+        let v = nth_root(&(timing.last.inverse() * pose), timing.intervals.max(1));
+        let full = timing.full_height.max(1) as f64;
+        Self {
+            pose: *pose,
+            to_ref: *to_ref,
+            omega: v.rotation.scaled_axis(),
+            t: v.translation.vector,
+            row_scale: (full / level_height.max(1) as f64) / full,
+            readout_fraction: timing.readout_fraction,
+            intervals: f64::from(timing.intervals.max(1)),
+        }
+    }
+
+    /// The pass's constants for row `y` of the level, and the row's Jacobian factor.
+    fn row<'a>(&self, base: &PassConsts<'a>, y: usize) -> (PassConsts<'a>, f32) {
+        let s = ((y as f64 + 0.5) * self.row_scale - 0.5) * self.readout_fraction;
+        let motion = Isometry3::from_parts(
+            Translation3::from(self.t * s),
+            UnitQuaternion::from_scaled_axis(self.omega * s),
+        );
+        let row_pose = self.pose * motion;
+        let to_ref_frame = self.to_ref * row_pose;
+        let mut c = *base;
+        c.rot = mat3(&row_pose.rotation.to_rotation_matrix().into_inner());
+        c.tr = vec3(&row_pose.translation.vector);
+        c.m = mat3(&to_ref_frame.rotation.to_rotation_matrix().into_inner());
+        c.tm = vec3(&to_ref_frame.translation.vector);
+        (c, (1.0 + s / self.intervals) as f32)
+    }
+}
+
 /// Rows of a level summed by one task of [`pass`] (30 blocks at 640×480).
 const ROWS_PER_BLOCK: usize = 16;
 
@@ -199,6 +275,8 @@ const ROWS_PER_BLOCK: usize = 16;
 /// stride), run with the tracker's instruction set.
 struct BlockSums<'a> {
     consts: &'a PassConsts<'a>,
+    /// The poses of the rows of a rolling-shutter frame (`None`: one pose for all rows).
+    rows: Option<&'a RowPoses>,
     points: &'a [Point3<f32>],
     normals: &'a [Vector3<f32>],
     aux: &'a [PointAux],
@@ -217,7 +295,7 @@ impl IsaKernel for BlockSums<'_> {
     fn run(self) -> Sums {
         let mut block_sums = Sums::zero();
         let w = self.width;
-        for (_, ((prow, nrow), arow)) in self
+        for (r, ((prow, nrow), arow)) in self
             .points
             .chunks(w)
             .zip(self.normals.chunks(w))
@@ -225,7 +303,15 @@ impl IsaKernel for BlockSums<'_> {
             .enumerate()
             .filter(|(r, _)| (self.first_row + r).is_multiple_of(self.stride))
         {
-            let s = row_sums(self.consts, prow, nrow, arow, self.stride);
+            let s = match self.rows {
+                None => row_sums(self.consts, prow, nrow, arow, self.stride),
+                Some(rows) => {
+                    let (consts, factor) = rows.row(self.consts, self.first_row + r);
+                    let mut s = row_sums(&consts, prow, nrow, arow, self.stride);
+                    s.scale_jacobian(factor);
+                    s
+                }
+            };
             block_sums.add_row(&s, self.cap);
         }
         block_sums
