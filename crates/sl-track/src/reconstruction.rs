@@ -359,16 +359,13 @@ impl Reconstruction {
             let raw = depth;
             let depth = match live.tracker.rolling_shutter_motion() {
                 Some(motion) => {
-                    if let Some((first, pose)) = live.first_frame.take() {
-                        let moved = self
-                            .rectified
-                            .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
-                        crate::rolling_shutter::rectify_depth(&first, &k, &motion, readout, moved);
-                        live.volume.integrate(&*moved, &k, &pose)?;
-                    }
                     let moved = self
                         .rectified
                         .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
+                    if let Some((first, pose)) = live.first_frame.take() {
+                        crate::rolling_shutter::rectify_depth(&first, &k, &motion, readout, moved);
+                        live.volume.integrate(&*moved, &k, &pose)?;
+                    }
                     crate::rolling_shutter::rectify_depth(depth, &k, &motion, readout, moved);
                     Some(&*moved)
                 }

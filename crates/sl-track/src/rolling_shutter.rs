@@ -8,15 +8,15 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion};
 use rayon::prelude::*;
 use sl_core::{DepthImage, Intrinsics};
 
-/// The motion of the camera from the middle of the readout to row `y` of `height`: `motionˢ`
-/// with `s = ((y + ½)/height − ½)·readout_fraction` frame intervals.
-fn row_motion(
-    motion: &Isometry3<f64>,
-    readout_fraction: f64,
-    y: f64,
-    height: f64,
-) -> Isometry3<f64> {
-    let s = ((y + 0.5) / height - 0.5) * readout_fraction;
+/// When row `y` of a frame of `height` rows was exposed, in frame intervals after the middle
+/// of the readout: `s = ((y + ½)/height − ½)·readout_fraction`.
+pub(crate) fn row_offset(y: usize, height: usize, readout_fraction: f64) -> f64 {
+    ((y as f64 + 0.5) / height.max(1) as f64 - 0.5) * readout_fraction
+}
+
+/// `motionˢ`, the camera's motion over `s` frame intervals at constant velocity (`motion`:
+/// over one interval; rotation and translation scaled).
+pub(crate) fn motion_power(motion: &Isometry3<f64>, s: f64) -> Isometry3<f64> {
     Isometry3::from_parts(
         Translation3::from(motion.translation.vector * s),
         UnitQuaternion::from_scaled_axis(motion.rotation.scaled_axis() * s),
@@ -44,9 +44,8 @@ pub fn rectify_depth(
         return;
     }
     let src = depth.data();
-    let hf = h as f64;
     let rows: Vec<Isometry3<f32>> = (0..h)
-        .map(|y| row_motion(motion, readout_fraction, y as f64, hf).cast::<f32>())
+        .map(|y| motion_power(motion, row_offset(y, h, readout_fraction)).cast::<f32>())
         .collect();
     let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
     // The pixel a valid input pixel moves to, and its depth there.

@@ -414,7 +414,6 @@ impl Tracker {
                 last,
                 intervals: n,
                 readout_fraction: self.cfg.rolling_shutter_readout_s / self.cfg.frame_interval_s,
-                full_height: k.height,
             });
         if model.is_none() {
             self.refresh_last_ref();

@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use sl_core::{Intrinsics, SensorModel};
 
 use crate::error::Result;
+use crate::rolling_shutter::{motion_power, row_offset};
 
 /// The largest angle between a surface and the line of sight for which a normal is computed
 /// (tan 80° ≈ 5.7): neighbouring pixels one pixel apart at depth `z` differ by up to
@@ -125,8 +126,8 @@ fn point_aux(level: &mut Level, sensor: &SensorModel, fl: f32, w: usize, sel: Se
 
 impl Level {
     /// Moves the level's points and normals to where the camera would have measured them at
-    /// the middle of a rolling-shutter readout (see [`crate::rolling_shutter`]): row `y` of
-    /// `full_height / height` sensor rows each is exposed `s = ((y + ½)/height − ½)·
+    /// the middle of a rolling-shutter readout (see [`crate::rolling_shutter`]): row `y` of its
+    /// `height` rows is exposed `s = ((y + ½)/height − ½)·
     /// readout_fraction` frame intervals after the middle, and a point measured then is
     /// `motionˢ·p` in the camera at the middle (`motion`: the camera's motion over one frame
     /// interval, camera frame). `aux` (the measurement's σ) is left as measured.
@@ -136,28 +137,21 @@ impl Level {
         readout_fraction: f64,
     ) {
         let Some(k) = self.k else { return };
-        let (w, h) = (k.width.max(1), k.height.max(1) as f64);
-        let omega = motion.rotation.scaled_axis();
-        let t = motion.translation.vector;
+        let (w, h) = (k.width.max(1), k.height);
         self.points
             .par_chunks_mut(w)
             .zip(self.normals.par_chunks_mut(w))
             .enumerate()
             .for_each(|(y, (prow, nrow))| {
-                let s = ((y as f64 + 0.5) / h - 0.5) * readout_fraction;
-                let r = nalgebra::UnitQuaternion::from_scaled_axis(omega * s)
-                    .to_rotation_matrix()
-                    .into_inner()
-                    .cast::<f32>();
-                let ts = (t * s).cast::<f32>();
+                let m = motion_power(motion, row_offset(y, h, readout_fraction)).cast::<f32>();
                 for p in prow.iter_mut() {
                     if p.z.is_finite() {
-                        *p = Point3::from(r * p.coords + ts);
+                        *p = m * *p;
                     }
                 }
                 for n in nrow.iter_mut() {
                     if n.x.is_finite() {
-                        *n = r * *n;
+                        *n = m.rotation * *n;
                     }
                 }
             });

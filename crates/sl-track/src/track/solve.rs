@@ -13,6 +13,7 @@ use super::associate::{PassConsts, RowSums, row_sums};
 use super::pyramid::{Level, PointAux};
 use super::reference::ReferenceMaps;
 use super::{TrackerConfig, WeightMode};
+use crate::rolling_shutter::{motion_power, row_offset};
 
 /// Sums of one association pass: the upper triangle of `H = Σ w·J·Jᵀ`, `g = Σ w·J·r`, and counts.
 #[derive(Debug, Clone, Copy)]
@@ -209,23 +210,18 @@ pub(crate) struct RowTiming {
     pub intervals: u32,
     /// The sensor's readout time (first row to last) over the frame interval.
     pub readout_fraction: f64,
-    /// Rows of the full-resolution image.
-    pub full_height: usize,
 }
 
-/// The per-row poses of one pass: row `y` (of a level `scale` times smaller than the sensor)
-/// is exposed `s = ((y + ½)·scale/H − ½)·readout_fraction` frame intervals after the middle of
+/// The per-row poses of one pass: row `y` of the level (of `H` rows) is exposed `s = ((y + ½)/H − ½)·readout_fraction` frame intervals after the middle of
 /// the readout, from the pose `T·Vˢ` (`V` the motion over one interval, `T` the frame's pose:
 /// the middle of the readout). A change `δ` of `T` moves row `y` by `(1 + s/n)·δ` to first
 /// order (`V = (T_last⁻¹·T)^(1/n)` changes with it), so its Jacobian is scaled by that factor.
 pub(crate) struct RowPoses {
     pose: Isometry3<f64>,
     to_ref: Isometry3<f64>,
-    /// `V` as a rotation vector and a translation, per frame interval (camera frame).
-    omega: Vector3<f64>,
-    t: Vector3<f64>,
-    /// Full-resolution rows per row of the level, over the full-resolution height.
-    row_scale: f64,
+    /// `V`, the camera's motion over one frame interval (camera frame).
+    motion: Isometry3<f64>,
+    level_height: usize,
     readout_fraction: f64,
     intervals: f64,
 }
@@ -237,14 +233,11 @@ impl RowPoses {
         to_ref: &Isometry3<f64>,
         level_height: usize,
     ) -> Self {
-        let v = nth_root(&(timing.last.inverse() * pose), timing.intervals.max(1));
-        let full = timing.full_height.max(1) as f64;
         Self {
             pose: *pose,
             to_ref: *to_ref,
-            omega: v.rotation.scaled_axis(),
-            t: v.translation.vector,
-            row_scale: (full / level_height.max(1) as f64) / full,
+            motion: nth_root(&(timing.last.inverse() * pose), timing.intervals.max(1)),
+            level_height,
             readout_fraction: timing.readout_fraction,
             intervals: f64::from(timing.intervals.max(1)),
         }
@@ -252,12 +245,8 @@ impl RowPoses {
 
     /// The pass's constants for row `y` of the level, and the row's Jacobian factor.
     fn row<'a>(&self, base: &PassConsts<'a>, y: usize) -> (PassConsts<'a>, f32) {
-        let s = ((y as f64 + 0.5) * self.row_scale - 0.5) * self.readout_fraction;
-        let motion = Isometry3::from_parts(
-            Translation3::from(self.t * s),
-            UnitQuaternion::from_scaled_axis(self.omega * s),
-        );
-        let row_pose = self.pose * motion;
+        let s = row_offset(y, self.level_height, self.readout_fraction);
+        let row_pose = self.pose * motion_power(&self.motion, s);
         let to_ref_frame = self.to_ref * row_pose;
         let mut c = *base;
         c.rot = mat3(&row_pose.rotation.to_rotation_matrix().into_inner());
