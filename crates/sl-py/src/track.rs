@@ -41,7 +41,11 @@ type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 /// ``frame_fragments``, ``extract_mesh(fragment=k)``), as ``sldepth track
 /// --new-fragment-after-s``; ``None`` never starts one. The fragment that stayed lost is tried
 /// every sixth frame interval; when the camera comes back to it, tracking goes on there and the
-/// newer fragment is joined to it (``joins``).
+/// newer fragment is joined to it (``joins``). ``rolling_shutter_ms``: the sensor's
+/// rolling-shutter readout time, milliseconds (first row to last), as ``sldepth track
+/// --rolling-shutter-ms``: each row is aligned from its own pose and frames are fused moved to
+/// the middle of their readout; 0 (default): a global shutter; at most the frame interval
+/// (33.3 ms at 30 Hz).
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -64,7 +68,7 @@ pub struct PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0)))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = 0.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -75,6 +79,7 @@ impl PyTracker {
         prefilter: &str,
         lens: &str,
         new_fragment_after_s: Option<f64>,
+        rolling_shutter_ms: f64,
     ) -> PyResult<Self> {
         let undistorter = match lens {
             "auto" => camera
@@ -111,6 +116,7 @@ impl PyTracker {
         cfg.frame_to_model = frame_to_model;
         cfg.model_scale = model_scale;
         cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
+        cfg.tracker.rolling_shutter_readout_s = rolling_shutter_ms / 1000.0;
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,

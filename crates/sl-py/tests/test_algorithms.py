@@ -240,6 +240,21 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_a_rolling_shutter_tracker_keeps_a_still_camera_still(kinect):
+    # No motion, no skew: the row-by-row alignment and the rectified fusion leave a still
+    # camera where it is; a readout longer than a frame interval is refused.
+    depth = sldepth.simulate("boxes", seed=3)[0]
+    t = sldepth.Tracker(kinect, rolling_shutter_ms=30.0)
+    for _ in range(4):
+        pose, status = t.track(depth)
+    assert status == "tracked", status
+    assert np.abs(pose[:3, 3]).max() < 0.002
+    assert np.allclose(pose[:3, :3], np.eye(3), atol=1e-3)
+    assert len(t.extract_mesh()) > 1000
+    with pytest.raises(ValueError, match="rolling_shutter"):
+        sldepth.Tracker(kinect, rolling_shutter_ms=40.0)
+
+
 def test_a_camera_carried_elsewhere_goes_on_in_a_new_fragment(kinect):
     # Two places: the boxes, then the figure before walls. Frames of the second can be
     # aligned but match nothing near the last good pose: lost in fragment 0 for

@@ -1,6 +1,7 @@
-//! Tracking one 640×480 frame, and the whole per-frame step (track + integrate + raycast), on
-//! simulated Kinect frames of the `boxes` scene (1° and 1 cm between frames); real frames need
-//! `sldepth track` on `../shared/data` (see the validate report).
+//! Tracking one 640×480 frame, a rolling-shutter frame's rectification, and the whole
+//! per-frame step (track + integrate + raycast), on simulated Kinect frames of the `boxes` scene
+//! (1° and 1 cm between frames); real frames need `sldepth track` on `../shared/data` (see the
+//! validate report).
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 
 use std::hint::black_box;
@@ -9,6 +10,7 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, DepthImage, SensorModel};
 use sl_noise::sim::{KinectSimulator, named_scene};
+use sl_track::rolling_shutter::Rectifier;
 use sl_track::{ModelReference, Tracker, TrackerConfig};
 use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
@@ -47,6 +49,18 @@ fn bench(c: &mut Criterion) {
             t.track(&fr[0], None).unwrap();
             black_box(t.track(black_box(&fr[1]), None).unwrap())
         })
+    });
+    // A rolling-shutter frame moved to the middle of its readout (`Reconstruction` does this
+    // before fusing when `TrackerConfig::rolling_shutter_readout_s` > 0): 1° and 1 cm of motion
+    // per frame interval, a 0.9-interval readout.
+    let motion = Isometry3::from_parts(
+        Translation3::new(0.01, 0.0, 0.0),
+        UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
+    );
+    let mut rectifier = Rectifier::default();
+    let mut moved = DepthImage::invalid(k.width, k.height);
+    g.bench_function("rectify-rolling-shutter", |b| {
+        b.iter(|| rectifier.rectify(black_box(&fr[1]), &k, &motion, 0.9, &mut moved))
     });
     // The whole step against the model: track frame 1 against frame 0's raycast, integrate it
     // and raycast the model for the next frame (the set-up, frame 0, is inside the loop too),

@@ -188,6 +188,8 @@ pub struct Step {
 pub struct Reconstruction {
     /// The buffer of a rolling-shutter frame moved to its pose for fusion.
     rectified: Option<DepthImage>,
+    /// The rectification's displacement buffer.
+    rectifier: crate::rolling_shutter::Rectifier,
     camera: Camera,
     cfg: ReconstructionConfig,
     /// The fragment frames are tracked and fused in.
@@ -283,6 +285,7 @@ impl Reconstruction {
             last_time_s: None,
             rejoin_wait: 0,
             rectified: None,
+            rectifier: crate::rolling_shutter::Rectifier::default(),
         })
     }
 
@@ -363,10 +366,10 @@ impl Reconstruction {
                         .rectified
                         .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
                     if let Some((first, pose)) = live.first_frame.take() {
-                        crate::rolling_shutter::rectify_depth(&first, &k, &motion, readout, moved);
+                        self.rectifier.rectify(&first, &k, &motion, readout, moved);
                         live.volume.integrate(&*moved, &k, &pose)?;
                     }
-                    crate::rolling_shutter::rectify_depth(depth, &k, &motion, readout, moved);
+                    self.rectifier.rectify(depth, &k, &motion, readout, moved);
                     Some(&*moved)
                 }
                 None if readout > 0.0 && live.tracked == 0 => {

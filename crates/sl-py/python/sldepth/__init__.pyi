@@ -256,8 +256,12 @@ class Tracker:
         prefilter: str = "multiscale",
         lens: str = "auto",
         new_fragment_after_s: Optional[float] = 1.0,
+        rolling_shutter_ms: float = 0.0,
     ) -> None:
-        """new_fragment_after_s: seconds of frames that could be aligned but were lost after
+        """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
+        last; as sldepth track --rolling-shutter-ms), 0 (default) a global shutter, at most the
+        frame interval (33.3 ms at 30 Hz).
+        new_fragment_after_s: seconds of frames that could be aligned but were lost after
         which a new fragment (own volume and world frame) starts; None or inf: never.
         model_scale: fraction of the camera's resolution the model is rendered at for
         tracking, in (0, 1] (as sldepth track --model-scale; default: one pixel per 4 of the

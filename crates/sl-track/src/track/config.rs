@@ -150,7 +150,7 @@ pub struct TrackerConfig {
     /// gives each row its own pose on the constant-velocity path from the last good pose to the
     /// frame's, and the frame's pose is the camera's at the middle of the readout. The Kinect
     /// v1 family reads its IR sensor row by row over most of the frame interval (`sldepth
-    /// track --rolling-shutter`, docs/bench/track.md "Session 19").
+    /// track --rolling-shutter-ms`, docs/bench/track.md "Session 19").
     pub rolling_shutter_readout_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,

@@ -126,7 +126,7 @@ pub struct Args {
     /// TUM fr1/rpy-200 (motion-capture ground truth) 30 lowers the RPE from 6.2 to 4.5 mm and
     /// 0.64 to 0.60° per frame and the ATE from 2.93 to 2.82 cm; on 7-Scenes, whose reference
     /// poses come from a global-shutter tracker, it raises the ATE from 0.60 to 0.66 cm. It
-    /// costs about 8 ms per frame (docs/bench/track.md, "Session 19")
+    /// costs about 1–2 ms per frame (docs/bench/track.md, "Session 19" and "Session 20")
     #[arg(long, value_name = "MS", default_value_t = 0.0)]
     pub rolling_shutter_ms: f64,
     /// No plane-based fallback when ICP fails.
