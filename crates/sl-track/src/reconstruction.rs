@@ -357,8 +357,7 @@ impl Reconstruction {
             // A rolling-shutter frame is fused as the camera at its pose would have seen it.
             // A fragment's first frame has no motion yet: it waits for the second's (the
             // second is aligned to it as a whole, both skewed alike at constant velocity).
-            let readout =
-                self.cfg.tracker.rolling_shutter_readout_s / self.cfg.tracker.frame_interval_s;
+            let readout = self.cfg.tracker.rolling_shutter_readout_fraction();
             let raw = depth;
             let depth = match live.tracker.rolling_shutter_motion() {
                 Some(motion) => {

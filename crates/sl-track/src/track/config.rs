@@ -192,6 +192,11 @@ impl Default for TrackerConfig {
 }
 
 impl TrackerConfig {
+    /// The rolling-shutter readout time in frame intervals (0: a global shutter).
+    pub fn rolling_shutter_readout_fraction(&self) -> f64 {
+        self.rolling_shutter_readout_s / self.frame_interval_s
+    }
+
     /// Checks the ranges of the parameters.
     pub fn validate(&self) -> Result<()> {
         let bad = |m: String| Err(TrackError::InvalidConfig(m));

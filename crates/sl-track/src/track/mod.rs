@@ -229,7 +229,7 @@ impl Tracker {
     /// When the last frame was tracked row by row (a rolling shutter,
     /// [`TrackerConfig::rolling_shutter_readout_s`]): the camera's motion over one frame
     /// interval it was aligned with (camera frame, `T_k = T_{k−1}·motion`), with which
-    /// [`crate::rolling_shutter::rectify_depth`] moves the frame to its pose for fusion.
+    /// [`crate::rolling_shutter::Rectifier`] moves the frame to its pose for fusion.
     pub fn rolling_shutter_motion(&self) -> Option<Isometry3<f64>> {
         self.rolling_motion
     }
@@ -407,14 +407,13 @@ impl Tracker {
         // pose, once the reference holds frames moved to their poses (the second frame is
         // aligned as a whole to the first, which is skewed alike at constant velocity; a
         // relocalising frame's path from the last good pose is unknown).
-        self.row_timing = (self.cfg.rolling_shutter_readout_s > 0.0
-            && self.lost_run == 0
-            && self.velocity_known)
-            .then(|| solve::RowTiming {
-                last,
-                intervals: n,
-                readout_fraction: self.cfg.rolling_shutter_readout_s / self.cfg.frame_interval_s,
-            });
+        self.row_timing =
+            (self.cfg.rolling_shutter_readout_s > 0.0 && self.lost_run == 0 && self.velocity_known)
+                .then(|| solve::RowTiming {
+                    last,
+                    intervals: n,
+                    readout_fraction: self.cfg.rolling_shutter_readout_fraction(),
+                });
         if model.is_none() {
             self.refresh_last_ref();
         }
@@ -538,8 +537,7 @@ impl Tracker {
                 self.velocity_known = true;
                 // The frame's rows as the camera at its pose would have measured them, for
                 // when it is the reference (frame to frame, the fallback to the last frame).
-                let readout_fraction =
-                    self.cfg.rolling_shutter_readout_s / self.cfg.frame_interval_s;
+                let readout_fraction = self.cfg.rolling_shutter_readout_fraction();
                 self.rolling_motion = (readout_fraction > 0.0).then(|| {
                     if let Some(l0) = self.pyramid.levels.first_mut() {
                         l0.undo_rolling_shutter(&self.velocity, readout_fraction);
