@@ -15,12 +15,16 @@ fn current_pool() -> Option<Arc<rayon::ThreadPool>> {
     POOL.lock().unwrap_or_else(PoisonError::into_inner).clone()
 }
 
-/// Runs `f` with the GIL released, inside the chosen rayon pool.
+/// Runs `f` with the GIL released, on a worker thread of the chosen rayon pool. Run on the
+/// calling (Python) thread instead, every parallel phase of `f` would queue its work for the pool
+/// and put the Python thread to sleep until a worker is done: a sleep and a wake-up per phase,
+/// about forty per tracking step (the same measurement as the CLI's, docs/bench/track.md
+/// "Session 21").
 pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> T {
     let pool = current_pool();
     py.detach(move || match pool {
         Some(p) => p.install(f),
-        None => f(),
+        None => rayon::scope(|_| f()),
     })
 }
 

@@ -67,6 +67,7 @@
 pub mod depth_motion;
 pub mod error;
 pub mod motion;
+mod pool;
 pub mod reconstruction;
 pub mod rolling_shutter;
 pub mod track;

@@ -293,12 +293,19 @@ impl Reconstruction {
     /// smoothed as wanted), fuses it when tracked and renders the model for the next frame.
     /// `timestamp_s`: the frame's time (see [`Tracker::track_at`]); `None` takes it to follow
     /// the previous frame by one frame interval. May start a new fragment, or go back to the
-    /// one before (see the module docs).
+    /// one before (see the module docs). Runs on a worker thread of the caller's rayon pool (in
+    /// place when called from one, otherwise on the global pool while the caller waits), so
+    /// that its parallel phases split on the spot.
     ///
     /// # Errors
     /// As [`Tracker::track_at`]; a volume over its memory budget
     /// ([`TsdfConfig::memory_budget_bytes`]).
     pub fn step(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
+        crate::pool::on_pool(|| self.step_on_pool(depth, timestamp_s))
+    }
+
+    /// [`Reconstruction::step`], on a worker thread of the caller's pool.
+    fn step_on_pool(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
         let t0 = Instant::now();
         let intervals = match (timestamp_s, self.last_time_s) {
             (Some(t), Some(p)) => u64::from(self.cfg.tracker.whole_intervals(t - p)),

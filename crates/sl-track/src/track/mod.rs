@@ -270,6 +270,7 @@ impl Tracker {
     /// good pose) or, when `None`, against the last good frame. The frame is taken to follow
     /// the previous one by one frame interval ([`TrackerConfig::frame_interval_s`]); use
     /// [`Tracker::track_at`] when the frames have timestamps (a recording that dropped frames).
+    /// Runs on a worker thread of the caller's rayon pool, as [`crate::Reconstruction::step`].
     ///
     /// # Errors
     /// A depth map of another size than the camera, or a model reference of another size;
@@ -279,7 +280,7 @@ impl Tracker {
         depth: &DepthImage,
         model: Option<&ReferenceMaps>,
     ) -> Result<FrameResult> {
-        self.track_frame(depth, model, None)
+        crate::pool::on_pool(|| self.track_frame(depth, model, None))
     }
 
     /// [`Tracker::track`] for a frame taken at `timestamp_s` (seconds, any origin). The time
@@ -302,7 +303,7 @@ impl Tracker {
         model: Option<&ReferenceMaps>,
         timestamp_s: f64,
     ) -> Result<FrameResult> {
-        self.track_frame(depth, model, Some(timestamp_s))
+        crate::pool::on_pool(|| self.track_frame(depth, model, Some(timestamp_s)))
     }
 
     fn track_frame(
