@@ -6,6 +6,7 @@
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use rayon::prelude::*;
 use sl_core::{CameraToWorld, DepthView, Intrinsics, Isa, IsaKernel};
 
 use super::discovery::*;
@@ -171,7 +172,11 @@ impl TsdfVolume {
             self.index.insert(key, slot);
             self.keys.push(key);
         }
-        self.blocks.resize(self.keys.len(), Block::default());
+        // The new blocks' zeroed memory is touched for the first time here (a page fault per
+        // block): in parallel.
+        let fresh = self.keys.len() - self.blocks.len();
+        self.blocks
+            .par_extend(rayon::iter::repeat_n(Block::default(), fresh));
         touched.resize(self.blocks.len(), true);
         self.update_blocks(&touched, table, k, pose);
         self.frames += 1;
