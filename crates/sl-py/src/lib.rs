@@ -40,6 +40,7 @@ use pyo3::prelude::*;
 /// The extension module `sldepth._sldepth`.
 #[pymodule]
 fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    threads::init_global_pool();
     errors::register(m)?;
     m.add_class::<camera::PyCamera>()?;
     m.add_class::<noise::PyAnalysis>()?;

@@ -11,6 +11,19 @@ use crate::errors::value_error;
 /// core).
 static POOL: Mutex<Option<Arc<rayon::ThreadPool>>> = Mutex::new(None);
 
+/// Stack of the pool threads, bytes: every call runs on one of them (see [`compute`]), so it
+/// gets the 8 MiB of a Python thread on Linux rather than a spawned thread's default 2 MiB.
+const WORKER_STACK_BYTES: usize = 8 << 20;
+
+/// Builds rayon's global pool with [`WORKER_STACK_BYTES`] stacks (at import; a no-op when it
+/// exists).
+pub(crate) fn init_global_pool() {
+    let _ = rayon::ThreadPoolBuilder::new()
+        .stack_size(WORKER_STACK_BYTES)
+        .thread_name(|i| format!("sldepth-{i}"))
+        .build_global();
+}
+
 fn current_pool() -> Option<Arc<rayon::ThreadPool>> {
     POOL.lock().unwrap_or_else(PoisonError::into_inner).clone()
 }
@@ -39,6 +52,7 @@ pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
         Some(n) => Some(Arc::new(
             rayon::ThreadPoolBuilder::new()
                 .num_threads(n)
+                .stack_size(WORKER_STACK_BYTES)
                 .thread_name(|i| format!("sldepth-{i}"))
                 .build()
                 .map_err(value_error)?,
