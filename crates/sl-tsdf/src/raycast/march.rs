@@ -1,6 +1,8 @@
 //! One ray per pixel: jump over unallocated blocks, step by a fraction of the sampled distance
 //! through observed space (finer near the surface and through unobserved voxels), bracket the
-//! first + → − sign change, refine it, and read weight and normal there.
+//! first + → − sign change, refine it, and read weight and normal there. A march is a [`Ray`]
+//! advanced a step at a time, so that the raycast can march several rays in turn: a step reads
+//! a voxel of a large volume, mostly a cache miss, and the rays' reads then overlap.
 
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
 use sl_core::Intrinsics;
@@ -101,7 +103,10 @@ impl RayFrame {
     /// configured range) and returns its first front-facing zero crossing; `occ` lets it cross
     /// empty super-blocks in one step. `hinted`: `lo` is a hinted start, and the ray gives up
     /// (`None`) when its first observed sample is not in front of a surface (the hint started
-    /// it behind one; the caller marches it again from the near end).
+    /// it behind one; the caller marches it again from the near end). The raycast marches
+    /// several rays together ([`RayFrame::ray`], [`RayFrame::advance`]); this is one alone, for
+    /// the tests that compare the two.
+    #[cfg(test)]
     #[allow(clippy::too_many_arguments)]
     pub(super) fn cast(
         &self,
@@ -113,6 +118,17 @@ impl RayFrame {
         hi: f32,
         hinted: bool,
     ) -> Option<Hit> {
+        let mut ray = self.ray(x, y, lo, hi, hinted);
+        loop {
+            if let Some(done) = self.advance(s, occ, &mut ray) {
+                return done;
+            }
+        }
+    }
+
+    /// The march of pixel `(x, y)`'s ray through `[lo, hi]`, before its first step (see
+    /// [`RayFrame::cast`]; [`RayFrame::advance`] takes the steps).
+    pub(super) fn ray(&self, x: usize, y: usize, lo: f32, hi: f32, hinted: bool) -> Ray {
         let dir = self.rot
             * Vector3::new(
                 (x as f32 - self.cx) / self.fx,
@@ -122,100 +138,122 @@ impl RayFrame {
         let len = dir.norm();
         // Grid units per metre of camera depth.
         let d = dir * self.inv_voxel;
-        let at = |t: f32| -> [f32; 3] {
-            [
-                self.centre_g.x + d.x * t,
-                self.centre_g.y + d.y * t,
-                self.centre_g.z + d.z * t,
-            ]
-        };
-        let end = hi.min(self.max_z);
-        let mut t = lo.max(self.min_z);
-        // Depth increments: the shortest step, and how a step in metres along the ray maps to
-        // camera depth.
-        let min_dt = self.min_step_m / len;
-        let inv_len = 1.0 / len;
-        // Through unobserved voxels of an allocated block: one voxel per step (a sample needs
-        // all 8 voxels of its cell observed, so no observed region is thinner than that).
-        let voxel_dt = self.voxel_m / len;
+        Ray {
+            dir,
+            d,
+            end: hi.min(self.max_z),
+            t: lo.max(self.min_z),
+            // Depth increments: the shortest step, and how a step in metres along the ray maps
+            // to camera depth.
+            min_dt: self.min_step_m / len,
+            inv_len: 1.0 / len,
+            // Through unobserved voxels of an allocated block: one voxel per step (a sample
+            // needs all 8 voxels of its cell observed, so no observed region is thinner than
+            // that).
+            voxel_dt: self.voxel_m / len,
+            prev: None,
+            fine: false,
+            hinted,
+            from_hint: hinted,
+            exit: BlockExit::new(&d, BLOCK_SIDE as f32),
+            super_exit: BlockExit::new(&d, (BLOCK_SIDE << SUPER_SHIFT) as f32),
+        }
+    }
+
+    /// The grid point of `ray` at camera depth `t`.
+    #[inline(always)]
+    fn at(&self, ray: &Ray, t: f32) -> [f32; 3] {
+        [
+            self.centre_g.x + ray.d.x * t,
+            self.centre_g.y + ray.d.y * t,
+            self.centre_g.z + ray.d.z * t,
+        ]
+    }
+
+    /// One step of `ray`'s march: `None` while it goes on, else its outcome (the hit, or
+    /// `None` when it ends without one or gives up). Several rays marched a step each in turn
+    /// compute exactly what each marched alone computes; their memory reads overlap.
+    #[inline]
+    pub(super) fn advance(
+        &self,
+        s: &mut Sampler<'_>,
+        occ: &Occupancy,
+        ray: &mut Ray,
+    ) -> Option<Option<Hit>> {
         // Nearest-voxel values above this (√3 voxels: the largest distance from a point to its
         // nearest voxel is √3/2 voxel, and |∇F| ≤ 1) are certainly in front of the surface.
         let coarse_f = self.voxel_m * 1.75;
-        // The last observed sample `(t, F)`; `fine`: stepping back from a positive sample
-        // whose long step landed in unobserved voxels, one shortest step at a time.
-        let mut prev: Option<(f32, f32)> = None;
-        let mut fine = false;
-        let mut hinted = hinted;
-        let exit = BlockExit::new(&d, BLOCK_SIDE as f32);
-        let super_exit = BlockExit::new(&d, (BLOCK_SIDE << SUPER_SHIFT) as f32);
-        while t <= end {
-            let g = at(t);
-            if !g.iter().all(|c| c.is_finite() && c.abs() < 1.0e9) {
-                return None;
+        let t = ray.t;
+        if t > ray.end {
+            return Some(None);
+        }
+        let g = self.at(ray, t);
+        if !g.iter().all(|c| c.is_finite() && c.abs() < 1.0e9) {
+            return Some(None);
+        }
+        let base = g.map(floor_i32);
+        let b = base.map(|c| c >> 3);
+        let Some(blk) = s.block(b) else {
+            // No sample whose base voxel is in this block is observed: jump to its exit, or to
+            // the exit of its super-block when no block of that is allocated.
+            let sb = b.map(|c| c >> SUPER_SHIFT);
+            ray.t = if occ.maybe_occupied(sb) {
+                ray.exit.next(g, b, t, ray.min_dt)
+            } else {
+                ray.super_exit.next(g, sb, t, ray.min_dt)
+            };
+            ray.prev = None;
+            ray.fine = false;
+            return None;
+        };
+        let ft = frac(g, base);
+        // Far in front of the surface (the nearest voxel's F above `coarse_f`, so the trilinear
+        // F is positive too: it differs by less than one voxel diagonal) one voxel read decides
+        // the step; near the surface, behind it, or where the nearest voxel is unobserved, the
+        // trilinear cell.
+        let sample = match s.nearest_at(base, ft, b, blk) {
+            // The nearest voxel is a corner of the cell: where it is unallocated or unobserved,
+            // so is the cell.
+            None => None,
+            Some((_, w)) if w <= 0.0 => None,
+            Some((f, _)) if f > coarse_f => Some(f),
+            Some(_) => s.cell_at(base, ft).map(|c| c.value()),
+        };
+        match sample {
+            None => {
+                if let Some((tp, fp)) = ray.prev
+                    && fp > 0.0
+                    && !ray.fine
+                    && t - tp > 1.5 * ray.min_dt
+                {
+                    // The step may have jumped over the surface into its unobserved shadow:
+                    // retry from the last observed sample with short steps.
+                    ray.t = tp + ray.min_dt;
+                    ray.fine = true;
+                    return None;
+                }
+                ray.prev = None;
+                ray.t = t + ray.voxel_dt;
             }
-            let base = g.map(floor_i32);
-            let b = base.map(|c| c >> 3);
-            let Some(blk) = s.block(b) else {
-                // No sample whose base voxel is in this block is observed: jump to its exit,
-                // or to the exit of its super-block when no block of that is allocated.
-                let sb = b.map(|c| c >> SUPER_SHIFT);
-                t = if occ.maybe_occupied(sb) {
-                    exit.next(g, b, t, min_dt)
-                } else {
-                    super_exit.next(g, sb, t, min_dt)
-                };
-                prev = None;
-                fine = false;
-                continue;
-            };
-            let ft = frac(g, base);
-            // Far in front of the surface (the nearest voxel's F above `coarse_f`, so the
-            // trilinear F is positive too: it differs by less than one voxel diagonal) one voxel
-            // read decides the step; near the surface, behind it, or where the nearest voxel is
-            // unobserved, the trilinear cell.
-            let sample = match s.nearest_at(base, ft, b, blk) {
-                // The nearest voxel is a corner of the cell: where it is unallocated or
-                // unobserved, so is the cell.
-                None => None,
-                Some((_, w)) if w <= 0.0 => None,
-                Some((f, _)) if f > coarse_f => Some(f),
-                Some(_) => s.cell_at(base, ft).map(|c| c.value()),
-            };
-            match sample {
-                None => {
-                    if let Some((tp, fp)) = prev
-                        && fp > 0.0
-                        && !fine
-                        && t - tp > 1.5 * min_dt
-                    {
-                        // The step may have jumped over the surface into its unobserved
-                        // shadow: retry from the last observed sample with short steps.
-                        t = tp + min_dt;
-                        fine = true;
-                        continue;
-                    }
-                    prev = None;
-                    t += voxel_dt;
+            Some(f) => {
+                if f <= 0.0 && ray.hinted {
+                    return Some(None);
                 }
-                Some(f) => {
-                    if f <= 0.0 && hinted {
-                        return None;
-                    }
-                    if let Some((tp, fp)) = prev
-                        && fp > 0.0
-                        && f <= 0.0
-                    {
-                        // The last positive sample may be a coarse one: bracket with its
-                        // trilinear value where that is observed (and positive, as it must be).
-                        let fp = s.value(at(tp)).filter(|v| *v > 0.0).unwrap_or(fp);
-                        return self.hit(s, &at, (tp, fp), (t, f), &dir);
-                    }
-                    prev = Some((t, f));
-                    hinted = false;
-                    fine = false;
-                    let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
-                    t += step_m * inv_len;
+                if let Some((tp, fp)) = ray.prev
+                    && fp > 0.0
+                    && f <= 0.0
+                {
+                    // The last positive sample may be a coarse one: bracket with its trilinear
+                    // value where that is observed (and positive, as it must be).
+                    let fp = s.value(self.at(ray, tp)).filter(|v| *v > 0.0).unwrap_or(fp);
+                    let at = |t: f32| self.at(ray, t);
+                    return Some(self.hit(s, &at, (tp, fp), (t, f), &ray.dir));
                 }
+                ray.prev = Some((t, f));
+                ray.hinted = false;
+                ray.fine = false;
+                let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
+                ray.t = t + step_m * ray.inv_len;
             }
         }
         None
@@ -267,6 +305,36 @@ impl RayFrame {
             normal,
             weight: cell.weight(),
         })
+    }
+}
+
+/// One ray's march in progress ([`RayFrame::ray`], [`RayFrame::advance`]).
+pub(super) struct Ray {
+    /// World direction per metre of camera depth, and the same in grid units.
+    dir: Vector3<f32>,
+    d: Vector3<f32>,
+    /// The last camera depth marched, and the next one.
+    end: f32,
+    t: f32,
+    min_dt: f32,
+    inv_len: f32,
+    voxel_dt: f32,
+    /// The last observed sample `(t, F)`; `fine`: stepping back from a positive sample whose
+    /// long step landed in unobserved voxels, one shortest step at a time.
+    prev: Option<(f32, f32)>,
+    fine: bool,
+    /// Whether the march may still give up (it started at a hint and has seen no observed
+    /// sample yet), and whether it started at a hint.
+    hinted: bool,
+    from_hint: bool,
+    exit: BlockExit,
+    super_exit: BlockExit,
+}
+
+impl Ray {
+    /// Whether the march started at a hint (its failure calls for a march from the near end).
+    pub(super) fn is_hinted_start(&self) -> bool {
+        self.from_hint
     }
 }
 

@@ -10,6 +10,9 @@ use sl_core::{CameraToWorld, DepthImage, Intrinsics};
 use crate::error::{Result, TsdfError};
 use crate::volume::TsdfVolume;
 
+/// Rays of an image row marched together, a step each in turn (see `raycast_hinted_into`).
+const LANES: usize = 4;
+
 mod march;
 mod occupancy;
 mod range;
@@ -263,36 +266,65 @@ impl TsdfVolume {
             .enumerate()
             .for_each(|(y, (((depth, points), normals), weights))| {
                 let mut sampler = sampler::Sampler::new(self);
-                for x in 0..w {
+                // A ray's start: just before the hint when there is one (it gives up when its
+                // first observed sample is behind a surface), else the near end of its range.
+                let start = |x: usize| {
                     let (lo, hi) = range::pixel_range(tiles, w, x, y);
-                    // A hinted ray starts just before the hint; one that gives up (its first
-                    // observed sample is behind a surface) or ends without a hit (it started in
-                    // unobserved space behind the surface) is marched again over its whole range.
-                    let start = hint
+                    let hinted = hint
                         .and_then(|h| h.get(y * w + x))
                         .filter(|z| **z > 0.0)
                         .map(|z| z - margin(*z))
                         .filter(|s| *s > lo);
-                    let hit = match start {
-                        Some(s) => frame
-                            .cast(&mut sampler, occ, x, y, s, hi, true)
-                            .or_else(|| frame.cast(&mut sampler, occ, x, y, lo, hi, false)),
-                        None => frame.cast(&mut sampler, occ, x, y, lo, hi, false),
-                    };
-                    match hit {
-                        Some(hit) => {
-                            depth[x] = hit.z_m;
-                            points[x] = hit.point;
-                            normals[x] = hit.normal;
-                            weights[x] = hit.weight;
+                    match hinted {
+                        Some(s) => frame.ray(x, y, s, hi, true),
+                        None => frame.ray(x, y, lo, hi, false),
+                    }
+                };
+                // `LANES` rays of the row are marched a step each in turn, so that their memory
+                // reads (a voxel of a large volume per step, mostly a cache miss) overlap; each
+                // computes what it would alone. A hinted ray that gives up or finds nothing is
+                // marched again over its whole range.
+                let mut lanes: [Option<(usize, march::Ray)>; LANES] = std::array::from_fn(|_| None);
+                let mut next = 0;
+                loop {
+                    let mut active = false;
+                    for lane in lanes.iter_mut() {
+                        if lane.is_none() && next < w {
+                            *lane = Some((next, start(next)));
+                            next += 1;
                         }
-                        None => {
-                            let nan = f32::NAN;
-                            depth[x] = 0.0;
-                            points[x] = Point3::new(nan, nan, nan);
-                            normals[x] = Vector3::new(nan, nan, nan);
-                            weights[x] = 0.0;
+                        let Some((x, ray)) = lane.as_mut() else {
+                            continue;
+                        };
+                        active = true;
+                        let Some(hit) = frame.advance(&mut sampler, occ, ray) else {
+                            continue;
+                        };
+                        let x = *x;
+                        if hit.is_none() && ray.is_hinted_start() {
+                            let (lo, hi) = range::pixel_range(tiles, w, x, y);
+                            *ray = frame.ray(x, y, lo, hi, false);
+                            continue;
                         }
+                        *lane = None;
+                        match hit {
+                            Some(hit) => {
+                                depth[x] = hit.z_m;
+                                points[x] = hit.point;
+                                normals[x] = hit.normal;
+                                weights[x] = hit.weight;
+                            }
+                            None => {
+                                let nan = f32::NAN;
+                                depth[x] = 0.0;
+                                points[x] = Point3::new(nan, nan, nan);
+                                normals[x] = Vector3::new(nan, nan, nan);
+                                weights[x] = 0.0;
+                            }
+                        }
+                    }
+                    if !active {
+                        break;
                     }
                 }
             });

@@ -1,6 +1,7 @@
 //! Raycast tests: analytic TSDFs of a plane and a sphere (depth and normal errors against the
 //! exact intersections), a scene fused from simulated frames, blocks straddling the near plane,
-//! buffer reuse, thread-count independence and argument checks.
+//! buffer reuse, thread-count independence, rays marched together against one at a time, and
+//! argument checks.
 
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use proptest::prelude::*;
@@ -565,4 +566,78 @@ fn bad_arguments_are_errors() {
     assert!(vol.raycast(&far, &k, &RaycastConfig::default()).is_err());
     let nan = CameraToWorld::from_isometry(Isometry3::translation(f64::NAN, 0.0, 0.0));
     assert!(vol.raycast(&nan, &k, &RaycastConfig::default()).is_err());
+}
+
+#[test]
+fn rays_marched_together_give_what_each_gives_alone() {
+    // The row loop marches `LANES` rays a step each in turn; every pixel must get exactly what
+    // one march (`RayFrame::cast`: the hinted start, then the near end when it fails) gives.
+    let k = small_camera();
+    let v = 0.01;
+    let (vol, scene) = fused_room(&k, v, 0.04);
+    let pose = CameraToWorld::from_isometry(Isometry3::new(
+        Vector3::new(0.05, -0.03, 0.1),
+        Vector3::new(0.02, -0.04, 0.01),
+    ));
+    let truth = scene.render(&k, &pose).depth;
+    let config = RaycastConfig::default();
+    let band = crate::params::BandFn::new(vol.params());
+    let margin = |z: f32| band.band(z) + 2.0 * v as f32;
+    // Hints on the surface, behind it (rays that give up and march again) and none at all.
+    for offset_m in [Some(0.0f32), Some(0.3), None] {
+        let hint = offset_m.map(|o| {
+            let mut h = truth.clone();
+            for (i, z) in h.data_mut().iter_mut().enumerate() {
+                if *z > 0.0 && i % 7 != 0 {
+                    *z += o;
+                } else {
+                    *z = 0.0;
+                }
+            }
+            h
+        });
+        let mut out = Raycast::default();
+        vol.raycast_hinted_into(&pose, &k, &config, hint.as_ref(), &mut out)
+            .unwrap();
+        let frame = march::RayFrame::new(&vol, pose.isometry(), &k, &config).unwrap();
+        let mut sampler = sampler::Sampler::new(&vol);
+        let (mut hits, mut gave_up) = (0usize, 0usize);
+        for y in 0..k.height {
+            for x in 0..k.width {
+                let (lo, hi) = range::pixel_range(&out.tiles, k.width, x, y);
+                let start = hint
+                    .as_ref()
+                    .and_then(|h| h.data().get(y * k.width + x))
+                    .filter(|z| **z > 0.0)
+                    .map(|z| z - margin(*z))
+                    .filter(|s| *s > lo);
+                let occ = &out.occupancy;
+                let alone = match start {
+                    Some(s) => frame
+                        .cast(&mut sampler, occ, x, y, s, hi, true)
+                        .or_else(|| {
+                            gave_up += 1;
+                            frame.cast(&mut sampler, occ, x, y, lo, hi, false)
+                        }),
+                    None => frame.cast(&mut sampler, occ, x, y, lo, hi, false),
+                };
+                let i = y * k.width + x;
+                let got = out.depth.data()[i];
+                match alone {
+                    Some(h) => {
+                        hits += 1;
+                        assert_eq!(got.to_bits(), h.z_m.to_bits(), "({x}, {y})");
+                        assert_eq!(out.points[i], h.point, "({x}, {y})");
+                        assert_eq!(out.normals[i], h.normal, "({x}, {y})");
+                        assert_eq!(out.weights[i].to_bits(), h.weight.to_bits());
+                    }
+                    None => assert_eq!(got, 0.0, "({x}, {y})"),
+                }
+            }
+        }
+        assert!(hits * 2 > k.width * k.height, "{hits} hits");
+        if offset_m == Some(0.3) {
+            assert!(gave_up > 100, "{gave_up} hinted rays marched again");
+        }
+    }
 }
