@@ -39,6 +39,9 @@ pub(super) struct RayFrame {
     centre_g: Vector3<f32>,
     inv_voxel: f32,
     pub(super) voxel_m: f32,
+    /// Nearest-voxel values above this (√3 voxels: the largest distance from a point to its
+    /// nearest voxel is √3/2 voxel, and |∇F| ≤ 1) are certainly in front of the surface.
+    coarse_f: f32,
     /// Intrinsics and the depth range, shared with the tile ranges (`range::BlockView`).
     pub(super) fx: f32,
     pub(super) fy: f32,
@@ -81,6 +84,7 @@ impl RayFrame {
             centre_g: (centre / v).cast::<f32>(),
             inv_voxel: (1.0 / v) as f32,
             voxel_m: v as f32,
+            coarse_f: v as f32 * 1.75,
             fx: k.fx as f32,
             fy: k.fy as f32,
             cx: k.cx as f32,
@@ -180,9 +184,6 @@ impl RayFrame {
         occ: &Occupancy,
         ray: &mut Ray,
     ) -> Option<Option<Hit>> {
-        // Nearest-voxel values above this (√3 voxels: the largest distance from a point to its
-        // nearest voxel is √3/2 voxel, and |∇F| ≤ 1) are certainly in front of the surface.
-        let coarse_f = self.voxel_m * 1.75;
         let t = ray.t;
         if t > ray.end {
             return Some(None);
@@ -216,7 +217,7 @@ impl RayFrame {
             // so is the cell.
             None => None,
             Some((_, w)) if w <= 0.0 => None,
-            Some((f, _)) if f > coarse_f => Some(f),
+            Some((f, _)) if f > self.coarse_f => Some(f),
             Some(_) => s.cell_at(base, ft).map(|c| c.value()),
         };
         match sample {
