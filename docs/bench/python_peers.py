@@ -16,7 +16,8 @@ Compared:
 - TSDF: ``TsdfVolume.integrate`` and ``extract_mesh`` vs Open3D's ``ScalableTSDFVolume``
   (same voxel, truncation and depth range) on the ICL living-room frames;
 - planes: ``sldepth.extract_planes`` vs ``cv2.findPlanes`` (its Kinect ``sensor_error_a =
-  0.0075``; points from the depth map computed outside the timing, normals left to it);
+  0.0075``; points from the depth map computed outside the timing, normals left to it), one
+  thread and all threads (our final pass runs in bands on the pool; findPlanes is sequential);
 - call overhead: ``sldepth.filter`` against the Rust-internal timing the CLI reports for the
   same frame (``sldepth filter --repeat``), and ``extract_planes`` against the extractor's own
   minimum (``target/release/examples/planes_timing time``).
@@ -102,25 +103,29 @@ def bench_filter(name, z, cam, rounds, reps, threads):
     return rows
 
 
-def bench_planes(name, z, cam, rounds, reps):
+def bench_planes(name, z, cam, rounds, reps, threads):
     # findPlanes wants the 4-channel organised cloud of cv2.depthTo3d (made outside the timing;
     # its normals are left to findPlanes, whose time includes them).
     pts = cv2.depthTo3d(z, np.array(cam.intrinsic_matrix(), dtype=np.float32))
-    ratios, ours_t, cv_t = [], [], []
-    sldepth.set_num_threads(1)
-    cv2.setNumThreads(1)
-    for _ in range(rounds):
-        o = timed(lambda: sldepth.extract_planes(z, cam), reps)
-        c = timed(lambda: cv2.findPlanes(pts, None, sensor_error_a=0.0075), reps)
-        ours_t.append(o)
-        cv_t.append(c)
-        ratios.append(o[0] / c[0])
-    sldepth.set_num_threads(None)
-    _, planes = sldepth.extract_planes(z, cam)
-    mask, coeffs = cv2.findPlanes(pts, None, sensor_error_a=0.0075)
-    return dict(frame=name, threads=1, ours_min_ms=min(t[0] for t in ours_t), peer_min_ms=min(t[0] for t in cv_t),
-                ratio_min=min(ratios), ratio_median=statistics.median(ratios),
-                ours_planes=len(planes), peer_planes=0 if coeffs is None else len(coeffs))
+    rows = []
+    for nt in threads:
+        ratios, ours_t, cv_t = [], [], []
+        sldepth.set_num_threads(nt)
+        cv2.setNumThreads(nt)
+        for _ in range(rounds):
+            o = timed(lambda: sldepth.extract_planes(z, cam), reps)
+            c = timed(lambda: cv2.findPlanes(pts, None, sensor_error_a=0.0075), reps)
+            ours_t.append(o)
+            cv_t.append(c)
+            ratios.append(o[0] / c[0])
+        sldepth.set_num_threads(None)
+        _, planes = sldepth.extract_planes(z, cam)
+        mask, coeffs = cv2.findPlanes(pts, None, sensor_error_a=0.0075)
+        rows.append(dict(frame=name, threads=nt, ours_min_ms=min(t[0] for t in ours_t),
+                         peer_min_ms=min(t[0] for t in cv_t), ratio_min=min(ratios),
+                         ratio_median=statistics.median(ratios), ours_planes=len(planes),
+                         peer_planes=0 if coeffs is None else len(coeffs)))
+    return rows
 
 
 def read_log(path):
@@ -246,7 +251,7 @@ def main():
         if "filter" in a.only:
             res["filter"] += bench_filter(name, z, cam, a.rounds, a.reps, [1, os.cpu_count()])
         if "planes" in a.only:
-            res["planes"].append(bench_planes(name, z, cam, a.rounds, a.reps))
+            res["planes"] += bench_planes(name, z, cam, a.rounds, a.reps, [1, os.cpu_count()])
     if "tsdf" in a.only:
         res["tsdf"] = bench_tsdf(a.data, a.rounds)
     if "overhead" in a.only:

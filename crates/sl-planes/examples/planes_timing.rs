@@ -302,6 +302,7 @@ fn main() {
         "view" => view(&PathBuf::from(arg(1)), &PathBuf::from(arg(2)), &arg(3)),
         "repeat" => repeat(arg(1).parse().unwrap_or(20), &arg(2)),
         "time" => time(arg(1).parse().unwrap_or(200), &arg(2)),
+        "time-pool" => rayon::scope(|_| time(arg(1).parse().unwrap_or(200), &arg(2))),
         _ => time(arg(0).parse().unwrap_or(200), &arg(1)),
     }
 }

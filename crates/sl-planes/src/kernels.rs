@@ -41,6 +41,15 @@ impl InvSums {
         self.syi += sign * y * inv;
         self.sr2 += sign * (r * inv) * (r * inv);
     }
+
+    /// Adds the sums of `o`.
+    pub fn merge(&mut self, o: &InvSums) {
+        self.n += o.n;
+        self.si += o.si;
+        self.sxi += o.sxi;
+        self.syi += o.syi;
+        self.sr2 += o.sr2;
+    }
 }
 
 /// Horizontal sum of 4 lanes, in `f64`.

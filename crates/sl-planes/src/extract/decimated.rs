@@ -42,7 +42,28 @@ impl PlaneExtractor {
     /// Runs `extract` (the depth or the disparity path on the frame's own pixels) on the
     /// `w × h` map `data` of `camera`, on the sensor's grid when the camera is its sensor
     /// decimated ([`PlaneExtractor::sensor_factor`]), and returns the frame's segmentation.
+    ///
+    /// With more than one thread, the extraction runs on a worker of the caller's rayon pool
+    /// (called from outside every pool: on a worker of the global pool while the caller waits,
+    /// once), so that its parallel final pass splits on the spot instead of queueing for the
+    /// pool (see ARCHITECTURE.md, "One parallelism policy"). With one thread it runs on the
+    /// calling thread.
     pub(super) fn extract_on_sensor_grid(
+        &mut self,
+        data: &[f32],
+        w: usize,
+        h: usize,
+        camera: &Camera,
+        extract: fn(&mut Self, &[f32], usize, usize, &Camera) -> Result<PlaneSegmentation>,
+    ) -> Result<PlaneSegmentation> {
+        if rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none() {
+            return rayon::scope(|_| self.extract_on_sensor_grid_here(data, w, h, camera, extract));
+        }
+        self.extract_on_sensor_grid_here(data, w, h, camera, extract)
+    }
+
+    /// [`PlaneExtractor::extract_on_sensor_grid`] on the calling thread.
+    fn extract_on_sensor_grid_here(
         &mut self,
         data: &[f32],
         w: usize,

@@ -258,6 +258,15 @@ impl FinalAcc {
         self.y0 = self.y0.min(y);
         self.y1 = self.y1.max(y + 1);
     }
+
+    /// Adds the pixels, rows and moments of `o` (another band of the same plane).
+    fn merge(&mut self, o: &FinalAcc) {
+        self.sums.merge(&o.sums);
+        self.inv.merge(&o.inv);
+        self.pixels += o.pixels;
+        self.y0 = self.y0.min(o.y0);
+        self.y1 = self.y1.max(o.y1);
+    }
 }
 
 /// A reusable plane extractor: holds its work buffers so that repeated calls on frames of the
@@ -314,28 +323,11 @@ pub struct PlaneExtractor {
     free_cells: Vec<u8>,
     /// Per-pixel (or per-cell) keep bytes of the row being assigned: 1 = done, 0 = search.
     keep_row: Vec<u8>,
-    /// Per cell of the current cell row: 1 when an unlabelled cell touches a labelled one.
-    cells_touching_plane: Vec<u8>,
     /// Per cell of the current cell row: 1 when it is labelled and a cell of another plane
     /// touches it (its pixels choose between the planes around; final pass).
     border_cells: Vec<u8>,
-    /// Runs `(start, end, label, border)` of equal cell labels and border flags of the current
-    /// cell row.
-    cell_label_runs: Vec<(u32, u32, u16, bool)>,
     /// Copy of the current cell-label row taken before its searches (coarse pass).
     cell_labels_before_search: Vec<u16>,
-    /// One full-resolution disparity row (final pass).
-    disparity_row: Vec<f32>,
-    /// Keep bytes of the pixels of unlabelled cells of the current cell row (0 = search).
-    unlabelled_keep: Vec<u8>,
-    /// The 8-pixel chunks of the current row that have pixels to search, with their keep words.
-    search_chunks: Vec<(u32, u64)>,
-    /// Per chunk: the cell row (+1) its candidate list was computed for.
-    candidates_cell_row: Vec<u32>,
-    /// Per chunk: the candidate planes (label − 1) of the cells around it.
-    candidate_planes: Vec<[u16; 16]>,
-    /// Per chunk: how many entries of `candidate_planes` are used.
-    candidate_count: Vec<u8>,
     /// A row of zero cell labels (stands in for a missing row above or below).
     zero_cell_row: Vec<u16>,
     /// Plane indices in merge / renumbering order.
@@ -348,6 +340,8 @@ pub struct PlaneExtractor {
     full_res_fits: Vec<DisparityAffine>,
     /// Per plane: pixels, rows and moments accumulated by the final pass.
     final_sums: Vec<FinalAcc>,
+    /// Scratch and output of the final pass's bands of rows.
+    final_bands: Vec<final_band::FinalBand>,
     /// Pixels that fit two planes: `(pixel index, best label, second label)`.
     ambiguous: Vec<(u32, u16, u16)>,
     /// Per component: affine moment sums of its cells (seeding).
@@ -670,6 +664,7 @@ impl PlaneExtractor {
 mod assign;
 mod decimated;
 mod explain;
+mod final_band;
 mod input;
 mod merge;
 mod patches;
