@@ -13,7 +13,11 @@
 //!   --collect-atstart=no --toggle-collect='*repeat_extract*'`).
 //! * `… -- view DIR OUT FILTER`: side-by-side overlays (saved | current) as PNGs in `OUT`.
 //!
-//! Run with `RAYON_NUM_THREADS=1` (the extractor itself is sequential). Frames come from
+//! * `… -- time-pool [ITERATIONS] [FILTER]`: `time` run from a worker of the global pool.
+//!
+//! `RAYON_NUM_THREADS=1` times one thread (the final pass runs in bands on the rayon pool when
+//! it has more than one thread; from the main thread the extraction then moves onto a worker
+//! once per frame, see `PlaneExtractor::extract_depth`). Frames come from
 //! `../shared/data` (simulated frames when absent), as in `benches/planes.rs`.
 #![allow(missing_docs, clippy::unwrap_used, clippy::expect_used)]
 

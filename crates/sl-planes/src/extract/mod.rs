@@ -272,6 +272,11 @@ impl FinalAcc {
 /// A reusable plane extractor: holds its work buffers so that repeated calls on frames of the
 /// same size allocate nothing beyond the output (the label image and the plane list).
 ///
+/// Threads: the final per-pixel pass runs in bands of rows on the caller's rayon pool when it
+/// has more than one thread (called from outside every pool, the extraction moves onto a worker
+/// of the global pool once per frame); the result is the same, bit for bit, on any number of
+/// threads. The other stages are sequential.
+///
 /// ```
 /// use sl_core::{Camera, DepthImage};
 /// use sl_planes::{PlaneConfig, PlaneExtractor, Stage};
