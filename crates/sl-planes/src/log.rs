@@ -17,8 +17,7 @@
 //! the extended map's own NaN (far inside wide holes) cut the support.
 //!
 //! The passes are streamed row by row through rings of a few rows (for `r = 1`), so that only
-//! the input and the mask span the whole map, and the extractor produces the input rows
-//! themselves on demand (half-resolution means of the disparity computed as they are needed).
+//! the input and the mask span the whole map (a [`RowSource`] hands out the input rows).
 
 /// Largest box radius.
 pub const MAX_BOX_RADIUS: usize = 8;

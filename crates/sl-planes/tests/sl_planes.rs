@@ -314,8 +314,8 @@ fn a_decimated_frame_gives_the_planes_of_the_full_one() {
 
 /// The final pass runs in bands of rows on the caller's rayon pool: the labels and every plane
 /// field are the same bit for bit on 1, 2 and 3 threads and from a thread outside every pool,
-/// on simulated rooms (many planes, creases, pixels two planes explain) and on a frame whose
-/// height is not a whole number of bands (120 rows: 3 bands of 32 and one of 24).
+/// on simulated rooms (many planes, creases, pixels two planes explain) and on frames whose
+/// height is not a whole number of bands (120 rows: 3 bands of 32 and one of 24; 118 rows).
 #[test]
 fn the_segmentation_does_not_depend_on_the_number_of_threads() {
     let mut frames = Vec::new();
@@ -341,6 +341,13 @@ fn the_segmentation_does_not_depend_on_the_number_of_threads() {
     ];
     let (truth, _) = render(&cam.intrinsics, &walls, 8.0);
     frames.push((noisy(&truth, 7), cam, cfg_small()));
+    // 118 rows: an odd number of half-resolution rows (59), the last one without a cell row.
+    let odd = Camera {
+        intrinsics: Intrinsics::new(160, 118, 150.0, 150.0, 79.5, 58.5).unwrap(),
+        sensor: SensorModel::kinect_v1(),
+    };
+    let (truth, _) = render(&odd.intrinsics, &walls, 8.0);
+    frames.push((noisy(&truth, 8), odd, cfg_small()));
     for (depth, cam, cfg) in &frames {
         let run = || {
             let seg = PlaneExtractor::new(*cfg)

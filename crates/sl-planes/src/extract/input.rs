@@ -1,19 +1,9 @@
-//! The streamed input of the extractor: depth or disparity rows, the full-resolution disparity
-//! rebuilt row by row for the final pass, and the 2×2 half-resolution rows fed to the LoG.
+//! The input of the extractor: the full-resolution disparity (the depth converted row by row
+//! where it is used), and the 2×2 half-resolution map and the 4×4 cells computed from it.
+
+use rayon::prelude::*;
 
 use super::*;
-
-/// The full-resolution input of [`PlaneExtractor::run`].
-pub(super) enum Source<'a> {
-    /// Disparity (pixels; non-positive or non-finite = invalid), used in place.
-    Disparity(&'a [f32]),
-    /// Depth (metres), converted row pair by row pair into `d` (two rows).
-    Depth {
-        z: &'a [f32],
-        d: &'a mut [f32],
-        fb: f32,
-    },
-}
 
 /// The full-resolution disparity for the final pass: the input disparity, or the depth, whose
 /// rows are converted again where they are used (the same conversion, so the same bits, without
@@ -59,45 +49,50 @@ impl<'a> FullDisparity<'a> {
     }
 }
 
-/// The half-resolution disparity (2×2 means, NaN = invalid) produced row by row for the LoG,
-/// from the full-resolution rows (converted from depth on the way) while they are in L1; after
-/// each odd row, the row of the cells `cell_disparity` (2×2 means of the half-resolution map).
-pub(super) struct HalfRows<'a, 'b> {
-    pub(super) src: Source<'a>,
-    /// The last two half-resolution rows.
-    pub(super) half_res_rows: &'b mut [f32],
-    pub(super) cell_disparity: &'b mut [f32],
-    /// Full-resolution width.
-    pub(super) w: usize,
-    /// Next half-resolution row.
-    pub(super) next: usize,
-}
+/// Cell rows per piece of [`half_resolution`] (a constant, so the pieces do not depend on the
+/// number of threads; each piece computes every value as the whole frame would).
+const HALF_RES_PIECE_CELL_ROWS: usize = 8;
 
-impl<'a> HalfRows<'a, '_> {
-    /// Produces the next half-resolution row (and cell row) and returns its index.
-    pub(super) fn produce(&mut self) -> usize {
-        let (w, y2) = (self.w, self.next);
-        self.next += 1;
-        let pair = 2 * y2 * w..(2 * y2 + 2) * w;
-        let r2: &[f32] = match &mut self.src {
-            Source::Disparity(d) => &d[pair],
-            Source::Depth { z, d, fb } => {
-                let (zp, dp) = (&z[pair], &mut d[..2 * w]);
-                for (zr, dr) in zp.chunks_exact(w).zip(dp.chunks_exact_mut(w)) {
-                    depth_to_disparity_row(zr, dr, *fb);
-                }
-                dp
-            }
-        };
-        let (r0, r1) = r2.split_at(w);
-        let w2 = w / 2;
-        let (q0, q1) = self.half_res_rows.split_at_mut(w2);
-        let out = if y2.is_multiple_of(2) { q0 } else { q1 };
+/// The half-resolution disparity (2×2 means, NaN = invalid) of the `w × h` frame `src` into
+/// rows `m..m + h/2`, columns `m..m + w/2` of the extended map `ext` (width `we`; the rest is
+/// left as it is), and the cells' disparity (2×2 means of the half-resolution map, `w/4 × h/4`)
+/// into `cells`. Pieces of [`HALF_RES_PIECE_CELL_ROWS`] cell rows run on the caller's pool when
+/// `parallel`; `scratch` holds one two-row buffer per piece (depth converted to disparity).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn half_resolution(
+    src: FullDisparity<'_>,
+    w: usize,
+    h: usize,
+    ext: &mut [f32],
+    we: usize,
+    m: usize,
+    cells: &mut [f32],
+    scratch: &mut Vec<Vec<f32>>,
+    parallel: bool,
+) {
+    let (w2, h2) = (w / 2, h / 2);
+    let (wq, hq) = (w2 / 2, h2 / 2);
+    // Half-resolution row `y2` into `out` (`w2` values), through the two-row `buf`.
+    let half_row = |y2: usize, out: &mut [f32], buf: &mut [f32]| {
+        let (b0, b1) = buf.split_at_mut(w);
+        let r0 = src.row(2 * y2, w, b0);
+        let r1 = src.row(2 * y2 + 1, w, b1);
         downsample_rows(r0, r1, out);
-        if !y2.is_multiple_of(2) {
-            let (q0, q1) = self.half_res_rows.split_at(w2);
-            let (wq, j) = (w2 / 2, y2 / 2);
-            let out = &mut self.cell_disparity[j * wq..(j + 1) * wq];
+    };
+    // One piece: cell rows `j0..`, their half-resolution rows in `rows` (rows `2·j0..` of the
+    // map, `we` apart) and their cells in `crow`.
+    let piece = |j0: usize, rows: &mut [f32], crow: &mut [f32], buf: &mut Vec<f32>| {
+        buf.resize(2 * w, 0.0);
+        for (jj, (pair, out)) in rows
+            .chunks_exact_mut(2 * we)
+            .zip(crow.chunks_exact_mut(wq))
+            .enumerate()
+        {
+            let j = j0 + jj;
+            let (q0, q1) = pair.split_at_mut(we);
+            let (q0, q1) = (&mut q0[m..m + w2], &mut q1[m..m + w2]);
+            half_row(2 * j, q0, buf);
+            half_row(2 * j + 1, q1, buf);
             for ((o, p), q) in out
                 .iter_mut()
                 .zip(q0.chunks_exact(2))
@@ -106,26 +101,36 @@ impl<'a> HalfRows<'a, '_> {
                 *o = 0.25 * ((p[0] + p[1]) + (q[0] + q[1]));
             }
         }
-        y2
+    };
+    let rows = &mut ext[m * we..(m + 2 * hq) * we];
+    let cells = &mut cells[..wq * hq];
+    let pieces = hq.div_ceil(HALF_RES_PIECE_CELL_ROWS).max(1);
+    if scratch.len() < pieces {
+        scratch.resize_with(pieces, Vec::new);
     }
-
-    /// Produces the rows the LoG left (all of `half_res_rows` and `cell_disparity` are then done) and returns the
-    /// full-resolution disparity.
-    pub(super) fn finish(mut self, h: usize) -> FullDisparity<'a> {
-        while self.next < h / 2 {
-            self.produce();
-        }
-        match self.src {
-            Source::Disparity(d) => FullDisparity::Disparity(d),
-            Source::Depth { z, fb, .. } => FullDisparity::Depth { z, fb },
-        }
+    let (rows_per, cells_per) = (
+        2 * HALF_RES_PIECE_CELL_ROWS * we,
+        HALF_RES_PIECE_CELL_ROWS * wq,
+    );
+    if parallel {
+        rows.par_chunks_mut(rows_per)
+            .zip(cells.par_chunks_mut(cells_per))
+            .zip(scratch.par_iter_mut())
+            .enumerate()
+            .for_each(|(k, ((r, c), buf))| piece(k * HALF_RES_PIECE_CELL_ROWS, r, c, buf));
+    } else {
+        rows.chunks_mut(rows_per)
+            .zip(cells.chunks_mut(cells_per))
+            .zip(scratch.iter_mut())
+            .enumerate()
+            .for_each(|(k, ((r, c), buf))| piece(k * HALF_RES_PIECE_CELL_ROWS, r, c, buf));
     }
-}
-
-impl RowSource for HalfRows<'_, '_> {
-    fn next_row(&mut self) -> &[f32] {
-        let y2 = self.produce();
-        let w2 = self.w / 2;
-        &self.half_res_rows[(y2 % 2) * w2..(y2 % 2 + 1) * w2]
+    // An odd number of half-resolution rows: the last one has no cell row.
+    if h2 > 2 * hq
+        && let Some(buf) = scratch.first_mut()
+    {
+        buf.resize(2 * w, 0.0);
+        let at = (m + 2 * hq) * we + m;
+        half_row(2 * hq, &mut ext[at..at + w2], buf);
     }
 }

@@ -71,7 +71,7 @@ use crate::kernels::{
     InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8_two,
     valid_mask,
 };
-use crate::log::{FrameRows, LogBuffers, RowSource, log_geometry, planar_mask_uncounted};
+use crate::log::{FrameRows, LogBuffers, log_geometry, planar_mask_uncounted};
 use crate::plane::DisparityAffine;
 use sl_core::Plane;
 
@@ -275,7 +275,8 @@ impl FinalAcc {
 /// Threads: the final per-pixel pass runs in bands of rows on the caller's rayon pool when it
 /// has more than one thread (called from outside every pool, the extraction moves onto a worker
 /// of the global pool once per frame); the result is the same, bit for bit, on any number of
-/// threads. The other stages are sequential.
+/// threads. So does the half-resolution map (2×2 means) of the LoG and the cells. The other
+/// stages are sequential.
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage};
@@ -297,10 +298,8 @@ impl FinalAcc {
 pub struct PlaneExtractor {
     /// The configuration.
     cfg: PlaneConfig,
-    /// Full-resolution disparity of the frame (pixels), row-major.
-    full_disparity: Vec<f32>,
-    /// Two rolling rows of half-resolution disparity (input of the cell grid and the LoG).
-    half_res_rows: Vec<f32>,
+    /// Two-row scratch per piece of the half-resolution map (depth converted to disparity).
+    half_res_scratch: Vec<Vec<f32>>,
     /// Cell-averaged disparity on the 4×4 cell grid.
     cell_disparity: Vec<f32>,
     /// Planarity mask of the cells (1 = the LoG says locally planar).
@@ -467,18 +466,10 @@ impl PlaneExtractor {
         let fb = camera.sensor.fb();
         let fbf = fb as f32;
         self.set_noise(camera);
-        // Scratch for one row pair: the full-resolution disparity is never stored.
-        let mut d = std::mem::take(&mut self.full_disparity);
-        d.resize(2 * w, 0.0);
-        let src = Source::Depth {
-            z,
-            d: &mut d,
-            fb: fbf,
-        };
+        // The full-resolution disparity is never stored: rows are converted where used.
+        let src = FullDisparity::Depth { z, fb: fbf };
         self.times.add(Stage::Disparity, &mut t0);
-        let out = self.run(src, w, h, &camera.intrinsics, fb, t0);
-        self.full_disparity = d;
-        out
+        self.run(src, w, h, &camera.intrinsics, fb, t0)
     }
 
     /// Extracts planes from a disparity image (pixels, 0 = invalid), e.g. raw Kinect disparity
@@ -506,7 +497,7 @@ impl PlaneExtractor {
         self.times = StageTimes::default();
         // The disparity is used in place: every test treats non-positive and non-finite values
         // as invalid.
-        let src = Source::Disparity(d);
+        let src = FullDisparity::Disparity(d);
         self.set_noise(camera);
         self.times.add(Stage::Disparity, &mut t0);
         self.run(src, w, h, &camera.intrinsics, camera.sensor.fb(), t0)
@@ -514,7 +505,7 @@ impl PlaneExtractor {
 
     fn run(
         &mut self,
-        src: Source<'_>,
+        d: FullDisparity<'_>,
         w: usize,
         h: usize,
         k: &Intrinsics,
@@ -533,16 +524,8 @@ impl PlaneExtractor {
             labels.resize(w * h, 0);
             return self.finish(w, h, k, fb, labels);
         }
-        // 0. The disparity and its 2×2 means, row pair by row pair as the LoG consumes them.
-        self.half_res_rows.resize(2 * w2, f32::NAN);
+        // 0. The half-resolution disparity (2×2 means) and the cells (4×4 means).
         self.cell_disparity.resize(wq * hq, f32::NAN);
-        let mut rows = HalfRows {
-            src,
-            half_res_rows: &mut self.half_res_rows,
-            cell_disparity: &mut self.cell_disparity,
-            w,
-            next: 0,
-        };
         // Row scratch; `fit_run` may write up to 7 bytes past a run.
         self.keep_row.resize(w + LANES, 0);
         // 1. Seeds: the LoG on the half-resolution map, extended across holes and the image
@@ -553,12 +536,17 @@ impl PlaneExtractor {
         let (we, he) = (w2 + 2 * m, h2 + 2 * m);
         self.half_res_extended.clear();
         self.half_res_extended.resize(we * he, f32::NAN);
-        for y2 in 0..h2 {
-            let row = rows.next_row();
-            let at = (y2 + m) * we + m;
-            self.half_res_extended[at..at + w2].copy_from_slice(&row[..w2]);
-        }
-        let d = rows.finish(h);
+        half_resolution(
+            d,
+            w,
+            h,
+            &mut self.half_res_extended,
+            we,
+            m,
+            &mut self.cell_disparity,
+            &mut self.half_res_scratch,
+            rayon::current_num_threads() > 1,
+        );
         // Invalid half-resolution pixels (NaN) stay non-planar; the mask is cut back below.
         self.log_mask.clear();
         self.log_mask.resize(w2 * h2, 0);

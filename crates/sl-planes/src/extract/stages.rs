@@ -6,7 +6,7 @@ use super::*;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     /// Set-up of the input. The depth → disparity conversion and the 2×2 and 4×4 averaging
-    /// are streamed row by row into the LoG, so their time counts in [`Stage::Log`].
+    /// are done with the LoG's input, so their time counts in [`Stage::Log`].
     Disparity,
     /// Depth → disparity and 2×2 / 4×4 averaging, box LoG, threshold and erosion (half
     /// resolution), and the planar cells.
