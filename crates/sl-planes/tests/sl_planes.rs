@@ -32,6 +32,25 @@ fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
     KinectSimulator::kinect_v1().white().apply(truth, seed)
 }
 
+/// Seeded random room `seed` of the simulator through its own camera (the Kinect sensor model
+/// at the room's focal length), with the realistic noise: the depth and the camera.
+fn simulated_room(seed: u64) -> (DepthImage, Camera) {
+    let room = sl_noise::sim::room_scene(seed).unwrap();
+    let k = room.intrinsics;
+    let cam = Camera {
+        intrinsics: k,
+        sensor: SensorModel {
+            focal_px: k.fx,
+            ..SensorModel::kinect_v1()
+        },
+    };
+    let truth = room.scene.render(&k, &room.pose).depth;
+    (
+        KinectSimulator::with_sensor(cam.sensor).apply(&truth, seed),
+        cam,
+    )
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
 
@@ -259,17 +278,7 @@ fn a_decimated_frame_gives_the_planes_of_the_full_one() {
     let large = 5000;
     let (mut matched, mut total) = (0, 0);
     for seed in [0u64, 1, 2, 4] {
-        let room = sl_noise::sim::room_scene(seed).unwrap();
-        let k = room.intrinsics;
-        let cam = Camera {
-            intrinsics: k,
-            sensor: SensorModel {
-                focal_px: k.fx,
-                ..SensorModel::kinect_v1()
-            },
-        };
-        let truth = room.scene.render(&k, &room.pose).depth;
-        let depth = KinectSimulator::with_sensor(cam.sensor).apply(&truth, seed);
+        let (depth, cam) = simulated_room(seed);
         let half_cam = cam.resampled(0.5).unwrap();
         let (w2, h2) = (half_cam.intrinsics.width, half_cam.intrinsics.height);
         let half = sl_testkit::decimate(&depth, 2);
@@ -320,17 +329,7 @@ fn a_decimated_frame_gives_the_planes_of_the_full_one() {
 fn the_segmentation_does_not_depend_on_the_number_of_threads() {
     let mut frames = Vec::new();
     for seed in [0u64, 3] {
-        let room = sl_noise::sim::room_scene(seed).unwrap();
-        let k = room.intrinsics;
-        let cam = Camera {
-            intrinsics: k,
-            sensor: SensorModel {
-                focal_px: k.fx,
-                ..SensorModel::kinect_v1()
-            },
-        };
-        let truth = room.scene.render(&k, &room.pose).depth;
-        let depth = KinectSimulator::with_sensor(cam.sensor).apply(&truth, seed);
+        let (depth, cam) = simulated_room(seed);
         frames.push((depth, cam, PlaneConfig::default()));
     }
     let cam = small_camera(150.0);
