@@ -1,7 +1,7 @@
 //! `sldepth.extract_planes` and `sldepth.motion`: disparity-domain planes and the camera motion
 //! they give.
 
-use std::cell::RefCell;
+use std::sync::{Mutex, PoisonError};
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
@@ -64,26 +64,35 @@ impl From<&PlaneInfo> for PyPlane {
     }
 }
 
-thread_local! {
-    /// One extractor per thread, kept between calls: its scratch buffers (a few MB for
-    /// 640×480) are then allocated once, as a Rust user keeping a `PlaneExtractor` would.
-    static EXTRACTOR: RefCell<Option<PlaneExtractor>> = const { RefCell::new(None) };
-}
+/// Extractors kept between calls, so that their scratch buffers (a few MB for 640×480) are
+/// allocated once, as a Rust user keeping a `PlaneExtractor` would. A call takes one out for
+/// its whole duration and puts it back: not a thread-local, because an extraction runs on the
+/// pool (its final pass in parallel), and a worker waiting for one of its bands may start
+/// another Python thread's extraction on the same thread.
+static EXTRACTORS: Mutex<Vec<PlaneExtractor>> = Mutex::new(Vec::new());
 
-/// Runs `f` with this thread's extractor for `config` (made or replaced as needed).
+/// Extractors kept at most (more concurrent calls make theirs and drop them).
+const KEPT_EXTRACTORS: usize = 4;
+
+/// Runs `f` with a kept extractor for `config` (made or replaced as needed).
 fn with_extractor<T>(
     config: PlaneConfig,
     f: impl FnOnce(&mut PlaneExtractor) -> sl_planes::Result<T>,
 ) -> sl_planes::Result<T> {
-    EXTRACTOR.with(|cell| {
-        let mut slot = cell.borrow_mut();
-        let extractor = match slot.take() {
-            Some(e) if *e.config() == config => e,
-            _ => PlaneExtractor::new(config)?,
-        };
-        let extractor = slot.insert(extractor);
-        f(extractor)
-    })
+    let kept = EXTRACTORS
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .pop();
+    let mut extractor = match kept {
+        Some(e) if *e.config() == config => e,
+        _ => PlaneExtractor::new(config)?,
+    };
+    let out = f(&mut extractor);
+    let mut kept = EXTRACTORS.lock().unwrap_or_else(PoisonError::into_inner);
+    if kept.len() < KEPT_EXTRACTORS {
+        kept.push(extractor);
+    }
+    out
 }
 
 fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneConfig {

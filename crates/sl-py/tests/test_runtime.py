@@ -77,3 +77,32 @@ def test_two_python_threads_share_the_pool(kinect, three_planes):
     for t in threads:
         t.join()
     assert all(np.array_equal(r, ref) for r in results)
+
+
+def test_two_python_threads_extract_planes_at_once(kinect):
+    # The extraction's final pass runs on the pool, and a worker waiting for one of its bands
+    # may start the other thread's extraction on the same thread: both must still get their
+    # own planes (a per-thread extractor cache once failed here with "already borrowed").
+    depth, _, _ = sldepth.simulate("figure-walls", seed=3)
+    ref_labels, ref_planes = sldepth.extract_planes(depth, kinect)
+    errors = []
+
+    def work():
+        try:
+            for _ in range(40):
+                labels, planes = sldepth.extract_planes(depth, kinect)
+                assert np.array_equal(labels, ref_labels)
+                assert [p.pixels for p in planes] == [p.pixels for p in ref_planes]
+        except BaseException as e:  # noqa: BLE001 - a Rust panic is a BaseException
+            errors.append(repr(e))
+
+    sldepth.set_num_threads(2)
+    try:
+        threads = [threading.Thread(target=work) for _ in range(3)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    finally:
+        sldepth.set_num_threads(None)
+    assert not errors, errors[0]
