@@ -11,7 +11,8 @@
 //! 5. [`stale_doc_names`]: `docs/ARCHITECTURE.md`, a crate README or a crate's `lib.rs` docs
 //!    name (in backticks) a type or function that appears nowhere in the workspace's Rust
 //!    sources, or a Markdown file that does not exist;
-//! 6. [`generator_markers`]: a leftover generator marker comment (`// @name-list …`).
+//! 6. [`generator_markers`]: a leftover generator marker comment (`// @name-list …`);
+//! 7. [`thread_locals`]: a `thread_local!` outside the files listed in `THREAD_LOCAL_FILES`.
 //!
 //! The tests also plant one violation of each rule in a temporary tree and check that the rule
 //! reports it.
@@ -27,6 +28,13 @@ use std::path::{Path, PathBuf};
 const IO_CRATES: &[&str] = &["sl-io", "sl-testkit", "sl-eval", "sl-fuzz"];
 /// Binary crates: exempt from the library rules.
 const BINARY_CRATES: &[&str] = &["sldepth"];
+/// Files allowed to declare a `thread_local!`, each with why no borrow of it spans rayon work:
+/// sl-filter's kernel borrows its scratch for one block of rows, which calls no parallel code;
+/// sl-fuzz keeps a per-thread scratch directory, borrowed only to read or set its path.
+const THREAD_LOCAL_FILES: &[&str] = &[
+    "crates/sl-filter/src/kernel.rs",
+    "crates/sl-fuzz/src/lib.rs",
+];
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.
 const UNSAFE_FILE: &str = "crates/sl-filter/src/kernel.rs";
 
@@ -90,7 +98,40 @@ pub fn check_all(root: &Path) -> Vec<Violation> {
     v.extend(missing_readmes(root));
     v.extend(stale_doc_names(root));
     v.extend(generator_markers(root));
+    v.extend(thread_locals(root));
     v
+}
+
+/// Rule 7: no `thread_local!` in the crates outside [`THREAD_LOCAL_FILES`]. Code on a rayon
+/// worker that waits for a parallel part of its own work runs other jobs meanwhile, on the same
+/// thread: a per-thread cache borrowed across a call that may run parallel work is borrowed
+/// again by the job that re-enters (sl-py's plane-extractor cache panicked with "already
+/// borrowed" once the extractor's final pass ran on the pool).
+pub fn thread_locals(root: &Path) -> Vec<Violation> {
+    let mut files = Vec::new();
+    for dir in crate_dirs(root) {
+        rust_files(&dir, &mut files);
+    }
+    let mut out = Vec::new();
+    for f in files {
+        let path = rel(root, &f);
+        if THREAD_LOCAL_FILES.iter().any(|a| path == Path::new(a)) {
+            continue;
+        }
+        let text = fs::read_to_string(&f).unwrap_or_default();
+        for (line, code) in code_lines(&text) {
+            if code.contains("thread_local!") {
+                out.push(Violation {
+                    file: path.clone(),
+                    line,
+                    message: "`thread_local!` outside the reviewed files (a borrow spanning \
+                              rayon work is re-entered by work-stealing; see tidy rule 7)"
+                        .into(),
+                });
+            }
+        }
+    }
+    out
 }
 
 /// `cargo xtask tidy`: prints every violation and fails if there is one.
@@ -535,6 +576,19 @@ mod tests {
         let v = unsafe_outside_dispatch(t.path());
         assert_eq!(v.len(), 1, "{v:?}");
         assert!(v[0].file.ends_with("fast.rs"));
+    }
+
+    #[test]
+    fn planted_thread_local_fails() {
+        let t = clean_tree();
+        write(
+            t.path(),
+            "crates/sl-demo/src/cache.rs",
+            "//! Bad.\nthread_local! { static C: std::cell::Cell<u8> = const { std::cell::Cell::new(0) }; }\n",
+        );
+        let v = thread_locals(t.path());
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(v[0].file.ends_with("cache.rs") && v[0].line == 2);
     }
 
     #[test]
