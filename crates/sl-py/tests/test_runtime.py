@@ -79,30 +79,39 @@ def test_two_python_threads_share_the_pool(kinect, three_planes):
     assert all(np.array_equal(r, ref) for r in results)
 
 
-def test_two_python_threads_extract_planes_at_once(kinect):
-    # The extraction's final pass runs on the pool, and a worker waiting for one of its bands
-    # may start the other thread's extraction on the same thread: both must still get their
-    # own planes (a per-thread extractor cache once failed here with "already borrowed").
+def test_python_threads_call_everything_at_once(kinect):
+    # Every call runs on the pool, and a worker waiting for a parallel part of one call may run
+    # another thread's call on the same thread: results must not depend on that. (A per-thread
+    # plane-extractor cache once failed here with "already borrowed".) Three threads, on the
+    # global pool and on pools of one and two threads.
     depth, _, _ = sldepth.simulate("figure-walls", seed=3)
+    other, _, _ = sldepth.simulate("figure-walls", seed=4)
+    ref_filter = sldepth.filter(depth, kinect)
     ref_labels, ref_planes = sldepth.extract_planes(depth, kinect)
+    ref_motion = sldepth.motion(depth, other, kinect).matrix
     errors = []
 
     def work():
         try:
-            for _ in range(40):
+            for i in range(20):
                 labels, planes = sldepth.extract_planes(depth, kinect)
                 assert np.array_equal(labels, ref_labels)
                 assert [p.pixels for p in planes] == [p.pixels for p in ref_planes]
+                assert np.array_equal(sldepth.filter(depth, kinect), ref_filter)
+                if i % 5 == 0:
+                    m = sldepth.motion(depth, other, kinect).matrix
+                    assert (m is None and ref_motion is None) or np.array_equal(m, ref_motion)
         except BaseException as e:  # noqa: BLE001 - a Rust panic is a BaseException
             errors.append(repr(e))
 
-    sldepth.set_num_threads(2)
     try:
-        threads = [threading.Thread(target=work) for _ in range(3)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join()
+        for n in (None, 1, 2):
+            sldepth.set_num_threads(n)
+            threads = [threading.Thread(target=work) for _ in range(3)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            assert not errors, f"{n} threads: {errors[0]}"
     finally:
         sldepth.set_num_threads(None)
-    assert not errors, errors[0]
