@@ -368,3 +368,29 @@ fn the_segmentation_does_not_depend_on_the_number_of_threads() {
         }
     }
 }
+
+/// Frames extracted in parallel (one extractor per task, `par_iter` over the frames), each
+/// extraction splitting its own final pass on the same pool: the same segmentations as one
+/// after the other, and no deadlock.
+#[test]
+fn frames_extracted_in_parallel_match_one_by_one() {
+    use rayon::prelude::*;
+    let frames: Vec<(DepthImage, Camera)> = (0..6u64).map(simulated_room).collect();
+    let run = |(depth, cam): &(DepthImage, Camera)| {
+        let seg = PlaneExtractor::new(PlaneConfig::default())
+            .unwrap()
+            .extract_depth(depth, cam)
+            .unwrap();
+        (seg.labels.data().to_vec(), format!("{:?}", seg.planes))
+    };
+    let one_by_one: Vec<_> = frames.iter().map(run).collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let parallel: Vec<_> = pool.install(|| frames.par_iter().map(run).collect());
+    for (i, (a, b)) in one_by_one.iter().zip(&parallel).enumerate() {
+        assert!(a.0 == b.0, "frame {i}: labels differ");
+        assert_eq!(a.1, b.1, "frame {i}: planes differ");
+    }
+}
