@@ -132,13 +132,8 @@ impl PlaneExtractor {
     /// Fresh accumulators and the planes in full-resolution coordinates.
     fn prepare_final(&mut self, wq: usize) {
         self.final_sums.clear();
-        self.final_sums.resize(
-            self.planes.len(),
-            FinalAcc {
-                y0: usize::MAX,
-                ..FinalAcc::default()
-            },
-        );
+        self.final_sums
+            .resize(self.planes.len(), FinalAcc::default());
         self.ambiguous.clear();
         self.full_res_fits.clear();
         self.full_res_fits

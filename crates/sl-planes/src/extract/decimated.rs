@@ -56,7 +56,7 @@ impl PlaneExtractor {
         camera: &Camera,
         extract: fn(&mut Self, &[f32], usize, usize, &Camera) -> Result<PlaneSegmentation>,
     ) -> Result<PlaneSegmentation> {
-        if rayon::current_num_threads() > 1 && rayon::current_thread_index().is_none() {
+        if rayon::current_num_threads() > 1 {
             return rayon::scope(|_| self.extract_on_sensor_grid_here(data, w, h, camera, extract));
         }
         self.extract_on_sensor_grid_here(data, w, h, camera, extract)

@@ -75,7 +75,7 @@ impl FinalBand {
     /// Assigns rows `y0..y0 + labels.len() / w` (`y0` a multiple of [`CELL`]) into `labels`
     /// (those rows of the label image, zero on entry).
     pub(super) fn run(&mut self, sh: &FinalShared<'_>, y0: usize, labels: &mut [u16]) {
-        let (w, wq) = (sh.w, sh.wq);
+        let w = sh.w;
         self.prepare(sh);
         let mut drow = std::mem::take(&mut self.drow);
         drow.resize(w, 0.0);
@@ -83,13 +83,13 @@ impl FinalBand {
             let y = y0 + r;
             let j = y / CELL;
             if y.is_multiple_of(CELL) {
-                self.prepare_cell_row(sh, j, wq);
+                self.prepare_cell_row(sh, j);
             }
             let row_d = sh.d.row(y, w, &mut drow[..w]);
-            self.assign_incumbents(sh, row_d, row_l, y, w, sh.tau);
-            self.mark_tail_columns(sh, j, wq, w);
+            self.assign_incumbents(sh, row_d, row_l, y);
+            self.mark_tail_columns(sh, j);
             let count = self.collect_search_chunks(w);
-            self.search_row(sh, row_d, row_l, y, w, wq, count, sh.tau);
+            self.search_row(sh, row_d, row_l, y, count);
         }
         self.drow = drow;
     }
@@ -98,13 +98,8 @@ impl FinalBand {
     fn prepare(&mut self, sh: &FinalShared<'_>) {
         let (w, wq) = (sh.w, sh.wq);
         self.sums.clear();
-        self.sums.resize(
-            sh.full_res_fits.len(),
-            FinalAcc {
-                y0: usize::MAX,
-                ..FinalAcc::default()
-            },
-        );
+        self.sums
+            .resize(sh.full_res_fits.len(), FinalAcc::default());
         self.ambiguous.clear();
         // `fit_run` may write up to 7 bytes past a run.
         self.keep_row.resize(w + LANES, 0);
@@ -121,7 +116,8 @@ impl FinalBand {
 
     /// Once per cell row: which unlabelled cells touch a labelled one (their pixels are
     /// searched), as keep bytes per pixel, and the runs of equal cell labels.
-    fn prepare_cell_row(&mut self, sh: &FinalShared<'_>, j: usize, wq: usize) {
+    fn prepare_cell_row(&mut self, sh: &FinalShared<'_>, j: usize) {
+        let wq = sh.wq;
         let cl: &[u16] = sh.cell_labels;
         let hint_row = cell_row(cl, j, wq);
         let up_row = if j > 0 { cell_row(cl, j - 1, wq) } else { &[] };
@@ -168,9 +164,8 @@ impl FinalBand {
         row_d: &[f32],
         row_l: &mut [u16],
         y: usize,
-        w: usize,
-        tau: f32,
     ) {
+        let (w, tau) = (sh.w, sh.tau);
         let yf = y as f64;
         let (stats, metric) = (is_sample_row(y), is_metric_row(y));
         let full: &[DisparityAffine] = sh.full_res_fits;
@@ -254,7 +249,8 @@ impl FinalBand {
     /// Columns beyond the cell grid (width not a multiple of the cell), or rows without one:
     /// unlabelled cells, searched when a neighbouring cell is labelled (after the runs, which
     /// may write ahead).
-    fn mark_tail_columns(&mut self, sh: &FinalShared<'_>, j: usize, wq: usize, w: usize) {
+    fn mark_tail_columns(&mut self, sh: &FinalShared<'_>, j: usize) {
+        let (w, wq) = (sh.w, sh.wq);
         let cl: &[u16] = sh.cell_labels;
         let hint_row = cell_row(cl, j, wq);
         let up_row = if j > 0 { cell_row(cl, j - 1, wq) } else { &[] };
@@ -297,19 +293,16 @@ impl FinalBand {
     /// valid pixel to search takes the plane of the cells around its chunk with the smallest
     /// residual when the noise explains it (`CellNoise::pixel_bound_px`), else its cell's plane
     /// if within `τ`, else the best within `τ` (pixels that two planes explain are recorded in
-    /// `ambiguous`; see [`Self::final_pass`]).
-    #[allow(clippy::too_many_arguments)]
+    /// `ambiguous`; see [`PlaneExtractor::final_pass`]).
     fn search_row(
         &mut self,
         sh: &FinalShared<'_>,
         row_d: &[f32],
         row_l: &mut [u16],
         y: usize,
-        w: usize,
-        wq: usize,
         count: usize,
-        tau: f32,
     ) {
+        let (w, wq, tau) = (sh.w, sh.wq, sh.tau);
         let yf = y as f64;
         let (stats, metric) = (is_sample_row(y), is_metric_row(y));
         let j = y / CELL;

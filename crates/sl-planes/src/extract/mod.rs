@@ -242,14 +242,27 @@ fn is_metric_row(y: usize) -> bool {
 
 /// Per-plane accumulators of the final statistics: moments of the labelled pixels of the even
 /// rows (full-resolution coordinates), their metric sums, and the exact pixel count.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy)]
 struct FinalAcc {
     sums: AffineSums,
     inv: InvSums,
     pixels: usize,
-    /// Rows `y0..y1` holding the plane's pixels.
+    /// Rows `y0..y1` holding the plane's pixels (`usize::MAX..0` while it has none).
     y0: usize,
     y1: usize,
+}
+
+impl Default for FinalAcc {
+    /// No pixel yet: empty sums and the empty row range.
+    fn default() -> Self {
+        Self {
+            sums: AffineSums::default(),
+            inv: InvSums::default(),
+            pixels: 0,
+            y0: usize::MAX,
+            y1: 0,
+        }
+    }
 }
 
 impl FinalAcc {
