@@ -44,7 +44,7 @@ pub use camera::Camera;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;
-pub use isa::{Isa, IsaKernel};
+pub use isa::{Isa, IsaKernel, prefetch};
 pub use lens::{LensDistortion, Undistorter};
 pub use mesh::{Mesh, Topology, VertexScalar};
 pub use plane::{Plane, PlaneFit, fit_plane};

@@ -281,11 +281,10 @@ pub struct TsdfConfig {
     /// fails with [`TsdfError::MemoryBudget`] and leaves the volume unchanged.
     pub memory_budget_bytes: usize,
     /// The instruction set of block discovery and the voxel update: by default the widest this
-    /// CPU supports ([`Isa::detect`]). [`Isa::Avx512`] runs them compiled for AVX-512 (about
-    /// 1.3× faster on an AMD EPYC; on a CPU without it, as portable code); [`Isa::Avx2`] runs
-    /// the portable code, since compiled for
-    /// AVX2 they were no faster there (docs/bench/track.md). Every choice gives bit-identical
-    /// volumes (the update is elementwise).
+    /// CPU supports ([`Isa::detect`]); a set this CPU lacks runs as the widest narrower one.
+    /// Every choice gives bit-identical volumes (the update is elementwise). Compiled for AVX2,
+    /// they were no faster than the portable code until the update prefetched its next block
+    /// (session 23 of docs/bench/track.md; before, the update waited on the blocks' memory).
     pub isa: Isa,
 }
 
@@ -314,10 +313,10 @@ impl Default for TsdfConfig {
 }
 
 impl TsdfConfig {
-    /// Whether discovery and the voxel update run compiled for AVX-512: [`TsdfConfig::isa`] asks
-    /// for it and this CPU has it (otherwise they run their portable code, see `isa`).
-    pub(crate) fn fused_with_avx512(&self) -> bool {
-        self.isa.effective() == Isa::Avx512
+    /// The instruction set block discovery and the voxel update are compiled for, when not
+    /// portable: [`TsdfConfig::isa`], or the widest narrower set this CPU has.
+    pub(crate) fn fusion_isa(&self) -> Option<Isa> {
+        Some(self.isa.effective()).filter(|&isa| isa != Isa::Portable)
     }
 
     /// Checks the parameters.

@@ -7,7 +7,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
-use sl_core::{CameraToWorld, DepthView, Intrinsics, Isa, IsaKernel};
+use sl_core::{CameraToWorld, DepthView, Intrinsics, IsaKernel};
 
 use super::discovery::*;
 use super::*;
@@ -103,17 +103,16 @@ impl TsdfVolume {
             .map(|_| AtomicBool::new(false))
             .collect();
         let index = &self.index;
-        let avx512 = self.params.fused_with_avx512();
+        let isa = self.params.fusion_isa();
         let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
             let used = pixels.fill(trows, drows, w);
-            let keys = if avx512 {
-                Isa::Avx512.run(BandStrip {
+            let keys = match isa {
+                Some(isa) => isa.run(BandStrip {
                     frame: &band,
                     rows: trows,
                     y0: ci * BAND_ROWS,
-                })?
-            } else {
-                band_rows(&band, trows, ci * BAND_ROWS)?
+                })?,
+                None => band_rows(&band, trows, ci * BAND_ROWS)?,
             };
             let mut new = Vec::new();
             for key in keys {
@@ -202,7 +201,7 @@ impl TsdfVolume {
             .first_chunk::<SMALL_TABLE>()
             .filter(|_| table.len() == SMALL_TABLE);
         let keys = &self.keys;
-        let avx512 = self.params.fused_with_avx512();
+        let isa = self.params.fusion_isa();
         let items: Vec<_> = self.blocks.chunks_mut(UPDATE_CHUNK).enumerate().collect();
         run_on_threads(
             items,
@@ -217,10 +216,9 @@ impl TsdfVolume {
                     small,
                     table,
                 };
-                if avx512 {
-                    Isa::Avx512.run(chunk);
-                } else {
-                    chunk.update::<false>();
+                match isa {
+                    Some(isa) => isa.run(chunk),
+                    None => chunk.update::<false>(),
                 }
             },
         );
@@ -262,18 +260,36 @@ struct UpdateChunk<'a> {
 }
 
 impl UpdateChunk<'_> {
-    /// The update; `INLINE`: with the per-block kernel inlined (into the AVX-512 trampoline),
-    /// else through its one out-of-line copy.
+    /// The update; `INLINE`: with the per-block kernel inlined (into the instruction set's
+    /// trampoline), else through its one out-of-line copy.
+    ///
+    /// While a block is updated, the next touched block's memory is prefetched: the touched
+    /// blocks lie scattered through the arena, a block is one 4 KB page, and the hardware
+    /// prefetcher does not cross pages, so without the hint the update waited on every block's
+    /// first loads (docs/bench/track.md, session 23).
     #[inline(always)]
     fn update<const INLINE: bool>(self) {
-        for ((blk, &touched), &key) in self.blocks.iter_mut().zip(self.touched).zip(self.keys) {
-            if !touched {
-                continue;
+        let Self {
+            blocks,
+            touched,
+            keys,
+            frame,
+            small,
+            table,
+        } = self;
+        let n = blocks.len().min(touched.len()).min(keys.len());
+        let mut touched_slots = (0..n).filter(|&i| touched[i]);
+        let mut current = touched_slots.next();
+        while let Some(i) = current {
+            current = touched_slots.next();
+            if let Some(next) = current {
+                sl_core::prefetch(&blocks[next].tsdf);
+                sl_core::prefetch(&blocks[next].weight);
             }
-            let b = unpack(key);
-            match self.small {
-                Some(t) => integrate_block_as::<_, INLINE>(blk, b, self.frame, t),
-                None => integrate_block_as::<_, INLINE>(blk, b, self.frame, self.table),
+            let (blk, b) = (&mut blocks[i], unpack(keys[i]));
+            match small {
+                Some(t) => integrate_block_as::<_, INLINE>(blk, b, frame, t),
+                None => integrate_block_as::<_, INLINE>(blk, b, frame, table),
             }
         }
     }

@@ -134,8 +134,7 @@ pub struct Args {
     pub no_plane_fallback: bool,
     /// Instruction set of the tracker's and the fusion's inner loops, for benchmarks:
     /// `portable`, `avx2` or `avx512` (default: the widest this CPU supports; one it does not
-    /// support falls back to the widest it does; the fusion runs its portable code unless
-    /// `avx512`). Every choice gives the same trajectory and mesh, bit for bit. The
+    /// support falls back to the widest it does). Every choice gives the same trajectory and mesh, bit for bit. The
     /// prefilter's kernels always use the widest.
     #[arg(long, value_parser = ["portable", "avx2", "avx512"])]
     pub isa: Option<String>,
