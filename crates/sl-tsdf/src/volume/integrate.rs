@@ -263,10 +263,10 @@ impl UpdateChunk<'_> {
     /// The update; `INLINE`: with the per-block kernel inlined (into the instruction set's
     /// trampoline), else through its one out-of-line copy.
     ///
-    /// While a block is updated, the next touched block's memory is prefetched: the touched
-    /// blocks lie scattered through the arena, a block is one 4 KB page, and the hardware
-    /// prefetcher does not cross pages, so without the hint the update waited on every block's
-    /// first loads (docs/bench/track.md, session 23).
+    /// While a block is updated, the next touched block's memory is prefetched, a z slice at a
+    /// time (see [`voxel_update`]): the touched blocks lie scattered through the arena, a block
+    /// is one 4 KB page, and the hardware prefetcher does not cross pages, so without the hint
+    /// the update waited on every block's loads (docs/bench/track.md, session 23).
     #[inline(always)]
     fn update<const INLINE: bool>(self) {
         let Self {
@@ -282,14 +282,12 @@ impl UpdateChunk<'_> {
         let mut current = touched_slots.next();
         while let Some(i) = current {
             current = touched_slots.next();
-            if let Some(next) = current {
-                sl_core::prefetch(&blocks[next].tsdf);
-                sl_core::prefetch(&blocks[next].weight);
-            }
-            let (blk, b) = (&mut blocks[i], unpack(keys[i]));
+            let (head, tail) = blocks.split_at_mut(current.unwrap_or(n));
+            let next = tail.first().filter(|_| current.is_some());
+            let (blk, b) = (&mut head[i], unpack(keys[i]));
             match small {
-                Some(t) => integrate_block_as::<_, INLINE>(blk, b, frame, t),
-                None => integrate_block_as::<_, INLINE>(blk, b, frame, table),
+                Some(t) => integrate_block_as::<_, INLINE>(blk, next, b, frame, t),
+                None => integrate_block_as::<_, INLINE>(blk, next, b, frame, table),
             }
         }
     }
@@ -423,7 +421,7 @@ pub(super) fn integrate_block<T: PixelTable + ?Sized>(
     fc: &FrameConsts,
     table: &T,
 ) {
-    integrate_block_as::<T, false>(blk, b, fc, table);
+    integrate_block_as::<T, false>(blk, None, b, fc, table);
 }
 
 /// [`integrate_block`]; `INLINE`: the voxel loop inlined into the caller instead of its
@@ -431,6 +429,7 @@ pub(super) fn integrate_block<T: PixelTable + ?Sized>(
 #[inline(always)]
 fn integrate_block_as<T: PixelTable + ?Sized, const INLINE: bool>(
     blk: &mut Block,
+    next: Option<&Block>,
     b: [i32; 3],
     fc: &FrameConsts,
     table: &T,
@@ -443,29 +442,31 @@ fn integrate_block_as<T: PixelTable + ?Sized, const INLINE: bool>(
     let z_min = origin.z
         + span * ((fc.step_x.z).min(0.0) + (fc.step_y.z).min(0.0) + (fc.step_z.z).min(0.0));
     match (z_min > 0.0, INLINE) {
-        (true, false) => integrate_block_with::<T, false>(blk, &origin, fc, table),
-        (false, false) => integrate_block_with::<T, true>(blk, &origin, fc, table),
-        (true, true) => voxel_update::<T, false>(blk, &origin, fc, table),
-        (false, true) => voxel_update::<T, true>(blk, &origin, fc, table),
+        (true, false) => integrate_block_with::<T, false>(blk, next, &origin, fc, table),
+        (false, false) => integrate_block_with::<T, true>(blk, next, &origin, fc, table),
+        (true, true) => voxel_update::<T, false>(blk, next, &origin, fc, table),
+        (false, true) => voxel_update::<T, true>(blk, next, &origin, fc, table),
     }
 }
 
 /// [`integrate_block`] with the block's origin in camera coordinates; `CHECK_Z`: voxels may
-/// be behind the camera.
+/// be behind the camera; `next`: the block updated next, whose memory is prefetched.
 #[inline(never)]
 pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     blk: &mut Block,
+    next: Option<&Block>,
     origin: &Vector3<f32>,
     fc: &FrameConsts,
     table: &T,
 ) {
-    voxel_update::<T, CHECK_Z>(blk, origin, fc, table);
+    voxel_update::<T, CHECK_Z>(blk, next, origin, fc, table);
 }
 
 /// The body of [`integrate_block_with`], inlined into its callers.
 #[inline(always)]
 fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     blk: &mut Block,
+    next: Option<&Block>,
     origin: &Vector3<f32>,
     fc: &FrameConsts,
     table: &T,
@@ -481,6 +482,12 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     // lanes that the compiler vectorises.
     for lz in 0..BLOCK_SIDE {
         let base = lz * SLICE;
+        // The next block's slice, 8 cache lines: spread over the slices, the hints do not
+        // wait for free line-fill buffers as 64 at once do.
+        if let Some(n) = next {
+            sl_core::prefetch(&n.tsdf[base..base + SLICE]);
+            sl_core::prefetch(&n.weight[base..base + SLICE]);
+        }
         let s = origin + fc.step_z * lz as f32;
         // Stage 1 (pure f32 arithmetic): camera coordinates, λ = ‖P‖/z, and the pixel the
         // voxel projects to (nearest pixel centre), clamped onto the table's invalid border

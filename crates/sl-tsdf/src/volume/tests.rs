@@ -167,9 +167,9 @@ fn voxel_update_variants_agree() {
         let mut a = blk.clone();
         let mut c = blk.clone();
         let mut d = blk.clone();
-        integrate_block_with::<_, false>(&mut a, &origin, &fc, small);
-        integrate_block_with::<_, true>(&mut c, &origin, &fc, small);
-        integrate_block_with::<_, false>(&mut d, &origin, &fc, table.as_slice());
+        integrate_block_with::<_, false>(&mut a, None, &origin, &fc, small);
+        integrate_block_with::<_, true>(&mut c, None, &origin, &fc, small);
+        integrate_block_with::<_, false>(&mut d, None, &origin, &fc, table.as_slice());
         let mut e = blk.clone();
         integrate_block(&mut e, b, &fc, table.as_slice());
         for other in [&c, &d, &e] {
