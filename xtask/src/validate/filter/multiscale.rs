@@ -179,8 +179,8 @@ pub(super) fn multiscale_real(ctx: &mut Context) -> Result<()> {
         .iter()
         .map(|c| c.0)
         .collect();
-    // Pooled over every frame: per method, per band, (pixels, Σ total², Σ fine²).
-    let mut pooled = vec![[(0usize, 0.0f64, 0.0f64); 3]; names.len()];
+    // Pooled over every frame: per method, per band, (pixels, Σ total², Σ fine², Σ coarse²).
+    let mut pooled = vec![[(0usize, 0.0f64, 0.0f64, 0.0f64); 3]; names.len()];
     let mut images = String::new();
     for fr in &frames {
         let k = fr.camera.intrinsics;
@@ -194,7 +194,7 @@ pub(super) fn multiscale_real(ctx: &mut Context) -> Result<()> {
         if regions.is_empty() {
             continue;
         }
-        let mut raw = [(0usize, 0.0f64, 0.0f64); 3];
+        let mut raw = [(0usize, 0.0f64, 0.0f64, 0.0f64); 3];
         let mut outs = Vec::new();
         for (ci, (name, c)) in candidates(&sensor).into_iter().enumerate() {
             let out = c.apply(&fr.depth)?;
@@ -207,8 +207,9 @@ pub(super) fn multiscale_real(ctx: &mut Context) -> Result<()> {
                 p.0 += q.0;
                 p.1 += q.1;
                 p.2 += q.2;
+                p.3 += q.3;
             }
-            let rms = |v: (usize, f64, f64), fine: bool| {
+            let rms = |v: (usize, f64, f64, f64), fine: bool| {
                 let ss = if fine { v.2 } else { v.1 };
                 (ss / v.0 as f64).sqrt()
             };
@@ -310,6 +311,26 @@ pub(super) fn multiscale_real(ctx: &mut Context) -> Result<()> {
             "x",
         );
     }
+    // What no filter that keeps shape at the σ = 16 px scale can remove: the raw residual's
+    // own masked Gaussian (surface shape and the low-frequency distortion).
+    let floor = |b: usize| (pooled[0][b].3 / pooled[0][b].1).sqrt();
+    writeln!(
+        md,
+        "| *floor: raw residual's Gaussian of σ = {LOWPASS_SIGMA_PX} px alone* | {:.2}× | {:.2}× | \
+         {:.2}× | 0× | 0× | 0× |\n\nThe last row is the residual a filter would leave if it removed \
+         every fine-scale error and kept every feature wider than the Gaussian: by this measure, \
+         the lowest ratio a filter that keeps surface shape can reach (correlated noise wider \
+         than the Gaussian counts as shape here).",
+        floor(0),
+        floor(1),
+        floor(2)
+    )?;
+    ctx.row(
+        EXP,
+        "real pooled raw coarse residual >=2m / raw (floor of a shape-keeping filter)",
+        floor(2),
+        "x",
+    );
     ctx.section(
         "Depth filters: multi-scale filter on real frames (issue 11 §3)",
         format!("{md}{images}"),
@@ -324,15 +345,16 @@ const MIN_BAND_PIXELS: usize = 5000;
 /// σ of the masked Gaussian that separates shape from fine-scale error, pixels.
 const LOWPASS_SIGMA_PX: usize = 16;
 
-/// Per band: region pixels, Σ of squared plane residuals, and Σ of squared fine-scale residuals
-/// (the residual minus its masked Gaussian of σ = [`LOWPASS_SIGMA_PX`]), each region with its
-/// own least-squares plane fitted to `depth`.
+/// Per band: region pixels, Σ of squared plane residuals, Σ of squared fine-scale residuals
+/// (the residual minus its masked Gaussian of σ = [`LOWPASS_SIGMA_PX`]) and Σ of the squared
+/// Gaussian itself (the coarse part), each region with its own least-squares plane fitted to
+/// `depth`.
 fn residual_parts(
     depth: &DepthImage,
     k: &Intrinsics,
     regions: &[eval::PlaneRegion],
     bands: &[(f32, f32)],
-) -> Result<[(usize, f64, f64); 3]> {
+) -> Result<[(usize, f64, f64, f64); 3]> {
     let (w, h) = (depth.width(), depth.height());
     let z = depth.data();
     let point = |i: usize| {
@@ -344,7 +366,7 @@ fn residual_parts(
         )
     };
     let lowpass = DepthFilter::gaussian(2 * LOWPASS_SIGMA_PX, LOWPASS_SIGMA_PX as f64);
-    let mut acc = [(0usize, 0.0f64, 0.0f64); 3];
+    let mut acc = [(0usize, 0.0f64, 0.0f64, 0.0f64); 3];
     for region in regions {
         let pts: Vec<_> = (0..w * h)
             .filter(|&i| region.mask[i] && z[i] > 0.0)
@@ -370,6 +392,7 @@ fn residual_parts(
                 acc[b].0 += 1;
                 acc[b].1 += t * t;
                 acc[b].2 += (t - l) * (t - l);
+                acc[b].3 += l * l;
             }
         }
     }
