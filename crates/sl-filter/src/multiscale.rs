@@ -37,7 +37,8 @@
 //! (0.79–0.82×); the normal spread halves (person wall: 44° raw, 24° adaptive, 12° multi-scale).
 //! The rest of the residual lies on scales above 16 px — surface shape and the Kinect's
 //! low-frequency distortion — which no filter that keeps shape removes: the issue-11 target of
-//! half the raw residual at ≥ 2 m is not reached (0.83×). Time for person-depth.png (640×480),
+//! half the raw residual at ≥ 2 m is not reached (0.83×), and the raw residual's own σ = 16 px
+//! Gaussian alone is already 0.55× raw there (the report's *floor* row). Time for person-depth.png (640×480),
 //! minimum of 30: on a 2-core Intel Xeon VM 6.0 / 3.6 ms on one / two threads with the AVX-512
 //! kernels, 8.3 / 4.7 ms with AVX2 (every part runs in parallel: the sub-images of a dilated
 //! pass, their interleaving, the interior gate by rows and bands of rows); on the 2-core AMD
