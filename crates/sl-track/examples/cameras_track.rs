@@ -1,0 +1,111 @@
+//! Tracks simulated sequences of the named scenes through camera presets (not only the Kinect)
+//! and prints, per camera and scene, the frames lost, the fragments started and the worst error
+//! of a frame reported tracked, against the truth. It looks for the cases the unit tests (320×240
+//! Kinect frames) do not cover: other focal lengths, baselines and image sizes, full-resolution
+//! frames, the realistic noise (docs/bench/track.md, "Session 23").
+//!
+//! ```text
+//! cargo run --release -p sl-track --example cameras_track -- \
+//!     [--white] [--no-prefilter] [--frame-to-frame] [CAMERAS] [SCENES]
+//! ```
+//!
+//! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
+//! `kinect-v1,primesense,d435,d415,oak-d` and `boxes,figure-walls,corridor`). Each sequence is 30
+//! frames of a camera turning 1° and moving 1 cm per frame, seeded; every frame goes through the
+//! multi-scale filter first (as `sldepth track` and Python's `Tracker` do by default) unless
+//! `--no-prefilter`. Errors are relative to the first frame the tracker anchored its model on
+//! (`Initialised`), over the frames of fragment 0 reported tracked.
+
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use sl_core::{Camera, CameraToCamera};
+use sl_filter::MultiScale;
+use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, named_scene};
+use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus};
+
+/// Frames per sequence.
+const FRAMES: usize = 30;
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let flag = |f: &str| args.iter().any(|a| a == f);
+    let (white, prefilter, frame_to_model) = (
+        flag("--white"),
+        !flag("--no-prefilter"),
+        !flag("--frame-to-frame"),
+    );
+    let mut names = args.iter().filter(|a| !a.starts_with("--"));
+    let cameras = names
+        .next()
+        .map_or("kinect-v1,primesense,d435,d415,oak-d", String::as_str);
+    let scenes = names
+        .next()
+        .map_or("boxes,figure-walls,corridor", String::as_str);
+    println!(
+        "noise {}, prefilter {prefilter}, frame to model {frame_to_model}",
+        if white { "white" } else { "realistic" }
+    );
+    println!(
+        "| camera | size | scene | lost | fragments | worst tracked error (mm, °) | median step ms |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.01, 0.002, 0.004),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.2, 1.0, 0.1).normalize() * 1.0f64.to_radians(),
+        ),
+    ));
+    for name in cameras.split(',') {
+        let camera = Camera::preset(name)?;
+        let noise = RealisticNoise::for_camera(name);
+        let sim = KinectSimulator::with_sensor(camera.sensor).with_noise(if white {
+            NoiseModel::White
+        } else {
+            NoiseModel::Realistic(noise)
+        });
+        let filter = MultiScale::default_for(&camera.sensor);
+        for scene_name in scenes.split(',') {
+            let scene = named_scene(scene_name)?;
+            let mut cfg = ReconstructionConfig::default_for(camera.sensor);
+            cfg.frame_to_model = frame_to_model;
+            let dt = cfg.tracker.frame_interval_s;
+            let mut rec = Reconstruction::new(camera, cfg)?;
+            let (mut pose, mut anchor) = (scene.pose, None);
+            let (mut lost, mut fragments, mut worst) = (0, 0, (0.0f64, 0.0f64));
+            let mut ms = Vec::new();
+            for i in 0..FRAMES {
+                let truth = scene.scene.render(&camera.intrinsics, &pose).depth;
+                let mut depth = sim.apply(&truth, 100 + i as u64);
+                if prefilter {
+                    depth = filter.apply(&depth)?;
+                }
+                let s = rec.step(&depth, Some(i as f64 * dt))?;
+                ms.push(s.timings.step_ms);
+                fragments = fragments.max(s.fragment);
+                let status = s.result.status;
+                if status == TrackStatus::Initialised && anchor.is_none() {
+                    anchor = Some((*pose.isometry(), *s.result.pose.isometry()));
+                }
+                if !status.is_tracked() {
+                    lost += 1;
+                } else if let (Some((t0, e0)), 0) = (anchor, s.fragment) {
+                    let truth_rel = t0.inverse() * pose.isometry();
+                    let est_rel = e0.inverse() * s.result.pose.isometry();
+                    let e = truth_rel.inverse() * est_rel;
+                    worst.0 = worst.0.max(e.translation.vector.norm());
+                    worst.1 = worst.1.max(e.rotation.angle().to_degrees());
+                }
+                pose = pose * step;
+            }
+            ms.sort_by(f64::total_cmp);
+            println!(
+                "| {name} | {}×{} | {scene_name} | {lost} | {fragments} | {:.1}, {:.2} | {:.1} |",
+                camera.intrinsics.width,
+                camera.intrinsics.height,
+                worst.0 * 1e3,
+                worst.1,
+                ms[ms.len() / 2]
+            );
+        }
+    }
+    Ok(())
+}
