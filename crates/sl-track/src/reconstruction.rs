@@ -153,6 +153,12 @@ pub struct Step {
 
 /// Tracks a depth sequence and fuses it, fragment by fragment (see the module docs).
 ///
+/// Frames are used as given. `sldepth track` and Python's `Tracker` first smooth every frame
+/// with `sl_filter::MultiScale::default_for(&camera.sensor)`; do the same with raw sensor
+/// frames: unsmoothed full-resolution frames bias the pose along weakly constrained directions
+/// (13 mm on the first step of a simulated 640×480 Kinect sequence, 28 mm with a D435;
+/// docs/bench/track.md, session 23).
+///
 /// ```
 /// use sl_core::{Camera, DepthImage};
 /// use sl_core::nalgebra::Vector3;
