@@ -59,10 +59,14 @@ fn run_bounded(args: &[&str]) -> Output {
         Command::new(bin())
     };
     // No backtrace capture: symbolising one maps the binary's debug information, which is not
-    // part of what the budget bounds.
+    // part of what the budget bounds. One malloc arena: glibc reserves 64 MiB of address space
+    // for each extra arena it creates when threads contend, which depends on timing; under a
+    // loaded CI machine that once failed a 512-byte allocation of a run well within its budget
+    // (`fuse` of one 64×48 frame). Reserved address space is not memory the program uses.
     cmd.args(&full)
         .env("RUST_BACKTRACE", "0")
         .env("RUST_LIB_BACKTRACE", "0")
+        .env("MALLOC_ARENA_MAX", "1")
         .output()
         .expect("sldepth runs")
 }
