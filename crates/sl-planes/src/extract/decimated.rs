@@ -56,34 +56,25 @@ impl PlaneExtractor {
         camera: &Camera,
         extract: fn(&mut Self, &[f32], usize, usize, &Camera) -> Result<PlaneSegmentation>,
     ) -> Result<PlaneSegmentation> {
-        if rayon::current_num_threads() > 1 {
-            return rayon::scope(|_| self.extract_on_sensor_grid_here(data, w, h, camera, extract));
-        }
-        self.extract_on_sensor_grid_here(data, w, h, camera, extract)
-    }
-
-    /// [`PlaneExtractor::extract_on_sensor_grid`] on the calling thread.
-    fn extract_on_sensor_grid_here(
-        &mut self,
-        data: &[f32],
-        w: usize,
-        h: usize,
-        camera: &Camera,
-        extract: fn(&mut Self, &[f32], usize, usize, &Camera) -> Result<PlaneSegmentation>,
-    ) -> Result<PlaneSegmentation> {
-        Self::check(w, h, &camera.intrinsics)?;
-        self.sensor_grid = None;
-        let Some(n) = Self::sensor_factor(camera, w, h) else {
-            return extract(self, data, w, h, camera);
+        let here = |this: &mut Self| -> Result<PlaneSegmentation> {
+            Self::check(w, h, &camera.intrinsics)?;
+            this.sensor_grid = None;
+            let Some(n) = Self::sensor_factor(camera, w, h) else {
+                return extract(this, data, w, h, camera);
+            };
+            let mut grid = std::mem::take(&mut this.sensor_grid_input);
+            Self::replicate(data, w, h, n, &mut grid);
+            let seg = camera
+                .resampled(n as f64)
+                .map_err(PlanesError::from)
+                .and_then(|sensor| extract(this, &grid, w * n, h * n, &sensor));
+            this.sensor_grid_input = grid;
+            this.sample_back_to_frame(seg?, n, w, h)
         };
-        let mut grid = std::mem::take(&mut self.sensor_grid_input);
-        Self::replicate(data, w, h, n, &mut grid);
-        let seg = camera
-            .resampled(n as f64)
-            .map_err(PlanesError::from)
-            .and_then(|sensor| extract(self, &grid, w * n, h * n, &sensor));
-        self.sensor_grid_input = grid;
-        self.sample_back_to_frame(seg?, n, w, h)
+        if rayon::current_num_threads() > 1 {
+            return rayon::scope(|_| here(self));
+        }
+        here(self)
     }
 
     /// Replicates each value of the `w × h` map `src` over `n × n` pixels into `out`.

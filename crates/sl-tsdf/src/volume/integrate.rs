@@ -278,12 +278,10 @@ impl UpdateChunk<'_> {
             table,
         } = self;
         let n = blocks.len().min(touched.len()).min(keys.len());
-        let mut touched_slots = (0..n).filter(|&i| touched[i]);
-        let mut current = touched_slots.next();
-        while let Some(i) = current {
-            current = touched_slots.next();
-            let (head, tail) = blocks.split_at_mut(current.unwrap_or(n));
-            let next = tail.first().filter(|_| current.is_some());
+        let mut touched_slots = (0..n).filter(|&i| touched[i]).peekable();
+        while let Some(i) = touched_slots.next() {
+            let (head, tail) = blocks.split_at_mut(i + 1);
+            let next = touched_slots.peek().and_then(|&j| tail.get(j - i - 1));
             let (blk, b) = (&mut head[i], unpack(keys[i]));
             match small {
                 Some(t) => integrate_block_as::<_, INLINE>(blk, next, b, frame, t),
