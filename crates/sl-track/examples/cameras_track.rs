@@ -6,7 +6,7 @@
 //!
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
-//!     [--white] [--no-prefilter] [--frame-to-frame] [CAMERAS] [SCENES]
+//!     [--white] [--no-prefilter] [--frame-to-frame] [--resample=F] [--per-frame] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -14,7 +14,9 @@
 //! frames of a camera turning 1° and moving 1 cm per frame, seeded; every frame goes through the
 //! multi-scale filter first (as `sldepth track` and Python's `Tracker` do by default) unless
 //! `--no-prefilter`. Errors are relative to the first frame the tracker anchored its model on
-//! (`Initialised`), over the frames of fragment 0 reported tracked.
+//! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
+//! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
+//! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics.
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera};
@@ -28,11 +30,16 @@ const FRAMES: usize = 30;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let flag = |f: &str| args.iter().any(|a| a == f);
-    let (white, prefilter, frame_to_model) = (
+    let (white, prefilter, frame_to_model, per_frame) = (
         flag("--white"),
         !flag("--no-prefilter"),
         !flag("--frame-to-frame"),
+        flag("--per-frame"),
     );
+    let resample = match args.iter().find_map(|a| a.strip_prefix("--resample=")) {
+        Some(f) => Some(f.parse::<f64>()?),
+        None => None,
+    };
     let mut names = args.iter().filter(|a| !a.starts_with("--"));
     let cameras = names
         .next()
@@ -55,7 +62,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     ));
     for name in cameras.split(',') {
-        let camera = Camera::preset(name)?;
+        let camera = match resample {
+            Some(f) => Camera::preset(name)?.resampled(f)?,
+            None => Camera::preset(name)?,
+        };
         let noise = RealisticNoise::for_camera(name);
         let sim = KinectSimulator::with_sensor(camera.sensor).with_noise(if white {
             NoiseModel::White
@@ -93,6 +103,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let e = truth_rel.inverse() * est_rel;
                     worst.0 = worst.0.max(e.translation.vector.norm());
                     worst.1 = worst.1.max(e.rotation.angle().to_degrees());
+                    if per_frame {
+                        let (r, t) = (&s.result, e.translation.vector * 1e3);
+                        println!(
+                            "  frame {i} {}: error ({:.1}, {:.1}, {:.1}) mm, inliers {:.3}, weakest σ {:.2} mm",
+                            status.as_str(),
+                            t.x,
+                            t.y,
+                            t.z,
+                            r.inlier_fraction,
+                            r.weakest_sigma_m * 1e3
+                        );
+                    }
                 }
                 pose = pose * step;
             }
