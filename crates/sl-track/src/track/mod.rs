@@ -31,7 +31,6 @@
 mod associate;
 mod config;
 mod model;
-mod normal_noise;
 mod pyramid;
 mod reference;
 mod solve;
