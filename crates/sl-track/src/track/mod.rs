@@ -31,6 +31,7 @@
 mod associate;
 mod config;
 mod model;
+mod normal_noise;
 mod pyramid;
 mod reference;
 mod solve;

@@ -11,7 +11,7 @@ use crate::rolling_shutter::{motion_power, row_offset};
 /// The largest angle between a surface and the line of sight for which a normal is computed
 /// (tan 80° ≈ 5.7): neighbouring pixels one pixel apart at depth `z` differ by up to
 /// `z/f·tan(80°)` on such a surface, plus the sensor noise; larger jumps are depth edges.
-const MAX_SLANT_TAN: f32 = 5.67;
+pub(crate) const MAX_SLANT_TAN: f32 = 5.67;
 
 /// One level of the pyramid.
 #[derive(Debug, Clone, Default)]

@@ -8,8 +8,10 @@
 //! with fake constraints (session 10 measured the conditioning of a wall at 1.7·10⁻², within
 //! the range of well-constrained real frames). A plane's normal comes from thousands of pixels,
 //! so on a wall every sample gets the same normal and the directions along the wall get no
-//! information, as the geometry says. Pixels on no plane (objects, curved surfaces, edges)
-//! keep their own normal.
+//! information, as the geometry says. Pixels on no plane (objects, curved surfaces) keep
+//! their own normal, under the rules of [`super::normal_noise`]: none by the image border, an
+//! invalid pixel, a depth edge or a crease, and `n nᵀ` estimated without its noise bias from
+//! the normal one correlation window away.
 //!
 //! **The rule.** Each sample (every [`STEP`]-th pixel in both directions) contributes the
 //! point-to-plane Jacobian `[p × n; n]` with the information of its `STEP²` pixels: one
@@ -34,7 +36,8 @@ use sl_core::{Camera, DepthView, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
-use super::pyramid::Level;
+use super::normal_noise::{NormalNoise, modelled_variance, window_is_one_surface};
+use super::pyramid::{Level, normal_radius};
 use super::solve::rotations_at_depth;
 use crate::error::Result;
 
@@ -50,6 +53,8 @@ pub(crate) struct StructureCheck {
     labels: Vec<u16>,
     /// Unit normal of plane `l` at index `l − 1`.
     normals: Vec<Vector3<f64>>,
+    /// The noise of the segmented level's own normals.
+    normal_noise: NormalNoise,
 }
 
 impl StructureCheck {
@@ -66,6 +71,7 @@ impl StructureCheck {
         self.labels.clear();
         self.normals.clear();
         let Some(k) = level.k else {
+            self.normal_noise = NormalNoise::default();
             return Ok(());
         };
         let scale = f64::from(1u32 << index.min(16));
@@ -96,6 +102,14 @@ impl StructureCheck {
         self.labels.extend_from_slice(seg.labels.data());
         self.normals
             .extend(seg.planes.iter().map(|p| p.plane.normal));
+        let (hx, hy) = half_window(index, camera, cfg);
+        self.normal_noise.measure(
+            level,
+            &k,
+            &camera.sensor,
+            (sample_step(index), normal_radius(index)),
+            (2 * hx + 1, 2 * hy + 1),
+        );
         Ok(())
     }
 
@@ -117,11 +131,14 @@ impl StructureCheck {
         let Some(k) = level.k else {
             return f64::INFINITY;
         };
-        let scale = f64::from(1u32 << index.min(16));
-        let step = (STEP as f64 / scale).max(1.0) as usize;
+        let step = sample_step(index);
+        let r = normal_radius(index);
+        let half_window = half_window(index, camera, cfg);
         let share =
             (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
         let mut info = Matrix6::<f64>::zeros();
+        // Samples on no plane apart: their sum is unbiased but not positive semi-definite.
+        let mut info_off_planes = Matrix6::<f64>::zeros();
         let (mut z_sum, mut count) = (0.0f64, 0.0f64);
         for v in (step / 2..k.height).step_by(step) {
             for u in (step / 2..k.width).step_by(step) {
@@ -136,22 +153,72 @@ impl StructureCheck {
                     continue;
                 };
                 let p = p32.cast::<f64>().coords;
-                let n = match self.labels.get(i).map(|&l| l as usize) {
-                    Some(l) if l > 0 => match self.normals.get(l - 1) {
-                        Some(n) if n.dot(&p) > 0.0 => -n,
-                        Some(n) => *n,
-                        None => n_own.cast::<f64>(),
-                    },
-                    _ => n_own.cast::<f64>(),
+                let plane = match self.labels.get(i).map(|&l| l as usize) {
+                    Some(l) if l > 0 => self.normals.get(l - 1),
+                    _ => None,
+                };
+                // On no plane: the own normal, if it describes one surface across the
+                // correlation window, and a partner's one window away (`normal_noise`).
+                let (n, partner) = match plane {
+                    Some(n) if n.dot(&p) > 0.0 => (-n, None),
+                    Some(n) => (*n, None),
+                    None => {
+                        let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
+                        let noise = self.normal_noise.variance(p.z, modelled);
+                        // The cheap tests first: four normals, up to four partners, then the
+                        // window's depths.
+                        let partner =
+                            NormalNoise::holds_across_window(level, k.width, i, half_window, noise)
+                                .then(|| {
+                                    NormalNoise::partner(
+                                        level,
+                                        &k,
+                                        &camera.sensor,
+                                        (u, v),
+                                        half_window,
+                                    )
+                                })
+                                .flatten()
+                                .filter(|_| {
+                                    window_is_one_surface(
+                                        level,
+                                        &k,
+                                        &camera.sensor,
+                                        (u, v),
+                                        half_window,
+                                    )
+                                });
+                        let Some(partner) = partner else {
+                            continue;
+                        };
+                        (n_own.cast::<f64>(), Some(partner.cast::<f64>()))
+                    }
                 };
                 let sigma_z = camera.sensor.sigma_z(p.z);
                 let var = sigma_z * sigma_z + var_other;
                 if !(var > 0.0 && var.is_finite()) {
                     continue;
                 }
-                let r = p.cross(&n);
-                let j = Vector6::new(r.x, r.y, r.z, n.x, n.y, n.z);
-                info += j * j.transpose() * (share / var);
+                // J = A n with A = [[p]×; I]; on no plane n nᵀ is estimated without the noise's
+                // bias by the symmetric product of two normals with independent errors, so
+                // J Jᵀ becomes ½(A n̂ (A m̂)ᵀ + A m̂ (A n̂)ᵀ).
+                let jacobian = |n: &Vector3<f64>| {
+                    let pxn = p.cross(n);
+                    Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
+                };
+                let j = jacobian(&n);
+                let sample = match partner {
+                    Some(m) => {
+                        let jm = j * jacobian(&m).transpose();
+                        (jm + jm.transpose()) * 0.5
+                    }
+                    None => j * j.transpose(),
+                };
+                if partner.is_some() {
+                    info_off_planes += sample * (share / var);
+                } else {
+                    info += sample * (share / var);
+                }
                 z_sum += p.z;
                 count += 1.0;
             }
@@ -160,6 +227,12 @@ impl StructureCheck {
             return f64::INFINITY;
         }
         // Rotations as displacements at the mean depth.
+        // An unbiased estimate of a positive semi-definite matrix whose noise makes it
+        // indefinite: its negative eigenvalues are noise, not information taken away.
+        let off = SymmetricEigen::new(info_off_planes);
+        info += off.eigenvectors
+            * Matrix6::from_diagonal(&off.eigenvalues.map(|e| e.max(0.0)))
+            * off.eigenvectors.transpose();
         rotations_at_depth(&mut info, z_sum / count);
         let min = SymmetricEigen::new(info)
             .eigenvalues
@@ -174,4 +247,18 @@ impl StructureCheck {
             f64::INFINITY
         }
     }
+}
+
+/// Level pixels between samples at pyramid level `index`, in both directions.
+fn sample_step(index: usize) -> usize {
+    let scale = f64::from(1u32 << index.min(16));
+    (STEP as f64 / scale).max(1.0) as usize
+}
+
+/// Half the sensor's correlation window ([`TrackerConfig::noise_window_x_px`], `…_y_px`) in
+/// pixels of pyramid level `index`, x and y, at least 1.
+fn half_window(index: usize, camera: &Camera, cfg: &TrackerConfig) -> (usize, usize) {
+    let pixels = camera.pixels_per_sensor_pixel() / f64::from(1u32 << index.min(16));
+    let half = |side: f64| (side * pixels / 2.0).round().max(1.0) as usize;
+    (half(cfg.noise_window_x_px), half(cfg.noise_window_y_px))
 }
