@@ -72,7 +72,9 @@ const CHI2_2_99: f64 = 9.21;
 pub(crate) struct NormalNoise {
     /// `angle² / (2 · modelled variance)` per bin.
     bins: [Vec<f32>; BINS],
-    /// Per bin, once computed: `σ_a²` over the modelled variance (NaN: too few pairs).
+    /// Per bin, once computed: `σ_a²` over the modelled variance, the bin's own or, with too
+    /// few pairs, the nearest bin's with enough (the nearer one on a tie); `None` when no bin
+    /// has enough.
     ratios: Option<[f64; BINS]>,
 }
 
@@ -102,17 +104,12 @@ impl NormalNoise {
                 }
                 let z = f64::from(p.z);
                 let modelled = modelled_variance(sensor, z, k.fx, r);
-                let (slope, noise) = depth_gate(k, sensor, p.z);
+                let gate = depth_gate(k, sensor, p.z);
                 let right = (u + dx < w).then_some((i + dx, dx));
                 let below = (v + dy < k.height).then_some((i + dy * w, dy));
                 for (j, d) in right.into_iter().chain(below) {
-                    let (Some(q), Some(m)) = (level.points.get(j), level.normals.get(j)) else {
-                        continue;
-                    };
-                    if q.z > 0.0 && m.x.is_finite() && (q.z - p.z).abs() <= d as f32 * slope + noise
-                    {
-                        let angle2 = f64::from((n - m).norm_squared());
-                        self.add(z, angle2, modelled);
+                    if let Some(m) = normal_on_surface(level, p.z, gate, j, d) {
+                        self.add(z, f64::from((n - m).norm_squared()), modelled);
                     }
                 }
             }
@@ -129,16 +126,26 @@ impl NormalNoise {
         }
     }
 
-    /// Computes the per-bin medians of the pairs added since the last measurement.
+    /// Computes the per-bin medians of the pairs added since the last measurement, and lends
+    /// each bin without enough pairs its nearest measured neighbour's.
     fn finish(&mut self) {
-        self.ratios = Some(std::array::from_fn(|b| {
+        let own: [f64; BINS] = std::array::from_fn(|b| {
             let values = &mut self.bins[b];
             if values.len() >= MIN_SAMPLES {
                 median(values) / MEDIAN_CHI2_2
             } else {
                 f64::NAN
             }
-        }));
+        });
+        self.ratios = own.iter().any(|r| r.is_finite()).then(|| {
+            std::array::from_fn(|b| {
+                (0..BINS)
+                    .flat_map(|d| [b.checked_sub(d), Some(b + d)])
+                    .flatten()
+                    .find_map(|i| own.get(i).copied().filter(|r| r.is_finite()))
+                    .unwrap_or(f64::NAN)
+            })
+        });
     }
 
     /// The variance per tangent axis of an own normal at depth `z_m`, rad², given the
@@ -146,14 +153,10 @@ impl NormalNoise {
     /// the nearest bin with enough pairs (the nearer one on a tie); the model itself when no
     /// bin has enough.
     pub(crate) fn variance(&self, z_m: f64, modelled: f64) -> f64 {
-        let (Some(ratios), Some(b)) = (&self.ratios, bin(z_m)) else {
-            return modelled;
-        };
-        (0..BINS)
-            .flat_map(|d| [b.checked_sub(d), Some(b + d)])
-            .flatten()
-            .find_map(|i| ratios.get(i).copied().filter(|r| r.is_finite()))
-            .map_or(modelled, |ratio| modelled * ratio)
+        match (&self.ratios, bin(z_m)) {
+            (Some(ratios), Some(b)) => modelled * ratios[b],
+            _ => modelled,
+        }
     }
 
     /// The mean of the normals one correlation window (`window`: half sizes, level pixels) to
@@ -172,7 +175,7 @@ impl NormalNoise {
         let (dx, dy) = (2 * hx + 1, 2 * hy + 1);
         let i = v * w + u;
         let z = *level.depth.get(i)?;
-        let (slope, noise) = depth_gate(k, sensor, z);
+        let gate = depth_gate(k, sensor, z);
         let (sum, count) = [
             (u + dx < w).then_some((i + dx, dx)),
             (v + dy < k.height).then_some((i + dy * w, dy)),
@@ -181,10 +184,7 @@ impl NormalNoise {
         ]
         .into_iter()
         .flatten()
-        .filter_map(|(j, d)| {
-            let (zj, m) = (*level.depth.get(j)?, *level.normals.get(j)?);
-            (zj > 0.0 && m.x.is_finite() && (zj - z).abs() <= d as f32 * slope + noise).then_some(m)
-        })
+        .filter_map(|(j, d)| normal_on_surface(level, z, gate, j, d))
         .fold((Vector3::zeros(), 0u8), |(s, c), m| (s + m, c + 1));
         (count > 0).then(|| sum / f32::from(count))
     }
@@ -239,6 +239,19 @@ fn depth_gate(k: &Intrinsics, sensor: &SensorModel, z: f32) -> (f32, f32) {
     let slope = z / k.fx as f32 * MAX_SLANT_TAN;
     let noise = 3.0 * std::f32::consts::SQRT_2 * sensor.sigma_z(f64::from(z)) as f32;
     (slope, noise)
+}
+
+/// The normal at pixel `j` of a level, `d` pixels from a pixel at depth `z`, if it is valid
+/// and on the same surface by `gate` ([`depth_gate`]).
+fn normal_on_surface(
+    level: &Level,
+    z: f32,
+    (slope, noise): (f32, f32),
+    j: usize,
+    d: usize,
+) -> Option<Vector3<f32>> {
+    let (zj, m) = (*level.depth.get(j)?, *level.normals.get(j)?);
+    (zj > 0.0 && m.x.is_finite() && (zj - z).abs() <= d as f32 * slope + noise).then_some(m)
 }
 
 /// The half-octave depth bin of `z_m`, if within the bins' range.

@@ -207,17 +207,12 @@ impl StructureCheck {
                     Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
                 };
                 let j = jacobian(&n);
-                let sample = match partner {
+                match partner {
                     Some(m) => {
                         let jm = j * jacobian(&m).transpose();
-                        (jm + jm.transpose()) * 0.5
+                        info_off_planes += (jm + jm.transpose()) * 0.5 * (share / var);
                     }
-                    None => j * j.transpose(),
-                };
-                if partner.is_some() {
-                    info_off_planes += sample * (share / var);
-                } else {
-                    info += sample * (share / var);
+                    None => info += j * j.transpose() * (share / var),
                 }
                 z_sum += p.z;
                 count += 1.0;
@@ -226,13 +221,13 @@ impl StructureCheck {
         if count < 6.0 {
             return f64::INFINITY;
         }
-        // Rotations as displacements at the mean depth.
         // An unbiased estimate of a positive semi-definite matrix whose noise makes it
         // indefinite: its negative eigenvalues are noise, not information taken away.
         let off = SymmetricEigen::new(info_off_planes);
         info += off.eigenvectors
             * Matrix6::from_diagonal(&off.eigenvalues.map(|e| e.max(0.0)))
             * off.eigenvectors.transpose();
+        // Rotations as displacements at the mean depth.
         rotations_at_depth(&mut info, z_sum / count);
         let min = SymmetricEigen::new(info)
             .eigenvalues
