@@ -367,7 +367,8 @@ impl Tracker {
                     check_level,
                     &self.camera,
                     &self.cfg,
-                    |_, _| Some(0.0),
+                    |_, _| Some(solve::OnReference::NONE),
+                    false,
                 )
             }
             _ => f64::NAN,
@@ -820,6 +821,7 @@ impl Tracker {
                     &self.camera,
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
+                    self.lost_run > 0,
                 );
                 let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {

@@ -206,11 +206,21 @@ fn half(k: &Intrinsics) -> Result<Intrinsics> {
     )?)
 }
 
-/// Depth-aware 2×2 downsampling: the mean of the block's valid depths within 3·σ_Z of the
-/// nearest one (a block straddling a depth edge keeps the front surface instead of a point in
-/// the air between the two), 0 when the block has no valid depth.
-fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &SensorModel) {
+/// Depth-aware 2×2 downsampling: the mean of the block's valid depths on the nearest one's
+/// surface, 0 when the block has no valid depth. A block straddling a depth edge keeps the
+/// front surface instead of a point in the air between the two; the edge is the normals' (a
+/// jump larger than a surface at 80° to the line of sight makes across the block's diagonal,
+/// plus 3σ_Z). `fx` is the source image's focal length, pixels.
+///
+/// The slant term matters: with the noise alone as the gate, a surface seen obliquely (a
+/// corridor's walls, whose depth changes by more than 3σ_Z from one pixel to the next once the
+/// image is coarser than the sensor) lost the far pixels of every block, and its points moved
+/// half a pixel's depth step towards the camera. The walls of a corridor then converged (by
+/// 1/(2f) rad each), and their planes claimed information along the corridor's axis that the
+/// geometry does not give (docs/bench/track.md, session 25).
+fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &SensorModel, fx: f64) {
     let c = (sensor.sigma_d_px / sensor.fb()) as f32;
+    let slant = std::f32::consts::SQRT_2 * MAX_SLANT_TAN / fx as f32;
     dst.par_chunks_mut(dw.max(1))
         .enumerate()
         .for_each(|(y, row)| {
@@ -226,7 +236,7 @@ fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &Senso
                     *out = 0.0;
                     continue;
                 }
-                let gate = 3.0 * c * zmin * zmin;
+                let gate = slant * zmin + 3.0 * c * zmin * zmin;
                 let (mut s, mut n) = (0.0f32, 0.0f32);
                 for z in zs {
                     if z > 0.0 && z - zmin <= gate {
@@ -341,7 +351,7 @@ impl Pyramid {
                 let src = &prev[l - 1].depth;
                 let lv = &mut rest[0];
                 lv.depth.resize(kh.width * kh.height, 0.0);
-                downsample(src, kl.width, &mut lv.depth, kh.width, sensor);
+                downsample(src, kl.width, &mut lv.depth, kh.width, sensor, kl.fx);
                 kl = kh;
             }
             let lv = &mut self.levels[l];
@@ -427,6 +437,53 @@ mod tests {
             assert_eq!(done.normal_stride, 1);
             assert_eq!(bits(&done.normals), bits(&f0.normals));
             assert_eq!(aux_bits(&done.aux), aux_bits(&f0.aux));
+        }
+    }
+
+    /// A corridor's side wall (0.4 m to the camera's right, along the line of sight, 0.7–2.2 m
+    /// away: seen at up to 80° from its normal) through a camera at half its sensor's
+    /// resolution: from one pixel to the next its depth changes by more than 3σ_Z. The points
+    /// of every coarser level must still lie on the wall. With the noise alone as the
+    /// downsampling's edge gate each block kept its nearer column only: the points moved
+    /// towards the camera, 0.9–2.3 mm off the wall at level 1 and 2.7–6.6 mm at level 2 (10th
+    /// to 90th percentile), and the wall turned.
+    #[test]
+    fn coarser_levels_of_an_oblique_wall_stay_on_the_wall() {
+        let cam = Camera::preset("oak-d").unwrap().resampled(0.5).unwrap();
+        let (k, sensor) = (cam.intrinsics, cam.sensor);
+        let wall_x = 0.4;
+        let mut depth = vec![0.0f32; k.width * k.height];
+        for y in 0..k.height {
+            for x in 0..k.width {
+                let dx = (x as f64 - k.cx) / k.fx;
+                let z = wall_x / dx;
+                if dx > 0.0 && (0.7..2.2).contains(&z) {
+                    depth[y * k.width + x] = z as f32;
+                }
+            }
+        }
+        // The premise: neighbouring pixels differ by more than 3σ_Z over most of the wall.
+        let (z0, z1) = (depth[k.width * 100 + 500], depth[k.width * 100 + 501]);
+        assert!(z0 - z1 > 3.0 * sensor.sigma_z(f64::from(z0)) as f32);
+        let mut pyramid = Pyramid::default();
+        pyramid.build(&depth, &k, &sensor, 3, 1).unwrap();
+        for (l, level) in pyramid.levels.iter().enumerate().skip(1) {
+            let mut off: Vec<f32> = level
+                .points
+                .iter()
+                .filter(|p| p.z > 0.0)
+                .map(|p| p.x - wall_x as f32)
+                .collect();
+            let points = off.len();
+            off.sort_by(f32::total_cmp);
+            assert!(points > 1000, "level {l}: {points} points");
+            // Four in five points within half a millimetre (the mean of a block's depths is a
+            // little behind a curved 1/u, and blocks at the wall's ends are partial).
+            let (p10, p90) = (off[points / 10], off[points * 9 / 10]);
+            assert!(
+                p10 > -5e-4 && p90 < 5e-4,
+                "level {l}: off the wall by {p10} to {p90} m (10th to 90th percentile)"
+            );
         }
     }
 }

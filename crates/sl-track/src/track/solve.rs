@@ -404,14 +404,14 @@ pub(crate) fn renormalized(mut iso: Isometry3<f64>) -> Isometry3<f64> {
 /// reference at the camera-to-world `pose` — it lands on a reference surface within the
 /// alignment's gates in their plain form (residual within `gate_sigmas·σ + allowance_fine_m`
 /// with the frame's σ_Z taken whole rather than along the normal, normals within
-/// `max_normal_angle_deg` without [`pass`]'s per-point widening) — and if so the variance of
-/// the reference's surface there, m².
+/// `max_normal_angle_deg` without [`pass`]'s per-point widening) — and if so how it sits on
+/// that surface.
 pub(crate) fn inlier_of<'a>(
     reference: &'a ReferenceMaps,
     pose: &Isometry3<f64>,
     sensor: &'a SensorModel,
     cfg: &'a TrackerConfig,
-) -> impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64> + 'a {
+) -> impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference> + 'a {
     let to_ref = reference.pose.isometry().inverse() * pose;
     let to_world = *pose;
     let k = reference.intrinsics;
@@ -445,8 +445,28 @@ pub(crate) fn inlier_of<'a>(
         let r = n.dot(&(to_world * p - q.cast::<f64>()));
         let sigma_z = sensor.sigma_z(p.z);
         let gate = cfg.gate_sigmas * (sigma_z * sigma_z + var_ref).sqrt() + cfg.allowance_fine_m;
-        (r.abs() <= gate).then_some(var_ref)
+        (r.abs() <= gate).then_some(OnReference {
+            variance_m2: var_ref,
+            residual_m: r,
+        })
     }
+}
+
+/// How a frame's point sits on the reference surface it is an inlier of ([`inlier_of`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct OnReference {
+    /// The variance of the reference's surface there, m².
+    pub variance_m2: f64,
+    /// The signed distance of the point from that surface along the surface's normal, m.
+    pub residual_m: f64,
+}
+
+impl OnReference {
+    /// A frame checked on its own: no reference, nothing to add.
+    pub(crate) const NONE: Self = Self {
+        variance_m2: 0.0,
+        residual_m: 0.0,
+    };
 }
 
 /// The motion `R` with `Rⁿ = m` (the same screw motion, a fraction `1/n` of it): the per-frame

@@ -38,7 +38,7 @@ use sl_planes::{PlaneConfig, PlaneExtractor};
 use super::TrackerConfig;
 use super::normal_noise::{NormalNoise, modelled_variance, window_is_one_surface};
 use super::pyramid::{Level, normal_radius};
-use super::solve::rotations_at_depth;
+use super::solve::{OnReference, rotations_at_depth};
 use crate::error::Result;
 
 /// Pixels between samples, in both directions.
@@ -115,18 +115,36 @@ impl StructureCheck {
 
     /// The pose's standard deviation along its least-constrained direction, metres
     /// (`f64::INFINITY` when a direction gets no information at all: a single plane), from the
-    /// samples of pyramid level `index` (point and normal) for which `other_variance` is
+    /// samples of pyramid level `index` (point and normal) for which `on_reference` is
     /// `Some` (the whole frame, or its inliers of the reference at the aligned pose), with the
     /// planes of the last [`StructureCheck::segment`] of that level. A sample's residual
-    /// variance is its own `σ_Z²` plus what `other_variance` gives (the reference surface's
-    /// variance, as in the alignment; 0 for the frame alone). `camera` is the frame's.
+    /// variance is its own `σ_Z²` plus the reference surface's variance, as in the alignment
+    /// ([`OnReference::NONE`] for the frame alone). `camera` is the frame's.
+    ///
+    /// **`planes_must_agree`: a plane vouches only for what it agrees with** (for a
+    /// relocalising frame, whose start may lie far from the camera). At the right pose a
+    /// plane's samples lie on the reference around zero; at a pose slid along a crease, a plane
+    /// whose normal has a small component along the slide still passes the inlier gate, but
+    /// all of its samples sit off the reference by the same amount. That shared offset is an
+    /// error the plane's samples do not average away, so the plane's information becomes that
+    /// of a mean with it added: `W / (1 + W·b²)` for the plane's summed weight `W` and `b²` the
+    /// unbiased estimate `m² − 1/W` of the squared offset from the weighted mean residual `m`
+    /// (0 when the mean is within its noise). A wrong relocalisation in the `boxes` scene,
+    /// 13 cm along the floor–wall crease, was vouched for (σ 8.4 mm) by the back wall and a box
+    /// face 6° off it, whose samples sat 5.1 and −5.7 mm off the reference on average (2.2 and
+    /// 3.2 standard errors of those means); with their offsets σ is 19 mm and the alignment is
+    /// rejected (docs/bench/track.md, session 25). Not while tracking: there a model fused from many views sits a few millimetres off
+    /// a frame's planes at the right pose (a rolling shutter's residue, the voxels), and such
+    /// offsets, far beyond the noise of planes of thousands of samples, would take the planes'
+    /// information away from frames that are well aligned.
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,
         index: usize,
         camera: &Camera,
         cfg: &TrackerConfig,
-        other_variance: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<f64>,
+        on_reference: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference>,
+        planes_must_agree: bool,
     ) -> f64 {
         let Some(k) = level.k else {
             return f64::INFINITY;
@@ -137,6 +155,8 @@ impl StructureCheck {
         let share =
             (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
         let mut info = Matrix6::<f64>::zeros();
+        // Each plane's samples apart: information, summed weight and weighted residual.
+        let mut on_planes = vec![(Matrix6::<f64>::zeros(), 0.0f64, 0.0f64); self.normals.len()];
         // Samples on no plane apart: their sum is unbiased but not positive semi-definite.
         let mut info_off_planes = Matrix6::<f64>::zeros();
         let (mut z_sum, mut count) = (0.0f64, 0.0f64);
@@ -149,14 +169,12 @@ impl StructureCheck {
                 if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
                     continue;
                 }
-                let Some(var_other) = other_variance(p32, n_own) else {
+                let Some(on_ref) = on_reference(p32, n_own) else {
                     continue;
                 };
                 let p = p32.cast::<f64>().coords;
-                let plane = match self.labels.get(i).map(|&l| l as usize) {
-                    Some(l) if l > 0 => self.normals.get(l - 1),
-                    _ => None,
-                };
+                let label = self.labels.get(i).map_or(0, |&l| l as usize);
+                let plane = label.checked_sub(1).and_then(|l| self.normals.get(l));
                 // On no plane: the own normal, if it describes one surface across the
                 // correlation window, and a partner's one window away (`normal_noise`).
                 let (n, partner) = match plane {
@@ -195,7 +213,7 @@ impl StructureCheck {
                     }
                 };
                 let sigma_z = camera.sensor.sigma_z(p.z);
-                let var = sigma_z * sigma_z + var_other;
+                let var = sigma_z * sigma_z + on_ref.variance_m2;
                 if !(var > 0.0 && var.is_finite()) {
                     continue;
                 }
@@ -207,12 +225,18 @@ impl StructureCheck {
                     Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
                 };
                 let j = jacobian(&n);
-                match partner {
-                    Some(m) => {
+                let w = share / var;
+                match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
+                    (Some(m), _) => {
                         let jm = j * jacobian(&m).transpose();
-                        info_off_planes += (jm + jm.transpose()) * 0.5 * (share / var);
+                        info_off_planes += (jm + jm.transpose()) * (0.5 * w);
                     }
-                    None => info += j * j.transpose() * (share / var),
+                    (None, Some((plane_info, weight, weighted_residual))) => {
+                        *plane_info += j * j.transpose() * w;
+                        *weight += w;
+                        *weighted_residual += w * on_ref.residual_m;
+                    }
+                    (None, None) => info += j * j.transpose() * w,
                 }
                 z_sum += p.z;
                 count += 1.0;
@@ -220,6 +244,17 @@ impl StructureCheck {
         }
         if count < 6.0 {
             return f64::INFINITY;
+        }
+        for (plane_info, weight, weighted_residual) in &on_planes {
+            if *weight > 0.0 {
+                // W·b² = W·m² − 1 with m = Σwr / W.
+                let excess = if planes_must_agree {
+                    (weighted_residual * weighted_residual / weight - 1.0).max(0.0)
+                } else {
+                    0.0
+                };
+                info += plane_info / (1.0 + excess);
+            }
         }
         // An unbiased estimate of a positive semi-definite matrix whose noise makes it
         // indefinite: its negative eigenvalues are noise, not information taken away.
