@@ -6,7 +6,8 @@
 //!
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
-//!     [--white] [--no-prefilter] [--frame-to-frame] [--resample=F] [--per-frame] [CAMERAS] [SCENES]
+//!     [--white | --exact] [--no-prefilter] [--frame-to-frame] [--resample=F] [--per-frame] \
+//!     [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -16,6 +17,8 @@
 //! `--no-prefilter`. Errors are relative to the first frame the tracker anchored its model on
 //! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
 //! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
+//! `--exact` tracks the rendered depth itself (no noise, no quantisation, no drop-outs), to tell
+//! the tracker's own errors from the sensor's;
 //! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics.
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -30,6 +33,7 @@ const FRAMES: usize = 30;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let flag = |f: &str| args.iter().any(|a| a == f);
+    let exact = flag("--exact");
     let (white, prefilter, frame_to_model, per_frame) = (
         flag("--white"),
         !flag("--no-prefilter"),
@@ -49,7 +53,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map_or("boxes,figure-walls,corridor", String::as_str);
     println!(
         "noise {}, prefilter {prefilter}, frame to model {frame_to_model}",
-        if white { "white" } else { "realistic" }
+        if exact {
+            "none (exact depth)"
+        } else if white {
+            "white"
+        } else {
+            "realistic"
+        }
     );
     println!(
         "| camera | size | scene | lost | fragments | worst tracked error (mm, °) | median step ms |"
@@ -84,7 +94,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let mut ms = Vec::new();
             for i in 0..FRAMES {
                 let truth = scene.scene.render(&camera.intrinsics, &pose).depth;
-                let mut depth = sim.apply(&truth, 100 + i as u64);
+                let mut depth = if exact {
+                    truth
+                } else {
+                    sim.apply(&truth, 100 + i as u64)
+                };
                 if prefilter {
                     depth = filter.apply(&depth)?;
                 }
@@ -97,6 +111,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
                 if !status.is_tracked() {
                     lost += 1;
+                    if per_frame {
+                        println!(
+                            "  frame {i} {}: {}",
+                            status.as_str(),
+                            s.result.failure.as_deref().unwrap_or("")
+                        );
+                    }
                 } else if let (Some((t0, e0)), 0) = (anchor, s.fragment) {
                     let truth_rel = t0.inverse() * pose.isometry();
                     let est_rel = e0.inverse() * s.result.pose.isometry();
