@@ -13,6 +13,15 @@ use crate::rolling_shutter::{motion_power, row_offset};
 /// `z/f·tan(80°)` on such a surface, plus the sensor noise; larger jumps are depth edges.
 pub(crate) const MAX_SLANT_TAN: f32 = 5.67;
 
+/// The largest depth difference, metres, between two pixels `distance_px` apart at depth `z`
+/// on one surface: a surface at 80° to the line of sight ([`MAX_SLANT_TAN`]), plus 3σ_Z
+/// (`c = σ_D/(f·B)`, so σ_Z = c·z²). A larger jump is a depth edge. `fx`: the image's focal
+/// length, pixels.
+#[inline(always)]
+fn edge_jump_m(distance_px: f32, z: f32, fx: f32, c: f32) -> f32 {
+    distance_px * z / fx * MAX_SLANT_TAN + 3.0 * c * z * z
+}
+
 /// One level of the pyramid.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Level {
@@ -208,9 +217,9 @@ fn half(k: &Intrinsics) -> Result<Intrinsics> {
 
 /// Depth-aware 2×2 downsampling: the mean of the block's valid depths on the nearest one's
 /// surface, 0 when the block has no valid depth. A block straddling a depth edge keeps the
-/// front surface instead of a point in the air between the two; the edge is the normals' (a
-/// jump larger than a surface at 80° to the line of sight makes across the block's diagonal,
-/// plus 3σ_Z). `fx` is the source image's focal length, pixels.
+/// front surface instead of a point in the air between the two; the edge is the normals'
+/// ([`edge_jump_m`] across the block's diagonal). `fx` is the source image's focal length,
+/// pixels.
 ///
 /// The slant term matters: with the noise alone as the gate, a surface seen obliquely (a
 /// corridor's walls, whose depth changes by more than 3σ_Z from one pixel to the next once the
@@ -219,8 +228,7 @@ fn half(k: &Intrinsics) -> Result<Intrinsics> {
 /// 1/(2f) rad each), and their planes claimed information along the corridor's axis that the
 /// geometry does not give (docs/bench/track.md, session 25).
 fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &SensorModel, fx: f64) {
-    let c = (sensor.sigma_d_px / sensor.fb()) as f32;
-    let slant = std::f32::consts::SQRT_2 * MAX_SLANT_TAN / fx as f32;
+    let (c, fx) = ((sensor.sigma_d_px / sensor.fb()) as f32, fx as f32);
     dst.par_chunks_mut(dw.max(1))
         .enumerate()
         .for_each(|(y, row)| {
@@ -236,7 +244,7 @@ fn downsample(src: &[f32], sw: usize, dst: &mut [f32], dw: usize, sensor: &Senso
                     *out = 0.0;
                     continue;
                 }
-                let gate = slant * zmin + 3.0 * c * zmin * zmin;
+                let gate = edge_jump_m(std::f32::consts::SQRT_2, zmin, fx, c);
                 let (mut s, mut n) = (0.0f32, 0.0f32);
                 for z in zs {
                     if z > 0.0 && z - zmin <= gate {
@@ -294,9 +302,7 @@ fn normals(level: &mut Level, k: &Intrinsics, sensor: &SensorModel, r: usize, se
         if z <= 0.0 {
             return nan_n;
         }
-        // A jump larger than a surface at 80° to the line of sight plus 3σ of noise is a depth
-        // edge.
-        let gate = r as f32 * z / fx * MAX_SLANT_TAN + 3.0 * c * z * z;
+        let gate = edge_jump_m(r as f32, z, fx, c);
         let nb = [i - r, i + r, i - r * w, i + r * w];
         if nb
             .iter()
