@@ -63,6 +63,57 @@ def test_set_num_threads():
     assert sldepth.get_num_threads() >= 1
 
 
+def test_one_thread_computes_on_the_calling_thread():
+    # Pool workers are named sldepth-<i>; Python's threads have no Rust name. With one thread
+    # a call runs in place (no hand-over to a worker and back), from any Python thread; the
+    # pools of two threads and the default pool are still reached afterwards.
+    name = sldepth._sldepth._compute_thread_name
+    names = {}
+
+    def other_thread():
+        names["other"] = name()
+
+    try:
+        sldepth.set_num_threads(1)
+        names["main"] = name()
+        t = threading.Thread(target=other_thread)
+        t.start()
+        t.join()
+        sldepth.set_num_threads(2)
+        names["two"] = name()
+        sldepth.set_num_threads(None)
+        names["default"] = name()
+    finally:
+        sldepth.set_num_threads(None)
+    assert names["main"] is None and names["other"] is None, names
+    assert names["two"].startswith("sldepth-") and names["default"].startswith("sldepth-"), names
+
+
+def test_one_thread_pools_are_bounded(three_planes):
+    # Each thread that computes with one thread keeps a pool rayon cannot free; past a fixed
+    # number of threads the later ones share one pool (a worker named sldepth-0), with the same
+    # results.
+    cam = sldepth.Camera(64, 48, 60.0, 60.0, 32.0, 24.0)
+    small = three_planes[0][:48, :64].copy()
+    ref = sldepth.filter(small, cam)
+    names, same = [], []
+
+    def work():
+        names.append(sldepth._sldepth._compute_thread_name())
+        same.append(np.array_equal(sldepth.filter(small, cam), ref))
+
+    sldepth.set_num_threads(1)
+    try:
+        for _ in range(300):
+            t = threading.Thread(target=work)
+            t.start()
+            t.join()
+    finally:
+        sldepth.set_num_threads(None)
+    assert all(same) and len(same) == 300
+    assert set(names) <= {None, "sldepth-0"} and names[-1] == "sldepth-0", set(names)
+
+
 def test_two_python_threads_share_the_pool(kinect, three_planes):
     depth = three_planes[0]
     ref = sldepth.filter(depth, kinect)

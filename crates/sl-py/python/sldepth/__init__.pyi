@@ -236,8 +236,11 @@ def motion(
 ) -> Motion:
     """X_a = T X_b between two frames of one camera; determined=False when undetermined."""
 
-def set_num_threads(n: Optional[int] = None) -> None: ...
-def get_num_threads() -> int: ...
+def set_num_threads(n: Optional[int] = None) -> None:
+    """Threads per computation: n >= 2 shares one pool of n threads between all Python threads;
+    n = 1 computes on the calling thread (threads run side by side); None or 0: one per core."""
+def get_num_threads() -> int:
+    """The number of threads each computation uses now."""
 def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:
     """Whether the array would be read in place (C-contiguous float32)."""
 
