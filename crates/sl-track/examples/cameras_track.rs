@@ -6,8 +6,8 @@
 //!
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
-//!     [--white | --exact] [--no-prefilter] [--frame-to-frame] [--resample=F] [--per-frame] \
-//!     [CAMERAS] [SCENES]
+//!     [--white | --exact] [--no-prefilter] [--frame-to-frame] [--resample=F] [--max-depth=M] \
+//!     [--per-frame] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -17,6 +17,8 @@
 //! `--no-prefilter`. Errors are relative to the first frame the tracker anchored its model on
 //! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
 //! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
+//! `--max-depth=M` fuses and renders the model up to `M` metres (default 4: the corridor's end
+//! wall, 4.5 m away, is then never in the model);
 //! `--exact` tracks the rendered depth itself (no noise, no quantisation, no drop-outs), to tell
 //! the tracker's own errors from the sensor's;
 //! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics.
@@ -42,6 +44,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let resample = match args.iter().find_map(|a| a.strip_prefix("--resample=")) {
         Some(f) => Some(f.parse::<f64>()?),
+        None => None,
+    };
+    let max_depth_m = match args.iter().find_map(|a| a.strip_prefix("--max-depth=")) {
+        Some(m) => Some(m.parse::<f64>()?),
         None => None,
     };
     let mut names = args.iter().filter(|a| !a.starts_with("--"));
@@ -87,6 +93,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let scene = named_scene(scene_name)?;
             let mut cfg = ReconstructionConfig::default_for(camera.sensor);
             cfg.frame_to_model = frame_to_model;
+            if let Some(m) = max_depth_m {
+                cfg.tsdf.max_depth_m = m;
+            }
             let dt = cfg.tracker.frame_interval_s;
             let mut rec = Reconstruction::new(camera, cfg)?;
             let (mut pose, mut anchor) = (scene.pose, None);
