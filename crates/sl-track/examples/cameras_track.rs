@@ -7,7 +7,7 @@
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
 //!     [--white | --exact] [--no-prefilter] [--frame-to-frame] [--resample=F] [--max-depth=M] \
-//!     [--per-frame] [CAMERAS] [SCENES]
+//!     [--bilinear] [--per-frame] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -18,7 +18,8 @@
 //! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
 //! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
 //! `--max-depth=M` fuses and renders the model up to `M` metres (default 4: the corridor's end
-//! wall, 4.5 m away, is then never in the model);
+//! wall, 4.5 m away, is then never in the model); `--bilinear` fuses with
+//! `DepthLookup::Bilinear`;
 //! `--exact` tracks the rendered depth itself (no noise, no quantisation, no drop-outs), to tell
 //! the tracker's own errors from the sensor's;
 //! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics.
@@ -95,6 +96,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             cfg.frame_to_model = frame_to_model;
             if let Some(m) = max_depth_m {
                 cfg.tsdf.max_depth_m = m;
+            }
+            if flag("--bilinear") {
+                cfg.tsdf.depth_lookup = sl_tsdf::DepthLookup::Bilinear;
             }
             let dt = cfg.tracker.frame_interval_s;
             let mut rec = Reconstruction::new(camera, cfg)?;

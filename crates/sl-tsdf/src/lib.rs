@@ -100,7 +100,7 @@ pub use io::CONFIDENCE_PROPERTY;
 #[allow(deprecated)]
 pub use mesh::{ExtractOptions, MeshConfig};
 #[allow(deprecated)]
-pub use params::{Truncation, TsdfConfig, TsdfParams, WeightMode};
+pub use params::{DepthLookup, Truncation, TsdfConfig, TsdfParams, WeightMode};
 pub use raycast::{Raycast, RaycastConfig};
 /// The mesh type [`TsdfVolume::extract_mesh`] returns (sl-core's, re-exported).
 pub use sl_core::{Mesh, Topology};

@@ -157,6 +157,39 @@ impl BandFn {
     }
 }
 
+/// Where a voxel reads the depth of the frame it is updated from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[non_exhaustive]
+pub enum DepthLookup {
+    /// The pixel whose centre is nearest to the voxel's projection (KinectFusion's and
+    /// Open3D's projective update). Within one pixel's footprint every voxel reads the same
+    /// depth, so a surface seen at a grazing angle is fused as a staircase of steps one pixel
+    /// wide: on a simulated corridor's walls (exact depth, 4 mm voxels) the model's normals
+    /// lean 4° towards the camera on average (10° RMS). Default: the faster (see `Bilinear`).
+    #[default]
+    Nearest,
+    /// Inverse depth interpolated bilinearly between the four pixels around the projection, when
+    /// they are valid and lie on one surface (their depths differ by no more than a surface
+    /// at 80° to the line of sight across the cell's diagonal, plus the observation's band);
+    /// otherwise the nearest pixel. Inverse depth is affine in the image for a plane (the
+    /// paper's disparity), so a plane is fused exactly, and the four pixels' noise is averaged.
+    Bilinear,
+}
+
+impl DepthLookup {
+    /// The CLI name of the mode.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Nearest => "nearest",
+            Self::Bilinear => "bilinear",
+        }
+    }
+}
+
+/// The steepest surface, relative to the line of sight, whose neighbouring pixels
+/// [`DepthLookup::Bilinear`] interpolates between: 80°.
+pub(crate) const SAME_SURFACE_MAX_INCIDENCE_DEG: f64 = 80.0;
+
 /// A per-frame weight function, precomputed from a [`WeightMode`] and the reference depth so
 /// that the inner loop costs a few multiplications.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -280,6 +313,8 @@ pub struct TsdfConfig {
     /// Memory the voxel blocks and their index may use, bytes. Integration that would exceed it
     /// fails with [`TsdfError::MemoryBudget`] and leaves the volume unchanged.
     pub memory_budget_bytes: usize,
+    /// Where a voxel reads the frame's depth (default [`DepthLookup::Nearest`]).
+    pub depth_lookup: DepthLookup,
     /// The instruction set of block discovery and the voxel update: by default the widest this
     /// CPU supports ([`Isa::detect`]); a set this CPU lacks runs as the widest narrower one.
     /// Every choice gives bit-identical volumes (the update is elementwise). Compiled for AVX2,
@@ -307,6 +342,7 @@ impl Default for TsdfConfig {
             min_depth_m: 0.1,
             max_weight: 1.0e6,
             memory_budget_bytes: 4 << 30,
+            depth_lookup: DepthLookup::Nearest,
             isa: Isa::detect(),
         }
     }

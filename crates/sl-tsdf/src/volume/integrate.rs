@@ -12,7 +12,7 @@ use sl_core::{CameraToWorld, DepthView, Intrinsics, IsaKernel};
 use super::discovery::*;
 use super::*;
 use crate::par::run_on_threads;
-use crate::params::BandFn;
+use crate::params::{BandFn, DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG};
 
 impl TsdfVolume {
     /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world
@@ -306,6 +306,11 @@ pub(super) const SLICE: usize = BLOCK_SIDE * BLOCK_SIDE;
 /// Per-frame constants of the voxel update (camera from world, intrinsics, band).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct FrameConsts {
+    /// [`DepthLookup::Bilinear`]: interpolate between the four pixels around the projection.
+    pub(super) bilinear: bool,
+    /// [`DepthLookup::Bilinear`]'s same-surface bound per metre of depth: the depth step
+    /// across a pixel cell's diagonal of a surface at the steepest interpolated incidence.
+    pub(super) same_surface_per_m: f32,
     pub(super) rt: Matrix3<f32>,
     pub(super) tt: Vector3<f32>,
     pub(super) step_x: Vector3<f32>,
@@ -363,6 +368,10 @@ impl FrameConsts {
             band: BandFn::new(p),
             max_w: p.max_weight,
             v,
+            bilinear: p.depth_lookup == DepthLookup::Bilinear,
+            same_surface_per_m: (std::f64::consts::SQRT_2
+                * SAME_SURFACE_MAX_INCIDENCE_DEG.to_radians().tan()
+                / k.fx.min(k.fy)) as f32,
         }
     }
 }
@@ -393,6 +402,8 @@ pub(super) const SMALL_TABLE: usize = 1 << 19;
 pub(super) trait PixelTable: Sync {
     /// Depth and weight of table entry `i` (`i` is always in range).
     fn entry(&self, i: u32) -> [f32; 2];
+    /// Entries `i` and `i + 1` (`i + 1` is always in range).
+    fn pair(&self, i: u32) -> [[f32; 2]; 2];
 }
 
 impl PixelTable for [[f32; 2]; SMALL_TABLE] {
@@ -400,12 +411,77 @@ impl PixelTable for [[f32; 2]; SMALL_TABLE] {
     fn entry(&self, i: u32) -> [f32; 2] {
         self[i as usize & (SMALL_TABLE - 1)]
     }
+    #[inline(always)]
+    fn pair(&self, i: u32) -> [[f32; 2]; 2] {
+        let i = (i as usize).min(SMALL_TABLE - 2);
+        [self[i], self[i + 1]]
+    }
 }
 
 impl PixelTable for [[f32; 2]] {
     #[inline(always)]
     fn entry(&self, i: u32) -> [f32; 2] {
         self.get(i as usize).copied().unwrap_or([0.0; 2])
+    }
+    #[inline(always)]
+    fn pair(&self, i: u32) -> [[f32; 2]; 2] {
+        match self.get(i as usize..i as usize + 2) {
+            Some(&[a, b]) => [a, b],
+            _ => [[0.0; 2]; 2],
+        }
+    }
+}
+
+/// [`DepthLookup::Bilinear`] for one z slice: replaces the nearest pixel's depth in `dw` by the
+/// inverse depth interpolated at the projection `(us, vs)` (table coordinates, clamped onto the
+/// border) where the four pixels around it are valid and on one surface; the weight stays the
+/// nearest pixel's. The nearest pixel is one of the four, so an invalid one keeps its weight 0.
+/// Branch-free: the gathers (two loads of two neighbouring pixels) in one loop, the arithmetic in
+/// another that the compiler vectorises (a version that skipped the voxels far from the surface
+/// branched per voxel and took twice as long).
+#[inline(always)]
+fn bilinear_depths<T: PixelTable + ?Sized>(
+    dw: &mut [[f32; 2]; SLICE],
+    us: &[f32; SLICE],
+    vs: &[f32; SLICE],
+    fc: &FrameConsts,
+    table: &T,
+) {
+    let mut top = [[[0.0f32; 2]; 2]; SLICE];
+    let mut bottom = [[[0.0f32; 2]; 2]; SLICE];
+    let mut fu = [0.0f32; SLICE];
+    let mut fv = [0.0f32; SLICE];
+    let tw = exact_u32(fc.tw);
+    for i in 0..SLICE {
+        // `us`, `vs` are in [0, umax], [0, vmax]: the cell's corners stay in the table.
+        let u0 = us[i].floor();
+        let u0 = if u0 < fc.umax - 1.0 {
+            u0
+        } else {
+            fc.umax - 1.0
+        };
+        let v0 = vs[i].floor();
+        let v0 = if v0 < fc.vmax - 1.0 {
+            v0
+        } else {
+            fc.vmax - 1.0
+        };
+        fu[i] = us[i] - u0;
+        fv[i] = vs[i] - v0;
+        let at = exact_u32(v0 * fc.tw + u0);
+        top[i] = table.pair(at);
+        bottom[i] = table.pair(at + tw);
+    }
+    for i in 0..SLICE {
+        let [[a, wa], [b, wb]] = top[i];
+        let [[c, wc], [d, wd]] = bottom[i];
+        let valid = (wa > 0.0) & (wb > 0.0) & (wc > 0.0) & (wd > 0.0);
+        let lo = a.min(b).min(c).min(d);
+        let hi = a.max(b).max(c).max(d);
+        let same = valid & (hi - lo <= lo * fc.same_surface_per_m + fc.band.band(lo));
+        let (u, v) = (fu[i], fv[i]);
+        let inv = (1.0 - v) * ((1.0 - u) / a + u / b) + v * ((1.0 - u) / c + u / d);
+        dw[i][0] = if same { 1.0 / inv } else { dw[i][0] };
     }
 }
 
@@ -476,6 +552,8 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     let mut xs = [0.0f32; SLICE];
     let mut ys = [0.0f32; SLICE];
     let mut dw = [[0.0f32; 2]; SLICE];
+    let mut us = [0.0f32; SLICE];
+    let mut vs = [0.0f32; SLICE];
     // One z slice (8×8 voxels, contiguous in the block) at a time: loops of 64 independent
     // lanes that the compiler vectorises.
     for lz in 0..BLOCK_SIDE {
@@ -515,10 +593,15 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
             let v = if v < fc.vmax { v } else { fc.vmax };
             // Exact integers below 2^23 (checked in `integrate`).
             pix[i] = exact_u32(round_f32(v) * fc.tw + round_f32(u));
+            us[i] = u;
+            vs[i] = v;
         }
         // Stage 2 (scalar gather): depth and weight of each voxel's pixel.
         for i in 0..SLICE {
             dw[i] = table.entry(pix[i]);
+        }
+        if fc.bilinear {
+            bilinear_depths(&mut dw, &us, &vs, fc, table);
         }
         // Stage 3 (branch-free): line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ
         // along the voxel's own ray, clipped to the observation's band `trunc` (see

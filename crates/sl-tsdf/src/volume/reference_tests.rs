@@ -1,6 +1,6 @@
 //! The fast paths of [`TsdfVolume::integrate`] against straightforward f64 references: block
 //! discovery (the band of blocks) against a segment/box test of every valid pixel's segment,
-//! the voxel update (every weight mode, both pixel-table gathers, blocks with and without
+//! the voxel update (every weight mode, both depth lookups, both pixel-table gathers, blocks with and without
 //! voxels behind the camera) against a per-voxel projective update, and the budget-capped
 //! block arena.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use sl_core::{CameraToWorld, SensorModel};
 
 use super::*;
-use crate::params::WeightMode;
+use crate::params::{DepthLookup, WeightMode};
 use sl_noise::sim::{Plane, Scene, Sphere};
 
 /// Allowance for the f32 arithmetic of the fast path, in block units (1/1000 of a block): a
@@ -347,7 +347,47 @@ impl ReferenceVolume {
         if !valid_depth(p, d) {
             return;
         }
-        let d = f64::from(d);
+        // The weight is the nearest pixel's; the depth may be interpolated.
+        let w = reference_weight(p, f64::from(d));
+        let mut d = f64::from(d);
+        if p.depth_lookup == DepthLookup::Bilinear {
+            // The four pixels around (u, v); outside the image they are invalid.
+            let near_int = |c: f64| (c - c.round()).abs() < EPS_PX;
+            if near_int(u) || near_int(v) {
+                self.ambiguous.insert(g);
+                return;
+            }
+            let (u0, v0) = (u.floor(), v.floor());
+            let at = |x: f64, y: f64| -> f64 {
+                if x < 0.0 || y < 0.0 || x >= k.width as f64 || y >= k.height as f64 {
+                    return 0.0;
+                }
+                let z = depth[y as usize * k.width + x as usize];
+                if valid_depth(p, z) { f64::from(z) } else { 0.0 }
+            };
+            let c = [
+                at(u0, v0),
+                at(u0 + 1.0, v0),
+                at(u0, v0 + 1.0),
+                at(u0 + 1.0, v0 + 1.0),
+            ];
+            let lo = c.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = c.iter().copied().fold(0.0, f64::max);
+            if lo > 0.0 {
+                let slope = std::f64::consts::SQRT_2 * 80f64.to_radians().tan() / k.fx.min(k.fy);
+                let margin = lo * slope + p.band_at(lo) - (hi - lo);
+                if margin.abs() < 1e-5 * lo {
+                    self.ambiguous.insert(g);
+                    return;
+                }
+                if margin > 0.0 {
+                    let (fu, fv) = (u - u0, v - v0);
+                    let inv = (1.0 - fv) * ((1.0 - fu) / c[0] + fu / c[1])
+                        + fv * ((1.0 - fu) / c[2] + fu / c[3]);
+                    d = 1.0 / inv;
+                }
+            }
+        }
         let sdf = (d - pc.z) * pc.coords.norm() / pc.z;
         let band = p.band_at(d);
         if (sdf + band).abs() < EPS_SDF_M {
@@ -358,7 +398,6 @@ impl ReferenceVolume {
             return;
         }
         let f = sdf.min(band);
-        let w = reference_weight(p, d);
         let (tsdf, weight) = self.voxels.entry(g).or_insert((0.0, 0.0));
         let wn = *weight + w;
         *tsdf += (f - *tsdf) * w / wn;
@@ -490,13 +529,15 @@ fn integration_matches_the_scalar_reference_for_every_weight_mode() {
         WeightMode::InvZ4,
         WeightMode::sensor_variance(SensorModel::kinect_v1()),
     ];
-    for (m, &weight) in modes.iter().enumerate() {
+    let lookups = [DepthLookup::Bilinear, DepthLookup::Nearest];
+    for ((m, &weight), depth_lookup) in modes.iter().enumerate().zip(lookups.iter().cycle()) {
         let p = TsdfConfig {
             voxel_m: 0.02,
             trunc_m: 0.06,
             weight,
             // The cap in the uniform case turns the second observation into a moving average.
             max_weight: if m == 0 { 1.5 } else { 1e6 },
+            depth_lookup: *depth_lookup,
             ..TsdfConfig::default()
         };
         let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)
@@ -522,6 +563,7 @@ fn integration_matches_the_scalar_reference_with_the_large_pixel_table() {
     let p = TsdfConfig {
         voxel_m: 0.01,
         trunc_m: 0.04,
+        depth_lookup: DepthLookup::Bilinear,
         ..TsdfConfig::default()
     };
     let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)
@@ -552,6 +594,7 @@ fn integration_matches_the_scalar_reference_next_to_the_camera() {
         trunc_m: 0.04,
         min_depth_m: 0.0,
         weight: WeightMode::InvZ2,
+        depth_lookup: DepthLookup::Bilinear,
         ..TsdfConfig::default()
     };
     let frames: Vec<(Vec<f32>, Isometry3<f64>)> = (0..2)

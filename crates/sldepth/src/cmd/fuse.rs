@@ -9,7 +9,9 @@ use anyhow::{Context, Result, bail};
 use sl_core::{Camera, CameraToWorld, DepthImage};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::trajectory::Frame;
-use sl_tsdf::{Axis, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume, WeightMode};
+use sl_tsdf::{
+    Axis, DepthLookup, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume, WeightMode,
+};
 
 use crate::common::{
     InputArgs, LensArgs, check_depth_scale, check_distinct_outputs, check_output, check_range,
@@ -63,6 +65,14 @@ pub struct Args {
     /// Ignore depths beyond this, metres.
     #[arg(long, value_name = "M", default_value_t = 4.0)]
     pub max_depth_m: f64,
+    /// Where a voxel reads the frame's depth: `nearest` (the pixel nearest its projection, as
+    /// KinectFusion and Open3D do) or `bilinear` (inverse depth interpolated between the four
+    /// pixels around it when they lie on one surface: no staircase on surfaces seen at grazing
+    /// angles, the pixels' noise averaged; on the paper's relief experiment the surface RMS
+    /// error falls from 1.05 to 0.63 mm, on real sequences the fused walls' residual does not
+    /// change; integration takes 1.7-1.9x as long). See `DepthLookup`.
+    #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = ["nearest", "bilinear"])]
+    pub depth_lookup: String,
     /// Skip marching cubes with a corner whose accumulated weight is below this (1 = one
     /// observation at 1 m).
     #[arg(long, value_name = "W", default_value_t = 0.0)]
@@ -247,6 +257,10 @@ pub fn run(args: Args) -> Result<()> {
     params.weight = parse_weight(&args.weight, &camera)?;
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = budget;
+    params.depth_lookup = match args.depth_lookup.as_str() {
+        "bilinear" => DepthLookup::Bilinear,
+        _ => DepthLookup::Nearest,
+    };
     let filter = if args.prefilter {
         Some(sl_filter::DepthFilter::default_for(
             sl_filter::Method::Adaptive,
@@ -348,6 +362,7 @@ pub fn run(args: Args) -> Result<()> {
             "voxel_m": params.voxel_m,
             "trunc_m": params.trunc_m,
             "truncation": params.truncation.name(),
+            "depth_lookup": params.depth_lookup.name(),
             "weight": params.weight.name(),
             "max_depth_m": params.max_depth_m,
             "prefilter": args.prefilter,

@@ -39,7 +39,7 @@ use sl_core::{Camera, CameraToWorld, WorldToWorld};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus, WeightMode};
-use sl_tsdf::{MeshConfig, Truncation};
+use sl_tsdf::{DepthLookup, MeshConfig, Truncation};
 
 use crate::common::{
     InputArgs, LensArgs, camera_from_arg, check_depth_scale, check_output, check_range, limits,
@@ -85,6 +85,13 @@ pub struct Args {
     /// Ignore depths beyond this for fusion, metres.
     #[arg(long, value_name = "M", default_value_t = 4.0)]
     pub max_depth_m: f64,
+    /// Where a voxel reads the frame's depth, as for `sldepth fuse`: `nearest` (default) or
+    /// `bilinear`. Bilinear fuses surfaces seen at grazing angles without a staircase (on a
+    /// simulated corridor the model's normals no longer lean 4° towards the camera) but takes
+    /// 1.5-1.9x as long to integrate, and the tracker's conditioning test was calibrated on
+    /// nearest-pixel models (docs/bench/track.md, "Session 26").
+    #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = ["nearest", "bilinear"])]
+    pub depth_lookup: String,
     /// Residual weighting of the tracker: `inv-var` (the sensor model's variance, default) or
     /// `uniform`.
     #[arg(long, value_name = "MODE", default_value = "inv-var")]
@@ -475,6 +482,10 @@ pub fn run(args: Args) -> Result<()> {
         None => Truncation::sensor_adaptive(camera.sensor),
     };
     cfg.tsdf.max_depth_m = args.max_depth_m;
+    cfg.tsdf.depth_lookup = match args.depth_lookup.as_str() {
+        "bilinear" => DepthLookup::Bilinear,
+        _ => DepthLookup::Nearest,
+    };
     cfg.tsdf.memory_budget_bytes = limits().tsdf_budget_bytes;
     cfg.frame_to_model = !args.frame_to_frame;
     cfg.model_scale = args.model_scale;
@@ -674,6 +685,7 @@ pub fn run(args: Args) -> Result<()> {
             "voxel_m": params.voxel_m,
             "trunc_m": params.trunc_m,
             "truncation": params.truncation.name(),
+            "depth_lookup": params.depth_lookup.name(),
             "vertices": mesh_size.map(|m| m.0),
             "triangles": mesh_size.map(|m| m.1),
             "fragments": fragments.iter().enumerate().map(|(index, f)| {
