@@ -170,6 +170,34 @@ def test_tsdf_raycast_sees_the_fused_wall(small_cam, wall):
         vol.raycast(small_cam, np.eye(3))
 
 
+def test_tsdf_bilinear_lookup_keeps_a_grazing_wall_flat():
+    # A wall 0.4 m to the side seen at a grazing angle (exact depth, computed here): with the
+    # nearest pixel it is fused as steps one pixel wide, whose raycast normals lean away from
+    # the wall's; with bilinear inverse depth they match it.
+    h, w = 240, 320
+    cam = sldepth.Camera(w, h, 290.0, 290.0, 159.5, 119.5, baseline_m=0.075)
+    n = np.array([-1.0, 0.15, 0.05])
+    n /= np.linalg.norm(n)
+    x = (np.arange(w) - 159.5) / 290.0
+    y = (np.arange(h) - 119.5) / 290.0
+    rays = np.stack(np.broadcast_arrays(x[None, :], y[:, None], np.ones((h, w))), axis=-1)
+    # The plane n.p = n.(0.4, 0, 0) along each ray.
+    t = (n @ np.array([0.4, 0.0, 0.0])) / (rays @ n)
+    depth = np.where((t > 0) & (t < 3.0), t, 0.0).astype(np.float32)
+    errors = {}
+    for lookup in ("nearest", "bilinear"):
+        vol = sldepth.TsdfVolume(voxel_m=0.004, trunc_m=0.02, depth_lookup=lookup)
+        vol.integrate(depth, cam, np.eye(4))
+        d, _, normals, _ = vol.raycast(cam, np.eye(4))
+        hit = d > 0
+        hit[:4], hit[-4:], hit[:, :4], hit[:, -4:] = False, False, False, False
+        cos = np.clip(normals[hit] @ n, -1.0, 1.0)
+        errors[lookup] = np.degrees(np.arccos(cos)).mean()
+    assert errors["nearest"] > 5.0 and errors["bilinear"] < 0.5, errors
+    with pytest.raises(ValueError, match="depth_lookup"):
+        sldepth.TsdfVolume(depth_lookup="cubic")
+
+
 def test_tsdf_errors(small_cam, wall):
     with pytest.raises(ValueError):
         sldepth.TsdfVolume(voxel_m=-0.01)

@@ -157,7 +157,9 @@ class TsdfVolume:
         max_depth_m: float = 4.0,
         min_depth_m: float = 0.1,
         memory_budget_bytes: int = 4 << 30,
-    ) -> None: ...
+        depth_lookup: str = "nearest",
+    ) -> None:
+        """depth_lookup: "nearest" (default) or "bilinear" (no staircase on grazing surfaces)."""
     def integrate(
         self,
         depth: _Depth,
