@@ -36,8 +36,7 @@ fn build_pool(n: usize) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError
 }
 
 /// sldepth's default pool, one thread per core, built at import (`None` only when no thread
-/// can start). It is a pool of its own rather
-/// than rayon's global pool: a Python thread that has computed with `set_num_threads(1)` is a
+/// can start). It is a pool of its own rather than rayon's global pool: a Python thread that has computed with `set_num_threads(1)` is a
 /// member of its own one-thread pool ([`solo_pool`]), and rayon would run "the global pool's"
 /// work there, on that one thread; an explicit pool is reached the same way from every thread.
 fn default_pool() -> Option<Arc<rayon::ThreadPool>> {

@@ -60,15 +60,7 @@ impl PyTsdfVolume {
         params.max_depth_m = max_depth_m;
         params.min_depth_m = min_depth_m;
         params.memory_budget_bytes = memory_budget_bytes;
-        params.depth_lookup = match depth_lookup {
-            "nearest" => DepthLookup::Nearest,
-            "bilinear" => DepthLookup::Bilinear,
-            other => {
-                return Err(value_error(format!(
-                    "depth_lookup {other:?}: expected \"nearest\" or \"bilinear\""
-                )));
-            }
-        };
+        params.depth_lookup = depth_lookup.parse::<DepthLookup>().map_err(value_error)?;
         Ok(Self {
             volume: TsdfVolume::new(params).map_err(value_error)?,
             sensor_weight,

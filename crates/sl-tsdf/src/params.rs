@@ -177,12 +177,31 @@ pub enum DepthLookup {
 }
 
 impl DepthLookup {
+    /// The names the CLI and Python accept, in the order of [`DepthLookup::ALL`].
+    pub const NAMES: [&'static str; 2] = ["nearest", "bilinear"];
+    /// Both lookups.
+    pub const ALL: [DepthLookup; 2] = [DepthLookup::Nearest, DepthLookup::Bilinear];
+
     /// The CLI name of the mode.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Nearest => "nearest",
             Self::Bilinear => "bilinear",
         }
+    }
+}
+
+impl std::str::FromStr for DepthLookup {
+    type Err = TsdfError;
+    fn from_str(s: &str) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|m| m.name() == s)
+            .ok_or_else(|| {
+                TsdfError::InvalidParameter(format!(
+                    "unknown depth_lookup {s:?} (expected nearest or bilinear)"
+                ))
+            })
     }
 }
 

@@ -1,8 +1,8 @@
 //! The fast paths of [`TsdfVolume::integrate`] against straightforward f64 references: block
 //! discovery (the band of blocks) against a segment/box test of every valid pixel's segment,
-//! the voxel update (every weight mode, both depth lookups, both pixel-table gathers, blocks with and without
-//! voxels behind the camera) against a per-voxel projective update, and the budget-capped
-//! block arena.
+//! the voxel update (every weight mode, both depth lookups, both pixel-table gathers, blocks
+//! with and without voxels behind the camera) against a per-voxel projective update, and the
+//! budget-capped block arena.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 
 use std::collections::{BTreeSet, HashMap, HashSet};
@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use sl_core::{CameraToWorld, SensorModel};
 
 use super::*;
-use crate::params::{DepthLookup, WeightMode};
+use crate::params::{DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG, WeightMode};
 use sl_noise::sim::{Plane, Scene, Sphere};
 
 /// Allowance for the f32 arithmetic of the fast path, in block units (1/1000 of a block): a
@@ -374,7 +374,9 @@ impl ReferenceVolume {
             let lo = c.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = c.iter().copied().fold(0.0, f64::max);
             if lo > 0.0 {
-                let slope = std::f64::consts::SQRT_2 * 80f64.to_radians().tan() / k.fx.min(k.fy);
+                let slope = std::f64::consts::SQRT_2
+                    * SAME_SURFACE_MAX_INCIDENCE_DEG.to_radians().tan()
+                    / k.fx.min(k.fy);
                 let margin = lo * slope + p.band_at(lo) - (hi - lo);
                 if margin.abs() < 1e-5 * lo {
                     self.ambiguous.insert(g);

@@ -35,6 +35,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
 use sl_core::{Camera, CameraToWorld, WorldToWorld};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
@@ -88,10 +89,10 @@ pub struct Args {
     /// Where a voxel reads the frame's depth, as for `sldepth fuse`: `nearest` (default) or
     /// `bilinear`. Bilinear fuses surfaces seen at grazing angles without a staircase (on a
     /// simulated corridor the model's normals no longer lean 4° towards the camera) but takes
-    /// 1.5-1.9x as long to integrate, and the tracker's conditioning test was calibrated on
+    /// 1.6-2x as long to integrate, and the tracker's conditioning test was calibrated on
     /// nearest-pixel models (docs/bench/track.md, "Session 26").
-    #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = ["nearest", "bilinear"])]
-    pub depth_lookup: String,
+    #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = PossibleValuesParser::new(DepthLookup::NAMES).try_map(|s| s.parse::<DepthLookup>()))]
+    pub depth_lookup: DepthLookup,
     /// Residual weighting of the tracker: `inv-var` (the sensor model's variance, default) or
     /// `uniform`.
     #[arg(long, value_name = "MODE", default_value = "inv-var")]
@@ -482,10 +483,7 @@ pub fn run(args: Args) -> Result<()> {
         None => Truncation::sensor_adaptive(camera.sensor),
     };
     cfg.tsdf.max_depth_m = args.max_depth_m;
-    cfg.tsdf.depth_lookup = match args.depth_lookup.as_str() {
-        "bilinear" => DepthLookup::Bilinear,
-        _ => DepthLookup::Nearest,
-    };
+    cfg.tsdf.depth_lookup = args.depth_lookup;
     cfg.tsdf.memory_budget_bytes = limits().tsdf_budget_bytes;
     cfg.frame_to_model = !args.frame_to_frame;
     cfg.model_scale = args.model_scale;
