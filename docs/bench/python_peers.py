@@ -18,9 +18,11 @@ Compared:
 - planes: ``sldepth.extract_planes`` vs ``cv2.findPlanes`` (its Kinect ``sensor_error_a =
   0.0075``; points from the depth map computed outside the timing, normals left to it), one
   thread and all threads (our final pass runs in bands on the pool; findPlanes is sequential);
-- call overhead: ``sldepth.filter`` against the Rust-internal timing the CLI reports for the
-  same frame (``sldepth filter --repeat``), and ``extract_planes`` against the extractor's own
-  minimum (``target/release/examples/planes_timing time``).
+- call overhead, one thread and all threads: ``sldepth.filter`` against the Rust-internal
+  timing the CLI reports for the same frame (``sldepth filter --repeat``), and
+  ``extract_planes`` against the extractor's own minimum on a pool worker
+  (``target/release/examples/planes_timing time-pool``); each Python measurement in a new
+  thread that sets its count first, as a program that sets it once does.
 
 Open3D: use ``open3d-cpu==0.19.0``. The PyPI ``open3d==0.20.0`` wheel's legacy
 ``ScalableTSDFVolume`` integrates nothing on our machines (0 vertices, ~2 ms per frame), so its
@@ -34,6 +36,7 @@ import platform
 import statistics
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -61,6 +64,19 @@ def timed(fn, reps):
         fn()
         t.append((time.perf_counter() - t0) * 1e3)
     return min(t), statistics.median(t)
+
+
+def timed_paced(fn, reps, pause_s=0.002):
+    """Median wall time of `reps` calls with a pause between them, milliseconds: a program that
+    does other work between calls (a camera loop), so the pool's workers are asleep at each
+    call and every hand-over to one costs a wake-up."""
+    t = []
+    for _ in range(reps):
+        time.sleep(pause_s)
+        t0 = time.perf_counter()
+        fn()
+        t.append((time.perf_counter() - t0) * 1e3)
+    return statistics.median(t)
 
 
 def frames(data):
@@ -186,51 +202,69 @@ def bench_tsdf(data, rounds, max_frames=20):
     return rows
 
 
+def in_fresh_thread(n, fn):
+    """Runs `fn` in a new Python thread whose first sldepth call uses `n` threads, as a program
+    that sets its thread count once does: the thread then computes as worker 0 of a pool of its
+    own (a call with another count than a thread's first goes through a shared pool instead)."""
+    out = []
+
+    def run():
+        sldepth.set_num_threads(n)
+        try:
+            out.append(fn())
+        finally:
+            sldepth.set_num_threads(None)
+
+    t = threading.Thread(target=run)
+    t.start()
+    t.join()
+    return out[0]
+
+
 def bench_overhead(data, rounds, reps):
-    """Python call vs the Rust-internal time the CLI measures (same frame, camera, threads)."""
+    """Python call vs the Rust-internal time (same frame, camera, threads), interleaved rounds.
+
+    References: `sldepth filter --repeat` (every command runs on a worker of the global pool)
+    and `planes_timing time-pool` (the extractor on a worker of the global pool), each with
+    RAYON_NUM_THREADS set to the row's thread count."""
     binary = ROOT / "target/release/sldepth"
+    timing = ROOT / "target/release/examples/planes_timing"
     person = data / "open3d-testdata/person-depth.png"
     if not (binary.exists() and person.exists()):
         return []
     cam = sldepth.Camera.preset("kinect-v1")  # the CLI's default camera
     z = sldepth.read_depth(person, 1000)
-    rows = []
+    named = {"tum-fr1": "tum-fr1-rpy", "7-scenes": "7scenes"}
+    planes = [(name, zz, c) for name, zz, c in frames(data) if name in named] if timing.exists() else []
+    best = {}
+
+    def keep(key, rust_ms, py_ms, paced_ms):
+        r, p, m = best.get(key, (float("inf"), float("inf"), []))
+        best[key] = (min(r, rust_ms), min(p, py_ms), m + [paced_ms])
+
     for _ in range(rounds):
-        sldepth.set_num_threads(None)
-        out = subprocess.run([str(binary), "filter", str(person), "/tmp/_sl_bench.png", "--repeat", str(reps), "--json", "--single-scale"],
-                             capture_output=True, text=True, check=True)
-        rust = json.loads(out.stdout)
-        py = timed(lambda: sldepth.filter(z, cam, multiscale=False), reps)
-        rows.append(dict(stage="filter 7x7 adaptive", rust_min_ms=rust["ms_min"], python_min_ms=py[0],
-                         rust_median_ms=rust["ms_median"], python_median_ms=py[1],
-                         overhead_min=py[0] / rust["ms_min"] - 1.0))
-    timing = ROOT / "target/release/examples/planes_timing"
-    if timing.exists():
-        # The Rust extractor's own per-frame minimum (one thread, a kept extractor) on the
-        # frames bench_planes uses, against the Python call on the same frame, interleaved:
-        # each round runs the Rust timing and then the Python calls, and the overhead is the
-        # minimum over the rounds of each (a single back-to-back pair on a shared machine once
-        # showed +25 % for one frame and +3 % for another; interleaved rounds give 2-3 %).
-        named = {"tum-fr1": "tum-fr1-rpy", "7-scenes": "7scenes"}
-        best = {}
-        for _ in range(rounds):
-            out = subprocess.run([str(timing), "time", str(reps)], capture_output=True,
-                                 text=True, env={**os.environ, "RAYON_NUM_THREADS": "1"},
-                                 check=True).stdout
-            rust = {l.split(":")[0]: float(l.split("min ")[1].split(" ms")[0])
-                    for l in out.splitlines() if " min " in l and not l.startswith(" ")}
-            for name, z, cam in frames(data):
-                key = named.get(name)
-                if key in rust:
-                    sldepth.set_num_threads(1)
-                    py = timed(lambda: sldepth.extract_planes(z, cam), reps)
-                    sldepth.set_num_threads(None)
-                    r, p = best.get(name, (float("inf"), float("inf")))
-                    best[name] = (min(r, rust[key]), min(p, py[0]))
-        for name, (r, p) in best.items():
-            rows.append(dict(stage=f"planes {name}", rust_min_ms=r, python_min_ms=p,
-                             overhead_min=p / r - 1.0, rounds=rounds))
-    return rows
+        for n in (1, os.cpu_count()):
+            env = {**os.environ, "RAYON_NUM_THREADS": str(n)}
+            out = subprocess.run([str(binary), "filter", str(person), "/tmp/_sl_bench.png", "--repeat", str(reps),
+                                  "--json", "--single-scale"], capture_output=True, text=True, env=env, check=True)
+            call = lambda: sldepth.filter(z, cam, multiscale=False)  # noqa: E731
+            py = in_fresh_thread(n, lambda: (timed(call, reps)[0], timed_paced(call, reps)))
+            keep(("filter 7x7 adaptive, person", n), json.loads(out.stdout)["ms_min"], *py)
+            if planes:
+                out = subprocess.run([str(timing), "time-pool", str(reps)], capture_output=True, text=True,
+                                     env=env, check=True).stdout
+                rust = {l.split(":")[0]: float(l.split("min ")[1].split(" ms")[0])
+                        for l in out.splitlines() if " min " in l and not l.startswith(" ")}
+                for name, zz, c in planes:
+                    if named[name] in rust:
+                        call = lambda: sldepth.extract_planes(zz, c)  # noqa: E731
+                        py = in_fresh_thread(n, lambda: (timed(call, reps)[0], timed_paced(call, reps)))
+                        keep((f"planes {name}", n), rust[named[name]], *py)
+    # python_paced_median_ms: the median over rounds of timed_paced's medians (workers asleep
+    # at each call), beside the back-to-back minimum the overhead is computed from.
+    return [dict(stage=stage, threads=n, rust_min_ms=r, python_min_ms=p, overhead_min=p / r - 1.0,
+                 python_paced_median_ms=statistics.median(m), rounds=rounds)
+            for (stage, n), (r, p, m) in best.items()]
 
 
 def main():

@@ -9,8 +9,8 @@
 //! Policies (see `README.md`):
 //! - **Arrays.** A C-contiguous `float32` (H, W) depth array is read in place (no copy); other
 //!   dtypes and layouts are converted once, at a documented cost. Outputs own the Rust buffers.
-//! - **GIL and threads.** Every computation releases the GIL and runs on the rayon pool
-//!   `sldepth.set_num_threads(n)` chose; with one thread, on the calling thread itself.
+//! - **GIL and threads.** Every computation releases the GIL and runs on a rayon pool of the
+//!   size `sldepth.set_num_threads(n)` chose, with the calling thread as its first worker.
 //! - **Errors.** Every Rust error becomes `sldepth.SlDepthError` (a `ValueError`) or
 //!   `sldepth.SlDepthIOError` (an `OSError`) carrying the Rust message; nothing panics across
 //!   the boundary.
@@ -40,7 +40,6 @@ use pyo3::prelude::*;
 /// The extension module `sldepth._sldepth`.
 #[pymodule]
 fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    threads::init_default_pool();
     errors::register(m)?;
     m.add_class::<camera::PyCamera>()?;
     m.add_class::<noise::PyAnalysis>()?;

@@ -1,6 +1,7 @@
 //! The one parallelism policy, seen from Python: every computation releases the GIL and runs
-//! on the rayon pool `set_num_threads(n)` chose — sldepth's default pool (one thread per core),
-//! a shared pool of `n` threads, or, for `n = 1`, the calling thread itself.
+//! on a rayon pool of the size `set_num_threads(n)` chose (one thread per core by default). The
+//! calling thread is itself a worker of that pool ([`own_pool`]), so a call runs in place; only
+//! when it cannot be does the call go to a shared pool of the same size ([`Threads`]).
 
 use std::cell::OnceCell;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -13,12 +14,10 @@ use crate::errors::value_error;
 /// What `set_num_threads` chose.
 #[derive(Clone)]
 enum Threads {
-    /// [`default_pool`]: one thread per core.
+    /// One thread per core; the shared pool is [`default_pool`].
     Default,
-    /// One thread: the calling thread ([`solo_pool`]).
-    One,
-    /// A pool of two or more threads shared by every calling thread.
-    Shared(Arc<rayon::ThreadPool>),
+    /// This shared pool's number of threads.
+    Count(Arc<rayon::ThreadPool>),
 }
 
 static THREADS: Mutex<Threads> = Mutex::new(Threads::Default);
@@ -26,6 +25,10 @@ static THREADS: Mutex<Threads> = Mutex::new(Threads::Default);
 /// Stack of the pool threads, bytes: every call runs on one of them (see [`compute`]), so it
 /// gets the 8 MiB of a Python thread on Linux rather than a spawned thread's default 2 MiB.
 const WORKER_STACK_BYTES: usize = 8 << 20;
+
+fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
 
 fn build_pool(n: usize) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
     rayon::ThreadPoolBuilder::new()
@@ -35,70 +38,85 @@ fn build_pool(n: usize) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError
         .build()
 }
 
-/// sldepth's default pool, one thread per core, built at import (`None` only when no thread
-/// can start). It is a pool of its own rather than rayon's global pool: a Python thread that has computed with `set_num_threads(1)` is a
-/// member of its own one-thread pool ([`solo_pool`]), and rayon would run "the global pool's"
-/// work there, on that one thread; an explicit pool is reached the same way from every thread.
+/// The shared pool of one thread per core (`None` only when no thread can start). It is a pool
+/// of sldepth's own rather than rayon's global pool: a Python thread that is a worker of its
+/// own pool ([`own_pool`]) would run "the global pool's" work there, at that pool's size.
 fn default_pool() -> Option<Arc<rayon::ThreadPool>> {
     static POOL: OnceLock<Option<Arc<rayon::ThreadPool>>> = OnceLock::new();
     POOL.get_or_init(|| {
-        let n = std::thread::available_parallelism().map_or(1, |n| n.get());
-        build_pool(n).or_else(|_| build_pool(1)).ok().map(Arc::new)
+        build_pool(cores())
+            .or_else(|_| build_pool(1))
+            .ok()
+            .map(Arc::new)
     })
     .clone()
 }
 
-/// Builds the default pool (at import), so the first call does not pay for starting threads.
-pub(crate) fn init_default_pool() {
-    let _ = default_pool();
+/// At most this many threads ever get a pool of their own ([`OWN`]); later ones use the shared
+/// pools and pay their hop. Rayon never frees a pool a thread joined (about 8 KB measured, its
+/// spawned workers do end with the thread), so a program that starts a new thread for every
+/// call would otherwise grow without bound.
+const MAX_OWN_POOLS: usize = 256;
+
+static OWN_POOLS: AtomicUsize = AtomicUsize::new(0);
+
+/// Live spawned workers of all own pools (each has `n - 1`, the caller being the n-th).
+static OWN_WORKERS: AtomicUsize = AtomicUsize::new(0);
+
+/// At most this many spawned workers of own pools live at once (eight per core): many Python
+/// threads that each compute with every core fall back to the shared pools past it, instead of
+/// starting threads without bound.
+fn max_own_workers() -> usize {
+    8 * cores()
 }
 
-/// At most this many threads get a pool of their own ([`SOLO`]); later ones share one
-/// one-thread pool and pay its hop. Each such pool outlives its thread (about 8 KB measured), so
-/// a program that starts a new thread for every call would otherwise grow without bound.
-const MAX_SOLO_POOLS: usize = 256;
-
-static SOLO_POOLS: AtomicUsize = AtomicUsize::new(0);
-
 thread_local! {
-    /// The calling thread's own pool of one thread, in which it is the only worker: a call
-    /// installed there runs in place, with no hop to another thread and back (a wake-up costs
-    /// 20–90 µs in a VM, 3–8 % of a 640×480 plane extraction; docs/bench/README.md "Session
-    /// 26"). `None` when the thread could not join one (it is a worker of another pool already,
-    /// or [`MAX_SOLO_POOLS`] threads have one).
-    /// Built once per thread and kept: rayon cannot take a thread out of a pool it joined, so the
-    /// pool (a few kilobytes, no thread of its own) is never freed, even when its thread ends;
-    /// hence [`MAX_SOLO_POOLS`].
+    /// The calling thread's own pool, in which it is worker 0 and which has as many threads as
+    /// were chosen at the thread's first call: a call installed there runs in place, with no
+    /// hop to another thread and back (a wake-up costs 20–90 µs in a VM, 3–8 % of a 640×480
+    /// plane extraction; docs/bench/README.md "Session 26" and "Session 27"). `None` when the
+    /// thread could not join one (it is a worker of another pool already, or the caps are
+    /// reached). A thread can join one pool only, ever: rayon cannot take it out again, so the
+    /// pool's registry is never freed ([`MAX_OWN_POOLS`]); its spawned workers end with the
+    /// thread, when this `Arc` drops.
     ///
     /// Borrowed only to clone the `Arc` out (tidy rule on `thread_local!`): no borrow is held
     /// while the call computes.
-    static SOLO: OnceCell<Option<Arc<rayon::ThreadPool>>> = const { OnceCell::new() };
+    static OWN: OnceCell<Option<Arc<rayon::ThreadPool>>> = const { OnceCell::new() };
 }
 
-/// The calling thread's pool of one thread ([`SOLO`]), or a shared one-thread pool when the
-/// thread cannot have its own (`None` if not even that can start).
-fn solo_pool() -> Option<Arc<rayon::ThreadPool>> {
-    let own = SOLO.with(|cell| {
-        cell.get_or_init(|| {
-            (SOLO_POOLS.fetch_add(1, Ordering::Relaxed) < MAX_SOLO_POOLS)
-                .then(|| {
-                    rayon::ThreadPoolBuilder::new()
-                        .num_threads(1)
-                        .use_current_thread()
-                        .build()
-                        .ok()
-                        .map(Arc::new)
-                })
-                .flatten()
+/// A pool of `n` threads whose worker 0 is the calling thread, or `None` (see [`OWN`]).
+fn build_own_pool(n: usize) -> Option<Arc<rayon::ThreadPool>> {
+    if OWN_POOLS.fetch_add(1, Ordering::Relaxed) >= MAX_OWN_POOLS {
+        return None;
+    }
+    let spawned = n - 1;
+    if OWN_WORKERS.fetch_add(spawned, Ordering::Relaxed) + spawned > max_own_workers() {
+        OWN_WORKERS.fetch_sub(spawned, Ordering::Relaxed);
+        return None;
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .use_current_thread()
+        .stack_size(WORKER_STACK_BYTES)
+        .thread_name(|i| format!("sldepth-own-{i}"))
+        .exit_handler(|_| {
+            OWN_WORKERS.fetch_sub(1, Ordering::Relaxed);
         })
-        .clone()
-    });
-    own.or_else(|| {
-        static FALLBACK: OnceLock<Option<Arc<rayon::ThreadPool>>> = OnceLock::new();
-        FALLBACK
-            .get_or_init(|| build_pool(1).ok().map(Arc::new))
-            .clone()
-    })
+        .build();
+    match pool {
+        Ok(p) => Some(Arc::new(p)),
+        Err(_) => {
+            OWN_WORKERS.fetch_sub(spawned, Ordering::Relaxed);
+            None
+        }
+    }
+}
+
+/// The calling thread's own pool ([`OWN`]) when it has `n` threads.
+fn own_pool(n: usize) -> Option<Arc<rayon::ThreadPool>> {
+    OWN.with(|cell| cell.get_or_init(|| build_own_pool(n)).clone())
+        .filter(|p| p.current_num_threads() == n)
 }
 
 fn chosen() -> Threads {
@@ -108,19 +126,21 @@ fn chosen() -> Threads {
         .clone()
 }
 
-/// Runs `f` with the GIL released, on a worker thread of the chosen pool. Run on the calling
-/// (Python) thread outside a pool, every parallel phase of `f` would queue its work for the pool
-/// and put the Python thread to sleep until a worker is done: a sleep and a wake-up per phase,
-/// about forty per tracking step (the same measurement as the CLI's, docs/bench/track.md
-/// "Session 21"). With one thread, the calling thread is that worker ([`solo_pool`]): `f` runs
-/// in place, and calls from several Python threads run side by side, one thread each.
+/// Runs `f` with the GIL released, on a worker thread of a pool of the chosen size. Run on the
+/// calling (Python) thread outside a pool, every parallel phase of `f` would queue its work for
+/// the pool and put the Python thread to sleep until a worker is done: a sleep and a wake-up per
+/// phase, about forty per tracking step (the same measurement as the CLI's,
+/// docs/bench/track.md "Session 21"). The calling thread is worker 0 of its own pool
+/// ([`own_pool`]) when it can be: `f` then runs in place, and calls from several Python threads
+/// run side by side, each with its own workers, as OpenMP gives each thread its own team.
+/// Otherwise `f` goes to the shared pool of that size and the caller waits: one hop there and
+/// back.
 pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> T {
     let threads = chosen();
     py.detach(move || {
         let pool = match threads {
-            Threads::Default => default_pool(),
-            Threads::One => solo_pool(),
-            Threads::Shared(p) => Some(p),
+            Threads::Default => own_pool(cores()).or_else(default_pool),
+            Threads::Count(shared) => own_pool(shared.current_num_threads()).or(Some(shared)),
         };
         // No pool only when the process cannot start a thread: compute in place.
         match pool {
@@ -131,18 +151,18 @@ pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> 
 }
 
 /// Sets how many threads each sldepth computation uses (``n >= 1``); ``None`` or ``0`` returns
-/// to one thread per core. With ``n >= 2`` the calls of every Python thread share one pool of
-/// ``n`` threads; with ``n = 1`` every call runs on the thread that makes it, so calls from
-/// several Python threads run side by side (as NumPy's and OpenCV's do with one thread).
-/// Affects calls started after it returns.
+/// to one thread per core. A Python thread computes as the first worker of a pool of its own,
+/// sized by the count in force at its first call, so calls run in place and calls from several
+/// Python threads run side by side; a call with another count than that goes through a shared
+/// pool of that count (correct, a few percent slower per call). Affects calls started after it
+/// returns.
 #[pyfunction]
 #[pyo3(signature = (n = None))]
 pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
     let threads = match n {
         None | Some(0) => Threads::Default,
-        Some(1) => Threads::One,
         Some(n) if n > 1024 => return Err(value_error(format!("{n} threads is too many"))),
-        Some(n) => Threads::Shared(Arc::new(build_pool(n).map_err(value_error)?)),
+        Some(n) => Threads::Count(Arc::new(build_pool(n).map_err(value_error)?)),
     };
     *THREADS.lock().unwrap_or_else(PoisonError::into_inner) = threads;
     Ok(())
@@ -152,15 +172,13 @@ pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
 #[pyfunction]
 pub(crate) fn get_num_threads() -> usize {
     match chosen() {
-        Threads::Default => default_pool().map_or(1, |p| p.current_num_threads()),
-        Threads::One => 1,
-        Threads::Shared(p) => p.current_num_threads(),
+        Threads::Default => cores(),
+        Threads::Count(p) => p.current_num_threads(),
     }
 }
 
-/// The name of the thread a computation runs on (``None`` for an unnamed thread): the pool's
-/// workers are named ``sldepth-<i>``; with ``set_num_threads(1)`` it is the calling thread. For
-/// the test suite.
+/// The name of the thread a computation runs on (``None`` for an unnamed thread): in place it is
+/// the calling thread; the shared pools' workers are named ``sldepth-<i>``. For the test suite.
 #[pyfunction]
 #[pyo3(name = "_compute_thread_name")]
 pub(crate) fn compute_thread_name(py: Python<'_>) -> Option<String> {

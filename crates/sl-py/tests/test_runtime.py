@@ -1,9 +1,11 @@
 """Zero-copy input, GIL release and the thread pool."""
 
+import os
 import threading
 import time
 
 import numpy as np
+import pytest
 
 import sldepth
 
@@ -63,30 +65,74 @@ def test_set_num_threads():
     assert sldepth.get_num_threads() >= 1
 
 
-def test_one_thread_computes_on_the_calling_thread():
-    # Pool workers are named sldepth-<i>; Python's threads have no Rust name. With one thread
-    # a call runs in place (no hand-over to a worker and back), from any Python thread; the
-    # pools of two threads and the default pool are still reached afterwards.
-    name = sldepth._sldepth._compute_thread_name
-    names = {}
+def _in_a_new_thread(fn):
+    out = []
+    t = threading.Thread(target=lambda: out.append(fn()))
+    t.start()
+    t.join()
+    return out[0]
 
-    def other_thread():
-        names["other"] = name()
+
+def test_a_call_computes_on_the_calling_thread():
+    # Shared pools' workers are named sldepth-<i>; Python's threads have no Rust name. A Python
+    # thread is worker 0 of a pool of its own, sized at its first call, so calls run in place
+    # (no hand-over to a worker and back) at every thread count; a call with another count than
+    # the thread's first goes to a shared pool of that count.
+    name = sldepth._sldepth._compute_thread_name
+
+    def first_then_other(first, other):
+        sldepth.set_num_threads(first)
+        a = name()
+        sldepth.set_num_threads(other)
+        b = name()
+        sldepth.set_num_threads(first)
+        return a, b, name()
 
     try:
-        sldepth.set_num_threads(1)
-        names["main"] = name()
-        t = threading.Thread(target=other_thread)
-        t.start()
-        t.join()
-        sldepth.set_num_threads(2)
-        names["two"] = name()
-        sldepth.set_num_threads(None)
-        names["default"] = name()
+        seen = {n: _in_a_new_thread(lambda n=n: first_then_other(n, 3)) for n in (1, 2, None)}
     finally:
         sldepth.set_num_threads(None)
-    assert names["main"] is None and names["other"] is None, names
-    assert names["two"].startswith("sldepth-") and names["default"].startswith("sldepth-"), names
+    for n, (first, other, again) in seen.items():
+        assert first is None and again is None, (n, seen)
+        assert other.startswith("sldepth-"), (n, seen)
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/task"), reason="counts threads in /proc")
+def test_own_pools_do_not_start_threads_without_bound(three_planes):
+    # Many Python threads computing at once with two threads each: past eight spawned workers
+    # per core the later ones use the shared pool; results are the same either way, and the
+    # workers end with their threads.
+    cam = sldepth.Camera(64, 48, 60.0, 60.0, 32.0, 24.0)
+    small = three_planes[0][:48, :64].copy()
+    ref = sldepth.filter(small, cam)
+    cap = 8 * os.cpu_count()
+    n = cap + 8
+    barrier = threading.Barrier(n + 1)
+    names, same, tasks = [], [], []
+
+    def work():
+        names.append(sldepth._sldepth._compute_thread_name())
+        same.append(np.array_equal(sldepth.filter(small, cam), ref))
+        barrier.wait()  # all alive at once
+        barrier.wait()
+
+    sldepth.set_num_threads(2)
+    try:
+        before = len(os.listdir("/proc/self/task"))
+        threads = [threading.Thread(target=work) for _ in range(n)]
+        for t in threads:
+            t.start()
+        barrier.wait()
+        tasks.append(len(os.listdir("/proc/self/task")))
+        barrier.wait()
+        for t in threads:
+            t.join()
+    finally:
+        sldepth.set_num_threads(None)
+    assert all(same) and len(same) == n
+    assert any(x is not None and x.startswith("sldepth-") for x in names), set(names)
+    # The n Python threads, at most `cap` own workers, the shared pool's two.
+    assert tasks[0] - before <= n + cap + 2, (before, tasks)
 
 
 def test_one_thread_pools_are_bounded(three_planes):

@@ -239,8 +239,9 @@ def motion(
     """X_a = T X_b between two frames of one camera; determined=False when undetermined."""
 
 def set_num_threads(n: Optional[int] = None) -> None:
-    """Threads per computation: n >= 2 shares one pool of n threads between all Python threads;
-    n = 1 computes on the calling thread (threads run side by side); None or 0: one per core."""
+    """Threads per computation (None or 0: one per core). Each Python thread computes as the
+    first worker of a pool of its own, sized at its first call, so calls from several threads run
+    side by side; a call with another count than that goes through a shared pool."""
 def get_num_threads() -> int:
     """The number of threads each computation uses now."""
 def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:
