@@ -16,8 +16,28 @@ use crate::errors::value_error;
 enum Threads {
     /// One thread per core; the shared pool is [`default_pool`].
     Default,
-    /// This shared pool's number of threads.
-    Count(Arc<rayon::ThreadPool>),
+    /// This many threads; the shared pool of that size, built by the first call that needs it
+    /// (most callers compute in their own pool and never do).
+    Count(usize, Arc<OnceLock<Option<Arc<rayon::ThreadPool>>>>),
+}
+
+impl Threads {
+    fn count(&self) -> usize {
+        match self {
+            Threads::Default => cores(),
+            Threads::Count(n, _) => *n,
+        }
+    }
+
+    /// The shared pool of this size (`None` only when no thread can start).
+    fn shared_pool(&self) -> Option<Arc<rayon::ThreadPool>> {
+        match self {
+            Threads::Default => default_pool(),
+            Threads::Count(n, pool) => pool
+                .get_or_init(|| build_pool(*n).ok().map(Arc::new))
+                .clone(),
+        }
+    }
 }
 
 static THREADS: Mutex<Threads> = Mutex::new(Threads::Default);
@@ -138,10 +158,7 @@ fn chosen() -> Threads {
 pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> T {
     let threads = chosen();
     py.detach(move || {
-        let pool = match threads {
-            Threads::Default => own_pool(cores()).or_else(default_pool),
-            Threads::Count(shared) => own_pool(shared.current_num_threads()).or(Some(shared)),
-        };
+        let pool = own_pool(threads.count()).or_else(|| threads.shared_pool());
         // No pool only when the process cannot start a thread: compute in place.
         match pool {
             Some(p) => p.install(f),
@@ -162,7 +179,7 @@ pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
     let threads = match n {
         None | Some(0) => Threads::Default,
         Some(n) if n > 1024 => return Err(value_error(format!("{n} threads is too many"))),
-        Some(n) => Threads::Count(Arc::new(build_pool(n).map_err(value_error)?)),
+        Some(n) => Threads::Count(n, Arc::default()),
     };
     *THREADS.lock().unwrap_or_else(PoisonError::into_inner) = threads;
     Ok(())
@@ -171,10 +188,7 @@ pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
 /// The number of threads each sldepth computation uses now.
 #[pyfunction]
 pub(crate) fn get_num_threads() -> usize {
-    match chosen() {
-        Threads::Default => cores(),
-        Threads::Count(p) => p.current_num_threads(),
-    }
+    chosen().count()
 }
 
 /// The name of the thread a computation runs on (``None`` for an unnamed thread): in place it is
