@@ -215,3 +215,47 @@ def test_python_threads_call_everything_at_once(kinect):
             assert not errors, f"{n} threads: {errors[0]}"
     finally:
         sldepth.set_num_threads(None)
+
+
+def test_the_type_stubs_match_the_module():
+    # The .pyi shipped in the wheel is what IDEs and type checkers see: every name it declares
+    # exists, a stub @property is a data descriptor at runtime and a stub method is callable
+    # (a stray @property once turned TsdfVolume.raycast into an attribute for type checkers),
+    # and every public name of the module is declared.
+    import ast
+    import inspect
+    import types
+    from pathlib import Path
+
+    stub = Path(sldepth.__file__).with_name("__init__.pyi")
+    tree = ast.parse(stub.read_text())
+    declared = set()
+    descriptors = (property, types.GetSetDescriptorType, types.MemberDescriptorType)
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            declared.add(node.name)
+            assert hasattr(sldepth, node.name), f"stub declares {node.name}, module has none"
+        if not isinstance(node, ast.ClassDef):
+            continue
+        cls = getattr(sldepth, node.name)
+        for item in node.body:
+            if not isinstance(item, ast.FunctionDef) or item.name.startswith("__"):
+                continue
+            where = f"{node.name}.{item.name}"
+            assert hasattr(cls, item.name), f"stub declares {where}, runtime has none"
+            attr = inspect.getattr_static(cls, item.name)
+            decorators = {d.id for d in item.decorator_list if isinstance(d, ast.Name)}
+            if "property" in decorators:
+                assert isinstance(attr, descriptors), f"{where} is a property in the stub only"
+            else:
+                assert not isinstance(attr, descriptors) and callable(getattr(cls, item.name)), (
+                    f"{where} is a method in the stub but an attribute at runtime"
+                )
+    public = {
+        n
+        for n in dir(sldepth)
+        if not n.startswith("_")
+        and callable(getattr(sldepth, n))
+        and not isinstance(getattr(sldepth, n), types.ModuleType)
+    }
+    assert public <= declared | {"SlDepthError", "SlDepthIOError"}, sorted(public - declared)

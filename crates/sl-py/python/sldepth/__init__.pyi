@@ -175,7 +175,6 @@ class TsdfVolume:
         self, axis: str, coord_m: float, pixels_per_voxel: int = 2
     ) -> npt.NDArray[np.float32]:
         """Signed distance (metres, NaN unobserved) on the plane axis = coord_m."""
-    @property
     def raycast(
         self, camera: Camera, pose: _Pose, *, min_depth_m: float = 0.1, max_depth_m: float = 4.0
     ) -> Tuple[
@@ -186,6 +185,7 @@ class TsdfVolume:
     ]:
         """(depth (H, W) metres 0 = no hit, world points (H, W, 3), unit normals (H, W, 3),
         fused weights (H, W)) of the first zero crossing seen from pose (4x4 camera-to-world)."""
+    @property
     def block_count(self) -> int: ...
     @property
     def frame_count(self) -> int: ...
