@@ -16,6 +16,8 @@ pub struct PyCamera {
     pub(crate) inner: Camera,
     /// The lens distortion of the images, when the preset publishes one (TUM fr1/fr2).
     pub(crate) lens: Option<sl_core::LensDistortion>,
+    /// The preset it was made from (kept by `resampled`), `None` for explicit intrinsics.
+    pub(crate) preset_name: Option<String>,
 }
 
 #[pymethods]
@@ -39,6 +41,7 @@ impl PyCamera {
         Ok(Self {
             inner: Camera { intrinsics, sensor },
             lens: None,
+            preset_name: None,
         })
     }
 
@@ -49,6 +52,7 @@ impl PyCamera {
         Ok(Self {
             inner: Camera::preset(name).map_err(value_error)?,
             lens: preset::find(name).map_err(value_error)?.lens,
+            preset_name: Some(name.to_owned()),
         })
     }
 
@@ -56,6 +60,12 @@ impl PyCamera {
     #[staticmethod]
     fn presets() -> Vec<&'static str> {
         preset::names().collect()
+    }
+
+    /// The name of the preset this camera was made from (``None`` for explicit intrinsics).
+    #[getter]
+    fn preset_name(&self) -> Option<&str> {
+        self.preset_name.as_deref()
     }
 
     /// The lens distortion ``(k1, k2, p1, p2, k3)`` (OpenCV's order) of the preset's images, or
@@ -149,6 +159,7 @@ impl PyCamera {
         Ok(Self {
             inner: self.inner.resampled(factor).map_err(value_error)?,
             lens: self.lens,
+            preset_name: self.preset_name.clone(),
         })
     }
 

@@ -233,6 +233,33 @@ def test_simulate_is_seeded():
         sldepth.simulate("no-such-scene")
 
 
+def test_simulate_draws_the_realistic_sensor_by_default(kinect):
+    # The default is the realistic Kinect (as for `sldepth simulate`): the disparity error of
+    # neighbours is correlated (block matching) and occlusion edges leave invalid bands;
+    # noise="white" is the paper's independent error with no bands.
+    def neighbour_correlation(depth, truth):
+        ok = (depth > 0) & (truth > 0)
+        r = np.where(ok, kinect.fb / np.where(ok, depth, 1) - kinect.fb / np.where(ok, truth, 1), 0)
+        both = ok[:, 1:] & ok[:, :-1]
+        a, b = r[:, 1:][both], r[:, :-1][both]
+        return float(np.corrcoef(a, b)[0, 1])
+
+    real, truth, _ = sldepth.simulate("wall", seed=5)
+    white, truth_w, _ = sldepth.simulate("wall", seed=5, noise="white")
+    assert np.array_equal(truth, truth_w)
+    assert neighbour_correlation(real, truth) > 0.5
+    assert abs(neighbour_correlation(white, truth)) < 0.2
+    boxes_real, boxes_truth, _ = sldepth.simulate("boxes", seed=3)
+    boxes_white, _, _ = sldepth.simulate("boxes", seed=3, noise="white")
+    seen = boxes_truth > 0
+    assert (boxes_real[seen] == 0).sum() > 10 * max(1, (boxes_white[seen] == 0).sum())
+    with pytest.raises(ValueError, match="realistic"):
+        sldepth.simulate("wall", noise="pink")
+    assert sldepth.Camera.preset("tum-fr1").preset_name == "tum-fr1"
+    assert sldepth.Camera.preset("tum-fr1").resampled(0.5).preset_name == "tum-fr1"
+    assert sldepth.Camera(64, 48, 60.0, 60.0, 32.0, 24.0).preset_name is None
+
+
 def test_tracker_follows_a_still_camera_and_fuses(kinect):
     # Boxes on a floor: planes facing three ways, so every motion is pinned down.
     depth = sldepth.simulate("boxes", seed=3)[0]

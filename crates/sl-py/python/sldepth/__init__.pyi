@@ -37,6 +37,9 @@ class Camera:
     @staticmethod
     def presets() -> List[str]: ...
     @property
+    def preset_name(self) -> Optional[str]:
+        """The preset this camera was made from (kept by resampled), None for explicit intrinsics."""
+    @property
     def lens(self) -> Optional[Tuple[float, float, float, float, float]]:
         """Lens distortion (k1, k2, p1, p2, k3) of the preset's images, or None (pinhole)."""
     @property
@@ -101,9 +104,12 @@ def analyze(
     depth: _Depth, camera: Optional[Camera] = None, *, depth_scale: Optional[float] = None
 ) -> Analysis: ...
 def simulate(
-    scene: str, seed: int = 0, camera: Optional[Camera] = None
+    scene: str, seed: int = 0, camera: Optional[Camera] = None, *, noise: str = "realistic"
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.uint16]]:
-    """(depth, truth, labels) of a named scene through the paper's white-noise Kinect model."""
+    """(depth, truth, labels) of a named scene: float32 metres with noise, exact float32 metres,
+    uint16 surface labels. noise="realistic" (default, as `sldepth simulate`): correlated
+    block-matching error, occlusion bands, drop-outs fitted to real Kinect frames; "white": the
+    paper's independent Gaussian disparity noise (Algorithm 1's model)."""
 
 def undistort(
     depth: _Depth, camera: Camera, *, depth_scale: Optional[float] = None
