@@ -29,6 +29,7 @@ mod errors;
 mod filter;
 mod io;
 mod noise;
+mod noise_stats;
 mod planes;
 mod repr;
 mod threads;
@@ -52,6 +53,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(io::write_depth, m)?)?;
     m.add_function(wrap_pyfunction!(noise::analyze, m)?)?;
     m.add_function(wrap_pyfunction!(noise::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(noise_stats::noise_stats, m)?)?;
     m.add_function(wrap_pyfunction!(filter::filter, m)?)?;
     m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;

@@ -260,6 +260,29 @@ def test_simulate_draws_the_realistic_sensor_by_default(kinect):
     assert sldepth.Camera(64, 48, 60.0, 60.0, 32.0, 24.0).preset_name is None
 
 
+def test_noise_stats_tell_realistic_from_white_noise(kinect):
+    # The statistics of `sldepth noise-stats`: on the realistic simulator the residual of
+    # neighbours is correlated and the boxes leave occlusion bands beside them; on white noise
+    # neither. sigma_D is the model's 0.07 px (quantised to 1/8 px) either way.
+    real, _, truth_labels = sldepth.simulate("boxes", seed=3)
+    white, _, _ = sldepth.simulate("boxes", seed=3, noise="white")
+    s_real = sldepth.noise_stats(real, kinect)
+    s_white = sldepth.noise_stats(white, kinect)
+    assert s_real["regions"] > 0 and s_white["regions"] > 0
+    acf = {c["lag"]: c for c in s_real["acf"]}
+    acf_w = {c["lag"]: c for c in s_white["acf"]}
+    assert acf[1]["x"] > 0.5 and abs(acf_w[1]["x"]) < 0.2
+    assert 0.05 < s_white["sigma_d_px"] < 0.1 and 0.05 < s_real["sigma_d_px"] < 0.12
+    bands = s_real["occlusion"]["left"]["widths"]["count"] + s_real["occlusion"]["right"]["widths"]["count"]
+    assert bands > 0
+    assert s_white["occlusion"]["left"]["widths"]["count"] == 0
+    # Labels given by the caller (the simulator's surfaces) instead of extracted planes.
+    s_given = sldepth.noise_stats(real, kinect, truth_labels)
+    assert s_given["regions"] > 0 and abs(s_given["sigma_d_px"] - s_real["sigma_d_px"]) < 0.03
+    with pytest.raises(ValueError, match="labels"):
+        sldepth.noise_stats(real, kinect, truth_labels[:, :10].copy())
+
+
 def test_tracker_follows_a_still_camera_and_fuses(kinect):
     # Boxes on a floor: planes facing three ways, so every motion is pinned down.
     depth = sldepth.simulate("boxes", seed=3)[0]

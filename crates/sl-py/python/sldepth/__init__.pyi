@@ -1,7 +1,7 @@
 """Type stubs of sldepth: shapes and units are in the docstrings."""
 
 from os import PathLike
-from typing import Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -110,6 +110,20 @@ def simulate(
     uint16 surface labels. noise="realistic" (default, as `sldepth simulate`): correlated
     block-matching error, occlusion bands, drop-outs fitted to real Kinect frames; "white": the
     paper's independent Gaussian disparity noise (Algorithm 1's model)."""
+
+def noise_stats(
+    depth: _Depth,
+    camera: Optional[Camera] = None,
+    labels: Optional[npt.NDArray[np.uint16]] = None,
+    *,
+    min_plane_pixels: int = 2000,
+    depth_scale: Optional[float] = None,
+) -> Dict[str, Any]:
+    """The real-noise statistics of a depth map with planar regions, with the keys of
+    `sldepth noise-stats --json`: sigma_d_px, bands (sigma_D per depth band), acf (residual
+    autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands and
+    the predicted projector shadow), invalid_fraction; None where not measured. labels (uint16,
+    0 = none) default to the planes extract_planes finds (>= min_plane_pixels)."""
 
 def undistort(
     depth: _Depth, camera: Camera, *, depth_scale: Optional[float] = None

@@ -1,0 +1,76 @@
+//! `noise_stats`: the real-noise statistics of a depth map (σ_D per depth band, residual
+//! autocorrelation, terrace widths, occlusion bands; `sl_noise::stats`), on the planes
+//! `sl-planes` finds or on labels the caller gives, as `sldepth noise-stats --json` reports them.
+
+use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyModule;
+use sl_core::Image;
+use sl_noise::stats::{NoiseStatsConfig, noise_stats as stats};
+use sl_planes::{PlaneConfig, extract_planes};
+
+use crate::arrays::{check_camera, depth_input};
+use crate::camera::{PyCamera, camera_or_default};
+use crate::errors::value_error;
+use crate::threads::compute;
+
+/// The noise statistics of a depth map with planar regions, as a dict with the keys of
+/// ``sldepth noise-stats --json``: ``sigma_d_px`` (median RMS disparity residual of 64-px tiles
+/// of the regions after an affine fit, pixels), ``bands`` (σ_D per depth band), ``acf``
+/// (residual autocorrelation at lags 1, 2, 4, 8, 16 px along x and y), ``terraces`` (widths of
+/// runs of equal depth), ``occlusion`` (invalid bands left and right of foreground objects,
+/// with the projector shadow the geometry predicts), ``invalid_fraction``, ``regions``,
+/// ``pixels``. Values that could not be measured are ``None``. ``labels`` (uint16 (H, W),
+/// 0 = none) gives the planar regions; by default they are the planes ``extract_planes`` finds
+/// with at least ``min_plane_pixels`` sensor pixels.
+#[pyfunction]
+#[pyo3(signature = (depth, camera = None, labels = None, *, min_plane_pixels = 2000, depth_scale = None))]
+pub(crate) fn noise_stats<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    camera: Option<&PyCamera>,
+    labels: Option<PyReadonlyArray2<'py, u16>>,
+    min_plane_pixels: usize,
+    depth_scale: Option<f64>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let camera = camera_or_default(camera);
+    let input = depth_input(depth, depth_scale)?;
+    let view = input.view()?;
+    check_camera(&view, &camera)?;
+    let given = match &labels {
+        Some(l) => {
+            let (h, w) = (l.shape()[0], l.shape()[1]);
+            if (w, h) != (view.width(), view.height()) {
+                return Err(value_error(format!(
+                    "labels are {w}x{h}, the depth map {}x{}",
+                    view.width(),
+                    view.height()
+                )));
+            }
+            Some(
+                Image::from_vec(w, h, l.as_array().iter().copied().collect())
+                    .map_err(value_error)?,
+            )
+        }
+        None => None,
+    };
+    let json = compute(py, || -> Result<String, String> {
+        let regions = match given {
+            Some(l) => l,
+            None => {
+                let mut cfg = PlaneConfig::default();
+                cfg.min_pixels = min_plane_pixels.max(3);
+                extract_planes(view, &camera, &cfg)
+                    .map_err(|e| format!("extracting planes: {e}"))?
+                    .labels
+            }
+        };
+        let mut opts = NoiseStatsConfig::default();
+        opts.pixels_per_sensor_pixel = camera.pixels_per_sensor_pixel();
+        let s = stats(&view.to_image(), camera.sensor.fb(), &regions, &opts)
+            .map_err(|e| e.to_string())?;
+        serde_json::to_string(&s).map_err(|e| e.to_string())
+    })
+    .map_err(value_error)?;
+    PyModule::import(py, "json")?.call_method1("loads", (json,))
+}
