@@ -34,6 +34,7 @@ mod planes;
 mod repr;
 mod threads;
 mod track;
+mod trajectory;
 mod tsdf;
 
 use pyo3::prelude::*;
@@ -54,6 +55,9 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(noise::analyze, m)?)?;
     m.add_function(wrap_pyfunction!(noise::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(noise_stats::noise_stats, m)?)?;
+    m.add_function(wrap_pyfunction!(trajectory::read_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(trajectory::write_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(trajectory::evaluate_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(filter::filter, m)?)?;
     m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;

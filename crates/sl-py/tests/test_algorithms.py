@@ -283,6 +283,36 @@ def test_noise_stats_tell_realistic_from_white_noise(kinect):
         sldepth.noise_stats(real, kinect, truth_labels[:, :10].copy())
 
 
+def test_trajectories_round_trip_and_evaluate(tmp_path):
+    # A known estimate: the ground truth moved rigidly (ATE 0 after Horn's alignment), then one
+    # pose displaced by 3 cm (ATE and RPE by hand).
+    t = np.arange(20) * 0.05
+    gt = np.stack([np.eye(4)] * 20)
+    gt[:, 0, 3] = 0.1 * np.arange(20)
+    c, s = np.cos(0.3), np.sin(0.3)
+    rigid = np.array([[c, -s, 0, 1.0], [s, c, 0, 2.0], [0, 0, 1, 0.5], [0, 0, 0, 1]])
+    est = np.einsum("ij,njk->nik", rigid, gt)
+    r = sldepth.evaluate_trajectory(t, est, t, gt)
+    assert r["poses_matched"] == 20 and r["ate_m"]["rmse"] < 1e-9
+    assert r["rpe"]["translation_m"]["max"] < 1e-9 and r["rpe"]["pairs"] == 18
+    bumped = est.copy()
+    bumped[10, :3, 3] += rigid[:3, :3] @ np.array([0.0, 0.03, 0.0])
+    r = sldepth.evaluate_trajectory(t, bumped, t, gt)
+    assert r["ate_m"]["max"] == pytest.approx(0.03 * 19 / 20, rel=0.05)  # the alignment absorbs 1/20
+    assert r["rpe"]["translation_m"]["max"] == pytest.approx(0.03, rel=1e-6)
+    # Files: written atomically, read back by time.
+    path = tmp_path / "est.txt"
+    sldepth.write_trajectory(path, t, est)
+    t2, est2 = sldepth.read_trajectory(path)
+    assert np.allclose(t2, t) and np.allclose(est2, est, atol=1e-6)
+    with pytest.raises(ValueError, match="timestamps"):
+        sldepth.evaluate_trajectory(t[:5], est, t, gt)
+    with pytest.raises(ValueError, match="delta"):
+        sldepth.evaluate_trajectory(t, est, t, gt, delta_unit="hours")
+    with pytest.raises(OSError):
+        sldepth.read_trajectory(tmp_path / "missing.txt")
+
+
 def test_tracker_follows_a_still_camera_and_fuses(kinect):
     # Boxes on a floor: planes facing three ways, so every motion is pinned down.
     depth = sldepth.simulate("boxes", seed=3)[0]

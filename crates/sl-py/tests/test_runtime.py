@@ -259,3 +259,23 @@ def test_the_type_stubs_match_the_module():
         and not isinstance(getattr(sldepth, n), types.ModuleType)
     }
     assert public <= declared | {"SlDepthError", "SlDepthIOError"}, sorted(public - declared)
+
+
+def test_the_readme_examples_run_as_written(tmp_path, monkeypatch):
+    # Every ```python block of the repository README and of crates/sl-py/README.md, run in a
+    # scratch directory (the examples write files there).
+    from pathlib import Path
+
+    here = Path(__file__).resolve()
+    readmes = [here.parents[3] / "README.md", here.parents[1] / "README.md"]
+    blocks = []
+    for readme in readmes:
+        if not readme.is_file():
+            pytest.skip(f"{readme} is not here (the tests run outside the repository)")
+        text = readme.read_text()
+        parts = text.split("```python\n")[1:]
+        blocks += [(readme.name, p.split("```")[0]) for p in parts]
+    assert len(blocks) >= 3, blocks
+    monkeypatch.chdir(tmp_path)
+    for name, code in blocks:
+        exec(compile(code, f"<{name}>", "exec"), {})

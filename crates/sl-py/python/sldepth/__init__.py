@@ -35,11 +35,14 @@ from ._sldepth import (
     input_is_borrowed,
     motion,
     noise_stats,
+    evaluate_trajectory,
     read_depth,
+    read_trajectory,
     set_num_threads,
     simulate,
     undistort,
     write_depth,
+    write_trajectory,
 )
 
 __all__ = [
@@ -60,6 +63,9 @@ __all__ = [
     "input_is_borrowed",
     "motion",
     "noise_stats",
+    "evaluate_trajectory",
+    "read_trajectory",
+    "write_trajectory",
     "read_depth",
     "set_num_threads",
     "simulate",

@@ -323,6 +323,30 @@ class Tracker:
     def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
         """The fused mesh of fragment `fragment` (None: the current one; a rejoined fragment's is in the world of the one it rejoined)."""
 
+def read_trajectory(
+    path: _Path,
+) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """(timestamps_s (N,), poses (N, 4, 4) camera-to-world) of a TUM trajectory file, by time."""
+
+def write_trajectory(
+    path: _Path, timestamps_s: Sequence[float], poses: npt.NDArray[np.floating]
+) -> None:
+    """Writes timestamps (N,) and (N, 4, 4) camera-to-world poses as a TUM file (atomically)."""
+
+def evaluate_trajectory(
+    timestamps_s: Sequence[float],
+    poses: npt.NDArray[np.floating],
+    gt_timestamps_s: Sequence[float],
+    gt_poses: npt.NDArray[np.floating],
+    *,
+    max_gap_s: float = 0.02,
+    delta: float = 1.0,
+    delta_unit: str = "frames",
+) -> Dict[str, Any]:
+    """ATE (after Horn's rigid alignment) and RPE (over delta frames or seconds) with the TUM
+    benchmark's definitions, as `sldepth eval-traj --json`: {"ate_m": {rmse, mean, median,
+    std, min, max}, "rpe": {"translation_m": {...}, "rotation_deg": {...}, pairs, ...}, ...}."""
+
 def track_sequence(
     frames: Iterable[Union[_Depth, _Path]],
     camera: Camera,

@@ -1,0 +1,131 @@
+//! Trajectories: TUM-format files in and out (`sl_io::trajectory`), and their accuracy against
+//! ground truth with the TUM benchmark's definitions (`sl_eval::trajectory`), as `sldepth
+//! eval-traj` reports it.
+
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray1, PyArray3};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use sl_core::CameraToWorld;
+use sl_eval::trajectory::{DeltaUnit, ErrorStats, StampedPose, TrajectoryConfig, ate, rpe};
+use sl_io::trajectory::TimedPose;
+
+use crate::arrays::pose_input;
+use crate::errors::{io_error, value_error};
+
+/// Timestamps (N,) and poses (N, 4, 4) as NumPy arrays.
+type Trajectory<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>);
+
+/// Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, camera-to-world,
+/// ``#`` comments; e.g. a sequence's ``groundtruth.txt`` or ``sldepth track --output``):
+/// ``(timestamps_s, poses)``, float64 arrays (N,) and (N, 4, 4), sorted by time.
+#[pyfunction]
+pub(crate) fn read_trajectory<'py>(
+    py: Python<'py>,
+    path: std::path::PathBuf,
+) -> PyResult<Trajectory<'py>> {
+    let poses = sl_io::trajectory::read_tum_trajectory(&path).map_err(io_error)?;
+    let times: Vec<f64> = poses.iter().map(|p| p.timestamp).collect();
+    let mut m = Array3::<f64>::zeros((poses.len(), 4, 4));
+    for (i, p) in poses.iter().enumerate() {
+        let h = p.pose.to_matrix();
+        for r in 0..4 {
+            for c in 0..4 {
+                m[(i, r, c)] = h[(r, c)];
+            }
+        }
+    }
+    Ok((times.into_pyarray(py), m.into_pyarray(py)))
+}
+
+/// Timestamps and poses from Python: one finite timestamp per (4, 4) camera-to-world pose.
+fn stamped(
+    what: &str,
+    timestamps_s: Vec<f64>,
+    poses: &Bound<'_, PyAny>,
+) -> PyResult<Vec<StampedPose>> {
+    let poses: Vec<CameraToWorld> = poses
+        .try_iter()
+        .map_err(|_| value_error(format!("{what} poses must be an (N, 4, 4) array")))?
+        .map(|p| pose_input(&p?))
+        .collect::<PyResult<_>>()?;
+    if poses.len() != timestamps_s.len() {
+        return Err(value_error(format!(
+            "{what}: {} timestamps for {} poses",
+            timestamps_s.len(),
+            poses.len()
+        )));
+    }
+    Ok(timestamps_s.into_iter().zip(poses).collect())
+}
+
+/// Writes a trajectory as a TUM file (atomically), ``timestamps_s`` (N,) and ``poses``
+/// (N, 4, 4) camera-to-world, e.g. those of ``track_sequence``.
+#[pyfunction]
+pub(crate) fn write_trajectory(
+    path: std::path::PathBuf,
+    timestamps_s: Vec<f64>,
+    poses: &Bound<'_, PyAny>,
+) -> PyResult<()> {
+    let poses: Vec<TimedPose> = stamped("the", timestamps_s, poses)?
+        .into_iter()
+        .map(|(timestamp, pose)| TimedPose { timestamp, pose })
+        .collect();
+    sl_io::trajectory::write_tum_trajectory(&path, &poses).map_err(io_error)
+}
+
+fn stats_dict<'py>(py: Python<'py>, s: &ErrorStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("rmse", s.rmse)?;
+    d.set_item("mean", s.mean)?;
+    d.set_item("median", s.median)?;
+    d.set_item("std", s.std)?;
+    d.set_item("min", s.min)?;
+    d.set_item("max", s.max)?;
+    Ok(d)
+}
+
+/// The accuracy of an estimated trajectory against ground truth, with the TUM RGB-D benchmark's
+/// definitions (as ``sldepth eval-traj --json``): ``ate_m``, the absolute trajectory error after
+/// Horn's rigid alignment (no scale) of the poses matched by nearest timestamp within
+/// ``max_gap_s``; ``rpe``, the relative pose error over ``delta`` frames or seconds
+/// (``delta_unit``), ``translation_m`` and ``rotation_deg``. Each error is a dict of ``rmse``,
+/// ``mean``, ``median``, ``std``, ``min``, ``max``. Timestamps in seconds, poses (N, 4, 4)
+/// camera-to-world (``read_trajectory``, ``track_sequence``).
+#[pyfunction]
+#[pyo3(signature = (timestamps_s, poses, gt_timestamps_s, gt_poses, *, max_gap_s = 0.02, delta = 1.0, delta_unit = "frames"))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn evaluate_trajectory<'py>(
+    py: Python<'py>,
+    timestamps_s: Vec<f64>,
+    poses: &Bound<'py, PyAny>,
+    gt_timestamps_s: Vec<f64>,
+    gt_poses: &Bound<'py, PyAny>,
+    max_gap_s: f64,
+    delta: f64,
+    delta_unit: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let est = stamped("estimated", timestamps_s, poses)?;
+    let gt = stamped("ground-truth", gt_timestamps_s, gt_poses)?;
+    let mut config = TrajectoryConfig::default();
+    config.max_gap_s = max_gap_s;
+    config.delta = delta;
+    config.delta_unit = DeltaUnit::parse(delta_unit).map_err(value_error)?;
+    let a = ate(&est, &gt, &config).map_err(value_error)?;
+    let r = rpe(&est, &gt, &config).map_err(value_error)?;
+    let out = PyDict::new(py);
+    out.set_item("poses_estimated", a.estimated)?;
+    out.set_item("poses_ground_truth", a.ground_truth)?;
+    out.set_item("poses_matched", a.matched)?;
+    out.set_item("max_gap_s", config.max_gap_s)?;
+    out.set_item("ate_m", stats_dict(py, &a.stats_m)?)?;
+    let rp = PyDict::new(py);
+    rp.set_item("delta", config.delta)?;
+    rp.set_item("delta_unit", config.delta_unit.name())?;
+    rp.set_item("pairs", r.pairs)?;
+    rp.set_item("max_gap_s", r.max_gap_s)?;
+    rp.set_item("translation_m", stats_dict(py, &r.translation_m)?)?;
+    rp.set_item("rotation_deg", stats_dict(py, &r.rotation_deg)?)?;
+    out.set_item("rpe", rp)?;
+    Ok(out)
+}
