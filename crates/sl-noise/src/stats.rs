@@ -65,6 +65,15 @@ pub struct NoiseStatsConfig {
 pub type NoiseStatsOptions = NoiseStatsConfig;
 
 impl NoiseStatsConfig {
+    /// The defaults for frames of `camera`: its [`sl_core::Camera::pixels_per_sensor_pixel`],
+    /// so that the projector shadows predicted for a decimated stream are in its pixels.
+    pub fn for_camera(camera: &sl_core::Camera) -> Self {
+        Self {
+            pixels_per_sensor_pixel: camera.pixels_per_sensor_pixel(),
+            ..Self::default()
+        }
+    }
+
     /// Checks the settings: `jump_m` must be a positive number, the band edges ascending and
     /// `tile_px` positive ([`NoiseError::InvalidParameter`] otherwise). [`noise_stats`] checks
     /// the same first.

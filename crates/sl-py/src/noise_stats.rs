@@ -65,8 +65,7 @@ pub(crate) fn noise_stats<'py>(
                     .labels
             }
         };
-        let mut opts = NoiseStatsConfig::default();
-        opts.pixels_per_sensor_pixel = camera.pixels_per_sensor_pixel();
+        let opts = NoiseStatsConfig::for_camera(&camera);
         let s = stats(&view.to_image(), camera.sensor.fb(), &regions, &opts)
             .map_err(|e| e.to_string())?;
         serde_json::to_string(&s).map_err(|e| e.to_string())

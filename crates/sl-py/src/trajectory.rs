@@ -67,7 +67,7 @@ pub(crate) fn write_trajectory(
     timestamps_s: Vec<f64>,
     poses: &Bound<'_, PyAny>,
 ) -> PyResult<()> {
-    let poses: Vec<TimedPose> = stamped("the", timestamps_s, poses)?
+    let poses: Vec<TimedPose> = stamped("trajectory", timestamps_s, poses)?
         .into_iter()
         .map(|(timestamp, pose)| TimedPose { timestamp, pose })
         .collect();

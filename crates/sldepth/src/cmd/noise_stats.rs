@@ -37,8 +37,7 @@ pub fn stats_of(
     let mut cfg = PlaneConfig::default();
     cfg.min_pixels = min_plane_pixels.max(3);
     let seg = extract_planes(depth, camera, &cfg).context("extracting planes")?;
-    let mut opts = NoiseStatsConfig::default();
-    opts.pixels_per_sensor_pixel = camera.pixels_per_sensor_pixel();
+    let opts = NoiseStatsConfig::for_camera(camera);
     Ok(noise_stats(depth, camera.sensor.fb(), &seg.labels, &opts)?)
 }
 
