@@ -1,15 +1,36 @@
 //! Merging seeds whose affine disparities agree, compacting the plane list and ordering it by
 //! size.
 
+use super::patches::min_rss;
 use super::*;
 
+/// The largest difference of an affine disparity function over a box of cells (at its
+/// corners), px.
+fn worst_over_box(df: &DisparityAffine, b: &[u32; 4]) -> f64 {
+    [(b[0], b[1]), (b[2], b[1]), (b[0], b[3]), (b[2], b[3])]
+        .iter()
+        .map(|&(x, y)| df.eval(f64::from(x), f64::from(y)).abs())
+        .fold(0.0, f64::max)
+}
+
 impl PlaneExtractor {
-    /// Merges planes that one affine function explains jointly: the least-squares plane of the
-    /// union fits each of the two with an RMS below `merge_px`.
+    /// Merges planes that one affine function explains jointly, by either of two tests:
+    /// - the least-squares plane of the union fits each of the two with an RMS below
+    ///   `merge_px`, where the two affine functions differ by at most `4τ` over the union's
+    ///   bounding box;
+    /// - the noise model's test of the patch seeding ([`CellNoise`]): the extra residual of
+    ///   one fit for both, `ΔRSS = RSS(a ∪ b) − RSS(a) − RSS(b)`, is within the 99.9 % quantile
+    ///   of χ² with 3 degrees of freedom (times the cell variance and the correlation
+    ///   inflation). This one needs no box: a small plane's slope is uncertain, so its affine
+    ///   function extrapolated over a large neighbour's box may part from it by pixels although
+    ///   one function explains both within the noise (a wall strip seeded beside an occluding
+    ///   box, a spurious plane of the wall otherwise). Its only shortcut: the two functions
+    ///   must agree within `4τ` over the smaller plane's own box.
     #[inline(never)]
     pub(super) fn merge(&mut self) {
         let mp = self.cfg.merge_px;
         let pre = 4.0 * self.cfg.threshold_px;
+        let noise = self.noise;
         for _round in 0..8 {
             let mut merged = false;
             let n = self.planes.len();
@@ -22,28 +43,33 @@ impl PlaneExtractor {
                         continue;
                     }
                     let (pi, pj) = (&self.planes[i], &self.planes[j]);
-                    let bb = union_box(&pi.bbox, &pj.bbox);
                     let df = DisparityAffine {
                         a: pi.f.a - pj.f.a,
                         b: pi.f.b - pj.f.b,
                         c: pi.f.c - pj.f.c,
                     };
-                    let worst = [
-                        (bb[0], bb[1]),
-                        (bb[2], bb[1]),
-                        (bb[0], bb[3]),
-                        (bb[2], bb[3]),
-                    ]
-                    .iter()
-                    .map(|&(x, y)| df.eval(f64::from(x), f64::from(y)).abs())
-                    .fold(0.0, f64::max);
-                    if worst > pre {
+                    let bb = union_box(&pi.bbox, &pj.bbox);
+                    let small = if pi.sums.n < pj.sums.n {
+                        &pi.bbox
+                    } else {
+                        &pj.bbox
+                    };
+                    let (agree_union, agree_small) = (
+                        worst_over_box(&df, &bb) <= pre,
+                        worst_over_box(&df, small) <= pre,
+                    );
+                    if !agree_small {
                         continue;
                     }
                     let mut u = pi.sums;
                     u.merge(&pj.sums);
                     let Some(f) = u.solve() else { continue };
-                    if pi.sums.rms(&f) < mp && pj.sums.rms(&f) < mp {
+                    let by_rms = agree_union && pi.sums.rms(&f) < mp && pj.sums.rms(&f) < mp;
+                    let by_noise = || match (min_rss(&pi.sums), min_rss(&pj.sums)) {
+                        (Some(ri), Some(rj)) => noise.same(u.rss(&f) - ri - rj),
+                        _ => false,
+                    };
+                    if by_rms || by_noise() {
                         let pi = &mut self.planes[i];
                         pi.sums = u;
                         pi.f = f;

@@ -33,7 +33,8 @@
 //!    but disconnected regions join by merging). A border cell that no plane explains within
 //!    the noise of a cell (99.9 %) keeps its incumbent while within `τ`. Planes are refitted from moment sums
 //!    accumulated run by run, planes that one affine function explains jointly (each within
-//!    `merge_px` RMS) are merged (sums add), and planar cells left unassigned form new seeds
+//!    `merge_px` RMS, or the extra residual of one fit within the noise model's χ²₃ bound, as
+//!    for the patches) are merged (sums add), and planar cells left unassigned form new seeds
 //!    (patches of the free cells, merged by the same test). Repeats until the labels
 //!    settle or `max_iterations`.
 //! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
@@ -93,7 +94,9 @@ pub struct PlaneConfig {
     /// Maximum refinement iterations (coarse passes) before the final pass.
     pub max_iterations: usize,
     /// Two planes merge when the least-squares plane of their union fits each of them with an
-    /// RMS residual below this, pixels (of the cell-averaged disparity).
+    /// RMS residual below this, pixels (of the cell-averaged disparity); they also merge, with
+    /// no parameter, when the noise model says one affine function explains both (the extra
+    /// residual sum of squares of one fit within χ²₃ at 99.9 %, the patch seeding's test).
     pub merge_px: f64,
     /// Disconnected pieces of a plane smaller than this are dropped (0 keeps all).
     pub min_piece_pixels: usize,

@@ -133,13 +133,13 @@ impl CellNoise {
 
     /// Whether two sets that one affine function explains with the extra residual `d_rss`
     /// are one plane.
-    fn same(&self, d_rss: f64) -> bool {
+    pub(super) fn same(&self, d_rss: f64) -> bool {
         d_rss <= CHI2_3_999 * self.kappa * self.var_cell
     }
 }
 
 /// Minimum residual sum of squares of an affine fit (`None` when it has no fit).
-fn min_rss(s: &AffineSums) -> Option<f64> {
+pub(super) fn min_rss(s: &AffineSums) -> Option<f64> {
     s.solve().map(|f| s.rss(&f))
 }
 
