@@ -37,18 +37,23 @@ fn noisy(truth: &DepthImage, seed: u64) -> DepthImage {
 fn simulated_room(seed: u64) -> (DepthImage, Camera) {
     let room = sl_noise::sim::room_scene(seed).unwrap();
     let k = room.intrinsics;
-    let cam = Camera {
-        intrinsics: k,
-        sensor: SensorModel {
-            focal_px: k.fx,
-            ..SensorModel::kinect_v1()
-        },
-    };
+    let cam = room_camera(k);
     let truth = room.scene.render(&k, &room.pose).depth;
     (
         KinectSimulator::with_sensor(cam.sensor).apply(&truth, seed),
         cam,
     )
+}
+
+/// A simulated room's camera: its intrinsics with the Kinect sensor model at its focal length.
+fn room_camera(k: Intrinsics) -> Camera {
+    Camera {
+        intrinsics: k,
+        sensor: SensorModel {
+            focal_px: k.fx,
+            ..SensorModel::kinect_v1()
+        },
+    }
 }
 
 proptest! {
@@ -406,13 +411,7 @@ fn frames_extracted_in_parallel_match_one_by_one() {
 fn a_strip_beside_an_occluder_joins_its_wall() {
     let room = sl_noise::sim::room_scene(1).unwrap();
     let k = room.intrinsics;
-    let cam = Camera {
-        intrinsics: k,
-        sensor: SensorModel {
-            focal_px: k.fx,
-            ..SensorModel::kinect_v1()
-        },
-    };
+    let cam = room_camera(k);
     let frame = KinectSimulator::with_sensor(cam.sensor).simulate(&room.scene, &k, &room.pose, 1);
     let seg = PlaneExtractor::new(PlaneConfig::default())
         .unwrap()
