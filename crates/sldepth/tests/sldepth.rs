@@ -218,6 +218,19 @@ fn help_names_units() {
     }
 }
 
+/// The defaults `simulate --help` quotes for the realistic model are the library's.
+#[test]
+fn simulate_help_quotes_the_realistic_defaults() {
+    use sl_noise::sim::realistic::{DEFAULT_SPECKLE_PX, DEFAULT_WINDOW_X, DEFAULT_WINDOW_Y};
+    let o = sldepth(&["simulate", "--help"]);
+    assert!(o.status.success());
+    let help = String::from_utf8_lossy(&o.stdout);
+    let window = format!("(default {DEFAULT_WINDOW_X}x{DEFAULT_WINDOW_Y}");
+    let speckle = format!("(default {DEFAULT_SPECKLE_PX})");
+    assert!(help.contains(&window), "{window} not in {help}");
+    assert!(help.contains(&speckle), "{speckle} not in {help}");
+}
+
 /// `fuse` on a committed frame with an identity pose: a mesh whose vertices lie at the frame's
 /// depths, the JSON fields the issue names, and a clear error past the memory budget.
 #[test]

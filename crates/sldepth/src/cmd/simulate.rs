@@ -45,7 +45,8 @@ pub struct Args {
     /// (the paper's idealised independent Gaussian disparity noise).
     #[arg(long, value_name = "MODEL", default_value = "realistic", value_parser = PossibleValuesParser::new(["realistic", "white"]))]
     pub noise: String,
-    /// Block-matching window of the realistic model, `WxH` pixels (default 9x9).
+    /// Block-matching window of the realistic model, `WxH` pixels (default 9x11, fitted to the
+    /// autocorrelation of real Kinect frames: docs/NOISE_MODEL.md).
     #[arg(long, value_name = "WxH")]
     pub window: Option<String>,
     /// Speckle size of the realistic model, pixels (default 1).
@@ -103,7 +104,7 @@ pub fn run(args: Args) -> Result<()> {
             ))
         });
         let Some((wx, wy)) = parsed else {
-            bail!("--window {wh}: expected WxH, e.g. 9x9");
+            bail!("--window {wh}: expected WxH, e.g. 9x11");
         };
         realistic.window_x = wx;
         realistic.window_y = wy;
