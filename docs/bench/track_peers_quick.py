@@ -9,8 +9,10 @@ Runs Open3D's tensor `rgbd_odometry_multi_scale` (PointToPlane, frame to frame; 
 colour and is skipped: the comparison is depth only) and the dense SLAM `o3d.t.pipelines.slam.Model`
 (frame to model, 8 mm voxels like the issue's reference run) with a constant grey colour image,
 and prints ATE RMSE (Horn alignment) and RPE per frame. Optional `--ours TRAJ.txt` evaluates a
-`sldepth track --output` trajectory the same way. Needs open3d (0.19 tested) and numpy; tests
-never run it.
+`sldepth track --output` trajectory the same way. `--reference-model` (7scenes, icl) also
+tracks every frame against a model Open3D fused with the reference poses, the peer of
+`cargo run --release -p sl-track --example gt_model_probe`. Needs open3d (0.19 tested) and
+numpy; tests never run it.
 """
 import argparse, glob, os, sys, time
 import numpy as np
@@ -113,10 +115,37 @@ def dense_slam(paths, K, scale, depth_max, voxel):
     return poses, np.median(times) * 1e3
 
 
+def dense_slam_reference_model(paths, gt_poses, K, scale, depth_max, voxel):
+    """Open3D's frame-to-model tracking against a model fused with the reference poses (all
+    frames), each frame tracked from the last tracked pose: what a tracker that aligns the
+    frames to the reference's own map scores against that reference (see gt_model_probe)."""
+    dev = o3c.Device('CPU:0'); intr = o3c.Tensor(K)
+    model = o3d.t.pipelines.slam.Model(voxel, 16, 40000, o3c.Tensor(np.eye(4)), dev)
+    d0 = o3d.t.io.read_image(paths[0])
+    frame = o3d.t.pipelines.slam.Frame(d0.rows, d0.columns, intr, dev)
+    ray = o3d.t.pipelines.slam.Frame(d0.rows, d0.columns, intr, dev)
+    for i, (p, G) in enumerate(zip(paths, gt_poses)):
+        d = o3d.t.io.read_image(p).to(dev)
+        frame.set_data_from_image('depth', d); frame.set_data_from_image('color', grey(d))
+        model.update_frame_pose(i, o3c.Tensor(G))
+        model.integrate(frame, scale, depth_max, 8.0)
+    T = gt_poses[0].copy(); poses = [T.copy()]
+    for i, p in enumerate(paths[1:], 1):
+        d = o3d.t.io.read_image(p).to(dev)
+        frame.set_data_from_image('depth', d); frame.set_data_from_image('color', grey(d))
+        model.update_frame_pose(i, o3c.Tensor(T))
+        model.synthesize_model_frame(ray, scale, 0.1, depth_max, 8.0, False)
+        r = model.track_frame_to_model(frame, ray, scale, depth_max, 0.07)
+        T = T @ r.transformation.numpy(); poses.append(T.copy())
+    return poses, float('nan')
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('kind', choices=['tum', '7scenes', 'icl']); ap.add_argument('dir')
     ap.add_argument('--ours', action='append', default=[]); ap.add_argument('--depth-max', type=float, default=4.0)
+    ap.add_argument('--reference-model', action='store_true',
+                    help='also track against a model fused with the reference poses (7scenes, icl)')
     a = ap.parse_args()
     paths, stamps, gt, (fx, fy, cx, cy), scale = load(a.kind, a.dir)
     K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
@@ -127,11 +156,17 @@ def main():
                 v = [float(x) for x in l.split()]; est[v[0]] = mat(v[1:4], v[4:8])
         n, ate, rt, rr = evaluate(est, gt)
         print(f'{o}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg')
-    for name, run in [('open3d odometry PointToPlane', lambda: odometry(paths, K, scale, a.depth_max)),
-                      ('open3d dense SLAM 8 mm', lambda: dense_slam(paths, K, scale, a.depth_max, 0.008))]:
+    runs = [('open3d odometry PointToPlane', lambda: odometry(paths, K, scale, a.depth_max)),
+            ('open3d dense SLAM 8 mm', lambda: dense_slam(paths, K, scale, a.depth_max, 0.008))]
+    if a.reference_model and a.kind != 'tum':
+        runs.append(('open3d frame to the reference-pose model, 8 mm',
+                     lambda: dense_slam_reference_model(paths, [gt[t] for t in stamps], K, scale,
+                                                        a.depth_max, 0.008)))
+    for name, run in runs:
         poses, ms = run()
         n, ate, rt, rr = evaluate(dict(zip(stamps, poses)), gt)
-        print(f'{name}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg, {ms:.0f} ms/frame median')
+        timing = '' if ms != ms else f', {ms:.0f} ms/frame median'
+        print(f'{name}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg{timing}')
 
 
 if __name__ == '__main__':
