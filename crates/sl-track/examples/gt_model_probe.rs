@@ -9,11 +9,14 @@
 //! frames to the reference's own map can score no better, against that reference, than the
 //! reference's disagreement with the data (docs/bench/track.md, "Session 28").
 //!
+//! `--causal` tracks each frame in the map of the frames before it (fused at their reference
+//! poses as the tracking goes): what a tracker would do with a perfect map of what it has seen,
+//! to tell errors of the map built along the way from errors of the alignment (it prints
+//! nothing per frame; use `--output`).
+//!
 //! `cargo run --release -p sl-track --example gt_model_probe -- 7scenes|tum [FRAMES]
-//! [--uniform] [--no-prefilter] [--output TRAJ.txt]` (needs `SLDEPTH_DATA`; `--output` writes
+//! [--uniform] [--no-prefilter] [--causal] [--output TRAJ.txt]` (needs `SLDEPTH_DATA`; `--output` writes
 //! the tracked poses in TUM format with the frame index as timestamp, for `sldepth eval-traj`).
-
-use std::io::Write as _;
 
 use sl_core::CameraToWorld;
 use sl_filter::MultiScale;
@@ -62,19 +65,44 @@ fn main() -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let mut volume = TsdfVolume::new(cfg.tsdf)?;
-    for (d, p) in &frames {
-        volume.integrate(d, &k, p)?;
-    }
     let mut rc = RaycastConfig::default();
     rc.min_depth_m = cfg.tsdf.min_depth_m;
     rc.max_depth_m = cfg.tsdf.max_depth_m;
-    let depths: Vec<_> = frames.iter().map(|f| f.0.clone()).collect();
-    let start = frames.first().ok_or("no frames")?.1;
-    let results = track_in_map(camera, &cfg, &volume, start, &depths)?;
     let mut out = match output {
         Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p)?)),
         None => None,
     };
+    if flag("--causal") {
+        // Each frame tracked in the map of the frames before it, fused at their reference
+        // poses (what a tracker would have built with perfect poses).
+        let mut model = sl_track::ModelReference::new(
+            &k,
+            sl_track::ModelReference::default_scale(&camera),
+            rc,
+        )?;
+        let mut tracker = sl_track::Tracker::new(camera, cfg.tracker)?;
+        tracker.set_initial_pose(frames[0].1);
+        for (i, (d, reference)) in frames.iter().enumerate() {
+            let r = if i == 0 {
+                tracker.track(d, None)?
+            } else {
+                let from = tracker.last_good_pose().unwrap_or(*reference);
+                model.update(&volume, &from, &camera.sensor)?;
+                tracker.track(d, model.maps())?
+            };
+            volume.integrate(d, &k, reference)?;
+            if let Some(o) = out.as_mut() {
+                write_pose(o, i, &r.pose)?;
+            }
+        }
+        return Ok(());
+    }
+    for (d, p) in &frames {
+        volume.integrate(d, &k, p)?;
+    }
+    let depths: Vec<_> = frames.iter().map(|f| f.0.clone()).collect();
+    let start = frames.first().ok_or("no frames")?.1;
+    let results = track_in_map(camera, &cfg, &volume, start, &depths)?;
     let mut better = 0;
     for (i, ((d, reference), r)) in frames.iter().zip(&results).enumerate() {
         let fit = |pose: &CameraToWorld| -> Result<f64> {
@@ -102,20 +130,23 @@ fn main() -> Result<()> {
             e.rotation.angle().to_degrees()
         );
         if let Some(o) = out.as_mut() {
-            let (p, q) = (
-                r.pose.isometry().translation.vector,
-                r.pose.isometry().rotation,
-            );
-            writeln!(
-                o,
-                "{i}.000000 {} {} {} {} {} {} {}",
-                p.x, p.y, p.z, q.i, q.j, q.k, q.w
-            )?;
+            write_pose(o, i, &r.pose)?;
         }
     }
     println!(
         "the tracked pose explains its frame better than the reference pose in {better} of {} frames",
         frames.len()
     );
+    Ok(())
+}
+
+/// One line of a TUM trajectory, the frame index as its timestamp.
+fn write_pose(o: &mut impl std::io::Write, i: usize, pose: &CameraToWorld) -> Result<()> {
+    let (p, q) = (pose.isometry().translation.vector, pose.isometry().rotation);
+    writeln!(
+        o,
+        "{i}.000000 {} {} {} {} {} {} {}",
+        p.x, p.y, p.z, q.i, q.j, q.k, q.w
+    )?;
     Ok(())
 }
