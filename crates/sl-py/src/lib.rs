@@ -62,6 +62,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;
     m.add_function(wrap_pyfunction!(planes::motion, m)?)?;
+    m.add_function(wrap_pyfunction!(track::track_in_map, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::get_num_threads, m)?)?;
     m.add_function(wrap_pyfunction!(threads::compute_thread_name, m)?)?;

@@ -17,6 +17,90 @@ use crate::tsdf::PyMesh;
 /// A join as Python sees it: (fragment, into, 4×4 transform).
 type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 
+/// A tracked frame as Python sees it: (4×4 camera-to-world pose, status).
+type TrackedFrame<'py> = (Bound<'py, PyArray2<f64>>, &'static str);
+
+/// The prefilter of `sldepth track --prefilter NAME` for `camera`.
+fn prefilter_named(name: &str, camera: &Camera) -> PyResult<Option<MultiScale>> {
+    let default = MultiScale::default_for(&camera.sensor);
+    match name {
+        "multiscale" => Ok(Some(default)),
+        // The single pass is the multi-scale filter without its coarse passes.
+        "single" => Ok(Some(MultiScale {
+            dilations: Vec::new(),
+            ..default
+        })),
+        "none" => Ok(None),
+        other => Err(value_error(format!(
+            "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
+        ))),
+    }
+}
+
+/// Tracks a sequence of depth frames (a list of float32 metre arrays, or uint16 with
+/// ``depth_scale``) in a map that does not change: ``volume``, a ``TsdfVolume`` fused
+/// beforehand (from another recording of the place, or at a data set's reference poses; fuse
+/// it with ``weight="inv-z4"``, the default, whose weights the tracker's model variances
+/// assume). Each frame is aligned to the map's raycast from the last tracked pose, as
+/// ``Tracker`` aligns frames to the model it is building, but nothing is fused. The first frame
+/// is anchored at ``start_pose`` ((4, 4) camera-to-world). Returns one ``(pose, status)`` per
+/// frame, as ``Tracker.track`` does. ``weighting``, ``prefilter`` and ``model_scale`` as for
+/// ``Tracker``; frames are used as given otherwise (undistort them first with ``undistort``
+/// for a camera with a lens model). With a map fused at a data set's reference poses, the
+/// distance of the tracked poses from those poses is how far the reference is from the poses
+/// that align its frames: 7-Scenes' KinectFusion poses about 5 mm ATE, the floor of any depth
+/// tracker's error against them (docs/bench/track.md, "Session 28").
+#[pyfunction]
+#[pyo3(signature = (volume, camera, frames, start_pose, depth_scale = None, *, weighting = "inv-var", prefilter = "multiscale", model_scale = None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn track_in_map<'py>(
+    py: Python<'py>,
+    volume: &crate::tsdf::PyTsdfVolume,
+    camera: &PyCamera,
+    frames: Vec<Bound<'py, PyAny>>,
+    start_pose: &Bound<'py, PyAny>,
+    depth_scale: Option<f64>,
+    weighting: &str,
+    prefilter: &str,
+    model_scale: Option<f64>,
+) -> PyResult<Vec<TrackedFrame<'py>>> {
+    let camera = camera.inner;
+    let start = crate::arrays::pose_input(start_pose)?;
+    let prefilter = prefilter_named(prefilter, &camera)?;
+    let mut cfg = ReconstructionConfig::default_for(camera.sensor);
+    cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
+    let p = volume.volume().params();
+    cfg.tsdf.min_depth_m = p.min_depth_m;
+    cfg.tsdf.max_depth_m = p.max_depth_m;
+    cfg.model_scale = model_scale;
+    let inputs = frames
+        .iter()
+        .map(|f| depth_input(f, depth_scale))
+        .collect::<PyResult<Vec<_>>>()?;
+    let mut views = Vec::with_capacity(inputs.len());
+    for input in &inputs {
+        let view = input.view()?;
+        check_camera(&view, &camera)?;
+        views.push(view);
+    }
+    let map = volume.volume();
+    let results = compute(py, || -> Result<_, String> {
+        let depths = views
+            .iter()
+            .map(|v| match &prefilter {
+                Some(f) => f.apply(*v).map_err(|e| e.to_string()),
+                None => Ok(v.to_image()),
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        sl_track::track_in_map(camera, &cfg, map, start, &depths).map_err(|e| e.to_string())
+    })
+    .map_err(value_error)?;
+    results
+        .iter()
+        .map(|r| Ok((pose_array(py, &r.pose.to_matrix())?, r.status.as_str())))
+        .collect()
+}
+
 /// Tracks a depth camera through a sequence and fuses every tracked frame (1/Z⁴ weights,
 /// sensor-adaptive truncation): ``track(depth)`` returns ``(pose, status)`` with ``pose`` the
 /// (4, 4) float64 camera-to-world matrix (the first frame is the identity) and ``status`` one
@@ -94,21 +178,7 @@ impl PyTracker {
             }
         };
         let camera = camera.inner;
-        let default = MultiScale::default_for(&camera.sensor);
-        let prefilter = match prefilter {
-            "multiscale" => Some(default),
-            // The single pass is the multi-scale filter without its coarse passes.
-            "single" => Some(MultiScale {
-                dilations: Vec::new(),
-                ..default
-            }),
-            "none" => None,
-            other => {
-                return Err(value_error(format!(
-                    "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
-                )));
-            }
-        };
+        let prefilter = prefilter_named(prefilter, &camera)?;
         let mut cfg = ReconstructionConfig::default_for(camera.sensor);
         cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
         cfg.tsdf.voxel_m = voxel_m;
@@ -143,7 +213,7 @@ impl PyTracker {
         depth: &Bound<'py, PyAny>,
         depth_scale: Option<f64>,
         timestamp_s: Option<f64>,
-    ) -> PyResult<(Bound<'py, PyArray2<f64>>, &'static str)> {
+    ) -> PyResult<TrackedFrame<'py>> {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;

@@ -33,6 +33,13 @@ pub struct PyTsdfVolume {
     sensor_weight: bool,
 }
 
+impl PyTsdfVolume {
+    /// The fused volume.
+    pub(crate) fn volume(&self) -> &TsdfVolume {
+        &self.volume
+    }
+}
+
 #[pymethods]
 impl PyTsdfVolume {
     #[new]

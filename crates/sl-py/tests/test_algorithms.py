@@ -348,6 +348,32 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_track_in_map_anchors_at_the_start_and_fuses_nothing(kinect):
+    # A map of the boxes fused from one noisy frame at a pose P; other noisy frames of the same
+    # view tracked in it from P stay at P (the map pins every direction), and the map is
+    # unchanged.
+    frames = [sldepth.simulate("boxes", seed=s)[0] for s in (3, 4, 5)]
+    start = np.eye(4)
+    start[:3, 3] = (0.1, -0.02, 0.05)
+    vol = sldepth.TsdfVolume(voxel_m=0.008, trunc_m=0.04)
+    vol.integrate(frames[0], kinect, start)
+    before = len(vol.extract_mesh())
+    out = sldepth.track_in_map(vol, kinect, frames, start)
+    assert [s for _, s in out][0] == "initialised"
+    for pose, status in out:
+        assert status in ("initialised", "tracked"), status
+        assert np.abs(pose[:3, 3] - start[:3, 3]).max() < 0.002
+        assert np.allclose(pose[:3, :3], np.eye(3), atol=1e-3)
+    assert len(vol.extract_mesh()) == before
+    assert sldepth.track_in_map(vol, kinect, [], start) == []
+    with pytest.raises(ValueError):
+        sldepth.track_in_map(vol, kinect, [frames[0][:, :100]], start)
+    with pytest.raises(ValueError, match="prefilter"):
+        sldepth.track_in_map(vol, kinect, frames, start, prefilter="median")
+    with pytest.raises(ValueError, match="pose"):
+        sldepth.track_in_map(vol, kinect, frames, np.eye(3))
+
+
 def test_a_rolling_shutter_tracker_keeps_a_still_camera_still(kinect):
     # No motion, no skew: the row-by-row alignment and the rectified fusion leave a still
     # camera where it is; a readout longer than a frame interval is refused.

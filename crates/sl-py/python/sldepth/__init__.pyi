@@ -258,6 +258,20 @@ def motion(
 ) -> Motion:
     """X_a = T X_b between two frames of one camera; determined=False when undetermined."""
 
+def track_in_map(
+    volume: TsdfVolume,
+    camera: Camera,
+    frames: Sequence[_Depth],
+    start_pose: _Pose,
+    depth_scale: Optional[float] = None,
+    *,
+    weighting: str = "inv-var",
+    prefilter: str = "multiscale",
+    model_scale: Optional[float] = None,
+) -> List[Tuple[npt.NDArray[np.float64], str]]:
+    """Tracks frames in a fused map that does not change (nothing is fused); the first frame is
+    anchored at start_pose. One (pose (4, 4) camera-to-world, status) per frame."""
+
 def set_num_threads(n: Optional[int] = None) -> None:
     """Threads per computation (None or 0: one per core). Each Python thread computes as the
     first worker of a pool of its own, sized at its first call, so calls from several threads run
