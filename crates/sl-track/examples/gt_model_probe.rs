@@ -21,7 +21,7 @@
 use sl_core::CameraToWorld;
 use sl_filter::MultiScale;
 use sl_track::{ReconstructionConfig, WeightMode, track_in_map};
-use sl_tsdf::{RaycastConfig, TsdfVolume};
+use sl_tsdf::TsdfVolume;
 
 type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
 
@@ -65,9 +65,7 @@ fn main() -> Result<()> {
         })
         .collect::<Result<Vec<_>>>()?;
     let mut volume = TsdfVolume::new(cfg.tsdf)?;
-    let mut rc = RaycastConfig::default();
-    rc.min_depth_m = cfg.tsdf.min_depth_m;
-    rc.max_depth_m = cfg.tsdf.max_depth_m;
+    let rc = cfg.raycast_config();
     let mut out = match output {
         Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p)?)),
         None => None,
@@ -75,11 +73,7 @@ fn main() -> Result<()> {
     if flag("--causal") {
         // Each frame tracked in the map of the frames before it, fused at their reference
         // poses (what a tracker would have built with perfect poses).
-        let mut model = sl_track::ModelReference::new(
-            &k,
-            sl_track::ModelReference::default_scale(&camera),
-            rc,
-        )?;
+        let mut model = cfg.model_reference(&camera)?;
         let mut tracker = sl_track::Tracker::new(camera, cfg.tracker)?;
         tracker.set_initial_pose(frames[0].1);
         for (i, (d, reference)) in frames.iter().enumerate() {
@@ -100,9 +94,8 @@ fn main() -> Result<()> {
     for (d, p) in &frames {
         volume.integrate(d, &k, p)?;
     }
-    let depths: Vec<_> = frames.iter().map(|f| f.0.clone()).collect();
     let start = frames.first().ok_or("no frames")?.1;
-    let results = track_in_map(camera, &cfg, &volume, start, &depths)?;
+    let results = track_in_map(camera, &cfg, &volume, start, frames.iter().map(|f| &f.0))?;
     let mut better = 0;
     for (i, ((d, reference), r)) in frames.iter().zip(&results).enumerate() {
         let fit = |pose: &CameraToWorld| -> Result<f64> {

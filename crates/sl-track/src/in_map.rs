@@ -9,40 +9,33 @@
 //! (docs/bench/track.md, "Session 28"; the example `gt_model_probe`).
 
 use sl_core::{Camera, CameraToWorld, DepthImage};
-use sl_tsdf::{RaycastConfig, TsdfVolume};
+use sl_tsdf::TsdfVolume;
 
 use crate::error::Result;
 use crate::reconstruction::ReconstructionConfig;
-use crate::track::{FrameResult, ModelReference, Tracker};
+use crate::track::{FrameResult, Tracker};
 
 /// Tracks `frames` (metres, 0 = invalid; smooth them first as `sldepth track` does) one after
 /// the other against `map`, each from the raycast of the map at the last tracked pose (at
-/// `cfg.model_scale`, by default [`ModelReference::default_scale`]), starting at `start`: the
+/// `cfg.model_scale`, by default [`crate::ModelReference::default_scale`]), starting at `start`: the
 /// first frame is anchored there, as a tracker's first frame is. The tracker is
 /// `cfg.tracker`'s; nothing is fused into `map`. One result per frame, lost frames included.
 ///
 /// # Errors
 /// A frame of another size than the camera ([`crate::TrackError::SizeMismatch`]), or an
 /// invalid configuration.
-pub fn track_in_map(
+pub fn track_in_map<'a>(
     camera: Camera,
     cfg: &ReconstructionConfig,
     map: &TsdfVolume,
     start: CameraToWorld,
-    frames: &[DepthImage],
+    frames: impl IntoIterator<Item = &'a DepthImage>,
 ) -> Result<Vec<FrameResult>> {
-    let k = camera.intrinsics;
-    let mut raycast = RaycastConfig::default();
-    raycast.min_depth_m = cfg.tsdf.min_depth_m;
-    raycast.max_depth_m = cfg.tsdf.max_depth_m;
-    let scale = cfg
-        .model_scale
-        .unwrap_or_else(|| ModelReference::default_scale(&camera));
-    let mut model = ModelReference::new(&k, scale, raycast)?;
+    let mut model = cfg.model_reference(&camera)?;
     let mut tracker = Tracker::new(camera, cfg.tracker)?;
     tracker.set_initial_pose(start);
-    let mut out = Vec::with_capacity(frames.len());
-    for (i, depth) in frames.iter().enumerate() {
+    let mut out = Vec::new();
+    for (i, depth) in frames.into_iter().enumerate() {
         let result = if i == 0 {
             tracker.track(depth, None)?
         } else {

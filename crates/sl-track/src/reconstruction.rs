@@ -76,6 +76,27 @@ impl ReconstructionConfig {
         }
     }
 
+    /// The raycast of the fused model over the fusion's depth range (the defaults of
+    /// [`RaycastConfig`] otherwise).
+    pub fn raycast_config(&self) -> RaycastConfig {
+        let mut raycast = RaycastConfig::default();
+        raycast.min_depth_m = self.tsdf.min_depth_m;
+        raycast.max_depth_m = self.tsdf.max_depth_m;
+        raycast
+    }
+
+    /// The model reference a frame of `camera` is tracked against: [`Self::raycast_config`] at
+    /// `model_scale` (by default [`ModelReference::default_scale`]).
+    ///
+    /// # Errors
+    /// A `model_scale` outside `(0, 1]`.
+    pub fn model_reference(&self, camera: &Camera) -> Result<ModelReference> {
+        let scale = self
+            .model_scale
+            .unwrap_or_else(|| ModelReference::default_scale(camera));
+        ModelReference::new(&camera.intrinsics, scale, self.raycast_config())
+    }
+
     /// Checks every part.
     pub fn validate(&self) -> Result<()> {
         self.tracker.validate()?;
@@ -238,17 +259,11 @@ struct Live {
 
 impl Live {
     fn new(index: usize, camera: &Camera, cfg: &ReconstructionConfig) -> Result<Self> {
-        let mut raycast = RaycastConfig::default();
-        raycast.min_depth_m = cfg.tsdf.min_depth_m;
-        raycast.max_depth_m = cfg.tsdf.max_depth_m;
-        let scale = cfg
-            .model_scale
-            .unwrap_or_else(|| ModelReference::default_scale(camera));
         Ok(Self {
             index,
             tracker: Tracker::new(*camera, cfg.tracker)?,
             volume: TsdfVolume::new(cfg.tsdf)?,
-            model: ModelReference::new(&camera.intrinsics, scale, raycast)?,
+            model: cfg.model_reference(camera)?,
             tracked: 0,
             first_frame: None,
         })

@@ -97,14 +97,15 @@ fn track_in_reference_map(
     for (d, p) in frames.iter().zip(reference) {
         map.integrate(*d, &cam.intrinsics, p)?;
     }
-    let owned: Vec<DepthImage> = frames.iter().map(|d| (*d).clone()).collect();
     let start = *reference
         .first()
         .ok_or_else(|| anyhow::anyhow!("no frames"))?;
-    Ok(sl_track::track_in_map(*cam, &cfg, &map, start, &owned)?
-        .into_iter()
-        .map(|r| r.status.is_tracked().then_some(r.pose))
-        .collect())
+    Ok(
+        sl_track::track_in_map(*cam, &cfg, &map, start, frames.iter().copied())?
+            .into_iter()
+            .map(|r| r.status.is_tracked().then_some(r.pose))
+            .collect(),
+    )
 }
 
 /// ATE RMSE (m) after Horn's rigid alignment of the estimated positions to the true ones,
