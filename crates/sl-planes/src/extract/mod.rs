@@ -37,8 +37,14 @@
 //!    for the patches) are merged (sums add), and planar cells left unassigned form new seeds
 //!    (patches of the free cells, merged by the same test). Repeats until the labels
 //!    settle or `max_iterations`.
-//! 3. **Coherence and final pass**: 4-connected pieces of a plane's cells smaller than
-//!    `min_piece_pixels` are dropped; then every full-resolution pixel takes its cell's label if
+//! 3. **Growth, coherence and final pass**: each plane grows, round by round, over the valid
+//!    unlabelled cells 4-connected to it that its (fixed) fit explains within the noise of a
+//!    cell (99.9 %), so a surface seen as a thin strip whose noisy cells fail the LoG is taken
+//!    to its end (the passes above reach one cell further each); 4-connected pieces of a
+//!    plane's cells smaller than `min_piece_pixels` are dropped; pieces of one plane between
+//!    which the camera sees behind the plane (the free space of a hole: two box tops at one
+//!    height with the floor between them) become separate planes, while pieces parted by an
+//!    occluder in front stay one; then every full-resolution pixel takes its cell's label if
 //!    that plane fits it within `τ`; otherwise, for the pixels of unlabelled cells touching a
 //!    labelled one, and for all pixels of cells at a border between planes, the plane of the
 //!    neighbouring cells with the smallest residual (in units of the pixel's noise, `σ_D` and
@@ -348,6 +354,18 @@ pub struct PlaneExtractor {
     border_cells: Vec<u8>,
     /// Copy of the current cell-label row taken before its searches (coarse pass).
     cell_labels_before_search: Vec<u16>,
+    /// The cells the growth tests in its current round (`grow`).
+    grow_candidates: Vec<u32>,
+    /// The cells labelled in the current round of the growth, with their labels.
+    grow_taken: Vec<(u32, u16)>,
+    /// Per cell: 1 while it is among the growth's candidates.
+    grow_queued: Vec<u8>,
+    /// The 4-connected pieces of the planes' cells (`split_separated`).
+    split_pieces: Vec<split::Piece>,
+    /// The big pieces, by plane.
+    split_order: Vec<u32>,
+    /// Per label: 1 when its plane was split or made by a split.
+    split_affected: Vec<u8>,
     /// A row of zero cell labels (stands in for a missing row above or below).
     zero_cell_row: Vec<u16>,
     /// Plane indices in merge / renumbering order.
@@ -651,11 +669,14 @@ impl PlaneExtractor {
             }
         }
 
-        // 3. Coherence on the cell grid, then the final full-resolution pass.
+        // 3. Growth and coherence on the cell grid, then the final full-resolution pass.
         if !self.planes.is_empty() {
-            if cfg.min_piece_pixels > 0 {
+            self.grow(wq, hq);
+            let labelled = cfg.min_piece_pixels > 0;
+            if labelled {
                 self.drop_small_pieces(wq, hq);
             }
+            self.split_separated(wq, hq, f64::from(tau), min_q, labelled);
             self.times.add(Stage::Components, &mut t0);
             self.order_by_size();
             self.final_pass(d, w, h, wq, tau, &mut labels);
@@ -674,12 +695,14 @@ mod assign;
 mod decimated;
 mod explain;
 mod final_band;
+mod grow;
 mod input;
 mod merge;
 mod patches;
 mod refine;
 mod rows;
 mod seeds;
+mod split;
 mod stages;
 #[cfg(test)]
 mod tests;

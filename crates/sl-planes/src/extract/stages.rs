@@ -11,7 +11,8 @@ pub enum Stage {
     /// Depth → disparity and 2×2 / 4×4 averaging, box LoG, threshold and erosion (half
     /// resolution), and the planar cells.
     Log,
-    /// Connected components (planar cells, free cells, coherence pieces).
+    /// Connected components (planar cells, free cells, coherence pieces) and the growth of
+    /// the planes over the cells they explain.
     Components,
     /// Per-component robust affine fits.
     SeedFits,
