@@ -407,16 +407,23 @@ fn frames_extracted_in_parallel_match_one_by_one() {
 /// explains both within the noise model (ΔRSS well inside χ²₃ at 99.9 %). The merge tests
 /// this, so the strip is not returned as a second plane of the wall (before: a 4,055-pixel
 /// plane tilted 8° from the wall, its pixels speckled along the box).
-#[test]
-fn a_strip_beside_an_occluder_joins_its_wall() {
-    let room = sl_noise::sim::room_scene(1).unwrap();
+/// Room `seed` of the room benchmark through its own camera, and its planes (defaults).
+fn extract_room(seed: u64) -> (sl_noise::sim::SimulatedFrame, sl_planes::PlaneSegmentation) {
+    let room = sl_noise::sim::room_scene(seed).unwrap();
     let k = room.intrinsics;
     let cam = room_camera(k);
-    let frame = KinectSimulator::with_sensor(cam.sensor).simulate(&room.scene, &k, &room.pose, 1);
+    let frame =
+        KinectSimulator::with_sensor(cam.sensor).simulate(&room.scene, &k, &room.pose, seed);
     let seg = PlaneExtractor::new(PlaneConfig::default())
         .unwrap()
         .extract_depth(&frame.depth, &cam)
         .unwrap();
+    (frame, seg)
+}
+
+#[test]
+fn a_strip_beside_an_occluder_joins_its_wall() {
+    let (frame, seg) = extract_room(1);
     // The surface (ground-truth label) most of each plane's pixels lie on.
     let mut majority = Vec::new();
     for p in &seg.planes {
@@ -454,14 +461,7 @@ fn a_strip_beside_an_occluder_joins_its_wall() {
 /// (`PlaneExtractor`'s cell growth) now takes the whole wedge, and no other surface.
 #[test]
 fn a_wedge_along_the_border_is_grown_to_its_end() {
-    let room = sl_noise::sim::room_scene(130).unwrap();
-    let k = room.intrinsics;
-    let cam = room_camera(k);
-    let frame = KinectSimulator::with_sensor(cam.sensor).simulate(&room.scene, &k, &room.pose, 130);
-    let seg = PlaneExtractor::new(PlaneConfig::default())
-        .unwrap()
-        .extract_depth(&frame.depth, &cam)
-        .unwrap();
+    let (frame, seg) = extract_room(130);
     // Every surface with at least 2,000 valid pixels is covered at ≥ 95 % by its best plane,
     // which lies at ≥ 95 % on it.
     let valid = |i: usize| frame.depth.data()[i] > 0.0;
