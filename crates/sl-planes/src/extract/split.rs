@@ -13,9 +13,13 @@ pub(super) struct Piece {
     label: u16,
     /// Cells.
     cells: usize,
-    /// Index of its first run in the labeller's runs, and how many of its runs were seen.
-    first_run: u32,
+    /// Its runs in the labeller's runs, and how many of them the sampling has passed.
     runs: u32,
+    seen: u32,
+    /// Cells `(x, y)` spread over its runs (the middle of every `⌈runs / SAMPLES_PER_PIECE⌉`-th
+    /// run; pieces of at least `min_q` cells only), the ends of the lines to other pieces.
+    samples: [(f32, f32); SAMPLES_PER_PIECE],
+    sampled: u8,
     /// Union-find parent among the pieces of its plane (index into the pieces).
     parent: u32,
     /// The label it takes (0 = keeps its plane's).
@@ -60,12 +64,24 @@ impl PlaneExtractor {
             let c = comps.component[ri] as usize;
             let p = &mut pieces[c];
             if p.runs == 0 {
-                p.first_run = ri as u32;
                 p.label = run.key as u16;
                 p.cells = comps.sizes[c];
                 p.parent = c as u32;
             }
             p.runs += 1;
+        }
+        for run in comps.runs.iter().zip(&comps.component) {
+            let p = &mut pieces[*run.1 as usize];
+            if p.cells < min_q {
+                continue;
+            }
+            let step = p.runs.div_ceil(SAMPLES_PER_PIECE as u32).max(1);
+            if p.seen.is_multiple_of(step) && usize::from(p.sampled) < SAMPLES_PER_PIECE {
+                let r = run.0;
+                p.samples[usize::from(p.sampled)] = (0.5 * (r.x0 + r.x1 - 1) as f32, r.y as f32);
+                p.sampled += 1;
+            }
+            p.seen += 1;
         }
         // The big pieces, by plane.
         let mut order = std::mem::take(&mut self.split_order);
@@ -205,37 +221,15 @@ impl PlaneExtractor {
         wq: usize,
         tau: f64,
     ) -> bool {
-        let samples = |c: u32| {
-            let p = &self.split_pieces[c as usize];
-            let comps = &self.components;
-            let mut out = [(0f64, 0f64); SAMPLES_PER_PIECE];
-            let mut n = 0;
-            // Runs of piece `c` from its first run on (runs are row-major; the piece's runs
-            // are those with its component index).
-            let total = p.runs as usize;
-            let mut seen = 0usize;
-            let step = total.div_ceil(SAMPLES_PER_PIECE).max(1);
-            for (ri, run) in comps.runs.iter().enumerate().skip(p.first_run as usize) {
-                if comps.component[ri] != c {
-                    continue;
-                }
-                if seen.is_multiple_of(step) && n < SAMPLES_PER_PIECE {
-                    out[n] = (0.5 * f64::from(run.x0 + run.x1 - 1), f64::from(run.y));
-                    n += 1;
-                }
-                seen += 1;
-                if seen == total {
-                    break;
-                }
-            }
-            (out, n)
-        };
-        let (sa, na) = samples(ca);
-        let (sb, nb) = samples(cb);
+        let (pa, pb) = (
+            &self.split_pieces[ca as usize],
+            &self.split_pieces[cb as usize],
+        );
+        let point = |&(x, y): &(f32, f32)| (f64::from(x), f64::from(y));
         let cells = &self.cell_disparity;
         let labels = &self.cell_labels;
-        for &(xa, ya) in &sa[..na] {
-            'line: for &(xb, yb) in &sb[..nb] {
+        for (xa, ya) in pa.samples[..usize::from(pa.sampled)].iter().map(point) {
+            'line: for (xb, yb) in pb.samples[..usize::from(pb.sampled)].iter().map(point) {
                 let steps = (xb - xa).abs().max((yb - ya).abs()).ceil().max(1.0) as usize;
                 let (dx, dy) = ((xb - xa) / steps as f64, (yb - ya) / steps as f64);
                 for s in 1..steps {
