@@ -49,6 +49,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<tsdf::PyMesh>()?;
     m.add_class::<track::PyTracker>()?;
     m.add_class::<planes::PyPlane>()?;
+    m.add_class::<planes::PyUnlabelledRegion>()?;
     m.add_class::<planes::PyMotion>()?;
     m.add_function(wrap_pyfunction!(io::read_depth, m)?)?;
     m.add_function(wrap_pyfunction!(io::write_depth, m)?)?;
@@ -61,6 +62,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(filter::filter, m)?)?;
     m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;
+    m.add_function(wrap_pyfunction!(planes::explain_planes, m)?)?;
     m.add_function(wrap_pyfunction!(planes::motion, m)?)?;
     m.add_function(wrap_pyfunction!(track::track_in_map, m)?)?;
     m.add_function(wrap_pyfunction!(threads::set_num_threads, m)?)?;

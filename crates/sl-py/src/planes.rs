@@ -5,7 +5,7 @@ use std::sync::{Mutex, PoisonError};
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo};
+use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo, RegionExplanation};
 use sl_track::DepthMotionConfig;
 
 use crate::arrays::{check_camera, depth_input, image_array, pose_array};
@@ -95,11 +95,72 @@ fn with_extractor<T>(
     out
 }
 
-fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneConfig {
-    let mut c = PlaneConfig::default();
-    c.threshold_px = threshold_px.unwrap_or(c.threshold_px);
-    c.min_pixels = min_pixels.unwrap_or(c.min_pixels);
-    c
+/// The extractor's parameters a Python caller may set (the others keep their defaults).
+#[derive(Debug, Clone, Copy, Default)]
+struct PlaneParams {
+    threshold_px: Option<f64>,
+    min_pixels: Option<usize>,
+    log_threshold_px: Option<f64>,
+    log_sigma_px: Option<f64>,
+}
+
+impl PlaneParams {
+    fn config(&self) -> PyResult<PlaneConfig> {
+        let mut c = PlaneConfig::default();
+        c.threshold_px = self.threshold_px.unwrap_or(c.threshold_px);
+        c.min_pixels = self.min_pixels.unwrap_or(c.min_pixels);
+        c.log_threshold_px = self.log_threshold_px.unwrap_or(c.log_threshold_px);
+        c.log_sigma_px = self.log_sigma_px.unwrap_or(c.log_sigma_px);
+        c.validate().map_err(value_error)?;
+        Ok(c)
+    }
+}
+
+/// A region of valid depth that no plane took, and the test that turned it down (read-only
+/// attributes; ``explain_planes``).
+#[pyclass(name = "UnlabelledRegion", module = "sldepth", frozen, get_all)]
+#[derive(Debug, Clone)]
+pub struct PyUnlabelledRegion {
+    /// Valid pixels of the region.
+    pixels: usize,
+    /// Bounding box ``(x0, y0, x1, y1)``, pixels (inclusive).
+    bbox_px: (usize, usize, usize, usize),
+    /// The test: ``"NotPlanarLog"``, ``"ResidualNotWhite"``, ``"SeveralSurfaces"`` or
+    /// ``"Unseeded"`` (the names of ``sldepth planes --explain --json``).
+    reason: String,
+    /// What the reason means, in words.
+    why: String,
+    /// Share of its cells that fail the LoG planarity test.
+    log_rejected_fraction: f64,
+    /// Share of its usable 16×16-pixel patches whose residual exceeds the sensor noise.
+    residual_rejected_fraction: f64,
+    /// RMS disparity residual of one affine fit of the region, pixels (``None`` without a fit).
+    rms_px: Option<f64>,
+}
+
+#[pymethods]
+impl PyUnlabelledRegion {
+    fn __repr__(&self) -> String {
+        format!(
+            "UnlabelledRegion(pixels={}, bbox_px={:?}, reason={:?})",
+            self.pixels, self.bbox_px, self.reason
+        )
+    }
+}
+
+impl From<&RegionExplanation> for PyUnlabelledRegion {
+    fn from(r: &RegionExplanation) -> Self {
+        let [x0, y0, x1, y1] = r.bbox_px;
+        Self {
+            pixels: r.pixels,
+            bbox_px: (x0, y0, x1, y1),
+            reason: format!("{:?}", r.reason),
+            why: r.reason.describe().to_string(),
+            log_rejected_fraction: r.log_rejected_fraction,
+            residual_rejected_fraction: r.residual_rejected_fraction,
+            rms_px: r.rms_px.is_finite().then_some(r.rms_px),
+        }
+    }
 }
 
 /// Extracts planes in the disparity domain (one fixed threshold at every depth, the paper's
@@ -107,29 +168,97 @@ fn plane_config(threshold_px: Option<f64>, min_pixels: Option<usize>) -> PlaneCo
 /// i = ``planes[i-1]``) and a list of ``Plane``. Frames of a camera resampled from its sensor
 /// by a whole factor (``Camera.resampled(0.5)``: a 320×240 stream of a 640×480 Kinect) are
 /// extracted on the sensor's grid and give the planes of the full frame; ``min_pixels``
-/// (default 1000) counts the sensor's pixels.
+/// (default 1000) counts the sensor's pixels. ``threshold_px`` (0.5) is the residual
+/// threshold τ, ``log_threshold_px`` (0.1) and ``log_sigma_px`` (2) the LoG planarity test's
+/// threshold and scale, all in disparity pixels (``sldepth planes`` has the same options).
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, depth_scale = None))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn extract_planes<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     threshold_px: Option<f64>,
     min_pixels: Option<usize>,
+    log_threshold_px: Option<f64>,
+    log_sigma_px: Option<f64>,
     depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
+    let params = PlaneParams {
+        threshold_px,
+        min_pixels,
+        log_threshold_px,
+        log_sigma_px,
+    };
+    let (labels, planes, _) = run_extraction(py, depth, camera, params, depth_scale, None)?;
+    Ok((labels, planes))
+}
+
+/// ``extract_planes`` that also says why each region of valid depth that no plane took was
+/// turned down (``sldepth planes --explain``): returns ``(labels, planes, regions)``, the
+/// regions (``UnlabelledRegion``) of at least ``min_region_pixels`` valid pixels (default:
+/// ``min_pixels``), largest first. Read from the extraction's own buffers, at no second
+/// extraction.
+#[pyfunction]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, min_region_pixels = None, depth_scale = None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn explain_planes<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    camera: Option<&PyCamera>,
+    threshold_px: Option<f64>,
+    min_pixels: Option<usize>,
+    log_threshold_px: Option<f64>,
+    log_sigma_px: Option<f64>,
+    min_region_pixels: Option<usize>,
+    depth_scale: Option<f64>,
+) -> PyResult<Explained<'py>> {
+    let params = PlaneParams {
+        threshold_px,
+        min_pixels,
+        log_threshold_px,
+        log_sigma_px,
+    };
+    let min_region = min_region_pixels.unwrap_or(params.config()?.min_pixels);
+    run_extraction(py, depth, camera, params, depth_scale, Some(min_region))
+}
+
+/// Labels, planes and unlabelled regions, as `explain_planes` returns them.
+type Explained<'py> = (
+    Bound<'py, PyArray2<u16>>,
+    Vec<PyPlane>,
+    Vec<PyUnlabelledRegion>,
+);
+
+/// The labels and planes of one extraction, and the unlabelled regions of at least
+/// `explain` pixels when given.
+fn run_extraction<'py>(
+    py: Python<'py>,
+    depth: &Bound<'py, PyAny>,
+    camera: Option<&PyCamera>,
+    params: PlaneParams,
+    depth_scale: Option<f64>,
+    explain: Option<usize>,
+) -> PyResult<Explained<'py>> {
     let camera = camera_or_default(camera);
-    let config = plane_config(threshold_px, min_pixels);
-    config.validate().map_err(value_error)?;
+    let config = params.config()?;
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
     check_camera(&view, &camera)?;
-    let seg = compute(py, || {
-        with_extractor(config, |e| e.extract_depth(view, &camera))
+    let (seg, regions) = compute(py, || {
+        with_extractor(config, |e| {
+            let seg = e.extract_depth(view, &camera)?;
+            let regions = match explain {
+                Some(min) => e.explain_unlabelled(&seg, min),
+                None => Vec::new(),
+            };
+            Ok((seg, regions))
+        })
     })
     .map_err(value_error)?;
     let planes = seg.planes.iter().map(PyPlane::from).collect();
-    Ok((image_array(py, seg.labels)?, planes))
+    let regions = regions.iter().map(PyUnlabelledRegion::from).collect();
+    Ok((image_array(py, seg.labels)?, planes, regions))
 }
 
 /// The camera motion between two depth frames (read-only attributes).

@@ -96,6 +96,38 @@ def test_planes_of_the_three_plane_scene(kinect, three_planes):
     assert np.mean(truth_labels[labels == big.id] == surf) > 0.95
 
 
+def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
+    depth, _, _ = three_planes
+    # The same extraction as extract_planes; every region there is taken.
+    labels, planes = sldepth.extract_planes(depth, kinect)
+    labels2, planes2, regions = sldepth.explain_planes(depth, kinect)
+    assert np.array_equal(labels, labels2)
+    assert [p.pixels for p in planes] == [p.pixels for p in planes2]
+    assert regions == []
+    # A LoG test stricter than the simulated noise: no plane, and the LoG is the reason.
+    _, planes, regions = sldepth.explain_planes(
+        depth, kinect, log_threshold_px=0.02, log_sigma_px=2.0
+    )
+    assert planes == [] and len(regions) == 1
+    r = regions[0]
+    assert r.reason == "NotPlanarLog" and "LoG" in r.why
+    assert r.log_rejected_fraction > 0.5
+    assert r.pixels > 0.99 * depth.size and r.bbox_px == (0, 0, 639, 479)
+    # A flat wall with too large a minimum plane: one plane fits it, but no seed was big enough.
+    wall = np.full((480, 640), 2.0, dtype=np.float32)
+    _, planes, regions = sldepth.explain_planes(
+        wall, kinect, min_pixels=400_000, min_region_pixels=1000
+    )
+    assert planes == [] and [r.reason for r in regions] == ["Unseeded"]
+    assert regions[0].pixels == wall.size and regions[0].rms_px < 1e-3
+    # With the default min_region_pixels (= min_pixels) the region is too small to report.
+    assert sldepth.explain_planes(wall, kinect, min_pixels=400_000)[2] == []
+    with pytest.raises(ValueError, match="log_sigma_px"):
+        sldepth.explain_planes(depth, kinect, log_sigma_px=-1.0)
+    with pytest.raises(ValueError, match="threshold_px"):
+        sldepth.extract_planes(depth, kinect, log_threshold_px=float("nan"))
+
+
 def test_planes_of_a_decimated_frame_are_those_of_the_full_one(kinect, three_planes):
     # A QVGA stream of the VGA sensor: extracted on the sensor's grid, so the same planes.
     depth = three_planes[0]

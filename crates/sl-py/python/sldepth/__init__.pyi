@@ -228,11 +228,40 @@ def extract_planes(
     *,
     threshold_px: Optional[float] = None,
     min_pixels: Optional[int] = None,
+    log_threshold_px: Optional[float] = None,
+    log_sigma_px: Optional[float] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
     """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
     from its sensor by a whole factor (Camera.resampled(0.5)) is extracted on the sensor's
-    grid; min_pixels (default 1000) counts the sensor's pixels."""
+    grid; min_pixels (default 1000) counts the sensor's pixels. threshold_px (0.5): the
+    residual threshold tau; log_threshold_px (0.1) and log_sigma_px (2): the LoG planarity
+    test's threshold and scale; all in disparity pixels."""
+
+class UnlabelledRegion:
+    pixels: int
+    bbox_px: Tuple[int, int, int, int]
+    reason: str
+    """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces" or "Unseeded"."""
+    why: str
+    log_rejected_fraction: float
+    residual_rejected_fraction: float
+    rms_px: Optional[float]
+
+def explain_planes(
+    depth: _Depth,
+    camera: Optional[Camera] = None,
+    *,
+    threshold_px: Optional[float] = None,
+    min_pixels: Optional[int] = None,
+    log_threshold_px: Optional[float] = None,
+    log_sigma_px: Optional[float] = None,
+    min_region_pixels: Optional[int] = None,
+    depth_scale: Optional[float] = None,
+) -> Tuple[npt.NDArray[np.uint16], List[Plane], List[UnlabelledRegion]]:
+    """extract_planes plus, for every region of valid depth of at least min_region_pixels
+    (default: min_pixels) that no plane took, largest first, the test that turned it down
+    (as `sldepth planes --explain`)."""
 
 class Motion:
     determined: bool
