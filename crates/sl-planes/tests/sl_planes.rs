@@ -400,13 +400,6 @@ fn frames_extracted_in_parallel_match_one_by_one() {
     }
 }
 
-/// One surface, one plane: in simulated room 1 (realistic noise, projector shadows) a box
-/// stands before the back wall, and the strip of wall beside the box's shadow is seeded as a
-/// component of its own. Its short lever arm leaves its slope uncertain: extrapolated over
-/// the whole wall it parts from the wall's fit by more than 2 px, yet one affine function
-/// explains both within the noise model (ΔRSS well inside χ²₃ at 99.9 %). The merge tests
-/// this, so the strip is not returned as a second plane of the wall (before: a 4,055-pixel
-/// plane tilted 8° from the wall, its pixels speckled along the box).
 /// Room `seed` of the room benchmark through its own camera, and its planes (defaults).
 fn extract_room(seed: u64) -> (sl_noise::sim::SimulatedFrame, sl_planes::PlaneSegmentation) {
     let room = sl_noise::sim::room_scene(seed).unwrap();
@@ -421,6 +414,13 @@ fn extract_room(seed: u64) -> (sl_noise::sim::SimulatedFrame, sl_planes::PlaneSe
     (frame, seg)
 }
 
+/// One surface, one plane: in simulated room 1 (realistic noise, projector shadows) a box
+/// stands before the back wall, and the strip of wall beside the box's shadow is seeded as a
+/// component of its own. Its short lever arm leaves its slope uncertain: extrapolated over
+/// the whole wall it parts from the wall's fit by more than 2 px, yet one affine function
+/// explains both within the noise model (ΔRSS well inside χ²₃ at 99.9 %). The merge tests
+/// this, so the strip is not returned as a second plane of the wall (before: a 4,055-pixel
+/// plane tilted 8° from the wall, its pixels speckled along the box).
 #[test]
 fn a_strip_beside_an_occluder_joins_its_wall() {
     let (frame, seg) = extract_room(1);
