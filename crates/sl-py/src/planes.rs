@@ -219,8 +219,14 @@ pub(crate) fn explain_planes<'py>(
         log_threshold_px,
         log_sigma_px,
     };
-    let min_region = min_region_pixels.unwrap_or(params.config()?.min_pixels);
-    run_extraction(py, depth, camera, params, depth_scale, Some(min_region))
+    run_extraction(
+        py,
+        depth,
+        camera,
+        params,
+        depth_scale,
+        Some(min_region_pixels),
+    )
 }
 
 /// Labels, planes and unlabelled regions, as `explain_planes` returns them.
@@ -230,18 +236,19 @@ type Explained<'py> = (
     Vec<PyUnlabelledRegion>,
 );
 
-/// The labels and planes of one extraction, and the unlabelled regions of at least
-/// `explain` pixels when given.
+/// The labels and planes of one extraction and, when `explain` is given, the unlabelled
+/// regions of at least that many pixels (`None` inside: the configuration's `min_pixels`).
 fn run_extraction<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     params: PlaneParams,
     depth_scale: Option<f64>,
-    explain: Option<usize>,
+    explain: Option<Option<usize>>,
 ) -> PyResult<Explained<'py>> {
     let camera = camera_or_default(camera);
     let config = params.config()?;
+    let explain = explain.map(|min| min.unwrap_or(config.min_pixels));
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
     check_camera(&view, &camera)?;
