@@ -120,6 +120,17 @@ impl AffineSums {
         )
     }
 
+    /// The slopes' information matrix for unit noise variance, `[Sxx, Sxy, Syy]` (the sums of
+    /// centred squares): a fit's slopes `(a, b)` have covariance `σ²·S⁻¹` for independent
+    /// samples of variance `σ²`.
+    pub(crate) fn slope_information(&self) -> [f64; 3] {
+        if self.n <= 0.0 {
+            return [0.0; 3];
+        }
+        let ([cxx, cxy, cyy, ..], _) = self.centred();
+        [cxx * self.n, cxy * self.n, cyy * self.n]
+    }
+
     /// The least-squares affine fit; `None` for fewer than 3 samples or collinear pixels.
     pub fn solve(&self) -> Option<DisparityAffine> {
         if self.n < 3.0 {

@@ -11,7 +11,8 @@
 //!   patches of planar 4×4-pixel cells, merged while a χ² test from the noise model (σ_D, 1/q,
 //!   the correlation of the disparity error) accepts one plane → k-means refinement on the cells with merging
 //!   → growth over the connected cells each plane explains within the noise → coplanar pieces
-//!   with free space between them split → per-pixel assignment with neighbour disambiguation → label image + [`PlaneInfo`] (3D
+//!   with free space between them split → per-pixel assignment with neighbour disambiguation →
+//!   adjacent pieces of one surface bent by the sensor's distortion joined → label image + [`PlaneInfo`] (3D
 //!   normal/offset, disparity-affine coefficients, RMS in px and m). About 3 ms per 640×480
 //!   frame on one core; reuse one extractor for a video ([`PlaneExtractor::stage_times`] gives
 //!   the time per stage).

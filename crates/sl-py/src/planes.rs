@@ -102,6 +102,7 @@ struct PlaneParams {
     min_pixels: Option<usize>,
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
+    bend_px_per_px2: Option<f64>,
 }
 
 impl PlaneParams {
@@ -111,6 +112,7 @@ impl PlaneParams {
         c.min_pixels = self.min_pixels.unwrap_or(c.min_pixels);
         c.log_threshold_px = self.log_threshold_px.unwrap_or(c.log_threshold_px);
         c.log_sigma_px = self.log_sigma_px.unwrap_or(c.log_sigma_px);
+        c.bend_px_per_px2 = self.bend_px_per_px2.unwrap_or(c.bend_px_per_px2);
         c.validate().map_err(value_error)?;
         Ok(c)
     }
@@ -170,9 +172,12 @@ impl From<&RegionExplanation> for PyUnlabelledRegion {
 /// extracted on the sensor's grid and give the planes of the full frame; ``min_pixels``
 /// (default 1000) counts the sensor's pixels. ``threshold_px`` (0.5) is the residual
 /// threshold τ, ``log_threshold_px`` (0.1) and ``log_sigma_px`` (2) the LoG planarity test's
-/// threshold and scale, all in disparity pixels (``sldepth planes`` has the same options).
+/// threshold and scale, all in disparity pixels; ``bend_px_per_px2`` (7.7e-5) the largest
+/// curvature of a surface's disparity the sensor's distortion makes: adjacent planes whose
+/// slopes agree at their border and whose fits differ by no more than this bend allows are one
+/// surface and take one label (0 = never). ``sldepth planes`` has the same options.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn extract_planes<'py>(
     py: Python<'py>,
@@ -182,6 +187,7 @@ pub(crate) fn extract_planes<'py>(
     min_pixels: Option<usize>,
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
+    bend_px_per_px2: Option<f64>,
     depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
     let params = PlaneParams {
@@ -189,6 +195,7 @@ pub(crate) fn extract_planes<'py>(
         min_pixels,
         log_threshold_px,
         log_sigma_px,
+        bend_px_per_px2,
     };
     let (labels, planes, _) = run_extraction(py, depth, camera, params, depth_scale, None)?;
     Ok((labels, planes))
@@ -200,7 +207,7 @@ pub(crate) fn extract_planes<'py>(
 /// ``min_pixels``), largest first. Read from the extraction's own buffers, at no second
 /// extraction.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, min_region_pixels = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, min_region_pixels = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn explain_planes<'py>(
     py: Python<'py>,
@@ -210,6 +217,7 @@ pub(crate) fn explain_planes<'py>(
     min_pixels: Option<usize>,
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
+    bend_px_per_px2: Option<f64>,
     min_region_pixels: Option<usize>,
     depth_scale: Option<f64>,
 ) -> PyResult<Explained<'py>> {
@@ -218,6 +226,7 @@ pub(crate) fn explain_planes<'py>(
         min_pixels,
         log_threshold_px,
         log_sigma_px,
+        bend_px_per_px2,
     };
     run_extraction(
         py,

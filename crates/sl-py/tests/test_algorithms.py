@@ -128,6 +128,24 @@ def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
         sldepth.extract_planes(depth, kinect, log_threshold_px=float("nan"))
 
 
+def test_a_wall_bent_by_the_sensor_is_one_plane(kinect):
+    # A wall 2 m away whose disparity the sensor bends into a bowl, 1.5 px higher at the
+    # corners (the Kinect's low-frequency distortion): not affine within tau over the frame.
+    h, w = 480, 640
+    y, x = np.mgrid[0:h, 0:w].astype(np.float64)
+    r2 = ((x - 319.5) ** 2 + (y - 239.5) ** 2) / (319.5**2 + 239.5**2)
+    disparity = kinect.fb / 2.0 + 1.5 * r2
+    depth = (kinect.fb / disparity).astype(np.float32)
+    # Without the join its corners are planes of their own; with it (the default), one plane.
+    _, pieces = sldepth.extract_planes(depth, kinect, bend_px_per_px2=0.0)
+    assert len(pieces) >= 2
+    labels, planes = sldepth.extract_planes(depth, kinect)
+    assert len(planes) == 1
+    assert planes[0].pixels == sum(p.pixels for p in pieces) == int((labels == 1).sum())
+    with pytest.raises(ValueError, match="bend_px_per_px2"):
+        sldepth.extract_planes(depth, kinect, bend_px_per_px2=-1.0)
+
+
 def test_planes_of_a_decimated_frame_are_those_of_the_full_one(kinect, three_planes):
     # A QVGA stream of the VGA sensor: extracted on the sensor's grid, so the same planes.
     depth = three_planes[0]

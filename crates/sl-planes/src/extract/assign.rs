@@ -213,9 +213,18 @@ impl PlaneExtractor {
         mut labels: Vec<u16>,
     ) -> Result<PlaneSegmentation> {
         let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
+        // Pieces of bent surfaces (`bend`): a joined piece's pixels take its root's label.
+        let joined = self.joined_into.len() == self.final_sums.len();
+        let root = |pi: usize| {
+            if joined {
+                self.joined_into[pi] as usize
+            } else {
+                pi
+            }
+        };
         for (pi, a) in self.final_sums.iter().enumerate() {
             let n = a.sums.n;
-            if a.pixels < self.cfg.min_pixels || n < 3.0 {
+            if root(pi) != pi || a.pixels < self.cfg.min_pixels || n < 3.0 {
                 continue;
             }
             let Some(f) = a.sums.solve() else { continue };
@@ -260,6 +269,12 @@ impl PlaneExtractor {
         for (new, (old, info)) in out.iter_mut().enumerate() {
             info.id = new as u16 + 1;
             self.relabel_lut[*old + 1] = info.id;
+        }
+        for pi in 0..self.final_sums.len() {
+            let r = root(pi);
+            if r != pi {
+                self.relabel_lut[pi + 1] = self.relabel_lut[r + 1];
+            }
         }
         // Relabel only the rows of the planes whose id changes.
         let (mut y0, mut y1) = (usize::MAX, 0);

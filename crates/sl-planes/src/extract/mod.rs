@@ -52,6 +52,10 @@
 //!    two planes take the label that dominates their 8-neighbourhood. The planes are refitted on
 //!    the labelled pixels of every fourth row (which also gives the RMS residual in pixels; the
 //!    centroid and the RMS in metres come from every eighth row); pixel counts are exact.
+//! 4. **Pieces of bent surfaces** (`bend`): adjacent planes whose functions meet along their
+//!    border, whose slopes at the border agree within the noise and whose whole fits differ by
+//!    no more than the sensor's distortion bends a surface (`bend_px_per_px2`) take the label
+//!    of the largest piece, whose fit stays the plane.
 //!
 //! Everything after the disparity conversion works on the disparity, so the threshold means the
 //! same at 0.6 m and at 4 m: the noise of a structured-light camera is constant in disparity.
@@ -115,6 +119,14 @@ pub struct PlaneConfig {
     pub noise_window_x_px: f64,
     /// Height of that window, pixels.
     pub noise_window_y_px: f64,
+    /// Largest curvature of one surface's disparity that the sensor's low-frequency distortion
+    /// makes, px/px² at a focal length of 585 px (scaled as `585/f` for other cameras).
+    /// Adjacent planes whose affine functions meet along their border and whose slopes differ
+    /// by no more than this curvature times the distance between their centroids are pieces
+    /// of one bent surface and are joined into one plane (the `bend` stage; 0 = never). The
+    /// default, 7.7·10⁻⁵, is the largest curvature measured on the real planes of ≥ 40,000
+    /// pixels of TUM fr1 and 7-Scenes frames (docs/bench/README.md, session 12).
+    pub bend_px_per_px2: f64,
 }
 
 impl Default for PlaneConfig {
@@ -129,6 +141,7 @@ impl Default for PlaneConfig {
             min_piece_pixels: 256,
             noise_window_x_px: 9.0,
             noise_window_y_px: 11.0,
+            bend_px_per_px2: 7.7e-5,
         }
     }
 }
@@ -158,6 +171,12 @@ impl PlaneConfig {
                     "{name} = {v} must be in [1, 64]"
                 )));
             }
+        }
+        if !(self.bend_px_per_px2.is_finite() && self.bend_px_per_px2 >= 0.0) {
+            return Err(PlanesError::InvalidConfig(format!(
+                "bend_px_per_px2 = {} must be finite and at least 0",
+                self.bend_px_per_px2
+            )));
         }
         if self.log_sigma_px > 16.0 {
             return Err(PlanesError::InvalidConfig(format!(
@@ -392,6 +411,24 @@ pub struct PlaneExtractor {
     patch_box: Vec<[u32; 4]>,
     /// Label lookup table for renumbering (old label → new label).
     relabel_lut: Vec<u16>,
+    /// Per plane of the final pass: the plane its pixels belong to after the pieces of bent
+    /// surfaces are joined (`bend`; itself when not joined).
+    joined_into: Vec<u16>,
+    /// Per plane of the final pass: its fit and pixel centroid (`bend`).
+    join_fits: Vec<Option<(DisparityAffine, f64, f64)>>,
+    /// Borders between cells of two planes (`bend`).
+    join_seams: Vec<bend::Seam>,
+    /// The same grouped by pair (scratch of the counting sort).
+    join_seams_by_pair: Vec<bend::Seam>,
+    /// Per pair of planes `a·n + b`: where its borders start in `join_seams` (counting sort).
+    join_pair_start: Vec<u32>,
+    /// Pairs of planes that may be pieces of one bent surface: `(slope turn per pixel, a, b,
+    /// their borders in `join_seams`)`.
+    join_pairs: Vec<(f64, u16, u16, std::ops::Range<usize>)>,
+    /// Per cell: the stamp of the last border strip that took it (`bend`).
+    join_mark: Vec<u32>,
+    /// The current stamp of `join_mark`.
+    join_stamp: u32,
     /// Noise of a cell's mean disparity (from the sensor model and the configuration).
     noise: CellNoise,
     /// Per patch (then per set of patches): moments of its planar cells.
@@ -683,6 +720,10 @@ impl PlaneExtractor {
             self.times.add(Stage::FinalPass, &mut t0);
             self.resolve_ambiguous(d, w, h, &mut labels);
             self.times.add(Stage::Disambiguate, &mut t0);
+            self.join_bent_pieces(wq, hq, k.fx, f64::from(tau));
+            self.times.add(Stage::Merge, &mut t0);
+        } else {
+            self.joined_into.clear();
         }
         labels.resize(w * h, 0);
         let out = self.finish(w, h, k, fb, labels);
@@ -692,6 +733,7 @@ impl PlaneExtractor {
 }
 
 mod assign;
+mod bend;
 mod decimated;
 mod explain;
 mod final_band;

@@ -16,7 +16,8 @@ pub enum Stage {
     Components,
     /// Per-component robust affine fits.
     SeedFits,
-    /// Merging of close planes and renumbering.
+    /// Merging of close planes and renumbering, and the joining of the pieces of bent surfaces
+    /// after the final pass.
     Merge,
     /// k-means assignment passes on the cells (searches, sums, refits).
     Refine,

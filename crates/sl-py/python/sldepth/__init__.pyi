@@ -230,13 +230,17 @@ def extract_planes(
     min_pixels: Optional[int] = None,
     log_threshold_px: Optional[float] = None,
     log_sigma_px: Optional[float] = None,
+    bend_px_per_px2: Optional[float] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
     """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
     from its sensor by a whole factor (Camera.resampled(0.5)) is extracted on the sensor's
     grid; min_pixels (default 1000) counts the sensor's pixels. threshold_px (0.5): the
     residual threshold tau; log_threshold_px (0.1) and log_sigma_px (2): the LoG planarity
-    test's threshold and scale; all in disparity pixels."""
+    test's threshold and scale; all in disparity pixels. bend_px_per_px2 (7.7e-5, px/px² at
+    f = 585 px): the largest curvature of a surface's disparity the sensor's distortion makes;
+    adjacent planes whose slopes agree at their border and whose fits differ by no more than
+    this bend allows take one label (0 = never)."""
 
 class UnlabelledRegion:
     pixels: int
@@ -256,6 +260,7 @@ def explain_planes(
     min_pixels: Optional[int] = None,
     log_threshold_px: Optional[float] = None,
     log_sigma_px: Optional[float] = None,
+    bend_px_per_px2: Optional[float] = None,
     min_region_pixels: Optional[int] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane], List[UnlabelledRegion]]:

@@ -54,6 +54,12 @@ pub struct Args {
     /// LoG scale, pixels (disparity method).
     #[arg(long, default_value_t = PlaneConfig::default().log_sigma_px)]
     pub log_sigma_px: f64,
+    /// Largest curvature of one surface's disparity that the sensor's low-frequency distortion
+    /// makes, px/px² at f = 585 px (disparity method): adjacent planes whose slopes agree at
+    /// their border and whose fits differ by no more than this bend allows are joined into one
+    /// (0 = never).
+    #[arg(long, default_value_t = PlaneConfig::default().bend_px_per_px2)]
+    pub bend_px_per_px2: f64,
     /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,
     /// extracted on its grid, count n² per pixel).
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
@@ -76,6 +82,7 @@ pub fn run(args: Args) -> Result<()> {
     check_range("--log-threshold-px", args.log_threshold_px, 0.0..=1e3)?;
     check_range("--log-sigma-px", args.log_sigma_px, 0.0..=1e3)?;
     check_range("--threshold-m", args.threshold_m, 1e-9..=1e3)?;
+    check_range("--bend-px-per-px2", args.bend_px_per_px2, 0.0..=1.0)?;
     let loaded = load_depth(&args.depth, &args.input)?;
     let camera = loaded.camera;
     let mut explained = Vec::new();
@@ -86,6 +93,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg.log_threshold_px = args.log_threshold_px;
             cfg.log_sigma_px = args.log_sigma_px;
             cfg.min_pixels = args.min_pixels;
+            cfg.bend_px_per_px2 = args.bend_px_per_px2;
             let mut ex = PlaneExtractor::new(cfg)?;
             let out = if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
