@@ -26,13 +26,14 @@ pub struct PyPlane {
     offset_m: f64,
     /// Disparity as an affine function of the pixel, ``d = a·x + b·y + c`` (pixels).
     disparity_affine: (f64, f64, f64),
-    /// Number of pixels.
+    /// Number of pixels with this label.
     pixels: usize,
-    /// RMS disparity residual, pixels.
+    /// RMS disparity residual of the pixels the plane was fitted on (a surface's bent pieces
+    /// joined to it take its label but not its fit), pixels.
     rms_px: f64,
-    /// RMS distance of the pixels' points from the plane, metres.
+    /// RMS distance of those pixels' points from the plane, metres.
     rms_m: f64,
-    /// Centroid of the pixels' points, metres.
+    /// Centroid of those pixels' points, metres.
     centroid_m: (f64, f64, f64),
 }
 

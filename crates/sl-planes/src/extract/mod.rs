@@ -198,17 +198,19 @@ impl PlaneConfig {
 pub struct PlaneInfo {
     /// Label in the label image (1-based; planes are sorted by decreasing size).
     pub id: u16,
-    /// The 3D plane in camera coordinates.
+    /// The 3D plane in camera coordinates: the fit of the pixels within `τ` of it (for a
+    /// surface whose bent pieces were joined, see [`PlaneConfig::bend_px_per_px2`], of its
+    /// largest piece).
     pub plane: Plane,
     /// The disparity function `D = a·x + b·y + c` of the plane.
     pub affine: DisparityAffine,
-    /// Number of pixels with this label.
+    /// Number of pixels with this label (the joined pieces' included).
     pub pixels: usize,
-    /// RMS disparity residual of the labelled pixels, pixels.
+    /// RMS disparity residual of the pixels the plane was fitted on, pixels.
     pub rms_px: f64,
-    /// RMS point-to-plane distance of the labelled pixels, metres.
+    /// RMS point-to-plane distance of the pixels the plane was fitted on, metres.
     pub rms_m: f64,
-    /// Centroid of the labelled points, camera coordinates, metres.
+    /// Centroid of the points the plane was fitted on, camera coordinates, metres.
     pub centroid_m: Point3<f64>,
 }
 
