@@ -18,9 +18,10 @@
 //!   turn between the two strips (`κ` times their distance) is taken off the difference; and
 //!   the strips must be long and quiet enough for that test to see a crease at their depth
 //!   (two surfaces meeting at a right angle at depth `Z` turn the slope by about
-//!   `B/Z = D/f`). A border of a few cells far away proves nothing and joins nothing. A crease between two surfaces — the floor and a wall, two
-//!   walls meeting in a far corner — turns the slope at the border by `B·|Δ(n/d)|` (0.015
-//!   px/px for two walls 5 m away), and is kept;
+//!   `B/Z = D/f`): a border of a few cells far away proves nothing and joins nothing. A crease
+//!   between two surfaces — the floor and a wall, two walls meeting in a far corner — turns
+//!   the slope at the border by `B·|Δ(n/d)|` (0.015 px/px for two walls 5 m away), and is
+//!   kept;
 //! - the turn between the pieces' whole fits is no more than the distortion can make between
 //!   their centroids, `|∇f_a − ∇f_b| ≤ κ·|c_a − c_b|` (for a quadratic bend of largest
 //!   curvature `κ` a piece's least-squares slope is the bend's gradient at its centroid), with
@@ -58,6 +59,15 @@ const MAX_COUNTING_PLANES: usize = 256;
 
 /// The 99.9 % quantile of χ² with 2 degrees of freedom.
 const CHI2_2_999: f64 = 13.816;
+
+/// The full-resolution pixel coordinates of the centre of cell `k` of a grid `wq` cells wide:
+/// cell `(i, j)` is centred on pixel `(4i + 1.5, 4j + 1.5)` (as for `cell_to_full`).
+fn cell_centre_px(k: usize, wq: usize) -> (f64, f64) {
+    (
+        (CELL * (k % wq)) as f64 + 1.5,
+        (CELL * (k / wq)) as f64 + 1.5,
+    )
+}
 
 /// One border between 4-neighbouring cells of two planes: the planes' indices (lower first),
 /// the cell of each, and the gap between their affine functions there.
@@ -180,33 +190,21 @@ impl PlaneExtractor {
             let (Some((fa, ..)), Some((fb, ..))) = (fit(a), fit(b)) else {
                 return;
             };
-            // Cell k is centred on pixel (4i + 1.5, 4j + 1.5); the border is halfway.
-            let centre = |k: usize| {
-                (
-                    (CELL * (k % wq)) as f64 + 1.5,
-                    (CELL * (k / wq)) as f64 + 1.5,
-                )
-            };
-            let ((xa, ya), (xb, yb)) = (centre(ca), centre(cb));
+            // The border is halfway between the two cells' centres.
+            let ((xa, ya), (xb, yb)) = (cell_centre_px(ca, wq), cell_centre_px(cb, wq));
             let (x, y) = ((xa + xb) / 2.0, (ya + yb) / 2.0);
             let gap_px = (fa.eval(x, y) - fb.eval(x, y)).abs() as f32;
-            let (ca, cb) = (ca as u32, cb as u32);
-            seams.push(if a < b {
-                Seam {
-                    a: a - 1,
-                    b: b - 1,
-                    cell_a: ca,
-                    cell_b: cb,
-                    gap_px,
-                }
+            let (a, b, ca, cb) = if a < b {
+                (a, b, ca, cb)
             } else {
-                Seam {
-                    a: b - 1,
-                    b: a - 1,
-                    cell_a: cb,
-                    cell_b: ca,
-                    gap_px,
-                }
+                (b, a, cb, ca)
+            };
+            seams.push(Seam {
+                a: a - 1,
+                b: b - 1,
+                cell_a: ca as u32,
+                cell_b: cb as u32,
+                gap_px,
             });
         };
         // Pairs (k, k + step) for k in `from..to`, 16 at a time: a chunk with no two different
@@ -297,8 +295,7 @@ impl PlaneExtractor {
                         mark[k] = stamp;
                         let d = f64::from(cd[k]);
                         if d.is_finite() {
-                            let x = (CELL * (k - j * wq)) as f64 + 1.5;
-                            let y = (CELL * j) as f64 + 1.5;
+                            let (x, y) = cell_centre_px(k, wq);
                             sums[side].add(x, y, d);
                         }
                     }

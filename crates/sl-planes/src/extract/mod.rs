@@ -121,9 +121,10 @@ pub struct PlaneConfig {
     pub noise_window_y_px: f64,
     /// Largest curvature of one surface's disparity that the sensor's low-frequency distortion
     /// makes, px/px² at a focal length of 585 px (scaled as `585/f` for other cameras).
-    /// Adjacent planes whose affine functions meet along their border and whose slopes differ
-    /// by no more than this curvature times the distance between their centroids are pieces
-    /// of one bent surface and are joined into one plane (the `bend` stage; 0 = never). The
+    /// Adjacent planes whose affine functions meet along their border, whose slopes at the
+    /// border agree within the noise once this bend is allowed for, and whose whole fits'
+    /// slopes differ by no more than this curvature times the distance between their centroids
+    /// are pieces of one bent surface and take one label (the `bend` stage; 0 = never). The
     /// default, 7.7·10⁻⁵, is the largest curvature measured on the real planes of ≥ 40,000
     /// pixels of TUM fr1 and 7-Scenes frames (docs/bench/README.md, session 12).
     pub bend_px_per_px2: f64,

@@ -363,7 +363,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
              its affine fit at the corners, which seed planes of their own; adjacent planes whose \
              slopes agree at their border within the noise and whose whole fits differ by no \
              more than the bend allows (`PlaneConfig::bend_px_per_px2`, the `bend` stage) take \
-             one label (session 31: spurious 29 / 137 → 21 / 45). A bent surface's rim also went \
+             one label (session 31: spurious 29 / 137 → 21 / 44). A bent surface's rim also went \
              to the neighbour across a far crease in the scenes looked at (seed 186).\n\n\
              | distortion a | method | GT planes | correct | over | under | missed | noise | \
              spurious ≥ {ROOM_MIN_PIXELS} px | worst ms |\n|---|---|---|---|---|---|---|---|---|---|",
