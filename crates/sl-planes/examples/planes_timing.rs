@@ -3,8 +3,9 @@
 //!
 //! * `cargo run --release -p sl-planes --example planes_timing -- time [ITERATIONS] [FILTER]`:
 //!   min and median milliseconds per frame and the median per stage (one frame per source).
-//! * `… -- sweep [ITERATIONS]`: min/median over many frames of each source (all TUM and
-//!   7-Scenes frames, NYU raw, the Open3D and PCL frames, the simulated scenes).
+//! * `… -- sweep [ITERATIONS] [ROUNDS]`: min/median per frame over many frames of each source
+//!   (all TUM and 7-Scenes frames, NYU raw, the Open3D and PCL frames, the simulated scenes),
+//!   and the slowest frame; `ROUNDS` passes over all frames, `ITERATIONS` runs each.
 //! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of those frames to `DIR`,
 //!   or compares the current labels with them (pixel agreement after matching planes by
 //!   overlap): a check that an optimisation did not change the segmentation.
@@ -73,29 +74,40 @@ fn time(iters: usize, filter: &str) {
     }
 }
 
-fn sweep(iters: usize) {
-    let mut by_source: HashMap<String, (Vec<u64>, Vec<u64>)> = HashMap::new();
+fn sweep(iters: usize, rounds: usize) {
     let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
-    for (name, input, cam) in load(50) {
-        let source = name.split('/').next().unwrap().to_string();
-        let mut t = Vec::with_capacity(iters);
-        for _ in 0..iters {
-            let t0 = std::time::Instant::now();
-            std::hint::black_box(run(&mut ex, &input, &cam));
-            t.push(t0.elapsed().as_nanos() as u64);
+    let inputs = load(50);
+    // Per frame: every run's time. Rounds visit all frames in turn, so a slow spell of a shared
+    // machine falls on a few runs of many frames, not on every run of one frame.
+    let mut times: Vec<Vec<u64>> = vec![Vec::with_capacity(iters * rounds); inputs.len()];
+    for _ in 0..rounds.max(1) {
+        for ((_, input, cam), t) in inputs.iter().zip(&mut times) {
+            for _ in 0..iters {
+                let t0 = std::time::Instant::now();
+                std::hint::black_box(run(&mut ex, input, cam));
+                t.push(t0.elapsed().as_nanos() as u64);
+            }
         }
+    }
+    let mut by_source: HashMap<String, (Vec<u64>, Vec<u64>, String)> = HashMap::new();
+    for ((name, _, _), t) in inputs.iter().zip(&mut times) {
+        let source = name.split('/').next().unwrap().to_string();
         let e = by_source.entry(source).or_default();
-        e.0.push(*t.iter().min().unwrap());
-        e.1.push((median(&mut t) * 1e6) as u64);
+        let min = *t.iter().min().unwrap();
+        if e.0.iter().all(|&m| m < min) {
+            e.2 = name.clone();
+        }
+        e.0.push(min);
+        e.1.push((median(t) * 1e6) as u64);
     }
     let mut keys: Vec<_> = by_source.keys().cloned().collect();
     keys.sort();
     for k in keys {
-        let (mins, meds) = by_source.get_mut(&k).unwrap();
+        let (mins, meds, worst_name) = by_source.get_mut(&k).unwrap();
         let n = mins.len();
         let worst = *mins.iter().max().unwrap() as f64 / 1e6;
         println!(
-            "{k:<14} {n:>3} frames: per-frame min: median {:.3} ms, worst {worst:.3} ms; per-frame median: median {:.3} ms",
+            "{k:<14} {n:>3} frames: per-frame min: median {:.3} ms, worst {worst:.3} ms ({worst_name}); per-frame median: median {:.3} ms",
             median(mins),
             median(meds)
         );
@@ -300,7 +312,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let arg = |i: usize| args.get(i).cloned().unwrap_or_default();
     match arg(0).as_str() {
-        "sweep" => sweep(arg(1).parse().unwrap_or(5)),
+        "sweep" => sweep(arg(1).parse().unwrap_or(5), arg(2).parse().unwrap_or(1)),
         "dump" => dump(&PathBuf::from(arg(1))),
         "compare" => compare(&PathBuf::from(arg(1))),
         "view" => view(&PathBuf::from(arg(1)), &PathBuf::from(arg(2)), &arg(3)),
