@@ -29,51 +29,41 @@ pub(super) fn run_end(row: &[u16], i: usize) -> usize {
         .map_or(row.len(), |n| base + n)
 }
 
-/// Replaces every label `l` by `lut[l]` (0 beyond the table): when few labels change, 8 labels
-/// at a time are compared with each of them and blended with its new value (a chunk equal to
-/// the previous one reuses its result). Callers' labels are all within the table.
+/// Replaces every label `l` by `lut[l]` (0 beyond the table), 8 labels (16 bytes) at a time:
+/// a chunk equal to the previous one reuses its result (runs inside a plane), a chunk of one
+/// label takes one lookup, and only the mixed chunks (plane borders, holes) look up every
+/// label.
 pub(super) fn relabel(labels: &mut [u16], lut: &[u16]) {
-    let mut changed = [0i16; 16];
-    let mut nc = 0;
-    for (l, &v) in lut.iter().enumerate() {
-        if v as usize != l {
-            if nc == changed.len() {
-                remap(labels, lut);
-                return;
-            }
-            changed[nc] = l as i16;
-            nc += 1;
+    // A chunk's 8 labels are one `u128` (native byte order: each 16-bit lane is one label);
+    // `ONES` spreads one label over all lanes.
+    const ONES: u128 = 0x0001_0001_0001_0001_0001_0001_0001_0001;
+    let look = |l: u16| lut.get(l as usize).copied().unwrap_or(0);
+    let map = |v: u128| -> u128 {
+        if v == v.rotate_left(16) {
+            u128::from(look(v as u16)) * ONES
+        } else {
+            (0..LANES).fold(0, |m, i| {
+                m | (u128::from(look((v >> (16 * i)) as u16)) << (16 * i))
+            })
         }
-    }
-    let from = changed.map(i16x8::splat);
-    let to = changed.map(|l| i16x8::splat(lut.get(l as u16 as usize).copied().unwrap_or(0) as i16));
-    let map = |v: i16x8| {
-        from[..nc]
-            .iter()
-            .zip(&to[..nc])
-            .fold(v, |r, (&f, &t)| v.cmp_eq(f).blend(t, r))
     };
-    // Runs of equal chunks (inside a plane) reuse the previous chunk's result.
-    let (mut prev_v, mut prev_r) = (i16x8::ZERO, map(i16x8::ZERO));
-    let mut ch = labels.chunks_exact_mut(LANES);
+    let (mut prev_in, mut prev_out) = (0u128, map(0));
+    let bytes: &mut [u8] = bytemuck::cast_slice_mut(labels);
+    let mut ch = bytes.chunks_exact_mut(2 * LANES);
     for c in &mut ch {
-        let Ok(c8) = <&mut [u16; LANES]>::try_from(c) else {
+        let Ok(c16) = <&mut [u8; 2 * LANES]>::try_from(c) else {
             continue;
         };
-        let v = i16x8::from(c8.map(|l| l as i16));
-        if v.cmp_eq(prev_v).move_mask() & 0xff != 0xff {
-            prev_v = v;
-            prev_r = map(v);
+        let v = u128::from_ne_bytes(*c16);
+        if v != prev_in {
+            prev_in = v;
+            prev_out = map(v);
         }
-        *c8 = prev_r.to_array().map(|l| l as u16);
+        *c16 = prev_out.to_ne_bytes();
     }
-    remap(ch.into_remainder(), lut);
-}
-
-/// Replaces every label `l` by `lut[l]` (0 beyond the table).
-pub(super) fn remap(labels: &mut [u16], lut: &[u16]) {
-    for l in labels.iter_mut() {
-        *l = lut.get(*l as usize).copied().unwrap_or(0);
+    for l in ch.into_remainder().chunks_exact_mut(2) {
+        let v = look(u16::from_ne_bytes([l[0], l[1]]));
+        l.copy_from_slice(&v.to_ne_bytes());
     }
 }
 

@@ -261,3 +261,31 @@ fn strips_along_the_border_and_between_holes_are_planes() {
         );
     }
 }
+
+/// `relabel` against its definition (`lut[l]`, 0 beyond the table) on runs, mixed chunks,
+/// labels beyond the table and lengths that are not a whole number of chunks.
+#[test]
+fn relabel_matches_a_lookup_per_label() {
+    let mut state = 777u32;
+    let mut next = |m: u32| {
+        state = state.wrapping_mul(1_103_515_245).wrapping_add(12345);
+        (state >> 16) % m
+    };
+    for n in [0usize, 1, 7, 8, 9, 64, 203] {
+        for _ in 0..40 {
+            let lut: Vec<u16> = (0..next(20) as usize).map(|_| next(20) as u16).collect();
+            // Runs of random length, so that chunks repeat, are uniform or mixed.
+            let mut labels = Vec::with_capacity(n);
+            while labels.len() < n {
+                let (l, len) = (next(24) as u16, 1 + next(20) as usize);
+                labels.extend(std::iter::repeat_n(l, len.min(n - labels.len())));
+            }
+            let want: Vec<u16> = labels
+                .iter()
+                .map(|&l| lut.get(l as usize).copied().unwrap_or(0))
+                .collect();
+            relabel(&mut labels, &lut);
+            assert_eq!(labels, want);
+        }
+    }
+}
