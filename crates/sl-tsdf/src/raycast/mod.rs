@@ -203,12 +203,14 @@ impl TsdfVolume {
 
     /// [`TsdfVolume::raycast_into`] with a hint of where the surface is: `hint` (the size of
     /// `k`) holds, per pixel, a depth at which a frame fused from this `pose` saw the nearest
-    /// surface (0 = no hint), e.g. the frame just integrated. A hinted ray starts at
-    /// `hint − band(hint) − 2 voxels` instead of the near end of its range: the fused surface
-    /// lies within the frame's band (3σ_Z) of the frame's measurement, plus the model's own,
-    /// smaller error, so the march through the empty space before it — most of a ray's
-    /// samples — is skipped. A ray whose first observed sample is behind a surface, or that
-    /// finds nothing, is marched again over its whole range. What differs from the plain
+    /// surface (0 = no hint), e.g. the frame just integrated. A hinted ray's first sample is
+    /// at the hint itself: the fused surface lies within the frame's band (3σ_Z) of the
+    /// frame's measurement, plus the model's own, smaller error, so the march through the
+    /// empty space before it — most of a ray's samples — is skipped. In front of the surface
+    /// there, the ray marches on from the hint; behind it, one sample nearer by its distance
+    /// brackets the crossing. Where neither settles it, the ray marches from
+    /// `hint − band(hint) − 2 voxels`; a ray whose first observed sample from there is behind
+    /// a surface, or that finds nothing, is marched again over its whole range. What differs from the plain
     /// raycast: a surface the model still holds in front of what the frame saw (a silhouette
     /// blurred by fusion, an object that has moved away) can be passed through for the one the
     /// frame saw; a hint more than a band behind the true surface can miss it. On 160×120
@@ -273,10 +275,10 @@ impl TsdfVolume {
                     let hinted = hint
                         .and_then(|h| h.get(y * w + x))
                         .filter(|z| **z > 0.0)
-                        .map(|z| z - margin(*z))
-                        .filter(|s| *s > lo);
+                        .map(|&z| (z, z - margin(z)))
+                        .filter(|(_, s)| *s > lo);
                     match hinted {
-                        Some(s) => frame.ray(x, y, s, hi, true),
+                        Some((z, s)) => frame.hinted_ray(x, y, z, s, hi),
                         None => frame.ray(x, y, lo, hi, false),
                     }
                 };

@@ -659,12 +659,12 @@ fn rays_marched_together_give_what_each_gives_alone() {
                     .as_ref()
                     .and_then(|h| h.data().get(y * k.width + x))
                     .filter(|z| **z > 0.0)
-                    .map(|z| z - margin(*z))
-                    .filter(|s| *s > lo);
+                    .map(|&z| (z, z - margin(z)))
+                    .filter(|(_, s)| *s > lo);
                 let occ = &out.occupancy;
                 let alone = match start {
-                    Some(s) => frame
-                        .cast(&mut sampler, occ, x, y, s, hi, true)
+                    Some((z, s)) => frame
+                        .cast_ray(&mut sampler, occ, frame.hinted_ray(x, y, z, s, hi))
                         .or_else(|| {
                             gave_up += 1;
                             frame.cast(&mut sampler, occ, x, y, lo, hi, false)
