@@ -34,6 +34,7 @@
 //! border, where the rims are, and a fit of the union would tilt with how much of the rim is in
 //! view. Its pixel count is the union's.
 
+use super::patches::CHI2_2_999;
 use super::*;
 use crate::fit::AffineSums;
 
@@ -56,9 +57,6 @@ const MAX_BORDER_SAMPLES: usize = 32;
 /// Most planes for which the borders are grouped by pair with a counting sort (a table of
 /// `n²` counters).
 const MAX_COUNTING_PLANES: usize = 256;
-
-/// The 99.9 % quantile of χ² with 2 degrees of freedom.
-const CHI2_2_999: f64 = 13.816;
 
 /// The full-resolution pixel coordinates of the centre of cell `k` of a grid `wq` cells wide:
 /// cell `(i, j)` is centred on pixel `(4i + 1.5, 4j + 1.5)` (as for `cell_to_full`).

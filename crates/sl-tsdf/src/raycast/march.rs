@@ -199,10 +199,7 @@ impl RayFrame {
         let t = ray.t;
         match s.value(self.at(ray, t)) {
             Some(f) if f > 0.0 => {
-                ray.prev = Some((t, f));
-                ray.hinted = false;
-                let step_m = (self.step_fraction * f).max(self.min_step_m);
-                ray.t = t + step_m * ray.inv_len;
+                self.step_on(ray, t, f);
                 None
             }
             Some(f) => {
@@ -313,14 +310,21 @@ impl RayFrame {
                     let at = |t: f32| self.at(ray, t);
                     return Some(self.hit(s, &at, (tp, fp), (t, f), &ray.dir));
                 }
-                ray.prev = Some((t, f));
-                ray.hinted = false;
-                ray.fine = false;
-                let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
-                ray.t = t + step_m * ray.inv_len;
+                self.step_on(ray, t, f);
             }
         }
         None
+    }
+
+    /// After an observed sample `f` at depth `t` that is not a crossing: remember it and step
+    /// on by a fraction of its distance (at least the shortest step).
+    #[inline(always)]
+    fn step_on(&self, ray: &mut Ray, t: f32, f: f32) {
+        ray.prev = Some((t, f));
+        ray.hinted = false;
+        ray.fine = false;
+        let step_m = (self.step_fraction * f.abs()).max(self.min_step_m);
+        ray.t = t + step_m * ray.inv_len;
     }
 
     /// Refines the crossing bracketed by `(t0, f0 > 0)` and `(t1, f1 ≤ 0)` and reads the hit.
