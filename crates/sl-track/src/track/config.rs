@@ -89,7 +89,9 @@ pub struct TrackerConfig {
     pub min_inlier_fraction: f64,
     /// Tracking has failed when the smallest over the largest eigenvalue of the normal
     /// equations (rotation in metres at the scene's depth) is below this: the geometry does
-    /// not constrain all six degrees of freedom (a single plane, a corridor).
+    /// not constrain all six degrees of freedom (a single plane, a corridor). Not applied to an
+    /// alignment against the last frame with its planes' normals while
+    /// [`TrackerConfig::degenerate_check`] is on: that check decides from the sensor model.
     pub min_condition: f64,
     /// Tracking has failed when the final pose is further than this from where it started
     /// (the constant-velocity prediction), metres: a hand-held camera moving at up to

@@ -2,7 +2,8 @@
 //!
 //! Each frame is aligned to [`ReferenceMaps`] — a raycast of the fused model when the caller
 //! passes one ([`ModelReference`], or [`ReferenceMaps::from_model`] for a raycast of one's
-//! own), else the last well-tracked frame — by
+//! own), else the last well-tracked frame (on its planes with the planes' normals, see
+//! `frame_planes`) — by
 //! point-to-plane Gauss–Newton on SE(3) over a depth pyramid (coarse to fine, a depth-aware 2×2
 //! downsample), with projective data association, a Huber kernel on the normalised residual and
 //! weights from the sensor model ([`WeightMode`]). The normal equations count one independent
@@ -30,6 +31,7 @@
 
 mod associate;
 mod config;
+mod frame_planes;
 mod model;
 mod normal_noise;
 mod pyramid;
@@ -46,6 +48,7 @@ use sl_core::{Camera, CameraToWorld, DepthImage};
 
 use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
+use frame_planes::FramePlanes;
 use pyramid::{Level, Pyramid, normal_radius};
 use solve::{PassParams, Sums};
 use structure::StructureCheck;
@@ -164,6 +167,9 @@ pub struct Tracker {
     last_ref: ReferenceMaps,
     /// Level 0 of the last good frame's pyramid (swapped out of the pyramid on acceptance).
     last_level: Level,
+    /// The last good frame's planes (from the structure check): their normals replace the
+    /// pixels' own in `last_ref` (see `frame_planes`).
+    last_planes: FramePlanes,
     last_ref_stale: bool,
     /// The last good frame's depth (for the plane-based fallback).
     last_depth: DepthImage,
@@ -202,6 +208,7 @@ impl Tracker {
             pyramid: Pyramid::default(),
             last_ref: ReferenceMaps::empty(&k),
             last_level: Level::default(),
+            last_planes: FramePlanes::default(),
             last_ref_stale: false,
             last_depth: DepthImage::invalid(k.width, k.height),
             last_good: None,
@@ -264,6 +271,8 @@ impl Tracker {
             &self.camera.sensor,
             &CameraToWorld::from_isometry(pose),
         );
+        self.last_planes
+            .apply(&mut self.last_ref, &k, &pose, &self.camera.sensor);
         self.last_ref_stale = false;
     }
 
@@ -622,6 +631,7 @@ impl Tracker {
             std::mem::swap(l0, &mut self.last_level);
             self.last_ref_stale = true;
         }
+        self.structure.hand_over(&mut self.last_planes);
         self.last_depth.data_mut().copy_from_slice(depth.data());
         self.last_good = Some(pose);
         self.intervals_since_good = 0;
@@ -780,6 +790,15 @@ impl Tracker {
         let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);
         let finest_stride = stride_of(finest_l);
+        // Against the last frame on its planes' normals, the normal equations hold no false
+        // constraints from the frame's own noise (`frame_planes`): their smallest eigenvalue
+        // is as small as the geometry makes it (a corridor's axis pinned by its end wall 4.5 m
+        // away), and whether that is too small is for the degenerate-overlap check below to
+        // say, from the sensor model. The relative bound stays for a model's normals (the fused
+        // field's) and for a last frame without planes or without the check.
+        let checked_by_planes = cfg.degenerate_check
+            && std::ptr::eq(reference, &self.last_ref)
+            && !self.last_planes.planes.is_empty();
         let failure = if (stats.inliers as usize)
             < self.min_points(finest_l) / (finest_stride * finest_stride)
         {
@@ -789,7 +808,7 @@ impl Tracker {
                 "inlier fraction {frac:.3} below {}",
                 cfg.min_inlier_fraction
             ))
-        } else if condition < cfg.min_condition {
+        } else if condition < cfg.min_condition && !checked_by_planes {
             Some(format!(
                 "conditioning {condition:.2e} below {:.0e}",
                 cfg.min_condition

@@ -36,6 +36,7 @@ use sl_core::{Camera, DepthView, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
+use super::frame_planes::FramePlanes;
 use super::normal_noise::{NormalNoise, modelled_variance, window_is_one_surface};
 use super::pyramid::{Level, normal_radius};
 use super::solve::{OnReference, rotations_at_depth};
@@ -45,14 +46,12 @@ use crate::error::Result;
 pub(crate) const STEP: usize = 4;
 
 /// The plane extractor kept between frames (its buffers are reused) and the last frame's
-/// segmentation: its label image and its planes' normals.
+/// segmentation: its label image and its planes.
 #[derive(Debug, Default)]
 pub(crate) struct StructureCheck {
     extractor: Option<PlaneExtractor>,
-    /// Plane label per pixel of the segmented level (0: on no plane).
-    labels: Vec<u16>,
-    /// Unit normal of plane `l` at index `l − 1`.
-    normals: Vec<Vector3<f64>>,
+    /// The segmentation of the last [`StructureCheck::segment`].
+    planes: FramePlanes,
     /// The noise of the segmented level's own normals.
     normal_noise: NormalNoise,
 }
@@ -68,8 +67,7 @@ impl StructureCheck {
         camera: &Camera,
         cfg: &TrackerConfig,
     ) -> Result<()> {
-        self.labels.clear();
-        self.normals.clear();
+        self.planes.clear();
         let Some(k) = level.k else {
             self.normal_noise = NormalNoise::default();
             return Ok(());
@@ -99,9 +97,11 @@ impl StructureCheck {
             DepthView::new(k.width, k.height, &level.depth)?,
             &level_camera,
         )?;
-        self.labels.extend_from_slice(seg.labels.data());
-        self.normals
-            .extend(seg.planes.iter().map(|p| p.plane.normal));
+        self.planes.labels.extend_from_slice(seg.labels.data());
+        self.planes
+            .planes
+            .extend(seg.planes.iter().map(|p| p.plane));
+        (self.planes.width, self.planes.height, self.planes.level) = (k.width, k.height, index);
         let (hx, hy) = half_window(index, camera, cfg);
         self.normal_noise.measure(
             level,
@@ -111,6 +111,13 @@ impl StructureCheck {
             (2 * hx + 1, 2 * hy + 1),
         );
         Ok(())
+    }
+
+    /// Swaps the last segmentation into `into` (the frame it segmented becomes the last good
+    /// frame); this check's own is then stale until the next [`StructureCheck::segment`].
+    pub(crate) fn hand_over(&mut self, into: &mut FramePlanes) {
+        std::mem::swap(&mut self.planes, into);
+        self.planes.clear();
     }
 
     /// The pose's standard deviation along its least-constrained direction, metres
@@ -156,7 +163,8 @@ impl StructureCheck {
             (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
         let mut info = Matrix6::<f64>::zeros();
         // Each plane's samples apart: information, summed weight and weighted residual.
-        let mut on_planes = vec![(Matrix6::<f64>::zeros(), 0.0f64, 0.0f64); self.normals.len()];
+        let mut on_planes =
+            vec![(Matrix6::<f64>::zeros(), 0.0f64, 0.0f64); self.planes.planes.len()];
         // Samples on no plane apart: their sum is unbiased but not positive semi-definite.
         let mut info_off_planes = Matrix6::<f64>::zeros();
         let (mut z_sum, mut count) = (0.0f64, 0.0f64);
@@ -173,8 +181,11 @@ impl StructureCheck {
                     continue;
                 };
                 let p = p32.cast::<f64>().coords;
-                let label = self.labels.get(i).map_or(0, |&l| l as usize);
-                let plane = label.checked_sub(1).and_then(|l| self.normals.get(l));
+                let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
+                let plane = label
+                    .checked_sub(1)
+                    .and_then(|l| self.planes.planes.get(l))
+                    .map(|p| &p.normal);
                 // On no plane: the own normal, if it describes one surface across the
                 // correlation window, and a partner's one window away (`normal_noise`).
                 let (n, partner) = match plane {
