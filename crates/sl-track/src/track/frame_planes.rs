@@ -25,11 +25,11 @@
 //! views, whose terraces average out; given the last frame's planes too, the model reference
 //! tracked worse (TUM 2.93 → 3.07 cm, 7-Scenes 0.60 → 0.66 cm).
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::Vector3;
 use rayon::prelude::*;
-use sl_core::{Intrinsics, Plane, SensorModel};
+use sl_core::{Plane, SensorModel};
 
-use super::pyramid::normal_gate_cos;
+use super::pyramid::{Level, normal_gate_cos};
 use super::reference::ReferenceMaps;
 
 /// A level-0 pixel takes its plane's normal only when its depth lies within this many of the
@@ -60,94 +60,114 @@ impl FramePlanes {
         self.height = 0;
     }
 
-    /// The plane of level-0 pixel `(u, v)`, if it has one.
-    fn plane_at(&self, u: usize, v: usize) -> Option<&Plane> {
-        let shift = self.level.min(16);
-        let (x, y) = (u >> shift, v >> shift);
-        if x >= self.width || y >= self.height {
-            return None;
-        }
-        let label = *self.labels.get(y * self.width + x)?;
-        self.planes.get(usize::from(label).checked_sub(1)?)
-    }
-
-    /// Replaces the normals of `maps` (the frame's own, seen from `pose`) by the planes' where a
-    /// map point lies on the plane of the pixel it projects to in this frame (`k`: the frame's
-    /// level-0 intrinsics, `pose`: its camera-to-world pose), facing the camera, and the
-    /// point's variance along the normal by the sensor's for that normal: `(σ_Z(z)·cos)²`,
-    /// `cos` between the normal and the pixel's ray.
-    pub(crate) fn apply(
-        &self,
-        maps: &mut ReferenceMaps,
-        k: &Intrinsics,
-        pose: &Isometry3<f64>,
-        sensor: &SensorModel,
-    ) {
-        if self.planes.is_empty() {
+    /// Replaces the normals of `maps` — the maps of the frame itself, built from `level0` (its
+    /// level 0, camera-frame points) and seen from `maps.pose` — by the planes' where a pixel's
+    /// point lies on the plane of its pixel, facing the camera, and the point's variance along
+    /// the normal by the sensor's for that normal: `(σ_Z(z)·cos)²`, `cos` between the normal and
+    /// the pixel's ray.
+    pub(crate) fn apply(&self, maps: &mut ReferenceMaps, level0: &Level, sensor: &SensorModel) {
+        let Some(k) = level0.k else {
+            return;
+        };
+        let n = k.width * k.height;
+        if self.planes.is_empty()
+            || level0.points.len() != n
+            || maps.normals.len() != n
+            || maps.variance_m2.len() != n
+        {
             return;
         }
-        let rot = pose
+        let rot = maps
+            .pose
+            .isometry()
             .rotation
             .to_rotation_matrix()
             .into_inner()
             .cast::<f32>();
-        let inv = pose.inverse().cast::<f32>();
+        // Each plane facing the camera: on it `n·p = −offset`, one sign for all its points, so
+        // `offset > 0` after the flip; and its normal in world coordinates.
+        let faced: Vec<(Vector3<f32>, f32, Vector3<f32>)> = self
+            .planes
+            .iter()
+            .map(|pl| {
+                let (nc, off) = (pl.normal.cast::<f32>(), pl.offset_m as f32);
+                let (nc, off) = if off < 0.0 { (-nc, -off) } else { (nc, off) };
+                (nc, off, rot * nc)
+            })
+            .collect();
         let c = (sensor.sigma_d_px / sensor.fb()) as f32;
-        let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
-        let (w, h) = (k.width as f32, k.height as f32);
-        let on_plane = |x: &Point3<f32>, nrm: &mut Vector3<f32>, var: &mut f32| {
-            if !(x.x.is_finite() && nrm.x.is_finite()) {
-                return;
-            }
-            let p = inv * x;
-            if p.z <= 0.0 {
-                return;
-            }
-            // The nearest pixel centre (pixel `(u, v)` is centred on integer coordinates).
-            let (u, v) = (fx * p.x / p.z + cx + 0.5, fy * p.y / p.z + cy + 0.5);
-            if !(u >= 0.0 && v >= 0.0 && u < w && v < h) {
-                return;
-            }
-            let Some(plane) = self.plane_at(u as usize, v as usize) else {
-                return;
-            };
-            let n: Vector3<f32> = plane.normal.cast::<f32>();
-            let np = n.dot(&p.coords);
-            // The plane's depth along the point's ray: X = s·p with n·X + offset = 0.
-            let s = -(plane.offset_m as f32) / np;
-            let sigma_z = c * p.z * p.z;
-            if !(s.is_finite() && (p.z * (1.0 - s)).abs() <= ON_PLANE_SIGMAS * sigma_z) {
-                return;
-            }
-            let n = if np > 0.0 { -n } else { n };
-            let n_world = rot * n;
-            if n_world.dot(nrm) < normal_gate_cos(c, p.z, fx) {
-                return;
-            }
-            *nrm = n_world;
-            let sd = sigma_z * n.dot(&p.coords) / p.coords.norm();
-            *var = sd * sd;
+        // The normal gate's tangent per metre of depth (`normal_gate_cos`, squared form below).
+        let tan_per_m = {
+            let cos1 = normal_gate_cos(c, 1.0, k.fx as f32);
+            (1.0 / (cos1 * cos1) - 1.0).max(0.0).sqrt()
         };
-        (
-            maps.points.par_iter(),
-            maps.normals.par_iter_mut(),
-            maps.variance_m2.par_iter_mut(),
-        )
-            .into_par_iter()
-            .for_each(|(x, nrm, var)| on_plane(x, nrm, var));
+        let shift = self.level.min(16);
+        let w = k.width;
+        maps.normals
+            .par_chunks_mut(w)
+            .zip(maps.variance_m2.par_chunks_mut(w))
+            .zip(level0.points.par_chunks(w))
+            .enumerate()
+            .for_each(|(v, ((normals, variances), points))| {
+                let y = v >> shift;
+                if y >= self.height {
+                    return;
+                }
+                let labels = &self.labels[y * self.width..(y + 1) * self.width];
+                for (u, ((nrm, var), p)) in normals
+                    .iter_mut()
+                    .zip(variances.iter_mut())
+                    .zip(points)
+                    .enumerate()
+                {
+                    let Some(&(nc, off, nw)) = labels
+                        .get(u >> shift)
+                        .and_then(|&l| usize::from(l).checked_sub(1))
+                        .and_then(|l| faced.get(l))
+                    else {
+                        continue;
+                    };
+                    if !(p.z > 0.0 && nrm.x.is_finite()) {
+                        continue;
+                    }
+                    // Within 3 σ_Z of the plane along the pixel's ray: the ray meets the plane
+                    // at depth z·s with s = −offset/(n·p), and z·|1 − s| ≤ 3·c·z² becomes
+                    // |n·p + offset| ≤ 3·c·z·|n·p| (no division).
+                    let np = nc.dot(&p.coords);
+                    let on_plane = (np + off).abs() <= ON_PLANE_SIGMAS * c * p.z * np.abs();
+                    if !on_plane {
+                        continue;
+                    }
+                    // The own normal within the normal gate of the plane's: cos ≥ 1/√(1 + t²).
+                    let cos = nw.dot(nrm);
+                    let t = tan_per_m * p.z;
+                    if !(cos > 0.0 && cos * cos * (1.0 + t * t) >= 1.0) {
+                        continue;
+                    }
+                    *nrm = nw;
+                    let sz = c * p.z * p.z;
+                    *var = sz * sz * np * np / p.coords.norm_squared();
+                }
+            });
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sl_core::CameraToWorld;
+    use nalgebra::{Isometry3, Point3};
+    use sl_core::{CameraToWorld, Intrinsics};
 
-    /// A wall `z = 2 m` seen head-on by a 64×48 camera at `pose`, whose per-pixel normals are
-    /// tilted (as a single frame's terraces tilt them), with one pixel 10 cm in front of it.
-    fn wall_maps(k: &Intrinsics, pose: &Isometry3<f64>) -> ReferenceMaps {
+    /// A wall `z = 2 m` seen head-on by a 64×48 camera at `pose` (its level 0, and reference
+    /// maps whose normals are tilted as a single frame's terraces tilt them), with one pixel
+    /// 10 cm in front of it.
+    fn wall(k: &Intrinsics, pose: &Isometry3<f64>) -> (Level, ReferenceMaps) {
         let mut maps = ReferenceMaps::empty(k);
         maps.pose = CameraToWorld::from_isometry(*pose);
+        let mut level = Level {
+            k: Some(*k),
+            ..Level::default()
+        };
         let iso = pose.cast::<f32>();
         for v in 0..k.height {
             for u in 0..k.width {
@@ -158,12 +178,13 @@ mod tests {
                     (v as f32 - k.cy as f32) * z / k.fy as f32,
                     z,
                 );
+                level.points.push(p);
                 maps.points[i] = iso * p;
                 maps.normals[i] = iso.rotation * Vector3::new(0.2, 0.0, -1.0).normalize();
                 maps.variance_m2[i] = 1.0;
             }
         }
-        maps
+        (level, maps)
     }
 
     #[test]
@@ -183,8 +204,8 @@ mod tests {
             level: 1,
             planes: vec![Plane::new(Vector3::new(0.0, 0.0, 1.0), -2.0).unwrap()],
         };
-        let mut maps = wall_maps(&k, &pose);
-        planes.apply(&mut maps, &k, &pose, &sensor);
+        let (level, mut maps) = wall(&k, &pose);
+        planes.apply(&mut maps, &level, &sensor);
         let facing = pose.rotation.cast::<f32>() * Vector3::new(0.0, 0.0, -1.0);
         let sigma_z = sensor.sigma_z(2.0) as f32;
         for v in 0..k.height {
@@ -198,8 +219,8 @@ mod tests {
                 }
                 assert!((maps.normals[i] - facing).norm() < 1e-5, "pixel ({u}, {v})");
                 // σ_Z along the ray, projected on the normal.
-                let ray = (maps.points[i] - pose.translation.vector.cast::<f32>()).coords;
-                let cos = facing.dot(&ray) / ray.norm();
+                let ray = level.points[i].coords;
+                let cos = ray.z / ray.norm();
                 let expected = (sigma_z * cos).powi(2);
                 assert!((maps.variance_m2[i] - expected).abs() < 1e-3 * expected);
             }
@@ -207,12 +228,30 @@ mod tests {
     }
 
     #[test]
-    fn no_planes_change_nothing() {
+    fn a_normal_beyond_the_gate_or_no_planes_change_nothing() {
         let k = Intrinsics::new(64, 48, 60.0, 60.0, 31.5, 23.5).unwrap();
+        let sensor = SensorModel::kinect_v1();
         let pose = Isometry3::identity();
-        let mut maps = wall_maps(&k, &pose);
+        let (level, mut maps) = wall(&k, &pose);
         let before = maps.normals.clone();
-        FramePlanes::default().apply(&mut maps, &k, &pose, &SensorModel::kinect_v1());
+        FramePlanes::default().apply(&mut maps, &level, &sensor);
         assert_eq!(maps.normals, before);
+        // A plane at 45° to the wall: every own normal is further from it than the gate.
+        let planes = FramePlanes {
+            labels: vec![1; 32 * 24],
+            width: 32,
+            height: 24,
+            level: 1,
+            planes: vec![Plane::new(Vector3::new(1.0, 0.0, 1.0), -2.0).unwrap()],
+        };
+        planes.apply(&mut maps, &level, &sensor);
+        let on_it = maps.normals[24 * 64 + 32] != before[24 * 64 + 32];
+        let elsewhere = maps
+            .normals
+            .iter()
+            .zip(&before)
+            .filter(|(a, b)| a != b)
+            .count();
+        assert!(!on_it && elsewhere == 0, "{elsewhere} normals replaced");
     }
 }

@@ -272,7 +272,7 @@ impl Tracker {
             &CameraToWorld::from_isometry(pose),
         );
         self.last_planes
-            .apply(&mut self.last_ref, &k, &pose, &self.camera.sensor);
+            .apply(&mut self.last_ref, &self.last_level, &self.camera.sensor);
         self.last_ref_stale = false;
     }
 
