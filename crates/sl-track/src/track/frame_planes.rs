@@ -19,7 +19,7 @@
 //! A pixel keeps its own normal off the planes, more than 3 σ_Z from its plane along its ray
 //! (labels come from half resolution, where a pixel by a depth edge averages two surfaces), and
 //! where its own normal is further from the plane's than the normal noise allows (the
-//! association's gate, [`super::pyramid::normal_gate_cos`]: by a crease).
+//! association's gate, the level's `PointAux::cos_gate`: by a crease).
 //!
 //! Only the last frame's maps change. A model's normals come from a field fused over many
 //! views, whose terraces average out; given the last frame's planes too, the model reference
@@ -27,9 +27,9 @@
 
 use nalgebra::Vector3;
 use rayon::prelude::*;
-use sl_core::{Plane, SensorModel};
+use sl_core::Plane;
 
-use super::pyramid::{Level, normal_gate_cos};
+use super::pyramid::Level;
 use super::reference::ReferenceMaps;
 
 /// A level-0 pixel takes its plane's normal only when its depth lies within this many of the
@@ -61,17 +61,18 @@ impl FramePlanes {
     }
 
     /// Replaces the normals of `maps` — the maps of the frame itself, built from `level0` (its
-    /// level 0, camera-frame points) and seen from `maps.pose` — by the planes' where a pixel's
-    /// point lies on the plane of its pixel, facing the camera, and the point's variance along
-    /// the normal by the sensor's for that normal: `(σ_Z(z)·cos)²`, `cos` between the normal and
-    /// the pixel's ray.
-    pub(crate) fn apply(&self, maps: &mut ReferenceMaps, level0: &Level, sensor: &SensorModel) {
+    /// level 0: camera-frame points, and their `aux` complete) and seen from `maps.pose` — by
+    /// the planes' where a pixel's point lies on the plane of its pixel, facing the camera, and
+    /// the point's variance along the normal by the sensor's for that normal: `(σ_Z(z)·cos)²`,
+    /// `cos` between the normal and the pixel's ray.
+    pub(crate) fn apply(&self, maps: &mut ReferenceMaps, level0: &Level) {
         let Some(k) = level0.k else {
             return;
         };
         let n = k.width * k.height;
         if self.planes.is_empty()
             || level0.points.len() != n
+            || level0.aux.len() != n
             || maps.normals.len() != n
             || maps.variance_m2.len() != n
         {
@@ -95,29 +96,25 @@ impl FramePlanes {
                 (nc, off, rot * nc)
             })
             .collect();
-        let c = (sensor.sigma_d_px / sensor.fb()) as f32;
-        // The normal gate's tangent per metre of depth (`normal_gate_cos`, squared form below).
-        let tan_per_m = {
-            let cos1 = normal_gate_cos(c, 1.0, k.fx as f32);
-            (1.0 / (cos1 * cos1) - 1.0).max(0.0).sqrt()
-        };
         let shift = self.level.min(16);
         let w = k.width;
         maps.normals
             .par_chunks_mut(w)
             .zip(maps.variance_m2.par_chunks_mut(w))
             .zip(level0.points.par_chunks(w))
+            .zip(level0.aux.par_chunks(w))
             .enumerate()
-            .for_each(|(v, ((normals, variances), points))| {
+            .for_each(|(v, (((normals, variances), points), aux))| {
                 let y = v >> shift;
                 if y >= self.height {
                     return;
                 }
                 let labels = &self.labels[y * self.width..(y + 1) * self.width];
-                for (u, ((nrm, var), p)) in normals
+                for (u, (((nrm, var), p), a)) in normals
                     .iter_mut()
                     .zip(variances.iter_mut())
                     .zip(points)
+                    .zip(aux)
                     .enumerate()
                 {
                     let Some(&(nc, off, nw)) = labels
@@ -131,22 +128,17 @@ impl FramePlanes {
                         continue;
                     }
                     // Within 3 σ_Z of the plane along the pixel's ray: the ray meets the plane
-                    // at depth z·s with s = −offset/(n·p), and z·|1 − s| ≤ 3·c·z² becomes
-                    // |n·p + offset| ≤ 3·c·z·|n·p| (no division).
+                    // at depth z·s with s = −offset/(n·p), and z·|1 − s| ≤ 3·σ_Z becomes
+                    // z·|n·p + offset| ≤ 3·σ_Z·|n·p| (no division).
                     let np = nc.dot(&p.coords);
-                    let on_plane = (np + off).abs() <= ON_PLANE_SIGMAS * c * p.z * np.abs();
-                    if !on_plane {
-                        continue;
-                    }
-                    // The own normal within the normal gate of the plane's: cos ≥ 1/√(1 + t²).
-                    let cos = nw.dot(nrm);
-                    let t = tan_per_m * p.z;
-                    if !(cos > 0.0 && cos * cos * (1.0 + t * t) >= 1.0) {
+                    let on_plane = p.z * (np + off).abs() <= ON_PLANE_SIGMAS * a.cz2 * np.abs();
+                    // The own normal within the association's normal gate of the plane's.
+                    if !on_plane || nw.dot(nrm) < a.cos_gate {
                         continue;
                     }
                     *nrm = nw;
-                    let sz = c * p.z * p.z;
-                    *var = sz * sz * np * np / p.coords.norm_squared();
+                    let sd = a.cz2 * np / a.ray_len;
+                    *var = sd * sd;
                 }
             });
     }
@@ -155,19 +147,21 @@ impl FramePlanes {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::track::pyramid::{PointAux, normal_gate_cos};
     use nalgebra::{Isometry3, Point3};
-    use sl_core::{CameraToWorld, Intrinsics};
+    use sl_core::{CameraToWorld, Intrinsics, SensorModel};
 
-    /// A wall `z = 2 m` seen head-on by a 64×48 camera at `pose` (its level 0, and reference
-    /// maps whose normals are tilted as a single frame's terraces tilt them), with one pixel
-    /// 10 cm in front of it.
-    fn wall(k: &Intrinsics, pose: &Isometry3<f64>) -> (Level, ReferenceMaps) {
+    /// A wall `z = 2 m` seen head-on by a 64×48 Kinect-like camera at `pose` (its level 0, and
+    /// reference maps whose normals are tilted as a single frame's terraces tilt them), with
+    /// one pixel 10 cm in front of it.
+    fn wall(k: &Intrinsics, pose: &Isometry3<f64>, sensor: &SensorModel) -> (Level, ReferenceMaps) {
         let mut maps = ReferenceMaps::empty(k);
         maps.pose = CameraToWorld::from_isometry(*pose);
         let mut level = Level {
             k: Some(*k),
             ..Level::default()
         };
+        let c = (sensor.sigma_d_px / sensor.fb()) as f32;
         let iso = pose.cast::<f32>();
         for v in 0..k.height {
             for u in 0..k.width {
@@ -179,12 +173,28 @@ mod tests {
                     z,
                 );
                 level.points.push(p);
+                level.aux.push(PointAux {
+                    ray_len: p.coords.norm(),
+                    cz2: c * z * z,
+                    cos_gate: normal_gate_cos(c, z, k.fx as f32),
+                });
                 maps.points[i] = iso * p;
                 maps.normals[i] = iso.rotation * Vector3::new(0.2, 0.0, -1.0).normalize();
                 maps.variance_m2[i] = 1.0;
             }
         }
         (level, maps)
+    }
+
+    /// Every half-resolution pixel of a 64×48 frame on `plane`.
+    fn everywhere(plane: Plane) -> FramePlanes {
+        FramePlanes {
+            labels: vec![1; 32 * 24],
+            width: 32,
+            height: 24,
+            level: 1,
+            planes: vec![plane],
+        }
     }
 
     #[test]
@@ -195,17 +205,11 @@ mod tests {
             nalgebra::Vector3::new(0.3, -0.2, 1.0),
             nalgebra::Vector3::new(0.1, 0.2, -0.05),
         );
-        // Labelled on half-resolution pixels, all on plane 1: the wall, its normal pointing
-        // away from the camera (the extractor imposes no orientation).
-        let planes = FramePlanes {
-            labels: vec![1; 32 * 24],
-            width: 32,
-            height: 24,
-            level: 1,
-            planes: vec![Plane::new(Vector3::new(0.0, 0.0, 1.0), -2.0).unwrap()],
-        };
-        let (level, mut maps) = wall(&k, &pose);
-        planes.apply(&mut maps, &level, &sensor);
+        // The wall, its normal pointing away from the camera (the extractor imposes no
+        // orientation).
+        let planes = everywhere(Plane::new(Vector3::new(0.0, 0.0, 1.0), -2.0).unwrap());
+        let (level, mut maps) = wall(&k, &pose, &sensor);
+        planes.apply(&mut maps, &level);
         let facing = pose.rotation.cast::<f32>() * Vector3::new(0.0, 0.0, -1.0);
         let sigma_z = sensor.sigma_z(2.0) as f32;
         for v in 0..k.height {
@@ -232,19 +236,13 @@ mod tests {
         let k = Intrinsics::new(64, 48, 60.0, 60.0, 31.5, 23.5).unwrap();
         let sensor = SensorModel::kinect_v1();
         let pose = Isometry3::identity();
-        let (level, mut maps) = wall(&k, &pose);
+        let (level, mut maps) = wall(&k, &pose, &sensor);
         let before = maps.normals.clone();
-        FramePlanes::default().apply(&mut maps, &level, &sensor);
+        FramePlanes::default().apply(&mut maps, &level);
         assert_eq!(maps.normals, before);
         // A plane at 45° to the wall: every own normal is further from it than the gate.
-        let planes = FramePlanes {
-            labels: vec![1; 32 * 24],
-            width: 32,
-            height: 24,
-            level: 1,
-            planes: vec![Plane::new(Vector3::new(1.0, 0.0, 1.0), -2.0).unwrap()],
-        };
-        planes.apply(&mut maps, &level, &sensor);
+        let planes = everywhere(Plane::new(Vector3::new(1.0, 0.0, 1.0), -2.0).unwrap());
+        planes.apply(&mut maps, &level);
         let on_it = maps.normals[24 * 64 + 32] != before[24 * 64 + 32];
         let elsewhere = maps
             .normals

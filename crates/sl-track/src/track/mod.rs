@@ -271,8 +271,7 @@ impl Tracker {
             &self.camera.sensor,
             &CameraToWorld::from_isometry(pose),
         );
-        self.last_planes
-            .apply(&mut self.last_ref, &self.last_level, &self.camera.sensor);
+        self.last_planes.apply(&mut self.last_ref, &self.last_level);
         self.last_ref_stale = false;
     }
 
