@@ -1018,3 +1018,52 @@ fn tracking_in_a_fixed_map_recovers_the_poses_it_was_built_from() {
     let small = DepthImage::invalid(10, 10);
     assert!(sl_track::track_in_map(cam, &cfg, &map, truth[0], &[small]).is_err());
 }
+
+/// The structure check runs beside the first alignment (`rayon::join`) and sums its
+/// information in parallel: the results must not depend on the number of threads, frame to
+/// model and frame to frame, with a degenerate view (a single wall) in the middle of the
+/// sequence, where the alignment that ran beside the check is thrown away.
+#[test]
+fn every_thread_count_tracks_identically() {
+    let (cam, _, mut frames) = sequence(8, 43);
+    let wall = named_scene("wall").unwrap();
+    assert_eq!(wall.intrinsics.scaled(0.5).unwrap(), cam.intrinsics);
+    let degenerate = KinectSimulator::kinect_v1()
+        .white()
+        .simulate(&wall.scene, &cam.intrinsics, &wall.pose, 5)
+        .depth;
+    frames.insert(5, degenerate);
+    let run = |threads: usize, model: bool| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let (cam, frames) = (&cam, &frames);
+        pool.install(|| {
+            let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+            cfg.tsdf.voxel_m = 0.01;
+            cfg.frame_to_model = model;
+            let mut rec = Reconstruction::new(*cam, cfg).unwrap();
+            frames
+                .iter()
+                .enumerate()
+                .map(|(i, d)| {
+                    let r = rec.step(d, Some(i as f64 / 30.0)).unwrap().result;
+                    (r.status, format!("{r:?}"))
+                })
+                .collect::<Vec<_>>()
+        })
+    };
+    for model in [true, false] {
+        let one = run(1, model);
+        let lost: Vec<usize> = (0..one.len()).filter(|&i| !one[i].0.is_tracked()).collect();
+        assert_eq!(lost, [5], "model {model}: {one:?}");
+        assert!(one[5].1.contains("degenerate view"), "{}", one[5].1);
+        for threads in [2, 3] {
+            let many = run(threads, model);
+            for (i, (a, b)) in one.iter().zip(&many).enumerate() {
+                assert_eq!(a.1, b.1, "model {model}, {threads} threads, frame {i}");
+            }
+        }
+    }
+}

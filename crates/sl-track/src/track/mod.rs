@@ -29,6 +29,7 @@
 //! translation and still passes every check. [`crate::Reconstruction`] builds fragments on top
 //! of this when the relocalisation does not come.
 
+mod align;
 mod associate;
 mod config;
 mod frame_planes;
@@ -48,9 +49,9 @@ use sl_core::{Camera, CameraToWorld, DepthImage};
 
 use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
+use align::ratio;
 use frame_planes::FramePlanes;
 use pyramid::{Level, Pyramid, normal_radius};
-use solve::{PassParams, Sums};
 use structure::StructureCheck;
 
 /// How far the extra starts of a relocalisation are turned from the last good pose about the
@@ -143,16 +144,18 @@ impl FrameResult {
     }
 }
 
-/// One alignment attempt's outcome.
-struct Attempt {
-    pose: Isometry3<f64>,
-    stats: Sums,
-    condition: f64,
-    iterations: usize,
-    /// The weakest-direction σ of the part of the frame that overlaps the reference at `pose`
-    /// (NaN when not checked).
-    overlap_sigma_m: f64,
-    failure: Option<String>,
+/// The first alignment of a frame: from the constant-velocity prediction.
+struct AlignPlan {
+    /// The last good pose.
+    last: Isometry3<f64>,
+    /// Frame intervals since it (≥ 1).
+    n: u32,
+    row_timing: Option<solve::RowTiming>,
+    predicted: Isometry3<f64>,
+    /// The position prior's variance about the prediction, m².
+    predicted_var: f64,
+    /// The prior's variance for a start with no velocity known, m².
+    unknown_var: f64,
 }
 
 /// Tracks the camera through a depth sequence (see the module docs). Reuse one tracker for a
@@ -363,29 +366,103 @@ impl Tracker {
         // an alignment returned would be the prior's guess along that direction. Nor does such
         // a view start the sequence: a model of one wall cannot anchor the frames after it.
         let check_level = self.check_level();
-        let weakest_sigma_m = match (
-            self.cfg.degenerate_check,
-            self.pyramid.levels.get(check_level),
-        ) {
-            (true, Some(level)) => {
-                self.structure
-                    .segment(level, check_level, &self.camera, &self.cfg)?;
-                self.structure.weakest_sigma_m(
-                    level,
-                    check_level,
-                    &self.camera,
-                    &self.cfg,
-                    |_, _| Some(solve::OnReference::NONE),
-                    false,
-                )
-            }
-            _ => f64::NAN,
-        };
+        let checked = self.cfg.degenerate_check && self.pyramid.levels.get(check_level).is_some();
         let prior_sigma_m = self.cfg.motion_prior_sigma_m();
         if self.last_good.is_some() {
             self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
         }
+        // The first alignment's start and prior (a tracker with a last good pose).
+        let plan = self.last_good.map(|last| {
+            let n = self.intervals_since_good.max(1);
+            // A rolling shutter: the rows' poses on the constant-velocity path from the last
+            // good pose, once the reference holds frames moved to their poses (the second
+            // frame is aligned as a whole to the first, which is skewed alike at constant
+            // velocity; a relocalising frame's path from the last good pose is unknown).
+            let row_timing = (self.cfg.rolling_shutter_readout_s > 0.0
+                && self.lost_run == 0
+                && self.velocity_known)
+                .then(|| solve::RowTiming {
+                    last,
+                    intervals: n,
+                    readout_fraction: self.cfg.rolling_shutter_readout_fraction(),
+                });
+            // Constant velocity, also across lost and dropped frames (the camera kept moving
+            // meanwhile): the last good pose moved by one step per frame interval since.
+            let mut predicted = last;
+            for _ in 0..n.min(31) {
+                predicted *= self.velocity;
+            }
+            // The position prior of an alignment from the prediction: how far the camera's
+            // path can leave the constant-velocity line in `n` frame intervals (σ ∝ n²); with
+            // no velocity known, and for every other start, the largest plausible motion in
+            // one. The acceptance bounds (`max_correction_*`) stay those of one frame: the
+            // prediction carries the motion over a gap, and what is left to correct is the
+            // departure from constant velocity (TUM fr1/rpy's motion capture: 5.6 mm RMS,
+            // 17.5 mm at most over 4 intervals, against the 5 cm bound). Bounds scaled with
+            // the gap let ICP's wrong minima through (the sequence taken every fourth frame:
+            // ATE 2.5 → 10.6 cm).
+            let unknown_var = self.cfg.max_correction_m * self.cfg.max_correction_m;
+            let predicted_var = if self.velocity_known && self.lost_run == 0 {
+                self.cfg.acceleration_variance_m2() * f64::from(n).powi(4)
+            } else {
+                unknown_var
+            };
+            AlignPlan {
+                last,
+                n,
+                row_timing,
+                predicted: solve::renormalized(predicted),
+                predicted_var,
+                unknown_var,
+            }
+        });
+        if let Some(p) = &plan {
+            self.row_timing = p.row_timing;
+            if model.is_none() {
+                self.refresh_last_ref();
+            }
+        }
+        // The structure check (plane extraction and the weakest direction of the frame alone,
+        // about 1.8 ms of mostly sequential work on a 640×480 frame) and the first alignment's
+        // iterations (parallel over pixels) read the same pyramid and nothing of each other:
+        // they run side by side, and the iterations are judged once the check's planes are
+        // there. On a frame the check rejects the iterations are wasted.
+        let (weakest_sigma_m, first_iterated) = if checked {
+            let mut structure = std::mem::take(&mut self.structure);
+            let this = &*self;
+            let (gate, iterated) = rayon::join(
+                || -> Result<f64> {
+                    let Some(level) = this.pyramid.levels.get(check_level) else {
+                        return Ok(f64::NAN);
+                    };
+                    structure.segment(level, check_level, &this.camera, &this.cfg)?;
+                    Ok(structure.weakest_sigma_m(
+                        level,
+                        check_level,
+                        &this.camera,
+                        &this.cfg,
+                        |_, _| Some(solve::OnReference::NONE),
+                        false,
+                    ))
+                },
+                || {
+                    plan.as_ref().map(|p| {
+                        this.iterate(
+                            &p.predicted,
+                            model.unwrap_or(&this.last_ref),
+                            p.predicted_var,
+                            false,
+                        )
+                    })
+                },
+            );
+            self.structure = structure;
+            (gate?, iterated)
+        } else {
+            (f64::NAN, None)
+        };
         if weakest_sigma_m > prior_sigma_m {
+            self.row_timing = None;
             let (pose, what) = match self.last_good {
                 Some(last) => {
                     self.mark_lost();
@@ -407,55 +484,25 @@ impl Tracker {
             r.weakest_sigma_m = weakest_sigma_m;
             return Ok(r);
         }
-        let Some(last) = self.last_good else {
+        let Some(AlignPlan {
+            last,
+            n,
+            predicted,
+            predicted_var,
+            unknown_var,
+            ..
+        }) = plan
+        else {
             let mut r = self.initialise(depth);
             r.weakest_sigma_m = weakest_sigma_m;
             return Ok(r);
         };
-        let n = self.intervals_since_good.max(1);
-        let span = f64::from(n);
-        // A rolling shutter: the rows' poses on the constant-velocity path from the last good
-        // pose, once the reference holds frames moved to their poses (the second frame is
-        // aligned as a whole to the first, which is skewed alike at constant velocity; a
-        // relocalising frame's path from the last good pose is unknown).
-        self.row_timing =
-            (self.cfg.rolling_shutter_readout_s > 0.0 && self.lost_run == 0 && self.velocity_known)
-                .then(|| solve::RowTiming {
-                    last,
-                    intervals: n,
-                    readout_fraction: self.cfg.rolling_shutter_readout_fraction(),
-                });
-        if model.is_none() {
-            self.refresh_last_ref();
-        }
-        // Constant velocity, also across lost and dropped frames (the camera kept moving
-        // meanwhile): the last good pose moved by one step per frame interval since.
-        let mut predicted = last;
-        for _ in 0..n.min(31) {
-            predicted *= self.velocity;
-        }
-        let predicted = solve::renormalized(predicted);
-        // The position prior of an alignment from the prediction: how far the camera's path
-        // can leave the constant-velocity line in `n` frame intervals (σ ∝ n²); with no
-        // velocity known, and for every other start, the largest plausible motion in one.
-        // The acceptance bounds (`max_correction_*`) stay those of one frame: the prediction
-        // carries the motion over a gap, and what is left to correct is the departure from
-        // constant velocity (TUM fr1/rpy's motion capture: 5.6 mm RMS, 17.5 mm at most over
-        // 4 intervals, against the 5 cm bound). Bounds scaled with the gap let ICP's wrong
-        // minima through (the sequence taken every fourth frame: ATE 2.5 → 10.6 cm).
-        let unknown_var = self.cfg.max_correction_m * self.cfg.max_correction_m;
-        let predicted_var = if self.velocity_known && self.lost_run == 0 {
-            self.cfg.acceleration_variance_m2() * span.powi(4)
-        } else {
-            unknown_var
-        };
         let mut iterations = 0;
-        let mut first = self.align(
-            &predicted,
-            model.unwrap_or(&self.last_ref),
-            predicted_var,
-            false,
-        );
+        let reference = model.unwrap_or(&self.last_ref);
+        let mut first = match first_iterated {
+            Some(it) => self.judge(&predicted, reference, it),
+            None => self.align(&predicted, reference, predicted_var, false),
+        };
         iterations += first.iterations;
         let mut recovered = false;
         let mut against_frame = false;
@@ -665,223 +712,4 @@ impl Tracker {
         let k = self.camera.intrinsics;
         ((k.width * k.height) >> (2 * level)) / 100
     }
-
-    /// Coarse-to-fine Gauss–Newton from `start` with a Gaussian prior of variance
-    /// `prior_var_m2` per axis on the camera's position about `start`'s, then the acceptance
-    /// checks.
-    fn align(
-        &self,
-        start: &Isometry3<f64>,
-        reference: &ReferenceMaps,
-        prior_var_m2: f64,
-        damped: bool,
-    ) -> Attempt {
-        let cfg = &self.cfg;
-        let sensor = &self.camera.sensor;
-        let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
-        let mut pose = *start;
-        let mut iterations = 0;
-        // The sums of the finest level's last pass: they are the final statistics (same
-        // level, gates and pose), so no pass is run for them.
-        let mut stats = Sums::zero();
-        let finest_l = cfg
-            .finest_level
-            .min(self.pyramid.levels.len().saturating_sub(1));
-        let stride_of = |l: usize| cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel());
-        for l in (finest_l..self.pyramid.levels.len()).rev() {
-            let level = &self.pyramid.levels[l];
-            let stride = stride_of(l);
-            let params = PassParams {
-                allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
-                min_cos,
-                stride,
-                timing: self.row_timing,
-            };
-            let prior = solve::Prior {
-                data_share: (stride * stride) as f64
-                    / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
-                info_t: 1.0 / prior_var_m2,
-                centre_t: start.translation.vector,
-            };
-            // With `damped`, Levenberg–Marquardt step control: a step is taken only when it
-            // lowers the objective (`Prior::cost`); one that does not is retried with the
-            // diagonal damped ten times more. Where the geometry constrains a direction weakly
-            // (far, noisy walls, few planes) the undamped step along it can be centimetres long
-            // and carry the pose out of the basin of convergence. Undamped (plain Gauss–Newton)
-            // every step is taken: on well-constrained frames it is the more accurate (the
-            // truncated loss is not smooth under the 1/8-pixel disparity quantisation, and
-            // rejected steps stop the iteration early), so it is the first attempt.
-            let pass_at = |p: &Isometry3<f64>| {
-                solve::pass(
-                    level,
-                    reference,
-                    p,
-                    &p.translation.vector,
-                    sensor,
-                    cfg,
-                    params,
-                )
-            };
-            let mut s = pass_at(&pose);
-            iterations += 1;
-            let mut lambda = 0.0;
-            // `max_iterations` counts the steps taken; rejected ones (at most six in a row
-            // before the damping gives up) do not use up the budget.
-            let mut taken = 0;
-            while taken < cfg.max_iterations {
-                if (s.inliers as usize) < (self.min_points(l) / (stride * stride)).max(6) {
-                    break;
-                }
-                let t = pose.translation.vector;
-                let Some(xi) = solve::step(&s, &prior, &t, lambda) else {
-                    break;
-                };
-                if !xi.iter().all(|v| v.is_finite()) {
-                    break;
-                }
-                let candidate = solve::apply(&pose, &xi, &t);
-                let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
-                let negligible = w < STEP_NEGLIGIBLE && v < STEP_NEGLIGIBLE;
-                if negligible && !damped {
-                    // Converged: the step is taken without a pass at the pose it reaches, and
-                    // the sums at the pose it left stand for the final ones (0.1 mm / 0.006°
-                    // away: the same associations, statistics equal to their last digits).
-                    // This saves one pass per level — at full resolution about a third of the
-                    // tracker's time — and leaves every pose bit-identical.
-                    pose = candidate;
-                    break;
-                }
-                let sc = pass_at(&candidate);
-                iterations += 1;
-                let points = s.associated;
-                if !damped
-                    || prior.cost(&sc, points, &candidate.translation.vector)
-                        < prior.cost(&s, points, &t)
-                {
-                    pose = candidate;
-                    s = sc;
-                    taken += 1;
-                    lambda = if lambda > LM_LAMBDA_START {
-                        lambda / 10.0
-                    } else {
-                        0.0
-                    };
-                    if negligible {
-                        break;
-                    }
-                } else {
-                    lambda = if lambda == 0.0 {
-                        LM_LAMBDA_START
-                    } else {
-                        lambda * 10.0
-                    };
-                    if lambda > LM_LAMBDA_MAX {
-                        break;
-                    }
-                }
-            }
-            if l == finest_l {
-                stats = s;
-            }
-        }
-        let scale_m = mean_depth(&self.pyramid.levels[finest_l]);
-        let condition = solve::condition(&stats, scale_m);
-        let correction = start.inverse() * pose;
-        let frac = ratio(stats.inliers, stats.associated);
-        let finest_stride = stride_of(finest_l);
-        // Against the last frame on its planes' normals, the normal equations hold no false
-        // constraints from the frame's own noise (`frame_planes`): their smallest eigenvalue
-        // is as small as the geometry makes it (a corridor's axis pinned by its end wall 4.5 m
-        // away), and whether that is too small is for the degenerate-overlap check below to
-        // say, from the sensor model. The relative bound stays for a model's normals (the fused
-        // field's) and for a last frame without planes or without the check.
-        let checked_by_planes = cfg.degenerate_check
-            && std::ptr::eq(reference, &self.last_ref)
-            && !self.last_planes.planes.is_empty();
-        let failure = if (stats.inliers as usize)
-            < self.min_points(finest_l) / (finest_stride * finest_stride)
-        {
-            Some(format!("{} inliers, too few", stats.inliers))
-        } else if frac < cfg.min_inlier_fraction {
-            Some(format!(
-                "inlier fraction {frac:.3} below {}",
-                cfg.min_inlier_fraction
-            ))
-        } else if condition < cfg.min_condition && !checked_by_planes {
-            Some(format!(
-                "conditioning {condition:.2e} below {:.0e}",
-                cfg.min_condition
-            ))
-        } else if correction.translation.vector.norm() > cfg.max_correction_m
-            || correction.rotation.angle().to_degrees() > cfg.max_correction_deg
-        {
-            Some(format!(
-                "correction of {:.3} m / {:.1}° from the start is implausible",
-                correction.translation.vector.norm(),
-                correction.rotation.angle().to_degrees()
-            ))
-        } else {
-            None
-        };
-        // The frame can pin the pose down while the part of it that overlaps the reference
-        // does not (a model that holds one wall of the room so far, surfaces beyond the fused
-        // range): the alignment is then as undetermined as a degenerate view's, whatever its
-        // residuals say. The degenerate-view bound, on the samples that are inliers of the
-        // reference at this pose, with the reference's variance added to theirs as in the
-        // alignment.
-        let mut overlap_sigma_m = f64::NAN;
-        let check_level = self.check_level();
-        let failure = match (failure, self.pyramid.levels.get(check_level)) {
-            (None, Some(level)) if cfg.degenerate_check => {
-                overlap_sigma_m = self.structure.weakest_sigma_m(
-                    level,
-                    check_level,
-                    &self.camera,
-                    cfg,
-                    solve::inlier_of(reference, &pose, sensor, cfg),
-                    self.lost_run > 0,
-                );
-                let bound = cfg.motion_prior_sigma_m();
-                (overlap_sigma_m > bound).then(|| {
-                    format!(
-                        "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",
-                        overlap_sigma_m * 1e3,
-                        bound * 1e3
-                    )
-                })
-            }
-            (failure, _) => failure,
-        };
-        Attempt {
-            pose,
-            stats,
-            condition,
-            iterations,
-            overlap_sigma_m,
-            failure,
-        }
-    }
-}
-
-/// A Gauss–Newton step shorter than this in rotation (radians) and in translation (metres)
-/// ends a level's iterations: 0.1 mm and 0.006°, a small fraction of one frame's pose noise.
-const STEP_NEGLIGIBLE: f64 = 1e-4;
-
-/// First damping of a Levenberg–Marquardt retry (relative to the diagonal of `H`).
-const LM_LAMBDA_START: f64 = 1e-3;
-/// Damping beyond which no step lowers the objective: the pose is a minimum at this level.
-const LM_LAMBDA_MAX: f64 = 1e4;
-
-fn ratio(a: f64, b: f64) -> f64 {
-    if b > 0.0 { a / b } else { 0.0 }
-}
-
-/// Mean valid depth of a level (the scene's scale for the conditioning), metres.
-fn mean_depth(level: &pyramid::Level) -> f64 {
-    let (s, n) = level
-        .depth
-        .iter()
-        .filter(|z| **z > 0.0)
-        .fold((0.0f64, 0usize), |(s, n), z| (s + f64::from(*z), n + 1));
-    if n > 0 { s / n as f64 } else { 1.0 }
 }

@@ -32,6 +32,7 @@
 //! (`docs/bench/track.md`, session 13): tracked steps off by more than 2 cm fell from 19 to 11.
 
 use nalgebra::{Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
+use rayon::prelude::*;
 use sl_core::{Camera, DepthView, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
@@ -93,23 +94,32 @@ impl StructureCheck {
                 ..camera.sensor
             },
         };
-        let seg = extractor.extract_depth(
-            DepthView::new(k.width, k.height, &level.depth)?,
-            &level_camera,
-        )?;
+        // The extraction and the normals' noise read the level only: side by side.
+        let (hx, hy) = half_window(index, camera, cfg);
+        let normal_noise = &mut self.normal_noise;
+        let (seg, ()) = rayon::join(
+            || {
+                extractor.extract_depth(
+                    DepthView::new(k.width, k.height, &level.depth)?,
+                    &level_camera,
+                )
+            },
+            || {
+                normal_noise.measure(
+                    level,
+                    &k,
+                    &camera.sensor,
+                    (sample_step(index), normal_radius(index)),
+                    (2 * hx + 1, 2 * hy + 1),
+                );
+            },
+        );
+        let seg = seg?;
         self.planes.labels.extend_from_slice(seg.labels.data());
         self.planes
             .planes
             .extend(seg.planes.iter().map(|p| p.plane));
         (self.planes.width, self.planes.height, self.planes.level) = (k.width, k.height, index);
-        let (hx, hy) = half_window(index, camera, cfg);
-        self.normal_noise.measure(
-            level,
-            &k,
-            &camera.sensor,
-            (sample_step(index), normal_radius(index)),
-            (2 * hx + 1, 2 * hy + 1),
-        );
         Ok(())
     }
 
@@ -150,7 +160,7 @@ impl StructureCheck {
         index: usize,
         camera: &Camera,
         cfg: &TrackerConfig,
-        on_reference: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference>,
+        on_reference: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference> + Sync,
         planes_must_agree: bool,
     ) -> f64 {
         let Some(k) = level.k else {
@@ -161,43 +171,59 @@ impl StructureCheck {
         let half_window = half_window(index, camera, cfg);
         let share =
             (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
-        let mut info = Matrix6::<f64>::zeros();
-        // Each plane's samples apart: information, summed weight and weighted residual.
-        let mut on_planes =
-            vec![(Matrix6::<f64>::zeros(), 0.0f64, 0.0f64); self.planes.planes.len()];
-        // Samples on no plane apart: their sum is unbiased but not positive semi-definite.
-        let mut info_off_planes = Matrix6::<f64>::zeros();
-        let (mut z_sum, mut count) = (0.0f64, 0.0f64);
-        for v in (step / 2..k.height).step_by(step) {
-            for u in (step / 2..k.width).step_by(step) {
-                let i = v * k.width + u;
-                let (Some(p32), Some(n_own)) = (level.points.get(i), level.normals.get(i)) else {
-                    continue;
-                };
-                if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
-                    continue;
-                }
-                let Some(on_ref) = on_reference(p32, n_own) else {
-                    continue;
-                };
-                let p = p32.cast::<f64>().coords;
-                let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
-                let plane = label
-                    .checked_sub(1)
-                    .and_then(|l| self.planes.planes.get(l))
-                    .map(|p| &p.normal);
-                // On no plane: the own normal, if it describes one surface across the
-                // correlation window, and a partner's one window away (`normal_noise`).
-                let (n, partner) = match plane {
-                    Some(n) if n.dot(&p) > 0.0 => (-n, None),
-                    Some(n) => (*n, None),
-                    None => {
-                        let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
-                        let noise = self.normal_noise.variance(p.z, modelled);
-                        // The cheap tests first: four normals, up to four partners, then the
-                        // window's depths.
-                        let partner =
-                            NormalNoise::holds_across_window(level, k.width, i, half_window, noise)
+        // Fixed bands of sample rows, each summed in row order, and the bands' sums added in
+        // order: the same result for any thread count and on every run (as `solve::pass`).
+        let sample_rows = (step / 2..k.height).step_by(step).len();
+        let planes = self.planes.planes.len();
+        let bands: Vec<Information> = (0..sample_rows.div_ceil(ROWS_PER_BAND))
+            .into_par_iter()
+            .map(|band| {
+                let mut acc = Information::new(planes);
+                let Information {
+                    info,
+                    on_planes,
+                    info_off_planes,
+                    z_sum,
+                    count,
+                } = &mut acc;
+                let last = ((band + 1) * ROWS_PER_BAND).min(sample_rows);
+                for row in band * ROWS_PER_BAND..last {
+                    let v = step / 2 + row * step;
+                    for u in (step / 2..k.width).step_by(step) {
+                        let i = v * k.width + u;
+                        let (Some(p32), Some(n_own)) = (level.points.get(i), level.normals.get(i))
+                        else {
+                            continue;
+                        };
+                        if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
+                            continue;
+                        }
+                        let Some(on_ref) = on_reference(p32, n_own) else {
+                            continue;
+                        };
+                        let p = p32.cast::<f64>().coords;
+                        let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
+                        let plane = label
+                            .checked_sub(1)
+                            .and_then(|l| self.planes.planes.get(l))
+                            .map(|p| &p.normal);
+                        // On no plane: the own normal, if it describes one surface across the
+                        // correlation window, and a partner's one window away (`normal_noise`).
+                        let (n, partner) = match plane {
+                            Some(n) if n.dot(&p) > 0.0 => (-n, None),
+                            Some(n) => (*n, None),
+                            None => {
+                                let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
+                                let noise = self.normal_noise.variance(p.z, modelled);
+                                // The cheap tests first: four normals, up to four partners, then the
+                                // window's depths.
+                                let partner = NormalNoise::holds_across_window(
+                                    level,
+                                    k.width,
+                                    i,
+                                    half_window,
+                                    noise,
+                                )
                                 .then(|| {
                                     NormalNoise::partner(
                                         level,
@@ -217,42 +243,56 @@ impl StructureCheck {
                                         half_window,
                                     )
                                 });
-                        let Some(partner) = partner else {
-                            continue;
+                                let Some(partner) = partner else {
+                                    continue;
+                                };
+                                (n_own.cast::<f64>(), Some(partner.cast::<f64>()))
+                            }
                         };
-                        (n_own.cast::<f64>(), Some(partner.cast::<f64>()))
+                        let sigma_z = camera.sensor.sigma_z(p.z);
+                        let var = sigma_z * sigma_z + on_ref.variance_m2;
+                        if !(var > 0.0 && var.is_finite()) {
+                            continue;
+                        }
+                        // J = A n with A = [[p]×; I]; on no plane n nᵀ is estimated without the noise's
+                        // bias by the symmetric product of two normals with independent errors, so
+                        // J Jᵀ becomes ½(A n̂ (A m̂)ᵀ + A m̂ (A n̂)ᵀ).
+                        let jacobian = |n: &Vector3<f64>| {
+                            let pxn = p.cross(n);
+                            Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
+                        };
+                        let j = jacobian(&n);
+                        let w = share / var;
+                        match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
+                            (Some(m), _) => {
+                                let jm = j * jacobian(&m).transpose();
+                                *info_off_planes += (jm + jm.transpose()) * (0.5 * w);
+                            }
+                            (None, Some((plane_info, weight, weighted_residual))) => {
+                                *plane_info += j * j.transpose() * w;
+                                *weight += w;
+                                *weighted_residual += w * on_ref.residual_m;
+                            }
+                            (None, None) => *info += j * j.transpose() * w,
+                        }
+                        *z_sum += p.z;
+                        *count += 1.0;
                     }
-                };
-                let sigma_z = camera.sensor.sigma_z(p.z);
-                let var = sigma_z * sigma_z + on_ref.variance_m2;
-                if !(var > 0.0 && var.is_finite()) {
-                    continue;
                 }
-                // J = A n with A = [[p]×; I]; on no plane n nᵀ is estimated without the noise's
-                // bias by the symmetric product of two normals with independent errors, so
-                // J Jᵀ becomes ½(A n̂ (A m̂)ᵀ + A m̂ (A n̂)ᵀ).
-                let jacobian = |n: &Vector3<f64>| {
-                    let pxn = p.cross(n);
-                    Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
-                };
-                let j = jacobian(&n);
-                let w = share / var;
-                match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
-                    (Some(m), _) => {
-                        let jm = j * jacobian(&m).transpose();
-                        info_off_planes += (jm + jm.transpose()) * (0.5 * w);
-                    }
-                    (None, Some((plane_info, weight, weighted_residual))) => {
-                        *plane_info += j * j.transpose() * w;
-                        *weight += w;
-                        *weighted_residual += w * on_ref.residual_m;
-                    }
-                    (None, None) => info += j * j.transpose() * w,
-                }
-                z_sum += p.z;
-                count += 1.0;
-            }
+                acc
+            })
+            .collect();
+        let mut total = Information::new(planes);
+        for band in &bands {
+            total.add(band);
         }
+        let Information {
+            mut info,
+            on_planes,
+            info_off_planes,
+            z_sum,
+            count,
+        } = total;
         if count < 6.0 {
             return f64::INFINITY;
         }
@@ -302,4 +342,43 @@ fn half_window(index: usize, camera: &Camera, cfg: &TrackerConfig) -> (usize, us
     let pixels = camera.pixels_per_sensor_pixel() / f64::from(1u32 << index.min(16));
     let half = |side: f64| (side * pixels / 2.0).round().max(1.0) as usize;
     (half(cfg.noise_window_x_px), half(cfg.noise_window_y_px))
+}
+
+/// Sample rows per band of [`StructureCheck::weakest_sigma_m`]'s parallel sums.
+const ROWS_PER_BAND: usize = 16;
+
+/// The information of a band of samples (see [`StructureCheck::weakest_sigma_m`]).
+struct Information {
+    /// Samples attributed neither to a plane nor to a partner normal.
+    info: Matrix6<f64>,
+    /// Per plane: information, summed weight and weighted residual.
+    on_planes: Vec<(Matrix6<f64>, f64, f64)>,
+    /// Samples on no plane with a partner normal (unbiased, not positive semi-definite).
+    info_off_planes: Matrix6<f64>,
+    z_sum: f64,
+    count: f64,
+}
+
+impl Information {
+    fn new(planes: usize) -> Self {
+        Self {
+            info: Matrix6::zeros(),
+            on_planes: vec![(Matrix6::zeros(), 0.0, 0.0); planes],
+            info_off_planes: Matrix6::zeros(),
+            z_sum: 0.0,
+            count: 0.0,
+        }
+    }
+
+    fn add(&mut self, other: &Self) {
+        self.info += other.info;
+        for (a, b) in self.on_planes.iter_mut().zip(&other.on_planes) {
+            a.0 += b.0;
+            a.1 += b.1;
+            a.2 += b.2;
+        }
+        self.info_off_planes += other.info_off_planes;
+        self.z_sum += other.z_sum;
+        self.count += other.count;
+    }
 }

@@ -1,0 +1,290 @@
+//! The tracker's alignment of a frame to a reference: coarse-to-fine Gauss–Newton (or
+//! Levenberg–Marquardt when damped) over the pyramid (`Tracker::iterate`), then the
+//! acceptance checks (`Tracker::judge`). The two are apart so that the first alignment of a
+//! frame can run beside the structure check, which `judge` needs.
+
+use nalgebra::Isometry3;
+
+use super::pyramid;
+use super::solve::{self, PassParams, Sums};
+use super::{ReferenceMaps, Tracker};
+
+/// Where the iterations of one alignment ended, before the acceptance checks.
+pub(super) struct Iterated {
+    pub(super) pose: Isometry3<f64>,
+    pub(super) stats: Sums,
+    pub(super) iterations: usize,
+}
+
+/// One alignment attempt's outcome.
+pub(super) struct Attempt {
+    pub(super) pose: Isometry3<f64>,
+    pub(super) stats: Sums,
+    pub(super) condition: f64,
+    pub(super) iterations: usize,
+    /// The weakest-direction σ of the part of the frame that overlaps the reference at `pose`
+    /// (NaN when not checked).
+    pub(super) overlap_sigma_m: f64,
+    pub(super) failure: Option<String>,
+}
+
+impl Tracker {
+    /// Coarse-to-fine Gauss–Newton from `start` with a Gaussian prior of variance
+    /// `prior_var_m2` per axis on the camera's position about `start`'s, then the acceptance
+    /// checks.
+    pub(super) fn align(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        prior_var_m2: f64,
+        damped: bool,
+    ) -> Attempt {
+        let iterated = self.iterate(start, reference, prior_var_m2, damped);
+        self.judge(start, reference, iterated)
+    }
+
+    /// The iterations of [`Tracker::align`]: the pose they reach and the finest level's
+    /// statistics there. Reads the pyramid, the configuration and the camera only (not the
+    /// structure check), so it can run beside [`StructureCheck::segment`].
+    pub(super) fn iterate(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        prior_var_m2: f64,
+        damped: bool,
+    ) -> Iterated {
+        let cfg = &self.cfg;
+        let sensor = &self.camera.sensor;
+        let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
+        let mut pose = *start;
+        let mut iterations = 0;
+        // The sums of the finest level's last pass: they are the final statistics (same
+        // level, gates and pose), so no pass is run for them.
+        let mut stats = Sums::zero();
+        let finest_l = cfg
+            .finest_level
+            .min(self.pyramid.levels.len().saturating_sub(1));
+        let stride_of = |l: usize| cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel());
+        for l in (finest_l..self.pyramid.levels.len()).rev() {
+            let level = &self.pyramid.levels[l];
+            let stride = stride_of(l);
+            let params = PassParams {
+                allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
+                min_cos,
+                stride,
+                timing: self.row_timing,
+            };
+            let prior = solve::Prior {
+                data_share: (stride * stride) as f64
+                    / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
+                info_t: 1.0 / prior_var_m2,
+                centre_t: start.translation.vector,
+            };
+            // With `damped`, Levenberg–Marquardt step control: a step is taken only when it
+            // lowers the objective (`Prior::cost`); one that does not is retried with the
+            // diagonal damped ten times more. Where the geometry constrains a direction weakly
+            // (far, noisy walls, few planes) the undamped step along it can be centimetres long
+            // and carry the pose out of the basin of convergence. Undamped (plain Gauss–Newton)
+            // every step is taken: on well-constrained frames it is the more accurate (the
+            // truncated loss is not smooth under the 1/8-pixel disparity quantisation, and
+            // rejected steps stop the iteration early), so it is the first attempt.
+            let pass_at = |p: &Isometry3<f64>| {
+                solve::pass(
+                    level,
+                    reference,
+                    p,
+                    &p.translation.vector,
+                    sensor,
+                    cfg,
+                    params,
+                )
+            };
+            let mut s = pass_at(&pose);
+            iterations += 1;
+            let mut lambda = 0.0;
+            // `max_iterations` counts the steps taken; rejected ones (at most six in a row
+            // before the damping gives up) do not use up the budget.
+            let mut taken = 0;
+            while taken < cfg.max_iterations {
+                if (s.inliers as usize) < (self.min_points(l) / (stride * stride)).max(6) {
+                    break;
+                }
+                let t = pose.translation.vector;
+                let Some(xi) = solve::step(&s, &prior, &t, lambda) else {
+                    break;
+                };
+                if !xi.iter().all(|v| v.is_finite()) {
+                    break;
+                }
+                let candidate = solve::apply(&pose, &xi, &t);
+                let (w, v) = (xi.fixed_rows::<3>(0).norm(), xi.fixed_rows::<3>(3).norm());
+                let negligible = w < STEP_NEGLIGIBLE && v < STEP_NEGLIGIBLE;
+                if negligible && !damped {
+                    // Converged: the step is taken without a pass at the pose it reaches, and
+                    // the sums at the pose it left stand for the final ones (0.1 mm / 0.006°
+                    // away: the same associations, statistics equal to their last digits).
+                    // This saves one pass per level — at full resolution about a third of the
+                    // tracker's time — and leaves every pose bit-identical.
+                    pose = candidate;
+                    break;
+                }
+                let sc = pass_at(&candidate);
+                iterations += 1;
+                let points = s.associated;
+                if !damped
+                    || prior.cost(&sc, points, &candidate.translation.vector)
+                        < prior.cost(&s, points, &t)
+                {
+                    pose = candidate;
+                    s = sc;
+                    taken += 1;
+                    lambda = if lambda > LM_LAMBDA_START {
+                        lambda / 10.0
+                    } else {
+                        0.0
+                    };
+                    if negligible {
+                        break;
+                    }
+                } else {
+                    lambda = if lambda == 0.0 {
+                        LM_LAMBDA_START
+                    } else {
+                        lambda * 10.0
+                    };
+                    if lambda > LM_LAMBDA_MAX {
+                        break;
+                    }
+                }
+            }
+            if l == finest_l {
+                stats = s;
+            }
+        }
+        Iterated {
+            pose,
+            stats,
+            iterations,
+        }
+    }
+
+    /// The acceptance checks of [`Tracker::align`] on what [`Tracker::iterate`] reached from
+    /// `start`, the degenerate-overlap check with the structure check's planes of this frame.
+    pub(super) fn judge(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        it: Iterated,
+    ) -> Attempt {
+        let cfg = &self.cfg;
+        let sensor = &self.camera.sensor;
+        let Iterated {
+            pose,
+            stats,
+            iterations,
+        } = it;
+        let finest_l = cfg
+            .finest_level
+            .min(self.pyramid.levels.len().saturating_sub(1));
+        let stride_of = |l: usize| cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel());
+        let scale_m = mean_depth(&self.pyramid.levels[finest_l]);
+        let condition = solve::condition(&stats, scale_m);
+        let correction = start.inverse() * pose;
+        let frac = ratio(stats.inliers, stats.associated);
+        let finest_stride = stride_of(finest_l);
+        // Against the last frame on its planes' normals, the normal equations hold no false
+        // constraints from the frame's own noise (`frame_planes`): their smallest eigenvalue
+        // is as small as the geometry makes it (a corridor's axis pinned by its end wall 4.5 m
+        // away), and whether that is too small is for the degenerate-overlap check below to
+        // say, from the sensor model. The relative bound stays for a model's normals (the fused
+        // field's) and for a last frame without planes or without the check.
+        let checked_by_planes = cfg.degenerate_check
+            && std::ptr::eq(reference, &self.last_ref)
+            && !self.last_planes.planes.is_empty();
+        let failure = if (stats.inliers as usize)
+            < self.min_points(finest_l) / (finest_stride * finest_stride)
+        {
+            Some(format!("{} inliers, too few", stats.inliers))
+        } else if frac < cfg.min_inlier_fraction {
+            Some(format!(
+                "inlier fraction {frac:.3} below {}",
+                cfg.min_inlier_fraction
+            ))
+        } else if condition < cfg.min_condition && !checked_by_planes {
+            Some(format!(
+                "conditioning {condition:.2e} below {:.0e}",
+                cfg.min_condition
+            ))
+        } else if correction.translation.vector.norm() > cfg.max_correction_m
+            || correction.rotation.angle().to_degrees() > cfg.max_correction_deg
+        {
+            Some(format!(
+                "correction of {:.3} m / {:.1}° from the start is implausible",
+                correction.translation.vector.norm(),
+                correction.rotation.angle().to_degrees()
+            ))
+        } else {
+            None
+        };
+        // The frame can pin the pose down while the part of it that overlaps the reference
+        // does not (a model that holds one wall of the room so far, surfaces beyond the fused
+        // range): the alignment is then as undetermined as a degenerate view's, whatever its
+        // residuals say. The degenerate-view bound, on the samples that are inliers of the
+        // reference at this pose, with the reference's variance added to theirs as in the
+        // alignment.
+        let mut overlap_sigma_m = f64::NAN;
+        let check_level = self.check_level();
+        let failure = match (failure, self.pyramid.levels.get(check_level)) {
+            (None, Some(level)) if cfg.degenerate_check => {
+                overlap_sigma_m = self.structure.weakest_sigma_m(
+                    level,
+                    check_level,
+                    &self.camera,
+                    cfg,
+                    solve::inlier_of(reference, &pose, sensor, cfg),
+                    self.lost_run > 0,
+                );
+                let bound = cfg.motion_prior_sigma_m();
+                (overlap_sigma_m > bound).then(|| {
+                    format!(
+                        "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",
+                        overlap_sigma_m * 1e3,
+                        bound * 1e3
+                    )
+                })
+            }
+            (failure, _) => failure,
+        };
+        Attempt {
+            pose,
+            stats,
+            condition,
+            iterations,
+            overlap_sigma_m,
+            failure,
+        }
+    }
+}
+
+/// A Gauss–Newton step shorter than this in rotation (radians) and in translation (metres)
+/// ends a level's iterations: 0.1 mm and 0.006°, a small fraction of one frame's pose noise.
+const STEP_NEGLIGIBLE: f64 = 1e-4;
+
+/// First damping of a Levenberg–Marquardt retry (relative to the diagonal of `H`).
+const LM_LAMBDA_START: f64 = 1e-3;
+/// Damping beyond which no step lowers the objective: the pose is a minimum at this level.
+const LM_LAMBDA_MAX: f64 = 1e4;
+
+pub(super) fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 { a / b } else { 0.0 }
+}
+
+/// Mean valid depth of a level (the scene's scale for the conditioning), metres.
+fn mean_depth(level: &pyramid::Level) -> f64 {
+    let (s, n) = level
+        .depth
+        .iter()
+        .filter(|z| **z > 0.0)
+        .fold((0.0f64, 0usize), |(s, n), z| (s + f64::from(*z), n + 1));
+    if n > 0 { s / n as f64 } else { 1.0 }
+}
