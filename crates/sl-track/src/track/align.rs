@@ -29,6 +29,16 @@ pub(super) struct Attempt {
 }
 
 impl Tracker {
+    /// The mean valid depth of the finest alignment level (the scene's scale for the
+    /// conditioning), metres.
+    pub(super) fn finest_mean_depth(&self) -> f64 {
+        let finest_l = self
+            .cfg
+            .finest_level
+            .min(self.pyramid.levels.len().saturating_sub(1));
+        self.pyramid.levels.get(finest_l).map_or(1.0, mean_depth)
+    }
+
     /// Coarse-to-fine Gauss–Newton from `start` with a Gaussian prior of variance
     /// `prior_var_m2` per axis on the camera's position about `start`'s, then the acceptance
     /// checks.
@@ -187,7 +197,9 @@ impl Tracker {
             .finest_level
             .min(self.pyramid.levels.len().saturating_sub(1));
         let stride_of = |l: usize| cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel());
-        let scale_m = mean_depth(&self.pyramid.levels[finest_l]);
+        let scale_m = self
+            .finest_mean_depth_m
+            .unwrap_or_else(|| self.finest_mean_depth());
         let condition = solve::condition(&stats, scale_m);
         let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);

@@ -194,6 +194,10 @@ pub struct Tracker {
     /// The rows' exposure times of the frame being aligned (a rolling shutter, tracked on
     /// from the last good frame), `None` for one pose per frame.
     row_timing: Option<solve::RowTiming>,
+    /// The mean valid depth of the finest alignment level of the frame being tracked (the
+    /// scene's scale for the conditioning), computed beside its first alignment; `None`
+    /// until then.
+    finest_mean_depth_m: Option<f64>,
     /// The per-interval motion the last frame was aligned with row by row (when it was).
     rolling_motion: Option<Isometry3<f64>>,
 }
@@ -223,6 +227,7 @@ impl Tracker {
             initial_pose: CameraToWorld::identity(),
             structure: StructureCheck::default(),
             row_timing: None,
+            finest_mean_depth_m: None,
             rolling_motion: None,
         })
     }
@@ -347,6 +352,7 @@ impl Tracker {
         }
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
         self.row_timing = None;
+        self.finest_mean_depth_m = None;
         self.rolling_motion = None;
         let sensor = self.camera.sensor;
         // Level 0 is sampled every `stride0` pixels by the alignment against a model: its
@@ -431,19 +437,23 @@ impl Tracker {
             let mut structure = std::mem::take(&mut self.structure);
             let this = &*self;
             let (gate, iterated) = rayon::join(
-                || -> Result<f64> {
+                || -> Result<(f64, f64)> {
+                    // The acceptance checks' scale too: a sequential sum over the finest
+                    // level, off the critical path here.
+                    let scale_m = this.finest_mean_depth();
                     let Some(level) = this.pyramid.levels.get(check_level) else {
-                        return Ok(f64::NAN);
+                        return Ok((f64::NAN, scale_m));
                     };
                     structure.segment(level, check_level, &this.camera, &this.cfg)?;
-                    Ok(structure.weakest_sigma_m(
+                    let sigma = structure.weakest_sigma_m(
                         level,
                         check_level,
                         &this.camera,
                         &this.cfg,
                         |_, _| Some(solve::OnReference::NONE),
                         false,
-                    ))
+                    );
+                    Ok((sigma, scale_m))
                 },
                 || {
                     plan.as_ref().map(|p| {
@@ -457,7 +467,9 @@ impl Tracker {
                 },
             );
             self.structure = structure;
-            (gate?, iterated)
+            let (sigma, scale_m) = gate?;
+            self.finest_mean_depth_m = Some(scale_m);
+            (sigma, iterated)
         } else {
             (f64::NAN, None)
         };
