@@ -46,6 +46,16 @@ fn sequence_in(name: &str, n: usize, seed: u64) -> (Camera, Vec<CameraToWorld>, 
     (cam, poses, frames)
 }
 
+/// Camera preset `name`, the realistic simulator for it and the prefilter `sldepth track`
+/// applies to its frames.
+fn realistic_preset(name: &str) -> (Camera, KinectSimulator, sl_filter::MultiScale) {
+    let cam = Camera::preset(name).unwrap();
+    let sim = KinectSimulator::with_sensor(cam.sensor).with_noise(
+        sl_noise::sim::NoiseModel::Realistic(sl_noise::sim::RealisticNoise::for_camera(name)),
+    );
+    (cam, sim, sl_filter::MultiScale::default_for(&cam.sensor))
+}
+
 /// Per-frame translation (m) and rotation (°) errors of the estimated poses against the truth,
 /// both expressed relative to the first frame.
 fn errors(truth: &[CameraToWorld], est: &[CameraToWorld]) -> Vec<(f64, f64)> {
@@ -364,11 +374,7 @@ fn a_single_wall_is_a_degenerate_view() {
 #[test]
 fn a_bare_corridor_is_a_degenerate_view_at_full_resolution() {
     let scene = named_scene("corridor").unwrap();
-    let cam = Camera::preset("oak-d").unwrap();
-    let sim = KinectSimulator::with_sensor(cam.sensor).with_noise(
-        sl_noise::sim::NoiseModel::Realistic(sl_noise::sim::RealisticNoise::for_camera("oak-d")),
-    );
-    let filter = sl_filter::MultiScale::default_for(&cam.sensor);
+    let (cam, sim, filter) = realistic_preset("oak-d");
     // The camera of `cameras_track`: 1° and 1 cm per frame, views 0, 3, …, 12.
     let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.01, 0.002, 0.004),
@@ -432,11 +438,7 @@ fn a_bare_corridor_is_a_degenerate_view_at_full_resolution() {
 #[test]
 fn the_last_frame_reference_has_the_planes_normals() {
     let scene = named_scene("corridor").unwrap();
-    let cam = Camera::preset("d415").unwrap();
-    let sim = KinectSimulator::with_sensor(cam.sensor).with_noise(
-        sl_noise::sim::NoiseModel::Realistic(sl_noise::sim::RealisticNoise::for_camera("d415")),
-    );
-    let filter = sl_filter::MultiScale::default_for(&cam.sensor);
+    let (cam, sim, filter) = realistic_preset("d415");
     let truth = scene.scene.render(&cam.intrinsics, &scene.pose).depth;
     let depth = filter.apply(&sim.apply(&truth, 300)).unwrap();
     let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();

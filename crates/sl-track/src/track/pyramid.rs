@@ -340,12 +340,12 @@ const LANES: usize = 8;
 
 /// The normals of a level's selected pixels and their [`PointAux`] (see `normals` and
 /// `point_aux` in the tests: the same operations in the same order, so the same bits), in
-/// batches of [`LANES`] consecutive pixels of a row: contiguous loads of the depth around
-/// them, the points recomputed from it as [`vertices`] computes them, the arithmetic in
-/// structure-of-arrays loops the compiler vectorises, and the selected pixels' results written
-/// back. A batch on a grid row computes its off-grid pixels too and drops them: cheaper than
-/// gathering. A per-pixel closure with early returns cost about 150 instructions a normal
-/// (a quarter of the tracking phase's pyramid, session 34).
+/// batches of [`LANES`] pixels of a row — consecutive, or a grid row's pixels `stride` apart —:
+/// the depths around them loaded, the points recomputed from them as [`vertices`] computes
+/// them, the arithmetic in branch-free structure-of-arrays loops the compiler vectorises, and
+/// the selected pixels' results written back (completing a grid, a batch computes the grid's
+/// pixels too and drops them). A per-pixel closure with early returns cost about 150
+/// instructions a normal, most of the pyramid's time (session 34).
 fn normals_and_aux(
     level: &mut Level,
     k: &Intrinsics,
@@ -392,7 +392,7 @@ fn normals_and_aux(
             // Pixels whose neighbours `r` away leave the image get no normal.
             let interior = y >= r && y + r < h && w > 2 * r;
             let (lo, hi) = if interior { (r, w - r) } else { (0, 0) };
-            for x in (0..w).filter(|&x| (x < lo || x >= hi) && selected(x)) {
+            for x in (0..lo).chain(hi..w).filter(|&x| selected(x)) {
                 nrow[x] = nan_n;
                 arow[x] = PointAux::default();
             }

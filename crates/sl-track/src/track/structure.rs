@@ -33,7 +33,7 @@
 
 use nalgebra::{Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
 use rayon::prelude::*;
-use sl_core::{Camera, DepthView, SensorModel};
+use sl_core::{Camera, DepthView, Intrinsics, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
@@ -167,10 +167,14 @@ impl StructureCheck {
             return f64::INFINITY;
         };
         let step = sample_step(index);
-        let r = normal_radius(index);
-        let half_window = half_window(index, camera, cfg);
-        let share =
-            (step * step) as f64 / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel());
+        let sampling = Sampling {
+            k,
+            step,
+            r: normal_radius(index),
+            half_window: half_window(index, camera, cfg),
+            share: (step * step) as f64
+                / cfg.correlated_pixels(index, camera.pixels_per_sensor_pixel()),
+        };
         // Fixed bands of sample rows, each summed in row order, and the bands' sums added in
         // order: the same result for any thread count and on every run (as `solve::pass`).
         let sample_rows = (step / 2..k.height).step_by(step).len();
@@ -178,108 +182,8 @@ impl StructureCheck {
         let bands: Vec<Information> = (0..sample_rows.div_ceil(ROWS_PER_BAND))
             .into_par_iter()
             .map(|band| {
-                let mut acc = Information::new(planes);
-                let Information {
-                    info,
-                    on_planes,
-                    info_off_planes,
-                    z_sum,
-                    count,
-                } = &mut acc;
-                let last = ((band + 1) * ROWS_PER_BAND).min(sample_rows);
-                for row in band * ROWS_PER_BAND..last {
-                    let v = step / 2 + row * step;
-                    for u in (step / 2..k.width).step_by(step) {
-                        let i = v * k.width + u;
-                        let (Some(p32), Some(n_own)) = (level.points.get(i), level.normals.get(i))
-                        else {
-                            continue;
-                        };
-                        if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
-                            continue;
-                        }
-                        let Some(on_ref) = on_reference(p32, n_own) else {
-                            continue;
-                        };
-                        let p = p32.cast::<f64>().coords;
-                        let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
-                        let plane = label
-                            .checked_sub(1)
-                            .and_then(|l| self.planes.planes.get(l))
-                            .map(|p| &p.normal);
-                        // On no plane: the own normal, if it describes one surface across the
-                        // correlation window, and a partner's one window away (`normal_noise`).
-                        let (n, partner) = match plane {
-                            Some(n) if n.dot(&p) > 0.0 => (-n, None),
-                            Some(n) => (*n, None),
-                            None => {
-                                let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
-                                let noise = self.normal_noise.variance(p.z, modelled);
-                                // The cheap tests first: four normals, up to four partners, then the
-                                // window's depths.
-                                let partner = NormalNoise::holds_across_window(
-                                    level,
-                                    k.width,
-                                    i,
-                                    half_window,
-                                    noise,
-                                )
-                                .then(|| {
-                                    NormalNoise::partner(
-                                        level,
-                                        &k,
-                                        &camera.sensor,
-                                        (u, v),
-                                        half_window,
-                                    )
-                                })
-                                .flatten()
-                                .filter(|_| {
-                                    window_is_one_surface(
-                                        level,
-                                        &k,
-                                        &camera.sensor,
-                                        (u, v),
-                                        half_window,
-                                    )
-                                });
-                                let Some(partner) = partner else {
-                                    continue;
-                                };
-                                (n_own.cast::<f64>(), Some(partner.cast::<f64>()))
-                            }
-                        };
-                        let sigma_z = camera.sensor.sigma_z(p.z);
-                        let var = sigma_z * sigma_z + on_ref.variance_m2;
-                        if !(var > 0.0 && var.is_finite()) {
-                            continue;
-                        }
-                        // J = A n with A = [[p]×; I]; on no plane n nᵀ is estimated without the noise's
-                        // bias by the symmetric product of two normals with independent errors, so
-                        // J Jᵀ becomes ½(A n̂ (A m̂)ᵀ + A m̂ (A n̂)ᵀ).
-                        let jacobian = |n: &Vector3<f64>| {
-                            let pxn = p.cross(n);
-                            Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
-                        };
-                        let j = jacobian(&n);
-                        let w = share / var;
-                        match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
-                            (Some(m), _) => {
-                                let jm = j * jacobian(&m).transpose();
-                                *info_off_planes += (jm + jm.transpose()) * (0.5 * w);
-                            }
-                            (None, Some((plane_info, weight, weighted_residual))) => {
-                                *plane_info += j * j.transpose() * w;
-                                *weight += w;
-                                *weighted_residual += w * on_ref.residual_m;
-                            }
-                            (None, None) => *info += j * j.transpose() * w,
-                        }
-                        *z_sum += p.z;
-                        *count += 1.0;
-                    }
-                }
-                acc
+                let rows = band * ROWS_PER_BAND..((band + 1) * ROWS_PER_BAND).min(sample_rows);
+                self.band_information(level, camera, &sampling, &on_reference, rows)
             })
             .collect();
         let mut total = Information::new(planes);
@@ -328,6 +232,120 @@ impl StructureCheck {
             f64::INFINITY
         }
     }
+
+    /// The information of the sample rows `rows` (indices of [`Sampling::step`]-spaced rows)
+    /// for [`StructureCheck::weakest_sigma_m`], summed in row order.
+    fn band_information(
+        &self,
+        level: &Level,
+        camera: &Camera,
+        sampling: &Sampling,
+        on_reference: &impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference>,
+        rows: std::ops::Range<usize>,
+    ) -> Information {
+        let Sampling {
+            k,
+            step,
+            r,
+            half_window,
+            share,
+        } = *sampling;
+        let mut acc = Information::new(self.planes.planes.len());
+        let Information {
+            info,
+            on_planes,
+            info_off_planes,
+            z_sum,
+            count,
+        } = &mut acc;
+        for row in rows {
+            let v = step / 2 + row * step;
+            for u in (step / 2..k.width).step_by(step) {
+                let i = v * k.width + u;
+                let (Some(p32), Some(n_own)) = (level.points.get(i), level.normals.get(i)) else {
+                    continue;
+                };
+                if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
+                    continue;
+                }
+                let Some(on_ref) = on_reference(p32, n_own) else {
+                    continue;
+                };
+                let p = p32.cast::<f64>().coords;
+                let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
+                let plane = label
+                    .checked_sub(1)
+                    .and_then(|l| self.planes.planes.get(l))
+                    .map(|p| &p.normal);
+                // On no plane: the own normal, if it describes one surface across the
+                // correlation window, and a partner's one window away (`normal_noise`).
+                let (n, partner) = match plane {
+                    Some(n) if n.dot(&p) > 0.0 => (-n, None),
+                    Some(n) => (*n, None),
+                    None => {
+                        let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
+                        let noise = self.normal_noise.variance(p.z, modelled);
+                        // The cheap tests first: four normals, up to four partners, then the
+                        // window's depths.
+                        let partner =
+                            NormalNoise::holds_across_window(level, k.width, i, half_window, noise)
+                                .then(|| {
+                                    NormalNoise::partner(
+                                        level,
+                                        &k,
+                                        &camera.sensor,
+                                        (u, v),
+                                        half_window,
+                                    )
+                                })
+                                .flatten()
+                                .filter(|_| {
+                                    window_is_one_surface(
+                                        level,
+                                        &k,
+                                        &camera.sensor,
+                                        (u, v),
+                                        half_window,
+                                    )
+                                });
+                        let Some(partner) = partner else {
+                            continue;
+                        };
+                        (n_own.cast::<f64>(), Some(partner.cast::<f64>()))
+                    }
+                };
+                let sigma_z = camera.sensor.sigma_z(p.z);
+                let var = sigma_z * sigma_z + on_ref.variance_m2;
+                if !(var > 0.0 && var.is_finite()) {
+                    continue;
+                }
+                // J = A n with A = [[p]×; I]; on no plane n nᵀ is estimated without the noise's
+                // bias by the symmetric product of two normals with independent errors, so
+                // J Jᵀ becomes ½(A n̂ (A m̂)ᵀ + A m̂ (A n̂)ᵀ).
+                let jacobian = |n: &Vector3<f64>| {
+                    let pxn = p.cross(n);
+                    Vector6::new(pxn.x, pxn.y, pxn.z, n.x, n.y, n.z)
+                };
+                let j = jacobian(&n);
+                let w = share / var;
+                match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
+                    (Some(m), _) => {
+                        let jm = j * jacobian(&m).transpose();
+                        *info_off_planes += (jm + jm.transpose()) * (0.5 * w);
+                    }
+                    (None, Some((plane_info, weight, weighted_residual))) => {
+                        *plane_info += j * j.transpose() * w;
+                        *weight += w;
+                        *weighted_residual += w * on_ref.residual_m;
+                    }
+                    (None, None) => *info += j * j.transpose() * w,
+                }
+                *z_sum += p.z;
+                *count += 1.0;
+            }
+        }
+        acc
+    }
 }
 
 /// Level pixels between samples at pyramid level `index`, in both directions.
@@ -342,6 +360,21 @@ fn half_window(index: usize, camera: &Camera, cfg: &TrackerConfig) -> (usize, us
     let pixels = camera.pixels_per_sensor_pixel() / f64::from(1u32 << index.min(16));
     let half = |side: f64| (side * pixels / 2.0).round().max(1.0) as usize;
     (half(cfg.noise_window_x_px), half(cfg.noise_window_y_px))
+}
+
+/// Where [`StructureCheck::weakest_sigma_m`] samples a level and what a sample counts for.
+#[derive(Debug, Clone, Copy)]
+struct Sampling {
+    /// The level's intrinsics.
+    k: Intrinsics,
+    /// Every `step`-th pixel of every `step`-th row, from `step / 2`.
+    step: usize,
+    /// The normals' baseline, pixels.
+    r: usize,
+    /// Half the correlation window, pixels (x, y).
+    half_window: (usize, usize),
+    /// One sample's share of an independent measurement.
+    share: f64,
 }
 
 /// Sample rows per band of [`StructureCheck::weakest_sigma_m`]'s parallel sums.
