@@ -6,8 +6,8 @@ use std::str::FromStr;
 use sl_core::{DepthImage, DepthView, SensorModel};
 
 use crate::error::{FilterError, Result};
-use crate::fastexp::{LOG2_E, TapExp};
 use crate::kernel::{self, Adaptive, Fixed, INVALID_FILL, Isa, NoRange, Source, Taps};
+use crate::weight::{E_SCALE, LOG2_E, TapExp};
 
 /// Multiplier `m` of the default adaptive coefficient `k = m·σ_D/(f·B)`: the range σ of the
 /// adaptive filter is `m` times the sensor's depth noise `σ_Z(Z) = Z²·σ_D/(f·B)`.
@@ -422,12 +422,11 @@ impl DepthFilter {
         // t = −d²/(2σ_s²)·log2 e of each tap, folded into the range weight's constants.
         let mut taps = Vec::with_capacity(k * k);
         let mut exps = Vec::with_capacity(k * k);
-        let mut texp = Vec::with_capacity(k * k);
         for dy in 0..k {
             for dx in 0..k {
                 let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
                 match self.range {
-                    // Spatial weights below 1e-30 are 0 (no subnormal products; see fastexp).
+                    // Spatial weights below 1e-30 are 0 (no subnormal products; see `weight`).
                     RangeKernel::None => {
                         let w = (-d2 * inv2s2).exp();
                         taps.push(if w > 1e-30 { w as f32 } else { 0.0 });
@@ -435,7 +434,6 @@ impl DepthFilter {
                     _ => {
                         let t = -d2 * inv2s2 * std::f64::consts::LOG2_E;
                         exps.push(TapExp::new(t));
-                        texp.push(t as f32);
                     }
                 }
             }
@@ -445,12 +443,12 @@ impl DepthFilter {
             disc: self.window == Window::Disc,
             taps: &taps,
             exps: &exps,
-            texp: &texp,
         };
         let mut out = vec![0.0f32; w * h];
         let log2e = f64::from(LOG2_E);
-        // Range scale √(log2 e / (2σ²)); for the adaptive filter √(log2 e / 2) / k.
-        let coef = |sigma: f64| ((log2e / 2.0).sqrt() / sigma).min(1e15) as f32;
+        // Range scale √(log2 e / (2σ²)); for the adaptive filter √(log2 e / 2) / k. Times
+        // 2^11.5, the range weight's unit (`weight`).
+        let coef = |sigma: f64| ((log2e / 2.0).sqrt() / sigma * E_SCALE).min(1e15) as f32;
         let mut src = Source {
             data: depth.data(),
             width: w,

@@ -13,13 +13,12 @@
 //! the scaled *difference* instead of `w·v_q` keeps full `f32` precision (no cancellation of
 //! large depths) and makes symmetric cancellations exact.
 //!
-//! **The range weight** `2^(t − e²)` (see [`crate::fastexp`]): the portable / AVX2 code splits
-//! `e² = m + g` (`m = round(e²)`, fused into the `e²` of two multiply-adds) and folds the spatial
-//! weight `2^t` into the polynomial's coefficients (9 vector operations for the weight, 12 for
-//! the whole tap with the difference and the two sums; 13 before); the AVX-512 code computes
-//! `y = t − e²` with one multiply-add and splits it with `vreduceps` (`y − ⌊y⌋`) and
-//! `vscalefps` (`p·2^⌊y⌋`) (10 per tap). Weights below about `2^−100` are exactly 0 (a compare
-//! and a zero-masking), which keeps every product out of the slow subnormal range.
+//! **The range weight** `2^(t − e²)` (see [`crate::weight`]) is the log-linear `2^x`: with
+//! the difference pre-scaled by `2^11.5`, `y = T − e'²` is one multiply-add (`T` folds in the
+//! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight; a compare
+//! and a zero-masking make weights below `2^−100` exactly 0, which keeps every product out of
+//! the slow subnormal range. Per tap: 6 vector operations on AVX-512 (difference, `y`, compare,
+//! masked conversion, two sums), 7 on AVX2 (the mask is an `and`).
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the
 //! width rounded up to the lane count). Invalid pixels and the padding hold a sentinel:
@@ -37,12 +36,12 @@
 //! `x512`) is written with intrinsics, two 16-lane groups interleaved, and skips groups of 32
 //! pixels whose centres are all invalid (their output is 0 whatever the neighbours; 10.6 % of
 //! `person-depth.png`); their AVX2 code (module `x256`, bit-identical to the compiler-vectorised
-//! FMA code) works on one 8-lane group at a time, software-pipelined, and skips all-invalid
-//! groups of 8. Other radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
+//! FMA code) interleaves two 8-lane groups the same way and skips all-invalid
+//! groups of 16. Other radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
 //! selected at run time after checking the CPU; every path is tested against
 //! [`crate::reference`].
 
-use crate::fastexp::{TapExp, range_weight};
+use crate::weight::{CENTRE_WEIGHT, TapExp, range_weight};
 
 /// Sentinel stored for invalid pixels and padding in the range filters.
 pub(crate) const INVALID_FILL: f32 = 1.0e18;
@@ -158,9 +157,6 @@ pub(crate) struct Taps<'a> {
     /// `(2r+1)²` range-weight constants with the spatial weights folded in, row-major (the
     /// range filters; see [`TapExp`]).
     pub exps: &'a [TapExp],
-    /// `(2r+1)²` spatial exponents `t = −|δ|²/(2σ_s²)·log2 e`, row-major (the range filters'
-    /// AVX-512 kernel).
-    pub texp: &'a [f32],
 }
 
 thread_local! {
@@ -564,9 +560,9 @@ fn chunk<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const 
         let c = rows[R][i + R];
         let s = if M::RANGE { mode.scale(c) } else { 1.0 };
         let zs = s * c;
-        // The centre tap has weight exactly 1 (w_s(0)·w_d(0)) and a zero difference: it
-        // initialises the sums and is skipped.
-        let (mut sw, mut swd) = (1.0f32, 0.0f32);
+        // The centre tap (difference 0; weight 1 for the Gaussian, the range weight of
+        // `x = 0` otherwise) initialises the sums and is skipped.
+        let (mut sw, mut swd) = (if M::RANGE { CENTRE_WEIGHT } else { 1.0 }, 0.0f32);
         // The window is unrolled explicitly (the loop vectoriser only handles innermost loops,
         // and LLVM does not fully unroll a 49-tap body by itself); taps outside the
         // `(2R+1)²` window or at the centre are removed at compile time.
@@ -644,7 +640,7 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
                 sc[i] = s;
                 zs[i] = s * z;
             }
-            sw.fill(1.0);
+            sw.fill(if M::RANGE { CENTRE_WEIGHT } else { 1.0 });
             swd.fill(0.0);
             for dy in 0..k {
                 let row = &win[dy * stride + x0..];

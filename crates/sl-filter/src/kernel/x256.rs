@@ -1,33 +1,25 @@
 //! The explicit AVX2 + FMA kernel of the range filters' constant-radius fast paths.
 //!
 //! Bit-identical to the compiler-vectorised `chunk` with `range_weight::<true>` (asserted by
-//! the tests below): every tap performs the same fused operations in the same order. What
-//! changes is only how they are scheduled and where they run:
+//! the tests below): every tap performs the same fused operations in the same order — the
+//! difference `e'` and `y = T − e'²` (two multiply-adds), the cutoff compare, the truncating
+//! conversion whose bit pattern is the weight, the mask, and the two sums (7 vector operations
+//! and one load; 13 with the polynomial `2^x` of session 34 and before). What the explicit
+//! code adds:
 //!
-//! - **The scaling by `2^(−m)` is an integer add**, not a multiply. `range_weight` multiplies
-//!   the polynomial `p` by `2^(−m)` built from the low mantissa bits of `t1 = MAGIC − round(e²)`.
-//!   Here the magic constant is `MAGIC − 128`, so the shifted bits are `−(m + 1)` in the
-//!   exponent field, and the polynomial's coefficients are doubled (exact): `2p·2^(−(m+1))` is
-//!   `p·2^(−m)` exactly (every kept weight is a normal number), computed with `vpaddd` on the
-//!   bit patterns. The multiply-add pipes (two on current x86 cores, shared by 7 of each tap's
-//!   13 operations) lose one operation per tap. The cutoff compares the shifted `t1` with the
-//!   shifted cut (exact: both are integers below `2²⁴`, and 128 is even, so the ties of the
-//!   rounding to integers go the same way).
-//! - **One 8-lane group at a time, software-pipelined** (see `chunk`): the per-tap constants
-//!   are folded into the multiply-adds as memory operands, and each tap costs its 13
-//!   operations plus one load, one register copy and the step's branch (19 instructions; the
-//!   compiler-vectorised loop took 21.6 per 8 lanes, spilling its state). Two interleaved
-//!   groups, as in the AVX-512 kernel, need more than AVX2's 16 registers (measured slower).
-//! - **Groups of 8 pixels whose centres are all invalid are skipped** (their output is 0,
+//! - **Two 8-lane groups are interleaved**, as in the AVX-512 kernel: each group's two sums
+//!   are dependency chains of one multiply-add (or add) per tap, so one group alone waits on
+//!   their latency (measured on a Zen 4 core, 7×7: 1.77 ms a frame with one group, 1.26 ms
+//!   with two). The cheaper weight leaves enough of AVX2's 16 registers for both groups.
+//! - **The per-tap constant is a memory operand** of the multiply-add, reloaded for every
+//!   group instead of held in registers.
+//! - **Groups of 16 pixels whose centres are all invalid are skipped** (their output is 0,
 //!   as in `finish`), as the AVX-512 kernel does.
 
 use std::arch::x86_64::*;
 
 use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
-use crate::fastexp::{MAGIC, TapExp};
-
-/// The magic rounding constant of `range_weight` minus 128 (see the module docs).
-const MAGIC_LOW: f32 = MAGIC - 128.0;
+use crate::weight::{CENTRE_WEIGHT, KEEP_ABOVE, TapExp};
 
 /// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
 #[inline(always)]
@@ -62,11 +54,10 @@ const fn nth_tap<const R: usize, const DISC: bool>(n: usize) -> Option<usize> {
     None
 }
 
-/// The constants of one tap, broadcast: `2·c3, 2·c2, 2·c1, 2·c0` and `cut − 128`.
+/// The constant `T` of one tap, broadcast.
 #[derive(Clone, Copy)]
 struct Class {
-    c: [__m256; 4],
-    cut: __m256,
+    y0: __m256,
 }
 
 /// Filters the block of whole rows `out` (see [`super::block_fast`]).
@@ -90,10 +81,8 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
             per_tap[dy * FRAME + dx] = taps.exps[dy * k + dx];
         }
     }
-    // Doubling is exact, and so is `cut − 128` (an integer below 2²⁴, or +∞).
     let cls: [Class; TAPS] = per_tap.map(|e| Class {
-        c: e.c.map(|c| _mm256_set1_ps(2.0 * c)),
-        cut: _mm256_set1_ps(e.cut - 128.0),
+        y0: _mm256_set1_ps(e.y0),
     });
     let mut res = [0.0f32; CHUNK];
     let taps_on = std::hint::black_box(u64::MAX);
@@ -128,8 +117,6 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
 /// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-// The last steps assign pipeline registers that no later step reads.
-#[allow(unused_assignments)]
 fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
     cls: &[Class; TAPS],
@@ -140,9 +127,9 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm256_set1_ps(mode.coef());
     let max_scale = _mm256_set1_ps(MAX_SCALE);
-    let magic = _mm256_set1_ps(MAGIC_LOW);
+    let keep_above = _mm256_set1_ps(KEEP_ABOVE);
     let zero = _mm256_setzero_ps();
-    let one = _mm256_set1_ps(1.0);
+    let centre = _mm256_set1_ps(CENTRE_WEIGHT);
     let inf = _mm256_set1_ps(f32::INFINITY);
     let valid_limit = _mm256_set1_ps(VALID_LIMIT);
     let fbv = _mm256_set1_ps(fb);
@@ -161,83 +148,52 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             _mm256_cmp_ps::<_CMP_LT_OQ>(c, valid_limit),
         )
     };
-    for g in 0..CHUNK / 8 {
-        let i = 8 * g;
-        let c = load(&rows[R][i + R..]);
-        let centre_ok = valid(c);
-        if _mm256_movemask_ps(centre_ok) == 0 {
-            // No valid centre among the 8: the output is 0 whatever the neighbours are.
-            dst[i..i + 8].fill(0.0);
+    for g in 0..CHUNK / 16 {
+        let i = 16 * g;
+        let ca = load(&rows[R][i + R..]);
+        let cb = load(&rows[R][i + 8 + R..]);
+        let (ok_a, ok_b) = (valid(ca), valid(cb));
+        if _mm256_movemask_ps(_mm256_or_ps(ok_a, ok_b)) == 0 {
+            // No valid centre among the 16: the output is 0 whatever the neighbours are.
+            dst[i..i + 16].fill(0.0);
             continue;
         }
         // Opaque to the optimiser: the constants are reloaded for every group, where each tap
-        // uses them (folded into the multiply-adds), instead of being hoisted out of the loop
-        // into 30 registers' worth of values that spill (measured with two interleaved
-        // groups: 1021 instructions per 16 pixels at 5×5 hoisted, 987 reloaded).
+        // uses them (folded into the multiply-adds as memory operands), instead of being
+        // hoisted out of the loop into more values than AVX2's 16 registers hold.
         let cls = std::hint::black_box(cls);
-        let s = scale(c);
-        let zs = _mm256_mul_ps(s, c);
-        // The centre tap (weight 1, difference 0) initialises the sums.
-        let mut sw = one;
-        let mut sd = zero;
-        // Each tap's work in four stages, software-pipelined: step `n` accumulates tap
-        // `n − 3`, evaluates the polynomial of tap `n − 2`, splits `e²` of tap `n − 1` and
-        // loads tap `n` (every tap does the same operations in the same order as
-        // `range_weight`, and the sums are still accumulated tap by tap). In program order the
-        // operands of most instructions are then ready, so the out-of-order core needs a
-        // shorter window to overlap the taps' 40-cycle dependency chains.
-        let (mut e1, mut e2, mut e3) = (zero, zero, zero);
-        let (mut t2, mut t3, mut g2, mut p3) = (zero, zero, zero, zero);
+        let (sa, sb) = (scale(ca), scale(cb));
+        let (zsa, zsb) = (_mm256_mul_ps(sa, ca), _mm256_mul_ps(sb, cb));
+        // The centre tap (difference 0) initialises the sums.
+        let (mut swa, mut swb) = (centre, centre);
+        let (mut sda, mut sdb) = (zero, zero);
+        macro_rules! weigh {
+            ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $y0:expr) => {
+                // `range_weight::<true>`: e', y = T − e'², ⌊y⌋ as bits, the cutoff.
+                let e = _mm256_fmsub_ps($nb, $s, $zs);
+                let y = _mm256_fnmadd_ps(e, e, $y0);
+                let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(y, keep_above);
+                let w = _mm256_and_ps(keep, _mm256_castsi256_ps(_mm256_cvttps_epi32(y)));
+                $sw = _mm256_add_ps($sw, w);
+                $sd = _mm256_fmadd_ps(w, e, $sd);
+            };
+        }
         macro_rules! step {
             ($n:literal) => {
-                // One basic block per three steps (`taps_on` is all ones but opaque): it keeps
-                // the scheduler from hoisting later taps' work ahead and spilling it. (Person
-                // frame, 5×5: a block per step 18.2 M instructions, 1.38 ms; per two steps
-                // 16.7 M; per three 16.3 M, 1.365 ms.)
+                // One basic block per three taps (`taps_on` is all ones but opaque): it keeps
+                // the scheduler from hoisting later taps' work ahead and spilling it.
                 if $n % 3 != 0 || taps_on & (1 << $n) != 0 {
-                    if let Some(q) = const {
-                        if $n >= 3 {
-                            nth_tap::<R, DISC>($n - 3)
-                        } else {
-                            None
-                        }
-                    } {
-                        // 2p · 2^(−(m+1)) on the bit patterns (the shifted bits are
-                        // −(m+1) << 23), 0 below the cutoff.
-                        let w = _mm256_add_epi32(
-                            _mm256_castps_si256(p3),
-                            _mm256_slli_epi32::<23>(_mm256_castps_si256(t3)),
-                        );
-                        let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(t3, cls[q].cut);
-                        let w = _mm256_and_ps(keep, _mm256_castsi256_ps(w));
-                        sw = _mm256_add_ps(sw, w);
-                        sd = _mm256_fmadd_ps(w, e3, sd);
-                    }
-                    if let Some(q) = const {
-                        if $n >= 2 {
-                            nth_tap::<R, DISC>($n - 2)
-                        } else {
-                            None
-                        }
-                    } {
-                        let k = &cls[q].c;
-                        e3 = e2;
-                        t3 = t2;
-                        p3 = _mm256_fmadd_ps(
-                            g2,
-                            _mm256_fmadd_ps(g2, _mm256_fmadd_ps(g2, k[0], k[1]), k[2]),
-                            k[3],
-                        );
-                    }
-                    if const { $n >= 1 && nth_tap::<R, DISC>($n - 1).is_some() } {
-                        // `range_weight::<true>` with the shifted magic constant: t1, −g.
-                        e2 = e1;
-                        t2 = _mm256_fnmadd_ps(e1, e1, magic);
-                        g2 = _mm256_fnmadd_ps(e1, e1, _mm256_sub_ps(magic, t2));
-                    }
                     if let Some(q) = const { nth_tap::<R, DISC>($n) } {
-                        let nb = load(&rows[q / FRAME][i + q % FRAME..]);
-                        e1 = _mm256_fmsub_ps(nb, s, zs);
+                        let row = rows[q / FRAME];
+                        weigh!(load(&row[i + q % FRAME..]), sa, zsa, swa, sda, cls[q].y0);
+                        weigh!(
+                            load(&row[i + 8 + q % FRAME..]),
+                            sb,
+                            zsb,
+                            swb,
+                            sdb,
+                            cls[q].y0
+                        );
                     }
                 }
             };
@@ -290,23 +246,24 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         step!(45);
         step!(46);
         step!(47);
-        step!(48);
-        step!(49);
-        step!(50);
-        // The epilogue of `super::finish`, with masks.
-        let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
-        let (v, c_out) = if DISP {
-            (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
-        } else {
-            (v, c)
-        };
-        let ok = _mm256_and_ps(
-            _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
-            _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
-        );
-        let v = _mm256_blendv_ps(c_out, v, ok);
-        let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(centre_ok, v));
-        dst[i..i + 8].copy_from_slice(&v);
+        for (c, centre_ok, s, sw, sd, off) in
+            [(ca, ok_a, sa, swa, sda, 0), (cb, ok_b, sb, swb, sdb, 8)]
+        {
+            // The epilogue of `super::finish`, with masks.
+            let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
+            let (v, c_out) = if DISP {
+                (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
+            } else {
+                (v, c)
+            };
+            let ok = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
+                _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
+            );
+            let v = _mm256_blendv_ps(c_out, v, ok);
+            let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(centre_ok, v));
+            dst[i + off..i + off + 8].copy_from_slice(&v);
+        }
     }
 }
 
@@ -316,7 +273,7 @@ mod tests {
         Adaptive, BLOCK_ROWS, Fixed, INVALID_FILL, Isa, RangeMode, Source, Taps, dispatch,
         stride_for, vectorised_avx2_reference,
     };
-    use crate::fastexp::{LOG2_E, TapExp};
+    use crate::weight::{E_SCALE, LOG2_E, TapExp};
 
     /// Filters the whole image block by block with the explicit kernel (`new`) or the
     /// compiler-vectorised one.
@@ -381,13 +338,11 @@ mod tests {
                 let k = 2 * r + 1;
                 let sigma = r as f64 / 2.0;
                 let mut exps = Vec::new();
-                let mut texp = Vec::new();
                 for dy in 0..k {
                     for dx in 0..k {
                         let d2 = (dx.abs_diff(r).pow(2) + dy.abs_diff(r).pow(2)) as f64;
                         let t = -d2 / (2.0 * sigma * sigma) * f64::from(LOG2_E);
                         exps.push(TapExp::new(t));
-                        texp.push(t as f32);
                     }
                 }
                 let taps = Taps {
@@ -395,7 +350,6 @@ mod tests {
                     disc,
                     taps: &[],
                     exps: &exps,
-                    texp: &texp,
                 };
                 let a = filter::<M, DISP>(taps, src, mode, fb, true);
                 let b = filter::<M, DISP>(taps, src, mode, fb, false);
@@ -429,7 +383,7 @@ mod tests {
             min_m: 0.1,
             max_m: 20.0,
         };
-        let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma) as f32;
+        let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma * E_SCALE) as f32;
         // Adaptive with the Kinect's k and a tenth of it (more cut-off weights), fixed σ.
         check::<_, false>(&src, Adaptive(coef(0.0028)), 0.0);
         check::<_, false>(&src, Adaptive(coef(0.00028)), 0.0);

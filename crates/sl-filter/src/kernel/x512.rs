@@ -1,12 +1,12 @@
 //! The explicit AVX-512 kernel of the range filters' constant-radius fast paths.
 //!
-//! Same arithmetic as `chunk` with `range_weight`, but the range weight
-//! `w = 2^y`, `y = t − e²`, uses two AVX-512 instructions the compiler cannot derive from
-//! scalar code: `vreduceps` (`y − ⌊y⌋` in one instruction) and `vscalefps` (`p·2^⌊y⌋`, zeroed
-//! by the cutoff mask), with `2^f` on `[0, 1)` the same degree-3 polynomial as
-//! `range_weight` (shifted by ½). Per tap: 10 vector operations instead of 12. Two 16-lane
-//! groups are interleaved, which hides the latency of each tap's dependency chain (measured
-//! ~25 % faster than one group at a time).
+//! Same arithmetic as `chunk` with `range_weight::<true>` (bit-identical, asserted by the
+//! tests): per tap the difference `e' = v_q·s − s·v_p` (one multiply-add), `y = T − e'²`
+//! (one multiply-add), the cutoff as a mask, the truncating conversion whose bit pattern is
+//! the weight (`vcvttps2dq` with zero-masking), and the two sums: 6 vector operations (10 with
+//! the polynomial `2^x` of session 34 and before). Two 16-lane groups are interleaved, which
+//! hides the latency of each tap's dependency chain (measured ~25 % faster than one group at a
+//! time).
 
 use std::arch::x86_64::*;
 
@@ -14,7 +14,7 @@ use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
     class, is_row, is_tap,
 };
-use crate::fastexp::{EXP2_UNIT, WEIGHT_CUTOFF_EXP2};
+use crate::weight::{CENTRE_WEIGHT, KEEP_ABOVE};
 
 /// 16 lanes from the start of `a` (at least 16 long), as an unaligned vector load.
 #[inline(always)]
@@ -40,7 +40,7 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     let mut t = [0.0f32; MAX_CLASSES];
     for dy in 0..k {
         for dx in 0..k {
-            t[class::<R>(dy, dx)] = taps.texp[dy * k + dx];
+            t[class::<R>(dy, dx)] = taps.exps[dy * k + dx].y0;
         }
     }
     let mut res = [0.0f32; CHUNK];
@@ -87,8 +87,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm512_set1_ps(mode.coef());
     let max_scale = _mm512_set1_ps(MAX_SCALE);
-    let cut = _mm512_set1_ps(WEIGHT_CUTOFF_EXP2 as f32);
-    let [p3, p2, p1, p0] = EXP2_UNIT.map(|c| _mm512_set1_ps(c));
+    let keep_above = _mm512_set1_ps(KEEP_ABOVE);
     let tv: [__m512; MAX_CLASSES] = core::array::from_fn(|c| _mm512_set1_ps(t[c]));
     let zero = _mm512_setzero_ps();
     let inf = _mm512_set1_ps(f32::INFINITY);
@@ -114,21 +113,18 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         }
         let (sa, sb) = (scale(ca), scale(cb));
         let (zsa, zsb) = (_mm512_mul_ps(sa, ca), _mm512_mul_ps(sb, cb));
-        // The centre tap (weight 1, difference 0) initialises the sums.
-        let (mut swa, mut swb) = (_mm512_set1_ps(1.0), _mm512_set1_ps(1.0));
+        // The centre tap (difference 0) initialises the sums.
+        let centre = _mm512_set1_ps(CENTRE_WEIGHT);
+        let (mut swa, mut swb) = (centre, centre);
         let (mut sda, mut sdb) = (zero, zero);
         macro_rules! weigh {
             ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $t:ident) => {
                 let e = _mm512_fmsub_ps($nb, $s, $zs);
                 let y = _mm512_fnmadd_ps(e, e, $t);
                 // Weights below 2^−100 (and NaN / −∞ exponents: invalid neighbours) are 0.
-                let keep = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(y, cut);
-                // f = y − ⌊y⌋ ∈ [0, 1) (imm 0x09: round down, suppress precision
-                // exceptions).
-                let f = _mm512_maskz_reduce_ps::<0x09>(keep, y);
-                let p = _mm512_fmadd_ps(_mm512_fmadd_ps(_mm512_fmadd_ps(p3, f, p2), f, p1), f, p0);
-                // p·2^⌊y⌋: at least 2^−100, never subnormal.
-                let w = _mm512_maskz_scalef_ps(keep, p, y);
+                let keep = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(y, keep_above);
+                // ⌊y⌋'s bit pattern is the weight (at least 2^−100, never subnormal).
+                let w = _mm512_castsi512_ps(_mm512_maskz_cvttps_epi32(keep, y));
                 $sw = _mm512_add_ps($sw, w);
                 $sd = _mm512_fmadd_ps(w, e, $sd);
             };
