@@ -15,16 +15,17 @@
 //!
 //! **The range weight** `2^(t − e²)` (see [`crate::weight`]) is the log-linear `2^x`: with
 //! the difference pre-scaled by `2^11.5`, `y = T − e'²` is one multiply-add (`T` folds in the
-//! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight; a compare
-//! and a zero-masking make weights below `2^−100` exactly 0, which keeps every product out of
-//! the slow subnormal range. Per tap: 6 vector operations on AVX-512 (difference, `y`, compare,
-//! masked conversion, two sums), 7 on AVX2 (the mask is an `and`).
+//! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight; its integer
+//! maximum with `2²³` floors every weight at `2^−126`, the smallest normal `f32`, which keeps
+//! every product out of the slow subnormal range. Per tap: 6 vector operations on AVX-512 and
+//! AVX2 alike (difference, `y`, conversion, maximum, two sums).
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the
 //! width rounded up to the lane count). Invalid pixels and the padding hold a sentinel:
-//! a sentinel (10¹⁸) for the range filters — its range exponent is below the cutoff of
-//! the weight function (`2^−100`), so its weight is exactly 0 and invalid neighbours need no
-//! mask — and 0 with an explicit mask for the Gaussian.
+//! a sentinel (10¹⁸) for the range filters — its range exponent is far below the floor of
+//! the weight function, so it weighs `2^−126` and moves a filtered value by at most
+//! `2^−126·10¹⁸ ≈ 10⁻²⁰` of the value; invalid neighbours need no mask — and 0 with an
+//! explicit mask for the Gaussian.
 //! This is what makes the border handling "window clipped at the border, weights renormalised
 //! over the valid pixels inside the image".
 //!

@@ -1,8 +1,9 @@
 //! A straightforward, slow implementation of every filter (per pixel, `f64`, the window clipped
 //! at the border), kept as the executable specification the fast kernel is tested against. The
 //! Gaussian's weights are `f64::exp`; the range filters' joint weight `w_s·w_d = 2^x` is the
-//! log-linear `2^x` of [`crate::weight`] (within 3 % of `2^x`, zero below `2^−100`), evaluated
-//! in `f64`.
+//! log-linear `2^x` of the fast kernels (the crate docs' *Speed*: within 3 % of `2^x`, never
+//! below `2^−126`), evaluated in `f64`. Invalid neighbours, which the fast paths weigh
+//! `2^−126`, are left out.
 
 use sl_core::DepthImage;
 
@@ -54,11 +55,11 @@ pub fn filter_reference(filter: &DepthFilter, depth: &DepthImage) -> Result<Dept
                     let vq = value(zq);
                     let d2s = ((qx - x) * (qx - x) + (qy - y) * (qy - y)) as f64;
                     let w = if sigma_range.is_finite() {
-                        // log2 of the Gaussian spatial weight times the Gaussian range weight.
-                        let x = -(d2s / (2.0 * ss * ss)
-                            + (vq - vp) * (vq - vp) / (2.0 * sigma_range * sigma_range))
-                            * std::f64::consts::LOG2_E;
-                        weight_f64(x)
+                        // log2 of the Gaussian spatial weight and of the Gaussian range weight.
+                        let log2e = std::f64::consts::LOG2_E;
+                        let t = -d2s / (2.0 * ss * ss) * log2e;
+                        let e2 = (vq - vp) * (vq - vp) / (2.0 * sigma_range * sigma_range) * log2e;
+                        weight_f64(t, e2)
                     } else {
                         (-d2s / (2.0 * ss * ss)).exp()
                     };

@@ -28,11 +28,17 @@
 //! (docs/bench/README.md, session 35). [`crate::reference`] computes the same function in `f64`,
 //! so the fast paths are still tested against an executable specification.
 //!
-//! **The cutoff.** Weights below `2^−100` (`x − δ < −100`) are exactly 0, as are those of NaN
-//! or infinite differences (an invalid neighbour holds a huge sentinel, so `e'² = ∞`): a
-//! compare and a zero-masking. Returning 0 rather than a tiny weight keeps every product of a
-//! weight and a difference out of the subnormal range (a subnormal result costs a ~100-cycle
-//! microcode assist per vector instruction on Intel cores; measured ~130× on a Skylake-SP).
+//! **The floor.** No weight is below `2^−126`, the smallest normal `f32`: the kernels take the
+//! integer maximum of `⌊y⌋` and `2²³` (one operation; `⌊y⌋` of a NaN or `−∞`, an invalid
+//! neighbour whose sentinel makes `e'² = ∞`, is the most negative integer), and a tap's spatial
+//! weight counts as at least `2^−100`. So a far or invalid neighbour weighs `2^−126` instead of
+//! 0 — it moves a filtered value by at most `2^−126` times its distance to the sentinel
+//! (`10^18`), about `10^−20` of the value — and no weight, and no product of a weight with a
+//! difference, is ever subnormal (a subnormal result costs a ~100-cycle microcode assist per
+//! vector instruction on Intel cores; measured ~130× on a Skylake-SP). A floored weight comes
+//! with `e'² ≥ 2²³·26` (the spatial floor), so `|w·e'| ≥ 2^−126·1.5·10⁴` stays normal too.
+//! (A compare and a zero-masking would make those weights exactly 0 at one more operation per
+//! tap: measured 11 % slower on the AVX-512 path.)
 
 /// `2^11.5`: the factor folded into the range scale, so that `e'² = (2^11.5·e)² = 2²³·e²` is
 /// already in units of the `f32` mantissa's last bit.
@@ -47,11 +53,11 @@ const EXPONENT_UNIT: f64 = 8_388_608.0;
 /// Exponent bias of `f32`.
 const BIAS: f64 = 127.0;
 
-/// Log2 of the smallest kept weight: below it weights are exactly 0.
-pub(crate) const WEIGHT_CUTOFF_EXP2: f64 = -100.0;
+/// Log2 of the smallest spatial weight a tap counts with.
+const SPATIAL_FLOOR_EXP2: f64 = -100.0;
 
-/// `y = T − e'²` must exceed this for a weight to be kept: `2²³·(127 − 100)`.
-pub(crate) const KEEP_ABOVE: f32 = ((BIAS + WEIGHT_CUTOFF_EXP2) * EXPONENT_UNIT) as f32;
+/// The bit pattern of the smallest weight, `2^−126` (`2²³`, the smallest normal `f32`).
+pub(crate) const FLOOR_BITS: i32 = 1 << 23;
 
 /// Largest relative error of [`range_weight`] against `2^x` (asserted by the tests).
 #[cfg(test)]
@@ -61,23 +67,24 @@ const WEIGHT_RELATIVE_ERROR: f64 = 0.0299;
 /// spatial exponent `t ≤ 0` (log2 of its spatial weight).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct TapExp {
-    /// `T`; below [`KEEP_ABOVE`] (or NaN) the tap never contributes.
+    /// `T`, in `[2²³·27, 2²³·(127 − δ)]`.
     pub y0: f32,
 }
 
 impl TapExp {
-    /// The constant for the spatial exponent `t` (`t = 0` for the centre).
+    /// The constant for the spatial exponent `t` (`t = 0` for the centre), clamped to
+    /// `[−100, 0]`: a weight never exceeds 1, every `T − e'²` fits an `i32`, and a floored
+    /// weight's difference is large (module docs). NaN counts as `−∞`.
     pub(crate) fn new(t: f64) -> Self {
-        let y0 = (t - DELTA + BIAS) * EXPONENT_UNIT;
-        // A spatial weight below the cutoff disables the tap (also t = −∞ or NaN).
-        // t ≤ 0: a weight never exceeds 1, and every `T − e'²` fits an `i32`.
-        let y0 = y0.min((BIAS - DELTA) * EXPONENT_UNIT);
-        let y0 = if y0 > f64::from(KEEP_ABOVE) {
-            y0 as f32
+        let t = t.clamp(SPATIAL_FLOOR_EXP2 + DELTA, 0.0);
+        let t = if t.is_nan() {
+            SPATIAL_FLOOR_EXP2 + DELTA
         } else {
-            f32::NEG_INFINITY
+            t
         };
-        Self { y0 }
+        Self {
+            y0: ((t - DELTA + BIAS) * EXPONENT_UNIT) as f32,
+        }
     }
 }
 
@@ -87,7 +94,7 @@ pub(crate) const CENTRE_WEIGHT: f32 =
     f32::from_bits((((BIAS - DELTA) * EXPONENT_UNIT) as f32) as u32);
 
 /// The range weight of a tap with constant `k` and scaled difference `e' = 2^11.5·e` (see the
-/// module docs): the bit pattern `⌊T − e'²⌋`, or exactly 0 at or below the cutoff and for NaN.
+/// module docs): the bit pattern `max(⌊T − e'²⌋, 2²³)` (`2²³` also for NaN).
 /// `FMA`: `T − e'²` is one fused multiply-add (the SIMD kernels), otherwise a product and a
 /// subtraction.
 #[inline(always)]
@@ -97,13 +104,18 @@ pub(crate) fn range_weight<const FMA: bool>(e: f32, k: &TapExp) -> f32 {
     } else {
         k.y0 - e * e
     };
-    // Kept values lie in (KEEP_ABOVE, T] ⊂ (2^27, 2^31), where an `f32` is an integer (its ulp
-    // is at least 16): the truncation `cvttps2dq` of the SIMD kernels is exact there.
-    let y = if y > KEEP_ABOVE { y } else { 0.0 };
+    // Above the floor y lies in [2^23, 2^31), where every `f32` is an integer: the truncation
+    // `cvttps2dq` of the SIMD kernels is exact there, and their integer maximum with 2^23 is
+    // this select (NaN fails the comparison).
+    let y = if y > FLOOR_BITS as f32 {
+        y
+    } else {
+        FLOOR_BITS as f32
+    };
     f32::from_bits(integer_bits(y))
 }
 
-/// The integer `y ∈ {0} ∪ (2^27, 2^31)` (an integer-valued `f32`) as a `u32`.
+/// The integer `y ∈ [2^23, 2^31)` (an integer-valued `f32`) as a `u32`.
 #[inline(always)]
 fn integer_bits(y: f32) -> u32 {
     #[cfg(target_arch = "x86_64")]
@@ -120,15 +132,15 @@ fn integer_bits(y: f32) -> u32 {
     }
 }
 
-/// The same weight in `f64`, as [`crate::reference`] computes it: `x = t − e²` in log2 units.
-pub(crate) fn weight_f64(x: f64) -> f64 {
-    let y = x - DELTA;
-    // NaN (and −∞) fail the comparison: weight 0.
-    if y.partial_cmp(&WEIGHT_CUTOFF_EXP2) != Some(std::cmp::Ordering::Greater) {
-        return 0.0;
-    }
+/// The same weight in `f64`, as [`crate::reference`] computes it, for the spatial exponent `t`
+/// and the range term `e²` (both log2 units).
+pub(crate) fn weight_f64(t: f64, e2: f64) -> f64 {
+    let y = t.clamp(SPATIAL_FLOOR_EXP2 + DELTA, 0.0) - e2 - DELTA;
     let n = y.floor();
-    n.exp2() * (1.0 + (y - n))
+    let w = n.exp2() * (1.0 + (y - n));
+    // NaN fails `w > floor`.
+    let floor = 2.0f64.powi(-126);
+    if w > floor { w } else { floor }
 }
 
 /// `log2(e)`.
@@ -150,34 +162,37 @@ mod tests {
     }
 
     #[test]
-    fn weights_are_the_log_linear_exp2_within_its_bound_and_cut_off_below_2_pow_minus_100() {
+    fn weights_are_the_log_linear_exp2_within_its_bound_and_never_below_2_pow_minus_126() {
+        let floor = 2.0f64.powi(-126);
         let mut worst = 0.0f64;
         let mut worst_f64 = 0.0f64;
+        let mut floored = 0;
         for t in spatial_t() {
             let k = TapExp::new(t);
             for i in 0..=200_000 {
-                // e² from 0 to 110, past the cutoff.
-                let e2 = 110.0 * f64::from(i) / 200_000.0;
+                // e² from 0 to 140, past the floor.
+                let e2 = 140.0 * f64::from(i) / 200_000.0;
                 let e = (e2.sqrt() * E_SCALE) as f32;
                 for e in [e, -e] {
                     let es = f64::from(e) / E_SCALE;
                     let x = t - es * es;
                     let exact = x.exp2();
-                    let spec = weight_f64(x);
+                    let spec = weight_f64(t, es * es);
                     for w in [range_weight::<false>(e, &k), range_weight::<true>(e, &k)] {
-                        if w == 0.0 {
-                            // Only at the cutoff (with the f32 rounding of T − e'² as slack).
-                            assert!(exact < 2.0f64.powf(-99.9), "t {t} e {e}: 0 for {exact}");
+                        assert!(w.is_normal(), "t {t} e {e}: {w}");
+                        worst_f64 = worst_f64.max((f64::from(w) / spec - 1.0).abs());
+                        if f64::from(w) == floor {
+                            // Only where 2^x is at most about the floor.
+                            assert!(exact < 2.0 * floor, "t {t} e {e}: floor for {exact}");
+                            floored += 1;
                         } else {
-                            assert!(exact > 2.0f64.powf(-100.1), "t {t} e {e}: kept {exact}");
-                            assert!(w.is_normal());
                             worst = worst.max((f64::from(w) / exact - 1.0).abs());
-                            worst_f64 = worst_f64.max((f64::from(w) / spec - 1.0).abs());
                         }
                     }
                 }
             }
         }
+        assert!(floored > 1000);
         assert!(worst < WEIGHT_RELATIVE_ERROR, "against 2^x: {worst}");
         // Tight: the interpolation uses most of the bound.
         assert!(worst > 0.029, "{worst}");
@@ -198,14 +213,16 @@ mod tests {
         }
         // Across an exponent boundary the two sides meet: 2^n·(1 + 1) = 2^(n+1)·(1 + 0).
         for n in [-1.0, -5.0, -37.0] {
-            let below = weight_f64(n + DELTA - 1e-12);
-            let at = weight_f64(n + DELTA);
+            let below = weight_f64(0.0, -(n + DELTA - 1e-12));
+            let at = weight_f64(0.0, -(n + DELTA));
             assert!((below / at - 1.0).abs() < 1e-11, "{n}: {below} {at}");
         }
     }
 
     #[test]
-    fn invalid_and_far_neighbours_weigh_zero() {
+    fn invalid_and_far_neighbours_weigh_the_floor() {
+        let floor = f32::from_bits(FLOOR_BITS as u32);
+        assert_eq!(f64::from(floor), 2.0f64.powi(-126));
         let k = TapExp::new(-0.72);
         for e in [
             f32::INFINITY,
@@ -213,22 +230,22 @@ mod tests {
             f32::NAN,
             1.0e20,
             -3.0e5 * E_SCALE as f32,
-            11.0 * E_SCALE as f32,
+            12.0 * E_SCALE as f32,
         ] {
-            assert_eq!(range_weight::<false>(e, &k), 0.0, "{e}");
-            assert_eq!(range_weight::<true>(e, &k), 0.0, "{e}");
+            assert_eq!(range_weight::<false>(e, &k), floor, "{e}");
+            assert_eq!(range_weight::<true>(e, &k), floor, "{e}");
         }
-        // A spatial weight below the cutoff disables the tap.
-        assert_eq!(range_weight::<true>(0.0, &TapExp::new(-150.0)), 0.0);
-        assert_eq!(
-            range_weight::<true>(0.0, &TapExp::new(f64::NEG_INFINITY)),
-            0.0
-        );
+        // A spatial weight below 2^−100 counts as 2^−100 (also −∞ and NaN).
+        for t in [-150.0, f64::NEG_INFINITY, f64::NAN] {
+            assert_eq!(TapExp::new(t), TapExp::new(-100.0 + DELTA));
+        }
+        let w = range_weight::<true>(0.0, &TapExp::new(-150.0));
+        assert!((f64::from(w) / 2.0f64.powi(-100) - 1.0).abs() < 0.03, "{w}");
         // The centre: 2^−δ·(1 + …) within the bound of 1.
         let c = CENTRE_WEIGHT;
         assert_eq!(c, range_weight::<true>(0.0, &TapExp::new(0.0)));
         assert_eq!(c, range_weight::<false>(0.0, &TapExp::new(0.0)));
         assert!((f64::from(c) - 1.0).abs() < WEIGHT_RELATIVE_ERROR, "{c}");
-        assert!((f64::from(c) / weight_f64(0.0) - 1.0).abs() < 1e-6);
+        assert!((f64::from(c) / weight_f64(0.0, 0.0) - 1.0).abs() < 1e-6);
     }
 }

@@ -2,9 +2,9 @@
 //!
 //! Bit-identical to the compiler-vectorised `chunk` with `range_weight::<true>` (asserted by
 //! the tests below): every tap performs the same fused operations in the same order — the
-//! difference `e'` and `y = T − e'²` (two multiply-adds), the cutoff compare, the truncating
-//! conversion whose bit pattern is the weight, the mask, and the two sums (7 vector operations
-//! and one load; 13 with the polynomial `2^x` of session 34 and before). What the explicit
+//! difference `e'` and `y = T − e'²` (two multiply-adds), the truncating conversion whose bit
+//! pattern is the weight, its integer maximum with the floor `2^−126`, and the two sums (6
+//! vector operations and one load; 13 with the polynomial `2^x` of session 34 and before). What the explicit
 //! code adds:
 //!
 //! - **Two 8-lane groups are interleaved**, as in the AVX-512 kernel: each group's two sums
@@ -19,7 +19,7 @@
 use std::arch::x86_64::*;
 
 use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
-use crate::weight::{CENTRE_WEIGHT, KEEP_ABOVE, TapExp};
+use crate::weight::{CENTRE_WEIGHT, FLOOR_BITS, TapExp};
 
 /// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
 #[inline(always)]
@@ -127,7 +127,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm256_set1_ps(mode.coef());
     let max_scale = _mm256_set1_ps(MAX_SCALE);
-    let keep_above = _mm256_set1_ps(KEEP_ABOVE);
+    let floor = _mm256_set1_epi32(FLOOR_BITS);
     let zero = _mm256_setzero_ps();
     let centre = _mm256_set1_ps(CENTRE_WEIGHT);
     let inf = _mm256_set1_ps(f32::INFINITY);
@@ -169,11 +169,10 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         let (mut sda, mut sdb) = (zero, zero);
         macro_rules! weigh {
             ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $y0:expr) => {
-                // `range_weight::<true>`: e', y = T − e'², ⌊y⌋ as bits, the cutoff.
+                // `range_weight::<true>`: e', y = T − e'², ⌊y⌋ as bits, the floor.
                 let e = _mm256_fmsub_ps($nb, $s, $zs);
                 let y = _mm256_fnmadd_ps(e, e, $y0);
-                let keep = _mm256_cmp_ps::<_CMP_GT_OQ>(y, keep_above);
-                let w = _mm256_and_ps(keep, _mm256_castsi256_ps(_mm256_cvttps_epi32(y)));
+                let w = _mm256_castsi256_ps(_mm256_max_epi32(_mm256_cvttps_epi32(y), floor));
                 $sw = _mm256_add_ps($sw, w);
                 $sd = _mm256_fmadd_ps(w, e, $sd);
             };

@@ -2,8 +2,8 @@
 //!
 //! Same arithmetic as `chunk` with `range_weight::<true>` (bit-identical, asserted by the
 //! tests): per tap the difference `e' = v_q·s − s·v_p` (one multiply-add), `y = T − e'²`
-//! (one multiply-add), the cutoff as a mask, the truncating conversion whose bit pattern is
-//! the weight (`vcvttps2dq` with zero-masking), and the two sums: 6 vector operations (10 with
+//! (one multiply-add), the truncating conversion whose bit pattern is the weight
+//! (`vcvttps2dq`), its integer maximum with the floor, and the two sums: 6 vector operations (10 with
 //! the polynomial `2^x` of session 34 and before). Two 16-lane groups are interleaved, which
 //! hides the latency of each tap's dependency chain (measured ~25 % faster than one group at a
 //! time).
@@ -14,7 +14,7 @@ use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
     class, is_row, is_tap,
 };
-use crate::weight::{CENTRE_WEIGHT, KEEP_ABOVE};
+use crate::weight::{CENTRE_WEIGHT, FLOOR_BITS};
 
 /// 16 lanes from the start of `a` (at least 16 long), as an unaligned vector load.
 #[inline(always)]
@@ -87,7 +87,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm512_set1_ps(mode.coef());
     let max_scale = _mm512_set1_ps(MAX_SCALE);
-    let keep_above = _mm512_set1_ps(KEEP_ABOVE);
+    let floor = _mm512_set1_epi32(FLOOR_BITS);
     let tv: [__m512; MAX_CLASSES] = core::array::from_fn(|c| _mm512_set1_ps(t[c]));
     let zero = _mm512_setzero_ps();
     let inf = _mm512_set1_ps(f32::INFINITY);
@@ -121,10 +121,9 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $t:ident) => {
                 let e = _mm512_fmsub_ps($nb, $s, $zs);
                 let y = _mm512_fnmadd_ps(e, e, $t);
-                // Weights below 2^−100 (and NaN / −∞ exponents: invalid neighbours) are 0.
-                let keep = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(y, keep_above);
-                // ⌊y⌋'s bit pattern is the weight (at least 2^−100, never subnormal).
-                let w = _mm512_castsi512_ps(_mm512_maskz_cvttps_epi32(keep, y));
+                // ⌊y⌋'s bit pattern is the weight, at least 2^−126 (the integer maximum; NaN
+                // and −∞, invalid neighbours, convert to the most negative integer).
+                let w = _mm512_castsi512_ps(_mm512_max_epi32(_mm512_cvttps_epi32(y), floor));
                 $sw = _mm512_add_ps($sw, w);
                 $sd = _mm512_fmadd_ps(w, e, $sd);
             };
