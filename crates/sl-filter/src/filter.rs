@@ -403,11 +403,33 @@ impl DepthFilter {
         isa: Isa,
     ) -> Result<DepthImage> {
         let depth: DepthView<'a> = depth.into();
-        self.validate()?;
         let (w, h) = (depth.width(), depth.height());
+        Self::check_size(w, h)?;
+        let mut out = vec![0.0f32; w * h];
+        self.apply_into(depth, isa, &mut out)?;
+        Ok(DepthImage::from_vec(w, h, out)?)
+    }
+
+    /// The pixel budget of one image.
+    fn check_size(w: usize, h: usize) -> Result<()> {
         if w.checked_mul(h).is_none_or(|n| n > MAX_PIXELS) {
             return Err(FilterError::ImageSize(format!(
                 "{w}x{h} exceeds the budget of {MAX_PIXELS} pixels"
+            )));
+        }
+        Ok(())
+    }
+
+    /// [`DepthFilter::apply_with_isa`] into `out` (`width × height`, every pixel written), for
+    /// callers that reuse their buffers.
+    pub(crate) fn apply_into(&self, depth: DepthView<'_>, isa: Isa, out: &mut [f32]) -> Result<()> {
+        self.validate()?;
+        let (w, h) = (depth.width(), depth.height());
+        Self::check_size(w, h)?;
+        if out.len() != w * h {
+            return Err(FilterError::ImageSize(format!(
+                "output of {} pixels for a {w}x{h} image",
+                out.len()
             )));
         }
         let isa = if isa.is_supported() {
@@ -444,7 +466,6 @@ impl DepthFilter {
             taps: &taps,
             exps: &exps,
         };
-        let mut out = vec![0.0f32; w * h];
         let log2e = f64::from(LOG2_E);
         // Range scale √(log2 e / (2σ²)); for the adaptive filter √(log2 e / 2) / k. Times
         // 2^11.5, the range weight's unit (`weight`).
@@ -461,26 +482,26 @@ impl DepthFilter {
         let ok = match self.range {
             RangeKernel::None => {
                 src.fill = 0.0;
-                kernel::run(isa, taps, &src, &mut out, NoRange)
+                kernel::run(isa, taps, &src, out, NoRange)
             }
             RangeKernel::Fixed { sigma_d_m } => {
-                kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_d_m)))
+                kernel::run(isa, taps, &src, out, Fixed(coef(sigma_d_m)))
             }
             RangeKernel::Adaptive { k_per_m } => {
-                kernel::run(isa, taps, &src, &mut out, Adaptive(coef(k_per_m)))
+                kernel::run(isa, taps, &src, out, Adaptive(coef(k_per_m)))
             }
             RangeKernel::Disparity {
                 sigma_disp_px,
                 fb_px_m,
             } => {
                 src.disparity_fb = Some(fb_px_m as f32);
-                kernel::run(isa, taps, &src, &mut out, Fixed(coef(sigma_disp_px)))
+                kernel::run(isa, taps, &src, out, Fixed(coef(sigma_disp_px)))
             }
         };
         if !ok {
             return Err(out_of_range(depth));
         }
-        Ok(DepthImage::from_vec(w, h, out)?)
+        Ok(())
     }
 }
 

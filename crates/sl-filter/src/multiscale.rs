@@ -44,7 +44,12 @@
 //! pass, their interleaving, the interior gate by rows and bands of rows); on the 2-core AMD
 //! EPYC, before those parts ran in parallel, 10.8 / 8.6 ms (AVX-512) and 16.1 / 11.2 ms (AVX2),
 //! against OpenCV 5's `bilateralFilter` at 207 / 105 ms at the same 31-pixel support (42 / 22 ms
-//! at 15 px).
+//! at 15 px). On the AMD EPYC (Zen 4, AVX-512) in session 35: 9.0 → 5.3 ms on one thread and
+//! 3.0–3.9 → 2.7–2.8 ms on two, from the cheaper range weight (crate docs, *Speed*) and from
+//! this module's buffers: the sub-images of all passes share two `w·h` buffers
+//! (`Polyphase`), and each pass is written back into the finer result only inside its
+//! interior, in place (before: two allocations per sub-image, a third full image per pass and a
+//! separate merge; fresh 1.2 MB buffers cost page faults on every call).
 //!
 //! Beyond the paper: the paper filters once with one window; the dilated passes and the
 //! disparity domain at large supports are this crate's additions (issue 11).
@@ -136,27 +141,23 @@ impl MultiScale {
     fn apply_on_pool(&self, depth: DepthView<'_>, isa: Isa) -> Result<DepthImage> {
         self.validate()?;
         let mut cur = self.base.apply_with_isa(depth, isa)?;
+        let (w, h) = (cur.width(), cur.height());
+        // Buffers shared by the passes: the interior gate's, and the polyphase sub-images
+        // before and after filtering (each `w·h` values in all).
         let mut keep = Vec::new();
+        let mut near = Vec::new();
+        let mut subs = Polyphase::default();
         for &s in &self.dilations {
-            let mut coarse = apply_dilated_with_isa(&self.coarse, &cur, s, isa)?;
             interior_into(
                 &cur,
                 &self.coarse.range,
                 self.coarse.radius_px * s,
                 &mut keep,
+                &mut near,
             );
-            // Outside the interior the finer result stays.
-            coarse
-                .data_mut()
-                .par_iter_mut()
-                .zip(cur.data())
-                .zip(&keep)
-                .for_each(|((c, &b), &k)| {
-                    if !k {
-                        *c = b;
-                    }
-                });
-            cur = coarse;
+            subs.filter(&self.coarse, cur.data(), w, h, s, isa)?;
+            // The coarse result inside the interior; outside it the finer result stays.
+            subs.interleave_where(cur.data_mut(), w, s, Some(&keep));
         }
         Ok(cur)
     }
@@ -201,7 +202,13 @@ fn domain(range: &RangeKernel, z: f32) -> (f32, f32) {
 /// Cost: one pass marks the bad pixels (invalid, or a jump to the right or below neighbour),
 /// then a running count over each row and one over each column tell whether any bad pixel lies
 /// within `R` (a separable box test), all in `u16`/`bool` rows without per-pixel allocation.
-fn interior_into(depth: &DepthImage, range: &RangeKernel, r: usize, out: &mut Vec<bool>) {
+fn interior_into(
+    depth: &DepthImage,
+    range: &RangeKernel,
+    r: usize,
+    out: &mut Vec<bool>,
+    near: &mut Vec<bool>,
+) {
     let (w, h) = (depth.width(), depth.height());
     let z = depth.data();
     out.clear();
@@ -213,7 +220,8 @@ fn interior_into(depth: &DepthImage, range: &RangeKernel, r: usize, out: &mut Ve
     // with it is false) and range σ, the bad pixels (invalid, or a jump to the right or below
     // neighbour), then whether a bad pixel lies within ±r in the row (a running count over the
     // 2r+1 window).
-    let mut near = vec![false; w * h];
+    // Every value of `near` is written below.
+    near.resize(w * h, false);
     near.par_chunks_mut(w).enumerate().for_each_init(
         || RowScratch::new(w),
         |sc, (y, dst)| {
@@ -242,7 +250,7 @@ fn interior_into(depth: &DepthImage, range: &RangeKernel, r: usize, out: &mut Ve
     // Vertical: a horizontally-near pixel within ±r in the column, counted per column over
     // bands of rows in parallel (each band starts its counts from the 2r rows around its first).
     const BAND_ROWS: usize = 32;
-    let near = &near;
+    let near = &*near;
     out.par_chunks_mut(BAND_ROWS * w).enumerate().for_each_init(
         || vec![0u32; w],
         |count, (b, dst)| {
@@ -317,7 +325,7 @@ impl RowScratch {
 #[cfg(test)]
 fn interior(depth: &DepthImage, range: &RangeKernel, r: usize) -> Vec<bool> {
     let mut out = Vec::new();
-    interior_into(depth, range, r, &mut out);
+    interior_into(depth, range, r, &mut out, &mut Vec::new());
     out
 }
 
@@ -347,42 +355,187 @@ pub fn apply_dilated_with_isa(
         return filter.apply_with_isa(depth, isa);
     }
     let (w, h) = (depth.width(), depth.height());
-    let src = depth.data();
-    // The sub-images in parallel (each filter call splits further), then the interleaving by
-    // output rows.
-    let (nx, ny) = (dilation.min(w), dilation.min(h));
-    let filtered = (0..nx * ny)
-        .into_par_iter()
-        .map(|p| {
-            let (py, px) = (p / nx, p % nx);
-            let sw = (w - px).div_ceil(dilation);
-            let sh = (h - py).div_ceil(dilation);
-            let mut sub = Vec::with_capacity(sw * sh);
-            for j in 0..sh {
-                let row = (py + j * dilation) * w;
-                sub.extend((0..sw).map(|i| src[row + px + i * dilation]));
-            }
-            filter.apply_with_isa(DepthView::new(sw, sh, &sub)?, isa)
-        })
-        .collect::<Result<Vec<DepthImage>>>()?;
+    let mut subs = Polyphase::default();
+    subs.filter(filter, depth.data(), w, h, dilation, isa)?;
     let mut out = vec![0.0f32; w * h];
-    out.par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(y, row)| {
-            let (py, j) = (y % dilation, y / dilation);
-            for (px, f) in filtered[py * nx..(py + 1) * nx].iter().enumerate() {
-                let fw = f.width();
-                for (i, &v) in f.data()[j * fw..(j + 1) * fw].iter().enumerate() {
-                    row[px + i * dilation] = v;
-                }
-            }
-        });
+    subs.interleave_where(&mut out, w, dilation, None);
     Ok(DepthImage::from_vec(w, h, out)?)
+}
+
+/// The `s×s` polyphase sub-images of an image (every `s`-th pixel of every `s`-th row, from
+/// offset `(px, py)`), stored one after the other in two `w·h` buffers: as split, and as
+/// filtered. Reused across the passes of [`MultiScale::apply`] (two allocations per call, not
+/// two per sub-image and pass).
+#[derive(Default)]
+struct Polyphase {
+    input: Vec<f32>,
+    output: Vec<f32>,
+    /// Per sub-image, row-major over `(py, px)`: offset in the buffers, width, height.
+    layout: Vec<(usize, usize, usize)>,
+}
+
+impl Polyphase {
+    /// Splits `src` (`w × h`) into its sub-images for dilation `s` and filters each with
+    /// `filter`, all in parallel.
+    fn filter(
+        &mut self,
+        filter: &DepthFilter,
+        src: &[f32],
+        w: usize,
+        h: usize,
+        s: usize,
+        isa: Isa,
+    ) -> Result<()> {
+        let (nx, ny) = (s.min(w), s.min(h));
+        self.layout.clear();
+        let mut offset = 0;
+        for py in 0..ny {
+            for px in 0..nx {
+                let (sw, sh) = ((w - px).div_ceil(s), (h - py).div_ceil(s));
+                self.layout.push((offset, sw, sh));
+                offset += sw * sh;
+            }
+        }
+        // The sub-images tile the image: offset == w·h, and every value is written below.
+        self.input.resize(offset, 0.0);
+        self.output.resize(offset, 0.0);
+        let mut inputs = Vec::with_capacity(self.layout.len());
+        let mut outputs = Vec::with_capacity(self.layout.len());
+        let (mut rest_in, mut rest_out) = (&mut self.input[..], &mut self.output[..]);
+        for &(_, sw, sh) in &self.layout {
+            let (a, b) = std::mem::take(&mut rest_in).split_at_mut(sw * sh);
+            let (c, d) = std::mem::take(&mut rest_out).split_at_mut(sw * sh);
+            inputs.push(a);
+            outputs.push(c);
+            (rest_in, rest_out) = (b, d);
+        }
+        inputs
+            .into_par_iter()
+            .zip(outputs)
+            .enumerate()
+            .try_for_each(|(p, (sub, out))| {
+                let (py, px) = (p / nx, p % nx);
+                let sw = (w - px).div_ceil(s);
+                for (j, row) in sub.chunks_exact_mut(sw.max(1)).enumerate() {
+                    let src_row = &src[(py + j * s) * w..];
+                    for (i, v) in row.iter_mut().enumerate() {
+                        *v = src_row[px + i * s];
+                    }
+                }
+                let sh = sub.len() / sw.max(1);
+                filter.apply_into(DepthView::new(sw, sh, sub)?, isa, out)
+            })
+    }
+
+    /// Writes the filtered sub-images back to their pixels of `out` (`w` wide), by output rows
+    /// in parallel; with `keep`, only where it is true (elsewhere `out` keeps its value).
+    fn interleave_where(&self, out: &mut [f32], w: usize, s: usize, keep: Option<&[bool]>) {
+        let nx = s.min(w);
+        out.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(y, row)| {
+                let (py, j) = (y % s, y / s);
+                let keep_row = keep.map(|k| &k[y * w..(y + 1) * w]);
+                for (px, &(offset, sw, _)) in self.layout[py * nx..(py + 1) * nx].iter().enumerate()
+                {
+                    let filtered = &self.output[offset + j * sw..offset + (j + 1) * sw];
+                    match keep_row {
+                        None => {
+                            for (i, &v) in filtered.iter().enumerate() {
+                                row[px + i * s] = v;
+                            }
+                        }
+                        Some(k) => {
+                            for (i, &v) in filtered.iter().enumerate() {
+                                let x = px + i * s;
+                                if k[x] {
+                                    row[x] = v;
+                                }
+                            }
+                        }
+                    }
+                }
+            });
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A frame with slopes, steps, noise and holes (deterministic).
+    fn frame(w: usize, h: usize) -> DepthImage {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let d = (0..w * h)
+            .map(|i| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                let (x, y) = (i % w, i / w);
+                let noise = (state >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
+                if state.is_multiple_of(997) || (x > 40 && x < 52 && y > 10) {
+                    return 0.0;
+                }
+                let step = if x > 70 { 0.6 } else { 0.0 };
+                1.2 + 0.004 * x as f32 + 0.002 * y as f32 + step + 0.004 * noise
+            })
+            .collect();
+        DepthImage::from_vec(w, h, d).unwrap()
+    }
+
+    #[test]
+    fn a_dilated_pass_is_its_sub_images_filtered_one_by_one() {
+        let s = SensorModel::kinect_v1();
+        let f = MultiScale::default_for(&s).coarse;
+        for (w, h) in [(101, 37), (3, 2), (64, 48)] {
+            let img = frame(w, h);
+            for dil in [2, 3, 4] {
+                let got = apply_dilated(&f, &img, dil).unwrap();
+                for py in 0..dil.min(h) {
+                    for px in 0..dil.min(w) {
+                        let (sw, sh) = ((w - px).div_ceil(dil), (h - py).div_ceil(dil));
+                        let sub: Vec<f32> = (0..sw * sh)
+                            .map(|k| img.data()[(py + k / sw * dil) * w + px + k % sw * dil])
+                            .collect();
+                        let want = f.apply(DepthView::new(sw, sh, &sub).unwrap()).unwrap();
+                        for (k, &v) in want.data().iter().enumerate() {
+                            let (x, y) = (px + k % sw * dil, py + k / sw * dil);
+                            assert_eq!(
+                                got.data()[y * w + x].to_bits(),
+                                v.to_bits(),
+                                "{w}x{h} dilation {dil} at ({x}, {y})"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn multiscale_is_the_base_then_each_pass_inside_its_interior() {
+        let s = SensorModel::kinect_v1();
+        let m = MultiScale::default_for(&s);
+        let img = frame(157, 61);
+        let mut want = m.base.apply(&img).unwrap();
+        for &dil in &m.dilations {
+            let coarse = apply_dilated(&m.coarse, &want, dil).unwrap();
+            let keep = interior(&want, &m.coarse.range, m.coarse.radius_px * dil);
+            assert!(keep.iter().any(|&k| k) && keep.iter().any(|&k| !k));
+            for ((v, c), k) in want.data_mut().iter_mut().zip(coarse.data()).zip(keep) {
+                if k {
+                    *v = *c;
+                }
+            }
+        }
+        let got = m.apply(&img).unwrap();
+        assert!(
+            got.data()
+                .iter()
+                .zip(want.data())
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+    }
 
     #[test]
     fn dilation_one_is_the_plain_filter_and_holes_stay() {
