@@ -44,12 +44,13 @@
 //! pass, their interleaving, the interior gate by rows and bands of rows); on the 2-core AMD
 //! EPYC, before those parts ran in parallel, 10.8 / 8.6 ms (AVX-512) and 16.1 / 11.2 ms (AVX2),
 //! against OpenCV 5's `bilateralFilter` at 207 / 105 ms at the same 31-pixel support (42 / 22 ms
-//! at 15 px). On the AMD EPYC (Zen 4, AVX-512) in session 35: 9.0 → 5.3 ms on one thread and
-//! 3.0–3.9 → 2.7–2.8 ms on two, from the cheaper range weight (crate docs, *Speed*) and from
-//! this module's buffers: the sub-images of all passes share two `w·h` buffers
-//! (`Polyphase`), and each pass is written back into the finer result only inside its
-//! interior, in place (before: two allocations per sub-image, a third full image per pass and a
-//! separate merge; fresh 1.2 MB buffers cost page faults on every call).
+//! at 15 px). On the AMD EPYC (Zen 4, AVX-512) in session 35: 9.0 → 4.3 ms on one thread and
+//! 4.0–4.8 → 2.2–2.9 ms on two, from the cheaper range weight (crate docs, *Speed*) and from
+//! this module: the sub-images of all passes share two `w·h` buffers (`Polyphase`), each pass
+//! is written back into the finer result only inside its interior, in place (before: two
+//! allocations per sub-image, a third full image per pass and a separate merge; fresh 1.2 MB
+//! buffers cost page faults on every call), and the interior gate's per-row loops match the
+//! range kernel once per row and are branch-free (1.8 ms a pass before).
 //!
 //! Beyond the paper: the paper filters once with one window; the dilated passes and the
 //! disparity domain at large supports are this crate's additions (issue 11).
@@ -178,20 +179,6 @@ pub fn multiscale_by_default(method: Method) -> bool {
     matches!(method, Method::Adaptive | Method::Disparity)
 }
 
-/// The range kernel's domain value of a depth and its range σ there: two neighbours lie on one
-/// continuous surface when their values differ by at most one σ.
-fn domain(range: &RangeKernel, z: f32) -> (f32, f32) {
-    match *range {
-        RangeKernel::None => (0.0, f32::INFINITY),
-        RangeKernel::Fixed { sigma_d_m } => (z, sigma_d_m as f32),
-        RangeKernel::Adaptive { k_per_m } => (z, k_per_m as f32 * z * z),
-        RangeKernel::Disparity {
-            sigma_disp_px,
-            fb_px_m,
-        } => (fb_px_m as f32 / z, sigma_disp_px as f32),
-    }
-}
-
 /// Pixels whose whole `(2R+1)²` neighbourhood is inside the image, valid and free of depth
 /// jumps (neighbours more than one range σ apart), written into `out`. Only there is a wide
 /// pass symmetric: a window clipped by the border, a hole or a rejected surface averages one
@@ -230,11 +217,7 @@ fn interior_into(
                 &z[y * w..(y + 1) * w],
                 &z[(y + 1).min(h - 1) * w..][..w],
             );
-            for x in 0..w {
-                let (v, s) = (sc.value[x], sc.sigma[x]);
-                let rt = sc.value.get(x + 1).copied().unwrap_or(f32::NAN);
-                sc.bad[x] = v.is_nan() || (v - rt).abs() > s || (v - sc.below[x]).abs() > s;
-            }
+            sc.mark_bad();
             let row = &sc.bad;
             let mut count: usize = row[..2 * r].iter().filter(|&&b| b).count();
             for x in r..w - r {
@@ -302,22 +285,60 @@ impl RowScratch {
         }
     }
 
-    /// The domain values and σ of `row`, and the domain values of `below` (NaN where invalid).
+    /// The domain values and σ of `row`, and the domain values of `below` (NaN where invalid):
+    /// the range kernel's domain value of a depth (depth, or disparity `f·B/Z`) and its range σ
+    /// there — two neighbours lie on one continuous surface when their values differ by at most
+    /// one σ. The kernel is matched once per row, so each loop is branch-free and vectorises.
     fn values(&mut self, range: &RangeKernel, row: &[f32], below: &[f32]) {
+        match *range {
+            RangeKernel::Disparity {
+                sigma_disp_px,
+                fb_px_m,
+            } => {
+                let (fb, s) = (fb_px_m as f32, sigma_disp_px as f32);
+                self.fill(row, below, |z| (fb / z, s));
+            }
+            RangeKernel::Adaptive { k_per_m } => {
+                let k = k_per_m as f32;
+                self.fill(row, below, |z| (z, k * z * z));
+            }
+            RangeKernel::Fixed { sigma_d_m } => {
+                let s = sigma_d_m as f32;
+                self.fill(row, below, |z| (z, s));
+            }
+            RangeKernel::None => self.fill(row, below, |_| (0.0, f32::INFINITY)),
+        }
+    }
+
+    /// [`RowScratch::values`] for one range kernel's `domain`.
+    #[inline(always)]
+    fn fill(&mut self, row: &[f32], below: &[f32], domain: impl Fn(f32) -> (f32, f32)) {
         for ((&d, v), s) in row.iter().zip(&mut self.value).zip(&mut self.sigma) {
-            (*v, *s) = if d > 0.0 {
-                domain(range, d)
-            } else {
-                (f32::NAN, 0.0)
-            };
+            let (dv, ds) = domain(d);
+            let valid = d > 0.0;
+            *v = if valid { dv } else { f32::NAN };
+            *s = if valid { ds } else { 0.0 };
         }
         for (&d, v) in below.iter().zip(&mut self.below) {
-            *v = if d > 0.0 {
-                domain(range, d).0
-            } else {
-                f32::NAN
-            };
+            let dv = domain(d).0;
+            *v = if d > 0.0 { dv } else { f32::NAN };
         }
+    }
+
+    /// The bad pixels of the row: invalid, or a jump of more than one σ to the right or below
+    /// neighbour (comparisons with NaN are false; the last column has no right neighbour).
+    fn mark_bad(&mut self) {
+        let w = self.value.len();
+        if w == 0 {
+            return;
+        }
+        let (value, sigma, below) = (&self.value, &self.sigma, &self.below);
+        for (x, b) in self.bad[..w - 1].iter_mut().enumerate() {
+            let (v, s) = (value[x], sigma[x]);
+            *b = v.is_nan() | ((v - value[x + 1]).abs() > s) | ((v - below[x]).abs() > s);
+        }
+        let (v, s) = (value[w - 1], sigma[w - 1]);
+        self.bad[w - 1] = v.is_nan() | ((v - below[w - 1]).abs() > s);
     }
 }
 
@@ -462,6 +483,20 @@ impl Polyphase {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The range kernel's domain value of a depth and its range σ there (the brute-force
+    /// test's own statement of what `RowScratch::values` computes).
+    fn domain(range: &RangeKernel, z: f32) -> (f32, f32) {
+        match *range {
+            RangeKernel::None => (0.0, f32::INFINITY),
+            RangeKernel::Fixed { sigma_d_m } => (z, sigma_d_m as f32),
+            RangeKernel::Adaptive { k_per_m } => (z, k_per_m as f32 * z * z),
+            RangeKernel::Disparity {
+                sigma_disp_px,
+                fb_px_m,
+            } => (fb_px_m as f32 / z, sigma_disp_px as f32),
+        }
+    }
 
     /// A frame with slopes, steps, noise and holes (deterministic).
     fn frame(w: usize, h: usize) -> DepthImage {
@@ -647,8 +682,19 @@ mod tests {
         }
         let img = DepthImage::from_vec(w, h, d.clone()).unwrap();
         let f = MultiScale::default_for(&s).coarse;
-        for r in [1usize, 2, 4, 8, 9] {
-            let got = interior(&img, &f.range, r);
+        // The default coarse pass's disparity kernel, and every other range kernel a
+        // `MultiScale` may be given.
+        let ranges = [
+            f.range,
+            RangeKernel::Adaptive { k_per_m: 0.003 },
+            RangeKernel::Fixed { sigma_d_m: 0.01 },
+            RangeKernel::None,
+        ];
+        for (range, r) in ranges
+            .iter()
+            .flat_map(|g| [1usize, 2, 4, 8, 9].map(|r| (g, r)))
+        {
+            let got = interior(&img, range, r);
             for y in 0..h {
                 for x in 0..w {
                     let inside = x >= r && y >= r && x + r < w && y + r < h;
@@ -656,10 +702,9 @@ mod tests {
                         && (y - r..=y + r).all(|yy| {
                             (x - r..=x + r).all(|xx| {
                                 let i = yy * w + xx;
-                                let (a, sa) = domain(&f.range, d[i]);
-                                let jump = |j: usize| {
-                                    d[j] > 0.0 && (a - domain(&f.range, d[j]).0).abs() > sa
-                                };
+                                let (a, sa) = domain(range, d[i]);
+                                let jump =
+                                    |j: usize| d[j] > 0.0 && (a - domain(range, d[j]).0).abs() > sa;
                                 d[i] > 0.0
                                     && !(xx + 1 < w && jump(i + 1))
                                     && !(yy + 1 < h && jump(i + w))
