@@ -430,20 +430,20 @@ impl Polyphase {
             outputs.push(c);
             (rest_in, rest_out) = (b, d);
         }
+        let layout = &self.layout;
         inputs
             .into_par_iter()
             .zip(outputs)
             .enumerate()
             .try_for_each(|(p, (sub, out))| {
                 let (py, px) = (p / nx, p % nx);
-                let sw = (w - px).div_ceil(s);
-                for (j, row) in sub.chunks_exact_mut(sw.max(1)).enumerate() {
+                let (_, sw, sh) = layout[p];
+                for (j, row) in sub.chunks_exact_mut(sw).enumerate() {
                     let src_row = &src[(py + j * s) * w..];
                     for (i, v) in row.iter_mut().enumerate() {
                         *v = src_row[px + i * s];
                     }
                 }
-                let sh = sub.len() / sw.max(1);
                 filter.apply_into(DepthView::new(sw, sh, sub)?, isa, out)
             })
     }

@@ -1,4 +1,4 @@
-//! The range filters' weight `w ≈ 2^x`, `x = t − e²`, in two vector operations.
+//! The range filters' weight `w ≈ 2^x`, `x = t − e²`, in three vector operations.
 //!
 //! **The function.** A range filter weighs tap `q` of pixel `p` by `2^x` with
 //! `x = t − e² ≤ 0`: `t = −|q − p|²/(2σ_s²)·log2 e` the tap's spatial exponent and
@@ -14,10 +14,10 @@
 //! part lands in the exponent field, the fraction in the mantissa; Schraudolph 1999). So the
 //! whole weight is one multiply-add `y = T − e'²` (with `T = 2²³·(t − δ + 127)` per tap and the
 //! difference pre-scaled, `e' = 2^11.5·e`, so that `e'² = 2²³·e²`), one truncating conversion
-//! and the cutoff; the spatial weight is folded into `T` for free. The explicit AVX-512 and AVX2
-//! kernels (see [`crate::kernel`]) spend 6 and 7 vector operations per tap including the
+//! and the floor below; the spatial weight is folded into `T` for free. The explicit AVX-512
+//! and AVX2 kernels (see [`crate::kernel`]) spend 6 vector operations per tap including the
 //! difference and the two sums, against 10 and 12 with the degree-3 polynomial `2^x` this
-//! replaced (measured 1.7–1.8× faster per frame).
+//! replaced (measured 1.6–1.9× faster per frame).
 //!
 //! **How far from the Gaussian.** `w` is continuous, monotone in `x` and equals
 //! `2^(x − δ)·(1 + φ)/2^φ`; `(1 + φ)/2^φ` lies in `[1, 1.0614]`, and `δ` centres it, so
