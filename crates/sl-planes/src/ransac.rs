@@ -13,8 +13,10 @@ use rand_chacha::ChaCha8Rng;
 use sl_core::{Camera, DepthImage, Image};
 
 use crate::error::{PlanesError, Result};
-use crate::extract::{PlaneInfo, PlaneSegmentation};
+use crate::extract::{PlaneConfig, PlaneInfo, PlaneSegmentation};
+use crate::fit::AffineSums;
 use crate::plane::DisparityAffine;
+use crate::uncertainty::{FitNoise, plane_sigmas};
 use sl_core::Plane;
 
 /// Parameters of the metric RANSAC baseline.
@@ -78,6 +80,17 @@ pub fn metric_ransac(
     }
     let (w, h) = (depth.width(), depth.height());
     let fb = camera.sensor.fb();
+    // The planes' uncertainties: the noise model's for a plane through their pixels (every
+    // row; the extractor's default correlation window).
+    let window = camera.pixels_per_sensor_pixel();
+    let defaults = PlaneConfig::default();
+    let noise = FitNoise::new(
+        camera.sensor.sigma_d_px,
+        camera.sensor.subpixel_steps,
+        defaults.noise_window_x_px * window,
+        defaults.noise_window_y_px * window,
+        1,
+    );
     let mut idx: Vec<u32> = Vec::new();
     let mut pts: Vec<Point3<f64>> = Vec::new();
     for (i, &z) in depth.data().iter().enumerate() {
@@ -139,6 +152,7 @@ pub fn metric_ransac(
         let mut ss = 0.0;
         let mut sr = 0.0;
         let mut c = Vector3::zeros();
+        let mut sums = AffineSums::default();
         let affine = DisparityAffine::from_plane(&pl, k, fb)?;
         for &i in &inl {
             let p = idx[i] as usize;
@@ -146,11 +160,14 @@ pub fn metric_ransac(
             let dist = pl.signed_distance_m(&pts[i]);
             ss += dist * dist;
             let d = fb / pts[i].z;
-            let r = d - affine.eval((p % w) as f64, (p / w) as f64);
+            let (x, y) = ((p % w) as f64, (p / w) as f64);
+            let r = d - affine.eval(x, y);
             sr += r * r;
+            sums.add(x, y, d);
             c += pts[i].coords;
         }
         let n = inl.len() as f64;
+        let sigmas = plane_sigmas(&sums, &affine, k, fb, &noise);
         planes.push(PlaneInfo {
             id,
             plane: pl,
@@ -159,6 +176,8 @@ pub fn metric_ransac(
             rms_px: (sr / n).sqrt(),
             rms_m: (ss / n).sqrt(),
             centroid_m: Point3::from(c / n),
+            normal_sigma_deg: sigmas.normal_deg,
+            offset_sigma_m: sigmas.offset_m,
         });
         remaining = rest;
     }

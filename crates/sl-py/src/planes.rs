@@ -35,6 +35,13 @@ pub struct PyPlane {
     rms_m: f64,
     /// Centroid of those pixels' points, metres.
     centroid_m: (f64, f64, f64),
+    /// Standard uncertainty of the normal from the sensor's noise model: the RMS angle between
+    /// the fitted and the true normal, degrees (``inf`` when undetermined). Small, far or
+    /// narrow planes are the uncertain ones, and the ones that are not found again in later
+    /// frames.
+    normal_sigma_deg: f64,
+    /// Standard uncertainty of the plane's position along its normal at ``centroid_m``, metres.
+    offset_sigma_m: f64,
 }
 
 #[pymethods]
@@ -42,8 +49,9 @@ impl PyPlane {
     fn __repr__(&self) -> String {
         let n = self.normal;
         format!(
-            "Plane(id={}, normal=({:.4}, {:.4}, {:.4}), offset_m={:.4}, pixels={}, rms_px={:.4})",
-            self.id, n.0, n.1, n.2, self.offset_m, self.pixels, self.rms_px
+            "Plane(id={}, normal=({:.4}, {:.4}, {:.4}), offset_m={:.4}, pixels={}, rms_px={:.4}, \
+             normal_sigma_deg={:.3})",
+            self.id, n.0, n.1, n.2, self.offset_m, self.pixels, self.rms_px, self.normal_sigma_deg
         )
     }
 }
@@ -61,6 +69,8 @@ impl From<&PlaneInfo> for PyPlane {
             rms_px: p.rms_px,
             rms_m: p.rms_m,
             centroid_m: (c.x, c.y, c.z),
+            normal_sigma_deg: p.normal_sigma_deg,
+            offset_sigma_m: p.offset_sigma_m,
         }
     }
 }

@@ -96,6 +96,23 @@ def test_planes_of_the_three_plane_scene(kinect, three_planes):
     assert np.mean(truth_labels[labels == big.id] == surf) > 0.95
 
 
+def test_planes_carry_their_uncertainty(kinect, three_planes):
+    depth, _, _ = three_planes
+    _, planes = sldepth.extract_planes(depth, kinect)
+    for p in planes:
+        assert 0 < p.normal_sigma_deg < 10 and 0 < p.offset_sigma_m < 0.05
+    # The same surface seen through a smaller window is less certain.
+    big = max(planes, key=lambda p: p.pixels)
+    labels, _ = sldepth.extract_planes(depth, kinect)
+    ys, xs = np.nonzero(labels == big.id)
+    cy, cx = int(np.median(ys)), int(np.median(xs))
+    crop = np.zeros_like(depth)
+    crop[cy - 40 : cy + 40, cx - 50 : cx + 50] = depth[cy - 40 : cy + 40, cx - 50 : cx + 50]
+    _, small = sldepth.extract_planes(crop, kinect)
+    part = max(small, key=lambda p: p.pixels)
+    assert part.normal_sigma_deg > 1.5 * big.normal_sigma_deg
+
+
 def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
     depth, _, _ = three_planes
     # The same extraction as extract_planes; every region there is taken.

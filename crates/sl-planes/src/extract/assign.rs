@@ -250,6 +250,7 @@ impl PlaneExtractor {
                     plane.offset_m * a.sums.rms(&f) / (fb / z),
                 )
             };
+            let sigmas = plane_sigmas(&a.sums, &f, k, fb, &self.fit_noise);
             out.push((
                 pi,
                 PlaneInfo {
@@ -260,6 +261,8 @@ impl PlaneExtractor {
                     rms_px: a.sums.rms(&f),
                     rms_m,
                     centroid_m,
+                    normal_sigma_deg: sigmas.normal_deg,
+                    offset_sigma_m: sigmas.offset_m,
                 },
             ));
         }

@@ -84,6 +84,7 @@ use crate::kernels::{
 };
 use crate::log::{FrameRows, LogBuffers, log_geometry, planar_mask_uncounted};
 use crate::plane::DisparityAffine;
+use crate::uncertainty::{FitNoise, plane_sigmas};
 use sl_core::Plane;
 
 /// Parameters of the disparity-domain extractor.
@@ -213,6 +214,19 @@ pub struct PlaneInfo {
     pub rms_m: f64,
     /// Centroid of the points the plane was fitted on, camera coordinates, metres.
     pub centroid_m: Point3<f64>,
+    /// Standard uncertainty of the normal from the noise model: the RMS angle between the
+    /// fitted normal and the true one, degrees (infinite when the pixels do not determine the
+    /// plane). The disparity error of the camera's sensor model (`σ_D`, the `1/q`
+    /// quantisation), correlated over the block-matching window
+    /// ([`PlaneConfig::noise_window_x_px`]), or the fit's own residual where that is larger,
+    /// propagated through the least-squares fit (the `uncertainty` module). Small, far or
+    /// narrow planes are the uncertain ones; on the real sequences it predicts which planes
+    /// are found again in later frames (docs/bench/README.md, session 36).
+    pub normal_sigma_deg: f64,
+    /// Standard uncertainty of the plane's position along its normal at
+    /// [`PlaneInfo::centroid_m`], metres (uncorrelated with the normal's there; infinite when
+    /// undetermined).
+    pub offset_sigma_m: f64,
 }
 
 /// The result of a plane extraction.
@@ -258,10 +272,13 @@ fn cell_to_full(f: &DisparityAffine) -> DisparityAffine {
     }
 }
 
+/// Every how many rows the labelled pixels feed the final fit.
+const SAMPLE_ROW_STEP: usize = 4;
+
 /// Rows whose labelled pixels feed the final fit (a quarter of the rows).
 #[inline]
 fn is_sample_row(y: usize) -> bool {
-    y.is_multiple_of(4)
+    y.is_multiple_of(SAMPLE_ROW_STEP)
 }
 
 /// Rows whose labelled pixels feed the metric statistics (centroid, RMS in metres; an eighth
@@ -434,6 +451,8 @@ pub struct PlaneExtractor {
     join_stamp: u32,
     /// Noise of a cell's mean disparity (from the sensor model and the configuration).
     noise: CellNoise,
+    /// Noise of the final fit's samples (the planes' uncertainties).
+    fit_noise: FitNoise,
     /// Per patch (then per set of patches): moments of its planar cells.
     patch_sums: Vec<AffineSums>,
     /// Per patch (set): the residual sum of squares of its fit (NaN = not a planar patch).
@@ -488,12 +507,13 @@ impl PlaneExtractor {
     /// camera resampled from its sensor ([`Camera::resampled`]) sees it scaled.
     fn set_noise(&mut self, camera: &Camera) {
         let s = camera.pixels_per_sensor_pixel();
-        self.noise = CellNoise::new(
-            camera.sensor.sigma_d_px,
-            camera.sensor.subpixel_steps,
+        let (wx, wy) = (
             self.cfg.noise_window_x_px * s,
             self.cfg.noise_window_y_px * s,
         );
+        let (sigma_d, q) = (camera.sensor.sigma_d_px, camera.sensor.subpixel_steps);
+        self.noise = CellNoise::new(sigma_d, q, wx, wy);
+        self.fit_noise = FitNoise::new(sigma_d, q, wx, wy, SAMPLE_ROW_STEP);
     }
 
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {

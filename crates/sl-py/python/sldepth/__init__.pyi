@@ -221,6 +221,11 @@ class Plane:
     rms_px: float
     rms_m: float
     centroid_m: Tuple[float, float, float]
+    normal_sigma_deg: float
+    """Standard uncertainty of the normal from the noise model (RMS angle to the true
+    normal), degrees; inf when undetermined."""
+    offset_sigma_m: float
+    """Standard uncertainty of the position along the normal at centroid_m, metres."""
 
 def extract_planes(
     depth: _Depth,

@@ -155,13 +155,15 @@ pub fn run(args: Args) -> Result<()> {
         for p in &seg.planes {
             let n = p.plane.normal;
             outln!(
-                "  #{:<3} {:>7} px  normal [{:+.3} {:+.3} {:+.3}]  offset {:.3} m  rms {:.3} px / {:.1} mm",
+                "  #{:<3} {:>7} px  normal [{:+.3} {:+.3} {:+.3}] ±{:.2}°  offset {:.3} m ±{:.1} mm  rms {:.3} px / {:.1} mm",
                 p.id,
                 p.pixels,
                 n.x,
                 n.y,
                 n.z,
+                p.normal_sigma_deg,
                 p.plane.offset_m,
+                p.offset_sigma_m * 1e3,
                 p.rms_px,
                 p.rms_m * 1e3
             )?;
@@ -209,6 +211,15 @@ fn explain_json(regions: &[RegionExplanation]) -> serde_json::Value {
         .collect()
 }
 
+/// `v` rounded to `digits` decimals, or `null` when not finite (an undetermined plane).
+fn finite_or_null(v: f64, digits: i32) -> serde_json::Value {
+    if v.is_finite() {
+        json!(round_to(v, digits))
+    } else {
+        serde_json::Value::Null
+    }
+}
+
 /// The JSON description of a segmentation.
 pub fn segmentation_json(seg: &PlaneSegmentation, ms: f64) -> serde_json::Value {
     let planes: Vec<_> = seg
@@ -224,6 +235,8 @@ pub fn segmentation_json(seg: &PlaneSegmentation, ms: f64) -> serde_json::Value 
                 "rms_px": round_to(p.rms_px, 5),
                 "rms_m": round_to(p.rms_m, 6),
                 "centroid_m": [round_to(p.centroid_m.x, 4), round_to(p.centroid_m.y, 4), round_to(p.centroid_m.z, 4)],
+                "normal_sigma_deg": finite_or_null(p.normal_sigma_deg, 4),
+                "offset_sigma_m": finite_or_null(p.offset_sigma_m, 6),
             })
         })
         .collect();

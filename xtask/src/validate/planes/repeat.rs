@@ -44,7 +44,22 @@ pub struct WorldPlane {
     pub pixels: usize,
     /// Centroid of its pixels, world coordinates.
     pub centroid: sl_core::nalgebra::Point3<f64>,
+    /// The extractor's standard uncertainty of its normal, degrees.
+    pub normal_sigma_deg: f64,
 }
+
+/// Bins of the planes' normal uncertainty (`PlaneInfo::normal_sigma_deg`), degrees, for the
+/// repeatability by uncertainty.
+const SIGMA_BINS_DEG: [(f64, f64); 5] = [
+    (0.0, 0.25),
+    (0.25, 0.5),
+    (0.5, 1.0),
+    (1.0, 2.0),
+    (2.0, f64::INFINITY),
+];
+
+/// The gap of the repeatability by uncertainty (the issue's k).
+const SIGMA_GAP: usize = 5;
 
 /// Repeatability at one gap.
 #[derive(Debug, Default, Clone, Copy)]
@@ -80,9 +95,21 @@ pub fn same_plane(a: &WorldPlane, b: &Plane) -> bool {
 
 /// Repeatability of per-frame world planes at gap `k`.
 pub fn repeatability(frames: &[Vec<WorldPlane>], k: usize) -> Repeat {
+    repeatability_where(frames, k, |_| true)
+}
+
+/// [`repeatability`] of the planes of frame `i` that `keep` selects.
+pub fn repeatability_where(
+    frames: &[Vec<WorldPlane>],
+    k: usize,
+    keep: impl Fn(&WorldPlane) -> bool,
+) -> Repeat {
     let mut r = Repeat::default();
     for i in 0..frames.len().saturating_sub(k) {
-        for p in frames[i].iter().filter(|p| p.pixels >= REPEAT_MIN_PIXELS) {
+        for p in frames[i]
+            .iter()
+            .filter(|p| p.pixels >= REPEAT_MIN_PIXELS && keep(p))
+        {
             r.planes += 1;
             r.pixels += p.pixels;
             if frames[i + k].iter().any(|q| same_plane(p, &q.plane)) {
@@ -153,6 +180,8 @@ struct SeqResult {
     name: &'static str,
     frames: usize,
     gaps: Vec<(usize, Repeat)>,
+    /// At [`SIGMA_GAP`], per bin of [`SIGMA_BINS_DEG`].
+    by_sigma: Vec<Repeat>,
     planes_per_frame: f64,
     large_per_frame: f64,
     worst_ms: f64,
@@ -202,6 +231,7 @@ fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
                     plane: p.plane.transformed(pose.isometry()),
                     pixels: p.pixels,
                     centroid: pose.isometry() * p.centroid_m,
+                    normal_sigma_deg: p.normal_sigma_deg,
                 })
                 .collect::<Vec<_>>(),
         );
@@ -213,6 +243,14 @@ fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
         gaps: REPEAT_GAPS
             .iter()
             .map(|&k| (k, repeatability(&world, k)))
+            .collect(),
+        by_sigma: SIGMA_BINS_DEG
+            .iter()
+            .map(|&(lo, hi)| {
+                repeatability_where(&world, SIGMA_GAP, |p| {
+                    (lo..hi).contains(&p.normal_sigma_deg)
+                })
+            })
             .collect(),
         planes_per_frame: planes as f64 / n,
         large_per_frame: large as f64 / n,
@@ -302,6 +340,7 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
             "ms",
         );
     }
+    by_uncertainty(ctx, &mut md, &results);
     if let Some(tum) = results.iter().find(|r| r.name == "tum-fr1-rpy-200")
         && let Some((_, g)) = tum.gaps.iter().find(|(k, _)| *k == 5)
     {
@@ -318,6 +357,69 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
     Ok(())
 }
 
+/// The table of repeatability by the planes' normal uncertainty, and its check: the
+/// uncertainty the extractor reports from the noise model must tell the repeatable planes from
+/// the rest (on each sequence the planes under 0.5° are found again more often than those
+/// of 1° and more).
+fn by_uncertainty(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
+    let _ = write!(
+        md,
+        "\nBy the planes' normal uncertainty (`PlaneInfo::normal_sigma_deg`: the sensor model's \
+         disparity error, correlated over the block-matching window, or the fit's residual where \
+         larger, propagated through the fit; not fitted to these sequences), k = {SIGMA_GAP}: \
+         planes tested, share found again.\n\n| sequence |"
+    );
+    for (lo, hi) in SIGMA_BINS_DEG {
+        if hi.is_finite() {
+            let _ = write!(md, " σ {lo}–{hi}° |");
+        } else {
+            let _ = write!(md, " σ ≥ {lo}° |");
+        }
+    }
+    md.push_str("\n|---|");
+    md.push_str(&"---|".repeat(SIGMA_BINS_DEG.len()));
+    md.push('\n');
+    for r in results {
+        let _ = write!(md, "| {} |", r.name);
+        for (g, (lo, _)) in r.by_sigma.iter().zip(SIGMA_BINS_DEG) {
+            let _ = write!(md, " {} · {:.1} % |", g.planes, 100.0 * g.plane_rate());
+            ctx.row(
+                EXP,
+                &format!("{} repeat k={SIGMA_GAP} sigma>={lo} planes", r.name),
+                g.plane_rate(),
+                "",
+            );
+        }
+        md.push('\n');
+        let pooled = |keep: &dyn Fn(f64) -> bool| {
+            let mut t = Repeat::default();
+            for (g, &(lo, _)) in r.by_sigma.iter().zip(&SIGMA_BINS_DEG) {
+                if keep(lo) {
+                    t.planes += g.planes;
+                    t.repeated += g.repeated;
+                }
+            }
+            t
+        };
+        let (sure, unsure) = (pooled(&|lo| lo < 0.5), pooled(&|lo| lo >= 1.0));
+        ctx.check(
+            format!(
+                "planes: on {}, planes whose normal uncertainty is under 0.5° are found again at \
+                 k = {SIGMA_GAP} more often than those of 1° and more",
+                r.name
+            ),
+            sure.planes > 0 && unsure.planes > 0 && sure.plane_rate() > unsure.plane_rate(),
+            format!(
+                "σ < 0.5°: {:.1} % of {}; σ ≥ 1°: {:.1} % of {}",
+                100.0 * sure.plane_rate(),
+                sure.planes,
+                100.0 * unsure.plane_rate(),
+                unsure.planes
+            ),
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -328,6 +430,7 @@ mod tests {
             plane,
             pixels,
             centroid: plane.project(&Point3::origin()),
+            normal_sigma_deg: 0.1,
         }
     }
 
