@@ -747,3 +747,57 @@ fn plane_uncertainties_match_the_scatter_on_realistic_noise() {
     assert!((1.0 / 1.5..=1.5).contains(&ratio), "normal {ratio}");
     assert!((1.0 / 1.5..=1.5).contains(&ratio_off), "offset {ratio_off}");
 }
+
+/// `max_normal_sigma_deg` reports only the planes the noise model determines that well: of a
+/// near wall filling the frame and a small far patch of another plane, the patch (the more
+/// uncertain) goes unlabelled, the wall keeps its label, pixels and fit; and the option
+/// rejects values that are not positive.
+#[test]
+fn uncertain_planes_are_left_out_on_request() {
+    let cam = Camera::kinect_v1();
+    let k = cam.intrinsics;
+    let wall = Plane::new(Vector3::new(0.2, 0.1, -1.0), 1.6)
+        .unwrap()
+        .facing_origin();
+    let far = Plane::new(Vector3::new(-0.5, 0.3, -1.0), 4.2)
+        .unwrap()
+        .facing_origin();
+    let (near, _) = render(&k, &[wall], 6.0);
+    let (back, _) = render(&k, &[far], 6.0);
+    // The far plane seen through a 70 × 50 px window of the wall.
+    let mut z = near.data().to_vec();
+    for y in 200..250 {
+        for x in 400..470 {
+            z[y * k.width + x] = back.data()[y * k.width + x];
+        }
+    }
+    let depth = KinectSimulator::with_sensor(cam.sensor)
+        .white()
+        .apply(&DepthImage::from_vec(k.width, k.height, z).unwrap(), 5);
+    let mut cfg = PlaneConfig::default();
+    cfg.min_pixels = 1500;
+    let all = PlaneExtractor::new(cfg)
+        .unwrap()
+        .extract_depth(&depth, &cam)
+        .unwrap();
+    assert_eq!(all.planes.len(), 2, "{:?}", all.planes);
+    let (big, small) = (&all.planes[0], &all.planes[1]);
+    assert!(
+        small.normal_sigma_deg > 3.0 * big.normal_sigma_deg,
+        "{all:?}"
+    );
+    cfg.max_normal_sigma_deg = (big.normal_sigma_deg * small.normal_sigma_deg).sqrt();
+    let sure = PlaneExtractor::new(cfg)
+        .unwrap()
+        .extract_depth(&depth, &cam)
+        .unwrap();
+    assert_eq!(sure.planes.len(), 1);
+    assert_eq!(sure.planes[0], *big);
+    let unlabelled =
+        |seg: &sl_planes::PlaneSegmentation| seg.labels.data().iter().filter(|&&l| l == 0).count();
+    assert_eq!(unlabelled(&sure), unlabelled(&all) + small.pixels);
+    for bad in [0.0, -1.0, f64::NAN] {
+        cfg.max_normal_sigma_deg = bad;
+        assert!(PlaneExtractor::new(cfg).is_err());
+    }
+}

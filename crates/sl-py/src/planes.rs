@@ -114,6 +114,7 @@ struct PlaneParams {
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
+    max_normal_sigma_deg: Option<f64>,
 }
 
 impl PlaneParams {
@@ -124,6 +125,7 @@ impl PlaneParams {
         c.log_threshold_px = self.log_threshold_px.unwrap_or(c.log_threshold_px);
         c.log_sigma_px = self.log_sigma_px.unwrap_or(c.log_sigma_px);
         c.bend_px_per_px2 = self.bend_px_per_px2.unwrap_or(c.bend_px_per_px2);
+        c.max_normal_sigma_deg = self.max_normal_sigma_deg.unwrap_or(c.max_normal_sigma_deg);
         c.validate().map_err(value_error)?;
         Ok(c)
     }
@@ -186,9 +188,12 @@ impl From<&RegionExplanation> for PyUnlabelledRegion {
 /// threshold and scale, all in disparity pixels; ``bend_px_per_px2`` (7.7e-5) the largest
 /// curvature of a surface's disparity the sensor's distortion makes: adjacent planes whose
 /// slopes agree at their border and whose fits differ by no more than this bend allows are one
-/// surface and take one label (0 = never). ``sldepth planes`` has the same options.
+/// surface and take one label (0 = never). ``max_normal_sigma_deg`` (default: none) reports
+/// only the planes whose normal the noise model determines within that many degrees
+/// (``Plane.normal_sigma_deg``), leaving the others' pixels unlabelled. ``sldepth planes`` has
+/// the same options.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn extract_planes<'py>(
     py: Python<'py>,
@@ -199,6 +204,7 @@ pub(crate) fn extract_planes<'py>(
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
+    max_normal_sigma_deg: Option<f64>,
     depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
     let params = PlaneParams {
@@ -207,6 +213,7 @@ pub(crate) fn extract_planes<'py>(
         log_threshold_px,
         log_sigma_px,
         bend_px_per_px2,
+        max_normal_sigma_deg,
     };
     let (labels, planes, _) = run_extraction(py, depth, camera, params, depth_scale, None)?;
     Ok((labels, planes))
@@ -218,7 +225,7 @@ pub(crate) fn extract_planes<'py>(
 /// ``min_pixels``), largest first. Read from the extraction's own buffers, at no second
 /// extraction.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, min_region_pixels = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, min_region_pixels = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn explain_planes<'py>(
     py: Python<'py>,
@@ -229,6 +236,7 @@ pub(crate) fn explain_planes<'py>(
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
+    max_normal_sigma_deg: Option<f64>,
     min_region_pixels: Option<usize>,
     depth_scale: Option<f64>,
 ) -> PyResult<Explained<'py>> {
@@ -238,6 +246,7 @@ pub(crate) fn explain_planes<'py>(
         log_threshold_px,
         log_sigma_px,
         bend_px_per_px2,
+        max_normal_sigma_deg,
     };
     run_extraction(
         py,

@@ -111,6 +111,14 @@ def test_planes_carry_their_uncertainty(kinect, three_planes):
     _, small = sldepth.extract_planes(crop, kinect)
     part = max(small, key=lambda p: p.pixels)
     assert part.normal_sigma_deg > 1.5 * big.normal_sigma_deg
+    # Only the planes determined within a bound: every reported one is, and the rest are gone.
+    bound = float(np.median([p.normal_sigma_deg for p in planes]))
+    labels_sure, sure = sldepth.extract_planes(depth, kinect, max_normal_sigma_deg=bound)
+    assert 0 < len(sure) < len(planes)
+    assert all(p.normal_sigma_deg <= bound for p in sure)
+    assert np.count_nonzero(labels_sure) < np.count_nonzero(labels)
+    with pytest.raises(ValueError):
+        sldepth.extract_planes(depth, kinect, max_normal_sigma_deg=0.0)
 
 
 def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):

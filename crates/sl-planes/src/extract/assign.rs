@@ -251,6 +251,9 @@ impl PlaneExtractor {
                 )
             };
             let sigmas = plane_sigmas(&a.sums, &f, k, fb, &self.fit_noise);
+            if sigmas.normal_deg > self.cfg.max_normal_sigma_deg {
+                continue;
+            }
             out.push((
                 pi,
                 PlaneInfo {

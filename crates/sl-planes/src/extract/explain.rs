@@ -21,8 +21,9 @@ pub enum RejectReason {
     /// reached `min_pixels`.
     SeveralSurfaces,
     /// One affine function explains it within the noise, but it was too small a seed
-    /// (`min_pixels`), dropped as a small piece (`min_piece_pixels`), or its pixels are beyond
-    /// `threshold_px` of the plane it touches.
+    /// (`min_pixels`), dropped as a small piece (`min_piece_pixels`) or as too uncertain a
+    /// plane (`max_normal_sigma_deg`), or its pixels are beyond `threshold_px` of the plane it
+    /// touches.
     Unseeded,
 }
 

@@ -236,6 +236,7 @@ def extract_planes(
     log_threshold_px: Optional[float] = None,
     log_sigma_px: Optional[float] = None,
     bend_px_per_px2: Optional[float] = None,
+    max_normal_sigma_deg: Optional[float] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
     """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
@@ -266,6 +267,7 @@ def explain_planes(
     log_threshold_px: Optional[float] = None,
     log_sigma_px: Optional[float] = None,
     bend_px_per_px2: Optional[float] = None,
+    max_normal_sigma_deg: Optional[float] = None,
     min_region_pixels: Optional[int] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane], List[UnlabelledRegion]]:

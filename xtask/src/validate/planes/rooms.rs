@@ -69,6 +69,17 @@ impl Totals {
         self.worst_ms = self.worst_ms.max(s.ms);
     }
 
+    fn merge(&mut self, o: &Totals) {
+        self.gt += o.gt;
+        self.correct += o.correct;
+        self.over += o.over;
+        self.under += o.under;
+        self.missed += o.missed;
+        self.noise += o.noise;
+        self.spurious += o.spurious;
+        self.worst_ms = self.worst_ms.max(o.worst_ms);
+    }
+
     fn line(&self, method: &str) -> String {
         format!(
             "| {method} | {} | {} ({:.1} %) | {} | {} | {} | {} | {} | {:.1} |",
@@ -107,6 +118,55 @@ fn score_seeds(ex: &mut PlaneExtractor, seeds: std::ops::Range<u64>) -> Result<S
     score_seeds_through(ex, seeds, None, 0.0)
 }
 
+/// Room `seed` through `camera` (default: the Kinect sensor model at the room's focal length)
+/// and the realistic simulator with a radial disparity bias of `distortion_px`: the frame, the
+/// camera and the scene's kind.
+fn room_frame(
+    seed: u64,
+    camera: Option<&Camera>,
+    distortion_px: f64,
+) -> Result<(sl_noise::sim::SimulatedFrame, Camera, &'static str)> {
+    let rs = room_scene(seed)?;
+    let cam = match camera {
+        Some(c) => *c,
+        None => {
+            let mut sensor = sl_core::SensorModel::kinect_v1();
+            sensor.focal_px = rs.intrinsics.fx;
+            Camera {
+                intrinsics: rs.intrinsics,
+                sensor,
+            }
+        }
+    };
+    let mut noise = RealisticNoise::default();
+    noise.distortion_px = distortion_px;
+    let sim = KinectSimulator::with_sensor(cam.sensor).with_noise(NoiseModel::Realistic(noise));
+    let frame = sim.simulate(&rs.scene, &cam.intrinsics, &rs.pose, seed);
+    let kind = match rs.kind {
+        RoomKind::Room => "room",
+        RoomKind::Corridor => "corridor",
+    };
+    Ok((frame, cam, kind))
+}
+
+/// Our extractor's totals on the rooms `seeds` (Kinect cameras, no distortion).
+fn score_ours(ex: &mut PlaneExtractor, seeds: std::ops::Range<u64>) -> Result<Totals> {
+    let mut t = Totals::default();
+    for seed in seeds {
+        let (frame, cam, _) = room_frame(seed, None, 0.0)?;
+        let valid: Vec<bool> = frame.depth.data().iter().map(|&z| z > 0.0).collect();
+        let start = Instant::now();
+        let seg = ex.extract_depth(&frame.depth, &cam)?;
+        t.add(&score(
+            &frame.labels,
+            &seg,
+            &valid,
+            start.elapsed().as_secs_f64() * 1e3,
+        )?);
+    }
+    Ok(t)
+}
+
 /// [`score_seeds`] through `camera` (its intrinsics and sensor model replace the room's
 /// random 640×480 Kinect) when given, with a low-frequency disparity distortion of
 /// `distortion_px` at the image corner (`RealisticNoise::distortion_px`; 0 = none).
@@ -123,22 +183,7 @@ fn score_seeds_through(
         worst: Vec::new(),
     };
     for seed in seeds {
-        let rs = room_scene(seed)?;
-        let cam = match camera {
-            Some(c) => *c,
-            None => {
-                let mut sensor = sl_core::SensorModel::kinect_v1();
-                sensor.focal_px = rs.intrinsics.fx;
-                Camera {
-                    intrinsics: rs.intrinsics,
-                    sensor,
-                }
-            }
-        };
-        let mut noise = RealisticNoise::default();
-        noise.distortion_px = distortion_px;
-        let sim = KinectSimulator::with_sensor(cam.sensor).with_noise(NoiseModel::Realistic(noise));
-        let frame = sim.simulate(&rs.scene, &cam.intrinsics, &rs.pose, seed);
+        let (frame, cam, kind) = room_frame(seed, camera, distortion_px)?;
         let valid: Vec<bool> = frame.depth.data().iter().map(|&z| z > 0.0).collect();
         let t = Instant::now();
         let seg = ex.extract_depth(&frame.depth, &cam)?;
@@ -154,10 +199,6 @@ fn score_seeds_through(
         set.ours.add(&a);
         set.ransac.add(&b);
         let (sa, sb) = (&a.detail.score, &b.detail.score);
-        let kind = match rs.kind {
-            RoomKind::Room => "room",
-            RoomKind::Corridor => "corridor",
-        };
         let _ = writeln!(
             set.per_scene,
             "| {seed} | {kind} | {:.0} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
@@ -177,6 +218,37 @@ fn score_seeds_through(
         set.worst.push((frac, seed));
     }
     Ok(set)
+}
+
+/// What leaving out the uncertain planes (`PlaneConfig::max_normal_sigma_deg`, off by
+/// default) does on the examined and held-out rooms together: correct detections and spurious
+/// planes for a few bounds (reported, not a gate; no bound is chosen here).
+fn uncertain_planes_left_out(ctx: &mut Context, md: &mut String) -> Result<()> {
+    let _ = writeln!(
+        md,
+        "**Leaving out uncertain planes** (`PlaneConfig::max_normal_sigma_deg`, `sldepth planes \
+         --max-normal-sigma-deg`; off by default): the examined and held-out seeds together, \
+         planes whose normal the noise model determines less well than the bound left \
+         unlabelled.\n\n| bound | GT planes | correct | over | under | missed | noise | spurious ≥ \
+         {ROOM_MIN_PIXELS} px | worst ms |\n|---|---|---|---|---|---|---|---|---|"
+    );
+    for bound in [f64::INFINITY, 4.0, 2.0, 1.0] {
+        let mut cfg = PlaneConfig::default();
+        cfg.max_normal_sigma_deg = bound;
+        let mut ex = PlaneExtractor::new(cfg)?;
+        let mut t = score_ours(&mut ex, ROOM_EXAMINED_SEEDS)?;
+        let h = score_ours(&mut ex, ROOM_HELD_OUT_SEEDS)?;
+        t.merge(&h);
+        let label = if bound.is_finite() {
+            format!("{bound}°")
+        } else {
+            "none (default)".to_owned()
+        };
+        let _ = writeln!(md, "{}", t.line(&label));
+        share_rows(ctx, &format!("rooms unseen max sigma {label}"), &t);
+    }
+    md.push('\n');
+    Ok(())
 }
 
 /// The rows `"{prefix} correct share"` and `"{prefix} spurious"` of one set's totals.
@@ -314,6 +386,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
                 share_rows(ctx, &format!("rooms {label} {tag}"), t);
             }
         }
+        uncertain_planes_left_out(ctx, &mut md)?;
     }
     // Other cameras (full runs only): new seeds through each preset's intrinsics and sensor.
     if !ctx.quick() {
