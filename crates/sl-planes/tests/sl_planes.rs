@@ -787,12 +787,17 @@ fn uncertain_planes_are_left_out_on_request() {
         "{all:?}"
     );
     cfg.max_normal_sigma_deg = (big.normal_sigma_deg * small.normal_sigma_deg).sqrt();
-    let sure = PlaneExtractor::new(cfg)
-        .unwrap()
-        .extract_depth(&depth, &cam)
-        .unwrap();
+    let mut ex = PlaneExtractor::new(cfg).unwrap();
+    let sure = ex.extract_depth(&depth, &cam).unwrap();
     assert_eq!(sure.planes.len(), 1);
     assert_eq!(sure.planes[0], *big);
+    // `explain` says why the patch is on no plane.
+    let why = ex.explain_unlabelled(&sure, 1500);
+    assert!(
+        why.iter()
+            .any(|r| r.reason == sl_planes::RejectReason::Uncertain && r.pixels >= 2000),
+        "{why:?}"
+    );
     let unlabelled =
         |seg: &sl_planes::PlaneSegmentation| seg.labels.data().iter().filter(|&&l| l == 0).count();
     assert_eq!(unlabelled(&sure), unlabelled(&all) + small.pixels);

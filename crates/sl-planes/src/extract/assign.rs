@@ -213,6 +213,8 @@ impl PlaneExtractor {
         mut labels: Vec<u16>,
     ) -> Result<PlaneSegmentation> {
         let mut out: Vec<(usize, PlaneInfo)> = Vec::new();
+        self.dropped_uncertain.clear();
+        self.dropped_uncertain.resize(self.final_sums.len(), 0);
         // Pieces of bent surfaces (`bend`): a joined piece's pixels take its root's label.
         let joined = self.joined_into.len() == self.final_sums.len();
         let root = |pi: usize| {
@@ -252,6 +254,7 @@ impl PlaneExtractor {
             };
             let sigmas = plane_sigmas(&a.sums, &f, k, fb, &self.fit_noise);
             if sigmas.normal_deg > self.cfg.max_normal_sigma_deg {
+                self.dropped_uncertain[pi] = 1;
                 continue;
             }
             out.push((
@@ -280,6 +283,7 @@ impl PlaneExtractor {
             let r = root(pi);
             if r != pi {
                 self.relabel_lut[pi + 1] = self.relabel_lut[r + 1];
+                self.dropped_uncertain[pi] = self.dropped_uncertain[r];
             }
         }
         // Relabel only the rows of the planes whose id changes.

@@ -25,6 +25,9 @@ pub enum RejectReason {
     /// plane (`max_normal_sigma_deg`), or its pixels are beyond `threshold_px` of the plane it
     /// touches.
     Unseeded,
+    /// Most of it was a plane that the noise model determines less well than
+    /// `max_normal_sigma_deg` asks, and so was not reported.
+    Uncertain,
 }
 
 impl RejectReason {
@@ -39,6 +42,9 @@ impl RejectReason {
                 "planar patches, but no single plane explains them (several surfaces or curved)"
             }
             Self::Unseeded => "one plane fits it, but its seed was too small or it was dropped",
+            Self::Uncertain => {
+                "a plane, left out: its normal is less certain than max_normal_sigma_deg"
+            }
         }
     }
 }
@@ -118,6 +124,15 @@ impl PlaneExtractor {
         let nc = comps.sizes.len();
         let mut sums = vec![AffineSums::default(); nc];
         let mut log_bad = vec![0usize; nc];
+        // Cells of the planes left out as too uncertain (`PlaneConfig::max_normal_sigma_deg`).
+        let mut uncertain = vec![0usize; nc];
+        let dropped = |i: usize| {
+            self.cell_labels
+                .get(i)
+                .and_then(|&l| usize::from(l).checked_sub(1))
+                .and_then(|p| self.dropped_uncertain.get(p))
+                .is_some_and(|&d| d != 0)
+        };
         let mut boxes = vec![[u32::MAX, u32::MAX, 0, 0]; nc];
         let (wp, hp) = (wq / PATCH, hq / PATCH);
         let mut patch_seen = vec![u32::MAX; wp * hp];
@@ -130,6 +145,7 @@ impl PlaneExtractor {
                 let d = self.cell_disparity[j * wq + i];
                 sums[c].add(i as f64, j as f64, f64::from(d));
                 log_bad[c] += usize::from(self.cell_planar[j * wq + i] == 0);
+                uncertain[c] += usize::from(dropped(j * wq + i));
                 let (pi, pj) = (i / PATCH, j / PATCH);
                 if pi < wp && pj < hp && patch_seen[pj * wp + pi] != c as u32 {
                     patch_seen[pj * wp + pi] = c as u32;
@@ -158,7 +174,9 @@ impl PlaneExtractor {
                 Some(f) => (s.rms(&f), self.noise.planar(s.rss(&f), s.n)),
                 None => (f64::NAN, false),
             };
-            let reason = if log_frac > 0.5 {
+            let reason = if uncertain[c] as f64 > 0.5 * n {
+                RejectReason::Uncertain
+            } else if log_frac > 0.5 {
                 RejectReason::NotPlanarLog
             } else if patches[c].0 > 0 && res_frac > 0.5 {
                 RejectReason::ResidualNotWhite

@@ -449,6 +449,9 @@ pub struct PlaneExtractor {
     /// Per plane of the final pass: the plane its pixels belong to after the pieces of bent
     /// surfaces are joined (`bend`; itself when not joined).
     joined_into: Vec<u16>,
+    /// Per plane of the final pass: 1 when it (or the surface it was joined into) was left
+    /// out as too uncertain (`PlaneConfig::max_normal_sigma_deg`; for `explain`).
+    dropped_uncertain: Vec<u8>,
     /// Per plane of the final pass: its fit and pixel centroid (`bend`).
     join_fits: Vec<Option<(DisparityAffine, f64, f64)>>,
     /// Borders between cells of two planes (`bend`).

@@ -246,13 +246,16 @@ def extract_planes(
     test's threshold and scale; all in disparity pixels. bend_px_per_px2 (7.7e-5, px/px² at
     f = 585 px): the largest curvature of a surface's disparity the sensor's distortion makes;
     adjacent planes whose slopes agree at their border and whose fits differ by no more than
-    this bend allows take one label (0 = never)."""
+    this bend allows take one label (0 = never). max_normal_sigma_deg (default: none): report
+    only the planes whose normal the noise model determines within that many degrees
+    (Plane.normal_sigma_deg); the others' pixels stay unlabelled."""
 
 class UnlabelledRegion:
     pixels: int
     bbox_px: Tuple[int, int, int, int]
     reason: str
-    """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces" or "Unseeded"."""
+    """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces", "Unseeded" or "Uncertain" (a
+    plane left out by max_normal_sigma_deg)."""
     why: str
     log_rejected_fraction: float
     residual_rejected_fraction: float
