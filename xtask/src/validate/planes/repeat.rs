@@ -404,7 +404,7 @@ fn by_uncertainty(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
         let (sure, unsure) = (pooled(&|lo| lo < 0.5), pooled(&|lo| lo >= 1.0));
         ctx.check(
             format!(
-                "planes: on {}, planes whose normal uncertainty is under 0.5° are found again at \
+                "on {}, planes whose normal uncertainty is under 0.5° are found again at \
                  k = {SIGMA_GAP} more often than those of 1° and more",
                 r.name
             ),

@@ -220,6 +220,97 @@ fn score_seeds_through(
     Ok(set)
 }
 
+/// Largest factor between the scatter of the planes' errors and their predicted uncertainty
+/// (either way) that the calibration check accepts (the bound of the sl-planes unit test,
+/// decided before either was run).
+const CALIBRATION_FACTOR: f64 = 1.5;
+
+/// Whether the extracted planes' `normal_sigma_deg` and `offset_sigma_m` describe their errors
+/// on the simulated rooms `seeds`: every plane of at least `ROOM_MIN_PIXELS` whose pixels lie
+/// (80 %) on one true surface, against that surface's exact plane (from the exact render).
+fn uncertainty_calibration(
+    ctx: &mut Context,
+    md: &mut String,
+    seeds: std::ops::Range<u64>,
+) -> Result<()> {
+    let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
+    let (mut e2, mut s2, mut o2, mut so2, mut within) = (0.0, 0.0, 0.0, 0.0, 0usize);
+    let mut planes = 0usize;
+    for seed in seeds {
+        let (frame, cam, _) = room_frame(seed, None, 0.0)?;
+        let seg = ex.extract_depth(&frame.depth, &cam)?;
+        let k = &cam.intrinsics;
+        let (labels, truth) = (frame.labels.data(), frame.truth.data());
+        for p in &seg.planes {
+            if p.pixels < ROOM_MIN_PIXELS || !p.normal_sigma_deg.is_finite() {
+                continue;
+            }
+            // The true surface under most of the plane's pixels, and its exact points.
+            let mut count = std::collections::HashMap::<u16, usize>::new();
+            for (&l, &t) in seg.labels.data().iter().zip(labels) {
+                if l == p.id && t != 0 {
+                    *count.entry(t).or_default() += 1;
+                }
+            }
+            let Some((&surface, &n)) = count.iter().max_by_key(|(s, n)| (**n, **s)) else {
+                continue;
+            };
+            if (n as f64) < 0.8 * p.pixels as f64 {
+                continue;
+            }
+            let w = k.width;
+            let points: Vec<_> = labels
+                .iter()
+                .zip(truth)
+                .enumerate()
+                .filter(|(_, (l, z))| **l == surface && **z > 0.0)
+                .map(|(i, (_, &z))| k.back_project((i % w) as f64, (i / w) as f64, f64::from(z)))
+                .collect();
+            let Some(fit) = sl_core::fit_plane(&points) else {
+                continue;
+            };
+            let exact = fit.plane;
+            let err = p
+                .plane
+                .angle_to_deg(&exact)
+                .min(180.0 - p.plane.angle_to_deg(&exact));
+            let off = exact
+                .signed_distance_m(&p.plane.project(&p.centroid_m))
+                .abs();
+            e2 += err * err;
+            s2 += p.normal_sigma_deg * p.normal_sigma_deg;
+            o2 += off * off;
+            so2 += p.offset_sigma_m * p.offset_sigma_m;
+            within += usize::from(err <= 2.0 * p.normal_sigma_deg);
+            planes += 1;
+        }
+    }
+    let ratio = (e2 / s2.max(1e-30)).sqrt();
+    let ratio_off = (o2 / so2.max(1e-30)).sqrt();
+    let share2 = within as f64 / planes.max(1) as f64;
+    let _ = writeln!(
+        md,
+        "**Are the planes' uncertainties right?** On these {planes} planes of at least \
+         {ROOM_MIN_PIXELS} px whose pixels lie on one true surface, against its exact plane: RMS \
+         normal error / RMS `normal_sigma_deg` = {ratio:.2}, RMS offset error at the centroid / \
+         RMS `offset_sigma_m` = {ratio_off:.2}; {:.1} % of the normals within 2σ (a Gaussian \
+         error in two tangent directions: 98 %).\n",
+        100.0 * share2
+    );
+    ctx.row(EXP, "rooms normal error / sigma", ratio, "");
+    ctx.row(EXP, "rooms offset error / sigma", ratio_off, "");
+    let inside = |r: f64| (1.0 / CALIBRATION_FACTOR..=CALIBRATION_FACTOR).contains(&r);
+    ctx.check(
+        format!(
+            "the planes' uncertainties describe their errors on the simulated rooms \
+             (RMS error / RMS σ within a factor {CALIBRATION_FACTOR}, normal and offset)"
+        ),
+        planes > 0 && inside(ratio) && inside(ratio_off),
+        format!("{planes} planes: normal {ratio:.2}, offset {ratio_off:.2}"),
+    );
+    Ok(())
+}
+
 /// What leaving out the uncertain planes (`PlaneConfig::max_normal_sigma_deg`, off by
 /// default) does on the examined and held-out rooms together: correct detections and spurious
 /// planes for a few bounds (reported, not a gate; no bound is chosen here).
@@ -388,6 +479,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
         }
         uncertain_planes_left_out(ctx, &mut md)?;
     }
+    uncertainty_calibration(ctx, &mut md, 0..n)?;
     // Other cameras (full runs only): new seeds through each preset's intrinsics and sensor.
     if !ctx.quick() {
         let _ = writeln!(
