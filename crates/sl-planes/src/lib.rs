@@ -41,6 +41,8 @@
 //! assert_eq!(seg.planes.len(), 1);
 //! assert!(seg.planes[0].plane.angle_to_deg(&wall) < 0.1);
 //! assert!((seg.planes[0].plane.offset_m - 2.0).abs() < 0.01);
+//! // How well the sensor's noise model says the plane is determined (a whole wall: well).
+//! assert!(seg.planes[0].normal_sigma_deg < 0.5 && seg.planes[0].offset_sigma_m < 0.005);
 //! # Ok::<(), Box<dyn std::error::Error>>(())
 //! ```
 #![deny(missing_docs)]
