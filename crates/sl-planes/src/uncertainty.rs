@@ -58,6 +58,13 @@ fn correlation_sum(w: f64, step: usize) -> f64 {
     sum
 }
 
+/// Variance of one pixel's disparity error, px²: `σ_D²` plus the uniform `1/q` px
+/// quantisation's `1/(12q²)`.
+pub(crate) fn pixel_variance(sigma_d_px: f64, q: u32) -> f64 {
+    let q = f64::from(q.max(1));
+    sigma_d_px * sigma_d_px + 1.0 / (12.0 * q * q)
+}
+
 impl FitNoise {
     /// The noise of a fit on every `row_step`-th row of the pixels of a region, for a disparity
     /// error of `sigma_d_px` plus the `1/q` px quantisation, correlated over a
@@ -69,9 +76,8 @@ impl FitNoise {
         window_y: f64,
         row_step: usize,
     ) -> Self {
-        let q = f64::from(q.max(1));
         Self {
-            var_px: sigma_d_px * sigma_d_px + 1.0 / (12.0 * q * q),
+            var_px: pixel_variance(sigma_d_px, q),
             kappa: correlation_sum(window_x, 1) * correlation_sum(window_y, row_step),
         }
     }

@@ -81,8 +81,7 @@ impl CellNoise {
     /// `1/q` px quantisation (uniform, variance `1/(12q²)`), correlated with the triangular
     /// autocorrelation of a `window_x × window_y` pixel matching window (1 × 1: white noise).
     pub(crate) fn new(sigma_d_px: f64, q: u32, window_x: f64, window_y: f64) -> Self {
-        let q = f64::from(q.max(1));
-        let var_px = sigma_d_px * sigma_d_px + 1.0 / (12.0 * q * q);
+        let var_px = crate::uncertainty::pixel_variance(sigma_d_px, q);
         let axis = |w: f64| {
             let w = w.max(1.0);
             let v0 = block_mean_cov(CELL, w, 0);

@@ -216,7 +216,7 @@ fn explain_json(regions: &[RegionExplanation]) -> serde_json::Value {
                 "why": r.reason.describe(),
                 "log_rejected_fraction": round_to(r.log_rejected_fraction, 4),
                 "residual_rejected_fraction": round_to(r.residual_rejected_fraction, 4),
-                "rms_px": if r.rms_px.is_finite() { json!(round_to(r.rms_px, 4)) } else { serde_json::Value::Null },
+                "rms_px": finite_or_null(r.rms_px, 4),
             })
         })
         .collect()

@@ -69,17 +69,6 @@ impl Totals {
         self.worst_ms = self.worst_ms.max(s.ms);
     }
 
-    fn merge(&mut self, o: &Totals) {
-        self.gt += o.gt;
-        self.correct += o.correct;
-        self.over += o.over;
-        self.under += o.under;
-        self.missed += o.missed;
-        self.noise += o.noise;
-        self.spurious += o.spurious;
-        self.worst_ms = self.worst_ms.max(o.worst_ms);
-    }
-
     fn line(&self, method: &str) -> String {
         format!(
             "| {method} | {} | {} ({:.1} %) | {} | {} | {} | {} | {} | {:.1} |",
@@ -150,7 +139,7 @@ fn room_frame(
 }
 
 /// Our extractor's totals on the rooms `seeds` (Kinect cameras, no distortion).
-fn score_ours(ex: &mut PlaneExtractor, seeds: std::ops::Range<u64>) -> Result<Totals> {
+fn score_ours(ex: &mut PlaneExtractor, seeds: impl IntoIterator<Item = u64>) -> Result<Totals> {
     let mut t = Totals::default();
     for seed in seeds {
         let (frame, cam, _) = room_frame(seed, None, 0.0)?;
@@ -239,41 +228,48 @@ fn uncertainty_calibration(
     for seed in seeds {
         let (frame, cam, _) = room_frame(seed, None, 0.0)?;
         let seg = ex.extract_depth(&frame.depth, &cam)?;
-        let k = &cam.intrinsics;
+        let (k, w) = (&cam.intrinsics, cam.intrinsics.width);
         let (labels, truth) = (frame.labels.data(), frame.truth.data());
-        for p in &seg.planes {
-            if p.pixels < ROOM_MIN_PIXELS || !p.normal_sigma_deg.is_finite() {
-                continue;
+        // Pixels per (plane, true surface), then each plane's surface: the one under 80 % of
+        // its pixels.
+        let mut count = std::collections::HashMap::<(u16, u16), usize>::new();
+        for (&l, &t) in seg.labels.data().iter().zip(labels) {
+            if l != 0 && t != 0 {
+                *count.entry((l, t)).or_default() += 1;
             }
-            // The true surface under most of the plane's pixels, and its exact points.
-            let mut count = std::collections::HashMap::<u16, usize>::new();
-            for (&l, &t) in seg.labels.data().iter().zip(labels) {
-                if l == p.id && t != 0 {
-                    *count.entry(t).or_default() += 1;
-                }
-            }
-            let Some((&surface, &n)) = count.iter().max_by_key(|(s, n)| (**n, **s)) else {
-                continue;
-            };
-            if (n as f64) < 0.8 * p.pixels as f64 {
-                continue;
-            }
-            let w = k.width;
-            let points: Vec<_> = labels
+        }
+        let surface_of = |p: &sl_planes::PlaneInfo| {
+            count
                 .iter()
-                .zip(truth)
-                .enumerate()
-                .filter(|(_, (l, z))| **l == surface && **z > 0.0)
-                .map(|(i, (_, &z))| k.back_project((i % w) as f64, (i / w) as f64, f64::from(z)))
-                .collect();
-            let Some(fit) = sl_core::fit_plane(&points) else {
+                .filter(|((l, _), _)| *l == p.id)
+                .max_by_key(|((_, t), n)| (**n, *t))
+                .filter(|(_, n)| **n as f64 >= 0.8 * p.pixels as f64)
+                .map(|((_, t), _)| *t)
+        };
+        let tested: Vec<_> = seg
+            .planes
+            .iter()
+            .filter(|p| p.pixels >= ROOM_MIN_PIXELS && p.normal_sigma_deg.is_finite())
+            .filter_map(|p| Some((p, surface_of(p)?)))
+            .collect();
+        // The exact points of those surfaces, in one pass.
+        let mut points = std::collections::HashMap::<u16, Vec<_>>::new();
+        for &(_, t) in &tested {
+            points.entry(t).or_default();
+        }
+        for (i, (l, &z)) in labels.iter().zip(truth).enumerate() {
+            if z > 0.0
+                && let Some(v) = points.get_mut(l)
+            {
+                v.push(k.back_project((i % w) as f64, (i / w) as f64, f64::from(z)));
+            }
+        }
+        for (p, surface) in tested {
+            let Some(fit) = points.get(&surface).and_then(|v| sl_core::fit_plane(v)) else {
                 continue;
             };
-            let exact = fit.plane;
-            let err = p
-                .plane
-                .angle_to_deg(&exact)
-                .min(180.0 - p.plane.angle_to_deg(&exact));
+            let exact = fit.plane.facing_origin();
+            let err = p.plane.angle_to_deg(&exact);
             let off = exact
                 .signed_distance_m(&p.plane.project(&p.centroid_m))
                 .abs();
@@ -327,9 +323,7 @@ fn uncertain_planes_left_out(ctx: &mut Context, md: &mut String) -> Result<()> {
         let mut cfg = PlaneConfig::default();
         cfg.max_normal_sigma_deg = bound;
         let mut ex = PlaneExtractor::new(cfg)?;
-        let mut t = score_ours(&mut ex, ROOM_EXAMINED_SEEDS)?;
-        let h = score_ours(&mut ex, ROOM_HELD_OUT_SEEDS)?;
-        t.merge(&h);
+        let t = score_ours(&mut ex, ROOM_EXAMINED_SEEDS.chain(ROOM_HELD_OUT_SEEDS))?;
         let label = if bound.is_finite() {
             format!("{bound}°")
         } else {
