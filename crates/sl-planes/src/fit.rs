@@ -103,6 +103,20 @@ impl AffineSums {
         self.sdd += o.sdd;
     }
 
+    /// Removes the sums of `o`, a subset of these samples.
+    pub(crate) fn subtract(&mut self, o: &AffineSums) {
+        self.n -= o.n;
+        self.sx -= o.sx;
+        self.sy -= o.sy;
+        self.sd -= o.sd;
+        self.sxx -= o.sxx;
+        self.sxy -= o.sxy;
+        self.syy -= o.syy;
+        self.sxd -= o.sxd;
+        self.syd -= o.syd;
+        self.sdd -= o.sdd;
+    }
+
     /// Centred second moments `(Cxx, Cxy, Cyy, Cxd, Cyd, Cdd)` and means `(mx, my, md)`.
     fn centred(&self) -> ([f64; 6], [f64; 3]) {
         let n = self.n;

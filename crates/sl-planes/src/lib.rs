@@ -55,6 +55,7 @@ mod fit;
 mod kernels;
 mod log;
 pub mod plane;
+mod quadratic;
 pub mod ransac;
 mod uncertainty;
 

@@ -81,6 +81,22 @@ impl FitNoise {
             kappa: correlation_sum(window_x, 1) * correlation_sum(window_y, row_step),
         }
     }
+
+    /// The noise of a fit on the pixels of a grid `step_x` pixels apart along the rows and
+    /// `step_y` rows apart.
+    pub(crate) fn on_grid(
+        sigma_d_px: f64,
+        q: u32,
+        window_x: f64,
+        window_y: f64,
+        step_x: usize,
+        step_y: usize,
+    ) -> Self {
+        Self {
+            var_px: pixel_variance(sigma_d_px, q),
+            kappa: correlation_sum(window_x, step_x) * correlation_sum(window_y, step_y),
+        }
+    }
 }
 
 /// The standard uncertainties of a fitted plane.

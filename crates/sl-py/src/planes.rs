@@ -115,6 +115,7 @@ struct PlaneParams {
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
     max_normal_sigma_deg: Option<f64>,
+    split_creases: Option<bool>,
 }
 
 impl PlaneParams {
@@ -126,6 +127,7 @@ impl PlaneParams {
         c.log_sigma_px = self.log_sigma_px.unwrap_or(c.log_sigma_px);
         c.bend_px_per_px2 = self.bend_px_per_px2.unwrap_or(c.bend_px_per_px2);
         c.max_normal_sigma_deg = self.max_normal_sigma_deg.unwrap_or(c.max_normal_sigma_deg);
+        c.split_creases = self.split_creases.unwrap_or(c.split_creases);
         c.validate().map_err(value_error)?;
         Ok(c)
     }
@@ -193,7 +195,7 @@ impl From<&RegionExplanation> for PyUnlabelledRegion {
 /// (``Plane.normal_sigma_deg``), leaving the others' pixels unlabelled. ``sldepth planes`` has
 /// the same options.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, split_creases = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn extract_planes<'py>(
     py: Python<'py>,
@@ -205,6 +207,7 @@ pub(crate) fn extract_planes<'py>(
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
     max_normal_sigma_deg: Option<f64>,
+    split_creases: Option<bool>,
     depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
     let params = PlaneParams {
@@ -214,6 +217,7 @@ pub(crate) fn extract_planes<'py>(
         log_sigma_px,
         bend_px_per_px2,
         max_normal_sigma_deg,
+        split_creases,
     };
     let (labels, planes, _) = run_extraction(py, depth, camera, params, depth_scale, None)?;
     Ok((labels, planes))
@@ -225,7 +229,7 @@ pub(crate) fn extract_planes<'py>(
 /// ``min_pixels``), largest first. Read from the extraction's own buffers, at no second
 /// extraction.
 #[pyfunction]
-#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, min_region_pixels = None, depth_scale = None))]
+#[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, split_creases = None, min_region_pixels = None, depth_scale = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn explain_planes<'py>(
     py: Python<'py>,
@@ -237,6 +241,7 @@ pub(crate) fn explain_planes<'py>(
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
     max_normal_sigma_deg: Option<f64>,
+    split_creases: Option<bool>,
     min_region_pixels: Option<usize>,
     depth_scale: Option<f64>,
 ) -> PyResult<Explained<'py>> {
@@ -247,6 +252,7 @@ pub(crate) fn explain_planes<'py>(
         log_sigma_px,
         bend_px_per_px2,
         max_normal_sigma_deg,
+        split_creases,
     };
     run_extraction(
         py,

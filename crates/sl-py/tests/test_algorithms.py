@@ -121,6 +121,16 @@ def test_planes_carry_their_uncertainty(kinect, three_planes):
         sldepth.extract_planes(depth, kinect, max_normal_sigma_deg=0.0)
 
 
+def test_the_crease_split_can_be_turned_off(kinect, three_planes):
+    # Three planes meeting at right angles near the camera: no plane spans a crease, so the
+    # split (on by default) changes nothing, and the switch is accepted either way.
+    depth, _, _ = three_planes
+    on, planes_on = sldepth.extract_planes(depth, kinect)
+    off, planes_off = sldepth.extract_planes(depth, kinect, split_creases=False)
+    assert np.array_equal(on, off)
+    assert [p.pixels for p in planes_on] == [p.pixels for p in planes_off]
+
+
 def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
     depth, _, _ = three_planes
     # The same extraction as extract_planes; every region there is taken.

@@ -40,7 +40,7 @@ use crate::fit::AffineSums;
 
 /// Focal length of the frames on which the default [`PlaneConfig::bend_px_per_px2`] was
 /// measured (7-Scenes' Kinect), pixels.
-const BEND_MEASURED_AT_FOCAL_PX: f64 = 585.0;
+pub(super) const BEND_MEASURED_AT_FOCAL_PX: f64 = 585.0;
 
 /// Cells of shared border two planes need to be joined (8 pixels: about one matching window).
 const MIN_SHARED_CELLS: usize = 2;
@@ -60,7 +60,7 @@ const MAX_COUNTING_PLANES: usize = 256;
 
 /// The full-resolution pixel coordinates of the centre of cell `k` of a grid `wq` cells wide:
 /// cell `(i, j)` is centred on pixel `(4i + 1.5, 4j + 1.5)` (as for `cell_to_full`).
-fn cell_centre_px(k: usize, wq: usize) -> (f64, f64) {
+pub(super) fn cell_centre_px(k: usize, wq: usize) -> (f64, f64) {
     (
         (CELL * (k % wq)) as f64 + 1.5,
         (CELL * (k / wq)) as f64 + 1.5,

@@ -52,7 +52,14 @@
 //!    two planes take the label that dominates their 8-neighbourhood. The planes are refitted on
 //!    the labelled pixels of every fourth row (which also gives the RMS residual in pixels; the
 //!    centroid and the RMS in metres come from every eighth row); pixel counts are exact.
-//! 4. **Pieces of bent surfaces** (`bend`): adjacent planes whose functions meet along their
+//! 4. **Planes across a crease** (`crease`): a plane whose cells are curved beyond what the
+//!    sensor's distortion (`bend_px_per_px2`) and the noise allow, and fitted better by a hinge
+//!    (two affine pieces meeting along a line, two parameters fewer) than by any quadratic, is
+//!    split where its two sides' fits intersect: far away, the pixels along a crease between
+//!    two surfaces (or a box face and a strip of the wall beside it) are within `τ` of one
+//!    affine function. Sides smaller than `min_pixels` are left unlabelled
+//!    (`PlaneConfig::split_creases`).
+//! 5. **Pieces of bent surfaces** (`bend`): adjacent planes whose functions meet along their
 //!    border, whose slopes at the border agree within the noise and whose whole fits differ by
 //!    no more than the sensor's distortion bends a surface (`bend_px_per_px2`) take the label
 //!    of the largest piece, whose fit stays the plane.
@@ -137,6 +144,12 @@ pub struct PlaneConfig {
     /// parameters can be trusted (landmarks, motion) sets this, at the price of small, far or
     /// narrow true planes.
     pub max_normal_sigma_deg: f64,
+    /// Whether planes whose residual has the shape of a fold — curved beyond what the
+    /// distortion (`bend_px_per_px2`) and the noise allow, and fitted better by two affine
+    /// pieces meeting along a line than by any smooth quadratic — are split along it (the
+    /// `crease` stage; the default). Far creases between two surfaces, or a box face with a
+    /// strip of the wall beside it, otherwise come out as one plane spanning both.
+    pub split_creases: bool,
 }
 
 impl Default for PlaneConfig {
@@ -153,6 +166,7 @@ impl Default for PlaneConfig {
             noise_window_y_px: 11.0,
             bend_px_per_px2: 7.7e-5,
             max_normal_sigma_deg: f64::INFINITY,
+            split_creases: true,
         }
     }
 }
@@ -449,6 +463,18 @@ pub struct PlaneExtractor {
     /// Per plane of the final pass: the plane its pixels belong to after the pieces of bent
     /// surfaces are joined (`bend`; itself when not joined).
     joined_into: Vec<u16>,
+    /// The crease test (`crease`): per plane, the quadratic sums of its residual, the row
+    /// of cells being accumulated and the centre of its coordinates; the planes touched by the
+    /// current row; the cells of the planes tested further and the work list.
+    crease_quad: Vec<crate::quadratic::QuadraticSums>,
+    crease_rows: Vec<crate::quadratic::RowMoments>,
+    crease_centres: Vec<(f64, f64)>,
+    crease_touched: Vec<u16>,
+    crease_tested: Vec<u8>,
+    /// The noise of the crease test's samples (a grid `crease::GRID_X` × `crease::GRID_Y` pixels apart).
+    crease_noise: FitNoise,
+    crease_samples: Vec<crease::CreaseSample>,
+    crease_work: Vec<crease::CreaseWork>,
     /// Per plane of the final pass: 1 when it (or the surface it was joined into) was left
     /// out as too uncertain (`PlaneConfig::max_normal_sigma_deg`; for `explain`).
     dropped_uncertain: Vec<u8>,
@@ -532,6 +558,7 @@ impl PlaneExtractor {
         let (sigma_d, q) = (camera.sensor.sigma_d_px, camera.sensor.subpixel_steps);
         self.noise = CellNoise::new(sigma_d, q, wx, wy);
         self.fit_noise = FitNoise::new(sigma_d, q, wx, wy, SAMPLE_ROW_STEP);
+        self.crease_noise = FitNoise::on_grid(sigma_d, q, wx, wy, crease::GRID_X, crease::GRID_Y);
     }
 
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
@@ -761,6 +788,9 @@ impl PlaneExtractor {
             self.times.add(Stage::FinalPass, &mut t0);
             self.resolve_ambiguous(d, w, h, &mut labels);
             self.times.add(Stage::Disambiguate, &mut t0);
+            if cfg.split_creases {
+                self.split_creases(d, w, wq, hq, k.fx, &mut labels);
+            }
             self.join_bent_pieces(wq, hq, k.fx, f64::from(tau));
             self.times.add(Stage::Merge, &mut t0);
         } else {
@@ -775,6 +805,7 @@ impl PlaneExtractor {
 
 mod assign;
 mod bend;
+mod crease;
 mod decimated;
 mod explain;
 mod final_band;

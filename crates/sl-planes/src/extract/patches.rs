@@ -33,7 +33,7 @@ pub(super) enum PatchStatus {
 /// Fewest usable cells of a patch (of 16).
 const PATCH_MIN_CELLS: f64 = 12.0;
 /// Standard-normal quantile of the tests (99.9 %, one-sided).
-const Z_999: f64 = 3.090_232;
+pub(super) const Z_999: f64 = 3.090_232;
 /// The 99.9 % quantile of χ² with 2 degrees of freedom (the `bend` stage's slope test).
 pub(super) const CHI2_2_999: f64 = 13.816;
 /// The 99.9 % quantile of χ² with 3 degrees of freedom.

@@ -16,8 +16,8 @@ pub enum Stage {
     Components,
     /// Per-component robust affine fits.
     SeedFits,
-    /// Merging of close planes and renumbering, and the joining of the pieces of bent surfaces
-    /// after the final pass.
+    /// Merging of close planes and renumbering, and after the final pass the splitting of the
+    /// planes across a crease and the joining of the pieces of bent surfaces.
     Merge,
     /// k-means assignment passes on the cells (searches, sums, refits).
     Refine,

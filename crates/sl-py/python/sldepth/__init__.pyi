@@ -237,6 +237,7 @@ def extract_planes(
     log_sigma_px: Optional[float] = None,
     bend_px_per_px2: Optional[float] = None,
     max_normal_sigma_deg: Optional[float] = None,
+    split_creases: Optional[bool] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
     """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
@@ -248,7 +249,10 @@ def extract_planes(
     adjacent planes whose slopes agree at their border and whose fits differ by no more than
     this bend allows take one label (0 = never). max_normal_sigma_deg (default: none): report
     only the planes whose normal the noise model determines within that many degrees
-    (Plane.normal_sigma_deg); the others' pixels stay unlabelled."""
+    (Plane.normal_sigma_deg); the others' pixels stay unlabelled. split_creases (True): split
+    a plane whose residual is curved beyond the distortion and the noise and fitted better by
+    two affine pieces meeting along a line than by any smooth surface (one "plane" across a
+    crease between two surfaces) along that line."""
 
 class UnlabelledRegion:
     pixels: int
@@ -271,6 +275,7 @@ def explain_planes(
     log_sigma_px: Optional[float] = None,
     bend_px_per_px2: Optional[float] = None,
     max_normal_sigma_deg: Optional[float] = None,
+    split_creases: Optional[bool] = None,
     min_region_pixels: Optional[int] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane], List[UnlabelledRegion]]:

@@ -67,6 +67,11 @@ pub struct Args {
     /// correct ones below it), at the price of small, far or narrow true planes.
     #[arg(long)]
     pub max_normal_sigma_deg: Option<f64>,
+    /// Do not split the planes that span a crease (disparity method). By default a plane whose
+    /// residual is curved beyond the sensor's distortion and the noise, and fitted better by
+    /// two affine pieces meeting along a line than by any smooth surface, is split along it.
+    #[arg(long)]
+    pub no_split_creases: bool,
     /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,
     /// extracted on its grid, count n² per pixel).
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
@@ -105,6 +110,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg.min_pixels = args.min_pixels;
             cfg.bend_px_per_px2 = args.bend_px_per_px2;
             cfg.max_normal_sigma_deg = args.max_normal_sigma_deg.unwrap_or(f64::INFINITY);
+            cfg.split_creases = !args.no_split_creases;
             let mut ex = PlaneExtractor::new(cfg)?;
             let out = if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
