@@ -471,8 +471,12 @@ pub struct PlaneExtractor {
     crease_centres: Vec<(f64, f64)>,
     crease_touched: Vec<u16>,
     crease_tested: Vec<u8>,
+    /// Per plane: the columns of its grid samples (first, last).
+    crease_columns: Vec<(u32, u32)>,
     /// The noise of the crease test's samples (a grid `crease::GRID_X` × `crease::GRID_Y` pixels apart).
     crease_noise: FitNoise,
+    /// The same for the dense samples of small planes (`crease::DENSE_STEP` × `SAMPLE_ROW_STEP`).
+    crease_dense_noise: FitNoise,
     crease_samples: Vec<crease::CreaseSample>,
     crease_work: Vec<crease::CreaseWork>,
     /// Per plane of the final pass: 1 when it (or the surface it was joined into) was left
@@ -559,6 +563,8 @@ impl PlaneExtractor {
         self.noise = CellNoise::new(sigma_d, q, wx, wy);
         self.fit_noise = FitNoise::new(sigma_d, q, wx, wy, SAMPLE_ROW_STEP);
         self.crease_noise = FitNoise::on_grid(sigma_d, q, wx, wy, crease::GRID_X, crease::GRID_Y);
+        self.crease_dense_noise =
+            FitNoise::on_grid(sigma_d, q, wx, wy, crease::DENSE_STEP, SAMPLE_ROW_STEP);
     }
 
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
