@@ -76,10 +76,7 @@ impl FitNoise {
         window_y: f64,
         row_step: usize,
     ) -> Self {
-        Self {
-            var_px: pixel_variance(sigma_d_px, q),
-            kappa: correlation_sum(window_x, 1) * correlation_sum(window_y, row_step),
-        }
+        Self::on_grid(sigma_d_px, q, window_x, window_y, 1, row_step)
     }
 
     /// The noise of a fit on the pixels of a grid `step_x` pixels apart along the rows and

@@ -175,26 +175,17 @@ impl PlaneExtractor {
     /// `fx` is the focal length of the grid being extracted; `labels` the full-resolution
     /// labels of the final pass, updated with the final statistics.
     #[inline(never)]
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn split_creases(
         &mut self,
         d: FullDisparity<'_>,
         w: usize,
         wq: usize,
-        hq: usize,
         fx: f64,
         labels: &mut [u16],
     ) {
         let n0 = self.final_sums.len();
         let bend = self.cfg.bend_px_per_px2 * bend::BEND_MEASURED_AT_FOCAL_PX / fx;
-        if n0 == 0
-            || w == 0
-            || wq * hq == 0
-            || !bend.is_finite()
-            || self.full_res_fits.len() < n0
-            || self.cell_disparity.len() < wq * hq
-            || labels.len() < w * CELL * hq
-        {
+        if n0 == 0 || w == 0 || !bend.is_finite() || self.full_res_fits.len() < n0 {
             return;
         }
         self.curvature_sums(d, w, labels);
@@ -218,10 +209,23 @@ impl PlaneExtractor {
                 continue;
             };
             let start = self.crease_samples.len() as u32;
+            let a = self.final_sums[p];
             if dense {
-                self.gather_dense_samples(p, d, w, labels);
+                // Within the columns the grid saw the plane in, one grid step wider each side.
+                let (c0, c1) = self.crease_columns[p];
+                let columns = if c0 <= c1 {
+                    (c0 as usize).saturating_sub(GRID_X)..(c1 as usize + GRID_X + 1).min(w)
+                } else {
+                    0..w
+                };
+                let first = a.y0.div_ceil(SAMPLE_ROW_STEP) * SAMPLE_ROW_STEP;
+                let rows = (first..a.y1).step_by(SAMPLE_ROW_STEP);
+                self.gather_samples(p, d, w, labels, rows, columns.step_by(DENSE_STEP));
             } else {
-                self.gather_crease_samples(p, d, w, labels);
+                let first =
+                    GRID_OFFSET + a.y0.saturating_sub(GRID_OFFSET).div_ceil(GRID_Y) * GRID_Y;
+                let rows = (first..a.y1).step_by(GRID_Y);
+                self.gather_samples(p, d, w, labels, rows, (GRID_OFFSET..w).step_by(GRID_X));
             }
             let end = self.crease_samples.len() as u32;
             self.crease_work.push(CreaseWork {
@@ -260,14 +264,9 @@ impl PlaneExtractor {
         self.crease_centres.clear();
         self.crease_columns.clear();
         self.crease_columns.resize(n, (u32::MAX, 0));
-        // By label: whether the plane is tested (label 0: never).
-        self.crease_tested.clear();
-        self.crease_tested.push(0);
         for p in 0..n {
             let s = &self.final_sums[p].sums;
-            let candidate = self.crease_candidate(p);
-            self.crease_tested.push(u8::from(candidate));
-            self.crease_centres.push(if candidate {
+            self.crease_centres.push(if self.crease_candidate(p) {
                 (s.sx / s.n, s.sy / s.n)
             } else {
                 (f64::NAN, f64::NAN)
@@ -279,15 +278,12 @@ impl PlaneExtractor {
             self.crease_touched.clear();
             let yf = y as f64;
             for x in (GRID_OFFSET..w).step_by(GRID_X) {
-                let l = labels[y * w + x];
-                if self
-                    .crease_tested
-                    .get(usize::from(l))
-                    .is_none_or(|&t| t == 0)
-                {
+                let Some(p) = usize::from(labels[y * w + x]).checked_sub(1) else {
+                    continue;
+                };
+                if !self.crease_centres.get(p).is_some_and(|c| c.0.is_finite()) {
                     continue;
                 }
-                let p = usize::from(l) - 1;
                 let xf = x as f64;
                 let r = f64::from(d.at(y * w + x)) - self.full_res_fits[p].eval(xf, yf);
                 let m = &mut self.crease_rows[p];
@@ -323,50 +319,22 @@ impl PlaneExtractor {
         (lambda - bend > Z_999 * sigma).then_some(c.direction)
     }
 
-    /// Appends the labelled pixels of plane `p` on the sampling grid (row by row) to
+    /// Appends the pixels of plane `p` at `rows` × `columns` (row by row) to
     /// `crease_samples`.
-    fn gather_crease_samples(&mut self, p: usize, d: FullDisparity<'_>, w: usize, labels: &[u16]) {
-        let a = self.final_sums[p];
+    fn gather_samples(
+        &mut self,
+        p: usize,
+        d: FullDisparity<'_>,
+        w: usize,
+        labels: &[u16],
+        rows: std::iter::StepBy<std::ops::Range<usize>>,
+        columns: std::iter::StepBy<std::ops::Range<usize>>,
+    ) {
         let label = p as u16 + 1;
         let h = labels.len() / w;
-        let first = GRID_OFFSET + a.y0.saturating_sub(GRID_OFFSET).div_ceil(GRID_Y) * GRID_Y;
-        for y in (first..a.y1.min(h)).step_by(GRID_Y) {
-            for x in (GRID_OFFSET..w).step_by(GRID_X) {
+        for y in rows.take_while(|&y| y < h) {
+            for x in columns.clone() {
                 if labels[y * w + x] == label {
-                    self.crease_samples.push(CreaseSample {
-                        x: x as f32,
-                        y: y as f32,
-                        d: d.at(y * w + x),
-                    });
-                }
-            }
-        }
-    }
-
-    /// Appends the labelled pixels of plane `p` on its sample rows (every fourth), within the
-    /// columns the grid saw it in (one grid step wider on each side), to `crease_samples`.
-    fn gather_dense_samples(&mut self, p: usize, d: FullDisparity<'_>, w: usize, labels: &[u16]) {
-        let a = self.final_sums[p];
-        let label = p as u16 + 1;
-        let h = labels.len() / w;
-        let (c0, c1) = self.crease_columns[p];
-        let (x0, x1) = if c0 <= c1 {
-            (
-                (c0 as usize).saturating_sub(GRID_X),
-                (c1 as usize + GRID_X + 1).min(w),
-            )
-        } else {
-            (0, w)
-        };
-        let first = a.y0.div_ceil(SAMPLE_ROW_STEP) * SAMPLE_ROW_STEP;
-        for y in (first..a.y1.min(h)).step_by(SAMPLE_ROW_STEP) {
-            for (x, &l) in labels[y * w + x0..y * w + x1]
-                .iter()
-                .enumerate()
-                .step_by(DENSE_STEP)
-            {
-                if l == label {
-                    let x = x0 + x;
                     self.crease_samples.push(CreaseSample {
                         x: x as f32,
                         y: y as f32,

@@ -52,7 +52,7 @@
 //!    two planes take the label that dominates their 8-neighbourhood. The planes are refitted on
 //!    the labelled pixels of every fourth row (which also gives the RMS residual in pixels; the
 //!    centroid and the RMS in metres come from every eighth row); pixel counts are exact.
-//! 4. **Planes across a crease** (`crease`): a plane whose cells are curved beyond what the
+//! 4. **Planes across a crease** (`crease`): a plane whose pixels are curved beyond what the
 //!    sensor's distortion (`bend_px_per_px2`) and the noise allow, and fitted better by a hinge
 //!    (two affine pieces meeting along a line, two parameters fewer) than by any quadratic, is
 //!    split where its two sides' fits intersect: far away, the pixels along a crease between
@@ -463,14 +463,14 @@ pub struct PlaneExtractor {
     /// Per plane of the final pass: the plane its pixels belong to after the pieces of bent
     /// surfaces are joined (`bend`; itself when not joined).
     joined_into: Vec<u16>,
-    /// The crease test (`crease`): per plane, the quadratic sums of its residual, the row
-    /// of cells being accumulated and the centre of its coordinates; the planes touched by the
-    /// current row; the cells of the planes tested further and the work list.
+    /// The crease test (`crease`): per plane, the quadratic sums of its residual on the grid,
+    /// the row being accumulated and the centre of its coordinates (NaN: not tested); the
+    /// planes touched by the current row; the samples of the planes tested further and the
+    /// work list.
     crease_quad: Vec<crate::quadratic::QuadraticSums>,
     crease_rows: Vec<crate::quadratic::RowMoments>,
     crease_centres: Vec<(f64, f64)>,
     crease_touched: Vec<u16>,
-    crease_tested: Vec<u8>,
     /// Per plane: the columns of its grid samples (first, last).
     crease_columns: Vec<(u32, u32)>,
     /// The noise of the crease test's samples (a grid `crease::GRID_X` × `crease::GRID_Y` pixels apart).
@@ -795,7 +795,7 @@ impl PlaneExtractor {
             self.resolve_ambiguous(d, w, h, &mut labels);
             self.times.add(Stage::Disambiguate, &mut t0);
             if cfg.split_creases {
-                self.split_creases(d, w, wq, hq, k.fx, &mut labels);
+                self.split_creases(d, w, wq, k.fx, &mut labels);
             }
             self.join_bent_pieces(wq, hq, k.fx, f64::from(tau));
             self.times.add(Stage::Merge, &mut t0);
