@@ -1069,3 +1069,80 @@ fn every_thread_count_tracks_identically() {
         }
     }
 }
+
+/// The first step after the frame that anchored a sequence starts from a guess (no velocity
+/// has been measured: the prior is the wide one) against a model of that one frame. In room
+/// 3004 of the room benchmark (`rooms_track`, Kinect, realistic noise, the hand-held path of
+/// 1.2 cm and 1.2° per frame) the view of frame 14 pins the pose and anchors the sequence;
+/// frame 15 was aligned 51 mm off along the crease its overlap with the model leaves weakest,
+/// vouched for by planes at σ 9 mm, and reported tracked. Judged as a relocalisation (several
+/// starts, planes that vouch only for what they agree with), the step is either right within
+/// the room benchmark's 2 cm or reported lost (docs/bench/track.md, session 38).
+#[test]
+fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
+    let room = sl_noise::sim::room_scene(3004).unwrap();
+    let mut sensor = SensorModel::kinect_v1();
+    sensor.focal_px = room.intrinsics.fx;
+    let cam = Camera {
+        intrinsics: room.intrinsics,
+        sensor,
+    };
+    let k = cam.intrinsics;
+    let sim = KinectSimulator::kinect_v1();
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.005, 0.002, 0.012),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
+        ),
+    ));
+    let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+    let mut vcfg = TsdfConfig::default();
+    vcfg.voxel_m = 0.008;
+    vcfg.trunc_m = 0.04;
+    vcfg.truncation = sl_tsdf::Truncation::sensor_adaptive(cam.sensor);
+    let mut volume = TsdfVolume::new(vcfg).unwrap();
+    let mut reference = ModelReference::new(
+        &k,
+        ModelReference::default_scale(&cam),
+        RaycastConfig::default(),
+    )
+    .unwrap();
+    let mut pose = room.pose;
+    for _ in 0..14 {
+        pose = pose * step;
+    }
+    let mut anchor: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
+    for i in 14..16u64 {
+        let d = sim.simulate(&room.scene, &k, &pose, 3004 * 1000 + i).depth;
+        let r = tracker.track(&d, reference.maps()).unwrap();
+        match anchor {
+            None => {
+                assert_eq!(r.status, TrackStatus::Initialised, "{:?}", r.failure);
+                anchor = Some((*pose.isometry(), *r.pose.isometry()));
+                volume.integrate(&d, &k, &r.pose).unwrap();
+                reference
+                    .update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)
+                    .unwrap();
+            }
+            Some((t0, e0)) if r.status.is_tracked() => {
+                let truth = t0.inverse() * pose.isometry();
+                let est = e0.inverse() * r.pose.isometry();
+                let off = truth.inverse() * est;
+                assert!(
+                    off.translation.vector.norm() <= 0.02
+                        && off.rotation.angle().to_degrees() <= 1.0,
+                    "frame {i} reported {:?} off by {:.1} mm / {:.2}° (σ {:.1} mm)",
+                    r.status,
+                    off.translation.vector.norm() * 1e3,
+                    off.rotation.angle().to_degrees(),
+                    r.weakest_sigma_m * 1e3
+                );
+            }
+            Some(_) => {
+                let why = r.failure.unwrap_or_default();
+                assert!(why.contains("degenerate overlap"), "frame {i}: {why}");
+            }
+        }
+        pose = pose * step;
+    }
+}

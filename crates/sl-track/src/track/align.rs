@@ -254,7 +254,7 @@ impl Tracker {
                     &self.camera,
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
-                    self.lost_run > 0,
+                    self.start_is_a_guess(),
                 );
                 let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {

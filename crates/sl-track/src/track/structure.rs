@@ -138,8 +138,9 @@ impl StructureCheck {
     /// variance is its own `σ_Z²` plus the reference surface's variance, as in the alignment
     /// ([`OnReference::NONE`] for the frame alone). `camera` is the frame's.
     ///
-    /// **`planes_must_agree`: a plane vouches only for what it agrees with** (for a
-    /// relocalising frame, whose start may lie far from the camera). At the right pose a
+    /// **`planes_must_agree`: a plane vouches only for what it agrees with** (for a frame
+    /// whose start is a guess, which may lie far from the camera: a relocalising frame, or the
+    /// first step after the sequence's first frame, aligned to a model of that frame alone). At the right pose a
     /// plane's samples lie on the reference around zero; at a pose slid along a crease, a plane
     /// whose normal has a small component along the slide still passes the inlier gate, but
     /// all of its samples sit off the reference by the same amount. That shared offset is an
@@ -150,7 +151,10 @@ impl StructureCheck {
     /// 13 cm along the floor–wall crease, was vouched for (σ 8.4 mm) by the back wall and a box
     /// face 6° off it, whose samples sat 5.1 and −5.7 mm off the reference on average (2.2 and
     /// 3.2 standard errors of those means); with their offsets σ is 19 mm and the alignment is
-    /// rejected (docs/bench/track.md, session 25). Not while tracking: there a model fused from many views sits a few millimetres off
+    /// rejected (docs/bench/track.md, session 25). On the simulated rooms the second frame of a
+    /// sequence slid 44–51 mm along the crease its overlap with the one-frame model leaves
+    /// weakest, vouched for at σ 6–9 mm; with the planes' offsets it is lost (session 38).
+    /// Not while tracking from a prediction: there a model fused from many views sits a few millimetres off
     /// a frame's planes at the right pose (a rolling shutter's residue, the voxels), and such
     /// offsets, far beyond the noise of planes of thousands of samples, would take the planes'
     /// information away from frames that are well aligned.
