@@ -1095,18 +1095,11 @@ fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
             Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
         ),
     ));
-    let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
-    let mut vcfg = TsdfConfig::default();
-    vcfg.voxel_m = 0.008;
-    vcfg.trunc_m = 0.04;
-    vcfg.truncation = sl_tsdf::Truncation::sensor_adaptive(cam.sensor);
-    let mut volume = TsdfVolume::new(vcfg).unwrap();
-    let mut reference = ModelReference::new(
-        &k,
-        ModelReference::default_scale(&cam),
-        RaycastConfig::default(),
-    )
-    .unwrap();
+    // The rooms' reconstruction: 8 mm voxels, the sensor-adaptive band, frame to model.
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.008;
+    cfg.tsdf.trunc_m = 0.04;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
     let mut pose = room.pose;
     for _ in 0..14 {
         pose = pose * step;
@@ -1114,15 +1107,11 @@ fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
     let mut anchor: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
     for i in 14..16u64 {
         let d = sim.simulate(&room.scene, &k, &pose, 3004 * 1000 + i).depth;
-        let r = tracker.track(&d, reference.maps()).unwrap();
+        let r = rec.step(&d, None).unwrap().result;
         match anchor {
             None => {
                 assert_eq!(r.status, TrackStatus::Initialised, "{:?}", r.failure);
                 anchor = Some((*pose.isometry(), *r.pose.isometry()));
-                volume.integrate(&d, &k, &r.pose).unwrap();
-                reference
-                    .update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)
-                    .unwrap();
             }
             Some((t0, e0)) if r.status.is_tracked() => {
                 let truth = t0.inverse() * pose.isometry();
