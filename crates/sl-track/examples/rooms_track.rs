@@ -9,12 +9,14 @@
 //! (the real sequences' RPE is 2–6 mm per frame).
 //!
 //! ```text
-//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME]
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A]
 //! ```
 //! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
 //! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
-//! …: its intrinsics, baseline, sub-pixel step and noise) instead. Results:
-//! docs/bench/track.md ("Degenerate overlaps").
+//! …: its intrinsics, baseline, sub-pixel step and noise) instead; `--jitter A` shakes the
+//! camera: every step gets a seeded random extra motion of up to `A` cm along and `A`° about
+//! each axis (uniform), so the constant-velocity prediction misses. Results:
+//! docs/bench/track.md ("Degenerate overlaps", session 39).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
@@ -35,7 +37,17 @@ fn main() {
         .position(|a| a == "--camera")
         .and_then(|i| args.get(i + 1))
         .map(|name| (name.clone(), Camera::preset(name).unwrap()));
-    let numbers: Vec<u64> = args.iter().filter_map(|a| a.parse().ok()).collect();
+    let jitter: f64 = args
+        .iter()
+        .position(|a| a == "--jitter")
+        .and_then(|i| args.get(i + 1))
+        .map_or(0.0, |a| a.parse().unwrap());
+    let numbers: Vec<u64> = args
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i == 0 || args[i - 1] != "--jitter")
+        .filter_map(|(_, a)| a.parse().ok())
+        .collect();
     let first = numbers.first().copied().unwrap_or(3000);
     let count = numbers.get(1).copied().unwrap_or(24);
     let frames = numbers.get(2).copied().unwrap_or(30) as usize;
@@ -76,6 +88,14 @@ fn main() {
         )
         .unwrap();
         let mut pose = room.pose;
+        // A seeded xorshift for the jitter: uniform in [−1, 1).
+        let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut uniform = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
         let (mut lost, mut bad, mut worst) = (0, 0, 0.0f64);
         // The last tracked frame: its true and its estimated pose.
         let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
@@ -116,7 +136,17 @@ fn main() {
                     println!("  {i} lost: {}", r.failure.as_deref().unwrap_or(""));
                 }
             }
-            pose = pose * step;
+            let shake = CameraToCamera::from_isometry(Isometry3::from_parts(
+                Translation3::new(
+                    0.01 * jitter * uniform(),
+                    0.01 * jitter * uniform(),
+                    0.01 * jitter * uniform(),
+                ),
+                UnitQuaternion::from_scaled_axis(
+                    Vector3::new(uniform(), uniform(), uniform()) * jitter.to_radians(),
+                ),
+            ));
+            pose = pose * step * shake;
         }
         println!(
             "seed {seed} {:?} f {:.0} px: lost {lost} of {frames}, bad steps {bad} (worst step off by {:.1} mm)",

@@ -246,6 +246,9 @@ impl Tracker {
         // alignment.
         let mut overlap_sigma_m = f64::NAN;
         let check_level = self.check_level();
+        // Planes vouch only for what they agree with against the fused model, and against the
+        // last frame when the start is a guess (see `StructureCheck::weakest_sigma_m`).
+        let against_model = !std::ptr::eq(reference, &self.last_ref);
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
                 overlap_sigma_m = self.structure.weakest_sigma_m(
@@ -254,7 +257,7 @@ impl Tracker {
                     &self.camera,
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
-                    self.start_is_a_guess(),
+                    against_model || self.start_is_a_guess(),
                 );
                 let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {

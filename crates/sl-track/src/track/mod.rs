@@ -648,8 +648,8 @@ impl Tracker {
     /// anchored the sequence (or a fragment), whose motion nothing has measured yet. Its
     /// alignment then has the wide prior (`max_correction_m`), its start may lie centimetres
     /// from the camera, and it is judged as a relocalisation is: from several starts, and
-    /// with planes that vouch only for what they agree with ([`StructureCheck::weakest_sigma_m`]).
-    /// On the simulated rooms a second frame aligned to a one-frame model slid 44–51 mm along
+    /// with planes that vouch only for what they agree with ([`StructureCheck::weakest_sigma_m`];
+    /// against the fused model they always do). On the simulated rooms a second frame aligned to a one-frame model slid 44–51 mm along
     /// its weakest direction with a reported σ of 6–9 mm (docs/bench/track.md, session 38).
     pub(super) fn start_is_a_guess(&self) -> bool {
         self.lost_run > 0 || !self.velocity_known
