@@ -1070,6 +1070,37 @@ fn every_thread_count_tracks_identically() {
     }
 }
 
+/// Room `seed` of the room benchmark as `rooms_track` sees it: the scene, its Kinect-class
+/// camera, the hand-held step (1.2 cm and 1.2° per frame) and the rooms' reconstruction
+/// (8 mm voxels, the sensor-adaptive band, frame to model).
+fn room_benchmark_sequence(
+    seed: u64,
+) -> (
+    sl_noise::sim::RoomScene,
+    Camera,
+    CameraToCamera,
+    Reconstruction,
+) {
+    let room = sl_noise::sim::room_scene(seed).unwrap();
+    let mut sensor = SensorModel::kinect_v1();
+    sensor.focal_px = room.intrinsics.fx;
+    let cam = Camera {
+        intrinsics: room.intrinsics,
+        sensor,
+    };
+    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.005, 0.002, 0.012),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
+        ),
+    ));
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.008;
+    cfg.tsdf.trunc_m = 0.04;
+    let rec = Reconstruction::new(cam, cfg).unwrap();
+    (room, cam, step, rec)
+}
+
 /// The first step after the frame that anchored a sequence starts from a guess (no velocity
 /// has been measured: the prior is the wide one) against a model of that one frame. In room
 /// 3004 of the room benchmark (`rooms_track`, Kinect, realistic noise, the hand-held path of
@@ -1080,26 +1111,9 @@ fn every_thread_count_tracks_identically() {
 /// the room benchmark's 2 cm or reported lost (docs/bench/track.md, session 38).
 #[test]
 fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
-    let room = sl_noise::sim::room_scene(3004).unwrap();
-    let mut sensor = SensorModel::kinect_v1();
-    sensor.focal_px = room.intrinsics.fx;
-    let cam = Camera {
-        intrinsics: room.intrinsics,
-        sensor,
-    };
+    let (room, cam, step, mut rec) = room_benchmark_sequence(3004);
     let k = cam.intrinsics;
     let sim = KinectSimulator::kinect_v1();
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.005, 0.002, 0.012),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
-        ),
-    ));
-    // The rooms' reconstruction: 8 mm voxels, the sensor-adaptive band, frame to model.
-    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
-    cfg.tsdf.voxel_m = 0.008;
-    cfg.tsdf.trunc_m = 0.04;
-    let mut rec = Reconstruction::new(cam, cfg).unwrap();
     let mut pose = room.pose;
     for _ in 0..14 {
         pose = pose * step;
@@ -1147,21 +1161,9 @@ fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
 #[test]
 fn a_shaking_camera_is_not_tracked_along_a_crease_it_does_not_see() {
     let seed = 3004u64;
-    let room = sl_noise::sim::room_scene(seed).unwrap();
-    let mut sensor = SensorModel::kinect_v1();
-    sensor.focal_px = room.intrinsics.fx;
-    let cam = Camera {
-        intrinsics: room.intrinsics,
-        sensor,
-    };
+    let (room, cam, step, mut rec) = room_benchmark_sequence(seed);
     let k = cam.intrinsics;
     let sim = KinectSimulator::kinect_v1();
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.005, 0.002, 0.012),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
-        ),
-    ));
     // A seeded xorshift: uniform in [−1, 1).
     let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
     let mut uniform = move || {
@@ -1170,10 +1172,6 @@ fn a_shaking_camera_is_not_tracked_along_a_crease_it_does_not_see() {
         state ^= state << 17;
         (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
     };
-    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
-    cfg.tsdf.voxel_m = 0.008;
-    cfg.tsdf.trunc_m = 0.04;
-    let mut rec = Reconstruction::new(cam, cfg).unwrap();
     let mut pose = room.pose;
     let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
     let mut tracked = 0;
