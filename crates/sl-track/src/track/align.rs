@@ -247,8 +247,11 @@ impl Tracker {
         let mut overlap_sigma_m = f64::NAN;
         let check_level = self.check_level();
         // Planes vouch only for what they agree with against the fused model, and against the
-        // last frame when the start is a guess (see `StructureCheck::weakest_sigma_m`).
-        let against_model = !std::ptr::eq(reference, &self.last_ref);
+        // last frame when the start is a guess (see `StructureCheck::weakest_sigma_m`). Not
+        // with the rolling-shutter model: the agreement is measured at the frame's one pose,
+        // while its rows are aligned each from its own, so a plane's mean residual there holds
+        // the readout's skew.
+        let against_model = !std::ptr::eq(reference, &self.last_ref) && self.row_timing.is_none();
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
                 overlap_sigma_m = self.structure.weakest_sigma_m(

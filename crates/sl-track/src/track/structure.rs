@@ -165,7 +165,12 @@ impl StructureCheck {
     /// rule lost 10 of 200 frames (none without). The fused model averages that error over
     /// many views: with the rule, frame to model loses no frame of TUM fr1/rpy-200 or
     /// 7-Scenes, and 7 TUM frames whose planes sit off the model are aligned to the last frame
-    /// instead (ATE 2.94 → 2.85 cm; docs/bench/track.md, session 39).
+    /// instead (ATE 2.94 → 2.85 cm; docs/bench/track.md, session 39). Not with the
+    /// rolling-shutter model either ([`TrackerConfig::rolling_shutter_readout_s`]): the offsets
+    /// are measured at the frame's one pose while its rows are aligned each from its own, so
+    /// they hold the readout's skew (with the rule, the simulated rolling-shutter sequence of
+    /// `a_rolling_shutter_is_modelled_row_by_row` was recovered within 2.32 mm instead of
+    /// 1.51 mm).
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,
