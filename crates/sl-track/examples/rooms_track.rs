@@ -19,9 +19,9 @@
 //! docs/bench/track.md ("Degenerate overlaps", session 39).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
-use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToCamera, SensorModel};
-use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, room_scene};
+use sl_core::nalgebra::Isometry3;
+use sl_core::{Camera, SensorModel};
+use sl_noise::sim::{HandHeldPath, KinectSimulator, NoiseModel, RealisticNoise, room_scene};
 use sl_track::{ModelReference, Tracker, TrackerConfig};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -51,12 +51,6 @@ fn main() {
     let first = numbers.first().copied().unwrap_or(3000);
     let count = numbers.get(1).copied().unwrap_or(24);
     let frames = numbers.get(2).copied().unwrap_or(30) as usize;
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.005, 0.002, 0.012),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
-        ),
-    ));
     let (mut all_posed, mut all_bad, mut seeds_bad, mut worst_all) = (0, 0, 0, 0.0f64);
     for seed in first..first + count {
         let room = room_scene(seed).unwrap();
@@ -88,14 +82,7 @@ fn main() {
         )
         .unwrap();
         let mut pose = room.pose;
-        // A seeded xorshift for the jitter: uniform in [−1, 1).
-        let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-        let mut uniform = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-        };
+        let mut path = HandHeldPath::new(seed, jitter);
         let (mut lost, mut bad, mut worst) = (0, 0, 0.0f64);
         // The last tracked frame: its true and its estimated pose.
         let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
@@ -136,17 +123,7 @@ fn main() {
                     println!("  {i} lost: {}", r.failure.as_deref().unwrap_or(""));
                 }
             }
-            let shake = CameraToCamera::from_isometry(Isometry3::from_parts(
-                Translation3::new(
-                    0.01 * jitter * uniform(),
-                    0.01 * jitter * uniform(),
-                    0.01 * jitter * uniform(),
-                ),
-                UnitQuaternion::from_scaled_axis(
-                    Vector3::new(uniform(), uniform(), uniform()) * jitter.to_radians(),
-                ),
-            ));
-            pose = pose * step * shake;
+            pose = path.advance(&pose);
         }
         println!(
             "seed {seed} {:?} f {:.0} px: lost {lost} of {frames}, bad steps {bad} (worst step off by {:.1} mm)",

@@ -5,7 +5,7 @@
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera, CameraToWorld, DepthImage, Intrinsics, SensorModel};
-use sl_noise::sim::{KinectSimulator, named_scene};
+use sl_noise::sim::{HandHeldPath, KinectSimulator, named_scene};
 use sl_track::{
     ModelReference, Reconstruction, ReconstructionConfig, TrackStatus, Tracker, TrackerConfig,
     WeightMode,
@@ -1071,14 +1071,16 @@ fn every_thread_count_tracks_identically() {
 }
 
 /// Room `seed` of the room benchmark as `rooms_track` sees it: the scene, its Kinect-class
-/// camera, the hand-held step (1.2 cm and 1.2° per frame) and the rooms' reconstruction
-/// (8 mm voxels, the sensor-adaptive band, frame to model).
+/// camera, the hand-held path (1.2 cm and 1.2° per frame, shaken by up to `shake` cm and
+/// degrees per axis) and the rooms' reconstruction (8 mm voxels, the sensor-adaptive band,
+/// frame to model).
 fn room_benchmark_sequence(
     seed: u64,
+    shake: f64,
 ) -> (
     sl_noise::sim::RoomScene,
     Camera,
-    CameraToCamera,
+    HandHeldPath,
     Reconstruction,
 ) {
     let room = sl_noise::sim::room_scene(seed).unwrap();
@@ -1088,17 +1090,11 @@ fn room_benchmark_sequence(
         intrinsics: room.intrinsics,
         sensor,
     };
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.005, 0.002, 0.012),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
-        ),
-    ));
     let mut cfg = ReconstructionConfig::default_for(cam.sensor);
     cfg.tsdf.voxel_m = 0.008;
     cfg.tsdf.trunc_m = 0.04;
     let rec = Reconstruction::new(cam, cfg).unwrap();
-    (room, cam, step, rec)
+    (room, cam, HandHeldPath::new(seed, shake), rec)
 }
 
 /// The first step after the frame that anchored a sequence starts from a guess (no velocity
@@ -1111,12 +1107,12 @@ fn room_benchmark_sequence(
 /// the room benchmark's 2 cm or reported lost (docs/bench/track.md, session 38).
 #[test]
 fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
-    let (room, cam, step, mut rec) = room_benchmark_sequence(3004);
+    let (room, cam, mut path, mut rec) = room_benchmark_sequence(3004, 0.0);
     let k = cam.intrinsics;
     let sim = KinectSimulator::kinect_v1();
     let mut pose = room.pose;
     for _ in 0..14 {
-        pose = pose * step;
+        pose = path.advance(&pose);
     }
     let mut anchor: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
     for i in 14..16u64 {
@@ -1146,7 +1142,7 @@ fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
                 assert!(why.contains("degenerate overlap"), "frame {i}: {why}");
             }
         }
-        pose = pose * step;
+        pose = path.advance(&pose);
     }
 }
 
@@ -1161,17 +1157,9 @@ fn the_first_step_after_the_anchor_is_judged_as_a_relocalisation() {
 #[test]
 fn a_shaking_camera_is_not_tracked_along_a_crease_it_does_not_see() {
     let seed = 3004u64;
-    let (room, cam, step, mut rec) = room_benchmark_sequence(seed);
+    let (room, cam, mut path, mut rec) = room_benchmark_sequence(seed, 1.0);
     let k = cam.intrinsics;
     let sim = KinectSimulator::kinect_v1();
-    // A seeded xorshift: uniform in [−1, 1).
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
     let mut pose = room.pose;
     let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
     let mut tracked = 0;
@@ -1196,13 +1184,7 @@ fn a_shaking_camera_is_not_tracked_along_a_crease_it_does_not_see() {
             last = Some((*pose.isometry(), *r.pose.isometry()));
             tracked += 1;
         }
-        let jitter = CameraToCamera::from_isometry(Isometry3::from_parts(
-            Translation3::new(0.01 * uniform(), 0.01 * uniform(), 0.01 * uniform()),
-            UnitQuaternion::from_scaled_axis(
-                Vector3::new(uniform(), uniform(), uniform()) * 1.0f64.to_radians(),
-            ),
-        ));
-        pose = pose * step * jitter;
+        pose = path.advance(&pose);
     }
     // Frames 12–19 pin the pose: most of them are tracked.
     assert!(tracked >= 6, "{tracked} of 20 frames tracked");

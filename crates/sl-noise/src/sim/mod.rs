@@ -35,6 +35,7 @@
 //! # Ok::<(), sl_noise::NoiseError>(())
 //! ```
 
+mod hand_held;
 mod kinect;
 mod primitives;
 pub mod realistic;
@@ -43,6 +44,7 @@ mod rooms;
 mod scene;
 mod scenes;
 
+pub use hand_held::HandHeldPath;
 pub use kinect::{
     KINECT_MAX_DEPTH_M, KINECT_MIN_DEPTH_M, KinectSimulator, NoiseModel, SimulatedFrame,
 };

@@ -13,9 +13,9 @@
 //! are 2–6 mm off). Until session 38 the first step after the anchor of room 3004 was, by 51 mm.
 
 use anyhow::Result;
-use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use sl_core::{Camera, CameraToCamera, SensorModel};
-use sl_noise::sim::{KinectSimulator, room_scene};
+use sl_core::nalgebra::Isometry3;
+use sl_core::{Camera, SensorModel};
+use sl_noise::sim::{HandHeldPath, KinectSimulator, room_scene};
 use sl_track::{ModelReference, Tracker, TrackerConfig};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -62,22 +62,9 @@ fn track_scene(seed: u64, shake: f64, ratios: &mut Vec<f64>) -> Result<Outcome> 
         ModelReference::default_scale(&cam),
         RaycastConfig::default(),
     )?;
-    // A hand-held path: 1.2 cm and 1.2° per frame.
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.005, 0.002, 0.012),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.3, 1.0, 0.1).normalize() * 1.2f64.to_radians(),
-        ),
-    ));
+    // A hand-held path: 1.2 cm and 1.2° per frame, shaken.
+    let mut path = HandHeldPath::new(seed, shake);
     let mut pose = room.pose;
-    // A seeded xorshift for the shaking: uniform in [−1, 1).
-    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut uniform = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
-    };
     let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
     let mut out = Outcome {
         seed,
@@ -114,17 +101,7 @@ fn track_scene(seed: u64, shake: f64, ratios: &mut Vec<f64>) -> Result<Outcome> 
         } else {
             out.lost += 1;
         }
-        let shaken = CameraToCamera::from_isometry(Isometry3::from_parts(
-            Translation3::new(
-                0.01 * shake * uniform(),
-                0.01 * shake * uniform(),
-                0.01 * shake * uniform(),
-            ),
-            UnitQuaternion::from_scaled_axis(
-                Vector3::new(uniform(), uniform(), uniform()) * shake.to_radians(),
-            ),
-        ));
-        pose = pose * step * shaken;
+        pose = path.advance(&pose);
     }
     Ok(out)
 }
