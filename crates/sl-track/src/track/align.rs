@@ -7,6 +7,7 @@ use nalgebra::Isometry3;
 
 use super::pyramid;
 use super::solve::{self, PassParams, Sums};
+use super::structure::MustAgree;
 use super::{ReferenceMaps, Tracker};
 
 /// Where the iterations of one alignment ended, before the acceptance checks.
@@ -252,6 +253,12 @@ impl Tracker {
         // while its rows are aligned each from its own, so a plane's mean residual there holds
         // the readout's skew.
         let against_model = !std::ptr::eq(reference, &self.last_ref) && self.row_timing.is_none();
+        // The samples on no plane (see `StructureCheck::weakest_sigma_m`) also vouch only for
+        // what they agree with against the last frame when it is the fallback after the
+        // model's alignment was rejected: a second opinion held to the first one's standard.
+        let fallback_to_frame = std::ptr::eq(reference, &self.last_ref)
+            && self.model_given
+            && self.row_timing.is_none();
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
                 overlap_sigma_m = self.structure.weakest_sigma_m(
@@ -260,7 +267,10 @@ impl Tracker {
                     &self.camera,
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
-                    against_model || self.start_is_a_guess(),
+                    MustAgree {
+                        planes: against_model || self.start_is_a_guess(),
+                        samples: against_model || self.start_is_a_guess() || fallback_to_frame,
+                    },
                 );
                 let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {

@@ -200,6 +200,9 @@ pub struct Tracker {
     finest_mean_depth_m: Option<f64>,
     /// The per-interval motion the last frame was aligned with row by row (when it was).
     rolling_motion: Option<Isometry3<f64>>,
+    /// Whether the frame being tracked was given a model to track against: an alignment to
+    /// the last frame is then the fallback after the model's was rejected.
+    model_given: bool,
 }
 
 impl Tracker {
@@ -229,6 +232,7 @@ impl Tracker {
             row_timing: None,
             finest_mean_depth_m: None,
             rolling_motion: None,
+            model_given: false,
         })
     }
 
@@ -354,6 +358,7 @@ impl Tracker {
         self.row_timing = None;
         self.finest_mean_depth_m = None;
         self.rolling_motion = None;
+        self.model_given = model.is_some();
         let sensor = self.camera.sensor;
         // Level 0 is sampled every `stride0` pixels by the alignment against a model: its
         // normals are computed there only, the rest if the frame is ever needed as a reference
@@ -451,7 +456,7 @@ impl Tracker {
                         &this.camera,
                         &this.cfg,
                         |_, _| Some(solve::OnReference::NONE),
-                        false,
+                        structure::MustAgree::default(),
                     );
                     Ok((sigma, scale_m))
                 },

@@ -46,6 +46,15 @@ use crate::error::Result;
 /// Pixels between samples, in both directions.
 pub(crate) const STEP: usize = 4;
 
+/// Which of the check's samples vouch only for what they agree with (see
+/// [`StructureCheck::weakest_sigma_m`]): those on each plane (`planes`), and those on no plane
+/// together (`samples`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(crate) struct MustAgree {
+    pub(crate) planes: bool,
+    pub(crate) samples: bool,
+}
+
 /// The plane extractor kept between frames (its buffers are reused) and the last frame's
 /// segmentation: its label image and its planes.
 #[derive(Debug, Default)]
@@ -138,7 +147,7 @@ impl StructureCheck {
     /// variance is its own `σ_Z²` plus the reference surface's variance, as in the alignment
     /// ([`OnReference::NONE`] for the frame alone). `camera` is the frame's.
     ///
-    /// **`planes_must_agree`: a plane vouches only for what it agrees with** — against the
+    /// **`must_agree.planes`: a plane vouches only for what it agrees with** — against the
     /// fused model always, against the last frame when the start is a guess (a relocalising
     /// frame, or the first step after the sequence's first frame). At the right pose a
     /// plane's samples lie on the reference around zero; at a pose slid along a crease, a plane
@@ -157,6 +166,18 @@ impl StructureCheck {
     /// A start from the constant-velocity prediction is no safer when the camera shakes: on
     /// the rooms with a hand-held jitter of up to 1 cm and 1° per axis and frame, steps from the
     /// prediction slid 30–49 mm with planes vouching at σ 3–10 mm (session 39).
+    ///
+    /// **`must_agree.samples`: the samples on no plane together, likewise** (session 40): a box
+    /// too small to be a plane at this level vouched with its faces' samples, the right face's
+    /// 57 samples 28 mm off the model on average and the left face's 54 samples −10 mm, each
+    /// within its gate (room 3006, frame 15, 31 mm along the wall at σ 3.2 mm). One offset per
+    /// plane does not describe them, a pose error does: their score `Σ w r J` is tested as a χ²
+    /// and their information discounted along the pose change it asks for, given what the
+    /// rest of the frame pins ([`agreeing_information`]). [`super::Tracker`] asks for it where
+    /// the planes' rule applies and, in addition, against the last frame when that is the
+    /// fallback after the model's alignment was rejected (room 3006's slides moved there
+    /// otherwise: 45 mm at σ 6 mm). Not against the last frame from a prediction otherwise:
+    /// tracking TUM fr1/rpy-200 frame to frame with it lost 1 of 200 frames (none without).
     ///
     /// Not against the last frame from a prediction: one frame's plane carries a low-frequency
     /// error of its own as a whole (the sensor's distortion and correlated noise, which the
@@ -178,8 +199,12 @@ impl StructureCheck {
         camera: &Camera,
         cfg: &TrackerConfig,
         on_reference: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference> + Sync,
-        planes_must_agree: bool,
+        must_agree: MustAgree,
     ) -> f64 {
+        let MustAgree {
+            planes: planes_must_agree,
+            samples: samples_must_agree,
+        } = must_agree;
         let Some(k) = level.k else {
             return f64::INFINITY;
         };
@@ -211,6 +236,8 @@ impl StructureCheck {
             mut info,
             on_planes,
             info_off_planes,
+            info_off_planes_own,
+            score_off_planes,
             z_sum,
             count,
         } = total;
@@ -231,9 +258,14 @@ impl StructureCheck {
         // An unbiased estimate of a positive semi-definite matrix whose noise makes it
         // indefinite: its negative eigenvalues are noise, not information taken away.
         let off = SymmetricEigen::new(info_off_planes);
-        info += off.eigenvectors
+        let off_psd = off.eigenvectors
             * Matrix6::from_diagonal(&off.eigenvalues.map(|e| e.max(0.0)))
             * off.eigenvectors.transpose();
+        info += if samples_must_agree {
+            agreeing_information(&off_psd, &info, &info_off_planes_own, &score_off_planes)
+        } else {
+            off_psd
+        };
         // Rotations as displacements at the mean depth.
         rotations_at_depth(&mut info, z_sum / count);
         let min = SymmetricEigen::new(info)
@@ -272,6 +304,8 @@ impl StructureCheck {
             info,
             on_planes,
             info_off_planes,
+            info_off_planes_own,
+            score_off_planes,
             z_sum,
             count,
         } = &mut acc;
@@ -349,6 +383,8 @@ impl StructureCheck {
                     (Some(m), _) => {
                         let jm = j * jacobian(&m).transpose();
                         *info_off_planes += (jm + jm.transpose()) * (0.5 * w);
+                        *info_off_planes_own += j * j.transpose() * w;
+                        *score_off_planes += j * (w * on_ref.residual_m);
                     }
                     (None, Some((plane_info, weight, weighted_residual))) => {
                         *plane_info += j * j.transpose() * w;
@@ -405,6 +441,11 @@ struct Information {
     on_planes: Vec<(Matrix6<f64>, f64, f64)>,
     /// Samples on no plane with a partner normal (unbiased, not positive semi-definite).
     info_off_planes: Matrix6<f64>,
+    /// The same samples with their own normal only (`Σ w J Jᵀ`, noise bias included): the
+    /// covariance of [`Information::score_off_planes`] at the right pose.
+    info_off_planes_own: Matrix6<f64>,
+    /// The same samples' score `Σ w r J` (their residuals on the reference).
+    score_off_planes: Vector6<f64>,
     z_sum: f64,
     count: f64,
 }
@@ -415,6 +456,8 @@ impl Information {
             info: Matrix6::zeros(),
             on_planes: vec![(Matrix6::zeros(), 0.0, 0.0); planes],
             info_off_planes: Matrix6::zeros(),
+            info_off_planes_own: Matrix6::zeros(),
+            score_off_planes: Vector6::zeros(),
             z_sum: 0.0,
             count: 0.0,
         }
@@ -428,7 +471,70 @@ impl Information {
             a.2 += b.2;
         }
         self.info_off_planes += other.info_off_planes;
+        self.info_off_planes_own += other.info_off_planes_own;
+        self.score_off_planes += other.score_off_planes;
         self.z_sum += other.z_sum;
         self.count += other.count;
     }
+}
+
+/// Eigenvalues below this fraction of the largest are a matrix's null space.
+const RANK_TOLERANCE: f64 = 1e-9;
+
+/// The information `info` (positive semi-definite) of samples whose residuals may share an
+/// error, when the rest of the frame's samples give `rest`: discounted along the pose change
+/// their residuals ask for, by as much as it exceeds their noise (the rule of the planes in
+/// [`StructureCheck::weakest_sigma_m`], for six directions at once).
+///
+/// `score` is `g = Σ w r J` over the samples and `own` its covariance at the right pose
+/// (`Σ w J Jᵀ` with the samples' own normals). At the right pose `q = gᵀ own⁺ g` follows a χ²
+/// with as many degrees of freedom `k` as `own` has rank. At a pose off by `Δ` the samples'
+/// residuals are `Jᵀ Δ` plus noise; the rest of the frame, which the alignment has satisfied,
+/// pins the directions it constrains, so `δ = (rest + info)⁺ g` — the Gauss–Newton step these
+/// residuals ask for with everything else held — estimates `Δ` (the samples alone, `info⁺ g`,
+/// would put most of it on the rotations a small object hardly constrains). The shared error is
+/// modelled as a pose error of covariance `c δ δᵀ`, `c = 1 − k/q` (0 when `q ≤ k`: within the
+/// noise), added to the samples' own: by Sherman–Morrison their information becomes
+/// `info − c u uᵀ / (1 + c δᵀ u)` with `u = info δ`, still positive semi-definite. Along `δ`
+/// what is left is about one standard deviation of `δ`; across it, what they had.
+fn agreeing_information(
+    info: &Matrix6<f64>,
+    rest: &Matrix6<f64>,
+    own: &Matrix6<f64>,
+    score: &Vector6<f64>,
+) -> Matrix6<f64> {
+    let (q, k) = pseudo_quadratic(&SymmetricEigen::new(*own), score);
+    if k == 0 || q <= k as f64 {
+        return *info;
+    }
+    let c = 1.0 - k as f64 / q;
+    let total = SymmetricEigen::new(rest + info);
+    let largest = total.eigenvalues.max();
+    let mut delta = Vector6::zeros();
+    for (i, &e) in total.eigenvalues.iter().enumerate() {
+        if e > largest * RANK_TOLERANCE {
+            let v = total.eigenvectors.column(i);
+            delta += v * (v.dot(score) / e);
+        }
+    }
+    let u = info * delta;
+    info - u * u.transpose() * (c / (1.0 + c * delta.dot(&u)))
+}
+
+/// `gᵀ A⁺ g` for the positive semi-definite `A` (as its eigendecomposition) and the rank of
+/// `A` (eigenvalues above [`RANK_TOLERANCE`] of the largest).
+fn pseudo_quadratic(a: &SymmetricEigen<f64, nalgebra::U6>, g: &Vector6<f64>) -> (f64, usize) {
+    let largest = a.eigenvalues.max();
+    if largest.is_nan() || largest <= 0.0 {
+        return (0.0, 0);
+    }
+    let (mut q, mut rank) = (0.0, 0);
+    for (i, &e) in a.eigenvalues.iter().enumerate() {
+        if e > largest * RANK_TOLERANCE {
+            let x = a.eigenvectors.column(i).dot(g);
+            q += x * x / e;
+            rank += 1;
+        }
+    }
+    (q, rank)
 }
