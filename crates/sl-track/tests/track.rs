@@ -190,7 +190,7 @@ fn inverse_variance_weights_against_uniform() {
             "{mode:?}: {status:?}"
         );
         let (rt, rr) = rms(&errors(&truth, &est));
-        let mut steps: Vec<f64> = truth
+        let steps: Vec<f64> = truth
             .windows(2)
             .zip(est.windows(2))
             .map(|(t, e)| {
@@ -199,8 +199,7 @@ fn inverse_variance_weights_against_uniform() {
                 (t.inverse() * e).translation.vector.norm()
             })
             .collect();
-        steps.sort_by(f64::total_cmp);
-        let median = steps[steps.len() / 2];
+        let median = sl_eval::trajectory::ErrorStats::of(&steps).median;
         eprintln!(
             "{}: rms {:.2} mm {:.3}°, median step error {:.2} mm",
             mode.name(),

@@ -147,7 +147,7 @@ fn ate_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
 /// The median over consecutive tracked frames of the error of the step between them (the
 /// translation of `(truth step)⁻¹ · (estimated step)`), metres; NaN without such a pair.
 fn median_step_error_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -> f64 {
-    let mut errors: Vec<f64> = truth
+    let errors: Vec<f64> = truth
         .windows(2)
         .zip(est.windows(2))
         .filter_map(|(t, e)| {
@@ -162,8 +162,7 @@ fn median_step_error_m(truth: &[CameraToWorld], est: &[Option<CameraToWorld>]) -
     if errors.is_empty() {
         return f64::NAN;
     }
-    errors.sort_by(f64::total_cmp);
-    errors[errors.len() / 2]
+    sl_eval::trajectory::ErrorStats::of(&errors).median
 }
 
 /// The simulated sequence of the sl-track tests: `boxes` at 320×240, 1.5° and 1.5 cm per frame,

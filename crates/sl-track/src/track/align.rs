@@ -252,13 +252,13 @@ impl Tracker {
         // with the rolling-shutter model: the agreement is measured at the frame's one pose,
         // while its rows are aligned each from its own, so a plane's mean residual there holds
         // the readout's skew.
-        let against_model = !std::ptr::eq(reference, &self.last_ref) && self.row_timing.is_none();
+        let on_last_frame = std::ptr::eq(reference, &self.last_ref);
+        let one_pose = self.row_timing.is_none();
+        let planes = (!on_last_frame && one_pose) || self.start_is_a_guess();
         // The samples on no plane (see `StructureCheck::weakest_sigma_m`) also vouch only for
         // what they agree with against the last frame when it is the fallback after the
         // model's alignment was rejected: a second opinion held to the first one's standard.
-        let fallback_to_frame = std::ptr::eq(reference, &self.last_ref)
-            && self.model_given
-            && self.row_timing.is_none();
+        let samples = planes || (on_last_frame && self.model_given && one_pose);
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
                 overlap_sigma_m = self.structure.weakest_sigma_m(
@@ -267,10 +267,7 @@ impl Tracker {
                     &self.camera,
                     cfg,
                     solve::inlier_of(reference, &pose, sensor, cfg),
-                    MustAgree {
-                        planes: against_model || self.start_is_a_guess(),
-                        samples: against_model || self.start_is_a_guess() || fallback_to_frame,
-                    },
+                    MustAgree { planes, samples },
                 );
                 let bound = cfg.motion_prior_sigma_m();
                 (overlap_sigma_m > bound).then(|| {
