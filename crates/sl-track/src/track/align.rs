@@ -26,6 +26,8 @@ pub(super) struct Attempt {
     /// The weakest-direction σ of the part of the frame that overlaps the reference at `pose`
     /// (NaN when not checked).
     pub(super) overlap_sigma_m: f64,
+    /// Whether the samples beyond the gates dispute the pose (`structure::Weakest`).
+    pub(super) disputed: bool,
     pub(super) failure: Option<String>,
 }
 
@@ -246,6 +248,7 @@ impl Tracker {
         // reference at this pose, with the reference's variance added to theirs as in the
         // alignment.
         let mut overlap_sigma_m = f64::NAN;
+        let mut disputed = false;
         let check_level = self.check_level();
         // Planes vouch only for what they agree with against the fused model, and against the
         // last frame when the start is a guess (see `StructureCheck::weakest_sigma_m`). Not
@@ -261,22 +264,31 @@ impl Tracker {
         let samples = planes || (on_last_frame && self.model_given && one_pose);
         let failure = match (failure, self.pyramid.levels.get(check_level)) {
             (None, Some(level)) if cfg.degenerate_check => {
-                overlap_sigma_m = self.structure.weakest_sigma_m(
+                let weakest = self.structure.weakest_sigma_m(
                     level,
                     check_level,
                     &self.camera,
                     cfg,
-                    solve::inlier_of(reference, &pose, sensor, cfg),
+                    solve::on_reference_at(reference, &pose, sensor, cfg),
                     MustAgree { planes, samples },
                 );
+                overlap_sigma_m = weakest.sigma_m;
                 let bound = cfg.motion_prior_sigma_m();
-                (overlap_sigma_m > bound).then(|| {
-                    format!(
+                if overlap_sigma_m > bound {
+                    Some(format!(
                         "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",
                         overlap_sigma_m * 1e3,
                         bound * 1e3
-                    )
-                })
+                    ))
+                } else {
+                    disputed = weakest.disputed_sigma_m.is_some();
+                    weakest.disputed_sigma_m.map(|sigma| {
+                        format!(
+                            "disputed overlap: samples of the view that land on the reference beyond the gates pin one direction of the pose to {:.1} mm (1σ), better than those that agree with it",
+                            sigma * 1e3
+                        )
+                    })
+                }
             }
             (failure, _) => failure,
         };
@@ -286,6 +298,7 @@ impl Tracker {
             condition,
             iterations,
             overlap_sigma_m,
+            disputed,
             failure,
         }
     }

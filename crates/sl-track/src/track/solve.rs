@@ -400,13 +400,13 @@ pub(crate) fn renormalized(mut iso: Isometry3<f64>) -> Isometry3<f64> {
     iso
 }
 
-/// Whether a point of the frame (camera coordinates, with its normal) is an inlier of the
-/// reference at the camera-to-world `pose` — it lands on a reference surface within the
-/// alignment's gates in their plain form (residual within `gate_sigmas·σ + allowance_fine_m`
-/// with the frame's σ_Z taken whole rather than along the normal, normals within
-/// `max_normal_angle_deg` without [`pass`]'s per-point widening) — and if so how it sits on
-/// that surface.
-pub(crate) fn inlier_of<'a>(
+/// How a point of the frame (camera coordinates, with its normal) sits on the reference at
+/// the camera-to-world `pose`: `Some` when it lands on a reference surface whose normal is
+/// within `max_normal_angle_deg` of its own and its residual is within the alignment's gate in
+/// its plain form (`gate_sigmas·σ + allowance_fine_m` with the frame's σ_Z taken whole rather
+/// than along the normal, without [`pass`]'s per-point widening) — an inlier — or beyond it by
+/// at most `max_correction_m` ([`OnReference::inlier`] false).
+pub(crate) fn on_reference_at<'a>(
     reference: &'a ReferenceMaps,
     pose: &Isometry3<f64>,
     sensor: &'a SensorModel,
@@ -445,20 +445,26 @@ pub(crate) fn inlier_of<'a>(
         let r = n.dot(&(to_world * p - q.cast::<f64>()));
         let sigma_z = sensor.sigma_z(p.z);
         let gate = cfg.gate_sigmas * (sigma_z * sigma_z + var_ref).sqrt() + cfg.allowance_fine_m;
-        (r.abs() <= gate).then_some(OnReference {
+        // Beyond the gate but within what a pose off by the largest plausible correction
+        // could bring into it: the sample disagrees with this pose (`OnReference::inlier`).
+        (r.abs() <= gate + cfg.max_correction_m).then_some(OnReference {
             variance_m2: var_ref,
             residual_m: r,
+            inlier: r.abs() <= gate,
         })
     }
 }
 
-/// How a frame's point sits on the reference surface it is an inlier of ([`inlier_of`]).
+/// How a frame's point sits on the reference surface it lands on ([`on_reference_at`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct OnReference {
     /// The variance of the reference's surface there, m².
     pub variance_m2: f64,
     /// The signed distance of the point from that surface along the surface's normal, m.
     pub residual_m: f64,
+    /// Whether the residual is within the alignment's gate; if not, it is within the gate
+    /// plus [`TrackerConfig::max_correction_m`] (a sample the pose disagrees with).
+    pub inlier: bool,
 }
 
 impl OnReference {
@@ -466,6 +472,7 @@ impl OnReference {
     pub(crate) const NONE: Self = Self {
         variance_m2: 0.0,
         residual_m: 0.0,
+        inlier: true,
     };
 }
 

@@ -26,7 +26,7 @@
 //! **Twice.** Before any alignment on the whole frame (a single wall; also the first frame,
 //! which must pin the pose to anchor a model), and after each alignment that passed its other
 //! checks on the samples that are inliers of the reference at the aligned pose, with the
-//! reference surface's variance added to the sample's (`solve::inlier_of`): a frame can be
+//! reference surface's variance added to the sample's (`solve::on_reference_at`): a frame can be
 //! well constrained while the part of it the reference also holds is not (a model of one wall
 //! and the floor so far, surfaces beyond the fused range). Simulated rooms and corridors
 //! (`docs/bench/track.md`, session 13): tracked steps off by more than 2 cm fell from 19 to 11.
@@ -37,6 +37,7 @@ use sl_core::{Camera, DepthView, Intrinsics, SensorModel};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
+use super::agreement::{agreeing_information, disputed_direction, positive_part};
 use super::frame_planes::FramePlanes;
 use super::normal_noise::{NormalNoise, modelled_variance, window_is_one_surface};
 use super::pyramid::{Level, normal_radius};
@@ -45,6 +46,25 @@ use crate::error::Result;
 
 /// Pixels between samples, in both directions.
 pub(crate) const STEP: usize = 4;
+
+/// What [`StructureCheck::weakest_sigma_m`] finds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Weakest {
+    /// The pose's standard deviation along its least-constrained direction, metres
+    /// (`f64::INFINITY` when a direction gets no information at all).
+    pub(crate) sigma_m: f64,
+    /// When the samples that land on the reference beyond the gates pin some direction better
+    /// than those that agree with the pose, and within the motion prior's σ: that σ from them
+    /// alone, metres. The pose is then disputed by the data, not determined by it.
+    pub(crate) disputed_sigma_m: Option<f64>,
+}
+
+impl Weakest {
+    const UNDETERMINED: Self = Self {
+        sigma_m: f64::INFINITY,
+        disputed_sigma_m: None,
+    };
+}
 
 /// Which of the check's samples vouch only for what they agree with (see
 /// [`StructureCheck::weakest_sigma_m`]): those on each plane (`planes`), and those on no plane
@@ -140,9 +160,10 @@ impl StructureCheck {
     }
 
     /// The pose's standard deviation along its least-constrained direction, metres
-    /// (`f64::INFINITY` when a direction gets no information at all: a single plane), from the
+    /// (`f64::INFINITY` when a direction gets no information at all: a single plane), and
+    /// whether the samples beyond the gates dispute the pose ([`Weakest`]), from the
     /// samples of pyramid level `index` (point and normal) for which `on_reference` is
-    /// `Some` (the whole frame, or its inliers of the reference at the aligned pose), with the
+    /// `Some` (the whole frame, or where it lands on the reference at the aligned pose), with the
     /// planes of the last [`StructureCheck::segment`] of that level. A sample's residual
     /// variance is its own `σ_Z²` plus the reference surface's variance, as in the alignment
     /// ([`OnReference::NONE`] for the frame alone). `camera` is the frame's.
@@ -173,11 +194,26 @@ impl StructureCheck {
     /// within its gate (room 3006, frame 15, 31 mm along the wall at σ 3.2 mm). One offset per
     /// plane does not describe them, a pose error does: their score `Σ w r J` is tested as a χ²
     /// and their information discounted along the pose change it asks for, given what the
-    /// rest of the frame pins ([`agreeing_information`]). [`super::Tracker`] asks for it where
+    /// rest of the frame pins ([`super::agreement::agreeing_information`]). [`super::Tracker`] asks for it where
     /// the planes' rule applies and, in addition, against the last frame when that is the
     /// fallback after the model's alignment was rejected (room 3006's slides moved there
     /// otherwise: 45 mm at σ 6 mm). Not against the last frame from a prediction otherwise:
     /// tracking TUM fr1/rpy-200 frame to frame with it lost 1 of 200 frames (none without).
+    ///
+    /// **Disputed poses.** Agreement is measured on the samples the gate lets through, so it
+    /// can be self-fulfilling: at a pose slid along the direction the view pins least, the
+    /// samples that would object sit beyond the gate and count for nothing. Samples that land
+    /// on the reference with a compatible normal beyond the gate, by at most the largest
+    /// plausible correction ([`TrackerConfig::max_correction_m`]), are therefore summed apart
+    /// ([`OnReference::inlier`]); where they pin some direction better than all the samples
+    /// that agree with the pose (the largest generalised eigenvalue of the two information
+    /// matrices exceeds 1), and within the motion prior's σ, the pose is
+    /// [`Weakest::disputed_sigma_m`]: the data contradict it rather than confirm it. Room
+    /// 3021 with a shaking camera: a step slid 48 mm up the walls was vouched for at σ 10.4 mm
+    /// by what the gate let through, while a horizontal surface's samples and the box edges'
+    /// sat 50 mm off the model beyond it, pinning the height to 1.5 mm; disputed, the frame is
+    /// aligned to the last frame instead, within 1 mm (docs/bench/track.md, session 41). Asked
+    /// for where the agreement rules are.
     ///
     /// Not against the last frame from a prediction: one frame's plane carries a low-frequency
     /// error of its own as a whole (the sensor's distortion and correlated noise, which the
@@ -200,13 +236,13 @@ impl StructureCheck {
         cfg: &TrackerConfig,
         on_reference: impl Fn(&Point3<f32>, &Vector3<f32>) -> Option<OnReference> + Sync,
         must_agree: MustAgree,
-    ) -> f64 {
+    ) -> Weakest {
         let MustAgree {
             planes: planes_must_agree,
             samples: samples_must_agree,
         } = must_agree;
         let Some(k) = level.k else {
-            return f64::INFINITY;
+            return Weakest::UNDETERMINED;
         };
         let step = sample_step(index);
         let sampling = Sampling {
@@ -238,11 +274,12 @@ impl StructureCheck {
             info_off_planes,
             info_off_planes_own,
             score_off_planes,
+            mut info_beyond_gates,
             z_sum,
             count,
         } = total;
         if count < 6.0 {
-            return f64::INFINITY;
+            return Weakest::UNDETERMINED;
         }
         for (plane_info, weight, weighted_residual) in &on_planes {
             if *weight > 0.0 {
@@ -257,10 +294,7 @@ impl StructureCheck {
         }
         // An unbiased estimate of a positive semi-definite matrix whose noise makes it
         // indefinite: its negative eigenvalues are noise, not information taken away.
-        let off = SymmetricEigen::new(info_off_planes);
-        let off_psd = off.eigenvectors
-            * Matrix6::from_diagonal(&off.eigenvalues.map(|e| e.max(0.0)))
-            * off.eigenvectors.transpose();
+        let off_psd = positive_part(info_off_planes);
         info += if samples_must_agree {
             agreeing_information(&off_psd, &info, &info_off_planes_own, &score_off_planes)
         } else {
@@ -268,17 +302,28 @@ impl StructureCheck {
         };
         // Rotations as displacements at the mean depth.
         rotations_at_depth(&mut info, z_sum / count);
-        let min = SymmetricEigen::new(info)
+        let eigen = SymmetricEigen::new(info);
+        let min = eigen
             .eigenvalues
             .iter()
             .copied()
             .fold(f64::INFINITY, f64::min);
         let largest = info.diagonal().max();
         // Round-off of a rank-deficient sum leaves |λ_min| ~ 1e-12 of the largest.
-        if min > largest * 1e-9 {
-            1.0 / min.sqrt()
+        let determined = min > largest * 1e-9;
+        if !determined {
+            return Weakest::UNDETERMINED;
+        }
+        let disputed_sigma_m = if samples_must_agree || planes_must_agree {
+            rotations_at_depth(&mut info_beyond_gates, z_sum / count);
+            disputed_direction(&eigen, &positive_part(info_beyond_gates))
+                .filter(|&s| s <= cfg.motion_prior_sigma_m())
         } else {
-            f64::INFINITY
+            None
+        };
+        Weakest {
+            sigma_m: 1.0 / min.sqrt(),
+            disputed_sigma_m,
         }
     }
 
@@ -306,6 +351,7 @@ impl StructureCheck {
             info_off_planes,
             info_off_planes_own,
             score_off_planes,
+            info_beyond_gates,
             z_sum,
             count,
         } = &mut acc;
@@ -379,6 +425,16 @@ impl StructureCheck {
                 };
                 let j = jacobian(&n);
                 let w = share / var;
+                if !on_ref.inlier {
+                    *info_beyond_gates += match partner {
+                        Some(m) => {
+                            let jm = j * jacobian(&m).transpose();
+                            (jm + jm.transpose()) * (0.5 * w)
+                        }
+                        None => j * j.transpose() * w,
+                    };
+                    continue;
+                }
                 match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
                     (Some(m), _) => {
                         let jm = j * jacobian(&m).transpose();
@@ -446,6 +502,9 @@ struct Information {
     info_off_planes_own: Matrix6<f64>,
     /// The same samples' score `Σ w r J` (their residuals on the reference).
     score_off_planes: Vector6<f64>,
+    /// Samples that land on the reference beyond the gate (`OnReference::inlier` false), on a
+    /// plane or on no plane alike (unbiased on no plane, as `info_off_planes`).
+    info_beyond_gates: Matrix6<f64>,
     z_sum: f64,
     count: f64,
 }
@@ -458,6 +517,7 @@ impl Information {
             info_off_planes: Matrix6::zeros(),
             info_off_planes_own: Matrix6::zeros(),
             score_off_planes: Vector6::zeros(),
+            info_beyond_gates: Matrix6::zeros(),
             z_sum: 0.0,
             count: 0.0,
         }
@@ -473,63 +533,8 @@ impl Information {
         self.info_off_planes += other.info_off_planes;
         self.info_off_planes_own += other.info_off_planes_own;
         self.score_off_planes += other.score_off_planes;
+        self.info_beyond_gates += other.info_beyond_gates;
         self.z_sum += other.z_sum;
         self.count += other.count;
     }
-}
-
-/// Eigenvalues below this fraction of the largest are a matrix's null space.
-const RANK_TOLERANCE: f64 = 1e-9;
-
-/// The information `info` (positive semi-definite) of samples whose residuals may share an
-/// error, when the rest of the frame's samples give `rest`: discounted along the pose change
-/// their residuals ask for, by as much as it exceeds their noise (the rule of the planes in
-/// [`StructureCheck::weakest_sigma_m`], for six directions at once).
-///
-/// `score` is `g = Σ w r J` over the samples and `own` its covariance at the right pose
-/// (`Σ w J Jᵀ` with the samples' own normals). At the right pose `q = gᵀ own⁺ g` follows a χ²
-/// with as many degrees of freedom `k` as `own` has rank. At a pose off by `Δ` the samples'
-/// residuals are `Jᵀ Δ` plus noise; the rest of the frame, which the alignment has satisfied,
-/// pins the directions it constrains, so `δ = (rest + info)⁺ g` — the Gauss–Newton step these
-/// residuals ask for with everything else held — estimates `Δ` (the samples alone, `info⁺ g`,
-/// would put most of it on the rotations a small object hardly constrains). The shared error is
-/// modelled as a pose error of covariance `c δ δᵀ`, `c = 1 − k/q` (0 when `q ≤ k`: within the
-/// noise), added to the samples' own: by Sherman–Morrison their information becomes
-/// `info − c u uᵀ / (1 + c δᵀ u)` with `u = info δ`, still positive semi-definite. Along `δ`
-/// what is left is about one standard deviation of `δ`; across it, what they had.
-fn agreeing_information(
-    info: &Matrix6<f64>,
-    rest: &Matrix6<f64>,
-    own: &Matrix6<f64>,
-    score: &Vector6<f64>,
-) -> Matrix6<f64> {
-    let (_, q, k) = pseudo_solve(*own, score);
-    if k == 0 || q <= k as f64 {
-        return *info;
-    }
-    let c = 1.0 - k as f64 / q;
-    let (delta, _, _) = pseudo_solve(rest + info, score);
-    let u = info * delta;
-    info - u * u.transpose() * (c / (1.0 + c * delta.dot(&u)))
-}
-
-/// For the positive semi-definite `a`: `x = a⁺ g`, `gᵀ a⁺ g` and the rank of `a` (its
-/// eigenvalues above [`RANK_TOLERANCE`] of the largest).
-fn pseudo_solve(a: Matrix6<f64>, g: &Vector6<f64>) -> (Vector6<f64>, f64, usize) {
-    let a = SymmetricEigen::new(a);
-    let largest = a.eigenvalues.max();
-    let (mut x, mut q, mut rank) = (Vector6::zeros(), 0.0, 0);
-    if largest.is_nan() || largest <= 0.0 {
-        return (x, q, rank);
-    }
-    for (i, &e) in a.eigenvalues.iter().enumerate() {
-        if e > largest * RANK_TOLERANCE {
-            let v = a.eigenvectors.column(i);
-            let along = v.dot(g);
-            x += v * (along / e);
-            q += along * along / e;
-            rank += 1;
-        }
-    }
-    (x, q, rank)
 }
