@@ -194,8 +194,9 @@ impl StructureCheck {
     /// within its gate (room 3006, frame 15, 31 mm along the wall at σ 3.2 mm). One offset per
     /// plane does not describe them, a pose error does: their score `Σ w r J` is tested as a χ²
     /// and their information discounted along the pose change it asks for, given what the
-    /// rest of the frame pins ([`super::agreement::agreeing_information`]). [`super::Tracker`] asks for it where
-    /// the planes' rule applies and, in addition, against the last frame when that is the
+    /// rest of the frame pins ([`super::agreement::agreeing_information`]).
+    /// [`super::Tracker`] asks for it where the planes' rule applies and, in addition,
+    /// against the last frame when that is the
     /// fallback after the model's alignment was rejected (room 3006's slides moved there
     /// otherwise: 45 mm at σ 6 mm). Not against the last frame from a prediction otherwise:
     /// tracking TUM fr1/rpy-200 frame to frame with it lost 1 of 200 frames (none without).

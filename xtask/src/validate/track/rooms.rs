@@ -130,8 +130,8 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
         bad += o.bad;
         worst = worst.max(o.worst_m);
     }
-    // The same rooms, the camera shaken: reported, not checked (session 39: 5 bad steps;
-    // session 40: 2).
+    // The same rooms, the camera shaken (session 39: 5 bad steps; session 40: 2; session 41:
+    // 0, and checked since).
     let (mut shaken_posed, mut shaken_bad, mut shaken_worst) = (0, 0, 0.0f64);
     for &seed in &seeds {
         let o = track_scene(seed, SHAKE, &mut Vec::new())?;
@@ -175,6 +175,14 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
             worst * 1e3
         ),
     );
+    ctx.check(
+        "rooms and corridors, the camera shaken: no step reported tracked is off by more than 2 cm or 1°",
+        shaken_bad == 0,
+        format!(
+            "{shaken_bad} bad steps in {shaken_posed} frames with a pose, worst step {:.1} mm",
+            shaken_worst * 1e3
+        ),
+    );
     Ok(format!(
         "\n**Rooms and corridors** (the example `rooms_track`: the room benchmark's scenes, seeds \
          {}–{}, realistic simulator, a hand-held path of 1.2 cm and 1.2° per frame, {FRAMES} \
@@ -185,9 +193,9 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
          beyond 3σ).\n\n| seed | kind | lost | bad steps | worst step (mm) |\n|---|---|---|---|---|\n{rows}\n\
          **The same rooms with a shaking camera** (every step also moved by up to {SHAKE} cm \
          along and {SHAKE}° about each axis, seeded uniform: `rooms_track --jitter {SHAKE}`, \
-         so the constant-velocity prediction misses by centimetres; reported, not checked): \
+         so the constant-velocity prediction misses by centimetres; checked alike): \
          {shaken_posed} frames with a pose, **{shaken_bad} bad steps**, the worst {:.1} mm \
-         (docs/bench/track.md, sessions 39 and 40).\n",
+         (docs/bench/track.md, sessions 39–41).\n",
         seeds.first().copied().unwrap_or(0),
         seeds.last().copied().unwrap_or(0),
         seeds.len() * FRAMES,
