@@ -123,7 +123,9 @@ pub struct FrameResult {
     /// motion prior's σ the frame is lost ([`TrackerConfig::degenerate_check`]); NaN when not
     /// checked (the first frame, or the check disabled).
     pub weakest_sigma_m: f64,
-    /// Why the last attempt failed (lost frames, or the attempts before a recovery).
+    /// Why the frame was lost (the last attempt's failure: a degenerate view, a disputed or
+    /// degenerate overlap, too few inliers, …); `None` for a frame with a pose, whichever
+    /// attempt gave it.
     pub failure: Option<String>,
 }
 
