@@ -539,7 +539,8 @@ impl Tracker {
         // they are counted in (room 3021 with a shaking camera: 34 mm, session 41). The last
         // frame, a reference of its own, is asked next.
         let model_disputed = first.disputed && model.is_some();
-        for &(start, var) in &starts[..if model_disputed { 0 } else { distinct }] {
+        let restarts = if model_disputed { 0 } else { distinct };
+        for &(start, var) in &starts[..restarts] {
             if first.failure.is_none() {
                 break;
             }

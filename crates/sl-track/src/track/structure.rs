@@ -245,6 +245,12 @@ impl StructureCheck {
         let Some(k) = level.k else {
             return Weakest::UNDETERMINED;
         };
+        // Samples beyond the gates count only for a dispute, asked where the agreement rules
+        // are: elsewhere they are dropped before the partner search.
+        let dispute = planes_must_agree || samples_must_agree;
+        let on_reference = |p: &Point3<f32>, n: &Vector3<f32>| {
+            on_reference(p, n).filter(|on_ref| dispute || on_ref.inlier)
+        };
         let step = sample_step(index);
         let sampling = Sampling {
             k,
@@ -315,7 +321,7 @@ impl StructureCheck {
         if !determined {
             return Weakest::UNDETERMINED;
         }
-        let disputed_sigma_m = if samples_must_agree || planes_must_agree {
+        let disputed_sigma_m = if dispute {
             rotations_at_depth(&mut info_beyond_gates, z_sum / count);
             disputed_direction(&eigen, &positive_part(info_beyond_gates))
                 .filter(|&s| s <= cfg.motion_prior_sigma_m())
@@ -426,29 +432,30 @@ impl StructureCheck {
                 };
                 let j = jacobian(&n);
                 let w = share / var;
+                let own = j * j.transpose() * w;
+                let sample_info = match partner {
+                    Some(m) => {
+                        let jm = j * jacobian(&m).transpose();
+                        (jm + jm.transpose()) * (0.5 * w)
+                    }
+                    None => own,
+                };
                 if !on_ref.inlier {
-                    *info_beyond_gates += match partner {
-                        Some(m) => {
-                            let jm = j * jacobian(&m).transpose();
-                            (jm + jm.transpose()) * (0.5 * w)
-                        }
-                        None => j * j.transpose() * w,
-                    };
+                    *info_beyond_gates += sample_info;
                     continue;
                 }
                 match (partner, on_planes.get_mut(label.wrapping_sub(1))) {
-                    (Some(m), _) => {
-                        let jm = j * jacobian(&m).transpose();
-                        *info_off_planes += (jm + jm.transpose()) * (0.5 * w);
-                        *info_off_planes_own += j * j.transpose() * w;
+                    (Some(_), _) => {
+                        *info_off_planes += sample_info;
+                        *info_off_planes_own += own;
                         *score_off_planes += j * (w * on_ref.residual_m);
                     }
                     (None, Some((plane_info, weight, weighted_residual))) => {
-                        *plane_info += j * j.transpose() * w;
+                        *plane_info += sample_info;
                         *weight += w;
                         *weighted_residual += w * on_ref.residual_m;
                     }
-                    (None, None) => *info += j * j.transpose() * w,
+                    (None, None) => *info += sample_info,
                 }
                 *z_sum += p.z;
                 *count += 1.0;
