@@ -139,12 +139,22 @@ pub(crate) struct ExtendBuffers {
     nan: Vec<u64>,
     /// Per row, one bit per pixel: a finite pixel within `reach` rows in its column.
     near: Vec<u64>,
-    /// Per column: the fit of the finite run ending at a row, cached as (row, direction,
-    /// slope per row away from the run, value at the row).
+    /// The column pass's scratch, one per band of rows.
+    bands: Vec<ColumnBand>,
+}
+
+/// The scratch of the column pass over one band of rows.
+#[derive(Debug, Default, Clone)]
+struct ColumnBand {
+    /// Per column: the fit of the finite run ending at a row, cached as (row, slope per row
+    /// away from the run, value at the row), for runs above and below.
     above: Vec<(usize, f32, f32)>,
     below: Vec<(usize, f32, f32)>,
     /// Values of one column run being fitted.
     values: Vec<f32>,
+    /// Copies of the rows just above and below the band that its fits may read.
+    halo_above: Vec<f32>,
+    halo_below: Vec<f32>,
 }
 
 /// Extends the map `d` (`w × h`, NaN = invalid) across its holes within `reach` pixels of valid
@@ -153,41 +163,64 @@ pub(crate) struct ExtendBuffers {
 /// (the nearer finite run of the column, ties from above, a line through up to [`FIT_LEN`] of
 /// its values); it visits only the NaN pixels with a finite pixel within `reach` in their
 /// column, found with one bit per pixel, and fits each column run once.
-pub(crate) fn extend_map(d: &mut [f32], w: usize, h: usize, reach: usize, buf: &mut ExtendBuffers) {
+///
+/// With `parallel`, both passes run in bands of rows on the caller's pool. Every value is
+/// computed from the same finite values by the same operations in any band (the column pass
+/// reads only values that were finite after the row pass, which it never writes), so the map
+/// is the same on any number of threads.
+pub(crate) fn extend_map(
+    d: &mut [f32],
+    w: usize,
+    h: usize,
+    reach: usize,
+    buf: &mut ExtendBuffers,
+    parallel: bool,
+) {
+    use rayon::prelude::*;
     if w == 0 || h == 0 || reach == 0 || d.len() < w * h {
         return;
     }
+    let d = &mut d[..w * h];
     let words = w.div_ceil(64);
-    let ExtendBuffers {
-        nan,
-        near,
-        above,
-        below,
-        values,
-    } = buf;
+    let ExtendBuffers { nan, near, bands } = buf;
+    let nbands = if parallel {
+        rayon::current_num_threads().min(h / 16).max(1)
+    } else {
+        1
+    };
+    let rows_per = h.div_ceil(nbands);
     // Rows: the NaN bits of each row, its gaps filled, the bits of what is left.
     nan.clear();
     nan.resize(words * h, 0);
-    let mut nan_left = false;
-    for (row, bits) in d
-        .chunks_exact_mut(w)
-        .zip(nan.chunks_exact_mut(words))
-        .take(h)
-    {
+    let row_pass = |(row, bits): (&mut [f32], &mut [u64])| -> bool {
         if nan_bits(row, bits) {
             extend_line(row, bits, reach);
-            nan_left |= bits.iter().any(|&b| b != 0);
+            bits.iter().any(|&b| b != 0)
+        } else {
+            false
         }
-    }
+    };
+    let nan_left = if nbands > 1 {
+        d.par_chunks_exact_mut(w)
+            .zip(nan.par_chunks_exact_mut(words))
+            .map(row_pass)
+            .reduce(|| false, |a, b| a | b)
+    } else {
+        d.chunks_exact_mut(w)
+            .zip(nan.chunks_exact_mut(words))
+            .map(row_pass)
+            .fold(false, |a, b| a | b)
+    };
     if !nan_left {
         return;
     }
     // Finite within `reach` rows: the OR of the finite bits of the rows around.
     near.clear();
     near.resize(words * h, 0);
-    for y in 0..h {
+    let nan: &[u64] = nan;
+    let near_row = |(y, out): (usize, &mut [u64])| {
         let (lo, hi) = (y.saturating_sub(reach), (y + reach).min(h - 1));
-        for c in 0..words {
+        for (c, o) in out.iter_mut().enumerate() {
             let valid_bits = if c + 1 == words && !w.is_multiple_of(64) {
                 (1u64 << (w % 64)) - 1
             } else {
@@ -197,64 +230,139 @@ pub(crate) fn extend_map(d: &mut [f32], w: usize, h: usize, reach: usize, buf: &
             for yy in lo..=hi {
                 acc |= !nan[yy * words + c];
             }
-            near[y * words + c] = acc & valid_bits;
+            *o = acc & valid_bits;
+        }
+    };
+    if nbands > 1 {
+        near.par_chunks_exact_mut(words)
+            .enumerate()
+            .for_each(near_row);
+    } else {
+        near.chunks_exact_mut(words).enumerate().for_each(near_row);
+    }
+    // Columns, band by band: a band's fits read at most `reach + FIT_LEN` rows beyond it.
+    if bands.len() < nbands {
+        bands.resize_with(nbands, ColumnBand::default);
+    }
+    let halo = reach + FIT_LEN;
+    for (b, band) in bands[..nbands].iter_mut().enumerate() {
+        let (y0, y1) = ((b * rows_per).min(h), ((b + 1) * rows_per).min(h));
+        band.halo_above.clear();
+        band.halo_below.clear();
+        if nbands > 1 {
+            band.halo_above
+                .extend_from_slice(&d[y0.saturating_sub(halo) * w..y0 * w]);
+            band.halo_below
+                .extend_from_slice(&d[y1 * w..(y1 + halo).min(h) * w]);
         }
     }
-    let is_nan = |nan: &[u64], x: usize, y: usize| (nan[y * words + x / 64] >> (x % 64)) & 1 == 1;
-    above.clear();
-    above.resize(w, (usize::MAX, 0.0, 0.0));
-    below.clear();
-    below.resize(w, (usize::MAX, 0.0, 0.0));
-    for y in 0..h {
-        for c in 0..words {
-            let mut todo = nan[y * words + c] & near[y * words + c];
-            while todo != 0 {
-                let x = c * 64 + todo.trailing_zeros() as usize;
-                todo &= todo - 1;
-                // The nearest finite rows above and below within reach whose run in the
-                // column has at least two values (see `extend_line`).
-                let up = (1..=reach.min(y))
-                    .find(|&t| !is_nan(nan, x, y - t))
-                    .filter(|&t| y - t >= 1 && !is_nan(nan, x, y - t - 1));
-                let dn = (1..=reach.min(h - 1 - y))
-                    .find(|&t| !is_nan(nan, x, y + t))
-                    .filter(|&t| y + t + 1 < h && !is_nan(nan, x, y + t + 1));
-                let (t, from_above) = match (up, dn) {
-                    (Some(u), Some(v)) if u <= v => (u, true),
-                    (Some(u), None) => (u, true),
-                    (_, Some(v)) => (v, false),
-                    (None, None) => continue,
-                };
-                let (edge, cache) = if from_above {
-                    (y - t, &mut above[x])
-                } else {
-                    (y + t, &mut below[x])
-                };
-                if cache.0 != edge {
-                    // The run's values from its far end to `edge`.
-                    let mut len = 1;
-                    while len < FIT_LEN {
-                        let next = if from_above {
-                            edge.checked_sub(len)
-                        } else {
-                            Some(edge + len).filter(|&r| r < h)
-                        };
-                        match next {
-                            Some(r) if !is_nan(nan, x, r) => len += 1,
-                            _ => break,
+    let near: &[u64] = near;
+    let column_pass = |(b, (rows, band)): (usize, (&mut [f32], &mut ColumnBand))| {
+        let y0 = b * rows_per;
+        band.fill(rows, y0, w, h, reach, nan, near);
+    };
+    if nbands > 1 {
+        d.par_chunks_mut(rows_per * w)
+            .zip(bands[..nbands].par_iter_mut())
+            .enumerate()
+            .for_each(column_pass);
+    } else {
+        column_pass((0, (d, &mut bands[0])));
+    }
+}
+
+impl ColumnBand {
+    /// The column pass over the rows `y0..` of the map held in `rows` (the band), reading the
+    /// rows beyond it from the halos.
+    #[allow(clippy::too_many_arguments)]
+    fn fill(
+        &mut self,
+        rows: &mut [f32],
+        y0: usize,
+        w: usize,
+        h: usize,
+        reach: usize,
+        nan: &[u64],
+        near: &[u64],
+    ) {
+        let words = w.div_ceil(64);
+        let y1 = y0 + rows.len() / w;
+        let above_start = y0 - self.halo_above.len() / w;
+        let ColumnBand {
+            above,
+            below,
+            values,
+            halo_above,
+            halo_below,
+        } = self;
+        // The value of pixel (x, r) of the map, `r` within the band or its halos.
+        let at = |rows: &[f32], x: usize, r: usize| -> f32 {
+            if r < y0 {
+                halo_above[(r - above_start) * w + x]
+            } else if r >= y1 {
+                halo_below[(r - y1) * w + x]
+            } else {
+                rows[(r - y0) * w + x]
+            }
+        };
+        let is_nan =
+            |nan: &[u64], x: usize, y: usize| (nan[y * words + x / 64] >> (x % 64)) & 1 == 1;
+        above.clear();
+        above.resize(w, (usize::MAX, 0.0, 0.0));
+        below.clear();
+        below.resize(w, (usize::MAX, 0.0, 0.0));
+        for y in y0..y1 {
+            for c in 0..words {
+                let mut todo = nan[y * words + c] & near[y * words + c];
+                while todo != 0 {
+                    let x = c * 64 + todo.trailing_zeros() as usize;
+                    todo &= todo - 1;
+                    // The nearest finite rows above and below within reach whose run in the
+                    // column has at least two values (see `extend_line`).
+                    let up = (1..=reach.min(y))
+                        .find(|&t| !is_nan(nan, x, y - t))
+                        .filter(|&t| y - t >= 1 && !is_nan(nan, x, y - t - 1));
+                    let dn = (1..=reach.min(h - 1 - y))
+                        .find(|&t| !is_nan(nan, x, y + t))
+                        .filter(|&t| y + t + 1 < h && !is_nan(nan, x, y + t + 1));
+                    let (t, from_above) = match (up, dn) {
+                        (Some(u), Some(v)) if u <= v => (u, true),
+                        (Some(u), None) => (u, true),
+                        (_, Some(v)) => (v, false),
+                        (None, None) => continue,
+                    };
+                    let (edge, cache) = if from_above {
+                        (y - t, &mut above[x])
+                    } else {
+                        (y + t, &mut below[x])
+                    };
+                    if cache.0 != edge {
+                        // The run's values from its far end to `edge`.
+                        let mut len = 1;
+                        while len < FIT_LEN {
+                            let next = if from_above {
+                                edge.checked_sub(len)
+                            } else {
+                                Some(edge + len).filter(|&r| r < h)
+                            };
+                            match next {
+                                Some(r) if !is_nan(nan, x, r) => len += 1,
+                                _ => break,
+                            }
                         }
+                        values.clear();
+                        values.extend((0..len).rev().map(|k| {
+                            let r = if from_above { edge - k } else { edge + k };
+                            at(rows, x, r)
+                        }));
+                        let (slope, mean, centre) = line_fit(values);
+                        // Value at `edge` (position len − 1 = 2·centre) and slope away from
+                        // the run.
+                        *cache = (edge, slope, mean + slope * centre);
                     }
-                    values.clear();
-                    values.extend((0..len).rev().map(|k| {
-                        let r = if from_above { edge - k } else { edge + k };
-                        d[r * w + x]
-                    }));
-                    let (slope, mean, centre) = line_fit(values);
-                    // Value at `edge` (position len − 1 = 2·centre) and slope away from the run.
-                    *cache = (edge, slope, mean + slope * centre);
+                    let (_, slope, at_edge) = *cache;
+                    rows[(y - y0) * w + x] = at_edge + slope * t as f32;
                 }
-                let (_, slope, at_edge) = *cache;
-                d[y * w + x] = at_edge + slope * t as f32;
             }
         }
     }
@@ -276,7 +384,7 @@ mod tests {
                 d[y * w + x] = if hole { f32::NAN } else { plane(x, y) };
             }
         }
-        extend_map(&mut d, w, h, 4, &mut ExtendBuffers::default());
+        extend_map(&mut d, w, h, 4, &mut ExtendBuffers::default(), false);
         for y in 0..h {
             for x in 0..w {
                 let v = d[y * w + x];
@@ -287,6 +395,40 @@ mod tests {
                     assert!(v.is_nan(), "({x}, {y}) beyond reach: {v}");
                 }
             }
+        }
+    }
+
+    /// In bands of rows on pools of 1 to 5 threads, the map is the one-band map, bit for bit.
+    #[test]
+    fn banded_extension_matches_one_band() {
+        let (w, h) = (47, 90);
+        let d0: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                // Holes of every width and height, wide bands of NaN, tilted data.
+                let hole = (x % 13 < 3 && y % 11 < 6) || (20..32).contains(&y) && x > 30 || y < 3;
+                if hole || (i * 7919) % 61 == 0 {
+                    f32::NAN
+                } else {
+                    10.0 + 0.07 * x as f32 - 0.11 * y as f32 + ((i * 104_729) % 7) as f32 * 0.01
+                }
+            })
+            .collect();
+        let mut want = d0.clone();
+        extend_map(&mut want, w, h, 4, &mut ExtendBuffers::default(), false);
+        assert!(
+            want.iter().filter(|v| v.is_nan()).count() < d0.iter().filter(|v| v.is_nan()).count()
+        );
+        for threads in 1..=5 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            let mut got = d0.clone();
+            let mut buf = ExtendBuffers::default();
+            pool.install(|| extend_map(&mut got, w, h, 4, &mut buf, true));
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "{threads} threads");
         }
     }
 
@@ -373,7 +515,7 @@ mod tests {
                 .map(|i| if holes[i] { f32::NAN } else { plane(i % w, i / w) })
                 .collect();
             let mut d = orig.clone();
-            extend_map(&mut d, w, h, reach, &mut ExtendBuffers::default());
+            extend_map(&mut d, w, h, reach, &mut ExtendBuffers::default(), false);
             for y in 0..h {
                 for x in 0..w {
                     let (o, v) = (orig[y * w + x], d[y * w + x]);

@@ -197,6 +197,7 @@ pub fn planar_mask(
         w: width,
         next: 0,
     };
+    mask.resize(width * height, 0);
     planar_mask_impl::<true, _>(
         &mut src,
         width,
@@ -205,26 +206,67 @@ pub fn planar_mask(
         step,
         threshold_px,
         buf,
-        mask,
+        &mut mask[..width * height],
+        0,
     )
 }
 
-/// [`planar_mask`] of the rows of `src` (which may not all be consumed), without the count of
-/// planar pixels.
+/// [`planar_mask`] of the map `d` (`width × height`) without the count of planar pixels, in
+/// bands of rows on the caller's pool when `parallel` (one [`LogBuffers`] per band in
+/// `bufs`). Every mask value is computed by the same operations in any band, so the mask is
+/// the same on any number of threads; each band recomputes the few rows of the smoothing
+/// around it.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn planar_mask_uncounted<S: RowSource>(
-    src: &mut S,
+pub(crate) fn planar_mask_uncounted(
+    d: &[f32],
     width: usize,
     height: usize,
     radius: usize,
     step: usize,
     threshold_px: f32,
-    buf: &mut LogBuffers,
+    bufs: &mut Vec<LogBuffers>,
     mask: &mut Vec<u8>,
+    parallel: bool,
 ) {
-    planar_mask_impl::<false, S>(src, width, height, radius, step, threshold_px, buf, mask);
+    use rayon::prelude::*;
+    let (w, h) = (width, height);
+    mask.resize(w * h, 0);
+    // Bands only for the streamed smoothing (`r = 1`, the default); a wider box smooths the
+    // whole map at once.
+    let bands = if parallel && radius <= 1 && w > 0 {
+        rayon::current_num_threads().min(h / 16).max(1)
+    } else {
+        1
+    };
+    if bufs.len() < bands {
+        bufs.resize_with(bands, LogBuffers::default);
+    }
+    let rows_per = h.div_ceil(bands).max(1);
+    let band = |(b, (out, buf)): (usize, (&mut [u8], &mut LogBuffers))| {
+        let y0 = b * rows_per;
+        // The first input row the band's smoothing reads (see `planar_mask_impl`).
+        let first = y0.saturating_sub(step.max(1) + 3);
+        let mut src = FrameRows {
+            d,
+            w,
+            next: if bands > 1 { first } else { 0 },
+        };
+        planar_mask_impl::<false, _>(&mut src, w, h, radius, step, threshold_px, buf, out, y0);
+    };
+    let mask = &mut mask[..w * h];
+    if bands > 1 {
+        mask.par_chunks_mut(rows_per * w)
+            .zip(bufs.par_iter_mut())
+            .enumerate()
+            .for_each(band);
+    } else if let Some(buf) = bufs.first_mut() {
+        band((0, (mask, buf)));
+    }
 }
 
+/// The planarity mask of rows `y0..y0 + mask.len() / width` of the map into `mask`; `src`
+/// hands out the map's rows from row `y0 − step − 3` (0 when that is negative, and always 0
+/// for `radius > 1`).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn planar_mask_impl<const COUNT: bool, S: RowSource>(
@@ -235,14 +277,14 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
     step: usize,
     threshold_px: f32,
     buf: &mut LogBuffers,
-    mask: &mut Vec<u8>,
+    mask: &mut [u8],
+    y0: usize,
 ) -> usize {
     let (w, h) = (width, height);
-    mask.resize(w * h, 0);
     let r = radius.clamp(1, MAX_BOX_RADIUS);
     let s = step.max(1);
     if w <= 2 * s + 2 || h <= 2 * s + 2 {
-        mask[..w * h].fill(0);
+        mask.fill(0);
         return 0;
     }
     let LogBuffers { a, b, raw, full } = buf;
@@ -269,10 +311,24 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
     let thr = threshold_px * nwin * nwin;
     raw.resize(3 * w, 0);
     let inner = w - 2 * s;
-    // Next rows of the horizontal pass, the smoothed map and the Laplacian test to compute.
-    let (mut next_a, mut next_b, mut next_raw) = (0usize, if r == 1 { 0 } else { h }, 0usize);
+    // Next rows of the horizontal pass, the smoothed map and the Laplacian test to compute:
+    // the mask row `y0` needs the Laplacian rows from `y0 − 1`, which need the smoothed rows
+    // from `y0 − 1 − s`, which need the horizontal rows from `y0 − 3 − s`.
+    let y0 = if r == 1 { y0 } else { 0 };
+    let first_raw = y0.saturating_sub(1);
+    let first_b = first_raw.saturating_sub(s);
+    let (mut next_a, mut next_b, mut next_raw) = (
+        first_b.saturating_sub(2),
+        if r == 1 { first_b } else { h },
+        first_raw,
+    );
     let mut count = 0usize;
-    for (y, out) in mask.chunks_exact_mut(w).take(h).enumerate() {
+    for (y, out) in mask
+        .chunks_exact_mut(w)
+        .take(h.saturating_sub(y0))
+        .enumerate()
+        .map(|(i, o)| (y0 + i, o))
+    {
         // The mask row needs the Laplacian rows up to y + 1.
         while next_raw <= (y + 1).min(h - 1) {
             let k = next_raw;
@@ -418,6 +474,45 @@ mod tests {
             assert_eq!(mask, want, "{w}x{h}, s = {s}");
             assert_eq!(n, want.iter().map(|&v| usize::from(v)).sum::<usize>());
             assert!(n > 0 || w < 30, "{w}x{h}: nothing planar");
+        }
+    }
+
+    /// In bands of rows on pools of 1 to 5 threads (band edges anywhere: 16 to 80 rows a
+    /// band), the mask is the whole-frame reference's.
+    #[test]
+    fn banded_mask_matches_whole_frame_passes() {
+        let (w, h) = (53, 83);
+        let d: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                // Holes and bumps in the right part and in a band of rows only.
+                let rough = x as usize > w / 2 || (40..46).contains(&(i / w));
+                if rough && (i % 29 == 3 || (i * 7919) % 97 < 2) {
+                    f32::NAN
+                } else {
+                    let bump = if rough && (i * 104_729) % 17 < 4 {
+                        0.4
+                    } else {
+                        0.0
+                    };
+                    20.0 + 0.1 * x - 0.05 * y + bump
+                }
+            })
+            .collect();
+        for s in [1, 2] {
+            let want = reference_mask(&d, w, h, s, 0.05);
+            assert!(want.iter().any(|&v| v == 1) && want.iter().any(|&v| v == 0));
+            for threads in 1..=5 {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .expect("pool");
+                let (mut bufs, mut mask) = (Vec::new(), Vec::new());
+                pool.install(|| {
+                    planar_mask_uncounted(&d, w, h, 1, s, 0.05, &mut bufs, &mut mask, true)
+                });
+                assert_eq!(mask, want, "s = {s}, {threads} threads");
+            }
         }
     }
 

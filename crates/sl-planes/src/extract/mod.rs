@@ -89,7 +89,7 @@ use crate::kernels::{
     InvSums, LANES, depth_to_disparity_row, downsample_rows, fit_run, fit_run_labels, search8_two,
     valid_mask,
 };
-use crate::log::{FrameRows, LogBuffers, log_geometry, planar_mask_uncounted};
+use crate::log::{LogBuffers, log_geometry, planar_mask_uncounted};
 use crate::plane::DisparityAffine;
 use crate::uncertainty::{FitNoise, plane_sigmas};
 use sl_core::Plane;
@@ -365,8 +365,11 @@ impl FinalAcc {
 /// Threads: the final per-pixel pass runs in bands of rows on the caller's rayon pool when it
 /// has more than one thread (called from outside every pool, the extraction moves onto a worker
 /// of the global pool once per frame); the result is the same, bit for bit, on any number of
-/// threads. So does the half-resolution map (2×2 means) of the LoG and the cells. The other
-/// stages are sequential.
+/// threads. So do the half-resolution map (2×2 means) of the LoG and the cells, its extension
+/// across holes, the LoG's planarity mask, and the patches' fits and their neighbours' joint
+/// fits in the seeding. The other stages are sequential: the k-means passes were tried in bands
+/// of 8 cell rows (session 42) and gained nothing on a 2-core VM, where waking the second
+/// worker for a 0.1 ms pass costs what it saves.
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage};
@@ -398,8 +401,8 @@ pub struct PlaneExtractor {
     cell_labels: Vec<u16>,
     /// Planarity mask produced by the LoG, before it is reduced to cells.
     log_mask: Vec<u8>,
-    /// Work rows of the box-approximated LoG.
-    log_buffers: LogBuffers,
+    /// Work rows of the box-approximated LoG, one set per band of rows.
+    log_buffers: Vec<LogBuffers>,
     /// The half-resolution disparity with a margin of the LoG's reach on every side, extended
     /// across holes and the image border (`extend`), the LoG's input.
     half_res_extended: Vec<f32>,
@@ -507,12 +510,16 @@ pub struct PlaneExtractor {
     patch_rss: Vec<f64>,
     /// Edges between neighbouring patches: `(ΔRSS, patch, patch)`.
     patch_edges: Vec<(f32, u32, u32)>,
+    /// The same per row of patches, before they are gathered in row order.
+    patch_row_edges: Vec<Vec<(f32, u32, u32)>>,
     /// Union-find parents of the patches.
     patch_parent: Vec<u32>,
     /// Per root patch: its plane label (0 = none).
     patch_plane: Vec<u16>,
     /// Per patch: what the first seeding made of it (for [`PlaneExtractor::explain_unlabelled`]).
     patch_status: Vec<PatchStatus>,
+    /// The same for the reseeding of the free cells (scratch).
+    patch_status_reseed: Vec<PatchStatus>,
     /// Wall-clock time per stage of the last frame.
     times: StageTimes,
     /// The frame replicated onto its sensor's grid (a decimated camera, `decimated`).
@@ -676,6 +683,7 @@ impl PlaneExtractor {
         // 1. Seeds: the LoG on the half-resolution map, extended across holes and the image
         // border (exact for planes, see `extend`) so that pixels next to them can be planar;
         // then components on the cell grid.
+        let parallel = rayon::current_num_threads() > 1;
         let (r, s) = log_geometry(cfg.log_sigma_px / 2.0);
         let m = 2 * r + s + 1;
         let (we, he) = (w2 + 2 * m, h2 + 2 * m);
@@ -690,7 +698,7 @@ impl PlaneExtractor {
             m,
             &mut self.cell_disparity,
             &mut self.half_res_scratch,
-            rayon::current_num_threads() > 1,
+            parallel,
         );
         // Invalid half-resolution pixels (NaN) stay non-planar; the mask is cut back below.
         self.log_mask.clear();
@@ -710,14 +718,10 @@ impl PlaneExtractor {
             he,
             m,
             &mut self.extend_buffers,
+            parallel,
         );
-        let mut extended_rows = FrameRows {
-            d: &self.half_res_extended,
-            w: we,
-            next: 0,
-        };
         planar_mask_uncounted(
-            &mut extended_rows,
+            &self.half_res_extended,
             we,
             he,
             r,
@@ -725,6 +729,7 @@ impl PlaneExtractor {
             cfg.log_threshold_px as f32,
             &mut self.log_buffers,
             &mut self.extended_mask,
+            parallel,
         );
         for (out, row) in self
             .log_mask

@@ -13,6 +13,8 @@
 //! `χ²` with the effective degrees of freedom `(n − 3)/κ`), so patches straddling a crease or a
 //! jump do not bridge two surfaces.
 
+use rayon::prelude::*;
+
 use super::*;
 use crate::fit::AffineSums;
 
@@ -153,6 +155,56 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
     i
 }
 
+/// The sums and fits of one row `pj` of patches (`sums`, `rss` and `status` are that row):
+/// a patch with at least [`PATCH_MIN_CELLS`] cells in `mask` gets the moments of those cells,
+/// and its residual sum of squares when its fit is planar (NaN otherwise).
+#[allow(clippy::too_many_arguments)]
+fn fit_patch_row(
+    cells: &[f32],
+    mask: &[u8],
+    wq: usize,
+    pj: usize,
+    noise: &CellNoise,
+    sums: &mut [AffineSums],
+    rss: &mut [f64],
+    status: &mut [PatchStatus],
+) {
+    for (pi, ((s, r_out), st_out)) in sums.iter_mut().zip(rss.iter_mut()).zip(status).enumerate() {
+        // A patch with fewer than `PATCH_MIN_CELLS` cells in the mask cannot be used (its
+        // sums are never read): skip its sums. After the first refinement pass most patches
+        // have no free cell at all.
+        let in_mask: usize = (pj * PATCH..(pj + 1) * PATCH)
+            .map(|j| {
+                let r = &mask[j * wq + pi * PATCH..j * wq + (pi + 1) * PATCH];
+                r.iter().filter(|&&m| m != 0).count()
+            })
+            .sum();
+        if (in_mask as f64) < PATCH_MIN_CELLS {
+            // (`status` is already `TooFewCells`.)
+            continue;
+        }
+        for j in pj * PATCH..(pj + 1) * PATCH {
+            for i in pi * PATCH..(pi + 1) * PATCH {
+                let d = cells[j * wq + i];
+                if mask[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
+                    s.add(i as f64, j as f64, f64::from(d));
+                }
+            }
+        }
+        let mut st = PatchStatus::TooFewCells;
+        if s.n >= PATCH_MIN_CELLS
+            && let Some(r) = min_rss(s)
+        {
+            st = PatchStatus::Residual;
+            if noise.planar(r, s.n) {
+                *r_out = r;
+                st = PatchStatus::Planar;
+            }
+        }
+        *st_out = st;
+    }
+}
+
 impl PlaneExtractor {
     /// Seeds the planes from merged patches (see the module docs): sets of at least `min`
     /// cells become planes, their planar cells labelled. `free` restricts the cells to the
@@ -170,79 +222,88 @@ impl PlaneExtractor {
         let sums = &mut self.patch_sums;
         sums.clear();
         sums.resize(np, AffineSums::default());
-        if !free {
-            self.patch_status.clear();
-            self.patch_status.resize(np, PatchStatus::TooFewCells);
-        }
         let rss = &mut self.patch_rss;
         rss.clear();
         rss.resize(np, f64::NAN);
-        for pj in 0..hp {
-            for pi in 0..wp {
-                // A patch with fewer than `PATCH_MIN_CELLS` cells in the mask cannot be used
-                // (its sums are never read): skip its sums. After the first refinement pass
-                // most patches have no free cell at all.
-                let in_mask: usize = (pj * PATCH..(pj + 1) * PATCH)
-                    .map(|j| {
-                        let r = &mask[j * wq + pi * PATCH..j * wq + (pi + 1) * PATCH];
-                        r.iter().filter(|&&m| m != 0).count()
-                    })
-                    .sum();
-                if (in_mask as f64) < PATCH_MIN_CELLS {
-                    // (`patch_status` is already `TooFewCells`.)
-                    continue;
-                }
-                let s = &mut sums[pj * wp + pi];
-                for j in pj * PATCH..(pj + 1) * PATCH {
-                    for i in pi * PATCH..(pi + 1) * PATCH {
-                        let d = self.cell_disparity[j * wq + i];
-                        if mask[j * wq + i] != 0 && d.is_finite() && d > 0.0 {
-                            s.add(i as f64, j as f64, f64::from(d));
-                        }
-                    }
-                }
-                let mut status = PatchStatus::TooFewCells;
-                if s.n >= PATCH_MIN_CELLS
-                    && let Some(r) = min_rss(s)
-                {
-                    status = PatchStatus::Residual;
-                    if noise.planar(r, s.n) {
-                        rss[pj * wp + pi] = r;
-                        status = PatchStatus::Planar;
-                    }
-                }
-                if !free {
-                    self.patch_status[pj * wp + pi] = status;
-                }
-            }
+        // What the first seeding made of each patch is kept (for `explain`); the reseeding's
+        // goes to scratch.
+        let status = if free {
+            &mut self.patch_status_reseed
+        } else {
+            &mut self.patch_status
+        };
+        status.clear();
+        status.resize(np, PatchStatus::TooFewCells);
+        let parallel = rayon::current_num_threads() > 1;
+        // Each patch's sums and fit (patches are independent: one patch row per task).
+        let cells = &self.cell_disparity;
+        let patch_row = |(pj, ((srow, rrow), st)): (
+            usize,
+            ((&mut [AffineSums], &mut [f64]), &mut [PatchStatus]),
+        )| {
+            fit_patch_row(cells, mask, wq, pj, &noise, srow, rrow, st);
+        };
+        if parallel {
+            sums.par_chunks_mut(wp)
+                .zip(rss.par_chunks_mut(wp))
+                .zip(status.par_chunks_mut(wp))
+                .enumerate()
+                .for_each(patch_row);
+        } else {
+            sums.chunks_mut(wp)
+                .zip(rss.chunks_mut(wp))
+                .zip(status.chunks_mut(wp))
+                .enumerate()
+                .for_each(patch_row);
         }
         // Edges between usable 4-neighbours, by increasing ΔRSS.
         let edges = &mut self.patch_edges;
         edges.clear();
-        for p in 0..np {
-            if rss[p].is_nan() {
-                continue;
-            }
-            let (pi, pj) = (p % wp, p / wp);
-            for q in [
-                (pi + 1 < wp).then_some(p + 1),
-                (pj + 1 < hp).then_some(p + wp),
-            ]
-            .into_iter()
-            .flatten()
-            {
-                if rss[q].is_nan() {
+        let (sums_r, rss_r): (&[AffineSums], &[f64]) = (sums, rss);
+        let edge_row = |pj: usize, out: &mut Vec<(f32, u32, u32)>| {
+            out.clear();
+            for p in pj * wp..(pj + 1) * wp {
+                if rss_r[p].is_nan() {
                     continue;
                 }
-                let mut u = sums[p];
-                u.merge(&sums[q]);
-                if let Some(ru) = min_rss(&u) {
-                    let d = ru - rss[p] - rss[q];
-                    if noise.same(d) {
-                        edges.push((d as f32, p as u32, q as u32));
+                let (pi, pj) = (p % wp, p / wp);
+                for q in [
+                    (pi + 1 < wp).then_some(p + 1),
+                    (pj + 1 < hp).then_some(p + wp),
+                ]
+                .into_iter()
+                .flatten()
+                {
+                    if rss_r[q].is_nan() {
+                        continue;
+                    }
+                    let mut u = sums_r[p];
+                    u.merge(&sums_r[q]);
+                    if let Some(ru) = min_rss(&u) {
+                        let d = ru - rss_r[p] - rss_r[q];
+                        if noise.same(d) {
+                            out.push((d as f32, p as u32, q as u32));
+                        }
                     }
                 }
             }
+        };
+        let row_edges = &mut self.patch_row_edges;
+        if row_edges.len() < hp {
+            row_edges.resize_with(hp, Vec::new);
+        }
+        if parallel {
+            row_edges[..hp]
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(pj, out)| edge_row(pj, out));
+        } else {
+            for (pj, out) in row_edges[..hp].iter_mut().enumerate() {
+                edge_row(pj, out);
+            }
+        }
+        for e in &row_edges[..hp] {
+            edges.extend_from_slice(e);
         }
         edges.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         let parent = &mut self.patch_parent;
