@@ -155,6 +155,12 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
     i
 }
 
+/// One row of patches to fit: its index, sums, residuals and statuses.
+type PatchRowTask<'a> = (
+    usize,
+    ((&'a mut [AffineSums], &'a mut [f64]), &'a mut [PatchStatus]),
+);
+
 /// The sums and fits of one row `pj` of patches (`sums`, `rss` and `status` are that row):
 /// a patch with at least [`PATCH_MIN_CELLS`] cells in `mask` gets the moments of those cells,
 /// and its residual sum of squares when its fit is planar (NaN otherwise).
@@ -237,10 +243,7 @@ impl PlaneExtractor {
         let parallel = rayon::current_num_threads() > 1;
         // Each patch's sums and fit (patches are independent: one patch row per task).
         let cells = &self.cell_disparity;
-        let patch_row = |(pj, ((srow, rrow), st)): (
-            usize,
-            ((&mut [AffineSums], &mut [f64]), &mut [PatchStatus]),
-        )| {
+        let patch_row = |(pj, ((srow, rrow), st)): PatchRowTask<'_>| {
             fit_patch_row(cells, mask, wq, pj, &noise, srow, rrow, st);
         };
         if parallel {
