@@ -273,12 +273,15 @@ impl FinalBand {
         self.search_chunks.resize(nch + 1, (0, 0));
         let mut count = 0usize;
         let mut kw = keep.chunks_exact(LANES);
+        let chunks = &mut self.search_chunks[..nch + 1];
         for (c, kc) in (&mut kw).enumerate() {
             let word = u64::from_le_bytes(<[u8; LANES]>::try_from(kc).unwrap_or([1; LANES]));
-            if word != ALL_KEPT {
-                self.search_chunks[count] = (c as u32, word);
-                count += 1;
+            // Written whether or not it is kept (`count <= c`), so that no branch depends on
+            // the data: most rows alternate runs of kept and searched chunks.
+            if let Some(slot) = chunks.get_mut(count) {
+                *slot = (c as u32, word);
             }
+            count += usize::from(word != ALL_KEPT);
         }
         let tail = kw.remainder();
         if !tail.is_empty() {
