@@ -366,10 +366,9 @@ impl FinalAcc {
 /// has more than one thread (called from outside every pool, the extraction moves onto a worker
 /// of the global pool once per frame); the result is the same, bit for bit, on any number of
 /// threads. So do the half-resolution map (2×2 means) of the LoG and the cells, its extension
-/// across holes, the LoG's planarity mask, and the patches' fits and their neighbours' joint
-/// fits in the seeding. The other stages are sequential: the k-means passes were tried in bands
-/// of 8 cell rows (session 42) and gained nothing on a 2-core VM, where waking the second
-/// worker for a 0.1 ms pass costs what it saves.
+/// across holes, the LoG's planarity mask, the patches' fits and their neighbours' joint fits
+/// in the seeding, and the k-means passes (in fixed bands of 8 cell rows, whose sums are added
+/// in band order). The other stages are sequential.
 ///
 /// ```
 /// use sl_core::{Camera, DepthImage};
@@ -420,11 +419,8 @@ pub struct PlaneExtractor {
     free_cells: Vec<u8>,
     /// Per-pixel (or per-cell) keep bytes of the row being assigned: 1 = done, 0 = search.
     keep_row: Vec<u8>,
-    /// Per cell of the current cell row: 1 when it is labelled and a cell of another plane
-    /// touches it (its pixels choose between the planes around; final pass).
-    border_cells: Vec<u8>,
-    /// Copy of the current cell-label row taken before its searches (coarse pass).
-    cell_labels_before_search: Vec<u16>,
+    /// Scratch and output of the coarse passes' bands of cell rows.
+    coarse_bands: Vec<refine::CoarseBand>,
     /// The cells the growth tests in its current round (`grow`).
     grow_candidates: Vec<u32>,
     /// The cells labelled in the current round of the growth, with their labels.
@@ -443,8 +439,6 @@ pub struct PlaneExtractor {
     plane_order: Vec<u32>,
     /// Per plane: ∂D/∂x as `f32`, for the vectorised searches.
     slope_x: Vec<f32>,
-    /// Per plane: the disparity of the current row at x = 0 as `f32`.
-    row_offsets: Vec<f32>,
     /// Per plane: its affine fit converted to full-resolution pixel coordinates.
     full_res_fits: Vec<DisparityAffine>,
     /// Per plane: pixels, rows and moments accumulated by the final pass.
