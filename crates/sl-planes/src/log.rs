@@ -17,7 +17,8 @@
 //! the extended map's own NaN (far inside wide holes) cut the support.
 //!
 //! The passes are streamed row by row through rings of a few rows (for `r = 1`), so that only
-//! the input and the mask span the whole map (a [`RowSource`] hands out the input rows).
+//! the input and the mask span the whole map, and a band of mask rows can be computed alone
+//! from the input rows a few above it.
 
 /// Largest box radius.
 pub const MAX_BOX_RADIUS: usize = 8;
@@ -37,32 +38,6 @@ pub struct LogBuffers {
     a: Vec<f32>,
     b: Vec<f32>,
     raw: Vec<u8>,
-    /// The whole input, for box radii above 1.
-    full: Vec<f32>,
-}
-
-/// The rows of the map whose planarity mask is computed, produced on demand.
-pub(crate) trait RowSource {
-    /// The next row (rows come in order, each once; at most `height` calls).
-    fn next_row(&mut self) -> &[f32];
-}
-
-/// The rows of a whole map.
-pub(crate) struct FrameRows<'a> {
-    /// The map, row-major.
-    pub(crate) d: &'a [f32],
-    /// Its width.
-    pub(crate) w: usize,
-    /// The next row to return.
-    pub(crate) next: usize,
-}
-
-impl RowSource for FrameRows<'_> {
-    fn next_row(&mut self) -> &[f32] {
-        let y = self.next;
-        self.next += 1;
-        &self.d[y * self.w..(y + 1) * self.w]
-    }
 }
 
 /// Horizontal then vertical box sum of radius `r` from `src` into `dst` via `tmp`; NaN where
@@ -192,14 +167,9 @@ pub fn planar_mask(
     buf: &mut LogBuffers,
     mask: &mut Vec<u8>,
 ) -> usize {
-    let mut src = FrameRows {
-        d,
-        w: width,
-        next: 0,
-    };
     mask.resize(width * height, 0);
-    planar_mask_impl::<true, _>(
-        &mut src,
+    planar_mask_impl::<true>(
+        d,
         width,
         height,
         radius,
@@ -243,15 +213,7 @@ pub(crate) fn planar_mask_uncounted(
     }
     let rows_per = h.div_ceil(bands).max(1);
     let band = |(b, (out, buf)): (usize, (&mut [u8], &mut LogBuffers))| {
-        let y0 = b * rows_per;
-        // The first input row the band's smoothing reads (see `planar_mask_impl`).
-        let first = y0.saturating_sub(step.max(1) + 3);
-        let mut src = FrameRows {
-            d,
-            w,
-            next: if bands > 1 { first } else { 0 },
-        };
-        planar_mask_impl::<false, _>(&mut src, w, h, radius, step, threshold_px, buf, out, y0);
+        planar_mask_impl::<false>(d, w, h, radius, step, threshold_px, buf, out, b * rows_per);
     };
     let mask = &mut mask[..w * h];
     if bands > 1 {
@@ -264,13 +226,12 @@ pub(crate) fn planar_mask_uncounted(
     }
 }
 
-/// The planarity mask of rows `y0..y0 + mask.len() / width` of the map into `mask`; `src`
-/// hands out the map's rows from row `y0 − step − 3` (0 when that is negative, and always 0
-/// for `radius > 1`).
+/// The planarity mask of rows `y0..y0 + mask.len() / width` of the map `d` into `mask` (for
+/// `radius > 1` only the whole map, `y0 = 0`).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn planar_mask_impl<const COUNT: bool, S: RowSource>(
-    src: &mut S,
+fn planar_mask_impl<const COUNT: bool>(
+    d: &[f32],
     width: usize,
     height: usize,
     radius: usize,
@@ -287,7 +248,7 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
         mask.fill(0);
         return 0;
     }
-    let LogBuffers { a, b, raw, full } = buf;
+    let LogBuffers { a, b, raw } = buf;
     // Rows are streamed: the horizontal pass into a ring of 5 rows (`a`), the smoothed map
     // into a ring of `2s + 1` rows (`b`), the Laplacian test into a ring of 3 rows (`raw`), so
     // that only the input and the mask span the whole frame. For `r > 1` the smoothed map is
@@ -297,11 +258,7 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
         a.resize(5 * w, f32::NAN);
         2 * s + 1
     } else {
-        full.clear();
-        for _ in 0..h {
-            full.extend_from_slice(src.next_row());
-        }
-        box_sum(full, b, a, w, h, r);
+        box_sum(&d[..w * h], b, a, w, h, r);
         let b1 = std::mem::take(b);
         box_sum(&b1, b, a, w, h, r);
         *a = b1;
@@ -348,7 +305,7 @@ fn planar_mask_impl<const COUNT: bool, S: RowSource>(
                     continue;
                 }
                 while next_a <= m + 2 {
-                    let row = src.next_row();
+                    let row = &d[next_a * w..(next_a + 1) * w];
                     let out = &mut a[(next_a % 5) * w..(next_a % 5 + 1) * w];
                     next_a += 1;
                     tent_row_horizontal(out, row);
@@ -477,8 +434,8 @@ mod tests {
         }
     }
 
-    /// In bands of rows on pools of 1 to 5 threads (band edges anywhere: 16 to 80 rows a
-    /// band), the mask is the whole-frame reference's.
+    /// In bands of rows on pools of 1 to 5 threads (17 to 83 rows a band), the mask is the
+    /// whole-frame reference's.
     #[test]
     fn banded_mask_matches_whole_frame_passes() {
         let (w, h) = (53, 83);
