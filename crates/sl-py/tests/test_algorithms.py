@@ -131,6 +131,18 @@ def test_the_crease_split_can_be_turned_off(kinect, three_planes):
     assert [p.pixels for p in planes_on] == [p.pixels for p in planes_off]
 
 
+def test_the_seam_refinement_changes_nothing_on_unbent_planes(kinect, three_planes):
+    # Off by default; on exact planes no whole fit is off along a crease, so turning it on
+    # moves no pixel (its effect on bent surfaces is tested in the Rust suite).
+    depth, _, _ = three_planes
+    plain, planes_plain = sldepth.extract_planes(depth, kinect)
+    refined, planes_refined = sldepth.extract_planes(depth, kinect, refine_seams=True)
+    assert np.array_equal(plain, refined)
+    assert [p.pixels for p in planes_plain] == [p.pixels for p in planes_refined]
+    labels, _, _ = sldepth.explain_planes(depth, kinect, refine_seams=True)
+    assert np.array_equal(labels, refined)
+
+
 def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
     depth, _, _ = three_planes
     # The same extraction as extract_planes; every region there is taken.

@@ -156,7 +156,8 @@ impl PlaneExtractor {
         h: usize,
         labels: &mut [u16],
     ) {
-        for &(i, k1, k2) in &self.ambiguous {
+        let ambiguous = std::mem::take(&mut self.ambiguous);
+        for &(i, k1, k2) in &ambiguous {
             let i = i as usize;
             let (x, y) = (i % w, i / w);
             let (c1, c2) = neighbour_votes(labels, w, h, x, y, k1, k2);
@@ -167,25 +168,10 @@ impl PlaneExtractor {
                 && u2 < self.final_sums.len()
             {
                 labels[i] = k2;
-                self.final_sums[u1].pixels -= 1;
-                self.final_sums[u2].pixels += 1;
-                self.final_sums[u2].add_rows(y);
-                if is_sample_row(y) {
-                    let (xf, yf, df) = (x as f64, y as f64, f64::from(d.at(i)));
-                    let (f1, f2) = (self.full_res_fits[u1], self.full_res_fits[u2]);
-                    let a1 = &mut self.final_sums[u1];
-                    a1.sums.remove(xf, yf, df);
-                    if is_metric_row(y) {
-                        a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
-                    }
-                    let a2 = &mut self.final_sums[u2];
-                    a2.sums.add(xf, yf, df);
-                    if is_metric_row(y) {
-                        a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
-                    }
-                }
+                self.move_pixel(u1, u2, x, y, f64::from(d.at(i)));
             }
         }
+        self.ambiguous = ambiguous;
     }
 
     /// Drops 4-connected pieces of a plane's cells smaller than `min_piece_pixels / 16` cells.

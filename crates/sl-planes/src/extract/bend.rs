@@ -47,7 +47,7 @@ const MIN_SHARED_CELLS: usize = 2;
 
 /// Depth of the strip on each side of a shared border whose cells give each piece's slope at
 /// the border, cells (16 pixels: nearly two matching windows of a Kinect).
-const STRIP_CELLS: usize = 4;
+pub(super) const STRIP_CELLS: usize = 4;
 
 /// Most border cells whose strip neighbourhoods are visited per pair: a longer border is
 /// sampled every `n`-th cell in scan order (each neighbourhood is 9 cells wide, so a

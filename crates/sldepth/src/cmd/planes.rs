@@ -72,6 +72,12 @@ pub struct Args {
     /// two affine pieces meeting along a line than by any smooth surface, is split along it.
     #[arg(long)]
     pub no_split_creases: bool,
+    /// Re-decide the pixels along a crease with the two planes' local fits where a plane's
+    /// whole fit is off there (disparity method; off by default). For sensors whose
+    /// low-frequency distortion bends surfaces, where a small plane otherwise takes a strip of
+    /// its bent neighbour; costs 0.1-0.4 ms per 640x480 frame on real frames.
+    #[arg(long)]
+    pub refine_seams: bool,
     /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,
     /// extracted on its grid, count n² per pixel).
     #[arg(long, default_value_t = PlaneConfig::default().min_pixels)]
@@ -111,6 +117,7 @@ pub fn run(args: Args) -> Result<()> {
             cfg.bend_px_per_px2 = args.bend_px_per_px2;
             cfg.max_normal_sigma_deg = args.max_normal_sigma_deg.unwrap_or(f64::INFINITY);
             cfg.split_creases = !args.no_split_creases;
+            cfg.refine_seams = args.refine_seams;
             let mut ex = PlaneExtractor::new(cfg)?;
             let out = if loaded.encoding.format == DepthFormat::NyuRaw {
                 // Work on the raw disparity directly: D = (doff − raw) / 8 px.
