@@ -121,26 +121,18 @@ def test_planes_carry_their_uncertainty(kinect, three_planes):
         sldepth.extract_planes(depth, kinect, max_normal_sigma_deg=0.0)
 
 
-def test_the_crease_split_can_be_turned_off(kinect, three_planes):
-    # Three planes meeting at right angles near the camera: no plane spans a crease, so the
-    # split (on by default) changes nothing, and the switch is accepted either way.
-    depth, _, _ = three_planes
-    on, planes_on = sldepth.extract_planes(depth, kinect)
-    off, planes_off = sldepth.extract_planes(depth, kinect, split_creases=False)
-    assert np.array_equal(on, off)
-    assert [p.pixels for p in planes_on] == [p.pixels for p in planes_off]
-
-
-def test_the_seam_refinement_changes_nothing_on_unbent_planes(kinect, three_planes):
-    # Off by default; on exact planes no whole fit is off along a crease, so turning it on
-    # moves no pixel (its effect on bent surfaces is tested in the Rust suite).
+@pytest.mark.parametrize("switch", [{"split_creases": False}, {"refine_seams": True}])
+def test_the_crease_switches_change_nothing_on_exact_planes(kinect, three_planes, switch):
+    # Three planes meeting at right angles near the camera: no plane spans a crease (the split,
+    # on by default, changes nothing) and no whole fit is off along one (the seam refinement,
+    # off by default, moves no pixel; its effect on bent surfaces is tested in the Rust suite).
     depth, _, _ = three_planes
     plain, planes_plain = sldepth.extract_planes(depth, kinect)
-    refined, planes_refined = sldepth.extract_planes(depth, kinect, refine_seams=True)
-    assert np.array_equal(plain, refined)
-    assert [p.pixels for p in planes_plain] == [p.pixels for p in planes_refined]
-    labels, _, _ = sldepth.explain_planes(depth, kinect, refine_seams=True)
-    assert np.array_equal(labels, refined)
+    switched, planes_switched = sldepth.extract_planes(depth, kinect, **switch)
+    assert np.array_equal(plain, switched)
+    assert [p.pixels for p in planes_plain] == [p.pixels for p in planes_switched]
+    labels, _, _ = sldepth.explain_planes(depth, kinect, **switch)
+    assert np.array_equal(labels, switched)
 
 
 def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):

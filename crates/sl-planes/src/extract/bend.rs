@@ -67,6 +67,36 @@ pub(super) fn cell_centre_px(k: usize, wq: usize) -> (f64, f64) {
     )
 }
 
+/// Calls `f(k, k')` for every pair of 4-neighbouring cells of the grid `cl` (`wq × hq`) that
+/// may be a border between two planes: the right neighbours row by row, then the ones below.
+/// Rows are compared 16 cells at a time and a chunk with no two different labelled cells is
+/// skipped whole (most of the grid); `f` sees the other pairs of a chunk too and must check.
+pub(super) fn for_each_cell_border(
+    cl: &[u16],
+    wq: usize,
+    hq: usize,
+    f: &mut impl FnMut(usize, usize),
+) {
+    let mut scan = |from: usize, to: usize, step: usize| {
+        let mut k = from;
+        while k < to {
+            let end = (k + 16).min(to);
+            let border = cl[k..end]
+                .iter()
+                .zip(&cl[k + step..end + step])
+                .fold(false, |m, (&a, &b)| m | ((a != b) & (a != 0) & (b != 0)));
+            if border {
+                (k..end).for_each(|c| f(c, c + step));
+            }
+            k = end;
+        }
+    };
+    for j in 0..hq {
+        scan(j * wq, (j + 1) * wq - 1, 1);
+    }
+    scan(0, wq * hq.saturating_sub(1), wq);
+}
+
 /// One border between 4-neighbouring cells of two planes: the planes' indices (lower first),
 /// the cell of each, and the gap between their affine functions there.
 #[derive(Debug, Clone, Copy)]
@@ -205,27 +235,7 @@ impl PlaneExtractor {
                 gap_px,
             });
         };
-        // Pairs (k, k + step) for k in `from..to`, 16 at a time: a chunk with no two different
-        // labelled cells is skipped whole.
-        let mut scan = |from: usize, to: usize, step: usize| {
-            let mut k = from;
-            while k < to {
-                let end = (k + 16).min(to);
-                let border = cl[k..end]
-                    .iter()
-                    .zip(&cl[k + step..end + step])
-                    .fold(false, |m, (&a, &b)| m | ((a != b) & (a != 0) & (b != 0)));
-                if border {
-                    (k..end).for_each(|c| push(c, c + step));
-                }
-                k = end;
-            }
-        };
-        // The right neighbours, row by row, then the ones below.
-        for j in 0..hq {
-            scan(j * wq, (j + 1) * wq - 1, 1);
-        }
-        scan(0, wq * hq.saturating_sub(1), wq);
+        for_each_cell_border(cl, wq, hq, &mut push);
         if self.join_seams.is_empty() {
             return;
         }

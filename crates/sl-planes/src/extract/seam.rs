@@ -31,7 +31,7 @@
 //! surfaces are bent: thousands of pixels move on NYU's frame) and leaves the real sequences'
 //! repeatability where it was (docs/bench/README.md, session 43).
 
-use super::bend::{STRIP_CELLS, cell_centre_px};
+use super::bend::{STRIP_CELLS, cell_centre_px, for_each_cell_border};
 use super::*;
 use crate::fit::AffineSums;
 
@@ -115,26 +115,7 @@ impl PlaneExtractor {
                 (lb - 1, la - 1, cb as u32, ca as u32)
             });
         };
-        // Pairs (k, k + step) for k in `from..to`, 16 at a time: a chunk with no two different
-        // labelled cells is skipped whole.
-        let mut scan = |from: usize, to: usize, step: usize| {
-            let mut k = from;
-            while k < to {
-                let end = (k + 16).min(to);
-                let border = cl[k..end]
-                    .iter()
-                    .zip(&cl[k + step..end + step])
-                    .fold(false, |m, (&a, &b)| m | ((a != b) & (a != 0) & (b != 0)));
-                if border {
-                    (k..end).for_each(|c| push(c, c + step));
-                }
-                k = end;
-            }
-        };
-        for j in 0..hq {
-            scan(j * wq, (j + 1) * wq - 1, 1);
-        }
-        scan(0, wq * hq.saturating_sub(1), wq);
+        for_each_cell_border(cl, wq, hq, &mut push);
         seams.sort_unstable();
     }
 
