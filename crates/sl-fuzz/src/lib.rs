@@ -240,11 +240,17 @@ pub fn filter(data: &[u8]) {
     }
 }
 
-/// Plane extraction (disparity method and the metric RANSAC baseline) on a tiny frame.
+/// Plane extraction (disparity method, with and without the seam stage, and the metric RANSAC
+/// baseline) on a tiny frame.
 pub fn planes(data: &[u8]) {
     let (depth, camera) = tiny_frame(data);
     let mut cfg = sl_planes::PlaneConfig::default();
     cfg.min_pixels = 3;
+    if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
+        let _ = ex.extract_depth(&depth, &camera);
+    }
+    // The optional seam stage (off by default) on the same frame.
+    cfg.refine_seams = true;
     if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
         let _ = ex.extract_depth(&depth, &camera);
     }
