@@ -52,6 +52,9 @@ fn neighbour_votes(
     (c1, c2)
 }
 
+/// Rows of the label image relabelled per rayon task when the pool has more than one thread.
+const RELABEL_ROWS: usize = 32;
+
 impl PlaneExtractor {
     /// The full-resolution assignment, with the final moments of the sample rows: each pixel
     /// takes its cell's label if that plane fits it within `τ` (runs of equal cell labels are
@@ -281,7 +284,16 @@ impl PlaneExtractor {
             }
         }
         if y0 < y1 && w > 0 {
-            relabel(&mut labels[y0 * w..(y1 * w).min(w * h)], &self.relabel_lut);
+            let rows = &mut labels[y0 * w..(y1 * w).min(w * h)];
+            let lut: &[u16] = &self.relabel_lut;
+            if rayon::current_num_threads() > 1 {
+                // Whole rows per task; each label is mapped on its own, so the split does not
+                // change the result.
+                rows.par_chunks_mut(RELABEL_ROWS * w)
+                    .for_each(|part| relabel(part, lut));
+            } else {
+                relabel(rows, lut);
+            }
         }
         self.final_sums.clear();
         Ok(PlaneSegmentation {
