@@ -197,7 +197,7 @@ impl From<&RegionExplanation> for PyUnlabelledRegion {
 /// (``Plane.normal_sigma_deg``), leaving the others' pixels unlabelled. ``refine_seams``
 /// (False) re-decides the pixels along a crease with the two planes' local fits where a
 /// plane's whole fit is off there (a surface bent by the sensor's distortion, whose small
-/// neighbour would take a strip of it; 0.1–0.4 ms per 640×480 real frame). ``sldepth planes``
+/// neighbour would take a strip of it; 0.1–0.3 ms per 640×480 real frame). ``sldepth planes``
 /// has the same options.
 #[pyfunction]
 #[pyo3(signature = (depth, camera = None, *, threshold_px = None, min_pixels = None, log_threshold_px = None, log_sigma_px = None, bend_px_per_px2 = None, max_normal_sigma_deg = None, split_creases = None, refine_seams = None, depth_scale = None))]

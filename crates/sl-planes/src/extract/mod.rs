@@ -157,8 +157,8 @@ pub struct PlaneConfig {
     /// local fits where a plane's whole fit is off there (the `seam` stage; off by default).
     /// A surface bent by the sensor's low-frequency distortion is otherwise cut a few pixels
     /// inside it, and a small neighbour takes a strip of it. On the simulated rooms with a
-    /// 0.5 / 1 px radial distortion it takes the spurious planes from 17 / 26 to 8 / 15 and
-    /// changes nothing without distortion; on real frames (bent surfaces) it costs 0.13–0.39 ms
+    /// 0.5 / 1 px radial distortion it takes the spurious planes from 17 / 26 to 8 / 14 and
+    /// changes nothing without distortion; on real frames (bent surfaces) it costs 0.1–0.3 ms
     /// per 640×480 frame and leaves their repeatability where it was (docs/bench/README.md,
     /// session 43).
     pub refine_seams: bool,

@@ -26,8 +26,8 @@
 //! nothing changes: on frames without distortion the stage moves (almost) no pixel.
 //!
 //! Off by default (`PlaneConfig::refine_seams`): on the simulated rooms with a 0.5 / 1 px
-//! radial distortion it takes the spurious planes from 17 / 26 to 8 / 15 and changes nothing
-//! without distortion, but on real frames it costs 0.13–0.39 ms per 640×480 frame (their
+//! radial distortion it takes the spurious planes from 17 / 26 to 8 / 14 and changes nothing
+//! without distortion, but on real frames it costs 0.1–0.3 ms per 640×480 frame (their
 //! surfaces are bent: thousands of pixels move on NYU's frame) and leaves the real sequences'
 //! repeatability where it was (docs/bench/README.md, session 43).
 
@@ -37,7 +37,7 @@ use crate::fit::AffineSums;
 
 /// Most border cells of one pair whose strip neighbourhoods feed the local fits: a longer
 /// border is sampled every `n`-th cell in scan order (as [`super::bend`] does).
-const MAX_BORDER_SAMPLES: usize = 32;
+const MAX_BORDER_SAMPLES: usize = 16;
 
 /// Cells on each side of a border whose pixels are re-decided: half the larger side of the
 /// block-matching window (the noise model's correlation window), whole cells, at least one.
@@ -166,27 +166,28 @@ impl PlaneExtractor {
             self.seam_stamp = 3;
         }
         let (disputed, strip, listed) = (self.seam_stamp - 2, self.seam_stamp - 1, self.seam_stamp);
-        // The rows of cells within `r` of `cell`, as index ranges.
-        let around = |cell: u32, r: usize| {
-            let (ci, cj) = (cell as usize % wq, cell as usize / wq);
-            let (i0, i1) = (ci.saturating_sub(r), (ci + r).min(wq - 1));
-            (cj.saturating_sub(r)..=(cj + r).min(hq - 1)).map(move |j| j * wq + i0..j * wq + i1 + 1)
+        // The rows of cells within `r` of either cell of border `s` (two 4-neighbours: one box),
+        // as index ranges.
+        let around = |s: &(u16, u16, u32, u32), r: usize| {
+            let (ca, cb) = (s.2 as usize, s.3 as usize);
+            let (ia, ja, ib, jb) = (ca % wq, ca / wq, cb % wq, cb / wq);
+            let (i0, i1) = (ia.min(ib).saturating_sub(r), (ia.max(ib) + r).min(wq - 1));
+            let (j0, j1) = (ja.min(jb).saturating_sub(r), (ja.max(jb) + r).min(hq - 1));
+            (j0..=j1).map(move |j| j * wq + i0..j * wq + i1 + 1)
         };
         // The strips' local fits, from the cells' mean disparities, beside (at most
         // `MAX_BORDER_SAMPLES` of) the border's cells, beyond their disputed cells.
         // Neighbouring border cells' strips overlap: every `STRIP_CELLS / 2`-th is enough.
         let step = run.len().div_ceil(MAX_BORDER_SAMPLES).max(STRIP_CELLS / 2);
         for s in run.iter().step_by(step) {
-            for cell in [s.2, s.3] {
-                for row in around(cell, near) {
-                    mark[row].fill(disputed);
-                }
+            for row in around(s, near) {
+                mark[row].fill(disputed);
             }
         }
         let mut sums = [AffineSums::default(); 2];
         for s in run.iter().step_by(step) {
-            for cell in [s.2, s.3] {
-                for ku in around(cell, STRIP_CELLS).flatten() {
+            for row in around(s, STRIP_CELLS) {
+                for ku in row {
                     if mark[ku] == disputed || mark[ku] == strip {
                         continue;
                     }
@@ -230,8 +231,8 @@ impl PlaneExtractor {
         // The disputed cells along the whole border.
         self.seam_cells.clear();
         for s in run {
-            for cell in [s.2, s.3] {
-                for ku in around(cell, near).flatten() {
+            for row in around(s, near) {
+                for ku in row {
                     if mark[ku] != listed && (cl[ku] == la || cl[ku] == lb) {
                         mark[ku] = listed;
                         self.seam_cells.push(ku as u32);

@@ -256,7 +256,7 @@ def extract_planes(
     crease between two surfaces) along that line. refine_seams (False): re-decide the pixels
     along a crease with the two planes' local fits where a plane's whole fit is off there (a
     surface bent by the sensor's distortion, whose small neighbour would take a strip of it;
-    0.1-0.4 ms per 640x480 real frame)."""
+    0.1-0.3 ms per 640x480 real frame)."""
 
 class UnlabelledRegion:
     pixels: int

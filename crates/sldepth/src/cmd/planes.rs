@@ -75,7 +75,7 @@ pub struct Args {
     /// Re-decide the pixels along a crease with the two planes' local fits where a plane's
     /// whole fit is off there (disparity method; off by default). For sensors whose
     /// low-frequency distortion bends surfaces, where a small plane otherwise takes a strip of
-    /// its bent neighbour; costs 0.1-0.4 ms per 640x480 frame on real frames.
+    /// its bent neighbour; costs 0.1-0.3 ms per 640x480 frame on real frames.
     #[arg(long)]
     pub refine_seams: bool,
     /// Minimum pixels of a plane, pixels of the sensor (frames of the sensor decimated by n,

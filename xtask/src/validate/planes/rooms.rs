@@ -563,7 +563,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
             "\n`refine_seams` (off by default, session 43) re-decides the pixels along a crease \
              with the two planes' local fits where a plane's whole fit is off there: the rim a \
              small neighbour took from a bent surface goes back to it. Without distortion it \
-             changes no score above; on real frames it costs 0.1–0.4 ms per frame.\n",
+             changes no score above; on real frames it costs 0.1–0.3 ms per frame.\n",
         );
         md.push('\n');
     }
