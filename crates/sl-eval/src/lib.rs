@@ -7,7 +7,7 @@
 //! | module | role | used by |
 //! |---|---|---|
 //! | [`filter`] | RMSE per depth band, depth-edge masks, dominant-plane region and plane-fit residual | `xtask validate --only filter`, `sl-filter` tests |
-//! | [`planes`] | the Hoover et al. SegComp score ([`planes::segcomp`]) and label overlays ([`planes::overlay`]) | `sldepth planes --overlay`, `xtask validate --only planes`, `sl-planes` tests |
+//! | [`planes`] | the Hoover et al. SegComp score ([`planes::segcomp`](mod@planes::segcomp)) and label overlays ([`planes::overlay`]) | `sldepth planes --overlay`, `xtask validate --only planes`, `sl-planes` tests |
 //! | [`tsdf`] | distances from a fused mesh to a reference surface ([`DistanceStats`]) | `xtask validate --only tsdf`, `sl-tsdf` tests |
 //! | [`render`] | shaded surface normals of a depth map ([`render::normals`]) and a software mesh renderer ([`render::mesh`]) | `sldepth filter --normals`, `sldepth fuse --render-png`, reports |
 //! | [`trajectory`] | ATE after Horn's alignment and RPE per frame or second, TUM benchmark definitions ([`trajectory::ate`], [`trajectory::rpe`]) | `sldepth eval-traj`, tracking tests |

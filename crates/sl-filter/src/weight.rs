@@ -21,7 +21,7 @@
 //!
 //! **How far from the Gaussian.** `w` is continuous, monotone in `x` and equals
 //! `2^(x − δ)·(1 + φ)/2^φ`; `(1 + φ)/2^φ` lies in `[1, 1.0614]`, and `δ` centres it, so
-//! `|w/2^x − 1| ≤ 2.99 %` everywhere ([`WEIGHT_RELATIVE_ERROR`], asserted by the tests): a
+//! `|w/2^x − 1| ≤ 2.99 %` everywhere (`WEIGHT_RELATIVE_ERROR`, asserted by the tests): a
 //! Gaussian range kernel with a ±3 % ripple, well inside what the choice of its σ (a multiple of
 //! the sensor noise) already moves. The filters' accuracy is unchanged by it: on `cargo xtask
 //! validate --only filter` every RMSE moved by at most 0.01 mm against the exact exponential

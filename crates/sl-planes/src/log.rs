@@ -32,7 +32,7 @@ pub fn log_geometry(sigma_px: f64) -> (usize, usize) {
     (r.min(MAX_BOX_RADIUS), s)
 }
 
-/// Reusable buffers for [`planar_mask`].
+/// Reusable buffers for [`planar_mask_uncounted`].
 #[derive(Debug, Default, Clone)]
 pub struct LogBuffers {
     a: Vec<f32>,
@@ -181,7 +181,8 @@ pub fn planar_mask(
     )
 }
 
-/// [`planar_mask`] of the map `d` (`width × height`) without the count of planar pixels, in
+/// The planarity mask of the map `d` (`width × height`; as the tests' `planar_mask`, without
+/// the count of planar pixels), in
 /// bands of rows on the caller's pool when `parallel` (one [`LogBuffers`] per band in
 /// `bufs`). Every mask value is computed by the same operations in any band, so the mask is
 /// the same on any number of threads; each band recomputes the few rows of the smoothing

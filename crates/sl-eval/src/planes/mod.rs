@@ -1,4 +1,4 @@
-//! Evaluation of plane extraction: the Hoover et al. segmentation comparison ([`segcomp`]) and
+//! Evaluation of plane extraction: the Hoover et al. segmentation comparison ([`segcomp`](mod@segcomp)) and
 //! colour overlays of plane labels ([`overlay`]).
 //!
 //! Both work on `u16` label images (0 = no plane), the output format of `sl-planes`, so they

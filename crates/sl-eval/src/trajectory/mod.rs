@@ -1,8 +1,8 @@
 //! Trajectory accuracy with the TUM RGB-D benchmark's definitions (Sturm et al., IROS 2012,
 //! and its tools `evaluate_ate.py` / `evaluate_rpe.py`): the absolute trajectory error after
 //! Horn's closed-form rigid alignment ([`ate`]) and the relative pose error over a fixed
-//! delta in frames or seconds ([`rpe`]), on poses matched by nearest timestamp
-//! ([`associate`]).
+//! delta in frames or seconds ([`rpe`](fn@rpe)), on poses matched by nearest timestamp
+//! ([`associate`](fn@associate)).
 //!
 //! Trajectories are `(timestamp_s, CameraToWorld)` lists in any order; timestamps must be
 //! finite and distinct within a trajectory (an error otherwise, never a panic).

@@ -58,7 +58,7 @@ impl Tracker {
 
     /// The iterations of [`Tracker::align`]: the pose they reach and the finest level's
     /// statistics there. Reads the pyramid, the configuration and the camera only (not the
-    /// structure check), so it can run beside [`StructureCheck::segment`].
+    /// structure check), so it can run beside [`StructureCheck::segment`](super::structure::StructureCheck::segment).
     pub(super) fn iterate(
         &self,
         start: &Isometry3<f64>,

@@ -200,7 +200,7 @@ pub(crate) struct Pyramid {
     pub levels: Vec<Level>,
 }
 
-/// The baseline of level `l`'s central-difference normals, pixels (see [`normals`]).
+/// The baseline of level `l`'s central-difference normals, pixels (see `normals`).
 pub(crate) fn normal_radius(l: usize) -> usize {
     if l == 0 { 2 } else { 1 }
 }

@@ -24,7 +24,7 @@ pub struct MeshConfig {
     /// Compute vertex normals.
     pub normals: bool,
     /// Compute per-vertex confidence (the mesh's scalar named
-    /// [`CONFIDENCE_PROPERTY`](crate::CONFIDENCE_PROPERTY)).
+    /// [`crate::CONFIDENCE_PROPERTY`]).
     pub confidence: bool,
 }
 
@@ -85,7 +85,7 @@ impl TsdfVolume {
     /// built (a fixed cost per block) and before any mesh buffer is allocated, the volume, the
     /// tables and the mesh (vertices with their attributes, triangles twice: per-block lists and
     /// the final array) are counted against `budget_bytes`; past it the result is
-    /// [`TsdfError::MeshBudget`](crate::TsdfError::MeshBudget). The mesh is the same as
+    /// [`crate::TsdfError::MeshBudget`]. The mesh is the same as
     /// [`TsdfVolume::extract_mesh`]'s.
     pub fn extract_mesh_within(
         &self,

@@ -141,7 +141,7 @@ impl RayFrame {
     }
 
     /// The march of pixel `(x, y)`'s ray through `[lo, hi]`, before its first step (see
-    /// [`RayFrame::cast`]; [`RayFrame::advance`] takes the steps).
+    /// `RayFrame::cast`; `RayFrame::advance` takes the steps).
     pub(super) fn ray(&self, x: usize, y: usize, lo: f32, hi: f32, hinted: bool) -> Ray {
         let dir = self.rot
             * Vector3::new(

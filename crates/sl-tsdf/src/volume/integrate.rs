@@ -498,7 +498,7 @@ pub(super) fn integrate_block<T: PixelTable + ?Sized>(
     integrate_block_as::<T, false>(blk, None, b, fc, table);
 }
 
-/// [`integrate_block`]; `INLINE`: the voxel loop inlined into the caller instead of its
+/// `integrate_block` (the tests' entry); `INLINE`: the voxel loop inlined into the caller instead of its
 /// out-of-line copy [`integrate_block_with`].
 #[inline(always)]
 fn integrate_block_as<T: PixelTable + ?Sized, const INLINE: bool>(
@@ -523,7 +523,7 @@ fn integrate_block_as<T: PixelTable + ?Sized, const INLINE: bool>(
     }
 }
 
-/// [`integrate_block`] with the block's origin in camera coordinates; `CHECK_Z`: voxels may
+/// `integrate_block` with the block's origin in camera coordinates; `CHECK_Z`: voxels may
 /// be behind the camera; `next`: the block updated next, whose memory is prefetched.
 #[inline(never)]
 pub(super) fn integrate_block_with<T: PixelTable + ?Sized, const CHECK_Z: bool>(
