@@ -35,6 +35,20 @@ pub struct DisparityAffine {
     pub c: f64,
 }
 
+/// The difference of two disparity functions, coefficient by coefficient (itself affine: where
+/// it is zero, the two planes' disparities cross).
+impl std::ops::Sub for DisparityAffine {
+    type Output = Self;
+
+    fn sub(self, o: Self) -> Self {
+        Self {
+            a: self.a - o.a,
+            b: self.b - o.b,
+            c: self.c - o.c,
+        }
+    }
+}
+
 impl DisparityAffine {
     /// Disparity predicted at pixel `(x, y)`.
     #[inline]

@@ -177,6 +177,33 @@ impl PlaneExtractor {
         self.ambiguous = ambiguous;
     }
 
+    /// Moves pixel `(x, y)` of disparity `df` from plane `from` to plane `to` in the final
+    /// moments (pixel counts, rows, and the sample rows' sums).
+    #[inline]
+    pub(super) fn move_pixel(&mut self, from: usize, to: usize, x: usize, y: usize, df: f64) {
+        let n = self.final_sums.len();
+        if from >= n || to >= n {
+            return;
+        }
+        self.final_sums[from].pixels -= 1;
+        self.final_sums[to].pixels += 1;
+        self.final_sums[to].add_rows(y);
+        if is_sample_row(y) {
+            let (xf, yf) = (x as f64, y as f64);
+            let (f1, f2) = (self.full_res_fits[from], self.full_res_fits[to]);
+            let a1 = &mut self.final_sums[from];
+            a1.sums.remove(xf, yf, df);
+            if is_metric_row(y) {
+                a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
+            }
+            let a2 = &mut self.final_sums[to];
+            a2.sums.add(xf, yf, df);
+            if is_metric_row(y) {
+                a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
+            }
+        }
+    }
+
     /// Drops 4-connected pieces of a plane's cells smaller than `min_piece_pixels / 16` cells.
     #[inline(never)]
     pub(super) fn drop_small_pieces(&mut self, wq: usize, hq: usize) {

@@ -67,6 +67,20 @@ pub(super) fn cell_centre_px(k: usize, wq: usize) -> (f64, f64) {
     )
 }
 
+/// `|f_a − f_b|` at the border between 4-neighbouring cells `ca` and `cb` of a grid `wq` cells
+/// wide (halfway between their centres), px.
+pub(super) fn border_gap(
+    fa: &DisparityAffine,
+    fb: &DisparityAffine,
+    ca: usize,
+    cb: usize,
+    wq: usize,
+) -> f64 {
+    let ((xa, ya), (xb, yb)) = (cell_centre_px(ca, wq), cell_centre_px(cb, wq));
+    let (x, y) = ((xa + xb) / 2.0, (ya + yb) / 2.0);
+    (fa.eval(x, y) - fb.eval(x, y)).abs()
+}
+
 /// Calls `f(k, k')` for every pair of 4-neighbouring cells of the grid `cl` (`wq × hq`) that
 /// may be a border between two planes: the right neighbours row by row, then the ones below.
 /// Rows are compared 16 cells at a time and a chunk with no two different labelled cells is
@@ -218,10 +232,7 @@ impl PlaneExtractor {
             let (Some((fa, ..)), Some((fb, ..))) = (fit(a), fit(b)) else {
                 return;
             };
-            // The border is halfway between the two cells' centres.
-            let ((xa, ya), (xb, yb)) = (cell_centre_px(ca, wq), cell_centre_px(cb, wq));
-            let (x, y) = ((xa + xb) / 2.0, (ya + yb) / 2.0);
-            let gap_px = (fa.eval(x, y) - fb.eval(x, y)).abs() as f32;
+            let gap_px = border_gap(&fa, &fb, ca, cb, wq) as f32;
             let (a, b, ca, cb) = if a < b {
                 (a, b, ca, cb)
             } else {

@@ -43,11 +43,7 @@ impl PlaneExtractor {
                         continue;
                     }
                     let (pi, pj) = (&self.planes[i], &self.planes[j]);
-                    let df = DisparityAffine {
-                        a: pi.f.a - pj.f.a,
-                        b: pi.f.b - pj.f.b,
-                        c: pi.f.c - pj.f.c,
-                    };
+                    let df = pi.f - pj.f;
                     let bb = union_box(&pi.bbox, &pj.bbox);
                     let small = if pi.sums.n < pj.sums.n {
                         &pi.bbox

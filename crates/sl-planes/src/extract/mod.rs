@@ -510,9 +510,11 @@ pub struct PlaneExtractor {
     /// Borders between cells of two planes, `(a, b, cell of a, cell of b)`, sorted by pair
     /// (`seam`).
     seam_pairs: Vec<(u16, u16, u32, u32)>,
-    /// Per cell: the stamp of the last pair's disputed cells or strip that took it (`seam`).
+    /// Per cell: the stamp of the last pair's disputed cells, strip or listed disputed cells
+    /// that took it (`seam`).
     seam_mark: Vec<u32>,
-    /// The current stamp of `seam_mark` (the strip's; the disputed cells' is one less).
+    /// The current stamp of `seam_mark`: the listed disputed cells' (the strip's is one less,
+    /// the sampled disputed cells' two less).
     seam_stamp: u32,
     /// The disputed cells of the current pair (`seam`).
     seam_cells: Vec<u32>,

@@ -31,7 +31,7 @@
 //! surfaces are bent: thousands of pixels move on NYU's frame) and leaves the real sequences'
 //! repeatability where it was (docs/bench/README.md, session 43).
 
-use super::bend::{STRIP_CELLS, cell_centre_px, for_each_cell_border};
+use super::bend::{STRIP_CELLS, border_gap, cell_centre_px, for_each_cell_border};
 use super::*;
 use crate::fit::AffineSums;
 
@@ -44,15 +44,6 @@ const MAX_BORDER_SAMPLES: usize = 16;
 fn disputed_cells(window_x_px: f64, window_y_px: f64) -> usize {
     let half = 0.5 * window_x_px.max(window_y_px);
     ((half / CELL as f64).ceil() as usize).clamp(1, STRIP_CELLS - 1)
-}
-
-/// `f − g` as an affine function.
-fn difference(f: &DisparityAffine, g: &DisparityAffine) -> DisparityAffine {
-    DisparityAffine {
-        a: f.a - g.a,
-        b: f.b - g.b,
-        c: f.c - g.c,
-    }
 }
 
 impl PlaneExtractor {
@@ -142,14 +133,7 @@ impl PlaneExtractor {
         // A crease, not a depth step: the two functions meet along the border.
         let gap = run
             .iter()
-            .map(|s| {
-                let ((xa, ya), (xb, yb)) = (
-                    cell_centre_px(s.2 as usize, wq),
-                    cell_centre_px(s.3 as usize, wq),
-                );
-                let (x, y) = ((xa + xb) / 2.0, (ya + yb) / 2.0);
-                (fa.eval(x, y) - fb.eval(x, y)).abs()
-            })
+            .map(|s| border_gap(&fa, &fb, s.2 as usize, s.3 as usize, wq))
             .sum::<f64>()
             / run.len() as f64;
         if gap > 2.0 * tau {
@@ -243,7 +227,7 @@ impl PlaneExtractor {
         let cells = std::mem::take(&mut self.seam_cells);
         // Only the pixels between the old border (where `fa = fb`) and the new one (`ga = gb`)
         // can change: a cell wholly on one side of both is skipped.
-        let (old, new) = (difference(&fa, &fb), difference(&ga, &gb));
+        let (old, new) = (fa - fb, ga - gb);
         let half = 0.5 * (CELL - 1) as f64;
         let (reach_old, reach_new) = (
             half * (old.a.abs() + old.b.abs()),
@@ -272,13 +256,13 @@ impl PlaneExtractor {
                         continue;
                     }
                     let (xf, df) = (x as f64, f64::from(dv));
-                    let (ra, rb) = ((df - ga.eval(xf, yf)).abs(), (df - gb.eval(xf, yf)).abs());
+                    let (va, vb) = (ga.eval(xf, yf), gb.eval(xf, yf));
+                    let (ra, rb) = ((df - va).abs(), (df - vb).abs());
                     let to = if let Some(a_positive) = side_of_a
                         && ra <= bound
                         && rb <= bound
                     {
-                        let positive = ga.eval(xf, yf) > gb.eval(xf, yf);
-                        if positive == a_positive { la } else { lb }
+                        if (va > vb) == a_positive { la } else { lb }
                     } else if ra < rb && ra < tau {
                         la
                     } else if rb < ra && rb < tau {
@@ -295,32 +279,5 @@ impl PlaneExtractor {
             }
         }
         self.seam_cells = cells;
-    }
-
-    /// Moves pixel `(x, y)` of disparity `df` from plane `from` to plane `to` in the final
-    /// moments (pixel counts, rows, and the sample rows' sums).
-    #[inline]
-    pub(super) fn move_pixel(&mut self, from: usize, to: usize, x: usize, y: usize, df: f64) {
-        let n = self.final_sums.len();
-        if from >= n || to >= n {
-            return;
-        }
-        self.final_sums[from].pixels -= 1;
-        self.final_sums[to].pixels += 1;
-        self.final_sums[to].add_rows(y);
-        if is_sample_row(y) {
-            let (xf, yf) = (x as f64, y as f64);
-            let (f1, f2) = (self.full_res_fits[from], self.full_res_fits[to]);
-            let a1 = &mut self.final_sums[from];
-            a1.sums.remove(xf, yf, df);
-            if is_metric_row(y) {
-                a1.inv.add(xf, yf, df, df - f1.eval(xf, yf), -1.0);
-            }
-            let a2 = &mut self.final_sums[to];
-            a2.sums.add(xf, yf, df);
-            if is_metric_row(y) {
-                a2.inv.add(xf, yf, df, df - f2.eval(xf, yf), 1.0);
-            }
-        }
     }
 }
