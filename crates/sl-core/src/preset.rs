@@ -22,6 +22,12 @@
 //! registered to the distorted colour image; [`SensorPreset::lens`], used by `sldepth track
 //! --lens auto`, see [`crate::lens`]).
 //!
+//! The Kinect-class presets also carry the IR camera's rolling-shutter readout
+//! ([`KINECT_READOUT_S`], [`SensorPreset::rolling_shutter_readout_s`]), which `sldepth track`
+//! and Python's `Tracker` model when tracking against the fused model; `icl-nuim` (rendered
+//! images) and the active-stereo presets have none (global shutters; the D415's rolling-shutter
+//! readout is not published).
+//!
 //! σ_D is the paper's 0.07 px for the structured-light cameras. For the active-stereo cameras it
 //! is the 0.08 px "subpixel RMS" Intel quotes for a well-textured target (D400 tuning guide);
 //! OAK-D uses the same. Active-stereo depth follows the same `σ_Z = Z²·σ_D/(f·B)` law.
@@ -90,6 +96,9 @@ pub struct SensorPreset {
     /// The lens distortion of the images the depth is stored in (`None`: pinhole, or not
     /// published): TUM fr1/fr2 depth is registered to the distorted colour image.
     pub lens: Option<LensDistortion>,
+    /// The depth sensor's rolling-shutter readout time, first image row to last, seconds (0: a
+    /// global shutter, or a readout not known). See [`KINECT_READOUT_S`].
+    pub rolling_shutter_readout_s: f64,
     /// Where the numbers come from.
     pub source: &'static str,
 }
@@ -98,6 +107,14 @@ pub struct SensorPreset {
 pub const KINECT_MIN_DEPTH_M: f64 = 0.5;
 /// Farthest Kinect v1 depth worth using, metres: beyond about 5 m the depth step exceeds 7 cm.
 pub const KINECT_MAX_DEPTH_M: f64 = 5.0;
+
+/// Rolling-shutter readout of the Kinect v1 / PrimeSense-class IR camera, first depth row to
+/// last, seconds: 30 ms, an estimate (not published). The IR camera is a rolling-shutter CMOS
+/// sensor (Aptina MT9M001, 1280×1024) read out at 30 frames/s, so its full readout takes most of
+/// the 33.3 ms frame period, and the 480 depth rows span nearly all of its rows. On TUM fr1/rpy-200
+/// (motion-capture reference) the tracker's relative pose error falls as the modelled readout
+/// grows to 30–33 ms (docs/bench/track.md, session 44).
+pub const KINECT_READOUT_S: f64 = 0.030;
 
 const fn kinect(
     name: &'static str,
@@ -122,6 +139,7 @@ const fn kinect(
         max_depth_m: KINECT_MAX_DEPTH_M,
         depth_units,
         lens: None,
+        rolling_shutter_readout_s: KINECT_READOUT_S,
         source,
     }
 }
@@ -246,13 +264,17 @@ pub const PRESETS: &[SensorPreset] = &[
         MM,
         "PCL OpenNI grabber default intrinsics (fx = fy = 525, c = (320, 240))",
     ),
-    kinect(
-        "icl-nuim",
-        "ICL-NUIM synthetic living room / office (Kinect-like noise)",
-        (525.0, 525.0, 319.5, 239.5),
-        MM,
-        "ICL-NUIM camera.json as shipped with Open3D's test data",
-    ),
+    SensorPreset {
+        // Rendered images: every row from the frame's one pose.
+        rolling_shutter_readout_s: 0.0,
+        ..kinect(
+            "icl-nuim",
+            "ICL-NUIM synthetic living room / office (Kinect-like noise)",
+            (525.0, 525.0, 319.5, 239.5),
+            MM,
+            "ICL-NUIM camera.json as shipped with Open3D's test data",
+        )
+    },
     SensorPreset {
         name: "d415",
         description: "Intel RealSense D415 active stereo (1280x720)",
@@ -269,6 +291,9 @@ pub const PRESETS: &[SensorPreset] = &[
         max_depth_m: 10.0,
         depth_units: MM,
         lens: None,
+        // Its OV2740 imagers have a rolling shutter, but no readout time is published: pass
+        // one (`--rolling-shutter-ms`) if you know it.
+        rolling_shutter_readout_s: 0.0,
         source: "Intel RealSense D400 datasheet (55 mm baseline, 1/32 px sub-pixel); typical factory fx at 1280x720 - calibrate your unit",
     },
     SensorPreset {
@@ -287,6 +312,8 @@ pub const PRESETS: &[SensorPreset] = &[
         max_depth_m: 10.0,
         depth_units: MM,
         lens: None,
+        // Global-shutter imagers.
+        rolling_shutter_readout_s: 0.0,
         source: "Intel RealSense D400 datasheet (50 mm baseline, 1/32 px sub-pixel); typical factory fx at 848x480 - calibrate your unit",
     },
     SensorPreset {
@@ -305,6 +332,8 @@ pub const PRESETS: &[SensorPreset] = &[
         max_depth_m: 10.0,
         depth_units: MM,
         lens: None,
+        // Global-shutter imagers.
+        rolling_shutter_readout_s: 0.0,
         source: "Intel RealSense D400 datasheet (95 mm baseline, 1/32 px sub-pixel); typical factory fx at 1280x720 - calibrate your unit",
     },
     SensorPreset {
@@ -323,6 +352,8 @@ pub const PRESETS: &[SensorPreset] = &[
         max_depth_m: 15.0,
         depth_units: MM,
         lens: None,
+        // OV9282: global shutter.
+        rolling_shutter_readout_s: 0.0,
         source: "Luxonis OAK-D docs (7.5 cm baseline, 3 fractional bits in sub-pixel mode); typical fx at 1280x800 - calibrate your unit",
     },
 ];
@@ -417,6 +448,28 @@ mod tests {
             Camera::paper_kinect()
         );
         assert_eq!(Camera::preset("KINECT-V1").unwrap(), Camera::kinect_v1());
+    }
+
+    #[test]
+    fn rolling_shutter_readouts_fit_in_a_frame_interval() {
+        for p in PRESETS {
+            assert!(
+                (0.0..1.0 / 30.0).contains(&p.rolling_shutter_readout_s),
+                "{}: {}",
+                p.name,
+                p.rolling_shutter_readout_s
+            );
+        }
+        for name in ["kinect-v1", "tum-fr1", "7-scenes", "nyu-v2", "primesense"] {
+            assert_eq!(
+                find(name).unwrap().rolling_shutter_readout_s,
+                KINECT_READOUT_S,
+                "{name}"
+            );
+        }
+        for name in ["icl-nuim", "d435", "d455", "oak-d", "d415"] {
+            assert_eq!(find(name).unwrap().rolling_shutter_readout_s, 0.0, "{name}");
+        }
     }
 
     #[test]

@@ -20,6 +20,16 @@ pub struct PyCamera {
     pub(crate) preset_name: Option<String>,
 }
 
+impl PyCamera {
+    /// The preset's rolling-shutter readout, seconds (0 for explicit intrinsics).
+    pub(crate) fn rolling_shutter_readout_s(&self) -> f64 {
+        self.preset_name
+            .as_deref()
+            .and_then(|n| preset::find(n).ok())
+            .map_or(0.0, |p| p.rolling_shutter_readout_s)
+    }
+}
+
 #[pymethods]
 impl PyCamera {
     #[new]
@@ -66,6 +76,15 @@ impl PyCamera {
     #[getter]
     fn preset_name(&self) -> Option<&str> {
         self.preset_name.as_deref()
+    }
+
+    /// The depth sensor's rolling-shutter readout, milliseconds (first row to last), from the
+    /// preset (30, an estimate, for the Kinect v1 / PrimeSense-class presets; 0 for a global
+    /// shutter, ``icl-nuim``'s rendered images and explicit intrinsics). ``Tracker`` models it
+    /// when tracking against the fused model.
+    #[getter]
+    fn rolling_shutter_ms(&self) -> f64 {
+        self.rolling_shutter_readout_s() * 1e3
     }
 
     /// The lens distortion ``(k1, k2, p1, p2, k3)`` (OpenCV's order) of the preset's images, or

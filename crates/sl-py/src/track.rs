@@ -128,8 +128,11 @@ pub(crate) fn track_in_map<'py>(
 /// newer fragment is joined to it (``joins``). ``rolling_shutter_ms``: the sensor's
 /// rolling-shutter readout time, milliseconds (first row to last), as ``sldepth track
 /// --rolling-shutter-ms``: each row is aligned from its own pose and frames are fused moved to
-/// the middle of their readout; 0 (default): a global shutter; at most the frame interval
-/// (33.3 ms at 30 Hz).
+/// the middle of their readout; ``None`` (default): ``camera.rolling_shutter_ms`` (30 for the
+/// Kinect-class presets, 0 for explicit intrinsics) when tracking against the model, 0 frame
+/// to frame; 0: a global shutter; at most the frame interval (33.3 ms at 30 Hz). On TUM
+/// fr1/rpy-200 the Kinect's readout keeps every 2nd, 3rd or 4th frame alone tracked (a global
+/// shutter loses 1, 9 and 7 frames).
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -152,7 +155,7 @@ pub struct PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = 0.0))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -163,8 +166,13 @@ impl PyTracker {
         prefilter: &str,
         lens: &str,
         new_fragment_after_s: Option<f64>,
-        rolling_shutter_ms: f64,
+        rolling_shutter_ms: Option<f64>,
     ) -> PyResult<Self> {
+        let readout_s = match rolling_shutter_ms {
+            Some(ms) => ms / 1000.0,
+            None if frame_to_model => camera.rolling_shutter_readout_s(),
+            None => 0.0,
+        };
         let undistorter = match lens {
             "auto" => camera
                 .lens
@@ -186,7 +194,7 @@ impl PyTracker {
         cfg.frame_to_model = frame_to_model;
         cfg.model_scale = model_scale;
         cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
-        cfg.tracker.rolling_shutter_readout_s = rolling_shutter_ms / 1000.0;
+        cfg.tracker.rolling_shutter_readout_s = readout_s;
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,
@@ -271,6 +279,12 @@ impl PyTracker {
     #[getter]
     fn last_failure(&self) -> Option<String> {
         self.last_failure.clone()
+    }
+
+    /// The rolling-shutter readout the tracker models, milliseconds (0: a global shutter).
+    #[getter]
+    fn rolling_shutter_ms(&self) -> f64 {
+        self.rec.config().tracker.rolling_shutter_readout_s * 1e3
     }
 
     /// The last frame's standard deviation of the pose along its least-constrained direction,

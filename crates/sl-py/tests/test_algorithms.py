@@ -463,6 +463,24 @@ def test_track_in_map_anchors_at_the_start_and_fuses_nothing(kinect):
         sldepth.track_in_map(vol, kinect, frames, np.eye(3))
 
 
+def test_the_preset_says_whether_the_sensor_has_a_rolling_shutter(kinect):
+    # The Kinect-class presets carry their IR camera's readout (an estimate), the global-shutter
+    # and rendered ones none; explicit intrinsics none.
+    assert kinect.rolling_shutter_ms == pytest.approx(30.0)
+    assert sldepth.Camera.preset("tum-fr1").rolling_shutter_ms == pytest.approx(30.0)
+    for name in ("d435", "oak-d", "icl-nuim"):
+        assert sldepth.Camera.preset(name).rolling_shutter_ms == 0.0
+    assert sldepth.Camera(640, 480, 580, 580, 319.5, 239.5).rolling_shutter_ms == 0.0
+    assert kinect.resampled(0.5).rolling_shutter_ms == pytest.approx(30.0)
+    # A Tracker models the camera's readout against the fused model unless told otherwise;
+    # frame to frame (where it made TUM fr1/rpy's trajectory worse) only when told.
+    assert sldepth.Tracker(kinect).rolling_shutter_ms == pytest.approx(30.0)
+    assert sldepth.Tracker(kinect, rolling_shutter_ms=0).rolling_shutter_ms == 0.0
+    assert sldepth.Tracker(kinect, frame_to_model=False).rolling_shutter_ms == 0.0
+    assert sldepth.Tracker(kinect, frame_to_model=False, rolling_shutter_ms=20).rolling_shutter_ms == pytest.approx(20.0)
+    assert sldepth.Tracker(sldepth.Camera.preset("d435")).rolling_shutter_ms == 0.0
+
+
 def test_a_rolling_shutter_tracker_keeps_a_still_camera_still(kinect):
     # No motion, no skew: the row-by-row alignment and the rectified fusion leave a still
     # camera where it is; a readout longer than a frame interval is refused.
@@ -605,7 +623,9 @@ def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
 
 def test_track_sequence_from_arrays_and_files(kinect, tmp_path):
     frames = [sldepth.simulate("boxes", seed=s)[0] for s in (3, 4, 5)]
-    poses, statuses, tracker = sldepth.track_sequence(frames, kinect)
+    # The simulator renders every row from the frame's one pose: a global shutter, whatever
+    # the preset's readout.
+    poses, statuses, tracker = sldepth.track_sequence(frames, kinect, rolling_shutter_ms=0)
     assert poses.shape == (3, 4, 4) and poses.dtype == np.float64
     assert statuses[0] == "initialised" and np.allclose(poses[0], np.eye(4))
     assert all(s == "tracked" for s in statuses[1:]), statuses
@@ -617,7 +637,9 @@ def test_track_sequence_from_arrays_and_files(kinect, tmp_path):
         p = tmp_path / f"{i}.png"
         sldepth.write_depth(p, f, depth_scale=1000)
         paths.append(p)
-    poses_f, statuses_f, _ = sldepth.track_sequence(paths, kinect, depth_scale=1000)
+    poses_f, statuses_f, _ = sldepth.track_sequence(
+        paths, kinect, depth_scale=1000, rolling_shutter_ms=0
+    )
     assert statuses_f == statuses
     assert np.abs(poses_f - poses).max() < 0.002
     with pytest.raises(ValueError, match="weighting"):
@@ -627,7 +649,9 @@ def test_track_sequence_from_arrays_and_files(kinect, tmp_path):
 def test_tracker_takes_timestamps(kinect):
     frames = [sldepth.simulate("boxes", seed=s)[0] for s in (3, 4, 5)]
     # A still camera with a dropped frame (0.1 s between the last two): tracked as before.
-    poses, statuses, _ = sldepth.track_sequence(frames, kinect, timestamps_s=[10.0, 10.033, 10.133])
+    poses, statuses, _ = sldepth.track_sequence(
+        frames, kinect, timestamps_s=[10.0, 10.033, 10.133], rolling_shutter_ms=0
+    )
     assert all(s == "tracked" for s in statuses[1:]), statuses
     assert np.abs(poses[:, :3, 3]).max() < 0.002
     with pytest.raises(ValueError, match="timestamps_s has 2 entries for 3 frames"):

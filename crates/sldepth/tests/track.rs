@@ -404,6 +404,56 @@ fn track_undistorts_frames_of_a_camera_with_a_lens_model() {
     }
 }
 
+/// `--rolling-shutter-ms auto` (the default) models the camera preset's readout against the
+/// fused model (the Kinect-class presets' 30 ms, the TUM folder's implied `tum-fr1` too), none
+/// for a preset without one or frame to frame; a number is taken as given, anything else is an
+/// error. The JSON says which readout was modelled.
+#[test]
+fn track_models_the_presets_rolling_shutter_against_the_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 3);
+    for (extra, want) in [
+        (&["--camera", "kinect-v1"][..], 30.0),
+        (&[][..], 30.0),
+        (&["--camera", "icl-nuim"][..], 0.0),
+        (&["--camera", "kinect-v1", "--frame-to-frame"][..], 0.0),
+        (
+            &["--camera", "kinect-v1", "--rolling-shutter-ms", "12.5"][..],
+            12.5,
+        ),
+        (&["--rolling-shutter-ms", "0"][..], 0.0),
+    ] {
+        let mut args = vec!["track", "--tum", seq.to_str().unwrap(), "--voxel-m", "0.01"];
+        args.extend_from_slice(extra);
+        args.push("--json");
+        let out = sldepth(&args);
+        assert!(
+            out.status.success(),
+            "{extra:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["rolling_shutter_ms"].as_f64(), Some(want), "{extra:?}");
+        assert_eq!(v["frames"], 3);
+        let said = String::from_utf8_lossy(&out.stderr).contains("rolling shutter (30 ms readout");
+        assert_eq!(said, want == 30.0, "{extra:?}");
+    }
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--rolling-shutter-ms",
+        "fast",
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("must be `auto` or milliseconds"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 /// `fuse --tum` picks the `tum-fr1` preset for a folder that does not name another sensor and,
 /// with `--lens auto` (the default), undistorts every frame with its lens model before fusing;
 /// `--lens none` fuses the frames as they are. Both meshes are built, and they differ.

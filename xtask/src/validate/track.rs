@@ -29,6 +29,7 @@ use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 use super::Context;
 
+mod faster;
 mod fragments;
 mod rooms;
 
@@ -299,6 +300,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     md.push_str(&degenerate_views(ctx, &degenerate)?);
     md.push_str(&rooms::run(ctx)?);
     md.push_str(&fragments::run_section(ctx)?);
+    md.push_str(&faster::run_section(ctx)?);
     ctx.section("Camera tracking (issue 13)", md);
     Ok(())
 }

@@ -43,6 +43,10 @@ class Camera:
     def lens(self) -> Optional[Tuple[float, float, float, float, float]]:
         """Lens distortion (k1, k2, p1, p2, k3) of the preset's images, or None (pinhole)."""
     @property
+    def rolling_shutter_ms(self) -> float:
+        """The preset's rolling-shutter readout, milliseconds (30 for the Kinect-class presets,
+        an estimate; 0 for global shutters, icl-nuim and explicit intrinsics)."""
+    @property
     def width(self) -> int: ...
     @property
     def height(self) -> int: ...
@@ -350,11 +354,13 @@ class Tracker:
         prefilter: str = "multiscale",
         lens: str = "auto",
         new_fragment_after_s: Optional[float] = 1.0,
-        rolling_shutter_ms: float = 0.0,
+        rolling_shutter_ms: Optional[float] = None,
     ) -> None:
         """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
-        last; as sldepth track --rolling-shutter-ms), 0 (default) a global shutter, at most the
-        frame interval (33.3 ms at 30 Hz).
+        last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
+        (30 for the Kinect-class presets, 0 for explicit intrinsics) when tracking against the
+        model, 0 frame to frame; 0 a global shutter; at most the frame interval (33.3 ms at
+        30 Hz).
         new_fragment_after_s: seconds of frames that could be aligned but were lost after
         which a new fragment (own volume and world frame) starts; None or inf: never.
         model_scale: fraction of the camera's resolution the model is rendered at for
@@ -363,6 +369,9 @@ class Tracker:
         (default, as sldepth track), "single" or "none"; lens: "auto" (default) undistorts
         every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
         the frames as given."""
+    @property
+    def rolling_shutter_ms(self) -> float:
+        """The rolling-shutter readout the tracker models, milliseconds (0: global shutter)."""
     def track(
         self,
         depth: _Depth,
@@ -428,6 +437,7 @@ def track_sequence(
     prefilter: str = "multiscale",
     lens: str = "auto",
     new_fragment_after_s: Optional[float] = 1.0,
+    rolling_shutter_ms: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the

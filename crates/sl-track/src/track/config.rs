@@ -151,8 +151,11 @@ pub struct TrackerConfig {
     /// sees each row of such a sensor from another pose; with a readout time the alignment
     /// gives each row its own pose on the constant-velocity path from the last good pose to the
     /// frame's, and the frame's pose is the camera's at the middle of the readout. The Kinect
-    /// v1 family reads its IR sensor row by row over most of the frame interval (`sldepth
-    /// track --rolling-shutter-ms`, docs/bench/track.md "Session 19").
+    /// v1 family reads its IR sensor row by row over most of the frame interval
+    /// ([`sl_core::preset::KINECT_READOUT_S`], the presets'
+    /// [`sl_core::SensorPreset::rolling_shutter_readout_s`], which `sldepth track` and Python's
+    /// `Tracker` use by default against the fused model; the default here stays a global
+    /// shutter, as the simulator renders; docs/bench/track.md, sessions 19 and 44).
     pub rolling_shutter_readout_s: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,

@@ -127,17 +127,22 @@ pub struct Args {
     pub prefilter: String,
     #[command(flatten)]
     pub lens: LensArgs,
-    /// The sensor's rolling-shutter readout time, milliseconds (first image row to last): each
-    /// row is aligned from its own pose on the constant-velocity path from the last tracked
-    /// frame, and a pose is the camera's at the middle of the readout. 0 (default): a global
-    /// shutter. At most the frame interval (33.3 ms at 30 Hz). The Kinect v1 family reads its
-    /// IR sensor row by row over most of a frame (about 30 ms, an estimate: not published). On
-    /// TUM fr1/rpy-200 (motion-capture ground truth) 30 lowers the RPE from 6.2 to 4.5 mm and
-    /// 0.64 to 0.60° per frame and the ATE from 2.93 to 2.82 cm; on 7-Scenes, whose reference
-    /// poses come from a global-shutter tracker, it raises the ATE from 0.60 to 0.66 cm. It
-    /// costs about 1–2 ms per frame (docs/bench/track.md, "Session 19" and "Session 20")
-    #[arg(long, value_name = "MS", default_value_t = 0.0)]
-    pub rolling_shutter_ms: f64,
+    /// The sensor's rolling-shutter readout time, milliseconds (first image row to last), or
+    /// `auto` (default): the camera preset's readout when tracking against the fused model (30
+    /// ms, an estimate, for the Kinect v1 / PrimeSense-class presets and the data sets they
+    /// recorded: `--tum`, `--7scenes`; 0 for a camera JSON file, `icl-nuim` and the
+    /// global-shutter active-stereo presets), 0 frame to frame (there it made TUM fr1/rpy-200's
+    /// ATE worse, 3.19 → 3.69 cm). With a readout each row is aligned from its own pose on the
+    /// constant-velocity path from the last tracked frame, frames are fused moved to the middle
+    /// of their readout, and a pose is the camera's at that middle. 0: a global shutter. At most
+    /// the frame interval (33.3 ms at 30 Hz). Frame to model on TUM fr1/rpy-200 (motion
+    /// capture): RPE 5.1 → 4.5 mm and 0.65 → 0.60° per frame, ATE 2.80 → 2.83 cm, and every
+    /// 2nd, 3rd or 4th frame alone (2–4× the motion) tracked with no frame lost (global
+    /// shutter: 1, 9 and 7 lost); on 7-Scenes, whose reference poses come from a
+    /// global-shutter tracker, the ATE against them rises from 0.60 to 0.66 cm. It costs about
+    /// 1–3 ms per frame (docs/bench/track.md, sessions 19, 20 and 44)
+    #[arg(long, value_name = "MS|auto", default_value = "auto")]
+    pub rolling_shutter_ms: String,
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
@@ -165,6 +170,43 @@ pub struct Args {
     pub verbose: bool,
     #[command(flatten)]
     pub input: InputArgs,
+}
+
+/// `--rolling-shutter-ms` in seconds: the number given, or with `auto` the readout of the
+/// camera's preset (`--camera NAME`, else the one the source implies: `implied` for a TUM or
+/// 7-Scenes folder, `kinect-v1` for an Open3D folder without `camera.json`) when tracking
+/// against the model, else 0. Says so on standard error when it models one.
+fn rolling_shutter_readout_s(args: &Args, implied: Option<&str>) -> Result<f64> {
+    let value = args.rolling_shutter_ms.trim();
+    if !value.eq_ignore_ascii_case("auto") {
+        let ms: f64 = value.parse().map_err(|_| {
+            anyhow::anyhow!("--rolling-shutter-ms must be `auto` or milliseconds, got {value:?}")
+        })?;
+        // The range is the tracker's to check (at most the frame interval).
+        return Ok(ms / 1000.0);
+    }
+    if args.frame_to_frame {
+        return Ok(0.0);
+    }
+    let o3d_default = args
+        .o3d
+        .as_ref()
+        .filter(|dir| !dir.join("camera.json").is_file())
+        .map(|_| "kinect-v1");
+    let name = match (&args.input.camera, implied.or(o3d_default)) {
+        (Some(c), _) if c.is_file() => return Ok(0.0),
+        (Some(c), _) => c.to_string_lossy().into_owned(),
+        (None, Some(p)) => p.to_string(),
+        (None, None) => return Ok(0.0),
+    };
+    let readout_s = sl_core::preset::find(&name).map_or(0.0, |p| p.rolling_shutter_readout_s);
+    if readout_s > 0.0 {
+        errln!(
+            "note: modelling the `{name}` rolling shutter ({:.0} ms readout; --rolling-shutter-ms 0 for a global shutter)",
+            readout_s * 1e3
+        );
+    }
+    Ok(readout_s)
 }
 
 /// The frames, the camera and the default depth scale of the chosen source.
@@ -452,7 +494,13 @@ pub fn run(args: Args) -> Result<()> {
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     // After the size check: the map holds one index per pixel.
-    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let implied = if let Some(dir) = &args.tum {
+        Some(crate::common::tum_preset(dir))
+    } else if args.seven_scenes.is_some() {
+        Some("7-scenes")
+    } else {
+        None
+    };
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let prefilter = match args.prefilter.as_str() {
         "multiscale" => Prefilter::Multi(sl_filter::MultiScale::default_for(&camera.sensor)),
@@ -472,7 +520,7 @@ pub fn run(args: Args) -> Result<()> {
     cfg.tracker.weighting = weighting;
     cfg.tracker.plane_fallback = !args.no_plane_fallback;
     cfg.tracker.finest_level = usize::from(args.finest_level);
-    cfg.tracker.rolling_shutter_readout_s = args.rolling_shutter_ms / 1000.0;
+    cfg.tracker.rolling_shutter_readout_s = rolling_shutter_readout_s(&args, implied)?;
     if let Some(isa) = args.isa.as_deref().and_then(sl_core::Isa::from_name) {
         cfg.tracker.isa = isa;
         cfg.tsdf.isa = isa;
@@ -671,6 +719,7 @@ pub fn run(args: Args) -> Result<()> {
             "reference": if args.frame_to_frame { "frame" } else { "model" },
             "prefilter": args.prefilter,
             "undistorted": undistort.is_some(),
+            "rolling_shutter_ms": round_to(cfg.tracker.rolling_shutter_readout_s * 1e3, 3),
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),

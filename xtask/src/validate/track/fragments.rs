@@ -8,10 +8,11 @@
 //! fragment 1's moved by the join — must be within 1 cm / 0.5° of the truth (one frame's pose
 //! noise is well under a millimetre; a wrong relocalisation or join is centimetres off).
 //!
-//! **Reported** (real, TUM fr1/rpy-200 with the lens model and the multi-scale prefilter, as
-//! `sldepth track` runs it): the lens covered over a span of frames (all-zero depth), with and
-//! without fragments: poses in fragment 0's world, fragments, rejoins, and the ATE of the poses
-//! in fragment 0's world against the motion capture.
+//! **Reported** (real, TUM fr1/rpy-200 with the lens model, the multi-scale prefilter and the
+//! preset's rolling-shutter readout, as `sldepth track` runs it): the lens covered over a span
+//! of frames (all-zero depth), with and without fragments: poses in fragment 0's world,
+//! fragments, rejoins, and the ATE of the poses in fragment 0's world against the motion
+//! capture.
 
 use anyhow::Result;
 use sl_core::{Camera, CameraToWorld, DepthImage};
@@ -23,15 +24,22 @@ use super::super::Context;
 const COVERED: [(usize, usize); 3] = [(30, 75), (60, 105), (100, 160)];
 
 /// The poses of a run in fragment 0's world (`None`: lost, or in a fragment never joined to
-/// it), the number of fragments and of rejoins.
-struct Run {
-    poses: Vec<Option<CameraToWorld>>,
-    fragments: usize,
-    joins: usize,
+/// it), the number of lost frames, of fragments and of rejoins.
+pub(super) struct Run {
+    pub(super) poses: Vec<Option<CameraToWorld>>,
+    pub(super) lost: usize,
+    pub(super) fragments: usize,
+    pub(super) joins: usize,
 }
 
-fn run(cam: Camera, cfg: ReconstructionConfig, frames: &[&DepthImage]) -> Result<Run> {
-    let dt = cfg.tracker.frame_interval_s;
+/// Tracks `frames` (timestamps `intervals` frame intervals apart) through `Reconstruction`.
+pub(super) fn run(
+    cam: Camera,
+    cfg: ReconstructionConfig,
+    frames: &[&DepthImage],
+    intervals: u32,
+) -> Result<Run> {
+    let dt = cfg.tracker.frame_interval_s * f64::from(intervals);
     let mut rec = Reconstruction::new(cam, cfg)?;
     let mut steps = Vec::new();
     let mut joins = Vec::new();
@@ -65,6 +73,7 @@ fn run(cam: Camera, cfg: ReconstructionConfig, frames: &[&DepthImage]) -> Result
         .collect();
     Ok(Run {
         poses,
+        lost: steps.iter().filter(|s| !s.0.is_tracked()).count(),
         fragments,
         joins: joins.len(),
     })
@@ -88,7 +97,7 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
     cfg.tsdf.trunc_m = 0.05;
     cfg.new_fragment_after_s = Some(0.1);
     cfg.tracker.plane_fallback = false;
-    let r = run(cam, cfg, &seq)?;
+    let r = run(cam, cfg, &seq, 1)?;
     let (mut worst_m, mut worst_deg, mut posed) = (0.0f64, 0.0f64, 0);
     let first = r.poses.iter().position(Option::is_some);
     if let Some(f0) = first.and_then(|i| r.poses[i].map(|p| (i, p))) {
@@ -137,20 +146,9 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         return Ok(md);
     }
     let cam = tum.camera;
-    let undistort = sl_core::preset::find("tum-fr1")
-        .ok()
-        .and_then(|p| p.lens)
-        .filter(|l| !l.is_zero())
-        .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
-    let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
-    let mut prepared = Vec::new();
-    for (d, _) in &tum.frames {
-        let d = match &undistort {
-            Some(u) => u.apply(d)?,
-            None => d.clone(),
-        };
-        prepared.push(prefilter.apply(&d)?);
-    }
+    let prepared = prepared_tum(&tum)?;
+    // As `sldepth track` tracks it: with the preset's rolling-shutter readout.
+    let readout_s = sl_core::preset::find("tum-fr1")?.rolling_shutter_readout_s;
     let truth: Vec<CameraToWorld> = tum.frames.iter().map(|f| f.1).collect();
     let blank = DepthImage::invalid(cam.intrinsics.width, cam.intrinsics.height);
     md.push_str(
@@ -165,7 +163,8 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         for (label, after) in [("never", None), ("after 1 s (default)", Some(1.0))] {
             let mut cfg = ReconstructionConfig::default_for(cam.sensor);
             cfg.new_fragment_after_s = after;
-            let r = run(cam, cfg, &seq)?;
+            cfg.tracker.rolling_shutter_readout_s = readout_s;
+            let r = run(cam, cfg, &seq, 1)?;
             let posed = r.poses.iter().filter(|p| p.is_some()).count();
             let ate = super::ate_m(&truth, &r.poses);
             md.push_str(&format!(
@@ -184,4 +183,25 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         }
     }
     Ok(md)
+}
+
+/// The frames of a TUM fr1 sequence as `sldepth track` tracks them: resampled with the
+/// `tum-fr1` lens model, then the multi-scale prefilter.
+pub(super) fn prepared_tum(tum: &sl_testkit::PosedSequence) -> Result<Vec<DepthImage>> {
+    let cam = tum.camera;
+    let undistort = sl_core::preset::find("tum-fr1")
+        .ok()
+        .and_then(|p| p.lens)
+        .filter(|l| !l.is_zero())
+        .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
+    let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
+    let mut prepared = Vec::new();
+    for (d, _) in &tum.frames {
+        let d = match &undistort {
+            Some(u) => u.apply(d)?,
+            None => d.clone(),
+        };
+        prepared.push(prefilter.apply(&d)?);
+    }
+    Ok(prepared)
 }
