@@ -439,6 +439,34 @@ fn track_models_the_presets_rolling_shutter_against_the_model() {
         let said = String::from_utf8_lossy(&out.stderr).contains("rolling shutter (30 ms readout");
         assert_eq!(said, want == 30.0, "{extra:?}");
     }
+    // An Open3D folder (`depth/`): the `kinect-v1` default without `camera.json`, none with
+    // one (a camera file says nothing of its shutter).
+    let o3d_readout = |seq: &Path| {
+        let out = sldepth(&[
+            "track",
+            "--o3d",
+            seq.to_str().unwrap(),
+            "--depth-scale",
+            "5000",
+            "--voxel-m",
+            "0.01",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["rolling_shutter_ms"].as_f64()
+    };
+    assert_eq!(o3d_readout(&seq), Some(30.0));
+    std::fs::write(
+        seq.join("camera.json"),
+        r#"{"width": 640, "height": 480, "intrinsic_matrix": [580, 0, 0, 0, 580, 0, 319.5, 239.5, 1]}"#,
+    )
+    .unwrap();
+    assert_eq!(o3d_readout(&seq), Some(0.0));
     let out = sldepth(&[
         "track",
         "--tum",
