@@ -146,7 +146,7 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         return Ok(md);
     }
     let cam = tum.camera;
-    let prepared = prepared_tum(&tum)?;
+    let prepared = prepared(&tum, "tum-fr1")?;
     // As `sldepth track` tracks it: with the preset's rolling-shutter readout.
     let readout_s = sl_core::preset::find("tum-fr1")?.rolling_shutter_readout_s;
     let truth: Vec<CameraToWorld> = tum.frames.iter().map(|f| f.1).collect();
@@ -185,18 +185,18 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
     Ok(md)
 }
 
-/// The frames of a TUM fr1 sequence as `sldepth track` tracks them: resampled with the
-/// `tum-fr1` lens model, then the multi-scale prefilter.
-pub(super) fn prepared_tum(tum: &sl_testkit::PosedSequence) -> Result<Vec<DepthImage>> {
-    let cam = tum.camera;
-    let undistort = sl_core::preset::find("tum-fr1")
+/// The frames of a sequence as `sldepth track` tracks them: resampled with the lens model of
+/// its camera preset `preset` when it has one (`tum-fr1`), then the multi-scale prefilter.
+pub(super) fn prepared(seq: &sl_testkit::PosedSequence, preset: &str) -> Result<Vec<DepthImage>> {
+    let cam = seq.camera;
+    let undistort = sl_core::preset::find(preset)
         .ok()
         .and_then(|p| p.lens)
         .filter(|l| !l.is_zero())
         .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
     let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
     let mut prepared = Vec::new();
-    for (d, _) in &tum.frames {
+    for (d, _) in &seq.frames {
         let d = match &undistort {
             Some(u) => u.apply(d)?,
             None => d.clone(),
