@@ -17,6 +17,15 @@ fn sldepth(args: &[&str]) -> Output {
         .expect("the sldepth binary runs")
 }
 
+/// Runs `sldepth` with `args` (ending in `--json`), which must succeed: its JSON summary and
+/// its standard error.
+fn sldepth_json(args: &[&str]) -> (serde_json::Value, String) {
+    let out = sldepth(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(out.status.success(), "{args:?}: {stderr}");
+    (serde_json::from_slice(&out.stdout).unwrap(), stderr)
+}
+
 /// The pose lines of a TUM trajectory file (comment lines skipped), as numbers.
 fn pose_rows(path: &Path) -> Vec<Vec<f64>> {
     std::fs::read_to_string(path)
@@ -427,37 +436,26 @@ fn track_models_the_presets_rolling_shutter_against_the_model() {
         let mut args = vec!["track", "--tum", seq.to_str().unwrap(), "--voxel-m", "0.01"];
         args.extend_from_slice(extra);
         args.push("--json");
-        let out = sldepth(&args);
-        assert!(
-            out.status.success(),
-            "{extra:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        let (v, stderr) = sldepth_json(&args);
         assert_eq!(v["rolling_shutter_ms"].as_f64(), Some(want), "{extra:?}");
         assert_eq!(v["frames"], 3);
-        let said = String::from_utf8_lossy(&out.stderr).contains("rolling shutter (30 ms readout");
+        let said = stderr.contains("rolling shutter (30 ms readout");
         assert_eq!(said, want == 30.0, "{extra:?}");
     }
     // An Open3D folder (`depth/`): the `kinect-v1` default without `camera.json`, none with
     // one (a camera file says nothing of its shutter).
     let o3d_readout = |seq: &Path| {
-        let out = sldepth(&[
+        let dir = seq.to_str().unwrap();
+        let (v, _) = sldepth_json(&[
             "track",
             "--o3d",
-            seq.to_str().unwrap(),
+            dir,
             "--depth-scale",
             "5000",
             "--voxel-m",
             "0.01",
             "--json",
         ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         v["rolling_shutter_ms"].as_f64()
     };
     assert_eq!(o3d_readout(&seq), Some(30.0));
