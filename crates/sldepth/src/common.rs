@@ -217,6 +217,16 @@ pub struct LensArgs {
     pub lens: String,
 }
 
+/// The name of the camera preset in effect: `--camera NAME`, or `implied_preset` when no
+/// `--camera` is given; `None` for a camera file or when nothing names one.
+pub fn preset_name(input: &InputArgs, implied_preset: Option<&str>) -> Option<String> {
+    match (&input.camera, implied_preset) {
+        (Some(c), _) if c.is_file() => None,
+        (Some(c), _) => Some(c.to_string_lossy().into_owned()),
+        (None, p) => p.map(str::to_string),
+    }
+}
+
 /// The undistortion map for `camera` under `--lens`: `Some` only with `--lens auto` and a camera
 /// that is a preset with a non-zero lens model (`--camera NAME`, or `implied_preset` when no
 /// `--camera` is given, as a TUM folder implies `tum-fr1`). Says so on standard error.
@@ -229,12 +239,7 @@ pub fn undistorter(
     if lens.lens == "none" {
         return None;
     }
-    let name = match (&input.camera, implied_preset) {
-        (Some(c), _) if c.is_file() => return None,
-        (Some(c), _) => c.to_string_lossy().into_owned(),
-        (None, Some(p)) => p.to_string(),
-        (None, None) => return None,
-    };
+    let name = preset_name(input, implied_preset)?;
     let model = sl_core::preset::find(&name)
         .ok()
         .and_then(|p| p.lens)

@@ -173,8 +173,7 @@ pub struct Args {
 }
 
 /// `--rolling-shutter-ms` in seconds: the number given, or with `auto` the readout of the
-/// camera's preset (`--camera NAME`, else the one the source implies: `implied` for a TUM or
-/// 7-Scenes folder, `kinect-v1` for an Open3D folder without `camera.json`) when tracking
+/// camera's preset (`--camera NAME`, else `implied`, the one the source implies) when tracking
 /// against the model, else 0. Says so on standard error when it models one.
 fn rolling_shutter_readout_s(args: &Args, implied: Option<&str>) -> Result<f64> {
     let value = args.rolling_shutter_ms.trim();
@@ -188,16 +187,8 @@ fn rolling_shutter_readout_s(args: &Args, implied: Option<&str>) -> Result<f64> 
     if args.frame_to_frame {
         return Ok(0.0);
     }
-    let o3d_default = args
-        .o3d
-        .as_ref()
-        .filter(|dir| !dir.join("camera.json").is_file())
-        .map(|_| "kinect-v1");
-    let name = match (&args.input.camera, implied.or(o3d_default)) {
-        (Some(c), _) if c.is_file() => return Ok(0.0),
-        (Some(c), _) => c.to_string_lossy().into_owned(),
-        (None, Some(p)) => p.to_string(),
-        (None, None) => return Ok(0.0),
+    let Some(name) = crate::common::preset_name(&args.input, implied) else {
+        return Ok(0.0);
     };
     let readout_s = sl_core::preset::find(&name).map_or(0.0, |p| p.rolling_shutter_readout_s);
     if readout_s > 0.0 {
@@ -494,12 +485,17 @@ pub fn run(args: Args) -> Result<()> {
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     // After the size check: the map holds one index per pixel.
+    // The preset the source implies when no `--camera` is given: a TUM folder's, 7-Scenes', or
+    // the `kinect-v1` default of an Open3D folder without `camera.json`.
     let implied = if let Some(dir) = &args.tum {
         Some(crate::common::tum_preset(dir))
     } else if args.seven_scenes.is_some() {
         Some("7-scenes")
     } else {
-        None
+        args.o3d
+            .as_ref()
+            .filter(|dir| !dir.join("camera.json").is_file())
+            .map(|_| "kinect-v1")
     };
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let prefilter = match args.prefilter.as_str() {
