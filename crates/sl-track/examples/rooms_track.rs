@@ -20,8 +20,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
 use sl_core::nalgebra::Isometry3;
-use sl_core::{Camera, SensorModel};
-use sl_noise::sim::{HandHeldPath, KinectSimulator, NoiseModel, RealisticNoise, room_scene};
+use sl_noise::sim::{HandHeldPath, room_scene};
 use sl_track::{ModelReference, Tracker, TrackerConfig};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -36,7 +35,7 @@ fn main() {
         .iter()
         .position(|a| a == "--camera")
         .and_then(|i| args.get(i + 1))
-        .map(|name| (name.clone(), Camera::preset(name).unwrap()));
+        .cloned();
     let jitter: f64 = args
         .iter()
         .position(|a| a == "--jitter")
@@ -54,20 +53,7 @@ fn main() {
     let (mut all_posed, mut all_bad, mut seeds_bad, mut worst_all) = (0, 0, 0, 0.0f64);
     for seed in first..first + count {
         let room = room_scene(seed).unwrap();
-        let (cam, sim) = match &preset {
-            Some((name, cam)) => (
-                *cam,
-                KinectSimulator::with_sensor(cam.sensor)
-                    .with_noise(NoiseModel::Realistic(RealisticNoise::for_camera(name))),
-            ),
-            None => (
-                Camera {
-                    intrinsics: room.intrinsics,
-                    sensor: SensorModel::kinect_v1(),
-                },
-                KinectSimulator::kinect_v1(),
-            ),
-        };
+        let (cam, sim) = room.camera_and_simulator(preset.as_deref()).unwrap();
         let k = cam.intrinsics;
         let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
         let mut vcfg = TsdfConfig::default();
@@ -86,13 +72,18 @@ fn main() {
         let (mut lost, mut bad, mut worst) = (0, 0, 0.0f64);
         // The last tracked frame: its true and its estimated pose.
         let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
+        let mut fused = 0usize;
         for i in 0..frames {
             let d = sim
                 .simulate(&room.scene, &k, &pose, seed * 1000 + i as u64)
                 .depth;
-            let r = tracker.track(&d, reference.maps()).unwrap();
+            // As `sl_track::Reconstruction` does: against the first frame itself while the
+            // model holds no more than it.
+            let model = if fused > 1 { reference.maps() } else { None };
+            let r = tracker.track(&d, model).unwrap();
             if r.status.is_tracked() {
                 volume.integrate(&d, &k, &r.pose).unwrap();
+                fused += 1;
                 reference
                     .update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)
                     .unwrap();

@@ -269,10 +269,21 @@ impl Live {
         })
     }
 
-    /// Tracks `depth` against the model, or against the last frame before the model's first
-    /// rendering (never rendered when tracking frame to frame).
+    /// Tracks `depth` against the model, or against the last frame while the model holds no
+    /// more than the fragment's first frame (never rendered when tracking frame to frame).
+    ///
+    /// A model of one frame holds that frame's data fused into voxels and rendered at a
+    /// fraction of its resolution; the frame itself holds the same at full fidelity. Against
+    /// the one-frame model the simulated OAK-D room 3012's second frame slid 23.8 mm along its
+    /// weakest direction at a reported σ of 6.6 mm; against the first frame it is 7.7 mm off
+    /// at σ 3.5 mm (docs/bench/track.md, session 45). A rolling-shutter fragment's first frame
+    /// waits for the second anyway (see [`Reconstruction::step`]).
     fn track(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<FrameResult> {
-        let model = self.model.maps();
+        let model = if self.tracked > 1 {
+            self.model.maps()
+        } else {
+            None
+        };
         match timestamp_s {
             Some(t) => self.tracker.track_at(depth, model, t),
             None => self.tracker.track(depth, model),

@@ -13,10 +13,12 @@
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sl_core::{CameraToWorld, Intrinsics};
+use sl_core::{Camera, CameraToWorld, Intrinsics, SensorModel};
 
 use crate::error::Result;
+use crate::sim::kinect::{KinectSimulator, NoiseModel};
 use crate::sim::primitives::{Cuboid, Plane};
+use crate::sim::realistic::RealisticNoise;
 use crate::sim::scene::{Scene, look_at};
 
 /// Number of scenes of the room benchmark (seeds `0..ROOM_BENCHMARK_SEEDS`).
@@ -48,6 +50,36 @@ pub struct RoomScene {
     pub label_names: Vec<(u16, String)>,
     /// Width (x), length (y) and height (z) of the space, metres.
     pub size_m: [f64; 3],
+}
+
+impl RoomScene {
+    /// The camera that sees the scene and the simulator that renders it: the scene's own
+    /// Kinect-class camera ([`RoomScene::intrinsics`], the Kinect v1 sensor model and
+    /// simulator), or with `preset` a camera of `sl_core::preset` (its resolution, focal
+    /// length, baseline, sub-pixel step and noise) through the realistic model for that camera
+    /// ([`RealisticNoise::for_camera`]).
+    ///
+    /// # Errors
+    /// A `preset` that `sl_core::Camera::preset` does not know.
+    pub fn camera_and_simulator(&self, preset: Option<&str>) -> Result<(Camera, KinectSimulator)> {
+        Ok(match preset {
+            Some(name) => {
+                let cam = Camera::preset(name)?;
+                let noise = NoiseModel::Realistic(RealisticNoise::for_camera(name));
+                (
+                    cam,
+                    KinectSimulator::with_sensor(cam.sensor).with_noise(noise),
+                )
+            }
+            None => (
+                Camera {
+                    intrinsics: self.intrinsics,
+                    sensor: SensorModel::kinect_v1(),
+                },
+                KinectSimulator::kinect_v1(),
+            ),
+        })
+    }
 }
 
 /// Builds the benchmark scene of `seed` (every third seed a corridor, the others rooms).
@@ -170,6 +202,23 @@ pub fn room_scene(seed: u64) -> Result<RoomScene> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_room_is_seen_through_its_own_camera_or_a_preset() {
+        let room = room_scene(7).unwrap();
+        let (own, _) = room.camera_and_simulator(None).unwrap();
+        assert_eq!(own.intrinsics, room.intrinsics);
+        assert_eq!(own.sensor, SensorModel::kinect_v1());
+        let (d435, sim) = room.camera_and_simulator(Some("d435")).unwrap();
+        assert_eq!(d435, Camera::preset("d435").unwrap());
+        // The preset's own sensor renders it: its frames have the preset's size.
+        let frame = sim.simulate(&room.scene, &d435.intrinsics, &room.pose, 1);
+        assert_eq!(
+            (frame.depth.width(), frame.depth.height()),
+            (d435.intrinsics.width, d435.intrinsics.height)
+        );
+        assert!(room.camera_and_simulator(Some("no-such-camera")).is_err());
+    }
 
     #[test]
     fn scenes_are_reproducible_and_varied() {

@@ -226,9 +226,9 @@ impl StructureCheck {
     /// instead (ATE 2.94 → 2.85 cm; docs/bench/track.md, session 39). Not with the
     /// rolling-shutter model either ([`TrackerConfig::rolling_shutter_readout_s`]): the offsets
     /// are measured at the frame's one pose while its rows are aligned each from its own, so
-    /// they hold the readout's skew (with the rule, the simulated rolling-shutter sequence of
-    /// `a_rolling_shutter_is_modelled_row_by_row` was recovered within 2.32 mm instead of
-    /// 1.51 mm).
+    /// they hold the readout's skew (with the rule, the simulated constant-velocity
+    /// rolling-shutter sequence that `a_rolling_shutter_is_modelled_row_by_row` used until
+    /// session 45 was recovered within 2.32 mm instead of 1.51 mm).
     pub(crate) fn weakest_sigma_m(
         &self,
         level: &Level,

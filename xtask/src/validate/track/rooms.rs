@@ -13,9 +13,9 @@
 //! are 2–6 mm off). Until session 38 the first step after the anchor of room 3004 was, by 51 mm.
 
 use anyhow::Result;
+use sl_core::Camera;
 use sl_core::nalgebra::Isometry3;
-use sl_core::{Camera, SensorModel};
-use sl_noise::sim::{HandHeldPath, KinectSimulator, NoiseModel, RealisticNoise, room_scene};
+use sl_noise::sim::{HandHeldPath, room_scene};
 use sl_track::{ModelReference, Tracker, TrackerConfig};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
@@ -55,23 +55,7 @@ fn track_scene(
     ratios: &mut Vec<f64>,
 ) -> Result<Outcome> {
     let room = room_scene(seed)?;
-    let (cam, sim) = match camera {
-        Some(name) => {
-            let cam = Camera::preset(name)?;
-            let noise = NoiseModel::Realistic(RealisticNoise::for_camera(name));
-            (
-                cam,
-                KinectSimulator::with_sensor(cam.sensor).with_noise(noise),
-            )
-        }
-        None => (
-            Camera {
-                intrinsics: room.intrinsics,
-                sensor: SensorModel::kinect_v1(),
-            },
-            KinectSimulator::kinect_v1(),
-        ),
-    };
+    let (cam, sim) = room.camera_and_simulator(camera)?;
     let k = cam.intrinsics;
     let mut tracker = Tracker::new(cam, TrackerConfig::default())?;
     let mut vcfg = TsdfConfig::default();
@@ -95,13 +79,18 @@ fn track_scene(
         bad: 0,
         worst_m: 0.0,
     };
+    let mut fused = 0usize;
     for i in 0..FRAMES {
         let d = sim
             .simulate(&room.scene, &k, &pose, seed * 1000 + i as u64)
             .depth;
-        let r = tracker.track(&d, reference.maps())?;
+        // As `sl_track::Reconstruction` does: against the first frame itself while the
+        // model holds no more than it.
+        let model = if fused > 1 { reference.maps() } else { None };
+        let r = tracker.track(&d, model)?;
         if r.status.is_tracked() {
             volume.integrate(&d, &k, &r.pose)?;
+            fused += 1;
             reference.update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)?;
             if let Some((t, e)) = last {
                 let truth = t.inverse() * pose.isometry();
