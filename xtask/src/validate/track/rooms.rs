@@ -117,6 +117,43 @@ fn track_scene(
     Ok(out)
 }
 
+/// Frames with a pose, bad steps and the worst step over several scenes.
+#[derive(Default)]
+struct Totals {
+    posed: usize,
+    bad: usize,
+    worst_m: f64,
+}
+
+impl Totals {
+    fn add(&mut self, o: &Outcome) {
+        self.posed += FRAMES - o.lost;
+        self.bad += o.bad;
+        self.worst_m = self.worst_m.max(o.worst_m);
+    }
+
+    /// Tracks every scene of `seeds` (as [`track_scene`]) and adds it up.
+    fn of_scenes(
+        seeds: &[u64],
+        shake: f64,
+        camera: Option<&str>,
+        ratios: &mut Vec<f64>,
+    ) -> Result<Self> {
+        let mut t = Self::default();
+        for &seed in seeds {
+            t.add(&track_scene(seed, shake, camera, ratios)?);
+        }
+        Ok(t)
+    }
+}
+
+/// The median of the steps' `|e|/σ` and how many exceed 3 (sorts `ratios`).
+fn sigma_summary(ratios: &mut [f64]) -> (f64, usize) {
+    ratios.sort_by(f64::total_cmp);
+    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
+    (median, ratios.iter().filter(|&&r| r > 3.0).count())
+}
+
 /// Runs the scenes, adds the check and returns the report's markdown.
 pub(super) fn run(ctx: &mut Context) -> Result<String> {
     let seeds: Vec<u64> = if ctx.quick() {
@@ -126,7 +163,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
     };
     let mut ratios = Vec::new();
     let mut rows = String::new();
-    let (mut posed, mut bad, mut worst) = (0, 0, 0.0f64);
+    let mut steady = Totals::default();
     for &seed in &seeds {
         let o = track_scene(seed, 0.0, None, &mut ratios)?;
         rows.push_str(&format!(
@@ -137,19 +174,20 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
             o.bad,
             o.worst_m * 1e3
         ));
-        posed += FRAMES - o.lost;
-        bad += o.bad;
-        worst = worst.max(o.worst_m);
+        steady.add(&o);
     }
+    let Totals {
+        posed,
+        bad,
+        worst_m: worst,
+    } = steady;
     // The same rooms, the camera shaken (session 39: 5 bad steps; session 40: 2; session 41:
     // 0, and checked since).
-    let (mut shaken_posed, mut shaken_bad, mut shaken_worst) = (0, 0, 0.0f64);
-    for &seed in &seeds {
-        let o = track_scene(seed, SHAKE, None, &mut Vec::new())?;
-        shaken_posed += FRAMES - o.lost;
-        shaken_bad += o.bad;
-        shaken_worst = shaken_worst.max(o.worst_m);
-    }
+    let Totals {
+        posed: shaken_posed,
+        bad: shaken_bad,
+        worst_m: shaken_worst,
+    } = Totals::of_scenes(&seeds, SHAKE, None, &mut Vec::new())?;
     ctx.row(
         "track-rooms-shaken",
         "frames-with-pose",
@@ -167,37 +205,26 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
     let mut camera_rows = String::new();
     for name in OTHER_CAMERAS {
         let mut cam_ratios = Vec::new();
-        let (mut c_posed, mut c_bad, mut c_worst) = (0, 0, 0.0f64);
-        for &seed in &seeds {
-            let o = track_scene(seed, 0.0, Some(name), &mut cam_ratios)?;
-            c_posed += FRAMES - o.lost;
-            c_bad += o.bad;
-            c_worst = c_worst.max(o.worst_m);
-        }
-        cam_ratios.sort_by(f64::total_cmp);
-        let c_median = cam_ratios
-            .get(cam_ratios.len() / 2)
-            .copied()
-            .unwrap_or(f64::NAN);
-        let c_beyond3 = cam_ratios.iter().filter(|&&r| r > 3.0).count();
+        let t = Totals::of_scenes(&seeds, 0.0, Some(name), &mut cam_ratios)?;
+        let (c_median, c_beyond3) = sigma_summary(&mut cam_ratios);
         let k = Camera::preset(name)?.intrinsics;
         camera_rows.push_str(&format!(
-            "| {name} | {}×{} | {:.0} | {c_posed} of {} | {c_bad} | {:.1} | {c_median:.2} | {c_beyond3} |\n",
+            "| {name} | {}×{} | {:.0} | {} of {} | {} | {:.1} | {c_median:.2} | {c_beyond3} |\n",
             k.width,
             k.height,
             k.fx,
+            t.posed,
             seeds.len() * FRAMES,
-            c_worst * 1e3
+            t.bad,
+            t.worst_m * 1e3
         ));
         let group = format!("track-rooms-{name}");
-        ctx.row(&group, "frames-with-pose", c_posed as f64, "frames");
-        ctx.row(&group, "bad-steps", c_bad as f64, "steps");
-        ctx.row(&group, "worst-step", c_worst * 1e3, "mm");
+        ctx.row(&group, "frames-with-pose", t.posed as f64, "frames");
+        ctx.row(&group, "bad-steps", t.bad as f64, "steps");
+        ctx.row(&group, "worst-step", t.worst_m * 1e3, "mm");
         ctx.row(&group, "median-error-over-sigma", c_median, "");
     }
-    ratios.sort_by(f64::total_cmp);
-    let median = ratios.get(ratios.len() / 2).copied().unwrap_or(f64::NAN);
-    let beyond3 = ratios.iter().filter(|&&r| r > 3.0).count();
+    let (median, beyond3) = sigma_summary(&mut ratios);
     ctx.row("track-rooms", "frames-with-pose", posed as f64, "frames");
     ctx.row("track-rooms", "bad-steps", bad as f64, "steps");
     ctx.row("track-rooms", "worst-step", worst * 1e3, "mm");
