@@ -63,6 +63,10 @@ pub struct SegCompDetail {
     /// (`O ≥ T·|m|` and `O ≥ T·|g|`): `(label, valid pixels)`, by label. They are noise for the
     /// counts (that ground truth is not scored) but match a surface, so they are not spurious.
     pub small_surface_regions: Vec<(u16, usize)>,
+    /// The noise regions that lie on one scored ground-truth region (`O ≥ T·|m|`) but cover
+    /// too little of it (`O < T·|g|`) to detect it: pieces of one surface, not regions that
+    /// span several. `(label, valid pixels)`, by label.
+    pub partial_surface_regions: Vec<(u16, usize)>,
 }
 
 impl SegCompDetail {
@@ -73,6 +77,20 @@ impl SegCompDetail {
             .iter()
             .filter(|(m, n)| {
                 *n >= min_pixels && !self.small_surface_regions.iter().any(|(s, _)| s == m)
+            })
+            .count()
+    }
+
+    /// The spurious planes of [`SegCompDetail::spurious`] that are partial detections (see
+    /// [`SegCompDetail::partial_surface_regions`]): a piece of one surface rather than a region
+    /// spanning several. They stay spurious; this says what kind they are.
+    pub fn spurious_partial(&self, min_pixels: usize) -> usize {
+        self.noise_regions
+            .iter()
+            .filter(|(m, n)| {
+                *n >= min_pixels
+                    && !self.small_surface_regions.iter().any(|(s, _)| s == m)
+                    && self.partial_surface_regions.iter().any(|(p, _)| p == m)
             })
             .count()
     }
@@ -214,6 +232,11 @@ pub fn segcomp_detail(
             })
         })
         .collect();
+    let partial_surface_regions: Vec<(u16, usize)> = noise_regions
+        .iter()
+        .copied()
+        .filter(|&(m, mn)| gkeys.iter().any(|&g| o(m, g) >= t * mn as f64))
+        .collect();
     score.missed = missed_regions.len();
     score.noise = noise_regions.len();
     Ok(SegCompDetail {
@@ -221,6 +244,7 @@ pub fn segcomp_detail(
         noise_regions,
         missed_regions,
         small_surface_regions,
+        partial_surface_regions,
     })
 }
 
@@ -291,6 +315,10 @@ mod tests {
         assert_eq!(d.noise_regions, vec![(2, 15), (9, 50)]);
         assert_eq!(d.missed_regions, vec![(2, 50)]);
         assert_eq!((d.spurious(16), d.spurious(15)), (1, 2));
+        // Region 2 lies on ground-truth region 2 but covers 30 % of it: a partial detection;
+        // region 9 lies on no scored surface.
+        assert_eq!(d.partial_surface_regions, vec![(2, 15)]);
+        assert_eq!((d.spurious_partial(15), d.spurious_partial(16)), (1, 0));
         // The valid mask removes pixels from both images.
         let valid: Vec<bool> = (0..200).map(|i| (i % 20) < 10 || (i / 20) < 3).collect();
         let s = segcomp(&gt3, &partial, Some(&valid), 0.8, 1).unwrap();
@@ -321,5 +349,8 @@ mod tests {
         );
         assert!(d.small_surface_regions.is_empty());
         assert_eq!(d.spurious(10), 1);
+        // Half of it on each surface: not a piece of one.
+        assert!(d.partial_surface_regions.is_empty());
+        assert_eq!(d.spurious_partial(10), 0);
     }
 }
