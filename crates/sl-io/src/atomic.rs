@@ -120,8 +120,36 @@ pub fn check_output(path: &Path) -> Result<()> {
                 message: format!("exists and is {what}; only regular files are replaced"),
             })
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) =>
+        {
+            check_parent_dir(path)
+        }
         Err(e) => Err(IoError::io(path, e)),
+    }
+}
+
+/// A new output's directory must exist (nothing creates it): said before any work, not when
+/// the output is written at the end.
+fn check_parent_dir(path: &Path) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => return Ok(()),
+    };
+    match fs::metadata(dir) {
+        Ok(meta) if meta.is_dir() => Ok(()),
+        Ok(_) => Err(IoError::UnsafeOutput {
+            path: path.to_path_buf(),
+            message: format!("{} is not a directory", dir.display()),
+        }),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Err(IoError::UnsafeOutput {
+            path: path.to_path_buf(),
+            message: format!("the directory {} does not exist", dir.display()),
+        }),
+        Err(e) => Err(IoError::io(dir, e)),
     }
 }
 
@@ -420,5 +448,22 @@ mod tests {
         let p = dir.path().join("no/such/dir/c.bin");
         let err = write_atomic(&p, |w| w.write_all(b"x")).unwrap_err();
         assert_eq!(err.path(), p.as_path());
+    }
+
+    #[test]
+    fn a_new_output_in_a_missing_directory_is_refused_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        check_output(&dir.path().join("new.bin")).unwrap();
+        let missing = dir.path().join("no/such/dir/c.bin");
+        let err = check_output(&missing).unwrap_err();
+        assert_eq!(err.path(), missing.as_path());
+        assert!(err.to_string().contains("does not exist"), "{err}");
+        let file = dir.path().join("f");
+        fs::write(&file, b"x").unwrap();
+        let under_file = file.join("c.bin");
+        let err = check_output(&under_file).unwrap_err();
+        assert!(err.to_string().contains("is not a directory"), "{err}");
+        // A bare file name is in the working directory.
+        check_output(Path::new("bare-name-that-does-not-exist.bin")).unwrap();
     }
 }

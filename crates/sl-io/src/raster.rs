@@ -66,7 +66,14 @@ pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> 
             DynamicImage::from_decoder(dec)
         }
         Container::Tiff => {
-            let mut dec = TiffDecoder::new(reader).map_err(|e| image_error(path, e))?;
+            // A TIFF of another sample format (32-bit float or integer depth) fails here, in
+            // the decoder's words; say what is expected.
+            let mut dec = TiffDecoder::new(reader).map_err(|e| match e {
+                image::ImageError::Unsupported(u) => {
+                    unsupported_l16(path, format!("a TIFF this reader cannot decode ({u})"))
+                }
+                other => image_error(path, other),
+            })?;
             dec.set_limits(limits.image_limits())
                 .map_err(|e| image_error(path, e))?;
             check_dimensions(path, &dec, limits)?;

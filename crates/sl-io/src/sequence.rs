@@ -64,7 +64,11 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
             return Err(IoError::parse(
                 &path,
                 i + 1,
-                format!("timestamp {t} does not follow {prev}: frames out of order"),
+                if t == prev {
+                    format!("timestamp {t} repeats the previous frame's: two frames at one time")
+                } else {
+                    format!("timestamp {t} does not follow {prev}: frames out of order")
+                },
             ));
         }
         out.push(SequenceFrame {

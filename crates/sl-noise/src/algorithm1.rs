@@ -120,6 +120,7 @@ pub fn algorithm1_with(p: &Algorithm1Params) -> Result<Algorithm1> {
     z.dedup();
     if z.len() < 3 {
         return Err(NoiseError::TooFewDepths {
+            within: "",
             found: z.len(),
             needed: 3,
         });
@@ -127,6 +128,7 @@ pub fn algorithm1_with(p: &Algorithm1Params) -> Result<Algorithm1> {
     let ln_z: Vec<f64> = z[..z.len() - 1].iter().map(|v| v.ln()).collect();
     let ln_dz: Vec<f64> = z.windows(2).map(|w| (w[1] - w[0]).ln()).collect();
     let (slope_ols, intercept_ols) = ols_slope(&ln_z, &ln_dz).ok_or(NoiseError::TooFewDepths {
+        within: "",
         found: z.len(),
         needed: 3,
     })?;

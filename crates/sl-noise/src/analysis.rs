@@ -229,6 +229,7 @@ pub fn analyze_depths(
     keys.dedup();
     if keys.len() < MIN_UNIQUE_DEPTHS {
         return Err(NoiseError::TooFewDepths {
+            within: "",
             found: keys.len(),
             needed: MIN_UNIQUE_DEPTHS,
         });
@@ -240,6 +241,7 @@ pub fn analyze_depths(
         .map(|w| ((w[1] - w[0]) * 1000.0).ln())
         .collect();
     let too_few = NoiseError::TooFewDepths {
+        within: "",
         found: z.len(),
         needed: MIN_UNIQUE_DEPTHS,
     };
@@ -416,6 +418,7 @@ pub struct QuantumFit {
 pub fn fit_quantum(z: &[f64], step_m: f64) -> Result<QuantumFit> {
     let n = z.len();
     let too_few = |found| NoiseError::TooFewDepths {
+        within: "",
         found,
         needed: MIN_FAR_PAIRS + 1,
     };
@@ -438,7 +441,11 @@ pub fn fit_quantum(z: &[f64], step_m: f64) -> Result<QuantumFit> {
     let (mut z_far, mut k0) = far_start(c);
     let mut ratios: Vec<f64> = (k0..n.saturating_sub(1)).map(ratio).collect();
     if ratios.len() < MIN_FAR_PAIRS {
-        return Err(too_few(ratios.len() + 1));
+        return Err(NoiseError::TooFewDepths {
+            within: " in the far range (where one depth step is the disparity quantum's)",
+            found: ratios.len() + 1,
+            needed: MIN_FAR_PAIRS + 1,
+        });
     }
     let mut c_median = median(&mut ratios).ok_or(too_few(n))?;
     c = c_median;

@@ -7,8 +7,10 @@ use sl_core::CoreError;
 #[non_exhaustive]
 pub enum NoiseError {
     /// A depth map with too few distinct depth values for a resolution analysis.
-    #[error("too few distinct depths: found {found}, need at least {needed}")]
+    #[error("too few distinct depths{within}: found {found}, need at least {needed}")]
     TooFewDepths {
+        /// Where they were counted: empty for the whole frame, else e.g. " in the far range".
+        within: &'static str,
         /// Distinct depth values found.
         found: usize,
         /// Distinct depth values needed.

@@ -30,6 +30,12 @@ use crate::error::{NoiseError, Result};
 /// Fewest residuals (or residual pairs) of a tile that enter the medians.
 pub const MIN_TILE_RESIDUALS: usize = 256;
 
+/// Smallest RMS residual of a tile whose autocorrelation is measured, pixels of disparity: far
+/// below any sensor's noise (σ_D ≈ 0.07 px), above the rounding of `f32` disparities (about
+/// 2·10⁻⁶ px at 20 px). A noise-free surface (a rendered or synthetic frame) has no noise to
+/// correlate: its tiles would report the correlation of float rounding (0.97–1.00).
+pub const MIN_CORRELATED_RMS_PX: f64 = 1e-4;
+
 /// Lags of the residual autocorrelation, pixels.
 pub const DEFAULT_LAGS: [usize; 5] = [1, 2, 4, 8, 16];
 
@@ -522,7 +528,8 @@ pub fn noise_stats(
         let mut cs = Vec::new();
         let mut pairs = 0;
         for (t, &n) in acc.iter().zip(&cnt) {
-            if n >= MIN_TILE_RESIDUALS && t[1] > 0.0 && t[2] > 0.0 {
+            let floor = n as f64 * MIN_CORRELATED_RMS_PX * MIN_CORRELATED_RMS_PX;
+            if n >= MIN_TILE_RESIDUALS && t[1] > floor && t[2] > floor {
                 cs.push(t[0] / (t[1] * t[2]).sqrt());
                 pairs += n;
             }
@@ -742,6 +749,27 @@ mod tests {
         // Every pixel differs from its neighbours: all terraces are 1 px wide.
         assert_eq!(s.terraces.widths.median_px, 1.0);
         assert_eq!(s.terraces.fractions[0], 1.0);
+    }
+
+    /// A noise-free plane has no noise to correlate: no autocorrelation (NaN), where the float
+    /// rounding of its residual used to report 0.97–1.00.
+    #[test]
+    fn a_noise_free_plane_has_no_autocorrelation() {
+        let (w, h, fb) = (128, 128, 43.5);
+        // A tilted plane: its residual is the rounding of `f32` depths, not zero.
+        let data = (0..w * h)
+            .map(|i| (fb / (20.0 + 0.01 * (i % w) as f64 + 0.003 * (i / w) as f64)) as f32)
+            .collect();
+        let depth = DepthImage::from_vec(w, h, data).unwrap();
+        let labels = Image::filled(w, h, 1u16);
+        let s = noise_stats(&depth, fb, &labels, &NoiseStatsConfig::default()).unwrap();
+        assert!(
+            s.sigma_d_px > 0.0 && s.sigma_d_px < 1e-4,
+            "{}",
+            s.sigma_d_px
+        );
+        let (x1, y1) = s.acf_at(1).unwrap();
+        assert!(x1.is_nan() && y1.is_nan(), "{x1} {y1}");
     }
 
     #[test]

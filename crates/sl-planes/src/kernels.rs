@@ -516,28 +516,68 @@ pub(crate) fn depth_to_disparity_row(z: &[f32], d: &mut [f32], fb: f32) {
     }
 }
 
-/// The 2×2 block means of two disparity rows (NaN where any of the four is invalid, i.e. not
-/// positive), by blocks of 256 columns through stack scratch rows (which stay in L1).
+/// The 2×2 block means of two disparity rows, by blocks of 256 columns through stack scratch
+/// rows (which stay in L1): into `strict`, NaN where any of the four is invalid (not
+/// positive); into `partial`, the same, except that a block with invalid pixels takes the mean
+/// of a diagonal whose two pixels are valid ([`block_mean_or_diagonal`]).
 #[inline]
-pub(crate) fn downsample_rows(r0: &[f32], r1: &[f32], out: &mut [f32]) {
+pub(crate) fn downsample_rows(r0: &[f32], r1: &[f32], strict: &mut [f32], partial: &mut [f32]) {
     const B: usize = 256;
     let (mut sum, mut min) = ([0f32; B], [0f32; B]);
-    for ((b0, b1), ob) in r0.chunks(B).zip(r1.chunks(B)).zip(out.chunks_mut(B / 2)) {
+    for ((b0, b1), (ob, pb)) in r0
+        .chunks(B)
+        .zip(r1.chunks(B))
+        .zip(strict.chunks_mut(B / 2).zip(partial.chunks_mut(B / 2)))
+    {
         let n = b0.len().min(b1.len());
         let (sum, min) = (&mut sum[..n], &mut min[..n]);
         for (((s, m), &a), &b) in sum.iter_mut().zip(min.iter_mut()).zip(b0).zip(b1) {
             *s = a + b;
             *m = if a < b { a } else { b };
         }
-        for ((o, sp), mp) in ob
+        for (i, (((o, po), sp), mp)) in ob
             .iter_mut()
+            .zip(pb.iter_mut())
             .zip(sum.chunks_exact(2))
             .zip(min.chunks_exact(2))
+            .enumerate()
         {
             let mm = if mp[0] < mp[1] { mp[0] } else { mp[1] };
             let v = 0.25 * (sp[0] + sp[1]);
-            *o = if mm > 0.0 { v } else { f32::NAN };
+            if mm > 0.0 {
+                *o = v;
+                *po = v;
+            } else {
+                *o = f32::NAN;
+                let x = 2 * i;
+                *po = block_mean_or_diagonal([b0[x], b0[x + 1], b1[x], b1[x + 1]], |v| v > 0.0);
+            }
         }
+    }
+}
+
+/// The value of a 2×2 block `[top-left, top-right, bottom-left, bottom-right]` at its centre:
+/// the mean of the four when all are `valid`, else the mean of a diagonal whose two values are
+/// (`top-left` + `bottom-right`, then `top-right` + `bottom-left`), else NaN.
+///
+/// A diagonal's midpoint is the block's centre, so for an affine function (the disparity of a
+/// plane) the diagonal's mean is exactly the block's mean: scattered invalid pixels (a
+/// stereo camera's dropped matches, a depth map aligned to a larger colour image) then cost a
+/// block only when both diagonals lose a pixel, instead of whenever one pixel of the four is
+/// missing: with 5 % of the pixels missing at random, 1 % of the blocks and 4 % of the
+/// 4×4-pixel cells (four blocks) are lost instead of 19 % and 56 %.
+#[inline]
+pub(crate) fn block_mean_or_diagonal(v: [f32; 4], valid: impl Fn(f32) -> bool) -> f32 {
+    let [tl, tr, bl, br] = v;
+    let (a, b, c, d) = (valid(tl), valid(tr), valid(bl), valid(br));
+    if a && b && c && d {
+        0.25 * ((tl + bl) + (tr + br))
+    } else if a && d {
+        0.5 * (tl + br)
+    } else if b && c {
+        0.5 * (tr + bl)
+    } else {
+        f32::NAN
     }
 }
 
@@ -701,14 +741,65 @@ mod tests {
         let mut d = [9.0f32; 6];
         depth_to_disparity_row(&z, &mut d, 40.0);
         assert_eq!(d, [40.0, 0.0, 0.0, 0.0, 0.0, 20.0]);
-        let mut h = [0f32; 3];
+        let (mut h, mut p) = ([0f32; 3], [0f32; 3]);
         downsample_rows(
             &[1.0, 2.0, 3.0, 0.0, 5.0, 5.0],
             &[3.0, 2.0, 1.0, 1.0, 5.0, 5.0],
             &mut h,
+            &mut p,
         );
-        assert_eq!(h[0], 2.0);
+        assert_eq!((h[0], p[0]), (2.0, 2.0));
+        // One pixel of the block missing: strict NaN; partial the other diagonal (3 and 1),
+        // exact for a plane.
         assert!(h[1].is_nan());
-        assert_eq!(h[2], 5.0);
+        assert_eq!(p[1], 2.0);
+        assert_eq!((h[2], p[2]), (5.0, 5.0));
+        // Both diagonals broken: invalid in both.
+        downsample_rows(&[1.0, 0.0], &[1.0, 0.0], &mut h[..1], &mut p[..1]);
+        assert!(h[0].is_nan() && p[0].is_nan());
+        downsample_rows(&[0.0, 0.0], &[1.0, 1.0], &mut h[..1], &mut p[..1]);
+        assert!(h[0].is_nan() && p[0].is_nan());
+        // One diagonal complete: its mean.
+        downsample_rows(&[1.0, 0.0], &[0.0, 3.0], &mut h[..1], &mut p[..1]);
+        assert!(h[0].is_nan());
+        assert_eq!(p[0], 2.0);
+    }
+
+    /// A block with one or two missing pixels on one diagonal takes the other diagonal's mean:
+    /// for an affine function the value at the block's centre, as the mean of all four.
+    #[test]
+    fn a_block_with_a_diagonal_left_has_the_planes_value_at_its_centre() {
+        let f = |x: f32, y: f32| 20.0 + 0.3 * x - 0.7 * y;
+        let (x0, y0) = (10.0f32, 4.0f32);
+        let v = [
+            f(x0, y0),
+            f(x0 + 1.0, y0),
+            f(x0, y0 + 1.0),
+            f(x0 + 1.0, y0 + 1.0),
+        ];
+        let centre = f(x0 + 0.5, y0 + 0.5);
+        let full = block_mean_or_diagonal(v, |x| x > 0.0);
+        assert!((full - centre).abs() < 1e-5);
+        for missing in [[0usize].as_slice(), &[1], &[2], &[3], &[0, 3], &[1, 2]] {
+            let mut w = v;
+            for &m in missing {
+                w[m] = 0.0;
+            }
+            let got = block_mean_or_diagonal(w, |x| x > 0.0);
+            assert!(
+                (got - centre).abs() < 1e-5,
+                "{missing:?}: {got} vs {centre}"
+            );
+        }
+        for missing in [[0usize, 1], [0, 2], [1, 3], [2, 3]] {
+            let mut w = v;
+            for m in missing {
+                w[m] = 0.0;
+            }
+            assert!(
+                block_mean_or_diagonal(w, |x| x > 0.0).is_nan(),
+                "{missing:?}"
+            );
+        }
     }
 }

@@ -343,8 +343,12 @@ impl PyTracker {
                 })?;
             return PyMesh::from_mesh(py, mesh.clone());
         }
-        let volume = self.rec.volume();
-        let mesh = compute(py, || volume.extract_mesh(&MeshConfig::default()));
+        let rec = &self.rec;
+        let mesh = compute(py, || {
+            rec.volume_with_waiting_frame()
+                .map(|v| v.extract_mesh(&MeshConfig::default()))
+        })
+        .map_err(value_error)?;
         PyMesh::from_mesh(py, mesh)
     }
 }

@@ -437,6 +437,20 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_a_tracker_of_one_frame_meshes_that_frame(kinect):
+    # With the Kinect preset's rolling-shutter readout the first frame waits for the second
+    # frame's motion before it is fused; a mesh taken after one frame still holds it (it was
+    # empty), and the same as a global shutter's.
+    depth = sldepth.simulate("boxes", seed=3)[0]
+    one = sldepth.Tracker(kinect)
+    assert one.rolling_shutter_ms > 0
+    one.track(depth)
+    glob = sldepth.Tracker(kinect, rolling_shutter_ms=0)
+    glob.track(depth)
+    assert len(one.extract_mesh()) > 1000
+    assert len(one.extract_mesh()) == len(glob.extract_mesh())
+
+
 def test_track_in_map_anchors_at_the_start_and_fuses_nothing(kinect):
     # A map of the boxes fused from one noisy frame at a pose P; other noisy frames of the same
     # view tracked in it from P stay at P (the map pins every direction), and the map is

@@ -35,7 +35,7 @@
 
 use std::time::Instant;
 
-use sl_core::{Camera, DepthImage, SensorModel, WorldToWorld};
+use sl_core::{Camera, DepthImage, Intrinsics, SensorModel, WorldToWorld};
 use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
 
 use crate::error::{Result, TrackError};
@@ -290,13 +290,27 @@ impl Live {
         }
     }
 
-    fn into_fragment(self, joined: Option<FragmentJoin>) -> Fragment {
-        Fragment {
+    /// The fragment as it ends. A rolling-shutter fragment's first frame still waiting for the
+    /// camera's motion (the fragment ended before a second frame was tracked) is fused as it
+    /// was measured: its motion is unknown, and a frame left out would leave the fragment
+    /// empty.
+    ///
+    /// # Errors
+    /// A volume over its memory budget.
+    fn into_fragment(
+        mut self,
+        joined: Option<FragmentJoin>,
+        intrinsics: &Intrinsics,
+    ) -> Result<Fragment> {
+        if let Some((first, pose)) = self.first_frame.take() {
+            self.volume.integrate(&first, intrinsics, &pose)?;
+        }
+        Ok(Fragment {
             index: self.index,
             volume: self.volume,
             tracked_frames: self.tracked,
             joined,
-        }
+        })
     }
 }
 
@@ -361,7 +375,7 @@ impl Reconstruction {
                 });
                 if let Some(old) = self.suspended.take() {
                     let ended = std::mem::replace(&mut self.current, old);
-                    finished = Some(ended.into_fragment(joined));
+                    finished = Some(ended.into_fragment(joined, &self.camera.intrinsics)?);
                 }
                 result = back;
             }
@@ -383,7 +397,11 @@ impl Reconstruction {
                 let ended = std::mem::replace(&mut self.current, fresh);
                 // The fragment that stayed lost may still be rejoined; the one suspended before
                 // it no longer (one suspended fragment at a time bounds memory and time).
-                finished = self.suspended.replace(ended).map(|f| f.into_fragment(None));
+                finished = self
+                    .suspended
+                    .replace(ended)
+                    .map(|f| f.into_fragment(None, &self.camera.intrinsics))
+                    .transpose()?;
                 result = self.current.track(depth, timestamp_s)?;
             }
         }
@@ -462,6 +480,26 @@ impl Reconstruction {
         &self.current.volume
     }
 
+    /// The current fragment's volume with every tracked frame in it: [`Reconstruction::volume`]
+    /// while no frame waits, else a copy with the fragment's first frame fused as it was
+    /// measured (a rolling-shutter fragment's first frame waits for the second frame's motion,
+    /// so a fragment of one tracked frame would mesh empty). For meshing the current fragment
+    /// mid-sequence.
+    ///
+    /// # Errors
+    /// A volume over its memory budget.
+    pub fn volume_with_waiting_frame(&self) -> Result<std::borrow::Cow<'_, TsdfVolume>> {
+        let live = &self.current;
+        match &live.first_frame {
+            None => Ok(std::borrow::Cow::Borrowed(&live.volume)),
+            Some((first, pose)) => {
+                let mut volume = live.volume.clone();
+                volume.integrate(first, &self.camera.intrinsics, pose)?;
+                Ok(std::borrow::Cow::Owned(volume))
+            }
+        }
+    }
+
     /// The current fragment's tracker.
     pub fn tracker(&self) -> &Tracker {
         &self.current.tracker
@@ -483,16 +521,22 @@ impl Reconstruction {
     }
 
     /// Ends the reconstruction and hands over the fragments not yet handed over (the current
-    /// one and a suspended one), in order of their index.
-    pub fn finish(self) -> Vec<Fragment> {
-        let mut out: Vec<Fragment> = self
+    /// one and a suspended one), in order of their index. A fragment that ended with a single
+    /// tracked frame holds that frame.
+    ///
+    /// # Errors
+    /// A volume over its memory budget ([`TsdfConfig::memory_budget_bytes`]) while the last
+    /// waiting frame is fused.
+    pub fn finish(self) -> Result<Vec<Fragment>> {
+        let k = self.camera.intrinsics;
+        let mut out = self
             .suspended
             .into_iter()
-            .map(|f| f.into_fragment(None))
-            .collect();
-        out.push(self.current.into_fragment(None));
+            .map(|f| f.into_fragment(None, &k))
+            .collect::<Result<Vec<Fragment>>>()?;
+        out.push(self.current.into_fragment(None, &k)?);
         out.sort_by_key(|f| f.index);
-        out
+        Ok(out)
     }
 }
 

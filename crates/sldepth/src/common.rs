@@ -365,11 +365,62 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
             k.height
         );
     };
+    if args.depth_scale.is_none() && loaded.encoding.format != DepthFormat::NyuRaw {
+        note_depth_out_of_range(path, &loaded.depth, args);
+    }
     Ok(Loaded {
         depth: loaded.depth,
         camera,
         encoding: loaded.encoding,
     })
+}
+
+/// A note on standard error when a frame read at the default scale has its median depth
+/// outside the camera's range (the `--camera` preset's, else the Kinect's 0.5–5 m): the usual
+/// cause is a file stored at another scale (TUM RGB-D: 5000 units per metre), whose surfaces
+/// would otherwise come out silently five times too far.
+fn note_depth_out_of_range(path: &Path, depth: &sl_core::DepthImage, args: &InputArgs) {
+    let preset = args
+        .camera
+        .as_deref()
+        .filter(|p| !p.is_file())
+        .map(|p| p.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "kinect-v1".into());
+    let Ok(Some(p)) = sl_core::preset::find(&preset)
+        .map(Some)
+        .or_else(|_| sl_core::preset::find("kinect-v1").map(Some))
+    else {
+        return;
+    };
+    // Every 7th pixel is plenty for a median.
+    let mut z: Vec<f32> = depth
+        .data()
+        .iter()
+        .step_by(7)
+        .copied()
+        .filter(|&v| v > 0.0 && v.is_finite())
+        .collect();
+    if z.len() < 16 {
+        return;
+    }
+    let mid = z.len() / 2;
+    let median = f64::from(*z.select_nth_unstable_by(mid, f32::total_cmp).1);
+    if median > p.max_depth_m || median < p.min_depth_m {
+        let hint = match p.depth_units {
+            sl_core::preset::DepthUnits::UnitsPerMetre(u) if u != 1000.0 => {
+                format!(" (`{}` files store {u} units per metre)", p.name)
+            }
+            _ => " (TUM RGB-D files store 5000 units per metre)".to_string(),
+        };
+        errln!(
+            "note: {}: median depth {median:.2} m, outside the `{}` camera's {}–{} m: is \
+             --depth-scale right?{hint}",
+            path.display(),
+            p.name,
+            p.min_depth_m,
+            p.max_depth_m
+        );
+    }
 }
 
 /// Writes a depth map in the given encoding (atomically).

@@ -113,7 +113,9 @@ fn eval_traj_errors_are_clear() {
         "dup.txt",
         "100.0 0 0 0 0 0 0 1\n100.0 1 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n",
     );
-    let cases: [(&[&str], &str); 6] = [
+    let one = write(dir.path(), "one.txt", "100.0 0 0 0 0 0 0 1\n");
+    let cases: [(&[&str], &str); 7] = [
+        (&["eval-traj", &one, &gt], "at least two poses"),
         (
             &["eval-traj", "/nonexistent/est.txt", &gt],
             "/nonexistent/est.txt",

@@ -561,6 +561,11 @@ fn a_failing_argument_writes_nothing() {
 #[test]
 fn meaningless_numbers_are_refused_with_their_range() {
     let input = testdata("floor-seed1-depth.png");
+    // Outputs in a directory that exists (one that does not is refused first), never written:
+    // every command below stops at its meaningless number.
+    let dir = tempfile::tempdir().unwrap();
+    let out = |name: &str| dir.path().join(name).to_string_lossy().into_owned();
+    let (l_png, x_png, f_png) = (out("l.png"), out("x.png"), out("f.png"));
     for (args, needles) in [
         (
             vec!["info", s(&input), "--depth-scale", "1e-300"],
@@ -571,14 +576,7 @@ fn meaningless_numbers_are_refused_with_their_range() {
             vec!["--depth-scale"],
         ),
         (
-            vec![
-                "planes",
-                s(&input),
-                "-o",
-                "/nonexistent/l.png",
-                "--threshold-px",
-                "NaN",
-            ],
+            vec!["planes", s(&input), "-o", &l_png, "--threshold-px", "NaN"],
             vec!["--threshold-px", "must be a number from"],
         ),
         (
@@ -591,20 +589,14 @@ fn meaningless_numbers_are_refused_with_their_range() {
                 "--scene",
                 "floor",
                 "-o",
-                "/nonexistent/x.png",
+                &x_png,
                 "--depth-scale",
                 "NaN",
             ],
             vec!["--depth-scale"],
         ),
         (
-            vec![
-                "filter",
-                s(&input),
-                "/nonexistent/f.png",
-                "--repeat",
-                "1000000000",
-            ],
+            vec!["filter", s(&input), &f_png, "--repeat", "1000000000"],
             vec!["--repeat"],
         ),
         (
@@ -615,6 +607,10 @@ fn meaningless_numbers_are_refused_with_their_range() {
         let o = run(&args);
         let stderr = String::from_utf8_lossy(&o.stderr);
         assert!(!stderr.contains("panicked"), "{stderr}");
+        assert!(
+            std::fs::read_dir(dir.path()).unwrap().next().is_none(),
+            "{args:?} wrote an output"
+        );
         assert!(
             matches!(o.status.code(), Some(1) | Some(2)),
             "{args:?}: {:?} {stderr}",

@@ -479,3 +479,34 @@ fn a_decimated_frame_is_the_same_sensor() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("320x200 but the camera is 640x480"));
 }
+
+/// A frame stored at another scale than the one it is read at (a TUM file, 5000 units per
+/// metre, read as millimetres) gets a note: its median depth lies beyond the camera's range.
+/// Given the right `--depth-scale`, no note.
+#[test]
+fn a_depth_scale_that_puts_the_frame_out_of_range_is_noted() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let p = dir.path().join("tum-like.png");
+    let wall = sl_core::DepthImage::from_image(sl_core::Image::from_fn(64, 48, |_, _| 2.0f32));
+    sl_io::depth::write_depth(&p, &wall, &sl_io::depth::DepthEncoding::png(5000.0))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let camera = dir.path().join("cam.json");
+    std::fs::write(
+        &camera,
+        r#"{"width": 64, "height": 48, "intrinsic_matrix": [58, 0, 0, 0, 58, 0, 31.5, 23.5, 1]}"#,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let run = |extra: &[&str]| {
+        let mut args = vec!["info", path_str(&p), "--camera", path_str(&camera)];
+        args.extend_from_slice(extra);
+        let o = sldepth(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let noted = run(&[]);
+    assert!(
+        noted.contains("median depth 10.00 m") && noted.contains("--depth-scale"),
+        "{noted}"
+    );
+    assert!(!run(&["--depth-scale", "5000"]).contains("note:"));
+}

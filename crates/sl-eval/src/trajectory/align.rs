@@ -37,6 +37,13 @@ pub fn ate(
     config.validate()?;
     let est = sorted(est, "estimated")?;
     let gt = sorted(gt, "ground-truth")?;
+    if est.len() < 2 || gt.len() < 2 {
+        return Err(EvalError::InvalidParameter(format!(
+            "the trajectory error needs at least two poses in each trajectory: the estimate holds {}, the ground truth {}",
+            est.len(),
+            gt.len()
+        )));
+    }
     let pairs = associate(&gt, &est, config.max_gap_s);
     if pairs.len() < 2 {
         return Err(EvalError::InvalidParameter(format!(

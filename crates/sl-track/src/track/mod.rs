@@ -495,14 +495,26 @@ impl Tracker {
                     "first frame: degenerate view, waiting for one that pins the pose",
                 ),
             };
-            let mut r = FrameResult::lost_unaligned(
-                pose,
+            let why = if weakest_sigma_m.is_finite() {
                 format!(
                     "{what}: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
                     weakest_sigma_m * 1e3,
                     prior_sigma_m * 1e3
-                ),
-            );
+                )
+            } else if depth.data().iter().any(|&z| z > 0.0 && z.is_finite()) {
+                format!(
+                    "{what}: the geometry leaves one direction of the pose undetermined (a single plane, a bare corridor)"
+                )
+            } else {
+                // Nothing to align at all: say so rather than call it a degenerate view.
+                let what = if self.last_good.is_some() {
+                    "lost"
+                } else {
+                    "first frame: waiting for one with depth"
+                };
+                format!("{what}: no valid depth in the frame")
+            };
+            let mut r = FrameResult::lost_unaligned(pose, why);
             r.weakest_sigma_m = weakest_sigma_m;
             return Ok(r);
         }

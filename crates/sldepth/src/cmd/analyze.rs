@@ -26,6 +26,11 @@ pub struct Args {
 }
 
 /// Runs `sldepth analyze`.
+/// Largest distance of the robust slope of ln ΔZ against ln Z from the model's 2 for a frame to
+/// count as disparity-quantised depth (real Kinect-class frames: 1.9–2.1; the bound is a
+/// plausibility check, wide enough for a frame with few distinct depths).
+const SLOPE_PLAUSIBLE_DEVIATION: f64 = 0.5;
+
 pub fn run(args: Args) -> Result<()> {
     if let Some(plot) = &args.plot {
         check_output("--plot", plot, &["svg", "png"])?;
@@ -49,9 +54,24 @@ pub fn run(args: Args) -> Result<()> {
             _ => bail!("--plot {}: use a .svg or .png file name", plot.display()),
         }
     }
+    // The steps of disparity-quantised depth grow as Z² (the paper's slope 2; real Kinect-class
+    // frames measure 1.9–2.1): a slope far from it says the frame is not such depth (rendered,
+    // resampled, filtered, or stored at another scale), and what follows from the quantum
+    // (f·B, the sub-pixel step) means nothing.
+    let quantised_like_the_model = (a.slope_robust - 2.0).abs() <= SLOPE_PLAUSIBLE_DEVIATION;
+    if !quantised_like_the_model {
+        errln!(
+            "note: {}: depth steps grow as Z^{:.2}, not Z² (robust slope): this frame's depth does \
+             not look like a structured-light sensor's disparity-quantised depth (rendered, \
+             resampled, filtered?); the implied f·B and sub-pixel step below are not meaningful",
+            args.depth.display(),
+            a.slope_robust
+        );
+    }
     if args.json {
         print_json(&json!({
             "path": args.depth.display().to_string(),
+            "quantised_like_the_model": quantised_like_the_model,
             "unique_depths": a.unique_depths,
             "slope": round_to(a.slope, 6),
             "slope_continuous": round_to(a.slope_continuous, 6),

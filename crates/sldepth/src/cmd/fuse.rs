@@ -225,7 +225,11 @@ pub fn run(args: Args) -> Result<()> {
         frames.truncate(n);
     }
     if frames.is_empty() {
-        bail!("no frames to fuse");
+        bail!(
+            "no frames to fuse: `fuse` needs frames with poses (7-Scenes' frame-*.pose.txt, a TUM \
+             folder's groundtruth.txt, an Open3D .log); for a recording without poses use \
+             `sldepth track ... --mesh`"
+        );
     }
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
@@ -290,7 +294,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         if depth.width() != k.width || depth.height() != k.height {
             bail!(
-                "{}: depth map is {}x{} but the camera is {}x{} (pass --camera)",
+                "{}: depth map is {}x{} but the camera is {}x{} (every frame of a sequence has the camera's size; --camera names the camera)",
                 f.depth_path.display(),
                 depth.width(),
                 depth.height(),

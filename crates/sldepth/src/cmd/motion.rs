@@ -120,7 +120,20 @@ pub fn run(args: Args) -> Result<()> {
         || a.depth.width() != b.depth.width()
         || a.depth.height() != b.depth.height()
     {
-        bail!("the two frames must come from the same camera and have the same size");
+        bail!(
+            "the two frames must come from the same camera and have the same size: {} is {}x{}, {} is {}x{}{}",
+            args.depth_a.display(),
+            a.depth.width(),
+            a.depth.height(),
+            args.depth_b.display(),
+            b.depth.width(),
+            b.depth.height(),
+            if a.camera == b.camera {
+                ""
+            } else {
+                " (and their cameras differ)"
+            }
+        );
     }
     let undistorter = crate::common::undistorter(&args.lens, &args.input, None, &a.camera);
     if let Some(u) = &undistorter {

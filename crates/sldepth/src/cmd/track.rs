@@ -590,7 +590,7 @@ pub fn run(args: Args) -> Result<()> {
         };
         if depth.width() != k.width || depth.height() != k.height {
             bail!(
-                "{}: depth map is {}x{} but the camera is {}x{} (pass --camera)",
+                "{}: depth map is {}x{} but the camera is {}x{} (every frame of a sequence has the camera's size; --camera names the camera)",
                 f.depth_path.display(),
                 depth.width(),
                 depth.height(),
@@ -670,7 +670,7 @@ pub fn run(args: Args) -> Result<()> {
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
 
-    for done in rec.finish() {
+    for done in rec.finish()? {
         let mesh = write_fragment_mesh(&args, &done, params.memory_budget_bytes)?;
         if let Some(out) = fragments.get_mut(done.index) {
             out.finish(&done, mesh);
