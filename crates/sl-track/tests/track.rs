@@ -1271,28 +1271,18 @@ fn a_fragment_of_one_rolling_shutter_frame_keeps_its_frame() {
     let (cam, _, frames) = sequence(2, 5);
     let mut cfg = ReconstructionConfig::default_for(cam.sensor);
     cfg.tracker.rolling_shutter_readout_s = 0.9 * cfg.tracker.frame_interval_s;
-    let global = {
-        let mut g = cfg;
-        g.tracker.rolling_shutter_readout_s = 0.0;
-        let mut rec = Reconstruction::new(cam, g).unwrap();
-        assert!(
-            rec.step(&frames[0], None)
-                .unwrap()
-                .result
-                .status
-                .is_tracked()
-        );
-        rec.volume().block_count()
+    // A reconstruction that has tracked the first frame.
+    let first = |cfg: ReconstructionConfig| {
+        let mut rec = Reconstruction::new(cam, cfg).unwrap();
+        let status = rec.step(&frames[0], None).unwrap().result.status;
+        assert!(status.is_tracked(), "{status:?}");
+        rec
     };
+    let mut g = cfg;
+    g.tracker.rolling_shutter_readout_s = 0.0;
+    let global = first(g).volume().block_count();
     assert!(global > 0);
-    let mut rec = Reconstruction::new(cam, cfg).unwrap();
-    assert!(
-        rec.step(&frames[0], None)
-            .unwrap()
-            .result
-            .status
-            .is_tracked()
-    );
+    let rec = first(cfg);
     // Not yet in the fragment's own volume: it waits for the camera's motion.
     assert_eq!(rec.volume().block_count(), 0);
     assert_eq!(
