@@ -617,7 +617,7 @@ pub fn read_nyu_raw_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Resu
         } else {
             return Err(IoError::malformed(
                 path,
-                "values exceed the 11-bit Kinect range (0..=2047) in either byte order: not a raw Kinect disparity file",
+                "values exceed the 11-bit Kinect range (0..=2047) in either byte order: not a raw Kinect disparity file (.pgm is read as NYU raw disparity; store depth in 16-bit PNG or TIFF)",
             ));
         }
     };

@@ -510,3 +510,28 @@ fn a_depth_scale_that_puts_the_frame_out_of_range_is_noted() {
     );
     assert!(!run(&["--depth-scale", "5000"]).contains("note:"));
 }
+
+/// A frame whose surfaces all lie beyond `fuse --max-depth-m` fuses into an empty mesh, and the
+/// command says why instead of writing 0 vertices without a word.
+#[test]
+fn an_empty_fused_mesh_names_the_depth_bound() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let far = dir.path().join("far.png");
+    let wall = sl_core::DepthImage::from_image(sl_core::Image::from_fn(640, 480, |_, _| 6.0f32));
+    sl_io::depth::write_depth(&far, &wall, &sl_io::depth::DepthEncoding::png(1000.0))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let list = dir.path().join("frames.txt");
+    std::fs::write(
+        &list,
+        format!("{} 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1\n", far.display()),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let ply = dir.path().join("m.ply");
+    let o = sldepth(&["fuse", "--frames", path_str(&list), "-o", path_str(&ply)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        stderr.contains("the mesh is empty") && stderr.contains("--max-depth-m 4"),
+        "{stderr}"
+    );
+}
