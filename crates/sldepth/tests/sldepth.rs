@@ -480,16 +480,23 @@ fn a_decimated_frame_is_the_same_sensor() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("320x200 but the camera is 640x480"));
 }
 
+/// A fronto-parallel wall `z_m` away, `size` pixels, written as a 16-bit PNG of `units_per_m`
+/// into `dir/name`.
+fn write_wall(dir: &Path, name: &str, size: (usize, usize), z_m: f32, units_per_m: f64) -> PathBuf {
+    let p = dir.join(name);
+    let wall = sl_core::DepthImage::from_image(sl_core::Image::from_fn(size.0, size.1, |_, _| z_m));
+    sl_io::depth::write_depth(&p, &wall, &sl_io::depth::DepthEncoding::png(units_per_m))
+        .unwrap_or_else(|e| panic!("{e}"));
+    p
+}
+
 /// A frame stored at another scale than the one it is read at (a TUM file, 5000 units per
 /// metre, read as millimetres) gets a note: its median depth lies beyond the camera's range.
 /// Given the right `--depth-scale`, no note.
 #[test]
 fn a_depth_scale_that_puts_the_frame_out_of_range_is_noted() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
-    let p = dir.path().join("tum-like.png");
-    let wall = sl_core::DepthImage::from_image(sl_core::Image::from_fn(64, 48, |_, _| 2.0f32));
-    sl_io::depth::write_depth(&p, &wall, &sl_io::depth::DepthEncoding::png(5000.0))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let p = write_wall(dir.path(), "tum-like.png", (64, 48), 2.0, 5000.0);
     let camera = dir.path().join("cam.json");
     std::fs::write(
         &camera,
@@ -516,10 +523,7 @@ fn a_depth_scale_that_puts_the_frame_out_of_range_is_noted() {
 #[test]
 fn an_empty_fused_mesh_names_the_depth_bound() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
-    let far = dir.path().join("far.png");
-    let wall = sl_core::DepthImage::from_image(sl_core::Image::from_fn(640, 480, |_, _| 6.0f32));
-    sl_io::depth::write_depth(&far, &wall, &sl_io::depth::DepthEncoding::png(1000.0))
-        .unwrap_or_else(|e| panic!("{e}"));
+    let far = write_wall(dir.path(), "far.png", (640, 480), 6.0, 1000.0);
     let list = dir.path().join("frames.txt");
     std::fs::write(
         &list,
