@@ -550,15 +550,16 @@ pub(crate) fn downsample_rows(r0: &[f32], r1: &[f32], strict: &mut [f32], partia
             } else {
                 *o = f32::NAN;
                 let x = 2 * i;
-                *po = block_mean_or_diagonal([b0[x], b0[x + 1], b1[x], b1[x + 1]], |v| v > 0.0);
+                *po = block_mean_or_diagonal([b0[x], b0[x + 1], b1[x], b1[x + 1]]);
             }
         }
     }
 }
 
-/// The value of a 2×2 block `[top-left, top-right, bottom-left, bottom-right]` at its centre:
-/// the mean of the four when all are `valid`, else the mean of a diagonal whose two values are
-/// (`top-left` + `bottom-right`, then `top-right` + `bottom-left`), else NaN.
+/// The value of a 2×2 block `[top-left, top-right, bottom-left, bottom-right]` of disparities at
+/// its centre: the mean of the four when all are valid (positive; NaN is not), else the mean of
+/// a diagonal whose two values are (`top-left` + `bottom-right`, then `top-right` +
+/// `bottom-left`), else NaN.
 ///
 /// A diagonal's midpoint is the block's centre, so for an affine function (the disparity of a
 /// plane) the diagonal's mean is exactly the block's mean: scattered invalid pixels (a
@@ -567,9 +568,9 @@ pub(crate) fn downsample_rows(r0: &[f32], r1: &[f32], strict: &mut [f32], partia
 /// missing: with 5 % of the pixels missing at random, 1 % of the blocks and 4 % of the
 /// 4×4-pixel cells (four blocks) are lost instead of 19 % and 56 %.
 #[inline]
-pub(crate) fn block_mean_or_diagonal(v: [f32; 4], valid: impl Fn(f32) -> bool) -> f32 {
+pub(crate) fn block_mean_or_diagonal(v: [f32; 4]) -> f32 {
     let [tl, tr, bl, br] = v;
-    let (a, b, c, d) = (valid(tl), valid(tr), valid(bl), valid(br));
+    let (a, b, c, d) = (tl > 0.0, tr > 0.0, bl > 0.0, br > 0.0);
     if a && b && c && d {
         0.25 * ((tl + bl) + (tr + br))
     } else if a && d {
@@ -778,14 +779,14 @@ mod tests {
             f(x0 + 1.0, y0 + 1.0),
         ];
         let centre = f(x0 + 0.5, y0 + 0.5);
-        let full = block_mean_or_diagonal(v, |x| x > 0.0);
+        let full = block_mean_or_diagonal(v);
         assert!((full - centre).abs() < 1e-5);
         for missing in [[0usize].as_slice(), &[1], &[2], &[3], &[0, 3], &[1, 2]] {
             let mut w = v;
             for &m in missing {
                 w[m] = 0.0;
             }
-            let got = block_mean_or_diagonal(w, |x| x > 0.0);
+            let got = block_mean_or_diagonal(w);
             assert!(
                 (got - centre).abs() < 1e-5,
                 "{missing:?}: {got} vs {centre}"
@@ -796,10 +797,7 @@ mod tests {
             for m in missing {
                 w[m] = 0.0;
             }
-            assert!(
-                block_mean_or_diagonal(w, |x| x > 0.0).is_nan(),
-                "{missing:?}"
-            );
+            assert!(block_mean_or_diagonal(w).is_nan(), "{missing:?}");
         }
     }
 }

@@ -386,9 +386,7 @@ fn note_depth_out_of_range(path: &Path, depth: &sl_core::DepthImage, args: &Inpu
         .filter(|p| !p.is_file())
         .map(|p| p.to_string_lossy().into_owned())
         .unwrap_or_else(|| "kinect-v1".into());
-    let Ok(Some(p)) = sl_core::preset::find(&preset)
-        .map(Some)
-        .or_else(|_| sl_core::preset::find("kinect-v1").map(Some))
+    let Ok(p) = sl_core::preset::find(&preset).or_else(|_| sl_core::preset::find("kinect-v1"))
     else {
         return;
     };

@@ -69,7 +69,8 @@ const HALF_RES_PIECE_CELL_ROWS: usize = 8;
 /// blocks' values, not of the pixels' own: taking it from a diagonal of blocks as well gained
 /// a few planes at 10–20 % missing pixels but cost 7-Scenes' repeatability, session 46.)
 ///
-/// Pieces of [`HALF_RES_PIECE_CELL_ROWS`] cell rows run on the caller's pool when `parallel`; `scratch` holds one two-row buffer per piece (depth converted to disparity).
+/// Pieces of [`HALF_RES_PIECE_CELL_ROWS`] cell rows run on the caller's pool when `parallel`;
+/// `scratch` holds one two-row buffer per piece (depth converted to disparity).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn half_resolution(
     src: FullDisparity<'_>,

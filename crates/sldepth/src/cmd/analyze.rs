@@ -25,12 +25,12 @@ pub struct Args {
     pub input: InputArgs,
 }
 
-/// Runs `sldepth analyze`.
 /// Largest distance of the robust slope of ln ΔZ against ln Z from the model's 2 for a frame to
 /// count as disparity-quantised depth (real Kinect-class frames: 1.9–2.1; the bound is a
 /// plausibility check, wide enough for a frame with few distinct depths).
 const SLOPE_PLAUSIBLE_DEVIATION: f64 = 0.5;
 
+/// Runs `sldepth analyze`.
 pub fn run(args: Args) -> Result<()> {
     if let Some(plot) = &args.plot {
         check_output("--plot", plot, &["svg", "png"])?;

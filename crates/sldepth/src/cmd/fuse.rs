@@ -327,7 +327,7 @@ pub fn run(args: Args) -> Result<()> {
     mesh_config.min_weight = args.min_weight;
     let mesh = volume.extract_mesh_within(&mesh_config, params.memory_budget_bytes)?;
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
-    if mesh.vertex_count() == 0 && !frames.is_empty() {
+    if mesh.vertex_count() == 0 {
         errln!(
             "note: the mesh is empty: no fused surface within --max-depth-m {} m and --min-weight \
              {} (surfaces farther away are left out; is --depth-scale right?)",
