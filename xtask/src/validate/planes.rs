@@ -11,7 +11,8 @@
 //!    planes of at least 2,000 pixels and spurious planes, ours and metric RANSAC.
 //! 2. Real frames (TUM fr1/rpy, NYU raw disparity, 7-Scenes): overlays and timings; then the
 //!    repeatability benchmark (issue 12, `repeat`): planes of frame i found again in frame i + k
-//!    (k = 1, 5, 10) with the ground-truth poses, TUM fr1/rpy 200 and 7-Scenes.
+//!    (k = 1, 5, 10) with the ground-truth poses, TUM fr1/rpy 200 and 7-Scenes, beside what
+//!    the data themselves allow (`repeat::same_patch`: the same pixels fitted in both frames).
 //! 3. Motion on TUM fr1/rpy pairs 5–20 frames apart (rotations of 8–43°): rotation error against
 //!    motion capture for the identity (initial error), plane matching alone, the plane estimate
 //!    verified against the depth data (or "undetermined"), and planes + point-to-plane ICP
