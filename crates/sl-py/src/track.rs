@@ -132,7 +132,7 @@ pub(crate) fn track_in_map<'py>(
 /// Kinect-class presets, 0 for explicit intrinsics) when tracking against the model, 0 frame
 /// to frame; 0: a global shutter; at most the frame interval (33.3 ms at 30 Hz). On TUM
 /// fr1/rpy-200 the Kinect's readout keeps every 2nd, 3rd or 4th frame alone tracked (a global
-/// shutter loses 1, 9 and 7 frames).
+/// shutter loses 14, 9 and 7 frames).
 #[pyclass(name = "Tracker", module = "sldepth")]
 #[derive(Debug)]
 pub struct PyTracker {
