@@ -31,11 +31,17 @@ pub struct Intrinsics {
 /// with a 0.4° field of view; beyond that the numbers only produce overflowing geometry).
 pub const MAX_FOCAL_PX: f64 = 1e7;
 
+/// Smallest focal length [`Intrinsics::validate`] accepts, pixels: below one pixel a pinhole
+/// image of even three pixels spans more than 180° (no depth camera; the numbers only produce
+/// all-zero frames and overflowing geometry).
+pub const MIN_FOCAL_PX: f64 = 1.0;
+
 /// Largest principal-point coordinate magnitude [`Intrinsics::validate`] accepts, pixels.
 pub const MAX_PRINCIPAL_PX: f64 = 1e7;
 
 impl Intrinsics {
-    /// Validated constructor: sizes must be non-zero and focal lengths positive and finite.
+    /// Validated constructor: sizes must be non-zero (at most 65536 per side), focal lengths in
+    /// [[`MIN_FOCAL_PX`], [`MAX_FOCAL_PX`]] and the principal point within [`MAX_PRINCIPAL_PX`].
     pub fn new(width: usize, height: usize, fx: f64, fy: f64, cx: f64, cy: f64) -> Result<Self> {
         let k = Self {
             width,
@@ -64,9 +70,9 @@ impl Intrinsics {
             )));
         }
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
-            if !(v.is_finite() && v > 0.0 && v <= MAX_FOCAL_PX) {
+            if !(v.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&v)) {
                 return Err(CoreError::InvalidIntrinsics(format!(
-                    "{name} = {v:e} must be in (0, {MAX_FOCAL_PX:e}] pixels"
+                    "{name} = {v:e} must be in [{MIN_FOCAL_PX}, {MAX_FOCAL_PX:e}] pixels"
                 )));
             }
         }

@@ -19,6 +19,17 @@ pub struct SensorModel {
     pub sigma_d_px: f64,
 }
 
+/// Largest projector–camera (or stereo) baseline [`SensorModel::validate`] accepts, metres.
+pub const MAX_BASELINE_M: f64 = 10.0;
+
+/// Most sub-pixel disparity steps per pixel [`SensorModel::validate`] accepts (a Kinect has 8,
+/// a RealSense 32; finer than 1/256 px no matcher resolves).
+pub const MAX_SUBPIXEL_STEPS: u32 = 256;
+
+/// Largest disparity noise [`SensorModel::validate`] accepts, pixels (a matcher whose error is
+/// beyond ten pixels measures nothing).
+pub const MAX_SIGMA_D_PX: f64 = 10.0;
+
 /// Default disparity noise, pixels.
 ///
 /// Obtained by converting the axial noise model of Nguyen, Izadi & Lovell (3DIMPVT 2012),
@@ -45,28 +56,35 @@ impl SensorModel {
         Ok(s)
     }
 
-    /// Checks that focal length and baseline are positive and finite, steps ≥ 1 and σ_D ≥ 0.
+    /// Checks that the focal length is in the range of [`crate::Intrinsics::validate`], the
+    /// baseline in (0, [`MAX_BASELINE_M`]], the steps in 1..=[`MAX_SUBPIXEL_STEPS`] and σ_D in
+    /// [0, [`MAX_SIGMA_D_PX`]].
     pub fn validate(&self) -> Result<()> {
-        if !(self.focal_px.is_finite() && self.focal_px > 0.0) {
+        use crate::intrinsics::{MAX_FOCAL_PX, MIN_FOCAL_PX};
+        if !(self.focal_px.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&self.focal_px)) {
             return Err(CoreError::InvalidSensor(format!(
-                "focal length {} px must be positive",
+                "focal length {:e} px must be in [{MIN_FOCAL_PX}, {MAX_FOCAL_PX:e}]",
                 self.focal_px
             )));
         }
-        if !(self.baseline_m.is_finite() && self.baseline_m > 0.0) {
+        if !(self.baseline_m.is_finite()
+            && self.baseline_m > 0.0
+            && self.baseline_m <= MAX_BASELINE_M)
+        {
             return Err(CoreError::InvalidSensor(format!(
-                "baseline {} m must be positive",
+                "baseline {:e} m must be in (0, {MAX_BASELINE_M}]",
                 self.baseline_m
             )));
         }
-        if self.subpixel_steps == 0 {
-            return Err(CoreError::InvalidSensor(
-                "sub-pixel steps must be at least 1".into(),
-            ));
-        }
-        if !(self.sigma_d_px.is_finite() && self.sigma_d_px >= 0.0) {
+        if !(1..=MAX_SUBPIXEL_STEPS).contains(&self.subpixel_steps) {
             return Err(CoreError::InvalidSensor(format!(
-                "disparity noise {} px must be non-negative",
+                "sub-pixel steps {} must be in 1..={MAX_SUBPIXEL_STEPS}",
+                self.subpixel_steps
+            )));
+        }
+        if !(self.sigma_d_px.is_finite() && (0.0..=MAX_SIGMA_D_PX).contains(&self.sigma_d_px)) {
+            return Err(CoreError::InvalidSensor(format!(
+                "disparity noise {:e} px must be in [0, {MAX_SIGMA_D_PX}]",
                 self.sigma_d_px
             )));
         }

@@ -7,8 +7,11 @@ pub enum FilterError {
     /// A filter parameter outside its supported range (radius, σ_s, σ_d, k, σ_D).
     #[error("invalid filter parameter: {0}")]
     InvalidParameter(String),
-    /// A valid depth value the filter cannot represent (above [`crate::MAX_DEPTH_M`]).
-    #[error("depth {value_m} m at pixel ({x}, {y}) exceeds the supported maximum of {max_m} m")]
+    /// A valid depth value the filter cannot represent (outside [[`crate::MIN_DEPTH_M`],
+    /// [`crate::MAX_DEPTH_M`]]).
+    #[error(
+        "depth {value_m:e} m at pixel ({x}, {y}) is outside the supported range [{min_m:e}, {max_m}] m"
+    )]
     DepthOutOfRange {
         /// The offending value, metres.
         value_m: f32,
@@ -16,6 +19,8 @@ pub enum FilterError {
         x: usize,
         /// Pixel row.
         y: usize,
+        /// The supported minimum, metres.
+        min_m: f32,
         /// The supported maximum, metres.
         max_m: f32,
     },

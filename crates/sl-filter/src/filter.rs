@@ -322,17 +322,21 @@ impl DepthFilter {
         let in_range = |v: f64, lo: f64, hi: f64| v.is_finite() && v >= lo && v <= hi;
         if !(in_range(self.sigma_s_px, f64::MIN_POSITIVE, 1.0e3)) {
             return bad(format!(
-                "sigma_s {} px must be in (0, 1000]",
+                "sigma_s {:e} px must be in (0, 1000]",
                 self.sigma_s_px
             ));
         }
         match self.range {
             RangeKernel::None => {}
             RangeKernel::Fixed { sigma_d_m } if !in_range(sigma_d_m, 1e-6, 1e3) => {
-                return bad(format!("sigma_d {sigma_d_m} m must be in [1e-6, 1000]"));
+                return bad(format!("sigma_d {sigma_d_m:e} m must be in [1e-6, 1000]"));
             }
             RangeKernel::Adaptive { k_per_m } if !in_range(k_per_m, 1e-6, 1e3) => {
-                return bad(format!("k {k_per_m} per m must be in [1e-6, 1000]"));
+                return bad(format!(
+                    "k {k_per_m:e} per m must be in [1e-6, 1000] (the adaptive range σ_d = k·Z²; by \
+                     default k is derived from the camera's disparity noise, σ_D/(f·B): a \
+                     noise-free camera, σ_D = 0, needs k given explicitly)"
+                ));
             }
             RangeKernel::Disparity {
                 sigma_disp_px,
@@ -340,7 +344,7 @@ impl DepthFilter {
             } => {
                 if !in_range(sigma_disp_px, 1e-6, 1e3) {
                     return bad(format!(
-                        "disparity sigma {sigma_disp_px} px must be in [1e-6, 1000]"
+                        "disparity sigma {sigma_disp_px:e} px must be in [1e-6, 1000]"
                     ));
                 }
                 if !in_range(fb_px_m, 1e-6, 1e9) {
@@ -518,6 +522,7 @@ fn out_of_range(depth: DepthView<'_>) -> FilterError {
             value_m: z,
             x: i % w,
             y: i / w,
+            min_m: MIN_DEPTH_M,
             max_m: MAX_DEPTH_M,
         },
         None => FilterError::ImageSize("inconsistent range check".into()),

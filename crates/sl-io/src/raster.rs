@@ -25,13 +25,33 @@ pub(crate) fn image_error(path: &Path, e: ImageError) -> IoError {
     match e {
         ImageError::Limits(l) => IoError::too_large(
             path,
-            format!("{l} (decode limits: {MAX_SIDE} px per side; raise them with --max-memory)"),
+            format!(
+                "{l} (decode limits: at most {MAX_SIDE} px per side, a fixed bound; the pixels \
+                 and bytes a decoder may allocate grow with --max-memory)"
+            ),
         ),
+        ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            IoError::Decode {
+                path: path.to_path_buf(),
+                message: format!("the file ends before its image data does (truncated?): {io}"),
+            }
+        }
         ImageError::IoError(io) => IoError::io(path, io),
-        other => IoError::Decode {
-            path: path.to_path_buf(),
-            message: other.to_string(),
-        },
+        other => {
+            let message = other.to_string();
+            // The decoders report a short file in their own words.
+            let truncated = ["unexpected end of file", "failed to fill whole buffer"]
+                .iter()
+                .any(|m| message.to_ascii_lowercase().contains(m));
+            IoError::Decode {
+                path: path.to_path_buf(),
+                message: if truncated {
+                    format!("the file ends before its image data does (truncated?): {message}")
+                } else {
+                    message
+                },
+            }
+        }
     }
 }
 

@@ -65,9 +65,16 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
                 &path,
                 i + 1,
                 if t == prev {
-                    format!("timestamp {t} repeats the previous frame's: two frames at one time")
+                    format!(
+                        "timestamp {} repeats the previous frame's: two frames at one time",
+                        short_number(t)
+                    )
                 } else {
-                    format!("timestamp {t} does not follow {prev}: frames out of order")
+                    format!(
+                        "timestamp {} does not follow {}: frames out of order",
+                        short_number(t),
+                        short_number(prev)
+                    )
                 },
             ));
         }
@@ -125,4 +132,14 @@ pub fn read_open3d_depth_frames(
             timestamp: None,
         })
         .collect())
+}
+
+/// A timestamp for a message: fixed-point seconds for ordinary values, scientific notation
+/// for absurd ones (a `1e300` printed in full is a 300-digit line).
+fn short_number(v: f64) -> String {
+    if v.abs() < 1e12 {
+        format!("{v:.6}")
+    } else {
+        format!("{v:e}")
+    }
 }

@@ -10,6 +10,9 @@ use crate::error::{IoError, Result};
 /// Bytes read per chunk.
 const CHUNK_BYTES: usize = 64 << 10;
 
+/// The UTF-8 encoding of U+FEFF, the byte-order mark.
+const UTF8_BOM: &[u8] = &[0xef, 0xbb, 0xbf];
+
 /// Reads a whole UTF-8 text input of at most `max_bytes` bytes and `max_lines` lines (a last
 /// line without a newline counts), failing with [`IoError::TooLarge`] as soon as either limit
 /// is passed — before the excess is held in memory.
@@ -63,6 +66,10 @@ pub(crate) fn read_text_from(
             ),
         ));
     }
+    // A UTF-8 byte-order mark (editors on Windows write one) is not part of the text.
+    if buf.starts_with(UTF8_BOM) {
+        buf.drain(..UTF8_BOM.len());
+    }
     String::from_utf8(buf).map_err(|e| {
         IoError::io(
             path,
@@ -102,5 +109,12 @@ mod tests {
             Err(IoError::TooLarge { .. })
         ));
         assert!(read_text_from(p, &[0xffu8, 0xfe][..], 10, 10).is_err());
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_not_text() {
+        let p = Path::new("t.txt");
+        let text = read_text_from(p, &b"\xef\xbb\xbf# depth\n1 a.png\n"[..], 100, 10).unwrap();
+        assert_eq!(text, "# depth\n1 a.png\n");
     }
 }

@@ -11,6 +11,7 @@
 //! re-orthonormalised by [`sl_core::pose_from_matrix`], which rejects non-rigid ones.
 
 use std::fmt::Write as _;
+use std::fs;
 use std::path::{Path, PathBuf};
 
 use sl_core::CameraToWorld;
@@ -176,6 +177,20 @@ pub fn read_tum_trajectory_with_limits(
 /// Writes a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, 6 decimals for time, 9 for the
 /// rest), atomically.
 pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Result<()> {
+    // What `read_tum_trajectory` would refuse is not written: a timestamp that is not a finite
+    // number (a pose is finite by construction).
+    if let Some((i, p)) = poses
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.timestamp.is_finite())
+    {
+        return Err(IoError::InvalidConfig {
+            message: format!(
+                "pose {i} has timestamp {}: a trajectory's timestamps must be finite seconds",
+                p.timestamp
+            ),
+        });
+    }
     let mut text = String::from("# timestamp tx ty tz qx qy qz qw\n");
     for p in poses {
         let t = p.pose.translation();
@@ -528,9 +543,17 @@ pub fn read_7scenes_sequence_with_limits(
         .map(|(stem, pose_path)| {
             let depth_path = dir.join(format!("frame-{stem}.depth.png"));
             if !depth_path.is_file() {
+                let what = if fs::symlink_metadata(&depth_path).is_ok() {
+                    "is not a readable regular file"
+                } else {
+                    "does not exist"
+                };
                 return Err(IoError::Format {
                     path: pose_path,
-                    message: format!("no depth image {} for this pose", depth_path.display()),
+                    message: format!(
+                        "the depth image of this pose, {}, {what}",
+                        depth_path.display()
+                    ),
                 });
             }
             Ok(Frame {

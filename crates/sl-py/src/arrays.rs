@@ -1,6 +1,8 @@
-//! NumPy arrays in and out. A C-contiguous `float32` (H, W) depth array is borrowed without a
-//! copy; `float64`, `uint16` (with a `depth_scale`) and non-contiguous arrays are converted into
-//! one new `float32` buffer (one pass over the pixels; about 0.1–0.3 ms for 640×480).
+//! NumPy arrays in and out. A C-contiguous, aligned, native-byte-order `float32` (H, W) depth
+//! array is borrowed without a copy; `float64`, `uint16` (with a `depth_scale`) and
+//! non-contiguous arrays are converted into one new `float32` buffer (one pass over the pixels;
+//! about 0.1–0.3 ms for 640×480); misaligned or byte-swapped arrays first get a native copy
+//! from NumPy, and a masked array's masked entries become 0 (invalid).
 //! Outputs are new arrays that take ownership of the Rust buffer (no copy).
 
 use numpy::ndarray::Array2;
@@ -63,12 +65,55 @@ fn owned(h: usize, w: usize, values: impl Iterator<Item = f32>) -> PyResult<Dept
         .map_err(value_error)
 }
 
+/// `obj` as an array this module can read in place or convert: a masked array with its masked
+/// entries set to 0 (invalid depth), and a misaligned or byte-swapped array copied into native
+/// order by NumPy. Anything else is returned as it is.
+fn readable<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    let py = obj.py();
+    let mut obj = obj.clone();
+    let masked = py.import("numpy.ma")?.getattr("MaskedArray")?;
+    if obj.is_instance(&masked)? {
+        obj = obj.call_method1("filled", (0,))?;
+    }
+    let Ok(arr) = obj.cast::<PyUntypedArray>() else {
+        return Ok(obj);
+    };
+    let native = arr.dtype().getattr("isnative")?.extract::<bool>()?;
+    let aligned = obj
+        .getattr("flags")?
+        .getattr("aligned")?
+        .extract::<bool>()?;
+    if native && aligned {
+        return Ok(obj);
+    }
+    let dtype = arr.dtype().call_method1("newbyteorder", ("=",))?;
+    obj.call_method1("astype", (dtype,))
+}
+
+/// Whether [`depth_input`] reads `obj`'s own buffer in place (no copy of any kind).
+pub(crate) fn is_borrowed(obj: &Bound<'_, PyAny>, depth_scale: Option<f64>) -> PyResult<bool> {
+    let same = readable(obj)?.is(obj);
+    Ok(same && depth_input(obj, depth_scale)?.is_borrowed())
+}
+
+/// The valid range of `depth_scale` for integer depth, as for files (`sl_io`).
+fn check_depth_scale(scale: f64) -> PyResult<()> {
+    if !(sl_io::depth::MIN_UNITS_PER_M..=sl_io::depth::MAX_UNITS_PER_M).contains(&scale) {
+        return Err(value_error(format!(
+            "depth_scale {scale:e} units per metre is outside 1 to 1e6 (1000 for millimetres, \
+             5000 for TUM)"
+        )));
+    }
+    Ok(())
+}
+
 /// Reads a depth array in metres (float32/float64), or in sensor units (uint16) with
 /// `depth_scale` units per metre.
 pub(crate) fn depth_input<'py>(
     obj: &Bound<'py, PyAny>,
     depth_scale: Option<f64>,
 ) -> PyResult<DepthInput<'py>> {
+    let obj = &readable(obj)?;
     let (h, w, dtype) = shape_of(obj)?;
     if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
         if depth_scale.is_some() {
@@ -95,11 +140,7 @@ pub(crate) fn depth_input<'py>(
                 "uint16 depth needs depth_scale (units per metre: 1000 for millimetres, 5000 for TUM)",
             ));
         };
-        if !(scale.is_finite() && scale > 0.0) {
-            return Err(value_error(format!(
-                "depth_scale must be a positive number of units per metre, got {scale}"
-            )));
-        }
+        check_depth_scale(scale)?;
         let inv = 1.0 / scale;
         return owned(
             h,
@@ -156,8 +197,17 @@ pub(crate) fn rows3_array<'py, T: numpy::Element + Copy>(
     Ok(a.into_pyarray(py))
 }
 
-/// A 4×4 camera-to-world pose from a NumPy (4, 4) array (any float dtype) or nested lists.
+/// A 4×4 camera-to-world pose from a NumPy (4, 4) array (any real dtype) or nested lists.
 pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::CameraToWorld> {
+    if let Ok(arr) = obj.cast::<PyUntypedArray>() {
+        let kind: String = arr.dtype().getattr("kind")?.extract()?;
+        if !matches!(kind.as_str(), "f" | "i" | "u") {
+            return Err(value_error(format!(
+                "pose must be a (4, 4) array of real numbers (camera-to-world), got dtype {}",
+                arr.dtype().str()?
+            )));
+        }
+    }
     let m: Vec<Vec<f64>> = obj
         .call_method0("tolist")
         .and_then(|l| l.extract())

@@ -9,7 +9,10 @@ use crate::errors::value_error;
 /// (``σ_Z = Z²·σ_D/(f·B)``).
 ///
 /// ``Camera(width, height, fx, fy, cx, cy, baseline_m=0.075, subpixel=8, sigma_d_px=0.07)`` takes
-/// Open3D-style intrinsics; ``Camera.preset("kinect-v1")`` one of ``Camera.presets()``.
+/// Open3D-style intrinsics; ``Camera.preset("kinect-v1")`` one of ``Camera.presets()``. Ranges
+/// (``ValueError`` outside them): at most 16,777,216 pixels (the default memory budget's frame),
+/// ``fx``, ``fy`` in [1, 1e7] px, ``baseline_m`` in (0, 10], ``subpixel`` in 1..256,
+/// ``sigma_d_px`` in [0, 10] (0: a noise-free camera).
 #[pyclass(name = "Camera", module = "sldepth", frozen, eq)]
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyCamera {
@@ -18,6 +21,23 @@ pub struct PyCamera {
     pub(crate) lens: Option<sl_core::LensDistortion>,
     /// The preset it was made from (kept by `resampled`), `None` for explicit intrinsics.
     pub(crate) preset_name: Option<String>,
+}
+
+/// Refuses a camera whose frames would exceed the default memory budget of `sl_io::Limits`
+/// (the command line's `--max-memory` default; `read_depth(max_memory_bytes=…)` reads larger
+/// files, but no algorithm takes a camera beyond this): every frame of it is allocated by the
+/// algorithms, several times over by the tracker.
+fn check_size(camera: Camera) -> PyResult<Camera> {
+    let k = &camera.intrinsics;
+    let limits = sl_io::Limits::default();
+    let pixels = (k.width as u64).saturating_mul(k.height as u64);
+    if pixels > limits.max_pixels {
+        return Err(value_error(format!(
+            "camera of {}x{} pixels: over the limit of {} pixels per frame",
+            k.width, k.height, limits.max_pixels
+        )));
+    }
+    Ok(camera)
 }
 
 impl PyCamera {
@@ -49,7 +69,7 @@ impl PyCamera {
         let intrinsics = Intrinsics::new(width, height, fx, fy, cx, cy).map_err(value_error)?;
         let sensor = SensorModel::new(fx, baseline_m, subpixel, sigma_d_px).map_err(value_error)?;
         Ok(Self {
-            inner: Camera { intrinsics, sensor },
+            inner: check_size(Camera { intrinsics, sensor })?,
             lens: None,
             preset_name: None,
         })
@@ -59,10 +79,11 @@ impl PyCamera {
     /// ``Camera.presets()``). An unknown name raises ``ValueError`` listing the known ones.
     #[staticmethod]
     fn preset(name: &str) -> PyResult<Self> {
+        let found = preset::find(name).map_err(value_error)?;
         Ok(Self {
-            inner: Camera::preset(name).map_err(value_error)?,
-            lens: preset::find(name).map_err(value_error)?.lens,
-            preset_name: Some(name.to_owned()),
+            inner: Camera::preset(found.name).map_err(value_error)?,
+            lens: found.lens,
+            preset_name: Some(found.name.to_owned()),
         })
     }
 
@@ -176,7 +197,7 @@ impl PyCamera {
     /// coordinates). A ``factor`` that is not positive raises ``ValueError``.
     fn resampled(&self, factor: f64) -> PyResult<Self> {
         Ok(Self {
-            inner: self.inner.resampled(factor).map_err(value_error)?,
+            inner: check_size(self.inner.resampled(factor).map_err(value_error)?)?,
             lens: self.lens,
             preset_name: self.preset_name.clone(),
         })
@@ -190,8 +211,14 @@ impl PyCamera {
 
     fn __repr__(&self) -> String {
         let (k, s) = (&self.inner.intrinsics, &self.inner.sensor);
+        // A camera made from a preset says so: it carries the preset's lens model and
+        // rolling-shutter readout, and is not equal to one made from the same numbers.
+        let preset = self
+            .preset_name
+            .as_deref()
+            .map_or_else(String::new, |p| format!(", preset={p:?}"));
         format!(
-            "Camera(width={}, height={}, fx={}, fy={}, cx={}, cy={}, baseline_m={}, subpixel={}, sigma_d_px={})",
+            "Camera(width={}, height={}, fx={}, fy={}, cx={}, cy={}, baseline_m={}, subpixel={}, sigma_d_px={}{preset})",
             k.width, k.height, k.fx, k.fy, k.cx, k.cy, s.baseline_m, s.subpixel_steps, s.sigma_d_px
         )
     }

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 use numpy::PyArray2;
+use numpy::prelude::*;
 use pyo3::prelude::*;
 use sl_io::Limits;
 use sl_io::depth::{DepthEncoding, DepthFormat, ReadConfig};
@@ -21,8 +22,9 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 /// 5000 for TUM —, NYU raw disparity ``.pgm``, or SUN RGB-D ``format="sun"``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
 /// ``max_memory_bytes`` bounds what reading may allocate (the CLI's ``--max-memory``; default
-/// 4 GiB): an image whose header declares more pixels than the budget allows is refused with
-/// ``OSError`` before it is decoded.
+/// 4 GiB, at least 16 MiB): an image whose header declares more pixels than the budget allows
+/// (budget / 256 bytes per pixel, what the algorithms may need per pixel: 16.7 million pixels
+/// at the default) is refused with ``OSError`` before it is decoded.
 #[pyfunction]
 #[pyo3(signature = (path, depth_scale = None, format = None, *, max_memory_bytes = None))]
 pub(crate) fn read_depth<'py>(
@@ -39,13 +41,27 @@ pub(crate) fn read_depth<'py>(
     let loaded = compute(py, || {
         sl_io::depth::read_depth_with_limits(&path, &opts, &limits)
     })
-    .map_err(io_error)?;
+    .map_err(|e| {
+        // The budget's name here, not the command line's.
+        let message = e
+            .to_string()
+            .replace(
+                "raise it with --max-memory",
+                "raise it with max_memory_bytes=",
+            )
+            .replace(
+                "raise them with --max-memory",
+                "raise them with max_memory_bytes=",
+            );
+        crate::errors::SlDepthIOError::new_err(message)
+    })?;
     depth_array(py, loaded.depth)
 }
 
 /// Writes a depth map (metres) as 16-bit PNG or TIFF (by extension or ``format``) at
 /// ``depth_scale`` units per metre (1000 = millimetres), atomically. Invalid pixels (0, NaN,
 /// negative) are stored as 0; a depth the encoding cannot hold raises ``ValueError``/``OSError``.
+/// A ``uint16`` array is taken as depth in units of ``depth_scale`` (written as it is).
 #[pyfunction]
 #[pyo3(signature = (path, depth, depth_scale = 1000.0, format = None))]
 pub(crate) fn write_depth(
@@ -73,7 +89,11 @@ pub(crate) fn write_depth(
             )));
         }
     };
-    let input = depth_input(depth, None)?;
+    // A uint16 array is depth in units of this same scale: written as it is.
+    let integer = depth
+        .cast::<numpy::PyUntypedArray>()
+        .is_ok_and(|a| a.dtype().kind() == b'u');
+    let input = depth_input(depth, integer.then_some(depth_scale))?;
     let image = input.view()?.to_image();
     compute(py, || sl_io::depth::write_depth(&path, &image, &encoding)).map_err(io_error)
 }

@@ -78,5 +78,5 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
 #[pyfunction]
 #[pyo3(signature = (depth, depth_scale = None))]
 fn input_is_borrowed(depth: &Bound<'_, PyAny>, depth_scale: Option<f64>) -> PyResult<bool> {
-    Ok(arrays::depth_input(depth, depth_scale)?.is_borrowed())
+    arrays::is_borrowed(depth, depth_scale)
 }

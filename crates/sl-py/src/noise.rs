@@ -3,7 +3,7 @@
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, SCENE_NAMES, named_scene};
+use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, named_scene};
 
 use crate::arrays::{depth_array, depth_input, image_array};
 use crate::camera::{PyCamera, camera_or_default};
@@ -95,8 +95,8 @@ pub(crate) fn simulate<'py>(
     camera: Option<&PyCamera>,
     noise: &str,
 ) -> PyResult<SimResult<'py>> {
-    let named = named_scene(scene)
-        .map_err(|e| value_error(format!("{e}; scenes: {}", SCENE_NAMES.join(", "))))?;
+    // An unknown name's error lists the scenes.
+    let named = named_scene(scene).map_err(value_error)?;
     let (intrinsics, sim) = match camera {
         Some(c) => (
             c.inner.intrinsics,

@@ -20,7 +20,8 @@ use crate::threads::compute;
 /// frames with noise weights and extracts a mesh by marching cubes.
 ///
 /// ``weight``: ``"inv-z4"`` (the paper's 1/Z⁴ = 1/σ_Z² weights, default), ``"inv-z2"``,
-/// ``"uniform"``, or ``"sensor"`` (inverse σ_Z² of the camera given to ``integrate``).
+/// ``"uniform"``, or ``"sensor"`` (inverse σ_Z² of the camera of the first ``integrate``; a
+/// later frame of a camera with another noise model raises ``ValueError``).
 /// ``depth_lookup``: ``"nearest"`` (each voxel reads the pixel nearest its projection, default)
 /// or ``"bilinear"`` (inverse depth interpolated between the four pixels around it when they lie
 /// on one surface: no staircase on surfaces seen at grazing angles, 1.6–2× the integration time).
@@ -94,6 +95,19 @@ impl PyTsdfVolume {
             let mut params = *self.volume.params();
             params.weight = WeightMode::sensor_variance(camera.sensor);
             self.volume = TsdfVolume::new(params).map_err(value_error)?;
+        } else if self.sensor_weight
+            && let WeightMode::SensorVariance { sensor, .. } = self.volume.params().weight
+            && sensor != camera.sensor
+        {
+            return Err(value_error(format!(
+                "a TsdfVolume(weight=\"sensor\") weighs every frame by the noise model of the camera of its first frame (f = {} px, B = {} m, sigma_d_px = {}); this camera's differs (f = {} px, B = {} m, sigma_d_px = {}): fuse each sensor in its own volume, or use weight=\"inv-z4\"",
+                sensor.focal_px,
+                sensor.baseline_m,
+                sensor.sigma_d_px,
+                camera.sensor.focal_px,
+                camera.sensor.baseline_m,
+                camera.sensor.sigma_d_px
+            )));
         }
         let volume = &mut self.volume;
         let stats = compute(py, || volume.integrate(view, &camera.intrinsics, &pose))

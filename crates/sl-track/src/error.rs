@@ -36,8 +36,9 @@ pub enum TrackError {
         /// `distinct_deg` from the best (another hypothesis, or the best turned).
         alternative_inlier_fraction: f64,
     },
-    /// A frame's timestamp is not finite or not after the previous frame's.
-    #[error("timestamp {timestamp_s} s is not after the previous frame's {previous_s} s")]
+    /// A frame's timestamp is not finite or not after the previous frame's (`previous_s` is
+    /// NaN when there was none).
+    #[error("{}", timestamp_message(*previous_s, *timestamp_s))]
     TimestampOrder {
         /// The previous frame's timestamp, seconds.
         previous_s: f64,
@@ -64,3 +65,12 @@ impl From<sl_tsdf::TsdfError> for TrackError {
 
 /// `Result` with [`TrackError`].
 pub type Result<T> = std::result::Result<T, TrackError>;
+
+/// The message of [`TrackError::TimestampOrder`].
+fn timestamp_message(previous_s: f64, timestamp_s: f64) -> String {
+    if !timestamp_s.is_finite() {
+        format!("timestamp {timestamp_s} s is not a finite number of seconds")
+    } else {
+        format!("timestamp {timestamp_s} s is not after the previous frame's {previous_s} s")
+    }
+}

@@ -242,6 +242,11 @@ impl WeightFn {
             WeightMode::SensorVariance { sensor, floor_m } => {
                 // Work in units of the reference variance so that everything is O(1).
                 let s_ref = sensor.sigma_z(z_ref_m);
+                if !(s_ref > 0.0 && s_ref.is_finite()) {
+                    // A noise-free sensor (σ_D = 0): every observation has the floor's
+                    // variance, the same at every depth.
+                    return Self::Uniform;
+                }
                 let c = (sensor.sigma_d_px / sensor.fb()).powi(2) / (s_ref * s_ref);
                 let floor2 = (floor_m / s_ref).powi(2);
                 Self::Variance {
@@ -399,6 +404,19 @@ impl TsdfConfig {
                 self.min_depth_m, self.max_depth_m
             )));
         }
+        // The block keys address ±(MAX_BLOCK_COORD − 2) blocks about the origin (the margin
+        // of the integration's range check): a surface at `max_depth_m` seen from the origin
+        // must fit.
+        let reach_m = f64::from(crate::hash::MAX_BLOCK_COORD - 2)
+            * crate::volume::BLOCK_SIDE as f64
+            * self.voxel_m;
+        if reach_m < self.max_depth_m {
+            return Err(TsdfError::InvalidParameter(format!(
+                "voxel_m = {:e} addresses only ±{reach_m:.3e} m about the origin, less than \
+                 max_depth_m = {} m: a larger voxel_m",
+                self.voxel_m, self.max_depth_m
+            )));
+        }
         if self.trunc_m < self.voxel_m {
             return Err(TsdfError::InvalidParameter(format!(
                 "trunc_m = {} must be at least one voxel ({} m)",
@@ -470,6 +488,19 @@ mod tests {
                 ..TsdfConfig::default()
             };
             assert!((p.weight_at(1.0) - 1.0).abs() < 1e-6, "{mode:?}");
+        }
+    }
+
+    #[test]
+    fn a_noise_free_sensor_weighs_every_depth_alike() {
+        let mut s = SensorModel::kinect_v1();
+        s.sigma_d_px = 0.0;
+        let p = TsdfConfig {
+            weight: WeightMode::sensor_variance(s),
+            ..TsdfConfig::default()
+        };
+        for z in [0.5, 1.0, 3.0] {
+            assert_eq!(p.weight_at(z), 1.0);
         }
     }
 

@@ -94,6 +94,51 @@ pub fn check_output(option: &str, path: &Path, exts: &[&str]) -> Result<()> {
     Ok(())
 }
 
+/// An existing file's identity (device and inode on Unix; the canonical path elsewhere).
+fn file_identity(path: &Path) -> Option<(u64, u64, PathBuf)> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt as _;
+        std::fs::metadata(path)
+            .ok()
+            .map(|m| (m.dev(), m.ino(), PathBuf::new()))
+    }
+    #[cfg(not(unix))]
+    {
+        path.canonicalize().ok().map(|p| (0, 0, p))
+    }
+}
+
+/// Refuses an output that is one of the command's inputs (the same file under any name or
+/// hard link): written atomically, it would replace the input — a frame list turned into a
+/// trajectory, a depth frame into a rendering — and the next run would read garbage.
+pub fn check_outputs_spare_inputs<'a>(
+    outputs: &[(&str, Option<&Path>)],
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> Result<()> {
+    let existing: Vec<(&str, &Path, (u64, u64, PathBuf))> = outputs
+        .iter()
+        .filter_map(|(opt, p)| p.and_then(|p| file_identity(p).map(|id| (*opt, p, id))))
+        .collect();
+    if existing.is_empty() {
+        return Ok(());
+    }
+    for input in inputs {
+        let Some(id) = file_identity(input) else {
+            continue;
+        };
+        if let Some((opt, path, _)) = existing.iter().find(|(_, _, o)| *o == id) {
+            bail!(
+                "{opt} {} is an input of this command ({}): writing it would replace the \
+                 input; name another output file",
+                path.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Checks that no two outputs of one command name the same file (`-o x.png --truth x.png` would
 /// otherwise keep only the last one written). Names are compared after resolving their
 /// directories, so `./x.png` and `x.png` are the same file; an unresolvable directory is left to
@@ -264,9 +309,34 @@ pub fn tum_preset(dir: &Path) -> &'static str {
     }
 }
 
+/// Refuses a path that exists but is not a regular file (a directory, device, FIFO, socket or
+/// a symbolic link loop) where a file is read: a camera file that is a directory must not be
+/// passed over for a preset without a word.
+pub fn refuse_non_file(what: &str, path: &Path) -> Result<()> {
+    match (std::fs::metadata(path), std::fs::symlink_metadata(path)) {
+        (Ok(m), _) if m.is_file() => Ok(()),
+        (Ok(m), _) => bail!(
+            "{what} {} exists but is not a regular file ({})",
+            path.display(),
+            if m.is_dir() {
+                "a directory"
+            } else {
+                "a device, FIFO or socket"
+            }
+        ),
+        // A link whose target is missing or loops.
+        (Err(e), Ok(_)) => bail!(
+            "{what} {} is a symbolic link that cannot be followed: {e}",
+            path.display()
+        ),
+        (Err(_), Err(_)) => Ok(()),
+    }
+}
+
 /// A `--camera` value: an existing file is read as camera JSON; anything else must name a
 /// preset (the error lists them, and says the file does not exist when it looks like a path).
 pub fn camera_from_arg(value: &Path) -> Result<Camera> {
+    refuse_non_file("--camera", value)?;
     if value.is_file() {
         return sl_io::camera::read_camera_json_with_limits(value, &limits())
             .with_context(|| format!("reading camera {}", value.display()));
@@ -410,11 +480,19 @@ fn note_depth_out_of_range(path: &Path, depth: &sl_core::DepthImage, args: &Inpu
             }
             _ => " (TUM RGB-D files store 5000 units per metre)".to_string(),
         };
+        // A camera file has no range of its own: the Kinect's is the yardstick then.
+        let whose = match args.camera.as_deref().filter(|c| c.is_file()) {
+            Some(file) => format!(
+                "a Kinect-class camera's (`{}`, for {})",
+                p.name,
+                file.display()
+            ),
+            None => format!("the `{}` camera's", p.name),
+        };
         errln!(
-            "note: {}: median depth {median:.2} m, outside the `{}` camera's {}–{} m: is \
+            "note: {}: median depth {median:.2} m, outside {whose} {}–{} m: is \
              --depth-scale right?{hint}",
             path.display(),
-            p.name,
             p.min_depth_m,
             p.max_depth_m
         );

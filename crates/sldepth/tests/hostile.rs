@@ -279,7 +279,7 @@ fn absurd_camera_numbers_are_refused_with_the_valid_range() {
         "--camera",
         s(&cam),
     ]);
-    assert_typed_error(&o, &["fx", "must be in (0, 1e7] pixels"]);
+    assert_typed_error(&o, &["fx", "must be in [1, 1e7] pixels"]);
 }
 
 /// A small frame (64x48 at 1.5 m) with its camera and a one-line frame list.
@@ -752,4 +752,86 @@ fn a_closed_or_full_stderr_is_not_a_panic() {
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(0), "{:?}", o.status);
+}
+
+/// An output that is the input under its own name or a hard link is refused, and the input
+/// stays as it was (written atomically, it was replaced).
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.png");
+    std::fs::copy(testdata("floor-seed1-depth.png"), &input).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let link = dir.path().join("link.png");
+    std::fs::hard_link(&input, &link).unwrap();
+    for out in [&input, &link] {
+        let o = run(&["filter", s(&input), s(out)]);
+        assert_typed_error(&o, &["is an input of this command"]);
+    }
+    let o = run(&["planes", s(&input), "-o", s(&link)]);
+    assert_typed_error(&o, &["is an input of this command"]);
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+}
+
+/// A camera file that is a directory is an error, not a silent fall-back to the default
+/// camera; a focal length below one pixel, a sub-pixel count beyond any matcher's and an
+/// absurd trajectory position are refused with their range.
+#[test]
+fn a_camera_that_is_no_file_and_absurd_sensor_numbers_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // Its frame `d.png` (64x48 at 1.5 m).
+    small_sequence(dir.path());
+    let log_dir = dir.path().join("o3d");
+    std::fs::create_dir_all(log_dir.join("camera.json")).unwrap();
+    std::fs::create_dir_all(log_dir.join("depth")).unwrap();
+    std::fs::copy(dir.path().join("d.png"), log_dir.join("depth/0.png")).unwrap();
+    std::fs::write(
+        log_dir.join("traj.log"),
+        "0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+    )
+    .unwrap();
+    let mesh = dir.path().join("m.ply");
+    let o = run(&[
+        "fuse",
+        "--o3d-log",
+        s(&log_dir.join("traj.log")),
+        "--depth-dir",
+        s(&log_dir.join("depth")),
+        "-o",
+        s(&mesh),
+    ]);
+    assert_typed_error(&o, &["camera.json", "not a regular file"]);
+    assert!(!mesh.exists());
+    let tiny = camera_json(dir.path(), 640, 480, 1e-300);
+    let o = run(&[
+        "info",
+        s(&testdata("floor-seed1-depth.png")),
+        "--camera",
+        s(&tiny),
+    ]);
+    assert_typed_error(&o, &["fx", "must be in [1, 1e7] pixels"]);
+    let q = dir.path().join("q.json");
+    std::fs::write(
+        &q,
+        r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 320, 240, 1], "subpixel": 4294967295}"#,
+    )
+    .unwrap();
+    let o = run(&[
+        "info",
+        s(&testdata("floor-seed1-depth.png")),
+        "--camera",
+        s(&q),
+    ]);
+    assert_typed_error(&o, &["sub-pixel steps", "1..=256"]);
+    let far = dir.path().join("far.txt");
+    let near = dir.path().join("near.txt");
+    let pose = |t: f64, x: f64| format!("{t} {x} 0 0 0 0 0 1\n");
+    std::fs::write(
+        &far,
+        pose(1.0, 1e200) + &pose(2.0, 2e200) + &pose(3.0, 3e200),
+    )
+    .unwrap();
+    std::fs::write(&near, pose(1.0, 0.0) + &pose(2.0, 0.1) + &pose(3.0, 0.2)).unwrap();
+    let o = run(&["eval-traj", s(&far), s(&near)]);
+    assert_typed_error(&o, &["from the origin", "beyond 1e9 m"]);
 }

@@ -515,3 +515,62 @@ fn fuse_undistorts_the_frames_of_a_tum_folder_by_default() {
     assert!(vertices.iter().all(|&n| n > 1000), "{vertices:?}");
     assert_ne!(vertices[0], vertices[1]);
 }
+
+/// A sequence none of whose frames can be read is an error that writes nothing (it exited 0
+/// with an empty mesh and trajectory); an output that is one of the inputs (here the frame
+/// list) is refused before any work; a frame list written with a UTF-8 byte-order mark reads.
+#[test]
+fn track_refuses_an_unreadable_sequence_and_outputs_over_its_inputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 3);
+    let traj = tmp.path().join("traj.txt");
+    let list = seq.join("depth.txt");
+    let before = std::fs::read(&list).unwrap();
+    // The output names the frame list: refused, the list unchanged.
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--output",
+        list.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("is an input of this command"), "{err}");
+    assert_eq!(std::fs::read(&list).unwrap(), before);
+    // With a byte-order mark the list reads as before.
+    let mut bom = b"\xef\xbb\xbf".to_vec();
+    bom.extend_from_slice(&before);
+    std::fs::write(&list, &bom).unwrap();
+    let (v, err) = sldepth_json(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--output",
+        traj.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    assert_eq!(v["tracked"], 3, "{err}");
+    // Every frame cut short: an error, and no trajectory.
+    std::fs::remove_file(&traj).unwrap();
+    for e in std::fs::read_dir(seq.join("depth")).unwrap() {
+        let p = e.unwrap().path();
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..100]).unwrap();
+    }
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--output",
+        traj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("none of the 3 frames could be read"), "{err}");
+    assert!(err.contains("truncated"), "{err}");
+    assert!(!traj.exists());
+}

@@ -81,6 +81,10 @@ impl TrajectoryConfig {
     }
 }
 
+/// Largest position coordinate a trajectory may have, metres (10⁹ m: a million kilometres; UTM
+/// or ECEF coordinates of a robot are within it).
+pub const MAX_POSITION_M: f64 = 1e9;
+
 /// The trajectory sorted by timestamp, after checking the timestamps and poses.
 pub(crate) fn sorted(traj: &[StampedPose], name: &str) -> Result<Vec<StampedPose>> {
     let mut v = traj.to_vec();
@@ -96,6 +100,14 @@ pub(crate) fn sorted(traj: &[StampedPose], name: &str) -> Result<Vec<StampedPose
         {
             return Err(EvalError::InvalidParameter(format!(
                 "{name} trajectory: the pose at {t} s is not finite"
+            )));
+        }
+        let far = iso.translation.vector.amax();
+        if far > MAX_POSITION_M {
+            return Err(EvalError::InvalidParameter(format!(
+                "{name} trajectory: the position at {t} s is {far:e} m from the origin, beyond \
+                 {MAX_POSITION_M:e} m (the alignment's sums of squares would overflow long before \
+                 any camera got there: metres expected)"
             )));
         }
     }

@@ -11,8 +11,11 @@ sigma_Z = Z**2 * sigma_D / (f*B); every function here uses that model:
     labels, planes = sldepth.extract_planes(z, cam)
 
 Every computation releases the GIL and runs on sldepth's thread pool
-(``sldepth.set_num_threads``). Errors are ``sldepth.SlDepthError`` (a ``ValueError``) or
-``sldepth.SlDepthIOError`` (an ``OSError``).
+(``sldepth.set_num_threads``), so functions called from several Python threads run side by
+side; a ``TsdfVolume`` or ``Tracker`` is one object's state, and calls on the same object from
+two threads at once raise ``RuntimeError`` (give each thread its own, or hold a lock). Errors
+are ``sldepth.SlDepthError`` (a ``ValueError``) or ``sldepth.SlDepthIOError`` (an
+``OSError``).
 """
 
 import os as _os
@@ -90,7 +93,8 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
     takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
     (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``,
-    ``new_fragment_after_s``).
+    ``new_fragment_after_s``, ``rolling_shutter_ms``). A single path or array is not a
+    sequence: it raises ``TypeError`` (pass a list, e.g. of ``sorted(glob.glob(...))``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
     camera-to-world matrices (the first frame is the identity; a lost frame gets the last good
@@ -103,6 +107,14 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     """
     import numpy as np
 
+    if isinstance(frames, (str, bytes, _os.PathLike)) or (
+        isinstance(frames, np.ndarray) and frames.ndim < 3
+    ):
+        raise TypeError(
+            "frames must be a sequence of depth arrays or paths (a list, e.g. "
+            "sorted(glob.glob('depth/*.png'))), not a single "
+            f"{type(frames).__name__}"
+        )
     tracker = Tracker(camera, **tracker_options)
     frames = list(frames)
     if timestamps_s is None:
@@ -118,7 +130,7 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     for frame, t in zip(frames, times):
         if isinstance(frame, (str, bytes, _os.PathLike)):
             pose, status = tracker.track(
-                read_depth(frame, depth_scale=depth_scale), timestamp_s=t
+                read_depth(_os.fsdecode(frame), depth_scale=depth_scale), timestamp_s=t
             )
         else:
             pose, status = tracker.track(frame, depth_scale, timestamp_s=t)

@@ -30,7 +30,10 @@ class Camera:
         baseline_m: float = 0.075,
         subpixel: int = 8,
         sigma_d_px: float = 0.07,
-    ) -> None: ...
+    ) -> None:
+        """Ranges (ValueError outside them): width x height at most 16,777,216 pixels (the
+        default memory budget's frame), fx and fy in [1, 1e7] px, baseline_m in (0, 10],
+        subpixel in 1..256, sigma_d_px in [0, 10] (0: a noise-free camera)."""
     @staticmethod
     def preset(name: str) -> Camera:
         """A named camera: "kinect-v1", "tum-fr1", "d435", ... (see presets())."""
@@ -93,7 +96,8 @@ def read_depth(
 def write_depth(
     path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
 ) -> None:
-    """16-bit PNG/TIFF at depth_scale units per metre, written atomically."""
+    """16-bit PNG/TIFF at depth_scale units per metre, written atomically; a uint16 array is
+    taken at depth_scale units per metre (written as it is)."""
 
 class Analysis:
     valid_pixels: int
@@ -183,7 +187,10 @@ class TsdfVolume:
         memory_budget_bytes: int = 4 << 30,
         depth_lookup: str = "nearest",
     ) -> None:
-        """depth_lookup: "nearest" (default) or "bilinear" (no staircase on grazing surfaces)."""
+        """weight: "inv-z4" (default), "inv-z2", "uniform" or "sensor" (inverse sigma_Z**2 of the
+        camera of the first integrate; a later camera with another noise model raises
+        ValueError). depth_lookup: "nearest" (default) or "bilinear" (no staircase on grazing
+        surfaces)."""
     def integrate(
         self,
         depth: _Depth,
@@ -333,7 +340,9 @@ def track_in_map(
 def set_num_threads(n: Optional[int] = None) -> None:
     """Threads per computation (None or 0: one per core). Each Python thread computes as the
     first worker of a pool of its own, sized at its first call, so calls from several threads run
-    side by side; a call with another count than that goes through a shared pool."""
+    side by side; a call with another count than that goes through a shared pool. A
+    TsdfVolume or Tracker is one object's state: calls on the same object from two threads at
+    once raise RuntimeError ("Already borrowed"); give each thread its own, or hold a lock."""
 def get_num_threads() -> int:
     """The number of threads each computation uses now."""
 def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:

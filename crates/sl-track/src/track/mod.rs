@@ -214,6 +214,7 @@ impl Tracker {
         cfg.validate()?;
         camera.intrinsics.validate()?;
         camera.sensor.validate()?;
+        pyramid::check_levels(&camera.intrinsics, cfg.levels)?;
         let k = camera.intrinsics;
         Ok(Self {
             camera,

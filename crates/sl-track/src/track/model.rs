@@ -65,7 +65,13 @@ impl ModelReference {
         let intrinsics = if scale == 1.0 {
             *camera
         } else {
-            camera.scaled(scale)?
+            camera.scaled(scale).map_err(|e| {
+                TrackError::InvalidConfig(format!(
+                    "the model is rendered at {scale} of the camera's {}x{} pixels, which the \
+                     camera cannot give ({e}): a larger camera or a model scale closer to 1",
+                    camera.width, camera.height
+                ))
+            })?
         };
         Ok(Self {
             intrinsics,

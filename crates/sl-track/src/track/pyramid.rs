@@ -5,7 +5,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use sl_core::{Intrinsics, SensorModel};
 
-use crate::error::Result;
+use crate::error::{Result, TrackError};
 use crate::rolling_shutter::{motion_power, row_offset};
 
 /// The largest angle between a surface and the line of sight for which a normal is computed
@@ -203,6 +203,22 @@ pub(crate) struct Pyramid {
 /// The baseline of level `l`'s central-difference normals, pixels (see `normals`).
 pub(crate) fn normal_radius(l: usize) -> usize {
     if l == 0 { 2 } else { 1 }
+}
+
+/// Checks that a camera can be halved `levels − 1` times: the error names the camera and the
+/// pyramid instead of the coarsest level's intrinsics.
+pub(crate) fn check_levels(k: &Intrinsics, levels: usize) -> Result<()> {
+    let mut kl = *k;
+    for _ in 1..levels {
+        kl = half(&kl).map_err(|e| {
+            TrackError::InvalidConfig(format!(
+                "a {}x{} camera with fx = {} px is too small for a pyramid of {levels} levels, \
+                 each half the previous one ({e}): fewer levels or a larger camera",
+                k.width, k.height, k.fx
+            ))
+        })?;
+    }
+    Ok(())
 }
 
 /// Intrinsics of a 2×2-downsampled image (pixel-centre convention of `Intrinsics::scaled`).

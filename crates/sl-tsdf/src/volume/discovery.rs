@@ -273,8 +273,11 @@ pub(super) fn band_rows_inline(
                 let (a, b) = (t + dir * n, t + dir * fr);
                 if !a.iter().chain(b.iter()).all(|c| c.abs() < lim) {
                     return Err(TsdfError::OutOfRange(format!(
-                        "pixel ({x}, {y}) at depth {} m",
-                        row[x][0]
+                        "pixel ({x}, {y}) at depth {} m reaches beyond the {} blocks the volume \
+                         addresses on each side of its origin (a camera far from the origin, or \
+                         a voxel too small for the depth range)",
+                        row[x][0],
+                        crate::hash::MAX_BLOCK_COORD - 2
                     )));
                 }
             }

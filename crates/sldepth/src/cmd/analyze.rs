@@ -34,6 +34,10 @@ const SLOPE_PLAUSIBLE_DEVIATION: f64 = 0.5;
 pub fn run(args: Args) -> Result<()> {
     if let Some(plot) = &args.plot {
         check_output("--plot", plot, &["svg", "png"])?;
+        crate::common::check_outputs_spare_inputs(
+            &[("--plot", Some(plot))],
+            [args.depth.as_path()],
+        )?;
     }
     let loaded = load_depth(&args.depth, &args.input)?;
     let sensor = loaded.camera.sensor;

@@ -27,6 +27,10 @@ pub struct Args {
 /// Runs `sldepth cloud`.
 pub fn run(args: Args) -> Result<()> {
     check_output("--output", &args.output, &["ply"])?;
+    crate::common::check_outputs_spare_inputs(
+        &[("--output", Some(args.output.as_path()))],
+        [args.depth.as_path()],
+    )?;
     let mut loaded = load_depth(&args.depth, &args.input)?;
     if let Some(u) = crate::common::undistorter(&args.lens, &args.input, None, &loaded.camera) {
         loaded.depth = u.apply(&loaded.depth)?;

@@ -12,8 +12,8 @@ use serde_json::json;
 use sl_filter::{DepthFilter, FilterConfig, Isa, Method, MultiScale, RangeKernel, Window};
 
 use crate::common::{
-    DEPTH_EXTS, InputArgs, check_distinct_outputs, check_output, load_depth, output_encoding,
-    print_json, round_to, save_depth,
+    DEPTH_EXTS, InputArgs, check_distinct_outputs, check_output, check_outputs_spare_inputs,
+    load_depth, output_encoding, print_json, round_to, save_depth,
 };
 
 /// Most `--repeat` runs (a timing loop, not a way to keep the machine busy for days).
@@ -99,10 +99,12 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.normals {
         check_output("--normals", p, &["png"])?;
     }
-    check_distinct_outputs(&[
-        ("OUT", Some(&args.output)),
+    let outputs = [
+        ("OUT", Some(args.output.as_path())),
         ("--normals", args.normals.as_deref()),
-    ])?;
+    ];
+    check_distinct_outputs(&outputs)?;
+    check_outputs_spare_inputs(&outputs, [args.input_path.as_path()])?;
     let reps = args.repeat.unwrap_or(1);
     if !(1..=MAX_REPEAT).contains(&reps) {
         bail!("--repeat {reps}: must be from 1 to {MAX_REPEAT}");

@@ -121,9 +121,52 @@ fn parse_weight(name: &str, camera: &Camera) -> Result<WeightMode> {
     Ok(WeightMode::parse(name)?)
 }
 
+/// The files of the chosen source besides its depth frames (frame lists, poses, the camera),
+/// which no output may replace.
+fn source_files(args: &Args) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = [&args.frames, &args.o3d_log, &args.input.camera]
+        .into_iter()
+        .flatten()
+        .cloned()
+        .collect();
+    if let Some(dir) = &args.tum {
+        for n in [
+            "depth.txt",
+            "associations.txt",
+            "groundtruth.txt",
+            "rgb.txt",
+        ] {
+            files.push(dir.join(n));
+        }
+    }
+    if let Some(log) = &args.o3d_log
+        && let Some(dir) = log.parent()
+    {
+        files.push(dir.join("camera.json"));
+    }
+    if let Some(dir) = &args.seven_scenes {
+        files.push(dir.join("camera-intrinsics.txt"));
+        if let Ok(entries) = std::fs::read_dir(dir) {
+            files.extend(
+                entries
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.ends_with(".pose.txt"))
+                    }),
+            );
+        }
+    }
+    files
+}
+
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     let camera_or = |default: Option<PathBuf>| -> Result<Camera> {
+        if let (None, Some(p)) = (&args.input.camera, &default) {
+            crate::common::refuse_non_file("camera file", p)?;
+        }
         match (&args.input.camera, default) {
             (Some(_), _) => load_camera(&args.input),
             (None, Some(p)) if p.is_file() => {
@@ -167,6 +210,14 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         Ok((frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::trajectory::read_7scenes_sequence_with_limits(dir, &limits())?;
+        // The sequence is read by its pose files: say so when depth frames have none.
+        let depth_frames = sl_io::sequence::read_7scenes_depth_frames(dir, &limits())?.len();
+        if depth_frames > frames.len() {
+            errln!(
+                "note: {} depth frames have no pose file (frame-*.pose.txt) and are skipped",
+                depth_frames - frames.len()
+            );
+        }
         let cam = camera_or(Some(dir.join("camera-intrinsics.txt")))?;
         Ok((frames, cam, None))
     } else {
@@ -231,6 +282,17 @@ pub fn run(args: Args) -> Result<()> {
              `sldepth track ... --mesh`"
         );
     }
+    crate::common::check_outputs_spare_inputs(
+        &[
+            ("--output", args.output.as_deref()),
+            ("--slice-png", args.slice_png.as_deref()),
+            ("--render-png", args.render_png.as_deref()),
+        ],
+        source_files(&args)
+            .iter()
+            .map(PathBuf::as_path)
+            .chain(frames.iter().map(|f| f.depth_path.as_path())),
+    )?;
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
     read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);

@@ -92,10 +92,12 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(p) = &args.overlay {
         check_output("--overlay", p, &["png"])?;
     }
-    check_distinct_outputs(&[
-        ("--output", Some(&args.output)),
+    let outputs = [
+        ("--output", Some(args.output.as_path())),
         ("--overlay", args.overlay.as_deref()),
-    ])?;
+    ];
+    check_distinct_outputs(&outputs)?;
+    crate::common::check_outputs_spare_inputs(&outputs, [args.depth.as_path()])?;
     check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
     check_range("--log-threshold-px", args.log_threshold_px, 0.0..=1e3)?;
     check_range("--log-sigma-px", args.log_sigma_px, 0.0..=1e3)?;

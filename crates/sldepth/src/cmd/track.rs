@@ -200,12 +200,56 @@ fn rolling_shutter_readout_s(args: &Args, implied: Option<&str>) -> Result<f64> 
     Ok(readout_s)
 }
 
+/// The files of the chosen source besides its depth frames (frame lists, poses, ground truth,
+/// the camera), which no output may replace.
+fn source_files(args: &Args) -> Vec<PathBuf> {
+    let dir_files = |dir: &Path, names: &[&str]| -> Vec<PathBuf> {
+        names.iter().map(|n| dir.join(n)).collect()
+    };
+    let mut files = Vec::new();
+    if let Some(dir) = &args.tum {
+        files.extend(dir_files(
+            dir,
+            &[
+                "depth.txt",
+                "associations.txt",
+                "groundtruth.txt",
+                "rgb.txt",
+            ],
+        ));
+    }
+    if let Some(dir) = &args.seven_scenes {
+        files.push(dir.join("camera-intrinsics.txt"));
+        if let Ok(entries) = std::fs::read_dir(dir) {
+            files.extend(
+                entries
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.ends_with(".pose.txt"))
+                    }),
+            );
+        }
+    }
+    if let Some(dir) = &args.o3d {
+        files.extend(dir_files(dir, &["camera.json"]));
+    }
+    if let Some(c) = &args.input.camera {
+        files.push(c.clone());
+    }
+    files
+}
+
 /// The frames, the camera and the default depth scale of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     let lim = limits();
     let camera = |default_preset: &str, file: Option<PathBuf>| -> Result<Camera> {
         if let Some(c) = &args.input.camera {
             return camera_from_arg(c);
+        }
+        if let Some(p) = &file {
+            crate::common::refuse_non_file("camera file", p)?;
         }
         match file {
             Some(p) if p.is_file() => {
@@ -470,6 +514,17 @@ pub fn run(args: Args) -> Result<()> {
     if frames.is_empty() {
         bail!("no depth frames in the sequence");
     }
+    crate::common::check_outputs_spare_inputs(
+        &[
+            ("--output", args.output.as_deref()),
+            ("--output-log", args.output_log.as_deref()),
+            ("--mesh", args.mesh.as_deref()),
+        ],
+        source_files(&args)
+            .iter()
+            .map(PathBuf::as_path)
+            .chain(frames.iter().map(|f| f.depth_path.as_path())),
+    )?;
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
     read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
@@ -669,6 +724,12 @@ pub fn run(args: Args) -> Result<()> {
     }
     bar.finish_and_clear();
     let wall_s = wall.elapsed().as_secs_f64();
+    if !frames.is_empty() && skipped_frames.len() == frames.len() {
+        bail!(
+            "none of the {} frames could be read (each is named above); nothing was written",
+            frames.len()
+        );
+    }
 
     for done in rec.finish()? {
         let mesh = write_fragment_mesh(&args, &done, params.memory_budget_bytes)?;

@@ -1,0 +1,89 @@
+"""Unusual and hostile inputs: each case below misbehaved before (an abort, a silently wrong
+result or a misleading message; docs/bench/README.md, session 47)."""
+
+import math
+
+import numpy as np
+import pytest
+
+import sldepth
+
+
+def test_cameras_beyond_any_frame_budget_or_sensor_are_refused():
+    # A 20000x20000 camera made the tracker's constructor abort on allocation.
+    with pytest.raises(sldepth.SlDepthError, match="over the limit of"):
+        sldepth.Camera(20000, 20000, 525, 525, 1e4, 1e4)
+    with pytest.raises(sldepth.SlDepthError, match="over the limit of"):
+        sldepth.Camera.preset("kinect-v1").resampled(10)
+    with pytest.raises(sldepth.SlDepthError, match=r"must be in \[1, 1e7\]"):
+        sldepth.Camera(640, 480, 1e-300, 525, 320, 240)
+    with pytest.raises(sldepth.SlDepthError, match="baseline"):
+        sldepth.Camera(640, 480, 525, 525, 320, 240, baseline_m=1e30)
+    with pytest.raises(sldepth.SlDepthError, match="disparity noise"):
+        sldepth.Camera(640, 480, 525, 525, 320, 240, sigma_d_px=1e30)
+    # Preset names are looked up loosely and reported canonically.
+    cam = sldepth.Camera.preset("  KINECT-v1 ")
+    assert cam.preset_name == "kinect-v1"
+    assert cam == sldepth.Camera.preset("kinect-v1")
+    assert 'preset="kinect-v1"' in repr(cam)
+
+
+def test_arrays_numpy_hands_over_in_any_layout_read_alike(small_cam, wall):
+    expected = sldepth.filter(wall, small_cam)
+    buf = np.zeros(wall.size * 4 + 1, np.uint8)
+    misaligned = buf[1:].view(np.float32).reshape(wall.shape)
+    misaligned[:] = wall
+    big_endian = wall.astype(">f4")
+    for a in (misaligned, big_endian):
+        np.testing.assert_array_equal(sldepth.filter(a, small_cam), expected)
+        assert not sldepth.input_is_borrowed(a)
+    # A masked array's masked entries are invalid depth.
+    masked = np.ma.masked_array(wall, mask=np.zeros(wall.shape, bool))
+    masked.mask[10:20, 10:20] = True
+    out = sldepth.filter(masked, small_cam)
+    assert np.all(out[10:20, 10:20] == 0)
+    assert np.all(out[30:, 30:] > 0)
+    # Complex numbers are no pose; an absurd integer scale is no scale.
+    pose = np.eye(4) + 0j
+    pose[0, 3] = 5j
+    with pytest.raises(sldepth.SlDepthError, match="real numbers"):
+        sldepth.TsdfVolume().integrate(wall, small_cam, pose)
+    with pytest.raises(sldepth.SlDepthError, match="outside 1 to 1e6"):
+        sldepth.filter((wall * 1000).astype(np.uint16), small_cam, depth_scale=1e300)
+
+
+def test_sensor_weights_follow_one_sensor_and_a_noise_free_one_fuses(small_cam, wall):
+    noise_free = sldepth.Camera(64, 48, 58.0, 58.0, 31.5, 23.5, sigma_d_px=0.0)
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.04, weight="sensor")
+    vol.integrate(wall, noise_free, np.eye(4))
+    assert len(vol.extract_mesh().vertices) > 0
+    other = sldepth.Camera(64, 48, 58.0, 58.0, 31.5, 23.5, baseline_m=0.5)
+    with pytest.raises(sldepth.SlDepthError, match="noise model of the camera of its first"):
+        vol.integrate(wall, other, np.eye(4))
+    with pytest.raises(sldepth.SlDepthError, match="addresses only"):
+        sldepth.TsdfVolume(voxel_m=1e-9, trunc_m=1e-8)
+
+
+def test_files_and_sequences_odd_but_legal(tmp_path, small_cam, wall):
+    # A uint16 array is written as it is, at its own scale.
+    u16 = (wall * 1000).astype(np.uint16)
+    sldepth.write_depth(tmp_path / "u.png", u16, depth_scale=1000)
+    back = sldepth.read_depth(tmp_path / "u.png", depth_scale=1000)
+    np.testing.assert_array_equal(np.round(back * 1000).astype(np.uint16), u16)
+    # What read_trajectory refuses is not written.
+    with pytest.raises(sldepth.SlDepthIOError, match="finite"):
+        sldepth.write_trajectory(tmp_path / "t.txt", [math.nan], np.eye(4)[None])
+    assert not (tmp_path / "t.txt").exists()
+    # A single path or frame is not a sequence.
+    for frames in (str(tmp_path / "u.png"), wall):
+        with pytest.raises(TypeError, match="sequence of depth arrays or paths"):
+            sldepth.track_sequence(frames, small_cam)
+    tracker = sldepth.Tracker(small_cam)
+    with pytest.raises(sldepth.SlDepthError, match="not a finite number"):
+        tracker.track(wall, timestamp_s=math.nan)
+    with pytest.raises(sldepth.SlDepthError, match="too small for a pyramid"):
+        sldepth.Tracker(sldepth.Camera(3, 3, 5, 5, 1, 1))
+    # The budget's message names the keyword, not the command line's option.
+    sldepth.write_depth(tmp_path / "big.png", np.zeros((2048, 2048), np.float32))
+    with pytest.raises(sldepth.SlDepthIOError, match="max_memory_bytes="):
+        sldepth.read_depth(tmp_path / "big.png", max_memory_bytes=1)
