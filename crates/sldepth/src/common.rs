@@ -139,6 +139,42 @@ pub fn check_outputs_spare_inputs<'a>(
     Ok(())
 }
 
+/// The files a sequence command reads besides its depth frames: a TUM folder's lists and ground
+/// truth, a 7-Scenes folder's poses and intrinsics, and `others` (a camera file, a frame list, a
+/// log), none of which an output may replace.
+pub fn sequence_files(
+    tum: Option<&Path>,
+    seven_scenes: Option<&Path>,
+    others: impl IntoIterator<Item = PathBuf>,
+) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = others.into_iter().collect();
+    if let Some(dir) = tum {
+        for n in [
+            "depth.txt",
+            "associations.txt",
+            "groundtruth.txt",
+            "rgb.txt",
+        ] {
+            files.push(dir.join(n));
+        }
+    }
+    if let Some(dir) = seven_scenes {
+        files.push(dir.join("camera-intrinsics.txt"));
+        if let Ok(entries) = std::fs::read_dir(dir) {
+            files.extend(
+                entries
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .filter(|p| {
+                        p.file_name()
+                            .and_then(|n| n.to_str())
+                            .is_some_and(|n| n.ends_with(".pose.txt"))
+                    }),
+            );
+        }
+    }
+    files
+}
+
 /// Checks that no two outputs of one command name the same file (`-o x.png --truth x.png` would
 /// otherwise keep only the last one written). Names are compared after resolving their
 /// directories, so `./x.png` and `x.png` are the same file; an unresolvable directory is left to

@@ -121,44 +121,22 @@ fn parse_weight(name: &str, camera: &Camera) -> Result<WeightMode> {
     Ok(WeightMode::parse(name)?)
 }
 
-/// The files of the chosen source besides its depth frames (frame lists, poses, the camera),
-/// which no output may replace.
+/// The files of the chosen source besides its depth frames, which no output may replace.
 fn source_files(args: &Args) -> Vec<PathBuf> {
-    let mut files: Vec<PathBuf> = [&args.frames, &args.o3d_log, &args.input.camera]
+    let log_camera = args
+        .o3d_log
+        .as_ref()
+        .and_then(|log| log.parent())
+        .map(|d| d.join("camera.json"));
+    let given = [&args.frames, &args.o3d_log, &args.input.camera]
         .into_iter()
         .flatten()
-        .cloned()
-        .collect();
-    if let Some(dir) = &args.tum {
-        for n in [
-            "depth.txt",
-            "associations.txt",
-            "groundtruth.txt",
-            "rgb.txt",
-        ] {
-            files.push(dir.join(n));
-        }
-    }
-    if let Some(log) = &args.o3d_log
-        && let Some(dir) = log.parent()
-    {
-        files.push(dir.join("camera.json"));
-    }
-    if let Some(dir) = &args.seven_scenes {
-        files.push(dir.join("camera-intrinsics.txt"));
-        if let Ok(entries) = std::fs::read_dir(dir) {
-            files.extend(
-                entries
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| {
-                        p.file_name()
-                            .and_then(|n| n.to_str())
-                            .is_some_and(|n| n.ends_with(".pose.txt"))
-                    }),
-            );
-        }
-    }
-    files
+        .cloned();
+    crate::common::sequence_files(
+        args.tum.as_deref(),
+        args.seven_scenes.as_deref(),
+        given.chain(log_camera),
+    )
 }
 
 /// The frames and the camera of the chosen source.

@@ -200,45 +200,14 @@ fn rolling_shutter_readout_s(args: &Args, implied: Option<&str>) -> Result<f64> 
     Ok(readout_s)
 }
 
-/// The files of the chosen source besides its depth frames (frame lists, poses, ground truth,
-/// the camera), which no output may replace.
+/// The files of the chosen source besides its depth frames, which no output may replace.
 fn source_files(args: &Args) -> Vec<PathBuf> {
-    let dir_files = |dir: &Path, names: &[&str]| -> Vec<PathBuf> {
-        names.iter().map(|n| dir.join(n)).collect()
-    };
-    let mut files = Vec::new();
-    if let Some(dir) = &args.tum {
-        files.extend(dir_files(
-            dir,
-            &[
-                "depth.txt",
-                "associations.txt",
-                "groundtruth.txt",
-                "rgb.txt",
-            ],
-        ));
-    }
-    if let Some(dir) = &args.seven_scenes {
-        files.push(dir.join("camera-intrinsics.txt"));
-        if let Ok(entries) = std::fs::read_dir(dir) {
-            files.extend(
-                entries
-                    .filter_map(|e| e.ok().map(|e| e.path()))
-                    .filter(|p| {
-                        p.file_name()
-                            .and_then(|n| n.to_str())
-                            .is_some_and(|n| n.ends_with(".pose.txt"))
-                    }),
-            );
-        }
-    }
-    if let Some(dir) = &args.o3d {
-        files.extend(dir_files(dir, &["camera.json"]));
-    }
-    if let Some(c) = &args.input.camera {
-        files.push(c.clone());
-    }
-    files
+    let o3d_camera = args.o3d.as_ref().map(|d| d.join("camera.json"));
+    crate::common::sequence_files(
+        args.tum.as_deref(),
+        args.seven_scenes.as_deref(),
+        o3d_camera.into_iter().chain(args.input.camera.clone()),
+    )
 }
 
 /// The frames, the camera and the default depth scale of the chosen source.
