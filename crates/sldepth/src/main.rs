@@ -95,12 +95,40 @@ fn main() -> ExitCode {
         // quietly, as ripgrep does.
         Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
-            // The same report as `fn main() -> anyhow::Result<()>`; if even stderr is gone there
-            // is nobody to tell, but the exit code still says it failed.
-            let _ = writeln!(std::io::stderr(), "Error: {e:?}");
+            // If even stderr is gone there is nobody to tell, but the exit code still says it
+            // failed.
+            let _ = writeln!(std::io::stderr(), "{}", report(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The error report of `fn main() -> anyhow::Result<()>` (the message, then its causes, numbered
+/// when there are several), without the causes a message already quotes: the library errors
+/// name their cause in their own message ("x.png: No such file or directory") and also chain
+/// it, which anyhow would print twice.
+fn report(e: &anyhow::Error) -> String {
+    let mut shown = e.to_string();
+    let mut causes = Vec::new();
+    for cause in e.chain().skip(1).map(|c| c.to_string()) {
+        if !shown.contains(&cause) {
+            shown.push('\n');
+            shown.push_str(&cause);
+            causes.push(cause);
+        }
+    }
+    let mut out = format!("Error: {e}");
+    match causes.as_slice() {
+        [] => {}
+        [one] => out.push_str(&format!("\n\nCaused by:\n    {one}")),
+        many => {
+            out.push_str("\n\nCaused by:");
+            for (i, c) in many.iter().enumerate() {
+                out.push_str(&format!("\n    {i}: {c}"));
+            }
+        }
+    }
+    out
 }
 
 /// Stack of the rayon worker threads, bytes: the command runs on one of them, so it gets a main
@@ -171,5 +199,34 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Track(a) => cmd::track::run(a),
         Command::EvalTraj(a) => cmd::eval_traj::run(a),
         Command::Cameras(a) => cmd::cameras::run(a),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::report;
+    use anyhow::Context as _;
+
+    #[test]
+    fn a_cause_the_message_quotes_is_not_repeated() {
+        let missing = sl_io::read_depth(
+            std::path::Path::new("/no/such/dir/x.png"),
+            &sl_io::ReadConfig::default(),
+        )
+        .unwrap_err();
+        let quoted = missing.to_string();
+        let r = report(&anyhow::Error::from(missing));
+        assert_eq!(r.matches("No such file or directory").count(), 1, "{r}");
+        assert!(!r.contains("Caused by"), "{r}");
+        // A context that does not quote its cause keeps it, once.
+        let e = Err::<(), _>(anyhow::anyhow!("{quoted}"))
+            .context("reading the frames")
+            .unwrap_err();
+        let r = report(&e);
+        assert!(
+            r.starts_with("Error: reading the frames\n\nCaused by:\n    "),
+            "{r}"
+        );
+        assert_eq!(r.matches("No such file or directory").count(), 1, "{r}");
     }
 }
