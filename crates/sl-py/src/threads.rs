@@ -172,9 +172,8 @@ pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> 
 /// sized by the count in force at its first call, so calls run in place and calls from several
 /// Python threads run side by side; a call with another count than that goes through a shared
 /// pool of that count (correct, a few percent slower per call). Affects calls started after it
-/// returns. A ``TsdfVolume`` or ``Tracker`` is one object's state: calls on the same object
-/// from two threads at once raise ``RuntimeError`` ("Already borrowed"); give each thread its
-/// own, or hold a lock.
+/// returns. Calls on one ``TsdfVolume`` or ``Tracker`` from several threads take turns (a
+/// volume's meshes, raycasts and slices run side by side).
 #[pyfunction]
 #[pyo3(signature = (n = None))]
 pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {

@@ -2,6 +2,8 @@
 //! and sl-tsdf), the loop `sldepth track` runs, one frame per call.
 
 use numpy::PyArray2;
+use std::sync::Mutex;
+
 use pyo3::prelude::*;
 use sl_core::{Camera, Undistorter};
 use sl_filter::MultiScale;
@@ -69,9 +71,10 @@ pub(crate) fn track_in_map<'py>(
     let prefilter = prefilter_named(prefilter, &camera)?;
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
-    let p = volume.volume().params();
-    cfg.tsdf.min_depth_m = p.min_depth_m;
-    cfg.tsdf.max_depth_m = p.max_depth_m;
+    let (min_depth_m, max_depth_m) =
+        volume.read(py, |v| (v.params().min_depth_m, v.params().max_depth_m))?;
+    cfg.tsdf.min_depth_m = min_depth_m;
+    cfg.tsdf.max_depth_m = max_depth_m;
     cfg.model_scale = model_scale;
     let inputs = frames
         .iter()
@@ -83,18 +86,18 @@ pub(crate) fn track_in_map<'py>(
         check_camera(&view, &camera)?;
         views.push(view);
     }
-    let map = volume.volume();
-    let results = compute(py, || -> Result<_, String> {
-        let depths = views
-            .iter()
-            .map(|v| match &prefilter {
-                Some(f) => f.apply(*v).map_err(|e| e.to_string()),
-                None => Ok(v.to_image()),
-            })
-            .collect::<Result<Vec<_>, String>>()?;
-        sl_track::track_in_map(camera, &cfg, map, start, &depths).map_err(|e| e.to_string())
-    })
-    .map_err(value_error)?;
+    let results = volume
+        .read(py, |map| -> Result<_, String> {
+            let depths = views
+                .iter()
+                .map(|v| match &prefilter {
+                    Some(f) => f.apply(*v).map_err(|e| e.to_string()),
+                    None => Ok(v.to_image()),
+                })
+                .collect::<Result<Vec<_>, String>>()?;
+            sl_track::track_in_map(camera, &cfg, map, start, &depths).map_err(|e| e.to_string())
+        })?
+        .map_err(value_error)?;
     results
         .iter()
         .map(|r| Ok((pose_array(py, &r.pose.to_matrix())?, r.status.as_str())))
@@ -132,11 +135,18 @@ pub(crate) fn track_in_map<'py>(
 /// Kinect-class presets, 0 for explicit intrinsics) when tracking against the model, 0 frame
 /// to frame; 0: a global shutter; at most the frame interval (33.3 ms at 30 Hz). On TUM
 /// fr1/rpy-200 the Kinect's readout keeps every 2nd, 3rd or 4th frame alone tracked (a global
-/// shutter loses 14, 9 and 7 frames).
-#[pyclass(name = "Tracker", module = "sldepth")]
+/// shutter loses 14, 9 and 7 frames). One tracker may be used from several Python threads: its
+/// calls take turns.
+#[pyclass(name = "Tracker", module = "sldepth", frozen)]
 #[derive(Debug)]
 pub struct PyTracker {
     camera: Camera,
+    state: Mutex<TrackerState>,
+}
+
+/// What a [`PyTracker`] guards.
+#[derive(Debug)]
+struct TrackerState {
     rec: Reconstruction,
     prefilter: Option<MultiScale>,
     undistorter: Option<Undistorter>,
@@ -150,6 +160,22 @@ pub struct PyTracker {
     joins: Vec<(usize, usize, sl_core::nalgebra::Matrix4<f64>)>,
     /// The fragment of every frame given to `track`.
     frame_fragments: Vec<usize>,
+}
+
+/// The message of a tracker whose lock holder panicked (no call of this crate should).
+const POISONED: &str = "the tracker is unusable: a call on it failed midway";
+
+impl PyTracker {
+    /// Runs `f` on the tracker's state with the GIL released (a call on another thread
+    /// finishes first).
+    fn with_state<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&TrackerState) -> T + Send,
+    ) -> PyResult<T> {
+        py.detach(|| self.state.lock().map(|s| f(&s)).map_err(|_| POISONED))
+            .map_err(value_error)
+    }
 }
 
 #[pymethods]
@@ -198,14 +224,16 @@ impl PyTracker {
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,
-            rec,
-            prefilter,
-            undistorter,
-            last_failure: None,
-            last_weakest_sigma_m: f64::NAN,
-            finished: Vec::new(),
-            joins: Vec::new(),
-            frame_fragments: Vec::new(),
+            state: Mutex::new(TrackerState {
+                rec,
+                prefilter,
+                undistorter,
+                last_failure: None,
+                last_weakest_sigma_m: f64::NAN,
+                finished: Vec::new(),
+                joins: Vec::new(),
+                frame_fragments: Vec::new(),
+            }),
         })
     }
 
@@ -216,7 +244,7 @@ impl PyTracker {
     /// follows the previous one by one interval.
     #[pyo3(signature = (depth, depth_scale = None, *, timestamp_s = None))]
     fn track<'py>(
-        &mut self,
+        &self,
         py: Python<'py>,
         depth: &Bound<'py, PyAny>,
         depth_scale: Option<f64>,
@@ -225,13 +253,14 @@ impl PyTracker {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;
-        let Self {
-            rec,
-            prefilter,
-            undistorter,
-            ..
-        } = self;
-        let (result, finished) = compute(py, || -> Result<_, String> {
+        let result = compute(py, || -> Result<_, String> {
+            let mut guard = self.state.lock().map_err(|_| POISONED.to_string())?;
+            let TrackerState {
+                rec,
+                prefilter,
+                undistorter,
+                ..
+            } = &mut *guard;
             let undistorted = match undistorter {
                 Some(u) => Some(u.apply(view).map_err(|e| e.to_string())?),
                 None => None,
@@ -242,31 +271,30 @@ impl PyTracker {
                 None => view.to_image(),
             };
             let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
+            let state = &mut *guard;
             // A finished fragment's volume becomes its mesh at once (a small part of the
             // volume's memory).
-            let finished = step.finished.map(|f| {
+            if let Some(f) = step.finished {
                 let mut mesh = f.volume.extract_mesh(&MeshConfig::default());
                 // A fragment that rejoined the one before is kept in that one's world frame.
                 if let Some(j) = &f.joined {
                     mesh.transform(j.transform.isometry());
                 }
-                (f.index, mesh, f.joined)
-            });
-            Ok((step.result, finished))
+                if state.finished.len() <= f.index {
+                    state.finished.resize_with(f.index + 1, || None);
+                }
+                state.finished[f.index] = Some(mesh);
+                if let Some(j) = f.joined {
+                    state.joins.push((f.index, j.into, j.transform.to_matrix()));
+                }
+            }
+            let fragment = state.rec.fragment();
+            state.frame_fragments.push(fragment);
+            state.last_failure = step.result.failure.clone();
+            state.last_weakest_sigma_m = step.result.weakest_sigma_m;
+            Ok(step.result)
         })
         .map_err(value_error)?;
-        if let Some((index, mesh, joined)) = finished {
-            if self.finished.len() <= index {
-                self.finished.resize_with(index + 1, || None);
-            }
-            self.finished[index] = Some(mesh);
-            if let Some(j) = joined {
-                self.joins.push((index, j.into, j.transform.to_matrix()));
-            }
-        }
-        self.frame_fragments.push(self.rec.fragment());
-        self.last_failure = result.failure.clone();
-        self.last_weakest_sigma_m = result.weakest_sigma_m;
         Ok((
             pose_array(py, &result.pose.to_matrix())?,
             result.status.as_str(),
@@ -277,14 +305,16 @@ impl PyTracker {
     /// instance ``"degenerate view: …"`` for a single wall); ``None`` when the first attempt
     /// succeeded.
     #[getter]
-    fn last_failure(&self) -> Option<String> {
-        self.last_failure.clone()
+    fn last_failure(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        self.with_state(py, |s| s.last_failure.clone())
     }
 
     /// The rolling-shutter readout the tracker models, milliseconds (0: a global shutter).
     #[getter]
-    fn rolling_shutter_ms(&self) -> f64 {
-        self.rec.config().tracker.rolling_shutter_readout_s * 1e3
+    fn rolling_shutter_ms(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with_state(py, |s| {
+            s.rec.config().tracker.rolling_shutter_readout_s * 1e3
+        })
     }
 
     /// The last frame's standard deviation of the pose along its least-constrained direction,
@@ -292,8 +322,8 @@ impl PyTracker {
     /// frame is lost above the motion prior's 10.9 mm): of the frame alone, and once it is
     /// aligned, of the part of it that overlaps the reference (the larger is reported).
     #[getter]
-    fn last_weakest_sigma_m(&self) -> f64 {
-        self.last_weakest_sigma_m
+    fn last_weakest_sigma_m(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with_state(py, |s| s.last_weakest_sigma_m)
     }
 
     /// The index of the current fragment: 0 until tracking stays lost for
@@ -301,14 +331,14 @@ impl PyTracker {
     /// fragment has its own volume and world frame, its first camera; the poses ``track``
     /// returns are in the frame of the fragment they belong to).
     #[getter]
-    fn fragment(&self) -> usize {
-        self.rec.fragment()
+    fn fragment(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_state(py, |s| s.rec.fragment())
     }
 
     /// The fragment of every frame given to ``track``, in order (a list of ints).
     #[getter]
-    fn frame_fragments(&self) -> Vec<usize> {
-        self.frame_fragments.clone()
+    fn frame_fragments(&self, py: Python<'_>) -> PyResult<Vec<usize>> {
+        self.with_state(py, |s| s.frame_fragments.clone())
     }
 
     /// The fragments that ended by rejoining the fragment before them (the camera came back
@@ -317,7 +347,7 @@ impl PyTracker {
     /// (``transform @ pose`` is a pose of ``fragment`` in ``into``'s world).
     #[getter]
     fn joins<'py>(&self, py: Python<'py>) -> PyResult<Vec<Join<'py>>> {
-        self.joins
+        self.with_state(py, |s| s.joins.clone())?
             .iter()
             .map(|(f, into, m)| Ok((*f, *into, pose_array(py, m)?)))
             .collect()
@@ -328,25 +358,26 @@ impl PyTracker {
     /// finished; a fragment that rejoined the one before is in that one's world frame).
     #[pyo3(signature = (fragment = None))]
     fn extract_mesh(&self, py: Python<'_>, fragment: Option<usize>) -> PyResult<PyMesh> {
-        if let Some(f) = fragment
-            && f != self.rec.fragment()
-        {
-            let mesh = self
-                .finished
-                .get(f)
-                .and_then(Option::as_ref)
-                .ok_or_else(|| {
-                    value_error(format!(
-                        "fragment {f} is neither finished nor the current one ({})",
-                        self.rec.fragment()
-                    ))
-                })?;
-            return PyMesh::from_mesh(py, mesh.clone());
-        }
-        let rec = &self.rec;
-        let mesh = compute(py, || {
-            rec.volume_with_waiting_frame()
-                .map(|v| v.extract_mesh(&MeshConfig::default()))
+        let mesh = compute(py, || -> Result<_, String> {
+            let state = self.state.lock().map_err(|_| POISONED.to_string())?;
+            match fragment {
+                Some(f) if f != state.rec.fragment() => state
+                    .finished
+                    .get(f)
+                    .and_then(Option::as_ref)
+                    .cloned()
+                    .ok_or_else(|| {
+                        format!(
+                            "fragment {f} is neither finished nor the current one ({})",
+                            state.rec.fragment()
+                        )
+                    }),
+                _ => state
+                    .rec
+                    .volume_with_waiting_frame()
+                    .map(|v| v.extract_mesh(&MeshConfig::default()))
+                    .map_err(|e| e.to_string()),
+            }
         })
         .map_err(value_error)?;
         PyMesh::from_mesh(py, mesh)

@@ -1,6 +1,7 @@
 //! `sldepth.TsdfVolume` and `sldepth.Mesh`: 1/Z⁴-weighted TSDF fusion and marching cubes.
 
 use std::path::PathBuf;
+use std::sync::RwLock;
 
 use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray2};
@@ -26,18 +27,40 @@ use crate::threads::compute;
 /// or ``"bilinear"`` (inverse depth interpolated between the four pixels around it when they lie
 /// on one surface: no staircase on surfaces seen at grazing angles, 1.6–2× the integration time).
 /// ``memory_budget_bytes`` caps the blocks; integration past it raises ``ValueError`` and leaves
-/// the volume unchanged.
-#[pyclass(name = "TsdfVolume", module = "sldepth")]
+/// the volume unchanged. One volume may be used from several Python threads: reads (meshes,
+/// raycasts, slices) run side by side, an ``integrate`` waits for them and they for it.
+#[pyclass(name = "TsdfVolume", module = "sldepth", frozen)]
 #[derive(Debug)]
 pub struct PyTsdfVolume {
+    state: RwLock<VolumeState>,
+}
+
+/// What a [`PyTsdfVolume`] guards.
+#[derive(Debug)]
+struct VolumeState {
     volume: TsdfVolume,
     sensor_weight: bool,
 }
 
+/// The error of a lock whose holder panicked (no call of this crate should).
+fn poisoned<T>(_: T) -> PyErr {
+    value_error("the volume is unusable: a call on it failed midway")
+}
+
 impl PyTsdfVolume {
-    /// The fused volume.
-    pub(crate) fn volume(&self) -> &TsdfVolume {
-        &self.volume
+    /// Runs `f` on the fused volume (shared with other readers), with the GIL released.
+    pub(crate) fn read<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&TsdfVolume) -> T + Send,
+    ) -> PyResult<T> {
+        compute(py, || {
+            self.state
+                .read()
+                .map(|s| f(&s.volume))
+                .map_err(|e| poisoned(e).to_string())
+        })
+        .map_err(value_error)
     }
 }
 
@@ -70,8 +93,10 @@ impl PyTsdfVolume {
         params.memory_budget_bytes = memory_budget_bytes;
         params.depth_lookup = depth_lookup.parse::<DepthLookup>().map_err(value_error)?;
         Ok(Self {
-            volume: TsdfVolume::new(params).map_err(value_error)?,
-            sensor_weight,
+            state: RwLock::new(VolumeState {
+                volume: TsdfVolume::new(params).map_err(value_error)?,
+                sensor_weight,
+            }),
         })
     }
 
@@ -79,7 +104,7 @@ impl PyTsdfVolume {
     /// camera-to-world matrix. Returns the number of blocks allocated by this frame.
     #[pyo3(signature = (depth, camera, pose, *, depth_scale = None))]
     fn integrate(
-        &mut self,
+        &self,
         py: Python<'_>,
         depth: &Bound<'_, PyAny>,
         camera: &PyCamera,
@@ -91,27 +116,33 @@ impl PyTsdfVolume {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &camera)?;
-        if self.sensor_weight && self.volume.frame_count() == 0 {
-            let mut params = *self.volume.params();
-            params.weight = WeightMode::sensor_variance(camera.sensor);
-            self.volume = TsdfVolume::new(params).map_err(value_error)?;
-        } else if self.sensor_weight
-            && let WeightMode::SensorVariance { sensor, .. } = self.volume.params().weight
-            && sensor != camera.sensor
-        {
-            return Err(value_error(format!(
-                "a TsdfVolume(weight=\"sensor\") weighs every frame by the noise model of the camera of its first frame (f = {} px, B = {} m, sigma_d_px = {}); this camera's differs (f = {} px, B = {} m, sigma_d_px = {}): fuse each sensor in its own volume, or use weight=\"inv-z4\"",
-                sensor.focal_px,
-                sensor.baseline_m,
-                sensor.sigma_d_px,
-                camera.sensor.focal_px,
-                camera.sensor.baseline_m,
-                camera.sensor.sigma_d_px
-            )));
-        }
-        let volume = &mut self.volume;
-        let stats = compute(py, || volume.integrate(view, &camera.intrinsics, &pose))
-            .map_err(value_error)?;
+        let stats = compute(py, || -> Result<_, String> {
+            let mut state = self.state.write().map_err(|e| poisoned(e).to_string())?;
+            let state = &mut *state;
+            if state.sensor_weight && state.volume.frame_count() == 0 {
+                let mut params = *state.volume.params();
+                params.weight = WeightMode::sensor_variance(camera.sensor);
+                state.volume = TsdfVolume::new(params).map_err(|e| e.to_string())?;
+            } else if state.sensor_weight
+                && let WeightMode::SensorVariance { sensor, .. } = state.volume.params().weight
+                && sensor != camera.sensor
+            {
+                return Err(format!(
+                    "a TsdfVolume(weight=\"sensor\") weighs every frame by the noise model of the camera of its first frame (f = {} px, B = {} m, sigma_d_px = {}); this camera's differs (f = {} px, B = {} m, sigma_d_px = {}): fuse each sensor in its own volume, or use weight=\"inv-z4\"",
+                    sensor.focal_px,
+                    sensor.baseline_m,
+                    sensor.sigma_d_px,
+                    camera.sensor.focal_px,
+                    camera.sensor.baseline_m,
+                    camera.sensor.sigma_d_px
+                ));
+            }
+            state
+                .volume
+                .integrate(view, &camera.intrinsics, &pose)
+                .map_err(|e| e.to_string())
+        })
+        .map_err(value_error)?;
         Ok(stats.blocks_allocated)
     }
 
@@ -120,8 +151,7 @@ impl PyTsdfVolume {
     #[pyo3(signature = (min_weight = 0.0))]
     fn extract_mesh(&self, py: Python<'_>, min_weight: f32) -> PyResult<PyMesh> {
         let opts = mesh_config(min_weight)?;
-        let volume = &self.volume;
-        let mesh = compute(py, || volume.extract_mesh(&opts));
+        let mesh = self.read(py, |volume| volume.extract_mesh(&opts))?;
         PyMesh::from_mesh(py, mesh)
     }
 
@@ -135,11 +165,10 @@ impl PyTsdfVolume {
         ascii: bool,
     ) -> PyResult<()> {
         let opts = mesh_config(min_weight)?;
-        let volume = &self.volume;
-        compute(py, || {
+        self.read(py, |volume| {
             let mesh = volume.extract_mesh(&opts);
             sl_tsdf::io::write_mesh_ply(&path, &mesh, ply_format(ascii))
-        })
+        })?
         .map_err(|e| SlDepthIOError::new_err(e.to_string()))
     }
 
@@ -169,8 +198,10 @@ impl PyTsdfVolume {
         let mut config = RaycastConfig::default();
         config.min_depth_m = min_depth_m;
         config.max_depth_m = max_depth_m;
-        let volume = &self.volume;
-        let r = compute(py, || volume.raycast(&pose, &camera.intrinsics, &config))
+        let r = self
+            .read(py, |volume| {
+                volume.raycast(&pose, &camera.intrinsics, &config)
+            })?
             .map_err(value_error)?;
         let (w, h) = (r.width, r.height);
         let grid3 = |rows: Vec<[f32; 3]>| -> PyResult<Bound<'py, PyArray3<f32>>> {
@@ -202,39 +233,42 @@ impl PyTsdfVolume {
             pixels_per_voxel,
             ..SliceSpec::new(Axis::parse(axis).map_err(value_error)?, coord_m)
         };
-        let volume = &self.volume;
-        let slice = compute(py, || volume.slice(&spec)).map_err(value_error)?;
+        let slice = self
+            .read(py, |volume| volume.slice(&spec))?
+            .map_err(value_error)?;
         image_array(py, slice.values)
     }
 
     /// Number of allocated voxel blocks.
     #[getter]
-    fn block_count(&self) -> usize {
-        self.volume.block_count()
+    fn block_count(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, TsdfVolume::block_count)
     }
 
     /// Number of integrated frames.
     #[getter]
-    fn frame_count(&self) -> usize {
-        self.volume.frame_count()
+    fn frame_count(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, TsdfVolume::frame_count)
     }
 
     /// Memory used by the blocks and their index, bytes.
     #[getter]
-    fn memory_bytes(&self) -> usize {
-        self.volume.memory_bytes()
+    fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
+        self.read(py, TsdfVolume::memory_bytes)
     }
 
-    fn __repr__(&self) -> String {
-        let p = self.volume.params();
-        format!(
-            "TsdfVolume(voxel_m={}, trunc_m={}, weight={:?}, frames={}, blocks={})",
-            p.voxel_m,
-            p.trunc_m,
-            p.weight.name(),
-            self.volume.frame_count(),
-            self.volume.block_count()
-        )
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        self.read(py, |v| {
+            let p = v.params();
+            format!(
+                "TsdfVolume(voxel_m={}, trunc_m={}, weight={:?}, frames={}, blocks={})",
+                p.voxel_m,
+                p.trunc_m,
+                p.weight.name(),
+                v.frame_count(),
+                v.block_count()
+            )
+        })
     }
 }
 

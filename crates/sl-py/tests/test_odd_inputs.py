@@ -87,3 +87,30 @@ def test_files_and_sequences_odd_but_legal(tmp_path, small_cam, wall):
     sldepth.write_depth(tmp_path / "big.png", np.zeros((2048, 2048), np.float32))
     with pytest.raises(sldepth.SlDepthIOError, match="max_memory_bytes="):
         sldepth.read_depth(tmp_path / "big.png", max_memory_bytes=1)
+
+
+def test_one_volume_and_one_tracker_serve_several_threads(small_cam, wall):
+    # pyo3 refused a second call on the object while one ran ("Already borrowed").
+    import threading
+
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.04)
+    tracker = sldepth.Tracker(small_cam, voxel_m=0.01)
+    errors = []
+
+    def work(i):
+        try:
+            vol.integrate(wall, small_cam, np.eye(4))
+            vol.extract_mesh()
+            tracker.track(wall)
+            _ = tracker.fragment, tracker.last_failure
+        except Exception as e:  # noqa: BLE001 - every failure is the test's finding
+            errors.append(repr(e))
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    assert vol.frame_count == 8
+    assert len(tracker.frame_fragments) == 8

@@ -12,10 +12,9 @@ sigma_Z = Z**2 * sigma_D / (f*B); every function here uses that model:
 
 Every computation releases the GIL and runs on sldepth's thread pool
 (``sldepth.set_num_threads``), so functions called from several Python threads run side by
-side; a ``TsdfVolume`` or ``Tracker`` is one object's state, and calls on the same object from
-two threads at once raise ``RuntimeError`` (give each thread its own, or hold a lock). Errors
-are ``sldepth.SlDepthError`` (a ``ValueError``) or ``sldepth.SlDepthIOError`` (an
-``OSError``).
+side; calls on one ``TsdfVolume`` or ``Tracker`` from several threads take turns (a volume's
+meshes, raycasts and slices run side by side). Errors are ``sldepth.SlDepthError`` (a
+``ValueError``) or ``sldepth.SlDepthIOError`` (an ``OSError``).
 """
 
 import os as _os

@@ -340,9 +340,8 @@ def track_in_map(
 def set_num_threads(n: Optional[int] = None) -> None:
     """Threads per computation (None or 0: one per core). Each Python thread computes as the
     first worker of a pool of its own, sized at its first call, so calls from several threads run
-    side by side; a call with another count than that goes through a shared pool. A
-    TsdfVolume or Tracker is one object's state: calls on the same object from two threads at
-    once raise RuntimeError ("Already borrowed"); give each thread its own, or hold a lock."""
+    side by side; a call with another count than that goes through a shared pool. Calls on one
+    TsdfVolume or Tracker from several threads take turns (a volume's reads run side by side)."""
 def get_num_threads() -> int:
     """The number of threads each computation uses now."""
 def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> bool:
