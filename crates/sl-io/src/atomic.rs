@@ -94,7 +94,8 @@ impl Drop for TempGuard {
 }
 
 /// Checks that `path` may be written by [`write_atomic`]: it has a file name, and is either
-/// absent or a regular file (not a symbolic link, directory, device, FIFO or socket). Commands
+/// absent or a writable regular file (not a read-only file, symbolic link, directory, device,
+/// FIFO or socket). Commands
 /// call it for every output before doing any work, so that a bad output name fails early.
 pub fn check_output(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
@@ -110,6 +111,10 @@ pub fn check_output(path: &Path) -> Result<()> {
                 "a symbolic link (refusing to replace it or write through it; name the target file instead)"
             } else if ft.is_dir() {
                 "a directory"
+            } else if ft.is_file() && meta.permissions().readonly() {
+                // Replacing it by a rename would succeed in a writable directory: refuse, as
+                // writing into it would.
+                "a read-only file (refusing to replace it; make it writable or name another)"
             } else if ft.is_file() {
                 return Ok(());
             } else {
@@ -117,7 +122,7 @@ pub fn check_output(path: &Path) -> Result<()> {
             };
             Err(IoError::UnsafeOutput {
                 path: path.to_path_buf(),
-                message: format!("exists and is {what}; only regular files are replaced"),
+                message: format!("exists and is {what}; only writable regular files are replaced"),
             })
         }
         Err(e)
@@ -419,6 +424,19 @@ mod tests {
                 .file_type()
                 .is_char_device()
         );
+    }
+
+    #[test]
+    fn a_read_only_file_is_not_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("kept.bin");
+        fs::write(&p, b"keep").unwrap();
+        let mut perm = fs::metadata(&p).unwrap().permissions();
+        perm.set_readonly(true);
+        fs::set_permissions(&p, perm).unwrap();
+        let err = write_atomic(&p, |w| w.write_all(b"x")).unwrap_err();
+        assert!(err.to_string().contains("read-only"), "{err}");
+        assert_eq!(fs::read(&p).unwrap(), b"keep");
     }
 
     #[test]
