@@ -167,9 +167,14 @@ impl PyCamera {
         self.inner.sensor.fb()
     }
 
-    /// Depth noise σ_Z at depth ``z_m`` (metres): ``z²·σ_D/(f·B)``.
+    /// Depth noise σ_Z at depth ``z_m`` (metres): ``z²·σ_D/(f·B)``; NaN for a depth that is not
+    /// a positive finite number (no measurement has one).
     fn sigma_z(&self, z_m: f64) -> f64 {
-        self.inner.sensor.sigma_z(z_m)
+        if z_m > 0.0 && z_m.is_finite() {
+            self.inner.sensor.sigma_z(z_m)
+        } else {
+            f64::NAN
+        }
     }
 
     /// Disparity (pixels) of depth ``z_m`` (metres): ``f·B/Z``.

@@ -26,6 +26,9 @@ def test_cameras_beyond_any_frame_budget_or_sensor_are_refused():
     assert cam.preset_name == "kinect-v1"
     assert cam == sldepth.Camera.preset("kinect-v1")
     assert 'preset="kinect-v1"' in repr(cam)
+    # No measurement has a depth of 0 or less: its noise is not a number.
+    assert all(math.isnan(cam.sigma_z(z)) for z in (-2.0, 0.0, math.inf))
+    assert cam.sigma_z(2.0) > 0
 
 
 def test_arrays_numpy_hands_over_in_any_layout_read_alike(small_cam, wall):

@@ -71,7 +71,7 @@ class Camera:
     def fb(self) -> float:
         """f*B in pixel-metres."""
     def sigma_z(self, z_m: float) -> float:
-        """Depth noise (metres) at depth z_m: z**2 * sigma_D / (f*B)."""
+        """Depth noise (metres) at depth z_m: z**2 * sigma_D / (f*B); NaN unless z_m > 0."""
     def depth_to_disparity(self, z_m: float) -> float: ...
     def disparity_to_depth(self, d_px: float) -> float: ...
     @property
