@@ -372,12 +372,16 @@ pub fn refuse_non_file(what: &str, path: &Path) -> Result<()> {
 /// A `--camera` value: an existing file is read as camera JSON; anything else must name a
 /// preset (the error lists them, and says the file does not exist when it looks like a path).
 pub fn camera_from_arg(value: &Path) -> Result<Camera> {
-    refuse_non_file("--camera", value)?;
+    // A directory named like a preset (a folder `d435` of recordings) does not hide the preset;
+    // any other name that exists but is no file is an error, not a silent preset lookup.
+    let name = value.to_string_lossy();
+    if sl_core::preset::find(&name).is_err() {
+        refuse_non_file("--camera", value)?;
+    }
     if value.is_file() {
         return sl_io::camera::read_camera_json_with_limits(value, &limits())
             .with_context(|| format!("reading camera {}", value.display()));
     }
-    let name = value.to_string_lossy();
     Camera::preset(&name).map_err(|e| {
         let looks_like_file = name.contains('/') || name.ends_with(".json");
         if looks_like_file {

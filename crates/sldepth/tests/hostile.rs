@@ -802,6 +802,19 @@ fn a_camera_that_is_no_file_and_absurd_sensor_numbers_are_refused() {
     ]);
     assert_typed_error(&o, &["camera.json", "not a regular file"]);
     assert!(!mesh.exists());
+    // A folder named like a preset does not hide the preset.
+    std::fs::create_dir(dir.path().join("kinect-v1")).unwrap();
+    let o = Command::new(bin())
+        .current_dir(dir.path())
+        .args([
+            "info",
+            s(&testdata("floor-seed1-depth.png")),
+            "--camera",
+            "kinect-v1",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let tiny = camera_json(dir.path(), 640, 480, 1e-300);
     let o = run(&[
         "info",
