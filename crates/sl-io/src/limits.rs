@@ -19,6 +19,10 @@
 //! `--max-memory` — raises them all together, and a command on any input stays within the
 //! budget (plus the constant cost of the program itself, see `docs/ARCHITECTURE.md`).
 
+/// How a message names the memory budget's setting: the command line's option. Front-ends with
+/// another name for it (the Python keyword) replace this one string in the messages.
+pub const BUDGET_OPTION: &str = "--max-memory";
+
 /// Largest accepted image side, pixels (the same bound as `sl_core::Intrinsics::validate`).
 pub const MAX_SIDE: usize = 65536;
 
@@ -132,7 +136,7 @@ impl Limits {
             return Err(format!(
                 "{width}x{height} image has {pixels} pixels, over the limit of {} pixels \
                  (memory budget {} bytes at {BYTES_PER_PIXEL} bytes per pixel; raise it with \
-                 --max-memory)",
+                 {BUDGET_OPTION})",
                 self.max_pixels, self.max_memory_bytes
             ));
         }

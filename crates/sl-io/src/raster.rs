@@ -11,7 +11,7 @@ use sl_core::Image;
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
-use crate::limits::{Limits, MAX_SIDE};
+use crate::limits::{BUDGET_OPTION, Limits, MAX_SIDE};
 
 /// Raster containers we decode ourselves.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -27,7 +27,7 @@ pub(crate) fn image_error(path: &Path, e: ImageError) -> IoError {
             path,
             format!(
                 "{l} (decode limits: at most {MAX_SIDE} px per side, a fixed bound; the pixels \
-                 and bytes a decoder may allocate grow with --max-memory)"
+                 and bytes a decoder may allocate grow with {BUDGET_OPTION})"
             ),
         ),
         ImageError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {

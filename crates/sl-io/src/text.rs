@@ -6,6 +6,7 @@ use std::io::Read;
 use std::path::Path;
 
 use crate::error::{IoError, Result};
+use crate::limits::BUDGET_OPTION;
 
 /// Bytes read per chunk.
 const CHUNK_BYTES: usize = 64 << 10;
@@ -43,7 +44,7 @@ pub(crate) fn read_text_from(
             return Err(IoError::too_large(
                 path,
                 format!(
-                    "more than {max_bytes} bytes, over the text limit (raise it with --max-memory)"
+                    "more than {max_bytes} bytes, over the text limit (raise it with {BUDGET_OPTION})"
                 ),
             ));
         }
@@ -52,7 +53,7 @@ pub(crate) fn read_text_from(
             return Err(IoError::too_large(
                 path,
                 format!(
-                    "more than {max_lines} lines, over the text limit (raise it with --max-memory)"
+                    "more than {max_lines} lines, over the text limit (raise it with {BUDGET_OPTION})"
                 ),
             ));
         }
@@ -62,7 +63,7 @@ pub(crate) fn read_text_from(
         return Err(IoError::too_large(
             path,
             format!(
-                "more than {max_lines} lines, over the text limit (raise it with --max-memory)"
+                "more than {max_lines} lines, over the text limit (raise it with {BUDGET_OPTION})"
             ),
         ));
     }

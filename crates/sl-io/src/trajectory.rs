@@ -18,7 +18,7 @@ use sl_core::CameraToWorld;
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
-use crate::limits::Limits;
+use crate::limits::{BUDGET_OPTION, Limits};
 use crate::text::read_text;
 
 /// Reads a text input within `limits`.
@@ -32,7 +32,7 @@ pub(crate) fn check_frames(path: &Path, n: usize, limits: &Limits) -> Result<()>
         return Err(IoError::too_large(
             path,
             format!(
-                "more than {} frames, over the frame limit (raise it with --max-memory)",
+                "more than {} frames, over the frame limit (raise it with {BUDGET_OPTION})",
                 limits.max_frames
             ),
         ));

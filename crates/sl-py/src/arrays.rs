@@ -92,8 +92,8 @@ fn readable<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
 
 /// Whether [`depth_input`] reads `obj`'s own buffer in place (no copy of any kind).
 pub(crate) fn is_borrowed(obj: &Bound<'_, PyAny>, depth_scale: Option<f64>) -> PyResult<bool> {
-    let same = readable(obj)?.is(obj);
-    Ok(same && depth_input(obj, depth_scale)?.is_borrowed())
+    let read = readable(obj)?;
+    Ok(read.is(obj) && depth_input_readable(&read, depth_scale)?.is_borrowed())
 }
 
 /// The valid range of `depth_scale` for integer depth, as for files (`sl_io`).
@@ -113,7 +113,14 @@ pub(crate) fn depth_input<'py>(
     obj: &Bound<'py, PyAny>,
     depth_scale: Option<f64>,
 ) -> PyResult<DepthInput<'py>> {
-    let obj = &readable(obj)?;
+    depth_input_readable(&readable(obj)?, depth_scale)
+}
+
+/// [`depth_input`] of an array [`readable`] has prepared.
+fn depth_input_readable<'py>(
+    obj: &Bound<'py, PyAny>,
+    depth_scale: Option<f64>,
+) -> PyResult<DepthInput<'py>> {
     let (h, w, dtype) = shape_of(obj)?;
     if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
         if depth_scale.is_some() {

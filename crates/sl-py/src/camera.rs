@@ -30,13 +30,14 @@ pub struct PyCamera {
 fn check_size(camera: Camera) -> PyResult<Camera> {
     let k = &camera.intrinsics;
     let limits = sl_io::Limits::default();
-    let pixels = (k.width as u64).saturating_mul(k.height as u64);
-    if pixels > limits.max_pixels {
-        return Err(value_error(format!(
-            "camera of {}x{} pixels: over the limit of {} pixels per frame",
-            k.width, k.height, limits.max_pixels
-        )));
-    }
+    limits
+        .check_pixels(k.width as u64, k.height as u64)
+        .map_err(|_| {
+            value_error(format!(
+                "camera of {}x{} pixels: over the limit of {} pixels per frame",
+                k.width, k.height, limits.max_pixels
+            ))
+        })?;
     Ok(camera)
 }
 

@@ -45,14 +45,7 @@ pub(crate) fn read_depth<'py>(
         // The budget's name here, not the command line's.
         let message = e
             .to_string()
-            .replace(
-                "raise it with --max-memory",
-                "raise it with max_memory_bytes=",
-            )
-            .replace(
-                "raise them with --max-memory",
-                "raise them with max_memory_bytes=",
-            );
+            .replace(sl_io::limits::BUDGET_OPTION, "max_memory_bytes=");
         crate::errors::SlDepthIOError::new_err(message)
     })?;
     depth_array(py, loaded.depth)

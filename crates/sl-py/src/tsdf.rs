@@ -42,10 +42,8 @@ struct VolumeState {
     sensor_weight: bool,
 }
 
-/// The error of a lock whose holder panicked (no call of this crate should).
-fn poisoned<T>(_: T) -> PyErr {
-    value_error("the volume is unusable: a call on it failed midway")
-}
+/// The message of a volume whose lock holder panicked (no call of this crate should).
+const POISONED: &str = "the volume is unusable: a call on it failed midway";
 
 impl PyTsdfVolume {
     /// Runs `f` on the fused volume (shared with other readers), with the GIL released.
@@ -58,7 +56,7 @@ impl PyTsdfVolume {
             self.state
                 .read()
                 .map(|s| f(&s.volume))
-                .map_err(|e| poisoned(e).to_string())
+                .map_err(|_| POISONED.to_string())
         })
         .map_err(value_error)
     }
@@ -117,7 +115,7 @@ impl PyTsdfVolume {
         let view = input.view()?;
         check_camera(&view, &camera)?;
         let stats = compute(py, || -> Result<_, String> {
-            let mut state = self.state.write().map_err(|e| poisoned(e).to_string())?;
+            let mut state = self.state.write().map_err(|_| POISONED.to_string())?;
             let state = &mut *state;
             if state.sensor_weight && state.volume.frame_count() == 0 {
                 let mut params = *state.volume.params();

@@ -94,19 +94,17 @@ pub fn check_output(option: &str, path: &Path, exts: &[&str]) -> Result<()> {
     Ok(())
 }
 
-/// An existing file's identity (device and inode on Unix; the canonical path elsewhere).
-fn file_identity(path: &Path) -> Option<(u64, u64, PathBuf)> {
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::MetadataExt as _;
-        std::fs::metadata(path)
-            .ok()
-            .map(|m| (m.dev(), m.ino(), PathBuf::new()))
-    }
-    #[cfg(not(unix))]
-    {
-        path.canonicalize().ok().map(|p| (0, 0, p))
-    }
+/// An existing file's identity: device and inode on Unix (hard links alike), the canonical
+/// path elsewhere.
+#[cfg(unix)]
+fn file_identity(path: &Path) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt as _;
+    std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+}
+
+#[cfg(not(unix))]
+fn file_identity(path: &Path) -> Option<PathBuf> {
+    path.canonicalize().ok()
 }
 
 /// Refuses an output that is one of the command's inputs (the same file under any name or
@@ -116,7 +114,7 @@ pub fn check_outputs_spare_inputs<'a>(
     outputs: &[(&str, Option<&Path>)],
     inputs: impl IntoIterator<Item = &'a Path>,
 ) -> Result<()> {
-    let existing: Vec<(&str, &Path, (u64, u64, PathBuf))> = outputs
+    let existing: Vec<_> = outputs
         .iter()
         .filter_map(|(opt, p)| p.and_then(|p| file_identity(p).map(|id| (*opt, p, id))))
         .collect();
