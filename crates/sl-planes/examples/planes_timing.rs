@@ -2,7 +2,9 @@
 //! regression check of its labels against a saved run.
 //!
 //! * `cargo run --release -p sl-planes --example planes_timing -- time [ITERATIONS] [FILTER]`:
-//!   min and median milliseconds per frame and the median per stage (one frame per source).
+//!   min and median milliseconds per frame and the median per stage (one frame per source; a
+//!   `FILTER` with a `/`, such as `tum-fr1-rpy/04`, picks among the first 50 frames of each
+//!   source, the names `sweep` prints).
 //! * `… -- sweep [ITERATIONS] [ROUNDS]`: min/median per frame over many frames of each source
 //!   (all TUM and 7-Scenes frames, NYU raw, the Open3D and PCL frames, the simulated scenes),
 //!   and the slowest frame; `ROUNDS` passes over all frames, `ITERATIONS` runs each.
@@ -45,7 +47,12 @@ fn median(v: &mut [u64]) -> f64 {
 }
 
 fn time(iters: usize, filter: &str) {
-    for (name, input, cam) in frames() {
+    let all = if filter.contains('/') {
+        frames::load(50)
+    } else {
+        frames()
+    };
+    for (name, input, cam) in all {
         if !name.contains(filter) {
             continue;
         }

@@ -169,6 +169,12 @@ pub struct PlaneConfig {
     /// per 640×480 frame and leaves their repeatability where it was (docs/bench/README.md,
     /// session 43).
     pub refine_seams: bool,
+    /// Whether a frame noisier than its camera's model is detected on the frame's own patches
+    /// and extracted with its measured noise (the default; see `PlaneExtractor::noise_scale`):
+    /// the lower quartile of the patches' residuals against the model's law, the camera's
+    /// `σ_D` a floor. A sensor twice as noisy as its camera says otherwise comes out in
+    /// pieces and spurious planes.
+    pub estimate_noise: bool,
 }
 
 impl Default for PlaneConfig {
@@ -187,6 +193,7 @@ impl Default for PlaneConfig {
             max_normal_sigma_deg: f64::INFINITY,
             split_creases: true,
             refine_seams: false,
+            estimate_noise: true,
         }
     }
 }
@@ -528,8 +535,18 @@ pub struct PlaneExtractor {
     seam_stamp: u32,
     /// The disputed cells of the current pair (`seam`).
     seam_cells: Vec<u32>,
-    /// Noise of a cell's mean disparity (from the sensor model and the configuration).
+    /// Noise of a cell's mean disparity (from the sensor model and the configuration, scaled
+    /// by the frame's own noise level, `noise_level`).
     noise: CellNoise,
+    /// The sensor model's `(σ_D, q, window_x, window_y)` of the frame being extracted.
+    noise_model: (f64, u32, f64, f64),
+    /// The law of a full patch's residual under the model (`noise_level`).
+    noise_law: noise_level::PatchRssLaw,
+    /// The factor by which the last frame's pixel variance exceeded the model's (1: it did
+    /// not), applied to every noise of the extractor.
+    noise_scale: f64,
+    /// Scratch: the patches' residual ratios (`noise_level`).
+    noise_ratios: Vec<f64>,
     /// Noise of the final fit's samples (the planes' uncertainties).
     fit_noise: FitNoise,
     /// Per patch (then per set of patches): moments of its planar cells.
@@ -595,11 +612,44 @@ impl PlaneExtractor {
             self.cfg.noise_window_y_px * s,
         );
         let (sigma_d, q) = (camera.sensor.sigma_d_px, camera.sensor.subpixel_steps);
+        if self.noise_model.2 != wx || self.noise_model.3 != wy || self.noise_law.nu == 0.0 {
+            self.noise_law = noise_level::PatchRssLaw::new(
+                &patches::cell_correlations(wx),
+                &patches::cell_correlations(wy),
+            );
+        }
+        self.noise_model = (sigma_d, q, wx, wy);
+        self.noise_scale = 1.0;
+        self.set_noise_sigma(sigma_d);
+    }
+
+    /// Every noise of the extractor for a disparity error of `sigma_d` px and the model's
+    /// quantisation and window.
+    fn set_noise_sigma(&mut self, sigma_d: f64) {
+        let (_, q, wx, wy) = self.noise_model;
         self.noise = CellNoise::new(sigma_d, q, wx, wy);
         self.fit_noise = FitNoise::new(sigma_d, q, wx, wy, SAMPLE_ROW_STEP);
         self.crease_noise = FitNoise::on_grid(sigma_d, q, wx, wy, crease::GRID_X, crease::GRID_Y);
         self.crease_dense_noise =
             FitNoise::on_grid(sigma_d, q, wx, wy, crease::DENSE_STEP, SAMPLE_ROW_STEP);
+    }
+
+    /// Scales the pixel variance `σ_D² + 1/(12q²)` of every noise of the extractor by
+    /// `factor` (≥ 1), keeping the quantisation and the window: the frame's own noise level
+    /// (`noise_level`).
+    fn scale_noise(&mut self, factor: f64) {
+        let (sigma_d, q, _, _) = self.noise_model;
+        let quant = 1.0 / (12.0 * f64::from(q.max(1)).powi(2));
+        let var = factor * (sigma_d * sigma_d + quant) - quant;
+        self.set_noise_sigma(var.max(0.0).sqrt());
+    }
+
+    /// The factor by which the last frame's disparity-error variance exceeded the camera's
+    /// model, measured on the frame's own patches ([`PlaneConfig::estimate_noise`]): every
+    /// noise test of that extraction and the planes' uncertainties used the model's pixel
+    /// variance times this. 1 when the frame was within its model (or too small to tell).
+    pub fn noise_scale(&self) -> f64 {
+        self.noise_scale
     }
 
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
@@ -731,6 +781,7 @@ impl PlaneExtractor {
             &mut self.half_res_scratch,
             parallel,
         );
+        self.calibrate_noise(wq, hq);
         // Half-resolution pixels without data (NaN even with a diagonal) stay non-planar; the
         // mask is cut back below.
         self.log_mask.clear();
@@ -850,6 +901,7 @@ mod final_band;
 mod grow;
 mod input;
 mod merge;
+mod noise_level;
 mod patches;
 mod refine;
 mod rows;

@@ -78,6 +78,14 @@ fn block_mean_cov(n: usize, w: f64, lag: usize) -> f64 {
     s / (n * n) as f64
 }
 
+/// The correlation of two cell means `lag` cells apart along an axis whose matching window is
+/// `window` pixels wide (`[1, ρ(1), …]`; 1 × 1: white noise, no correlation between cells).
+pub(super) fn cell_correlations(window: f64) -> [f64; PATCH] {
+    let w = window.max(1.0);
+    let v0 = block_mean_cov(CELL, w, 0);
+    std::array::from_fn(|lag| block_mean_cov(CELL, w, lag) / v0)
+}
+
 impl CellNoise {
     /// The noise of a 4×4-pixel cell mean for a disparity error of `sigma_d_px` plus the
     /// `1/q` px quantisation (uniform, variance `1/(12q²)`), correlated with the triangular

@@ -250,6 +250,7 @@ def extract_planes(
     max_normal_sigma_deg: Optional[float] = None,
     split_creases: Optional[bool] = None,
     refine_seams: Optional[bool] = None,
+    estimate_noise: Optional[bool] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane]]:
     """(labels, planes): uint16 (H, W) labels (0 = none, i = planes[i-1]). A camera resampled
@@ -267,7 +268,10 @@ def extract_planes(
     crease between two surfaces) along that line. refine_seams (False): re-decide the pixels
     along a crease with the two planes' local fits where a plane's whole fit is off there (a
     surface bent by the sensor's distortion, whose small neighbour would take a strip of it;
-    0.1-0.3 ms per 640x480 real frame)."""
+    0.1-0.3 ms per 640x480 real frame). estimate_noise (True): measure the frame's own noise on
+    its 16x16-pixel patches and, where it exceeds the camera's model significantly, run every
+    noise test with it (the camera's sigma_d_px is a floor, never lowered); a sensor noisier
+    than its camera says otherwise comes out in pieces and spurious planes."""
 
 class UnlabelledRegion:
     pixels: int
@@ -292,6 +296,7 @@ def explain_planes(
     max_normal_sigma_deg: Optional[float] = None,
     split_creases: Optional[bool] = None,
     refine_seams: Optional[bool] = None,
+    estimate_noise: Optional[bool] = None,
     min_region_pixels: Optional[int] = None,
     depth_scale: Optional[float] = None,
 ) -> Tuple[npt.NDArray[np.uint16], List[Plane], List[UnlabelledRegion]]:

@@ -16,7 +16,7 @@ use sl_noise::sim::{
 /// Room seeds examined while developing (session 11): failures looked at, nothing tuned.
 const ROOM_EXAMINED_SEEDS: std::ops::Range<u64> = 60..300;
 /// Room seeds never looked at during development.
-const ROOM_HELD_OUT_SEEDS: std::ops::Range<u64> = 1000..1240;
+pub(super) const ROOM_HELD_OUT_SEEDS: std::ops::Range<u64> = 1000..1240;
 /// Room seeds of the other-camera table (session 12), never looked at before it.
 const ROOM_CAMERA_SEEDS: std::ops::Range<u64> = 2000..2060;
 /// Camera presets of the other-camera table: a PrimeSense, two RealSense and an OAK-D.
@@ -38,14 +38,14 @@ pub const ROOM_MIN_PIXELS: usize = 2000;
 const TARGET_CORRECT: f64 = 0.95;
 
 /// One method's result on one scene.
-struct Scored {
+pub(super) struct Scored {
     detail: SegCompDetail,
     ms: f64,
 }
 
 /// Totals over the scenes.
 #[derive(Default, Clone, Copy)]
-struct Totals {
+pub(super) struct Totals {
     gt: usize,
     correct: usize,
     over: usize,
@@ -59,7 +59,7 @@ struct Totals {
 }
 
 impl Totals {
-    fn add(&mut self, s: &Scored) {
+    pub(super) fn add(&mut self, s: &Scored) {
         let c = &s.detail.score;
         self.gt += c.gt_regions;
         self.correct += c.correct;
@@ -72,7 +72,7 @@ impl Totals {
         self.worst_ms = self.worst_ms.max(s.ms);
     }
 
-    fn line(&self, method: &str) -> String {
+    pub(super) fn line(&self, method: &str) -> String {
         format!(
             "| {method} | {} | {} ({:.1} %) | {} | {} | {} | {} | {} | {:.1} |",
             self.gt,
@@ -97,7 +97,12 @@ impl Totals {
     }
 }
 
-fn score(gt: &Image<u16>, seg: &PlaneSegmentation, valid: &[bool], ms: f64) -> Result<Scored> {
+pub(super) fn score(
+    gt: &Image<u16>,
+    seg: &PlaneSegmentation,
+    valid: &[bool],
+    ms: f64,
+) -> Result<Scored> {
     Ok(Scored {
         detail: segcomp_detail(gt, &seg.labels, Some(valid), TOLERANCE, ROOM_MIN_PIXELS)?,
         ms,
@@ -354,7 +359,7 @@ fn uncertain_planes_left_out(ctx: &mut Context, md: &mut String) -> Result<()> {
 }
 
 /// The rows `"{prefix} correct share"` and `"{prefix} spurious"` of one set's totals.
-fn share_rows(ctx: &mut Context, prefix: &str, t: &Totals) {
+pub(super) fn share_rows(ctx: &mut Context, prefix: &str, t: &Totals) {
     ctx.row(
         EXP,
         &format!("{prefix} correct share"),
@@ -592,6 +597,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
              changes no score above; on real frames it costs 0.1–0.3 ms per frame.\n",
         );
         md.push('\n');
+        super::noisier::noisier_sensor(ctx, &mut md)?;
     }
     // Overlays of the three worst scenes: ours and the ground truth.
     worst.sort_by(|a, b| a.0.total_cmp(&b.0));
