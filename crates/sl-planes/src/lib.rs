@@ -7,7 +7,9 @@
 //!
 //! Pipeline position: depth frames → `sl-io` → `sl-core` types → (`sl-filter`) → **`sl-planes`**.
 //!
-//! * [`PlaneExtractor`] / [`extract_planes`]: box-LoG planarity mask → affine fits of 16×16-pixel
+//! * [`PlaneExtractor`] / [`extract_planes`]: the frame's own noise level measured on its
+//!   patches (the camera's model is a floor: a noisier sensor is tested with its measured noise,
+//!   [`PlaneExtractor::noise_scale`]) → box-LoG planarity mask → affine fits of 16×16-pixel
 //!   patches of planar 4×4-pixel cells, merged while a χ² test from the noise model (σ_D, 1/q,
 //!   the correlation of the disparity error) accepts one plane → k-means refinement on the cells with merging
 //!   → growth over the connected cells each plane explains within the noise → coplanar pieces

@@ -4,14 +4,13 @@
 //! exactly).
 
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use anyhow::Result;
 use sl_core::Camera;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, room_scene};
 use sl_planes::{PlaneConfig, PlaneExtractor};
 
-use super::rooms::{ROOM_HELD_OUT_SEEDS, Totals, score, share_rows};
+use super::rooms::{ROOM_HELD_OUT_SEEDS, Totals, extract_scored, share_rows};
 use crate::validate::Context;
 
 /// Rooms of this table: the first 60 held-out seeds (never looked at during development).
@@ -50,15 +49,7 @@ fn run_sensor(
         (noise.window_x, noise.window_y) = window;
         let sim = KinectSimulator::with_sensor(simulated).with_noise(NoiseModel::Realistic(noise));
         let frame = sim.simulate(&rs.scene, &rs.intrinsics, &rs.pose, seed);
-        let valid: Vec<bool> = frame.depth.data().iter().map(|&z| z > 0.0).collect();
-        let start = Instant::now();
-        let seg = ex.extract_depth(&frame.depth, &camera)?;
-        t.add(&score(
-            &frame.labels,
-            &seg,
-            &valid,
-            start.elapsed().as_secs_f64() * 1e3,
-        )?);
+        t.add(&extract_scored(ex, &frame, &camera)?);
         scale_sum += ex.noise_scale();
     }
     Ok((t, scale_sum / SEEDS.clone().count() as f64))

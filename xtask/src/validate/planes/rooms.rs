@@ -97,12 +97,7 @@ impl Totals {
     }
 }
 
-pub(super) fn score(
-    gt: &Image<u16>,
-    seg: &PlaneSegmentation,
-    valid: &[bool],
-    ms: f64,
-) -> Result<Scored> {
+fn score(gt: &Image<u16>, seg: &PlaneSegmentation, valid: &[bool], ms: f64) -> Result<Scored> {
     Ok(Scored {
         detail: segcomp_detail(gt, &seg.labels, Some(valid), TOLERANCE, ROOM_MIN_PIXELS)?,
         ms,
@@ -165,17 +160,26 @@ fn score_ours(
     let mut t = Totals::default();
     for seed in seeds {
         let (frame, cam, _) = room_frame(seed, None, distortion_px)?;
-        let valid: Vec<bool> = frame.depth.data().iter().map(|&z| z > 0.0).collect();
-        let start = Instant::now();
-        let seg = ex.extract_depth(&frame.depth, &cam)?;
-        t.add(&score(
-            &frame.labels,
-            &seg,
-            &valid,
-            start.elapsed().as_secs_f64() * 1e3,
-        )?);
+        t.add(&extract_scored(ex, &frame, &cam)?);
     }
     Ok(t)
+}
+
+/// `frame` extracted by `ex` through `cam`, timed and scored against its ground truth.
+pub(super) fn extract_scored(
+    ex: &mut PlaneExtractor,
+    frame: &sl_noise::sim::SimulatedFrame,
+    cam: &Camera,
+) -> Result<Scored> {
+    let valid: Vec<bool> = frame.depth.data().iter().map(|&z| z > 0.0).collect();
+    let start = Instant::now();
+    let seg = ex.extract_depth(&frame.depth, cam)?;
+    score(
+        &frame.labels,
+        &seg,
+        &valid,
+        start.elapsed().as_secs_f64() * 1e3,
+    )
 }
 
 /// [`score_seeds`] through `camera` (its intrinsics and sensor model replace the room's
