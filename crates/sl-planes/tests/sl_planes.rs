@@ -988,3 +988,40 @@ fn a_noisier_sensor_than_its_camera_says_is_measured() {
         "correct {correct_est} with the estimate, {correct_model} without"
     );
 }
+
+/// `frame_noise_scale` measures a frame on its own as the extractor does: 1 at the camera
+/// model's noise, the variance's excess for a noisier sensor, and an error for a frame of
+/// another size than the camera's.
+#[test]
+fn a_frame_noise_level_is_measured_on_its_own() {
+    let cfg = PlaneConfig::default();
+    for seed in 0..3 {
+        let room = sl_noise::sim::room_scene(seed).unwrap();
+        let cam = room_camera(room.intrinsics);
+        let (nominal, _) = extract_room(seed);
+        assert_eq!(
+            sl_planes::frame_noise_scale(&nominal.depth, &cam, &cfg).unwrap(),
+            1.0
+        );
+        let mut noisier = cam.sensor;
+        noisier.sigma_d_px = 0.14;
+        let frame = KinectSimulator::with_sensor(noisier)
+            .with_noise(sl_noise::sim::NoiseModel::Realistic(
+                sl_noise::sim::RealisticNoise::default(),
+            ))
+            .simulate(&room.scene, &cam.intrinsics, &room.pose, seed);
+        // The pixel variance (σ_D² + 1/(12q²)) is 3.4 times the model's.
+        let scale = sl_planes::frame_noise_scale(&frame.depth, &cam, &cfg).unwrap();
+        assert!((2.5..4.5).contains(&scale), "room {seed}: {scale}");
+        let mut ex = PlaneExtractor::new(cfg).unwrap();
+        ex.extract_depth(&frame.depth, &cam).unwrap();
+        assert!(
+            (ex.noise_scale() / scale - 1.0).abs() < 0.25,
+            "room {seed}: {} {scale}",
+            ex.noise_scale()
+        );
+    }
+    let small = DepthImage::from_vec(8, 8, vec![1.0; 64]).unwrap();
+    let room = sl_noise::sim::room_scene(0).unwrap();
+    assert!(sl_planes::frame_noise_scale(&small, &room_camera(room.intrinsics), &cfg).is_err());
+}

@@ -9,13 +9,15 @@
 //! (the real sequences' RPE is 2–6 mm per frame).
 //!
 //! ```text
-//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A]
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX]
 //! ```
 //! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
 //! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
 //! …: its intrinsics, baseline, sub-pixel step and noise) instead; `--jitter A` shakes the
 //! camera: every step gets a seeded random extra motion of up to `A` cm along and `A`° about
-//! each axis (uniform), so the constant-velocity prediction misses. Results:
+//! each axis (uniform), so the constant-velocity prediction misses; `--sim-sigma-d PX` simulates
+//! a sensor with that disparity noise while the tracker is given the camera's own model (a
+//! sensor noisier than its camera says). Results:
 //! docs/bench/track.md ("Degenerate overlaps", session 39).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
@@ -41,10 +43,15 @@ fn main() {
         .position(|a| a == "--jitter")
         .and_then(|i| args.get(i + 1))
         .map_or(0.0, |a| a.parse().unwrap());
+    let sim_sigma_d: Option<f64> = args
+        .iter()
+        .position(|a| a == "--sim-sigma-d")
+        .and_then(|i| args.get(i + 1))
+        .map(|a| a.parse().unwrap());
     let numbers: Vec<u64> = args
         .iter()
         .enumerate()
-        .filter(|(i, _)| *i == 0 || args[i - 1] != "--jitter")
+        .filter(|(i, _)| *i == 0 || (args[i - 1] != "--jitter" && args[i - 1] != "--sim-sigma-d"))
         .filter_map(|(_, a)| a.parse().ok())
         .collect();
     let first = numbers.first().copied().unwrap_or(3000);
@@ -54,6 +61,20 @@ fn main() {
     for seed in first..first + count {
         let room = room_scene(seed).unwrap();
         let (cam, sim) = room.camera_and_simulator(preset.as_deref()).unwrap();
+        // A sensor noisier (or quieter) than the camera the tracker is given.
+        let sim = match sim_sigma_d {
+            Some(sigma) => {
+                let mut sensor = cam.sensor;
+                sensor.sigma_d_px = sigma;
+                let noise = match preset.as_deref() {
+                    Some(name) => sl_noise::sim::RealisticNoise::for_camera(name),
+                    None => sl_noise::sim::RealisticNoise::default(),
+                };
+                sl_noise::sim::KinectSimulator::with_sensor(sensor)
+                    .with_noise(sl_noise::sim::NoiseModel::Realistic(noise))
+            }
+            None => sim,
+        };
         let k = cam.intrinsics;
         let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
         let mut vcfg = TsdfConfig::default();

@@ -914,6 +914,7 @@ mod tests;
 
 pub use explain::{RegionExplanation, RejectReason};
 use input::*;
+pub use noise_level::frame_noise_scale;
 use patches::{CellNoise, PatchStatus};
 use rows::*;
 pub use stages::{Stage, StageTimes};

@@ -31,10 +31,8 @@
 //! Written by hand: the law is specific to the extractor's cells and patches.
 
 #[cfg(test)]
-use super::patches::cell_correlations;
-#[cfg(test)]
 use super::patches::min_rss;
-use super::patches::{PATCH, Z_999};
+use super::patches::{CellNoise, PATCH, Z_999, cell_correlations};
 use super::*;
 
 /// Fewest full patches for an estimate (a 640×480 frame has 1,200 patches).
@@ -152,6 +150,41 @@ fn full_patch_rss(v: &[f32; PATCH * PATCH]) -> Option<f64> {
     Some((s2 - s0 * s0 / N - (sx * sx + sy * sy) / SXX).max(0.0))
 }
 
+/// The factor by which the cells' noise exceeds the law `law` of `var_cell`'s model (1 when
+/// it does not, significantly; see the module documentation): over the full patches of the
+/// `wq × hq` cell disparities `cells` (non-finite or ≤ 0 = no data). `ratios` is scratch.
+fn measure_excess(
+    cells: &[f32],
+    wq: usize,
+    hq: usize,
+    var_cell: f64,
+    law: &PatchRssLaw,
+    ratios: &mut Vec<f64>,
+) -> f64 {
+    ratios.clear();
+    if var_cell.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || cells.len() < wq * hq {
+        return 1.0;
+    }
+    for pj in 0..hq / PATCH {
+        for pi in 0..wq / PATCH {
+            let mut v = [0.0f32; PATCH * PATCH];
+            for (j, dst) in v.chunks_exact_mut(PATCH).enumerate() {
+                let row = (pj * PATCH + j) * wq + pi * PATCH;
+                dst.copy_from_slice(&cells[row..row + PATCH]);
+            }
+            if let Some(rss) = full_patch_rss(&v) {
+                ratios.push(rss / (PATCH_DOF * var_cell));
+            }
+        }
+    }
+    let n = ratios.len();
+    if n < MIN_PATCHES {
+        return 1.0;
+    }
+    let (_, &mut q25, _) = ratios.select_nth_unstable_by(n / 4, f64::total_cmp);
+    law.excess(q25, n)
+}
+
 impl PlaneExtractor {
     /// Measures the frame's noise on its full patches of `cell_disparity` (`wq × hq` cells)
     /// and, when it exceeds the camera's model, scales every noise of the extractor by it
@@ -161,33 +194,72 @@ impl PlaneExtractor {
         if !self.cfg.estimate_noise {
             return;
         }
-        let var_cell = self.noise.var_cell;
-        let cells = &self.cell_disparity;
-        let ratios = &mut self.noise_ratios;
-        ratios.clear();
-        for pj in 0..hq / PATCH {
-            for pi in 0..wq / PATCH {
-                let mut v = [0.0f32; PATCH * PATCH];
-                for (j, dst) in v.chunks_exact_mut(PATCH).enumerate() {
-                    let row = (pj * PATCH + j) * wq + pi * PATCH;
-                    dst.copy_from_slice(&cells[row..row + PATCH]);
-                }
-                if let Some(rss) = full_patch_rss(&v) {
-                    ratios.push(rss / (PATCH_DOF * var_cell));
-                }
-            }
-        }
-        let n = ratios.len();
-        if n < MIN_PATCHES || var_cell.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            return;
-        }
-        let (_, &mut q25, _) = ratios.select_nth_unstable_by(n / 4, f64::total_cmp);
-        let excess = self.noise_law.excess(q25, n);
+        let excess = measure_excess(
+            &self.cell_disparity,
+            wq,
+            hq,
+            self.noise.var_cell,
+            &self.noise_law,
+            &mut self.noise_ratios,
+        );
         if excess > 1.0 {
             self.noise_scale = excess;
             self.scale_noise(excess);
         }
     }
+}
+
+/// The factor by which the disparity-error variance of a depth frame (metres, 0 = invalid)
+/// exceeds `camera`'s noise model, measured as [`PlaneExtractor`] does (its
+/// [`PlaneExtractor::noise_scale`]) but on its own: cells are the 4×4-pixel blocks whose every
+/// pixel has depth, the correlation window is `cfg.noise_window_*_px` in the sensor's pixels.
+/// 1 when the frame is within its model or too small to tell (fewer than 64 full patches of
+/// 4×4 cells). For other stages that take their noise from the camera's model, such as a
+/// tracker's uncertainty of a pose. The cost of one pass over the frame.
+pub fn frame_noise_scale<'a>(
+    depth: impl Into<DepthView<'a>>,
+    camera: &Camera,
+    cfg: &PlaneConfig,
+) -> Result<f64> {
+    let depth: DepthView<'a> = depth.into();
+    let (w, h) = (depth.width(), depth.height());
+    PlaneExtractor::check(w, h, &camera.intrinsics)?;
+    let s = camera.pixels_per_sensor_pixel();
+    let (wx, wy) = (cfg.noise_window_x_px * s, cfg.noise_window_y_px * s);
+    let noise = CellNoise::new(
+        camera.sensor.sigma_d_px,
+        camera.sensor.subpixel_steps,
+        wx,
+        wy,
+    );
+    let law = PatchRssLaw::new(&cell_correlations(wx), &cell_correlations(wy));
+    let fb = camera.sensor.fb() as f32;
+    let (wq, hq) = (w / CELL, h / CELL);
+    let z = depth.data();
+    let mut cells = vec![f32::NAN; wq * hq];
+    for (j, row) in cells.chunks_exact_mut(wq.max(1)).enumerate().take(hq) {
+        for (i, cell) in row.iter_mut().enumerate() {
+            let mut sum = 0.0f32;
+            let mut full = true;
+            for y in j * CELL..(j + 1) * CELL {
+                for &zz in &z[y * w + i * CELL..y * w + (i + 1) * CELL] {
+                    full &= zz > 0.0 && zz.is_finite();
+                    sum += fb / zz;
+                }
+            }
+            if full {
+                *cell = sum / (CELL * CELL) as f32;
+            }
+        }
+    }
+    Ok(measure_excess(
+        &cells,
+        wq,
+        hq,
+        noise.var_cell,
+        &law,
+        &mut Vec::new(),
+    ))
 }
 
 #[cfg(test)]

@@ -453,6 +453,7 @@ impl Tracker {
                     let Some(level) = this.pyramid.levels.get(check_level) else {
                         return Ok((f64::NAN, scale_m));
                     };
+                    structure.measure_noise(depth, &this.camera, &this.cfg)?;
                     structure.segment(level, check_level, &this.camera, &this.cfg)?;
                     let sigma = structure
                         .weakest_sigma_m(
