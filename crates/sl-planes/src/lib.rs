@@ -63,8 +63,8 @@ mod uncertainty;
 
 pub use error::{PlanesError, Result};
 pub use extract::{
-    PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, RegionExplanation, RejectReason,
-    Stage, StageTimes, extract_planes, frame_noise_scale,
+    NoiseMeter, PlaneConfig, PlaneExtractor, PlaneInfo, PlaneSegmentation, RegionExplanation,
+    RejectReason, Stage, StageTimes, extract_planes, frame_noise_scale,
 };
 pub use plane::DisparityAffine;
 pub use ransac::{RansacConfig, metric_ransac};

@@ -540,13 +540,11 @@ pub struct PlaneExtractor {
     noise: CellNoise,
     /// The sensor model's `(σ_D, q, window_x, window_y)` of the frame being extracted.
     noise_model: (f64, u32, f64, f64),
-    /// The law of a full patch's residual under the model (`noise_level`).
-    noise_law: noise_level::PatchRssLaw,
+    /// The frame's own noise level against the model (`noise_level`).
+    noise_meter: NoiseMeter,
     /// The factor by which the last frame's pixel variance exceeded the model's (1: it did
     /// not), applied to every noise of the extractor.
     noise_scale: f64,
-    /// Scratch: the patches' residual ratios (`noise_level`).
-    noise_ratios: Vec<f64>,
     /// Noise of the final fit's samples (the planes' uncertainties).
     fit_noise: FitNoise,
     /// Per patch (then per set of patches): moments of its planar cells.
@@ -612,12 +610,6 @@ impl PlaneExtractor {
             self.cfg.noise_window_y_px * s,
         );
         let (sigma_d, q) = (camera.sensor.sigma_d_px, camera.sensor.subpixel_steps);
-        if self.noise_model.2 != wx || self.noise_model.3 != wy || self.noise_law.nu == 0.0 {
-            self.noise_law = noise_level::PatchRssLaw::new(
-                &patches::cell_correlations(wx),
-                &patches::cell_correlations(wy),
-            );
-        }
         self.noise_model = (sigma_d, q, wx, wy);
         self.noise_scale = 1.0;
         self.set_noise_sigma(sigma_d);
@@ -914,7 +906,7 @@ mod tests;
 
 pub use explain::{RegionExplanation, RejectReason};
 use input::*;
-pub use noise_level::frame_noise_scale;
+pub use noise_level::{NoiseMeter, frame_noise_scale};
 use patches::{CellNoise, PatchStatus};
 use rows::*;
 pub use stages::{Stage, StageTimes};

@@ -42,7 +42,7 @@ const MIN_PATCHES: usize = 64;
 const Z_P25: f64 = -0.674_489_750_196_081_7;
 
 /// The law of `RSS/((n − 3)·var_cell)` of a full patch's affine fit under the camera's noise.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct PatchRssLaw {
     /// Its mean.
     pub(super) mean: f64,
@@ -150,39 +150,122 @@ fn full_patch_rss(v: &[f32; PATCH * PATCH]) -> Option<f64> {
     Some((s2 - s0 * s0 / N - (sx * sx + sy * sy) / SXX).max(0.0))
 }
 
-/// The factor by which the cells' noise exceeds the law `law` of `var_cell`'s model (1 when
-/// it does not, significantly; see the module documentation): over the full patches of the
-/// `wq × hq` cell disparities `cells` (non-finite or ≤ 0 = no data). `ratios` is scratch.
-fn measure_excess(
-    cells: &[f32],
-    wq: usize,
-    hq: usize,
-    var_cell: f64,
-    law: &PatchRssLaw,
-    ratios: &mut Vec<f64>,
-) -> f64 {
-    ratios.clear();
-    if var_cell.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || cells.len() < wq * hq {
-        return 1.0;
-    }
-    for pj in 0..hq / PATCH {
-        for pi in 0..wq / PATCH {
-            let mut v = [0.0f32; PATCH * PATCH];
-            for (j, dst) in v.chunks_exact_mut(PATCH).enumerate() {
-                let row = (pj * PATCH + j) * wq + pi * PATCH;
-                dst.copy_from_slice(&cells[row..row + PATCH]);
-            }
-            if let Some(rss) = full_patch_rss(&v) {
-                ratios.push(rss / (PATCH_DOF * var_cell));
-            }
+/// Measures frames' disparity noise against their camera's model ([`PlaneExtractor`] does it
+/// on every frame, see [`PlaneConfig::estimate_noise`]; other stages that take their noise from
+/// the camera's model use it on its own, such as a tracker's uncertainty of a pose). Keeps the
+/// law of the last camera's window and its buffers, so that a sequence allocates nothing per
+/// frame.
+#[derive(Debug, Clone, Default)]
+pub struct NoiseMeter {
+    /// The correlation window of the disparity error, pixels of the sensor.
+    window_px: (f64, f64),
+    /// The law of the last window in the frame's pixels, with that window.
+    law: Option<((f64, f64), PatchRssLaw)>,
+    /// Scratch: the frame's cell disparities (`measure`) and the patches' residual ratios.
+    cells: Vec<f32>,
+    ratios: Vec<f64>,
+}
+
+impl NoiseMeter {
+    /// A meter for a sensor whose error is correlated over `cfg.noise_window_*_px` (pixels of
+    /// the sensor).
+    pub fn new(cfg: &PlaneConfig) -> Self {
+        Self {
+            window_px: (cfg.noise_window_x_px, cfg.noise_window_y_px),
+            ..Self::default()
         }
     }
-    let n = ratios.len();
-    if n < MIN_PATCHES {
-        return 1.0;
+
+    /// The factor by which the disparity-error variance of a depth frame (metres, 0 = invalid)
+    /// exceeds `camera`'s noise model, measured as [`PlaneExtractor`] does (its
+    /// [`PlaneExtractor::noise_scale`]) but on the frame alone: cells are the 4×4-pixel blocks
+    /// whose every pixel has depth. 1 when the frame is within its model or too small to tell
+    /// (fewer than 64 full patches of 4×4 cells). The cost of one pass over the frame.
+    pub fn measure<'a>(&mut self, depth: impl Into<DepthView<'a>>, camera: &Camera) -> Result<f64> {
+        let depth: DepthView<'a> = depth.into();
+        let (w, h) = (depth.width(), depth.height());
+        PlaneExtractor::check(w, h, &camera.intrinsics)?;
+        let s = camera.pixels_per_sensor_pixel();
+        let (wx, wy) = (self.window_px.0 * s, self.window_px.1 * s);
+        let var_cell = CellNoise::new(
+            camera.sensor.sigma_d_px,
+            camera.sensor.subpixel_steps,
+            wx,
+            wy,
+        )
+        .var_cell;
+        let fb = camera.sensor.fb() as f32;
+        let (wq, hq) = (w / CELL, h / CELL);
+        let z = depth.data();
+        let mut cells = std::mem::take(&mut self.cells);
+        cells.clear();
+        cells.resize(wq * hq, f32::NAN);
+        for (j, row) in cells.chunks_exact_mut(wq.max(1)).enumerate().take(hq) {
+            for (i, cell) in row.iter_mut().enumerate() {
+                let mut sum = 0.0f32;
+                let mut full = true;
+                for y in j * CELL..(j + 1) * CELL {
+                    for &zz in &z[y * w + i * CELL..y * w + (i + 1) * CELL] {
+                        full &= zz > 0.0 && zz.is_finite();
+                        sum += fb / zz;
+                    }
+                }
+                if full {
+                    *cell = sum / (CELL * CELL) as f32;
+                }
+            }
+        }
+        let excess = self.excess(&cells, wq, hq, var_cell, (wx, wy));
+        self.cells = cells;
+        Ok(excess)
     }
-    let (_, &mut q25, _) = ratios.select_nth_unstable_by(n / 4, f64::total_cmp);
-    law.excess(q25, n)
+
+    /// The factor by which the noise of the `wq × hq` cell disparities `cells` (non-finite or
+    /// ≤ 0 = no data) exceeds a model of cell variance `var_cell` correlated over `window`
+    /// (pixels of the frame), over their full patches: 1 when it does not, significantly (see
+    /// the module documentation).
+    pub(super) fn excess(
+        &mut self,
+        cells: &[f32],
+        wq: usize,
+        hq: usize,
+        var_cell: f64,
+        window: (f64, f64),
+    ) -> f64 {
+        let ratios = &mut self.ratios;
+        ratios.clear();
+        if var_cell.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || cells.len() < wq * hq
+        {
+            return 1.0;
+        }
+        for pj in 0..hq / PATCH {
+            for pi in 0..wq / PATCH {
+                let mut v = [0.0f32; PATCH * PATCH];
+                for (j, dst) in v.chunks_exact_mut(PATCH).enumerate() {
+                    let row = (pj * PATCH + j) * wq + pi * PATCH;
+                    dst.copy_from_slice(&cells[row..row + PATCH]);
+                }
+                if let Some(rss) = full_patch_rss(&v) {
+                    ratios.push(rss / (PATCH_DOF * var_cell));
+                }
+            }
+        }
+        let n = ratios.len();
+        if n < MIN_PATCHES {
+            return 1.0;
+        }
+        let (_, &mut q25, _) = ratios.select_nth_unstable_by(n / 4, f64::total_cmp);
+        let law = match self.law {
+            Some((w, law)) if w == window => law,
+            _ => {
+                let law =
+                    PatchRssLaw::new(&cell_correlations(window.0), &cell_correlations(window.1));
+                self.law = Some((window, law));
+                law
+            }
+        };
+        law.excess(q25, n)
+    }
 }
 
 impl PlaneExtractor {
@@ -194,14 +277,10 @@ impl PlaneExtractor {
         if !self.cfg.estimate_noise {
             return;
         }
-        let excess = measure_excess(
-            &self.cell_disparity,
-            wq,
-            hq,
-            self.noise.var_cell,
-            &self.noise_law,
-            &mut self.noise_ratios,
-        );
+        let (_, _, wx, wy) = self.noise_model;
+        let excess =
+            self.noise_meter
+                .excess(&self.cell_disparity, wq, hq, self.noise.var_cell, (wx, wy));
         if excess > 1.0 {
             self.noise_scale = excess;
             self.scale_noise(excess);
@@ -209,57 +288,15 @@ impl PlaneExtractor {
     }
 }
 
-/// The factor by which the disparity-error variance of a depth frame (metres, 0 = invalid)
-/// exceeds `camera`'s noise model, measured as [`PlaneExtractor`] does (its
-/// [`PlaneExtractor::noise_scale`]) but on its own: cells are the 4×4-pixel blocks whose every
-/// pixel has depth, the correlation window is `cfg.noise_window_*_px` in the sensor's pixels.
-/// 1 when the frame is within its model or too small to tell (fewer than 64 full patches of
-/// 4×4 cells). For other stages that take their noise from the camera's model, such as a
-/// tracker's uncertainty of a pose. The cost of one pass over the frame.
+/// [`NoiseMeter::measure`] with a meter of its own (for one frame; a sequence keeps one
+/// [`NoiseMeter`]): the factor by which the frame's disparity-error variance exceeds `camera`'s
+/// noise model, the correlation window `cfg.noise_window_*_px` in the sensor's pixels.
 pub fn frame_noise_scale<'a>(
     depth: impl Into<DepthView<'a>>,
     camera: &Camera,
     cfg: &PlaneConfig,
 ) -> Result<f64> {
-    let depth: DepthView<'a> = depth.into();
-    let (w, h) = (depth.width(), depth.height());
-    PlaneExtractor::check(w, h, &camera.intrinsics)?;
-    let s = camera.pixels_per_sensor_pixel();
-    let (wx, wy) = (cfg.noise_window_x_px * s, cfg.noise_window_y_px * s);
-    let noise = CellNoise::new(
-        camera.sensor.sigma_d_px,
-        camera.sensor.subpixel_steps,
-        wx,
-        wy,
-    );
-    let law = PatchRssLaw::new(&cell_correlations(wx), &cell_correlations(wy));
-    let fb = camera.sensor.fb() as f32;
-    let (wq, hq) = (w / CELL, h / CELL);
-    let z = depth.data();
-    let mut cells = vec![f32::NAN; wq * hq];
-    for (j, row) in cells.chunks_exact_mut(wq.max(1)).enumerate().take(hq) {
-        for (i, cell) in row.iter_mut().enumerate() {
-            let mut sum = 0.0f32;
-            let mut full = true;
-            for y in j * CELL..(j + 1) * CELL {
-                for &zz in &z[y * w + i * CELL..y * w + (i + 1) * CELL] {
-                    full &= zz > 0.0 && zz.is_finite();
-                    sum += fb / zz;
-                }
-            }
-            if full {
-                *cell = sum / (CELL * CELL) as f32;
-            }
-        }
-    }
-    Ok(measure_excess(
-        &cells,
-        wq,
-        hq,
-        noise.var_cell,
-        &law,
-        &mut Vec::new(),
-    ))
+    NoiseMeter::new(cfg).measure(depth, camera)
 }
 
 #[cfg(test)]

@@ -34,7 +34,7 @@
 use nalgebra::{Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
 use rayon::prelude::*;
 use sl_core::{Camera, DepthImage, DepthView, Intrinsics, SensorModel};
-use sl_planes::{PlaneConfig, PlaneExtractor};
+use sl_planes::{NoiseMeter, PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
 use super::agreement::{agreeing_information, disputed_direction, positive_part};
@@ -84,9 +84,11 @@ pub(crate) struct StructureCheck {
     planes: FramePlanes,
     /// The noise of the segmented level's own normals.
     normal_noise: NormalNoise,
+    /// Measures the frame's own noise level (created with the first frame).
+    noise_meter: Option<NoiseMeter>,
     /// The factor by which the frame's disparity-error variance exceeds the sensor model's,
-    /// measured on its full-resolution patches (`sl_planes::frame_noise_scale`; 1: it does
-    /// not), which scales the samples' variance in [`StructureCheck::weakest_sigma_m`].
+    /// measured on its full-resolution patches (1: it does not; 0 before any frame), which
+    /// scales the samples' variance in [`StructureCheck::weakest_sigma_m`].
     noise_scale: f64,
 }
 
@@ -167,10 +169,13 @@ impl StructureCheck {
         camera: &Camera,
         cfg: &TrackerConfig,
     ) -> Result<()> {
-        let mut pc = PlaneConfig::default();
-        pc.noise_window_x_px = cfg.noise_window_x_px;
-        pc.noise_window_y_px = cfg.noise_window_y_px;
-        self.noise_scale = sl_planes::frame_noise_scale(depth, camera, &pc)?;
+        let meter = self.noise_meter.get_or_insert_with(|| {
+            let mut pc = PlaneConfig::default();
+            pc.noise_window_x_px = cfg.noise_window_x_px;
+            pc.noise_window_y_px = cfg.noise_window_y_px;
+            NoiseMeter::new(&pc)
+        });
+        self.noise_scale = meter.measure(depth, camera)?;
         Ok(())
     }
 
