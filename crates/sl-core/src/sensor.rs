@@ -143,6 +143,20 @@ impl SensorModel {
         z_m * z_m * sigma_d_px / self.fb()
     }
 
+    /// The `σ_D` (pixels) of a sensor whose per-pixel disparity-error variance, the error plus
+    /// the `1/q` quantisation (`σ_D² + 1/(12q²)`), is `variance_scale` times this model's
+    /// (the quantisation kept; this model's own `σ_D` at 1; 0 when the scale leaves nothing for
+    /// the error). A frame's own
+    /// noise level against its model (`sl_planes::frame_noise_scale`) is such a scale.
+    pub fn sigma_d_for_variance_scale(&self, variance_scale: f64) -> f64 {
+        if variance_scale == 1.0 {
+            return self.sigma_d_px;
+        }
+        let quant = 1.0 / (12.0 * f64::from(self.subpixel_steps.max(1)).powi(2));
+        let var = variance_scale * (self.sigma_d_px * self.sigma_d_px + quant) - quant;
+        if var > 0.0 { var.sqrt() } else { 0.0 }
+    }
+
     /// Depth quantum `ΔZ ≈ c·Z²` between neighbouring representable depths, with
     /// `c = 1 / (q·f·B)` per metre.
     pub fn depth_quantum_per_m(&self) -> f64 {

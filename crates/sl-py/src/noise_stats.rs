@@ -7,7 +7,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyModule;
 use sl_core::Image;
 use sl_noise::stats::{NoiseStatsConfig, noise_stats as stats};
-use sl_planes::{PlaneConfig, extract_planes};
+use sl_planes::{PlaneConfig, extract_planes, frame_noise_scale};
 
 use crate::arrays::{check_camera, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
@@ -22,7 +22,10 @@ use crate::threads::compute;
 /// with the projector shadow the geometry predicts), ``invalid_fraction``, ``regions``,
 /// ``pixels``. Values that could not be measured are ``None``. ``labels`` (uint16 (H, W),
 /// 0 = none) gives the planar regions; by default they are the planes ``extract_planes`` finds
-/// with at least ``min_plane_pixels`` sensor pixels.
+/// with at least ``min_plane_pixels`` sensor pixels. Against the camera's own model:
+/// ``model_sigma_d_px`` (its σ_D), ``model_variance_scale`` (how many times the model's pixel
+/// variance the frame's patches measure, 1 when within it; ``PlaneExtractor::noise_scale``) and
+/// ``model_effective_sigma_d_px`` (the σ_D that variance means).
 #[pyfunction]
 #[pyo3(signature = (depth, camera = None, labels = None, *, min_plane_pixels = 2000, depth_scale = None))]
 pub(crate) fn noise_stats<'py>(
@@ -68,7 +71,19 @@ pub(crate) fn noise_stats<'py>(
         let opts = NoiseStatsConfig::for_camera(&camera);
         let s = stats(&view.to_image(), camera.sensor.fb(), &regions, &opts)
             .map_err(|e| e.to_string())?;
-        serde_json::to_string(&s).map_err(|e| e.to_string())
+        let scale = frame_noise_scale(view, &camera, &PlaneConfig::default())
+            .map_err(|e| format!("measuring the noise against the camera's model: {e}"))?;
+        let mut v = serde_json::to_value(&s).map_err(|e| e.to_string())?;
+        if let Some(o) = v.as_object_mut() {
+            let sensor = camera.sensor;
+            o.insert("model_sigma_d_px".into(), sensor.sigma_d_px.into());
+            o.insert("model_variance_scale".into(), scale.into());
+            o.insert(
+                "model_effective_sigma_d_px".into(),
+                sensor.sigma_d_for_variance_scale(scale).into(),
+            );
+        }
+        serde_json::to_string(&v).map_err(|e| e.to_string())
     })
     .map_err(value_error)?;
     PyModule::import(py, "json")?.call_method1("loads", (json,))

@@ -110,18 +110,21 @@ fn simulate_reproduces_committed_frames() {
 
 /// The default simulator is the realistic one: `noise-stats` finds its error correlated
 /// between neighbours and occlusion bands beside the figure; the white model's error is not
-/// correlated.
+/// correlated. Against the camera's model, both are within it, and a sensor simulated twice as
+/// noisy as the camera says measures about 3.4 times its pixel variance.
 #[test]
 fn simulate_realistic_by_default_and_noise_stats_measures_it() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
-    let stats = |noise: &str| {
-        let out = dir.path().join(format!("{noise}.png"));
+    let stats_sigma = |noise: &str, sigma: &str| {
+        let out = dir.path().join(format!("{noise}-{sigma}.png"));
         let o = sldepth(&[
             "simulate",
             "--scene",
             "figure-walls",
             "--noise",
             noise,
+            "--sigma-d-px",
+            sigma,
             "--output",
             path_str(&out),
         ]);
@@ -130,8 +133,22 @@ fn simulate_realistic_by_default_and_noise_stats_measures_it() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap_or_else(|e| panic!("{e}"))
     };
+    let stats = |noise: &str| stats_sigma(noise, "0.07");
     let real = stats("realistic");
     let white = stats("white");
+    let scale = |v: &serde_json::Value| v["model_variance_scale"].as_f64().unwrap_or(f64::NAN);
+    assert_eq!(scale(&real), 1.0, "{}", real["model_variance_scale"]);
+    assert_eq!(scale(&white), 1.0, "{}", white["model_variance_scale"]);
+    let model_sigma = real["model_effective_sigma_d_px"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!((model_sigma - 0.07).abs() < 1e-12, "{model_sigma}");
+    let noisier = stats_sigma("realistic", "0.14");
+    assert!((2.5..4.5).contains(&scale(&noisier)), "{noisier}");
+    let sigma = noisier["model_effective_sigma_d_px"]
+        .as_f64()
+        .unwrap_or(f64::NAN);
+    assert!((0.11..0.17).contains(&sigma), "{sigma}");
     let acf1 = |v: &serde_json::Value| v["acf"][0]["x"].as_f64().unwrap_or(f64::NAN);
     assert!(acf1(&real) > 0.5, "realistic ρ_x(1) = {}", acf1(&real));
     assert!(acf1(&white).abs() < 0.2, "white ρ_x(1) = {}", acf1(&white));

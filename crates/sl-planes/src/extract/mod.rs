@@ -631,9 +631,9 @@ impl PlaneExtractor {
     /// (`noise_level`).
     fn scale_noise(&mut self, factor: f64) {
         let (sigma_d, q, _, _) = self.noise_model;
-        let quant = 1.0 / (12.0 * f64::from(q.max(1)).powi(2));
-        let var = factor * (sigma_d * sigma_d + quant) - quant;
-        self.set_noise_sigma(var.max(0.0).sqrt());
+        let mut sensor = sl_core::SensorModel::default();
+        (sensor.sigma_d_px, sensor.subpixel_steps) = (sigma_d, q);
+        self.set_noise_sigma(sensor.sigma_d_for_variance_scale(factor));
     }
 
     /// The factor by which the last frame's disparity-error variance exceeded the camera's

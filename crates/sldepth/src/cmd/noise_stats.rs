@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::json;
 use sl_noise::stats::{NoiseStats, NoiseStatsConfig, noise_stats};
-use sl_planes::{PlaneConfig, extract_planes};
+use sl_planes::{PlaneConfig, extract_planes, frame_noise_scale};
 
 use crate::common::{InputArgs, load_depth, print_json};
 
@@ -46,11 +46,20 @@ pub fn run(args: Args) -> Result<()> {
     let loaded = load_depth(&args.depth, &args.input)?;
     let s = stats_of(&loaded.depth, &loaded.camera, args.min_plane_pixels)
         .with_context(|| format!("analysing {}", args.depth.display()))?;
+    let sensor = loaded.camera.sensor;
+    let scale = frame_noise_scale(&loaded.depth, &loaded.camera, &PlaneConfig::default())
+        .context("measuring the frame's noise against the camera's model")?;
     if args.json {
         let mut v = serde_json::to_value(&s)?;
         if let Some(o) = v.as_object_mut() {
             o.insert("path".into(), json!(args.depth.display().to_string()));
-            o.insert("fb_px_m".into(), json!(loaded.camera.sensor.fb()));
+            o.insert("fb_px_m".into(), json!(sensor.fb()));
+            o.insert("model_sigma_d_px".into(), json!(sensor.sigma_d_px));
+            o.insert("model_variance_scale".into(), json!(scale));
+            o.insert(
+                "model_effective_sigma_d_px".into(),
+                json!(sensor.sigma_d_for_variance_scale(scale)),
+            );
         }
         return print_json(&v);
     }
@@ -73,6 +82,18 @@ pub fn run(args: Args) -> Result<()> {
             b.z_hi_m,
             b.sigma_d_px,
             b.pixels
+        )?;
+    }
+    if scale > 1.0 {
+        outln!(
+            "  against the camera's model (σ_D {:.3} px): pixel variance ×{scale:.2}, as a σ_D of {:.3} px",
+            sensor.sigma_d_px,
+            sensor.sigma_d_for_variance_scale(scale)
+        )?;
+    } else {
+        outln!(
+            "  against the camera's model (σ_D {:.3} px): within it",
+            sensor.sigma_d_px
         )?;
     }
     outln!("  residual autocorrelation (lag: x / y)")?;
