@@ -81,6 +81,32 @@ fn time(iters: usize, filter: &str) {
     }
 }
 
+/// The time of one `NoiseMeter::measure` (a frame's noise against its camera's model, as
+/// `sldepth track` runs it on every raw frame) on the matching frames.
+fn noise(iters: usize, filter: &str) {
+    for (name, input, cam) in frames() {
+        if !name.contains(filter) {
+            continue;
+        }
+        let depth = match &input {
+            Input::Depth(d) => d.clone(),
+            Input::Disparity(d) => d.to_depth(&cam.sensor),
+        };
+        let mut meter = sl_planes::NoiseMeter::new(&PlaneConfig::default());
+        let mut times = Vec::with_capacity(iters);
+        let mut scale = 1.0;
+        for _ in 0..iters {
+            let t = std::time::Instant::now();
+            scale = meter.measure(&depth, &cam).unwrap();
+            times.push(t.elapsed().as_nanos() as u64);
+        }
+        println!(
+            "{name}: noise ×{scale:.3}, median {:.3} ms",
+            median(&mut times)
+        );
+    }
+}
+
 fn sweep(iters: usize, rounds: usize) {
     let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
     let inputs = load(50);
@@ -325,6 +351,7 @@ fn main() {
         "view" => view(&PathBuf::from(arg(1)), &PathBuf::from(arg(2)), &arg(3)),
         "repeat" => repeat(arg(1).parse().unwrap_or(20), &arg(2)),
         "time" => time(arg(1).parse().unwrap_or(200), &arg(2)),
+        "noise" => noise(arg(1).parse().unwrap_or(200), &arg(2)),
         "time-pool" => rayon::scope(|_| time(arg(1).parse().unwrap_or(200), &arg(2))),
         _ => time(arg(0).parse().unwrap_or(200), &arg(1)),
     }

@@ -154,6 +154,10 @@ struct TrackerState {
     last_failure: Option<String>,
     /// The last frame's weakest-direction σ, metres (NaN when not checked).
     last_weakest_sigma_m: f64,
+    /// Measures each raw frame's noise against the camera's model (`estimate_noise`).
+    noise_meter: Option<sl_planes::NoiseMeter>,
+    /// The last raw frame's pixel variance over the model's (1 within it or not measured).
+    last_noise_scale: f64,
     /// The meshes of the finished fragments, by index (`None`: not finished).
     finished: Vec<Option<Mesh>>,
     /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
@@ -181,7 +185,7 @@ impl PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -193,6 +197,7 @@ impl PyTracker {
         lens: &str,
         new_fragment_after_s: Option<f64>,
         rolling_shutter_ms: Option<f64>,
+        estimate_noise: bool,
     ) -> PyResult<Self> {
         let readout_s = match rolling_shutter_ms {
             Some(ms) => ms / 1000.0,
@@ -221,6 +226,13 @@ impl PyTracker {
         cfg.model_scale = model_scale;
         cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
         cfg.tracker.rolling_shutter_readout_s = readout_s;
+        cfg.tracker.estimate_noise = estimate_noise;
+        let noise_meter = estimate_noise.then(|| {
+            let mut pc = sl_planes::PlaneConfig::default();
+            pc.noise_window_x_px = cfg.tracker.noise_window_x_px;
+            pc.noise_window_y_px = cfg.tracker.noise_window_y_px;
+            sl_planes::NoiseMeter::new(&pc)
+        });
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,
@@ -230,6 +242,8 @@ impl PyTracker {
                 undistorter,
                 last_failure: None,
                 last_weakest_sigma_m: f64::NAN,
+                noise_meter,
+                last_noise_scale: 1.0,
                 finished: Vec::new(),
                 joins: Vec::new(),
                 frame_fragments: Vec::new(),
@@ -259,6 +273,8 @@ impl PyTracker {
                 rec,
                 prefilter,
                 undistorter,
+                noise_meter,
+                last_noise_scale,
                 ..
             } = &mut *guard;
             let undistorted = match undistorter {
@@ -266,6 +282,12 @@ impl PyTracker {
                 None => None,
             };
             let view = undistorted.as_ref().map_or(view, |d| d.view());
+            // The raw frame's noise against the camera's model (the prefilter hides it).
+            if let Some(m) = noise_meter {
+                let s = m.measure(view, &self.camera).map_err(|e| e.to_string())?;
+                *last_noise_scale = s;
+                rec.set_noise_scale(Some(s));
+            }
             let depth = match prefilter {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
@@ -324,6 +346,15 @@ impl PyTracker {
     #[getter]
     fn last_weakest_sigma_m(&self, py: Python<'_>) -> PyResult<f64> {
         self.with_state(py, |s| s.last_weakest_sigma_m)
+    }
+
+    /// The last frame's disparity-error variance over the camera's model, measured on the raw
+    /// frame's own 16×16-pixel patches (before the prefilter) as ``extract_planes`` does; the
+    /// frame was tracked with that noise (its weights, gates and degenerate-view checks). 1
+    /// when within the model, before any frame, or with ``estimate_noise=False``.
+    #[getter]
+    fn last_noise_scale(&self, py: Python<'_>) -> PyResult<f64> {
+        self.with_state(py, |s| s.last_noise_scale)
     }
 
     /// The index of the current fragment: 0 until tracking stays lost for

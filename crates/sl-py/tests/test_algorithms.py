@@ -376,6 +376,25 @@ def test_noise_stats_tell_realistic_from_white_noise(kinect):
         sldepth.noise_stats(real, kinect, truth_labels[:, :10].copy())
 
 
+def test_noise_stats_measure_a_sensor_against_its_camera_model(kinect):
+    # At the camera's own noise the frame is within its model; a sensor twice as noisy
+    # (sigma_D 0.14 px behind the 0.07 px Kinect camera) measures about 3.4 times the model's
+    # pixel variance, the sigma_D of 0.14 px back within the estimate's spread.
+    nominal, _, _ = sldepth.simulate("boxes", seed=3, camera=kinect)
+    s = sldepth.noise_stats(nominal, kinect)
+    assert s["model_sigma_d_px"] == pytest.approx(kinect.sigma_d_px)
+    assert s["model_variance_scale"] == 1.0
+    assert s["model_effective_sigma_d_px"] == pytest.approx(kinect.sigma_d_px)
+    noisier = sldepth.Camera(
+        kinect.width, kinect.height, kinect.fx, kinect.fy, kinect.cx, kinect.cy,
+        baseline_m=kinect.baseline_m, subpixel=kinect.subpixel, sigma_d_px=0.14,
+    )
+    frame, _, _ = sldepth.simulate("boxes", seed=3, camera=noisier)
+    s = sldepth.noise_stats(frame, kinect)
+    assert 2.5 < s["model_variance_scale"] < 4.5
+    assert 0.11 < s["model_effective_sigma_d_px"] < 0.17
+
+
 def test_trajectories_round_trip_and_evaluate(tmp_path):
     # A known estimate: the ground truth moved rigidly (ATE 0 after Horn's alignment), then one
     # pose displaced by 3 cm (ATE and RPE by hand).
@@ -439,6 +458,31 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         pose, status = t.track(depth)
         assert status == "tracked" or status == "tracked-against-frame", (prefilter, status)
         assert np.abs(pose[:3, 3]).max() < 0.002
+
+
+def test_tracker_measures_each_raw_frame_against_the_camera_model(kinect):
+    # A sensor twice as noisy as the camera says (sigma_D 0.14 px behind the 0.07 px Kinect):
+    # the raw frame's pixel variance is about 3.4 times the model's, measured before the
+    # prefilter smooths it, and the still camera is tracked with that noise. At the model's
+    # noise, or with estimate_noise=False, the scale is 1.
+    noisier = sldepth.Camera(
+        kinect.width, kinect.height, kinect.fx, kinect.fy, kinect.cx, kinect.cy,
+        baseline_m=kinect.baseline_m, subpixel=kinect.subpixel, sigma_d_px=0.14,
+    )
+    noisy = sldepth.simulate("boxes", seed=3, camera=noisier)[0]
+    tracker = sldepth.Tracker(kinect)
+    assert tracker.last_noise_scale == 1.0
+    for _ in range(3):
+        pose, status = tracker.track(noisy)
+    assert 2.5 < tracker.last_noise_scale < 4.5
+    assert status in ("tracked", "tracked-against-frame"), status
+    assert np.abs(pose[:3, 3]).max() < 0.003
+    plain = sldepth.Tracker(kinect, estimate_noise=False)
+    plain.track(noisy)
+    assert plain.last_noise_scale == 1.0
+    nominal = sldepth.Tracker(kinect)
+    nominal.track(sldepth.simulate("boxes", seed=3)[0])
+    assert nominal.last_noise_scale == 1.0
 
 
 def test_a_tracker_of_one_frame_meshes_that_frame(kinect):

@@ -103,10 +103,14 @@ fn main() {
             let model = if fused > 1 { reference.maps() } else { None };
             let r = tracker.track(&d, model).unwrap();
             if r.status.is_tracked() {
+                // As `Reconstruction` does: the band of the frame's measured noise.
+                if volume.frame_count() == 0 {
+                    volume.set_band_sensor(tracker.frame_sensor()).unwrap();
+                }
                 volume.integrate(&d, &k, &r.pose).unwrap();
                 fused += 1;
                 reference
-                    .update_from_frame(&volume, &r.pose, &cam.sensor, &d, &k)
+                    .update_from_frame(&volume, &r.pose, &tracker.frame_sensor(), &d, &k)
                     .unwrap();
                 let (err_m, err_deg) = last.map_or((0.0, 0.0), |(t, e)| {
                     let truth = t.inverse() * pose.isometry();
@@ -121,12 +125,13 @@ fn main() {
                 last = Some((*pose.isometry(), *r.pose.isometry()));
                 if verbose {
                     println!(
-                        "  {i} {}: step off by {:.1} mm {:.2}°, σ {:.2} mm, inliers {:.3}",
+                        "  {i} {}: step off by {:.1} mm {:.2}°, σ {:.2} mm, inliers {:.3}, noise ×{:.2}",
                         r.status.as_str(),
                         err_m * 1e3,
                         err_deg,
                         r.weakest_sigma_m * 1e3,
-                        r.inlier_fraction
+                        r.inlier_fraction,
+                        tracker.noise_scale()
                     );
                 }
             } else {

@@ -234,6 +234,8 @@ pub struct Reconstruction {
     last_time_s: Option<f64>,
     /// Frame intervals until the suspended fragment is tried again.
     rejoin_wait: u64,
+    /// The noise scale of the next frames, measured by the caller ([`Reconstruction::set_noise_scale`]).
+    noise_scale: Option<f64>,
 }
 
 /// Frame intervals between two tries of the suspended fragment (0.2 s at 30 Hz). A try is the
@@ -278,7 +280,14 @@ impl Live {
     /// weakest direction at a reported σ of 6.6 mm; against the first frame it is 7.7 mm off
     /// at σ 3.5 mm (docs/bench/track.md, session 45). A rolling-shutter fragment's first frame
     /// waits for the second anyway (see [`Reconstruction::step`]).
-    fn track(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<FrameResult> {
+    /// `noise_scale`: the frame's noise measured elsewhere ([`Tracker::set_noise_scale`]).
+    fn track(
+        &mut self,
+        depth: &DepthImage,
+        timestamp_s: Option<f64>,
+        noise_scale: Option<f64>,
+    ) -> Result<FrameResult> {
+        self.tracker.set_noise_scale(noise_scale);
         let model = if self.tracked > 1 {
             self.model.maps()
         } else {
@@ -330,6 +339,7 @@ impl Reconstruction {
             failed_intervals: 0,
             last_time_s: None,
             rejoin_wait: 0,
+            noise_scale: None,
             rectified: None,
             rectifier: crate::rolling_shutter::Rectifier::default(),
         })
@@ -350,6 +360,13 @@ impl Reconstruction {
         crate::pool::on_pool(|| self.step_on_pool(depth, timestamp_s))
     }
 
+    /// Tracks the next frames with a noise scale measured by the caller on the raw frames
+    /// ([`Tracker::set_noise_scale`]: frames smoothed before [`Reconstruction::step`] no
+    /// longer show their sensor's noise); `None` (the default) measures the frames given.
+    pub fn set_noise_scale(&mut self, scale: Option<f64>) {
+        self.noise_scale = scale;
+    }
+
     /// [`Reconstruction::step`], on a worker thread of the caller's pool.
     fn step_on_pool(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
         let t0 = Instant::now();
@@ -357,7 +374,7 @@ impl Reconstruction {
             (Some(t), Some(p)) => u64::from(self.cfg.tracker.whole_intervals(t - p)),
             _ => 1,
         };
-        let mut result = self.current.track(depth, timestamp_s)?;
+        let mut result = self.current.track(depth, timestamp_s, self.noise_scale)?;
         if timestamp_s.is_some() {
             self.last_time_s = timestamp_s;
         }
@@ -365,7 +382,7 @@ impl Reconstruction {
         self.rejoin_wait = self.rejoin_wait.saturating_sub(intervals);
         if let Some(old) = self.suspended.as_mut().filter(|_| self.rejoin_wait == 0) {
             self.rejoin_wait = REJOIN_EVERY_INTERVALS;
-            let back = old.track(depth, timestamp_s)?;
+            let back = old.track(depth, timestamp_s, self.noise_scale)?;
             if back.status.is_tracked() {
                 // The camera is back where the fragment before was lost: go on there. The
                 // fragment that ends is related to it through this frame's two poses.
@@ -402,7 +419,7 @@ impl Reconstruction {
                     .replace(ended)
                     .map(|f| f.into_fragment(None, &self.camera.intrinsics))
                     .transpose()?;
-                result = self.current.track(depth, timestamp_s)?;
+                result = self.current.track(depth, timestamp_s, self.noise_scale)?;
             }
         }
         let track_ms = ms_since(t0);
@@ -415,6 +432,11 @@ impl Reconstruction {
             // A fragment's first frame has no motion yet: it waits for the second's (the
             // second is aligned to it as a whole, both skewed alike at constant velocity).
             let readout = self.cfg.tracker.rolling_shutter_readout_fraction();
+            // A fragment's band follows the noise its first tracked frame measured (a sensor
+            // noisier than its camera says needs its own σ_Z's band; `Tracker::noise_scale`).
+            if live.volume.frame_count() == 0 {
+                live.volume.set_band_sensor(live.tracker.frame_sensor())?;
+            }
             let raw = depth;
             let depth = match live.tracker.rolling_shutter_motion() {
                 Some(motion) => {
@@ -444,7 +466,7 @@ impl Reconstruction {
                 live.model.update_from_frame(
                     &live.volume,
                     &result.pose,
-                    &self.camera.sensor,
+                    &live.tracker.frame_sensor(),
                     depth,
                     &k,
                 )?;

@@ -1304,3 +1304,78 @@ fn a_fragment_of_one_rolling_shutter_frame_keeps_its_frame() {
     ));
     assert!(rec.finish().unwrap()[0].volume.block_count() >= global / 2);
 }
+
+/// Room `seed` of the room benchmark as `rooms_track` sees it (its Kinect camera and the
+/// hand-held path) through a sensor of `sigma_d_px` (the camera given to the tracker keeps
+/// the Kinect's 0.07 px), fused by `Reconstruction`: the worst step reported tracked over the first
+/// `frames` frames (translation m, rotation °), the frames tracked and the last frame's
+/// measured noise scale.
+fn noisier_sensor_run(
+    seed: u64,
+    frames: u64,
+    sigma_d_px: f64,
+    estimate: bool,
+) -> (f64, f64, usize, f64) {
+    let room = sl_noise::sim::room_scene(seed).unwrap();
+    let (cam, _) = room.camera_and_simulator(None).unwrap();
+    let sensor = cam.sensor;
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.008;
+    cfg.tsdf.trunc_m = 0.04;
+    cfg.tracker.estimate_noise = estimate;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    let mut noisier = sensor;
+    noisier.sigma_d_px = sigma_d_px;
+    let sim = KinectSimulator::with_sensor(noisier).with_noise(
+        sl_noise::sim::NoiseModel::Realistic(sl_noise::sim::RealisticNoise::default()),
+    );
+    let mut path = HandHeldPath::new(seed, 0.0);
+    let mut pose = room.pose;
+    let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
+    let (mut worst_m, mut worst_deg, mut tracked) = (0.0f64, 0.0f64, 0);
+    for i in 0..frames {
+        let d = sim
+            .simulate(&room.scene, &room.intrinsics, &pose, seed * 1000 + i)
+            .depth;
+        let r = rec.step(&d, None).unwrap().result;
+        if r.status.is_tracked() {
+            if let Some((t, e)) = last {
+                let off =
+                    (t.inverse() * pose.isometry()).inverse() * (e.inverse() * r.pose.isometry());
+                worst_m = worst_m.max(off.translation.vector.norm());
+                worst_deg = worst_deg.max(off.rotation.angle().to_degrees());
+            }
+            last = Some((*pose.isometry(), *r.pose.isometry()));
+            tracked += 1;
+        }
+        pose = path.advance(&pose);
+    }
+    (worst_m, worst_deg, tracked, rec.tracker().noise_scale())
+}
+
+/// A sensor noisier than its camera says (σ_D 0.2 px behind the Kinect's 0.07 px: 6.7 times
+/// its pixel variance). With the camera's model alone a third of the residuals fall outside
+/// the gates and the poses' uncertainty is understated: in room 3018 of the room benchmark the
+/// steps came out 17–27 mm off at a reported σ of 5–8 mm. Measuring each frame's noise on its
+/// own patches (`TrackerConfig::estimate_noise`, the default), the tracker runs with that
+/// noise: the first ten frames are all tracked against the model, every step right within the
+/// benchmark's 2 cm and 1°; with the model alone the same frames are tracked against the last
+/// frame, a step more than 2 cm off (docs/bench/track.md, session 49).
+#[test]
+fn a_sensor_noisier_than_its_camera_is_tracked_with_its_own_noise() {
+    let (worst_m, worst_deg, tracked, scale) = noisier_sensor_run(3018, 10, 0.2, true);
+    assert!((4.5..9.0).contains(&scale), "noise scale {scale}");
+    assert!(tracked >= 8, "{tracked} of 10 frames tracked");
+    assert!(
+        worst_m <= 0.02 && worst_deg <= 1.0,
+        "worst step off by {:.1} mm / {worst_deg:.2}°",
+        worst_m * 1e3
+    );
+    let (model_m, _, _, model_scale) = noisier_sensor_run(3018, 10, 0.2, false);
+    assert_eq!(model_scale, 1.0);
+    assert!(
+        model_m > 0.02,
+        "model only: worst step off by {:.1} mm",
+        model_m * 1e3
+    );
+}

@@ -32,6 +32,8 @@
 
 #[cfg(test)]
 use super::patches::min_rss;
+use rayon::prelude::*;
+
 use super::patches::{CellNoise, PATCH, Z_999, cell_correlations};
 use super::*;
 
@@ -200,21 +202,27 @@ impl NoiseMeter {
         let mut cells = std::mem::take(&mut self.cells);
         cells.clear();
         cells.resize(wq * hq, f32::NAN);
-        for (j, row) in cells.chunks_exact_mut(wq.max(1)).enumerate().take(hq) {
-            for (i, cell) in row.iter_mut().enumerate() {
-                let mut sum = 0.0f32;
-                let mut full = true;
-                for y in j * CELL..(j + 1) * CELL {
-                    for &zz in &z[y * w + i * CELL..y * w + (i + 1) * CELL] {
-                        full &= zz > 0.0 && zz.is_finite();
-                        sum += fb / zz;
+        // Rows of cells in parallel (on the caller's pool): the pass over the frame's pixels is
+        // the measurement's cost.
+        cells
+            .par_chunks_exact_mut(wq.max(1))
+            .enumerate()
+            .take(hq)
+            .for_each(|(j, row)| {
+                for (i, cell) in row.iter_mut().enumerate() {
+                    let mut sum = 0.0f32;
+                    let mut full = true;
+                    for y in j * CELL..(j + 1) * CELL {
+                        for &zz in &z[y * w + i * CELL..y * w + (i + 1) * CELL] {
+                            full &= zz > 0.0 && zz.is_finite();
+                            sum += fb / zz;
+                        }
+                    }
+                    if full {
+                        *cell = sum / (CELL * CELL) as f32;
                     }
                 }
-                if full {
-                    *cell = sum / (CELL * CELL) as f32;
-                }
-            }
-        }
+            });
         let excess = self.excess(&cells, wq, hq, var_cell, (wx, wy));
         self.cells = cells;
         Ok(excess)

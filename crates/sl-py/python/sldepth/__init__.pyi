@@ -131,7 +131,10 @@ def noise_stats(
     `sldepth noise-stats --json`: sigma_d_px, bands (sigma_D per depth band), acf (residual
     autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands and
     the predicted projector shadow), invalid_fraction; None where not measured. labels (uint16,
-    0 = none) default to the planes extract_planes finds (>= min_plane_pixels)."""
+    0 = none) default to the planes extract_planes finds (>= min_plane_pixels). Against the
+    camera's own model: model_sigma_d_px, model_variance_scale (the frame's pixel variance over
+    the model's, 1 when within it, as extract_planes measures it) and model_effective_sigma_d_px
+    (the sigma_D that variance means)."""
 
 def undistort(
     depth: _Depth, camera: Camera, *, depth_scale: Optional[float] = None
@@ -368,6 +371,7 @@ class Tracker:
         lens: str = "auto",
         new_fragment_after_s: Optional[float] = 1.0,
         rolling_shutter_ms: Optional[float] = None,
+        estimate_noise: bool = True,
     ) -> None:
         """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
         last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
@@ -381,7 +385,9 @@ class Tracker:
         sensor's, 0.25 for a 640x480 Kinect); prefilter: "multiscale"
         (default, as sldepth track), "single" or "none"; lens: "auto" (default) undistorts
         every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
-        the frames as given."""
+        the frames as given; estimate_noise: measure each raw frame's noise against the
+        camera's model and track a noisier frame with its own noise (default; as sldepth track,
+        --model-noise-only turns it off)."""
     @property
     def rolling_shutter_ms(self) -> float:
         """The rolling-shutter readout the tracker models, milliseconds (0: global shutter)."""
@@ -398,6 +404,10 @@ class Tracker:
     @property
     def last_failure(self) -> Optional[str]:
         """Why the last frame was lost (e.g. "degenerate view: ..."), or None."""
+    @property
+    def last_noise_scale(self) -> float:
+        """The last raw frame's disparity-error variance over the camera's model (1: within
+        it); the frame was tracked with that noise."""
     @property
     def last_weakest_sigma_m(self) -> float:
         """The last frame's pose sigma along its least-constrained direction, metres (inf: a single plane)."""

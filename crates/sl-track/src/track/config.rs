@@ -117,6 +117,16 @@ pub struct TrackerConfig {
     /// rejected like one that fails the other checks. Costs one plane extraction per frame at
     /// half resolution (under 1 ms at 640×480 on one core).
     pub degenerate_check: bool,
+    /// Measure each frame's disparity noise on its own 16×16-pixel patches against the
+    /// camera's model (`sl_planes::NoiseMeter`, as the plane extractor does) and, when it is
+    /// significantly larger, track the frame with that noise: every σ of the frame — the
+    /// alignment's weights and gates, the degenerate-view checks, its planes — follows it, the
+    /// camera's `σ_D` a floor ([`crate::Tracker::noise_scale`]). A sensor noisier than its
+    /// camera says otherwise has a third of its residuals gated out and its poses'
+    /// uncertainty understated: simulated rooms at σ_D 0.2 px behind the Kinect's 0.07 kept
+    /// steps 27 mm off with a reported σ of 5 mm (docs/bench/track.md, session 49). Costs one
+    /// pass over the frame's 4×4-pixel cells.
+    pub estimate_noise: bool,
     /// Width of the window over which a structured-light camera's depth error is correlated,
     /// pixels of the sensor (the block-matching window: 9 × 11 px fitted on real Kinect frames,
     /// `docs/NOISE_MODEL.md`; the same window as `sl_planes::PlaneConfig::noise_window_x_px`;
@@ -184,6 +194,7 @@ impl Default for TrackerConfig {
             max_correction_deg: 20.0,
             plane_fallback: true,
             degenerate_check: true,
+            estimate_noise: true,
             noise_window_x_px: 9.0,
             noise_window_y_px: 11.0,
             samples_per_noise_window: 4.0,

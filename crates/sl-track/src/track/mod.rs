@@ -12,7 +12,10 @@
 //! about the constant-velocity prediction, σ from the camera's largest acceleration over one
 //! frame ([`TrackerConfig::max_acceleration_m_s2`]); without a measured velocity, and from
 //! any other start, σ = [`TrackerConfig::max_correction_m`]. Frames with timestamps
-//! ([`Tracker::track_at`]) are predicted across the frames a recording dropped.
+//! ([`Tracker::track_at`]) are predicted across the frames a recording dropped. Every σ of a
+//! frame follows its own noise where that exceeds the camera's model
+//! ([`TrackerConfig::estimate_noise`], measured on the frame's patches as `sl_planes` does, or
+//! given by the caller for smoothed frames: [`Tracker::set_noise_scale`]).
 //!
 //! A result is accepted only when enough of the frame's points are inliers, the normal
 //! equations constrain all six degrees of freedom and the correction from the start is
@@ -46,7 +49,8 @@ pub use model::ModelReference;
 pub use reference::ReferenceMaps;
 
 use nalgebra::Isometry3;
-use sl_core::{Camera, CameraToWorld, DepthImage};
+use sl_core::{Camera, CameraToWorld, DepthImage, SensorModel};
+use sl_planes::NoiseMeter;
 
 use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
@@ -165,7 +169,17 @@ struct AlignPlan {
 /// sequence: its buffers (pyramid, reference maps, last frame) are kept between frames.
 #[derive(Debug)]
 pub struct Tracker {
+    /// The camera of the frame being tracked: the camera given, its `σ_D` raised to the
+    /// frame's own noise level when that exceeds the model ([`TrackerConfig::estimate_noise`]).
     camera: Camera,
+    /// The camera's sensor model as given.
+    model_sensor: SensorModel,
+    /// Measures each frame's noise against `model_sensor`.
+    noise_meter: NoiseMeter,
+    /// The last frame's pixel variance over the model's (1: within the model).
+    noise_scale: f64,
+    /// A noise scale measured elsewhere for the frames given ([`Tracker::set_noise_scale`]).
+    given_noise_scale: Option<f64>,
     cfg: TrackerConfig,
     pyramid: Pyramid,
     /// The last good frame as a reference, built from `last_level` when first needed
@@ -216,8 +230,15 @@ impl Tracker {
         camera.sensor.validate()?;
         pyramid::check_levels(&camera.intrinsics, cfg.levels)?;
         let k = camera.intrinsics;
+        let mut plane_cfg = sl_planes::PlaneConfig::default();
+        plane_cfg.noise_window_x_px = cfg.noise_window_x_px;
+        plane_cfg.noise_window_y_px = cfg.noise_window_y_px;
         Ok(Self {
             camera,
+            model_sensor: camera.sensor,
+            noise_meter: NoiseMeter::new(&plane_cfg),
+            noise_scale: 1.0,
+            given_noise_scale: None,
             cfg,
             pyramid: Pyramid::default(),
             last_ref: ReferenceMaps::empty(&k),
@@ -248,6 +269,31 @@ impl Tracker {
     /// The configuration.
     pub fn config(&self) -> &TrackerConfig {
         &self.cfg
+    }
+
+    /// The factor by which the last frame's disparity-error variance exceeded the camera's
+    /// model, measured on the frame's own 16×16-pixel patches as `sl_planes` does
+    /// (`sl_planes::NoiseMeter`; [`TrackerConfig::estimate_noise`]); 1 when it did not, or
+    /// before any frame.
+    pub fn noise_scale(&self) -> f64 {
+        self.noise_scale
+    }
+
+    /// Tracks the next frames with a noise scale measured elsewhere (the factor by which the
+    /// raw frame's pixel variance exceeds the camera's model, `sl_planes::NoiseMeter`) instead
+    /// of measuring the frames given: a frame smoothed before tracking (`sldepth track`'s and
+    /// Python's prefilter) no longer shows its sensor's noise, so the caller measures the raw
+    /// frame. Values below 1 (and non-finite ones) count as 1; `None` goes back to
+    /// [`TrackerConfig::estimate_noise`].
+    pub fn set_noise_scale(&mut self, scale: Option<f64>) {
+        self.given_noise_scale = scale;
+    }
+
+    /// The sensor model the last frame was tracked with: the camera's, its `σ_D` raised by
+    /// [`Tracker::noise_scale`] (what a fused model's reference variance should use, as
+    /// [`crate::Reconstruction`] does).
+    pub fn frame_sensor(&self) -> SensorModel {
+        self.camera.sensor
     }
 
     /// When the last frame was tracked row by row (a rolling shutter,
@@ -359,6 +405,22 @@ impl Tracker {
             }
         }
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
+        // The frame's own noise level: every σ of this frame (the alignment's weights and
+        // gates, the degenerate-view checks, the planes) follows it.
+        self.noise_scale = if let Some(s) = self.given_noise_scale {
+            if s.is_finite() { s.max(1.0) } else { 1.0 }
+        } else if self.cfg.estimate_noise {
+            let model = Camera {
+                intrinsics: k,
+                sensor: self.model_sensor,
+            };
+            self.noise_meter.measure(depth, &model)?.max(1.0)
+        } else {
+            1.0
+        };
+        self.camera.sensor.sigma_d_px = self
+            .model_sensor
+            .sigma_d_for_variance_scale(self.noise_scale);
         self.row_timing = None;
         self.finest_mean_depth_m = None;
         self.rolling_motion = None;
@@ -453,7 +515,6 @@ impl Tracker {
                     let Some(level) = this.pyramid.levels.get(check_level) else {
                         return Ok((f64::NAN, scale_m));
                     };
-                    structure.measure_noise(depth, &this.camera, &this.cfg)?;
                     structure.segment(level, check_level, &this.camera, &this.cfg)?;
                     let sigma = structure
                         .weakest_sigma_m(

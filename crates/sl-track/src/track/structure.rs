@@ -33,8 +33,8 @@
 
 use nalgebra::{Matrix6, Point3, SymmetricEigen, Vector3, Vector6};
 use rayon::prelude::*;
-use sl_core::{Camera, DepthImage, DepthView, Intrinsics, SensorModel};
-use sl_planes::{NoiseMeter, PlaneConfig, PlaneExtractor};
+use sl_core::{Camera, DepthView, Intrinsics, SensorModel};
+use sl_planes::{PlaneConfig, PlaneExtractor};
 
 use super::TrackerConfig;
 use super::agreement::{agreeing_information, disputed_direction, positive_part};
@@ -84,12 +84,6 @@ pub(crate) struct StructureCheck {
     planes: FramePlanes,
     /// The noise of the segmented level's own normals.
     normal_noise: NormalNoise,
-    /// Measures the frame's own noise level (created with the first frame).
-    noise_meter: Option<NoiseMeter>,
-    /// The factor by which the frame's disparity-error variance exceeds the sensor model's,
-    /// measured on its full-resolution patches (1: it does not; 0 before any frame), which
-    /// scales the samples' variance in [`StructureCheck::weakest_sigma_m`].
-    noise_scale: f64,
 }
 
 impl StructureCheck {
@@ -156,32 +150,6 @@ impl StructureCheck {
             .extend(seg.planes.iter().map(|p| p.plane));
         (self.planes.width, self.planes.height, self.planes.level) = (k.width, k.height, index);
         Ok(())
-    }
-
-    /// Measures the frame's own noise level against the sensor model (at full resolution:
-    /// the pyramid's averaged levels hide it) for [`StructureCheck::weakest_sigma_m`]. A sensor
-    /// noisier than its model says would otherwise have its poses' uncertainty understated
-    /// and weakly constrained views accepted (simulated rooms at three times the model's
-    /// variance: steps off by 2–4 cm; docs/bench/track.md, session 48).
-    pub(crate) fn measure_noise(
-        &mut self,
-        depth: &DepthImage,
-        camera: &Camera,
-        cfg: &TrackerConfig,
-    ) -> Result<()> {
-        let meter = self.noise_meter.get_or_insert_with(|| {
-            let mut pc = PlaneConfig::default();
-            pc.noise_window_x_px = cfg.noise_window_x_px;
-            pc.noise_window_y_px = cfg.noise_window_y_px;
-            NoiseMeter::new(&pc)
-        });
-        self.noise_scale = meter.measure(depth, camera)?;
-        Ok(())
-    }
-
-    /// The last [`StructureCheck::measure_noise`]'s factor (1 before any).
-    pub(crate) fn noise_scale(&self) -> f64 {
-        self.noise_scale.max(1.0)
     }
 
     /// Swaps the last segmentation into `into` (the frame it segmented becomes the last good
@@ -451,7 +419,7 @@ impl StructureCheck {
                     }
                 };
                 let sigma_z = camera.sensor.sigma_z(p.z);
-                let var = sigma_z * sigma_z * self.noise_scale() + on_ref.variance_m2;
+                let var = sigma_z * sigma_z + on_ref.variance_m2;
                 if !(var > 0.0 && var.is_finite()) {
                     continue;
                 }

@@ -5,10 +5,11 @@
 use rayon::prelude::*;
 #[cfg(test)]
 use sl_core::DepthImage;
+use sl_core::SensorModel;
 
 use crate::error::{Result, TsdfError};
 use crate::hash::{BlockMap, pack, unpack};
-use crate::params::{TsdfConfig, WeightFn};
+use crate::params::{Truncation, TsdfConfig, WeightFn};
 
 /// Voxels along one edge of a block.
 pub const BLOCK_SIDE: usize = 8;
@@ -140,6 +141,32 @@ impl TsdfVolume {
     /// The parameters.
     pub fn params(&self) -> &TsdfConfig {
         &self.params
+    }
+
+    /// The sensor of a sensor-adaptive band ([`Truncation::SensorAdaptive`]) replaced before
+    /// the first frame: a sensor measured noisier than its camera's model says (its frames'
+    /// own noise level) needs the wider band of its own `σ_Z`. Does nothing to a fixed band.
+    ///
+    /// # Errors
+    /// [`TsdfError::InvalidParameter`] once a frame is integrated (the blocks were found with
+    /// the band as it was), or for a sensor the band cannot use.
+    pub fn set_band_sensor(&mut self, sensor: SensorModel) -> Result<()> {
+        if self.frames > 0 {
+            return Err(TsdfError::InvalidParameter(
+                "the band's sensor can only change before the first frame".into(),
+            ));
+        }
+        if let Truncation::SensorAdaptive { sigmas, max_m, .. } = self.params.truncation {
+            let mut params = self.params;
+            params.truncation = Truncation::SensorAdaptive {
+                sensor,
+                sigmas,
+                max_m,
+            };
+            params.validate()?;
+            self.params = params;
+        }
+        Ok(())
     }
 
     /// Number of allocated blocks.

@@ -367,3 +367,32 @@ fn every_instruction_set_fuses_bit_identically() {
         assert!(fuse(isa) == base, "{isa}: the volume differs");
     }
 }
+
+#[test]
+fn the_band_sensor_changes_only_before_the_first_frame() {
+    // A sensor twice as noisy widens the sensor-adaptive band by two at a depth where the
+    // band is neither the floor nor the cap; a fixed band stays; after a frame it is an error.
+    let mut vol = TsdfVolume::new(TsdfConfig::default()).unwrap();
+    let before = vol.params().band_at(3.0);
+    let mut noisier = SensorModel::kinect_v1();
+    noisier.sigma_d_px *= 2.0;
+    vol.set_band_sensor(noisier).unwrap();
+    let after = vol.params().band_at(3.0);
+    assert!((after / before - 2.0).abs() < 1e-6, "{before} {after}");
+    let mut fixed = TsdfVolume::new(TsdfConfig {
+        truncation: Truncation::Fixed,
+        ..TsdfConfig::default()
+    })
+    .unwrap();
+    fixed.set_band_sensor(noisier).unwrap();
+    assert_eq!(fixed.params().truncation, Truncation::Fixed);
+    let k = Intrinsics::new(160, 120, 145.0, 145.0, 79.5, 59.5).unwrap();
+    let depth = DepthImage::from_vec(k.width, k.height, vec![1.2; k.pixel_count()]).unwrap();
+    vol.integrate(&depth, &k, &CameraToWorld::identity())
+        .unwrap();
+    assert!(matches!(
+        vol.set_band_sensor(SensorModel::kinect_v1()),
+        Err(TsdfError::InvalidParameter(_))
+    ));
+    assert_eq!(vol.params().band_at(3.0), after);
+}

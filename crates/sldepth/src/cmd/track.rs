@@ -146,6 +146,14 @@ pub struct Args {
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
+    /// Track every frame with the camera's noise model as given. By default each raw frame's
+    /// disparity noise is measured on its own 16×16-pixel patches (before the prefilter) and,
+    /// when it is significantly larger than the model's, the frame is tracked with it (its
+    /// weights, gates and degenerate-view checks): a sensor noisier than its preset or camera
+    /// JSON says is otherwise tracked with its uncertainty understated. The camera's σ_D is a
+    /// floor.
+    #[arg(long)]
+    pub model_noise_only: bool,
     /// Instruction set of the tracker's and the fusion's inner loops, for benchmarks:
     /// `portable`, `avx2` or `avx512` (default: the widest this CPU supports; one it does not
     /// support falls back to the widest it does). Every choice gives the same trajectory and mesh, bit for bit. The
@@ -539,6 +547,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = weighting;
     cfg.tracker.plane_fallback = !args.no_plane_fallback;
+    cfg.tracker.estimate_noise = !args.model_noise_only;
     cfg.tracker.finest_level = usize::from(args.finest_level);
     cfg.tracker.rolling_shutter_readout_s = rolling_shutter_readout_s(&args, implied)?;
     if let Some(isa) = args.isa.as_deref().and_then(sl_core::Isa::from_name) {
@@ -561,6 +570,14 @@ pub fn run(args: Args) -> Result<()> {
         .is_finite()
         .then_some(args.new_fragment_after_s);
     let params = cfg.tsdf;
+    // The raw frames' noise against the camera's model (the prefilter hides it).
+    let mut noise_meter = (!args.model_noise_only).then(|| {
+        let mut pc = sl_planes::PlaneConfig::default();
+        pc.noise_window_x_px = cfg.tracker.noise_window_x_px;
+        pc.noise_window_y_px = cfg.tracker.noise_window_y_px;
+        sl_planes::NoiseMeter::new(&pc)
+    });
+    let mut noise_scales = Vec::new();
     let mut rec = Reconstruction::new(camera, cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
@@ -597,6 +614,13 @@ pub fn run(args: Args) -> Result<()> {
             .and_then(|d| match &undistort {
                 Some(u) => Ok(u.apply(&d)?),
                 None => Ok(d),
+            })
+            .inspect(|d| {
+                if let Some(m) = noise_meter.as_mut() {
+                    let s = m.measure(d, &camera).ok();
+                    noise_scales.extend(s);
+                    rec.set_noise_scale(s);
+                }
             })
             .and_then(|d| prefilter.apply(d))
         {
@@ -755,6 +779,9 @@ pub fn run(args: Args) -> Result<()> {
             "track_ms_median": round_to(tm, 3),
             "track_ms_median_tracked": round_to(median(&track_ms_tracked), 3),
             "integrate_ms_median": round_to(im, 3),
+            // The raw frames' pixel variance over the camera's model (1: within it).
+            "noise_scale_median": (!noise_scales.is_empty()).then(|| round_to(median(&noise_scales), 3)),
+            "noise_scaled_frames": noise_scales.iter().filter(|&&s| s > 1.0).count(),
             "wall_s": round_to(wall_s, 3),
             "voxel_m": params.voxel_m,
             "trunc_m": params.trunc_m,
@@ -798,6 +825,14 @@ pub fn run(args: Args) -> Result<()> {
                     .enumerate()
                     .filter_map(|(k, f)| f.joined.map(|j| (k, j.into)))
                     .collect::<Vec<_>>()
+            );
+        }
+        let noisier: Vec<f64> = noise_scales.iter().copied().filter(|&s| s > 1.0).collect();
+        if !noisier.is_empty() {
+            errln!(
+                "{} frames noisier than the camera's model (their median pixel variance ×{:.2}): tracked with their own noise",
+                noisier.len(),
+                median(&noisier)
             );
         }
     }

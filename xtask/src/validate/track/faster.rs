@@ -56,7 +56,11 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         let frames_all = prepared(&seq, preset)?;
         let readout_s = sl_core::preset::find(preset)?.rolling_shutter_readout_s;
         for &k in every {
-            let frames: Vec<&DepthImage> = frames_all.iter().step_by(k).collect();
+            let frames: Vec<(&DepthImage, Option<f64>)> = frames_all
+                .iter()
+                .step_by(k)
+                .map(|(d, s)| (d, Some(*s)))
+                .collect();
             let truth: Vec<CameraToWorld> = seq.frames.iter().step_by(k).map(|f| f.1).collect();
             for (label, readout) in [("global", 0.0), ("readout (default)", readout_s)] {
                 let mut cfg = ReconstructionConfig::default_for(cam.sensor);

@@ -32,11 +32,13 @@ pub(super) struct Run {
     pub(super) joins: usize,
 }
 
-/// Tracks `frames` (timestamps `intervals` frame intervals apart) through `Reconstruction`.
+/// Tracks `frames` (timestamps `intervals` frame intervals apart) through `Reconstruction`,
+/// each with its raw frame's noise scale when it was smoothed before (`prepared`; `None`: the
+/// tracker measures the frame given).
 pub(super) fn run(
     cam: Camera,
     cfg: ReconstructionConfig,
-    frames: &[&DepthImage],
+    frames: &[(&DepthImage, Option<f64>)],
     intervals: u32,
 ) -> Result<Run> {
     let dt = cfg.tracker.frame_interval_s * f64::from(intervals);
@@ -44,7 +46,8 @@ pub(super) fn run(
     let mut steps = Vec::new();
     let mut joins = Vec::new();
     let mut fragments = 1;
-    for (i, d) in frames.iter().enumerate() {
+    for (i, &(d, noise_scale)) in frames.iter().enumerate() {
+        rec.set_noise_scale(noise_scale);
         let step = rec.step(d, Some(i as f64 * dt))?;
         fragments = fragments.max(step.fragment + 1);
         if let Some(j) = step
@@ -91,7 +94,7 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         .chain((8..20).rev())
         .chain(std::iter::repeat_n(8, 8))
         .collect();
-    let seq: Vec<&DepthImage> = order.iter().map(|&i| &frames[i]).collect();
+    let seq: Vec<(&DepthImage, Option<f64>)> = order.iter().map(|&i| (&frames[i], None)).collect();
     let mut cfg = ReconstructionConfig::default_for(cam.sensor);
     cfg.tsdf.voxel_m = 0.01;
     cfg.tsdf.trunc_m = 0.05;
@@ -155,10 +158,16 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
         "| TUM fr1/rpy-200, lens covered | fragments | poses in fragment 0's world | fragments / rejoins | ATE (cm) |\n|---|---|---|---|---|\n",
     );
     for (a, b) in COVERED {
-        let seq: Vec<&DepthImage> = prepared
+        let seq: Vec<(&DepthImage, Option<f64>)> = prepared
             .iter()
             .enumerate()
-            .map(|(i, d)| if (a..b).contains(&i) { &blank } else { d })
+            .map(|(i, (d, s))| {
+                if (a..b).contains(&i) {
+                    (&blank, None)
+                } else {
+                    (d, Some(*s))
+                }
+            })
             .collect();
         for (label, after) in [("never", None), ("after 1 s (default)", Some(1.0))] {
             let mut cfg = ReconstructionConfig::default_for(cam.sensor);
@@ -186,8 +195,13 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
 }
 
 /// The frames of a sequence as `sldepth track` tracks them: resampled with the lens model of
-/// its camera preset `preset` when it has one (`tum-fr1`), then the multi-scale prefilter.
-pub(super) fn prepared(seq: &sl_testkit::PosedSequence, preset: &str) -> Result<Vec<DepthImage>> {
+/// its camera preset `preset` when it has one (`tum-fr1`), then the multi-scale prefilter;
+/// with the noise scale of each raw frame against the camera's model (measured before the
+/// prefilter, as `sldepth track` does).
+pub(super) fn prepared(
+    seq: &sl_testkit::PosedSequence,
+    preset: &str,
+) -> Result<Vec<(DepthImage, f64)>> {
     let cam = seq.camera;
     let undistort = sl_core::preset::find(preset)
         .ok()
@@ -195,13 +209,15 @@ pub(super) fn prepared(seq: &sl_testkit::PosedSequence, preset: &str) -> Result<
         .filter(|l| !l.is_zero())
         .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
     let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
+    let mut meter = sl_planes::NoiseMeter::new(&sl_planes::PlaneConfig::default());
     let mut prepared = Vec::new();
     for (d, _) in &seq.frames {
         let d = match &undistort {
             Some(u) => u.apply(d)?,
             None => d.clone(),
         };
-        prepared.push(prefilter.apply(&d)?);
+        let scale = meter.measure(&d, &cam)?;
+        prepared.push((prefilter.apply(&d)?, scale));
     }
     Ok(prepared)
 }
