@@ -556,3 +556,44 @@ fn an_empty_fused_mesh_names_the_depth_bound() {
         "{stderr}"
     );
 }
+
+/// `sldepth filter` measures the frame's noise against the camera's model: a frame simulated
+/// twice as noisy as the Kinect camera says is filtered for the σ_D it measures (about
+/// 0.14 px); at the model's noise, or with `--model-noise-only`, for the camera's 0.07 px.
+#[test]
+fn filter_follows_the_frames_own_noise() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let filtered = |sigma: &str, extra: &[&str]| {
+        let raw = dir.path().join(format!("raw-{sigma}.png"));
+        let o = sldepth(&[
+            "simulate",
+            "--scene",
+            "floor",
+            "--sigma-d-px",
+            sigma,
+            "--output",
+            path_str(&raw),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = dir.path().join(format!("out-{sigma}.png"));
+        let mut args = vec!["filter", path_str(&raw), path_str(&out), "--json"];
+        args.extend_from_slice(extra);
+        json_of(&sldepth(&args))
+    };
+    let noisy = filtered("0.14", &[]);
+    let scale = noisy["noise_scale"].as_f64().unwrap_or(f64::NAN);
+    let sigma = noisy["sigma_d_px"].as_f64().unwrap_or(f64::NAN);
+    assert!((2.5..4.5).contains(&scale), "{noisy}");
+    assert!((0.11..0.17).contains(&sigma), "{noisy}");
+    let plain = filtered("0.14", &["--model-noise-only"]);
+    assert_eq!(plain["noise_scale"].as_f64(), Some(1.0));
+    assert_eq!(plain["sigma_d_px"].as_f64(), Some(0.07));
+    // The adaptive filter's k follows σ_D.
+    let k = |v: &serde_json::Value| v["k_per_m"].as_f64().unwrap_or(f64::NAN);
+    assert!(
+        (k(&noisy) / k(&plain) - sigma / 0.07).abs() < 1e-6,
+        "{noisy} {plain}"
+    );
+    let nominal = filtered("0.07", &[]);
+    assert_eq!(nominal["noise_scale"].as_f64(), Some(1.0));
+}

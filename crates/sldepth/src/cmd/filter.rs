@@ -77,6 +77,15 @@ pub struct Args {
     /// follow `adaptive` and `disparity` by default.
     #[arg(long)]
     pub single_scale: bool,
+    /// Filter with the camera's noise model as given. By default the frame's own disparity
+    /// noise is measured on its 16×16-pixel patches (as `sldepth planes` and `noise-stats` do)
+    /// and, when it is significantly larger than the model's, the range kernels follow the
+    /// measured σ_D (the camera's σ_D a floor): a sensor noisier than its preset says is
+    /// otherwise under-smoothed (simulated frames at twice the model's σ_D: floor 8.3 → 7.6 mm
+    /// RMSE, corridor 0.121 → 0.106 px; docs/bench/README.md, session 49). Explicit range
+    /// parameters (`--k-per-m`, `--sigma-d-m`, `--sigma-disp-px`) win either way.
+    #[arg(long)]
+    pub model_noise_only: bool,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -110,13 +119,26 @@ pub fn run(args: Args) -> Result<()> {
         bail!("--repeat {reps}: must be from 1 to {MAX_REPEAT}");
     }
     let loaded = load_depth(&args.input_path, &args.input)?;
-    let filter = build_filter(&args, &loaded.camera.sensor)?;
+    // The frame's own noise against the camera's model.
+    let noise_scale = if args.model_noise_only {
+        1.0
+    } else {
+        sl_planes::frame_noise_scale(
+            &loaded.depth,
+            &loaded.camera,
+            &sl_planes::PlaneConfig::default(),
+        )
+        .context("measuring the frame's noise against the camera's model")?
+    };
+    let mut sensor = loaded.camera.sensor;
+    sensor.sigma_d_px = sensor.sigma_d_for_variance_scale(noise_scale);
+    let filter = build_filter(&args, &sensor)?;
     let out_encoding = output_encoding(&args.output, &loaded.encoding)?;
     let multi = (args.multiscale
         || (!args.single_scale && sl_filter::multiscale_by_default(args.method)))
     .then(|| MultiScale {
         base: filter,
-        ..MultiScale::default_for(&loaded.camera.sensor)
+        ..MultiScale::default_for(&sensor)
     });
     let isa = match args.isa.as_deref() {
         None => Isa::detect(),
@@ -186,6 +208,8 @@ pub fn run(args: Args) -> Result<()> {
             "ms_min": round_to(min, 4),
             "threads": sl_filter::current_threads(),
             "isa": isa.name(),
+            "noise_scale": noise_scale,
+            "sigma_d_px": sensor.sigma_d_px,
         });
         if let (Some(m), Some(obj)) = (&multi, v.as_object_mut()) {
             obj.insert("multiscale_dilations".into(), json!(m.dilations));
@@ -218,6 +242,13 @@ pub fn run(args: Args) -> Result<()> {
                 None => String::new(),
             }
         )?;
+        if noise_scale > 1.0 {
+            outln!(
+                "  the frame's noise is {noise_scale:.2}x the camera model's variance: filtered for a σ_D of {:.3} px (--model-noise-only: the camera's {:.3} px)",
+                sensor.sigma_d_px,
+                loaded.camera.sensor.sigma_d_px
+            )?;
+        }
         outln!(
             "  {} valid pixels; filtering {:.3} ms (median of {reps}, min {:.3} ms, {} threads, {})",
             out.valid_count(),
