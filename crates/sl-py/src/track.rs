@@ -227,12 +227,7 @@ impl PyTracker {
         cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
         cfg.tracker.rolling_shutter_readout_s = readout_s;
         cfg.tracker.estimate_noise = estimate_noise;
-        let noise_meter = estimate_noise.then(|| {
-            let mut pc = sl_planes::PlaneConfig::default();
-            pc.noise_window_x_px = cfg.tracker.noise_window_x_px;
-            pc.noise_window_y_px = cfg.tracker.noise_window_y_px;
-            sl_planes::NoiseMeter::new(&pc)
-        });
+        let noise_meter = estimate_noise.then(|| cfg.tracker.noise_meter());
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
             camera,

@@ -35,6 +35,16 @@ fn path_str(p: &Path) -> &str {
     p.to_str().unwrap_or_default()
 }
 
+/// `sldepth simulate` of `scene` with `options` into `dir/name`, which it returns.
+fn simulated(dir: &Path, name: &str, scene: &str, options: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let mut args = vec!["simulate", "--scene", scene, "--output", path_str(&out)];
+    args.extend_from_slice(options);
+    let o = sldepth(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
 #[test]
 fn info_reports_size_and_depth_range() {
     let p = testdata("floor-seed1-depth.png");
@@ -74,22 +84,20 @@ fn analyze_recovers_the_simulated_sensor_from_testdata() {
 fn simulate_reproduces_committed_frames() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
     for (scene, seed) in [("floor", "1"), ("figure-walls", "2"), ("three-planes", "3")] {
-        let out = dir.path().join(format!("{scene}.png"));
         let labels = dir.path().join(format!("{scene}-labels.png"));
-        let o = sldepth(&[
-            "simulate",
-            "--noise",
-            "white",
-            "--scene",
+        let out = simulated(
+            dir.path(),
+            &format!("{scene}.png"),
             scene,
-            "--seed",
-            seed,
-            "--output",
-            path_str(&out),
-            "--labels",
-            path_str(&labels),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            &[
+                "--noise",
+                "white",
+                "--seed",
+                seed,
+                "--labels",
+                path_str(&labels),
+            ],
+        );
         let read = |p: &Path| {
             sl_io::depth::read_depth(p, &sl_io::depth::ReadConfig::default())
                 .unwrap_or_else(|e| panic!("{e}"))
@@ -116,19 +124,12 @@ fn simulate_reproduces_committed_frames() {
 fn simulate_realistic_by_default_and_noise_stats_measures_it() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
     let stats_sigma = |noise: &str, sigma: &str| {
-        let out = dir.path().join(format!("{noise}-{sigma}.png"));
-        let o = sldepth(&[
-            "simulate",
-            "--scene",
+        let out = simulated(
+            dir.path(),
+            &format!("{noise}-{sigma}.png"),
             "figure-walls",
-            "--noise",
-            noise,
-            "--sigma-d-px",
-            sigma,
-            "--output",
-            path_str(&out),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            &["--noise", noise, "--sigma-d-px", sigma],
+        );
         let o = sldepth(&["noise-stats", path_str(&out), "--json"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         serde_json::from_slice::<serde_json::Value>(&o.stdout).unwrap_or_else(|e| panic!("{e}"))
@@ -563,29 +564,27 @@ fn an_empty_fused_mesh_names_the_depth_bound() {
 #[test]
 fn filter_follows_the_frames_own_noise() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
-    let filtered = |sigma: &str, extra: &[&str]| {
-        let raw = dir.path().join(format!("raw-{sigma}.png"));
-        let o = sldepth(&[
-            "simulate",
-            "--scene",
+    let raw = |sigma: &str| {
+        simulated(
+            dir.path(),
+            &format!("raw-{sigma}.png"),
             "floor",
-            "--sigma-d-px",
-            sigma,
-            "--output",
-            path_str(&raw),
-        ]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let out = dir.path().join(format!("out-{sigma}.png"));
-        let mut args = vec!["filter", path_str(&raw), path_str(&out), "--json"];
+            &["--sigma-d-px", sigma],
+        )
+    };
+    let out = dir.path().join("out.png");
+    let filtered = |raw: &Path, extra: &[&str]| {
+        let mut args = vec!["filter", path_str(raw), path_str(&out), "--json"];
         args.extend_from_slice(extra);
         json_of(&sldepth(&args))
     };
-    let noisy = filtered("0.14", &[]);
+    let noisier = raw("0.14");
+    let noisy = filtered(&noisier, &[]);
     let scale = noisy["noise_scale"].as_f64().unwrap_or(f64::NAN);
     let sigma = noisy["sigma_d_px"].as_f64().unwrap_or(f64::NAN);
     assert!((2.5..4.5).contains(&scale), "{noisy}");
     assert!((0.11..0.17).contains(&sigma), "{noisy}");
-    let plain = filtered("0.14", &["--model-noise-only"]);
+    let plain = filtered(&noisier, &["--model-noise-only"]);
     assert_eq!(plain["noise_scale"].as_f64(), Some(1.0));
     assert_eq!(plain["sigma_d_px"].as_f64(), Some(0.07));
     // The adaptive filter's k follows σ_D.
@@ -594,6 +593,6 @@ fn filter_follows_the_frames_own_noise() {
         (k(&noisy) / k(&plain) - sigma / 0.07).abs() < 1e-6,
         "{noisy} {plain}"
     );
-    let nominal = filtered("0.07", &[]);
+    let nominal = filtered(&raw("0.07"), &[]);
     assert_eq!(nominal["noise_scale"].as_f64(), Some(1.0));
 }

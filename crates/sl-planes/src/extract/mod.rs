@@ -538,8 +538,10 @@ pub struct PlaneExtractor {
     /// Noise of a cell's mean disparity (from the sensor model and the configuration, scaled
     /// by the frame's own noise level, `noise_level`).
     noise: CellNoise,
-    /// The sensor model's `(σ_D, q, window_x, window_y)` of the frame being extracted.
-    noise_model: (f64, u32, f64, f64),
+    /// The camera's sensor model of the frame being extracted.
+    noise_sensor: sl_core::SensorModel,
+    /// The correlation window of its disparity error, pixels of the frame.
+    noise_window: (f64, f64),
     /// The frame's own noise level against the model (`noise_level`).
     noise_meter: NoiseMeter,
     /// The factor by which the last frame's pixel variance exceeded the model's (1: it did
@@ -609,16 +611,17 @@ impl PlaneExtractor {
             self.cfg.noise_window_x_px * s,
             self.cfg.noise_window_y_px * s,
         );
-        let (sigma_d, q) = (camera.sensor.sigma_d_px, camera.sensor.subpixel_steps);
-        self.noise_model = (sigma_d, q, wx, wy);
+        self.noise_sensor = camera.sensor;
+        self.noise_window = (wx, wy);
         self.noise_scale = 1.0;
-        self.set_noise_sigma(sigma_d);
+        self.set_noise_sigma(camera.sensor.sigma_d_px);
     }
 
     /// Every noise of the extractor for a disparity error of `sigma_d` px and the model's
     /// quantisation and window.
     fn set_noise_sigma(&mut self, sigma_d: f64) {
-        let (_, q, wx, wy) = self.noise_model;
+        let q = self.noise_sensor.subpixel_steps;
+        let (wx, wy) = self.noise_window;
         self.noise = CellNoise::new(sigma_d, q, wx, wy);
         self.fit_noise = FitNoise::new(sigma_d, q, wx, wy, SAMPLE_ROW_STEP);
         self.crease_noise = FitNoise::on_grid(sigma_d, q, wx, wy, crease::GRID_X, crease::GRID_Y);
@@ -630,10 +633,7 @@ impl PlaneExtractor {
     /// `factor` (≥ 1), keeping the quantisation and the window: the frame's own noise level
     /// (`noise_level`).
     fn scale_noise(&mut self, factor: f64) {
-        let (sigma_d, q, _, _) = self.noise_model;
-        let mut sensor = sl_core::SensorModel::default();
-        (sensor.sigma_d_px, sensor.subpixel_steps) = (sigma_d, q);
-        self.set_noise_sigma(sensor.sigma_d_for_variance_scale(factor));
+        self.set_noise_sigma(self.noise_sensor.sigma_d_for_variance_scale(factor));
     }
 
     /// The factor by which the last frame's disparity-error variance exceeded the camera's

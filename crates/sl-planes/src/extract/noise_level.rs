@@ -285,10 +285,13 @@ impl PlaneExtractor {
         if !self.cfg.estimate_noise {
             return;
         }
-        let (_, _, wx, wy) = self.noise_model;
-        let excess =
-            self.noise_meter
-                .excess(&self.cell_disparity, wq, hq, self.noise.var_cell, (wx, wy));
+        let excess = self.noise_meter.excess(
+            &self.cell_disparity,
+            wq,
+            hq,
+            self.noise.var_cell,
+            self.noise_window,
+        );
         if excess > 1.0 {
             self.noise_scale = excess;
             self.scale_noise(excess);

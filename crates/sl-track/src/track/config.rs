@@ -294,6 +294,17 @@ impl TrackerConfig {
         (area / 4f64.powi(level.min(30) as i32)).max(1.0)
     }
 
+    /// A meter of a frame's noise against its camera's model for this sensor's correlation
+    /// window ([`TrackerConfig::noise_window_x_px`]): what the tracker measures each frame with
+    /// ([`TrackerConfig::estimate_noise`]), and what a caller that smooths its frames before
+    /// tracking measures the raw frames with ([`crate::Tracker::set_noise_scale`]).
+    pub fn noise_meter(&self) -> sl_planes::NoiseMeter {
+        let mut pc = sl_planes::PlaneConfig::default();
+        pc.noise_window_x_px = self.noise_window_x_px;
+        pc.noise_window_y_px = self.noise_window_y_px;
+        sl_planes::NoiseMeter::new(&pc)
+    }
+
     /// Every how many pixels (along rows and columns) of pyramid level `level` the alignment
     /// samples the frame: the narrower side of the noise window in the level's pixels divided
     /// by [`TrackerConfig::samples_per_noise_window`], at least 1 — 2 at full resolution for a 640×480

@@ -230,13 +230,10 @@ impl Tracker {
         camera.sensor.validate()?;
         pyramid::check_levels(&camera.intrinsics, cfg.levels)?;
         let k = camera.intrinsics;
-        let mut plane_cfg = sl_planes::PlaneConfig::default();
-        plane_cfg.noise_window_x_px = cfg.noise_window_x_px;
-        plane_cfg.noise_window_y_px = cfg.noise_window_y_px;
         Ok(Self {
             camera,
             model_sensor: camera.sensor,
-            noise_meter: NoiseMeter::new(&plane_cfg),
+            noise_meter: cfg.noise_meter(),
             noise_scale: 1.0,
             given_noise_scale: None,
             cfg,

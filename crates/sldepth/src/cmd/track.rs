@@ -571,12 +571,7 @@ pub fn run(args: Args) -> Result<()> {
         .then_some(args.new_fragment_after_s);
     let params = cfg.tsdf;
     // The raw frames' noise against the camera's model (the prefilter hides it).
-    let mut noise_meter = (!args.model_noise_only).then(|| {
-        let mut pc = sl_planes::PlaneConfig::default();
-        pc.noise_window_x_px = cfg.tracker.noise_window_x_px;
-        pc.noise_window_y_px = cfg.tracker.noise_window_y_px;
-        sl_planes::NoiseMeter::new(&pc)
-    });
+    let mut noise_meter = (!args.model_noise_only).then(|| cfg.tracker.noise_meter());
     let mut noise_scales = Vec::new();
     let mut rec = Reconstruction::new(camera, cfg)?;
     let mut raycast_ms = Vec::new();

@@ -209,7 +209,9 @@ pub(super) fn prepared(
         .filter(|l| !l.is_zero())
         .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
     let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
-    let mut meter = sl_planes::NoiseMeter::new(&sl_planes::PlaneConfig::default());
+    let mut meter = ReconstructionConfig::default_for(cam.sensor)
+        .tracker
+        .noise_meter();
     let mut prepared = Vec::new();
     for (d, _) in &seq.frames {
         let d = match &undistort {
