@@ -9,7 +9,8 @@ use pyo3::prelude::*;
 use sl_core::{Mesh, VertexScalar};
 use sl_io::PlyFormat;
 use sl_tsdf::{
-    Axis, DepthLookup, MeshConfig, RaycastConfig, SliceSpec, TsdfConfig, TsdfVolume, WeightMode,
+    Axis, DepthLookup, MeshConfig, RaycastConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume,
+    WeightMode,
 };
 
 use crate::arrays::{check_camera, depth_array, depth_input, image_array, pose_input, rows3_array};
@@ -26,6 +27,14 @@ use crate::threads::compute;
 /// ``depth_lookup``: ``"nearest"`` (each voxel reads the pixel nearest its projection, default)
 /// or ``"bilinear"`` (inverse depth interpolated between the four pixels around it when they lie
 /// on one surface: no staircase on surfaces seen at grazing angles, 1.6–2× the integration time).
+/// ``truncation``: ``"sensor"`` (default) — the band of an observation at depth Z is
+/// ``max(trunc_m, trunc_sigmas·σ_Z(Z))`` up to 0.12 m, with σ_Z from the noise model of the camera
+/// of the first ``integrate`` (a D435's band is 2.3× a Kinect's at the same depth) — or
+/// ``"fixed"`` (``trunc_m`` everywhere, as Open3D's ``sdf_trunc``). With ``estimate_noise``
+/// (default) the first frame's own disparity noise is measured against that camera's model (on
+/// its 16×16-pixel patches, as ``extract_planes`` and ``Tracker`` do) and a sensor significantly
+/// noisier than its model gets the band of its measured σ_D; ``noise_scale`` says by how much.
+/// A later frame of another camera keeps the first frame's band.
 /// ``memory_budget_bytes`` caps the blocks; integration past it raises ``ValueError`` and leaves
 /// the volume unchanged. One volume may be used from several Python threads: reads (meshes,
 /// raycasts, slices) run side by side, an ``integrate`` waits for them and they for it.
@@ -40,6 +49,11 @@ pub struct PyTsdfVolume {
 struct VolumeState {
     volume: TsdfVolume,
     sensor_weight: bool,
+    /// The sensor-adaptive band follows the first frame's camera (and its measured noise).
+    sensor_band: bool,
+    estimate_noise: bool,
+    /// The first frame's pixel variance over its camera's model (1 until measured).
+    noise_scale: f64,
 }
 
 /// The message of a volume whose lock holder panicked (no call of this crate should).
@@ -65,7 +79,8 @@ impl PyTsdfVolume {
 #[pymethods]
 impl PyTsdfVolume {
     #[new]
-    #[pyo3(signature = (voxel_m = 0.004, trunc_m = 0.02, weight = "inv-z4", *, max_depth_m = 4.0, min_depth_m = 0.1, memory_budget_bytes = 4usize << 30, depth_lookup = "nearest"))]
+    #[pyo3(signature = (voxel_m = 0.004, trunc_m = 0.02, weight = "inv-z4", *, max_depth_m = 4.0, min_depth_m = 0.1, memory_budget_bytes = 4usize << 30, depth_lookup = "nearest", truncation = "sensor", trunc_sigmas = 3.0, estimate_noise = true))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         voxel_m: f64,
         trunc_m: f64,
@@ -74,6 +89,9 @@ impl PyTsdfVolume {
         min_depth_m: f64,
         memory_budget_bytes: usize,
         depth_lookup: &str,
+        truncation: &str,
+        trunc_sigmas: f64,
+        estimate_noise: bool,
     ) -> PyResult<Self> {
         let sensor_weight = weight == "sensor";
         let weight = if sensor_weight {
@@ -90,10 +108,33 @@ impl PyTsdfVolume {
         params.min_depth_m = min_depth_m;
         params.memory_budget_bytes = memory_budget_bytes;
         params.depth_lookup = depth_lookup.parse::<DepthLookup>().map_err(value_error)?;
+        let sensor_band = match truncation {
+            // Replaced by the first frame's camera (and its measured noise) at its integration.
+            "sensor" => {
+                params.truncation = Truncation::SensorAdaptive {
+                    sensor: sl_core::SensorModel::kinect_v1(),
+                    sigmas: trunc_sigmas,
+                    max_m: 0.12,
+                };
+                true
+            }
+            "fixed" => {
+                params.truncation = Truncation::Fixed;
+                false
+            }
+            other => {
+                return Err(value_error(format!(
+                    "truncation {other:?}: expected \"sensor\" or \"fixed\""
+                )));
+            }
+        };
         Ok(Self {
             state: RwLock::new(VolumeState {
                 volume: TsdfVolume::new(params).map_err(value_error)?,
                 sensor_weight,
+                sensor_band,
+                estimate_noise,
+                noise_scale: 1.0,
             }),
         })
     }
@@ -117,10 +158,8 @@ impl PyTsdfVolume {
         let stats = compute(py, || -> Result<_, String> {
             let mut state = self.state.write().map_err(|_| POISONED.to_string())?;
             let state = &mut *state;
-            if state.sensor_weight && state.volume.frame_count() == 0 {
-                let mut params = *state.volume.params();
-                params.weight = WeightMode::sensor_variance(camera.sensor);
-                state.volume = TsdfVolume::new(params).map_err(|e| e.to_string())?;
+            if state.volume.frame_count() == 0 {
+                first_frame(state, &view, &camera)?;
             } else if state.sensor_weight
                 && let WeightMode::SensorVariance { sensor, .. } = state.volume.params().weight
                 && sensor != camera.sensor
@@ -237,6 +276,29 @@ impl PyTsdfVolume {
         image_array(py, slice.values)
     }
 
+    /// The first frame's disparity-error variance over its camera's noise model, as measured
+    /// for the truncation band (1.0 before the first frame, with ``estimate_noise=False``, with a
+    /// fixed band, or when the frame is within its model).
+    #[getter]
+    fn noise_scale(&self) -> PyResult<f64> {
+        self.state
+            .read()
+            .map(|s| s.noise_scale)
+            .map_err(|_| value_error(POISONED))
+    }
+
+    /// The truncation band (metres) of an observation at depth ``z_m`` metres: ``trunc_m`` with
+    /// ``truncation="fixed"``; with ``"sensor"`` the band of the first frame's camera (before
+    /// the first frame: a Kinect v1's).
+    fn band_m(&self, py: Python<'_>, z_m: f64) -> PyResult<f64> {
+        if !(z_m.is_finite() && z_m > 0.0) {
+            return Err(value_error(format!(
+                "z_m {z_m}: a depth must be finite and positive"
+            )));
+        }
+        self.read(py, |v| v.params().band_at(z_m))
+    }
+
     /// Number of allocated voxel blocks.
     #[getter]
     fn block_count(&self, py: Python<'_>) -> PyResult<usize> {
@@ -259,15 +321,51 @@ impl PyTsdfVolume {
         self.read(py, |v| {
             let p = v.params();
             format!(
-                "TsdfVolume(voxel_m={}, trunc_m={}, weight={:?}, frames={}, blocks={})",
+                "TsdfVolume(voxel_m={}, trunc_m={}, weight={:?}, truncation={:?}, frames={}, blocks={})",
                 p.voxel_m,
                 p.trunc_m,
                 p.weight.name(),
+                match p.truncation {
+                    Truncation::Fixed => "fixed",
+                    Truncation::SensorAdaptive { .. } => "sensor",
+                },
                 v.frame_count(),
                 v.block_count()
             )
         })
     }
+}
+
+/// Before the first frame: the `"sensor"` weight and the sensor-adaptive band take the frame's
+/// camera, the band the frame's measured noise when asked.
+fn first_frame(
+    state: &mut VolumeState,
+    view: &sl_core::DepthView<'_>,
+    camera: &sl_core::Camera,
+) -> Result<(), String> {
+    let mut params = *state.volume.params();
+    if state.sensor_weight {
+        params.weight = WeightMode::sensor_variance(camera.sensor);
+    }
+    if state.sensor_band {
+        state.noise_scale = if state.estimate_noise {
+            sl_planes::frame_noise_scale(*view, camera, &sl_planes::PlaneConfig::default())
+                .map_err(|e| format!("measuring the frame's noise: {e}"))?
+        } else {
+            1.0
+        };
+        if let Truncation::SensorAdaptive { sigmas, max_m, .. } = params.truncation {
+            let mut sensor = camera.sensor;
+            sensor.sigma_d_px = sensor.sigma_d_for_variance_scale(state.noise_scale);
+            params.truncation = Truncation::SensorAdaptive {
+                sensor,
+                sigmas,
+                max_m,
+            };
+        }
+    }
+    state.volume = TsdfVolume::new(params).map_err(|e| e.to_string())?;
+    Ok(())
 }
 
 fn mesh_config(min_weight: f32) -> PyResult<MeshConfig> {

@@ -26,6 +26,28 @@ def test_filter_reduces_simulated_noise(kinect, three_planes):
     assert filtered < 0.7 * raw
 
 
+def test_filter_can_follow_the_frames_measured_noise(kinect):
+    # A sensor with sigma_D 0.14 px through the Kinect camera (0.07 px): with estimate_noise the
+    # range kernels are those of the measured sigma_D, i.e. the filter of a camera that says so
+    # (noise_stats reports the same measurement), and the error against the truth is lower.
+    noisier = sldepth.Camera(640, 480, kinect.fx, kinect.fy, kinect.cx, kinect.cy, sigma_d_px=0.14)
+    depth, truth, _ = sldepth.simulate("floor", seed=3, camera=noisier)
+    measured = sldepth.filter(depth, kinect, estimate_noise=True)
+    sigma = sldepth.noise_stats(depth, kinect)["model_effective_sigma_d_px"]
+    assert 0.11 < sigma < 0.17
+    told = sldepth.Camera(640, 480, kinect.fx, kinect.fy, kinect.cx, kinect.cy, sigma_d_px=sigma)
+    assert np.array_equal(measured, sldepth.filter(depth, told))
+    plain = sldepth.filter(depth, kinect)
+    m = (truth > 0) & (measured > 0) & (plain > 0)
+    rmse = lambda z: np.sqrt(np.mean((z[m] - truth[m]) ** 2))
+    assert rmse(measured) < 0.97 * rmse(plain), (rmse(measured), rmse(plain))
+    # At the model's own noise nothing changes.
+    nominal = sldepth.simulate("floor", seed=3, camera=kinect)[0]
+    assert np.array_equal(
+        sldepth.filter(nominal, kinect, estimate_noise=True), sldepth.filter(nominal, kinect)
+    )
+
+
 def test_multiscale_is_the_default_of_the_sensor_model_methods(kinect, three_planes):
     depth, truth, _ = three_planes
     m = (truth > 0) & (depth > 0)
@@ -289,6 +311,55 @@ def test_tsdf_bilinear_lookup_keeps_a_grazing_wall_flat():
     assert errors["nearest"] > 5.0 and errors["bilinear"] < 0.5, errors
     with pytest.raises(ValueError, match="depth_lookup"):
         sldepth.TsdfVolume(depth_lookup="cubic")
+
+
+def test_tsdf_band_follows_the_camera_of_the_first_frame():
+    # The sensor-adaptive band is 3 sigma_Z of the first frame's camera (a D435 is 2.3x noisier
+    # in depth than a Kinect v1 at the same distance), never below trunc_m.
+    d435 = sldepth.Camera.preset("d435")
+    depth, truth, _ = sldepth.simulate("floor", seed=1, camera=d435)
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.02)
+    vol.integrate(depth, d435, np.eye(4))
+    assert vol.band_m(2.0) == pytest.approx(3 * d435.sigma_z(2.0), rel=1e-6)
+    assert vol.band_m(0.5) == pytest.approx(0.02)
+    kinect = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.02)
+    assert kinect.band_m(3.0) == pytest.approx(
+        3 * sldepth.Camera.preset("kinect-v1").sigma_z(3.0), rel=1e-6
+    )
+    fixed = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.02, truncation="fixed")
+    fixed.integrate(depth, d435, np.eye(4))
+    assert fixed.band_m(2.0) == pytest.approx(0.02) and fixed.noise_scale == 1.0
+    assert "truncation=\"sensor\"" in repr(vol) and "truncation=\"fixed\"" in repr(fixed)
+    with pytest.raises(ValueError, match="truncation"):
+        sldepth.TsdfVolume(truncation="adaptive")
+    with pytest.raises(ValueError, match="sigmas"):
+        sldepth.TsdfVolume(trunc_sigmas=-1.0)
+    with pytest.raises(ValueError, match="z_m"):
+        vol.band_m(float("nan"))
+
+
+def test_tsdf_band_follows_a_noisier_sensors_measured_noise():
+    # Frames of a sensor with sigma_D 0.2 px through a camera that says 0.07 px: the first
+    # frame's measured variance is (0.2^2 + 1/768) / (0.07^2 + 1/768) = 6.7x the model's, the
+    # band is that of the measured sigma_D, and the fused mesh has fewer spurious surfaces.
+    kinect = sldepth.Camera.preset("kinect-v1")
+    noisier = sldepth.Camera(
+        640, 480, kinect.fx, kinect.fy, kinect.cx, kinect.cy, sigma_d_px=0.2
+    )
+    frames = [sldepth.simulate("floor", seed=s, camera=noisier)[0] for s in range(4)]
+    vertices = {}
+    for estimate in (True, False):
+        vol = sldepth.TsdfVolume(voxel_m=0.01, estimate_noise=estimate)
+        for d in frames:
+            vol.integrate(d, kinect, np.eye(4))
+        vertices[estimate] = len(vol.extract_mesh())
+        if estimate:
+            assert 5.0 < vol.noise_scale < 8.5
+            assert vol.band_m(2.5) == pytest.approx(3 * noisier.sigma_z(2.5), rel=0.1)
+        else:
+            assert vol.noise_scale == 1.0
+            assert vol.band_m(2.5) == pytest.approx(3 * kinect.sigma_z(2.5), rel=1e-6)
+    assert vertices[True] < 0.9 * vertices[False], vertices
 
 
 def test_tsdf_errors(small_cam, wall):

@@ -596,3 +596,58 @@ fn filter_follows_the_frames_own_noise() {
     let nominal = filtered(&raw("0.07"), &[]);
     assert_eq!(nominal["noise_scale"].as_f64(), Some(1.0));
 }
+
+/// `fuse` measures the first frame's noise: frames of a sensor three times noisier than the
+/// camera's model get the band of their own σ_D, and so fewer spurious surfaces ("foam") than
+/// with the camera's band; at the model's noise nothing changes.
+#[test]
+fn fuse_band_follows_the_first_frames_own_noise() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let identity = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
+    let list = |sigma: &str| {
+        let mut text = String::new();
+        for seed in 0..4 {
+            let p = simulated(
+                dir.path(),
+                &format!("floor-{sigma}-{seed}.png"),
+                "floor",
+                &["--sigma-d-px", sigma, "--seed", &seed.to_string()],
+            );
+            text.push_str(&format!("{} {identity}\n", p.display()));
+        }
+        let l = dir.path().join(format!("frames-{sigma}.txt"));
+        std::fs::write(&l, text).unwrap_or_else(|e| panic!("{e}"));
+        l
+    };
+    let fused = |l: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "fuse",
+            "--frames",
+            path_str(l),
+            "--voxel-m",
+            "0.01",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        json_of(&sldepth(&args))
+    };
+    let noisier = list("0.2");
+    let measured = fused(&noisier, &[]);
+    let scale = measured["noise_scale"].as_f64().unwrap_or(f64::NAN);
+    let sigma = measured["band_sigma_d_px"].as_f64().unwrap_or(f64::NAN);
+    // (0.2² + 1/768) / (0.07² + 1/768) = 6.7.
+    assert!((5.0..8.5).contains(&scale), "{measured}");
+    assert!((0.17..0.23).contains(&sigma), "{measured}");
+    let model = fused(&noisier, &["--model-noise-only"]);
+    assert_eq!(model["noise_scale"].as_f64(), Some(1.0));
+    assert_eq!(model["band_sigma_d_px"].as_f64(), Some(0.07));
+    let verts = |v: &serde_json::Value| v["vertices"].as_u64().unwrap_or(0);
+    assert!(
+        verts(&measured) * 10 < verts(&model) * 9,
+        "measured band {} vertices, camera's band {}",
+        verts(&measured),
+        verts(&model)
+    );
+    let nominal = fused(&list("0.07"), &[]);
+    assert_eq!(nominal["noise_scale"].as_f64(), Some(1.0));
+}

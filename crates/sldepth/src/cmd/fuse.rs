@@ -83,9 +83,18 @@ pub struct Args {
     #[arg(long, value_name = "BYTES")]
     pub memory_budget_bytes: Option<usize>,
     /// Smooth every frame with sl-filter's adaptive bilateral filter (σ_d = k·Z², default k of
-    /// the camera's sensor model) before fusing.
+    /// the camera's sensor model, or of the measured noise: see --model-noise-only) before
+    /// fusing.
     #[arg(long)]
     pub prefilter: bool,
+    /// Fuse with the camera's noise model as given. By default the first frame's disparity
+    /// noise is measured on its own 16×16-pixel patches (as `sldepth planes`, `filter` and
+    /// `track` do) and, when it is significantly larger than the model's, the sensor-adaptive
+    /// band (and the --prefilter's range kernel) follow the measured σ_D: a sensor noisier than
+    /// its preset or camera JSON says otherwise scatters its observations past a band too
+    /// narrow for them, and the mesh turns to foam. The camera's σ_D is a floor.
+    #[arg(long)]
+    pub model_noise_only: bool,
     /// Output mesh (PLY, binary unless --ascii), with normals and a `confidence` scalar.
     #[arg(long, short, value_name = "FILE.ply")]
     pub output: Option<PathBuf>,
@@ -303,14 +312,10 @@ pub fn run(args: Args) -> Result<()> {
     params.max_depth_m = args.max_depth_m;
     params.memory_budget_bytes = budget;
     params.depth_lookup = args.depth_lookup;
-    let filter = if args.prefilter {
-        Some(sl_filter::DepthFilter::default_for(
-            sl_filter::Method::Adaptive,
-            &camera.sensor,
-        ))
-    } else {
-        None
-    };
+    // Built at the first frame, for its measured noise.
+    let mut filter: Option<sl_filter::DepthFilter> = None;
+    let mut noise_scale = 1.0;
+    let mut band_sensor = camera.sensor;
     let mut volume = TsdfVolume::new(params)?;
 
     let bar = indicatif::ProgressBar::new(frames.len() as u64);
@@ -346,6 +351,26 @@ pub fn run(args: Args) -> Result<()> {
             depth = u
                 .apply(&depth)
                 .with_context(|| format!("undistorting {}", f.depth_path.display()))?;
+        }
+        if volume.frame_count() == 0 {
+            // The first frame: its noise against the camera's model (before the prefilter,
+            // which hides it) sets the band and the prefilter.
+            if !args.model_noise_only {
+                noise_scale = sl_planes::frame_noise_scale(
+                    &depth,
+                    &camera,
+                    &sl_planes::PlaneConfig::default(),
+                )
+                .with_context(|| format!("measuring the noise of {}", f.depth_path.display()))?;
+            }
+            band_sensor.sigma_d_px = band_sensor.sigma_d_for_variance_scale(noise_scale);
+            volume.set_band_sensor(band_sensor)?;
+            if args.prefilter {
+                filter = Some(sl_filter::DepthFilter::default_for(
+                    sl_filter::Method::Adaptive,
+                    &band_sensor,
+                ));
+            }
         }
         if let Some(filt) = &filter {
             depth = filt
@@ -416,10 +441,19 @@ pub fn run(args: Args) -> Result<()> {
             "weight": params.weight.name(),
             "max_depth_m": params.max_depth_m,
             "prefilter": args.prefilter,
+            "noise_scale": round_to(noise_scale, 3),
+            "band_sigma_d_px": round_to(band_sensor.sigma_d_px, 4),
             "undistorted": undistort.is_some(),
             "output": args.output.as_ref().map(|p| p.display().to_string()),
         }))?;
     } else {
+        if noise_scale > 1.0 {
+            errln!(
+                "the first frame's noise is {noise_scale:.2}x the camera model's variance: fused with the band of a σ_D of {:.3} px (--model-noise-only: the camera's {:.3} px)",
+                band_sensor.sigma_d_px,
+                camera.sensor.sigma_d_px
+            );
+        }
         errln!(
             "fused {} frames ({:.1} ms/frame median): {} vertices, {} triangles, {} blocks ({:.1} MiB); marching cubes {:.0} ms",
             frames.len(),
