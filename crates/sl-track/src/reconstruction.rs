@@ -36,7 +36,7 @@
 use std::time::Instant;
 
 use sl_core::{Camera, DepthImage, Intrinsics, SensorModel, WorldToWorld};
-use sl_tsdf::{RaycastConfig, Truncation, TsdfConfig, TsdfVolume};
+use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
 
 use crate::error::{Result, TrackError};
 use crate::track::{FrameResult, ModelReference, Tracker, TrackerConfig};
@@ -62,14 +62,11 @@ pub struct ReconstructionConfig {
 
 impl ReconstructionConfig {
     /// The defaults for a camera with `sensor`: 4 mm voxels, the sensor-adaptive truncation band
-    /// with a 2 cm (5-voxel) floor and 1/Z⁴ weights ([`TsdfConfig::default`] with the sensor's
-    /// model), frame-to-model tracking with the default tracker, a new fragment after 1 s.
+    /// with a 2 cm (5-voxel) floor and 1/Z⁴ weights ([`TsdfConfig::for_sensor`]), frame-to-model tracking with the default tracker, a new fragment after 1 s.
     pub fn default_for(sensor: SensorModel) -> Self {
-        let mut tsdf = TsdfConfig::default();
-        tsdf.truncation = Truncation::sensor_adaptive(sensor);
         Self {
             tracker: TrackerConfig::default(),
-            tsdf,
+            tsdf: TsdfConfig::for_sensor(sensor),
             frame_to_model: true,
             model_scale: None,
             new_fragment_after_s: Some(1.0),
