@@ -22,7 +22,7 @@ use crate::threads::compute;
 /// correlated error; ``None`` (default) means yes for ``"adaptive"`` and ``"disparity"`` and no
 /// for ``"gaussian"`` and ``"bilateral"``, as ``sldepth filter`` (``--single-scale``).
 /// ``estimate_noise``: measure the frame's disparity noise against the camera's model first (on
-/// its 16×16-pixel patches, as ``sldepth filter`` does by default) and, when it is significantly
+/// its 16×16- and 32×32-pixel patches, as ``sldepth filter`` does by default) and, when it is significantly
 /// larger, build the range kernels for the measured σ_D (the camera's a floor; explicit range
 /// parameters win). Off by default here: it costs 0.2–0.4 ms per 640×480 frame, a third of a
 /// 7×7 pass, and ``noise_stats(...)["model_effective_sigma_d_px"]`` measures a sensor once.

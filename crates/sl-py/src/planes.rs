@@ -200,7 +200,7 @@ impl From<&RegionExplanation> for PyUnlabelledRegion {
 /// (False) re-decides the pixels along a crease with the two planes' local fits where a
 /// plane's whole fit is off there (a surface bent by the sensor's distortion, whose small
 /// neighbour would take a strip of it; 0.1–0.3 ms per 640×480 real frame). ``estimate_noise``
-/// (True) measures the frame's own noise on its 16×16-pixel patches and, where it exceeds the
+/// (True) measures the frame's own noise on its 16×16- and 32×32-pixel patches and, where it exceeds the
 /// camera's model significantly, runs every noise test with the measured noise (the camera's
 /// ``sigma_d_px`` is a floor, never lowered): a sensor noisier than its camera says otherwise
 /// comes out in pieces and spurious planes. ``sldepth planes`` has the same options.

@@ -344,7 +344,7 @@ impl PyTracker {
     }
 
     /// The last frame's disparity-error variance over the camera's model, measured on the raw
-    /// frame's own 16×16-pixel patches (before the prefilter) as ``extract_planes`` does; the
+    /// frame's own 16×16- and 32×32-pixel patches (before the prefilter) as ``extract_planes`` does; the
     /// frame was tracked with that noise (its weights, gates and degenerate-view checks). 1
     /// when within the model, before any frame, or with ``estimate_noise=False``.
     #[getter]

@@ -32,7 +32,7 @@ use crate::threads::compute;
 /// of the first ``integrate`` (a D435's band is 2.3× a Kinect's at the same depth) — or
 /// ``"fixed"`` (``trunc_m`` everywhere, as Open3D's ``sdf_trunc``). With ``estimate_noise``
 /// (default) the first frame's own disparity noise is measured against that camera's model (on
-/// its 16×16-pixel patches, as ``extract_planes`` and ``Tracker`` do) and a sensor significantly
+/// its 16×16- and 32×32-pixel patches, as ``extract_planes`` and ``Tracker`` do) and a sensor significantly
 /// noisier than its model gets the band of its measured σ_D; ``noise_scale`` says by how much.
 /// A later frame of another camera keeps the first frame's band.
 /// ``memory_budget_bytes`` caps the blocks; integration past it raises ``ValueError`` and leaves

@@ -81,9 +81,20 @@ fn block_mean_cov(n: usize, w: f64, lag: usize) -> f64 {
 /// The correlation of two cell means `lag` cells apart along an axis whose matching window is
 /// `window` pixels wide (`[1, ρ(1), …]`; 1 × 1: white noise, no correlation between cells).
 pub(super) fn cell_correlations(window: f64) -> [f64; PATCH] {
+    block_correlations(window, CELL)
+}
+
+/// [`cell_correlations`] for blocks of `block_px` pixels instead of cells.
+pub(super) fn block_correlations(window: f64, block_px: usize) -> [f64; PATCH] {
     let w = window.max(1.0);
-    let v0 = block_mean_cov(CELL, w, 0);
-    std::array::from_fn(|lag| block_mean_cov(CELL, w, lag) / v0)
+    let v0 = block_mean_cov(block_px, w, 0);
+    std::array::from_fn(|lag| block_mean_cov(block_px, w, lag) / v0)
+}
+
+/// The variance of the mean of a `block_px`-pixel run over that of one pixel, along an axis
+/// whose matching window is `window` pixels wide.
+pub(super) fn block_variance_factor(window: f64, block_px: usize) -> f64 {
+    block_mean_cov(block_px, window.max(1.0), 0)
 }
 
 impl CellNoise {

@@ -288,7 +288,7 @@ def extract_planes(
     along a crease with the two planes' local fits where a plane's whole fit is off there (a
     surface bent by the sensor's distortion, whose small neighbour would take a strip of it;
     0.1-0.3 ms per 640x480 real frame). estimate_noise (True): measure the frame's own noise on
-    its 16x16-pixel patches and, where it exceeds the camera's model significantly, run every
+    its 16x16- and 32x32-pixel patches and, where it exceeds the camera's model significantly, run every
     noise test with it (the camera's sigma_d_px is a floor, never lowered); a sensor noisier
     than its camera says otherwise comes out in pieces and spurious planes."""
 

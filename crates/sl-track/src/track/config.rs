@@ -117,7 +117,7 @@ pub struct TrackerConfig {
     /// rejected like one that fails the other checks. Costs one plane extraction per frame at
     /// half resolution (under 1 ms at 640×480 on one core).
     pub degenerate_check: bool,
-    /// Measure each frame's disparity noise on its own 16×16-pixel patches against the
+    /// Measure each frame's disparity noise on its own 16×16- and 32×32-pixel patches against the
     /// camera's model (`sl_planes::NoiseMeter`, as the plane extractor does) and, when it is
     /// significantly larger, track the frame with that noise: every σ of the frame — the
     /// alignment's weights and gates, the degenerate-view checks, its planes — follows it, the

@@ -269,7 +269,7 @@ impl Tracker {
     }
 
     /// The factor by which the last frame's disparity-error variance exceeded the camera's
-    /// model, measured on the frame's own 16×16-pixel patches as `sl_planes` does
+    /// model, measured on the frame's own 16×16- and 32×32-pixel patches as `sl_planes` does
     /// (`sl_planes::NoiseMeter`; [`TrackerConfig::estimate_noise`]); 1 when it did not, or
     /// before any frame.
     pub fn noise_scale(&self) -> f64 {

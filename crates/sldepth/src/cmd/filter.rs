@@ -78,7 +78,7 @@ pub struct Args {
     #[arg(long)]
     pub single_scale: bool,
     /// Filter with the camera's noise model as given. By default the frame's own disparity
-    /// noise is measured on its 16×16-pixel patches (as `sldepth planes` and `noise-stats` do)
+    /// noise is measured on its 16×16- and 32×32-pixel patches (as `sldepth planes` and `noise-stats` do)
     /// and, when it is significantly larger than the model's, the range kernels follow the
     /// measured σ_D (the camera's σ_D a floor): a sensor noisier than its preset says is
     /// otherwise under-smoothed (simulated frames at twice the model's σ_D: floor 8.3 → 7.6 mm

@@ -88,7 +88,7 @@ pub struct Args {
     #[arg(long)]
     pub prefilter: bool,
     /// Fuse with the camera's noise model as given. By default the first frame's disparity
-    /// noise is measured on its own 16×16-pixel patches (as `sldepth planes`, `filter` and
+    /// noise is measured on its own 16×16- and 32×32-pixel patches (as `sldepth planes`, `filter` and
     /// `track` do) and, when it is significantly larger than the model's, the sensor-adaptive
     /// band (and the --prefilter's range kernel) follow the measured σ_D: a sensor noisier than
     /// its preset or camera JSON says otherwise scatters its observations past a band too

@@ -79,7 +79,7 @@ pub struct Args {
     #[arg(long)]
     pub refine_seams: bool,
     /// Take the noise of every test from the camera's model alone (disparity method). By
-    /// default a frame noisier than its camera says, measured on its own 16×16-pixel patches,
+    /// default a frame noisier than its camera says, measured on its own 16×16- and 32×32-pixel patches,
     /// is extracted with the measured noise (the camera's σ_D is a floor, never lowered) and the
     /// factor is reported (`noise_scale` in `--json`).
     #[arg(long)]

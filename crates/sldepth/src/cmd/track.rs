@@ -147,7 +147,7 @@ pub struct Args {
     #[arg(long)]
     pub no_plane_fallback: bool,
     /// Track every frame with the camera's noise model as given. By default each raw frame's
-    /// disparity noise is measured on its own 16×16-pixel patches (before the prefilter) and,
+    /// disparity noise is measured on its own 16×16- and 32×32-pixel patches (before the prefilter) and,
     /// when it is significantly larger than the model's, the frame is tracked with it (its
     /// weights, gates and degenerate-view checks): a sensor noisier than its preset or camera
     /// JSON says is otherwise tracked with its uncertainty understated. The camera's σ_D is a

@@ -62,7 +62,7 @@ pub(super) fn noisier_sensor(ctx: &mut Context, md: &mut String) -> Result<()> {
         "**A sensor the camera model does not describe**, held-out seeds {}–{}: the rooms \
          simulated with another matching window or a larger `σ_D` than the Kinect camera the \
          extractor is given (9 × 11 px, σ_D = 0.07 px). *Estimated*: the default, which measures \
-         the frame's noise on its 16 × 16-pixel patches against the model's law (lower quartile; \
+         the frame's noise on its 16 × 16- and 32 × 32-pixel patches against the model's law (lower quartile; \
          `PlaneConfig::estimate_noise`, `sl-planes/src/extract/noise_level.rs`) and scales every \
          noise test by the excess when it is significant; *model only*: the camera's model as \
          given. *scale*: the mean factor applied to the pixel variance. Reported, not a gate.\n\n\
