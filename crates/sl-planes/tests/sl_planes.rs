@@ -989,6 +989,48 @@ fn a_noisier_sensor_than_its_camera_says_is_measured() {
     );
 }
 
+/// A frame measured noisier than its camera's model is extracted as a camera that knows the
+/// measured σ_D extracts it, with the LoG threshold in units of that noise: the threshold set
+/// for the model's noise times the square root of the variance scale (the LoG is linear in the
+/// disparity).
+#[test]
+fn a_noisier_frame_is_extracted_as_its_measured_noise_says() {
+    let mut differs = 0;
+    for seed in 0..6 {
+        let room = sl_noise::sim::room_scene(seed).unwrap();
+        let cam = room_camera(room.intrinsics);
+        let mut noisier = cam.sensor;
+        noisier.sigma_d_px = 0.14;
+        let frame = KinectSimulator::with_sensor(noisier)
+            .with_noise(sl_noise::sim::NoiseModel::Realistic(
+                sl_noise::sim::RealisticNoise::default(),
+            ))
+            .simulate(&room.scene, &cam.intrinsics, &room.pose, seed);
+        let mut est = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+        let a = est.extract_depth(&frame.depth, &cam).unwrap();
+        let scale = est.noise_scale();
+        assert!(scale > 2.0, "room {seed}: {scale}");
+        let mut told = cam;
+        told.sensor.sigma_d_px = cam.sensor.sigma_d_for_variance_scale(scale);
+        let mut cfg = PlaneConfig::default();
+        cfg.estimate_noise = false;
+        cfg.log_threshold_px *= scale.sqrt();
+        let b = PlaneExtractor::new(cfg)
+            .unwrap()
+            .extract_depth(&frame.depth, &told)
+            .unwrap();
+        assert_eq!(a.labels.data(), b.labels.data(), "room {seed}");
+        // Without the threshold's scaling the same noise model segments otherwise.
+        cfg.log_threshold_px = PlaneConfig::default().log_threshold_px;
+        let c = PlaneExtractor::new(cfg)
+            .unwrap()
+            .extract_depth(&frame.depth, &told)
+            .unwrap();
+        differs += usize::from(a.labels.data() != c.labels.data());
+    }
+    assert!(differs > 0, "the LoG threshold's scaling changed no room");
+}
+
 /// `frame_noise_scale` measures a frame on its own as the extractor does: 1 at the camera
 /// model's noise, the variance's excess for a noisier sensor, and an error for a frame of
 /// another size than the camera's.

@@ -111,7 +111,10 @@ pub struct PlaneConfig {
     /// Fixed residual threshold `τ` in disparity pixels: a pixel belongs to a plane when
     /// `|D − D_plane| < τ`.
     pub threshold_px: f64,
-    /// Threshold on the magnitude of the box-LoG response, disparity pixels.
+    /// Threshold on the magnitude of the box-LoG response, disparity pixels, for the camera's
+    /// noise: a frame measured noisier ([`PlaneConfig::estimate_noise`]) gets it times the
+    /// square root of its variance scale, since the LoG is linear in the disparity and its
+    /// noise grows as the frame's does.
     pub log_threshold_px: f64,
     /// Scale of the LoG, pixels.
     pub log_sigma_px: f64,
@@ -774,6 +777,9 @@ impl PlaneExtractor {
             parallel,
         );
         self.calibrate_noise(wq, hq);
+        // The LoG response is linear in the disparity: its noise grows with the frame's, and
+        // so does the threshold that was set for the camera's noise.
+        let log_threshold = cfg.log_threshold_px * self.noise_scale.sqrt();
         // Half-resolution pixels without data (NaN even with a diagonal) stay non-planar; the
         // mask is cut back below.
         self.log_mask.clear();
@@ -793,7 +799,7 @@ impl PlaneExtractor {
             he,
             r,
             s,
-            cfg.log_threshold_px as f32,
+            log_threshold as f32,
             &mut self.log_buffers,
             &mut self.extended_mask,
             parallel,

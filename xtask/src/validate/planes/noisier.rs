@@ -64,7 +64,7 @@ pub(super) fn noisier_sensor(ctx: &mut Context, md: &mut String) -> Result<()> {
          extractor is given (9 × 11 px, σ_D = 0.07 px). *Estimated*: the default, which measures \
          the frame's noise on its 16 × 16- and 32 × 32-pixel patches against the model's law (lower quartile; \
          `PlaneConfig::estimate_noise`, `sl-planes/src/extract/noise_level.rs`) and scales every \
-         noise test by the excess when it is significant; *model only*: the camera's model as \
+         noise test by the excess when it is significant (and the LoG threshold by its square root); *model only*: the camera's model as \
          given. *scale*: the mean factor applied to the pixel variance. Reported, not a gate.\n\n\
          | window px | σ_D px | extractor | GT planes | correct | over | under | missed | noise | \
          spurious ≥ 2000 px | worst ms | scale |\n|---|---|---|---|---|---|---|---|---|---|---|---|",
