@@ -128,9 +128,31 @@ impl PatchRssLaw {
     /// quartile of its `n` patches' ratios; 1 when within the sampling error (one-sided,
     /// 99.9 %).
     pub(super) fn excess(&self, lower_quartile: f64, n: usize) -> f64 {
-        let ratio = lower_quartile / self.lower_quartile();
-        if ratio.is_finite() && ratio > 1.0 + Z_999 * self.lower_quartile_rel_error(n) {
-            ratio
+        self.reading(lower_quartile, n).excess_over(1.0)
+    }
+
+    /// The frame's lower quartile of `n` patches against the law's, with its sampling error.
+    fn reading(&self, lower_quartile: f64, n: usize) -> Reading {
+        Reading {
+            ratio: lower_quartile / self.lower_quartile(),
+            rel_error: self.lower_quartile_rel_error(n),
+        }
+    }
+}
+
+/// A frame's noise read at one scale: its patches' lower quartile over the law's, and the
+/// relative sampling error of that quartile.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Reading {
+    ratio: f64,
+    rel_error: f64,
+}
+
+impl Reading {
+    /// The ratio when it exceeds `floor` beyond its sampling error (one-sided, 99.9 %), else 1.
+    fn excess_over(&self, floor: f64) -> f64 {
+        if self.ratio.is_finite() && self.ratio > floor * (1.0 + Z_999 * self.rel_error) {
+            self.ratio
         } else {
             1.0
         }
@@ -247,10 +269,12 @@ impl NoiseMeter {
     /// ≤ 0 = no data) exceeds a model of cell variance `var_cell` correlated over `window`
     /// (pixels of the frame), over their full patches: 1 when it does not, significantly (see
     /// the module documentation). Measured at two scales, on patches of 4 × 4 cells (16 × 16
-    /// px) and of 4 × 4 blocks of 2 × 2 cells (32 × 32 px), each against its own law; the
-    /// larger excess counts. A sensor whose error is correlated over a wider window than the
-    /// model's shows it at the larger scale only: an affine fit over 16 px absorbs much of a
-    /// wide error, so at 16 px such a sensor looks quieter than it is.
+    /// px) and of 4 × 4 blocks of 2 × 2 cells (32 × 32 px), each against its own law. A sensor
+    /// whose error is correlated over a wider window than the model's shows it at the larger
+    /// scale only (an affine fit over 16 px absorbs much of a wide error), so the 32-px reading
+    /// counts when it is significantly above the 16-px one (beyond its own sampling error,
+    /// one-sided, 99.9 %); otherwise the two read the same variance and the 16-px reading, the
+    /// one with four times the patches, stands (their larger would be biased upwards).
     pub(super) fn excess(
         &mut self,
         cells: &[f32],
@@ -278,25 +302,30 @@ impl NoiseMeter {
                 laws
             }
         };
-        let fine = patch_excess(&mut self.ratios, cells, wq, hq, var_cell, &fine_law);
+        let fine = patch_reading(&mut self.ratios, cells, wq, hq, var_cell, &fine_law);
         let block_factor =
             |w: f64| block_variance_factor(w, 2 * CELL) / block_variance_factor(w, CELL);
         let var_block = var_cell * block_factor(window.0) * block_factor(window.1);
-        let coarse = block_patch_excess(&mut self.ratios, cells, wq, hq, var_block, &coarse_law);
-        fine.max(coarse)
+        let coarse = block_patch_reading(&mut self.ratios, cells, wq, hq, var_block, &coarse_law);
+        let fine_ratio = fine.map_or(1.0, |f| f.ratio.max(1.0));
+        match (fine, coarse) {
+            (_, Some(c)) if c.excess_over(fine_ratio) > 1.0 => c.ratio,
+            (Some(f), _) => f.excess_over(1.0),
+            (None, _) => 1.0,
+        }
     }
 }
 
-/// [`patch_excess`] on the means of 2 × 2 cells (blocks of variance `var_block`) of the
+/// [`patch_reading`] on the means of 2 × 2 cells (blocks of variance `var_block`) of the
 /// `w × h` cells `cells`, over their full patches of 4 × 4 blocks; `ratios` is scratch.
-fn block_patch_excess(
+fn block_patch_reading(
     ratios: &mut Vec<f64>,
     cells: &[f32],
     w: usize,
     h: usize,
     var_block: f64,
     law: &PatchRssLaw,
-) -> f64 {
+) -> Option<Reading> {
     ratios.clear();
     const SIDE: usize = 2 * PATCH;
     for pj in 0..h / SIDE {
@@ -321,20 +350,20 @@ fn block_patch_excess(
             }
         }
     }
-    quartile_excess(ratios, law)
+    quartile_reading(ratios, law)
 }
 
-/// The excess of the `w × h` values `cells` (cell or block disparities, non-finite or ≤ 0 = no
-/// data) of variance `var_cell` over `law`, on their full patches (see
+/// The reading of the `w × h` values `cells` (cell or block disparities, non-finite or ≤ 0 = no
+/// data) of variance `var_cell` against `law`, on their full patches (see
 /// [`NoiseMeter::excess`]); `ratios` is scratch.
-fn patch_excess(
+fn patch_reading(
     ratios: &mut Vec<f64>,
     cells: &[f32],
     w: usize,
     h: usize,
     var_cell: f64,
     law: &PatchRssLaw,
-) -> f64 {
+) -> Option<Reading> {
     ratios.clear();
     for pj in 0..h / PATCH {
         for pi in 0..w / PATCH {
@@ -348,18 +377,18 @@ fn patch_excess(
             }
         }
     }
-    quartile_excess(ratios, law)
+    quartile_reading(ratios, law)
 }
 
-/// The excess over `law` of the lower quartile of the patches' `ratios` (1 with fewer than
+/// The lower quartile of the patches' `ratios` against `law` (`None` with fewer than
 /// [`MIN_PATCHES`]).
-fn quartile_excess(ratios: &mut [f64], law: &PatchRssLaw) -> f64 {
+fn quartile_reading(ratios: &mut [f64], law: &PatchRssLaw) -> Option<Reading> {
     let n = ratios.len();
     if n < MIN_PATCHES {
-        return 1.0;
+        return None;
     }
     let (_, &mut q25, _) = ratios.select_nth_unstable_by(n / 4, f64::total_cmp);
-    law.excess(q25, n)
+    Some(law.reading(q25, n))
 }
 
 impl PlaneExtractor {
@@ -528,7 +557,8 @@ mod tests {
         let noise = CellNoise::new(0.07, 8, 9.0, 11.0);
         let fine_law = law(9.0, 11.0);
         let cells = meter.cells.clone();
-        let fine = patch_excess(&mut meter.ratios, &cells, wq, hq, noise.var_cell, &fine_law);
+        let fine = patch_reading(&mut meter.ratios, &cells, wq, hq, noise.var_cell, &fine_law)
+            .map_or(1.0, |r| r.excess_over(1.0));
         let truth = 0.12f64.powi(2) / var_model;
         assert!(fine < 0.8 * truth, "16 px alone: {fine} vs {truth}");
         assert!(
