@@ -56,6 +56,21 @@ fn room_camera(k: Intrinsics) -> Camera {
     }
 }
 
+/// Room `seed` of the room benchmark through a sensor of disparity noise `sigma_d_px` (the
+/// realistic simulator), and the Kinect camera of the room's focal length that does not know it.
+fn noisier_room(seed: u64, sigma_d_px: f64) -> (sl_noise::sim::SimulatedFrame, Camera) {
+    let room = sl_noise::sim::room_scene(seed).unwrap();
+    let cam = room_camera(room.intrinsics);
+    let mut noisier = cam.sensor;
+    noisier.sigma_d_px = sigma_d_px;
+    let frame = KinectSimulator::with_sensor(noisier)
+        .with_noise(sl_noise::sim::NoiseModel::Realistic(
+            sl_noise::sim::RealisticNoise::default(),
+        ))
+        .simulate(&room.scene, &cam.intrinsics, &room.pose, seed);
+    (frame, cam)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 16, .. ProptestConfig::default() })]
 
@@ -997,15 +1012,7 @@ fn a_noisier_sensor_than_its_camera_says_is_measured() {
 fn a_noisier_frame_is_extracted_as_its_measured_noise_says() {
     let mut differs = 0;
     for seed in 0..6 {
-        let room = sl_noise::sim::room_scene(seed).unwrap();
-        let cam = room_camera(room.intrinsics);
-        let mut noisier = cam.sensor;
-        noisier.sigma_d_px = 0.14;
-        let frame = KinectSimulator::with_sensor(noisier)
-            .with_noise(sl_noise::sim::NoiseModel::Realistic(
-                sl_noise::sim::RealisticNoise::default(),
-            ))
-            .simulate(&room.scene, &cam.intrinsics, &room.pose, seed);
+        let (frame, cam) = noisier_room(seed, 0.14);
         let mut est = PlaneExtractor::new(PlaneConfig::default()).unwrap();
         let a = est.extract_depth(&frame.depth, &cam).unwrap();
         let scale = est.noise_scale();
@@ -1045,13 +1052,7 @@ fn a_frame_noise_level_is_measured_on_its_own() {
             sl_planes::frame_noise_scale(&nominal.depth, &cam, &cfg).unwrap(),
             1.0
         );
-        let mut noisier = cam.sensor;
-        noisier.sigma_d_px = 0.14;
-        let frame = KinectSimulator::with_sensor(noisier)
-            .with_noise(sl_noise::sim::NoiseModel::Realistic(
-                sl_noise::sim::RealisticNoise::default(),
-            ))
-            .simulate(&room.scene, &cam.intrinsics, &room.pose, seed);
+        let (frame, _) = noisier_room(seed, 0.14);
         // The pixel variance (σ_D² + 1/(12q²)) is 3.4 times the model's.
         let scale = sl_planes::frame_noise_scale(&frame.depth, &cam, &cfg).unwrap();
         assert!((2.5..4.5).contains(&scale), "room {seed}: {scale}");
