@@ -157,6 +157,15 @@ impl SensorModel {
         if var > 0.0 { var.sqrt() } else { 0.0 }
     }
 
+    /// This model with its `σ_D` raised to [`SensorModel::sigma_d_for_variance_scale`]: the
+    /// sensor whose pixel variance is `variance_scale` times this one's (itself at 1).
+    pub fn with_variance_scale(&self, variance_scale: f64) -> Self {
+        Self {
+            sigma_d_px: self.sigma_d_for_variance_scale(variance_scale),
+            ..*self
+        }
+    }
+
     /// Depth quantum `ΔZ ≈ c·Z²` between neighbouring representable depths, with
     /// `c = 1 / (q·f·B)` per metre.
     pub fn depth_quantum_per_m(&self) -> f64 {

@@ -60,13 +60,13 @@ pub(crate) fn filter<'py>(
     check_camera(&view, &camera)?;
     let multiscale = multiscale.unwrap_or_else(|| multiscale_by_default(method));
     let out = compute(py, || -> Result<_, String> {
-        let mut sensor = camera.sensor;
-        if estimate_noise {
-            let scale =
-                sl_planes::frame_noise_scale(view, &camera, &sl_planes::PlaneConfig::default())
-                    .map_err(|e| format!("measuring the frame's noise: {e}"))?;
-            sensor.sigma_d_px = sensor.sigma_d_for_variance_scale(scale);
-        }
+        let scale = if estimate_noise {
+            sl_planes::frame_noise_scale(view, &camera, &sl_planes::PlaneConfig::default())
+                .map_err(|e| format!("measuring the frame's noise: {e}"))?
+        } else {
+            1.0
+        };
+        let sensor = camera.sensor.with_variance_scale(scale);
         let f = config.build(&sensor).map_err(|e| e.to_string())?;
         if multiscale {
             let m = MultiScale {

@@ -49,8 +49,7 @@ pub struct PyTsdfVolume {
 struct VolumeState {
     volume: TsdfVolume,
     sensor_weight: bool,
-    /// The sensor-adaptive band follows the first frame's camera (and its measured noise).
-    sensor_band: bool,
+    /// Whether a sensor-adaptive band follows the first frame's measured noise.
     estimate_noise: bool,
     /// The first frame's pixel variance over its camera's model (1 until measured).
     noise_scale: f64,
@@ -108,31 +107,21 @@ impl PyTsdfVolume {
         params.min_depth_m = min_depth_m;
         params.memory_budget_bytes = memory_budget_bytes;
         params.depth_lookup = depth_lookup.parse::<DepthLookup>().map_err(value_error)?;
-        let sensor_band = match truncation {
-            // Replaced by the first frame's camera (and its measured noise) at its integration.
-            "sensor" => {
-                params.truncation = Truncation::SensorAdaptive {
-                    sensor: sl_core::SensorModel::kinect_v1(),
-                    sigmas: trunc_sigmas,
-                    max_m: 0.12,
-                };
-                true
-            }
-            "fixed" => {
-                params.truncation = Truncation::Fixed;
-                false
-            }
-            other => {
+        match (truncation, &mut params.truncation) {
+            // The default's sensor-adaptive band; its sensor is replaced by the first frame's
+            // camera (and its measured noise) at its integration.
+            ("sensor", Truncation::SensorAdaptive { sigmas, .. }) => *sigmas = trunc_sigmas,
+            ("fixed", t) => *t = Truncation::Fixed,
+            (other, _) => {
                 return Err(value_error(format!(
                     "truncation {other:?}: expected \"sensor\" or \"fixed\""
                 )));
             }
-        };
+        }
         Ok(Self {
             state: RwLock::new(VolumeState {
                 volume: TsdfVolume::new(params).map_err(value_error)?,
                 sensor_weight,
-                sensor_band,
                 estimate_noise,
                 noise_scale: 1.0,
             }),
@@ -347,22 +336,13 @@ fn first_frame(
     if state.sensor_weight {
         params.weight = WeightMode::sensor_variance(camera.sensor);
     }
-    if state.sensor_band {
-        state.noise_scale = if state.estimate_noise {
-            sl_planes::frame_noise_scale(*view, camera, &sl_planes::PlaneConfig::default())
-                .map_err(|e| format!("measuring the frame's noise: {e}"))?
-        } else {
-            1.0
-        };
-        if let Truncation::SensorAdaptive { sigmas, max_m, .. } = params.truncation {
-            let mut sensor = camera.sensor;
-            sensor.sigma_d_px = sensor.sigma_d_for_variance_scale(state.noise_scale);
-            params.truncation = Truncation::SensorAdaptive {
-                sensor,
-                sigmas,
-                max_m,
-            };
+    if let Truncation::SensorAdaptive { sensor, .. } = &mut params.truncation {
+        if state.estimate_noise {
+            state.noise_scale =
+                sl_planes::frame_noise_scale(*view, camera, &sl_planes::PlaneConfig::default())
+                    .map_err(|e| format!("measuring the frame's noise: {e}"))?;
         }
+        *sensor = camera.sensor.with_variance_scale(state.noise_scale);
     }
     state.volume = TsdfVolume::new(params).map_err(|e| e.to_string())?;
     Ok(())

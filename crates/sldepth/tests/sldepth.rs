@@ -36,6 +36,11 @@ fn path_str(p: &Path) -> &str {
 }
 
 /// `sldepth simulate` of `scene` with `options` into `dir/name`, which it returns.
+/// The JSON `sldepth` prints for `args` followed by `extra`.
+fn json_of_run(args: &[&str], extra: &[&str]) -> serde_json::Value {
+    json_of(&sldepth(&[args, extra].concat()))
+}
+
 fn simulated(dir: &Path, name: &str, scene: &str, options: &[&str]) -> PathBuf {
     let out = dir.join(name);
     let mut args = vec!["simulate", "--scene", scene, "--output", path_str(&out)];
@@ -574,9 +579,7 @@ fn filter_follows_the_frames_own_noise() {
     };
     let out = dir.path().join("out.png");
     let filtered = |raw: &Path, extra: &[&str]| {
-        let mut args = vec!["filter", path_str(raw), path_str(&out), "--json"];
-        args.extend_from_slice(extra);
-        json_of(&sldepth(&args))
+        json_of_run(&["filter", path_str(raw), path_str(&out), "--json"], extra)
     };
     let noisier = raw("0.14");
     let noisy = filtered(&noisier, &[]);
@@ -620,16 +623,17 @@ fn fuse_band_follows_the_first_frames_own_noise() {
         l
     };
     let fused = |l: &Path, extra: &[&str]| {
-        let mut args = vec![
-            "fuse",
-            "--frames",
-            path_str(l),
-            "--voxel-m",
-            "0.01",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        json_of(&sldepth(&args))
+        json_of_run(
+            &[
+                "fuse",
+                "--frames",
+                path_str(l),
+                "--voxel-m",
+                "0.01",
+                "--json",
+            ],
+            extra,
+        )
     };
     let noisier = list("0.2");
     let measured = fused(&noisier, &[]);

@@ -532,6 +532,23 @@ mod tests {
         (depth, cam)
     }
 
+    /// The excess the 16-px patches alone read on the cells of the last frame `meter`
+    /// measured (`d`, against the Kinect model).
+    fn fine_only(meter: &mut NoiseMeter, d: &DepthImage) -> f64 {
+        let (wq, hq) = (d.width() / CELL, d.height() / CELL);
+        let noise = CellNoise::new(0.07, 8, 9.0, 11.0);
+        let cells = std::mem::take(&mut meter.cells);
+        patch_reading(
+            &mut meter.ratios,
+            &cells,
+            wq,
+            hq,
+            noise.var_cell,
+            &law(9.0, 11.0),
+        )
+        .map_or(1.0, |r| r.excess_over(1.0))
+    }
+
     #[test]
     fn a_wider_error_than_the_models_is_seen_at_the_larger_scale() {
         let mut meter = NoiseMeter::new(&PlaneConfig::default());
@@ -546,29 +563,12 @@ mod tests {
         assert!((s / truth - 1.0).abs() < 0.2, "{s} vs {truth}");
         // The 32-px patches read the same variance, not significantly more: the 16-px
         // reading (four times the patches) stands.
-        let (wq, hq) = (d.width() / CELL, d.height() / CELL);
-        let noise = CellNoise::new(0.07, 8, 9.0, 11.0);
-        let cells = meter.cells.clone();
-        let fine = patch_reading(
-            &mut meter.ratios,
-            &cells,
-            wq,
-            hq,
-            noise.var_cell,
-            &law(9.0, 11.0),
-        )
-        .map_or(1.0, |r| r.excess_over(1.0));
-        assert_eq!(s, fine);
+        assert_eq!(s, fine_only(&mut meter, &d));
         // A wider window (17 × 19 px) at 0.12 px: an affine fit over 16 px absorbs much of
         // it, the 32-px patches see more of it.
         let (d, cam) = wall((17, 19), 0.12, 3);
         let both = meter.measure(&d, &cam).unwrap_or(f64::NAN);
-        let (wq, hq) = (d.width() / CELL, d.height() / CELL);
-        let noise = CellNoise::new(0.07, 8, 9.0, 11.0);
-        let fine_law = law(9.0, 11.0);
-        let cells = meter.cells.clone();
-        let fine = patch_reading(&mut meter.ratios, &cells, wq, hq, noise.var_cell, &fine_law)
-            .map_or(1.0, |r| r.excess_over(1.0));
+        let fine = fine_only(&mut meter, &d);
         let truth = 0.12f64.powi(2) / var_model;
         assert!(fine < 0.8 * truth, "16 px alone: {fine} vs {truth}");
         assert!(

@@ -415,9 +415,7 @@ impl Tracker {
         } else {
             1.0
         };
-        self.camera.sensor.sigma_d_px = self
-            .model_sensor
-            .sigma_d_for_variance_scale(self.noise_scale);
+        self.camera.sensor = self.model_sensor.with_variance_scale(self.noise_scale);
         self.row_timing = None;
         self.finest_mean_depth_m = None;
         self.rolling_motion = None;

@@ -130,8 +130,7 @@ pub fn run(args: Args) -> Result<()> {
         )
         .context("measuring the frame's noise against the camera's model")?
     };
-    let mut sensor = loaded.camera.sensor;
-    sensor.sigma_d_px = sensor.sigma_d_for_variance_scale(noise_scale);
+    let sensor = loaded.camera.sensor.with_variance_scale(noise_scale);
     let filter = build_filter(&args, &sensor)?;
     let out_encoding = output_encoding(&args.output, &loaded.encoding)?;
     let multi = (args.multiscale

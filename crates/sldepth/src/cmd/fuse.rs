@@ -363,7 +363,7 @@ pub fn run(args: Args) -> Result<()> {
                 )
                 .with_context(|| format!("measuring the noise of {}", f.depth_path.display()))?;
             }
-            band_sensor.sigma_d_px = band_sensor.sigma_d_for_variance_scale(noise_scale);
+            band_sensor = camera.sensor.with_variance_scale(noise_scale);
             volume.set_band_sensor(band_sensor)?;
             if args.prefilter {
                 filter = Some(sl_filter::DepthFilter::default_for(
