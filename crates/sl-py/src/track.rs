@@ -5,7 +5,7 @@ use numpy::PyArray2;
 use std::sync::Mutex;
 
 use pyo3::prelude::*;
-use sl_core::{Camera, Undistorter};
+use sl_core::{Camera, SensorModel, Undistorter};
 use sl_filter::MultiScale;
 use sl_track::{Reconstruction, ReconstructionConfig, WeightMode};
 use sl_tsdf::{Mesh, MeshConfig};
@@ -22,9 +22,10 @@ type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 /// A tracked frame as Python sees it: (4×4 camera-to-world pose, status).
 type TrackedFrame<'py> = (Bound<'py, PyArray2<f64>>, &'static str);
 
-/// The prefilter of `sldepth track --prefilter NAME` for `camera`.
-fn prefilter_named(name: &str, camera: &Camera) -> PyResult<Option<MultiScale>> {
-    let default = MultiScale::default_for(&camera.sensor);
+/// The prefilter of `sldepth track --prefilter NAME` for `sensor` (the camera's model, or it
+/// with σ_D raised to a frame's measured noise).
+fn prefilter_for(name: &str, sensor: &SensorModel) -> Result<Option<MultiScale>, String> {
+    let default = MultiScale::default_for(sensor);
     match name {
         "multiscale" => Ok(Some(default)),
         // The single pass is the multi-scale filter without its coarse passes.
@@ -33,10 +34,15 @@ fn prefilter_named(name: &str, camera: &Camera) -> PyResult<Option<MultiScale>> 
             ..default
         })),
         "none" => Ok(None),
-        other => Err(value_error(format!(
+        other => Err(format!(
             "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
-        ))),
+        )),
     }
+}
+
+/// [`prefilter_for`], its error as Python's `ValueError`.
+fn prefilter_named(name: &str, sensor: &SensorModel) -> PyResult<Option<MultiScale>> {
+    prefilter_for(name, sensor).map_err(value_error)
 }
 
 /// Tracks a sequence of depth frames (a list of float32 metre arrays, or uint16 with
@@ -68,7 +74,7 @@ pub(crate) fn track_in_map<'py>(
 ) -> PyResult<Vec<TrackedFrame<'py>>> {
     let camera = camera.inner;
     let start = crate::arrays::pose_input(start_pose)?;
-    let prefilter = prefilter_named(prefilter, &camera)?;
+    let prefilter = prefilter_named(prefilter, &camera.sensor)?;
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
     let (min_depth_m, max_depth_m) =
@@ -148,7 +154,9 @@ pub struct PyTracker {
 #[derive(Debug)]
 struct TrackerState {
     rec: Reconstruction,
-    prefilter: Option<MultiScale>,
+    /// The `prefilter` name (checked by [`prefilter_named`] when the tracker was made): each
+    /// frame is smoothed with the filter of its measured noise.
+    prefilter: String,
     undistorter: Option<Undistorter>,
     /// Why the last frame was lost (or its attempts failed before a recovery).
     last_failure: Option<String>,
@@ -158,6 +166,8 @@ struct TrackerState {
     noise_meter: Option<sl_planes::NoiseMeter>,
     /// The last raw frame's pixel variance over the model's (1 within it or not measured).
     last_noise_scale: f64,
+    /// The σ_D, disparity pixels, the last frame was smoothed for (`None`: no prefilter).
+    last_prefilter_sigma_d_px: Option<f64>,
     /// The meshes of the finished fragments, by index (`None`: not finished).
     finished: Vec<Option<Mesh>>,
     /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
@@ -217,7 +227,8 @@ impl PyTracker {
             }
         };
         let camera = camera.inner;
-        let prefilter = prefilter_named(prefilter, &camera)?;
+        prefilter_named(prefilter, &camera.sensor)?;
+        let prefilter = prefilter.to_owned();
         let mut cfg = ReconstructionConfig::default_for(camera.sensor);
         cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
         cfg.tsdf.voxel_m = voxel_m;
@@ -239,6 +250,7 @@ impl PyTracker {
                 last_weakest_sigma_m: f64::NAN,
                 noise_meter,
                 last_noise_scale: 1.0,
+                last_prefilter_sigma_d_px: None,
                 finished: Vec::new(),
                 joins: Vec::new(),
                 frame_fragments: Vec::new(),
@@ -270,6 +282,7 @@ impl PyTracker {
                 undistorter,
                 noise_meter,
                 last_noise_scale,
+                last_prefilter_sigma_d_px,
                 ..
             } = &mut *guard;
             let undistorted = match undistorter {
@@ -283,7 +296,11 @@ impl PyTracker {
                 *last_noise_scale = s;
                 rec.set_noise_scale(Some(s));
             }
-            let depth = match prefilter {
+            // The prefilter's range kernel follows the frame's measured noise.
+            let sensor = self.camera.sensor.with_variance_scale(*last_noise_scale);
+            let filter = prefilter_for(prefilter, &sensor)?;
+            *last_prefilter_sigma_d_px = filter.as_ref().map(|_| sensor.sigma_d_px);
+            let depth = match filter {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
             };
@@ -350,6 +367,15 @@ impl PyTracker {
     #[getter]
     fn last_noise_scale(&self, py: Python<'_>) -> PyResult<f64> {
         self.with_state(py, |s| s.last_noise_scale)
+    }
+
+    /// The σ_D, disparity pixels, the last frame was smoothed for before tracking: the
+    /// camera's, or a noisier raw frame's measured one (``last_noise_scale``), so that the
+    /// prefilter's range kernel follows the frame's own noise. ``None`` with
+    /// ``prefilter="none"`` or before any frame.
+    #[getter]
+    fn last_prefilter_sigma_d_px(&self, py: Python<'_>) -> PyResult<Option<f64>> {
+        self.with_state(py, |s| s.last_prefilter_sigma_d_px)
     }
 
     /// The index of the current fragment: 0 until tracking stays lost for

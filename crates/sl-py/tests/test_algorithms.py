@@ -534,7 +534,7 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
 def test_tracker_measures_each_raw_frame_against_the_camera_model(kinect):
     # A sensor twice as noisy as the camera says (sigma_D 0.14 px behind the 0.07 px Kinect):
     # the raw frame's pixel variance is about 3.4 times the model's, measured before the
-    # prefilter smooths it, and the still camera is tracked with that noise. At the model's
+    # prefilter smooths it, and the still camera is smoothed and tracked with that noise. At the model's
     # noise, or with estimate_noise=False, the scale is 1.
     noisier = sldepth.Camera(
         kinect.width, kinect.height, kinect.fx, kinect.fy, kinect.cx, kinect.cy,
@@ -546,11 +546,18 @@ def test_tracker_measures_each_raw_frame_against_the_camera_model(kinect):
     for _ in range(3):
         pose, status = tracker.track(noisy)
     assert 2.5 < tracker.last_noise_scale < 4.5
+    # The prefilter's range kernel follows the measured noise: sigma_D raised to about 0.14 px.
+    assert 0.11 < tracker.last_prefilter_sigma_d_px < 0.17
     assert status in ("tracked", "tracked-against-frame"), status
     assert np.abs(pose[:3, 3]).max() < 0.003
     plain = sldepth.Tracker(kinect, estimate_noise=False)
+    assert plain.last_prefilter_sigma_d_px is None
     plain.track(noisy)
     assert plain.last_noise_scale == 1.0
+    assert plain.last_prefilter_sigma_d_px == kinect.sigma_d_px
+    unfiltered = sldepth.Tracker(kinect, prefilter="none")
+    unfiltered.track(noisy)
+    assert unfiltered.last_prefilter_sigma_d_px is None
     nominal = sldepth.Tracker(kinect)
     nominal.track(sldepth.simulate("boxes", seed=3)[0])
     assert nominal.last_noise_scale == 1.0

@@ -9,7 +9,7 @@
 //! (the real sequences' RPE is 2–6 mm per frame).
 //!
 //! ```text
-//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX]
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX] [--prefilter camera|measured]
 //! ```
 //! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
 //! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
@@ -17,7 +17,10 @@
 //! camera: every step gets a seeded random extra motion of up to `A` cm along and `A`° about
 //! each axis (uniform), so the constant-velocity prediction misses; `--sim-sigma-d PX` simulates
 //! a sensor with that disparity noise while the tracker is given the camera's own model (a
-//! sensor noisier than its camera says). Results:
+//! sensor noisier than its camera says); `--prefilter camera|measured` smooths every frame
+//! before tracking and fusion as `sldepth track` does (its default multi-scale filter; the
+//! raw frame's noise measured first and given to the tracker), with the range kernel of the
+//! camera's σ_D or, as `sldepth track` since session 51, of the frame's measured σ_D. Results:
 //! docs/bench/track.md ("Degenerate overlaps", session 39).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
@@ -33,6 +36,15 @@ const BAD_STEP_DEG: f64 = 1.0;
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let verbose = args.iter().any(|a| a == "--verbose");
+    let prefilter = args
+        .iter()
+        .position(|a| a == "--prefilter")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
+    assert!(
+        matches!(prefilter.as_deref(), None | Some("camera" | "measured")),
+        "--prefilter camera|measured"
+    );
     let preset = args
         .iter()
         .position(|a| a == "--camera")
@@ -52,6 +64,7 @@ fn main() {
         .iter()
         .enumerate()
         .filter(|(i, _)| *i == 0 || (args[i - 1] != "--jitter" && args[i - 1] != "--sim-sigma-d"))
+        .filter(|(_, a)| !matches!(a.as_str(), "camera" | "measured"))
         .filter_map(|(_, a)| a.parse().ok())
         .collect();
     let first = numbers.first().copied().unwrap_or(3000);
@@ -77,6 +90,7 @@ fn main() {
         };
         let k = cam.intrinsics;
         let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        let mut meter = TrackerConfig::default().noise_meter();
         let mut vcfg = TsdfConfig::default();
         vcfg.voxel_m = 0.008;
         vcfg.trunc_m = 0.04;
@@ -101,6 +115,21 @@ fn main() {
             // As `sl_track::Reconstruction` does: against the first frame itself while the
             // model holds no more than it.
             let model = if fused > 1 { reference.maps() } else { None };
+            let d = match prefilter.as_deref() {
+                None => d,
+                Some(mode) => {
+                    let s = meter.measure(&d, &cam).unwrap();
+                    tracker.set_noise_scale(Some(s));
+                    let sensor = if mode == "measured" {
+                        cam.sensor.with_variance_scale(s)
+                    } else {
+                        cam.sensor
+                    };
+                    sl_filter::MultiScale::default_for(&sensor)
+                        .apply(&d)
+                        .unwrap()
+                }
+            };
             let r = tracker.track(&d, model).unwrap();
             if r.status.is_tracked() {
                 // As `Reconstruction` does: the band of the frame's measured noise.

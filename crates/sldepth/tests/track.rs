@@ -54,8 +54,12 @@ fn write_sequence(dir: &Path, n: usize) -> Vec<f64> {
 /// [`write_sequence`] with every frame decimated by `every` (every `every`-th pixel of every
 /// `every`-th row, as a driver's decimation or a QVGA mode delivers them).
 fn write_sequence_decimated(dir: &Path, n: usize, every: usize) -> Vec<f64> {
+    write_sequence_through(dir, n, every, &KinectSimulator::kinect_v1().white())
+}
+
+/// [`write_sequence_decimated`] through the simulator `sim`.
+fn write_sequence_through(dir: &Path, n: usize, every: usize, sim: &KinectSimulator) -> Vec<f64> {
     let scene = named_scene("boxes").unwrap();
-    let sim = KinectSimulator::kinect_v1().white();
     let step = CameraToCamera::from_isometry(Isometry3::from_parts(
         Translation3::new(0.01, 0.0, 0.0),
         UnitQuaternion::from_scaled_axis(Vector3::y() * 1f64.to_radians()),
@@ -181,6 +185,44 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert_eq!(entries.len(), 6);
     let m = sl_io::read_mesh_ply(&mesh).unwrap();
     assert!(m.vertex_count() > 1000);
+}
+
+/// A sensor three times noisier than the camera's model (σ_D 0.2 px behind the Kinect's 0.07,
+/// realistic correlated noise): each raw frame's measured noise sets the prefilter's range
+/// kernel, as it sets the tracker's weights (a frame smoothed for 0.07 px keeps most of its
+/// error); with `--model-noise-only` the camera's σ_D is used, as before the measurement.
+#[test]
+fn track_smooths_a_noisier_sensors_frames_for_their_measured_noise() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let mut sensor = sl_core::SensorModel::kinect_v1();
+    sensor.sigma_d_px = 0.2;
+    write_sequence_through(&seq, 4, 1, &KinectSimulator::with_sensor(sensor));
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "track",
+            "--tum",
+            seq.to_str().unwrap(),
+            "--camera",
+            "kinect-v1",
+            "--voxel-m",
+            "0.01",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        sldepth_json(&args).0
+    };
+    let measured = run(&[]);
+    assert_eq!(measured["lost"], 0, "{measured}");
+    let scale = measured["noise_scale_median"].as_f64().unwrap();
+    let sigma = measured["prefilter_sigma_d_px_median"].as_f64().unwrap();
+    // (0.2² + 1/768) / (0.07² + 1/768) = 6.7.
+    assert!((4.0..9.0).contains(&scale), "{measured}");
+    assert!((0.15..0.25).contains(&sigma), "{measured}");
+    let model = run(&["--model-noise-only"]);
+    assert_eq!(model["prefilter_sigma_d_px_median"].as_f64(), Some(0.07));
+    let none = run(&["--prefilter", "none"]);
+    assert!(none["prefilter_sigma_d_px_median"].is_null(), "{none}");
 }
 
 /// A camera carried to another place while tracking was lost: four frames of `boxes`, then

@@ -425,6 +425,10 @@ class Tracker:
         """The last raw frame's disparity-error variance over the camera's model (1: within
         it); the frame was tracked with that noise."""
     @property
+    def last_prefilter_sigma_d_px(self) -> Optional[float]:
+        """The sigma_D, disparity pixels, the last frame was smoothed for before tracking: the
+        camera's, or a noisier raw frame's measured one; None with prefilter="none" or before any frame."""
+    @property
     def last_weakest_sigma_m(self) -> float:
         """The last frame's pose sigma along its least-constrained direction, metres (inf: a single plane)."""
     @property

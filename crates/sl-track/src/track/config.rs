@@ -125,7 +125,10 @@ pub struct TrackerConfig {
     /// camera says otherwise has a third of its residuals gated out and its poses'
     /// uncertainty understated: simulated rooms at σ_D 0.2 px behind the Kinect's 0.07 kept
     /// steps 27 mm off with a reported σ of 5 mm (docs/bench/track.md, session 49). Costs one
-    /// pass over the frame's 4×4-pixel cells.
+    /// pass over the frame's 4×4-pixel cells. Off: the frame is tracked with the camera's model
+    /// alone, its planes (degenerate-view checks, plane fallback) extracted with
+    /// `sl_planes::PlaneConfig::estimate_noise` off too (on, their extractor is given the
+    /// frame's raised `σ_D` and measures the level against it, as every extractor does).
     pub estimate_noise: bool,
     /// Width of the window over which a structured-light camera's depth error is correlated,
     /// pixels of the sensor (the block-matching window: 9 × 11 px fitted on real Kinect frames,

@@ -109,6 +109,9 @@ impl StructureCheck {
                 // The correlation window of the sensor's error in sensor pixels at this level's
                 // scale (the extractor converts it to the level's pixels with the camera below).
                 let mut pc = PlaneConfig::default();
+                // With the tracker's `estimate_noise` off the planes keep the camera's model
+                // too; on, the level's camera below carries the frame's measured noise.
+                pc.estimate_noise = cfg.estimate_noise;
                 pc.noise_window_x_px = (cfg.noise_window_x_px / scale).max(1.0);
                 pc.noise_window_y_px = (cfg.noise_window_y_px / scale).max(1.0);
                 self.extractor.insert(PlaneExtractor::new(pc)?)

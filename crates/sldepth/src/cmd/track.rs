@@ -122,7 +122,8 @@ pub struct Args {
     /// filter of `sldepth filter`, which removes the spatially correlated error of real
     /// sensors; on 7-Scenes it lowers the frame-to-frame ATE from 1.30 to 0.73 cm, elsewhere
     /// the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
-    /// pass) or `none`.
+    /// pass) or `none`. The range kernel follows each raw frame's measured noise (see
+    /// `--model-noise-only`).
     #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
     pub prefilter: String,
     #[command(flatten)]
@@ -148,10 +149,10 @@ pub struct Args {
     pub no_plane_fallback: bool,
     /// Track every frame with the camera's noise model as given. By default each raw frame's
     /// disparity noise is measured on its own 16×16- and 32×32-pixel patches (before the prefilter) and,
-    /// when it is significantly larger than the model's, the frame is tracked with it (its
-    /// weights, gates and degenerate-view checks): a sensor noisier than its preset or camera
-    /// JSON says is otherwise tracked with its uncertainty understated. The camera's σ_D is a
-    /// floor.
+    /// when it is significantly larger than the model's, the frame is smoothed and tracked
+    /// with it (the prefilter's range kernel, the tracker's weights, gates and degenerate-view
+    /// checks): a sensor noisier than its preset or camera JSON says is otherwise smoothed too
+    /// little and tracked with its uncertainty understated. The camera's σ_D is a floor.
     #[arg(long)]
     pub model_noise_only: bool,
     /// Instruction set of the tracker's and the fusion's inner loops, for benchmarks:
@@ -451,17 +452,28 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
 }
 
 /// The smoothing applied to every frame before tracking and fusion (`--prefilter`).
+#[derive(Clone, Copy)]
 enum Prefilter {
-    Multi(sl_filter::MultiScale),
-    Single(sl_filter::DepthFilter),
+    Multi,
+    Single,
     None,
 }
 
 impl Prefilter {
-    fn apply(&self, depth: sl_core::DepthImage) -> Result<sl_core::DepthImage> {
+    /// Smooths `depth` with the filter of `sensor` (the camera's model with σ_D raised to the
+    /// frame's measured noise: a noisier frame gets the range kernel of its own noise, as
+    /// `sldepth filter` does).
+    fn apply(
+        self,
+        depth: sl_core::DepthImage,
+        sensor: &sl_core::SensorModel,
+    ) -> Result<sl_core::DepthImage> {
         Ok(match self {
-            Prefilter::Multi(m) => m.apply(&depth)?,
-            Prefilter::Single(f) => f.apply(&depth)?,
+            Prefilter::Multi => sl_filter::MultiScale::default_for(sensor).apply(&depth)?,
+            Prefilter::Single => {
+                sl_filter::DepthFilter::default_for(sl_filter::Method::Adaptive, sensor)
+                    .apply(&depth)?
+            }
             Prefilter::None => depth,
         })
     }
@@ -531,11 +543,8 @@ pub fn run(args: Args) -> Result<()> {
     };
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let prefilter = match args.prefilter.as_str() {
-        "multiscale" => Prefilter::Multi(sl_filter::MultiScale::default_for(&camera.sensor)),
-        "single" => Prefilter::Single(sl_filter::DepthFilter::default_for(
-            sl_filter::Method::Adaptive,
-            &camera.sensor,
-        )),
+        "multiscale" => Prefilter::Multi,
+        "single" => Prefilter::Single,
         _ => Prefilter::None,
     };
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
@@ -573,6 +582,8 @@ pub fn run(args: Args) -> Result<()> {
     // The raw frames' noise against the camera's model (the prefilter hides it).
     let mut noise_meter = (!args.model_noise_only).then(|| cfg.tracker.noise_meter());
     let mut noise_scales = Vec::new();
+    // The σ_D each frame was smoothed for (the prefilter follows the measured noise).
+    let mut prefilter_sigmas = Vec::new();
     let mut rec = Reconstruction::new(camera, cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
@@ -610,15 +621,21 @@ pub fn run(args: Args) -> Result<()> {
                 Some(u) => Ok(u.apply(&d)?),
                 None => Ok(d),
             })
-            .inspect(|d| {
-                if let Some(m) = noise_meter.as_mut() {
-                    let s = m.measure(d, &camera).ok();
-                    noise_scales.extend(s);
-                    rec.set_noise_scale(s);
-                }
+            .map(|d| {
+                let scale = noise_meter
+                    .as_mut()
+                    .and_then(|m| m.measure(&d, &camera).ok());
+                noise_scales.extend(scale);
+                rec.set_noise_scale(scale);
+                (d, scale.unwrap_or(1.0))
             })
-            .and_then(|d| prefilter.apply(d))
-        {
+            .and_then(|(d, scale)| {
+                let sensor = camera.sensor.with_variance_scale(scale);
+                if !matches!(prefilter, Prefilter::None) {
+                    prefilter_sigmas.push(sensor.sigma_d_px);
+                }
+                prefilter.apply(d, &sensor)
+            }) {
             Ok(d) => d,
             Err(e) => {
                 errln!(
@@ -763,6 +780,10 @@ pub fn run(args: Args) -> Result<()> {
             "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
             "reference": if args.frame_to_frame { "frame" } else { "model" },
             "prefilter": args.prefilter,
+            // The median σ_D, disparity pixels, the frames were smoothed for: the camera's, or
+            // a noisier frame's measured one (null without a prefilter).
+            "prefilter_sigma_d_px_median": (!prefilter_sigmas.is_empty())
+                .then(|| round_to(median(&prefilter_sigmas), 4)),
             "undistorted": undistort.is_some(),
             "rolling_shutter_ms": round_to(cfg.tracker.rolling_shutter_readout_s * 1e3, 3),
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
