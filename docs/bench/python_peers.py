@@ -194,6 +194,11 @@ def bench_tsdf(data, rounds, max_frames=20):
             t0 = time.perf_counter()
             omesh = ovol.extract_triangle_mesh()
             o3d_mc = (time.perf_counter() - t0) * 1e3
+            if len(omesh.vertices) == 0:
+                # A peer that fused nothing (the PyPI open3d 0.20 wheel, see above) has no time
+                # worth comparing: say so instead of printing a ratio.
+                sys.exit(f"Open3D {o3d.__version__} integrated nothing on {name} (0 vertices): "
+                         "install open3d-cpu==0.19.0 to compare TSDF times")
             rows.append(dict(sequence=name, frames=len(zs), ours_integrate_ms=statistics.median(t),
                              peer_integrate_ms=statistics.median(ot),
                              integrate_ratio=statistics.median(t) / statistics.median(ot),
