@@ -26,6 +26,23 @@ fn sldepth_json(args: &[&str]) -> (serde_json::Value, String) {
     (serde_json::from_slice(&out.stdout).unwrap(), stderr)
 }
 
+/// `sldepth track --tum SEQ --camera kinect-v1 --voxel-m 0.01 EXTRA --json`, which must
+/// succeed: its JSON summary.
+fn kinect_track_json(seq: &Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.01",
+    ];
+    args.extend_from_slice(extra);
+    args.push("--json");
+    sldepth_json(&args).0
+}
+
 /// The pose lines of a TUM trajectory file (comment lines skipped), as numbers.
 fn pose_rows(path: &Path) -> Vec<Vec<f64>> {
     std::fs::read_to_string(path)
@@ -198,20 +215,7 @@ fn track_smooths_a_noisier_sensors_frames_for_their_measured_noise() {
     let mut sensor = sl_core::SensorModel::kinect_v1();
     sensor.sigma_d_px = 0.2;
     write_sequence_through(&seq, 4, 1, &KinectSimulator::with_sensor(sensor));
-    let run = |extra: &[&str]| {
-        let mut args = vec![
-            "track",
-            "--tum",
-            seq.to_str().unwrap(),
-            "--camera",
-            "kinect-v1",
-            "--voxel-m",
-            "0.01",
-            "--json",
-        ];
-        args.extend_from_slice(extra);
-        sldepth_json(&args).0
-    };
+    let run = |extra: &[&str]| kinect_track_json(&seq, extra);
     let measured = run(&[]);
     assert_eq!(measured["lost"], 0, "{measured}");
     let scale = measured["noise_scale_median"].as_f64().unwrap();
@@ -300,19 +304,7 @@ fn track_goes_on_in_a_new_fragment_and_writes_it_beside_the_first() {
         );
     }
     // `inf` never starts a fragment: the second place is lost.
-    let out = sldepth(&[
-        "track",
-        "--tum",
-        seq.to_str().unwrap(),
-        "--camera",
-        "kinect-v1",
-        "--voxel-m",
-        "0.01",
-        "--new-fragment-after-s",
-        "inf",
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let v = kinect_track_json(&seq, &["--new-fragment-after-s", "inf"]);
     assert_eq!(
         (v["lost"].as_u64(), v["fragments"].as_array().map(Vec::len)),
         (Some(4), Some(1))
