@@ -27,8 +27,8 @@ fn sldepth_json(args: &[&str]) -> (serde_json::Value, String) {
 }
 
 /// `sldepth track --tum SEQ --camera kinect-v1 --voxel-m 0.01 EXTRA --json`, which must
-/// succeed: its JSON summary.
-fn kinect_track_json(seq: &Path, extra: &[&str]) -> serde_json::Value {
+/// succeed: its JSON summary and its standard error.
+fn kinect_track_json(seq: &Path, extra: &[&str]) -> (serde_json::Value, String) {
     let mut args = vec![
         "track",
         "--tum",
@@ -40,7 +40,7 @@ fn kinect_track_json(seq: &Path, extra: &[&str]) -> serde_json::Value {
     ];
     args.extend_from_slice(extra);
     args.push("--json");
-    sldepth_json(&args).0
+    sldepth_json(&args)
 }
 
 /// The pose lines of a TUM trajectory file (comment lines skipped), as numbers.
@@ -215,7 +215,7 @@ fn track_smooths_a_noisier_sensors_frames_for_their_measured_noise() {
     let mut sensor = sl_core::SensorModel::kinect_v1();
     sensor.sigma_d_px = 0.2;
     write_sequence_through(&seq, 4, 1, &KinectSimulator::with_sensor(sensor));
-    let run = |extra: &[&str]| kinect_track_json(&seq, extra);
+    let run = |extra: &[&str]| kinect_track_json(&seq, extra).0;
     let measured = run(&[]);
     assert_eq!(measured["lost"], 0, "{measured}");
     let scale = measured["noise_scale_median"].as_f64().unwrap();
@@ -304,7 +304,7 @@ fn track_goes_on_in_a_new_fragment_and_writes_it_beside_the_first() {
         );
     }
     // `inf` never starts a fragment: the second place is lost.
-    let v = kinect_track_json(&seq, &["--new-fragment-after-s", "inf"]);
+    let (v, _) = kinect_track_json(&seq, &["--new-fragment-after-s", "inf"]);
     assert_eq!(
         (v["lost"].as_u64(), v["fragments"].as_array().map(Vec::len)),
         (Some(4), Some(1))
@@ -329,26 +329,9 @@ fn track_skips_a_missing_frame_and_rejects_unordered_timestamps() {
     list.push_str("200.000000 depth/missing.png\n");
     std::fs::write(seq.join("depth.txt"), &list).unwrap();
     let traj = tmp.path().join("traj.txt");
-    let out = sldepth(&[
-        "track",
-        "--tum",
-        seq.to_str().unwrap(),
-        "--camera",
-        "kinect-v1",
-        "--voxel-m",
-        "0.01",
-        "--output",
-        traj.to_str().unwrap(),
-        "--json",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let (v, stderr) = kinect_track_json(&seq, &["--output", traj.to_str().unwrap()]);
     assert_eq!(v["skipped"], 1);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("missing.png"));
+    assert!(stderr.contains("missing.png"));
     let text = std::fs::read_to_string(&traj).unwrap();
     assert!(text.lines().any(|l| l.starts_with("# 200.000000 skipped")));
     // Timestamps out of order: a clear error naming the line, no output.
