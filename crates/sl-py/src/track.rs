@@ -53,7 +53,9 @@ fn prefilter_named(name: &str, sensor: &SensorModel) -> PyResult<Option<MultiSca
 /// ``Tracker`` aligns frames to the model it is building, but nothing is fused. The first frame
 /// is anchored at ``start_pose`` ((4, 4) camera-to-world). Returns one ``(pose, status)`` per
 /// frame, as ``Tracker.track`` does. ``weighting``, ``prefilter`` and ``model_scale`` as for
-/// ``Tracker``; frames are used as given otherwise (undistort them first with ``undistort``
+/// ``Tracker``; each raw frame's noise is measured against the camera's model before the
+/// prefilter, which then smooths it, and the tracker weighs it, for that noise (as ``Tracker``
+/// with ``estimate_noise=True``); frames are used as given otherwise (undistort them first with ``undistort``
 /// for a camera with a lens model). With a map fused at a data set's reference poses, the
 /// distance of the tracked poses from those poses is how far the reference is from the poses
 /// that align its frames: 7-Scenes' KinectFusion poses about 5 mm ATE, the floor of any depth
@@ -74,7 +76,7 @@ pub(crate) fn track_in_map<'py>(
 ) -> PyResult<Vec<TrackedFrame<'py>>> {
     let camera = camera.inner;
     let start = crate::arrays::pose_input(start_pose)?;
-    let prefilter = prefilter_named(prefilter, &camera.sensor)?;
+    prefilter_named(prefilter, &camera.sensor)?;
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
     let (min_depth_m, max_depth_m) =
@@ -92,16 +94,24 @@ pub(crate) fn track_in_map<'py>(
         check_camera(&view, &camera)?;
         views.push(view);
     }
+    let mut meter = cfg.tracker.noise_meter();
     let results = volume
         .read(py, |map| -> Result<_, String> {
-            let depths = views
-                .iter()
-                .map(|v| match &prefilter {
-                    Some(f) => f.apply(*v).map_err(|e| e.to_string()),
-                    None => Ok(v.to_image()),
-                })
-                .collect::<Result<Vec<_>, String>>()?;
-            sl_track::track_in_map(camera, &cfg, map, start, &depths).map_err(|e| e.to_string())
+            // Each raw frame's noise against the camera's model (the prefilter hides it): the
+            // frame is smoothed and tracked with it, as `Tracker.track` does.
+            let mut frames = Vec::with_capacity(views.len());
+            for v in &views {
+                let scale = meter.measure(*v, &camera).map_err(|e| e.to_string())?;
+                let sensor = camera.sensor.with_variance_scale(scale);
+                let depth = match prefilter_for(prefilter, &sensor)? {
+                    Some(f) => f.apply(*v).map_err(|e| e.to_string())?,
+                    None => v.to_image(),
+                };
+                frames.push((depth, Some(scale)));
+            }
+            let frames = frames.iter().map(|(d, s)| (d, *s));
+            sl_track::track_in_map_with_noise(camera, &cfg, map, start, frames)
+                .map_err(|e| e.to_string())
         })?
         .map_err(value_error)?;
     results

@@ -31,11 +31,35 @@ pub fn track_in_map<'a>(
     start: CameraToWorld,
     frames: impl IntoIterator<Item = &'a DepthImage>,
 ) -> Result<Vec<FrameResult>> {
+    track_in_map_with_noise(
+        camera,
+        cfg,
+        map,
+        start,
+        frames.into_iter().map(|d| (d, None)),
+    )
+}
+
+/// [`track_in_map`] with each frame's noise scale measured by the caller on the raw frame
+/// (`Some`, [`Tracker::set_noise_scale`]): frames smoothed before tracking no longer show their
+/// sensor's noise, so a caller that prefilters measures them first, as `sldepth track` does.
+/// `None` lets the tracker measure the frame given (with `cfg.tracker.estimate_noise`).
+///
+/// # Errors
+/// As [`track_in_map`].
+pub fn track_in_map_with_noise<'a>(
+    camera: Camera,
+    cfg: &ReconstructionConfig,
+    map: &TsdfVolume,
+    start: CameraToWorld,
+    frames: impl IntoIterator<Item = (&'a DepthImage, Option<f64>)>,
+) -> Result<Vec<FrameResult>> {
     let mut model = cfg.model_reference(&camera)?;
     let mut tracker = Tracker::new(camera, cfg.tracker)?;
     tracker.set_initial_pose(start);
     let mut out = Vec::new();
-    for (i, depth) in frames.into_iter().enumerate() {
+    for (i, (depth, noise_scale)) in frames.into_iter().enumerate() {
+        tracker.set_noise_scale(noise_scale);
         let result = if i == 0 {
             tracker.track(depth, None)?
         } else {

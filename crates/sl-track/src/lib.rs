@@ -76,7 +76,7 @@ mod verify;
 
 pub use depth_motion::{DepthMotion, DepthMotionConfig, motion_between_depths};
 pub use error::{Result, TrackError};
-pub use in_map::track_in_map;
+pub use in_map::{track_in_map, track_in_map_with_noise};
 pub use motion::{
     ICP_INLIER_TOLERANCE, ICP_LOSS_Z, IcpConfig, IcpOutcome, IcpRejection, IcpResult,
     MotionConfidence, MotionConfig, MotionFrame, PlaneMatch, PlaneMotion, Verification,
