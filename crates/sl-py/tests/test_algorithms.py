@@ -594,6 +594,17 @@ def test_track_in_map_anchors_at_the_start_and_fuses_nothing(kinect):
         assert np.abs(pose[:3, 3] - start[:3, 3]).max() < 0.002
         assert np.allclose(pose[:3, :3], np.eye(3), atol=1e-3)
     assert len(vol.extract_mesh()) == before
+    # Frames of a sensor three times noisier than the camera says (sigma_D 0.2 px): each raw
+    # frame's noise is measured, the frame smoothed and tracked for it; they stay at P too.
+    noisier = sldepth.Camera(
+        kinect.width, kinect.height, kinect.fx, kinect.fy, kinect.cx, kinect.cy,
+        baseline_m=kinect.baseline_m, subpixel=kinect.subpixel, sigma_d_px=0.2,
+    )
+    noisy = [sldepth.simulate("boxes", seed=s, camera=noisier)[0] for s in (6, 7, 8)]
+    for pose, status in sldepth.track_in_map(vol, kinect, noisy, start):
+        assert status in ("initialised", "tracked"), status
+        assert np.abs(pose[:3, 3] - start[:3, 3]).max() < 0.003
+        assert np.allclose(pose[:3, :3], np.eye(3), atol=3e-3)
     assert sldepth.track_in_map(vol, kinect, [], start) == []
     with pytest.raises(ValueError):
         sldepth.track_in_map(vol, kinect, [frames[0][:, :100]], start)
