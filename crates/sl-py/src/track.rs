@@ -22,27 +22,41 @@ type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 /// A tracked frame as Python sees it: (4×4 camera-to-world pose, status).
 type TrackedFrame<'py> = (Bound<'py, PyArray2<f64>>, &'static str);
 
-/// The prefilter of `sldepth track --prefilter NAME` for `sensor` (the camera's model, or it
-/// with σ_D raised to a frame's measured noise).
-fn prefilter_for(name: &str, sensor: &SensorModel) -> Result<Option<MultiScale>, String> {
-    let default = MultiScale::default_for(sensor);
-    match name {
-        "multiscale" => Ok(Some(default)),
-        // The single pass is the multi-scale filter without its coarse passes.
-        "single" => Ok(Some(MultiScale {
-            dilations: Vec::new(),
-            ..default
-        })),
-        "none" => Ok(None),
-        other => Err(format!(
-            "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
-        )),
-    }
+/// The smoothing of every frame before tracking, `sldepth track --prefilter NAME`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Prefilter {
+    Multiscale,
+    Single,
+    Off,
 }
 
-/// [`prefilter_for`], its error as Python's `ValueError`.
-fn prefilter_named(name: &str, sensor: &SensorModel) -> PyResult<Option<MultiScale>> {
-    prefilter_for(name, sensor).map_err(value_error)
+impl Prefilter {
+    /// The prefilter named `name` (`"multiscale"`, `"single"` or `"none"`).
+    fn parse(name: &str) -> PyResult<Self> {
+        match name {
+            "multiscale" => Ok(Self::Multiscale),
+            "single" => Ok(Self::Single),
+            "none" => Ok(Self::Off),
+            other => Err(value_error(format!(
+                "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
+            ))),
+        }
+    }
+
+    /// The filter for `sensor` (the camera's model, or it with σ_D raised to a frame's measured
+    /// noise); `None` when off.
+    fn for_sensor(self, sensor: &SensorModel) -> Option<MultiScale> {
+        let default = MultiScale::default_for(sensor);
+        match self {
+            Self::Multiscale => Some(default),
+            // The single pass is the multi-scale filter without its coarse passes.
+            Self::Single => Some(MultiScale {
+                dilations: Vec::new(),
+                ..default
+            }),
+            Self::Off => None,
+        }
+    }
 }
 
 /// Tracks a sequence of depth frames (a list of float32 metre arrays, or uint16 with
@@ -76,7 +90,7 @@ pub(crate) fn track_in_map<'py>(
 ) -> PyResult<Vec<TrackedFrame<'py>>> {
     let camera = camera.inner;
     let start = crate::arrays::pose_input(start_pose)?;
-    prefilter_named(prefilter, &camera.sensor)?;
+    let prefilter = Prefilter::parse(prefilter)?;
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
     let (min_depth_m, max_depth_m) =
@@ -103,7 +117,7 @@ pub(crate) fn track_in_map<'py>(
             for v in &views {
                 let scale = meter.measure(*v, &camera).map_err(|e| e.to_string())?;
                 let sensor = camera.sensor.with_variance_scale(scale);
-                let depth = match prefilter_for(prefilter, &sensor)? {
+                let depth = match prefilter.for_sensor(&sensor) {
                     Some(f) => f.apply(*v).map_err(|e| e.to_string())?,
                     None => v.to_image(),
                 };
@@ -164,9 +178,8 @@ pub struct PyTracker {
 #[derive(Debug)]
 struct TrackerState {
     rec: Reconstruction,
-    /// The `prefilter` name (checked by [`prefilter_named`] when the tracker was made): each
-    /// frame is smoothed with the filter of its measured noise.
-    prefilter: String,
+    /// Each frame is smoothed with this prefilter for its measured noise.
+    prefilter: Prefilter,
     undistorter: Option<Undistorter>,
     /// Why the last frame was lost (or its attempts failed before a recovery).
     last_failure: Option<String>,
@@ -176,8 +189,6 @@ struct TrackerState {
     noise_meter: Option<sl_planes::NoiseMeter>,
     /// The last raw frame's pixel variance over the model's (1 within it or not measured).
     last_noise_scale: f64,
-    /// The σ_D, disparity pixels, the last frame was smoothed for (`None`: no prefilter).
-    last_prefilter_sigma_d_px: Option<f64>,
     /// The meshes of the finished fragments, by index (`None`: not finished).
     finished: Vec<Option<Mesh>>,
     /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
@@ -237,8 +248,7 @@ impl PyTracker {
             }
         };
         let camera = camera.inner;
-        prefilter_named(prefilter, &camera.sensor)?;
-        let prefilter = prefilter.to_owned();
+        let prefilter = Prefilter::parse(prefilter)?;
         let mut cfg = ReconstructionConfig::default_for(camera.sensor);
         cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
         cfg.tsdf.voxel_m = voxel_m;
@@ -260,7 +270,6 @@ impl PyTracker {
                 last_weakest_sigma_m: f64::NAN,
                 noise_meter,
                 last_noise_scale: 1.0,
-                last_prefilter_sigma_d_px: None,
                 finished: Vec::new(),
                 joins: Vec::new(),
                 frame_fragments: Vec::new(),
@@ -292,7 +301,6 @@ impl PyTracker {
                 undistorter,
                 noise_meter,
                 last_noise_scale,
-                last_prefilter_sigma_d_px,
                 ..
             } = &mut *guard;
             let undistorted = match undistorter {
@@ -308,9 +316,7 @@ impl PyTracker {
             }
             // The prefilter's range kernel follows the frame's measured noise.
             let sensor = self.camera.sensor.with_variance_scale(*last_noise_scale);
-            let filter = prefilter_for(prefilter, &sensor)?;
-            *last_prefilter_sigma_d_px = filter.as_ref().map(|_| sensor.sigma_d_px);
-            let depth = match filter {
+            let depth = match prefilter.for_sensor(&sensor) {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
             };
@@ -385,7 +391,11 @@ impl PyTracker {
     /// ``prefilter="none"`` or before any frame.
     #[getter]
     fn last_prefilter_sigma_d_px(&self, py: Python<'_>) -> PyResult<Option<f64>> {
-        self.with_state(py, |s| s.last_prefilter_sigma_d_px)
+        let sensor = self.camera.sensor;
+        self.with_state(py, move |s| {
+            (s.prefilter != Prefilter::Off && !s.frame_fragments.is_empty())
+                .then(|| sensor.sigma_d_for_variance_scale(s.last_noise_scale))
+        })
     }
 
     /// The index of the current fragment: 0 until tracking stays lost for

@@ -64,7 +64,6 @@ fn main() {
         .iter()
         .enumerate()
         .filter(|(i, _)| *i == 0 || (args[i - 1] != "--jitter" && args[i - 1] != "--sim-sigma-d"))
-        .filter(|(_, a)| !matches!(a.as_str(), "camera" | "measured"))
         .filter_map(|(_, a)| a.parse().ok())
         .collect();
     let first = numbers.first().copied().unwrap_or(3000);
