@@ -149,6 +149,7 @@ pub mod error;
 pub mod filter;
 mod kernel;
 pub mod multiscale;
+pub mod prefilter;
 pub mod reference;
 mod weight;
 
@@ -161,6 +162,7 @@ pub use filter::{
 };
 pub use kernel::Isa;
 pub use multiscale::{MultiScale, multiscale_by_default};
+pub use prefilter::Prefilter;
 
 /// Number of threads the filters use when called outside a custom rayon pool.
 pub fn current_threads() -> usize {

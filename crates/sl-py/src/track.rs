@@ -5,8 +5,8 @@ use numpy::PyArray2;
 use std::sync::Mutex;
 
 use pyo3::prelude::*;
-use sl_core::{Camera, SensorModel, Undistorter};
-use sl_filter::MultiScale;
+use sl_core::{Camera, Undistorter};
+use sl_filter::Prefilter;
 use sl_track::{Reconstruction, ReconstructionConfig, WeightMode};
 use sl_tsdf::{Mesh, MeshConfig};
 
@@ -22,41 +22,10 @@ type Join<'py> = (usize, usize, Bound<'py, PyArray2<f64>>);
 /// A tracked frame as Python sees it: (4×4 camera-to-world pose, status).
 type TrackedFrame<'py> = (Bound<'py, PyArray2<f64>>, &'static str);
 
-/// The smoothing of every frame before tracking, `sldepth track --prefilter NAME`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Prefilter {
-    Multiscale,
-    Single,
-    Off,
-}
-
-impl Prefilter {
-    /// The prefilter named `name` (`"multiscale"`, `"single"` or `"none"`).
-    fn parse(name: &str) -> PyResult<Self> {
-        match name {
-            "multiscale" => Ok(Self::Multiscale),
-            "single" => Ok(Self::Single),
-            "none" => Ok(Self::Off),
-            other => Err(value_error(format!(
-                "unknown prefilter {other:?}: use \"multiscale\", \"single\" or \"none\""
-            ))),
-        }
-    }
-
-    /// The filter for `sensor` (the camera's model, or it with σ_D raised to a frame's measured
-    /// noise); `None` when off.
-    fn for_sensor(self, sensor: &SensorModel) -> Option<MultiScale> {
-        let default = MultiScale::default_for(sensor);
-        match self {
-            Self::Multiscale => Some(default),
-            // The single pass is the multi-scale filter without its coarse passes.
-            Self::Single => Some(MultiScale {
-                dilations: Vec::new(),
-                ..default
-            }),
-            Self::Off => None,
-        }
-    }
+/// The prefilter named `name` (`"multiscale"`, `"single"` or `"none"`; the names and filters
+/// of `sldepth track --prefilter`, one `sl_filter::Prefilter` for both).
+fn parse_prefilter(name: &str) -> PyResult<Prefilter> {
+    name.parse().map_err(value_error)
 }
 
 /// Tracks a sequence of depth frames (a list of float32 metre arrays, or uint16 with
@@ -90,7 +59,7 @@ pub(crate) fn track_in_map<'py>(
 ) -> PyResult<Vec<TrackedFrame<'py>>> {
     let camera = camera.inner;
     let start = crate::arrays::pose_input(start_pose)?;
-    let prefilter = Prefilter::parse(prefilter)?;
+    let prefilter = parse_prefilter(prefilter)?;
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
     let (min_depth_m, max_depth_m) =
@@ -117,7 +86,7 @@ pub(crate) fn track_in_map<'py>(
             for v in &views {
                 let scale = meter.measure(*v, &camera).map_err(|e| e.to_string())?;
                 let sensor = camera.sensor.with_variance_scale(scale);
-                let depth = match prefilter.for_sensor(&sensor) {
+                let depth = match prefilter.filter_for(&sensor) {
                     Some(f) => f.apply(*v).map_err(|e| e.to_string())?,
                     None => v.to_image(),
                 };
@@ -248,7 +217,7 @@ impl PyTracker {
             }
         };
         let camera = camera.inner;
-        let prefilter = Prefilter::parse(prefilter)?;
+        let prefilter = parse_prefilter(prefilter)?;
         let mut cfg = ReconstructionConfig::default_for(camera.sensor);
         cfg.tracker.weighting = WeightMode::parse(weighting).map_err(value_error)?;
         cfg.tsdf.voxel_m = voxel_m;
@@ -316,7 +285,7 @@ impl PyTracker {
             }
             // The prefilter's range kernel follows the frame's measured noise.
             let sensor = self.camera.sensor.with_variance_scale(*last_noise_scale);
-            let depth = match prefilter.for_sensor(&sensor) {
+            let depth = match prefilter.filter_for(&sensor) {
                 Some(f) => f.apply(view).map_err(|e| e.to_string())?,
                 None => view.to_image(),
             };

@@ -6,15 +6,17 @@
 //!
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
-//!     [--white | --exact] [--no-prefilter] [--frame-to-frame] [--resample=F] [--max-depth=M] \
-//!     [--bilinear] [--per-frame] [CAMERAS] [SCENES]
+//!     [--white | --exact] [--no-prefilter] [--model-noise-only] [--frame-to-frame] \
+//!     [--resample=F] [--max-depth=M] [--bilinear] [--per-frame] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
 //! `kinect-v1,primesense,d435,d415,oak-d` and `boxes,figure-walls,corridor`). Each sequence is 30
-//! frames of a camera turning 1° and moving 1 cm per frame, seeded; every frame goes through the
-//! multi-scale filter first (as `sldepth track` and Python's `Tracker` do by default) unless
-//! `--no-prefilter`. Errors are relative to the first frame the tracker anchored its model on
+//! frames of a camera turning 1° and moving 1 cm per frame, seeded; every raw frame's noise is
+//! measured against the camera's model and handed to the tracker, and the frame goes through
+//! the default prefilter for that noise (as `sldepth track` and Python's `Tracker` do by
+//! default) unless `--no-prefilter`; `--model-noise-only` keeps the camera's model (no
+//! measurement). Errors are relative to the first frame the tracker anchored its model on
 //! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
 //! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
 //! `--max-depth=M` fuses and renders the model up to `M` metres (default 4: the corridor's end
@@ -26,7 +28,7 @@
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera};
-use sl_filter::MultiScale;
+use sl_filter::Prefilter;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, named_scene};
 use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus};
 
@@ -37,6 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let flag = |f: &str| args.iter().any(|a| a == f);
     let exact = flag("--exact");
+    let measure = !flag("--model-noise-only");
     let (white, prefilter, frame_to_model, per_frame) = (
         flag("--white"),
         !flag("--no-prefilter"),
@@ -89,7 +92,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } else {
             NoiseModel::Realistic(noise)
         });
-        let filter = MultiScale::default_for(&camera.sensor);
         for scene_name in scenes.split(',') {
             let scene = named_scene(scene_name)?;
             let mut cfg = ReconstructionConfig::default_for(camera.sensor);
@@ -101,6 +103,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 cfg.tsdf.depth_lookup = sl_tsdf::DepthLookup::Bilinear;
             }
             let dt = cfg.tracker.frame_interval_s;
+            let mut meter = measure.then(|| cfg.tracker.noise_meter());
             let mut rec = Reconstruction::new(camera, cfg)?;
             let (mut pose, mut anchor) = (scene.pose, None);
             let (mut lost, mut fragments, mut worst) = (0, 0, (0.0f64, 0.0f64));
@@ -112,7 +115,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 } else {
                     sim.apply(&truth, 100 + i as u64)
                 };
-                if prefilter {
+                // As `sldepth track`: the raw frame's noise against the camera's model (the
+                // prefilter hides it), for the tracker and the prefilter's range kernel.
+                let scale = match meter.as_mut() {
+                    Some(m) => Some(m.measure(&depth, &camera)?),
+                    None => None,
+                };
+                rec.set_noise_scale(scale);
+                let sensor = camera.sensor.with_variance_scale(scale.unwrap_or(1.0));
+                if let (true, Some(filter)) = (prefilter, Prefilter::default().filter_for(&sensor))
+                {
                     depth = filter.apply(&depth)?;
                 }
                 let s = rec.step(&depth, Some(i as f64 * dt))?;

@@ -124,9 +124,8 @@ fn main() {
                     } else {
                         cam.sensor
                     };
-                    sl_filter::MultiScale::default_for(&sensor)
-                        .apply(&d)
-                        .unwrap()
+                    let filter = sl_filter::Prefilter::default().filter_for(&sensor).unwrap();
+                    filter.apply(&d).unwrap()
                 }
             };
             let r = tracker.track(&d, model).unwrap();

@@ -655,3 +655,62 @@ fn fuse_band_follows_the_first_frames_own_noise() {
     let nominal = fused(&list("0.07"), &[]);
     assert_eq!(nominal["noise_scale"].as_f64(), Some(1.0));
 }
+
+/// `fuse --prefilter` takes the names `track --prefilter` takes: `none` is the default, a bare
+/// `--prefilter` is the single adaptive pass (its meaning before it took a name), and
+/// `multiscale` adds the coarse passes, which change the mesh.
+#[test]
+fn fuse_prefilter_names_the_filters_track_uses() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let identity = "1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1";
+    let mut text = String::new();
+    for seed in 0..2 {
+        let p = simulated(
+            dir.path(),
+            &format!("walls-{seed}.png"),
+            "figure-walls",
+            &["--seed", &seed.to_string()],
+        );
+        text.push_str(&format!("{} {identity}\n", p.display()));
+    }
+    let list = dir.path().join("frames.txt");
+    std::fs::write(&list, text).unwrap_or_else(|e| panic!("{e}"));
+    let fused = |name: &str, extra: &[&str]| {
+        let ply = dir.path().join(format!("{name}.ply"));
+        let args = [
+            "fuse",
+            "--frames",
+            path_str(&list),
+            "--voxel-m",
+            "0.01",
+            "-o",
+            path_str(&ply),
+        ];
+        // The flag goes before `--json`, so a bare `--prefilter` is followed by an option.
+        let v = json_of_run(&[&args[..], extra].concat(), &["--json"]);
+        let bytes = std::fs::read(&ply).unwrap_or_else(|e| panic!("{}: {e}", ply.display()));
+        (v, bytes)
+    };
+    let (default, default_ply) = fused("default", &[]);
+    let (none, none_ply) = fused("none", &["--prefilter", "none"]);
+    let (bare, bare_ply) = fused("bare", &["--prefilter"]);
+    let (single, single_ply) = fused("single", &["--prefilter", "single"]);
+    let (multi, multi_ply) = fused("multi", &["--prefilter", "multiscale"]);
+    for (v, name) in [
+        (&default, "none"),
+        (&none, "none"),
+        (&bare, "single"),
+        (&single, "single"),
+        (&multi, "multiscale"),
+    ] {
+        assert_eq!(v["prefilter"].as_str(), Some(name), "{v}");
+    }
+    assert_eq!(default_ply, none_ply);
+    assert_eq!(bare_ply, single_ply);
+    assert_ne!(single_ply, none_ply);
+    assert_ne!(multi_ply, single_ply);
+    let o = sldepth(&["fuse", "--frames", path_str(&list), "--prefilter", "median"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("multiscale, single, none"), "{err}");
+}

@@ -8,6 +8,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use sl_core::{Camera, CameraToWorld, DepthImage};
+use sl_filter::Prefilter;
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::trajectory::Frame;
 use sl_tsdf::{
@@ -82,11 +83,14 @@ pub struct Args {
     /// bytes; exceeding it stops with an error. Default (and maximum): 3/4 of --max-memory.
     #[arg(long, value_name = "BYTES")]
     pub memory_budget_bytes: Option<usize>,
-    /// Smooth every frame with sl-filter's adaptive bilateral filter (σ_d = k·Z², default k of
-    /// the camera's sensor model, or of the measured noise: see --model-noise-only) before
-    /// fusing.
-    #[arg(long)]
-    pub prefilter: bool,
+    /// Smooth every frame before fusing it, as `sldepth track --prefilter` names the filters:
+    /// `single` (sl-filter's adaptive bilateral filter, σ_d = k·Z², the paper's; what a bare
+    /// `--prefilter` means), `multiscale` (that pass, then the dilated disparity passes of
+    /// `sldepth filter`'s default, for real sensors' spatially correlated error) or `none`
+    /// (default). The range kernel follows the camera's sensor model, or the measured noise
+    /// (see --model-noise-only).
+    #[arg(long, value_name = "FILTER", default_value = "none", num_args = 0..=1, default_missing_value = "single", value_parser = PossibleValuesParser::new(Prefilter::NAMES).try_map(|s| s.parse::<Prefilter>()))]
+    pub prefilter: Prefilter,
     /// Fuse with the camera's noise model as given. By default the first frame's disparity
     /// noise is measured on its own 16×16- and 32×32-pixel patches (as `sldepth planes`, `filter` and
     /// `track` do) and, when it is significantly larger than the model's, the sensor-adaptive
@@ -313,7 +317,7 @@ pub fn run(args: Args) -> Result<()> {
     params.memory_budget_bytes = budget;
     params.depth_lookup = args.depth_lookup;
     // Built at the first frame, for its measured noise.
-    let mut filter: Option<sl_filter::DepthFilter> = None;
+    let mut filter: Option<sl_filter::MultiScale> = None;
     let mut noise_scale = 1.0;
     let mut band_sensor = camera.sensor;
     let mut volume = TsdfVolume::new(params)?;
@@ -365,12 +369,7 @@ pub fn run(args: Args) -> Result<()> {
             }
             band_sensor = camera.sensor.with_variance_scale(noise_scale);
             volume.set_band_sensor(band_sensor)?;
-            if args.prefilter {
-                filter = Some(sl_filter::DepthFilter::default_for(
-                    sl_filter::Method::Adaptive,
-                    &band_sensor,
-                ));
-            }
+            filter = args.prefilter.filter_for(&band_sensor);
         }
         if let Some(filt) = &filter {
             depth = filt
@@ -440,7 +439,7 @@ pub fn run(args: Args) -> Result<()> {
             "depth_lookup": params.depth_lookup.name(),
             "weight": params.weight.name(),
             "max_depth_m": params.max_depth_m,
-            "prefilter": args.prefilter,
+            "prefilter": args.prefilter.name(),
             "noise_scale": round_to(noise_scale, 3),
             "band_sigma_d_px": round_to(band_sensor.sigma_d_px, 4),
             "undistorted": undistort.is_some(),

@@ -37,6 +37,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use sl_core::{Camera, CameraToWorld, WorldToWorld};
+use sl_filter::Prefilter;
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::sequence::SequenceFrame;
 use sl_track::{Reconstruction, ReconstructionConfig, TrackStatus, WeightMode};
@@ -124,8 +125,8 @@ pub struct Args {
     /// the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
     /// pass) or `none`. The range kernel follows each raw frame's measured noise (see
     /// `--model-noise-only`).
-    #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = ["multiscale", "single", "none"])]
-    pub prefilter: String,
+    #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = PossibleValuesParser::new(Prefilter::NAMES).try_map(|s| s.parse::<Prefilter>()))]
+    pub prefilter: Prefilter,
     #[command(flatten)]
     pub lens: LensArgs,
     /// The sensor's rolling-shutter readout time, milliseconds (first image row to last), or
@@ -451,32 +452,18 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// The smoothing applied to every frame before tracking and fusion (`--prefilter`).
-#[derive(Clone, Copy)]
-enum Prefilter {
-    Multi,
-    Single,
-    None,
-}
-
-impl Prefilter {
-    /// Smooths `depth` with the filter of `sensor` (the camera's model with σ_D raised to the
-    /// frame's measured noise: a noisier frame gets the range kernel of its own noise, as
-    /// `sldepth filter` does).
-    fn apply(
-        self,
-        depth: sl_core::DepthImage,
-        sensor: &sl_core::SensorModel,
-    ) -> Result<sl_core::DepthImage> {
-        Ok(match self {
-            Prefilter::Multi => sl_filter::MultiScale::default_for(sensor).apply(&depth)?,
-            Prefilter::Single => {
-                sl_filter::DepthFilter::default_for(sl_filter::Method::Adaptive, sensor)
-                    .apply(&depth)?
-            }
-            Prefilter::None => depth,
-        })
-    }
+/// Smooths `depth` with `prefilter`'s filter for `sensor` (the camera's model with σ_D raised
+/// to the frame's measured noise: a noisier frame gets the range kernel of its own noise, as
+/// `sldepth filter` does).
+fn prefiltered(
+    prefilter: Prefilter,
+    depth: sl_core::DepthImage,
+    sensor: &sl_core::SensorModel,
+) -> Result<sl_core::DepthImage> {
+    Ok(match prefilter.filter_for(sensor) {
+        Some(filter) => filter.apply(&depth)?,
+        None => depth,
+    })
 }
 
 /// Runs `sldepth track`.
@@ -542,11 +529,7 @@ pub fn run(args: Args) -> Result<()> {
             .map(|_| "kinect-v1")
     };
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
-    let prefilter = match args.prefilter.as_str() {
-        "multiscale" => Prefilter::Multi,
-        "single" => Prefilter::Single,
-        _ => Prefilter::None,
-    };
+    let prefilter = args.prefilter;
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
         bail!(
             "--new-fragment-after-s must be positive (inf: never), got {}",
@@ -631,10 +614,10 @@ pub fn run(args: Args) -> Result<()> {
             })
             .and_then(|(d, scale)| {
                 let sensor = camera.sensor.with_variance_scale(scale);
-                if !matches!(prefilter, Prefilter::None) {
+                if prefilter != Prefilter::Off {
                     prefilter_sigmas.push(sensor.sigma_d_px);
                 }
-                prefilter.apply(d, &sensor)
+                prefiltered(prefilter, d, &sensor)
             }) {
             Ok(d) => d,
             Err(e) => {
@@ -779,7 +762,7 @@ pub fn run(args: Args) -> Result<()> {
             "relocalised": counts[TrackStatus::Relocalised as usize],
             "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
             "reference": if args.frame_to_frame { "frame" } else { "model" },
-            "prefilter": args.prefilter,
+            "prefilter": args.prefilter.name(),
             // The median σ_D, disparity pixels, the frames were smoothed for: the camera's, or
             // a noisier frame's measured one (null without a prefilter).
             "prefilter_sigma_d_px_median": (!prefilter_sigmas.is_empty())

@@ -195,9 +195,9 @@ pub(super) fn run_section(ctx: &mut Context) -> Result<String> {
 }
 
 /// The frames of a sequence as `sldepth track` tracks them: resampled with the lens model of
-/// its camera preset `preset` when it has one (`tum-fr1`), then the multi-scale prefilter;
-/// with the noise scale of each raw frame against the camera's model (measured before the
-/// prefilter, as `sldepth track` does).
+/// its camera preset `preset` when it has one (`tum-fr1`), then the default prefilter for the
+/// camera's σ_D raised to the frame's measured noise; with the noise scale of each raw frame
+/// against the camera's model (measured before the prefilter, as `sldepth track` does).
 pub(super) fn prepared(
     seq: &sl_testkit::PosedSequence,
     preset: &str,
@@ -208,7 +208,6 @@ pub(super) fn prepared(
         .and_then(|p| p.lens)
         .filter(|l| !l.is_zero())
         .map(|l| sl_core::Undistorter::new(&cam.intrinsics, &l));
-    let prefilter = sl_filter::MultiScale::default_for(&cam.sensor);
     let mut meter = ReconstructionConfig::default_for(cam.sensor)
         .tracker
         .noise_meter();
@@ -219,7 +218,12 @@ pub(super) fn prepared(
             None => d.clone(),
         };
         let scale = meter.measure(&d, &cam)?;
-        prepared.push((prefilter.apply(&d)?, scale));
+        let sensor = cam.sensor.with_variance_scale(scale);
+        let d = match sl_filter::Prefilter::default().filter_for(&sensor) {
+            Some(filter) => filter.apply(&d)?,
+            None => d,
+        };
+        prepared.push((d, scale));
     }
     Ok(prepared)
 }
