@@ -1415,10 +1415,8 @@ fn noisier_sensor_run(
 /// steps came out 17–27 mm off at a reported σ of 5–8 mm. Measuring each frame's noise on its
 /// own patches (`TrackerConfig::estimate_noise`, the default), the tracker runs with that
 /// noise: the first ten frames are all tracked against the model, every step right within the
-/// benchmark's 2 cm and 1°; with the model alone the same frames come out worse: tracked
-/// against the last frame with a step 20.9 mm off (docs/bench/track.md, session 49) or, since
-/// the overlap check credits a plane's samples only where the reference faces the way the plane
-/// does (session 52), 3 of the 10 frames reported lost instead (the worst tracked step 7.3 mm).
+/// benchmark's 2 cm and 1°; with the model alone the same frames are tracked against the last
+/// frame, a step more than 2 cm off (docs/bench/track.md, session 49).
 #[test]
 fn a_sensor_noisier_than_its_camera_is_tracked_with_its_own_noise() {
     let (worst_m, worst_deg, tracked, scale) = noisier_sensor_run(3018, 10, 0.2, true);
@@ -1429,77 +1427,11 @@ fn a_sensor_noisier_than_its_camera_is_tracked_with_its_own_noise() {
         "worst step off by {:.1} mm / {worst_deg:.2}°",
         worst_m * 1e3
     );
-    let (model_m, _, model_tracked, model_scale) = noisier_sensor_run(3018, 10, 0.2, false);
+    let (model_m, _, _, model_scale) = noisier_sensor_run(3018, 10, 0.2, false);
     assert_eq!(model_scale, 1.0);
     assert!(
-        model_m > 0.02 || model_tracked < tracked,
-        "model only: worst step off by {:.1} mm, {model_tracked} of 10 frames tracked",
+        model_m > 0.02,
+        "model only: worst step off by {:.1} mm",
         model_m * 1e3
     );
-}
-
-/// A sample counts for the pose only along a normal the reference surface it lands on shares.
-/// The `corridor` scene turned 20° (Kinect v1, realistic noise, prefiltered): its end wall, 4.1–
-/// 4.4 m away, is the only surface across the corridor's axis. The model is fused (at the true
-/// poses, the default sensor-adaptive band) from views turned 16–20°, up to its default 4 m, so
-/// it holds no end wall and nothing in it pins the axis; but where its walls, floor and ceiling
-/// end at 4 m its surface bends round towards the camera, and the end wall's samples by the
-/// corners land there, within the gate and facing the way their own (corner-mixed) pixel normals
-/// do. Credited along the end wall's normal they pinned the axis to under the motion prior's σ:
-/// tracked against such a model, steps 13–22 mm off along the axis were reported tracked
-/// (`cameras_track`, docs/bench/track.md, session 52). Now a plane's sample must land on a
-/// reference surface that faces the way its plane does, the alignment to the model is rejected
-/// and the frame is aligned to the last frame, which holds the end wall.
-#[test]
-fn samples_landing_on_a_reference_surface_of_another_orientation_pin_nothing() {
-    let scene = named_scene("corridor").unwrap();
-    let (cam, sim, filter) = realistic_preset("kinect-v1");
-    let k = cam.intrinsics;
-    let turned = |deg: f64| {
-        scene.pose
-            * CameraToCamera::from_isometry(Isometry3::from_parts(
-                Translation3::identity(),
-                UnitQuaternion::from_scaled_axis(
-                    Vector3::new(0.2, 1.0, 0.1).normalize() * deg.to_radians(),
-                ),
-            ))
-    };
-    let frame = |deg: f64| {
-        let truth = scene.scene.render(&k, &turned(deg)).depth;
-        filter.apply(&sim.apply(&truth, 100 + deg as u64)).unwrap()
-    };
-    let mut volume = TsdfVolume::new(TsdfConfig::for_sensor(cam.sensor)).unwrap();
-    for deg in [16.0, 17.0, 18.0, 19.0, 20.0] {
-        volume.integrate(&frame(deg), &k, &turned(deg)).unwrap();
-    }
-    let mut model = ModelReference::new(
-        &k,
-        ModelReference::default_scale(&cam),
-        RaycastConfig::default(),
-    )
-    .unwrap();
-    model.update(&volume, &turned(20.0), &cam.sensor).unwrap();
-    let mut t = Tracker::new(cam, TrackerConfig::default()).unwrap();
-    t.set_initial_pose(turned(20.0));
-    assert_eq!(
-        t.track(&frame(20.0), None).unwrap().status,
-        TrackStatus::Initialised
-    );
-    let r = t.track(&frame(21.0), model.maps()).unwrap();
-    let e = turned(21.0).isometry().inverse() * r.pose.isometry();
-    eprintln!(
-        "{:?} σ {:.2} mm, error {:.1} mm {:.2}°: {:?}",
-        r.status,
-        r.weakest_sigma_m * 1e3,
-        e.translation.vector.norm() * 1e3,
-        e.rotation.angle().to_degrees(),
-        r.failure
-    );
-    assert_eq!(
-        r.status,
-        TrackStatus::TrackedAgainstFrame,
-        "{:?}",
-        r.failure
-    );
-    assert!(e.translation.vector.norm() < 0.01, "{e:?}");
 }

@@ -26,11 +26,7 @@
 //! **Twice.** Before any alignment on the whole frame (a single wall; also the first frame,
 //! which must pin the pose to anchor a model), and after each alignment that passed its other
 //! checks on the samples that are inliers of the reference at the aligned pose, with the
-//! reference surface's variance added to the sample's (`solve::on_reference_at`; a sample on a
-//! plane counts only where the reference surface faces the way its plane does: it pins the pose
-//! along that normal only if the reference does, and a wall's samples by a corner that land on
-//! the reference's floor, or on the rim where a model fused up to its depth limit bends round,
-//! pin nothing along the wall's normal): a frame can be
+//! reference surface's variance added to the sample's (`solve::on_reference_at`): a frame can be
 //! well constrained while the part of it the reference also holds is not (a model of one wall
 //! and the floor so far, surfaces beyond the fused range). Simulated rooms and corridors
 //! (`docs/bench/track.md`, session 13): tracked steps off by more than 2 cm fell from 19 to 11.
@@ -379,32 +375,20 @@ impl StructureCheck {
                 if p32.z.is_nan() || p32.z <= 0.0 || !n_own.x.is_finite() {
                     continue;
                 }
+                let Some(on_ref) = on_reference(p32, n_own) else {
+                    continue;
+                };
                 let p = p32.cast::<f64>().coords;
                 let label = self.planes.labels.get(i).map_or(0, |&l| l as usize);
-                // A plane's normal facing the camera.
                 let plane = label
                     .checked_sub(1)
                     .and_then(|l| self.planes.planes.get(l))
-                    .map(|pl| {
-                        if pl.normal.dot(&p) > 0.0 {
-                            -pl.normal
-                        } else {
-                            pl.normal
-                        }
-                    });
-                // The sample counts along the normal it is credited with (its plane's, where it
-                // has one), so the reference surface it lands on must face that way too: a
-                // sample of a wall landing on the floor of the reference (a corner, the edge of
-                // the fused range) gives the alignment nothing along the wall's normal, whatever
-                // its own pixel normal (mixed at a corner) says.
-                let n_test = plane.map_or(*n_own, |n| n.cast::<f32>());
-                let Some(on_ref) = on_reference(p32, &n_test) else {
-                    continue;
-                };
+                    .map(|p| &p.normal);
                 // On no plane: the own normal, if it describes one surface across the
                 // correlation window, and a partner's one window away (`normal_noise`).
                 let (n, partner) = match plane {
-                    Some(n) => (n, None),
+                    Some(n) if n.dot(&p) > 0.0 => (-n, None),
+                    Some(n) => (*n, None),
                     None => {
                         let modelled = modelled_variance(&camera.sensor, p.z, k.fx, r);
                         let noise = self.normal_noise.variance(p.z, modelled);
