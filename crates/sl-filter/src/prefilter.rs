@@ -6,7 +6,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use sl_core::SensorModel;
+use sl_core::{DepthImage, DepthView, SensorModel};
 
 use crate::{FilterError, MultiScale, Result};
 
@@ -82,6 +82,16 @@ impl Prefilter {
             Prefilter::Off => None,
         }
     }
+
+    /// `depth` smoothed with [`Prefilter::filter_for`]`(sensor)`; `None` for
+    /// [`Prefilter::Off`], where the frame is used as it is (no copy is made of it).
+    pub fn apply<'a>(
+        self,
+        depth: impl Into<DepthView<'a>>,
+        sensor: &SensorModel,
+    ) -> Result<Option<DepthImage>> {
+        self.filter_for(sensor).map(|f| f.apply(depth)).transpose()
+    }
 }
 
 impl fmt::Display for Prefilter {
@@ -101,7 +111,7 @@ impl FromStr for Prefilter {
 mod tests {
     use super::*;
     use crate::{DepthFilter, Method};
-    use sl_core::{Camera, DepthImage};
+    use sl_core::Camera;
 
     #[test]
     fn every_name_parses_back_to_its_prefilter() {
@@ -145,6 +155,11 @@ mod tests {
             adaptive.apply(&depth).unwrap().data()
         );
         assert_eq!(Prefilter::Off.filter_for(&sensor), None);
+        assert_eq!(Prefilter::Off.apply(&depth, &sensor), Ok(None));
+        assert_eq!(
+            Prefilter::MultiScale.apply(&depth, &sensor).unwrap(),
+            Some(multi.apply(&depth).unwrap())
+        );
     }
 
     #[test]

@@ -86,10 +86,10 @@ pub(crate) fn track_in_map<'py>(
             for v in &views {
                 let scale = meter.measure(*v, &camera).map_err(|e| e.to_string())?;
                 let sensor = camera.sensor.with_variance_scale(scale);
-                let depth = match prefilter.filter_for(&sensor) {
-                    Some(f) => f.apply(*v).map_err(|e| e.to_string())?,
-                    None => v.to_image(),
-                };
+                let depth = prefilter
+                    .apply(*v, &sensor)
+                    .map_err(|e| e.to_string())?
+                    .unwrap_or_else(|| v.to_image());
                 frames.push((depth, Some(scale)));
             }
             let frames = frames.iter().map(|(d, s)| (d, *s));
@@ -285,10 +285,10 @@ impl PyTracker {
             }
             // The prefilter's range kernel follows the frame's measured noise.
             let sensor = self.camera.sensor.with_variance_scale(*last_noise_scale);
-            let depth = match prefilter.filter_for(&sensor) {
-                Some(f) => f.apply(view).map_err(|e| e.to_string())?,
-                None => view.to_image(),
-            };
+            let depth = prefilter
+                .apply(view, &sensor)
+                .map_err(|e| e.to_string())?
+                .unwrap_or_else(|| view.to_image());
             let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
             let state = &mut *guard;
             // A finished fragment's volume becomes its mesh at once (a small part of the

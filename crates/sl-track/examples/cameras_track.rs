@@ -42,7 +42,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let measure = !flag("--model-noise-only");
     let (white, prefilter, frame_to_model, per_frame) = (
         flag("--white"),
-        !flag("--no-prefilter"),
+        if flag("--no-prefilter") {
+            Prefilter::Off
+        } else {
+            Prefilter::MultiScale
+        },
         !flag("--frame-to-frame"),
         flag("--per-frame"),
     );
@@ -123,9 +127,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 };
                 rec.set_noise_scale(scale);
                 let sensor = camera.sensor.with_variance_scale(scale.unwrap_or(1.0));
-                if let (true, Some(filter)) = (prefilter, Prefilter::default().filter_for(&sensor))
-                {
-                    depth = filter.apply(&depth)?;
+                if let Some(smooth) = prefilter.apply(&depth, &sensor)? {
+                    depth = smooth;
                 }
                 let s = rec.step(&depth, Some(i as f64 * dt))?;
                 ms.push(s.timings.step_ms);

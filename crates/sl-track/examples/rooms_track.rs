@@ -124,8 +124,8 @@ fn main() {
                     } else {
                         cam.sensor
                     };
-                    let filter = sl_filter::Prefilter::default().filter_for(&sensor).unwrap();
-                    filter.apply(&d).unwrap()
+                    let smooth = sl_filter::Prefilter::default().apply(&d, &sensor).unwrap();
+                    smooth.unwrap_or(d)
                 }
             };
             let r = tracker.track(&d, model).unwrap();

@@ -452,20 +452,6 @@ fn write_text(path: &Path, text: &str) -> Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
-/// Smooths `depth` with `prefilter`'s filter for `sensor` (the camera's model with σ_D raised
-/// to the frame's measured noise: a noisier frame gets the range kernel of its own noise, as
-/// `sldepth filter` does).
-fn prefiltered(
-    prefilter: Prefilter,
-    depth: sl_core::DepthImage,
-    sensor: &sl_core::SensorModel,
-) -> Result<sl_core::DepthImage> {
-    Ok(match prefilter.filter_for(sensor) {
-        Some(filter) => filter.apply(&depth)?,
-        None => depth,
-    })
-}
-
 /// Runs `sldepth track`.
 pub fn run(args: Args) -> Result<()> {
     for (opt, path, exts) in [
@@ -617,7 +603,8 @@ pub fn run(args: Args) -> Result<()> {
                 if prefilter != Prefilter::Off {
                     prefilter_sigmas.push(sensor.sigma_d_px);
                 }
-                prefiltered(prefilter, d, &sensor)
+                // The range kernel follows the frame's measured noise, as `sldepth filter`.
+                Ok(prefilter.apply(&d, &sensor)?.unwrap_or(d))
             }) {
             Ok(d) => d,
             Err(e) => {

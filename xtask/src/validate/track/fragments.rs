@@ -219,10 +219,9 @@ pub(super) fn prepared(
         };
         let scale = meter.measure(&d, &cam)?;
         let sensor = cam.sensor.with_variance_scale(scale);
-        let d = match sl_filter::Prefilter::default().filter_for(&sensor) {
-            Some(filter) => filter.apply(&d)?,
-            None => d,
-        };
+        let d = sl_filter::Prefilter::default()
+            .apply(&d, &sensor)?
+            .unwrap_or(d);
         prepared.push((d, scale));
     }
     Ok(prepared)
