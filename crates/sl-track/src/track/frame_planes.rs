@@ -75,6 +75,7 @@ impl FramePlanes {
             || level0.aux.len() != n
             || maps.normals.len() != n
             || maps.variance_m2.len() != n
+            || maps.own_normals.len() != n
         {
             return;
         }
@@ -101,18 +102,20 @@ impl FramePlanes {
         maps.normals
             .par_chunks_mut(w)
             .zip(maps.variance_m2.par_chunks_mut(w))
+            .zip(maps.own_normals.par_chunks_mut(w))
             .zip(level0.points.par_chunks(w))
             .zip(level0.aux.par_chunks(w))
             .enumerate()
-            .for_each(|(v, (((normals, variances), points), aux))| {
+            .for_each(|(v, ((((normals, variances), own), points), aux))| {
                 let y = v >> shift;
                 if y >= self.height {
                     return;
                 }
                 let labels = &self.labels[y * self.width..(y + 1) * self.width];
-                for (u, (((nrm, var), p), a)) in normals
+                for (u, ((((nrm, var), own), p), a)) in normals
                     .iter_mut()
                     .zip(variances.iter_mut())
+                    .zip(own.iter_mut())
                     .zip(points)
                     .zip(aux)
                     .enumerate()
@@ -137,6 +140,7 @@ impl FramePlanes {
                         continue;
                     }
                     *nrm = nw;
+                    *own = false;
                     let sd = a.cz2 * np / a.ray_len;
                     *var = sd * sd;
                 }
@@ -219,9 +223,11 @@ mod tests {
                     // 10 cm off the plane, far beyond 3 σ_Z: its own normal stays.
                     assert!((maps.normals[i] - facing).norm() > 0.1);
                     assert_eq!(maps.variance_m2[i], 1.0);
+                    assert!(maps.own_normals[i]);
                     continue;
                 }
                 assert!((maps.normals[i] - facing).norm() < 1e-5, "pixel ({u}, {v})");
+                assert!(!maps.own_normals[i], "pixel ({u}, {v})");
                 // σ_Z along the ray, projected on the normal.
                 let ray = level.points[i].coords;
                 let cos = ray.z / ray.norm();
@@ -251,5 +257,6 @@ mod tests {
             .filter(|(a, b)| a != b)
             .count();
         assert!(!on_it && elsewhere == 0, "{elsewhere} normals replaced");
+        assert!(maps.own_normals.iter().all(|&own| own));
     }
 }

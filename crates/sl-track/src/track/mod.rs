@@ -41,6 +41,7 @@ mod model;
 mod normal_noise;
 mod pyramid;
 mod reference;
+mod reference_normal_noise;
 mod solve;
 mod structure;
 

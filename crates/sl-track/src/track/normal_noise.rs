@@ -46,11 +46,11 @@ const BINS_PER_OCTAVE: f64 = 2.0;
 /// Near edge of the first bin, metres.
 const FIRST_BIN_M: f64 = 0.25;
 /// Bins: 0.25 m to 64 m.
-const BINS: usize = 16;
+pub(super) const BINS: usize = 16;
 /// Plane samples a bin needs before its own median is used: the median of `n` values of a
 /// two-degree-of-freedom χ² has a relative standard error of about `1/√n` (12 % here, more
 /// with the correlation between neighbouring normals).
-const MIN_SAMPLES: usize = 64;
+pub(super) const MIN_SAMPLES: usize = 64;
 
 /// The squared angle between two normals whose tangent errors (variance `σ_a²` per axis) are
 /// independent is `2σ_a²` times a χ² with two degrees of freedom, whose median is `2 ln 2`.
@@ -137,15 +137,7 @@ impl NormalNoise {
                 f64::NAN
             }
         });
-        self.ratios = own.iter().any(|r| r.is_finite()).then(|| {
-            std::array::from_fn(|b| {
-                (0..BINS)
-                    .flat_map(|d| [b.checked_sub(d), Some(b + d)])
-                    .flatten()
-                    .find_map(|i| own.get(i).copied().filter(|r| r.is_finite()))
-                    .unwrap_or(f64::NAN)
-            })
-        });
+        self.ratios = lend_nearest(&own);
     }
 
     /// The variance per tangent axis of an own normal at depth `z_m`, rad², given the
@@ -226,8 +218,22 @@ impl NormalNoise {
     }
 }
 
+/// Per bin, `own`'s value (NaN = not measured) or, where it has none, that of the nearest bin
+/// that has one (the nearer one on a tie); `None` when no bin has one.
+pub(super) fn lend_nearest(own: &[f64; BINS]) -> Option<[f64; BINS]> {
+    own.iter().any(|r| r.is_finite()).then(|| {
+        std::array::from_fn(|b| {
+            (0..BINS)
+                .flat_map(|d| [b.checked_sub(d), Some(b + d)])
+                .flatten()
+                .find_map(|i| own.get(i).copied().filter(|r| r.is_finite()))
+                .unwrap_or(f64::NAN)
+        })
+    })
+}
+
 /// The median of `values` (reordered), which is not empty.
-fn median(values: &mut [f32]) -> f64 {
+pub(super) fn median(values: &mut [f32]) -> f64 {
     let mid = values.len() / 2;
     let (_, m, _) = values.select_nth_unstable_by(mid, f32::total_cmp);
     f64::from(*m)
@@ -255,7 +261,7 @@ fn normal_on_surface(
 }
 
 /// The half-octave depth bin of `z_m`, if within the bins' range.
-fn bin(z_m: f64) -> Option<usize> {
+pub(super) fn bin(z_m: f64) -> Option<usize> {
     let b = ((z_m / FIRST_BIN_M).log2() * BINS_PER_OCTAVE).floor();
     (b >= 0.0 && b < BINS as f64).then_some(b as usize)
 }

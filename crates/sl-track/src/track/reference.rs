@@ -26,6 +26,11 @@ pub struct ReferenceMaps {
     pub normals: Vec<Vector3<f32>>,
     /// Variance of each point along its normal, m².
     pub variance_m2: Vec<f32>,
+    /// Whether each normal is the pixel's own (central differences on one frame: as noisy as
+    /// that frame's normals) rather than a plane's fitted to the frame's pixels or a fused
+    /// model's; the tracker's structure check credits a sample by how it faces the reference
+    /// only where the reference's normal is not the pixel's own.
+    pub own_normals: Vec<bool>,
 }
 
 impl ReferenceMaps {
@@ -38,6 +43,7 @@ impl ReferenceMaps {
             points: vec![Point3::new(f32::NAN, f32::NAN, f32::NAN); n],
             normals: vec![Vector3::new(f32::NAN, f32::NAN, f32::NAN); n],
             variance_m2: vec![0.0; n],
+            own_normals: vec![true; n],
         }
     }
 
@@ -80,6 +86,8 @@ impl ReferenceMaps {
         self.points.resize(n, Point3::origin());
         self.normals.resize(n, Vector3::zeros());
         self.variance_m2.resize(n, 0.0);
+        self.own_normals.clear();
+        self.own_normals.resize(n, true);
         let iso = pose.isometry();
         let r = iso.rotation.to_rotation_matrix().matrix().cast::<f32>();
         let t = iso.translation.vector.cast::<f32>();
@@ -157,6 +165,8 @@ impl ReferenceMaps {
         self.normals.clear();
         self.normals.extend_from_slice(&raycast.normals);
         self.variance_m2.resize(n, 0.0);
+        self.own_normals.clear();
+        self.own_normals.resize(n, false);
         let s2 = sensor.sigma_z(z_ref_m) as f32;
         let s2 = s2 * s2;
         self.variance_m2

@@ -428,10 +428,11 @@ pub(crate) fn on_reference_at<'a>(
             return None;
         }
         let j = v as usize * k.width + u as usize;
-        let (Some(n), Some(q), Some(&var_ref)) = (
+        let (Some(n), Some(q), Some(&var_ref), own_normal) = (
             reference.normals.get(j),
             reference.points.get(j),
             reference.variance_m2.get(j),
+            reference.own_normals.get(j).is_none_or(|&own| own),
         ) else {
             return None;
         };
@@ -451,6 +452,7 @@ pub(crate) fn on_reference_at<'a>(
             variance_m2: var_ref,
             residual_m: r,
             inlier: r.abs() <= gate,
+            normal: (!own_normal).then(|| to_world.rotation.inverse_transform_vector(&n)),
         })
     }
 }
@@ -465,6 +467,11 @@ pub(crate) struct OnReference {
     /// Whether the residual is within the alignment's gate; if not, it is within the gate
     /// plus [`TrackerConfig::max_correction_m`] (a sample the pose disagrees with).
     pub inlier: bool,
+    /// The reference surface's unit normal there, in the frame's camera coordinates — the
+    /// direction the residual measures — where it is a plane's or a fused model's
+    /// ([`ReferenceMaps::own_normals`]); `None` for a pixel's own normal and for the frame
+    /// alone.
+    pub normal: Option<Vector3<f64>>,
 }
 
 impl OnReference {
@@ -473,6 +480,7 @@ impl OnReference {
         variance_m2: 0.0,
         residual_m: 0.0,
         inlier: true,
+        normal: None,
     };
 }
 
