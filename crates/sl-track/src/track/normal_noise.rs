@@ -129,15 +129,7 @@ impl NormalNoise {
     /// Computes the per-bin medians of the pairs added since the last measurement, and lends
     /// each bin without enough pairs its nearest measured neighbour's.
     fn finish(&mut self) {
-        let own: [f64; BINS] = std::array::from_fn(|b| {
-            let values = &mut self.bins[b];
-            if values.len() >= MIN_SAMPLES {
-                median(values) / MEDIAN_CHI2_2
-            } else {
-                f64::NAN
-            }
-        });
-        self.ratios = lend_nearest(&own);
+        self.ratios = binned_medians(&mut self.bins, MEDIAN_CHI2_2);
     }
 
     /// The variance per tangent axis of an own normal at depth `z_m`, rad², given the
@@ -218,9 +210,18 @@ impl NormalNoise {
     }
 }
 
-/// Per bin, `own`'s value (NaN = not measured) or, where it has none, that of the nearest bin
-/// that has one (the nearer one on a tie); `None` when no bin has one.
-pub(super) fn lend_nearest(own: &[f64; BINS]) -> Option<[f64; BINS]> {
+/// Per depth bin, the median of its values (reordered) over `divisor` when it has at least
+/// [`MIN_SAMPLES`] of them, or else the nearest such bin's (the nearer one on a tie); `None`
+/// when no bin has enough.
+pub(super) fn binned_medians(bins: &mut [Vec<f32>; BINS], divisor: f64) -> Option<[f64; BINS]> {
+    let own: [f64; BINS] = std::array::from_fn(|b| {
+        let values = &mut bins[b];
+        if values.len() >= MIN_SAMPLES {
+            median(values) / divisor
+        } else {
+            f64::NAN
+        }
+    });
     own.iter().any(|r| r.is_finite()).then(|| {
         std::array::from_fn(|b| {
             (0..BINS)
@@ -233,7 +234,7 @@ pub(super) fn lend_nearest(own: &[f64; BINS]) -> Option<[f64; BINS]> {
 }
 
 /// The median of `values` (reordered), which is not empty.
-pub(super) fn median(values: &mut [f32]) -> f64 {
+fn median(values: &mut [f32]) -> f64 {
     let mid = values.len() / 2;
     let (_, m, _) = values.select_nth_unstable_by(mid, f32::total_cmp);
     f64::from(*m)

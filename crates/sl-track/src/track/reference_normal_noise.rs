@@ -15,7 +15,7 @@
 //! over `ln 2`. The samples that land on another surface (a plane's pixels by a crease, the rim
 //! of a fused range) are not noise; the median ignores the few there are.
 
-use super::normal_noise::{BINS, MIN_SAMPLES, bin, lend_nearest, median};
+use super::normal_noise::{BINS, bin, binned_medians};
 
 /// The reference normals' mean squared tangent error `2σ_r²` per depth bin, measured from plane
 /// samples: what a plane sample's squared cosine to the reference is short of on average.
@@ -39,16 +39,8 @@ impl ReferenceNormalNoise {
                 bins[b].push(s.max(0.0));
             }
         }
-        let own: [f64; BINS] = std::array::from_fn(|b| {
-            let values = &mut bins[b];
-            if values.len() >= MIN_SAMPLES {
-                median(values) / std::f64::consts::LN_2
-            } else {
-                f64::NAN
-            }
-        });
         Self {
-            per_bin: lend_nearest(&own),
+            per_bin: binned_medians(&mut bins, std::f64::consts::LN_2),
         }
     }
 
@@ -63,6 +55,7 @@ impl ReferenceNormalNoise {
 
 #[cfg(test)]
 mod tests {
+    use super::super::normal_noise::MIN_SAMPLES;
     use super::*;
 
     /// Tangent errors of σ per axis (a deterministic spread of the two-dimensional Gaussian's
