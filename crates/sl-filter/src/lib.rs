@@ -145,6 +145,8 @@
 #![deny(missing_docs)]
 
 pub mod config;
+mod crease;
+mod domain;
 pub mod error;
 pub mod filter;
 mod kernel;
