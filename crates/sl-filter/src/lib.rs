@@ -64,8 +64,11 @@
 //! ([`multiscale_by_default`] says for which methods). Real structured-light error is
 //! correlated over the ~9×11 px block-matching window, wider than any single window; the
 //! coarse passes remove about a third of the fine-scale plane residual of real walls and floors
-//! where the single pass removes a fifth (see [`multiscale`] for the measurements). The library
-//! keeps [`DepthFilter::default_for`] the paper's single pass.
+//! where the single pass removes a fifth (see [`multiscale`] for the measurements). A coarse
+//! pass is used only where its window is one surface: no hole, border or depth jump, and no
+//! crease (a corner of two planes, which a symmetric kernel would round; tested against the
+//! frame's own measured noise). The library keeps [`DepthFilter::default_for`] the paper's
+//! single pass.
 //!
 //! ## Accuracy (simulated Kinect, 7×7, σ_s = 1.5 px; RMSE in mm)
 //!
