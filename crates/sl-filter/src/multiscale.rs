@@ -226,6 +226,7 @@ impl Gate {
                 let row = &u[y * w..(y + 1) * w];
                 let below = &u[(y + 1).min(h - 1) * w..][..w];
                 let jump = |v: f32, n: f32, s: f32| (v - n).abs() > s;
+                // One loop per kind of σ, so each vectorises (as in `crease.rs`).
                 match domain.constant_sigma() {
                     Some(s) => {
                         for x in 0..w - 1 {
