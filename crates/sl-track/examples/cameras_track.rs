@@ -7,7 +7,8 @@
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
 //!     [--white | --exact] [--no-prefilter] [--model-noise-only] [--frame-to-frame] \
-//!     [--resample=F] [--max-depth=M] [--bilinear] [--turn-only] [--per-frame] [CAMERAS] [SCENES]
+//!     [--resample=F] [--max-depth=M] [--bilinear] [--turn-only] [--per-frame] [--seed-offset=N] \
+//!     [--uniform] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -26,7 +27,10 @@
 //! nothing the model holds: the defect of session 52, docs/bench/track.md);
 //! `--exact` tracks the rendered depth itself (no noise, no quantisation, no drop-outs), to tell
 //! the tracker's own errors from the sensor's;
-//! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics.
+//! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics;
+//! `--seed-offset=N` adds `N` to every frame's noise seed (another draw of the same sequence:
+//! a drift seen in one draw is a bias only when the other draws share its sign);
+//! `--uniform` tracks with uniform residual weights instead of the sensor model's.
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera};
@@ -55,6 +59,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let resample = match args.iter().find_map(|a| a.strip_prefix("--resample=")) {
         Some(f) => Some(f.parse::<f64>()?),
         None => None,
+    };
+    let seed_offset = match args.iter().find_map(|a| a.strip_prefix("--seed-offset=")) {
+        Some(n) => n.parse::<u64>()?,
+        None => 0,
     };
     let max_depth_m = match args.iter().find_map(|a| a.strip_prefix("--max-depth=")) {
         Some(m) => Some(m.parse::<f64>()?),
@@ -106,6 +114,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let scene = named_scene(scene_name)?;
             let mut cfg = ReconstructionConfig::default_for(camera.sensor);
             cfg.frame_to_model = frame_to_model;
+            if flag("--uniform") {
+                cfg.tracker.weighting = sl_track::WeightMode::Uniform;
+            }
             if let Some(m) = max_depth_m {
                 cfg.tsdf.max_depth_m = m;
             }
@@ -123,7 +134,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 let mut depth = if exact {
                     truth
                 } else {
-                    sim.apply(&truth, 100 + i as u64)
+                    sim.apply(&truth, 100 + seed_offset + i as u64)
                 };
                 // As `sldepth track`: the raw frame's noise against the camera's model (the
                 // prefilter hides it), for the tracker and the prefilter's range kernel.

@@ -128,9 +128,10 @@ pub struct FrameResult {
     /// motion prior's σ the frame is lost ([`TrackerConfig::degenerate_check`]); NaN when not
     /// checked (the first frame, or the check disabled).
     pub weakest_sigma_m: f64,
-    /// Why the frame was lost (the last attempt's failure: a degenerate view, a disputed or
-    /// degenerate overlap, too few inliers, …); `None` for a frame with a pose, whichever
-    /// attempt gave it.
+    /// Why the frame was lost: the alignment's failure from the prediction (a degenerate
+    /// view, a disputed or degenerate overlap, too few inliers, …), followed, when the
+    /// plane-based fallback was tried, by why that failed too (`…; plane fallback: motion not
+    /// verified: …`); `None` for a frame with a pose, whichever attempt gave it.
     pub failure: Option<String>,
 }
 
@@ -599,6 +600,8 @@ impl Tracker {
         iterations += first.iterations;
         let mut recovered = false;
         let mut against_frame = false;
+        // Why the plane fallback, when tried, gave no pose either (for the lost frame's report).
+        let mut fallback_failure: Option<String> = None;
         // The damped starts: the prediction and the last good pose. After a few lost frames
         // the prediction is the last good pose with the same prior (the velocity is
         // forgotten), and the same start would give the same result: it runs once.
@@ -626,11 +629,22 @@ impl Tracker {
         // motion-capture poses errs by 2–6 cm where the same step against the previous frame
         // errs by 0.2–1 cm: likely a view-dependent depth distortion or the rolling shutter,
         // which differ between the views the model averages and agree between consecutive
-        // frames. Try the last good frame before the plane fallback.
+        // frames. Try the last good frame before the plane fallback, in the order the model
+        // was tried: plain Gauss–Newton from the prediction first, then the damped starts.
+        // Damped steps are taken only when they lower the robust objective, which the 1/8-pixel
+        // quantisation makes rough: along a weakly constrained direction they stop early, short
+        // of the data's optimum and near the prediction, so the next velocity lags the camera
+        // and the next prediction with it. On the simulated Kinect corridor, where every frame
+        // falls back to the last one (the end wall lies beyond the fused range), that shrinkage
+        // lost 0.5 mm per 4 mm step along the axis (six noise seeds: −13 mm by frame 28, every
+        // seed short; plain Gauss–Newton first: −3 mm, within the noise; docs/bench/track.md,
+        // session 55).
         if first.failure.is_some() && model.is_some() {
             self.refresh_last_ref();
-            for &(start, var) in &starts[..distinct] {
-                let again = self.align(&start, &self.last_ref, var, true);
+            let plain = std::iter::once((predicted, predicted_var, false));
+            let damped = starts[..distinct].iter().map(|&(s, v)| (s, v, true));
+            for (start, var, damped) in plain.chain(damped) {
+                let again = self.align(&start, &self.last_ref, var, damped);
                 iterations += again.iterations;
                 if again.failure.is_none() {
                     first = again;
@@ -642,14 +656,26 @@ impl Tracker {
         if first.failure.is_some() && self.cfg.plane_fallback {
             let planes =
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
-            if let Some(m) = planes.pose() {
-                let start = solve::renormalized(last * m.into_isometry());
-                let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
-                iterations += again.iterations;
-                if again.failure.is_none() {
-                    first = again;
-                    recovered = true;
+            match (planes.pose(), &planes.motion) {
+                (Some(m), _) => {
+                    let start = solve::renormalized(last * m.into_isometry());
+                    let again =
+                        self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
+                    iterations += again.iterations;
+                    match again.failure {
+                        None => {
+                            first = again;
+                            recovered = true;
+                        }
+                        Some(why) => {
+                            fallback_failure = Some(format!(
+                                "plane fallback: the alignment from its verified estimate failed: {why}"
+                            ));
+                        }
+                    }
                 }
+                (None, Err(e)) => fallback_failure = Some(format!("plane fallback: {e}")),
+                (None, Ok(_)) => {}
             }
         }
         if first.failure.is_none() && self.start_is_a_guess() {
@@ -727,7 +753,10 @@ impl Tracker {
             iterations,
             // The binding one of the frame's own σ and its overlap's.
             weakest_sigma_m: weakest_sigma_m.max(first.overlap_sigma_m),
-            failure: first.failure,
+            failure: first.failure.map(|why| match fallback_failure {
+                Some(fallback) => format!("{why}; {fallback}"),
+                None => why,
+            }),
         })
     }
 
