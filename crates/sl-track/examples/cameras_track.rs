@@ -8,7 +8,7 @@
 //! cargo run --release -p sl-track --example cameras_track -- \
 //!     [--white | --exact] [--no-prefilter] [--model-noise-only] [--frame-to-frame] \
 //!     [--resample=F] [--max-depth=M] [--bilinear] [--turn-only] [--per-frame] [--seed-offset=N] \
-//!     [--uniform] [CAMERAS] [SCENES]
+//!     [--uniform] [--drop=L,…] [CAMERAS] [SCENES]
 //! ```
 //!
 //! `CAMERAS` and `SCENES` are comma-separated preset and scene names (defaults:
@@ -30,7 +30,10 @@
 //! `--per-frame` prints every tracked frame's error in camera axes and its diagnostics;
 //! `--seed-offset=N` adds `N` to every frame's noise seed (another draw of the same sequence:
 //! a drift seen in one draw is a bias only when the other draws share its sign);
-//! `--uniform` tracks with uniform residual weights instead of the sensor model's.
+//! `--uniform` tracks with uniform residual weights instead of the sensor model's; `--drop=L,…`
+//! removes the pixels of these surface labels from every frame before the noise (the scene's
+//! parts in the order `named_scene` adds them, from 1: the corridor's floor, ceiling, left wall,
+//! right wall, end wall).
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_core::{Camera, CameraToCamera};
@@ -130,7 +133,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (mut lost, mut fragments, mut worst) = (0, 0, (0.0f64, 0.0f64));
             let mut ms = Vec::new();
             for i in 0..FRAMES {
-                let truth = scene.scene.render(&camera.intrinsics, &pose).depth;
+                let rendered = scene.scene.render(&camera.intrinsics, &pose);
+                let mut truth = rendered.depth;
+                if let Some(drop) = args.iter().find_map(|a| a.strip_prefix("--drop=")) {
+                    let drop = drop
+                        .split(',')
+                        .map(str::parse::<u16>)
+                        .collect::<Result<Vec<_>, _>>()?;
+                    for (z, l) in truth.data_mut().iter_mut().zip(rendered.labels.data()) {
+                        if drop.contains(l) {
+                            *z = 0.0;
+                        }
+                    }
+                }
                 let mut depth = if exact {
                     truth
                 } else {
