@@ -63,6 +63,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(f) => Some(f.parse::<f64>()?),
         None => None,
     };
+    let drop = match args.iter().find_map(|a| a.strip_prefix("--drop=")) {
+        Some(labels) => labels
+            .split(',')
+            .map(str::parse::<u16>)
+            .collect::<Result<Vec<_>, _>>()?,
+        None => Vec::new(),
+    };
     let seed_offset = match args.iter().find_map(|a| a.strip_prefix("--seed-offset=")) {
         Some(n) => n.parse::<u64>()?,
         None => 0,
@@ -135,11 +142,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             for i in 0..FRAMES {
                 let rendered = scene.scene.render(&camera.intrinsics, &pose);
                 let mut truth = rendered.depth;
-                if let Some(drop) = args.iter().find_map(|a| a.strip_prefix("--drop=")) {
-                    let drop = drop
-                        .split(',')
-                        .map(str::parse::<u16>)
-                        .collect::<Result<Vec<_>, _>>()?;
+                if !drop.is_empty() {
                     for (z, l) in truth.data_mut().iter_mut().zip(rendered.labels.data()) {
                         if drop.contains(l) {
                             *z = 0.0;

@@ -656,26 +656,23 @@ impl Tracker {
         if first.failure.is_some() && self.cfg.plane_fallback {
             let planes =
                 motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
-            match (planes.pose(), &planes.motion) {
-                (Some(m), _) => {
-                    let start = solve::renormalized(last * m.into_isometry());
-                    let again =
-                        self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
-                    iterations += again.iterations;
-                    match again.failure {
-                        None => {
-                            first = again;
-                            recovered = true;
-                        }
-                        Some(why) => {
-                            fallback_failure = Some(format!(
-                                "plane fallback: the alignment from its verified estimate failed: {why}"
-                            ));
-                        }
+            if let Some(m) = planes.pose() {
+                let start = solve::renormalized(last * m.into_isometry());
+                let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
+                iterations += again.iterations;
+                match again.failure {
+                    None => {
+                        first = again;
+                        recovered = true;
+                    }
+                    Some(why) => {
+                        fallback_failure = Some(format!(
+                            "plane fallback: the alignment from its verified estimate failed: {why}"
+                        ));
                     }
                 }
-                (None, Err(e)) => fallback_failure = Some(format!("plane fallback: {e}")),
-                (None, Ok(_)) => {}
+            } else if let Err(e) = &planes.motion {
+                fallback_failure = Some(format!("plane fallback: {e}"));
             }
         }
         if first.failure.is_none() && self.start_is_a_guess() {
