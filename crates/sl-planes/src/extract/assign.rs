@@ -106,6 +106,7 @@ impl PlaneExtractor {
             tau,
             w,
             wq,
+            rows: self.rows,
         };
         let run = |(b, (rows, band)): (usize, (&mut [u16], &mut FinalBand))| {
             band.run(&shared, b * FINAL_BAND_ROWS, rows);
@@ -189,7 +190,7 @@ impl PlaneExtractor {
         self.final_sums[to].pixels += 1;
         self.final_sums[to].add_rows(y);
         if is_sample_row(y) {
-            let (xf, yf) = (x as f64, y as f64);
+            let (xf, yf) = (x as f64, self.rows.of(y));
             let (f1, f2) = (self.full_res_fits[from], self.full_res_fits[to]);
             let a1 = &mut self.final_sums[from];
             a1.sums.remove(xf, yf, df);

@@ -276,7 +276,7 @@ impl PlaneExtractor {
         let h = labels.len() / w;
         for y in (GRID_OFFSET..h).step_by(GRID_Y) {
             self.crease_touched.clear();
-            let yf = y as f64;
+            let yf = self.rows.of(y);
             for x in (GRID_OFFSET..w).step_by(GRID_X) {
                 let Some(p) = usize::from(labels[y * w + x]).checked_sub(1) else {
                     continue;
@@ -481,7 +481,7 @@ impl PlaneExtractor {
             y1: old.y1,
         };
         for y in rows.clone().filter(|&y| is_sample_row(y)) {
-            let yf = y as f64;
+            let yf = self.rows.of(y);
             let row = &labels[y * w..(y + 1) * w];
             let (ra, rb) = line.row_ranges(y, w);
             let metric = is_metric_row(y);

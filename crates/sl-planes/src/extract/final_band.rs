@@ -36,6 +36,8 @@ pub(super) struct FinalShared<'a> {
     /// Image width and cell-grid width.
     pub(super) w: usize,
     pub(super) wq: usize,
+    /// Where each row's values were measured (a replicated decimated frame).
+    pub(super) rows: RowCentres,
 }
 
 /// The scratch and the output of one band (kept by the extractor, reused frame after frame).
@@ -166,7 +168,7 @@ impl FinalBand {
         y: usize,
     ) {
         let (w, tau) = (sh.w, sh.tau);
-        let yf = y as f64;
+        let yf = sh.rows.of(y);
         let (stats, metric) = (is_sample_row(y), is_metric_row(y));
         let full: &[DisparityAffine] = sh.full_res_fits;
         let acc = &mut self.sums;
@@ -306,7 +308,7 @@ impl FinalBand {
         count: usize,
     ) {
         let (w, wq, tau) = (sh.w, sh.wq, sh.tau);
-        let yf = y as f64;
+        let yf = sh.rows.of(y);
         let (stats, metric) = (is_sample_row(y), is_metric_row(y));
         let j = y / CELL;
         self.row_offsets.clear();

@@ -244,7 +244,7 @@ impl PlaneExtractor {
                 continue;
             }
             for y in CELL * cj..(CELL * cj + CELL).min(h) {
-                let yf = y as f64;
+                let yf = self.rows.of(y);
                 for x in CELL * ci..(CELL * ci + CELL).min(w) {
                     let i = y * w + x;
                     let l = labels[i];
