@@ -492,31 +492,42 @@ fn a_bare_corridor_is_a_degenerate_view_at_full_resolution() {
 /// session 33).
 #[test]
 fn the_last_frame_reference_has_the_planes_normals() {
-    let scene = named_scene("corridor").unwrap();
     let (cam, sim, filter) = realistic_preset("d415");
+    let (n, rms) = corridor_reference_normals_along_axis(cam, |truth| {
+        filter.apply(&sim.apply(truth, 300)).unwrap()
+    });
+    assert!(n > 100_000, "{n} wall pixels with a normal");
+    // Each pixel's own normal: 0.031 RMS (1.8°); the planes': 0.002, from the pixels by the
+    // creases and the walls' ends that keep their own (the bound lies between the two).
+    assert!(rms < 0.01, "RMS component along the corridor {rms:.4}");
+}
+
+/// The corridor's first frame through `cam` (`noisy` makes the tracked frame from the rendered
+/// depth), tracked from nothing: its walls', floor's and ceiling's pixels with a normal in the
+/// last-frame reference (the end wall, at 4.5 m, left out), and the RMS of those normals'
+/// component along the corridor, which runs along the camera's optical axis.
+fn corridor_reference_normals_along_axis(
+    cam: Camera,
+    noisy: impl Fn(&DepthImage) -> DepthImage,
+) -> (usize, f64) {
+    let scene = named_scene("corridor").unwrap();
     let truth = scene.scene.render(&cam.intrinsics, &scene.pose).depth;
-    let depth = filter.apply(&sim.apply(&truth, 300)).unwrap();
+    let depth = noisy(&truth);
     let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
     tracker.set_initial_pose(scene.pose);
     let r = tracker.track(&depth, None).unwrap();
     assert_eq!(r.status, TrackStatus::Initialised, "{:?}", r.failure);
-    // The corridor runs along the camera's optical axis.
     let axis = scene.pose.isometry().rotation * Vector3::z();
     let reference = tracker.last_frame_reference();
     let (mut sum, mut n) = (0.0f64, 0usize);
     for (nrm, &z) in reference.normals.iter().zip(truth.data()) {
-        // The walls, floor and ceiling (the end wall is at 4.5 m).
         if nrm.x.is_finite() && z > 0.0 && z < 4.0 {
             let along = nrm.cast::<f64>().dot(&axis);
             sum += along * along;
             n += 1;
         }
     }
-    assert!(n > 100_000, "{n} wall pixels with a normal");
-    // Each pixel's own normal: 0.031 RMS (1.8°); the planes': 0.002, from the pixels by the
-    // creases and the walls' ends that keep their own (the bound lies between the two).
-    let rms = (sum / n as f64).sqrt();
-    assert!(rms < 0.01, "RMS component along the corridor {rms:.4}");
+    (n, (sum / n.max(1) as f64).sqrt())
 }
 
 /// The same through a 320×240 Kinect stream (the sensor decimated by 2, white noise): the floor
@@ -530,27 +541,10 @@ fn the_last_frame_reference_has_the_planes_normals() {
 /// the full-resolution test's: 0.0146 before, 0.0057 since.
 #[test]
 fn the_last_frame_reference_has_the_planes_normals_on_a_decimated_stream() {
-    let scene = named_scene("corridor").unwrap();
     let cam = Camera::preset("kinect-v1").unwrap().resampled(0.5).unwrap();
     let sim = KinectSimulator::with_sensor(cam.sensor).white();
-    let truth = scene.scene.render(&cam.intrinsics, &scene.pose).depth;
-    let depth = sim.apply(&truth, 300);
-    let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
-    tracker.set_initial_pose(scene.pose);
-    let r = tracker.track(&depth, None).unwrap();
-    assert_eq!(r.status, TrackStatus::Initialised, "{:?}", r.failure);
-    let axis = scene.pose.isometry().rotation * Vector3::z();
-    let reference = tracker.last_frame_reference();
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (nrm, &z) in reference.normals.iter().zip(truth.data()) {
-        if nrm.x.is_finite() && z > 0.0 && z < 4.0 {
-            let along = nrm.cast::<f64>().dot(&axis);
-            sum += along * along;
-            n += 1;
-        }
-    }
+    let (n, rms) = corridor_reference_normals_along_axis(cam, |truth| sim.apply(truth, 300));
     assert!(n > 20_000, "{n} wall pixels with a normal");
-    let rms = (sum / n as f64).sqrt();
     eprintln!("{n} pixels, RMS component along the corridor {rms:.4}");
     assert!(rms < 0.01, "RMS component along the corridor {rms:.4}");
 }
