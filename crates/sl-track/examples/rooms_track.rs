@@ -9,7 +9,7 @@
 //! (the real sequences' RPE is 2–6 mm per frame).
 //!
 //! ```text
-//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX] [--prefilter camera|measured]
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX] [--prefilter camera|measured] [--resample F]
 //! ```
 //! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
 //! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
@@ -20,7 +20,13 @@
 //! sensor noisier than its camera says); `--prefilter camera|measured` smooths every frame
 //! before tracking and fusion as `sldepth track` does (its default multi-scale filter; the
 //! raw frame's noise measured first and given to the tracker), with the range kernel of the
-//! camera's σ_D or, as `sldepth track` since session 51, of the frame's measured σ_D. Results:
+//! camera's σ_D or, as `sldepth track` since session 51, of the frame's measured σ_D;
+//! `--resample F` sees every scene through its camera's image scaled by `F`
+//! (`Camera::resampled`: 0.5 is a 320×240 stream of the same sensor), simulated at that size
+//! (the realistic noise's correlation window then spans `1/F` times the sensor's pixels);
+//! `--decimate N` instead simulates each frame at the sensor's size and averages the disparity
+//! of `N × N` blocks (a block with an invalid pixel is invalid): the stream a sensor decimated
+//! by `N` delivers, its noise correlated over the sensor's own window. Results:
 //! docs/bench/track.md ("Degenerate overlaps", session 39).
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::print_stdout)]
 
@@ -60,10 +66,24 @@ fn main() {
         .position(|a| a == "--sim-sigma-d")
         .and_then(|i| args.get(i + 1))
         .map(|a| a.parse().unwrap());
+    let resample: Option<f64> = args
+        .iter()
+        .position(|a| a == "--resample")
+        .and_then(|i| args.get(i + 1))
+        .map(|a| a.parse().unwrap());
+    let decimate: Option<usize> = args
+        .iter()
+        .position(|a| a == "--decimate")
+        .and_then(|i| args.get(i + 1))
+        .map(|a| a.parse().unwrap());
     let numbers: Vec<u64> = args
         .iter()
         .enumerate()
-        .filter(|(i, _)| *i == 0 || (args[i - 1] != "--jitter" && args[i - 1] != "--sim-sigma-d"))
+        .filter(|(i, _)| {
+            *i == 0
+                || !["--jitter", "--sim-sigma-d", "--resample", "--decimate"]
+                    .contains(&args[i - 1].as_str())
+        })
         .filter_map(|(_, a)| a.parse().ok())
         .collect();
     let first = numbers.first().copied().unwrap_or(3000);
@@ -73,6 +93,12 @@ fn main() {
     for seed in first..first + count {
         let room = room_scene(seed).unwrap();
         let (cam, sim) = room.camera_and_simulator(preset.as_deref()).unwrap();
+        let sensor_k = cam.intrinsics;
+        let cam = match (resample, decimate) {
+            (Some(f), _) => cam.resampled(f).unwrap(),
+            (None, Some(n)) => cam.resampled(1.0 / n as f64).unwrap(),
+            (None, None) => cam,
+        };
         // A sensor noisier (or quieter) than the camera the tracker is given.
         let sim = match sim_sigma_d {
             Some(sigma) => {
@@ -108,9 +134,17 @@ fn main() {
         let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
         let mut fused = 0usize;
         for i in 0..frames {
-            let d = sim
-                .simulate(&room.scene, &k, &pose, seed * 1000 + i as u64)
-                .depth;
+            let d = match decimate {
+                Some(n) if resample.is_none() => block_mean(
+                    &sim.simulate(&room.scene, &sensor_k, &pose, seed * 1000 + i as u64)
+                        .depth,
+                    n,
+                ),
+                _ => {
+                    sim.simulate(&room.scene, &k, &pose, seed * 1000 + i as u64)
+                        .depth
+                }
+            };
             // As `sl_track::Reconstruction` does: against the first frame itself while the
             // model holds no more than it.
             let model = if fused > 1 { reference.maps() } else { None };
@@ -185,4 +219,28 @@ fn main() {
         count as usize * frames,
         worst_all * 1e3
     );
+}
+
+/// The `n × n` block means of `depth`'s disparity, as depth (a block with an invalid pixel is
+/// invalid): a frame of the sensor decimated by `n`, its values at the blocks' centres as
+/// `Camera::resampled` places the pixels.
+fn block_mean(depth: &sl_core::DepthImage, n: usize) -> sl_core::DepthImage {
+    let (w, h) = (depth.width() / n, depth.height() / n);
+    let src = depth.data();
+    let sw = depth.width();
+    let mut out = vec![0.0f32; w * h];
+    for (y, row) in out.chunks_mut(w).enumerate() {
+        for (x, o) in row.iter_mut().enumerate() {
+            let (mut s, mut ok) = (0.0f64, true);
+            for dy in 0..n {
+                for dx in 0..n {
+                    let z = src[(n * y + dy) * sw + n * x + dx];
+                    ok &= z > 0.0 && z.is_finite();
+                    s += 1.0 / f64::from(z);
+                }
+            }
+            *o = if ok { ((n * n) as f64 / s) as f32 } else { 0.0 };
+        }
+    }
+    sl_core::DepthImage::from_vec(w, h, out).unwrap()
 }
