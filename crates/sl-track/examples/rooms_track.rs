@@ -9,7 +9,7 @@
 //! (the real sequences' RPE is 2–6 mm per frame).
 //!
 //! ```text
-//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX] [--prefilter camera|measured] [--resample F]
+//! cargo run --release -p sl-track --example rooms_track -- [FIRST [COUNT [FRAMES]]] [--verbose] [--camera NAME] [--jitter A] [--sim-sigma-d PX] [--prefilter camera|measured] [--resample F | --decimate N]
 //! ```
 //! Defaults: seeds 3000–3023, 30 frames, each scene's own Kinect-class camera. `--verbose`
 //! prints every frame; `--camera NAME` sees every scene through a preset (`d435`, `oak-d`,
