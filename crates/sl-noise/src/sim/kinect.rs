@@ -171,6 +171,14 @@ impl KinectSimulator {
     /// With the realistic model this draws the correlated disparity error and invalidates the
     /// pixels at depth discontinuities; occlusion bands and grazing-angle drop-outs need the
     /// scene and its normals, which only [`KinectSimulator::simulate`] has.
+    ///
+    /// Every pixel of `truth` is taken as one of the sensor's: σ_D, the disparity step and the
+    /// realistic model's correlation window are laid on `truth`'s own pixels. A stream of the
+    /// sensor decimated by `n` (`sl_core::Camera::resampled`, a 320×240 Kinect) is simulated
+    /// faithfully at the sensor's resolution and then averaged over `n × n` blocks; simulated
+    /// on the decimated image itself, its error is correlated over `n` times the sensor's window
+    /// in each direction and never averaged (docs/bench/track.md, session 56: a tracker's steps
+    /// 2–4 σ off on such frames, within their σ on averaged ones).
     pub fn apply(&self, truth: &DepthImage, seed: u64) -> DepthImage {
         match self.noise {
             NoiseModel::White => self.apply_white(truth, seed),
@@ -278,7 +286,8 @@ impl KinectSimulator {
     }
 
     /// Renders `scene` through `k` from `camera_to_world` and applies the sensor (no size
-    /// check: see [`KinectSimulator::try_simulate`]).
+    /// check: see [`KinectSimulator::try_simulate`]). `k` is taken as the sensor's own pixels
+    /// (see [`KinectSimulator::apply`] for a decimated stream).
     pub fn simulate(
         &self,
         scene: &Scene,
