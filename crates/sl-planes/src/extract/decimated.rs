@@ -59,7 +59,6 @@ impl PlaneExtractor {
         let here = |this: &mut Self| -> Result<PlaneSegmentation> {
             Self::check(w, h, &camera.intrinsics)?;
             this.sensor_grid = None;
-            this.rows = RowCentres::default();
             let Some(n) = Self::sensor_factor(camera, w, h) else {
                 return extract(this, data, w, h, camera);
             };
