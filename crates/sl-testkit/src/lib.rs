@@ -356,6 +356,31 @@ pub fn render_planes(
     )
 }
 
+/// The `n × n` block means of `depth`'s disparity, as depth (a block with an invalid pixel is
+/// invalid): the frame of a sensor that decimates by averaging, `width / n × height / n`, each
+/// value at its block's centre as [`sl_core::Camera::resampled`]`(1/n)` places the pixels.
+/// `n = 0` is taken as 1.
+pub fn block_mean(depth: &DepthImage, n: usize) -> DepthImage {
+    let n = n.max(1);
+    let (w, h) = (depth.width() / n, depth.height() / n);
+    let (src, sw) = (depth.data(), depth.width());
+    let mut out = vec![0.0f32; w * h];
+    for (y, row) in out.chunks_mut(w.max(1)).enumerate() {
+        for (x, o) in row.iter_mut().enumerate() {
+            let (mut s, mut ok) = (0.0f64, true);
+            for dy in 0..n {
+                for dx in 0..n {
+                    let z = src[(n * y + dy) * sw + n * x + dx];
+                    ok &= z > 0.0 && z.is_finite();
+                    s += 1.0 / f64::from(z);
+                }
+            }
+            *o = if ok { ((n * n) as f64 / s) as f32 } else { 0.0 };
+        }
+    }
+    DepthImage::from_vec(w, h, out).unwrap_or_else(|_| DepthImage::invalid(w, h))
+}
+
 /// Every `n`-th pixel of every `n`-th row of `depth` (a driver's decimation, a QVGA mode of a
 /// VGA sensor): `width / n × height / n`, the pixel at `(n·x, n·y)` for `(x, y)`. `n = 0` is
 /// taken as 1.

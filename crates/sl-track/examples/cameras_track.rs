@@ -7,7 +7,7 @@
 //! ```text
 //! cargo run --release -p sl-track --example cameras_track -- \
 //!     [--white | --exact] [--no-prefilter] [--model-noise-only] [--frame-to-frame] \
-//!     [--resample=F] [--max-depth=M] [--bilinear] [--turn-only] [--per-frame] [--seed-offset=N] \
+//!     [--resample=F | --decimate=N] [--max-depth=M] [--bilinear] [--turn-only] [--per-frame] [--seed-offset=N] \
 //!     [--uniform] [--drop=L,…] [CAMERAS] [SCENES]
 //! ```
 //!
@@ -19,7 +19,10 @@
 //! default) unless `--no-prefilter`; `--model-noise-only` keeps the camera's model (no
 //! measurement). Errors are relative to the first frame the tracker anchored its model on
 //! (`Initialised`), over the frames of fragment 0 reported tracked. `--resample=F` scales each
-//! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image);
+//! camera's image by `F` (`Camera::resampled`: the same sensor through a smaller image),
+//! simulated at that size (each pixel with the sensor's own noise); `--decimate=N` instead
+//! simulates every frame at the sensor's size and averages the disparity of `N × N` blocks
+//! (`sl_testkit::block_mean`: the stream of a sensor that decimates by averaging);
 //! `--max-depth=M` fuses and renders the model up to `M` metres (default 4: the corridor's end
 //! wall, 4.5 m away, is then never in the model); `--bilinear` fuses with
 //! `DepthLookup::Bilinear`;
@@ -63,6 +66,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(f) => Some(f.parse::<f64>()?),
         None => None,
     };
+    let decimate = match args.iter().find_map(|a| a.strip_prefix("--decimate=")) {
+        Some(n) => Some(n.parse::<usize>()?.max(1)),
+        None => None,
+    };
+    if resample.is_some() && decimate.is_some() {
+        return Err("--resample and --decimate exclude each other".into());
+    }
     let drop = match args.iter().find_map(|a| a.strip_prefix("--drop=")) {
         Some(labels) => labels
             .split(',')
@@ -110,9 +120,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         ),
     ));
     for name in cameras.split(',') {
-        let camera = match resample {
-            Some(f) => Camera::preset(name)?.resampled(f)?,
-            None => Camera::preset(name)?,
+        let sensor_camera = Camera::preset(name)?;
+        let camera = match (resample, decimate) {
+            (Some(f), _) => sensor_camera.resampled(f)?,
+            (None, Some(n)) => sensor_camera.resampled(1.0 / n as f64)?,
+            (None, None) => sensor_camera,
+        };
+        // The camera the frames are rendered and simulated through.
+        let render_camera = if decimate.is_some() {
+            sensor_camera
+        } else {
+            camera
         };
         let noise = RealisticNoise::for_camera(name);
         let sim = KinectSimulator::with_sensor(camera.sensor).with_noise(if white {
@@ -140,7 +158,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let (mut lost, mut fragments, mut worst) = (0, 0, (0.0f64, 0.0f64));
             let mut ms = Vec::new();
             for i in 0..FRAMES {
-                let rendered = scene.scene.render(&camera.intrinsics, &pose);
+                let rendered = scene.scene.render(&render_camera.intrinsics, &pose);
                 let mut truth = rendered.depth;
                 if !drop.is_empty() {
                     for (z, l) in truth.data_mut().iter_mut().zip(rendered.labels.data()) {
@@ -154,6 +172,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 } else {
                     sim.apply(&truth, 100 + seed_offset + i as u64)
                 };
+                if let Some(n) = decimate {
+                    depth = sl_testkit::block_mean(&depth, n);
+                }
                 // As `sldepth track`: the raw frame's noise against the camera's model (the
                 // prefilter hides it), for the tracker and the prefilter's range kernel.
                 let scale = match meter.as_mut() {

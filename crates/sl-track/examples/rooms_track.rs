@@ -135,7 +135,7 @@ fn main() {
         let mut fused = 0usize;
         for i in 0..frames {
             let d = match decimate {
-                Some(n) if resample.is_none() => block_mean(
+                Some(n) if resample.is_none() => sl_testkit::block_mean(
                     &sim.simulate(&room.scene, &sensor_k, &pose, seed * 1000 + i as u64)
                         .depth,
                     n,
@@ -219,28 +219,4 @@ fn main() {
         count as usize * frames,
         worst_all * 1e3
     );
-}
-
-/// The `n × n` block means of `depth`'s disparity, as depth (a block with an invalid pixel is
-/// invalid): a frame of the sensor decimated by `n`, its values at the blocks' centres as
-/// `Camera::resampled` places the pixels.
-fn block_mean(depth: &sl_core::DepthImage, n: usize) -> sl_core::DepthImage {
-    let (w, h) = (depth.width() / n, depth.height() / n);
-    let src = depth.data();
-    let sw = depth.width();
-    let mut out = vec![0.0f32; w * h];
-    for (y, row) in out.chunks_mut(w).enumerate() {
-        for (x, o) in row.iter_mut().enumerate() {
-            let (mut s, mut ok) = (0.0f64, true);
-            for dy in 0..n {
-                for dx in 0..n {
-                    let z = src[(n * y + dy) * sw + n * x + dx];
-                    ok &= z > 0.0 && z.is_finite();
-                    s += 1.0 / f64::from(z);
-                }
-            }
-            *o = if ok { ((n * n) as f64 / s) as f32 } else { 0.0 };
-        }
-    }
-    sl_core::DepthImage::from_vec(w, h, out).unwrap()
 }
