@@ -8,7 +8,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::pyramid::PointAux;
-use super::reference::ReferenceMaps;
+use super::reference::{ReferenceMaps, variance_along_normal};
 
 /// Samples per batch: one AVX2 register of `f32`, two SSE2 registers.
 const LANES: usize = 8;
@@ -111,6 +111,7 @@ pub(super) fn row_sums(
     let samples = n.div_ceil(stride);
     let reference = c.reference;
     let ref_width = reference.intrinsics.width;
+    let lateral = reference.lateral_sigma_per_m;
     let mut start = 0;
     while start < samples {
         let len = (samples - start).min(LANES);
@@ -201,10 +202,10 @@ pub(super) fn row_sums(
             let xw = [ray[0] + c.tr[0], ray[1] + c.tr[1], ray[2] + c.tr[2]];
             let diff = [xw[0] - q[0][l], xw[1] - q[1][l], xw[2] - q[2][l]];
             let r = dot(&n, &diff);
-            // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|.
+            // The frame point's depth noise acts along its ray: σ_Z(z)·|n·ray|; against a
+            // depth frame its lateral error acts across the ray.
             let cos = dot(&n, &ray) / ray_len[l];
-            let s_src = cz2[l] * cos;
-            let var = s_src * s_src + var_ref[l];
+            let var = variance_along_normal(cz2[l], lateral * p[2][l], cos) + var_ref[l];
             let sigma = var.sqrt();
             let gate = c.gate_sigmas * sigma + c.allowance;
             let gate2 = 2.0 * gate;
@@ -342,8 +343,10 @@ mod tests {
             let xw = [ray[0] + c.tr[0], ray[1] + c.tr[1], ray[2] + c.tr[2]];
             let diff = [xw[0] - q.x, xw[1] - q.y, xw[2] - q.z];
             let r = dot(&n, &diff);
-            let s_src = aux.cz2 * (dot(&n, &ray) / aux.ray_len);
-            let sigma = (s_src * s_src + c.reference.variance_m2[j]).sqrt();
+            let cos = dot(&n, &ray) / aux.ray_len;
+            let lateral = c.reference.lateral_sigma_per_m * pc[2];
+            let sigma =
+                (variance_along_normal(aux.cz2, lateral, cos) + c.reference.variance_m2[j]).sqrt();
             let gate = c.gate_sigmas * sigma + c.allowance;
             if !(r.abs() <= gate && dot(&diff, &diff) <= (2.0 * gate) * (2.0 * gate)) {
                 continue;
@@ -438,7 +441,9 @@ mod tests {
             })
             .collect();
         let (mut checked, mut associated, mut valid) = (0, 0, 0);
-        for inv_var in [true, false] {
+        // The lateral term of a depth-frame reference (0: a model's), with both weightings.
+        for (inv_var, lateral) in [(true, 0.0), (false, 0.0), (true, 0.0014)] {
+            reference.lateral_sigma_per_m = lateral;
             let c = PassConsts {
                 rot: [1.0, -0.0017, 0.0, 0.0017, 1.0, 0.0, 0.0, 0.0, 1.0],
                 tr: [0.003, -0.002, 0.001],

@@ -12,7 +12,10 @@ pub enum WeightMode {
     /// point's `σ_Z(z)²` projected on the reference normal, `σ_Z² (n·r)²` with `r` the unit ray,
     /// plus the reference's variance along its normal (the previous frame's own `σ_Z² (n·r)²`,
     /// or `σ_Z(z_ref)²/W` for a model point of fused weight `W`; see
-    /// [`crate::ReferenceMaps::model_variance_m2`]). The robust kernel acts on `r/σ`.
+    /// [`crate::ReferenceMaps::model_variance_m2`]). Against the previous frame both points
+    /// also carry the sensor's lateral error ([`TrackerConfig::lateral_sigma_px`]),
+    /// `(σ_L·z/f)²·(1 − (n·r)²)`, which keeps surfaces seen at grazing incidence from counting
+    /// as exact. The robust kernel acts on `r/σ`.
     #[default]
     InvVar,
     /// Every residual weighs the same (KinectFusion, Open3D): the kernel acts on `r/σ_Z(z_ref)`.
@@ -39,6 +42,10 @@ impl WeightMode {
         }
     }
 }
+
+/// The default [`TrackerConfig::lateral_sigma_px`]: a Kinect's lateral error, sensor pixels
+/// (Nguyen, Izadi & Lovell, 3DIMPVT 2012).
+pub const DEFAULT_LATERAL_SIGMA_PX: f64 = 0.8;
 
 /// Parameters of [`crate::Tracker`].
 ///
@@ -142,6 +149,21 @@ pub struct TrackerConfig {
     pub noise_window_x_px: f64,
     /// Height of that window, pixels.
     pub noise_window_y_px: f64,
+    /// The sensor's lateral error, pixels of the sensor: how far from its pixel's ray the
+    /// surface a depth value measures may lie (the block matcher's estimate belongs to its
+    /// window, not to the pixel's centre; Nguyen, Izadi & Lovell, 3DIMPVT 2012, measured about
+    /// 0.8 px on a Kinect, nearly independent of depth — the paper `σ_D`'s default comes
+    /// from). On a surface seen at incidence θ it moves the point along the surface's normal by
+    /// `σ_L·z/f·sin θ`, where the depth error moves it by `σ_Z·cos θ`: without it, a floor or a
+    /// wall seen at a grazing angle counts as nearly exact (its variance along the normal goes
+    /// to 0 with `cos θ`) and its samples outweigh the rest of the view. Frame to frame only
+    /// (the previous frame is a raw frame, as the tracked one; [`crate::ReferenceMaps`]' field
+    /// `lateral_sigma_per_m`): on a simulated corridor tracked frame to frame it removes a drift
+    /// along the corridor's axis of 0.1 mm per frame at 640×480 and 0.75 mm per frame at
+    /// 320×240, and on 7-Scenes it lowers the frame-to-frame ATE 5.3 → 4.7 mm; against the
+    /// fused model the frame's own term costs TUM fr1/rpy-200's ATE 2.85 → 2.95 cm, so it is
+    /// not applied there (docs/bench/track.md, session 57). 0 leaves it out.
+    pub lateral_sigma_px: f64,
     /// Samples the alignment keeps across the narrower side of that window on each pyramid
     /// level ([`TrackerConfig::sample_stride`]): 4 samples every second pixel of a 640×480
     /// Kinect's full-resolution level (a step 1.5× cheaper; TUM fr1/rpy and 7-Scenes ATE equal
@@ -200,6 +222,7 @@ impl Default for TrackerConfig {
             estimate_noise: true,
             noise_window_x_px: 9.0,
             noise_window_y_px: 11.0,
+            lateral_sigma_px: DEFAULT_LATERAL_SIGMA_PX,
             samples_per_noise_window: 4.0,
             max_acceleration_m_s2: 9.81,
             frame_interval_s: 1.0 / 30.0,
@@ -254,6 +277,12 @@ impl TrackerConfig {
             if !(v.is_finite() && (1.0..=1000.0).contains(&v)) {
                 return bad(format!("{name} must lie in [1, 1000], got {v}"));
             }
+        }
+        if !(self.lateral_sigma_px.is_finite() && (0.0..=100.0).contains(&self.lateral_sigma_px)) {
+            return bad(format!(
+                "lateral_sigma_px must lie in [0, 100], got {}",
+                self.lateral_sigma_px
+            ));
         }
         if !(self.rolling_shutter_readout_s.is_finite()
             && (0.0..=self.frame_interval_s).contains(&self.rolling_shutter_readout_s))

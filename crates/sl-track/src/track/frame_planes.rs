@@ -30,7 +30,7 @@ use rayon::prelude::*;
 use sl_core::Plane;
 
 use super::pyramid::Level;
-use super::reference::ReferenceMaps;
+use super::reference::{ReferenceMaps, variance_along_normal};
 
 /// A level-0 pixel takes its plane's normal only when its depth lies within this many of the
 /// sensor's σ_Z of the plane along its ray: the label comes from the half-resolution level,
@@ -99,6 +99,7 @@ impl FramePlanes {
             .collect();
         let shift = self.level.min(16);
         let w = k.width;
+        let lateral = maps.lateral_sigma_per_m;
         maps.normals
             .par_chunks_mut(w)
             .zip(maps.variance_m2.par_chunks_mut(w))
@@ -141,8 +142,7 @@ impl FramePlanes {
                     }
                     *nrm = nw;
                     *own = false;
-                    let sd = a.cz2 * np / a.ray_len;
-                    *var = sd * sd;
+                    *var = variance_along_normal(a.cz2, lateral * p.z, np / a.ray_len);
                 }
             });
     }

@@ -45,7 +45,7 @@ mod reference_normal_noise;
 mod solve;
 mod structure;
 
-pub use config::{TrackerConfig, WeightMode};
+pub use config::{DEFAULT_LATERAL_SIGMA_PX, TrackerConfig, WeightMode};
 pub use model::ModelReference;
 pub use reference::ReferenceMaps;
 
@@ -331,6 +331,7 @@ impl Tracker {
             &k,
             &self.camera.sensor,
             &CameraToWorld::from_isometry(pose),
+            self.cfg.lateral_sigma_px,
         );
         self.last_planes.apply(&mut self.last_ref, &self.last_level);
         self.last_ref_stale = false;

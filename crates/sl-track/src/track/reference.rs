@@ -31,6 +31,13 @@ pub struct ReferenceMaps {
     /// model's; the tracker's structure check credits a sample by how it faces the reference
     /// only where the reference's normal is not the pixel's own.
     pub own_normals: Vec<bool>,
+    /// The sensor's lateral error per metre of depth, `σ_L/f` ([`TrackerConfig::lateral_sigma_px`]
+    /// over the sensor's focal length), when the reference is a depth frame: its points'
+    /// variances include `(σ_L·z/f)²·(1 − (n·r)²)`, and the tracked frame's points get the same
+    /// term. 0 for a fused model's raycast (see [`TrackerConfig::lateral_sigma_px`] for why).
+    ///
+    /// [`TrackerConfig::lateral_sigma_px`]: crate::TrackerConfig::lateral_sigma_px
+    pub lateral_sigma_per_m: f32,
 }
 
 impl ReferenceMaps {
@@ -44,6 +51,7 @@ impl ReferenceMaps {
             normals: vec![Vector3::new(f32::NAN, f32::NAN, f32::NAN); n],
             variance_m2: vec![0.0; n],
             own_normals: vec![true; n],
+            lateral_sigma_per_m: 0.0,
         }
     }
 
@@ -55,7 +63,8 @@ impl ReferenceMaps {
     /// Maps of one depth frame (the previous frame in frame-to-frame tracking) seen from
     /// `pose`: its points and normals in world coordinates, and the sensor's variance along
     /// the normal: the depth noise acts along the ray, so `σ_Z(z)²·(n·r)²` with `r` the unit
-    /// ray of the pixel.
+    /// ray of the pixel, plus the lateral error across it,
+    /// `(σ_L·z/f)²·(1 − (n·r)²)` with [`crate::DEFAULT_LATERAL_SIGMA_PX`].
     pub fn from_depth(
         depth: &[f32],
         k: &Intrinsics,
@@ -66,19 +75,20 @@ impl ReferenceMaps {
         pyr.build(depth, k, sensor, 1, 1)?;
         let mut out = Self::empty(k);
         if let Some(level) = pyr.levels.first() {
-            out.set_from_level(level, k, sensor, pose);
+            out.set_from_level(level, k, sensor, pose, crate::DEFAULT_LATERAL_SIGMA_PX);
         }
         Ok(out)
     }
 
     /// Replaces the maps by those of a pyramid level (level 0 of the tracked frame), reusing
-    /// the buffers.
+    /// the buffers; `lateral_sigma_px` is the sensor's lateral error in its own pixels.
     pub(crate) fn set_from_level(
         &mut self,
         level: &Level,
         k: &Intrinsics,
         sensor: &SensorModel,
         pose: &CameraToWorld,
+        lateral_sigma_px: f64,
     ) {
         let n = k.width * k.height;
         self.pose = *pose;
@@ -92,6 +102,8 @@ impl ReferenceMaps {
         let r = iso.rotation.to_rotation_matrix().matrix().cast::<f32>();
         let t = iso.translation.vector.cast::<f32>();
         let c = (sensor.sigma_d_px / sensor.fb()) as f32;
+        let lateral = lateral_sigma_per_m(lateral_sigma_px, sensor);
+        self.lateral_sigma_per_m = lateral;
         let nan_p = Point3::new(f32::NAN, f32::NAN, f32::NAN);
         let nan_n = Vector3::new(f32::NAN, f32::NAN, f32::NAN);
         (
@@ -109,8 +121,7 @@ impl ReferenceMaps {
                     *nrm = r * nc;
                     let z = pc.z;
                     let cos = nc.dot(&pc.coords) / pc.coords.norm();
-                    let s = c * z * z * cos;
-                    *var = s * s;
+                    *var = variance_along_normal(c * z * z, lateral * z, cos);
                 } else {
                     *p = nan_p;
                     *nrm = nan_n;
@@ -165,6 +176,7 @@ impl ReferenceMaps {
         self.normals.clear();
         self.normals.extend_from_slice(&raycast.normals);
         self.variance_m2.resize(n, 0.0);
+        self.lateral_sigma_per_m = 0.0;
         self.own_normals.clear();
         self.own_normals.resize(n, false);
         let s2 = sensor.sigma_z(z_ref_m) as f32;
@@ -197,5 +209,82 @@ impl ReferenceMaps {
         } else {
             f32::INFINITY
         }
+    }
+}
+
+/// `σ_L/f` of a sensor: its lateral error (`lateral_sigma_px`, pixels of the sensor) per metre
+/// of depth; 0 for a non-positive or non-finite result.
+pub(crate) fn lateral_sigma_per_m(lateral_sigma_px: f64, sensor: &SensorModel) -> f32 {
+    let s = lateral_sigma_px / sensor.focal_px;
+    if s.is_finite() && s > 0.0 {
+        s as f32
+    } else {
+        0.0
+    }
+}
+
+/// The variance along a surface's unit normal `n` of a point measured along the unit ray `r`
+/// with depth error `sigma_z` (m, along the ray) and lateral error `sigma_lat` (m, across it),
+/// for `cos = n·r`: `σ_Z²·cos² + σ_lat²·(1 − cos²)`.
+#[inline(always)]
+pub(crate) fn variance_along_normal(sigma_z: f32, sigma_lat: f32, cos: f32) -> f32 {
+    let axial = sigma_z * cos;
+    let across = sigma_lat * sigma_lat * (1.0 - cos * cos).max(0.0);
+    axial * axial + across
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    /// A floor 1 m below a Kinect looking along it: its far rows are seen at a grazing angle,
+    /// where the depth error along the normal (`σ_Z·cos θ`) nearly vanishes and the lateral
+    /// error across the ray (`σ_L·z/f·sin θ`) is what is left.
+    #[test]
+    fn a_grazing_floor_keeps_the_lateral_error_along_its_normal() {
+        let k = Intrinsics::kinect_v1();
+        let sensor = SensorModel::kinect_v1();
+        let mut depth = vec![0.0f32; k.width * k.height];
+        for v in 0..k.height {
+            let dv = v as f64 - k.cy;
+            if dv > 4.0 {
+                for u in 0..k.width {
+                    depth[v * k.width + u] = (k.fy / dv) as f32;
+                }
+            }
+        }
+        let pose = CameraToWorld::identity();
+        let maps = ReferenceMaps::from_depth(&depth, &k, &sensor, &pose).unwrap();
+        let lateral = crate::DEFAULT_LATERAL_SIGMA_PX / sensor.focal_px;
+        assert!((f64::from(maps.lateral_sigma_per_m) - lateral).abs() < 1e-9);
+        // Rows 20.5, 100.5 and 230.5 below the centre: 28 m (past the sensor's range; the maps
+        // do not care), 5.8 m and 2.5 m away. Each pixel's variance is the sum of both terms,
+        // and at these slants the lateral one is the larger.
+        let mut checked = 0;
+        for v in [260usize, 340, 470] {
+            let i = v * k.width + 320;
+            let (p, n, var) = (
+                maps.points[i],
+                maps.normals[i],
+                f64::from(maps.variance_m2[i]),
+            );
+            assert!(n.x.is_finite(), "row {v}");
+            let z = f64::from(p.z);
+            let cos = f64::from(n.dot(&p.coords) / p.coords.norm());
+            let axial = sensor.sigma_z(z) * cos;
+            let across = lateral * z * (1.0 - cos * cos).sqrt();
+            let want = axial * axial + across * across;
+            assert!(
+                (var / want - 1.0).abs() < 1e-3,
+                "row {v}: {var} against {want}"
+            );
+            assert!(across > axial, "row {v}: lateral {across} axial {axial}");
+            checked += 1;
+        }
+        assert_eq!(checked, 3);
+        // Head-on and edge-on.
+        assert_eq!(variance_along_normal(0.01, 0.002, 1.0), 1e-4);
+        assert!((variance_along_normal(0.01, 0.002, 0.0) - 4e-6).abs() < 1e-12);
     }
 }
