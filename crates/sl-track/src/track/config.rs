@@ -151,18 +151,20 @@ pub struct TrackerConfig {
     pub noise_window_y_px: f64,
     /// The sensor's lateral error, pixels of the sensor: how far from its pixel's ray the
     /// surface a depth value measures may lie (the block matcher's estimate belongs to its
-    /// window, not to the pixel's centre; Nguyen, Izadi & Lovell, 3DIMPVT 2012, measured about
-    /// 0.8 px on a Kinect, nearly independent of depth — the paper `σ_D`'s default comes
-    /// from). On a surface seen at incidence θ it moves the point along the surface's normal by
-    /// `σ_L·z/f·sin θ`, where the depth error moves it by `σ_Z·cos θ`: without it, a floor or a
-    /// wall seen at a grazing angle counts as nearly exact (its variance along the normal goes
-    /// to 0 with `cos θ`) and its samples outweigh the rest of the view. Frame to frame only
-    /// (the previous frame is a raw frame, as the tracked one; [`crate::ReferenceMaps`]' field
-    /// `lateral_sigma_per_m`): on a simulated corridor tracked frame to frame it removes a drift
-    /// along the corridor's axis of 0.1 mm per frame at 640×480 and 0.75 mm per frame at
-    /// 320×240, and on 7-Scenes it lowers the frame-to-frame ATE 5.3 → 4.7 mm; against the
-    /// fused model the frame's own term costs TUM fr1/rpy-200's ATE 2.85 → 2.95 cm, so it is
-    /// not applied there (docs/bench/track.md, session 57). 0 leaves it out.
+    /// window, not to the pixel's centre; Nguyen, Izadi & Lovell, 3DIMPVT 2012 — the paper
+    /// `sl_core::DEFAULT_SIGMA_D_PX` comes from — measured about 0.8 px on a Kinect, nearly
+    /// independent of depth). On a surface seen at incidence θ it moves the point along the
+    /// surface's normal by `σ_L·z/f·sin θ`, where the depth error moves it by `σ_Z·cos θ`:
+    /// without it, a floor or a wall seen at a grazing angle counts as nearly exact (its
+    /// variance along the normal goes to 0 with `cos θ`) and its samples outweigh the rest of
+    /// the view. Only against the previous frame (frame-to-frame tracking, and the fallback of
+    /// frame-to-model tracking to the last frame), whose points are raw measurements as the
+    /// tracked frame's are ([`crate::ReferenceMaps`]' field `lateral_sigma_per_m`): on a
+    /// simulated corridor with white noise tracked frame to frame it removes a drift along the
+    /// corridor's axis of 0.1 mm per frame at 640×480 and 0.75 mm per frame at 320×240, and on
+    /// 7-Scenes it lowers the frame-to-frame ATE 6.0 → 5.5 mm; against the fused model the
+    /// frame's own term cost TUM fr1/rpy-200's ATE 2.85 → 2.95 cm, so it is not applied there
+    /// (docs/bench/track.md, session 57). 0 leaves it out.
     pub lateral_sigma_px: f64,
     /// Samples the alignment keeps across the narrower side of that window on each pyramid
     /// level ([`TrackerConfig::sample_stride`]): 4 samples every second pixel of a 640×480

@@ -100,9 +100,9 @@ pub struct Args {
     pub weighting: String,
     /// Track each frame against the previous tracked frame instead of the fused model's
     /// raycast (frame-to-model, the default). Neither loses a frame of TUM fr1/rpy-200 or
-    /// 7-Scenes; frame to frame is less accurate on TUM fr1/rpy-200 (ATE 3.03 against 2.93
-    /// cm), more accurate on 7-Scenes (0.51 against 0.60 cm) and about half as costly per
-    /// frame (docs/bench/track.md, "Session 33").
+    /// 7-Scenes; frame to frame is less accurate on TUM fr1/rpy-200 (ATE 3.08 against 2.86
+    /// cm), more accurate on 7-Scenes (0.47 against 0.67 cm) and about half as costly per
+    /// frame (docs/bench/track.md, sessions 33 and 57).
     #[arg(long)]
     pub frame_to_frame: bool,
     /// Render the fused model for tracking at this fraction of the camera's resolution, in
