@@ -430,13 +430,8 @@ fn a_single_wall_is_a_degenerate_view() {
 fn a_bare_corridor_is_a_degenerate_view_at_full_resolution() {
     let scene = named_scene("corridor").unwrap();
     let (cam, sim, filter) = realistic_preset("oak-d");
-    // The camera of `cameras_track`: 1° and 1 cm per frame, views 0, 3, …, 12.
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.01, 0.002, 0.004),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.2, 1.0, 0.1).normalize() * 1f64.to_radians(),
-        ),
-    ));
+    // Views 0, 3, …, 12 of the corridor camera.
+    let step = corridor_step();
     let prior = TrackerConfig::default().motion_prior_sigma_m();
     let mut pose = scene.pose;
     for i in 0..=12u64 {
@@ -765,12 +760,7 @@ fn a_frame_the_model_cannot_place_is_aligned_to_the_last_frame_as_frame_to_frame
     let scene = named_scene("corridor").unwrap();
     let (cam, sim, filter) = realistic_preset("kinect-v1");
     let k = cam.intrinsics;
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.01, 0.002, 0.004),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.2, 1.0, 0.1).normalize() * 1f64.to_radians(),
-        ),
-    ));
+    let step = corridor_step();
     let mut pose = scene.pose;
     let mut frames = Vec::new();
     for i in 0..8u64 {
@@ -1621,6 +1611,16 @@ fn samples_landing_on_a_reference_surface_of_another_orientation_pin_nothing() {
     assert!(e.translation.vector.norm() < 0.01, "{e:?}");
 }
 
+/// The camera step of `cameras_track` through the corridor: 1 cm and 1° per frame.
+fn corridor_step() -> CameraToCamera {
+    CameraToCamera::from_isometry(Isometry3::from_parts(
+        Translation3::new(0.01, 0.002, 0.004),
+        UnitQuaternion::from_scaled_axis(
+            Vector3::new(0.2, 1.0, 0.1).normalize() * 1f64.to_radians(),
+        ),
+    ))
+}
+
 /// Final error along the corridor's axis (m) of the 320×240 Kinect corridor (white noise at
 /// every 320×240 pixel: twice the σ of a decimated stream) tracked frame to frame as `sldepth
 /// track --frame-to-frame` does (each raw frame's noise measured, the default prefilter for
@@ -1634,12 +1634,7 @@ fn corridor_axis_drift(lateral_sigma_px: f64, seed: u64) -> f64 {
     cfg.tracker.lateral_sigma_px = lateral_sigma_px;
     let mut meter = cfg.tracker.noise_meter();
     let mut rec = Reconstruction::new(cam, cfg).unwrap();
-    let step = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.01, 0.002, 0.004),
-        UnitQuaternion::from_scaled_axis(
-            Vector3::new(0.2, 1.0, 0.1).normalize() * 1f64.to_radians(),
-        ),
-    ));
+    let step = corridor_step();
     let axis = scene.pose.isometry().rotation * Vector3::z();
     let (mut pose, mut anchor, mut drift) = (scene.pose, None, f64::NAN);
     for i in 0..26u64 {
@@ -1659,9 +1654,8 @@ fn corridor_axis_drift(lateral_sigma_px: f64, seed: u64) -> f64 {
         if let (true, Some((t0, e0))) = (r.status.is_tracked(), anchor) {
             let truth_rel = t0.inverse() * pose.isometry();
             let est_rel = e0.inverse() * r.pose.isometry();
-            let e = (est_rel.translation.vector - truth_rel.translation.vector)
+            drift = (est_rel.translation.vector - truth_rel.translation.vector)
                 .dot(&(t0.rotation.inverse() * axis));
-            drift = e;
         }
         pose = pose * step;
     }
