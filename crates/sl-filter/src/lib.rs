@@ -60,7 +60,7 @@
 //! every default.
 //!
 //! **The default of `sldepth filter` and Python `filter`** is not one pass but [`MultiScale`]:
-//! the adaptive 7×7 pass followed by 5×5 disparity passes with taps 2 and 4 px apart
+//! the adaptive 7×7 pass followed by 5×5 disparity passes with taps 2, 4 and 8 px apart
 //! ([`multiscale_by_default`] says for which methods). Real structured-light error is
 //! correlated over the ~9×11 px block-matching window, wider than any single window; the
 //! coarse passes remove about a third of the fine-scale plane residual of real walls and floors
@@ -167,7 +167,7 @@ pub use filter::{
 };
 pub use kernel::Isa;
 pub use multiscale::{MultiScale, multiscale_by_default};
-pub use prefilter::Prefilter;
+pub use prefilter::{PREFILTER_DILATIONS, Prefilter};
 
 /// Number of threads the filters use when called outside a custom rayon pool.
 pub fn current_threads() -> usize {

@@ -28,8 +28,9 @@ use crate::{FilterError, MultiScale, Result};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
 #[non_exhaustive]
 pub enum Prefilter {
-    /// `"multiscale"` (the default): [`MultiScale::default_for`] the sensor — the adaptive 7×7
-    /// pass, then the dilated disparity passes that remove real sensors' correlated error.
+    /// `"multiscale"` (the default): [`MultiScale::default_for`] the sensor with the coarse
+    /// passes at [`PREFILTER_DILATIONS`] — the adaptive 7×7 pass, then the dilated disparity
+    /// passes that remove real sensors' correlated error.
     #[default]
     MultiScale,
     /// `"single"`: the adaptive filter's single 7×7 pass
@@ -38,6 +39,16 @@ pub enum Prefilter {
     /// `"none"`: frames are used as they are.
     Off,
 }
+
+/// Dilations of the coarse passes of [`Prefilter::MultiScale`]: 2 and 4, one pass fewer than
+/// [`crate::multiscale::DEFAULT_DILATIONS`] (`sldepth filter`'s default).
+///
+/// Measured in session 58 (`cargo xtask validate --only track`, docs/bench/README.md): with the
+/// third pass (dilation 8) the tracked trajectories at the frame rate are as accurate (TUM
+/// fr1/rpy-200 2.86 → 2.84 cm, 7-Scenes 0.67 → 0.68 cm), but faster motion lost frames it
+/// tracked before (TUM every 3rd frame with the readout model: 0 → 9 lost; every 2nd with a
+/// global shutter: 0 → 5), and each frame costs one pass more. The tracker keeps two passes.
+pub const PREFILTER_DILATIONS: [usize; 2] = [2, 4];
 
 impl Prefilter {
     /// Every prefilter, in the order of [`Prefilter::NAMES`].
@@ -72,7 +83,10 @@ impl Prefilter {
     /// the range kernel of its own noise); `None` for [`Prefilter::Off`]. The single pass is
     /// the multi-scale filter without its coarse passes, which is the adaptive default pass.
     pub fn filter_for(self, sensor: &SensorModel) -> Option<MultiScale> {
-        let multi = MultiScale::default_for(sensor);
+        let multi = MultiScale {
+            dilations: PREFILTER_DILATIONS.to_vec(),
+            ..MultiScale::default_for(sensor)
+        };
         match self {
             Prefilter::MultiScale => Some(multi),
             Prefilter::Single => Some(MultiScale {
@@ -149,7 +163,15 @@ mod tests {
             adaptive.apply(&depth).unwrap().data()
         );
         let multi = Prefilter::MultiScale.filter_for(&sensor).unwrap();
-        assert_eq!(multi, MultiScale::default_for(&sensor));
+        // The default filter with the tracker's coarse passes (one fewer, see
+        // PREFILTER_DILATIONS).
+        let default = MultiScale::default_for(&sensor);
+        assert_eq!(multi.dilations, PREFILTER_DILATIONS);
+        assert_eq!(
+            (&multi.base, &multi.coarse),
+            (&default.base, &default.coarse)
+        );
+        assert!(default.dilations.starts_with(&multi.dilations));
         assert_ne!(
             multi.apply(&depth).unwrap().data(),
             adaptive.apply(&depth).unwrap().data()
@@ -171,6 +193,7 @@ mod tests {
             Prefilter::MultiScale.filter_for(&noisier).unwrap(),
         );
         assert_ne!(a, b);
-        assert_eq!(b, MultiScale::default_for(&noisier));
+        let default = MultiScale::default_for(&noisier);
+        assert_eq!((&b.base, &b.coarse), (&default.base, &default.coarse));
     }
 }

@@ -18,7 +18,7 @@ use crate::threads::compute;
 /// defaults. ``window``: ``"square"`` (default, the full 2r+1 square) or ``"disc"`` (dx² + dy²
 /// ≤ r², OpenCV's ``bilateralFilter`` window, about half the taps). ``depth_scale`` converts
 /// uint16 input (units per metre). ``multiscale``: follow the pass with the coarse
-/// disparity-domain passes (taps 2 and 4 px apart) that remove real sensors' spatially
+/// disparity-domain passes (taps 2, 4 and 8 px apart) that remove real sensors' spatially
 /// correlated error; ``None`` (default) means yes for ``"adaptive"`` and ``"disparity"`` and no
 /// for ``"gaussian"`` and ``"bilateral"``, as ``sldepth filter`` (``--single-scale``).
 /// ``estimate_noise``: measure the frame's disparity noise against the camera's model first (on

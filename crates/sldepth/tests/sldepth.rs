@@ -429,7 +429,7 @@ fn filter_is_multiscale_by_default_and_single_scale_on_request() {
         )
     };
     let (default, dil) = run("default.png", &[]);
-    assert_eq!(dil, serde_json::json!([2, 4]));
+    assert_eq!(dil, serde_json::json!([2, 4, 8]));
     let (multi, _) = run("multi.png", &["--multiscale"]);
     assert_eq!(default, multi);
     let (single, dil) = run("single.png", &["--single-scale"]);

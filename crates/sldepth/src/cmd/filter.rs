@@ -68,7 +68,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE.png")]
     pub normals: Option<PathBuf>,
     /// Follow the filter with the coarse passes of `sl_filter::MultiScale` (5×5 disparity-domain
-    /// bilateral passes with taps 2 and 4 px apart, range σ m·σ_D), which remove the spatially
+    /// bilateral passes with taps 2, 4 and 8 px apart, range σ m·σ_D), which remove the spatially
     /// correlated error of real frames that a 7×7 window cannot. The default for `adaptive` and
     /// `disparity`; this flag adds them to `gaussian` and `bilateral` too.
     #[arg(long, conflicts_with = "single_scale")]

@@ -85,8 +85,8 @@ pub struct Args {
     pub memory_budget_bytes: Option<usize>,
     /// Smooth every frame before fusing it, as `sldepth track --prefilter` names the filters:
     /// `single` (sl-filter's adaptive bilateral filter, σ_d = k·Z², the paper's; what a bare
-    /// `--prefilter` means), `multiscale` (that pass, then the dilated disparity passes of
-    /// `sldepth filter`'s default, for real sensors' spatially correlated error) or `none`
+    /// `--prefilter` means), `multiscale` (that pass, then dilated disparity passes 2 and 4 px
+    /// apart, as `sldepth track`'s default, for real sensors' spatially correlated error) or `none`
     /// (default). The range kernel follows the camera's sensor model, or the measured noise
     /// (see --model-noise-only).
     #[arg(long, value_name = "FILTER", default_value = "none", num_args = 0..=1, default_missing_value = "single", value_parser = PossibleValuesParser::new(Prefilter::NAMES).try_map(|s| s.parse::<Prefilter>()))]

@@ -120,9 +120,10 @@ pub struct Args {
     #[arg(long, value_name = "LEVEL", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=5))]
     pub finest_level: u8,
     /// Smooth every frame before tracking and fusing it: `multiscale` (default: the default
-    /// filter of `sldepth filter`, which removes the spatially correlated error of real
-    /// sensors; on 7-Scenes it lowers the frame-to-frame ATE from 1.30 to 0.73 cm, elsewhere
-    /// the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
+    /// filter of `sldepth filter` with its coarse passes 2 and 4 px apart, not its third 8 px
+    /// apart, which cost frames at faster motion; it removes the spatially correlated error of
+    /// real sensors: on 7-Scenes it lowers the frame-to-frame ATE from 1.30 to 0.73 cm,
+    /// elsewhere the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
     /// pass) or `none`. The range kernel follows each raw frame's measured noise (see
     /// `--model-noise-only`).
     #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = PossibleValuesParser::new(Prefilter::NAMES).try_map(|s| s.parse::<Prefilter>()))]
