@@ -29,7 +29,8 @@ const DEFAULT_ROW: &str = "multi-scale (default: adaptive 7×7, disparity 5×5 a
 
 /// The candidates for a sensor: raw, the paper's adaptive default, the disparity default, and
 /// the multi-scale filter (adaptive 7×7, then 5×5 disparity passes at dilations 2, 4 and 8), and
-/// the same with dilations 2 and 4 only (the default before session 58).
+/// the same with the tracker's dilations 2 and 4 only (`sl_filter::PREFILTER_DILATIONS`, the
+/// default before session 58).
 fn candidates(sensor: &SensorModel) -> Vec<(&'static str, Candidate)> {
     vec![
         ("raw", Candidate::Raw),
@@ -48,9 +49,9 @@ fn candidates(sensor: &SensorModel) -> Vec<(&'static str, Candidate)> {
             )),
         ),
         (
-            "multi-scale, dilations 2, 4 (the default before session 58)",
+            "multi-scale, dilations 2, 4 (the tracker's prefilter; the default before session 58)",
             Candidate::Multi(MultiScale {
-                dilations: vec![2, 4],
+                dilations: sl_filter::PREFILTER_DILATIONS.to_vec(),
                 ..MultiScale::default_for(sensor)
             }),
         ),
@@ -302,7 +303,7 @@ pub(super) fn multiscale_real(ctx: &mut Context) -> Result<()> {
             )?;
             writeln!(
                 images,
-                "\n{}: raw | adaptive 7×7 (single pass) | multi-scale with dilations 2, 4 (before session 58) | multi-scale (the default)\n\n![{} normals]({file})",
+                "\n{}: raw | adaptive 7×7 (single pass) | multi-scale with dilations 2, 4 (the tracker's prefilter, the default before session 58) | multi-scale (the default)\n\n![{} normals]({file})",
                 fr.name, fr.name
             )?;
         }
