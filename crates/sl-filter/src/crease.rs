@@ -142,6 +142,16 @@ pub(crate) fn refuse_creases(
     measured
 }
 
+/// One step of Marsaglia's xorshift64 generator: the deterministic noise of this crate's test
+/// frames (here and in `multiscale`'s tests).
+#[cfg(test)]
+pub(crate) fn xorshift_step(state: &mut u64) -> u64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    *state
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -164,10 +174,8 @@ mod tests {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let d = (0..w * h)
             .map(|i| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                let noise = a * ((state >> 40) as f32 / (1u64 << 24) as f32 - 0.5);
+                let noise =
+                    a * ((xorshift_step(&mut state) >> 40) as f32 / (1u64 << 24) as f32 - 0.5);
                 let x = (i % w) as f32 - cx as f32;
                 let disp = 10.0 + if x < 0.0 { g0 * x } else { g1 * x } + noise;
                 fb / disp

@@ -451,6 +451,7 @@ impl Polyphase {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::crease::xorshift_step;
 
     /// The range kernel's domain value of a depth and its range σ there (the brute-force
     /// test's own statement of what `RowScratch::values` computes).
@@ -471,12 +472,10 @@ mod tests {
         let mut state = 0x2545_f491_4f6c_dd1du64;
         let d = (0..w * h)
             .map(|i| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
+                let r = xorshift_step(&mut state);
                 let (x, y) = (i % w, i / w);
-                let noise = (state >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                if state.is_multiple_of(997) || (x > 40 && x < 52 && y > 10) {
+                let noise = (r >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
+                if r.is_multiple_of(997) || (x > 40 && x < 52 && y > 10) {
                     return 0.0;
                 }
                 let step = if x > 70 { 0.6 } else { 0.0 };
@@ -522,12 +521,10 @@ mod tests {
         let mut state = 0x9e37_79b9_7f4a_7c15u64;
         let d = (0..w * h)
             .map(|i| {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
+                let r = xorshift_step(&mut state);
                 let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let noise = (state >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                if state.is_multiple_of(997) || (x > 40.0 && x < 52.0 && y > 10.0) {
+                let noise = (r >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
+                if r.is_multiple_of(997) || (x > 40.0 && x < 52.0 && y > 10.0) {
                     return 0.0;
                 }
                 let inv_z = if x > 70.0 {
