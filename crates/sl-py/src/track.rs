@@ -117,7 +117,8 @@ pub(crate) fn track_in_map<'py>(
 /// ``None``: one pixel per 4 of the sensor's, 0.25 for a 640×480 Kinect, as ``sldepth track
 /// --model-scale``); ``prefilter``: the smoothing of every frame before
 /// tracking and fusion, as ``sldepth track --prefilter``: ``"multiscale"`` (default:
-/// ``filter``'s default, which removes real sensors' spatially correlated error),
+/// ``filter``'s default with its coarse passes 2 and 4 px apart, not its third 8 px apart,
+/// which cost frames at faster motion; it removes real sensors' spatially correlated error),
 /// ``"single"`` (the adaptive filter's single pass) or ``"none"``; ``lens``: ``"auto"``
 /// (default) resamples every frame into the ideal pinhole image first when the camera has a
 /// lens model (``camera.lens``: the ``tum-fr1``/``tum-fr2`` presets), as ``sldepth track
