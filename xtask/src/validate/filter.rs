@@ -30,7 +30,7 @@ use sl_noise::sim::{KinectSimulator, named_scene};
 use super::Context;
 
 mod multiscale;
-use multiscale::{multiscale_real, multiscale_sim};
+use multiscale::{multiscale_cameras, multiscale_real, multiscale_sim};
 
 const EXP: &str = "filter";
 /// Multipliers `m` swept for the default k.
@@ -369,6 +369,9 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     realistic_rows(ctx, &methods, seeds)?;
     real_frames(ctx, &methods)?;
     multiscale_sim(ctx, seeds)?;
+    if !ctx.quick() {
+        multiscale_cameras(ctx, seeds)?;
+    }
     multiscale_real(ctx)?;
     Ok(())
 }

@@ -374,6 +374,7 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
     }
     by_uncertainty(ctx, &mut md, &results);
     same_patch_table(ctx, &mut md, &results);
+    own_misses_table(ctx, &mut md, &results);
     if let Some(tum) = results.iter().find(|r| r.name == "tum-fr1-rpy-200")
         && let Some((_, g)) = tum.gaps.iter().find(|(k, _)| *k == 5)
     {
@@ -419,6 +420,48 @@ fn same_patch_table(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
                 ("half seen", sp.half_seen),
                 ("same patch agrees", sp.agree),
                 ("ours or same patch", sp.either),
+            ] {
+                ctx.row(
+                    EXP,
+                    &format!("{} repeat k={k} {what}", r.name),
+                    sp.share(n),
+                    "",
+                );
+            }
+        }
+    }
+}
+
+/// The extractor's own misses (the patch agrees, the extractor's planes do not) by where most
+/// of the patch went in frame `i + k`.
+fn own_misses_table(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
+    md.push_str(
+        "\n**The extractor's own misses**: the tested planes whose patch agrees (above) but that \
+         no plane of frame i + k matches, by the plane most of the patch's seen pixels have \
+         there: *into a larger plane* (joined with another surface, or with more of a bent \
+         one, and the union's fit is more than 3° or 3 cm off), *into a smaller or equal plane* \
+         (cut differently: bands, or a piece of a split), *unlabelled*. Shares of the planes \
+         tested. Reported, not checked.\n\n| sequence | k | planes tested | own misses | into a larger plane | into a smaller or equal plane | unlabelled |\n|---|---|---|---|---|---|---|\n",
+    );
+    for r in results {
+        for (k, sp) in &r.same_patch {
+            let m = sp.missed;
+            let own = m.into_larger + m.into_smaller + m.unlabelled;
+            let pc = |n: usize| 100.0 * sp.share(n);
+            let _ = writeln!(
+                md,
+                "| {} | {k} | {} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
+                r.name,
+                sp.planes,
+                pc(own),
+                pc(m.into_larger),
+                pc(m.into_smaller),
+                pc(m.unlabelled)
+            );
+            for (what, n) in [
+                ("own misses into a larger plane", m.into_larger),
+                ("own misses into a smaller plane", m.into_smaller),
+                ("own misses unlabelled", m.unlabelled),
             ] {
                 ctx.row(
                     EXP,

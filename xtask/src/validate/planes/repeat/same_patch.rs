@@ -12,6 +12,13 @@
 //! only by a plane elsewhere on its surface. So `same patch agrees` bounds what reproducing
 //! frame `i`'s planes exactly in frame `i + k` would score, and the share of planes the
 //! extractor *or* the same-patch test finds bounds an extractor that does both.
+//!
+//! The planes the extractor misses although their patch agrees are the extractor's own
+//! misses; they are counted by where most of the patch's seen pixels went in frame `i + k`:
+//! into a plane with more pixels than the tested one (the patch was joined with another
+//! surface, or with more of a bent one, and the union's fit fails the rule), into a plane with
+//! no more pixels (it was cut differently: bands, or a piece of another split), or into no
+//! plane at all.
 
 use sl_core::nalgebra::Point3;
 use sl_core::{Camera, CameraToWorld, DepthImage, Image, fit_plane};
@@ -44,6 +51,21 @@ pub struct SamePatch {
     pub repeated: usize,
     /// Planes found again by the extractor or agreeing as a patch.
     pub either: usize,
+    /// Planes whose patch agrees but the extractor did not find again, by where most of the
+    /// seen pixels went in frame `i + k`.
+    pub missed: MissedPatches,
+}
+
+/// The extractor's own misses (the patch agrees), by the label most of its seen pixels have in
+/// frame `i + k`.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct MissedPatches {
+    /// A plane with more pixels than the tested plane.
+    pub into_larger: usize,
+    /// A plane with at most as many pixels.
+    pub into_smaller: usize,
+    /// No plane.
+    pub unlabelled: usize,
 }
 
 impl SamePatch {
@@ -64,9 +86,18 @@ impl SamePatch {
             self.planes += 1;
             let found = b.planes.iter().any(|q| same_plane(p, &q.plane));
             let agrees = match patch_fits(a, b, id, camera) {
-                Some((fa, fb)) => {
+                Some(fits) => {
                     self.half_seen += 1;
-                    same_plane(&fa, &fb.plane)
+                    let agrees = same_plane(&fits.in_a, &fits.in_b.plane);
+                    if agrees && !found {
+                        let m = &mut self.missed;
+                        match fits.majority_label.checked_sub(1).map(|l| b.planes.get(l)) {
+                            Some(Some(q)) if q.pixels > p.pixels => m.into_larger += 1,
+                            Some(Some(_)) => m.into_smaller += 1,
+                            _ => m.unlabelled += 1,
+                        }
+                    }
+                    agrees
                 }
                 None => false,
             };
@@ -77,20 +108,28 @@ impl SamePatch {
     }
 }
 
+/// A tested plane's patch: the fits of its seen pixels in both frames, and where they went.
+struct PatchFits {
+    /// The world-coordinate fit of the seen pixels in frame `a`.
+    in_a: WorldPlane,
+    /// The same in frame `b`.
+    in_b: WorldPlane,
+    /// The label most of the seen pixels have in frame `b` (0: none).
+    majority_label: usize,
+}
+
 /// The world-coordinate fits of plane `id`'s pixels of frame `a` that frame `b` sees, in `a` and
-/// in `b`; `None` when fewer than half are seen or a fit is degenerate.
-fn patch_fits(
-    a: &PatchFrame,
-    b: &PatchFrame,
-    id: u16,
-    camera: &Camera,
-) -> Option<(WorldPlane, WorldPlane)> {
+/// in `b`, and the label most of them have in `b`; `None` when fewer than half are seen or a
+/// fit is degenerate.
+fn patch_fits(a: &PatchFrame, b: &PatchFrame, id: u16, camera: &Camera) -> Option<PatchFits> {
     let k = &camera.intrinsics;
     let (wa, wb) = (a.pose.isometry(), b.pose.isometry());
     let a_to_b = wb.inverse() * wa;
     let w = a.labels.width();
     let (mut in_a, mut in_b) = (Vec::new(), Vec::new());
     let mut total = 0usize;
+    // Seen pixels per label of frame `b` (0 = none).
+    let mut by_label = vec![0usize; b.planes.len() + 1];
     for (idx, (&l, &z)) in a.labels.data().iter().zip(a.depth.data()).enumerate() {
         if l != id || z.is_nan() || z <= 0.0 {
             continue;
@@ -106,6 +145,10 @@ fn patch_fits(
         if zb > 0.0 && (zb - pb.z).abs() <= tol {
             in_a.push(wa * p);
             in_b.push(wb * k.back_project(x as f64, y as f64, zb));
+            let l = b.labels.get(x, y).map_or(0, |&l| usize::from(l));
+            if let Some(n) = by_label.get_mut(l) {
+                *n += 1;
+            }
         }
     }
     if in_a.len() * 2 < total.max(1) {
@@ -119,7 +162,14 @@ fn patch_fits(
             normal_sigma_deg: f64::NAN,
         })
     };
-    Some((world(&in_a)?, world(&in_b)?))
+    let majority_label = (0..by_label.len())
+        .max_by_key(|&l| (by_label[l], std::cmp::Reverse(l)))
+        .unwrap_or(0);
+    Some(PatchFits {
+        in_a: world(&in_a)?,
+        in_b: world(&in_b)?,
+        majority_label,
+    })
 }
 
 #[cfg(test)]
@@ -167,6 +217,45 @@ mod tests {
         let mut s = SamePatch::default();
         s.add(&a, &bent, &camera);
         assert_eq!((s.planes, s.half_seen, s.agree), (1, 1, 0), "{s:?}");
+    }
+
+    #[test]
+    fn a_missed_patch_is_counted_by_where_its_pixels_went() {
+        let camera = Camera::preset("kinect-v1").unwrap();
+        let a = wall_frame(&camera, 0.0, 0.0);
+        // Frame b sees the same wall, but its plane 1 is turned by 10° about the y axis: the
+        // patch agrees, the extractor's plane does not.
+        let turned = |pixels: usize| {
+            let mut b = wall_frame(&camera, 0.1, 0.0);
+            let n = Vector3::new(10f64.to_radians().sin(), 0.0, 10f64.to_radians().cos());
+            b.planes[0].plane = Plane::new(n, -2.0 * n.z).unwrap();
+            b.planes[0].pixels = pixels;
+            b
+        };
+        let all = a.planes[0].pixels;
+        for (b, want) in [
+            (turned(all + 1), (1, 0, 0)),
+            (turned(all), (0, 1, 0)),
+            (
+                {
+                    let mut b = turned(all);
+                    b.labels = b.labels.map(|_| 0);
+                    b
+                },
+                (0, 0, 1),
+            ),
+        ] {
+            let mut s = SamePatch::default();
+            s.add(&a, &b, &camera);
+            let m = s.missed;
+            assert_eq!((s.agree, s.repeated), (1, 0), "{s:?}");
+            assert_eq!((m.into_larger, m.into_smaller, m.unlabelled), want, "{s:?}");
+        }
+        // Found again: not a miss.
+        let mut s = SamePatch::default();
+        s.add(&a, &wall_frame(&camera, 0.1, 0.0), &camera);
+        let m = s.missed;
+        assert_eq!((m.into_larger, m.into_smaller, m.unlabelled), (0, 0, 0));
     }
 
     #[test]
