@@ -83,13 +83,24 @@ struct Acc {
 
 impl Acc {
     fn add(&mut self, est: &DepthImage, f: &SimFrame) -> Result<()> {
-        for (i, b) in eval::rmse_by_band(est, &f.truth, None, &KINECT_BANDS_M)?
+        self.add_masked(est, &f.truth, None, &f.edges)
+    }
+    /// Adds one estimate: its error per depth band over `surface` (every pixel when `None`)
+    /// and at the `edges` pixels.
+    fn add_masked(
+        &mut self,
+        est: &DepthImage,
+        truth: &DepthImage,
+        surface: Option<&[bool]>,
+        edges: &[bool],
+    ) -> Result<()> {
+        for (i, b) in eval::rmse_by_band(est, truth, surface, &KINECT_BANDS_M)?
             .iter()
             .enumerate()
         {
             self.add_band(i, b);
         }
-        let e = eval::rmse_by_band(est, &f.truth, Some(&f.edges), &[(0.0, f32::INFINITY)])?;
+        let e = eval::rmse_by_band(est, truth, Some(edges), &[(0.0, f32::INFINITY)])?;
         if e[0].pixels > 0 {
             self.edge_n += e[0].pixels;
             self.edge_ss += e[0].rmse_m * e[0].rmse_m * e[0].pixels as f64;
@@ -408,17 +419,7 @@ fn realistic_rows(
                 Some(f) => f.apply(&fr.depth)?,
                 None => fr.depth.clone(),
             };
-            for (i, b) in eval::rmse_by_band(&est, &fr.truth, Some(surf), &KINECT_BANDS_M)?
-                .iter()
-                .enumerate()
-            {
-                acc.add_band(i, b);
-            }
-            let e = eval::rmse_by_band(&est, &fr.truth, Some(&fr.edges), &[(0.0, f32::INFINITY)])?;
-            if e[0].pixels > 0 {
-                acc.edge_n += e[0].pixels;
-                acc.edge_ss += e[0].rmse_m * e[0].rmse_m * e[0].pixels as f64;
-            }
+            acc.add_masked(&est, &fr.truth, Some(surf), &fr.edges)?;
         }
         if f.is_none() {
             raw_overall = acc.overall();

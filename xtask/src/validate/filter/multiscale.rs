@@ -270,18 +270,7 @@ impl ScoredFrame {
 fn score(c: &Candidate, frames: &[ScoredFrame]) -> Result<Acc> {
     let mut acc = Acc::default();
     for f in frames {
-        let est = c.apply(&f.depth)?;
-        for (i, b) in eval::rmse_by_band(&est, &f.truth, Some(&f.surface), &KINECT_BANDS_M)?
-            .iter()
-            .enumerate()
-        {
-            acc.add_band(i, b);
-        }
-        let e = eval::rmse_by_band(&est, &f.truth, Some(&f.edges), &[(0.0, f32::INFINITY)])?;
-        if e[0].pixels > 0 {
-            acc.edge_n += e[0].pixels;
-            acc.edge_ss += e[0].rmse_m * e[0].rmse_m * e[0].pixels as f64;
-        }
+        acc.add_masked(&c.apply(&f.depth)?, &f.truth, Some(&f.surface), &f.edges)?;
     }
     Ok(acc)
 }

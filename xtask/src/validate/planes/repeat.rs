@@ -403,33 +403,14 @@ fn same_patch_table(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
          again by ours, or agreeing as a patch) bounds one that also did that. Reported, not \
          checked.\n\n| sequence | k | planes tested | ≥ half seen | same patch agrees | ours | either |\n|---|---|---|---|---|---|---|\n",
     );
-    for r in results {
-        for (k, sp) in &r.same_patch {
-            let pc = |n: usize| 100.0 * sp.share(n);
-            let _ = writeln!(
-                md,
-                "| {} | {k} | {} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
-                r.name,
-                sp.planes,
-                pc(sp.half_seen),
-                pc(sp.agree),
-                pc(sp.repeated),
-                pc(sp.either)
-            );
-            for (what, n) in [
-                ("half seen", sp.half_seen),
-                ("same patch agrees", sp.agree),
-                ("ours or same patch", sp.either),
-            ] {
-                ctx.row(
-                    EXP,
-                    &format!("{} repeat k={k} {what}", r.name),
-                    sp.share(n),
-                    "",
-                );
-            }
-        }
-    }
+    patch_share_lines(ctx, md, results, |sp| {
+        [
+            (sp.half_seen, Some("half seen")),
+            (sp.agree, Some("same patch agrees")),
+            (sp.repeated, None),
+            (sp.either, Some("ours or same patch")),
+        ]
+    });
 }
 
 /// The extractor's own misses (the patch agrees, the extractor's planes do not) by where most
@@ -443,32 +424,42 @@ fn own_misses_table(ctx: &mut Context, md: &mut String, results: &[SeqResult]) {
          (cut differently: bands, or a piece of a split), *unlabelled*. Shares of the planes \
          tested. Reported, not checked.\n\n| sequence | k | planes tested | own misses | into a larger plane | into a smaller or equal plane | unlabelled |\n|---|---|---|---|---|---|---|\n",
     );
+    patch_share_lines(ctx, md, results, |sp| {
+        let m = sp.missed;
+        [
+            (m.into_larger + m.into_smaller + m.unlabelled, None),
+            (m.into_larger, Some("own misses into a larger plane")),
+            (m.into_smaller, Some("own misses into a smaller plane")),
+            (m.unlabelled, Some("own misses unlabelled")),
+        ]
+    });
+}
+
+/// One table line per sequence and gap: the planes tested, then four counts of
+/// [`SamePatch`] as shares of them; a count with a name is also a row of the results.
+fn patch_share_lines(
+    ctx: &mut Context,
+    md: &mut String,
+    results: &[SeqResult],
+    columns: impl Fn(&SamePatch) -> [(usize, Option<&'static str>); 4],
+) {
     for r in results {
         for (k, sp) in &r.same_patch {
-            let m = sp.missed;
-            let own = m.into_larger + m.into_smaller + m.unlabelled;
-            let pc = |n: usize| 100.0 * sp.share(n);
-            let _ = writeln!(
-                md,
-                "| {} | {k} | {} | {:.1} % | {:.1} % | {:.1} % | {:.1} % |",
-                r.name,
-                sp.planes,
-                pc(own),
-                pc(m.into_larger),
-                pc(m.into_smaller),
-                pc(m.unlabelled)
-            );
-            for (what, n) in [
-                ("own misses into a larger plane", m.into_larger),
-                ("own misses into a smaller plane", m.into_smaller),
-                ("own misses unlabelled", m.unlabelled),
-            ] {
-                ctx.row(
-                    EXP,
-                    &format!("{} repeat k={k} {what}", r.name),
-                    sp.share(n),
-                    "",
-                );
+            let cols = columns(sp);
+            let _ = write!(md, "| {} | {k} | {} |", r.name, sp.planes);
+            for (n, _) in cols {
+                let _ = write!(md, " {:.1} % |", 100.0 * sp.share(n));
+            }
+            md.push('\n');
+            for (n, what) in cols {
+                if let Some(what) = what {
+                    ctx.row(
+                        EXP,
+                        &format!("{} repeat k={k} {what}", r.name),
+                        sp.share(n),
+                        "",
+                    );
+                }
             }
         }
     }
