@@ -3,10 +3,11 @@
 //!
 //! * `cargo run --release -p sl-planes --example planes_timing -- time [ITERATIONS] [FILTER]`:
 //!   min and median milliseconds per frame and the median per stage (one frame per source; a
-//!   `FILTER` with a `/`, such as `tum-fr1-rpy/04`, picks among the first 50 frames of each
-//!   source, the names `sweep` prints).
+//!   `FILTER` with a `/`, such as `tum-fr1-rpy/04` or `tum-fr1-rpy-200/86`, picks among the
+//!   frames of `sweep`, by the names it prints).
 //! * `… -- sweep [ITERATIONS] [ROUNDS]`: min/median per frame over many frames of each source
-//!   (all TUM and 7-Scenes frames, NYU raw, the Open3D and PCL frames, the simulated scenes),
+//!   (all TUM and 7-Scenes frames, the 200 of TUM fr1/rpy-200 included, NYU raw, the Open3D and
+//!   PCL frames, the simulated scenes),
 //!   and the slowest frame; `ROUNDS` passes over all frames, `ITERATIONS` runs each.
 //! * `… -- dump DIR` / `… -- compare DIR`: writes the labels and planes of those frames to `DIR`,
 //!   or compares the current labels with them (pixel agreement after matching planes by
@@ -48,7 +49,7 @@ fn median(v: &mut [u64]) -> f64 {
 
 fn time(iters: usize, filter: &str) {
     let all = if filter.contains('/') {
-        frames::load(50)
+        sweep_frames()
     } else {
         frames()
     };
@@ -107,9 +108,21 @@ fn noise(iters: usize, filter: &str) {
     }
 }
 
+/// The sweep's frames: up to 50 of each source, and every frame of the 200-frame TUM sequence
+/// (issue 12's budget is per real frame).
+fn sweep_frames() -> Vec<(String, Input, Camera)> {
+    let mut inputs = load(50);
+    inputs.extend(
+        sl_testkit::tum_rpy_200(200)
+            .into_iter()
+            .map(|f| (f.name, Input::Depth(f.depth), f.camera)),
+    );
+    inputs
+}
+
 fn sweep(iters: usize, rounds: usize) {
     let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
-    let inputs = load(50);
+    let inputs = sweep_frames();
     // Per frame: every run's time. Rounds visit all frames in turn, so a slow spell of a shared
     // machine falls on a few runs of many frames, not on every run of one frame.
     let mut times: Vec<Vec<u64>> = vec![Vec::with_capacity(iters * rounds); inputs.len()];
