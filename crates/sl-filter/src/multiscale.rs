@@ -467,22 +467,30 @@ mod tests {
         }
     }
 
-    /// A frame with slopes, steps, noise and holes (deterministic).
-    fn frame(w: usize, h: usize) -> DepthImage {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
+    /// A `w × h` frame of `surface(x, y)` (metres) with ±2 mm of noise and holes (an isolated
+    /// pixel in about 1,000 and a block), deterministic for a `seed`.
+    fn noisy_frame(w: usize, h: usize, seed: u64, surface: impl Fn(f32, f32) -> f32) -> DepthImage {
+        let mut state = seed;
         let d = (0..w * h)
             .map(|i| {
                 let r = xorshift_step(&mut state);
-                let (x, y) = (i % w, i / w);
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
                 let noise = (r >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                if r.is_multiple_of(997) || (x > 40 && x < 52 && y > 10) {
+                if r.is_multiple_of(997) || (x > 40.0 && x < 52.0 && y > 10.0) {
                     return 0.0;
                 }
-                let step = if x > 70 { 0.6 } else { 0.0 };
-                1.2 + 0.004 * x as f32 + 0.002 * y as f32 + step + 0.004 * noise
+                surface(x, y) + 0.004 * noise
             })
             .collect();
         DepthImage::from_vec(w, h, d).unwrap()
+    }
+
+    /// A frame with slopes, steps, noise and holes (deterministic).
+    fn frame(w: usize, h: usize) -> DepthImage {
+        noisy_frame(w, h, 0x2545_f491_4f6c_dd1d, |x, y| {
+            let step = if x > 70.0 { 0.6 } else { 0.0 };
+            1.2 + 0.004 * x + 0.002 * y + step
+        })
     }
 
     #[test]
@@ -518,24 +526,14 @@ mod tests {
     /// at a 0.7–0.8 m depth jump at x = 70, with ±2 mm of noise and holes: nothing a pass may
     /// not average except the jump and the holes.
     fn two_planes(w: usize, h: usize) -> DepthImage {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let d = (0..w * h)
-            .map(|i| {
-                let r = xorshift_step(&mut state);
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                let noise = (r >> 40) as f32 / (1u64 << 24) as f32 - 0.5;
-                if r.is_multiple_of(997) || (x > 40.0 && x < 52.0 && y > 10.0) {
-                    return 0.0;
-                }
-                let inv_z = if x > 70.0 {
-                    0.5 - 0.0008 * x - 0.0005 * y
-                } else {
-                    0.8 - 0.0015 * x - 0.0008 * y
-                };
-                1.0 / inv_z + 0.004 * noise
-            })
-            .collect();
-        DepthImage::from_vec(w, h, d).unwrap()
+        noisy_frame(w, h, 0x9e37_79b9_7f4a_7c15, |x, y| {
+            let inv_z = if x > 70.0 {
+                0.5 - 0.0008 * x - 0.0005 * y
+            } else {
+                0.8 - 0.0015 * x - 0.0008 * y
+            };
+            1.0 / inv_z
+        })
     }
 
     #[test]
