@@ -6,12 +6,13 @@
 //! ```
 //!
 //! Environment: `METHODS=adaptive,gaussian` (default: all four), `RADII=2` (default: 2,3),
-//! `ISA=portable|avx2` (default: the best this CPU supports).
+//! `ISA=portable|avx2` (default: the best this CPU supports), `WINDOW=square|disc` (default: the
+//! filter's own default).
 
 use std::time::Instant;
 
 use sl_core::SensorModel;
-use sl_filter::{DepthFilter, Isa, Method, default_sigma_s_px};
+use sl_filter::{DepthFilter, Isa, Method, Window, default_sigma_s_px};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
@@ -46,15 +47,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         isa.name(),
         rayon::current_num_threads()
     );
+    let window: Option<Window> = std::env::var("WINDOW")
+        .ok()
+        .map(|s| s.parse())
+        .transpose()?;
     let radii: Vec<usize> = match std::env::var("RADII") {
         Ok(s) => s.split(',').map(|r| r.parse()).collect::<Result<_, _>>()?,
         Err(_) => vec![2, 3],
     };
     for &r in &radii {
         for &m in &methods {
-            let f = DepthFilter::default_for(m, &sensor)
+            let mut f = DepthFilter::default_for(m, &sensor)
                 .with_radius(r)
                 .with_sigma_s(default_sigma_s_px(r));
+            if let Some(window) = window {
+                f = f.with_window(window);
+            }
             for threads in [1usize, rayon::current_num_threads()] {
                 let run = || -> Result<Vec<f64>, sl_filter::FilterError> {
                     let mut t = Vec::with_capacity(reps);

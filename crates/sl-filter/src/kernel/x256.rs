@@ -15,6 +15,13 @@
 //!   group instead of held in registers.
 //! - **Groups of 16 pixels whose centres are all invalid are skipped** (their output is 0,
 //!   as in `finish`), as the AVX-512 kernel does.
+//! - **Three passes over a chunk**: the centres' range scales (a division each), then the taps
+//!   (only the two sums per pixel are kept), then the epilogue (another division). The
+//!   divisions leave the chain from a group's first tap to its stored result, so one group's
+//!   taps overlap the next one's start; measured on a Zen 4 core (AVX2 code, person frame,
+//!   one thread, best of 3 interleaved runs of 60): 5×5 square 0.553 → 0.539 ms, disc 0.356 →
+//!   0.344 ms; 7×7 square 0.963 → 0.936 ms, disc 0.624 → 0.606 ms. The AVX-512 kernel gained
+//!   nothing from it.
 
 use std::arch::x86_64::*;
 
@@ -113,7 +120,8 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     }
 }
 
-/// One chunk of `CHUNK` output pixels, one 8-lane group at a time. Not inlined, for the same
+/// One chunk of `CHUNK` output pixels in three passes (scales, taps, epilogue), the taps
+/// two 8-lane groups at a time. Not inlined, for the same
 /// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
@@ -148,22 +156,31 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             _mm256_cmp_ps::<_CMP_LT_OQ>(c, valid_limit),
         )
     };
+    // Phase 1, independent per 8 lanes: the range scale `s` and `s·c` of every centre (their
+    // divisions off the taps' critical path), and which groups of 16 have a valid centre.
+    let mut sv = [zero; CHUNK / 8];
+    let mut zsv = [zero; CHUNK / 8];
+    let mut okv = [zero; CHUNK / 8];
+    for (j, ((s, zs), ok)) in sv.iter_mut().zip(&mut zsv).zip(&mut okv).enumerate() {
+        let c = load(&rows[R][8 * j + R..]);
+        *s = scale(c);
+        *zs = _mm256_mul_ps(*s, c);
+        *ok = valid(c);
+    }
+    let mut swv = [centre; CHUNK / 8];
+    let mut sdv = [zero; CHUNK / 8];
+    // Phase 2: the taps, two 8-lane groups interleaved; only the sums leave the loop.
     for g in 0..CHUNK / 16 {
         let i = 16 * g;
-        let ca = load(&rows[R][i + R..]);
-        let cb = load(&rows[R][i + 8 + R..]);
-        let (ok_a, ok_b) = (valid(ca), valid(cb));
-        if _mm256_movemask_ps(_mm256_or_ps(ok_a, ok_b)) == 0 {
-            // No valid centre among the 16: the output is 0 whatever the neighbours are.
-            dst[i..i + 16].fill(0.0);
+        if _mm256_movemask_ps(_mm256_or_ps(okv[2 * g], okv[2 * g + 1])) == 0 {
             continue;
         }
         // Opaque to the optimiser: the constants are reloaded for every group, where each tap
         // uses them (folded into the multiply-adds as memory operands), instead of being
         // hoisted out of the loop into more values than AVX2's 16 registers hold.
         let cls = std::hint::black_box(cls);
-        let (sa, sb) = (scale(ca), scale(cb));
-        let (zsa, zsb) = (_mm256_mul_ps(sa, ca), _mm256_mul_ps(sb, cb));
+        let (sa, sb) = (sv[2 * g], sv[2 * g + 1]);
+        let (zsa, zsb) = (zsv[2 * g], zsv[2 * g + 1]);
         // The centre tap (difference 0) initialises the sums.
         let (mut swa, mut swb) = (centre, centre);
         let (mut sda, mut sdb) = (zero, zero);
@@ -245,24 +262,27 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         step!(45);
         step!(46);
         step!(47);
-        for (c, centre_ok, s, sw, sd, off) in
-            [(ca, ok_a, sa, swa, sda, 0), (cb, ok_b, sb, swb, sdb, 8)]
-        {
-            // The epilogue of `super::finish`, with masks.
-            let v = _mm256_add_ps(c, _mm256_div_ps(sd, _mm256_mul_ps(sw, s)));
-            let (v, c_out) = if DISP {
-                (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
-            } else {
-                (v, c)
-            };
-            let ok = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
-            );
-            let v = _mm256_blendv_ps(c_out, v, ok);
-            let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(centre_ok, v));
-            dst[i + off..i + off + 8].copy_from_slice(&v);
-        }
+        swv[2 * g] = swa;
+        swv[2 * g + 1] = swb;
+        sdv[2 * g] = sda;
+        sdv[2 * g + 1] = sdb;
+    }
+    // Phase 3, independent per 8 lanes: the epilogue of `super::finish`, with masks.
+    for (j, out) in dst.chunks_exact_mut(8).enumerate() {
+        let c = load(&rows[R][8 * j + R..]);
+        let v = _mm256_add_ps(c, _mm256_div_ps(sdv[j], _mm256_mul_ps(swv[j], sv[j])));
+        let (v, c_out) = if DISP {
+            (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
+        } else {
+            (v, c)
+        };
+        let ok = _mm256_and_ps(
+            _mm256_cmp_ps::<_CMP_GT_OQ>(v, zero),
+            _mm256_cmp_ps::<_CMP_LT_OQ>(v, inf),
+        );
+        let v = _mm256_blendv_ps(c_out, v, ok);
+        let v: [f32; 8] = bytemuck::cast(_mm256_and_ps(okv[j], v));
+        out.copy_from_slice(&v);
     }
 }
 
@@ -274,14 +294,14 @@ mod tests {
     };
     use crate::weight::{E_SCALE, LOG2_E, TapExp};
 
-    /// Filters the whole image block by block with the explicit kernel (`new`) or the
-    /// compiler-vectorised one.
+    /// Filters the whole image block by block with the explicit kernel of `isa`, or the
+    /// compiler-vectorised AVX2 + FMA code (`None`).
     fn filter<M: RangeMode, const DISP: bool>(
         taps: Taps<'_>,
         src: &Source<'_>,
         mode: M,
         fb: f32,
-        new: bool,
+        isa: Option<Isa>,
     ) -> Vec<f32> {
         let (w, h) = (src.width, src.height);
         let stride = stride_for(w, taps.radius);
@@ -291,8 +311,8 @@ mod tests {
             let rows = block.len() / w;
             let buf = &mut buf[..stride * (rows + 2 * taps.radius)];
             let y0 = bi * BLOCK_ROWS;
-            if new {
-                dispatch::<M, DISP>(Isa::Avx2, taps, src, y0, stride, buf, block, mode, fb);
+            if let Some(isa) = isa {
+                dispatch::<M, DISP>(isa, taps, src, y0, stride, buf, block, mode, fb);
             } else {
                 // The caller checked AVX2 and FMA support at run time.
                 vectorised_avx2_reference::<M, DISP>(taps, src, y0, stride, buf, block, mode, fb);
@@ -331,7 +351,7 @@ mod tests {
         d
     }
 
-    fn check<M: RangeMode, const DISP: bool>(src: &Source<'_>, mode: M, fb: f32) {
+    fn check<M: RangeMode, const DISP: bool>(isa: Isa, src: &Source<'_>, mode: M, fb: f32) {
         for r in 1..=3usize {
             for disc in [false, true] {
                 let k = 2 * r + 1;
@@ -350,8 +370,8 @@ mod tests {
                     taps: &[],
                     exps: &exps,
                 };
-                let a = filter::<M, DISP>(taps, src, mode, fb, true);
-                let b = filter::<M, DISP>(taps, src, mode, fb, false);
+                let a = filter::<M, DISP>(taps, src, mode, fb, Some(isa));
+                let b = filter::<M, DISP>(taps, src, mode, fb, None);
                 let diff = a
                     .iter()
                     .zip(&b)
@@ -359,18 +379,28 @@ mod tests {
                     .count();
                 assert_eq!(
                     diff, 0,
-                    "r {r} disc {disc} DISP {DISP}: {diff} pixels differ"
+                    "{isa:?} r {r} disc {disc} DISP {DISP}: {diff} pixels differ"
                 );
                 assert!(a.iter().filter(|&&v| v > 0.0).count() > a.len() / 2);
             }
         }
     }
 
+    /// The explicit AVX2 and AVX-512 kernels, each against the compiler-vectorised AVX2 + FMA
+    /// code (the AVX-512 one where the CPU has it).
     #[test]
     fn bit_identical_to_the_compiler_vectorised_code() {
         if !Isa::Avx2.is_supported() {
             return;
         }
+        for isa in [Isa::Avx2, Isa::Avx512] {
+            if isa.is_supported() {
+                check_isa(isa);
+            }
+        }
+    }
+
+    fn check_isa(isa: Isa) {
         let (w, h) = (301, 37);
         let data = frame(w, h);
         let src = Source {
@@ -384,15 +414,15 @@ mod tests {
         };
         let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma * E_SCALE) as f32;
         // Adaptive with the Kinect's k and a tenth of it (more cut-off weights), fixed σ.
-        check::<_, false>(&src, Adaptive(coef(0.0028)), 0.0);
-        check::<_, false>(&src, Adaptive(coef(0.00028)), 0.0);
-        check::<_, false>(&src, Fixed(coef(0.01)), 0.0);
+        check::<_, false>(isa, &src, Adaptive(coef(0.0028)), 0.0);
+        check::<_, false>(isa, &src, Adaptive(coef(0.00028)), 0.0);
+        check::<_, false>(isa, &src, Fixed(coef(0.01)), 0.0);
         // Disparity (fb / z) with a fixed σ in disparity pixels.
         let fb = 580.0 * 0.075;
         let disp = Source {
             disparity_fb: Some(fb),
             ..src
         };
-        check::<_, true>(&disp, Fixed(coef(0.5)), fb);
+        check::<_, true>(isa, &disp, Fixed(coef(0.5)), fb);
     }
 }
