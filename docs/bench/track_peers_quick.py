@@ -144,10 +144,14 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('kind', choices=['tum', '7scenes', 'icl']); ap.add_argument('dir')
     ap.add_argument('--ours', action='append', default=[]); ap.add_argument('--depth-max', type=float, default=4.0)
+    ap.add_argument('--focal-px', type=float, default=None,
+                    help="replace the data set's fx = fy (a calibration check, e.g. ICL's sample)")
     ap.add_argument('--reference-model', action='store_true',
                     help='also track against a model fused with the reference poses (7scenes, icl)')
     a = ap.parse_args()
     paths, stamps, gt, (fx, fy, cx, cy), scale = load(a.kind, a.dir)
+    if a.focal_px is not None:
+        fx = fy = a.focal_px
     K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
     for o in a.ours:
         est = {}

@@ -13,7 +13,7 @@
 //!   or compares the current labels with them (pixel agreement after matching planes by
 //!   overlap): a check that an optimisation did not change the segmentation.
 //!   `compare` also checks that labels and every plane field are bit-identical.
-//! * `… -- repeat N FILTER`: N extractions of one frame (for `valgrind --tool=callgrind
+//! * `… -- repeat N FILTER`: N extractions of one frame (a `FILTER` with a `/` as in `time`; for `valgrind --tool=callgrind
 //!   --collect-atstart=no --toggle-collect='*repeat_extract*'`).
 //! * `… -- view DIR OUT FILTER`: side-by-side overlays (saved | current) as PNGs in `OUT`.
 //!
@@ -220,7 +220,12 @@ fn full_planes(seg: &PlaneSegmentation) -> String {
 /// Runs the extraction `iters` times on the first frame matching `filter` (for callgrind:
 /// `--toggle-collect` on `repeat_extract` counts the extraction alone).
 fn repeat(iters: usize, filter: &str) {
-    let (name, input, cam) = load(1)
+    let all = if filter.contains('/') {
+        sweep_frames()
+    } else {
+        load(1)
+    };
+    let (name, input, cam) = all
         .into_iter()
         .find(|(n, _, _)| n.contains(filter))
         .unwrap();
