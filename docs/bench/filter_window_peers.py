@@ -2,7 +2,8 @@
 """sldepth's adaptive filter (square and disc window) beside cv2.bilateralFilter, interleaved,
 on real 640x480 frames, for this CPU's best instruction set and for AVX2 only.
 
-Measurement only -- no test needs this script. Needs ``opencv-python-headless==5.0.0.93`` and
+Measurement only -- no test needs this script. Needs ``opencv-python-headless`` (5.1.0.95 in
+session 60; 5.0.0.93 before, a much slower wheel: compare ratios only at one OpenCV version) and
 numpy, and ``target/release/sldepth`` (``cargo build --release -p sldepth``). Run from the
 workspace root:
 

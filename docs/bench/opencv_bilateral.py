@@ -2,7 +2,8 @@
 """Peer measurement for `sl-filter`: OpenCV's cv2.bilateralFilter on a real 640x480 Kinect frame.
 
 Measurement only -- no test needs this script. Install the peer with
-    pip install opencv-python-headless==5.0.0.93
+    pip install opencv-python-headless==5.1.0.95
+(the wheel of session 60; 5.0.0.93, used before, is 2-5x slower at d = 5 and 7 on float32)
 and run from the workspace root:
     python3 docs/bench/opencv_bilateral.py [DEPTH.png] [--reps N] [--depth-scale S]
 
