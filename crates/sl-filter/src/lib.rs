@@ -124,7 +124,7 @@
 //! window unrolled, sums in registers), and AVX2+FMA / AVX-512 code selected at run time
 //! ([`Isa`]). The range filters' joint weight `w_s·w_d = 2^x` is the *log-linear* `2^x` (the
 //! bit pattern of an `f32` read as fixed point, Schraudolph's trick; `weight`): one
-//! multiply-add, a truncating conversion and an integer maximum per tap, within ±3 % of `2^x`
+//! multiply-add, a maximum and a truncating conversion per tap, within ±3 % of `2^x`
 //! (tested), with the spatial weight folded in for free, and never below `2^−126` (the smallest
 //! normal `f32`: no subnormal arithmetic; an invalid neighbour moves a value by at most
 //! `10⁻²⁰` of it). Written by hand: no crate offers a vectorised weight of this kind. With it a

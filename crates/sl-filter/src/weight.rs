@@ -29,8 +29,8 @@
 //! so the fast paths are still tested against an executable specification.
 //!
 //! **The floor.** No weight is below `2^−126`, the smallest normal `f32`: the kernels take the
-//! integer maximum of `⌊y⌋` and `2²³` (one operation; `⌊y⌋` of a NaN or `−∞`, an invalid
-//! neighbour whose sentinel makes `e'² = ∞`, is the most negative integer), and a tap's spatial
+//! maximum of `y` and `2²³` before truncating it (one operation; `maxps` returns `2²³` for a
+//! NaN or `−∞`, an invalid neighbour whose sentinel makes `e'² = ∞`), and a tap's spatial
 //! weight counts as at least `2^−100`. So a far or invalid neighbour weighs `2^−126` instead of
 //! 0 — it moves a filtered value by at most `2^−126` times its distance to the sentinel
 //! (`10^18`), about `10^−20` of the value — and no weight, and no product of a weight with a
@@ -105,7 +105,7 @@ pub(crate) fn range_weight<const FMA: bool>(e: f32, k: &TapExp) -> f32 {
         k.y0 - e * e
     };
     // Above the floor y lies in [2^23, 2^31), where every `f32` is an integer: the truncation
-    // `cvttps2dq` of the SIMD kernels is exact there, and their integer maximum with 2^23 is
+    // `cvttps2dq` of the SIMD kernels is exact there, and their `maxps` with 2^23 before it is
     // this select (NaN fails the comparison).
     let y = if y > FLOOR_BITS as f32 {
         y
