@@ -30,10 +30,13 @@ const IO_CRATES: &[&str] = &["sl-io", "sl-testkit", "sl-eval", "sl-fuzz"];
 const BINARY_CRATES: &[&str] = &["sldepth"];
 /// Files allowed to declare a `thread_local!`, each with why no borrow of it spans rayon work:
 /// sl-filter's kernel borrows its scratch for one block of rows, which calls no parallel code;
+/// sl-filter's multi-scale filter moves its buffers out of the cell before its parallel passes
+/// and back after them (a call nested on the same worker meanwhile finds the cell empty);
 /// sl-fuzz keeps a per-thread scratch directory, borrowed only to read or set its path; sl-py
 /// keeps each Python thread's one-thread pool, borrowed only to build it or clone its handle.
 const THREAD_LOCAL_FILES: &[&str] = &[
     "crates/sl-filter/src/kernel.rs",
+    "crates/sl-filter/src/multiscale.rs",
     "crates/sl-fuzz/src/lib.rs",
     "crates/sl-py/src/threads.rs",
 ];

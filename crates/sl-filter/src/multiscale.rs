@@ -63,7 +63,11 @@
 //! session 58 costs about 30 % more: person-depth.png 6.6 → 8.7 ms on one thread and 4.5 → 5.6
 //! ms on two (AVX-512; AVX2 7.8 → 9.8 and 5.4 → 6.3 ms; minimum of 30, interleaved, a Zen 4
 //! whose clock was slower that day than in session 35), against 543 ms for OpenCV 5.1 at d = 63
-//! (93 ms at d = 31).
+//! (93 ms at d = 31). Since session 60 a thread keeps the passes' buffers for its next call
+//! (`Scratch`): fresh ones came back from the system as zeroed pages, a page fault each 4 KB,
+//! about a quarter of the time. Person frame, minimum of 30, three interleaved rounds, Zen 4:
+//! AVX2 7.6–7.7 → 5.8 ms on one thread, 4.9–5.5 → 3.1–3.7 ms on two; AVX-512 6.1–6.4 → 4.5–4.6
+//! and 4.2–4.8 → 2.5–3.0 ms; the output byte for byte the same.
 //!
 //! Beyond the paper: the paper filters once with one window; the dilated passes and the
 //! disparity domain at large supports are this crate's additions (issue 11).
@@ -167,22 +171,78 @@ impl MultiScale {
     fn apply_on_pool(&self, depth: DepthView<'_>, isa: Isa) -> Result<DepthImage> {
         self.validate()?;
         let mut cur = self.base.apply_with_isa(depth, isa)?;
+        let pixels = cur.data().len();
+        let mut scratch = Scratch::take();
+        let passes = self.coarse_passes(&mut cur, &mut scratch, isa);
+        scratch.put_back(pixels);
+        passes.map(|()| cur)
+    }
+
+    /// The coarse passes over `cur` (the base pass's result), in place.
+    fn coarse_passes(&self, cur: &mut DepthImage, scratch: &mut Scratch, isa: Isa) -> Result<()> {
         let (w, h) = (cur.width(), cur.height());
-        // Buffers shared by the passes: the interior gate's, and the polyphase sub-images
-        // before and after filtering (each `w·h` values in all).
-        let mut keep = Vec::new();
-        let mut gate = Gate::default();
-        let mut subs = Polyphase::default();
+        let Scratch { keep, gate, subs } = scratch;
         let domain = Domain::of(&self.coarse.range);
         for &s in &self.dilations {
             let r = self.coarse.radius_px * s;
-            gate.interior_into(&cur, domain, r, &mut keep);
-            refuse_creases(&gate.values, w, domain, r, &mut keep, &mut gate.samples);
+            gate.interior_into(cur, domain, r, keep);
+            refuse_creases(&gate.values, w, domain, r, keep, &mut gate.samples);
             subs.filter(&self.coarse, cur.data(), w, h, s, isa)?;
             // The coarse result inside the interior; outside it the finer result stays.
-            subs.interleave_where(cur.data_mut(), w, s, Some(&keep));
+            subs.interleave_where(cur.data_mut(), w, s, Some(keep));
         }
-        Ok(cur)
+        Ok(())
+    }
+}
+
+/// Largest frame, in pixels, whose working buffers a thread keeps for its next call (about
+/// 15 bytes a pixel: 60 MB at this size, 4.5 MB for 640×480); the buffers of a larger frame
+/// are freed after it.
+const KEEP_SCRATCH_MAX_PIXELS: usize = 1 << 22;
+
+/// The coarse passes' working buffers: the interior gate's (`keep` and [`Gate`]) and the
+/// polyphase sub-images before and after filtering, each `w·h` values in all, shared by the
+/// passes of a call and kept by the thread for its next call.
+///
+/// Why kept: freed at the end of every call, these ~4.5 MB (640×480) go back to the system
+/// (the allocator trims its heap) and come back as fresh pages, one page fault per 4 KB, on
+/// the next call: about a quarter of the multi-scale filter's time on a 640×480 frame
+/// (session 60, Zen 4, one thread: 7.8 → 5.9 ms with AVX2, 6.6 → 4.6 ms with AVX-512 when the
+/// allocator was told not to trim).
+#[derive(Default)]
+struct Scratch {
+    keep: Vec<bool>,
+    gate: Gate,
+    subs: Polyphase,
+}
+
+thread_local! {
+    /// This thread's [`Scratch`] between calls (empty while a call has it).
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::new(Scratch::default());
+}
+
+impl Scratch {
+    /// This thread's buffers (empty ones when another call on this thread holds them, or
+    /// while the thread shuts down).
+    fn take() -> Self {
+        SCRATCH
+            .try_with(|cell| cell.try_borrow_mut().map(|mut s| std::mem::take(&mut *s)))
+            .ok()
+            .and_then(|s| s.ok())
+            .unwrap_or_default()
+    }
+
+    /// Keeps the buffers for this thread's next call, if the frame had at most
+    /// [`KEEP_SCRATCH_MAX_PIXELS`] pixels.
+    fn put_back(self, pixels: usize) {
+        if pixels > KEEP_SCRATCH_MAX_PIXELS {
+            return;
+        }
+        let _ = SCRATCH.try_with(|cell| {
+            if let Ok(mut s) = cell.try_borrow_mut() {
+                *s = self;
+            }
+        });
     }
 }
 
@@ -628,6 +688,41 @@ mod tests {
                     .unwrap();
                 pool.install(|| interior_matches_brute_force(w, h, &holes));
             }
+        }
+    }
+
+    /// The buffers a thread keeps between calls (`Scratch`) hold the previous frame's values:
+    /// frames of other sizes and contents in a row on one thread give what each gives on a
+    /// thread that never filtered before.
+    #[test]
+    fn buffers_kept_from_an_earlier_frame_do_not_change_the_next() {
+        let m = MultiScale::default_for(&SensorModel::kinect_v1());
+        let frames = [
+            frame(160, 120),
+            two_planes(97, 61),
+            frame(160, 120),
+            two_planes(160, 120),
+        ];
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let in_a_row: Vec<DepthImage> =
+            one_thread.install(|| frames.iter().map(|f| m.apply(f).unwrap()).collect());
+        for (f, got) in frames.iter().zip(&in_a_row) {
+            let fresh = std::thread::scope(|t| {
+                t.spawn(|| {
+                    rayon::ThreadPoolBuilder::new()
+                        .num_threads(1)
+                        .build()
+                        .unwrap()
+                        .install(|| m.apply(f).unwrap())
+                })
+                .join()
+                .unwrap()
+            });
+            let bits = |o: &DepthImage| o.data().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(got), bits(&fresh), "{}x{}", f.width(), f.height());
         }
     }
 
