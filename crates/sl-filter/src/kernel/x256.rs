@@ -125,9 +125,9 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     }
 }
 
-/// One chunk of `CHUNK` output pixels in three passes (scales, taps, epilogue), the taps
-/// two 8-lane groups at a time. Not inlined, for the same
-/// reason as the AVX-512 kernel's `chunk` (the scheduler would hoist and spill the taps' work).
+/// One chunk of `CHUNK` output pixels in three passes (scales, taps, epilogue), the taps two
+/// 8-lane groups at a time. Not inlined, for the same reason as the AVX-512 kernel's `chunk`
+/// (the scheduler would hoist and spill the taps' work).
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
 fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
@@ -178,6 +178,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     for g in 0..CHUNK / 16 {
         let i = 16 * g;
         if _mm256_movemask_ps(_mm256_or_ps(okv[2 * g], okv[2 * g + 1])) == 0 {
+            // No valid centre among the 16: phase 3 writes 0 there whatever the sums are.
             continue;
         }
         // Opaque to the optimiser: the constants are reloaded for every group, where each tap
