@@ -196,9 +196,9 @@ impl MultiScale {
 }
 
 /// Largest frame, in pixels, whose working buffers a thread keeps for its next call (about
-/// 15 bytes a pixel: 60 MB at this size, 4.5 MB for 640×480); the buffers of a larger frame
-/// are freed after it.
-const KEEP_SCRATCH_MAX_PIXELS: usize = 1 << 22;
+/// 15 bytes a pixel: 31 MB at this size, which holds a 1920×1080 frame, and 4.5 MB for
+/// 640×480); the buffers of a larger frame are freed after it.
+const KEEP_SCRATCH_MAX_PIXELS: usize = 1 << 21;
 
 /// The coarse passes' working buffers: the interior gate's (`keep` and [`Gate`]) and the
 /// polyphase sub-images before and after filtering, each `w·h` values in all, shared by the
