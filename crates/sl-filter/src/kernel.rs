@@ -16,8 +16,8 @@
 //! **The range weight** `2^(t − e²)` (see [`crate::weight`]) is the log-linear `2^x`: with
 //! the difference pre-scaled by `2^11.5`, `y = T − e'²` is one multiply-add (`T` folds in the
 //! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight; its
-//! maximum with `2²³` (taken before the truncation) floors every weight at `2^−126`, the smallest normal `f32`, which keeps
-//! every product out of the slow subnormal range. Per tap: 6 vector operations on AVX-512 and
+//! maximum with `2²³` (taken before the truncation) floors every weight at `2^−126`, the
+//! smallest normal `f32`, which keeps every product out of the slow subnormal range. Per tap: 6 vector operations on AVX-512 and
 //! AVX2 alike (difference, `y`, conversion, maximum, two sums).
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the

@@ -7,9 +7,9 @@
 //! sums: 6 vector operations (10 with the polynomial `2^x` of session 34 and before). The
 //! floor is a float maximum before the conversion, not an integer one after it (the same
 //! weights, NaN included): 5 % faster at 5×5 and 7×7 on a Zen 4 core (square windows, person
-//! frame, one thread: 0.297 → 0.282 ms, 0.508 → 0.483 ms). Two 16-lane groups are interleaved, which
-//! hides the latency of each tap's dependency chain (measured ~25 % faster than one group at a
-//! time). The AVX2 kernel's three passes per chunk (scales, taps, epilogue) were tried here
+//! frame, one thread: 0.297 → 0.282 ms, 0.508 → 0.483 ms). Two 16-lane groups are
+//! interleaved, which hides the latency of each tap's dependency chain (measured ~25 % faster
+//! than one group at a time). The AVX2 kernel's three passes per chunk (scales, taps, epilogue) were tried here
 //! too: no gain on a Zen 4 core (5×5 square 0.306 → 0.310 ms at best, some runs 0.41 ms).
 
 use std::arch::x86_64::*;
