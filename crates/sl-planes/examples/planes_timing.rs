@@ -13,8 +13,8 @@
 //!   or compares the current labels with them (pixel agreement after matching planes by
 //!   overlap): a check that an optimisation did not change the segmentation.
 //!   `compare` also checks that labels and every plane field are bit-identical.
-//! * `… -- repeat N FILTER`: N extractions of one frame (a `FILTER` with a `/` as in `time`; for `valgrind --tool=callgrind
-//!   --collect-atstart=no --toggle-collect='*repeat_extract*'`).
+//! * `… -- repeat N FILTER`: N extractions of one frame (a `FILTER` with a `/` as in `time`;
+//!   for `valgrind --tool=callgrind --collect-atstart=no --toggle-collect='*repeat_extract*'`).
 //! * `… -- view DIR OUT FILTER`: side-by-side overlays (saved | current) as PNGs in `OUT`.
 //!
 //! * `… -- time-pool [ITERATIONS] [FILTER]`: `time` run from a worker of the global pool.
@@ -48,11 +48,7 @@ fn median(v: &mut [u64]) -> f64 {
 }
 
 fn time(iters: usize, filter: &str) {
-    let all = if filter.contains('/') {
-        sweep_frames()
-    } else {
-        frames()
-    };
+    let all = frames_for(filter, frames);
     for (name, input, cam) in all {
         if !name.contains(filter) {
             continue;
@@ -118,6 +114,19 @@ fn sweep_frames() -> Vec<(String, Input, Camera)> {
             .map(|f| (f.name, Input::Depth(f.depth), f.camera)),
     );
     inputs
+}
+
+/// The frames a `FILTER` picks from: the sweep's when it names a frame (it has a `/`, as in
+/// `tum-fr1-rpy-200/86`), else `otherwise()`.
+fn frames_for(
+    filter: &str,
+    otherwise: impl FnOnce() -> Vec<(String, Input, Camera)>,
+) -> Vec<(String, Input, Camera)> {
+    if filter.contains('/') {
+        sweep_frames()
+    } else {
+        otherwise()
+    }
 }
 
 fn sweep(iters: usize, rounds: usize) {
@@ -220,12 +229,7 @@ fn full_planes(seg: &PlaneSegmentation) -> String {
 /// Runs the extraction `iters` times on the first frame matching `filter` (for callgrind:
 /// `--toggle-collect` on `repeat_extract` counts the extraction alone).
 fn repeat(iters: usize, filter: &str) {
-    let all = if filter.contains('/') {
-        sweep_frames()
-    } else {
-        load(1)
-    };
-    let (name, input, cam) = all
+    let (name, input, cam) = frames_for(filter, || load(1))
         .into_iter()
         .find(|(n, _, _)| n.contains(filter))
         .unwrap();
