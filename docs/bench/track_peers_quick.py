@@ -11,8 +11,9 @@ colour and is skipped: the comparison is depth only) and the dense SLAM `o3d.t.p
 and prints ATE RMSE (Horn alignment) and RPE per frame. Optional `--ours TRAJ.txt` evaluates a
 `sldepth track --output` trajectory the same way. `--reference-model` (7scenes, icl) also
 tracks every frame against a model Open3D fused with the reference poses, the peer of
-`cargo run --release -p sl-track --example gt_model_probe`. Needs open3d (0.19 tested) and
-numpy; tests never run it.
+`cargo run --release -p sl-track --example gt_model_probe`. `--write DIR` saves each peer's
+trajectory as a TUM file in DIR (e.g. for `sldepth eval-traj --estimate-offset`). Needs open3d
+(0.19 tested) and numpy; tests never run it.
 """
 import argparse, glob, os, sys, time
 import numpy as np
@@ -140,6 +141,25 @@ def dense_slam_reference_model(paths, gt_poses, K, scale, depth_max, voxel):
     return poses, float('nan')
 
 
+def R_to_quat(R):
+    """(x, y, z, w) of a rotation matrix (Shepperd's method)."""
+    t = np.trace(R)
+    if t > 0:
+        s = 2 * np.sqrt(t + 1); return [(R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s, s / 4]
+    i = int(np.argmax(np.diag(R))); j, k = (i + 1) % 3, (i + 2) % 3
+    s = 2 * np.sqrt(1 + R[i, i] - R[j, j] - R[k, k]); q = [0.0] * 4
+    q[i] = s / 4; q[j] = (R[j, i] + R[i, j]) / s; q[k] = (R[k, i] + R[i, k]) / s; q[3] = (R[k, j] - R[j, k]) / s
+    return q
+
+
+def write_tum(path, stamps, poses):
+    os.makedirs(os.path.dirname(path) or '.', exist_ok=True)
+    with open(path, 'w') as f:
+        for t, P in zip(stamps, poses):
+            P = np.asarray(P); q = R_to_quat(P[:3, :3])
+            f.write(f'{t:.6f} ' + ' '.join(f'{v:.7f}' for v in list(P[:3, 3]) + list(q)) + '\n')
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument('kind', choices=['tum', '7scenes', 'icl']); ap.add_argument('dir')
@@ -148,6 +168,8 @@ def main():
                     help="replace the data set's fx = fy (a calibration check, e.g. ICL's sample)")
     ap.add_argument('--reference-model', action='store_true',
                     help='also track against a model fused with the reference poses (7scenes, icl)')
+    ap.add_argument('--write', metavar='DIR', default=None,
+                    help="save each peer's trajectory in TUM format (camera to world) in DIR")
     a = ap.parse_args()
     paths, stamps, gt, (fx, fy, cx, cy), scale = load(a.kind, a.dir)
     if a.focal_px is not None:
@@ -168,6 +190,8 @@ def main():
                                                         a.depth_max, 0.008)))
     for name, run in runs:
         poses, ms = run()
+        if a.write:
+            write_tum(os.path.join(a.write, name.replace(' ', '-') + '.txt'), stamps, poses)
         n, ate, rt, rr = evaluate(dict(zip(stamps, poses)), gt)
         timing = '' if ms != ms else f', {ms:.0f} ms/frame median'
         print(f'{name}: {n} poses, ATE {ate*100:.2f} cm, RPE {rt*1000:.1f} mm {rr:.2f} deg{timing}')

@@ -10,7 +10,7 @@
 //! | [`planes`] | the Hoover et al. SegComp score ([`planes::segcomp`](mod@planes::segcomp)) and label overlays ([`planes::overlay`]) | `sldepth planes --overlay`, `xtask validate --only planes`, `sl-planes` tests |
 //! | [`tsdf`] | distances from a fused mesh to a reference surface ([`DistanceStats`]) | `xtask validate --only tsdf`, `sl-tsdf` tests |
 //! | [`render`] | shaded surface normals of a depth map ([`render::normals`]) and a software mesh renderer ([`render::mesh`]) | `sldepth filter --normals`, `sldepth fuse --render-png`, reports |
-//! | [`trajectory`] | ATE after Horn's alignment and RPE per frame or second, TUM benchmark definitions ([`trajectory::ate`], [`trajectory::rpe`]) | `sldepth eval-traj`, tracking tests |
+//! | [`trajectory`] | ATE after Horn's alignment and RPE per frame or second, TUM benchmark definitions ([`trajectory::ate`], [`trajectory::rpe`]), and the clock offset of an estimate ([`trajectory::estimate_time_offset`]) | `sldepth eval-traj`, tracking tests |
 //! | [`plot`] | the paper's Figure 2 (depth-resolution analysis) as SVG or RGB | `sldepth analyze --plot`, `xtask validate --only noise` |
 //!
 //! Where it sits: beside the pipeline, on top of it. It depends on `sl-core`, `sl-noise` (the

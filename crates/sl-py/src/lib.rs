@@ -59,6 +59,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(trajectory::read_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::write_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::evaluate_trajectory, m)?)?;
+    m.add_function(wrap_pyfunction!(trajectory::estimate_time_offset, m)?)?;
     m.add_function(wrap_pyfunction!(filter::filter, m)?)?;
     m.add_function(wrap_pyfunction!(camera::undistort, m)?)?;
     m.add_function(wrap_pyfunction!(planes::extract_planes, m)?)?;

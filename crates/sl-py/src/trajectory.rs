@@ -7,7 +7,9 @@ use numpy::{IntoPyArray, PyArray1, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sl_core::CameraToWorld;
-use sl_eval::trajectory::{DeltaUnit, ErrorStats, StampedPose, TrajectoryConfig, ate, rpe};
+use sl_eval::trajectory::{
+    DeltaUnit, ErrorStats, OffsetSearch, StampedPose, TrajectoryConfig, ate, rpe,
+};
 use sl_io::trajectory::TimedPose;
 
 use crate::arrays::pose_input;
@@ -91,9 +93,10 @@ fn stats_dict<'py>(py: Python<'py>, s: &ErrorStats) -> PyResult<Bound<'py, PyDic
 /// ``max_gap_s``; ``rpe``, the relative pose error over ``delta`` frames or seconds
 /// (``delta_unit``), ``translation_m`` and ``rotation_deg``. Each error is a dict of ``rmse``,
 /// ``mean``, ``median``, ``std``, ``min``, ``max``. Timestamps in seconds, poses (N, 4, 4)
-/// camera-to-world (``read_trajectory``, ``track_sequence``).
+/// camera-to-world (``read_trajectory``, ``track_sequence``). ``offset_s`` is added to the
+/// estimate's timestamps first (``estimate_time_offset`` measures it).
 #[pyfunction]
-#[pyo3(signature = (timestamps_s, poses, gt_timestamps_s, gt_poses, *, max_gap_s = 0.02, delta = 1.0, delta_unit = "frames"))]
+#[pyo3(signature = (timestamps_s, poses, gt_timestamps_s, gt_poses, *, max_gap_s = 0.02, delta = 1.0, delta_unit = "frames", offset_s = 0.0))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn evaluate_trajectory<'py>(
     py: Python<'py>,
@@ -104,6 +107,7 @@ pub(crate) fn evaluate_trajectory<'py>(
     max_gap_s: f64,
     delta: f64,
     delta_unit: &str,
+    offset_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let est = stamped("estimated", timestamps_s, poses)?;
     let gt = stamped("ground-truth", gt_timestamps_s, gt_poses)?;
@@ -111,6 +115,7 @@ pub(crate) fn evaluate_trajectory<'py>(
     config.max_gap_s = max_gap_s;
     config.delta = delta;
     config.delta_unit = DeltaUnit::parse(delta_unit).map_err(value_error)?;
+    config.offset_s = offset_s;
     let a = ate(&est, &gt, &config).map_err(value_error)?;
     let r = rpe(&est, &gt, &config).map_err(value_error)?;
     let out = PyDict::new(py);
@@ -118,6 +123,7 @@ pub(crate) fn evaluate_trajectory<'py>(
     out.set_item("poses_ground_truth", a.ground_truth)?;
     out.set_item("poses_matched", a.matched)?;
     out.set_item("max_gap_s", config.max_gap_s)?;
+    out.set_item("offset_s", config.offset_s)?;
     out.set_item("ate_m", stats_dict(py, &a.stats_m)?)?;
     let rp = PyDict::new(py);
     rp.set_item("delta", config.delta)?;
@@ -127,5 +133,44 @@ pub(crate) fn evaluate_trajectory<'py>(
     rp.set_item("translation_m", stats_dict(py, &r.translation_m)?)?;
     rp.set_item("rotation_deg", stats_dict(py, &r.rotation_deg)?)?;
     out.set_item("rpe", rp)?;
+    Ok(out)
+}
+
+/// The clock offset of an estimated trajectory against its ground truth (as ``sldepth eval-traj
+/// --estimate-offset``): every offset within ``±max_s`` in steps of ``step_s`` is added to the
+/// estimate's timestamps, the poses matched within ``max_gap_s``, the estimate's orientations
+/// turned by the rotation of the world that fits them best, and the offset with the smallest
+/// RMS angle left is returned: a dict of ``offset_s`` (pass it to ``evaluate_trajectory``),
+/// ``rotation_rmse_deg``, ``rotation_rmse_at_zero_deg``, ``matched`` and ``curve`` (a list of
+/// ``(offset_s, rmse_deg)``).
+#[pyfunction]
+#[pyo3(signature = (timestamps_s, poses, gt_timestamps_s, gt_poses, *, max_gap_s = 0.02, max_s = 0.1, step_s = 0.001))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn estimate_time_offset<'py>(
+    py: Python<'py>,
+    timestamps_s: Vec<f64>,
+    poses: &Bound<'py, PyAny>,
+    gt_timestamps_s: Vec<f64>,
+    gt_poses: &Bound<'py, PyAny>,
+    max_gap_s: f64,
+    max_s: f64,
+    step_s: f64,
+) -> PyResult<Bound<'py, PyDict>> {
+    let est = stamped("estimated", timestamps_s, poses)?;
+    let gt = stamped("ground-truth", gt_timestamps_s, gt_poses)?;
+    let mut config = TrajectoryConfig::default();
+    config.max_gap_s = max_gap_s;
+    let mut search = OffsetSearch::default();
+    search.max_s = max_s;
+    search.step_s = step_s;
+    let f = py
+        .detach(|| sl_eval::trajectory::estimate_time_offset(&est, &gt, &config, &search))
+        .map_err(value_error)?;
+    let out = PyDict::new(py);
+    out.set_item("offset_s", f.offset_s)?;
+    out.set_item("rotation_rmse_deg", f.rotation_rmse_deg)?;
+    out.set_item("rotation_rmse_at_zero_deg", f.rotation_rmse_at_zero_deg)?;
+    out.set_item("matched", f.matched)?;
+    out.set_item("curve", f.curve)?;
     Ok(out)
 }

@@ -496,6 +496,35 @@ def test_trajectories_round_trip_and_evaluate(tmp_path):
         sldepth.read_trajectory(tmp_path / "missing.txt")
 
 
+def test_a_clock_offset_is_found_and_applied():
+    # A camera turning about changing axes; its frames stamped 25 ms after the instants they
+    # show, the ground truth sampled every millisecond on the true clock.
+    def pose(t):
+        a = np.array([0.6 * np.sin(1.3 * t), 1.2 * np.cos(0.9 * t), 0.8 * np.sin(1.7 * t)])
+        th = np.linalg.norm(a)
+        k = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]]) / th
+        m = np.eye(4)
+        m[:3, :3] = np.eye(3) + np.sin(th) * k + (1 - np.cos(th)) * k @ k
+        m[:3, 3] = [0.1 * np.sin(t), 0.05 * t, 0.0]
+        return m
+
+    tg = 100.0 + np.arange(6000) * 0.001
+    gt = np.stack([pose(t) for t in tg])
+    te = 100.2 + np.arange(140) * 0.04
+    est = np.stack([pose(t) for t in te])
+    found = sldepth.estimate_time_offset(te + 0.025, est, tg, gt)
+    assert found["offset_s"] == pytest.approx(-0.025, abs=1e-9)
+    assert found["rotation_rmse_deg"] < 1e-4 < 0.5 < found["rotation_rmse_at_zero_deg"]
+    assert found["matched"] == 140 and len(found["curve"]) == 201
+    r = sldepth.evaluate_trajectory(te + 0.025, est, tg, gt, offset_s=found["offset_s"])
+    assert r["offset_s"] == found["offset_s"] and r["ate_m"]["rmse"] < 1e-9
+    assert sldepth.evaluate_trajectory(te + 0.025, est, tg, gt)["ate_m"]["rmse"] > 1e-4
+    with pytest.raises(ValueError, match="offset"):
+        sldepth.evaluate_trajectory(te, est, tg, gt, offset_s=float("nan"))
+    with pytest.raises(ValueError, match="step"):
+        sldepth.estimate_time_offset(te, est, tg, gt, step_s=0.0)
+
+
 def test_tracker_follows_a_still_camera_and_fuses(kinect):
     # Boxes on a floor: planes facing three ways, so every motion is pinned down.
     depth = sldepth.simulate("boxes", seed=3)[0]

@@ -1,5 +1,5 @@
 //! End-to-end tests of `sldepth eval-traj`: a hand-worked trajectory pair (text and JSON), a
-//! rigidly moved copy, and clear errors on bad input.
+//! rigidly moved copy, a clock offset given and measured, and clear errors on bad input.
 
 // Test code: a panic is a failed test.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
@@ -98,6 +98,88 @@ fn eval_traj_of_a_moved_copy_is_zero_and_per_second_works() {
     assert_eq!(j["rpe"]["delta_unit"], "seconds");
 }
 
+/// A camera yawing back and forth (±60° at 0.5 Hz) while moving along x: its ground truth at
+/// 1 kHz and its frames at 25 Hz, stamped `lag_s` after the instants they show.
+fn swinging_camera(lag_s: f64) -> (String, String) {
+    let line = |stamp: f64, t: f64| {
+        let h = 60f64.to_radians() * (std::f64::consts::PI * t).sin();
+        format!(
+            "{stamp:.6} {} 0 0 0 0 {} {}\n",
+            0.1 * t,
+            (h / 2.0).sin(),
+            (h / 2.0).cos()
+        )
+    };
+    let gt: String = (0..4000)
+        .map(|i| {
+            let t = i as f64 * 0.001;
+            line(100.0 + t, t)
+        })
+        .collect();
+    let est: String = (0..90)
+        .map(|i| {
+            let t = 0.2 + i as f64 * 0.04;
+            line(100.0 + t + lag_s, t)
+        })
+        .collect();
+    (gt, est)
+}
+
+#[test]
+fn eval_traj_applies_and_measures_a_clock_offset() {
+    let dir = tempfile::tempdir().unwrap();
+    let (gt, est) = swinging_camera(0.03);
+    let gt = write(dir.path(), "gt.txt", &gt);
+    let est = write(dir.path(), "est.txt", &est);
+    let json = |args: &[&str]| -> serde_json::Value {
+        let o = sldepth(args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    // Without the offset, each frame is compared with the pose 30 ms later: up to ~6° off.
+    let j = json(&["eval-traj", &est, &gt, "--json"]);
+    assert_eq!(j["offset_s"], 0.0);
+    assert!(j["offset_estimate"].is_null());
+    assert!(
+        j["rpe"]["rotation_deg"]["max"].as_f64().unwrap() > 0.5,
+        "{j}"
+    );
+    // Given, the frames meet their instants.
+    let j = json(&["eval-traj", &est, &gt, "--json", "--offset-ms", "-30"]);
+    assert_eq!(j["offset_s"], -0.03);
+    assert!(j["ate_m"]["max"].as_f64().unwrap() < 1e-5, "{j}");
+    assert!(
+        j["rpe"]["rotation_deg"]["max"].as_f64().unwrap() < 1e-3,
+        "{j}"
+    );
+    // Measured, the same.
+    let j = json(&["eval-traj", &est, &gt, "--json", "--estimate-offset"]);
+    assert_eq!(j["offset_s"], -0.03, "{j}");
+    assert_eq!(j["offset_estimate"]["offset_s"], -0.03);
+    assert_eq!(j["offset_estimate"]["matched"], 90);
+    assert!(
+        j["offset_estimate"]["rotation_rmse_at_zero_deg"]
+            .as_f64()
+            .unwrap()
+            > 1.0
+    );
+    assert!(j["ate_m"]["max"].as_f64().unwrap() < 1e-5);
+    let o = sldepth(&["eval-traj", &est, &gt, "--estimate-offset"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("clock offset -30 ms"), "{text}");
+    // Beyond the search range it is not found.
+    let j = json(&[
+        "eval-traj",
+        &est,
+        &gt,
+        "--json",
+        "--estimate-offset",
+        "--offset-search-ms",
+        "10",
+    ]);
+    assert_eq!(j["offset_s"], -0.01, "{j}");
+}
+
 #[test]
 fn eval_traj_errors_are_clear() {
     let dir = tempfile::tempdir().unwrap();
@@ -114,7 +196,7 @@ fn eval_traj_errors_are_clear() {
         "100.0 0 0 0 0 0 0 1\n100.0 1 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n",
     );
     let one = write(dir.path(), "one.txt", "100.0 0 0 0 0 0 0 1\n");
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 9] = [
         (&["eval-traj", &one, &gt], "at least two poses"),
         (
             &["eval-traj", "/nonexistent/est.txt", &gt],
@@ -127,6 +209,18 @@ fn eval_traj_errors_are_clear() {
         (
             &["eval-traj", &gt, &gt, "--delta-unit", "minutes"],
             "minutes",
+        ),
+        (&["eval-traj", &gt, &gt, "--offset-ms", "nan"], "offset_s"),
+        (
+            &[
+                "eval-traj",
+                &gt,
+                &gt,
+                "--estimate-offset",
+                "--offset-search-ms",
+                "-5",
+            ],
+            "offset search",
         ),
     ];
     for (args, needle) in cases {

@@ -43,6 +43,24 @@ struct Summary {
     right: f64,
     left_fg_bg: (f64, f64),
     right_fg_bg: (f64, f64),
+    /// Share of the occlusion edges (jumps beyond 15 cm) with an invalid band between the
+    /// foreground and background pixels, pooled over the frames, left / right.
+    band_share: (f64, f64),
+}
+
+/// Share of the edges of one side with a band (runs over runs plus direct edges; NaN without
+/// edges).
+fn band_share<'a>(sides: impl Iterator<Item = &'a sl_noise::stats::SideBands>) -> f64 {
+    let (mut runs, mut edges) = (0usize, 0usize);
+    for s in sides {
+        runs += s.widths.count;
+        edges += s.widths.count + s.direct_edges;
+    }
+    if edges == 0 {
+        f64::NAN
+    } else {
+        runs as f64 / edges as f64
+    }
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -103,6 +121,10 @@ fn summarise(all: &[NoiseStats]) -> Summary {
         right_fg_bg: (
             median(all.iter().map(|s| s.occlusion.right.median_fg_m).collect()),
             median(all.iter().map(|s| s.occlusion.right.median_bg_m).collect()),
+        ),
+        band_share: (
+            band_share(all.iter().map(|s| &s.occlusion.left)),
+            band_share(all.iter().map(|s| &s.occlusion.right)),
         ),
     }
 }
@@ -183,6 +205,8 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         sim: Summary,
         sim_left: f64,
         sim_right: f64,
+        /// Share of the simulated board's edges with a band, left / right.
+        sim_share: (f64, f64),
     }
     let mut done: Vec<Group> = Vec::new();
     let mut missing = Vec::new();
@@ -213,10 +237,10 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         }
         let s = summarise(&simulated);
         // Simulated bands at the real geometry (no run but direct edges = a band of 0 px).
-        let band = |fg_bg: (f64, f64), left: bool| -> Result<f64> {
+        let band = |fg_bg: (f64, f64), left: bool| -> Result<(f64, f64)> {
             let (zf, zb) = fg_bg;
             if !(zf.is_finite() && zb.is_finite() && zb > zf) {
-                return Ok(f64::NAN);
+                return Ok((f64::NAN, f64::NAN));
             }
             let scene = board_scene(zf, zb)?;
             let fr = sim.simulate(&scene, &camera.intrinsics, &CameraToWorld::identity(), 1);
@@ -226,14 +250,15 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             } else {
                 &st.occlusion.right
             };
-            Ok(if side.widths.count == 0 && side.direct_edges > 0 {
+            let width = if side.widths.count == 0 && side.direct_edges > 0 {
                 0.0
             } else {
                 side.widths.median_px
-            })
+            };
+            Ok((width, band_share(std::iter::once(side))))
         };
-        let sim_left = band(r.left_fg_bg, true)?;
-        let sim_right = band(r.right_fg_bg, false)?;
+        let (sim_left, sim_left_share) = band(r.left_fg_bg, true)?;
+        let (sim_right, sim_right_share) = band(r.right_fg_bg, false)?;
         done.push(Group {
             name,
             fitted,
@@ -242,6 +267,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             sim: s,
             sim_left,
             sim_right,
+            sim_share: (sim_left_share, sim_right_share),
         });
     }
     if done.is_empty() {
@@ -356,14 +382,26 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     );
     // Table 2: occlusion bands, same camera.
     md.push_str(
-        "\n| data set | role | side | real fg / bg depth (m) | real band (px) | simulated (px) | target ±3 px |\n|---|---|---|---|---|---|---|\n",
+        "\n| data set | role | side | real fg / bg depth (m) | real band (px) | simulated (px) | target ±3 px | edges with a band, real / simulated |\n|---|---|---|---|---|---|---|---|\n",
     );
     let mut band_met = 0;
     let mut band_total = 0;
     for g in &done {
-        for (side, rv, sv, fb) in [
-            ("left", g.real.left, g.sim_left, g.real.left_fg_bg),
-            ("right", g.real.right, g.sim_right, g.real.right_fg_bg),
+        for (side, rv, sv, fb, shares) in [
+            (
+                "left",
+                g.real.left,
+                g.sim_left,
+                g.real.left_fg_bg,
+                (g.real.band_share.0, g.sim_share.0),
+            ),
+            (
+                "right",
+                g.real.right,
+                g.sim_right,
+                g.real.right_fg_bg,
+                (g.real.band_share.1, g.sim_share.1),
+            ),
         ] {
             let ok = (rv.is_finite() && sv.is_finite()).then(|| (rv - sv).abs() <= BAND_TOL_PX);
             let verdict = match ok {
@@ -377,11 +415,19 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             }
             let _ = writeln!(
                 md,
-                "| {} | {} | {side} | {:.2} / {:.2} | {rv:.1} | {sv:.1} | {verdict} |",
+                "| {} | {} | {side} | {:.2} / {:.2} | {rv:.1} | {sv:.1} | {verdict} | {:.0} % / {:.0} % |",
                 g.name,
                 if g.fitted { "fit" } else { "held out" },
                 fb.0,
-                fb.1
+                fb.1,
+                100.0 * shares.0,
+                100.0 * shares.1
+            );
+            ctx.row(
+                "realism",
+                &format!("{} band {side} share real", g.name),
+                shares.0,
+                "",
             );
             ctx.row("realism", &format!("{} band {side} real", g.name), rv, "px");
             ctx.row("realism", &format!("{} band {side} sim", g.name), sv, "px");
@@ -389,7 +435,12 @@ pub fn run(ctx: &mut Context) -> Result<()> {
     }
     let _ = writeln!(
         md,
-        "\nOcclusion bands: {band_met}/{band_total} targets met."
+        "\nOcclusion bands: {band_met}/{band_total} targets met. The band width is the median \
+         over the rows that have a band; the last column is the share of all the edges of that \
+         side (jumps beyond 15 cm) that have one, the real frames pooled. The simulated board \
+         makes a band at every edge or at none; the real rooms make them at some (on the held-out \
+         sets at a fifth to a quarter of the edges: transparent bins and clutter in NYU, a dark \
+         plinth recess and a black worktop's edge in 7-Scenes — docs/NOISE_MODEL.md)."
     );
     ctx.row("realism", "band targets met", band_met as f64, "");
     ctx.row("realism", "band targets", band_total as f64, "");

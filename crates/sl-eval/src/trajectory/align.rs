@@ -5,7 +5,7 @@
 use sl_core::CameraToCamera;
 use sl_core::nalgebra::{Matrix3, Point3, Vector3};
 
-use super::{StampedPose, TrajectoryConfig, associate, sorted};
+use super::{StampedPose, TrajectoryConfig, associate, sorted, sorted_estimate};
 use crate::error::{EvalError, Result};
 
 use super::stats::ErrorStats;
@@ -35,7 +35,7 @@ pub fn ate(
     config: &TrajectoryConfig,
 ) -> Result<AteResult> {
     config.validate()?;
-    let est = sorted(est, "estimated")?;
+    let est = sorted_estimate(est, config)?;
     let gt = sorted(gt, "ground-truth")?;
     if est.len() < 2 || gt.len() < 2 {
         return Err(EvalError::InvalidParameter(format!(

@@ -2,7 +2,8 @@
 //! and its tools `evaluate_ate.py` / `evaluate_rpe.py`): the absolute trajectory error after
 //! Horn's closed-form rigid alignment ([`ate`]) and the relative pose error over a fixed
 //! delta in frames or seconds ([`rpe`](fn@rpe)), on poses matched by nearest timestamp
-//! ([`associate`](fn@associate)).
+//! ([`associate`](fn@associate)), optionally after shifting the estimate's clock
+//! ([`TrajectoryConfig::offset_s`], which [`estimate_time_offset`] can measure).
 //!
 //! Trajectories are `(timestamp_s, CameraToWorld)` lists in any order; timestamps must be
 //! finite and distinct within a trajectory (an error otherwise, never a panic).
@@ -13,11 +14,13 @@ use crate::error::{EvalError, Result};
 
 mod align;
 mod associate;
+mod offset;
 mod rpe;
 mod stats;
 
 pub use align::{AteResult, ate};
 pub use associate::associate;
+pub use offset::{OffsetSearch, TimeOffset, estimate_time_offset};
 pub use rpe::{DeltaUnit, RpeResult, rpe};
 pub use stats::ErrorStats;
 
@@ -30,8 +33,8 @@ pub type StampedPose = (f64, CameraToWorld);
 
 /// How two trajectories are compared.
 ///
-/// Defaults: TUM's maximum timestamp gap of 0.02 s for the ATE association and an RPE delta
-/// of one frame.
+/// Defaults: TUM's maximum timestamp gap of 0.02 s for the ATE association, an RPE delta
+/// of one frame and no clock offset.
 ///
 /// `#[non_exhaustive]`: start from [`TrajectoryConfig::default`] and assign the fields you need.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -44,7 +47,15 @@ pub struct TrajectoryConfig {
     pub delta: f64,
     /// Unit of [`TrajectoryConfig::delta`].
     pub delta_unit: DeltaUnit,
+    /// Seconds added to the estimated trajectory's timestamps before it is associated with the
+    /// ground truth (`evaluate_ate.py --offset`, evo's `--t_offset`): for a camera whose frame
+    /// timestamps lag the ground truth's clock, a negative offset. At most
+    /// [`MAX_OFFSET_S`] either way.
+    pub offset_s: f64,
 }
+
+/// Largest clock offset [`TrajectoryConfig::offset_s`] accepts, seconds.
+pub const MAX_OFFSET_S: f64 = 60.0;
 
 impl Default for TrajectoryConfig {
     fn default() -> Self {
@@ -52,6 +63,7 @@ impl Default for TrajectoryConfig {
             max_gap_s: 0.02,
             delta: 1.0,
             delta_unit: DeltaUnit::Frames,
+            offset_s: 0.0,
         }
     }
 }
@@ -71,6 +83,12 @@ impl TrajectoryConfig {
                 self.delta
             )));
         }
+        if !(self.offset_s.is_finite() && self.offset_s.abs() <= MAX_OFFSET_S) {
+            return Err(EvalError::InvalidParameter(format!(
+                "offset_s = {} must be finite and at most {MAX_OFFSET_S} s either way",
+                self.offset_s
+            )));
+        }
         if self.delta_unit == DeltaUnit::Frames && self.delta.fract() != 0.0 {
             return Err(EvalError::InvalidParameter(format!(
                 "delta = {} frames must be a whole number",
@@ -84,6 +102,28 @@ impl TrajectoryConfig {
 /// Largest position coordinate a trajectory may have, metres (10⁹ m: a million kilometres; UTM
 /// or ECEF coordinates of a robot are within it).
 pub const MAX_POSITION_M: f64 = 1e9;
+
+/// The estimated trajectory sorted by timestamp and moved onto the ground truth's clock by
+/// `config.offset_s`, after checking it.
+pub(crate) fn sorted_estimate(
+    est: &[StampedPose],
+    config: &TrajectoryConfig,
+) -> Result<Vec<StampedPose>> {
+    let mut v = sorted(est, "estimated")?;
+    if config.offset_s != 0.0 {
+        for p in &mut v {
+            p.0 += config.offset_s;
+        }
+        // Adding the same value keeps the order but may round two near stamps together.
+        if let Some(w) = v.windows(2).find(|w| w[0].0 >= w[1].0) {
+            return Err(EvalError::InvalidParameter(format!(
+                "estimated trajectory: two timestamps become equal at {} s after the {} s offset",
+                w[0].0, config.offset_s
+            )));
+        }
+    }
+    Ok(v)
+}
 
 /// The trajectory sorted by timestamp, after checking the timestamps and poses.
 pub(crate) fn sorted(traj: &[StampedPose], name: &str) -> Result<Vec<StampedPose>> {

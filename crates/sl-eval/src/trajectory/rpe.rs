@@ -5,7 +5,7 @@
 use sl_core::nalgebra::Isometry3;
 
 use super::stats::ErrorStats;
-use super::{StampedPose, TrajectoryConfig, sorted};
+use super::{StampedPose, TrajectoryConfig, sorted, sorted_estimate};
 use crate::error::{EvalError, Result};
 
 /// Unit of the RPE pair distance.
@@ -76,7 +76,7 @@ pub fn rpe(
     config: &TrajectoryConfig,
 ) -> Result<RpeResult> {
     config.validate()?;
-    let est = sorted(est, "estimated")?;
+    let est = sorted_estimate(est, config)?;
     let gt = sorted(gt, "ground-truth")?;
     if est.len() < 2 || gt.len() < 2 {
         return Err(EvalError::InvalidParameter(format!(

@@ -219,3 +219,107 @@ fn bad_input_is_an_error_not_a_panic() {
     rev.reverse();
     assert!(ate(&rev, &gt, &cfg).unwrap().stats_m.rmse < 1e-12);
 }
+
+/// A camera turning about varying axes at up to ~100 °/s: its ground truth sampled at 1 kHz,
+/// and its poses at 25 Hz frame stamps `lag_s` later than the instants they show.
+fn turning_camera(lag_s: f64) -> (Vec<StampedPose>, Vec<StampedPose>) {
+    let at = |t: f64| {
+        let iso = Isometry3::new(
+            Vector3::new(0.1 * t.sin(), 0.05 * t, 0.02 * (2.0 * t).cos()),
+            Vector3::new(
+                0.6 * (1.3 * t).sin(),
+                1.2 * (0.9 * t).cos(),
+                0.8 * (1.7 * t).sin(),
+            ),
+        );
+        CameraToWorld::from_isometry(iso)
+    };
+    let gt = (0..6000)
+        .map(|i| {
+            let t = 100.0 + i as f64 * 0.001;
+            (t, at(t))
+        })
+        .collect();
+    let est = (0..140)
+        .map(|i| {
+            let t = 100.2 + i as f64 * 0.04;
+            (t + lag_s, at(t))
+        })
+        .collect();
+    (gt, est)
+}
+
+#[test]
+fn a_clock_offset_is_found_and_undone() {
+    let (gt, est) = turning_camera(0.02);
+    let cfg = TrajectoryConfig::default();
+    let found = estimate_time_offset(&est, &gt, &cfg, &OffsetSearch::default()).unwrap();
+    assert!((found.offset_s + 0.02).abs() < 1e-9, "{found:?}");
+    assert!(found.rotation_rmse_deg < 1e-5, "{found:?}");
+    assert_eq!(found.matched, 140);
+    // The 20 ms lag at tens of degrees a second costs about a degree per pose.
+    assert!(found.rotation_rmse_at_zero_deg > 0.5, "{found:?}");
+    assert_eq!(found.curve.len(), 201);
+    // Applied, the ATE and RPE vanish; without it they do not.
+    let shifted = TrajectoryConfig {
+        offset_s: found.offset_s,
+        ..cfg
+    };
+    assert!(ate(&est, &gt, &shifted).unwrap().stats_m.rmse < 1e-9);
+    assert!(rpe(&est, &gt, &shifted).unwrap().rotation_deg.max < 1e-5);
+    assert!(ate(&est, &gt, &cfg).unwrap().stats_m.rmse > 1e-4);
+    // The same lag the other way, and none.
+    let (gt, est) = turning_camera(-0.035);
+    let found = estimate_time_offset(&est, &gt, &cfg, &OffsetSearch::default()).unwrap();
+    assert!((found.offset_s - 0.035).abs() < 1e-9, "{found:?}");
+    let (gt, est) = turning_camera(0.0);
+    let found = estimate_time_offset(&est, &gt, &cfg, &OffsetSearch::default()).unwrap();
+    assert_eq!(found.offset_s, 0.0);
+    // A different world frame for the estimate changes nothing.
+    let t = Isometry3::new(Vector3::new(3.0, -1.0, 0.5), Vector3::new(0.4, -0.3, 1.1));
+    let (gt, est) = turning_camera(0.02);
+    let moved: Vec<StampedPose> = est
+        .iter()
+        .map(|(s, p)| (*s, CameraToWorld::from_isometry(t * p.isometry())))
+        .collect();
+    let found = estimate_time_offset(&moved, &gt, &cfg, &OffsetSearch::default()).unwrap();
+    assert!((found.offset_s + 0.02).abs() < 1e-9, "{found:?}");
+}
+
+#[test]
+fn bad_offsets_are_errors() {
+    let (gt, est) = turning_camera(0.0);
+    let bad = |offset_s: f64| TrajectoryConfig {
+        offset_s,
+        ..TrajectoryConfig::default()
+    };
+    for o in [f64::NAN, f64::INFINITY, 61.0, -61.0] {
+        assert!(ate(&est, &gt, &bad(o)).is_err(), "{o}");
+        assert!(rpe(&est, &gt, &bad(o)).is_err(), "{o}");
+    }
+    let cfg = TrajectoryConfig::default();
+    for (max_s, step_s) in [
+        (0.1, 0.0),
+        (0.1, -1.0),
+        (f64::NAN, 0.001),
+        (100.0, 0.1),
+        (1.0, 1e-9),
+    ] {
+        let s = OffsetSearch { max_s, step_s };
+        assert!(
+            estimate_time_offset(&est, &gt, &cfg, &s).is_err(),
+            "{max_s} {step_s}"
+        );
+    }
+    // Offsets that move the estimate off the ground truth's time span are skipped; none left
+    // is an error.
+    let far = OffsetSearch {
+        max_s: 50.0,
+        step_s: 10.0,
+    };
+    let found = estimate_time_offset(&est, &gt, &cfg, &far).unwrap();
+    assert_eq!(found.offset_s, 0.0);
+    assert_eq!(found.curve.len(), 1);
+    let late: Vec<StampedPose> = est.iter().map(|(s, p)| (s + 30.0, *p)).collect();
+    assert!(estimate_time_offset(&late, &gt, &cfg, &OffsetSearch::default()).is_err());
+}

@@ -462,10 +462,28 @@ def evaluate_trajectory(
     max_gap_s: float = 0.02,
     delta: float = 1.0,
     delta_unit: str = "frames",
+    offset_s: float = 0.0,
 ) -> Dict[str, Any]:
     """ATE (after Horn's rigid alignment) and RPE (over delta frames or seconds) with the TUM
     benchmark's definitions, as `sldepth eval-traj --json`: {"ate_m": {rmse, mean, median,
-    std, min, max}, "rpe": {"translation_m": {...}, "rotation_deg": {...}, pairs, ...}, ...}."""
+    std, min, max}, "rpe": {"translation_m": {...}, "rotation_deg": {...}, pairs, ...}, ...}.
+    offset_s (seconds) is added to the estimate's timestamps before matching them."""
+
+def estimate_time_offset(
+    timestamps_s: Sequence[float],
+    poses: npt.NDArray[np.floating],
+    gt_timestamps_s: Sequence[float],
+    gt_poses: npt.NDArray[np.floating],
+    *,
+    max_gap_s: float = 0.02,
+    max_s: float = 0.1,
+    step_s: float = 0.001,
+) -> Dict[str, Any]:
+    """The clock offset (seconds, to add to the estimate's timestamps) under which the
+    estimate's orientations, turned by the best rotation of the world, agree best with the
+    ground truth's, tried every step_s within +-max_s: {"offset_s", "rotation_rmse_deg",
+    "rotation_rmse_at_zero_deg", "matched", "curve": [(offset_s, rmse_deg), ...]}. As
+    `sldepth eval-traj --estimate-offset`."""
 
 def track_sequence(
     frames: Iterable[Union[_Depth, _Path]],

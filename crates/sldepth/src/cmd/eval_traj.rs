@@ -6,7 +6,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use serde_json::json;
 use sl_eval::trajectory::{
-    AteResult, DeltaUnit, ErrorStats, RpeResult, StampedPose, TrajectoryConfig, ate, rpe,
+    AteResult, DeltaUnit, ErrorStats, OffsetSearch, RpeResult, StampedPose, TimeOffset,
+    TrajectoryConfig, ate, estimate_time_offset, rpe,
 };
 
 use crate::common::{limits, print_json, round_to};
@@ -36,6 +37,31 @@ pub struct Args {
     /// Unit of `--delta`: frames or seconds.
     #[arg(long, value_name = "UNIT", default_value = "frames")]
     pub delta_unit: String,
+    /// Milliseconds added to the estimate's timestamps before they are matched to the ground
+    /// truth's (TUM's `evaluate_ate.py --offset`, in seconds there; evo's `--t_offset`):
+    /// negative when the frames' timestamps lag the ground truth's clock.
+    #[arg(
+        long,
+        value_name = "MS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub offset_ms: f64,
+    /// Measure the clock offset (every whole millisecond within ±`--offset-search-ms`: the one
+    /// under which the estimate's orientations, turned by the best rotation of the world, agree
+    /// best with the ground truth's), report it, and evaluate with it instead of
+    /// `--offset-ms`. On TUM fr1/rpy with `sldepth track`'s trajectory it finds about −20 ms
+    /// (the depth timestamps lag the motion capture: docs/bench/track.md, session 61).
+    #[arg(long)]
+    pub estimate_offset: bool,
+    /// Range of `--estimate-offset`, milliseconds either way.
+    #[arg(
+        long,
+        value_name = "MS",
+        default_value_t = 100.0,
+        allow_negative_numbers = true
+    )]
+    pub offset_search_ms: f64,
 }
 
 /// Reads a TUM trajectory within the run's limits.
@@ -63,9 +89,21 @@ pub fn run(args: Args) -> Result<()> {
     config.max_gap_s = args.max_gap_s;
     config.delta = args.delta;
     config.delta_unit = DeltaUnit::parse(&args.delta_unit)?;
+    config.offset_s = args.offset_ms * 1e-3;
     config.validate()?;
     let est = read(&args.estimated, "estimated")?;
     let gt = read(&args.ground_truth, "ground-truth")?;
+    let found: Option<TimeOffset> = if args.estimate_offset {
+        let mut search = OffsetSearch::default();
+        search.max_s = args.offset_search_ms * 1e-3;
+        search.step_s = 1e-3;
+        let f = estimate_time_offset(&est, &gt, &config, &search)
+            .context("estimating the clock offset")?;
+        config.offset_s = f.offset_s;
+        Some(f)
+    } else {
+        None
+    };
     let a: AteResult = ate(&est, &gt, &config).context("absolute trajectory error")?;
     let r: RpeResult = rpe(&est, &gt, &config).context("relative pose error")?;
     if args.json {
@@ -76,6 +114,13 @@ pub fn run(args: Args) -> Result<()> {
             "poses_ground_truth": a.ground_truth,
             "poses_matched": a.matched,
             "max_gap_s": config.max_gap_s,
+            "offset_s": round_to(config.offset_s, 6),
+            "offset_estimate": found.as_ref().map(|f| json!({
+                "offset_s": round_to(f.offset_s, 6),
+                "rotation_rmse_deg": round_to(f.rotation_rmse_deg, 4),
+                "rotation_rmse_at_zero_deg": round_to(f.rotation_rmse_at_zero_deg, 4),
+                "matched": f.matched,
+            })),
             "ate_m": stats_json(&a.stats_m, 6),
             "rpe": {
                 "delta": config.delta,
@@ -87,6 +132,17 @@ pub fn run(args: Args) -> Result<()> {
             },
         }))?;
     } else {
+        if let Some(f) = &found {
+            outln!(
+                "clock offset {:+.0} ms (orientation error after the best world rotation: rms {:.3}° against {:.3}° at no offset, {} poses)",
+                f.offset_s * 1e3,
+                f.rotation_rmse_deg,
+                f.rotation_rmse_at_zero_deg,
+                f.matched
+            )?;
+        } else if config.offset_s != 0.0 {
+            outln!("clock offset {:+} ms (given)", config.offset_s * 1e3)?;
+        }
         let s = &a.stats_m;
         outln!(
             "ATE ({} of {} estimated poses matched to {} ground-truth poses within {} s, after rigid alignment)",
