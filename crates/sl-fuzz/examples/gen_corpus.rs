@@ -48,6 +48,25 @@ fn frame_bytes(w: u8, h: u8, f: u8, depth: impl Fn(usize, usize) -> u16) -> Vec<
     b
 }
 
+/// Depth (mm) at pixel `(x, y)` of a 24×24 camera with f = 240.5 px (`tiny_frame`'s focal
+/// byte 120; a Kinect-like depth noise of a few millimetres at 1 m) looking into three faces
+/// that meet 1 m ahead, their normals 37° off the axis and 120° apart around it, the camera
+/// moved by `dx` metres along x.
+fn corner_depth_mm(x: usize, y: usize, dx: f64) -> u16 {
+    let (f, c) = (240.5, 11.5);
+    let r = [(x as f64 - c) / f, (y as f64 - c) / f, 1.0];
+    let faces = [[0.6, 0.0, -0.8], [-0.3, 0.52, -0.8], [-0.3, -0.52, -0.8]];
+    let t = faces
+        .iter()
+        .map(|n| {
+            // n·(P0 − O) / n·r with P0 = (0, 0, 1), O = (dx, 0, 0).
+            (n[2] - n[0] * dx) / (n[0] * r[0] + n[1] * r[1] + n[2] * r[2])
+        })
+        .filter(|t| *t > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    (t * 1000.0).round() as u16
+}
+
 fn main() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus");
     let d = ramp(8, 6);
@@ -169,6 +188,56 @@ fn main() {
         tsdf.extend_from_slice(f);
         put(&root, "tsdf", name, &tsdf);
     }
+    for (name, f) in [("wall", &wall), ("floor", &floor), ("holes", &holes)] {
+        let mut b = vec![2, 2, 4, 0];
+        b.extend_from_slice(f);
+        put(&root, "multiscale", name, &b);
+        put(
+            &root,
+            "noise_stats",
+            name,
+            &[&[0u8, 8, 4, 64][..], f].concat(),
+        );
+    }
+    // Tracking: three faces meeting in a corner (a view that pins every direction of the pose)
+    // seen by a still camera, and by one moving 1 cm a frame along x, frame to model
+    // and frame to frame with a rolling shutter; a single plane (degenerate) for the other
+    // path.
+    let corner = |dx: f64| frame_bytes(24, 24, 120, |x, y| corner_depth_mm(x, y, dx));
+    let body = |f: &[u8]| f[4..].to_vec();
+    let still = [corner(0.0), body(&corner(0.0)), body(&corner(0.0))].concat();
+    put(
+        &root,
+        "track",
+        "still-corner",
+        &[&[0u8, 7, 1, 2, 3, 4, 0, 0][..], &still].concat(),
+    );
+    let moving = [
+        corner(0.0),
+        body(&corner(0.01)),
+        body(&corner(0.02)),
+        body(&corner(0.03)),
+    ]
+    .concat();
+    put(
+        &root,
+        "track",
+        "moving-corner",
+        &[&[0u8, 7, 1, 2, 3, 4, 0, 0][..], &moving].concat(),
+    );
+    put(
+        &root,
+        "track",
+        "moving-corner-f2f-rs",
+        &[&[3u8, 7, 1, 2, 3, 4, 0, 0][..], &moving].concat(),
+    );
+    let single = [floor.clone(), body(&floor), body(&floor)].concat();
+    put(
+        &root,
+        "track",
+        "still-floor",
+        &[&[0u8, 0, 1, 2, 3, 4, 0, 0][..], &single].concat(),
+    );
     let mut pair = floor.clone();
     pair.extend_from_slice(&floor);
     put(&root, "motion", "floor-floor", &pair);

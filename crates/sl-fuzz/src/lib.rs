@@ -7,7 +7,7 @@
 //! Readers see the bytes as a file in a per-thread scratch directory (they take paths); every
 //! call runs under [`fuzz_limits`] (64 MiB), so that an input can only be refused, never make
 //! the fuzzer run out of memory. Algorithm targets decode the bytes into a tiny frame
-//! ([`tiny_frame`]: at most 24×24 pixels) and parameters.
+//! ([`tiny_frame`]: at most 24×24 pixels; `track` enlarges them, [`enlarged`]) and parameters.
 #![cfg_attr(test, allow(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
 
 use std::cell::RefCell;
@@ -38,6 +38,9 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("planes", planes),
     ("motion", motion),
     ("tsdf", tsdf),
+    ("multiscale", multiscale),
+    ("track", track),
+    ("noise_stats", noise_stats),
 ];
 
 /// The limits every target runs under: a 64 MiB budget.
@@ -314,6 +317,151 @@ pub fn tsdf(data: &[u8]) {
     let _ = vol.integrate(&depth, &camera.intrinsics, &pose);
     let _ = vol.integrate(&depth, &camera.intrinsics, &CameraToWorld::identity());
     let _ = vol.extract_mesh_within(&sl_tsdf::MeshConfig::default(), budget);
+    // The model seen from both poses (what the tracker renders).
+    let rc = sl_tsdf::RaycastConfig::default();
+    let _ = vol.raycast(&CameraToWorld::identity(), &camera.intrinsics, &rc);
+    let _ = vol.raycast(&pose, &camera.intrinsics, &rc);
+}
+
+/// The multi-scale filter (the default of `sldepth filter`) with dilations from the first
+/// bytes (1–3 passes of 1..=8 px, or none), on a tiny frame.
+pub fn multiscale(data: &[u8]) {
+    let (head, rest) = data.split_at(data.len().min(4));
+    let mut b = Bytes(head);
+    let (depth, camera) = tiny_frame(rest);
+    let mut ms = sl_filter::MultiScale::default_for(&camera.sensor);
+    let n = usize::from(b.u8() % 4);
+    ms.dilations = (0..n).map(|_| usize::from(b.u8() % 8) + 1).collect();
+    let _ = ms.apply(&depth);
+}
+
+/// `depth` enlarged `s` times along each axis, interpolated bilinearly in disparity (`1/Z`,
+/// so that a plane stays a plane), a pixel invalid where any of its four neighbours is; and
+/// the camera of that size.
+pub fn enlarged(depth: &DepthImage, camera: &Camera, s: usize) -> (DepthImage, Camera) {
+    let (w, h) = (depth.width(), depth.height());
+    let (ws, hs) = (w * s, h * s);
+    let z = depth.data();
+    let inv = |x: usize, y: usize| {
+        let v = z[y * w + x];
+        (v > 0.0 && v.is_finite()).then(|| 1.0 / f64::from(v))
+    };
+    let mut out = Vec::with_capacity(ws * hs);
+    for ys in 0..hs {
+        // The source coordinate of this pixel's centre, clamped to the grid.
+        let fy = ((ys as f64 + 0.5) / s as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+        let (y0, ty) = (fy.floor() as usize, fy.fract());
+        let y1 = (y0 + 1).min(h - 1);
+        for xs in 0..ws {
+            let fx = ((xs as f64 + 0.5) / s as f64 - 0.5).clamp(0.0, (w - 1) as f64);
+            let (x0, tx) = (fx.floor() as usize, fx.fract());
+            let x1 = (x0 + 1).min(w - 1);
+            let v = match (inv(x0, y0), inv(x1, y0), inv(x0, y1), inv(x1, y1)) {
+                (Some(a), Some(b), Some(c), Some(d)) => {
+                    let top = a + (b - a) * tx;
+                    let bottom = c + (d - c) * tx;
+                    (1.0 / (top + (bottom - top) * ty)) as f32
+                }
+                _ => 0.0,
+            };
+            out.push(v);
+        }
+    }
+    let k = &camera.intrinsics;
+    let at = |c: f64| (c + 0.5) * s as f64 - 0.5;
+    let camera = Intrinsics::new(ws, hs, k.fx * s as f64, k.fy * s as f64, at(k.cx), at(k.cy))
+        .and_then(|k| Camera::from_intrinsics(k, None, None))
+        .unwrap_or(*camera);
+    let depth = DepthImage::from_vec(ws, hs, out).unwrap_or_else(|_| depth.clone());
+    (depth, camera)
+}
+
+/// Tracking and fusion of a short sequence (`sl_track::Reconstruction`): the bytes after the
+/// head are cut into up to four tiny frames of the first frame's size, enlarged 1–8 times
+/// ([`enlarged`]: a 24×24 frame becomes up to 192×192, enough for the tracker's checks to
+/// find planes), with timestamps, the tracking mode and the rolling-shutter readout from the
+/// head (timestamps may go backwards or be NaN), within a 1 MiB volume budget.
+pub fn track(data: &[u8]) {
+    let _ = track_steps(data);
+}
+
+/// The body of [`track`], returning the status of every step (`None` for a step that failed
+/// with an error), so that tests can check that the seeds reach the tracker.
+pub fn track_steps(data: &[u8]) -> Vec<Option<sl_track::TrackStatus>> {
+    let (head, rest) = data.split_at(data.len().min(8));
+    let mut b = Bytes(head);
+    let mode = b.u8();
+    let scale = usize::from(b.u8() % 8) + 1;
+    let (first, camera) = tiny_frame(rest);
+    let (w, h) = (first.width(), first.height());
+    // The later frames: the bytes after the first frame's, `w·h` 16-bit millimetres each.
+    let used = 4 + 2 * w * h;
+    let mut frames = vec![first];
+    for chunk in rest.get(used..).unwrap_or(&[]).chunks(2 * w * h).take(3) {
+        let mut fb = Bytes(chunk);
+        let values = (0..w * h).map(|_| f32::from(fb.u16()) / 1000.0).collect();
+        if let Ok(d) = DepthImage::from_vec(w, h, values) {
+            frames.push(d);
+        }
+    }
+    let mut big_camera = camera;
+    let frames: Vec<DepthImage> = frames
+        .iter()
+        .map(|f| {
+            let (d, c) = enlarged(f, &camera, scale);
+            big_camera = c;
+            d
+        })
+        .collect();
+    let mut cfg = sl_track::ReconstructionConfig::default_for(big_camera.sensor);
+    cfg.frame_to_model = mode & 1 == 0;
+    cfg.tsdf.memory_budget_bytes = 1 << 20;
+    cfg.tracker.rolling_shutter_readout_s = if mode & 2 == 2 { 0.03 } else { 0.0 };
+    let Ok(mut rec) = sl_track::Reconstruction::new(big_camera, cfg) else {
+        return Vec::new();
+    };
+    frames
+        .iter()
+        .enumerate()
+        .map(|(i, frame)| {
+            let t = match b.u8() {
+                0 => None,
+                255 => Some(f64::NAN),
+                v => Some(f64::from(v) / 30.0 + i as f64 * 0.01),
+            };
+            rec.step(frame, t).ok().map(|s| s.result.status)
+        })
+        .collect()
+}
+
+/// The real-noise statistics (`sldepth noise-stats`) of a tiny frame, on regions from the
+/// plane extractor or (when the first byte is odd) labels from the bytes.
+pub fn noise_stats(data: &[u8]) {
+    let (head, rest) = data.split_at(data.len().min(4));
+    let mut b = Bytes(head);
+    let mode = b.u8();
+    let (depth, camera) = tiny_frame(rest);
+    let (w, h) = (depth.width(), depth.height());
+    let labels = if mode & 1 == 1 {
+        let ls: Vec<u16> = (0..w * h)
+            .map(|i| u16::from(rest.get(i).copied().unwrap_or(0) % 4))
+            .collect();
+        sl_core::Image::from_vec(w, h, ls).ok()
+    } else {
+        let mut cfg = sl_planes::PlaneConfig::default();
+        cfg.min_pixels = 3;
+        sl_planes::extract_planes(&depth, &camera, &cfg)
+            .ok()
+            .map(|s| s.labels)
+    };
+    let Some(labels) = labels else {
+        return;
+    };
+    let mut opts = sl_noise::stats::NoiseStatsConfig::default();
+    opts.tile_px = usize::from(b.u8() % 16);
+    opts.min_tile_pixels = usize::from(b.u8() % 32);
+    let fb = camera.sensor.fb() * f64::from(b.u8().max(1)) / 64.0;
+    let _ = sl_noise::stats::noise_stats(&depth, fb, &labels, &opts);
 }
 
 #[cfg(test)]

@@ -47,3 +47,33 @@ fn fuzz_crate_has_one_target_file_per_target() {
         );
     }
 }
+
+#[test]
+fn the_tracking_seeds_reach_the_tracker() {
+    use sl_track::TrackStatus;
+    let read = |name: &str| std::fs::read(corpus_root().join("track").join(name)).unwrap();
+    // Three faces in a corner, enlarged 8 times: the first frame starts the map, the next are
+    // tracked (against the model or, within the fuzz target's small volume budget, the frame).
+    for name in ["still-corner", "moving-corner", "moving-corner-f2f-rs"] {
+        let steps = sl_fuzz::track_steps(&read(name));
+        assert!(steps.len() >= 3, "{name}: {steps:?}");
+        assert_eq!(
+            steps[0],
+            Some(TrackStatus::Initialised),
+            "{name}: {steps:?}"
+        );
+        assert!(
+            steps[1..].iter().all(|s| matches!(
+                s,
+                Some(TrackStatus::Tracked | TrackStatus::TrackedAgainstFrame)
+            )),
+            "{name}: {steps:?}"
+        );
+    }
+    // A single plane cannot start a map.
+    let steps = sl_fuzz::track_steps(&read("still-floor"));
+    assert!(
+        steps.iter().all(|s| *s == Some(TrackStatus::Lost)),
+        "{steps:?}"
+    );
+}

@@ -20,7 +20,7 @@ mod stats;
 
 pub use align::{AteResult, ate};
 pub use associate::associate;
-pub use offset::{OffsetSearch, TimeOffset, estimate_time_offset};
+pub use offset::{MAX_OFFSETS_TRIED, OffsetSearch, TimeOffset, estimate_time_offset};
 pub use rpe::{DeltaUnit, RpeResult, rpe};
 pub use stats::ErrorStats;
 
