@@ -8,12 +8,15 @@
 //! offsets of a grid and keeps the one under which the estimate's orientations agree best with
 //! the ground truth's: the poses associated as for the ATE, the estimate's orientations turned
 //! by the one rotation of the world that fits them best (orthogonal Procrustes: the polar
-//! factor of `Σ R_gt·R_estᵀ`), and the RMS of the angles left. Orientations do not depend on
-//! where the ground truth's markers sit nor on the positions' alignment, and they change
-//! fastest in the hand-held turns where an offset matters. (The RPE is no measure of it: under
-//! a constant angular velocity a delayed pair of poses has the same relative motion.) What it
-//! finds is the offset that makes *this estimate* agree best: a tracker's own error comes with
-//! it, so it says how the clocks relate only for a good estimate of a fast, varied motion.
+//! factor of `Σ R_gt·R_estᵀ`), and the RMS of the angles left. Orientations need no alignment
+//! of the positions, a lever arm between the ground truth's markers and the camera does not
+//! touch them, and they change fastest in the hand-held turns where an offset matters. (The RPE
+//! is no measure of it: under a constant angular velocity a delayed pair of poses has the same
+//! relative motion.) The ground truth must give the camera's orientation (as TUM's does): a
+//! constant rotation between its body and the camera is not fitted. What it finds is the offset
+//! that makes *this estimate* agree best: a tracker's own error comes with it, so it says how
+//! the clocks relate only for a good estimate of a fast, varied motion.
+
 use sl_core::nalgebra::{Matrix3, Vector3};
 
 use super::{StampedPose, TrajectoryConfig, associate, sorted, sorted_estimate};
