@@ -76,6 +76,21 @@ pub(crate) fn write_trajectory(
     sl_io::trajectory::write_tum_trajectory(&path, &poses).map_err(io_error)
 }
 
+/// The estimated and the ground-truth trajectory of an evaluation, checked.
+type Trajectories = (Vec<StampedPose>, Vec<StampedPose>);
+
+fn estimate_and_truth(
+    timestamps_s: Vec<f64>,
+    poses: &Bound<'_, PyAny>,
+    gt_timestamps_s: Vec<f64>,
+    gt_poses: &Bound<'_, PyAny>,
+) -> PyResult<Trajectories> {
+    Ok((
+        stamped("estimated", timestamps_s, poses)?,
+        stamped("ground-truth", gt_timestamps_s, gt_poses)?,
+    ))
+}
+
 fn stats_dict<'py>(py: Python<'py>, s: &ErrorStats) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("rmse", s.rmse)?;
@@ -109,8 +124,7 @@ pub(crate) fn evaluate_trajectory<'py>(
     delta_unit: &str,
     offset_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let est = stamped("estimated", timestamps_s, poses)?;
-    let gt = stamped("ground-truth", gt_timestamps_s, gt_poses)?;
+    let (est, gt) = estimate_and_truth(timestamps_s, poses, gt_timestamps_s, gt_poses)?;
     let mut config = TrajectoryConfig::default();
     config.max_gap_s = max_gap_s;
     config.delta = delta;
@@ -156,8 +170,7 @@ pub(crate) fn estimate_time_offset<'py>(
     max_s: f64,
     step_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let est = stamped("estimated", timestamps_s, poses)?;
-    let gt = stamped("ground-truth", gt_timestamps_s, gt_poses)?;
+    let (est, gt) = estimate_and_truth(timestamps_s, poses, gt_timestamps_s, gt_poses)?;
     let mut config = TrajectoryConfig::default();
     config.max_gap_s = max_gap_s;
     let mut search = OffsetSearch::default();
