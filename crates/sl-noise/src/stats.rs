@@ -211,6 +211,38 @@ pub struct SideBands {
     pub median_fg_m: f64,
     /// Median depth of the background pixel bounding the bands, metres (NaN without runs).
     pub median_bg_m: f64,
+    /// Every edge of this side (a band or direct) by the projector shadow its two depths
+    /// predict, in the bins of [`SHADOW_BINS_PX`]: how many edges, how many with a band. A
+    /// sensor that invalidated the pixels beside every depth edge would put a band at most
+    /// edges of every bin; the projector's shadow alone only where the predicted shadow is
+    /// wider than what the matcher fills (docs/NOISE_MODEL.md).
+    pub by_shadow: Vec<ShadowBin>,
+}
+
+/// Upper edges of the predicted-shadow bins of [`SideBands::by_shadow`], pixels (the last bin
+/// is open).
+pub const SHADOW_BINS_PX: [f64; 4] = [2.0, 5.0, 10.0, f64::INFINITY];
+
+/// The edges of one side whose predicted projector shadow lies in one bin.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ShadowBin {
+    /// Upper edge of the bin, pixels (the lower is the previous bin's; `inf` for the last).
+    pub upper_px: f64,
+    /// Edges in the bin.
+    pub edges: usize,
+    /// Of them, edges with an invalid band.
+    pub with_band: usize,
+}
+
+impl ShadowBin {
+    /// Share of the bin's edges with a band (NaN without edges).
+    pub fn share(&self) -> f64 {
+        if self.edges == 0 {
+            f64::NAN
+        } else {
+            self.with_band as f64 / self.edges as f64
+        }
+    }
 }
 
 /// Invalid bands at occlusion edges.
@@ -635,6 +667,22 @@ pub fn occlusion_bands(
     let valid = |z: f32| z > 0.0 && z.is_finite();
     let (mut lw, mut ls, mut ld) = (Vec::new(), Vec::new(), 0usize);
     let (mut rw, mut rs, mut rd) = (Vec::new(), Vec::new(), 0usize);
+    let bins = || {
+        SHADOW_BINS_PX.map(|upper_px| ShadowBin {
+            upper_px,
+            edges: 0,
+            with_band: 0,
+        })
+    };
+    let (mut lbins, mut rbins) = (bins(), bins());
+    let count = |bins: &mut [ShadowBin; 4], shadow: f64, band: bool| {
+        let i = SHADOW_BINS_PX
+            .iter()
+            .position(|u| shadow < *u)
+            .unwrap_or(SHADOW_BINS_PX.len() - 1);
+        bins[i].edges += 1;
+        bins[i].with_band += usize::from(band);
+    };
     let (mut lf, mut lb, mut rf, mut rb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for y in 0..h {
         let row = &zs[y * w..(y + 1) * w];
@@ -650,6 +698,7 @@ pub fn occlusion_bands(
                     let shadow = fb_px_m * (1.0 / za.min(zb) - 1.0 / za.max(zb));
                     if zb - za > jump_m {
                         // Foreground on the left: the band lies on its right.
+                        count(&mut rbins, shadow, run > 0);
                         if run == 0 {
                             rd += 1;
                         } else {
@@ -659,6 +708,7 @@ pub fn occlusion_bands(
                             rb.push(zb);
                         }
                     } else if za - zb > jump_m {
+                        count(&mut lbins, shadow, run > 0);
                         if run == 0 {
                             ld += 1;
                         } else {
@@ -677,18 +727,22 @@ pub fn occlusion_bands(
         v.sort_by(f64::total_cmp);
         quantile_sorted(&v, 0.5)
     };
-    let side = |widths: Vec<f64>, shadows: Vec<f64>, direct: usize, fg: Vec<f64>, bg: Vec<f64>| {
-        SideBands {
-            widths: WidthStats::from_widths(widths),
-            median_shadow_px: med(shadows),
-            direct_edges: direct,
-            median_fg_m: med(fg),
-            median_bg_m: med(bg),
-        }
+    let side = |widths: Vec<f64>,
+                shadows: Vec<f64>,
+                direct: usize,
+                fg: Vec<f64>,
+                bg: Vec<f64>,
+                bins: [ShadowBin; 4]| SideBands {
+        widths: WidthStats::from_widths(widths),
+        median_shadow_px: med(shadows),
+        direct_edges: direct,
+        median_fg_m: med(fg),
+        median_bg_m: med(bg),
+        by_shadow: bins.to_vec(),
     };
     OcclusionBands {
-        left: side(lw, ls, ld, lf, lb),
-        right: side(rw, rs, rd, rf, rb),
+        left: side(lw, ls, ld, lf, lb, lbins),
+        right: side(rw, rs, rd, rf, rb, rbins),
     }
 }
 
@@ -797,6 +851,38 @@ mod tests {
         assert!((b.left.median_shadow_px - 21.75).abs() < 1e-9);
         assert_eq!((b.left.median_fg_m, b.left.median_bg_m), (1.0, 2.0));
         assert_eq!(b.left.direct_edges + b.right.direct_edges, 0);
+        // Every edge predicts a 21.75-px shadow: all in the open bin, all with a band.
+        for side in [&b.left, &b.right] {
+            let bins: Vec<(usize, usize)> = side
+                .by_shadow
+                .iter()
+                .map(|b| (b.edges, b.with_band))
+                .collect();
+            assert_eq!(bins, vec![(0, 0), (0, 0), (0, 0), (h, h)]);
+        }
+        assert_eq!(b.left.by_shadow[3].share(), 1.0);
+        assert!(b.left.by_shadow[0].share().is_nan());
+        // A far, small jump (2.0 / 2.3 m: a 2.8-px shadow) with no band in half the rows: the
+        // second bin, half of its edges with a band.
+        let mut far = vec![2.3f32; w * h];
+        for y in 0..h {
+            for x in 30..50 {
+                far[y * w + x] = 2.0;
+            }
+            if y % 2 == 0 {
+                far[y * w + 29] = 0.0;
+            }
+        }
+        let f = occlusion_bands(&DepthImage::from_vec(w, h, far).unwrap(), 43.5, 0.15, 64);
+        assert_eq!(
+            (f.left.by_shadow[1].edges, f.left.by_shadow[1].with_band),
+            (h, h / 2)
+        );
+        assert_eq!(f.left.direct_edges, h / 2);
+        assert_eq!(
+            (f.right.by_shadow[1].edges, f.right.by_shadow[1].with_band),
+            (h, 0)
+        );
         // A smaller jump than the threshold is no occlusion edge.
         let none = occlusion_bands(&depth, 43.5, 1.5, 64);
         assert_eq!(none.left.widths.count + none.right.widths.count, 0);

@@ -19,7 +19,8 @@ use crate::threads::compute;
 /// of the regions after an affine fit, pixels), ``bands`` (σ_D per depth band), ``acf``
 /// (residual autocorrelation at lags 1, 2, 4, 8, 16 px along x and y), ``terraces`` (widths of
 /// runs of equal depth), ``occlusion`` (invalid bands left and right of foreground objects,
-/// with the projector shadow the geometry predicts), ``invalid_fraction``, ``regions``,
+/// with the projector shadow the geometry predicts, and ``by_shadow``: the edges, and those with
+/// a band, per bin of predicted shadow), ``invalid_fraction``, ``regions``,
 /// ``pixels``. Values that could not be measured are ``None``. ``labels`` (uint16 (H, W),
 /// 0 = none) gives the planar regions; by default they are the planes ``extract_planes`` finds
 /// with at least ``min_plane_pixels`` sensor pixels. Against the camera's own model:

@@ -129,8 +129,9 @@ def noise_stats(
 ) -> Dict[str, Any]:
     """The real-noise statistics of a depth map with planar regions, with the keys of
     `sldepth noise-stats --json`: sigma_d_px, bands (sigma_D per depth band), acf (residual
-    autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands and
-    the predicted projector shadow), invalid_fraction; None where not measured. labels (uint16,
+    autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands,
+    the predicted projector shadow, and by_shadow: the edges and those with a band per bin of
+    predicted shadow, upper_px 2, 5, 10, None), invalid_fraction; None where not measured. labels (uint16,
     0 = none) default to the planes extract_planes finds (>= min_plane_pixels). Against the
     camera's own model: model_sigma_d_px, model_variance_scale (the frame's pixel variance over
     the model's, 1 when within it, as extract_planes measures it) and model_effective_sigma_d_px

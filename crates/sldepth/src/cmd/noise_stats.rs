@@ -119,6 +119,25 @@ pub fn run(args: Args) -> Result<()> {
             side.median_shadow_px,
             side.direct_edges
         )?;
+        // The same edges by the shadow their depths predict: where they have bands at all.
+        let mut lo = 0.0;
+        let bins: Vec<String> = side
+            .by_shadow
+            .iter()
+            .map(|b| {
+                let range = if b.upper_px.is_finite() {
+                    format!("{lo:.0}-{:.0} px", b.upper_px)
+                } else {
+                    format!("{lo:.0}+ px")
+                };
+                lo = b.upper_px;
+                format!("{range} {}/{}", b.with_band, b.edges)
+            })
+            .collect();
+        outln!(
+            "    edges with a band, by the shadow their depths predict: {}",
+            bins.join(", ")
+        )?;
     }
     Ok(())
 }
