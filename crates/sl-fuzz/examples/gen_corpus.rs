@@ -206,12 +206,6 @@ fn main() {
     let corner = |dx: f64| frame_bytes(24, 24, 120, |x, y| corner_depth_mm(x, y, dx));
     let body = |f: &[u8]| f[4..].to_vec();
     let still = [corner(0.0), body(&corner(0.0)), body(&corner(0.0))].concat();
-    put(
-        &root,
-        "track",
-        "still-corner",
-        &[&[0u8, 7, 1, 2, 3, 4, 0, 0][..], &still].concat(),
-    );
     let moving = [
         corner(0.0),
         body(&corner(0.01)),
@@ -219,25 +213,17 @@ fn main() {
         body(&corner(0.03)),
     ]
     .concat();
-    put(
-        &root,
-        "track",
-        "moving-corner",
-        &[&[0u8, 7, 1, 2, 3, 4, 0, 0][..], &moving].concat(),
-    );
-    put(
-        &root,
-        "track",
-        "moving-corner-f2f-rs",
-        &[&[3u8, 7, 1, 2, 3, 4, 0, 0][..], &moving].concat(),
-    );
     let single = [floor.clone(), body(&floor), body(&floor)].concat();
-    put(
-        &root,
-        "track",
-        "still-floor",
-        &[&[0u8, 0, 1, 2, 3, 4, 0, 0][..], &single].concat(),
-    );
+    // Head: mode (bit 0 frame to frame, bit 1 rolling shutter), enlargement − 1, timestamps.
+    for (name, mode, enlarge, frames) in [
+        ("still-corner", 0u8, 7u8, &still),
+        ("moving-corner", 0, 7, &moving),
+        ("moving-corner-f2f-rs", 3, 7, &moving),
+        ("still-floor", 0, 0, &single),
+    ] {
+        let head = [mode, enlarge, 1, 2, 3, 4, 0, 0];
+        put(&root, "track", name, &[&head[..], frames].concat());
+    }
     let mut pair = floor.clone();
     pair.extend_from_slice(&floor);
     put(&root, "motion", "floor-floor", &pair);

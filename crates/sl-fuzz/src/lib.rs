@@ -336,9 +336,9 @@ pub fn multiscale(data: &[u8]) {
 }
 
 /// `depth` enlarged `s` times along each axis, interpolated bilinearly in disparity (`1/Z`,
-/// so that a plane stays a plane), a pixel invalid where any of its four neighbours is; and
-/// the camera of that size.
-pub fn enlarged(depth: &DepthImage, camera: &Camera, s: usize) -> (DepthImage, Camera) {
+/// so that a plane stays a plane), a pixel invalid where any of its four neighbours is (the
+/// camera of that size: [`enlarged_camera`]).
+pub fn enlarged(depth: &DepthImage, s: usize) -> DepthImage {
     let (w, h) = (depth.width(), depth.height());
     let (ws, hs) = (w * s, h * s);
     let z = depth.data();
@@ -367,13 +367,24 @@ pub fn enlarged(depth: &DepthImage, camera: &Camera, s: usize) -> (DepthImage, C
             out.push(v);
         }
     }
+    DepthImage::from_vec(ws, hs, out).unwrap_or_else(|_| depth.clone())
+}
+
+/// The camera of `w`×`h` frames [`enlarged`] `s` times (the same one when its intrinsics
+/// cannot be).
+pub fn enlarged_camera(camera: &Camera, w: usize, h: usize, s: usize) -> Camera {
     let k = &camera.intrinsics;
     let at = |c: f64| (c + 0.5) * s as f64 - 0.5;
-    let camera = Intrinsics::new(ws, hs, k.fx * s as f64, k.fy * s as f64, at(k.cx), at(k.cy))
-        .and_then(|k| Camera::from_intrinsics(k, None, None))
-        .unwrap_or(*camera);
-    let depth = DepthImage::from_vec(ws, hs, out).unwrap_or_else(|_| depth.clone());
-    (depth, camera)
+    Intrinsics::new(
+        w * s,
+        h * s,
+        k.fx * s as f64,
+        k.fy * s as f64,
+        at(k.cx),
+        at(k.cy),
+    )
+    .and_then(|k| Camera::from_intrinsics(k, None, None))
+    .unwrap_or(*camera)
 }
 
 /// Tracking and fusion of a short sequence (`sl_track::Reconstruction`): the bytes after the
@@ -404,15 +415,8 @@ pub fn track_steps(data: &[u8]) -> Vec<Option<sl_track::TrackStatus>> {
             frames.push(d);
         }
     }
-    let mut big_camera = camera;
-    let frames: Vec<DepthImage> = frames
-        .iter()
-        .map(|f| {
-            let (d, c) = enlarged(f, &camera, scale);
-            big_camera = c;
-            d
-        })
-        .collect();
+    let big_camera = enlarged_camera(&camera, w, h, scale);
+    let frames: Vec<DepthImage> = frames.iter().map(|f| enlarged(f, scale)).collect();
     let mut cfg = sl_track::ReconstructionConfig::default_for(big_camera.sensor);
     cfg.frame_to_model = mode & 1 == 0;
     cfg.tsdf.memory_budget_bytes = 1 << 20;

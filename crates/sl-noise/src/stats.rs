@@ -675,7 +675,7 @@ pub fn occlusion_bands(
         })
     };
     let (mut lbins, mut rbins) = (bins(), bins());
-    let count = |bins: &mut [ShadowBin; 4], shadow: f64, band: bool| {
+    let count = |bins: &mut [ShadowBin; SHADOW_BINS_PX.len()], shadow: f64, band: bool| {
         let i = SHADOW_BINS_PX
             .iter()
             .position(|u| shadow < *u)
@@ -732,7 +732,7 @@ pub fn occlusion_bands(
                 direct: usize,
                 fg: Vec<f64>,
                 bg: Vec<f64>,
-                bins: [ShadowBin; 4]| SideBands {
+                bins: [ShadowBin; SHADOW_BINS_PX.len()]| SideBands {
         widths: WidthStats::from_widths(widths),
         median_shadow_px: med(shadows),
         direct_edges: direct,

@@ -45,10 +45,8 @@ struct Summary {
     right: f64,
     left_fg_bg: (f64, f64),
     right_fg_bg: (f64, f64),
-    /// Share of the occlusion edges (jumps beyond 15 cm) with an invalid band between the
-    /// foreground and background pixels, pooled over the frames, left / right.
-    band_share: (f64, f64),
-    /// The edges by predicted projector shadow, pooled over the frames, left / right.
+    /// The occlusion edges (jumps beyond 15 cm) by predicted projector shadow, pooled over the
+    /// frames, left / right.
     by_shadow: (Vec<ShadowBin>, Vec<ShadowBin>),
 }
 
@@ -68,18 +66,15 @@ fn pooled_bins<'a>(sides: impl Iterator<Item = &'a SideBands>) -> Vec<ShadowBin>
     out
 }
 
-/// Share of the edges of one side with a band (runs over runs plus direct edges; NaN without
-/// edges).
-fn band_share<'a>(sides: impl Iterator<Item = &'a SideBands>) -> f64 {
-    let (mut runs, mut edges) = (0usize, 0usize);
-    for s in sides {
-        runs += s.widths.count;
-        edges += s.widths.count + s.direct_edges;
-    }
+/// Share of all the edges of these bins with an invalid band (NaN without edges).
+fn band_share(bins: &[ShadowBin]) -> f64 {
+    let (with_band, edges) = bins
+        .iter()
+        .fold((0, 0), |(b, e), s| (b + s.with_band, e + s.edges));
     if edges == 0 {
         f64::NAN
     } else {
-        runs as f64 / edges as f64
+        with_band as f64 / edges as f64
     }
 }
 
@@ -141,10 +136,6 @@ fn summarise(all: &[NoiseStats]) -> Summary {
         right_fg_bg: (
             median(all.iter().map(|s| s.occlusion.right.median_fg_m).collect()),
             median(all.iter().map(|s| s.occlusion.right.median_bg_m).collect()),
-        ),
-        band_share: (
-            band_share(all.iter().map(|s| &s.occlusion.left)),
-            band_share(all.iter().map(|s| &s.occlusion.right)),
         ),
         by_shadow: (
             pooled_bins(all.iter().map(|s| &s.occlusion.left)),
@@ -279,7 +270,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
             } else {
                 side.widths.median_px
             };
-            Ok((width, band_share(std::iter::once(side))))
+            Ok((width, band_share(&side.by_shadow)))
         };
         let (sim_left, sim_left_share) = band(r.left_fg_bg, true)?;
         let (sim_right, sim_right_share) = band(r.right_fg_bg, false)?;
@@ -417,14 +408,14 @@ pub fn run(ctx: &mut Context) -> Result<()> {
                 g.real.left,
                 g.sim_left,
                 g.real.left_fg_bg,
-                (g.real.band_share.0, g.sim_share.0),
+                (band_share(&g.real.by_shadow.0), g.sim_share.0),
             ),
             (
                 "right",
                 g.real.right,
                 g.sim_right,
                 g.real.right_fg_bg,
-                (g.real.band_share.1, g.sim_share.1),
+                (band_share(&g.real.by_shadow.1), g.sim_share.1),
             ),
         ] {
             let ok = (rv.is_finite() && sv.is_finite()).then(|| (rv - sv).abs() <= BAND_TOL_PX);

@@ -94,9 +94,9 @@ pub fn run(args: Args) -> Result<()> {
     let est = read(&args.estimated, "estimated")?;
     let gt = read(&args.ground_truth, "ground-truth")?;
     let found: Option<TimeOffset> = if args.estimate_offset {
+        // Every whole millisecond (the default step) within the range.
         let mut search = OffsetSearch::default();
         search.max_s = args.offset_search_ms * 1e-3;
-        search.step_s = 1e-3;
         let f = estimate_time_offset(&est, &gt, &config, &search)
             .context("estimating the clock offset")?;
         config.offset_s = f.offset_s;
