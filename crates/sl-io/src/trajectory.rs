@@ -2,7 +2,8 @@
 //!
 //! - TUM RGB-D: `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, `#` comments) and
 //!   `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`); each depth frame gets the
-//!   ground-truth pose nearest in time, within a maximum difference ([`DEFAULT_MAX_DT_S`]).
+//!   ground-truth pose nearest in time, within a maximum difference ([`DEFAULT_MAX_DT_S`]),
+//!   or the pose interpolated at its time plus a clock offset ([`associate_interpolated`]).
 //! - Open3D `.log`: a line `i j n`, then the four rows of a 4×4 camera-to-world matrix.
 //! - 7-Scenes: one `frame-XXXXXX.pose.txt` (4×4 camera-to-world, row-major) per frame next to
 //!   `frame-XXXXXX.depth.png`.
@@ -10,6 +11,7 @@
 //! All poses follow the `sl_core::pose` convention `X_w = R·X_c + t`; matrices are
 //! re-orthonormalised by [`sl_core::pose_from_matrix`], which rejects non-rigid ones.
 
+use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -262,19 +264,73 @@ pub fn nearest_pose(poses: &[TimedPose], t: f64, max_dt_s: f64) -> Option<&Timed
     ((best.timestamp - t).abs() <= max_dt_s).then_some(best)
 }
 
-/// Gives each depth frame `(timestamp, path)` the nearest pose within `max_dt_s`.
-pub fn associate(depth: &[(f64, PathBuf)], poses: &[TimedPose], max_dt_s: f64) -> TumSequence {
-    let mut sorted;
-    let poses = if poses.is_sorted_by(|a, b| a.timestamp <= b.timestamp) {
-        poses
+/// `poses` sorted by timestamp (borrowed when they already are).
+fn by_time(poses: &[TimedPose]) -> Cow<'_, [TimedPose]> {
+    if poses.is_sorted_by(|a, b| a.timestamp <= b.timestamp) {
+        Cow::Borrowed(poses)
     } else {
-        sorted = poses.to_vec();
+        let mut sorted = poses.to_vec();
         sorted.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
-        &sorted
-    };
+        Cow::Owned(sorted)
+    }
+}
+
+/// The pose at time `t`, interpolated between the two poses of `poses` (sorted by timestamp)
+/// that bracket it: the translation linearly, the rotation along the shortest arc (slerp). A
+/// pose exactly at `t` is returned as it is. `None` when `t` lies outside the trajectory or
+/// its two bracketing poses are more than `max_gap_s` apart (a gap in the motion capture is
+/// not bridged). This is how a clock offset between a camera and its ground truth is undone
+/// for a 100-Hz motion capture: the pose at `t + offset_s`, not the nearest one.
+pub fn interpolated_pose(poses: &[TimedPose], t: f64, max_gap_s: f64) -> Option<CameraToWorld> {
+    if !t.is_finite() {
+        return None;
+    }
+    let i = poses.partition_point(|p| p.timestamp < t);
+    let after = poses.get(i)?;
+    if after.timestamp == t {
+        return Some(after.pose);
+    }
+    let before = poses.get(i.checked_sub(1)?)?;
+    let span = after.timestamp - before.timestamp;
+    if !(span > 0.0 && span <= max_gap_s) {
+        return None;
+    }
+    let s = (t - before.timestamp) / span;
+    let iso = before.pose.isometry().lerp_slerp(after.pose.isometry(), s);
+    Some(CameraToWorld::from_isometry(iso))
+}
+
+/// Gives each depth frame `(timestamp, path)` the ground-truth pose at `timestamp + offset_s`
+/// ([`interpolated_pose`], bracketing poses at most `max_gap_s` apart); frames without one go
+/// to `without_pose`. With `offset_s = 0` this differs from [`associate`] only by up to half
+/// the motion capture's period (5 ms at 100 Hz).
+pub fn associate_interpolated(
+    depth: &[(f64, PathBuf)],
+    poses: &[TimedPose],
+    offset_s: f64,
+    max_gap_s: f64,
+) -> TumSequence {
+    let poses = by_time(poses);
     let mut seq = TumSequence::default();
     for (t, p) in depth {
-        match nearest_pose(poses, *t, max_dt_s) {
+        match interpolated_pose(&poses, *t + offset_s, max_gap_s) {
+            Some(pose) => seq.frames.push(Frame {
+                depth_path: p.clone(),
+                pose,
+                timestamp: Some(*t),
+            }),
+            None => seq.without_pose.push((*t, p.clone())),
+        }
+    }
+    seq
+}
+
+/// Gives each depth frame `(timestamp, path)` the nearest pose within `max_dt_s`.
+pub fn associate(depth: &[(f64, PathBuf)], poses: &[TimedPose], max_dt_s: f64) -> TumSequence {
+    let poses = by_time(poses);
+    let mut seq = TumSequence::default();
+    for (t, p) in depth {
+        match nearest_pose(&poses, *t, max_dt_s) {
             Some(tp) => seq.frames.push(Frame {
                 depth_path: p.clone(),
                 pose: tp.pose,
@@ -640,6 +696,48 @@ mod tests {
         assert_eq!(seq.frames.len(), 1);
         assert_eq!(seq.frames[0].pose.translation().x, 1.01);
         assert_eq!(seq.without_pose, vec![(1.5, PathBuf::from("b"))]);
+    }
+
+    #[test]
+    fn interpolated_between_the_bracketing_poses() {
+        // Translation t along x, rotation 10·t degrees about z at time t.
+        let at = |t: f64| TimedPose {
+            timestamp: t,
+            pose: c2w(
+                Vector3::new(t, 0.0, 0.0),
+                Vector3::new(0.0, 0.0, (10.0 * t).to_radians()),
+            ),
+        };
+        let poses = [at(1.0), at(1.01), at(1.02), at(2.0)];
+        // Exactly at a sample: that pose, bit for bit.
+        assert_eq!(interpolated_pose(&poses, 1.01, 0.02), Some(poses[1].pose));
+        // Between two samples: linear translation, rotation along the arc.
+        let p = interpolated_pose(&poses, 1.0125, 0.02).unwrap();
+        assert!((p.translation().x - 1.0125).abs() < 1e-12);
+        let angle = p.isometry().rotation.angle().to_degrees();
+        assert!((angle - 10.125).abs() < 1e-9, "{angle}");
+        // A gap in the capture is not bridged; outside the trajectory there is no pose.
+        assert!(interpolated_pose(&poses, 1.5, 0.02).is_none());
+        assert!(interpolated_pose(&poses, 1.5, 1.0).is_some());
+        assert!(interpolated_pose(&poses, 0.99, 0.02).is_none());
+        assert!(interpolated_pose(&poses, 2.01, 0.02).is_none());
+        assert!(interpolated_pose(&poses, f64::NAN, 0.02).is_none());
+        assert!(interpolated_pose(&[], 1.0, 0.02).is_none());
+        // Association at an offset: the pose 5 ms before each stamp, unsorted poses sorted.
+        let seq = associate_interpolated(
+            &[(1.0175, "a".into()), (1.5, "b".into()), (1.0, "c".into())],
+            &[at(1.02), at(2.0), at(1.0), at(1.01)],
+            -0.005,
+            0.02,
+        );
+        assert_eq!(seq.frames.len(), 1);
+        assert_eq!(seq.frames[0].depth_path, PathBuf::from("a"));
+        assert_eq!(seq.frames[0].timestamp, Some(1.0175));
+        assert!((seq.frames[0].pose.translation().x - 1.0125).abs() < 1e-12);
+        assert_eq!(
+            seq.without_pose,
+            vec![(1.5, PathBuf::from("b")), (1.0, PathBuf::from("c"))]
+        );
     }
 
     #[test]

@@ -294,12 +294,37 @@ pub fn seven_scenes_sequence(max_frames: usize) -> Option<PosedSequence> {
 
 /// The 200 TUM fr1/rpy frames (`tum-fr1-rpy-200`: `depth.txt` + `groundtruth.txt`, depth
 /// at 5000 units per metre) with their ground-truth poses associated within 0.02 s (at most
-/// `max_frames`).
+/// `max_frames`): the nearest pose, as the benchmark's tools associate them.
 pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
+    tum_rpy_200_posed(max_frames, None)
+}
+
+/// The clock offset of the `tum-fr1-rpy-200` depth frames against their motion capture,
+/// seconds: the frames were taken about 20 ms before their stamps. Measured four ways that
+/// share nothing but the frames (docs/bench/track.md, session 61): the offset that best
+/// aligns the orientations of three trackers' trajectories with the ground truth (ours
+/// −20 ms, Open3D's dense SLAM −28 ms, its frame-to-frame point-to-plane odometry −16 ms;
+/// `sldepth eval-traj --estimate-offset`), and the one at which the frames fused at the
+/// motion capture's own poses agree best with their frames (−20 ms).
+pub const TUM_FR1_RPY_CLOCK_OFFSET_S: f64 = -0.020;
+
+/// [`tum_rpy_200_sequence`] with each frame's pose interpolated at its stamp plus `offset_s`
+/// ([`sl_io::trajectory::associate_interpolated`]; [`TUM_FR1_RPY_CLOCK_OFFSET_S`] undoes the
+/// measured clock offset): for experiments that fuse the frames at these poses, where a
+/// frame fused 20 ms away from where it was taken smears the surface.
+pub fn tum_rpy_200_sequence_at_offset(max_frames: usize, offset_s: f64) -> Option<PosedSequence> {
+    tum_rpy_200_posed(max_frames, Some(offset_s))
+}
+
+fn tum_rpy_200_posed(max_frames: usize, offset_s: Option<f64>) -> Option<PosedSequence> {
     let dir = data_dir_or_skip("tum-fr1-rpy-200")?.join("tum-fr1-rpy-200");
     // `depth.txt` as TUM ships it (the folder has no `associations.txt`).
-    let frames = match sl_io::trajectory::read_tum_sequence(&dir, 0.02) {
-        Ok(seq) => seq.frames,
+    let frames = match offset_s {
+        None => sl_io::trajectory::read_tum_sequence(&dir, 0.02).map(|seq| seq.frames),
+        Some(offset) => tum_frames_at_offset(&dir, offset),
+    };
+    let frames = match frames {
+        Ok(frames) => frames,
         Err(e) => {
             eprintln!("skipping tum-fr1-rpy-200: {e}");
             return None;
@@ -320,6 +345,21 @@ pub fn tum_rpy_200_sequence(max_frames: usize) -> Option<PosedSequence> {
         camera: Camera::preset("tum-fr1").ok()?,
         frames: out,
     })
+}
+
+/// The depth frames of a TUM folder with their poses interpolated at stamp + `offset_s`.
+fn tum_frames_at_offset(
+    dir: &std::path::Path,
+    offset_s: f64,
+) -> sl_io::Result<Vec<sl_io::trajectory::Frame>> {
+    let limits = sl_io::Limits::default();
+    let depth: Vec<(f64, std::path::PathBuf)> =
+        sl_io::sequence::read_tum_depth_frames(dir, &limits)?
+            .into_iter()
+            .filter_map(|f| Some((f.timestamp?, f.depth_path)))
+            .collect();
+    let poses = sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt"))?;
+    Ok(sl_io::trajectory::associate_interpolated(&depth, &poses, offset_s, 0.02).frames)
 }
 
 /// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels
