@@ -5,9 +5,10 @@
 //! instead of being lost to its end.
 //!
 //! # Fragments
-//! After a lost frame the tracker aligns the next frames from the last good pose (relocalisation,
-//! see [`Tracker`]): that succeeds when the camera comes back to within a few centimetres and
-//! degrees of where tracking was lost — a hand over the lens, a short view of a bare wall. A
+//! After a lost frame the tracker aligns the next frames from the last good pose and against
+//! its keyframes (relocalisation, see [`Tracker`]): that succeeds when the camera comes back to
+//! within a few centimetres and degrees of where tracking was lost or of a view it kept — a
+//! hand over the lens, a short view of a bare wall, a fast turn that swings back. A
 //! camera that has moved on may not come back for a long time, and every frame until then would
 //! be lost. So when frames that *could* be aligned (enough depth, a view that pins all six
 //! degrees of freedom) keep failing to align for [`ReconstructionConfig::new_fragment_after_s`]

@@ -184,6 +184,8 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert_eq!(v["frames"], 6);
     assert_eq!(v["lost"], 0);
     assert_eq!(v["reference"], "model");
+    // Relocalisation against keyframes is on unless `--no-keyframes`.
+    assert_eq!(v["keyframes"], true);
     assert!(v["track_ms_median"].as_f64().unwrap() > 0.0);
     assert!(v["integrate_ms_median"].as_f64().unwrap() > 0.0);
     assert!(v["vertices"].as_u64().unwrap() > 1000);

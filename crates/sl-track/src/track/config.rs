@@ -112,6 +112,12 @@ pub struct TrackerConfig {
     /// Try the verified plane-based estimate between the last good frame and this one when
     /// ICP fails, then ICP again from it.
     pub plane_fallback: bool,
+    /// When every other attempt fails, align the frame against the keyframes (depth frames
+    /// accepted earlier, kept at poses about half the acceptance bounds apart), each from its
+    /// own pose, and keep the best that passes every check: a camera lost in a fast turn is
+    /// found again where it looks at something it saw before, not only near the last good
+    /// pose.
+    pub keyframe_relocalisation: bool,
     /// Report a frame lost, before any alignment, when its geometry leaves some direction of
     /// the pose less well determined than the motion prior does: the pose's standard
     /// deviation along its least-constrained direction, from the sensor model with the normals
@@ -220,6 +226,7 @@ impl Default for TrackerConfig {
             max_correction_m: 0.05,
             max_correction_deg: 20.0,
             plane_fallback: true,
+            keyframe_relocalisation: true,
             degenerate_check: true,
             estimate_noise: true,
             noise_window_x_px: 9.0,

@@ -23,7 +23,9 @@
 //! Levenberg–Marquardt step control from the prediction and from the last good pose; when the
 //! reference is the model, both again against the last good frame
 //! ([`TrackStatus::TrackedAgainstFrame`]); then from the verified plane-based estimate between
-//! the last good frame and this one ([`crate::motion_between_depths`]). When all fail the frame
+//! the last good frame and this one ([`crate::motion_between_depths`]); then against each
+//! keyframe (accepted frames kept at spread poses, [`TrackerConfig::keyframe_relocalisation`])
+//! from its own pose, the best that passes kept. When all fail the frame
 //! is [`TrackStatus::Lost`] with the last good pose — never a pose it could not check — and the
 //! next frames are aligned against the last good reference again (relocalisation). A frame that
 //! relocalises is aligned again from the last good pose turned ±3° about the camera's horizontal
@@ -37,6 +39,7 @@ mod align;
 mod associate;
 mod config;
 mod frame_planes;
+mod keyframes;
 mod model;
 mod normal_noise;
 mod pyramid;
@@ -57,6 +60,7 @@ use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
 use align::ratio;
 use frame_planes::FramePlanes;
+use keyframes::Keyframes;
 use pyramid::{Level, Pyramid, normal_radius};
 use structure::StructureCheck;
 
@@ -202,6 +206,8 @@ pub struct Tracker {
     /// lost frames `lost_run` disables it until the next tracked one).
     velocity_known: bool,
     lost_run: usize,
+    /// Accepted frames kept for relocalisation ([`TrackerConfig::keyframe_relocalisation`]).
+    keyframes: Keyframes,
     /// Nominal frame intervals ([`TrackerConfig::frame_interval_s`]) from the last good frame
     /// to the frame being tracked: 1 for consecutive frames, more after dropped or lost ones.
     intervals_since_good: u32,
@@ -249,6 +255,7 @@ impl Tracker {
             velocity: Isometry3::identity(),
             velocity_known: false,
             lost_run: 0,
+            keyframes: Keyframes::default(),
             intervals_since_good: 0,
             last_timestamp_s: None,
             initial_pose: CameraToWorld::identity(),
@@ -676,6 +683,16 @@ impl Tracker {
                 fallback_failure = Some(format!("plane fallback: {e}"));
             }
         }
+        // Where the camera looks at something seen before: each keyframe from its own pose.
+        let mut keyframe_pose = None;
+        if first.failure.is_some() && self.cfg.keyframe_relocalisation {
+            let search = self.relocalise_on_keyframes(&last, unknown_var)?;
+            iterations += search.iterations;
+            if let Some((pose, attempt)) = search.found {
+                first = attempt;
+                keyframe_pose = Some(pose);
+            }
+        }
         if first.failure.is_none() && self.start_is_a_guess() {
             // Relocalising, or the first step of the sequence: the start (the last good pose,
             // or the prediction) may be several frames' motion from the camera, where point-to-plane ICP can settle in a wrong
@@ -683,17 +700,18 @@ impl Tracker {
             // (docs/bench/track.md, "Session 17"). Align again from starts turned about the
             // camera's horizontal and vertical axes and keep the best fit by the robust
             // objective over all the frame's points.
-            let reference = if against_frame {
-                &self.last_ref
-            } else {
-                model.unwrap_or(&self.last_ref)
+            let reference = match (keyframe_pose, self.keyframes.reference()) {
+                (Some(_), Some(keyframe)) => keyframe,
+                _ if against_frame => &self.last_ref,
+                _ => model.unwrap_or(&self.last_ref),
             };
+            let centre = keyframe_pose.unwrap_or(last);
             let cfg = &self.cfg;
             let mut best = first.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
             for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)] {
                 let mut turn = nalgebra::Vector3::zeros();
                 turn[axis] = sign * RELOCALISATION_TURN_DEG.to_radians();
-                let start = last * Isometry3::rotation(turn);
+                let start = centre * Isometry3::rotation(turn);
                 let alt = self.align(&start, reference, unknown_var, true);
                 iterations += alt.iterations;
                 let cost = alt.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
@@ -714,9 +732,13 @@ impl Tracker {
                 } else {
                     TrackStatus::Tracked
                 };
-                self.velocity =
-                    solve::renormalized(solve::nth_root(&(last.inverse() * first.pose), n));
-                self.velocity_known = true;
+                // Found again at a keyframe, the path from the last good pose is unknown: the
+                // next frame starts from a guess, as after the first frame of a sequence.
+                self.velocity = match keyframe_pose {
+                    Some(_) => Isometry3::identity(),
+                    None => solve::renormalized(solve::nth_root(&(last.inverse() * first.pose), n)),
+                };
+                self.velocity_known = keyframe_pose.is_none();
                 // The frame's rows as the camera at its pose would have measured them, for
                 // when it is the reference (frame to frame, the fallback to the last frame).
                 let readout_fraction = self.cfg.rolling_shutter_readout_fraction();
@@ -820,6 +842,10 @@ impl Tracker {
         self.last_depth.data_mut().copy_from_slice(depth.data());
         self.last_good = Some(pose);
         self.intervals_since_good = 0;
+        if self.cfg.keyframe_relocalisation {
+            let (m, deg) = (self.cfg.max_correction_m, self.cfg.max_correction_deg);
+            self.keyframes.offer(depth, &pose, m, deg);
+        }
     }
 
     /// Whole frame intervals since the previous frame's timestamp (1 without timestamps),

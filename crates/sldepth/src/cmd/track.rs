@@ -149,6 +149,12 @@ pub struct Args {
     /// No plane-based fallback when ICP fails.
     #[arg(long)]
     pub no_plane_fallback: bool,
+    /// No relocalisation against keyframes (earlier frames kept at spread poses) when every
+    /// other attempt fails: a lost camera is then only found again near its last good pose.
+    /// With them, TUM fr1/rpy taken every 4th frame (up to 13° per step) loses no frame and
+    /// stays one fragment (without: 7 lost, a second fragment; docs/bench/track.md, session 62).
+    #[arg(long)]
+    pub no_keyframes: bool,
     /// Track every frame with the camera's noise model as given. By default each raw frame's
     /// disparity noise is measured on its own 16×16- and 32×32-pixel patches (before the prefilter) and,
     /// when it is significantly larger than the model's, the frame is smoothed and tracked
@@ -526,6 +532,7 @@ pub fn run(args: Args) -> Result<()> {
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
     cfg.tracker.weighting = weighting;
     cfg.tracker.plane_fallback = !args.no_plane_fallback;
+    cfg.tracker.keyframe_relocalisation = !args.no_keyframes;
     cfg.tracker.estimate_noise = !args.model_noise_only;
     cfg.tracker.finest_level = usize::from(args.finest_level);
     cfg.tracker.rolling_shutter_readout_s = rolling_shutter_readout_s(&args, implied)?;
@@ -760,6 +767,7 @@ pub fn run(args: Args) -> Result<()> {
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
             "weighting": weighting.name(),
+            "keyframes": cfg.tracker.keyframe_relocalisation,
             // The instruction set the tracker's pass ran with (the fusion's loops use it when
             // it is AVX-512, else their portable code).
             "isa": cfg.tracker.isa.effective().name(),
