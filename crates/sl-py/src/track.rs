@@ -135,7 +135,11 @@ pub(crate) fn track_in_map<'py>(
 /// Kinect-class presets, 0 for explicit intrinsics) when tracking against the model, 0 frame
 /// to frame; 0: a global shutter; at most the frame interval (33.3 ms at 30 Hz). On TUM
 /// fr1/rpy-200 the Kinect's readout keeps every 2nd, 3rd or 4th frame alone tracked (a global
-/// shutter loses 14, 9 and 7 frames). One tracker may be used from several Python threads: its
+/// shutter loses 0, 4 and 4 frames). ``keyframes``: when every other attempt on a frame fails,
+/// align it against earlier frames kept at spread poses (default; as ``sldepth track``,
+/// ``--no-keyframes`` turns it off): a camera lost in a fast turn is found again where it looks
+/// at something it saw before (TUM fr1/rpy every 4th frame: 7 lost frames → none). One tracker
+/// may be used from several Python threads: its
 /// calls take turns.
 #[pyclass(name = "Tracker", module = "sldepth", frozen)]
 #[derive(Debug)]
@@ -186,7 +190,7 @@ impl PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -199,6 +203,7 @@ impl PyTracker {
         new_fragment_after_s: Option<f64>,
         rolling_shutter_ms: Option<f64>,
         estimate_noise: bool,
+        keyframes: bool,
     ) -> PyResult<Self> {
         let readout_s = match rolling_shutter_ms {
             Some(ms) => ms / 1000.0,
@@ -228,6 +233,7 @@ impl PyTracker {
         cfg.new_fragment_after_s = new_fragment_after_s.filter(|s| !s.is_infinite());
         cfg.tracker.rolling_shutter_readout_s = readout_s;
         cfg.tracker.estimate_noise = estimate_noise;
+        cfg.tracker.keyframe_relocalisation = keyframes;
         let noise_meter = estimate_noise.then(|| cfg.tracker.noise_meter());
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {

@@ -552,6 +552,12 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         pose, status = t.track(depth)
     assert status == "tracked", status
     assert np.abs(pose[:3, 3]).max() < 0.002
+    # Without the relocalisation against keyframes, a tracked camera is tracked alike.
+    t = sldepth.Tracker(kinect, keyframes=False)
+    t.track(depth)
+    pose, status = t.track(depth)
+    assert status in ("tracked", "tracked-against-frame"), status
+    assert np.abs(pose[:3, 3]).max() < 0.002
     for prefilter in ("single", "none"):
         t = sldepth.Tracker(kinect, prefilter=prefilter)
         t.track(depth)

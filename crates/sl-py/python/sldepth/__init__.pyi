@@ -389,6 +389,7 @@ class Tracker:
         new_fragment_after_s: Optional[float] = 1.0,
         rolling_shutter_ms: Optional[float] = None,
         estimate_noise: bool = True,
+        keyframes: bool = True,
     ) -> None:
         """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
         last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
@@ -404,7 +405,9 @@ class Tracker:
         every frame with camera.lens when the camera has one (tum-fr1/tum-fr2), "none" keeps
         the frames as given; estimate_noise: measure each raw frame's noise against the
         camera's model and track a noisier frame with its own noise (default; as sldepth track,
-        --model-noise-only turns it off)."""
+        --model-noise-only turns it off); keyframes: when every other attempt on a frame
+        fails, align it against earlier frames kept at spread poses (default; as sldepth
+        track, --no-keyframes turns it off)."""
     @property
     def rolling_shutter_ms(self) -> float:
         """The rolling-shutter readout the tracker models, milliseconds (0: global shutter)."""

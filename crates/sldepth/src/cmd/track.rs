@@ -141,7 +141,7 @@ pub struct Args {
     /// the frame interval (33.3 ms at 30 Hz). Frame to model on TUM fr1/rpy-200 (motion
     /// capture): RPE 5.1 → 4.5 mm and 0.65 → 0.60° per frame, ATE 2.80 → 2.83 cm, and every
     /// 2nd, 3rd or 4th frame alone (2–4× the motion) tracked with no frame lost (global
-    /// shutter: 14, 9 and 7 lost since session 46; 1, 9 and 7 before); on 7-Scenes, whose reference poses come from a
+    /// shutter: 0, 4 and 4 lost since session 62's keyframes); on 7-Scenes, whose reference poses come from a
     /// global-shutter tracker, the ATE against them rises from 0.60 to 0.66 cm. It costs about
     /// 1–3 ms per frame (docs/bench/track.md, sessions 19, 20 and 44)
     #[arg(long, value_name = "MS|auto", default_value = "auto")]
