@@ -75,7 +75,8 @@ pub enum TrackStatus {
     Initialised,
     /// Aligned from the constant-velocity prediction (or the last good pose).
     Tracked,
-    /// ICP failed from the prediction; the plane-based estimate started a successful ICP.
+    /// ICP failed from the prediction; the plane-based estimate, or a keyframe's pose against
+    /// that keyframe, started a successful ICP.
     Recovered,
     /// The model reference disagreed (every start failed its checks); the frame was aligned
     /// to the last good frame instead.
@@ -691,9 +692,11 @@ impl Tracker {
             if let Some((pose, attempt)) = search.found {
                 first = attempt;
                 keyframe_pose = Some(pose);
+                recovered = true;
             }
         }
-        if first.failure.is_none() && self.start_is_a_guess() {
+        // A frame found at a keyframe is judged as a relocalisation too.
+        if first.failure.is_none() && (self.start_is_a_guess() || keyframe_pose.is_some()) {
             // Relocalising, or the first step of the sequence: the start (the last good pose,
             // or the prediction) may be several frames' motion from the camera, where point-to-plane ICP can settle in a wrong
             // minimum that trades a rotation for a translation and still passes every check
