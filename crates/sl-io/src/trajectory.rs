@@ -358,7 +358,41 @@ pub fn read_tum_sequence_with_limits(
     max_dt_s: f64,
     limits: &Limits,
 ) -> Result<TumSequence> {
+    let (depth, poses) = read_tum_parts(dir.as_ref(), max_dt_s, limits)?;
+    Ok(associate(&depth, &poses, max_dt_s))
+}
+
+/// [`read_tum_sequence_with_limits`] with each depth frame given the ground-truth pose at its
+/// stamp plus `offset_s` ([`associate_interpolated`]; bracketing poses at most `max_gap_s`
+/// apart) instead of the nearest one. A non-finite offset or a non-positive gap is an error
+/// naming `groundtruth.txt`.
+pub fn read_tum_sequence_at_offset(
+    dir: impl AsRef<Path>,
+    offset_s: f64,
+    max_gap_s: f64,
+    limits: &Limits,
+) -> Result<TumSequence> {
     let dir = dir.as_ref();
+    if !offset_s.is_finite() {
+        return Err(IoError::Format {
+            path: dir.join("groundtruth.txt"),
+            message: format!("clock offset {offset_s} s must be finite"),
+        });
+    }
+    let (depth, poses) = read_tum_parts(dir, max_gap_s, limits)?;
+    Ok(associate_interpolated(&depth, &poses, offset_s, max_gap_s))
+}
+
+/// Depth frames `(timestamp, path)`, as [`associate`] takes them.
+type TimedDepth = Vec<(f64, PathBuf)>;
+
+/// The timestamped depth frames and the ground-truth poses of a TUM folder, after checking the
+/// association's time tolerance.
+fn read_tum_parts(
+    dir: &Path,
+    max_dt_s: f64,
+    limits: &Limits,
+) -> Result<(TimedDepth, Vec<TimedPose>)> {
     let gt_path = dir.join("groundtruth.txt");
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
         return Err(IoError::Format {
@@ -367,11 +401,11 @@ pub fn read_tum_sequence_with_limits(
         });
     }
     let poses = read_tum_trajectory_with_limits(&gt_path, limits)?;
-    let depth: Vec<(f64, PathBuf)> = crate::sequence::read_tum_depth_frames(dir, limits)?
+    let depth: TimedDepth = crate::sequence::read_tum_depth_frames(dir, limits)?
         .into_iter()
         .filter_map(|f| Some((f.timestamp?, f.depth_path)))
         .collect();
-    Ok(associate(&depth, &poses, max_dt_s))
+    Ok((depth, poses))
 }
 
 /// One entry of an Open3D `.log` trajectory.
@@ -769,6 +803,35 @@ mod tests {
         let e = read_tum_trajectory(&p).unwrap_err();
         assert!(matches!(e, IoError::Core { line: Some(1), .. }), "{e}");
         assert!(e.to_string().contains("gt.txt:1"), "{e}");
+    }
+
+    #[test]
+    fn tum_folder_at_a_clock_offset() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        // Poses every 10 ms moving 1 m/s along x; depth frames at 1.015 and 1.5 s.
+        let poses: Vec<TimedPose> = (0..10)
+            .map(|i| {
+                let t = 1.0 + f64::from(i) * 0.01;
+                TimedPose {
+                    timestamp: t,
+                    pose: c2w(Vector3::new(t, 0.0, 0.0), Vector3::zeros()),
+                }
+            })
+            .collect();
+        write_tum_trajectory(d.join("groundtruth.txt"), &poses).unwrap();
+        std::fs::write(
+            d.join("depth.txt"),
+            "# depth\n1.015 depth/a.png\n1.5 depth/b.png\n",
+        )
+        .unwrap();
+        let limits = Limits::default();
+        let seq = read_tum_sequence_at_offset(d, -0.0075, 0.02, &limits).unwrap();
+        assert_eq!(seq.frames.len(), 1);
+        assert!((seq.frames[0].pose.translation().x - 1.0075).abs() < 1e-6);
+        assert_eq!(seq.without_pose.len(), 1);
+        assert!(read_tum_sequence_at_offset(d, f64::NAN, 0.02, &limits).is_err());
+        assert!(read_tum_sequence_at_offset(d, 0.0, 0.0, &limits).is_err());
     }
 
     #[test]

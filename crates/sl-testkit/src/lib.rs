@@ -321,7 +321,13 @@ fn tum_rpy_200_posed(max_frames: usize, offset_s: Option<f64>) -> Option<PosedSe
     // `depth.txt` as TUM ships it (the folder has no `associations.txt`).
     let frames = match offset_s {
         None => sl_io::trajectory::read_tum_sequence(&dir, 0.02).map(|seq| seq.frames),
-        Some(offset) => tum_frames_at_offset(&dir, offset),
+        Some(offset) => sl_io::trajectory::read_tum_sequence_at_offset(
+            &dir,
+            offset,
+            0.02,
+            &sl_io::Limits::default(),
+        )
+        .map(|seq| seq.frames),
     };
     let frames = match frames {
         Ok(frames) => frames,
@@ -345,21 +351,6 @@ fn tum_rpy_200_posed(max_frames: usize, offset_s: Option<f64>) -> Option<PosedSe
         camera: Camera::preset("tum-fr1").ok()?,
         frames: out,
     })
-}
-
-/// The depth frames of a TUM folder with their poses interpolated at stamp + `offset_s`.
-fn tum_frames_at_offset(
-    dir: &std::path::Path,
-    offset_s: f64,
-) -> sl_io::Result<Vec<sl_io::trajectory::Frame>> {
-    let limits = sl_io::Limits::default();
-    let depth: Vec<(f64, std::path::PathBuf)> =
-        sl_io::sequence::read_tum_depth_frames(dir, &limits)?
-            .into_iter()
-            .filter_map(|f| Some((f.timestamp?, f.depth_path)))
-            .collect();
-    let poses = sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt"))?;
-    Ok(sl_io::trajectory::associate_interpolated(&depth, &poses, offset_s, 0.02).frames)
 }
 
 /// Exact depth of the nearest of `planes` (camera coordinates) at every pixel, with labels

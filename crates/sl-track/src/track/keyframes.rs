@@ -34,7 +34,7 @@ fn is_new_view(a: &Isometry3<f64>, b: &Isometry3<f64>, max_m: f64, max_deg: f64)
 }
 
 /// One kept frame.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Keyframe {
     pose: Isometry3<f64>,
     depth: DepthImage,
@@ -67,15 +67,16 @@ impl Keyframes {
         {
             return;
         }
-        let mut frame = if self.frames.len() >= MAX_KEYFRAMES {
-            self.built = None;
-            self.frames.remove(0)
-        } else {
-            Keyframe {
+        if self.frames.len() < MAX_KEYFRAMES {
+            self.frames.push(Keyframe {
                 pose: *pose,
-                depth: DepthImage::invalid(depth.width(), depth.height()),
-            }
-        };
+                depth: depth.clone(),
+            });
+            return;
+        }
+        // Full: the oldest goes, its buffer reused for the new one.
+        self.built = None;
+        let mut frame = self.frames.remove(0);
         frame.pose = *pose;
         if frame.depth.width() == depth.width() && frame.depth.height() == depth.height() {
             frame.depth.data_mut().copy_from_slice(depth.data());
@@ -102,25 +103,25 @@ impl Keyframes {
             .collect()
     }
 
-    /// Builds keyframe `i` as a reference (its points, normals and variances in world
-    /// coordinates at its pose) and returns it.
+    /// Builds keyframe `i` as the reference ([`Keyframes::reference`]: its points, normals and
+    /// variances in world coordinates at its pose); false when there is no keyframe `i`.
     pub(super) fn build(
         &mut self,
         i: usize,
         k: &Intrinsics,
         sensor: &SensorModel,
         lateral_sigma_px: f64,
-    ) -> Result<Option<&ReferenceMaps>> {
+    ) -> Result<bool> {
         let Some(frame) = self.frames.get(i) else {
-            return Ok(None);
+            return Ok(false);
         };
         if self.built == Some(i) {
-            return Ok(self.reference.as_ref());
+            return Ok(true);
         }
         self.built = None;
         self.scratch.build(frame.depth.data(), k, sensor, 1, 1)?;
         let Some(level) = self.scratch.levels.first_mut() else {
-            return Ok(None);
+            return Ok(false);
         };
         level.complete_normals(sensor, k.fx as f32, normal_radius(0));
         let reference = self
@@ -134,7 +135,7 @@ impl Keyframes {
             lateral_sigma_px,
         );
         self.built = Some(i);
-        Ok(Some(reference))
+        Ok(true)
     }
 
     /// The reference last built.
@@ -175,11 +176,7 @@ impl Tracker {
             self.keyframes
                 .candidates(last, cfg.max_correction_m, cfg.max_correction_deg)
         {
-            if self
-                .keyframes
-                .build(i, &k, &sensor, cfg.lateral_sigma_px)?
-                .is_none()
-            {
+            if !self.keyframes.build(i, &k, &sensor, cfg.lateral_sigma_px)? {
                 continue;
             }
             let Some(reference) = self.keyframes.reference() else {

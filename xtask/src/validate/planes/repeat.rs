@@ -144,15 +144,14 @@ fn tum200(data: &Path, offset_s: Option<f64>) -> Result<Option<Sequence>> {
     if !list.exists() {
         return Ok(None);
     }
-    let depth: Vec<(f64, PathBuf)> =
-        sl_io::sequence::read_tum_depth_frames(&dir, &sl_io::Limits::default())?
-            .into_iter()
-            .filter_map(|f| Some((f.timestamp?, f.depth_path)))
-            .collect();
-    let poses = sl_io::trajectory::read_tum_trajectory(dir.join("groundtruth.txt"))?;
     let seq = match offset_s {
-        None => sl_io::trajectory::associate(&depth, &poses, 0.02),
-        Some(offset) => sl_io::trajectory::associate_interpolated(&depth, &poses, offset, 0.02),
+        None => sl_io::trajectory::read_tum_sequence(&dir, 0.02)?,
+        Some(offset) => sl_io::trajectory::read_tum_sequence_at_offset(
+            &dir,
+            offset,
+            0.02,
+            &sl_io::Limits::default(),
+        )?,
     };
     Ok(Some(Sequence {
         name: "tum-fr1-rpy-200",
