@@ -96,7 +96,6 @@ impl RowSums {
 ///
 /// The negated compares are the skip conditions of the one-sample-at-a-time loop kept as they
 /// are, so that NaN decides alike (a NaN compare is false, so it does not skip).
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 pub(super) fn row_sums(
     c: &PassConsts<'_>,
@@ -104,6 +103,23 @@ pub(super) fn row_sums(
     nrow: &[Vector3<f32>],
     arow: &[PointAux],
     stride: usize,
+) -> RowSums {
+    row_sums_with(c, prow, nrow, arow, stride, |_| {})
+}
+
+/// [`row_sums`], handing each sample's term of the robust objective to `each`, in sample
+/// order: the truncated Huber loss of an inlier, the cap for a valid sample outside the gates
+/// or on no surface, 0 for an invalid one (as [`crate::track::solve::Sums::total_loss`] counts
+/// them). With a closure that does nothing the compiler removes the calls.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+pub(super) fn row_sums_with(
+    c: &PassConsts<'_>,
+    prow: &[Point3<f32>],
+    nrow: &[Vector3<f32>],
+    arow: &[PointAux],
+    stride: usize,
+    mut each: impl FnMut(f32),
 ) -> RowSums {
     let mut s = RowSums::default();
     let stride = stride.max(1);
@@ -231,6 +247,11 @@ pub(super) fn row_sums(
         for l in 0..len {
             s.valid += u32::from(valid[l]);
             s.associated += u32::from(associated[l]);
+            each(match (valid[l], inlier[l]) {
+                (false, _) => 0.0,
+                (true, false) => c.cap,
+                (true, true) => c.cap + loss[l],
+            });
             if !inlier[l] {
                 continue;
             }

@@ -9,7 +9,7 @@ use nalgebra::{
 use rayon::prelude::*;
 use sl_core::{IsaKernel, SensorModel};
 
-use super::associate::{PassConsts, RowSums, row_sums};
+use super::associate::{PassConsts, RowSums, row_sums, row_sums_with};
 use super::pyramid::{Level, PointAux};
 use super::reference::ReferenceMaps;
 use super::{TrackerConfig, WeightMode};
@@ -141,35 +141,10 @@ pub(crate) fn pass(
         return Sums::zero();
     };
     let w = k.width;
-    let to_ref = reference.pose.isometry().inverse();
-    // Frame point to reference camera in one transform: `M = R_ref·R`, `m = R_ref·t + t_ref`.
-    let to_ref_frame = to_ref * pose;
-    let kr = &reference.intrinsics;
-    let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
-    // Image sides are at most 2^16 (`Intrinsics::validate`), so `n − 0.5` is exact.
-    let consts = PassConsts {
-        rot: mat3(&pose.rotation.to_rotation_matrix().into_inner()),
-        tr: vec3(&pose.translation.vector),
-        m: mat3(&to_ref_frame.rotation.to_rotation_matrix().into_inner()),
-        tm: vec3(&to_ref_frame.translation.vector),
-        fx: kr.fx as f32,
-        fy: kr.fy as f32,
-        cx: kr.cx as f32,
-        cy: kr.cy as f32,
-        rw: kr.width as f32,
-        rh: kr.height as f32,
-        gate_sigmas: cfg.gate_sigmas as f32,
-        huber_k: cfg.huber_k as f32,
-        uniform_sigma: sensor.sigma_z(cfg.z_ref_m) as f32,
-        inv_var: cfg.weighting == WeightMode::InvVar,
-        ctr: vec3(centre),
-        cap: cap as f32,
-        allowance: p.allowance_m,
-        min_cos: p.min_cos,
-        reference,
-    };
+    let (consts, to_ref) = pass_consts(reference, pose, centre, sensor, cfg, p);
     let rows = p.timing.map(|t| RowPoses::new(&t, pose, &to_ref, k.height));
     let stride = p.stride.max(1);
+    let cap = huber_loss(cfg.gate_sigmas, cfg.huber_k);
     // Fixed blocks of rows, each summed in order, and the blocks' sums added in order: the
     // result does not depend on how rayon splits the work, so a sequence tracks identically
     // for any thread count and on every run (a `fold`/`reduce` splits where work is stolen).
@@ -195,6 +170,87 @@ pub(crate) fn pass(
         })
         .collect();
     blocks.iter().fold(Sums::zero(), |a, b| a.add(b))
+}
+
+/// The constants of a pass of [`pass`] at `pose`, and the world-to-reference-camera transform.
+fn pass_consts<'a>(
+    reference: &'a ReferenceMaps,
+    pose: &Isometry3<f64>,
+    centre: &Vector3<f64>,
+    sensor: &SensorModel,
+    cfg: &TrackerConfig,
+    p: PassParams,
+) -> (PassConsts<'a>, Isometry3<f64>) {
+    let to_ref = reference.pose.isometry().inverse();
+    // Frame point to reference camera in one transform: `M = R_ref·R`, `m = R_ref·t + t_ref`.
+    let to_ref_frame = to_ref * pose;
+    let kr = &reference.intrinsics;
+    // Image sides are at most 2^16 (`Intrinsics::validate`), so `n − 0.5` is exact.
+    let consts = PassConsts {
+        rot: mat3(&pose.rotation.to_rotation_matrix().into_inner()),
+        tr: vec3(&pose.translation.vector),
+        m: mat3(&to_ref_frame.rotation.to_rotation_matrix().into_inner()),
+        tm: vec3(&to_ref_frame.translation.vector),
+        fx: kr.fx as f32,
+        fy: kr.fy as f32,
+        cx: kr.cx as f32,
+        cy: kr.cy as f32,
+        rw: kr.width as f32,
+        rh: kr.height as f32,
+        gate_sigmas: cfg.gate_sigmas as f32,
+        huber_k: cfg.huber_k as f32,
+        uniform_sigma: sensor.sigma_z(cfg.z_ref_m) as f32,
+        inv_var: cfg.weighting == WeightMode::InvVar,
+        ctr: vec3(centre),
+        cap: huber_loss(cfg.gate_sigmas, cfg.huber_k) as f32,
+        allowance: p.allowance_m,
+        min_cos: p.min_cos,
+        reference,
+    };
+    (consts, to_ref)
+}
+
+/// Each sample's term of the robust objective at `pose` ([`Sums::total_loss`] is their sum),
+/// in the order [`pass`] visits the samples (rows, then columns, every `stride`-th): the
+/// truncated Huber loss of an inlier, the cap for a valid sample outside the gates or on no
+/// surface, 0 for an invalid one. For comparing two poses sample by sample
+/// (`Tracker::keep_better`); written into `out`, which is cleared first.
+pub(crate) fn sample_losses(
+    level: &Level,
+    reference: &ReferenceMaps,
+    pose: &Isometry3<f64>,
+    sensor: &SensorModel,
+    cfg: &TrackerConfig,
+    p: PassParams,
+    out: &mut Vec<f32>,
+) {
+    out.clear();
+    let Some(k) = level.intrinsics() else {
+        return;
+    };
+    let w = k.width.max(1);
+    let (consts, to_ref) = pass_consts(reference, pose, &pose.translation.vector, sensor, cfg, p);
+    let rows = p.timing.map(|t| RowPoses::new(&t, pose, &to_ref, k.height));
+    let stride = p.stride.max(1);
+    let mut push = |l: f32| out.push(l);
+    for (y, ((prow, nrow), arow)) in level
+        .points
+        .chunks(w)
+        .zip(level.normals.chunks(w))
+        .zip(level.aux.chunks(w))
+        .enumerate()
+        .step_by(stride)
+    {
+        match &rows {
+            None => {
+                row_sums_with(&consts, prow, nrow, arow, stride, &mut push);
+            }
+            Some(rows) => {
+                let (c, _) = rows.row(&consts, y);
+                row_sums_with(&c, prow, nrow, arow, stride, &mut push);
+            }
+        }
+    }
 }
 
 /// When the rows of the frame being aligned were exposed: a rolling shutter reads the sensor's
