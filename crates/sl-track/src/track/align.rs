@@ -42,6 +42,18 @@ impl Tracker {
         self.pyramid.levels.get(finest_l).map_or(1.0, mean_depth)
     }
 
+    /// The parameters of a pass at pyramid level `l`: its allowance, normal gate, sample
+    /// stride and the frame's row timing.
+    pub(super) fn pass_params(&self, l: usize) -> PassParams {
+        let cfg = &self.cfg;
+        PassParams {
+            allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
+            min_cos: cfg.max_normal_angle_deg.to_radians().cos() as f32,
+            stride: cfg.sample_stride(l, self.camera.pixels_per_sensor_pixel()),
+            timing: self.row_timing,
+        }
+    }
+
     /// Coarse-to-fine Gauss–Newton from `start` with a Gaussian prior of variance
     /// `prior_var_m2` per axis on the camera's position about `start`'s, then the acceptance
     /// checks.
@@ -68,7 +80,6 @@ impl Tracker {
     ) -> Iterated {
         let cfg = &self.cfg;
         let sensor = &self.camera.sensor;
-        let min_cos = cfg.max_normal_angle_deg.to_radians().cos() as f32;
         let mut pose = *start;
         let mut iterations = 0;
         // The sums of the finest level's last pass: they are the final statistics (same
@@ -81,12 +92,7 @@ impl Tracker {
         for l in (finest_l..self.pyramid.levels.len()).rev() {
             let level = &self.pyramid.levels[l];
             let stride = stride_of(l);
-            let params = PassParams {
-                allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << l)) as f32,
-                min_cos,
-                stride,
-                timing: self.row_timing,
-            };
+            let params = self.pass_params(l);
             let prior = solve::Prior {
                 data_share: (stride * stride) as f64
                     / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),

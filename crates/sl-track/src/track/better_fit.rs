@@ -110,13 +110,8 @@ impl Tracker {
             .min(self.pyramid.levels.len().saturating_sub(1));
         let level = self.pyramid.levels.get(finest_l)?;
         let pixel_scale = self.camera.pixels_per_sensor_pixel();
-        let stride = cfg.sample_stride(finest_l, pixel_scale);
-        let params = PassParams {
-            allowance_m: (cfg.allowance_fine_m * f64::from(1u32 << finest_l)) as f32,
-            min_cos: cfg.max_normal_angle_deg.to_radians().cos() as f32,
-            stride,
-            timing: self.row_timing,
-        };
+        let params = self.pass_params(finest_l);
+        let stride = params.stride;
         let per_window =
             (cfg.correlated_pixels(finest_l, pixel_scale) / (stride * stride) as f64).max(1.0);
         Some((level, params, per_window))
