@@ -25,9 +25,10 @@ struct Cli {
 enum Command {
     /// Reproduce the paper's experiments and write target/validate/REPORT.md.
     Validate(validate::Args),
-    /// Regenerate the seeded synthetic frames in testdata/ (or verify them with --check).
     /// Check the architecture invariants of docs/ARCHITECTURE.md (also run by `cargo test`).
     Tidy,
+    /// Regenerate the seeded synthetic frames in testdata/ (or verify them with --check; the
+    /// check also runs in `cargo test`).
     GenTestdata {
         /// Verify that the committed files equal freshly generated ones; write nothing.
         #[arg(long)]

@@ -5,6 +5,9 @@
 //! the noise-free depth (1/5000 m units, for sub-millimetre ground truth) and the surface labels.
 //! `--check` regenerates every frame in memory and compares decoded pixel values with the
 //! committed files (PNG compression may differ between encoder versions; the values may not).
+//! The same check is a unit test of this crate, so `cargo test --workspace` runs it (CI has no
+//! separate step for it: `cargo xtask` builds the dependencies again with the features of xtask
+//! alone, minutes on a 2-core machine).
 
 use std::path::{Path, PathBuf};
 
@@ -113,4 +116,17 @@ pub fn run(dir: &Path, check: bool) -> Result<()> {
         eprintln!("testdata/ matches the simulator ({} frames)", FRAMES.len());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn committed_testdata_equals_what_the_simulator_generates_now() {
+        let dir = crate::workspace_root().join("testdata");
+        if let Err(e) = run(&dir, true) {
+            panic!("{e:#}");
+        }
+    }
 }
