@@ -101,11 +101,13 @@ impl Rectifier {
             });
         let moved = &self.moved[..];
         // The nearest pixel (`x + ½` truncated: `f32::round` is a library call on baseline
-        // x86-64); `None` outside the image or for NaN.
+        // x86-64); `None` outside the image or for NaN. Inside, `x + ½` lies in `[0, w)`, so the
+        // truncation through `i32` (one instruction) equals the saturating cast to `usize`
+        // (several); a frame's sides are far below `i32::MAX`.
         let (wl, hl) = (w as f32 - 0.5, h as f32 - 0.5);
         let sample = |x: f32, y: f32| -> Option<usize> {
             (x >= -0.5 && y >= -0.5 && x < wl && y < hl)
-                .then(|| (y + 0.5) as usize * w + (x + 0.5) as usize)
+                .then(|| (y + 0.5) as i32 as usize * w + (x + 0.5) as i32 as usize)
         };
         out.data_mut()
             .par_chunks_mut(w)

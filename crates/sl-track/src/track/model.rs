@@ -179,14 +179,16 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
             // The source rows `y` with `⌊y·oh/ih⌋ = v`.
             let y0 = (v * ih).div_ceil(oh.max(1));
             let y1 = ((v + 1) * ih).div_ceil(oh.max(1)).min(ih);
-            for y in y0..y1 {
-                for (x, &z) in src[y * iw..(y + 1) * iw].iter().enumerate() {
-                    let u = x * ow / iw.max(1);
-                    if let Some(o) = row.get_mut(u)
-                        && z > 0.0
-                        && z < *o
-                    {
-                        *o = z;
+            // Output column `u` takes the source columns `x` with `⌊x·ow/iw⌋ = u`, a contiguous
+            // run (two divisions per output pixel instead of one per source pixel).
+            for (u, o) in row.iter_mut().enumerate() {
+                let x0 = (u * iw).div_ceil(ow.max(1));
+                let x1 = ((u + 1) * iw).div_ceil(ow.max(1)).min(iw);
+                for y in y0..y1 {
+                    for &z in src.get(y * iw + x0..y * iw + x1.max(x0)).unwrap_or(&[]) {
+                        if z > 0.0 && z < *o {
+                            *o = z;
+                        }
                     }
                 }
             }
@@ -236,5 +238,47 @@ mod tests {
         let mut same = DepthImage::invalid(4, 2);
         nearest_per_pixel(&src, &mut same);
         assert_eq!(same.data(), &[2.0, 1.5, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0]);
+    }
+
+    /// The column runs equal the definition (`⌊x·ow/iw⌋`, `⌊y·oh/ih⌋`, the smallest valid depth)
+    /// for sizes that do and do not divide, smaller and larger than the frame.
+    #[test]
+    fn the_hint_matches_its_definition_at_any_pair_of_sizes() {
+        let (iw, ih) = (23usize, 17usize);
+        let data: Vec<f32> = (0..iw * ih)
+            .map(|i| match i % 11 {
+                0 => 0.0,
+                5 => f32::NAN,
+                7 => f32::INFINITY,
+                _ => 0.5 + ((i * 37) % 101) as f32 * 0.03,
+            })
+            .collect();
+        let src = DepthImage::from_vec(iw, ih, data.clone()).unwrap();
+        for (ow, oh) in [
+            (23, 17),
+            (11, 8),
+            (6, 4),
+            (5, 3),
+            (1, 1),
+            (40, 30),
+            (24, 18),
+        ] {
+            let mut want = vec![f32::INFINITY; ow * oh];
+            for y in 0..ih {
+                for x in 0..iw {
+                    let z = data[y * iw + x];
+                    let o = &mut want[(y * oh / ih) * ow + x * ow / iw];
+                    if z > 0.0 && z < *o {
+                        *o = z;
+                    }
+                }
+            }
+            want.iter_mut()
+                .filter(|o| !o.is_finite())
+                .for_each(|o| *o = 0.0);
+            let mut got = DepthImage::invalid(ow, oh);
+            nearest_per_pixel(&src, &mut got);
+            assert_eq!(got.data(), &want[..], "{ow}×{oh}");
+        }
     }
 }
