@@ -176,16 +176,15 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
         .enumerate()
         .for_each(|(v, row)| {
             row.fill(f32::INFINITY);
-            // The source rows `y` with `⌊y·oh/ih⌋ = v`.
-            let y0 = (v * ih).div_ceil(oh.max(1));
-            let y1 = ((v + 1) * ih).div_ceil(oh.max(1)).min(ih);
-            // Output column `u` takes the source columns `x` with `⌊x·ow/iw⌋ = u`, a contiguous
-            // run (two divisions per output pixel instead of one per source pixel).
+            let rows = source_run(v, ih, oh);
+            // Per output pixel, not per source pixel: two divisions for its run of columns.
             for (u, o) in row.iter_mut().enumerate() {
-                let x0 = (u * iw).div_ceil(ow.max(1));
-                let x1 = ((u + 1) * iw).div_ceil(ow.max(1)).min(iw);
-                for y in y0..y1 {
-                    for &z in src.get(y * iw + x0..y * iw + x1.max(x0)).unwrap_or(&[]) {
+                let cols = source_run(u, iw, ow);
+                for y in rows.clone() {
+                    for &z in src
+                        .get(y * iw + cols.start..y * iw + cols.end)
+                        .unwrap_or(&[])
+                    {
                         if z > 0.0 && z < *o {
                             *o = z;
                         }
@@ -198,6 +197,14 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
                 }
             }
         });
+}
+
+/// The source indices `i` (of `n_in`) with `⌊i·n_out/n_in⌋ = o`: a contiguous run, empty when
+/// none maps there.
+fn source_run(o: usize, n_in: usize, n_out: usize) -> std::ops::Range<usize> {
+    let start = (o * n_in).div_ceil(n_out.max(1));
+    let end = ((o + 1) * n_in).div_ceil(n_out.max(1)).min(n_in);
+    start..end.max(start)
 }
 
 #[cfg(test)]
