@@ -52,7 +52,7 @@
 //! geometrically but never beyond the number of blocks the budget allows, so its capacity
 //! stays within the budget: [`TsdfVolume::memory_bytes`] never exceeds it (a reallocation may
 //! briefly hold the old and the new storage while it moves). Per-frame scratch space (the
-//! per-pixel table, about 4 MiB for 640×480) is not counted.
+//! per-pixel depth table, 2 MiB for 640×480) is not counted.
 //!
 //! ```
 //! use sl_core::{Camera, CameraToWorld};

@@ -14,46 +14,23 @@ use super::*;
 /// Rows of the image per strip of the fused table / band pass of [`TsdfVolume::integrate`].
 pub(super) const BAND_ROWS: usize = 8;
 
-/// What the per-pixel table needs: the weight function and the depth range.
+/// What the per-pixel table needs: the depth range.
 pub(super) struct PixelFn {
-    pub(super) weight: WeightFn,
     pub(super) min_d: f32,
     pub(super) max_d: f32,
 }
 
 impl PixelFn {
     /// Fills the table rows `trows` (rows of `w + 2` entries with a border entry at each end)
-    /// from the depth rows `drows` (`w` pixels each): `(depth, weight)`, or `[0, 0]` where the
-    /// pixel is invalid or outside the depth range. Returns the number of pixels used.
-    pub(super) fn fill(&self, trows: &mut [[f32; 2]], drows: &[f32], w: usize) -> usize {
-        // One loop per weight mode, so that it vectorises.
-        match self.weight {
-            WeightFn::Uniform => self.fill_with(trows, drows, w, |_| 1.0),
-            wf @ WeightFn::InvZ2 { .. } => {
-                self.fill_with(trows, drows, w, |d| WeightFn::weight(&wf, d))
-            }
-            WeightFn::InvZ4 { z_ref } => {
-                let wf = WeightFn::InvZ4 { z_ref };
-                self.fill_with(trows, drows, w, |d| wf.weight(d))
-            }
-            wf @ WeightFn::Variance { .. } => self.fill_with(trows, drows, w, |d| wf.weight(d)),
-        }
-    }
-
-    #[inline(always)]
-    pub(super) fn fill_with(
-        &self,
-        trows: &mut [[f32; 2]],
-        drows: &[f32],
-        w: usize,
-        weight: impl Fn(f32) -> f32,
-    ) -> usize {
+    /// from the depth rows `drows` (`w` pixels each): the depth, or 0 where the pixel is
+    /// invalid or outside the depth range. Returns the number of pixels used.
+    pub(super) fn fill(&self, trows: &mut [f32], drows: &[f32], w: usize) -> usize {
         let mut used = 0;
         for (out, row) in trows.chunks_mut(w + 2).zip(drows.chunks(w)) {
             for (o, &d) in out[1..=w].iter_mut().zip(row) {
                 let valid = (d > self.min_d) & (d <= self.max_d);
                 used += usize::from(valid);
-                *o = if valid { [d, weight(d)] } else { [0.0; 2] };
+                *o = if valid { d } else { 0.0 };
             }
         }
         used
@@ -143,17 +120,13 @@ impl<'a> BandFrame<'a> {
 /// nothing and is skipped. A scalar pass emits the cells of the remaining pixels (a DDA where
 /// an axis differs by more than one).
 #[inline(never)]
-pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[[f32; 2]], y0: usize) -> Result<Vec<u64>> {
+pub(super) fn band_rows(f: &BandFrame<'_>, trows: &[f32], y0: usize) -> Result<Vec<u64>> {
     band_rows_inline(f, trows, y0)
 }
 
 /// [`band_rows`], inlined into its caller (the AVX-512 kernel of `integrate`).
 #[inline(always)]
-pub(super) fn band_rows_inline(
-    f: &BandFrame<'_>,
-    trows: &[[f32; 2]],
-    y0: usize,
-) -> Result<Vec<u64>> {
+pub(super) fn band_rows_inline(f: &BandFrame<'_>, trows: &[f32], y0: usize) -> Result<Vec<u64>> {
     let BandFrame {
         rot,
         t,
@@ -214,7 +187,7 @@ pub(super) fn band_rows_inline(
         let col = rot.column(0);
         // The segment of pixel x runs from depth near(x) to far(x) along its ray.
         let ends = |x: usize| -> (f32, f32) {
-            let d = row[x][0];
+            let d = row[x];
             let r = rx[x];
             // ±band in range along the ray: dt = band/λ in depth, λ = ‖ray‖.
             let dt = band.band(d) / (r * r + ry2).sqrt();
@@ -235,7 +208,7 @@ pub(super) fn band_rows_inline(
             let (flags, fars, rx) = (&mut flags[..w], &mut fars[..w], &rx[..w]);
             for x in 0..w {
                 let (near, far) = ends(x);
-                let valid = row[x][0] > 0.0;
+                let valid = row[x] > 0.0;
                 fars[x] = if valid { far } else { 0.0 };
                 let mut tc = [0.0f32; 3];
                 let mut simple = true;
@@ -267,7 +240,7 @@ pub(super) fn band_rows_inline(
             .fold(false, |b, &f| b | (f >= far_lim) | f.is_nan());
         if bad {
             // Find the offending pixel (NaN fails the compares).
-            for x in (0..w).filter(|&x| row[x][0] > 0.0) {
+            for x in (0..w).filter(|&x| row[x] > 0.0) {
                 let (n, fr) = ends(x);
                 let dir = base + col * rx[x];
                 let (a, b) = (t + dir * n, t + dir * fr);
@@ -276,7 +249,7 @@ pub(super) fn band_rows_inline(
                         "pixel ({x}, {y}) at depth {} m reaches beyond the {} blocks the volume \
                          addresses on each side of its origin (a camera far from the origin, or \
                          a voxel too small for the depth range)",
-                        row[x][0],
+                        row[x],
                         crate::hash::MAX_BLOCK_COORD - 2
                     )));
                 }

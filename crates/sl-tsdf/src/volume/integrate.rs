@@ -1,7 +1,7 @@
-//! Integration of one depth frame: the argument checks, the per-pixel table of depth and
-//! weight, block discovery (see `discovery`), then the parallel voxel update of every touched
-//! block with the projective signed distance and the frame's weight (the per-block kernel and
-//! its per-frame constants live here).
+//! Integration of one depth frame: the argument checks, the per-pixel table of depth, block
+//! discovery (see `discovery`), then the parallel voxel update of every touched block with the
+//! projective signed distance and the weight of the observation's depth (the per-block kernel
+//! and its per-frame constants live here).
 
 use nalgebra::{Isometry3, Matrix3, Vector3};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,7 +12,7 @@ use sl_core::{CameraToWorld, DepthView, Intrinsics, IsaKernel};
 use super::discovery::*;
 use super::*;
 use crate::par::run_on_threads;
-use crate::params::{BandFn, DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG};
+use crate::params::{BandFn, DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG, WeightFn};
 
 impl TsdfVolume {
     /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world
@@ -54,12 +54,12 @@ impl TsdfVolume {
     }
 
     /// [`TsdfVolume::integrate`] after the argument checks, with the per-pixel table as
-    /// scratch space: `(depth, weight)` of pixel `(x, y)` at `(y + 1)·(width + 2) + x + 1`,
-    /// `[0, 0]` on a one-pixel border around the image (voxels projecting outside the image
+    /// scratch space: the depth of pixel `(x, y)` at `(y + 1)·(width + 2) + x + 1`, 0 on a
+    /// one-pixel border around the image (voxels projecting outside the image
     /// are clamped onto it) and where the pixel is invalid or outside the depth range.
     fn integrate_with(
         &mut self,
-        table: &mut Vec<[f32; 2]>,
+        table: &mut Vec<f32>,
         depth: DepthView<'_>,
         k: &Intrinsics,
         pose: &Isometry3<f64>,
@@ -75,7 +75,7 @@ impl TsdfVolume {
             table
                 .try_reserve(len)
                 .map_err(|_| TsdfError::OutOfMemory("pixel table"))?;
-            table.resize(len, [0.0; 2]);
+            table.resize(len, 0.0);
         }
         let rx: Vec<f32> = (0..w).map(|x| ((x as f64 - k.cx) / k.fx) as f32).collect();
         // Candidate keys are held three times at most (a strip's list, its new keys, all new
@@ -92,7 +92,6 @@ impl TsdfVolume {
         band.keys = Some(&key_budget);
         let p = &self.params;
         let pixels = PixelFn {
-            weight: WeightFn::new(p.weight, p.z_ref_m),
             min_d: p.min_depth_m as f32,
             max_d: p.max_depth_m as f32,
         };
@@ -104,7 +103,7 @@ impl TsdfVolume {
             .collect();
         let index = &self.index;
         let isa = self.params.fusion_isa();
-        let strip = |(ci, (trows, drows)): (usize, (&mut [[f32; 2]], &[f32]))| {
+        let strip = |(ci, (trows, drows)): (usize, (&mut [f32], &[f32]))| {
             let used = pixels.fill(trows, drows, w);
             let keys = match isa {
                 Some(isa) => isa.run(BandStrip {
@@ -190,7 +189,7 @@ impl TsdfVolume {
     fn update_blocks(
         &mut self,
         touched: &[bool],
-        table: &[[f32; 2]],
+        table: &[f32],
         k: &Intrinsics,
         pose: &Isometry3<f64>,
     ) {
@@ -229,7 +228,7 @@ impl TsdfVolume {
 /// set.
 struct BandStrip<'a, 'b> {
     frame: &'a BandFrame<'b>,
-    rows: &'a [[f32; 2]],
+    rows: &'a [f32],
     /// Image row of the strip's first row.
     y0: usize,
 }
@@ -255,8 +254,8 @@ struct UpdateChunk<'a> {
     keys: &'a [u64],
     frame: &'a FrameConsts,
     /// The table when it has exactly `SMALL_TABLE` entries (indexed with a mask).
-    small: Option<&'a [[f32; 2]; SMALL_TABLE]>,
-    table: &'a [[f32; 2]],
+    small: Option<&'a [f32; SMALL_TABLE]>,
+    table: &'a [f32],
 }
 
 impl UpdateChunk<'_> {
@@ -331,6 +330,8 @@ pub(super) struct FrameConsts {
     /// Table row length, `width + 2`.
     pub(super) tw: f32,
     pub(super) band: BandFn,
+    /// The observations' weight as a function of their depth.
+    pub(super) weight: WeightFn,
     pub(super) max_w: f32,
     pub(super) v: f32,
 }
@@ -366,6 +367,7 @@ impl FrameConsts {
             vmax: (k.height + 1) as f32,
             tw: (k.width + 2) as f32,
             band: BandFn::new(p),
+            weight: WeightFn::new(p.weight, p.z_ref_m),
             max_w: p.max_weight,
             v,
             bilinear: p.depth_lookup == DepthLookup::Bilinear,
@@ -398,57 +400,81 @@ pub(super) fn exact_u32(x: f32) -> u32 {
 /// that indices can be masked into range instead of bounds-checked.
 pub(super) const SMALL_TABLE: usize = 1 << 19;
 
-/// The per-pixel table as the voxel update reads it.
+/// The per-pixel table as the voxel update reads it: the depth of each pixel, 0 where it is
+/// invalid. Depth alone (4 bytes a pixel: 1.2 MB for 640×480, within a core's L2 cache on
+/// current CPUs) — the weight is a function of the depth and is computed where it is used: the
+/// table is gathered at random from every touched block, and with the weight beside the depth
+/// (2.5 MB) those gathers missed the L2 cache (docs/bench/track.md, session 68).
 pub(super) trait PixelTable: Sync {
-    /// Depth and weight of table entry `i` (`i` is always in range).
-    fn entry(&self, i: u32) -> [f32; 2];
+    /// Depth of table entry `i` (`i` is always in range).
+    fn entry(&self, i: u32) -> f32;
     /// Entries `i` and `i + 1` (`i + 1` is always in range).
-    fn pair(&self, i: u32) -> [[f32; 2]; 2];
+    fn pair(&self, i: u32) -> [f32; 2];
 }
 
-impl PixelTable for [[f32; 2]; SMALL_TABLE] {
+impl PixelTable for [f32; SMALL_TABLE] {
     #[inline(always)]
-    fn entry(&self, i: u32) -> [f32; 2] {
+    fn entry(&self, i: u32) -> f32 {
         self[i as usize & (SMALL_TABLE - 1)]
     }
     #[inline(always)]
-    fn pair(&self, i: u32) -> [[f32; 2]; 2] {
+    fn pair(&self, i: u32) -> [f32; 2] {
         let i = (i as usize).min(SMALL_TABLE - 2);
         [self[i], self[i + 1]]
     }
 }
 
-impl PixelTable for [[f32; 2]] {
+impl PixelTable for [f32] {
     #[inline(always)]
-    fn entry(&self, i: u32) -> [f32; 2] {
-        self.get(i as usize).copied().unwrap_or([0.0; 2])
+    fn entry(&self, i: u32) -> f32 {
+        self.get(i as usize).copied().unwrap_or(0.0)
     }
     #[inline(always)]
-    fn pair(&self, i: u32) -> [[f32; 2]; 2] {
+    fn pair(&self, i: u32) -> [f32; 2] {
         match self.get(i as usize..i as usize + 2) {
             Some(&[a, b]) => [a, b],
-            _ => [[0.0; 2]; 2],
+            _ => [0.0; 2],
         }
     }
 }
 
-/// [`DepthLookup::Bilinear`] for one z slice: replaces the nearest pixel's depth in `dw` by the
+/// The weights of a slice's table depths `ds` into `ws`: `weight(d)` where `d > 0` (a valid
+/// pixel: the table holds 0 elsewhere, and valid depths exceed `min_depth_m ≥ 0`), else 0 —
+/// the values [`PixelFn::fill`] put beside the depth before session 68, bit for bit. One loop
+/// per weight mode, so that each vectorises.
+#[inline(always)]
+fn slice_weights(wf: WeightFn, ds: &[f32; SLICE], ws: &mut [f32; SLICE]) {
+    #[inline(always)]
+    fn each(ds: &[f32; SLICE], ws: &mut [f32; SLICE], f: impl Fn(f32) -> f32) {
+        for i in 0..SLICE {
+            let d = ds[i];
+            ws[i] = if d > 0.0 { f(d) } else { 0.0 };
+        }
+    }
+    match wf {
+        WeightFn::Uniform => each(ds, ws, |_| 1.0),
+        wf @ WeightFn::InvZ2 { .. } => each(ds, ws, |d| wf.weight(d)),
+        wf @ WeightFn::InvZ4 { .. } => each(ds, ws, |d| wf.weight(d)),
+        wf @ WeightFn::Variance { .. } => each(ds, ws, |d| wf.weight(d)),
+    }
+}
+
+/// [`DepthLookup::Bilinear`] for one z slice: replaces the nearest pixel's depth in `ds` by the
 /// inverse depth interpolated at the projection `(us, vs)` (table coordinates, clamped onto the
-/// border) where the four pixels around it are valid and on one surface; the weight stays the
-/// nearest pixel's. The nearest pixel is one of the four, so an invalid one keeps its weight 0.
-/// Branch-free: the gathers (two loads of two neighbouring pixels) in one loop, the arithmetic in
-/// another that the compiler vectorises (a version that skipped the voxels far from the surface
+/// border) where the four pixels around it are valid (positive weight) and on one surface; the
+/// weight stays the nearest pixel's. The nearest pixel is one of the four, so an invalid one
+/// keeps its weight 0. Branch-free: the gathers (two loads of two neighbouring pixels) in one
+/// loop, the weights and the arithmetic in others that the compiler vectorises (a version that skipped the voxels far from the surface
 /// branched per voxel and took twice as long).
 #[inline(always)]
 fn bilinear_depths<T: PixelTable + ?Sized>(
-    dw: &mut [[f32; 2]; SLICE],
+    ds: &mut [f32; SLICE],
     us: &[f32; SLICE],
     vs: &[f32; SLICE],
     fc: &FrameConsts,
     table: &T,
 ) {
-    let mut top = [[[0.0f32; 2]; 2]; SLICE];
-    let mut bottom = [[[0.0f32; 2]; 2]; SLICE];
+    let mut corners = [[0.0f32; SLICE]; 4];
     let mut fu = [0.0f32; SLICE];
     let mut fv = [0.0f32; SLICE];
     let tw = exact_u32(fc.tw);
@@ -469,24 +495,30 @@ fn bilinear_depths<T: PixelTable + ?Sized>(
         fu[i] = us[i] - u0;
         fv[i] = vs[i] - v0;
         let at = exact_u32(v0 * fc.tw + u0);
-        top[i] = table.pair(at);
-        bottom[i] = table.pair(at + tw);
+        [corners[0][i], corners[1][i]] = table.pair(at);
+        [corners[2][i], corners[3][i]] = table.pair(at + tw);
     }
+    // A corner counts where its weight is positive, as when the table held the weights.
+    let mut weights = [[0.0f32; SLICE]; 4];
+    for (c, w) in corners.iter().zip(&mut weights) {
+        slice_weights(fc.weight, c, w);
+    }
+    let [ca, cb, cc, cd] = &corners;
+    let [wa, wb, wc, wd] = &weights;
     for i in 0..SLICE {
-        let [[a, wa], [b, wb]] = top[i];
-        let [[c, wc], [d, wd]] = bottom[i];
-        let valid = (wa > 0.0) & (wb > 0.0) & (wc > 0.0) & (wd > 0.0);
+        let (a, b, c, d) = (ca[i], cb[i], cc[i], cd[i]);
+        let valid = (wa[i] > 0.0) & (wb[i] > 0.0) & (wc[i] > 0.0) & (wd[i] > 0.0);
         let lo = a.min(b).min(c).min(d);
         let hi = a.max(b).max(c).max(d);
         let same = valid & (hi - lo <= lo * fc.same_surface_per_m + fc.band.band(lo));
         let (u, v) = (fu[i], fv[i]);
         let inv = (1.0 - v) * ((1.0 - u) / a + u / b) + v * ((1.0 - u) / c + u / d);
-        dw[i][0] = if same { 1.0 / inv } else { dw[i][0] };
+        ds[i] = if same { 1.0 / inv } else { ds[i] };
     }
 }
 
-/// Updates the 512 voxels of block `b` from one frame (`table`: per-pixel depth and weight
-/// with an invalid border, see [`PixelFn::fill`]).
+/// Updates the 512 voxels of block `b` from one frame (`table`: per-pixel depth with an
+/// invalid border, see [`PixelFn::fill`]).
 #[cfg(test)]
 #[inline(always)]
 pub(super) fn integrate_block<T: PixelTable + ?Sized>(
@@ -551,7 +583,8 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
     let mut lam = [0.0f32; SLICE];
     let mut xs = [0.0f32; SLICE];
     let mut ys = [0.0f32; SLICE];
-    let mut dw = [[0.0f32; 2]; SLICE];
+    let mut ds = [0.0f32; SLICE];
+    let mut ws = [0.0f32; SLICE];
     let mut us = [0.0f32; SLICE];
     let mut vs = [0.0f32; SLICE];
     // One z slice (8×8 voxels, contiguous in the block) at a time: loops of 64 independent
@@ -596,12 +629,13 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
             us[i] = u;
             vs[i] = v;
         }
-        // Stage 2 (scalar gather): depth and weight of each voxel's pixel.
+        // Stage 2 (scalar gather): the depth of each voxel's pixel, and its weight.
         for i in 0..SLICE {
-            dw[i] = table.entry(pix[i]);
+            ds[i] = table.entry(pix[i]);
         }
+        slice_weights(fc.weight, &ds, &mut ws);
         if fc.bilinear {
-            bilinear_depths(&mut dw, &us, &vs, fc, table);
+            bilinear_depths(&mut ds, &us, &vs, fc, table);
         }
         // Stage 3 (branch-free): line-of-sight distance ‖P_surface‖ − ‖P_voxel‖ = (d − z)·λ
         // along the voxel's own ray, clipped to the observation's band `trunc` (see
@@ -612,7 +646,7 @@ fn voxel_update<T: PixelTable + ?Sized, const CHECK_Z: bool>(
         let tsdf = &mut blk.tsdf[base..base + SLICE];
         let weight = &mut blk.weight[base..base + SLICE];
         for i in 0..SLICE {
-            let [d, wg] = dw[i];
+            let (d, wg) = (ds[i], ws[i]);
             let trunc = band.band(d);
             let sdf = (d - zs[i]) * lam[i];
             let wgt = if sdf >= -trunc { wg } else { 0.0 };

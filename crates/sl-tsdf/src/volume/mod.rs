@@ -9,7 +9,7 @@ use sl_core::SensorModel;
 
 use crate::error::{Result, TsdfError};
 use crate::hash::{BlockMap, pack, unpack};
-use crate::params::{Truncation, TsdfConfig, WeightFn};
+use crate::params::{Truncation, TsdfConfig};
 
 /// Voxels along one edge of a block.
 pub const BLOCK_SIDE: usize = 8;
@@ -107,7 +107,7 @@ pub struct TsdfVolume {
 /// gives an empty one).
 #[derive(Default)]
 struct Scratch {
-    table: Vec<[f32; 2]>,
+    table: Vec<f32>,
 }
 
 impl Clone for Scratch {

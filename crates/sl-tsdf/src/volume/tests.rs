@@ -1,7 +1,6 @@
 //! Unit tests of the volume: storage, integration, budget and discovery.
 
 use super::*;
-use crate::params::WeightMode;
 use rand::{Rng, SeedableRng};
 use sl_core::CameraToWorld;
 
@@ -57,9 +56,7 @@ fn band_reference(f: &BandFrame<'_>, depth: &[f32]) -> Vec<u64> {
 fn band_rows_matches_brute_force_traversal() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
     let k = Intrinsics::new(64, 48, 60.0, 62.0, 31.3, 23.8).unwrap();
-    let wf = WeightFn::new(WeightMode::Uniform, 1.0);
     let pixels = PixelFn {
-        weight: wf,
         min_d: 0.0,
         max_d: 100.0,
     };
@@ -91,7 +88,7 @@ fn band_rows_matches_brute_force_traversal() {
                 .collect();
             let band = BandFrame::new(&p, &k, &pose, &rx).unwrap();
             let tw = k.width + 2;
-            let mut table = vec![[0.0f32; 2]; tw * (k.height + 2)];
+            let mut table = vec![0.0f32; tw * (k.height + 2)];
             let mut keys = Vec::new();
             for (ci, (trows, drows)) in table[tw..tw * (k.height + 1)]
                 .chunks_mut(tw * BAND_ROWS)
@@ -119,8 +116,8 @@ fn band_rows_matches_brute_force_traversal() {
         .collect();
     let band = BandFrame::new(&p, &k, &Isometry3::identity(), &rx).unwrap();
     let tw = k.width + 2;
-    let mut trows = vec![[0.0f32; 2]; tw * BAND_ROWS];
-    trows[tw * 3 + 10] = [1e8, 1.0];
+    let mut trows = vec![0.0f32; tw * BAND_ROWS];
+    trows[tw * 3 + 10] = 1e8;
     assert!(matches!(
         band_rows(&band, &trows, 0),
         Err(TsdfError::OutOfRange(_))
@@ -134,16 +131,16 @@ fn voxel_update_variants_agree() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
     let k = Intrinsics::new(640, 480, 525.0, 525.0, 319.5, 239.5).unwrap();
     let tw = k.width + 2;
-    let mut table = vec![[0.0f32; 2]; SMALL_TABLE];
+    let mut table = vec![0.0f32; SMALL_TABLE];
     for y in 0..k.height {
         for x in 0..k.width {
             if rng.random_range(0.0f32..1.0) < 0.9 {
                 let d = rng.random_range(0.5f32..3.0);
-                table[(y + 1) * tw + x + 1] = [d, 1.0 / (d * d)];
+                table[(y + 1) * tw + x + 1] = d;
             }
         }
     }
-    let small: &[[f32; 2]; SMALL_TABLE] = table.first_chunk().unwrap();
+    let small: &[f32; SMALL_TABLE] = table.first_chunk().unwrap();
     let p = TsdfConfig::default();
     let pose = Isometry3::new(Vector3::new(0.1, -0.2, 0.05), Vector3::new(0.1, 0.2, -0.1));
     let fc = FrameConsts::new(&p, &k, &pose);
