@@ -55,8 +55,8 @@ impl TsdfVolume {
 
     /// [`TsdfVolume::integrate`] after the argument checks, with the per-pixel table as
     /// scratch space: the depth of pixel `(x, y)` at `(y + 1)·(width + 2) + x + 1`, 0 on a
-    /// one-pixel border around the image (voxels projecting outside the image
-    /// are clamped onto it) and where the pixel is invalid or outside the depth range.
+    /// one-pixel border around the image (voxels projecting outside the image are clamped onto
+    /// it) and where the pixel is invalid or outside the depth range.
     fn integrate_with(
         &mut self,
         table: &mut Vec<f32>,
@@ -440,8 +440,8 @@ impl PixelTable for [f32] {
 
 /// The weights of a slice's table depths `ds` into `ws`: `weight(d)` where `d > 0` (a valid
 /// pixel: the table holds 0 elsewhere, and valid depths exceed `min_depth_m ≥ 0`), else 0 —
-/// the values [`PixelFn::fill`] put beside the depth before session 68, bit for bit. One loop
-/// per weight mode, so that each vectorises.
+/// bit for bit the weights the table held beside the depth before session 68. One loop per
+/// weight mode (each arm binds its variant), so that each vectorises.
 #[inline(always)]
 fn slice_weights(wf: WeightFn, ds: &[f32; SLICE], ws: &mut [f32; SLICE]) {
     #[inline(always)]
@@ -464,8 +464,8 @@ fn slice_weights(wf: WeightFn, ds: &[f32; SLICE], ws: &mut [f32; SLICE]) {
 /// border) where the four pixels around it are valid (positive weight) and on one surface; the
 /// weight stays the nearest pixel's. The nearest pixel is one of the four, so an invalid one
 /// keeps its weight 0. Branch-free: the gathers (two loads of two neighbouring pixels) in one
-/// loop, the weights and the arithmetic in others that the compiler vectorises (a version that skipped the voxels far from the surface
-/// branched per voxel and took twice as long).
+/// loop, the weights and the arithmetic in others that the compiler vectorises (a version that
+/// skipped the voxels far from the surface branched per voxel and took twice as long).
 #[inline(always)]
 fn bilinear_depths<T: PixelTable + ?Sized>(
     ds: &mut [f32; SLICE],
