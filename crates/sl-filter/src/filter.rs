@@ -618,6 +618,44 @@ mod tests {
         );
     }
 
+    /// The range check of the padded copy at every column of rows of several widths (the
+    /// vectorised part of a row and its remainder), with every instruction set and both
+    /// domains; invalid values (0, negative, NaN, ±inf) are holes, not range errors.
+    #[test]
+    fn the_range_check_sees_every_column() {
+        let s = SensorModel::kinect_v1();
+        let filters = [
+            DepthFilter::default_for(Method::Adaptive, &s),
+            DepthFilter::default_for(Method::Disparity, &s),
+        ];
+        for w in [7usize, 8, 9, 15, 16, 19] {
+            let mut base = vec![1.5f32; w * 5];
+            base[3] = f32::NAN;
+            base[w] = f32::INFINITY;
+            base[w + 1] = f32::NEG_INFINITY;
+            base[2 * w] = -2.0;
+            base[2 * w + 1] = 0.0;
+            for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+                for f in &filters {
+                    let clean = DepthImage::from_vec(w, 5, base.clone()).unwrap();
+                    assert!(f.apply_with_isa(&clean, isa).is_ok(), "w {w} {isa:?}");
+                    for x in 0..w {
+                        for bad in [MIN_DEPTH_M / 2.0, MAX_DEPTH_M * 2.0] {
+                            let mut d = base.clone();
+                            d[3 * w + x] = bad;
+                            let d = DepthImage::from_vec(w, 5, d).unwrap();
+                            let e = f.apply_with_isa(&d, isa);
+                            assert!(
+                                matches!(e, Err(FilterError::DepthOutOfRange { y: 3, .. })),
+                                "w {w} x {x} {bad} {isa:?}: {e:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn second_moment_of_a_wide_kernel_approaches_two_sigma_squared() {
         let f = DepthFilter::gaussian(12, 2.0);

@@ -170,7 +170,7 @@ pub fn read_intrinsics_txt(
         limits.max_text_lines,
     )?;
     let mut values = Vec::with_capacity(9);
-    for (i, line) in text.lines().enumerate() {
+    for (i, line) in crate::text::text_lines(&text).enumerate() {
         for tok in line.split_whitespace() {
             let v: f64 = tok
                 .parse()

@@ -77,13 +77,11 @@ fn open(path: &Path) -> Result<BufReader<File>> {
 /// [`IoError::UnsupportedImage`].
 pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> Result<Image<u16>> {
     let reader = open(path)?;
-    let img = match container {
+    match container {
         Container::Png => {
             let dec = PngDecoder::with_limits(reader, limits.image_limits())
                 .map_err(|e| image_error(path, e))?;
-            check_dimensions(path, &dec, limits)?;
-            check_l16(path, dec.color_type())?;
-            DynamicImage::from_decoder(dec)
+            read_l16(path, dec, limits)
         }
         Container::Tiff => {
             // A TIFF of another sample format (32-bit float or integer depth) fails here, in
@@ -96,18 +94,36 @@ pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> 
             })?;
             dec.set_limits(limits.image_limits())
                 .map_err(|e| image_error(path, e))?;
-            check_dimensions(path, &dec, limits)?;
-            check_l16(path, dec.color_type())?;
-            DynamicImage::from_decoder(dec)
+            read_l16(path, dec, limits)
         }
     }
-    .map_err(|e| image_error(path, e))?;
-    let found = describe(img.color());
-    let DynamicImage::ImageLuma16(buf) = img else {
-        return Err(unsupported_l16(path, found));
-    };
-    let (w, h) = (buf.width() as usize, buf.height() as usize);
-    Image::from_vec(w, h, buf.into_raw()).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Decodes a 16-bit grey image into a buffer allocated here: a header within a raised budget
+/// (see [`Limits`]) whose pixels this process cannot address is an error
+/// ([`IoError::TooLarge`]), not an abort on allocation failure. The room is probed with
+/// `try_reserve_exact` and the buffer itself is zero-allocated (`vec!`, pages committed only as
+/// the decoder writes rows: a truncated file with a huge header touches little memory); the
+/// pixels go straight into the `u16` buffer of the result (native-endian samples, as
+/// `ImageDecoder::read_image` writes them).
+fn read_l16(path: &Path, dec: impl ImageDecoder, limits: &Limits) -> Result<Image<u16>> {
+    check_dimensions(path, &dec, limits)?;
+    check_l16(path, dec.color_type())?;
+    let (w, h) = dec.dimensions();
+    let (w, h) = (w as usize, h as usize);
+    let n = w.saturating_mul(h);
+    let mut probe: Vec<u16> = Vec::new();
+    probe.try_reserve_exact(n).map_err(|_| {
+        IoError::too_large(
+            path,
+            format!("{w}x{h} pixels: not enough memory for the 16-bit image"),
+        )
+    })?;
+    drop(probe);
+    let mut px = vec![0u16; n];
+    dec.read_image(bytemuck::cast_slice_mut(&mut px))
+        .map_err(|e| image_error(path, e))?;
+    Image::from_vec(w, h, px).map_err(|e| IoError::core(path, None, e))
 }
 
 /// Checks the size a decoder read from the header against [`Limits::max_pixels`], before

@@ -33,7 +33,7 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
     };
     let text = read_text(&path, limits.max_text_bytes, limits.max_text_lines)?;
     let mut out: Vec<SequenceFrame> = Vec::new();
-    for (i, line) in text.lines().enumerate() {
+    for (i, line) in crate::text::text_lines(&text).enumerate() {
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;

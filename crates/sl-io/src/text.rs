@@ -82,6 +82,13 @@ pub(crate) fn read_text_from(
     })
 }
 
+/// The lines of `text`: as [`str::lines`] (`\n` or `\r\n` ends a line), and a lone `\r` (old Mac
+/// OS line endings) ends one too, so that such a file is not read as one line whose fields past
+/// the first few would be ignored (a `depth.txt` of three frames read as one).
+pub(crate) fn text_lines(text: &str) -> impl Iterator<Item = &str> {
+    text.lines().flat_map(|l| l.split('\r'))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -110,6 +117,19 @@ mod tests {
             Err(IoError::TooLarge { .. })
         ));
         assert!(read_text_from(p, &[0xffu8, 0xfe][..], 10, 10).is_err());
+    }
+
+    #[test]
+    fn a_lone_carriage_return_ends_a_line() {
+        fn lines(t: &str) -> Vec<&str> {
+            text_lines(t).collect()
+        }
+        assert_eq!(
+            lines("1 a.png\r2 b.png\r3 c.png\r"),
+            ["1 a.png", "2 b.png", "3 c.png", ""]
+        );
+        assert_eq!(lines("1 a.png\r\n2 b.png\r\n"), ["1 a.png", "2 b.png"]);
+        assert_eq!(lines("1 a.png\n2 b.png"), ["1 a.png", "2 b.png"]);
     }
 
     #[test]

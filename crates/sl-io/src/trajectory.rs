@@ -105,7 +105,7 @@ pub struct TumSequence {
 
 /// Non-empty, non-comment lines with their 1-based numbers.
 fn data_lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
-    text.lines()
+    crate::text::text_lines(text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
@@ -176,8 +176,31 @@ pub fn read_tum_trajectory_with_limits(
     Ok(poses)
 }
 
-/// Writes a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, 6 decimals for time, 9 for the
-/// rest), atomically.
+/// How the timestamps `ts` of one trajectory file are printed: with 6 decimals (TUM's
+/// microseconds) unless two distinct timestamps would print alike — which would make the file
+/// one that [`read_tum_trajectory`] refuses (a repeated timestamp) — then with 9, and when even
+/// those collide in the shortest form that reads back exactly.
+pub fn timestamp_printer(ts: &[f64]) -> impl Fn(f64) -> String + Copy + use<> {
+    let collide = |print: fn(f64) -> String| {
+        let mut v: Vec<f64> = ts.iter().copied().filter(|t| t.is_finite()).collect();
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        v.windows(2).any(|w| print(w[0]) == print(w[1]))
+    };
+    let micro: fn(f64) -> String = |t| format!("{t:.6}");
+    let nano: fn(f64) -> String = |t| format!("{t:.9}");
+    let exact: fn(f64) -> String = |t| format!("{t:e}");
+    if !collide(micro) {
+        micro
+    } else if !collide(nano) {
+        nano
+    } else {
+        exact
+    }
+}
+
+/// Writes a TUM trajectory (`timestamp tx ty tz qx qy qz qw`, 6 decimals for time unless
+/// timestamps closer than that need more ([`timestamp_printer`]), 9 for the rest), atomically.
 pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Result<()> {
     // What `read_tum_trajectory` would refuse is not written: a timestamp that is not a finite
     // number (a pose is finite by construction).
@@ -193,14 +216,23 @@ pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Resu
             ),
         });
     }
+    let stamps: Vec<f64> = poses.iter().map(|p| p.timestamp).collect();
+    let stamp = timestamp_printer(&stamps);
     let mut text = String::from("# timestamp tx ty tz qx qy qz qw\n");
     for p in poses {
         let t = p.pose.translation();
         let q = p.pose.rotation().coords; // (i, j, k, w) = (qx, qy, qz, qw)
         let _ = writeln!(
             text,
-            "{:.6} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
-            p.timestamp, t.x, t.y, t.z, q.x, q.y, q.z, q.w
+            "{} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9} {:.9}",
+            stamp(p.timestamp),
+            t.x,
+            t.y,
+            t.z,
+            q.x,
+            q.y,
+            q.z,
+            q.w
         );
     }
     write_atomic(path, |w| w.write_all(text.as_bytes()))
@@ -438,8 +470,7 @@ pub fn read_open3d_log_with_limits(
 ) -> Result<Vec<LogEntry>> {
     let path = path.as_ref();
     let text = read_limited(path, limits)?;
-    let lines: Vec<(usize, &str)> = text
-        .lines()
+    let lines: Vec<(usize, &str)> = crate::text::text_lines(&text)
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty())
@@ -577,7 +608,7 @@ pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<CameraToWorld> {
     let mut m = [0.0; 16];
     let mut k = 0;
     let mut last_line = 1;
-    for (n, line) in text.lines().enumerate() {
+    for (n, line) in crate::text::text_lines(&text).enumerate() {
         last_line = n + 1;
         for tok in line.split_whitespace() {
             if k == 16 {
@@ -663,7 +694,7 @@ pub fn read_frame_list(path: impl AsRef<Path>, limits: &Limits) -> Result<Vec<Fr
     let text = read_limited(path, limits)?;
     let base = path.parent().unwrap_or(Path::new("."));
     let mut frames = Vec::new();
-    for (i, line) in text.lines().enumerate() {
+    for (i, line) in crate::text::text_lines(&text).enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();
         if line.is_empty() {
             continue;
@@ -704,6 +735,24 @@ mod tests {
 
     fn c2w(t: Vector3<f64>, r: Vector3<f64>) -> CameraToWorld {
         CameraToWorld::from_isometry(Isometry3::new(t, r))
+    }
+
+    #[test]
+    fn timestamps_print_with_microseconds_unless_that_repeats_one() {
+        let tum = [1305031229.528784, 1305031229.564442];
+        let p = timestamp_printer(&tum);
+        assert_eq!(p(tum[0]), "1305031229.528784");
+        let close = [1e9, 1e9 + 2.4e-7, 1e9 + 4.8e-7];
+        let p = timestamp_printer(&close);
+        let printed: Vec<String> = close.iter().map(|&t| p(t)).collect();
+        assert_eq!(printed[0], "1000000000.000000000");
+        assert!(
+            printed[1] != printed[0] && printed[2] != printed[1],
+            "{printed:?}"
+        );
+        let tiny = [0.0, 5e-324];
+        let p = timestamp_printer(&tiny);
+        assert!(p(tiny[1]).parse::<f64>().unwrap() == 5e-324 && p(tiny[0]) != p(tiny[1]));
     }
 
     fn tp(t: f64) -> TimedPose {

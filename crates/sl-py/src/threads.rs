@@ -5,7 +5,7 @@
 
 use std::cell::OnceCell;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError, RwLock};
 
 use pyo3::prelude::*;
 
@@ -157,13 +157,69 @@ fn chosen() -> Threads {
 /// back.
 pub(crate) fn compute<T: Send>(py: Python<'_>, f: impl FnOnce() -> T + Send) -> T {
     let threads = chosen();
+    py.detach(move || install(&threads, f))
+}
+
+/// Runs `f` on a pool of the size `threads` says: the calling thread's own pool when it can,
+/// else the shared pool of that size (see [`compute`]).
+fn install<T: Send>(threads: &Threads, f: impl FnOnce() -> T + Send) -> T {
+    let pool = own_pool(threads.count()).or_else(|| threads.shared_pool());
+    // No pool only when the process cannot start a thread: compute in place.
+    match pool {
+        Some(p) => p.install(f),
+        None => f(),
+    }
+}
+
+/// A lock whose holder panicked: the object it guards may be half-updated.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Poisoned;
+
+/// [`compute`] on the value behind `lock`, taken by the calling thread (with the GIL released)
+/// **before** the computation enters a pool, and released after it returns. Taking it inside
+/// the pool could deadlock: a worker that waits for its parallel pieces runs other queued jobs
+/// of its pool meanwhile, and a job of another Python thread's call on the same object would
+/// then wait for a lock its own thread holds, for ever (several Python threads sharing one
+/// `TsdfVolume` or `Tracker` through a shared pool). Outside the pools a caller only ever waits
+/// for a lock held by another thread, which finishes its call without it.
+pub(crate) fn compute_locked<S: Send, T: Send>(
+    py: Python<'_>,
+    lock: &Mutex<S>,
+    f: impl FnOnce(&mut S) -> T + Send,
+) -> Result<T, Poisoned> {
+    let threads = chosen();
     py.detach(move || {
-        let pool = own_pool(threads.count()).or_else(|| threads.shared_pool());
-        // No pool only when the process cannot start a thread: compute in place.
-        match pool {
-            Some(p) => p.install(f),
-            None => f(),
-        }
+        let mut guard = lock.lock().map_err(|_| Poisoned)?;
+        let state: &mut S = &mut guard;
+        Ok(install(&threads, move || f(state)))
+    })
+}
+
+/// [`compute_locked`] for a read-write lock taken for writing.
+pub(crate) fn compute_write<S: Send + Sync, T: Send>(
+    py: Python<'_>,
+    lock: &RwLock<S>,
+    f: impl FnOnce(&mut S) -> T + Send,
+) -> Result<T, Poisoned> {
+    let threads = chosen();
+    py.detach(move || {
+        let mut guard = lock.write().map_err(|_| Poisoned)?;
+        let state: &mut S = &mut guard;
+        Ok(install(&threads, move || f(state)))
+    })
+}
+
+/// [`compute_locked`] for a read-write lock taken for reading (readers run side by side).
+pub(crate) fn compute_read<S: Send + Sync, T: Send>(
+    py: Python<'_>,
+    lock: &RwLock<S>,
+    f: impl FnOnce(&S) -> T + Send,
+) -> Result<T, Poisoned> {
+    let threads = chosen();
+    py.detach(move || {
+        let guard = lock.read().map_err(|_| Poisoned)?;
+        let state: &S = &guard;
+        Ok(install(&threads, move || f(state)))
     })
 }
 

@@ -13,7 +13,7 @@ use sl_tsdf::{Mesh, MeshConfig};
 use crate::arrays::{check_camera, depth_input, pose_array};
 use crate::camera::PyCamera;
 use crate::errors::value_error;
-use crate::threads::compute;
+use crate::threads::compute_locked;
 use crate::tsdf::PyMesh;
 
 /// A join as Python sees it: (fragment, into, 4×4 transform).
@@ -269,8 +269,7 @@ impl PyTracker {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;
-        let result = compute(py, || -> Result<_, String> {
-            let mut guard = self.state.lock().map_err(|_| POISONED.to_string())?;
+        let result = compute_locked(py, &self.state, |guard| -> Result<_, String> {
             let TrackerState {
                 rec,
                 prefilter,
@@ -278,7 +277,7 @@ impl PyTracker {
                 noise_meter,
                 last_noise_scale,
                 ..
-            } = &mut *guard;
+            } = guard;
             let undistorted = match undistorter {
                 Some(u) => Some(u.apply(view).map_err(|e| e.to_string())?),
                 None => None,
@@ -320,6 +319,8 @@ impl PyTracker {
             state.last_weakest_sigma_m = step.result.weakest_sigma_m;
             Ok(step.result)
         })
+        .map_err(|_| POISONED.to_string())
+        .flatten()
         .map_err(value_error)?;
         Ok((
             pose_array(py, &result.pose.to_matrix())?,
@@ -406,8 +407,7 @@ impl PyTracker {
     /// finished; a fragment that rejoined the one before is in that one's world frame).
     #[pyo3(signature = (fragment = None))]
     fn extract_mesh(&self, py: Python<'_>, fragment: Option<usize>) -> PyResult<PyMesh> {
-        let mesh = compute(py, || -> Result<_, String> {
-            let state = self.state.lock().map_err(|_| POISONED.to_string())?;
+        let mesh = compute_locked(py, &self.state, |state| -> Result<_, String> {
             match fragment {
                 Some(f) if f != state.rec.fragment() => state
                     .finished
@@ -427,6 +427,8 @@ impl PyTracker {
                     .map_err(|e| e.to_string()),
             }
         })
+        .map_err(|_| POISONED.to_string())
+        .flatten()
         .map_err(value_error)?;
         PyMesh::from_mesh(py, mesh)
     }

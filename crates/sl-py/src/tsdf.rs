@@ -16,7 +16,7 @@ use sl_tsdf::{
 use crate::arrays::{check_camera, depth_array, depth_input, image_array, pose_input, rows3_array};
 use crate::camera::PyCamera;
 use crate::errors::{SlDepthIOError, value_error};
-use crate::threads::compute;
+use crate::threads::{compute, compute_read, compute_write};
 
 /// A sparse TSDF volume (8³-voxel blocks allocated near observed surfaces) that merges depth
 /// frames with noise weights and extracts a mesh by marching cubes.
@@ -65,13 +65,7 @@ impl PyTsdfVolume {
         py: Python<'_>,
         f: impl FnOnce(&TsdfVolume) -> T + Send,
     ) -> PyResult<T> {
-        compute(py, || {
-            self.state
-                .read()
-                .map(|s| f(&s.volume))
-                .map_err(|_| POISONED.to_string())
-        })
-        .map_err(value_error)
+        compute_read(py, &self.state, |s| f(&s.volume)).map_err(|_| value_error(POISONED))
     }
 }
 
@@ -144,9 +138,7 @@ impl PyTsdfVolume {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &camera)?;
-        let stats = compute(py, || -> Result<_, String> {
-            let mut state = self.state.write().map_err(|_| POISONED.to_string())?;
-            let state = &mut *state;
+        let stats = compute_write(py, &self.state, |state| -> Result<_, String> {
             if state.volume.frame_count() == 0 {
                 first_frame(state, &view, &camera)?;
             } else if state.sensor_weight
@@ -168,6 +160,8 @@ impl PyTsdfVolume {
                 .integrate(view, &camera.intrinsics, &pose)
                 .map_err(|e| e.to_string())
         })
+        .map_err(|_| POISONED.to_string())
+        .flatten()
         .map_err(value_error)?;
         Ok(stats.blocks_allocated)
     }

@@ -217,6 +217,75 @@ def test_python_threads_call_everything_at_once(kinect):
         sldepth.set_num_threads(None)
 
 
+_SHARED_OBJECT_CALLS = r"""
+import os, sys, threading, time
+import numpy as np
+import sldepth
+
+cam = sldepth.Camera.preset("kinect-v1")
+z = sldepth.simulate("three-planes", seed=3)[0]
+vol = sldepth.TsdfVolume()
+tracker = sldepth.Tracker(cam)
+errors = []
+threads = int(sys.argv[1])
+
+def calls(k, n):
+    for j in range(n):
+        p = np.eye(4)
+        p[0, 3] = 0.01 * k + 0.001 * j
+        vol.integrate(z, cam, p)
+        if j % 2 == 0:
+            tracker.track(z)
+            vol.extract_mesh()
+
+def work(k, ready):
+    try:
+        if ready is not None:
+            calls(k, 1)  # the thread's first call: its own pool takes the count in force
+            ready.wait()
+            ready.wait()  # now the count differs: calls go through the shared pool
+        calls(k, 4)
+    except BaseException as e:  # a Rust panic is a BaseException
+        errors.append(repr(e))
+
+ready = threading.Barrier(threads + 1) if threads == 2 else None
+ts = [threading.Thread(target=work, args=(k, ready), daemon=True) for k in range(threads)]
+for t in ts:
+    t.start()
+if ready is not None:
+    ready.wait()
+    sldepth.set_num_threads(3)
+    ready.wait()
+start = time.time()
+for t in ts:
+    t.join(timeout=max(0.1, 100 - (time.time() - start)))
+print("hung" if any(t.is_alive() for t in ts) else "done", errors, flush=True)
+os._exit(0)
+"""
+
+
+@pytest.mark.parametrize("threads", [2, 20])
+def test_threads_sharing_one_volume_and_tracker_never_deadlock(tmp_path, threads):
+    # A call used to take the object's lock inside the pool: a worker waiting for its parallel
+    # pieces ran another thread's queued call on the same object, which then waited for the lock
+    # its own thread held, for ever. Reached through the shared pools: two threads after
+    # `set_num_threads` changed the count, or more threads than own pools may start (8 per core).
+    # In a subprocess, so that a regression fails here instead of hanging the suite.
+    import subprocess
+    import sys
+
+    script = tmp_path / "shared.py"
+    script.write_text(_SHARED_OBJECT_CALLS)
+    out = subprocess.run(
+        [sys.executable, str(script), str(threads)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "done []", out.stdout + out.stderr
+
+
 def test_the_type_stubs_match_the_module():
     # The .pyi shipped in the wheel is what IDEs and type checkers see: every name it declares
     # exists, a stub @property is a data descriptor at runtime and a stub method is callable

@@ -248,7 +248,14 @@ pub fn run(args: Args) -> Result<()> {
         ("--slice-png", args.slice_png.as_deref()),
         ("--render-png", args.render_png.as_deref()),
     ])?;
-    check_range("--min-weight", f64::from(args.min_weight), 0.0..=1e30)?;
+    // Checked as the `f32` the option is parsed into (1e30 rounds up in `f32`: an `f64` bound
+    // refused the documented maximum).
+    if !(0.0..=1e30_f32).contains(&args.min_weight) {
+        bail!(
+            "--min-weight {}: must be a number from 0 to 1e30",
+            args.min_weight
+        );
+    }
     check_range("--slice-m", args.slice_m, -1e6..=1e6)?;
     if let Some(s) = args.input.depth_scale {
         check_depth_scale(s)?;

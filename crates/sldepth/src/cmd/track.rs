@@ -327,27 +327,32 @@ fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> Str
             "# fragment {world}: its own world frame (its first camera); not registered to the other fragments"
         );
     }
+    // Timestamps closer than a microsecond keep enough digits to stay distinct (the file is
+    // read back by `eval-traj`, which refuses a repeated timestamp).
+    let stamps: Vec<f64> = rows.iter().map(|(t, _)| *t).collect();
+    let stamp = sl_io::trajectory::timestamp_printer(&stamps);
     for (t, row) in rows {
+        let t = stamp(*t);
         match row {
             Row::Pose(p, f) => match pose_in(p, *f, world, fragments) {
                 None => {
-                    let _ = writeln!(s, "# {t:.6} in fragment {f}");
+                    let _ = writeln!(s, "# {t} in fragment {f}");
                 }
                 Some(p) => {
                     let tr = p.translation();
                     let q = p.rotation();
                     let _ = writeln!(
                         s,
-                        "{t:.6} {:.6} {:.6} {:.6} {:.7} {:.7} {:.7} {:.7}",
+                        "{t} {:.6} {:.6} {:.6} {:.7} {:.7} {:.7} {:.7}",
                         tr.x, tr.y, tr.z, q.i, q.j, q.k, q.w
                     );
                 }
             },
             Row::Lost(why) => {
-                let _ = writeln!(s, "# {t:.6} lost: {why}");
+                let _ = writeln!(s, "# {t} lost: {why}");
             }
             Row::Skipped(why) => {
-                let _ = writeln!(s, "# {t:.6} skipped: {why}");
+                let _ = writeln!(s, "# {t} skipped: {why}");
             }
         }
     }
@@ -523,6 +528,20 @@ pub fn run(args: Args) -> Result<()> {
     };
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let prefilter = args.prefilter;
+    // A camera the prefilter cannot serve (a baseline or focal length so extreme that its range
+    // kernel leaves the supported range) is the camera's fault, not every frame's: say so once,
+    // before any frame is read.
+    if let Some(f) = prefilter.filter_for(&camera.sensor) {
+        f.validate().with_context(|| {
+            format!(
+                "--prefilter {} for this camera (f = {} px, B = {} m, sigma_d = {} px); --prefilter none skips it",
+                prefilter.name(),
+                camera.sensor.focal_px,
+                camera.sensor.baseline_m,
+                camera.sensor.sigma_d_px
+            )
+        })?;
+    }
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
         bail!(
             "--new-fragment-after-s must be positive (inf: never), got {}",
