@@ -101,29 +101,35 @@ pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> 
 
 /// Decodes a 16-bit grey image into a buffer allocated here: a header within a raised budget
 /// (see [`Limits`]) whose pixels this process cannot address is an error
-/// ([`IoError::TooLarge`]), not an abort on allocation failure. The room is probed with
-/// `try_reserve_exact` and the buffer itself is zero-allocated (`vec!`, pages committed only as
-/// the decoder writes rows: a truncated file with a huge header touches little memory); the
-/// pixels go straight into the `u16` buffer of the result (native-endian samples, as
-/// `ImageDecoder::read_image` writes them).
+/// ([`IoError::TooLarge`], [`probe_room`]), not an abort on allocation failure. The buffer is
+/// zero-allocated (`vec!`: pages are committed only as the decoder writes rows, so a truncated
+/// file with a huge header touches little memory) and the pixels go straight into the `u16`
+/// buffer of the result (native-endian samples, as `ImageDecoder::read_image` writes them).
 fn read_l16(path: &Path, dec: impl ImageDecoder, limits: &Limits) -> Result<Image<u16>> {
     check_dimensions(path, &dec, limits)?;
     check_l16(path, dec.color_type())?;
     let (w, h) = dec.dimensions();
     let (w, h) = (w as usize, h as usize);
-    let n = w.saturating_mul(h);
-    let mut probe: Vec<u16> = Vec::new();
-    probe.try_reserve_exact(n).map_err(|_| {
-        IoError::too_large(
-            path,
-            format!("{w}x{h} pixels: not enough memory for the 16-bit image"),
-        )
-    })?;
-    drop(probe);
-    let mut px = vec![0u16; n];
+    probe_room(path, &dec)?;
+    let mut px = vec![0u16; w.saturating_mul(h)];
     dec.read_image(bytemuck::cast_slice_mut(&mut px))
         .map_err(|e| image_error(path, e))?;
     Image::from_vec(w, h, px).map_err(|e| IoError::core(path, None, e))
+}
+
+/// Fails with [`IoError::TooLarge`] when this process cannot allocate the decoded image the
+/// header announces (the decoder's own allocation would abort the process instead): an
+/// allocation of that size is tried and given back.
+fn probe_room(path: &Path, dec: &impl ImageDecoder) -> Result<()> {
+    let bytes = usize::try_from(dec.total_bytes()).unwrap_or(usize::MAX);
+    let mut probe: Vec<u8> = Vec::new();
+    probe.try_reserve_exact(bytes).map_err(|_| {
+        let (w, h) = dec.dimensions();
+        IoError::too_large(
+            path,
+            format!("{w}x{h} pixels: not enough memory for the image"),
+        )
+    })
 }
 
 /// Checks the size a decoder read from the header against [`Limits::max_pixels`], before
@@ -165,6 +171,7 @@ pub(crate) fn decode_rgb8(path: &Path, limits: &Limits) -> Result<Image<[u8; 3]>
     reader.limits(limits.image_limits());
     let dec = reader.into_decoder().map_err(|e| image_error(path, e))?;
     check_dimensions(path, &dec, limits)?;
+    probe_room(path, &dec)?;
     let img = DynamicImage::from_decoder(dec)
         .map_err(|e| image_error(path, e))?
         .into_rgb8();
