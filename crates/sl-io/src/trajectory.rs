@@ -181,12 +181,11 @@ pub fn read_tum_trajectory_with_limits(
 /// one that [`read_tum_trajectory`] refuses (a repeated timestamp) — then with 9, and when even
 /// those collide in the shortest form that reads back exactly.
 pub fn timestamp_printer(ts: &[f64]) -> impl Fn(f64) -> String + Copy + use<> {
-    let collide = |print: fn(f64) -> String| {
-        let mut v: Vec<f64> = ts.iter().copied().filter(|t| t.is_finite()).collect();
-        v.sort_by(f64::total_cmp);
-        v.dedup();
-        v.windows(2).any(|w| print(w[0]) == print(w[1]))
-    };
+    // Distinct values in order: only neighbours can print alike (rounding is monotonic).
+    let mut v: Vec<f64> = ts.iter().copied().filter(|t| t.is_finite()).collect();
+    v.sort_by(f64::total_cmp);
+    v.dedup();
+    let collide = |print: fn(f64) -> String| v.windows(2).any(|w| print(w[0]) == print(w[1]));
     let micro: fn(f64) -> String = |t| format!("{t:.6}");
     let nano: fn(f64) -> String = |t| format!("{t:.9}");
     let exact: fn(f64) -> String = |t| format!("{t:e}");
