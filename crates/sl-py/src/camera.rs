@@ -57,14 +57,14 @@ impl PyCamera {
     #[pyo3(signature = (width, height, fx, fy, cx, cy, *, baseline_m = 0.075, subpixel = 8, sigma_d_px = sl_core::sensor::DEFAULT_SIGMA_D_PX))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        width: usize,
-        height: usize,
+        #[pyo3(from_py_with = crate::ints::int)] width: usize,
+        #[pyo3(from_py_with = crate::ints::int)] height: usize,
         fx: f64,
         fy: f64,
         cx: f64,
         cy: f64,
         baseline_m: f64,
-        subpixel: u32,
+        #[pyo3(from_py_with = crate::ints::int)] subpixel: u32,
         sigma_d_px: f64,
     ) -> PyResult<Self> {
         let intrinsics = Intrinsics::new(width, height, fx, fy, cx, cy).map_err(value_error)?;

@@ -34,7 +34,7 @@ pub(crate) fn filter<'py>(
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     method: &str,
-    radius: Option<usize>,
+    #[pyo3(from_py_with = crate::ints::opt_int)] radius: Option<usize>,
     sigma_s: Option<f64>,
     k_per_m: Option<f64>,
     sigma_d_m: Option<f64>,

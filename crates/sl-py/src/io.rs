@@ -32,7 +32,7 @@ pub(crate) fn read_depth<'py>(
     path: PathBuf,
     depth_scale: Option<f64>,
     format: Option<&str>,
-    max_memory_bytes: Option<u64>,
+    #[pyo3(from_py_with = crate::ints::opt_int)] max_memory_bytes: Option<u64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let mut opts = ReadConfig::default();
     opts.format = parse_format(format)?;

@@ -27,6 +27,7 @@ mod arrays;
 mod camera;
 mod errors;
 mod filter;
+mod ints;
 mod io;
 mod noise;
 mod noise_stats;

@@ -91,7 +91,7 @@ type SimResult<'py> = (
 pub(crate) fn simulate<'py>(
     py: Python<'py>,
     scene: &str,
-    seed: u64,
+    #[pyo3(from_py_with = crate::ints::int)] seed: u64,
     camera: Option<&PyCamera>,
     noise: &str,
 ) -> PyResult<SimResult<'py>> {

@@ -34,7 +34,7 @@ pub(crate) fn noise_stats<'py>(
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     labels: Option<PyReadonlyArray2<'py, u16>>,
-    min_plane_pixels: usize,
+    #[pyo3(from_py_with = crate::ints::int)] min_plane_pixels: usize,
     depth_scale: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let camera = camera_or_default(camera);

@@ -212,7 +212,7 @@ pub(crate) fn extract_planes<'py>(
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     threshold_px: Option<f64>,
-    min_pixels: Option<usize>,
+    #[pyo3(from_py_with = crate::ints::opt_int)] min_pixels: Option<usize>,
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
@@ -250,7 +250,7 @@ pub(crate) fn explain_planes<'py>(
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
     threshold_px: Option<f64>,
-    min_pixels: Option<usize>,
+    #[pyo3(from_py_with = crate::ints::opt_int)] min_pixels: Option<usize>,
     log_threshold_px: Option<f64>,
     log_sigma_px: Option<f64>,
     bend_px_per_px2: Option<f64>,
@@ -258,7 +258,7 @@ pub(crate) fn explain_planes<'py>(
     split_creases: Option<bool>,
     refine_seams: Option<bool>,
     estimate_noise: Option<bool>,
-    min_region_pixels: Option<usize>,
+    #[pyo3(from_py_with = crate::ints::opt_int)] min_region_pixels: Option<usize>,
     depth_scale: Option<f64>,
 ) -> PyResult<Explained<'py>> {
     let params = PlaneParams {

@@ -232,7 +232,9 @@ pub(crate) fn compute_read<S: Send + Sync, T: Send>(
 /// volume's meshes, raycasts and slices run side by side).
 #[pyfunction]
 #[pyo3(signature = (n = None))]
-pub(crate) fn set_num_threads(n: Option<usize>) -> PyResult<()> {
+pub(crate) fn set_num_threads(
+    #[pyo3(from_py_with = crate::ints::opt_int)] n: Option<usize>,
+) -> PyResult<()> {
     let threads = match n {
         None | Some(0) => Threads::Default,
         Some(n) if n > 1024 => return Err(value_error(format!("{n} threads is too many"))),

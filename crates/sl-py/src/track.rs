@@ -406,7 +406,11 @@ impl PyTracker {
     /// (default) the current one, another index a finished fragment's (extracted when it
     /// finished; a fragment that rejoined the one before is in that one's world frame).
     #[pyo3(signature = (fragment = None))]
-    fn extract_mesh(&self, py: Python<'_>, fragment: Option<usize>) -> PyResult<PyMesh> {
+    fn extract_mesh(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = crate::ints::opt_int)] fragment: Option<usize>,
+    ) -> PyResult<PyMesh> {
         let mesh = compute_locked(py, &self.state, |state| -> Result<_, String> {
             match fragment {
                 Some(f) if f != state.rec.fragment() => state

@@ -80,7 +80,7 @@ impl PyTsdfVolume {
         weight: &str,
         max_depth_m: f64,
         min_depth_m: f64,
-        memory_budget_bytes: usize,
+        #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
         depth_lookup: &str,
         truncation: &str,
         trunc_sigmas: f64,
@@ -247,7 +247,7 @@ impl PyTsdfVolume {
         py: Python<'py>,
         axis: &str,
         coord_m: f64,
-        pixels_per_voxel: usize,
+        #[pyo3(from_py_with = crate::ints::int)] pixels_per_voxel: usize,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let spec = SliceSpec {
             pixels_per_voxel,

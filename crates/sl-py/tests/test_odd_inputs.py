@@ -31,6 +31,32 @@ def test_cameras_beyond_any_frame_budget_or_sensor_are_refused():
     assert cam.sigma_z(2.0) > 0
 
 
+@pytest.mark.parametrize("value", [-1, -(2**70), 2**64, 2**200])
+def test_integers_out_of_range_are_valueerrors_naming_the_range(small_cam, wall, value):
+    # pyo3 raised OverflowError (not a ValueError) for a negative or huge count or size.
+    calls = [
+        lambda: sldepth.Camera(value, 48, 58.0, 58.0, 31.5, 23.5),
+        lambda: sldepth.Camera(64, 48, 58.0, 58.0, 31.5, 23.5, subpixel=value),
+        lambda: sldepth.filter(wall, small_cam, radius=value),
+        lambda: sldepth.simulate("three-planes", seed=value),
+        lambda: sldepth.noise_stats(wall, small_cam, min_plane_pixels=value),
+        lambda: sldepth.extract_planes(wall, small_cam, min_pixels=value),
+        lambda: sldepth.explain_planes(wall, small_cam, min_region_pixels=value),
+        lambda: sldepth.TsdfVolume(memory_budget_bytes=value),
+        lambda: sldepth.TsdfVolume().slice("z", 1.0, pixels_per_voxel=value),
+        lambda: sldepth.read_depth("does-not-matter.png", max_memory_bytes=value),
+        lambda: sldepth.Tracker(small_cam).extract_mesh(fragment=value),
+        lambda: sldepth.set_num_threads(value),
+    ]
+    for call in calls:
+        with pytest.raises(sldepth.SlDepthError, match=r"expected an integer in 0\.\.="):
+            call()
+    # The check is the conversion's alone: in range, NumPy integers pass, floats stay TypeErrors.
+    assert sldepth.filter(wall, small_cam, radius=np.uint8(2)).shape == wall.shape
+    with pytest.raises(TypeError):
+        sldepth.filter(wall, small_cam, radius=2.0)
+
+
 def test_arrays_numpy_hands_over_in_any_layout_read_alike(small_cam, wall):
     expected = sldepth.filter(wall, small_cam)
     buf = np.zeros(wall.size * 4 + 1, np.uint8)

@@ -321,6 +321,34 @@ fn track_goes_on_in_a_new_fragment_and_writes_it_beside_the_first() {
     assert!(!out.status.success());
 }
 
+/// A frame of another size than the sequence's camera is the same error under every layout:
+/// under `--tum` the TUM preset's lens model used to refuse it first, and the frame was skipped
+/// as unreadable while `--7scenes` and `--o3d` stopped.
+#[test]
+fn track_stops_at_a_frame_of_another_size_with_a_lens_model_too() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 3);
+    let list = std::fs::read_to_string(seq.join("depth.txt")).unwrap();
+    let second = list.lines().filter(|l| !l.starts_with('#')).nth(1).unwrap();
+    let name = second.split_whitespace().nth(1).unwrap();
+    let odd = sl_core::DepthImage::from_image(sl_core::Image::from_fn(320, 200, |_, _| 2.0f32));
+    write_depth(seq.join(name), &odd, &DepthEncoding::tum()).unwrap();
+    let traj = tmp.path().join("traj.txt");
+    // No `--camera`: the folder's TUM preset, with its lens model (`--lens auto`).
+    let out = sldepth(&[
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--output",
+        traj.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("320x200 but the camera is 640x480"), "{err}");
+    assert!(!traj.exists());
+}
+
 #[test]
 fn track_skips_a_missing_frame_and_rejects_unordered_timestamps() {
     let tmp = tempfile::tempdir().unwrap();

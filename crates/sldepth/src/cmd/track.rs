@@ -612,6 +612,21 @@ pub fn run(args: Args) -> Result<()> {
                 .map(|l| l.depth)
                 .map_err(anyhow::Error::from),
         };
+        // A frame of another size is a wrong camera, not an unreadable frame: the same error
+        // whatever the layout, before the lens model or the prefilter would refuse it as a
+        // skip.
+        if let Ok(d) = &raw
+            && (d.width() != k.width || d.height() != k.height)
+        {
+            bail!(
+                "{}: depth map is {}x{} but the camera is {}x{} (every frame of a sequence has the camera's size; --camera names the camera)",
+                f.depth_path.display(),
+                d.width(),
+                d.height(),
+                k.width,
+                k.height
+            );
+        }
         let depth = match raw
             .and_then(|d| match &undistort {
                 Some(u) => Ok(u.apply(&d)?),
@@ -645,16 +660,6 @@ pub fn run(args: Args) -> Result<()> {
                 continue;
             }
         };
-        if depth.width() != k.width || depth.height() != k.height {
-            bail!(
-                "{}: depth map is {}x{} but the camera is {}x{} (every frame of a sequence has the camera's size; --camera names the camera)",
-                f.depth_path.display(),
-                depth.width(),
-                depth.height(),
-                k.width,
-                k.height
-            );
-        }
         // The tracker is told how many frame intervals passed: from the timestamps of a TUM
         // recording (frames its driver dropped), else one per frame of the folder, so an
         // unreadable frame skipped above is a longer step rather than a surprise.
