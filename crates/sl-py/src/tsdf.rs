@@ -263,11 +263,10 @@ impl PyTsdfVolume {
     /// for the truncation band (1.0 before the first frame, with ``estimate_noise=False``, with a
     /// fixed band, or when the frame is within its model).
     #[getter]
-    fn noise_scale(&self) -> PyResult<f64> {
-        self.state
-            .read()
-            .map(|s| s.noise_scale)
-            .map_err(|_| value_error(POISONED))
+    fn noise_scale(&self, py: Python<'_>) -> PyResult<f64> {
+        // Waited for with the GIL released, as every other call on the volume: an integration
+        // holds the lock for its whole frame.
+        compute_read(py, &self.state, |s| s.noise_scale).map_err(|_| value_error(POISONED))
     }
 
     /// The truncation band (metres) of an observation at depth ``z_m`` metres: ``trunc_m`` with
