@@ -334,8 +334,14 @@ fn track_stops_at_a_frame_of_another_size_with_a_lens_model_too() {
     let name = second.split_whitespace().nth(1).unwrap();
     let odd = sl_core::DepthImage::from_image(sl_core::Image::from_fn(320, 200, |_, _| 2.0f32));
     write_depth(seq.join(name), &odd, &DepthEncoding::tum()).unwrap();
-    let traj = tmp.path().join("traj.txt");
     // No `--camera`: the folder's TUM preset, with its lens model (`--lens auto`).
+    let err = track_tum_fails(&seq, &tmp.path().join("traj.txt"));
+    assert!(err.contains("320x200 but the camera is 640x480"), "{err}");
+}
+
+/// Runs `sldepth track --tum seq --output traj`, checks that it fails without writing `traj`,
+/// and returns its standard error.
+fn track_tum_fails(seq: &Path, traj: &Path) -> String {
     let out = sldepth(&[
         "track",
         "--tum",
@@ -343,10 +349,10 @@ fn track_stops_at_a_frame_of_another_size_with_a_lens_model_too() {
         "--output",
         traj.to_str().unwrap(),
     ]);
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(!out.status.success(), "{err}");
-    assert!(err.contains("320x200 but the camera is 640x480"), "{err}");
-    assert!(!traj.exists());
+    assert!(!traj.exists(), "{err}");
+    err
 }
 
 #[test]
@@ -608,16 +614,7 @@ fn track_refuses_an_unreadable_sequence_and_outputs_over_its_inputs() {
         let bytes = std::fs::read(&p).unwrap();
         std::fs::write(&p, &bytes[..100]).unwrap();
     }
-    let out = sldepth(&[
-        "track",
-        "--tum",
-        seq.to_str().unwrap(),
-        "--output",
-        traj.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "{err}");
+    let err = track_tum_fails(&seq, &traj);
     assert!(err.contains("none of the 3 frames could be read"), "{err}");
     assert!(err.contains("truncated"), "{err}");
-    assert!(!traj.exists());
 }
