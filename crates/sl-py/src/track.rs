@@ -319,8 +319,7 @@ impl PyTracker {
             state.last_weakest_sigma_m = step.result.weakest_sigma_m;
             Ok(step.result)
         })
-        .map_err(|_| POISONED.to_string())
-        .flatten()
+        .map_err(|_| value_error(POISONED))?
         .map_err(value_error)?;
         Ok((
             pose_array(py, &result.pose.to_matrix())?,
@@ -431,8 +430,7 @@ impl PyTracker {
                     .map_err(|e| e.to_string()),
             }
         })
-        .map_err(|_| POISONED.to_string())
-        .flatten()
+        .map_err(|_| value_error(POISONED))?
         .map_err(value_error)?;
         PyMesh::from_mesh(py, mesh)
     }

@@ -160,8 +160,7 @@ impl PyTsdfVolume {
                 .integrate(view, &camera.intrinsics, &pose)
                 .map_err(|e| e.to_string())
         })
-        .map_err(|_| POISONED.to_string())
-        .flatten()
+        .map_err(|_| value_error(POISONED))?
         .map_err(value_error)?;
         Ok(stats.blocks_allocated)
     }
