@@ -373,6 +373,63 @@ fn model_reference_renders_at_its_scale() {
     );
 }
 
+/// Where the frame just fused has no depth, the rays start at the previous rendering's hits
+/// seen from the new pose: they find the surfaces a plain raycast finds. The second frame is
+/// fused with its left half blanked (a hole the width of half the image), so every ray there
+/// is hinted by the warp, or by nothing where the warp leaves a gap.
+#[test]
+fn rays_hinted_by_the_last_rendering_find_the_plain_raycast_surfaces() {
+    let (cam, truth, frames) = sequence(3, 11);
+    let k = cam.intrinsics;
+    let mut tcfg = TsdfConfig::default();
+    tcfg.voxel_m = 0.01;
+    tcfg.trunc_m = 0.05;
+    let mut volume = TsdfVolume::new(tcfg).unwrap();
+    let scale = ModelReference::default_scale(&cam);
+    let mut warped = ModelReference::new(&k, scale, RaycastConfig::default()).unwrap();
+    volume.integrate(&frames[0], &k, &truth[0]).unwrap();
+    warped
+        .update_from_frame(&volume, &truth[0], &cam.sensor, &frames[0], &k)
+        .unwrap();
+    let mut half = frames[1].clone();
+    let w = half.width();
+    for row in half.data_mut().chunks_exact_mut(w) {
+        row[..w / 2].fill(0.0);
+    }
+    volume.integrate(&half, &k, &truth[1]).unwrap();
+    warped
+        .update_from_frame(&volume, &truth[1], &cam.sensor, &half, &k)
+        .unwrap();
+    let mut plain = ModelReference::new(&k, scale, RaycastConfig::default()).unwrap();
+    plain.update(&volume, &truth[1], &cam.sensor).unwrap();
+    let (a, b) = (warped.raycast(), plain.raycast());
+    let rw = a.width;
+    // Per half (left: hinted by the warp; right: by the frame, as before): pixels where one
+    // raycast hits and the other does not, or both hit more than the hinted march's
+    // documented reach apart (the frame's band, 3σ_Z, plus two voxels).
+    let mut left_hits = 0usize;
+    let mut differ = [0usize; 2];
+    for (i, (za, zb)) in a.depth.data().iter().zip(b.depth.data()).enumerate() {
+        let half = usize::from(i % rw >= rw / 2);
+        if half == 0 && *zb > 0.0 {
+            left_hits += 1;
+        }
+        let reach = 3.0 * cam.sensor.sigma_z(f64::from(*zb)) + 2.0 * tcfg.voxel_m;
+        if (*za > 0.0) != (*zb > 0.0) || f64::from((za - zb).abs()) > reach {
+            differ[half] += 1;
+        }
+    }
+    let half_pixels = a.depth.data().len() / 2;
+    assert!(left_hits * 2 > half_pixels, "{left_hits}");
+    // The rays the warp hints change no more surfaces than the rays the frame hints (half as
+    // many again, and 0.5 % of the half, for the two halves' different content).
+    assert!(
+        differ[0] <= differ[1] * 3 / 2 + half_pixels / 200,
+        "{differ:?} of {half_pixels} per half"
+    );
+    assert!(differ[1] * 50 < half_pixels, "{differ:?}");
+}
+
 /// `finest_level` stops the coarse-to-fine alignment at a coarser level: rejected unless it
 /// is below `levels`; at level 1 (half resolution) the simulated sequence is still tracked
 /// frame by frame, within a few millimetres of the truth (less accurately than at full

@@ -103,7 +103,10 @@ impl ModelReference {
     /// ([`TsdfVolume::raycast_hinted_into`], with the nearest of the frame's depths that fall
     /// in each reference pixel), which skips most of their march through empty space. On the
     /// real sequences the raycast is about 30 % cheaper and the trajectories as accurate
-    /// (docs/bench/track.md).
+    /// (docs/bench/track.md). Where the frame has no depth (its border, dark or grazing
+    /// surfaces, occlusion bands), the hint is where the previous rendering's hits are seen
+    /// from `pose`: the model's surface there barely moves in one frame, and those rays took
+    /// over half of the march on TUM fr1/rpy (docs/bench/track.md, session 71).
     ///
     /// # Errors
     /// As [`ModelReference::update`], and `depth` not of the camera's size.
@@ -124,6 +127,9 @@ impl ModelReference {
             });
         }
         nearest_per_pixel(depth, &mut self.hint);
+        if self.rendered {
+            warp_into_holes(&self.raycast, pose, &self.intrinsics, &mut self.hint);
+        }
         self.render(volume, pose, sensor, true)
     }
 
@@ -199,6 +205,46 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
         });
 }
 
+/// Where `hint` has no depth (0), the nearest depth at which `last`'s hits (world points of
+/// the previous rendering, at the same intrinsics `k`) are seen from `pose`, each at its nearest
+/// pixel. The camera moves little between two frames, so a surface the model showed there
+/// last time is where a ray of a pixel the frame left empty (its border, a dark or
+/// grazing surface, an occlusion band) meets the model now; the ray starts just before it
+/// instead of marching its whole range.
+fn warp_into_holes(last: &Raycast, pose: &CameraToWorld, k: &Intrinsics, hint: &mut DepthImage) {
+    let (w, h) = (hint.width(), hint.height());
+    if last.width != w || last.height != h {
+        return;
+    }
+    let world_to_camera = pose.inverse();
+    let iso = world_to_camera.isometry();
+    let r = iso.rotation.to_rotation_matrix().into_inner().cast::<f32>();
+    let t = iso.translation.vector.cast::<f32>();
+    let (fx, fy, cx, cy) = (k.fx as f32, k.fy as f32, k.cx as f32, k.cy as f32);
+    let out = hint.data_mut();
+    // Negative: a warped depth (to tell it from the frame's own hints while taking minima).
+    for (p, &z) in last.points.iter().zip(last.depth.data()) {
+        if z <= 0.0 {
+            continue;
+        }
+        let q = r * p.coords + t;
+        if q.z.is_nan() || q.z <= 0.0 {
+            continue;
+        }
+        // The nearest pixel (`u + 0.5` truncated, for `u > −0.5`; NaN fails the tests).
+        let (u, v) = (fx * q.x / q.z + cx + 0.5, fy * q.y / q.z + cy + 0.5);
+        let inside = u > 0.0 && v > 0.0 && u < w as f32 && v < h as f32;
+        if let Some(o) = out.get_mut(v as usize * w + u as usize).filter(|_| inside)
+            && (*o == 0.0 || (*o < 0.0 && -q.z > *o))
+        {
+            *o = -q.z;
+        }
+    }
+    for o in out.iter_mut() {
+        *o = o.abs();
+    }
+}
+
 /// The source indices `i` (of `n_in`) with `⌊i·n_out/n_in⌋ = o`: a contiguous run, empty when
 /// none maps there.
 fn source_run(o: usize, n_in: usize, n_out: usize) -> std::ops::Range<usize> {
@@ -210,6 +256,7 @@ fn source_run(o: usize, n_in: usize, n_out: usize) -> std::ops::Range<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sl_core::nalgebra::Point3;
 
     /// The default rendering has the same pixels whatever the sensor's decimation: one per
     /// 4×4 sensor pixels, never finer than the camera's own.
@@ -231,6 +278,53 @@ mod tests {
             ModelReference::default_scale(&vga.resampled(0.125).unwrap()),
             1.0
         );
+    }
+
+    /// The previous rendering's hits hint only the pixels the frame left empty, each with the
+    /// nearest of the hits seen there from the new pose; hits behind the camera, outside the
+    /// image or not finite hint nothing, and a rendering of another size is not used.
+    #[test]
+    fn warped_hits_fill_only_the_frame_holes_with_the_nearest() {
+        let k = Intrinsics::new(4, 3, 4.0, 4.0, 1.5, 1.0).unwrap();
+        let mut last = Raycast::default();
+        last.width = 4;
+        last.height = 3;
+        // Hits in world coordinates (the previous camera at the origin); the new camera is
+        // 0.25 m along x, so a hit at depth z moves `4 · 0.25 / z` px to the left, and lands on
+        // the nearest pixel (`u = 4·x/z + 1.5`, `v = 4·y/z + 1`).
+        let pts = [
+            Point3::new(0.0f32, 0.0, 2.0),   // u = 1.0: pixel (1, 1) at 2 m
+            Point3::new(0.25, 0.0, 1.0),     // u = 1.5: (2, 1) at 1 m
+            Point3::new(0.75, 0.0, 2.0),     // u = 2.5: (3, 1) at 2 m
+            Point3::new(0.5, 0.0, 3.0),      // u = 1.83: (2, 1) at 3 m, behind the 1 m hit
+            Point3::new(0.0, 0.0, -1.0),     // behind the camera
+            Point3::new(10.0, 0.0, 1.0),     // outside the image
+            Point3::new(f32::NAN, 0.0, 1.0), // not finite
+            Point3::new(0.25, -0.5, 2.0),    // (2, 0), where the frame has a depth
+        ];
+        let mut depth = vec![0.0f32; 12];
+        let mut points = vec![Point3::new(f32::NAN, f32::NAN, f32::NAN); 12];
+        for (i, p) in pts.iter().enumerate() {
+            depth[i] = 1.0;
+            points[i] = *p;
+        }
+        last.depth = DepthImage::from_vec(4, 3, depth).unwrap();
+        last.points = points;
+        let pose =
+            CameraToWorld::from_isometry(sl_core::nalgebra::Isometry3::translation(0.25, 0.0, 0.0));
+        let mut hint = DepthImage::invalid(4, 3);
+        hint.data_mut()[2] = 1.7;
+        warp_into_holes(&last, &pose, &k, &mut hint);
+        let mut want = [0.0f32; 12];
+        want[2] = 1.7;
+        want[4 + 1] = 2.0;
+        want[4 + 2] = 1.0;
+        want[4 + 3] = 2.0;
+        assert_eq!(hint.data(), &want[..]);
+        // Another size: nothing is warped.
+        let mut other = DepthImage::invalid(2, 2);
+        warp_into_holes(&last, &pose, &k, &mut other);
+        assert!(other.data().iter().all(|&z| z == 0.0));
     }
 
     /// Each reference pixel gets the nearest valid depth of the frame pixels that fall in it,
