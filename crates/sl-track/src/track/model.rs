@@ -106,7 +106,9 @@ impl ModelReference {
     /// (docs/bench/track.md). Where the frame has no depth (its border, dark or grazing
     /// surfaces, occlusion bands), the hint is where the previous rendering's hits are seen
     /// from `pose`: the model's surface there barely moves in one frame, and those rays took
-    /// over half of the march on TUM fr1/rpy (docs/bench/track.md, session 71).
+    /// over half of the march on TUM fr1/rpy (docs/bench/track.md, session 71). So render
+    /// another volume (a new fragment, a reset model) with a new `ModelReference`: the hints
+    /// would come from the old volume's hits.
     ///
     /// # Errors
     /// As [`ModelReference::update`], and `depth` not of the camera's size.
@@ -210,7 +212,11 @@ fn nearest_per_pixel(depth: &DepthImage, out: &mut DepthImage) {
 /// pixel. The camera moves little between two frames, so a surface the model showed there
 /// last time is where a ray of a pixel the frame left empty (its border, a dark or
 /// grazing surface, an occlusion band) meets the model now; the ray starts just before it
-/// instead of marching its whole range.
+/// instead of marching its whole range. As with any hint, a hint that is wrong costs steps
+/// (the ray marches again from the near end), except one more than a band behind the surface
+/// the ray should find: a model surface the previous view did not show and that now hides the
+/// warped one would be passed through there (the frame has no depth to say otherwise).
+/// [`crate::Reconstruction`] gives every fragment (every volume) its own reference.
 fn warp_into_holes(last: &Raycast, pose: &CameraToWorld, k: &Intrinsics, hint: &mut DepthImage) {
     let (w, h) = (hint.width(), hint.height());
     if last.width != w || last.height != h {
