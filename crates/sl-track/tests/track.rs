@@ -73,6 +73,15 @@ fn errors(truth: &[CameraToWorld], est: &[CameraToWorld]) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// An empty volume of 1 cm voxels with a fixed 5 cm band: coarse enough for the small
+/// simulated sequences to fuse and render quickly.
+fn coarse_volume() -> TsdfVolume {
+    let mut cfg = TsdfConfig::default();
+    cfg.voxel_m = 0.01;
+    cfg.trunc_m = 0.05;
+    TsdfVolume::new(cfg).unwrap()
+}
+
 /// Tracks the frames; with `model` against the fused volume's raycast, else frame to frame.
 fn track(
     cam: &Camera,
@@ -82,10 +91,7 @@ fn track(
 ) -> (Vec<CameraToWorld>, Vec<TrackStatus>) {
     let k: Intrinsics = cam.intrinsics;
     let mut tracker = Tracker::new(*cam, cfg).unwrap();
-    let mut tcfg = TsdfConfig::default();
-    tcfg.voxel_m = 0.01;
-    tcfg.trunc_m = 0.05;
-    let mut volume = TsdfVolume::new(tcfg).unwrap();
+    let mut volume = coarse_volume();
     let mut reference = ModelReference::new(
         &k,
         ModelReference::default_scale(cam),
@@ -334,10 +340,7 @@ fn model_reference_renders_at_its_scale() {
             "{bad}"
         );
     }
-    let mut tcfg = TsdfConfig::default();
-    tcfg.voxel_m = 0.01;
-    tcfg.trunc_m = 0.05;
-    let mut volume = TsdfVolume::new(tcfg).unwrap();
+    let mut volume = coarse_volume();
     volume.integrate(&frames[0], &k, &truth[0]).unwrap();
     let mut poses = Vec::new();
     for scale in [1.0, 0.5] {
@@ -381,10 +384,7 @@ fn model_reference_renders_at_its_scale() {
 fn rays_hinted_by_the_last_rendering_find_the_plain_raycast_surfaces() {
     let (cam, truth, frames) = sequence(3, 11);
     let k = cam.intrinsics;
-    let mut tcfg = TsdfConfig::default();
-    tcfg.voxel_m = 0.01;
-    tcfg.trunc_m = 0.05;
-    let mut volume = TsdfVolume::new(tcfg).unwrap();
+    let mut volume = coarse_volume();
     let scale = ModelReference::default_scale(&cam);
     let mut warped = ModelReference::new(&k, scale, RaycastConfig::default()).unwrap();
     volume.integrate(&frames[0], &k, &truth[0]).unwrap();
@@ -414,7 +414,7 @@ fn rays_hinted_by_the_last_rendering_find_the_plain_raycast_surfaces() {
         if half == 0 && *zb > 0.0 {
             left_hits += 1;
         }
-        let reach = 3.0 * cam.sensor.sigma_z(f64::from(*zb)) + 2.0 * tcfg.voxel_m;
+        let reach = 3.0 * cam.sensor.sigma_z(f64::from(*zb)) + 2.0 * volume.params().voxel_m;
         if (*za > 0.0) != (*zb > 0.0) || f64::from((za - zb).abs()) > reach {
             differ[half] += 1;
         }
