@@ -9,7 +9,7 @@ use sl_core::Intrinsics;
 
 use super::RaycastConfig;
 use super::occupancy::{Occupancy, SUPER_SHIFT};
-use super::sampler::{Sampler, floor_i32, frac};
+use super::sampler::{Sampler, base_voxel, frac};
 use crate::error::{Result, TsdfError};
 use crate::volume::{BLOCK_SIDE, TsdfVolume};
 
@@ -249,10 +249,9 @@ impl RayFrame {
             return Some(None);
         }
         let g = self.at(ray, t);
-        if !g.iter().all(|c| c.is_finite() && c.abs() < 1.0e9) {
+        let Some(base) = base_voxel(g) else {
             return Some(None);
-        }
-        let base = g.map(floor_i32);
+        };
         let b = base.map(|c| c >> 3);
         let Some(blk) = s.block(b) else {
             // No sample whose base voxel is in this block is observed: jump to its exit, or to

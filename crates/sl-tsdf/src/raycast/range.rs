@@ -4,8 +4,6 @@
 //! tile's interval, so the empty space between the camera and the first block, and the
 //! unallocated space beyond the last, cost nothing.
 
-use std::sync::atomic::{AtomicU32, Ordering};
-
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use sl_core::Intrinsics;
@@ -14,11 +12,17 @@ use super::march::RayFrame;
 use crate::error::{Result, TsdfError};
 use crate::hash::unpack;
 use crate::volume::{BLOCK_SIDE, TsdfVolume};
+use crate::whole::{ceil_index, floor_index};
 
 /// Per-tile depth intervals, reused across frames (cloning gives an empty one: it is scratch
 /// space, not a result).
 #[derive(Debug, Default)]
-pub(super) struct Tiles(Vec<AtomicU32>);
+pub(super) struct Tiles {
+    /// Per tile: the nearest and the farthest depth (metres, `f32` bit patterns).
+    ranges: Vec<u32>,
+    /// The same for the blocks of one piece of the block list each; merged into `ranges`.
+    pieces: Vec<Vec<u32>>,
+}
 
 impl Clone for Tiles {
     fn clone(&self) -> Self {
@@ -29,6 +33,16 @@ impl Clone for Tiles {
 /// Tile edge, pixels.
 pub(super) const TILE: usize = 8;
 
+/// Pieces of the block list per thread of the pool (a little slack for the uneven cost of
+/// culled and projected blocks), and the fewest blocks worth a piece of their own.
+const PIECES_PER_THREAD: usize = 2;
+const MIN_BLOCKS_PER_PIECE: usize = 512;
+/// Most pieces (each holds a tile grid: 38 KB at 640×480).
+const MAX_PIECES: usize = 64;
+
+/// The interval of a tile no block covers (`lo > hi`).
+const EMPTY: [u32; 2] = [0x7f80_0000, 0]; // [+∞, 0.0] as bits
+
 /// Tiles per row of an image `width` pixels wide.
 fn tiles_x(width: usize) -> usize {
     width.div_ceil(TILE)
@@ -36,51 +50,81 @@ fn tiles_x(width: usize) -> usize {
 
 /// Fills `tiles` (two `f32` bit patterns per tile: nearest and farthest depth, metres) with the
 /// depth intervals of the allocated blocks seen by `frame` (made with `k`) within its depth
-/// range. Depths are positive, so their bit patterns order like the values and the parallel
-/// updates are atomic integer min / max.
+/// range. Depths are positive, so their bit patterns order like the values. The block list is
+/// cut into a few pieces, one task each on the caller's pool with a tile grid of its own (no
+/// atomic updates, no cache line shared between threads), and the grids are merged: minima
+/// and maxima do not depend on the order, so neither does the result on the number of threads.
 pub(super) fn tile_ranges(
     vol: &TsdfVolume,
     frame: &RayFrame,
     k: &Intrinsics,
     tiles: &mut Tiles,
 ) -> Result<()> {
-    let tiles = &mut tiles.0;
-    let (tx, ty) = (tiles_x(k.width), k.height.div_ceil(TILE));
-    let n = 2 * tx * ty;
-    if tiles.len() != n {
-        tiles.clear();
-        tiles
-            .try_reserve_exact(n)
-            .map_err(|_| TsdfError::OutOfMemory("raycast tiles"))?;
-        tiles.resize_with(n, || AtomicU32::new(0));
+    let tx = tiles_x(k.width);
+    let n = 2 * tx * k.height.div_ceil(TILE);
+    let keys = vol.keys();
+    let pieces = (rayon::current_num_threads() * PIECES_PER_THREAD)
+        .min(keys.len().div_ceil(MIN_BLOCKS_PER_PIECE))
+        .clamp(1, MAX_PIECES);
+    let grid = |v: &mut Vec<u32>| -> Result<()> {
+        if v.len() != n {
+            v.clear();
+            v.try_reserve_exact(n)
+                .map_err(|_| TsdfError::OutOfMemory("raycast tiles"))?;
+            v.resize(n, 0);
+        }
+        Ok(())
+    };
+    grid(&mut tiles.ranges)?;
+    if tiles.pieces.len() < pieces {
+        tiles.pieces.resize_with(pieces, Vec::new);
     }
-    let empty_lo = f32::INFINITY.to_bits();
-    for pair in tiles.chunks_exact_mut(2) {
-        *pair[0].get_mut() = empty_lo;
-        *pair[1].get_mut() = 0;
+    for piece in &mut tiles.pieces[..pieces] {
+        grid(piece)?;
     }
     let view = BlockView::new(frame, k);
-    let tiles: &[AtomicU32] = tiles;
-    let update = |i0: usize, i1: usize, j0: usize, j1: usize, lo: f32, hi: f32| {
-        for j in j0..=j1 {
-            for i in i0..=i1 {
-                let t = 2 * (j * tx + i);
-                tiles[t].fetch_min(lo.to_bits(), Ordering::Relaxed);
-                tiles[t + 1].fetch_max(hi.to_bits(), Ordering::Relaxed);
+    let per_piece = keys.len().div_ceil(pieces).max(1);
+    tiles.pieces[..pieces]
+        .par_iter_mut()
+        .zip(keys.par_chunks(per_piece))
+        .for_each(|(grid, keys)| {
+            for pair in grid.chunks_exact_mut(2) {
+                pair.copy_from_slice(&EMPTY);
             }
+            for &key in keys {
+                let b = unpack(key);
+                if view.cull.outside(&view.centre(b)) {
+                    continue;
+                }
+                let Some(([x0, x1, y0, y1], lo, hi)) = view.footprint(b) else {
+                    continue;
+                };
+                let (lo, hi) = (lo.to_bits(), hi.to_bits());
+                for j in y0 / TILE..=y1 / TILE {
+                    let row = &mut grid[2 * (j * tx + x0 / TILE)..2 * (j * tx + x1 / TILE + 1)];
+                    for pair in row.chunks_exact_mut(2) {
+                        pair[0] = pair[0].min(lo);
+                        pair[1] = pair[1].max(hi);
+                    }
+                }
+            }
+        });
+    // A piece with no blocks (fewer keys than pieces) was never reset: skip it.
+    let used = keys.len().div_ceil(per_piece).clamp(1, pieces);
+    let (first, rest) = tiles.pieces[..used].split_at(1);
+    if keys.is_empty() {
+        for pair in tiles.ranges.chunks_exact_mut(2) {
+            pair.copy_from_slice(&EMPTY);
         }
-    };
-    vol.keys().par_chunks(256).for_each(|keys| {
-        for &key in keys {
-            let b = unpack(key);
-            if view.cull.outside(&view.centre(b)) {
-                continue;
-            }
-            if let Some(([x0, x1, y0, y1], zlo, zhi)) = view.footprint(b) {
-                update(x0 / TILE, x1 / TILE, y0 / TILE, y1 / TILE, zlo, zhi);
-            }
+    } else {
+        tiles.ranges.copy_from_slice(&first[0]);
+    }
+    for piece in rest {
+        for (r, p) in tiles.ranges.chunks_exact_mut(2).zip(piece.chunks_exact(2)) {
+            r[0] = r[0].min(p[0]);
+            r[1] = r[1].max(p[1]);
         }
-    });
+    }
     Ok(())
 }
 
@@ -144,9 +188,8 @@ impl<'a> BlockView<'a> {
         if !(uhi >= 0.0 && ulo <= w - 1.0 && vhi >= 0.0 && vlo <= h - 1.0) {
             return None;
         }
-        let px = |u: f32, lim: f32| u.clamp(0.0, lim) as usize;
-        let (x0, x1) = (px(ulo.ceil(), w - 1.0), px(uhi.floor(), w - 1.0));
-        let (y0, y1) = (px(vlo.ceil(), h - 1.0), px(vhi.floor(), h - 1.0));
+        let (x0, x1) = (ceil_index(ulo, w - 1.0), floor_index(uhi, w - 1.0));
+        let (y0, y1) = (ceil_index(vlo, h - 1.0), floor_index(vhi, h - 1.0));
         if x0 > x1 || y0 > y1 {
             return None;
         }
@@ -252,11 +295,8 @@ pub(super) fn clipped_bounds(
 #[inline]
 pub(super) fn pixel_range(tiles: &Tiles, width: usize, x: usize, y: usize) -> (f32, f32) {
     let t = 2 * ((y / TILE) * tiles_x(width) + x / TILE);
-    match (tiles.0.get(t), tiles.0.get(t + 1)) {
-        (Some(lo), Some(hi)) => (
-            f32::from_bits(lo.load(Ordering::Relaxed)),
-            f32::from_bits(hi.load(Ordering::Relaxed)),
-        ),
+    match tiles.ranges.get(t..t + 2) {
+        Some(&[lo, hi]) => (f32::from_bits(lo), f32::from_bits(hi)),
         _ => (1.0, 0.0),
     }
 }

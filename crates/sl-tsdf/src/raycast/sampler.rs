@@ -9,12 +9,23 @@ use crate::volume::{BLOCK_SIDE, Block, TsdfVolume, local_index};
 /// Grid coordinates beyond this magnitude are outside any block the index can hold.
 const GRID_LIMIT: f32 = 1.0e9;
 
-/// `floor(x)` as an integer for `|x| < 2^31` (a truncating conversion and a compare: the
-/// baseline x86-64 target has no SSE4.1 `roundss`, and `f32::floor` would be a libm call).
+/// The base voxel `⌊g⌋` of grid point `g` (voxel units), or `None` where `g` is not finite or
+/// beyond [`GRID_LIMIT`]. Within `2^22` voxels of the origin (16 km at 4 mm: every practical
+/// volume) by an add and a compare per axis ([`crate::whole::floor_i32`]); farther by a
+/// truncating conversion and a compare.
 #[inline(always)]
-pub(super) fn floor_i32(x: f32) -> i32 {
-    let i = x as i32;
-    i - i32::from(x < i as f32)
+pub(super) fn base_voxel(g: [f32; 3]) -> Option<[i32; 3]> {
+    if g.iter().all(|c| c.abs() < crate::whole::EXACT_LIMIT) {
+        Some(g.map(crate::whole::floor_i32))
+    } else if g.iter().all(|c| c.abs() < GRID_LIMIT) {
+        // `|x| < 2^31`: the conversion does not saturate.
+        Some(g.map(|x| {
+            let i = x as i32;
+            i - i32::from(x < i as f32)
+        }))
+    } else {
+        None
+    }
 }
 
 /// The position of grid point `g` in the cell with base voxel `base = ⌊g⌋`, each in `[0, 1)`.
@@ -174,10 +185,7 @@ impl<'a> Sampler<'a> {
     /// unallocated or unobserved (weight 0) or `g` is not finite.
     #[inline]
     pub(super) fn cell(&mut self, g: [f32; 3]) -> Option<Cell> {
-        if !g.iter().all(|c| c.abs() < GRID_LIMIT) {
-            return None;
-        }
-        let base = g.map(floor_i32);
+        let base = base_voxel(g)?;
         self.cell_at(base, frac(g, base))
     }
 

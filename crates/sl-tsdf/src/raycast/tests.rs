@@ -691,3 +691,37 @@ fn rays_marched_together_give_what_each_gives_alone() {
         }
     }
 }
+
+/// The base voxel is `⌊g⌋` on both sides of the magic-number range (2^22 voxels), and `None`
+/// for coordinates beyond the grid or not finite.
+#[test]
+fn base_voxels_are_the_floor_near_and_far_from_the_origin() {
+    let mut coords = vec![0.0f32, -0.0, 0.5, -0.5, 1.0, -1.0, 1e-30, -1e-30];
+    for e in [
+        1.0f32,
+        100.0,
+        4_194_303.0,
+        4_194_304.0,
+        4_194_305.0,
+        3.0e7,
+        9.9e8,
+    ] {
+        for v in [e, -e, e + 0.25 * e.min(1.0), -e - 0.25 * e.min(1.0)] {
+            coords.extend([
+                v,
+                f32::from_bits(v.to_bits() + 1),
+                f32::from_bits(v.to_bits() - 1),
+            ]);
+        }
+    }
+    for &x in &coords {
+        for &y in &coords[..8] {
+            let g = [x, y, -x];
+            let want = g.map(|c| c.floor() as i32);
+            assert_eq!(sampler::base_voxel(g), Some(want), "{g:?}");
+        }
+    }
+    for bad in [1.0e9f32, -2.0e9, f32::INFINITY, f32::NAN] {
+        assert_eq!(sampler::base_voxel([0.0, bad, 0.0]), None, "{bad}");
+    }
+}

@@ -10,6 +10,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use sl_core::Intrinsics;
 
 use super::*;
+use crate::whole::floor_i32;
 
 /// Rows of the image per strip of the fused table / band pass of [`TsdfVolume::integrate`].
 pub(super) const BAND_ROWS: usize = 8;
@@ -377,20 +378,6 @@ pub(super) const SEEN_SLOTS: usize = 1024;
 #[inline(always)]
 pub(super) fn seen_slot(key: u64) -> usize {
     (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - SEEN_SLOTS.trailing_zeros())) as usize
-}
-
-/// `1.5·2^23`: adding it to an `x` with `|x| < 2^22` rounds `x` to the nearest integer, which
-/// is then the low mantissa bits (two's complement relative to the constant's bits).
-pub(super) const MAGIC_SIGNED: f32 = 12_582_912.0;
-
-/// `floor` as an integer for `|x| < 2^22`, without a libm call (the baseline x86-64 target has
-/// no SSE4.1 round) or a saturating conversion, so that it vectorises.
-#[inline(always)]
-pub(super) fn floor_i32(x: f32) -> i32 {
-    let s = x + MAGIC_SIGNED;
-    let r = s - MAGIC_SIGNED;
-    let ri = (s.to_bits() as i32).wrapping_sub(MAGIC_SIGNED.to_bits() as i32);
-    ri.wrapping_sub(i32::from(r > x))
 }
 
 /// [`pack`] for coordinates known to be in range.

@@ -13,6 +13,7 @@ use super::discovery::*;
 use super::*;
 use crate::par::run_on_threads;
 use crate::params::{BandFn, DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG, WeightFn};
+use crate::whole::{exact_u32, round_f32};
 
 impl TsdfVolume {
     /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world
@@ -376,24 +377,6 @@ impl FrameConsts {
                 / k.fx.min(k.fy)) as f32,
         }
     }
-}
-
-/// `2^23`: adding it to an `x` in `[0, 2^22]` rounds `x` to the nearest integer (ties to
-/// even), which is then in the low mantissa bits.
-pub(super) const MAGIC: f32 = 8_388_608.0;
-
-/// The nearest integer to `x ∈ [0, 2^22]` (ties to even), as f32; a plain add and subtract
-/// that vectorises (Rust does not reassociate floating-point arithmetic).
-#[inline(always)]
-pub(super) fn round_f32(x: f32) -> f32 {
-    (x + MAGIC) - MAGIC
-}
-
-/// `x as u32` for an integral `x ∈ [0, 2^23)`, without a (saturating, non-vectorising)
-/// float-to-int conversion.
-#[inline(always)]
-pub(super) fn exact_u32(x: f32) -> u32 {
-    (x + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits())
 }
 
 /// Entries of the per-pixel table for images up to about 720×720 pixels: a power of two, so
