@@ -113,6 +113,13 @@ impl PlaneSigmas {
     };
 }
 
+/// The RMS angle between a fixed direction and one drawn uniformly from the hemisphere around
+/// it, degrees: `√(π − 2)` rad (61.2°; `E[θ²] = ∫₀^{π/2} θ² sin θ dθ = π − 2`). A normal whose
+/// linearised uncertainty reaches it is known no better than a guess of the side the camera
+/// sees, so [`plane_sigmas`] reports it as undetermined, not as a number of degrees the
+/// linearisation no longer means.
+pub(crate) const GUESSED_NORMAL_RMS_DEG: f64 = 61.217_870_040_792_25;
+
 /// The uncertainties of the fit `f` of the samples `sums` (pixel coordinates of the frame of
 /// intrinsics `k`, disparity in pixels, `f·B` = `fb`); infinite when the samples do not
 /// determine a plane.
@@ -166,7 +173,7 @@ pub(crate) fn plane_sigmas(
         normal_deg: cov_n.trace().max(0.0).sqrt().to_degrees(),
         offset_m: z * z / fb * u.dot(&ray).abs() * (var / n).sqrt(),
     };
-    if sigmas.normal_deg.is_finite() && sigmas.offset_m.is_finite() {
+    if sigmas.normal_deg < GUESSED_NORMAL_RMS_DEG && sigmas.offset_m.is_finite() {
         sigmas
     } else {
         PlaneSigmas::UNDETERMINED
@@ -243,6 +250,20 @@ mod tests {
     }
 
     #[test]
+    fn the_guessed_normal_rms_is_that_of_a_uniform_hemisphere() {
+        // Midpoint rule for E[θ²] = ∫₀^{π/2} θ² sin θ dθ.
+        let n = 100_000;
+        let h = std::f64::consts::FRAC_PI_2 / f64::from(n);
+        let m2: f64 = (0..n)
+            .map(|i| {
+                let t = (f64::from(i) + 0.5) * h;
+                t * t * t.sin() * h
+            })
+            .sum();
+        assert!((m2.sqrt().to_degrees() - GUESSED_NORMAL_RMS_DEG).abs() < 1e-6);
+    }
+
+    #[test]
     fn a_residual_above_the_noise_widens_and_a_line_of_pixels_is_undetermined() {
         let k = Intrinsics::new(640, 480, 570.0, 570.0, 319.5, 239.5).unwrap();
         let fb = 570.0 * 0.075;
@@ -269,6 +290,23 @@ mod tests {
         let quiet = plane_sigmas(&fill(0.0), &f, &k, fb, &noise);
         let bumpy = plane_sigmas(&fill(0.3), &f, &k, fb, &noise);
         assert!(quiet.normal_deg > 0.0 && bumpy.normal_deg > 2.0 * quiet.normal_deg);
+        // The same patch 10 km away (disparity 0.004 px): its normal is no better than a
+        // guess, and is reported as undetermined rather than as a linearised angle.
+        let far = DisparityAffine {
+            a: 0.0,
+            b: 0.0,
+            c: fb / 10_000.0,
+        };
+        let mut distant = AffineSums::default();
+        for y in (100..200).step_by(4) {
+            for x in 100..200 {
+                distant.add(f64::from(x), f64::from(y), far.c);
+            }
+        }
+        assert_eq!(
+            plane_sigmas(&distant, &far, &k, fb, &noise),
+            PlaneSigmas::UNDETERMINED
+        );
         let mut line = AffineSums::default();
         for x in 0..100 {
             line.add(f64::from(x), 50.0, 20.0);

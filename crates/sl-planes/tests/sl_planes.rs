@@ -1068,3 +1068,23 @@ fn a_frame_noise_level_is_measured_on_its_own() {
     let room = sl_noise::sim::room_scene(0).unwrap();
     assert!(sl_planes::frame_noise_scale(&small, &room_camera(room.intrinsics), &cfg).is_err());
 }
+
+/// A frame whose every pixel is 9,999 m away (disparity 0.004 px, far below the noise) holds a
+/// "plane" whose normal the noise leaves anywhere on the hemisphere facing the camera: its
+/// uncertainty is reported as undetermined (infinite), not as a linearised angle beyond 61.2°
+/// (it was 98.6° before; a guess has an RMS angle of 61.2°).
+#[test]
+fn a_plane_beyond_the_noise_has_an_undetermined_normal() {
+    let cam = Camera::kinect_v1();
+    let k = cam.intrinsics;
+    let depth = DepthImage::from_vec(k.width, k.height, vec![9_999.0; k.width * k.height]).unwrap();
+    let seg = PlaneExtractor::new(PlaneConfig::default())
+        .unwrap()
+        .extract_depth(&depth, &cam)
+        .unwrap();
+    assert!(!seg.planes.is_empty(), "{seg:?}");
+    for p in &seg.planes {
+        assert_eq!(p.normal_sigma_deg, f64::INFINITY, "{p:?}");
+        assert_eq!(p.offset_sigma_m, f64::INFINITY, "{p:?}");
+    }
+}

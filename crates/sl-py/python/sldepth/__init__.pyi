@@ -254,7 +254,8 @@ class Plane:
     centroid_m: Tuple[float, float, float]
     normal_sigma_deg: float
     """Standard uncertainty of the normal from the noise model (RMS angle to the true
-    normal), degrees; inf when undetermined."""
+    normal), degrees; inf when undetermined (including 61.2 degrees or more, the RMS angle
+    of a normal guessed on the hemisphere facing the camera)."""
     offset_sigma_m: float
     """Standard uncertainty of the position along the normal at centroid_m, metres."""
 
