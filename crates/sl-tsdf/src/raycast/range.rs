@@ -37,8 +37,10 @@ pub(super) const TILE: usize = 8;
 /// culled and projected blocks), and the fewest blocks worth a piece of their own.
 const PIECES_PER_THREAD: usize = 2;
 const MIN_BLOCKS_PER_PIECE: usize = 512;
-/// Most pieces (each holds a tile grid: 38 KB at 640×480).
+/// Most pieces (each holds a tile grid: 38 KB at 640×480), and most bytes of all their grids
+/// together (fewer pieces for very large images).
 const MAX_PIECES: usize = 64;
+const MAX_PIECES_BYTES: usize = 16 << 20;
 
 /// The interval of a tile no block covers (`lo > hi`).
 const EMPTY: [u32; 2] = [0x7f80_0000, 0]; // [+∞, 0.0] as bits
@@ -65,6 +67,7 @@ pub(super) fn tile_ranges(
     let keys = vol.keys();
     let pieces = (rayon::current_num_threads() * PIECES_PER_THREAD)
         .min(keys.len().div_ceil(MIN_BLOCKS_PER_PIECE))
+        .min(MAX_PIECES_BYTES / (4 * n).max(1))
         .clamp(1, MAX_PIECES);
     let grid = |v: &mut Vec<u32>| -> Result<()> {
         if v.len() != n {
@@ -76,10 +79,9 @@ pub(super) fn tile_ranges(
         Ok(())
     };
     grid(&mut tiles.ranges)?;
-    if tiles.pieces.len() < pieces {
-        tiles.pieces.resize_with(pieces, Vec::new);
-    }
-    for piece in &mut tiles.pieces[..pieces] {
+    // Exactly `pieces` grids kept: memory follows the last rendering's size.
+    tiles.pieces.resize_with(pieces, Vec::new);
+    for piece in &mut tiles.pieces {
         grid(piece)?;
     }
     let view = BlockView::new(frame, k);
