@@ -12,7 +12,9 @@
 //!    name (in backticks) a type or function that appears nowhere in the workspace's Rust
 //!    sources, or a Markdown file that does not exist;
 //! 6. [`generator_markers`]: a leftover generator marker comment (`// @name-list …`);
-//! 7. [`thread_locals`]: a `thread_local!` outside the files listed in `THREAD_LOCAL_FILES`.
+//! 7. [`thread_locals`]: a `thread_local!` outside the files listed in `THREAD_LOCAL_FILES`;
+//! 8. [`python_lock_sites`]: a lock taken (`.lock()`, `.read()`, `.write()`, their `try_`
+//!    forms) in sl-py outside the files listed in `PY_LOCK_FILES`.
 //!
 //! The tests also plant one violation of each rule in a temporary tree and check that the rule
 //! reports it.
@@ -39,6 +41,28 @@ const THREAD_LOCAL_FILES: &[&str] = &[
     "crates/sl-filter/src/multiscale.rs",
     "crates/sl-fuzz/src/lib.rs",
     "crates/sl-py/src/threads.rs",
+];
+/// sl-py files allowed to take a lock, each reviewed for where it takes it: `threads.rs` holds
+/// the helpers that take a `TsdfVolume`'s or `Tracker`'s lock on the calling thread before the
+/// call enters a pool (`compute_locked`, `compute_read`, `compute_write`) and the lock of the
+/// chosen thread count; `planes.rs` holds its extractor cache's lock only to take an extractor
+/// out and put it back, never across an extraction; `track.rs` reads a tracker's state on the
+/// calling thread, outside any pool. A lock taken inside a pool can deadlock: a worker that
+/// waits for its parallel pieces runs other queued jobs meanwhile, and one of another Python
+/// thread's calls would wait for a lock the worker's own thread holds (session 69).
+const PY_LOCK_FILES: &[&str] = &[
+    "crates/sl-py/src/threads.rs",
+    "crates/sl-py/src/planes.rs",
+    "crates/sl-py/src/track.rs",
+];
+/// The lock calls [`python_lock_sites`] looks for.
+const LOCK_CALLS: &[&str] = &[
+    ".lock()",
+    ".read()",
+    ".write()",
+    ".try_lock()",
+    ".try_read()",
+    ".try_write()",
 ];
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.
 const UNSAFE_FILE: &str = "crates/sl-filter/src/kernel.rs";
@@ -104,7 +128,40 @@ pub fn check_all(root: &Path) -> Vec<Violation> {
     v.extend(stale_doc_names(root));
     v.extend(generator_markers(root));
     v.extend(thread_locals(root));
+    v.extend(python_lock_sites(root));
     v
+}
+
+/// Rule 8: sl-py takes locks only in the files of [`PY_LOCK_FILES`]. A binding that needs an
+/// object's lock goes through `threads::compute_locked` (or `compute_read` / `compute_write`),
+/// which take it outside the pool; the Python suite's
+/// `test_threads_sharing_one_volume_and_tracker_never_deadlock` checks the behaviour, this rule
+/// keeps new lock sites from appearing unreviewed. Lines of `//` comments and test modules are
+/// skipped as in the other rules.
+pub fn python_lock_sites(root: &Path) -> Vec<Violation> {
+    let mut files = Vec::new();
+    rust_files(&root.join("crates/sl-py/src"), &mut files);
+    let mut out = Vec::new();
+    for f in files {
+        let path = rel(root, &f);
+        if PY_LOCK_FILES.iter().any(|a| path == Path::new(a)) {
+            continue;
+        }
+        let text = fs::read_to_string(&f).unwrap_or_default();
+        for (line, code) in code_lines(&text) {
+            if LOCK_CALLS.iter().any(|c| code.contains(c)) {
+                out.push(Violation {
+                    file: path.clone(),
+                    line,
+                    message: "a lock taken in sl-py outside the reviewed files: take an \
+                              object's lock through threads::compute_locked / compute_read / \
+                              compute_write, outside the pool (see tidy rule 8)"
+                        .into(),
+                });
+            }
+        }
+    }
+    out
 }
 
 /// Rule 7: no `thread_local!` in the crates outside [`THREAD_LOCAL_FILES`]. Code on a rayon
@@ -594,6 +651,25 @@ mod tests {
         let v = thread_locals(t.path());
         assert_eq!(v.len(), 1, "{v:?}");
         assert!(v[0].file.ends_with("cache.rs") && v[0].line == 2);
+    }
+
+    #[test]
+    fn planted_python_lock_site_fails() {
+        let t = clean_tree();
+        write(
+            t.path(),
+            "crates/sl-py/src/volume.rs",
+            "//! Bad.\nfn f(m: &std::sync::Mutex<u8>) -> u8 {\n    *m.lock().unwrap()\n}\n",
+        );
+        // The reviewed files may.
+        write(
+            t.path(),
+            "crates/sl-py/src/threads.rs",
+            "//! Fine.\nfn g(m: &std::sync::RwLock<u8>) -> u8 {\n    *m.read().unwrap()\n}\n",
+        );
+        let v = python_lock_sites(t.path());
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(v[0].file.ends_with("volume.rs") && v[0].line == 3);
     }
 
     #[test]

@@ -33,13 +33,11 @@ impl Clone for Tiles {
 /// Tile edge, pixels.
 pub(super) const TILE: usize = 8;
 
-/// Pieces of the block list per thread of the pool (a little slack for the uneven cost of
-/// culled and projected blocks), and the fewest blocks worth a piece of their own.
-const PIECES_PER_THREAD: usize = 2;
-const MIN_BLOCKS_PER_PIECE: usize = 512;
-/// Most pieces (each holds a tile grid: 38 KB at 640×480), and most bytes of all their grids
-/// together (fewer pieces for very large images).
-const MAX_PIECES: usize = 64;
+/// Blocks per piece of the block list: a fixed size, as every parallel split of the workspace
+/// (not a piece per thread), so that both threads of a 2-core machine get several.
+const PIECE_BLOCKS: usize = 8192;
+/// Most bytes of the pieces' tile grids together (each grid is 2.4 KB at 160×120, 38 KB at
+/// 640×480; beyond this the pieces grow instead).
 const MAX_PIECES_BYTES: usize = 16 << 20;
 
 /// The interval of a tile no block covers (`lo > hi`).
@@ -53,22 +51,33 @@ fn tiles_x(width: usize) -> usize {
 /// Fills `tiles` (two `f32` bit patterns per tile: nearest and farthest depth, metres) with the
 /// depth intervals of the allocated blocks seen by `frame` (made with `k`) within its depth
 /// range. Depths are positive, so their bit patterns order like the values. The block list is
-/// cut into a few pieces, one task each on the caller's pool with a tile grid of its own (no
-/// atomic updates, no cache line shared between threads), and the grids are merged: minima
-/// and maxima do not depend on the order, so neither does the result on the number of threads.
+/// cut into pieces of [`PIECE_BLOCKS`], one task each on the caller's pool with a tile grid of
+/// its own (no atomic updates, no cache line shared between threads), and the grids are
+/// merged: minima and maxima do not depend on the order.
 pub(super) fn tile_ranges(
     vol: &TsdfVolume,
     frame: &RayFrame,
     k: &Intrinsics,
     tiles: &mut Tiles,
 ) -> Result<()> {
+    tile_ranges_in_pieces(vol, frame, k, tiles, PIECE_BLOCKS)
+}
+
+/// [`tile_ranges`] with pieces of `piece_blocks` blocks (the tests compare piece sizes).
+pub(super) fn tile_ranges_in_pieces(
+    vol: &TsdfVolume,
+    frame: &RayFrame,
+    k: &Intrinsics,
+    tiles: &mut Tiles,
+    piece_blocks: usize,
+) -> Result<()> {
     let tx = tiles_x(k.width);
     let n = 2 * tx * k.height.div_ceil(TILE);
     let keys = vol.keys();
-    let pieces = (rayon::current_num_threads() * PIECES_PER_THREAD)
-        .min(keys.len().div_ceil(MIN_BLOCKS_PER_PIECE))
-        .min(MAX_PIECES_BYTES / (4 * n).max(1))
-        .clamp(1, MAX_PIECES);
+    let pieces = keys
+        .len()
+        .div_ceil(piece_blocks.max(1))
+        .clamp(1, (MAX_PIECES_BYTES / (4 * n)).max(1));
     let grid = |v: &mut Vec<u32>| -> Result<()> {
         if v.len() != n {
             v.clear();

@@ -452,6 +452,24 @@ fn a_block_straddling_the_near_plane_beside_the_view_does_not_widen_the_rays() {
             assert!(lo > 0.5, "pixel ({x}, {y}) marches from {lo} m");
         }
     }
+    // The pieces' grids merge into the ranges of one piece, whatever their size (one block a
+    // piece, uneven pieces, more pieces than blocks), reusing the same scratch.
+    let ranges = |t: &range::Tiles| {
+        let mut v = Vec::new();
+        for y in (0..k.height).step_by(range::TILE) {
+            for x in (0..k.width).step_by(range::TILE) {
+                let (lo, hi) = range::pixel_range(t, k.width, x, y);
+                v.push((lo.to_bits(), hi.to_bits()));
+            }
+        }
+        v
+    };
+    let whole = ranges(&tiles);
+    assert!(vol.block_count() > 7, "{}", vol.block_count());
+    for piece_blocks in [usize::MAX, 1, 7, vol.block_count() - 1] {
+        range::tile_ranges_in_pieces(&vol, &frame, &k, &mut tiles, piece_blocks).unwrap();
+        assert_eq!(ranges(&tiles), whole, "pieces of {piece_blocks} blocks");
+    }
     let a = vol.raycast(&pose, &k, &cfg).unwrap();
     let b = wall_only.raycast(&pose, &k, &cfg).unwrap();
     assert!(
