@@ -141,27 +141,15 @@ pub fn check_all(root: &Path) -> Vec<Violation> {
 pub fn python_lock_sites(root: &Path) -> Vec<Violation> {
     let mut files = Vec::new();
     rust_files(&root.join("crates/sl-py/src"), &mut files);
-    let mut out = Vec::new();
-    for f in files {
-        let path = rel(root, &f);
-        if PY_LOCK_FILES.iter().any(|a| path == Path::new(a)) {
-            continue;
-        }
-        let text = fs::read_to_string(&f).unwrap_or_default();
-        for (line, code) in code_lines(&text) {
-            if LOCK_CALLS.iter().any(|c| code.contains(c)) {
-                out.push(Violation {
-                    file: path.clone(),
-                    line,
-                    message: "a lock taken in sl-py outside the reviewed files: take an \
-                              object's lock through threads::compute_locked / compute_read / \
-                              compute_write, outside the pool (see tidy rule 8)"
-                        .into(),
-                });
-            }
-        }
-    }
-    out
+    lines_outside_reviewed_files(
+        root,
+        files,
+        PY_LOCK_FILES,
+        LOCK_CALLS,
+        "a lock taken in sl-py outside the reviewed files: take an object's lock through \
+         threads::compute_locked / compute_read / compute_write, outside the pool (see tidy \
+         rule 8)",
+    )
 }
 
 /// Rule 7: no `thread_local!` in the crates outside [`THREAD_LOCAL_FILES`]. Code on a rayon
@@ -174,21 +162,38 @@ pub fn thread_locals(root: &Path) -> Vec<Violation> {
     for dir in crate_dirs(root) {
         rust_files(&dir, &mut files);
     }
+    lines_outside_reviewed_files(
+        root,
+        files,
+        THREAD_LOCAL_FILES,
+        &["thread_local!"],
+        "`thread_local!` outside the reviewed files (a borrow spanning rayon work is re-entered \
+         by work-stealing; see tidy rule 7)",
+    )
+}
+
+/// Every code line of `files` (outside the `reviewed` ones) that contains one of `patterns`,
+/// reported with `message` (rules 7 and 8).
+fn lines_outside_reviewed_files(
+    root: &Path,
+    files: Vec<PathBuf>,
+    reviewed: &[&str],
+    patterns: &[&str],
+    message: &str,
+) -> Vec<Violation> {
     let mut out = Vec::new();
     for f in files {
         let path = rel(root, &f);
-        if THREAD_LOCAL_FILES.iter().any(|a| path == Path::new(a)) {
+        if reviewed.iter().any(|a| path == Path::new(a)) {
             continue;
         }
         let text = fs::read_to_string(&f).unwrap_or_default();
         for (line, code) in code_lines(&text) {
-            if code.contains("thread_local!") {
+            if patterns.iter().any(|p| code.contains(p)) {
                 out.push(Violation {
                     file: path.clone(),
                     line,
-                    message: "`thread_local!` outside the reviewed files (a borrow spanning \
-                              rayon work is re-entered by work-stealing; see tidy rule 7)"
-                        .into(),
+                    message: message.into(),
                 });
             }
         }
