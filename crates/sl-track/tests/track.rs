@@ -410,13 +410,13 @@ fn rays_hinted_by_the_last_rendering_find_the_plain_raycast_surfaces() {
     let mut left_hits = 0usize;
     let mut differ = [0usize; 2];
     for (i, (za, zb)) in a.depth.data().iter().zip(b.depth.data()).enumerate() {
-        let half = usize::from(i % rw >= rw / 2);
-        if half == 0 && *zb > 0.0 {
+        let side = usize::from(i % rw >= rw / 2);
+        if side == 0 && *zb > 0.0 {
             left_hits += 1;
         }
         let reach = 3.0 * cam.sensor.sigma_z(f64::from(*zb)) + 2.0 * volume.params().voxel_m;
         if (*za > 0.0) != (*zb > 0.0) || f64::from((za - zb).abs()) > reach {
-            differ[half] += 1;
+            differ[side] += 1;
         }
     }
     let half_pixels = a.depth.data().len() / 2;

@@ -43,6 +43,13 @@ const MAX_PIECES_BYTES: usize = 16 << 20;
 /// The interval of a tile no block covers (`lo > hi`).
 const EMPTY: [u32; 2] = [0x7f80_0000, 0]; // [+∞, 0.0] as bits
 
+/// Sets every tile of `grid` to [`EMPTY`].
+fn clear(grid: &mut [u32]) {
+    for pair in grid.chunks_exact_mut(2) {
+        pair.copy_from_slice(&EMPTY);
+    }
+}
+
 /// Tiles per row of an image `width` pixels wide.
 fn tiles_x(width: usize) -> usize {
     width.div_ceil(TILE)
@@ -74,10 +81,10 @@ pub(super) fn tile_ranges_in_pieces(
     let tx = tiles_x(k.width);
     let n = 2 * tx * k.height.div_ceil(TILE);
     let keys = vol.keys();
-    let pieces = keys
-        .len()
-        .div_ceil(piece_blocks.max(1))
-        .clamp(1, (MAX_PIECES_BYTES / (4 * n)).max(1));
+    // At most `most` grids (the memory bound); every piece gets blocks (none without blocks).
+    let most = (MAX_PIECES_BYTES / (4 * n)).max(1);
+    let per_piece = piece_blocks.max(keys.len().div_ceil(most)).max(1);
+    let pieces = keys.len().div_ceil(per_piece);
     let grid = |v: &mut Vec<u32>| -> Result<()> {
         if v.len() != n {
             v.clear();
@@ -94,14 +101,12 @@ pub(super) fn tile_ranges_in_pieces(
         grid(piece)?;
     }
     let view = BlockView::new(frame, k);
-    let per_piece = keys.len().div_ceil(pieces).max(1);
-    tiles.pieces[..pieces]
+    tiles
+        .pieces
         .par_iter_mut()
         .zip(keys.par_chunks(per_piece))
         .for_each(|(grid, keys)| {
-            for pair in grid.chunks_exact_mut(2) {
-                pair.copy_from_slice(&EMPTY);
-            }
+            clear(grid);
             for &key in keys {
                 let b = unpack(key);
                 if view.cull.outside(&view.centre(b)) {
@@ -120,17 +125,8 @@ pub(super) fn tile_ranges_in_pieces(
                 }
             }
         });
-    // A piece with no blocks (fewer keys than pieces) was never reset: skip it.
-    let used = keys.len().div_ceil(per_piece).clamp(1, pieces);
-    let (first, rest) = tiles.pieces[..used].split_at(1);
-    if keys.is_empty() {
-        for pair in tiles.ranges.chunks_exact_mut(2) {
-            pair.copy_from_slice(&EMPTY);
-        }
-    } else {
-        tiles.ranges.copy_from_slice(&first[0]);
-    }
-    for piece in rest {
+    clear(&mut tiles.ranges);
+    for piece in &tiles.pieces {
         for (r, p) in tiles.ranges.chunks_exact_mut(2).zip(piece.chunks_exact(2)) {
             r[0] = r[0].min(p[0]);
             r[1] = r[1].max(p[1]);
