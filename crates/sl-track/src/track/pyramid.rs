@@ -156,15 +156,15 @@ impl Level {
             .enumerate()
             .for_each(|(y, (prow, nrow))| {
                 let m = motion_power(motion, row_offset(y, h, readout_fraction)).cast::<f32>();
+                // Branch-free (every point moved, the valid ones kept), so that the loops
+                // vectorise; the kept values are the same.
                 for p in prow.iter_mut() {
-                    if p.z.is_finite() {
-                        *p = m * *p;
-                    }
+                    let q = m * *p;
+                    *p = if p.z.is_finite() { q } else { *p };
                 }
                 for n in nrow.iter_mut() {
-                    if n.x.is_finite() {
-                        *n = m.rotation * *n;
-                    }
+                    let r = m.rotation * *n;
+                    *n = if n.x.is_finite() { r } else { *n };
                 }
             });
     }
