@@ -467,9 +467,11 @@ impl Polyphase {
                 let (py, px) = (p / nx, p % nx);
                 let (_, sw, sh) = layout[p];
                 for (j, row) in sub.chunks_exact_mut(sw).enumerate() {
-                    let src_row = &src[(py + j * s) * w..];
-                    for (i, v) in row.iter_mut().enumerate() {
-                        *v = src_row[px + i * s];
+                    // Every `s`-th pixel of the source row from `px` (the first of each chunk of
+                    // `s`: no index computed and checked per pixel).
+                    let src_row = src.get((py + j * s) * w + px..).unwrap_or(&[]);
+                    for (v, from) in row.iter_mut().zip(src_row.chunks(s.max(1))) {
+                        *v = from[0];
                     }
                 }
                 filter.apply_into(DepthView::new(sw, sh, sub)?, isa, out)
@@ -488,17 +490,20 @@ impl Polyphase {
                 for (px, &(offset, sw, _)) in self.layout[py * nx..(py + 1) * nx].iter().enumerate()
                 {
                     let filtered = &self.output[offset + j * sw..offset + (j + 1) * sw];
+                    // Every `s`-th pixel of the output row from `px` (the first of each chunk of
+                    // `s`: no index computed and checked per pixel).
+                    let targets = row.get_mut(px..).unwrap_or(&mut []).chunks_mut(s.max(1));
                     match keep_row {
                         None => {
-                            for (i, &v) in filtered.iter().enumerate() {
-                                row[px + i * s] = v;
+                            for (to, &v) in targets.zip(filtered) {
+                                to[0] = v;
                             }
                         }
                         Some(k) => {
-                            for (i, &v) in filtered.iter().enumerate() {
-                                let x = px + i * s;
-                                if k[x] {
-                                    row[x] = v;
+                            let kept = k.get(px..).unwrap_or(&[]).chunks(s.max(1));
+                            for ((to, keep), &v) in targets.zip(kept).zip(filtered) {
+                                if keep[0] {
+                                    to[0] = v;
                                 }
                             }
                         }
