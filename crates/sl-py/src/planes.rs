@@ -37,9 +37,9 @@ pub struct PyPlane {
     centroid_m: (f64, f64, f64),
     /// Standard uncertainty of the normal from the sensor's noise model: the RMS angle between
     /// the fitted and the true normal, degrees (``inf`` when undetermined, which includes 61.2°
-    /// or more: the RMS angle of a normal guessed on the hemisphere facing the camera). Small, far or
-    /// narrow planes are the uncertain ones, and the ones that are not found again in later
-    /// frames.
+    /// or more: the RMS angle of a normal guessed on the hemisphere facing the camera). Small,
+    /// far or narrow planes are the uncertain ones, and the ones that are not found again in
+    /// later frames.
     normal_sigma_deg: f64,
     /// Standard uncertainty of the plane's position along its normal at ``centroid_m``, metres.
     offset_sigma_m: f64,

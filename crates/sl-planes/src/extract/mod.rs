@@ -276,8 +276,8 @@ pub struct PlaneInfo {
     /// Standard uncertainty of the normal from the noise model: the RMS angle between the
     /// fitted normal and the true one, degrees (infinite when the pixels do not determine the
     /// plane, which includes an uncertainty of 61.2° or more: the RMS angle of a normal guessed
-    /// uniformly on the hemisphere facing the camera). The disparity error of the camera's sensor model (`σ_D`, the `1/q`
-    /// quantisation), correlated over the block-matching window
+    /// uniformly on the hemisphere facing the camera). The disparity error of the camera's
+    /// sensor model (`σ_D`, the `1/q` quantisation), correlated over the block-matching window
     /// ([`PlaneConfig::noise_window_x_px`]), or the fit's own residual where that is larger,
     /// propagated through the least-squares fit (the `uncertainty` module). Small, far or
     /// narrow planes are the uncertain ones; on the real sequences it predicts which planes
