@@ -6,7 +6,8 @@
 //! geometry vocabulary of the workspace ([`Plane`] with the one plane fit [`fit_plane`], [`Mesh`])
 //! and rigid camera poses typed by direction ([`CameraToWorld`], [`WorldToCamera`],
 //! [`CameraToCamera`], [`WorldToWorld`]), and the instruction sets ([`Isa`]) hot loops are
-//! compiled for, chosen at run time ([`Isa::run`]). Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
+//! compiled for, chosen at run time ([`Isa::run`]), and [`whole`]: the rounding of bounded `f32`
+//! values to integers in a way that vectorises. Every other crate (`sl-noise`, `sl-io`, and the filters, fusion and plane
 //! crates) speaks these types. `sl-core` does no I/O.
 //!
 //! ```
@@ -39,6 +40,7 @@ pub mod pose;
 pub mod preset;
 pub mod sensor;
 pub mod view;
+pub mod whole;
 
 pub use camera::Camera;
 pub use error::{CoreError, Result};

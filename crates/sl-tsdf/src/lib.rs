@@ -94,7 +94,6 @@ pub mod params;
 pub mod raycast;
 pub mod slice;
 pub mod volume;
-mod whole;
 
 pub use error::{Result, TsdfError};
 pub use io::CONFIDENCE_PROPERTY;

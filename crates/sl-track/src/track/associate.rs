@@ -6,6 +6,7 @@
 //! plain loop over the samples, so the sums are bit-identical to it.
 
 use nalgebra::{Point3, Vector3};
+use sl_core::whole::round_index;
 
 use super::pyramid::PointAux;
 use super::reference::{ReferenceMaps, variance_along_normal};
@@ -267,18 +268,6 @@ pub(super) fn row_sums_with(
         start += len;
     }
     s
-}
-
-/// `x.round()` (half away from zero) where it lies in `[0, n)`: `(true, index)`, else
-/// `(false, _)` (also for NaN) — the same pixel as `f32::round` without its libm call (the
-/// baseline x86-64 target has no rounding instruction). `round(x) ≥ 0 ⇔ x > −0.5` and
-/// `round(x) < n ⇔ x < n − 0.5` for an integer `n < 2^23`; in between, truncation plus one
-/// where the fraction is at least one half (`x − trunc(x)` is exact).
-#[inline(always)]
-fn round_index(x: f32, n: f32) -> (bool, i32) {
-    let inside = (x > -0.5) & (x < n - 0.5);
-    let i = x as i32;
-    (inside, i + i32::from(x - i as f32 >= 0.5))
 }
 
 /// `m·p` for a row-major 3×3 `m`.

@@ -12,7 +12,7 @@ use super::march::RayFrame;
 use crate::error::{Result, TsdfError};
 use crate::hash::unpack;
 use crate::volume::{BLOCK_SIDE, TsdfVolume};
-use crate::whole::{ceil_index, floor_index};
+use sl_core::whole::{ceil_index, floor_index};
 
 /// Per-tile depth intervals, reused across frames (cloning gives an empty one: it is scratch
 /// space, not a result).

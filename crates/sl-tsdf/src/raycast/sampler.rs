@@ -11,12 +11,12 @@ const GRID_LIMIT: f32 = 1.0e9;
 
 /// The base voxel `⌊g⌋` of grid point `g` (voxel units), or `None` where `g` is not finite or
 /// beyond [`GRID_LIMIT`]. Within `2^22` voxels of the origin (16 km at 4 mm: every practical
-/// volume) by an add and a compare per axis ([`crate::whole::floor_i32`]); farther by a
+/// volume) by an add and a compare per axis ([`sl_core::whole::floor_i32`]); farther by a
 /// truncating conversion and a compare.
 #[inline(always)]
 pub(super) fn base_voxel(g: [f32; 3]) -> Option<[i32; 3]> {
-    if g.iter().all(|c| c.abs() < crate::whole::EXACT_LIMIT) {
-        Some(g.map(crate::whole::floor_i32))
+    if g.iter().all(|c| c.abs() < sl_core::whole::EXACT_LIMIT) {
+        Some(g.map(sl_core::whole::floor_i32))
     } else if g.iter().all(|c| c.abs() < GRID_LIMIT) {
         // `|x| < 2^31`: the conversion does not saturate.
         Some(g.map(|x| {

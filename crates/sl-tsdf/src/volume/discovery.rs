@@ -10,7 +10,7 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use sl_core::Intrinsics;
 
 use super::*;
-use crate::whole::floor_i32;
+use sl_core::whole::floor_i32;
 
 /// Rows of the image per strip of the fused table / band pass of [`TsdfVolume::integrate`].
 pub(super) const BAND_ROWS: usize = 8;

@@ -13,7 +13,7 @@ use super::discovery::*;
 use super::*;
 use crate::par::run_on_threads;
 use crate::params::{BandFn, DepthLookup, SAME_SURFACE_MAX_INCIDENCE_DEG, WeightFn};
-use crate::whole::{exact_u32, round_f32};
+use sl_core::whole::{exact_u32, round_f32};
 
 impl TsdfVolume {
     /// Integrates one depth frame seen by a camera with intrinsics `k` at camera-to-world

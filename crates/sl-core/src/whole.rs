@@ -4,39 +4,51 @@
 //! library calls there, and Rust's `as` conversions saturate (a compare and a select or two
 //! after the hardware conversion). Adding a power of two whose unit in the last place is 1
 //! rounds a bounded value to the nearest integer in one add, which lands in the low mantissa
-//! bits: the integration's pixel lookups, the block discovery's cells and the raycast's tile
-//! bounds use that (and it vectorises). Each function states the range it is exact in; the
-//! tests compare them with the library functions there.
+//! bits: sl-tsdf's pixel lookups, block discovery and raycast tile bounds and sl-track's
+//! projective association use that (and it vectorises). Each function states the range it is
+//! exact in; the tests compare them with the library functions there. Written by hand: no
+//! crate offers these bounded, branch-free forms.
+//!
+//! ```
+//! use sl_core::whole::{floor_i32, round_index};
+//!
+//! assert_eq!(floor_i32(-2.5), -3);
+//! // The pixel a projected coordinate rounds to (half away from zero, as `f32::round`), and
+//! // whether it lies in a row of 640 pixels.
+//! assert_eq!(round_index(638.5, 640.0), (true, 639));
+//! assert!(!round_index(639.5, 640.0).0);
+//! assert!(!round_index(f32::NAN, 640.0).0);
+//! ```
 
 /// `2^23`: adding it to an `x` in `[0, 2^22]` rounds `x` to the nearest integer (ties to
 /// even), which is then in the low mantissa bits.
-pub(crate) const MAGIC: f32 = 8_388_608.0;
+pub const MAGIC: f32 = 8_388_608.0;
 
 /// `1.5·2^23`: adding it to an `x` with `|x| < 2^22` rounds `x` to the nearest integer, which
 /// is then the low mantissa bits (two's complement relative to the constant's bits).
-pub(crate) const MAGIC_SIGNED: f32 = 12_582_912.0;
+pub const MAGIC_SIGNED: f32 = 12_582_912.0;
 
 /// Magnitude below which [`floor_i32`] is exact: `2^22`.
-pub(crate) const EXACT_LIMIT: f32 = 4_194_304.0;
+pub const EXACT_LIMIT: f32 = 4_194_304.0;
 
 /// The nearest integer to `x ∈ [0, 2^22]` (ties to even), as f32; a plain add and subtract
 /// that vectorises (Rust does not reassociate floating-point arithmetic).
 #[inline(always)]
-pub(crate) fn round_f32(x: f32) -> f32 {
+pub fn round_f32(x: f32) -> f32 {
     (x + MAGIC) - MAGIC
 }
 
 /// `x as u32` for an integral `x ∈ [0, 2^23)`, without a (saturating, non-vectorising)
 /// float-to-int conversion.
 #[inline(always)]
-pub(crate) fn exact_u32(x: f32) -> u32 {
+pub fn exact_u32(x: f32) -> u32 {
     (x + MAGIC).to_bits().wrapping_sub(MAGIC.to_bits())
 }
 
 /// `floor` as an integer for `|x| <` [`EXACT_LIMIT`], without a libm call or a saturating
 /// conversion, so that it vectorises.
 #[inline(always)]
-pub(crate) fn floor_i32(x: f32) -> i32 {
+pub fn floor_i32(x: f32) -> i32 {
     let s = x + MAGIC_SIGNED;
     let r = s - MAGIC_SIGNED;
     let ri = (s.to_bits() as i32).wrapping_sub(MAGIC_SIGNED.to_bits() as i32);
@@ -46,7 +58,7 @@ pub(crate) fn floor_i32(x: f32) -> i32 {
 /// `x.clamp(0.0, lim)` rounded up, as an index: `x.ceil().clamp(0.0, lim) as usize` for a
 /// whole `lim ∈ [0, 2^22]` and any `x` (NaN gives 0).
 #[inline(always)]
-pub(crate) fn ceil_index(x: f32, lim: f32) -> usize {
+pub fn ceil_index(x: f32, lim: f32) -> usize {
     let (i, r, c) = nearest_clamped(x, lim);
     i + usize::from(r < c)
 }
@@ -54,9 +66,23 @@ pub(crate) fn ceil_index(x: f32, lim: f32) -> usize {
 /// `x.clamp(0.0, lim)` rounded down, as an index: `x.floor().clamp(0.0, lim) as usize` for a
 /// whole `lim ∈ [0, 2^22]` and any `x` (NaN gives 0).
 #[inline(always)]
-pub(crate) fn floor_index(x: f32, lim: f32) -> usize {
+pub fn floor_index(x: f32, lim: f32) -> usize {
     let (i, r, c) = nearest_clamped(x, lim);
     i - usize::from(r > c)
+}
+
+/// Whether `x.round()` (half away from zero) lies in `[0, n)`, and that index: `(true, i)`
+/// then, `(false, _)` otherwise (also for NaN and ±∞; the second value is then meaningless).
+/// `round(x) ≥ 0 ⇔ x > −½` and `round(x) < n ⇔ x < n − ½` for a whole `n ∈ [0, 2^22]`. Inside,
+/// `|x| < 2^22`: the magic add gives the nearest integer with ties to even, and a tie rounded
+/// down (`x − r = ½`, exact for a whole `r` within ½ of `x`) is moved up.
+#[inline(always)]
+pub fn round_index(x: f32, n: f32) -> (bool, i32) {
+    let inside = (x > -0.5) & (x < n - 0.5);
+    let s = x + MAGIC_SIGNED;
+    let r = s - MAGIC_SIGNED;
+    let i = (s.to_bits() as i32).wrapping_sub(MAGIC_SIGNED.to_bits() as i32);
+    (inside, i.wrapping_add(i32::from(x - r == 0.5)))
 }
 
 /// `c = x.clamp(0.0, lim)` (0 for NaN), the nearest integer to it as an index and as `f32`.
@@ -165,6 +191,57 @@ mod tests {
                     x.floor().clamp(0.0, lim) as usize,
                     "floor {x} {lim}"
                 );
+            }
+        }
+    }
+
+    /// The index and the inside flag equal `f32::round`'s pixel and the bounds test on it,
+    /// at and next to whole and half-whole numbers, beyond either bound, huge, infinite and
+    /// NaN.
+    #[test]
+    fn round_index_matches_the_library() {
+        let mut xs = vec![
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            f32::MIN,
+            -0.0,
+            0.0,
+            -0.5,
+            0.5,
+            0.499_999_97,
+            -0.499_999_97,
+            1e-30,
+            -1e-30,
+            1e9,
+            -1e9,
+        ];
+        for i in -3_000i32..3_000 {
+            let v = i as f32 * 0.25;
+            xs.extend([
+                v,
+                f32::from_bits(v.to_bits().wrapping_add(1)),
+                f32::from_bits(v.to_bits().wrapping_sub(1)),
+                i as f32 * 7.31 + 0.013,
+            ]);
+        }
+        for k in [639.5f32, 4_194_303.5, 2_097_151.5] {
+            xs.extend([
+                k,
+                f32::from_bits(k.to_bits() + 1),
+                f32::from_bits(k.to_bits() - 1),
+            ]);
+        }
+        for n in [0.0f32, 1.0, 160.0, 640.0, 4_194_304.0] {
+            for &x in &xs {
+                let r = x.round();
+                let inside = r >= 0.0 && r < n;
+                let (ok, i) = round_index(x, n);
+                assert_eq!(ok, inside, "inside {x} {n}");
+                if inside {
+                    assert_eq!(i, r as i32, "index {x} {n}");
+                }
             }
         }
     }
