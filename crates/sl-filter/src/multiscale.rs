@@ -411,6 +411,19 @@ pub fn apply_dilated_with_isa(
     Ok(DepthImage::from_vec(w, h, out)?)
 }
 
+/// The elements `first, first + s, …` of `v`, each the first of its chunk of `s` (`chunk[0]`):
+/// the polyphase copies read and write them without an index computed and checked per pixel.
+#[inline]
+fn every_nth<T>(v: &[T], first: usize, s: usize) -> std::slice::Chunks<'_, T> {
+    v.get(first..).unwrap_or(&[]).chunks(s.max(1))
+}
+
+/// [`every_nth`] for writing.
+#[inline]
+fn every_nth_mut<T>(v: &mut [T], first: usize, s: usize) -> std::slice::ChunksMut<'_, T> {
+    v.get_mut(first..).unwrap_or(&mut []).chunks_mut(s.max(1))
+}
+
 /// The `s×s` polyphase sub-images of an image (every `s`-th pixel of every `s`-th row, from
 /// offset `(px, py)`), stored one after the other in two `w·h` buffers: as split, and as
 /// filtered. Reused across the passes of [`MultiScale::apply`] (two allocations per call, not
@@ -467,10 +480,7 @@ impl Polyphase {
                 let (py, px) = (p / nx, p % nx);
                 let (_, sw, sh) = layout[p];
                 for (j, row) in sub.chunks_exact_mut(sw).enumerate() {
-                    // Every `s`-th pixel of the source row from `px` (the first of each chunk of
-                    // `s`: no index computed and checked per pixel).
-                    let src_row = src.get((py + j * s) * w + px..).unwrap_or(&[]);
-                    for (v, from) in row.iter_mut().zip(src_row.chunks(s.max(1))) {
+                    for (v, from) in row.iter_mut().zip(every_nth(src, (py + j * s) * w + px, s)) {
                         *v = from[0];
                     }
                 }
@@ -490,9 +500,7 @@ impl Polyphase {
                 for (px, &(offset, sw, _)) in self.layout[py * nx..(py + 1) * nx].iter().enumerate()
                 {
                     let filtered = &self.output[offset + j * sw..offset + (j + 1) * sw];
-                    // Every `s`-th pixel of the output row from `px` (the first of each chunk of
-                    // `s`: no index computed and checked per pixel).
-                    let targets = row.get_mut(px..).unwrap_or(&mut []).chunks_mut(s.max(1));
+                    let targets = every_nth_mut(row, px, s);
                     match keep_row {
                         None => {
                             for (to, &v) in targets.zip(filtered) {
@@ -500,7 +508,7 @@ impl Polyphase {
                             }
                         }
                         Some(k) => {
-                            let kept = k.get(px..).unwrap_or(&[]).chunks(s.max(1));
+                            let kept = every_nth(k, px, s);
                             for ((to, keep), &v) in targets.zip(kept).zip(filtered) {
                                 if keep[0] {
                                     to[0] = v;
