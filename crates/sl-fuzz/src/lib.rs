@@ -252,8 +252,9 @@ pub fn planes(data: &[u8]) {
     if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
         let _ = ex.extract_depth(&depth, &camera);
     }
-    // The optional seam stage (off by default) on the same frame.
+    // The optional seam and taken-in stages (off by default) on the same frame.
     cfg.refine_seams = true;
+    cfg.give_back_taken_in = true;
     if let Ok(mut ex) = sl_planes::PlaneExtractor::new(cfg) {
         let _ = ex.extract_depth(&depth, &camera);
     }

@@ -19,6 +19,9 @@
 //!
 //! * `… -- time-pool [ITERATIONS] [FILTER]`: `time` run from a worker of the global pool.
 //!
+//! `PLANES_TIMING_OPTIONS=give_back_taken_in` (or `refine_seams`, comma-separated) switches
+//! on optional stages.
+//!
 //! `RAYON_NUM_THREADS=1` times one thread (the final pass runs in bands on the rayon pool when
 //! it has more than one thread; from the main thread the extraction then moves onto a worker
 //! once per frame, see `PlaneExtractor::extract_depth`). Frames come from
@@ -42,6 +45,24 @@ fn run(ex: &mut PlaneExtractor, input: &Input, cam: &Camera) -> PlaneSegmentatio
     }
 }
 
+/// The default configuration, with the optional stages named in `PLANES_TIMING_OPTIONS`
+/// (comma-separated: `refine_seams`, `give_back_taken_in`) switched on.
+fn config() -> PlaneConfig {
+    let mut cfg = PlaneConfig::default();
+    let options = std::env::var("PLANES_TIMING_OPTIONS").unwrap_or_default();
+    for o in options.split(',').filter(|o| !o.is_empty()) {
+        match o {
+            "refine_seams" => cfg.refine_seams = true,
+            "give_back_taken_in" => cfg.give_back_taken_in = true,
+            _ => {
+                eprintln!("unknown option {o:?} in PLANES_TIMING_OPTIONS");
+                std::process::exit(2);
+            }
+        }
+    }
+    cfg
+}
+
 fn median(v: &mut [u64]) -> f64 {
     v.sort_unstable();
     v[v.len() / 2] as f64 / 1e6
@@ -53,7 +74,7 @@ fn time(iters: usize, filter: &str) {
         if !name.contains(filter) {
             continue;
         }
-        let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+        let mut ex = PlaneExtractor::new(config()).unwrap();
         let mut totals = Vec::with_capacity(iters);
         let mut stages: Vec<Vec<u64>> = vec![Vec::with_capacity(iters); Stage::ALL.len()];
         let mut nplanes = 0;
@@ -130,7 +151,7 @@ fn frames_for(
 }
 
 fn sweep(iters: usize, rounds: usize) {
-    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let mut ex = PlaneExtractor::new(config()).unwrap();
     let inputs = sweep_frames();
     // Per frame: every run's time. Rounds visit all frames in turn, so a slow spell of a shared
     // machine falls on a few runs of many frames, not on every run of one frame.
@@ -171,7 +192,7 @@ fn sweep(iters: usize, rounds: usize) {
 
 fn dump(dir: &std::path::Path) {
     std::fs::create_dir_all(dir).unwrap();
-    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let mut ex = PlaneExtractor::new(config()).unwrap();
     for (name, input, cam) in load(50) {
         let seg = run(&mut ex, &input, &cam);
         let file = dir.join(name.replace('/', "_"));
@@ -233,7 +254,7 @@ fn repeat(iters: usize, filter: &str) {
         .into_iter()
         .find(|(n, _, _)| n.contains(filter))
         .unwrap();
-    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let mut ex = PlaneExtractor::new(config()).unwrap();
     let n = repeat_extract(&mut ex, &input, &cam, iters);
     println!("{name}: {iters} runs, {n} planes");
 }
@@ -248,7 +269,7 @@ fn repeat_extract(ex: &mut PlaneExtractor, input: &Input, cam: &Camera, iters: u
 }
 
 fn compare(dir: &std::path::Path) {
-    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let mut ex = PlaneExtractor::new(config()).unwrap();
     let (mut worst, mut sum, mut n) = (1.0f64, 0.0f64, 0usize);
     let mut exact = true;
     for (name, input, cam) in load(50) {
@@ -323,7 +344,7 @@ fn compare(dir: &std::path::Path) {
 fn view(dir: &std::path::Path, out: &std::path::Path, filter: &str) {
     use sl_eval::planes::overlay::{depth_to_rgb, overlay_rgb};
     std::fs::create_dir_all(out).unwrap();
-    let mut ex = PlaneExtractor::new(PlaneConfig::default()).unwrap();
+    let mut ex = PlaneExtractor::new(config()).unwrap();
     for (name, input, cam) in load(50) {
         if !name.contains(filter) {
             continue;

@@ -170,6 +170,73 @@ impl QuadraticSums {
     }
 }
 
+/// The weighted moments of samples of the quadratic model: `Σw·uᵃvᵇ` for `a + b ≤ 4`,
+/// `Σw·r·uᵃvᵇ` for `a + b ≤ 2` and `Σw·r²` (21 sums per sample instead of the 27 of the normal
+/// equations), turned into [`QuadraticSums`] once ([`QuadraticMoments::sums`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct QuadraticMoments {
+    /// `Σw·uᵃvᵇ` in the order 1, u, v, u², uv, v², u³, u²v, uv², v³, u⁴, u³v, u²v², uv³, v⁴.
+    m: [f64; 15],
+    /// `Σw·r·φ` for φ = 1, u, v, u², uv, v².
+    r: [f64; 6],
+    rr: f64,
+    n: usize,
+}
+
+impl QuadraticMoments {
+    /// Adds the residual `r` at the scaled coordinates `(u, v)` with weight `w`.
+    #[inline]
+    pub(crate) fn add(&mut self, u: f64, v: f64, r: f64, w: f64) {
+        let (u2, uv, v2) = (u * u, u * v, v * v);
+        let p = [
+            1.0,
+            u,
+            v,
+            u2,
+            uv,
+            v2,
+            u2 * u,
+            u2 * v,
+            u * v2,
+            v2 * v,
+            u2 * u2,
+            u2 * uv,
+            u2 * v2,
+            uv * v2,
+            v2 * v2,
+        ];
+        for (m, x) in self.m.iter_mut().zip(p) {
+            *m += w * x;
+        }
+        let wr = w * r;
+        for (t, x) in self.r.iter_mut().zip(&p[..6]) {
+            *t += wr * x;
+        }
+        self.rr += wr * r;
+        self.n += 1;
+    }
+
+    /// The normal equations of the weighted fit.
+    pub(crate) fn sums(&self) -> QuadraticSums {
+        // Index of uᵃvᵇ in `m`, and the exponents of the basis 1, u, v, u², uv, v².
+        let index = |a: usize, b: usize| -> usize {
+            let degree = a + b;
+            degree * (degree + 1) / 2 + b
+        };
+        const EXPONENTS: [(usize, usize); 6] = [(0, 0), (1, 0), (0, 1), (2, 0), (1, 1), (0, 2)];
+        let mut out = QuadraticSums::default();
+        for (i, &(ai, bi)) in EXPONENTS.iter().enumerate() {
+            for (j, &(aj, bj)) in EXPONENTS.iter().enumerate().skip(i) {
+                out.m[(i, j)] = self.m[index(ai + aj, bi + bj)];
+            }
+            out.rhs[i] = self.r[i];
+        }
+        out.srr = self.rr;
+        out.n = self.n;
+        out
+    }
+}
+
 /// Sums of the hinge model along one line (the direct fit [`HingeBins`] is checked against).
 #[cfg(test)]
 pub(crate) type HingeSums = NormalEquations<4>;
@@ -290,6 +357,33 @@ impl Solved<6> {
             direction: (du, dv),
             unit_variance: y.norm_squared(),
         }
+    }
+}
+
+#[cfg(test)]
+mod moments_tests {
+    use super::*;
+
+    /// The moments' normal equations are the weighted sample-by-sample ones.
+    #[test]
+    fn weighted_moments_match_the_samples() {
+        let mut direct = QuadraticSums::default();
+        let mut moments = QuadraticMoments::default();
+        for k in 0..40 {
+            let (u, v) = (0.1 * f64::from(k % 7) - 0.3, 0.07 * f64::from(k) - 1.2);
+            let (r, w) = (
+                0.5 * u - v * v + 0.01 * f64::from(k),
+                1.0 + f64::from(k % 3),
+            );
+            let phi = quadratic_basis(u, v) * w.sqrt();
+            direct.add_basis(&phi, r * w.sqrt());
+            moments.add(u, v, r, w);
+        }
+        let (a, b) = (direct.solve().unwrap(), moments.sums().solve().unwrap());
+        for (x, y) in a.coef.iter().zip(b.coef.iter()) {
+            assert!((x - y).abs() < 1e-9 * (1.0 + x.abs()), "{x} {y}");
+        }
+        assert!((a.rss - b.rss).abs() < 1e-9 * (1.0 + a.rss));
     }
 }
 

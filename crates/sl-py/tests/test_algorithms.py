@@ -144,12 +144,19 @@ def test_planes_carry_their_uncertainty(kinect, three_planes):
 
 
 @pytest.mark.parametrize(
-    "switch", [{"split_creases": False}, {"refine_seams": True}, {"estimate_noise": False}]
+    "switch",
+    [
+        {"split_creases": False},
+        {"refine_seams": True},
+        {"give_back_taken_in": True},
+        {"estimate_noise": False},
+    ],
 )
 def test_the_crease_switches_change_nothing_on_exact_planes(kinect, three_planes, switch):
     # Three planes meeting at right angles near the camera: no plane spans a crease (the split,
     # on by default, changes nothing) and no whole fit is off along one (the seam refinement,
-    # off by default, moves no pixel; its effect on bent surfaces is tested in the Rust suite).
+    # off by default, moves no pixel; its effect on bent surfaces is tested in the Rust suite),
+    # and no piece sits off a plane (the taken-in test, off by default, gives nothing back).
     # The frame is as noisy as its camera says: measuring its noise (on by default) changes
     # nothing either (a noisier sensor is tested in the Rust suite).
     depth, _, _ = three_planes

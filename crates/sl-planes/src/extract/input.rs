@@ -32,6 +32,17 @@ impl<'a> FullDisparity<'a> {
         }
     }
 
+    /// Row `y` (width `w`) of the disparity written into `out` (length `w`).
+    #[inline]
+    pub(super) fn row_into(self, y: usize, w: usize, out: &mut [f32]) {
+        match self {
+            FullDisparity::Disparity(d) => out.copy_from_slice(&d[y * w..(y + 1) * w]),
+            FullDisparity::Depth { z, fb } => {
+                depth_to_disparity_row(&z[y * w..(y + 1) * w], out, fb)
+            }
+        }
+    }
+
     /// The disparity of pixel `i` (the scalar form of `depth_to_disparity_row` for depth).
     #[inline]
     pub(super) fn at(self, i: usize) -> f32 {

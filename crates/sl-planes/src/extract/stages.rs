@@ -17,7 +17,8 @@ pub enum Stage {
     /// Per-component robust affine fits.
     SeedFits,
     /// Merging of close planes and renumbering, and after the final pass the splitting of the
-    /// planes across a crease and the joining of the pieces of bent surfaces.
+    /// planes across a crease, the optional giving back of the pieces a plane took in, and the
+    /// joining of the pieces of bent surfaces.
     Merge,
     /// k-means assignment passes on the cells (searches, sums, refits).
     Refine,

@@ -13,6 +13,7 @@
 //! the 50 7-Scenes red-kitchen frames (`frame-*.pose.txt`). Also reported: planes per frame,
 //! and the worst per-frame extraction time (best of 5 runs, one thread) over the frames.
 
+mod optional;
 mod same_patch;
 
 use std::collections::VecDeque;
@@ -197,8 +198,8 @@ struct SeqResult {
     worst_frame: String,
 }
 
-fn run_sequence(seq: &Sequence, reps: usize) -> Result<SeqResult> {
-    let mut ex = PlaneExtractor::new(PlaneConfig::default())?;
+fn run_sequence(seq: &Sequence, reps: usize, cfg: PlaneConfig) -> Result<SeqResult> {
+    let mut ex = PlaneExtractor::new(cfg)?;
     let opts = sl_io::ReadConfig::default().with_scale(seq.units_per_m);
     let undistort = seq
         .lens
@@ -328,7 +329,7 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
     );
     let mut results = Vec::new();
     for s in &seqs {
-        results.push(run_sequence(s, reps)?);
+        results.push(run_sequence(s, reps, PlaneConfig::default())?);
     }
     for r in &results {
         for (k, g) in &r.gaps {
@@ -379,6 +380,7 @@ pub fn repeat(ctx: &mut Context) -> Result<()> {
         );
     }
     at_clock_offset(ctx, &mut md, &data)?;
+    optional::taken_in(ctx, &mut md, &seqs, &results)?;
     by_uncertainty(ctx, &mut md, &results);
     same_patch_table(ctx, &mut md, &results);
     own_misses_table(ctx, &mut md, &results);
@@ -406,7 +408,7 @@ fn at_clock_offset(ctx: &mut Context, md: &mut String, data: &Path) -> Result<()
     let Some(seq) = tum200(data, Some(offset))? else {
         return Ok(());
     };
-    let r = run_sequence(&seq, 1)?;
+    let r = run_sequence(&seq, 1, PlaneConfig::default())?;
     let _ = write!(
         md,
         "\n**TUM with the clock offset undone.** The same frames with each ground-truth pose \

@@ -593,12 +593,31 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
                 &format!("rooms distortion {a:.1} px disparity refine-seams"),
                 &t,
             );
+            // The same with the taken-in stage (`PlaneConfig::give_back_taken_in`, off by
+            // default).
+            let mut cfg = *ex.config();
+            cfg.give_back_taken_in = true;
+            let mut given_back = PlaneExtractor::new(cfg)?;
+            let t = score_ours(&mut given_back, ROOM_EXAMINED_SEEDS, a)?;
+            let _ = writeln!(
+                md,
+                "| {a:.1} px {}",
+                t.line("disparity, `give_back_taken_in`")
+            );
+            share_rows(
+                ctx,
+                &format!("rooms distortion {a:.1} px disparity give-back-taken-in"),
+                &t,
+            );
         }
         md.push_str(
             "\n`refine_seams` (off by default, session 43) re-decides the pixels along a crease \
              with the two planes' local fits where a plane's whole fit is off there: the rim a \
              small neighbour took from a bent surface goes back to it. Without distortion it \
-             changes no score above; on real frames it costs 0.1–0.3 ms per frame.\n",
+             changes no score above; on real frames it costs 0.1–0.3 ms per frame. \
+             `give_back_taken_in` (off by default, session 75) leaves unlabelled the pieces of a \
+             neighbouring surface a plane took in (blocks off a quadratic fit of the plane by \
+             more than the noise model allows); on real frames it costs 0.4–0.7 ms per frame.\n",
         );
         md.push('\n');
         super::noisier::noisier_sensor(ctx, &mut md)?;
