@@ -578,18 +578,7 @@ impl PlaneExtractor {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A Gaussian sample from a small deterministic generator (Box–Muller on an LCG).
-    fn gauss(state: &mut u64) -> f64 {
-        let mut uni = || {
-            *state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((*state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
-        let (a, b) = (uni(), uni());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
+    use crate::extract::tests::gauss;
 
     /// An extractor whose plane 0 has the grid samples of `surface` (disparity, px, of pixel
     /// coordinates) over a 200 × 120-pixel region, with white noise of the pixels' deviation

@@ -633,18 +633,7 @@ fn standardise_blocks(blocks: &mut [TestBlock]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A standard normal deviate (Box–Muller on a 64-bit LCG).
-    fn gauss(state: &mut u64) -> f64 {
-        let mut uni = || {
-            *state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            ((*state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        };
-        let (a, b) = (uni(), uni());
-        (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-    }
+    use crate::extract::tests::gauss;
 
     /// A 640 × 480 disparity frame of a far wall (about 2.5 m for a Kinect) whose disparity
     /// is `surface`, with the camera's white noise, and the camera.

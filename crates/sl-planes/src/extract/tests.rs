@@ -3,6 +3,19 @@
 use super::*;
 use sl_core::{Camera, Intrinsics, SensorModel};
 
+/// A standard normal deviate from a small deterministic generator (Box–Muller on a 64-bit
+/// LCG), for the stages' tests.
+pub(super) fn gauss(state: &mut u64) -> f64 {
+    let mut uni = || {
+        *state = state
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        ((*state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    };
+    let (a, b) = (uni(), uni());
+    (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+}
+
 /// The depth rows converted for the final pass and the per-pixel conversion of the
 /// disambiguation agree bit for bit, invalid depths (0, negative, NaN, ∞) included.
 #[test]
