@@ -149,8 +149,9 @@ pub struct PyUnlabelledRegion {
     pixels: usize,
     /// Bounding box ``(x0, y0, x1, y1)``, pixels (inclusive).
     bbox_px: (usize, usize, usize, usize),
-    /// The test: ``"NotPlanarLog"``, ``"ResidualNotWhite"``, ``"SeveralSurfaces"`` or
-    /// ``"Unseeded"`` (the names of ``sldepth planes --explain --json``).
+    /// The test: ``"NotPlanarLog"``, ``"ResidualNotWhite"``, ``"SeveralSurfaces"``,
+    /// ``"Unseeded"``, ``"Uncertain"`` or ``"GivenBack"`` (the names of
+    /// ``sldepth planes --explain --json``).
     reason: String,
     /// What the reason means, in words.
     why: String,

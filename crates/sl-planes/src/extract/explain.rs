@@ -28,6 +28,10 @@ pub enum RejectReason {
     /// Most of it was a plane that the noise model determines less well than
     /// `max_normal_sigma_deg` asks, and so was not reported.
     Uncertain,
+    /// Most of it was given back by the plane beside it as a piece of another surface that
+    /// plane had taken in (`PlaneConfig::give_back_taken_in`): off that plane's fit and its
+    /// surroundings by more than the noise allows.
+    GivenBack,
 }
 
 impl RejectReason {
@@ -44,6 +48,9 @@ impl RejectReason {
             Self::Unseeded => "one plane fits it, but its seed was too small or it was dropped",
             Self::Uncertain => {
                 "a plane, left out: its normal is less certain than max_normal_sigma_deg"
+            }
+            Self::GivenBack => {
+                "given back by the plane beside it: off its fit and surroundings beyond the noise"
             }
         }
     }
@@ -133,6 +140,8 @@ impl PlaneExtractor {
                 .and_then(|p| self.dropped_uncertain.get(p))
                 .is_some_and(|&d| d != 0)
         };
+        // Cells given back by a plane as a piece it had taken in (`taken_in`).
+        let mut given_back = vec![0usize; nc];
         let mut boxes = vec![[u32::MAX, u32::MAX, 0, 0]; nc];
         let (wp, hp) = (wq / PATCH, hq / PATCH);
         let mut patch_seen = vec![u32::MAX; wp * hp];
@@ -146,6 +155,11 @@ impl PlaneExtractor {
                 sums[c].add(i as f64, j as f64, f64::from(d));
                 log_bad[c] += usize::from(self.cell_planar[j * wq + i] == 0);
                 uncertain[c] += usize::from(dropped(j * wq + i));
+                given_back[c] += usize::from(
+                    self.given_back_cells
+                        .get(j * wq + i)
+                        .is_some_and(|&g| g != 0),
+                );
                 let (pi, pj) = (i / PATCH, j / PATCH);
                 if pi < wp && pj < hp && patch_seen[pj * wp + pi] != c as u32 {
                     patch_seen[pj * wp + pi] = c as u32;
@@ -176,6 +190,8 @@ impl PlaneExtractor {
             };
             let reason = if uncertain[c] as f64 > 0.5 * n {
                 RejectReason::Uncertain
+            } else if given_back[c] as f64 > 0.5 * n {
+                RejectReason::GivenBack
             } else if log_frac > 0.5 {
                 RejectReason::NotPlanarLog
             } else if patches[c].0 > 0 && res_frac > 0.5 {

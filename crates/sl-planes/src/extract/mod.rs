@@ -618,6 +618,9 @@ pub struct PlaneExtractor {
     /// a block's surroundings.
     block_off: Vec<f64>,
     block_window: Vec<f64>,
+    /// Cells (4 × 4 pixels) whose pixels a plane gave back in the last extraction (1), for
+    /// `explain`; empty when the stage did not run.
+    given_back_cells: Vec<u8>,
 }
 
 /// Where a full-resolution row's disparity was measured, in the image's rows: the row itself,
@@ -958,6 +961,7 @@ impl PlaneExtractor {
             if cfg.split_creases {
                 self.split_creases(d, w, wq, k.fx, &mut labels);
             }
+            self.given_back_cells.clear();
             if cfg.give_back_taken_in {
                 self.give_back_taken_in(d, w, wq, &mut labels);
             }

@@ -314,6 +314,8 @@ impl PlaneExtractor {
         }
         self.block_mark.clear();
         self.block_mark.resize(bw * bh, u32::MAX);
+        self.given_back_cells.clear();
+        self.given_back_cells.resize(wq * h.div_ceil(CELL), 0);
         let min_piece = self.cfg.min_piece_pixels.max(1);
         for p in 0..n_planes {
             let (b0, b1) = (
@@ -469,6 +471,9 @@ impl PlaneExtractor {
                             && *c == label
                         {
                             *c = 0;
+                        }
+                        if let Some(g) = self.given_back_cells.get_mut(j * wq + i) {
+                            *g = 1;
                         }
                     }
                 }
@@ -684,6 +689,20 @@ mod tests {
         // 1,152 board pixels: the wall took most of them in; most are given back.
         assert!(on_board(&before) > 900, "{}", on_board(&before));
         assert!(on_board(&after) < 300, "{}", on_board(&after));
+        // `explain` names the board's region as given back.
+        let cfg = PlaneConfig {
+            give_back_taken_in: true,
+            ..PlaneConfig::default()
+        };
+        let mut ex = PlaneExtractor::new(cfg).unwrap();
+        let seg = ex.extract_disparity(&d, &cam).unwrap();
+        let regions = ex.explain_unlabelled(&seg, 500);
+        assert!(
+            regions
+                .iter()
+                .any(|r| r.reason == RejectReason::GivenBack && r.pixels >= 500),
+            "{regions:?}"
+        );
         // The wall's fit, at the board's corner, back near the wall's own disparity.
         let err = |seg: &PlaneSegmentation| {
             (seg.planes[0].affine.eval(224.0, 470.0) - wall(224.0, 470.0)).abs()

@@ -303,8 +303,9 @@ class UnlabelledRegion:
     pixels: int
     bbox_px: Tuple[int, int, int, int]
     reason: str
-    """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces", "Unseeded" or "Uncertain" (a
-    plane left out by max_normal_sigma_deg)."""
+    """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces", "Unseeded", "Uncertain" (a
+    plane left out by max_normal_sigma_deg) or "GivenBack" (a piece a plane took in and gave
+    back, give_back_taken_in)."""
     why: str
     log_rejected_fraction: float
     residual_rejected_fraction: float

@@ -35,8 +35,9 @@ pub struct Args {
     #[arg(long)]
     pub json: bool,
     /// Also say why each unlabelled region of at least `--min-pixels` valid pixels is on no
-    /// plane (LoG test, residual above the noise, several surfaces, too small a seed); with
-    /// `--json`, an `unlabelled` list (disparity method).
+    /// plane (LoG test, residual above the noise, several surfaces, too small a seed, left out as
+    /// uncertain, given back by `--give-back-taken-in`); with `--json`, an `unlabelled` list
+    /// (disparity method).
     #[arg(long)]
     pub explain: bool,
     /// `disparity` (the paper's method) or `metric-ransac` (the fixed metric threshold baseline).
