@@ -188,7 +188,7 @@ pub struct PlaneConfig {
     /// 61.9 → 62.3 %) but the count found again does not (359 and 784 instead of 361 and 797:
     /// planes that give pieces back shrink, and some fall below the benchmark's 5,000 pixels);
     /// the simulated rooms score the same or slightly better, with one spurious plane more in
-    /// four sets of sixty; it costs 0.4–0.7 ms per 640×480 frame on one thread
+    /// four of the room sets; it costs 0.4–0.7 ms per 640×480 frame on one thread
     /// (docs/bench/README.md, session 75).
     pub give_back_taken_in: bool,
     /// Whether a frame noisier than its camera's model is detected on the frame's own patches
