@@ -494,7 +494,7 @@ impl PlaneExtractor {
                 }
                 let seg = &row[range.clone()];
                 for (ci, chunk) in seg.chunks(SCAN_CHUNK).enumerate() {
-                    if !chunk.iter().fold(false, |f, &l| f | (l == label)) {
+                    if !holds_label(chunk, label) {
                         continue;
                     }
                     for (xi, _) in chunk.iter().enumerate().filter(|(_, l)| **l == label) {

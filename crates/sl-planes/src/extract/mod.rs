@@ -824,6 +824,8 @@ impl PlaneExtractor {
         let tau = cfg.threshold_px as f32;
         self.planes.clear();
         self.final_sums.clear();
+        // What the taken-in stage gave back is this frame's (none unless it runs).
+        self.given_back_cells.clear();
         let (w2, h2) = (w / 2, h / 2);
         let (wq, hq) = (w2 / 2, h2 / 2);
         // The final pass appends the rows of the label image (no zeroing of the whole image).
@@ -961,7 +963,6 @@ impl PlaneExtractor {
             if cfg.split_creases {
                 self.split_creases(d, w, wq, k.fx, &mut labels);
             }
-            self.given_back_cells.clear();
             if cfg.give_back_taken_in {
                 self.give_back_taken_in(d, w, wq, &mut labels);
             }

@@ -1,7 +1,15 @@
-//! Row helpers of the label image: run ends, relabelling through a lookup table, the planes
-//! present in a 3-row neighbourhood, bit masks and bounding boxes.
+//! Row helpers of the label image: whether a chunk holds a label, run ends, relabelling
+//! through a lookup table, the planes present in a 3-row neighbourhood, bit masks and bounding
+//! boxes.
 
 use super::*;
+
+/// Whether `chunk` holds `label` (one branch-free pass, for skipping the chunks of a row
+/// without it).
+#[inline]
+pub(super) fn holds_label(chunk: &[u16], label: u16) -> bool {
+    chunk.iter().fold(false, |f, &l| f | (l == label))
+}
 
 /// End of the run of values equal to `row[i]` that starts at `i` (4 values per step).
 #[inline]

@@ -114,8 +114,8 @@ pub(super) struct BlockSlot {
 /// A block's samples: up to two planes' (a third plane's, rare, is not tested there).
 pub(super) type BlockSlots = [BlockSlot; 2];
 
-/// A block of a plane under test: its block index, mean position, mean residual, variance of
-/// that mean, and its standardised residual from the quadratic.
+/// A block of a plane under test: its block index, the mean position and mean residual of its
+/// samples, the noise of that mean, and its residual from the plane's quadratic.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct TestBlock {
     block: u32,
@@ -128,8 +128,14 @@ pub(super) struct TestBlock {
     inv_sd: f64,
     /// Residual of `r` from the plane's quadratic, px.
     e: f64,
-    /// `e` in units of its standard deviation.
-    z: f64,
+}
+
+impl TestBlock {
+    /// The residual from the quadratic in units of its standard deviation.
+    #[inline]
+    fn z(&self) -> f64 {
+        self.e * self.inv_sd
+    }
 }
 
 /// Mean pairwise correlation of the samples of a full block (every [`X_STEP`]-th pixel of the
@@ -137,16 +143,13 @@ pub(super) struct TestBlock {
 /// autocorrelation of a `wx × wy` window, excluding each sample with itself.
 fn block_correlation(wx: f64, wy: f64) -> f64 {
     let rho = |l: f64, w: f64| (1.0 - l.abs() / w.max(1.0)).max(0.0);
-    let xs: Vec<f64> = (0..BLOCK).step_by(X_STEP).map(|x| x as f64).collect();
-    let ys: Vec<f64> = (0..BLOCK)
-        .step_by(SAMPLE_ROW_STEP)
-        .map(|y| y as f64)
-        .collect();
+    let xs = || (0..BLOCK).step_by(X_STEP).map(|x| x as f64);
+    let ys = || (0..BLOCK).step_by(SAMPLE_ROW_STEP).map(|y| y as f64);
     let (mut sum, mut pairs) = (0.0, 0.0);
-    for &ya in &ys {
-        for &xa in &xs {
-            for &yb in &ys {
-                for &xb in &xs {
+    for ya in ys() {
+        for xa in xs() {
+            for yb in ys() {
+                for xb in xs() {
                     if xa == xb && ya == yb {
                         continue;
                     }
@@ -307,7 +310,6 @@ impl PlaneExtractor {
                     weight,
                     inv_sd,
                     e: 0.0,
-                    z: 0.0,
                 };
                 *at += 1;
             }
@@ -369,12 +371,12 @@ impl PlaneExtractor {
         let mut window = std::mem::take(&mut self.block_window);
         off.clear();
         off.extend(blocks.iter().map(|b| {
-            if b.z.abs() <= Z_99 {
+            if b.z().abs() <= Z_99 {
                 return 0.0;
             }
             let local = off_its_surroundings(b, blocks, &self.block_mark, bw, &mut window);
-            if local * b.z.signum() > 0.0 {
-                b.z.signum() * b.z.abs().min(local.abs())
+            if local * b.z().signum() > 0.0 {
+                b.z().signum() * b.z().abs().min(local.abs())
             } else {
                 0.0
             }
@@ -523,7 +525,7 @@ impl PlaneExtractor {
                 .zip(drow.chunks_exact(SCAN_CHUNK))
                 .enumerate()
             {
-                if !lc.iter().fold(false, |f, &l| f | (l == label)) {
+                if !holds_label(lc, label) {
                     continue;
                 }
                 let x0 = c * SCAN_CHUNK;
@@ -557,8 +559,8 @@ impl PlaneExtractor {
 }
 
 /// Block `b`'s residual from the quadratic against the median of the residuals of the plane's
-/// other blocks within [`LOCAL_RADIUS`] blocks (every [`LOCAL_STEP`]-th each way), in units of the difference's standard deviation
-/// (0 when fewer than [`MIN_LOCAL_BLOCKS`] surround it). The distortion the quadratic cannot
+/// other blocks within [`LOCAL_RADIUS`] blocks (every [`LOCAL_STEP`]-th each way), in units of
+/// the difference's standard deviation (0 when fewer than [`MIN_LOCAL_BLOCKS`] surround it). The distortion the quadratic cannot
 /// take varies over a hundred pixels and more, so the median of the surroundings follows it
 /// (exactly for a linear trend across a symmetric window), while a piece of a neighbour that
 /// fills less than half the window does not move it.
@@ -612,12 +614,12 @@ fn standardise_blocks(blocks: &mut [TestBlock]) -> bool {
     let (cx, cy) = (cx / sw, cy / sw);
     let inv_s = 1.0 / COORD_SCALE_PX;
     for pass in 0..2 {
-        if pass == 1 && blocks.iter().all(|b| b.z.abs() <= Z_999) {
+        if pass == 1 && blocks.iter().all(|b| b.z().abs() <= Z_999) {
             break;
         }
         let mut q = QuadraticMoments::default();
         for b in blocks.iter() {
-            if pass == 1 && b.z.abs() > Z_999 {
+            if pass == 1 && b.z().abs() > Z_999 {
                 continue;
             }
             q.add((b.x - cx) * inv_s, (b.y - cy) * inv_s, b.r, b.weight);
@@ -629,7 +631,6 @@ fn standardise_blocks(blocks: &mut [TestBlock]) -> bool {
             let phi = basis((b.x - cx) * inv_s, (b.y - cy) * inv_s);
             let fit: f64 = phi.iter().zip(sol.coef.iter()).map(|(a, c)| a * c).sum();
             b.e = b.r - fit;
-            b.z = b.e * b.inv_sd;
         }
     }
     true

@@ -31,6 +31,10 @@ use sl_planes::{PlaneConfig, PlaneExtractor, PlaneSegmentation, RansacConfig, me
 use super::{EXP, TOLERANCE, save_overlay};
 use crate::validate::Context;
 
+/// An optional stage of the extractor: its config field, its tag in the results, and how to
+/// switch it on.
+type OptionalStage = (&'static str, &'static str, fn(&mut PlaneConfig));
+
 /// Ground-truth planes smaller than this (valid pixels) are not scored; machine regions of at
 /// least this size that match nothing are spurious.
 pub const ROOM_MIN_PIXELS: usize = 2000;
@@ -582,33 +586,29 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
                 &format!("rooms distortion {a:.1} px disparity"),
                 &set.ours,
             );
-            // The same with the seam stage (`PlaneConfig::refine_seams`, off by default).
-            let mut cfg = *ex.config();
-            cfg.refine_seams = true;
-            let mut seamed = PlaneExtractor::new(cfg)?;
-            let t = score_ours(&mut seamed, ROOM_EXAMINED_SEEDS, a)?;
-            let _ = writeln!(md, "| {a:.1} px {}", t.line("disparity, `refine_seams`"));
-            share_rows(
-                ctx,
-                &format!("rooms distortion {a:.1} px disparity refine-seams"),
-                &t,
-            );
-            // The same with the taken-in stage (`PlaneConfig::give_back_taken_in`, off by
-            // default).
-            let mut cfg = *ex.config();
-            cfg.give_back_taken_in = true;
-            let mut given_back = PlaneExtractor::new(cfg)?;
-            let t = score_ours(&mut given_back, ROOM_EXAMINED_SEEDS, a)?;
-            let _ = writeln!(
-                md,
-                "| {a:.1} px {}",
-                t.line("disparity, `give_back_taken_in`")
-            );
-            share_rows(
-                ctx,
-                &format!("rooms distortion {a:.1} px disparity give-back-taken-in"),
-                &t,
-            );
+            // The same with each optional stage (off by default).
+            let optional: [OptionalStage; 2] = [
+                ("refine_seams", "refine-seams", |c| c.refine_seams = true),
+                ("give_back_taken_in", "give-back-taken-in", |c| {
+                    c.give_back_taken_in = true
+                }),
+            ];
+            for (name, tag, switch_on) in optional {
+                let mut cfg = *ex.config();
+                switch_on(&mut cfg);
+                let mut with_stage = PlaneExtractor::new(cfg)?;
+                let t = score_ours(&mut with_stage, ROOM_EXAMINED_SEEDS, a)?;
+                let _ = writeln!(
+                    md,
+                    "| {a:.1} px {}",
+                    t.line(&format!("disparity, `{name}`"))
+                );
+                share_rows(
+                    ctx,
+                    &format!("rooms distortion {a:.1} px disparity {tag}"),
+                    &t,
+                );
+            }
         }
         md.push_str(
             "\n`refine_seams` (off by default, session 43) re-decides the pixels along a crease \
