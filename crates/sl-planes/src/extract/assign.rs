@@ -11,8 +11,8 @@ use super::*;
 /// How many of the 8 neighbours of pixel `(x, y)` carry label `k1` and how many `k2`.
 ///
 /// Away from the image border the eight labels are read as three fixed-size windows (no loop
-/// over clipped ranges): the disambiguation visits every pixel that two planes explain, about
-/// 10 k a frame, and the general loop cost ~250 instructions per pixel.
+/// over clipped ranges): the disambiguation visits every pixel that two planes explain, 5–30 k
+/// a frame, and the general loop cost ~250 instructions per pixel.
 #[inline]
 fn neighbour_votes(
     labels: &[u16],
@@ -161,9 +161,9 @@ impl PlaneExtractor {
         labels: &mut [u16],
     ) {
         let ambiguous = std::mem::take(&mut self.ambiguous);
-        for &(i, k1, k2) in &ambiguous {
-            let i = i as usize;
-            let (x, y) = (i % w, i / w);
+        for a in &ambiguous {
+            let (x, y, k1, k2) = (a.x as usize, a.y as usize, a.best, a.second);
+            let i = y * w + x;
             let (c1, c2) = neighbour_votes(labels, w, h, x, y, k1, k2);
             let (u1, u2) = (k1 as usize - 1, k2 as usize - 1);
             if c2 > c1

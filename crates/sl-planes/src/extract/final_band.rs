@@ -69,8 +69,21 @@ pub(super) struct FinalBand {
     row_offsets: Vec<f32>,
     /// Per plane: pixels, rows and moments of the band.
     pub(super) sums: Vec<FinalAcc>,
-    /// The band's pixels that fit two planes: `(pixel index, best label, second label)`.
-    pub(super) ambiguous: Vec<(u32, u16, u16)>,
+    /// The band's pixels that fit two planes.
+    pub(super) ambiguous: Vec<AmbiguousPixel>,
+}
+
+/// A pixel that two planes explain (see [`PlaneExtractor::final_pass`]), for the
+/// disambiguation. Its column and row are kept (not its index), so that the disambiguation
+/// needs no division per pixel.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct AmbiguousPixel {
+    pub(super) x: u32,
+    pub(super) y: u32,
+    /// The label the pixel took (the smaller residual).
+    pub(super) best: u16,
+    /// The other plane's label.
+    pub(super) second: u16,
 }
 
 impl FinalBand {
@@ -390,7 +403,12 @@ impl FinalBand {
                     }
                 }
                 if other != 0 {
-                    amb.push(((y * w + x) as u32, lab, other));
+                    amb.push(AmbiguousPixel {
+                        x: x as u32,
+                        y: y as u32,
+                        best: lab,
+                        second: other,
+                    });
                 }
             }
         }

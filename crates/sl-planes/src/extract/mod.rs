@@ -499,8 +499,8 @@ pub struct PlaneExtractor {
     final_sums: Vec<FinalAcc>,
     /// Scratch and output of the final pass's bands of rows.
     final_bands: Vec<final_band::FinalBand>,
-    /// Pixels that fit two planes: `(pixel index, best label, second label)`.
-    ambiguous: Vec<(u32, u16, u16)>,
+    /// Pixels that fit two planes, in row order.
+    ambiguous: Vec<final_band::AmbiguousPixel>,
     /// Per component: affine moment sums of its cells (seeding).
     component_sums: Vec<AffineSums>,
     /// Per component: bounding box on the cell grid (seeding).
