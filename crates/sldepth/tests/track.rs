@@ -188,6 +188,16 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert_eq!(v["keyframes"], true);
     assert!(v["track_ms_median"].as_f64().unwrap() > 0.0);
     assert!(v["integrate_ms_median"].as_f64().unwrap() > 0.0);
+    // The whole pipeline per frame but the file's reading: the preparation (lens model, noise
+    // measurement, prefilter) plus the step. Every frame's sum is at least its step, so the
+    // medians keep that order.
+    let (prepare, step, frame) = (
+        v["prepare_ms_median"].as_f64().unwrap(),
+        v["step_ms_median"].as_f64().unwrap(),
+        v["frame_ms_median"].as_f64().unwrap(),
+    );
+    assert!(prepare > 0.0 && step > 0.0, "{prepare} {step}");
+    assert!(frame >= step, "frame {frame} ms < step {step} ms");
     assert!(v["vertices"].as_u64().unwrap() > 1000);
     // The instruction set the tracker ran with: this CPU's widest.
     assert_eq!(v["isa"], sl_core::Isa::detect().effective().name());

@@ -583,6 +583,9 @@ pub fn run(args: Args) -> Result<()> {
     let mut rec = Reconstruction::new(camera, cfg)?;
     let mut raycast_ms = Vec::new();
     let mut step_ms = Vec::new();
+    // Per frame read: its preparation (lens model, noise measurement, prefilter), and that
+    // with the step (every stage of the pipeline but reading the file).
+    let (mut prepare_ms, mut frame_ms) = (Vec::new(), Vec::new());
     let mut track_ms_tracked = Vec::new();
 
     let bar = indicatif::ProgressBar::new(frames.len() as u64);
@@ -627,6 +630,7 @@ pub fn run(args: Args) -> Result<()> {
                 k.height
             );
         }
+        let prepared = Instant::now();
         let depth = match raw
             .and_then(|d| match &undistort {
                 Some(u) => Ok(u.apply(&d)?),
@@ -660,6 +664,7 @@ pub fn run(args: Args) -> Result<()> {
                 continue;
             }
         };
+        let prepare = prepared.elapsed().as_secs_f64() * 1e3;
         // The tracker is told how many frame intervals passed: from the timestamps of a TUM
         // recording (frames its driver dropped), else one per frame of the folder, so an
         // unreadable frame skipped above is a longer step rather than a surprise.
@@ -726,6 +731,8 @@ pub fn run(args: Args) -> Result<()> {
             rows.push((t, Row::Lost(why)));
         }
         step_ms.push(tm.step_ms);
+        prepare_ms.push(prepare);
+        frame_ms.push(prepare + tm.step_ms);
         bar.set_message(format!("{} lost", lost_frames.len()));
         bar.inc(1);
     }
@@ -770,6 +777,23 @@ pub fn run(args: Args) -> Result<()> {
         .map(|m| (m.vertices, m.triangles));
     let (tm, im) = (median(&track_ms), median(&integrate_ms));
     if args.json {
+        let fragments_json = fragments
+            .iter()
+            .enumerate()
+            .map(|(index, f)| {
+                let world = world_of(index, &fragments).0;
+                serde_json::json!({
+                    "index": index,
+                    "first_frame": f.first_frame,
+                    "tracked": f.tracked,
+                    "joined_into": f.joined.map(|j| j.into),
+                    "world": world,
+                    "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
+                    "mesh": f.mesh.as_ref().map(|m| m.path.display().to_string()),
+                    "vertices": f.mesh.as_ref().map(|m| m.vertices),
+                })
+            })
+            .collect::<Vec<_>>();
         print_json(&serde_json::json!({
             "frames": frames.len(),
             "tracked": frames.len() - lost_frames.len() - skipped_frames.len(),
@@ -790,6 +814,10 @@ pub fn run(args: Args) -> Result<()> {
             "rolling_shutter_ms": round_to(cfg.tracker.rolling_shutter_readout_s * 1e3, 3),
             "raycast_ms_median": round_to(median(&raycast_ms), 3),
             "step_ms_median": round_to(median(&step_ms), 3),
+            // Per frame read: the lens model, the noise measurement and the prefilter; and
+            // those with the step (the whole pipeline but reading the file).
+            "prepare_ms_median": round_to(median(&prepare_ms), 3),
+            "frame_ms_median": round_to(median(&frame_ms), 3),
             "weighting": weighting.name(),
             "keyframes": cfg.tracker.keyframe_relocalisation,
             // The instruction set the tracker's pass ran with (the fusion's loops use it when
@@ -808,19 +836,7 @@ pub fn run(args: Args) -> Result<()> {
             "depth_lookup": params.depth_lookup.name(),
             "vertices": mesh_size.map(|m| m.0),
             "triangles": mesh_size.map(|m| m.1),
-            "fragments": fragments.iter().enumerate().map(|(index, f)| {
-                let world = world_of(index, &fragments).0;
-                serde_json::json!({
-                    "index": index,
-                    "first_frame": f.first_frame,
-                    "tracked": f.tracked,
-                    "joined_into": f.joined.map(|j| j.into),
-                    "world": world,
-                    "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
-                    "mesh": f.mesh.as_ref().map(|m| m.path.display().to_string()),
-                    "vertices": f.mesh.as_ref().map(|m| m.vertices),
-                })
-            }).collect::<Vec<_>>(),
+            "fragments": fragments_json,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
         }))?;
