@@ -6,4 +6,5 @@ mod sl_noise {
     mod geometry;
     mod real_frames;
     mod recovery;
+    mod weak_returns;
 }

@@ -86,17 +86,38 @@ type SimResult<'py> = (
 /// drop-outs fitted to real Kinect frames (depth registered to the colour camera for the
 /// ``tum-*``, ``ros-default`` and ``icl-nuim`` presets); ``noise="white"``: the paper's idealised
 /// independent Gaussian disparity noise (1/8 px, 1 mm), which Algorithm 1 assumes.
+/// ``min_return`` (realistic model; 0 = off) drops out pixels whose surface returns less of the
+/// pattern than a white surface facing the camera at 1 m times it (``reflectance·cos θ / r²``,
+/// r in metres: dark and far surfaces); ``reflectance`` maps surface labels to their infrared
+/// reflectance in [0, 1] (every other surface reflects 1).
 #[pyfunction]
-#[pyo3(signature = (scene, seed = 0, camera = None, *, noise = "realistic"))]
+#[pyo3(signature = (scene, seed = 0, camera = None, *, noise = "realistic", min_return = 0.0, reflectance = None))]
 pub(crate) fn simulate<'py>(
     py: Python<'py>,
     scene: &str,
     #[pyo3(from_py_with = crate::ints::int)] seed: u64,
     camera: Option<&PyCamera>,
     noise: &str,
+    min_return: f64,
+    reflectance: Option<std::collections::HashMap<i64, f64>>,
 ) -> PyResult<SimResult<'py>> {
     // An unknown name's error lists the scenes.
-    let named = named_scene(scene).map_err(value_error)?;
+    let mut named = named_scene(scene).map_err(value_error)?;
+    // In label order, so that the first bad entry is the one reported whatever the dict's order.
+    let mut entries: Vec<(i64, f64)> = reflectance.unwrap_or_default().into_iter().collect();
+    entries.sort_by_key(|e| e.0);
+    for (label, rho) in entries {
+        let label = u16::try_from(label).map_err(|_| {
+            value_error(format!(
+                "no surface {label} (the scene has labels 1..={})",
+                named.scene.len()
+            ))
+        })?;
+        named
+            .scene
+            .set_reflectance(label, rho)
+            .map_err(value_error)?;
+    }
     let (intrinsics, sim) = match camera {
         Some(c) => (
             c.inner.intrinsics,
@@ -105,11 +126,21 @@ pub(crate) fn simulate<'py>(
         None => (named.intrinsics, KinectSimulator::kinect_v1()),
     };
     let model = match noise {
-        "realistic" => NoiseModel::Realistic(RealisticNoise::for_camera(
-            camera
-                .and_then(|c| c.preset_name.as_deref())
-                .unwrap_or("kinect-v1"),
-        )),
+        "realistic" => {
+            let mut cfg = RealisticNoise::for_camera(
+                camera
+                    .and_then(|c| c.preset_name.as_deref())
+                    .unwrap_or("kinect-v1"),
+            );
+            cfg.min_return = min_return;
+            cfg.validate().map_err(value_error)?;
+            NoiseModel::Realistic(cfg)
+        }
+        "white" if min_return != 0.0 => {
+            return Err(value_error(
+                "min_return is a drop-out of the realistic model; the white model has none",
+            ));
+        }
         "white" => NoiseModel::White,
         other => {
             return Err(value_error(format!(

@@ -431,6 +431,30 @@ def test_simulate_draws_the_realistic_sensor_by_default(kinect):
     assert sldepth.Camera(64, 48, 60.0, 60.0, 32.0, 24.0).preset_name is None
 
 
+def test_simulate_drops_out_weak_returns():
+    # min_return: pixels whose surface returns less than reflectance * cos(theta) / r**2 drop
+    # out; a darker surface drops out nearer. Without the bound a reflectance changes nothing.
+    depth, truth, labels = sldepth.simulate("boxes", seed=3)
+    bound, _, _ = sldepth.simulate("boxes", seed=3, min_return=0.04)
+    dark, _, _ = sldepth.simulate("boxes", seed=3, min_return=0.04, reflectance={1: 0.1})
+    valid = lambda d: int((d > 0).sum())
+    assert valid(depth) > valid(bound) > valid(dark)
+    floor = labels == 1
+    assert valid(dark[floor]) < valid(bound[floor])
+    assert np.array_equal(bound[~floor], dark[~floor])
+    same, _, _ = sldepth.simulate("boxes", seed=3, reflectance={1: 0.1})
+    assert np.array_equal(same, depth)
+    for kwargs, says in [
+        ({"reflectance": {1: 2.0}}, "must be in"),
+        ({"reflectance": {-1: 0.5}}, "no surface -1"),
+        ({"reflectance": {999: 0.5}}, "no surface 999"),
+        ({"min_return": -1.0}, "min_return"),
+        ({"min_return": 0.04, "noise": "white"}, "realistic model"),
+    ]:
+        with pytest.raises(ValueError, match=says):
+            sldepth.simulate("boxes", **kwargs)
+
+
 def test_noise_stats_tell_realistic_from_white_noise(kinect):
     # The statistics of `sldepth noise-stats`: on the realistic simulator the residual of
     # neighbours is correlated and the boxes leave occlusion bands beside them; on white noise

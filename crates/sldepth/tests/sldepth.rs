@@ -163,6 +163,58 @@ fn simulate_realistic_by_default_and_noise_stats_measures_it() {
     assert_eq!(left(&white), Some(0));
 }
 
+/// `--min-return` drops weak returns; `--reflectance` darkens one surface, which then drops out
+/// where its return falls below the bound; bad specifications are errors that name them.
+#[test]
+fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let out = dir.path().join("boxes.png");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "simulate",
+            "--scene",
+            "boxes",
+            "-o",
+            path_str(&out),
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        sldepth(&args)
+    };
+    let valid = |extra: &[&str]| {
+        let o = run(extra);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v = json_of(&o);
+        v["valid_pixels"].as_u64().unwrap_or(0)
+    };
+    let (all, bound, dark) = (
+        valid(&[]),
+        valid(&["--min-return", "0.04"]),
+        valid(&["--min-return", "0.04", "--reflectance", "1=0.1"]),
+    );
+    assert!(all > bound && bound > dark, "{all} {bound} {dark}");
+    // Without the bound a reflectance changes nothing.
+    assert_eq!(valid(&["--reflectance", "1=0.1"]), all);
+    let v = json_of(&run(&["--min-return", "0.04", "--reflectance", "1=0.1"]));
+    assert_eq!(v["min_return"], 0.04);
+    assert_eq!(v["surfaces"][0]["reflectance"], 0.1);
+    for (bad, says) in [
+        (vec!["--reflectance", "1=2"], "must be in [0, 1]"),
+        (vec!["--reflectance", "x"], "expected LABEL=R"),
+        (vec!["--reflectance", "999=0.5"], "no surface 999"),
+        (vec!["--min-return=-1"], "min_return -1"),
+        (
+            vec!["--noise", "white", "--min-return", "0.04"],
+            "realistic model",
+        ),
+    ] {
+        let o = run(&bad);
+        assert!(!o.status.success(), "{bad:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says), "{bad:?}: {err}");
+    }
+}
+
 #[test]
 fn cloud_writes_one_point_per_valid_pixel() {
     let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));

@@ -310,9 +310,10 @@ impl KinectSimulator {
 }
 
 impl KinectSimulator {
-    /// The realistic model's occlusion bands and grazing drop-outs: points the projector
-    /// cannot light, points the IR camera cannot see (registered frames) and surfaces seen at
-    /// grazing angles are set invalid. Candidates are found by marching along the rows of the
+    /// The realistic model's occlusion bands and drop-outs: points the projector cannot
+    /// light, points the IR camera cannot see (registered frames), surfaces seen at grazing
+    /// angles and, when `min_return` is set, surfaces that return too little of the pattern
+    /// (dark or far) are set invalid. Candidates are found by marching along the rows of the
     /// exact depth (the epipolar lines, O(pixels)); only they get an exact scene ray test, as in
     /// [`KinectSimulator::projector_shadows`].
     fn invalidate_unmeasurable(
@@ -351,6 +352,14 @@ impl KinectSimulator {
             &render.normals,
             cfg.max_incidence_deg,
         ));
+        if cfg.min_return > 0.0 {
+            masks.push(realistic::weak_return_mask(
+                k,
+                render,
+                scene,
+                cfg.min_return,
+            ));
+        }
         for m in &masks {
             for (z, hidden) in depth.data_mut().iter_mut().zip(m) {
                 if *hidden {

@@ -21,7 +21,8 @@
 //! row (the epipolar line) through the exact depth proposes, so their widths follow from the
 //! geometry. Pixels whose matching window straddles a depth discontinuity are invalid within
 //! [`RealisticNoise::edge_px`] of it; surfaces seen at more than
-//! [`RealisticNoise::max_incidence_deg`] from their normal return no pattern.
+//! [`RealisticNoise::max_incidence_deg`] from their normal return no pattern, and, when
+//! [`RealisticNoise::min_return`] is set, neither do surfaces too dark or too far for it.
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -60,6 +61,16 @@ pub struct RealisticNoise {
     /// Amplitude of a smooth radial disparity bias, pixels (`a·r²/r²_corner`, 0 = off): the
     /// low-frequency distortion calibrated for the Kinect by Herrera et al. and Smisek et al.
     pub distortion_px: f64,
+    /// The weakest return of the projected pattern that still matches, relative to a white
+    /// surface (reflectance 1) facing the camera 1 m away; 0 (the default) = off. A pixel
+    /// whose surface returns `ρ·cos θ / r²` less than this is invalid (`ρ` the surface's
+    /// [`crate::sim::Scene::reflectance`], `θ` the angle between the ray and the surface
+    /// normal, `r` the distance along the ray in metres): the projector's irradiance falls as
+    /// `1/r²` and a Lambertian surface reflects `ρ·cos θ` of it, while the patch a pixel sees
+    /// grows as fast as its solid angle shrinks. So dark surfaces drop out nearer than white
+    /// ones. Not fitted: `0.04` puts a white surface's limit at 5 m, the Kinect's range, and a
+    /// black one's (`ρ` = 0.1) at 1.6 m.
+    pub min_return: f64,
 }
 
 /// Matching window of the default model, pixels (see `docs/NOISE_MODEL.md` for the fit).
@@ -87,6 +98,7 @@ impl Default for RealisticNoise {
             edge_jump_px: 0.5,
             max_incidence_deg: 80.0,
             distortion_px: 0.0,
+            min_return: 0.0,
         }
     }
 }
@@ -133,6 +145,12 @@ impl RealisticNoise {
             && self.distortion_px.is_finite())
         {
             return bad("registration baseline, edge jump and distortion must be finite, the edge jump positive".into());
+        }
+        if !(self.min_return.is_finite() && self.min_return >= 0.0) {
+            return bad(format!(
+                "min_return {} must be a finite number >= 0",
+                self.min_return
+            ));
         }
         Ok(())
     }
@@ -393,6 +411,47 @@ pub(crate) fn grazing_mask(k: &Intrinsics, normals: &Image<[f32; 3]>, max_deg: f
                 *o = c < cos_max;
             }
         });
+    out
+}
+
+/// `true` where the surface seen at a pixel returns less of the pattern than `min_return`
+/// (see [`RealisticNoise::min_return`]): `ρ·cos θ / r²` from the exact depth, the normals
+/// and the labels' reflectances. Nothing when `min_return` is 0.
+pub(crate) fn weak_return_mask(
+    k: &Intrinsics,
+    render: &crate::sim::Render,
+    scene: &crate::sim::Scene,
+    min_return: f64,
+) -> Vec<bool> {
+    let (w, h) = (render.depth.width(), render.depth.height());
+    let mut out = vec![false; w * h];
+    if min_return <= 0.0 || w == 0 {
+        return out;
+    }
+    let (z, n, labels) = (
+        render.depth.data(),
+        render.normals.data(),
+        render.labels.data(),
+    );
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let i = y * w + x;
+            let label = labels[i];
+            if label == 0 || !z[i].is_finite() || z[i] <= 0.0 {
+                continue;
+            }
+            let ray = k.ray(x as f64, y as f64);
+            // The ray has unit z: the point is `Z·ray`, at distance `Z·‖ray‖`.
+            let len = ray.norm();
+            let r = f64::from(z[i]) * len;
+            let nn = n[i];
+            let cos =
+                ((f64::from(nn[0]) * ray.x + f64::from(nn[1]) * ray.y + f64::from(nn[2]) * ray.z)
+                    / len)
+                    .abs();
+            *o = scene.reflectance(label) * cos < min_return * r * r;
+        }
+    });
     out
 }
 

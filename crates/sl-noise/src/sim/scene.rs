@@ -14,10 +14,14 @@ pub const MAX_RENDER_PIXELS: usize = 1 << 26;
 /// Maximum number of surfaces in a scene (labels are `u16`, 0 is the background).
 pub const MAX_SURFACES: usize = u16::MAX as usize;
 
-/// A set of analytic surfaces, each with a label `1..=65535` (0 = background).
+/// A set of analytic surfaces, each with a label `1..=65535` (0 = background) and an infrared
+/// reflectance (1 unless [`Scene::set_reflectance`] says otherwise; the realistic sensor's
+/// `RealisticNoise::min_return` drop-out reads it).
 #[derive(Default)]
 pub struct Scene {
     surfaces: Vec<Box<dyn Surface>>,
+    /// Per surface (label − 1): its Lambertian reflectance of the projector's infrared, 0–1.
+    reflectance: Vec<f64>,
 }
 
 impl std::fmt::Debug for Scene {
@@ -63,6 +67,7 @@ impl Scene {
             return Err(NoiseError::SceneFull { max: MAX_SURFACES });
         }
         self.surfaces.push(Box::new(surface));
+        self.reflectance.push(1.0);
         // Cannot truncate: len ≤ MAX_SURFACES = u16::MAX after the check above.
         Ok(self.surfaces.len() as u16)
     }
@@ -93,6 +98,42 @@ impl Scene {
         rotation: impl Into<UnitQuaternion<f64>>,
     ) -> [u16; 6] {
         faces_of(&centre, &half_extents, &rotation.into()).map(|face| self.add(face))
+    }
+
+    /// Sets the infrared reflectance of surface `label` (Lambertian albedo at the projector's
+    /// wavelength, 0–1: about 0.9 for white paint, 0.05–0.1 for black plastic or a dark
+    /// worktop). Surfaces added without it reflect 1. Only the realistic sensor's drop-out of
+    /// weak returns (`RealisticNoise::min_return`) uses it.
+    ///
+    /// # Errors
+    /// [`NoiseError::InvalidParameter`] for a label the scene does not hold or a reflectance
+    /// outside `[0, 1]`.
+    pub fn set_reflectance(&mut self, label: u16, reflectance: f64) -> Result<()> {
+        if !(0.0..=1.0).contains(&reflectance) {
+            return Err(NoiseError::InvalidParameter(format!(
+                "reflectance {reflectance} of surface {label} must be in [0, 1]"
+            )));
+        }
+        let slot = usize::from(label)
+            .checked_sub(1)
+            .and_then(|i| self.reflectance.get_mut(i))
+            .ok_or_else(|| {
+                NoiseError::InvalidParameter(format!(
+                    "no surface {label} (the scene has labels 1..={})",
+                    self.surfaces.len()
+                ))
+            })?;
+        *slot = reflectance;
+        Ok(())
+    }
+
+    /// The infrared reflectance of surface `label` (1 for the background and unknown labels).
+    pub fn reflectance(&self, label: u16) -> f64 {
+        usize::from(label)
+            .checked_sub(1)
+            .and_then(|i| self.reflectance.get(i))
+            .copied()
+            .unwrap_or(1.0)
     }
 
     /// The surface with label `label`, if any.

@@ -112,12 +112,21 @@ def analyze(
     depth: _Depth, camera: Optional[Camera] = None, *, depth_scale: Optional[float] = None
 ) -> Analysis: ...
 def simulate(
-    scene: str, seed: int = 0, camera: Optional[Camera] = None, *, noise: str = "realistic"
+    scene: str,
+    seed: int = 0,
+    camera: Optional[Camera] = None,
+    *,
+    noise: str = "realistic",
+    min_return: float = 0.0,
+    reflectance: Optional[Dict[int, float]] = None,
 ) -> Tuple[npt.NDArray[np.float32], npt.NDArray[np.float32], npt.NDArray[np.uint16]]:
     """(depth, truth, labels) of a named scene: float32 metres with noise, exact float32 metres,
     uint16 surface labels. noise="realistic" (default, as `sldepth simulate`): correlated
     block-matching error, occlusion bands, drop-outs fitted to real Kinect frames; "white": the
-    paper's independent Gaussian disparity noise (Algorithm 1's model)."""
+    paper's independent Gaussian disparity noise (Algorithm 1's model). min_return (realistic
+    model, 0 = off): pixels whose surface returns less than reflectance * cos(theta) / r**2
+    (r in metres, relative to a white surface facing the camera at 1 m) drop out; reflectance
+    maps labels to their infrared reflectance in [0, 1] (others reflect 1)."""
 
 def noise_stats(
     depth: _Depth,

@@ -52,6 +52,16 @@ pub struct Args {
     /// Speckle size of the realistic model, pixels (default 1).
     #[arg(long, value_name = "PX")]
     pub speckle: Option<usize>,
+    /// Drop out weak returns (realistic model): a pixel is invalid when its surface returns
+    /// less of the pattern than this, relative to a white surface facing the camera at 1 m
+    /// (`reflectance·cos θ / r²`, r in metres). Default 0 = off; 0.04 puts a white surface's
+    /// limit at 5 m and a black one's (reflectance 0.1) at 1.6 m.
+    #[arg(long, value_name = "R")]
+    pub min_return: Option<f64>,
+    /// Infrared reflectance of a surface, `LABEL=R` with R in [0, 1] (labels as --labels
+    /// writes them; every other surface reflects 1). Repeatable. Only --min-return reads it.
+    #[arg(long, value_name = "LABEL=R")]
+    pub reflectance: Vec<String>,
     /// Print a JSON summary.
     #[arg(long)]
     pub json: bool,
@@ -79,7 +89,19 @@ pub fn run(args: Args) -> Result<()> {
         ("--truth", args.truth.as_deref()),
         ("--labels", args.labels.as_deref()),
     ])?;
-    let named = named_scene(&args.scene)?;
+    let mut named = named_scene(&args.scene)?;
+    for spec in &args.reflectance {
+        let parsed = spec.split_once('=').and_then(|(l, r)| {
+            Some((l.trim().parse::<u16>().ok()?, r.trim().parse::<f64>().ok()?))
+        });
+        let Some((label, rho)) = parsed else {
+            bail!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
+        };
+        named
+            .scene
+            .set_reflectance(label, rho)
+            .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
+    }
     let (intrinsics, mut sim) = match &args.camera {
         Some(_) => {
             let cam = load_camera(&crate::common::InputArgs {
@@ -111,6 +133,12 @@ pub fn run(args: Args) -> Result<()> {
     }
     if let Some(sp) = args.speckle {
         realistic.speckle_px = sp;
+    }
+    if let Some(m) = args.min_return {
+        if args.noise == "white" {
+            bail!("--min-return is a drop-out of the realistic model; the white model has none");
+        }
+        realistic.min_return = m;
     }
     realistic.validate()?;
     sim.noise = match args.noise.as_str() {
@@ -149,7 +177,8 @@ pub fn run(args: Args) -> Result<()> {
             "width": frame.depth.width(),
             "height": frame.depth.height(),
             "valid_pixels": valid,
-            "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n})).collect::<Vec<_>>(),
+            "min_return": args.min_return.unwrap_or(0.0),
+            "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n, "reflectance": named.scene.reflectance(*l)})).collect::<Vec<_>>(),
         }))?;
     } else {
         errln!(
