@@ -44,6 +44,7 @@ use sl_track::{
 
 use super::Context;
 
+mod dark;
 mod noisier;
 mod repeat;
 mod rooms;

@@ -621,6 +621,7 @@ pub fn rooms(ctx: &mut Context) -> Result<()> {
         );
         md.push('\n');
         super::noisier::noisier_sensor(ctx, &mut md)?;
+        super::dark::dark_materials(ctx, &mut md)?;
     }
     // Overlays of the three worst scenes: ours and the ground truth.
     worst.sort_by(|a, b| a.0.total_cmp(&b.0));
