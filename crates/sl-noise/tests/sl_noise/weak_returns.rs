@@ -2,6 +2,8 @@
 //! surfaces lose their depth where `ρ·cos θ / r²` falls below the bound, and nothing changes
 //! while the bound is 0.
 
+use proptest::prelude::*;
+use proptest::test_runner::FileFailurePersistence;
 use sl_core::nalgebra::{Point3, Vector3};
 use sl_core::{CameraToWorld, Intrinsics};
 use sl_noise::sim::{KinectSimulator, NoiseModel, Plane, Quad, RealisticNoise, Scene};
@@ -130,4 +132,37 @@ fn bad_bounds_and_reflectances_are_errors() {
     assert!(scene.set_reflectance(0, 0.5).is_err());
     assert!(scene.set_reflectance(3, 0.5).is_err());
     assert_eq!(scene.reflectance(2), 0.5);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: 24,
+        failure_persistence: Some(Box::new(FileFailurePersistence::Direct("proptest-regressions/sl_noise.txt"))),
+        ..ProptestConfig::default()
+    })]
+
+    /// On a wall of reflectance `ρ` facing the camera at `Z`, a pixel `θ` off the axis keeps its
+    /// depth exactly when `ρ·cos³θ ≥ m·Z²` (pixels within 0.1 % of the boundary not judged).
+    #[test]
+    fn a_pixel_keeps_its_depth_exactly_when_its_return_reaches_the_bound(
+        z in 1.0f64..4.5,
+        rho in 0.05f64..1.0,
+        m in 0.005f64..0.2,
+    ) {
+        let mut scene = Scene::new();
+        let wall = scene.add(Plane::new(Point3::new(0.0, 0.0, z), Vector3::z()).unwrap());
+        scene.set_reflectance(wall, rho).unwrap();
+        let k = Intrinsics::kinect_v1().scaled(0.25).unwrap();
+        let f = sensor(m).simulate(&scene, &k, &CameraToWorld::identity(), 11);
+        let w = f.depth.width();
+        for (i, d) in f.depth.data().iter().enumerate() {
+            let ray = k.ray((i % w) as f64, (i / w) as f64);
+            let cos = 1.0 / ray.norm();
+            let (signal, bound) = (rho * cos.powi(3), m * z * z);
+            if (signal - bound).abs() <= 1e-3 * bound {
+                continue;
+            }
+            prop_assert_eq!(*d > 0.0, signal >= bound, "pixel {} of {}", i, w);
+        }
+    }
 }
