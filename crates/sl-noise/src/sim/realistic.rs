@@ -387,6 +387,18 @@ pub(crate) fn hidden_from(
     mask
 }
 
+/// `|cos θ|` between the ray of pixel `(x, y)` and the camera-frame normal `n`, and the length
+/// of that ray for a unit z (`‖ray‖`, so that the point at depth `Z` is `Z·‖ray‖` away).
+fn incidence(k: &Intrinsics, x: usize, y: usize, n: [f32; 3]) -> (f64, f64) {
+    let r = k.ray(x as f64, y as f64);
+    let len = r.norm();
+    let r = r / len;
+    (
+        (f64::from(n[0]) * r.x + f64::from(n[1]) * r.y + f64::from(n[2]) * r.z).abs(),
+        len,
+    )
+}
+
 /// `true` where the surface is seen at more than `max_deg` from its normal.
 pub(crate) fn grazing_mask(k: &Intrinsics, normals: &Image<[f32; 3]>, max_deg: f64) -> Vec<bool> {
     let (w, h) = (normals.width(), normals.height());
@@ -404,11 +416,7 @@ pub(crate) fn grazing_mask(k: &Intrinsics, normals: &Image<[f32; 3]>, max_deg: f
                 if nn == [0.0; 3] {
                     continue;
                 }
-                let r = k.ray(x as f64, y as f64);
-                let r = r / r.norm();
-                let c = (f64::from(nn[0]) * r.x + f64::from(nn[1]) * r.y + f64::from(nn[2]) * r.z)
-                    .abs();
-                *o = c < cos_max;
+                *o = incidence(k, x, y, nn).0 < cos_max;
             }
         });
     out
@@ -416,7 +424,7 @@ pub(crate) fn grazing_mask(k: &Intrinsics, normals: &Image<[f32; 3]>, max_deg: f
 
 /// `true` where the surface seen at a pixel returns less of the pattern than `min_return`
 /// (see [`RealisticNoise::min_return`]): `ρ·cos θ / r²` from the exact depth, the normals
-/// and the labels' reflectances. Nothing when `min_return` is 0.
+/// and the labels' reflectances (the caller skips it when `min_return` is 0).
 pub(crate) fn weak_return_mask(
     k: &Intrinsics,
     render: &crate::sim::Render,
@@ -425,7 +433,7 @@ pub(crate) fn weak_return_mask(
 ) -> Vec<bool> {
     let (w, h) = (render.depth.width(), render.depth.height());
     let mut out = vec![false; w * h];
-    if min_return <= 0.0 || w == 0 {
+    if w == 0 {
         return out;
     }
     let (z, n, labels) = (
@@ -440,15 +448,9 @@ pub(crate) fn weak_return_mask(
             if label == 0 || !z[i].is_finite() || z[i] <= 0.0 {
                 continue;
             }
-            let ray = k.ray(x as f64, y as f64);
+            let (cos, len) = incidence(k, x, y, n[i]);
             // The ray has unit z: the point is `Z·ray`, at distance `Z·‖ray‖`.
-            let len = ray.norm();
             let r = f64::from(z[i]) * len;
-            let nn = n[i];
-            let cos =
-                ((f64::from(nn[0]) * ray.x + f64::from(nn[1]) * ray.y + f64::from(nn[2]) * ray.z)
-                    / len)
-                    .abs();
             *o = scene.reflectance(label) * cos < min_return * r * r;
         }
     });
