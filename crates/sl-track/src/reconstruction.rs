@@ -328,6 +328,7 @@ impl Reconstruction {
     /// An invalid configuration or camera.
     pub fn new(camera: Camera, cfg: ReconstructionConfig) -> Result<Self> {
         cfg.validate()?;
+        let rectifier = crate::rolling_shutter::Rectifier::with_isa(cfg.tracker.isa);
         Ok(Self {
             current: Live::new(0, &camera, &cfg)?,
             camera,
@@ -339,7 +340,7 @@ impl Reconstruction {
             rejoin_wait: 0,
             noise_scale: None,
             rectified: None,
-            rectifier: crate::rolling_shutter::Rectifier::default(),
+            rectifier,
         })
     }
 
