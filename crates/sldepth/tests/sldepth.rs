@@ -198,6 +198,8 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
     let v = json_of(&run(&["--min-return", "0.04", "--reflectance", "1=0.1"]));
     assert_eq!(v["min_return"], 0.04);
     assert_eq!(v["surfaces"][0]["reflectance"], 0.1);
+    // The default bound, 0 (off), is also the white model's, as in Python.
+    assert!(valid(&["--noise", "white", "--min-return", "0"]) > 0);
     for (bad, says) in [
         (vec!["--reflectance", "1=2"], "must be in [0, 1]"),
         (vec!["--reflectance", "x"], "expected LABEL=R"),

@@ -628,3 +628,32 @@ fn track_refuses_an_unreadable_sequence_and_outputs_over_its_inputs() {
     assert!(err.contains("none of the 3 frames could be read"), "{err}");
     assert!(err.contains("truncated"), "{err}");
 }
+
+/// A sequence with no depth at all tracks nothing, and `--json` says so: the per-tracked-frame
+/// timings are null rather than a median of nothing printed as 0.
+#[test]
+fn track_json_has_no_timings_of_frames_it_never_tracked() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let mut list = String::from("# timestamp filename\n");
+    for i in 0..3 {
+        let t = 100.0 + f64::from(i) / 30.0;
+        let file = format!("depth/{t:.6}.png");
+        let empty = sl_core::DepthImage::invalid(640, 480);
+        write_depth(seq.join(&file), &empty, &DepthEncoding::tum()).unwrap();
+        list.push_str(&format!("{t:.6} {file}\n"));
+    }
+    std::fs::write(seq.join("depth.txt"), list).unwrap();
+    let (v, _) = kinect_track_json(&seq, &[]);
+    assert_eq!(v["frames"], 3);
+    assert_eq!(v["tracked"], 0);
+    for key in [
+        "track_ms_median_tracked",
+        "integrate_ms_median",
+        "raycast_ms_median",
+    ] {
+        assert!(v[key].is_null(), "{key}: {}", v[key]);
+    }
+    assert!(v["step_ms_median"].as_f64().unwrap() >= 0.0);
+}

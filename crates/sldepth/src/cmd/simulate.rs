@@ -135,7 +135,8 @@ pub fn run(args: Args) -> Result<()> {
         realistic.speckle_px = sp;
     }
     if let Some(m) = args.min_return {
-        if args.noise == "white" {
+        // 0 is the default (off), which the white model has too, as Python's `simulate`.
+        if args.noise == "white" && m != 0.0 {
             bail!("--min-return is a drop-out of the realistic model; the white model has none");
         }
         realistic.min_return = m;

@@ -776,6 +776,7 @@ pub fn run(args: Args) -> Result<()> {
         .and_then(|f| f.mesh.as_ref())
         .map(|m| (m.vertices, m.triangles));
     let (tm, im) = (median(&track_ms), median(&integrate_ms));
+    let median_or_null = |v: &[f64]| (!v.is_empty()).then(|| round_to(median(v), 3));
     if args.json {
         let fragments_json = fragments
             .iter()
@@ -812,7 +813,8 @@ pub fn run(args: Args) -> Result<()> {
                 .then(|| round_to(median(&prefilter_sigmas), 4)),
             "undistorted": undistort.is_some(),
             "rolling_shutter_ms": round_to(cfg.tracker.rolling_shutter_readout_s * 1e3, 3),
-            "raycast_ms_median": round_to(median(&raycast_ms), 3),
+            // Null when no frame was tracked (nothing was raycast, tracked or fused).
+            "raycast_ms_median": median_or_null(&raycast_ms),
             "step_ms_median": round_to(median(&step_ms), 3),
             // Per frame read: the lens model, the noise measurement and the prefilter; and
             // those with the step (the whole pipeline but reading the file).
@@ -824,8 +826,8 @@ pub fn run(args: Args) -> Result<()> {
             // it is AVX-512, else their portable code).
             "isa": cfg.tracker.isa.effective().name(),
             "track_ms_median": round_to(tm, 3),
-            "track_ms_median_tracked": round_to(median(&track_ms_tracked), 3),
-            "integrate_ms_median": round_to(im, 3),
+            "track_ms_median_tracked": median_or_null(&track_ms_tracked),
+            "integrate_ms_median": median_or_null(&integrate_ms),
             // The raw frames' pixel variance over the camera's model (1: within it).
             "noise_scale_median": (!noise_scales.is_empty()).then(|| round_to(median(&noise_scales), 3)),
             "noise_scaled_frames": noise_scales.iter().filter(|&&s| s > 1.0).count(),
