@@ -210,15 +210,15 @@ struct Moved<'a> {
 
 impl Moved<'_> {
     /// Whether the position `(x, y)` lies in the image, and its nearest pixel's index (`x + ½`
-    /// and `y + ½` rounded down, which is their truncation there) or 0 outside it and for NaN.
+    /// and `y + ½` rounded down, which is their truncation there); outside it and for NaN the
+    /// index is meaningless (the callers discard it).
     #[inline(always)]
     fn sample(&self, x: f32, y: f32) -> (bool, usize) {
         let inside = (x >= -0.5) & (y >= -0.5) & (x < self.wl) & (y < self.hl);
-        // Wrapping: outside the image (or for NaN) the index is meaningless, and discarded.
         let i = (floor_i32(y + 0.5) as usize)
             .wrapping_mul(self.w)
             .wrapping_add(floor_i32(x + 0.5) as usize);
-        (inside, if inside { i } else { 0 })
+        (inside, i)
     }
 }
 
