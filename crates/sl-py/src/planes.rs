@@ -150,8 +150,9 @@ pub struct PyUnlabelledRegion {
     /// Bounding box ``(x0, y0, x1, y1)``, pixels (inclusive).
     bbox_px: (usize, usize, usize, usize),
     /// The test: ``"NotPlanarLog"``, ``"ResidualNotWhite"``, ``"SeveralSurfaces"``,
-    /// ``"Unseeded"``, ``"Uncertain"`` or ``"GivenBack"`` (the names of
-    /// ``sldepth planes --explain --json``).
+    /// ``"Unseeded"``, ``"Uncertain"``, ``"GivenBack"`` or ``"NoiseBeyondThreshold"`` (the
+    /// frame's measured disparity noise exceeds ``threshold_px``: no plane was extracted);
+    /// the names of ``sldepth planes --explain --json``.
     reason: String,
     /// What the reason means, in words.
     why: String,

@@ -194,6 +194,14 @@ def test_explain_planes_says_why_a_region_is_on_no_plane(kinect, three_planes):
     assert regions[0].pixels == wall.size and regions[0].rms_px < 1e-3
     # With the default min_region_pixels (= min_pixels) the region is too small to report.
     assert sldepth.explain_planes(wall, kinect, min_pixels=400_000)[2] == []
+    # Uniform random depth: a measured disparity noise far above threshold_px, no plane,
+    # and the reason for every region.
+    rng = np.random.default_rng(5)
+    noise = rng.uniform(0.5, 4.5, size=(480, 640)).astype(np.float32)
+    labels, planes, regions = sldepth.explain_planes(noise, kinect)
+    assert planes == [] and not labels.any() and regions
+    assert all(r.reason == "NoiseBeyondThreshold" for r in regions)
+    assert "threshold_px" in regions[0].why
     with pytest.raises(ValueError, match="log_sigma_px"):
         sldepth.explain_planes(depth, kinect, log_sigma_px=-1.0)
     with pytest.raises(ValueError, match="threshold_px"):

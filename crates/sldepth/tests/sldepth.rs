@@ -557,6 +557,100 @@ fn a_decimated_frame_is_the_same_sensor() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("320x200 but the camera is 640x480"));
 }
 
+/// A frame of uniform random depth measures a disparity error far above `--threshold-px`: no
+/// plane, `noise_beyond_threshold` in the JSON, every unexplained region's reason, and a line
+/// in the text output that names the threshold. A simulated frame says `false`.
+#[test]
+fn planes_of_a_frame_noisier_than_the_threshold_are_refused_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let random = sl_core::DepthImage::from_image(sl_core::Image::from_fn(640, 480, |_, _| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        0.5 + 4.0 * (state >> 40) as f32 / (1u64 << 24) as f32
+    }));
+    let path = dir.path().join("random.png");
+    sl_io::depth::write_depth(&path, &random, &sl_io::depth::DepthEncoding::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let labels = dir.path().join("labels.png");
+    let base = [
+        "planes",
+        path_str(&path),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        path_str(&labels),
+    ];
+    let v = json_of_run(&base, &["--json", "--explain"]);
+    assert_eq!(v["noise_beyond_threshold"], true, "{v}");
+    assert_eq!(v["planes"].as_array().map(Vec::len), Some(0), "{v}");
+    let regions = v["unlabelled"].as_array().cloned().unwrap_or_default();
+    assert!(!regions.is_empty(), "{v}");
+    assert!(
+        regions
+            .iter()
+            .all(|r| r["reason"] == "NoiseBeyondThreshold"),
+        "{v}"
+    );
+    let text = sldepth(&base);
+    assert!(text.status.success());
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("no plane extracted") && text.contains("--threshold-px 0.5"),
+        "{text}"
+    );
+    let p = testdata("three-planes-seed3-depth.png");
+    let v = json_of_run(
+        &[
+            "planes",
+            path_str(&p),
+            "--camera",
+            "kinect-v1",
+            "--output",
+            path_str(&labels),
+        ],
+        &["--json"],
+    );
+    assert_eq!(v["noise_beyond_threshold"], false, "{v}");
+}
+
+/// The switches of the disparity method are refused with `--method metric-ransac`, naming the
+/// switch, instead of being ignored.
+#[test]
+fn disparity_switches_are_refused_with_metric_ransac() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let p = testdata("three-planes-seed3-depth.png");
+    let labels = dir.path().join("labels.png");
+    let base = [
+        "planes",
+        path_str(&p),
+        "--camera",
+        "kinect-v1",
+        "--output",
+        path_str(&labels),
+        "--method",
+        "metric-ransac",
+    ];
+    assert!(sldepth(&base).status.success());
+    for extra in [
+        &["--explain"][..],
+        &["--give-back-taken-in"],
+        &["--refine-seams"],
+        &["--no-split-creases"],
+        &["--model-noise-only"],
+        &["--max-normal-sigma-deg", "2"],
+    ] {
+        let o = sldepth(&[&base[..], extra].concat());
+        assert!(!o.status.success(), "{extra:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains(extra[0]) && err.contains("--method disparity"),
+            "{extra:?}: {err}"
+        );
+    }
+}
+
 /// A fronto-parallel wall `z_m` away, `size` pixels, written as a 16-bit PNG of `units_per_m`
 /// into `dir/name`.
 fn write_wall(dir: &Path, name: &str, size: (usize, usize), z_m: f32, units_per_m: f64) -> PathBuf {

@@ -10,7 +10,8 @@
 //! - they share a border on the cell grid of at least [`MIN_SHARED_CELLS`] cells;
 //! - their affine functions meet along it: the mean gap `|f_a − f_b|` at the shared cell
 //!   borders is at most `2τ` (a pixel on either side is within `τ` of its own plane, and one
-//!   continuous surface runs through both; a depth step between two surfaces is larger);
+//!   continuous surface runs through both; a step of more than `2τ` between two surfaces
+//!   fails here, a smaller one the step test below);
 //! - the surface's gradient is continuous across the border: the disparity slopes of the two
 //!   pieces *at the border* (affine fits of their cells within [`STRIP_CELLS`] cells of it)
 //!   agree within the noise model (`χ²₂` at 99.9 % with the cells' noise, inflated by the
@@ -22,6 +23,14 @@
 //!   between two surfaces — the floor and a wall, two walls meeting in a far corner — turns
 //!   the slope at the border by `B·|Δ(n/d)|` (0.015 px/px for two walls 5 m away), and is
 //!   kept;
+//! - no step at the border is larger than one plane holds: the mean difference of the two
+//!   cells of each border pair, less the strips' slope over the 4 px between them, is at most
+//!   `2·(τ − √(χ²₁·σ²_px))` (a plane through the border then holds both sides' pixels within
+//!   `τ` at 99.9 % with the frame's pixel noise; 0.48 px for a Kinect at its model's noise)
+//!   or not beyond it by more than its own noise (`χ²₁`, 99.9 %). The pieces' fits can be
+//!   parallel and `2τ` apart with no bend at all — a lid on a box, a picture on a wall, a
+//!   keyboard on a desk — and a step is what tells those from the pieces of one surface. Two
+//!   pieces with such a step are never put into one set through a third piece that meets both;
 //! - the turn between the pieces' whole fits is no more than the distortion can make between
 //!   their centroids, `|∇f_a − ∇f_b| ≤ κ·|c_a − c_b|` (for a quadratic bend of largest
 //!   curvature `κ` a piece's least-squares slope is the bend's gradient at its centroid), with
@@ -34,7 +43,7 @@
 //! border, where the rims are, and a fit of the union would tilt with how much of the rim is in
 //! view. Its pixel count is the union's.
 
-use super::patches::CHI2_2_999;
+use super::patches::{CHI2_1_999, CHI2_2_999};
 use super::*;
 use crate::fit::AffineSums;
 
@@ -111,6 +120,58 @@ pub(super) fn for_each_cell_border(
     scan(0, wq * hq.saturating_sub(1), wq);
 }
 
+/// The root of `x`'s set in the forest `parent`.
+fn find_root(parent: &[u16], mut x: u16) -> u16 {
+    while parent[x as usize] != x {
+        x = parent[x as usize];
+    }
+    x
+}
+
+/// Joins the sets of `parent` (a forest, each piece its own set to begin with) along `pairs`
+/// in their order, the root of each union being the one with the larger `key`; a union that
+/// would put the two pieces of a pair in `apart` into one set is skipped (a step between two
+/// pieces is not bridged by a third that meets both).
+fn join_sets<K: Ord>(
+    parent: &mut [u16],
+    pairs: impl Iterator<Item = (u16, u16)>,
+    apart: &[(u16, u16)],
+    key: impl Fn(u16) -> K,
+) {
+    for (a, b) in pairs {
+        let (ra, rb) = (find_root(parent, a), find_root(parent, b));
+        if ra == rb {
+            continue;
+        }
+        let bridged = apart.iter().any(|&(x, y)| {
+            let (rx, ry) = (find_root(parent, x), find_root(parent, y));
+            (rx == ra && ry == rb) || (rx == rb && ry == ra)
+        });
+        if bridged {
+            continue;
+        }
+        let (root, child) = if key(ra) >= key(rb) {
+            (ra, rb)
+        } else {
+            (rb, ra)
+        };
+        parent[child as usize] = root;
+    }
+}
+
+/// What the border between two candidate pieces says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Border {
+    /// One continuous surface runs through it: the pieces are joined.
+    Meets,
+    /// Nothing proved either way (strips too short or too noisy), or the slope turns there (a
+    /// crease): not joined.
+    Unproven,
+    /// A step larger than one plane holds: two surfaces, never joined, not even through a
+    /// third piece.
+    Steps,
+}
+
 /// One border between 4-neighbouring cells of two planes: the planes' indices (lower first),
 /// the cell of each, and the gap between their affine functions there.
 #[derive(Debug, Clone, Copy)]
@@ -179,33 +240,29 @@ impl PlaneExtractor {
         }
         // The gradient's continuity across each candidate's border.
         let mut pairs = std::mem::take(&mut self.join_pairs);
+        self.join_apart.clear();
         pairs.retain(|(_, a, b, range)| {
-            self.slopes_meet_at_the_border(*a, *b, range.clone(), wq, hq, kappa, fx)
+            match self.pieces_meet_at_the_border(*a, *b, range.clone(), wq, hq, kappa, fx, tau) {
+                Border::Meets => true,
+                Border::Unproven => false,
+                Border::Steps => {
+                    self.join_apart.push((*a, *b));
+                    false
+                }
+            }
         });
         pairs.sort_unstable_by(|p, q| p.0.total_cmp(&q.0));
-        // Union-find; a set's root is its piece with the most pixels.
-        let find = |parent: &[u16], mut x: u16| {
-            while parent[x as usize] != x {
-                x = parent[x as usize];
-            }
-            x
-        };
-        for (_, a, b, _) in &pairs {
-            let (ra, rb) = (find(&self.joined_into, *a), find(&self.joined_into, *b));
-            if ra == rb {
-                continue;
-            }
-            let key = |r: u16| (self.final_sums[r as usize].pixels, std::cmp::Reverse(r));
-            let (root, child) = if key(ra) >= key(rb) {
-                (ra, rb)
-            } else {
-                (rb, ra)
-            };
-            self.joined_into[child as usize] = root;
-        }
+        // A set's root is its piece with the most pixels.
+        let sums = &self.final_sums;
+        join_sets(
+            &mut self.joined_into,
+            pairs.iter().map(|p| (p.1, p.2)),
+            &self.join_apart,
+            |r| (sums[r as usize].pixels, std::cmp::Reverse(r)),
+        );
         self.join_pairs = pairs;
         for i in 0..n {
-            let r = find(&self.joined_into, i as u16);
+            let r = find_root(&self.joined_into, i as u16);
             self.joined_into[i] = r;
             if r as usize != i {
                 let child = self.final_sums[i];
@@ -284,7 +341,7 @@ impl PlaneExtractor {
     /// strips' centroids `d` apart, tested with `χ²₂` (99.9 %) under the cells' noise
     /// (variance inflated by the correlation of the matching error).
     #[allow(clippy::too_many_arguments)]
-    fn slopes_meet_at_the_border(
+    fn pieces_meet_at_the_border(
         &mut self,
         a: u16,
         b: u16,
@@ -293,7 +350,8 @@ impl PlaneExtractor {
         hq: usize,
         kappa: f64,
         fx: f64,
-    ) -> bool {
+        tau: f64,
+    ) -> Border {
         self.join_mark.resize(wq * hq, u32::MAX);
         self.join_stamp = self.join_stamp.wrapping_add(1);
         let stamp = self.join_stamp;
@@ -322,7 +380,7 @@ impl PlaneExtractor {
             }
         }
         let (Some(fa), Some(fb)) = (sums[0].solve(), sums[1].solve()) else {
-            return false;
+            return Border::Unproven;
         };
         // Slope covariance of each strip's fit: κ_corr·σ²_cell·S⁻¹.
         let var = self.noise.kappa * self.noise.var_cell;
@@ -332,7 +390,7 @@ impl PlaneExtractor {
             (det > 0.0).then(|| [var * syy / det, -var * sxy / det, var * sxx / det])
         };
         let (Some(ca), Some(cb)) = (cov(&sums[0]), cov(&sums[1])) else {
-            return false;
+            return Border::Unproven;
         };
         // The bend may turn the slope by up to κ·(distance between the strips): that much of
         // the difference is taken off before the noise test.
@@ -355,9 +413,87 @@ impl PlaneExtractor {
         // joined.
         let d_border = (sums[0].sd + sums[1].sd) / (sums[0].n + sums[1].n);
         if det <= 0.0 || CHI2_2_999 * (sxx + syy) > (d_border / fx).powi(2) {
-            return false;
+            return Border::Unproven;
         }
         let chi2 = (syy * ga * ga - 2.0 * sxy * ga * gb + sxx * gb * gb) / det;
-        chi2 <= CHI2_2_999
+        if chi2 > CHI2_2_999 {
+            return Border::Unproven;
+        }
+        // No step at the border larger than one plane holds: the mean disparity of the two
+        // cells of each border pair differs by the surface's slope over the 4 px between them
+        // (the strips' mean slope), and by the step between the pieces. One affine surface
+        // through the border holds both sides' pixels within `τ` (at 99.9 %, the frame's pixel
+        // noise) while the step is at most `2·(τ − √(χ²₁·σ²_px))` (0.48 px for a Kinect at
+        // its model's noise); a step beyond that by more than its own noise is two surfaces
+        // (a lid on a box, a keyboard on a desk), however well their slopes agree.
+        let (gx, gy) = ((fa.a + fb.a) / 2.0, (fa.b + fb.b) / 2.0);
+        let (mut sum, mut count) = (0.0, 0.0);
+        for s in border {
+            let (da, db) = (
+                f64::from(cd[s.cell_a as usize]),
+                f64::from(cd[s.cell_b as usize]),
+            );
+            if !(da.is_finite() && db.is_finite()) {
+                continue;
+            }
+            let ((xa, ya), (xb, yb)) = (
+                cell_centre_px(s.cell_a as usize, wq),
+                cell_centre_px(s.cell_b as usize, wq),
+            );
+            sum += db - da - gx * (xb - xa) - gy * (yb - ya);
+            count += 1.0;
+        }
+        if count == 0.0 {
+            return Border::Unproven;
+        }
+        let step = (sum / count).abs();
+        let largest = 2.0 * (tau - self.noise.pixel_bound_px());
+        let beyond = step - largest;
+        // Each difference has the noise of two cells (their positive correlation only lowers
+        // it); the differences along a border are correlated as sums of cells are.
+        let var_step = 2.0 * (var / count).min(self.noise.var_cell);
+        if beyond <= 0.0 || beyond * beyond <= CHI2_1_999 * var_step {
+            Border::Meets
+        } else {
+            Border::Steps
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pieces join along their pairs, the larger piece the root; two pieces with a step between
+    /// them stay apart even when a third piece meets both (and then joins only the first it
+    /// meets).
+    #[test]
+    fn a_step_is_not_bridged_by_a_piece_that_meets_both_sides() {
+        let pixels = [100usize, 50, 30, 10];
+        let key = |r: u16| pixels[r as usize];
+        let mut parent: Vec<u16> = (0..4).collect();
+        join_sets(&mut parent, [(0, 2), (2, 1), (3, 1)].into_iter(), &[], key);
+        let roots: Vec<u16> = (0..4).map(|i| find_root(&parent, i)).collect();
+        assert_eq!(roots, [0, 0, 0, 0]);
+        // 0 and 1 have a step between them: 2 joins 0 first, then cannot join 1; 3 joins 1.
+        let mut parent: Vec<u16> = (0..4).collect();
+        join_sets(
+            &mut parent,
+            [(0, 2), (2, 1), (3, 1)].into_iter(),
+            &[(0, 1)],
+            key,
+        );
+        let roots: Vec<u16> = (0..4).map(|i| find_root(&parent, i)).collect();
+        assert_eq!(roots, [0, 1, 0, 1]);
+        // The same with the pairs in the other order: 2 joins 1, the larger.
+        let mut parent: Vec<u16> = (0..4).collect();
+        join_sets(
+            &mut parent,
+            [(2, 1), (0, 2), (3, 1)].into_iter(),
+            &[(1, 0)],
+            key,
+        );
+        let roots: Vec<u16> = (0..4).map(|i| find_root(&parent, i)).collect();
+        assert_eq!(roots, [0, 1, 1, 1]);
     }
 }

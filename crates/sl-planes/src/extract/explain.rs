@@ -32,6 +32,10 @@ pub enum RejectReason {
     /// plane had taken in (`PlaneConfig::give_back_taken_in`): off that plane's fit and its
     /// surroundings by more than the noise allows.
     GivenBack,
+    /// The whole frame's disparity error, as measured on its own patches, has a standard
+    /// deviation above `threshold_px`: no plane can hold its pixels within the threshold, and
+    /// none was extracted ([`PlaneExtractor::noise_beyond_threshold`]).
+    NoiseBeyondThreshold,
 }
 
 impl RejectReason {
@@ -51,6 +55,9 @@ impl RejectReason {
             }
             Self::GivenBack => {
                 "given back by the plane beside it: off its fit and surroundings beyond the noise"
+            }
+            Self::NoiseBeyondThreshold => {
+                "the frame's measured disparity noise exceeds threshold_px: no plane extracted"
             }
         }
     }
@@ -188,7 +195,9 @@ impl PlaneExtractor {
                 Some(f) => (s.rms(&f), self.noise.planar(s.rss(&f), s.n)),
                 None => (f64::NAN, false),
             };
-            let reason = if uncertain[c] as f64 > 0.5 * n {
+            let reason = if self.noise_beyond_threshold {
+                RejectReason::NoiseBeyondThreshold
+            } else if uncertain[c] as f64 > 0.5 * n {
                 RejectReason::Uncertain
             } else if given_back[c] as f64 > 0.5 * n {
                 RejectReason::GivenBack

@@ -544,6 +544,8 @@ pub struct PlaneExtractor {
     /// Pairs of planes that may be pieces of one bent surface: `(slope turn per pixel, a, b,
     /// their borders in `join_seams`)`.
     join_pairs: Vec<(f64, u16, u16, std::ops::Range<usize>)>,
+    /// Bend-join candidates with a step at their border (`bend`): never in one set.
+    join_apart: Vec<(u16, u16)>,
     /// Per cell: the stamp of the last border strip that took it (`bend`).
     join_mark: Vec<u32>,
     /// The current stamp of `join_mark`.
@@ -571,6 +573,9 @@ pub struct PlaneExtractor {
     /// The factor by which the last frame's pixel variance exceeded the model's (1: it did
     /// not), applied to every noise of the extractor.
     noise_scale: f64,
+    /// Whether the last frame's pixel noise (`noise`, scaled) exceeded `threshold_px`, so that
+    /// no plane was extracted (`noise_level`).
+    noise_beyond_threshold: bool,
     /// Noise of the final fit's samples (the planes' uncertainties).
     fit_noise: FitNoise,
     /// Per patch (then per set of patches): moments of its planar cells.
@@ -730,6 +735,17 @@ impl PlaneExtractor {
         self.noise_scale
     }
 
+    /// Whether the last frame was too noisy for [`PlaneConfig::threshold_px`]: its measured
+    /// disparity error (the pixel variance `σ_D² + 1/(12q²)` times
+    /// [`PlaneExtractor::noise_scale`]) has a standard deviation above the threshold, so a
+    /// true plane would keep fewer than 68 % of its pixels within it and the extractor
+    /// returned no plane (see [`RejectReason::NoiseBeyondThreshold`]). A sensor that noisy
+    /// needs a larger `threshold_px`. Always `false` with
+    /// [`PlaneConfig::estimate_noise`] off (the camera's model is then trusted).
+    pub fn noise_beyond_threshold(&self) -> bool {
+        self.noise_beyond_threshold
+    }
+
     fn check(w: usize, h: usize, k: &Intrinsics) -> Result<()> {
         if w != k.width || h != k.height {
             return Err(PlanesError::SizeMismatch {
@@ -831,6 +847,13 @@ impl PlaneExtractor {
         // The final pass appends the rows of the label image (no zeroing of the whole image).
         let mut labels: Vec<u16> = Vec::with_capacity(w * h);
         if wq < 8 || hq < 8 {
+            // Too small a frame for the cell grid: no plane, and nothing of an earlier frame
+            // left for `explain_unlabelled` to read.
+            self.cell_disparity.clear();
+            self.cell_planar.clear();
+            self.cell_labels.clear();
+            self.patch_status.clear();
+            self.joined_into.clear();
             labels.resize(w * h, 0);
             return self.finish(w, h, k, fb, labels);
         }
@@ -900,6 +923,17 @@ impl PlaneExtractor {
         }
         self.planar_cells(w2, wq, hq);
         self.times.add(Stage::Log, &mut t0);
+        if self.noise_beyond_threshold {
+            // No plane can hold this frame's pixels within `τ` (`noise_level`): none is
+            // extracted; the LoG's cells stay for `explain_unlabelled`.
+            self.patch_status.clear();
+            self.cell_labels.clear();
+            self.joined_into.clear();
+            labels.resize(w * h, 0);
+            let out = self.finish(w, h, k, fb, labels);
+            self.times.add(Stage::Output, &mut t0);
+            return out;
+        }
         let min_q = (cfg.min_pixels / (CELL * CELL)).max(3);
         self.seed_from_patches(wq, hq, min_q, false);
         self.seed_leftover_components(wq, hq, min_q);

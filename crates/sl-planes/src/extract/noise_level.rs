@@ -392,6 +392,7 @@ impl PlaneExtractor {
     /// (see the module documentation). Sets `noise_scale`.
     pub(super) fn calibrate_noise(&mut self, wq: usize, hq: usize) {
         self.noise_scale = 1.0;
+        self.noise_beyond_threshold = false;
         if !self.cfg.estimate_noise {
             return;
         }
@@ -405,6 +406,12 @@ impl PlaneExtractor {
         if excess > 1.0 {
             self.noise_scale = excess;
             self.scale_noise(excess);
+            // A plane is the pixels within `τ` of an affine disparity: with a pixel error whose
+            // σ exceeds `τ`, a true plane keeps fewer than 68 % of its pixels within it, and
+            // every noise test, scaled to that error, passes surfaces of any shape (uniform
+            // random depth measures a scale in the thousands). Such a frame is reported, not
+            // segmented.
+            self.noise_beyond_threshold = self.noise.var_px > self.cfg.threshold_px.powi(2);
         }
     }
 }

@@ -43,7 +43,7 @@ const CHI2_3_999: f64 = 16.266;
 /// The 99.9 % quantile of χ² with 1 degree of freedom, squared standard-normal units: one
 /// pixel's residual is within the noise at the tests' confidence when `r² ≤ CHI2_1_999·σ²`
 /// (`|r| ≤ 3.29 σ`).
-const CHI2_1_999: f64 = 10.828;
+pub(super) const CHI2_1_999: f64 = 10.828;
 
 /// The disparity noise of one cell (a 4×4-pixel mean) from the sensor model and the
 /// correlation of the disparity error.

@@ -313,8 +313,10 @@ class UnlabelledRegion:
     bbox_px: Tuple[int, int, int, int]
     reason: str
     """"NotPlanarLog", "ResidualNotWhite", "SeveralSurfaces", "Unseeded", "Uncertain" (a
-    plane left out by max_normal_sigma_deg) or "GivenBack" (a piece a plane took in and gave
-    back, give_back_taken_in)."""
+    plane left out by max_normal_sigma_deg), "GivenBack" (a piece a plane took in and gave
+    back, give_back_taken_in) or "NoiseBeyondThreshold" (the frame's measured disparity noise
+    exceeds threshold_px: no plane was extracted; a sensor that noisy needs a larger
+    threshold_px)."""
     why: str
     log_rejected_fraction: float
     residual_rejected_fraction: float

@@ -113,6 +113,23 @@ pub fn run(args: Args) -> Result<()> {
     ];
     check_distinct_outputs(&outputs)?;
     crate::common::check_outputs_spare_inputs(&outputs, [args.depth.as_path()])?;
+    if args.method == "metric-ransac" {
+        // Switches of the disparity method would be ignored without a word.
+        let disparity_only = [
+            ("--explain", args.explain),
+            ("--give-back-taken-in", args.give_back_taken_in),
+            ("--refine-seams", args.refine_seams),
+            ("--no-split-creases", args.no_split_creases),
+            ("--model-noise-only", args.model_noise_only),
+            (
+                "--max-normal-sigma-deg",
+                args.max_normal_sigma_deg.is_some(),
+            ),
+        ];
+        if let Some((flag, _)) = disparity_only.iter().find(|(_, given)| *given) {
+            bail!("{flag} applies to --method disparity, not metric-ransac");
+        }
+    }
     check_range("--threshold-px", args.threshold_px, 1e-6..=1e3)?;
     check_range("--log-threshold-px", args.log_threshold_px, 0.0..=1e3)?;
     check_range("--log-sigma-px", args.log_sigma_px, 0.0..=1e3)?;
@@ -125,6 +142,7 @@ pub fn run(args: Args) -> Result<()> {
     let camera = loaded.camera;
     let mut explained = Vec::new();
     let mut noise_scale = None;
+    let mut noise_beyond_threshold = false;
     let (seg, ms) = match args.method.as_str() {
         "disparity" => {
             let mut cfg = PlaneConfig::default();
@@ -159,6 +177,7 @@ pub fn run(args: Args) -> Result<()> {
                 explained = ex.explain_unlabelled(&out.0, args.min_pixels);
             }
             noise_scale = Some(ex.noise_scale());
+            noise_beyond_threshold = ex.noise_beyond_threshold();
             out
         }
         "metric-ransac" => {
@@ -188,6 +207,7 @@ pub fn run(args: Args) -> Result<()> {
         let mut v = segmentation_json(&seg, ms);
         if let Some(f) = noise_scale {
             v["noise_scale"] = json!(f);
+            v["noise_beyond_threshold"] = json!(noise_beyond_threshold);
         }
         if args.explain {
             v["unlabelled"] = explain_json(&explained);
@@ -203,6 +223,12 @@ pub fn run(args: Args) -> Result<()> {
         if let Some(f) = noise_scale.filter(|&f| f > 1.0) {
             outln!(
                 "  the frame is noisier than the camera model: its disparity-error variance is {f:.2}x the model's, used for every test (--model-noise-only to keep the model)"
+            )?;
+        }
+        if noise_beyond_threshold {
+            outln!(
+                "  no plane extracted: the frame's measured disparity noise exceeds --threshold-px {} (a true plane would keep fewer than 68 % of its pixels within it); a sensor this noisy needs a larger --threshold-px",
+                args.threshold_px
             )?;
         }
         for p in &seg.planes {
@@ -222,11 +248,23 @@ pub fn run(args: Args) -> Result<()> {
             )?;
         }
         if args.explain {
-            outln!(
-                "{} unlabelled regions of at least {} px:",
-                explained.len(),
-                args.min_pixels
-            )?;
+            // `--min-pixels` counts the sensor's pixels; a decimated frame's regions are given
+            // in its own.
+            let s = camera.pixels_per_sensor_pixel();
+            if (s - 1.0).abs() > 1e-9 {
+                outln!(
+                    "{} unlabelled regions of at least {} px of the sensor ({:.0} px of this frame):",
+                    explained.len(),
+                    args.min_pixels,
+                    args.min_pixels as f64 * s * s
+                )?;
+            } else {
+                outln!(
+                    "{} unlabelled regions of at least {} px:",
+                    explained.len(),
+                    args.min_pixels
+                )?;
+            }
             for r in &explained {
                 outln!(
                     "  {:>7} px  box [{} {} {} {}]  LoG-rejected {:.0} %  residual-rejected {:.0} %  rms {:.2} px: {}",
