@@ -204,7 +204,10 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         (vec!["--reflectance", "1=2"], "must be in [0, 1]"),
         (vec!["--reflectance", "x"], "expected LABEL=R"),
         (vec!["--reflectance", "999=0.5"], "no surface 999"),
-        (vec!["--min-return=-1"], "min_return -1"),
+        (
+            vec!["--min-return=-1"],
+            "--min-return -1: must be a finite number >= 0",
+        ),
         (
             vec!["--noise", "white", "--min-return", "0.04"],
             "realistic model",

@@ -135,6 +135,12 @@ pub fn run(args: Args) -> Result<()> {
         realistic.speckle_px = sp;
     }
     if let Some(m) = args.min_return {
+        if !(m.is_finite() && m >= 0.0) {
+            bail!(
+                "--min-return {}: must be a finite number >= 0 (0 = off)",
+                crate::common::num(m)
+            );
+        }
         // 0 is the default (off), which the white model has too, as Python's `simulate`.
         if args.noise == "white" && m != 0.0 {
             bail!("--min-return is a drop-out of the realistic model; the white model has none");
@@ -148,7 +154,10 @@ pub fn run(args: Args) -> Result<()> {
     };
     if let Some(s) = args.sigma_d_px {
         if !(s.is_finite() && (0.0..=100.0).contains(&s)) {
-            bail!("--sigma-d-px {s}: must be a number from 0 to 100 pixels");
+            bail!(
+                "--sigma-d-px {}: must be a number from 0 to 100 pixels",
+                crate::common::num(s)
+            );
         }
         sim.sensor.sigma_d_px = s;
     }

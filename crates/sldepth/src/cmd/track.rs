@@ -545,7 +545,7 @@ pub fn run(args: Args) -> Result<()> {
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
         bail!(
             "--new-fragment-after-s must be positive (inf: never), got {}",
-            args.new_fragment_after_s
+            crate::common::num(args.new_fragment_after_s)
         );
     }
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
