@@ -204,6 +204,18 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         (vec!["--reflectance", "1=2"], "must be in [0, 1]"),
         (vec!["--reflectance", "x"], "expected LABEL=R"),
         (vec!["--reflectance", "999=0.5"], "no surface 999"),
+        // Labels are 16-bit: beyond them a well-formed LABEL=R names no surface either.
+        (vec!["--reflectance", "65536=0.5"], "no surface 65536"),
+        (vec!["--reflectance=-1=0.5"], "no surface -1"),
+        (
+            vec![
+                "--reflectance",
+                "123456789012345678901234567890123456789012=0.5",
+            ],
+            "no surface 123456789012345678901234567890123456789012 (the scene has labels 1..=",
+        ),
+        (vec!["--reflectance", "1.5=0.5"], "expected LABEL=R"),
+        (vec!["--reflectance", "1=dark"], "expected LABEL=R"),
         (
             vec!["--min-return=-1"],
             "--min-return -1: must be a finite number >= 0",

@@ -1,9 +1,11 @@
 //! `sldepth simulate`: render a named synthetic scene through the Kinect noise model.
 
+use std::num::IntErrorKind;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::builder::PossibleValuesParser;
+use sl_noise::NoiseError;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, SCENE_NAMES, named_scene};
 
 use crate::common::{
@@ -91,16 +93,31 @@ pub fn run(args: Args) -> Result<()> {
     ])?;
     let mut named = named_scene(&args.scene)?;
     for spec in &args.reflectance {
-        let parsed = spec.split_once('=').and_then(|(l, r)| {
-            Some((l.trim().parse::<u16>().ok()?, r.trim().parse::<f64>().ok()?))
-        });
-        let Some((label, rho)) = parsed else {
-            bail!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
+        let malformed = || anyhow!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
+        let (l, r) = spec.split_once('=').ok_or_else(malformed)?;
+        let (l, r) = (l.trim(), r.trim());
+        let rho = r.parse::<f64>().map_err(|_| malformed())?;
+        // A whole number beyond the 16-bit labels is well formed: it names no surface.
+        let label = match l.parse::<i128>() {
+            Ok(v) => u16::try_from(v).ok(),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    IntErrorKind::PosOverflow | IntErrorKind::NegOverflow
+                ) =>
+            {
+                None
+            }
+            Err(_) => return Err(malformed()),
         };
-        named
-            .scene
-            .set_reflectance(label, rho)
-            .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
+        match label {
+            Some(label) => named.scene.set_reflectance(label, rho),
+            None => Err(NoiseError::InvalidParameter(format!(
+                "no surface {l} (the scene has labels 1..={})",
+                named.scene.len()
+            ))),
+        }
+        .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
     }
     let (intrinsics, mut sim) = match &args.camera {
         Some(_) => {
