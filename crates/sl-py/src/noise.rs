@@ -89,7 +89,9 @@ type SimResult<'py> = (
 /// ``min_return`` (realistic model; 0 = off) drops out pixels whose surface returns less of the
 /// pattern than a white surface facing the camera at 1 m times it (``reflectance·cos θ / r²``,
 /// r in metres: dark and far surfaces); ``reflectance`` maps surface labels to their infrared
-/// reflectance in [0, 1] (every other surface reflects 1).
+/// reflectance in [0, 1] (every other surface reflects 1), which only that drop-out reads: a
+/// ``reflectance`` without a positive ``min_return`` (or with ``noise="white"``) raises
+/// ``ValueError``.
 #[pyfunction]
 #[pyo3(signature = (scene, seed = 0, camera = None, *, noise = "realistic", min_return = 0.0, reflectance = None))]
 pub(crate) fn simulate<'py>(
@@ -106,6 +108,7 @@ pub(crate) fn simulate<'py>(
     // In label order, so that the first bad entry is the one reported whatever the dict's order.
     let mut entries: Vec<(i64, f64)> = reflectance.unwrap_or_default().into_iter().collect();
     entries.sort_by_key(|e| e.0);
+    let any_reflectance = !entries.is_empty();
     for (label, rho) in entries {
         let label = u16::try_from(label).map_err(|_| {
             value_error(format!(
@@ -134,11 +137,24 @@ pub(crate) fn simulate<'py>(
             );
             cfg.min_return = min_return;
             cfg.validate().map_err(value_error)?;
+            if any_reflectance && min_return == 0.0 {
+                return Err(value_error(
+                    "reflectance has no effect without a positive min_return: only the \
+                     realistic model's drop-out of weak returns reads a reflectance, and \
+                     min_return=0 (the default) turns it off",
+                ));
+            }
             NoiseModel::Realistic(cfg)
         }
         "white" if min_return != 0.0 => {
             return Err(value_error(
                 "min_return is a drop-out of the realistic model; the white model has none",
+            ));
+        }
+        "white" if any_reflectance => {
+            return Err(value_error(
+                "reflectance has no effect with noise=\"white\": only the realistic model's \
+                 drop-out of weak returns (a positive min_return) reads a reflectance",
             ));
         }
         "white" => NoiseModel::White,

@@ -193,8 +193,6 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         valid(&["--min-return", "0.04", "--reflectance", "1=0.1"]),
     );
     assert!(all > bound && bound > dark, "{all} {bound} {dark}");
-    // Without the bound a reflectance changes nothing.
-    assert_eq!(valid(&["--reflectance", "1=0.1"]), all);
     let v = json_of(&run(&["--min-return", "0.04", "--reflectance", "1=0.1"]));
     assert_eq!(v["min_return"], 0.04);
     assert_eq!(v["surfaces"][0]["reflectance"], 0.1);
@@ -223,6 +221,35 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         (
             vec!["--noise", "white", "--min-return", "0.04"],
             "realistic model",
+        ),
+        // Without the bound, or with the white model, nothing reads a reflectance: an error
+        // saying why rather than a reflectance the JSON shows and the frame ignores.
+        (
+            vec!["--reflectance", "1=0.1"],
+            "--reflectance has no effect without a positive --min-return",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--min-return", "0"],
+            "--reflectance has no effect without a positive --min-return",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--noise", "white"],
+            "--reflectance has no effect with --noise white",
+        ),
+        (
+            vec![
+                "--reflectance",
+                "1=0.1",
+                "--noise",
+                "white",
+                "--min-return",
+                "0",
+            ],
+            "--reflectance has no effect with --noise white",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--min-return=-1"],
+            "--min-return -1: must be",
         ),
     ] {
         let o = run(&bad);

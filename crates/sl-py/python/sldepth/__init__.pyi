@@ -126,7 +126,9 @@ def simulate(
     paper's independent Gaussian disparity noise (Algorithm 1's model). min_return (realistic
     model, 0 = off): pixels whose surface returns less than reflectance * cos(theta) / r**2
     (r in metres, relative to a white surface facing the camera at 1 m) drop out; reflectance
-    maps labels to their infrared reflectance in [0, 1] (others reflect 1)."""
+    maps labels to their infrared reflectance in [0, 1] (others reflect 1), which only that
+    drop-out reads: without a positive min_return (or with noise="white") it raises
+    ValueError."""
 
 def noise_stats(
     depth: _Depth,

@@ -61,7 +61,8 @@ pub struct Args {
     #[arg(long, value_name = "R")]
     pub min_return: Option<f64>,
     /// Infrared reflectance of a surface, `LABEL=R` with R in [0, 1] (labels as --labels
-    /// writes them; every other surface reflects 1). Repeatable. Only --min-return reads it.
+    /// writes them; every other surface reflects 1). Repeatable. Only the realistic model's
+    /// drop-out of weak returns reads it: an error without a positive --min-return.
     #[arg(long, value_name = "LABEL=R")]
     pub reflectance: Vec<String>,
     /// Print a JSON summary.
@@ -91,6 +92,17 @@ pub fn run(args: Args) -> Result<()> {
         ("--truth", args.truth.as_deref()),
         ("--labels", args.labels.as_deref()),
     ])?;
+    let min_return = args.min_return.unwrap_or(0.0);
+    if !(min_return.is_finite() && min_return >= 0.0) {
+        bail!(
+            "--min-return {}: must be a finite number >= 0 (0 = off)",
+            crate::common::num(min_return)
+        );
+    }
+    // 0 is the default (off), which the white model has too, as Python's `simulate`.
+    if args.noise == "white" && min_return != 0.0 {
+        bail!("--min-return is a drop-out of the realistic model; the white model has none");
+    }
     let mut named = named_scene(&args.scene)?;
     for spec in &args.reflectance {
         let malformed = || anyhow!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
@@ -118,6 +130,22 @@ pub fn run(args: Args) -> Result<()> {
             ))),
         }
         .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
+    }
+    // A reflectance read by nothing would be a silent no-op (and the JSON would show it).
+    if !args.reflectance.is_empty() {
+        if args.noise == "white" {
+            bail!(
+                "--reflectance has no effect with --noise white: only the realistic model's \
+                 drop-out of weak returns (a positive --min-return) reads a reflectance"
+            );
+        }
+        if min_return == 0.0 {
+            bail!(
+                "--reflectance has no effect without a positive --min-return: only the \
+                 realistic model's drop-out of weak returns reads a reflectance, and \
+                 --min-return 0 (the default) turns it off"
+            );
+        }
     }
     let (intrinsics, mut sim) = match &args.camera {
         Some(_) => {
@@ -151,19 +179,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(sp) = args.speckle {
         realistic.speckle_px = sp;
     }
-    if let Some(m) = args.min_return {
-        if !(m.is_finite() && m >= 0.0) {
-            bail!(
-                "--min-return {}: must be a finite number >= 0 (0 = off)",
-                crate::common::num(m)
-            );
-        }
-        // 0 is the default (off), which the white model has too, as Python's `simulate`.
-        if args.noise == "white" && m != 0.0 {
-            bail!("--min-return is a drop-out of the realistic model; the white model has none");
-        }
-        realistic.min_return = m;
-    }
+    realistic.min_return = min_return;
     realistic.validate()?;
     sim.noise = match args.noise.as_str() {
         "white" => NoiseModel::White,
@@ -204,7 +220,7 @@ pub fn run(args: Args) -> Result<()> {
             "width": frame.depth.width(),
             "height": frame.depth.height(),
             "valid_pixels": valid,
-            "min_return": args.min_return.unwrap_or(0.0),
+            "min_return": min_return,
             "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n, "reflectance": named.scene.reflectance(*l)})).collect::<Vec<_>>(),
         }))?;
     } else {
