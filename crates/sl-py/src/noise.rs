@@ -1,13 +1,18 @@
 //! The noise model: `analyze` (depth-resolution analysis, the paper's Figure 2) and `simulate`
 //! (seeded Kinect frames of named scenes).
 
+use std::collections::HashMap;
+
 use numpy::PyArray2;
+use pyo3::exceptions::{PyOverflowError, PyTypeError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, named_scene};
 
 use crate::arrays::{depth_array, depth_input, image_array};
 use crate::camera::{PyCamera, camera_or_default};
 use crate::errors::value_error;
+use crate::reals::is_bool;
 use crate::repr::py_opt;
 use crate::threads::compute;
 
@@ -72,6 +77,50 @@ pub(crate) fn analyze(
     })
 }
 
+/// `min_return`: a number, not a bool (`True` is 1 to Python).
+fn min_return_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    crate::reals::real(obj, "min_return")
+}
+
+/// `reflectance`: a dict of labels to reflectances, neither of them a bool (`True` would be
+/// label 1, or reflectance 1); a label beyond any integer type names no surface (a
+/// `ValueError`, not pyo3's `OverflowError`).
+fn reflectance_arg(obj: &Bound<'_, PyAny>) -> PyResult<Option<HashMap<i64, f64>>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    let Ok(dict) = obj.cast::<PyDict>() else {
+        // pyo3's TypeError for anything but a dict.
+        return obj.extract().map(Some);
+    };
+    let mut map = HashMap::with_capacity(dict.len());
+    for (label, rho) in dict.iter() {
+        if is_bool(&label)? {
+            return Err(PyTypeError::new_err(format!(
+                "reflectance: label {label} is a bool; labels are integers (1.., as in the \
+                 labels image)"
+            )));
+        }
+        if is_bool(&rho)? {
+            return Err(PyTypeError::new_err(format!(
+                "reflectance: the reflectance of label {label} is a bool ({rho}); reflectances \
+                 are numbers in [0, 1]"
+            )));
+        }
+        let l = match label.extract::<i64>() {
+            Ok(l) => l,
+            Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
+                return Err(value_error(format!(
+                    "no surface {label} (labels are 16-bit: at most 65535)"
+                )));
+            }
+            Err(e) => return Err(e),
+        };
+        map.insert(l, rho.extract::<f64>()?);
+    }
+    Ok(Some(map))
+}
+
 type SimResult<'py> = (
     Bound<'py, PyArray2<f32>>,
     Bound<'py, PyArray2<f32>>,
@@ -100,8 +149,8 @@ pub(crate) fn simulate<'py>(
     #[pyo3(from_py_with = crate::ints::int)] seed: u64,
     camera: Option<&PyCamera>,
     noise: &str,
-    min_return: f64,
-    reflectance: Option<std::collections::HashMap<i64, f64>>,
+    #[pyo3(from_py_with = min_return_arg)] min_return: f64,
+    #[pyo3(from_py_with = reflectance_arg)] reflectance: Option<HashMap<i64, f64>>,
 ) -> PyResult<SimResult<'py>> {
     // An unknown name's error lists the scenes.
     let mut named = named_scene(scene).map_err(value_error)?;
