@@ -116,6 +116,15 @@ def test_files_and_sequences_odd_but_legal(tmp_path, small_cam, wall):
     sldepth.write_depth(tmp_path / "u.png", u16, depth_scale=1000)
     back = sldepth.read_depth(tmp_path / "u.png", depth_scale=1000)
     np.testing.assert_array_equal(np.round(back * 1000).astype(np.uint16), u16)
+    # Every uint16 value, 65535 (7-Scenes' "no depth") included; 0 and 65535 read back invalid.
+    edge = np.array([[0, 1, 65534, 65535]], np.uint16)
+    for name in ("edge.png", "edge.tiff"):
+        sldepth.write_depth(tmp_path / name, edge, depth_scale=1000)
+        back = sldepth.read_depth(tmp_path / name, depth_scale=1000)
+        np.testing.assert_allclose(back, [[0.0, 0.001, 65.534, 0.0]], rtol=1e-6)
+    # In metres the encoding holds at most 65534 units.
+    with pytest.raises(sldepth.SlDepthIOError, match="max depth 65.534 m"):
+        sldepth.write_depth(tmp_path / "far.png", np.full((1, 1), 65.535, np.float32))
     # What read_trajectory refuses is not written.
     with pytest.raises(sldepth.SlDepthIOError, match="finite"):
         sldepth.write_trajectory(tmp_path / "t.txt", [math.nan], np.eye(4)[None])

@@ -96,8 +96,10 @@ def read_depth(
 def write_depth(
     path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
 ) -> None:
-    """16-bit PNG/TIFF at depth_scale units per metre, written atomically; a uint16 array is
-    taken at depth_scale units per metre (written as it is)."""
+    """16-bit PNG/TIFF at depth_scale units per metre, written atomically (depth above 65534
+    units is refused: 65535 marks missing depth, as in 7-Scenes); a uint16 array is taken at
+    depth_scale units per metre and written as it is, every value included (0 and 65535 read
+    back as invalid)."""
 
 class Analysis:
     valid_pixels: int
