@@ -455,7 +455,8 @@ pub struct LoadedDepth {
     pub encoding: DepthEncoding,
 }
 
-/// The integer values of a depth file, before conversion to metres.
+/// The integer values of a depth file, before conversion to metres ([`read_raw_depth`]
+/// reads them, [`write_raw_depth`] writes them back as they are).
 #[derive(Debug, Clone, PartialEq)]
 pub struct RawDepth {
     /// Stored values: PNG/TIFF depth units, SUN millimetres (bit rotation undone), NYU raw
@@ -556,8 +557,10 @@ pub fn read_depth_with_limits(
 ///
 /// Values are rounded to the nearest unit; invalid pixels (0, negative, NaN, infinite) are
 /// stored as `encoding.invalid_value`. A valid depth that the encoding cannot hold (it would
-/// round to 0 or exceed 65534 units, i.e. [`DepthEncoding::max_depth_m`]) is an
+/// round to 0 or exceed 65534 units, i.e. [`DepthEncoding::max_depth_m`]: 65535 is the
+/// [`INVALID_SENTINEL`], which every reader takes for no depth) is an
 /// [`IoError::DepthOutOfRange`] naming the pixel and the valid range — never a silent wrap.
+/// To store integers as they are (65535 included), use [`write_raw_depth`].
 pub fn write_depth(
     path: impl AsRef<Path>,
     depth: &DepthImage,
@@ -572,6 +575,49 @@ pub fn write_depth(
         DepthFormat::Png | DepthFormat::Sun => write_png_l16(path, w, h, &values),
         DepthFormat::Tiff => write_tiff_l16(path, w, h, &values),
         DepthFormat::NyuRaw => write_nyu_pgm(path, w, h, &values),
+    }
+}
+
+/// Writes the stored integers of a depth file as they are, atomically: the inverse of
+/// [`read_raw_depth`] (`raw.values` as its [`RawDepth::values`] describes them; SUN values
+/// are rotated back on write, NYU raw values written little-endian as NYU stores them).
+///
+/// Nothing is converted or refused for PNG, TIFF and SUN: every 16-bit value is written,
+/// and a 0 or 65535 (the [`INVALID_SENTINEL`] 7-Scenes marks missing depth with) reads back
+/// as no depth, whatever `raw.encoding.invalid_value` says.
+///
+/// # Errors
+/// The checks of [`write_depth`] on the encoding (its scale) and the image size; an NYU raw
+/// value above 2047 (the Kinect's 11 bits; [`read_nyu_raw`] would refuse the file) is an
+/// [`IoError::Format`] naming the pixel; file-system errors.
+pub fn write_raw_depth(path: impl AsRef<Path>, raw: &RawDepth) -> Result<()> {
+    let path = path.as_ref();
+    raw.encoding.validate(path)?;
+    let (w, h) = raw.values.dimensions();
+    check_writable_size(path, w, h)?;
+    let values = raw.values.data();
+    match raw.encoding.format {
+        DepthFormat::Png => write_png_l16(path, w, h, values),
+        DepthFormat::Tiff => write_tiff_l16(path, w, h, values),
+        DepthFormat::Sun => {
+            let rotated: Vec<u16> = values.iter().map(|v| v.rotate_left(3)).collect();
+            write_png_l16(path, w, h, &rotated)
+        }
+        DepthFormat::NyuRaw => {
+            if let Some(i) = values.iter().position(|&v| v > NYU_INVALID_RAW) {
+                return Err(IoError::Format {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "raw value {} at pixel ({}, {}) is beyond the Kinect's 11 bits \
+                         (0..={NYU_INVALID_RAW})",
+                        values[i],
+                        i % w,
+                        i / w
+                    ),
+                });
+            }
+            write_nyu_pgm(path, w, h, values)
+        }
     }
 }
 

@@ -75,7 +75,7 @@ pub use camera::{
 pub use depth::ReadOptions;
 pub use depth::{
     DepthEncoding, DepthFormat, LoadedDepth, RawDepth, ReadConfig, read_depth, read_nyu_raw,
-    read_raw_depth, write_depth,
+    read_raw_depth, write_depth, write_raw_depth,
 };
 pub use error::{IoError, Result};
 pub use limits::Limits;

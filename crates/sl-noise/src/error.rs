@@ -53,3 +53,14 @@ pub enum NoiseError {
 
 /// `Result` with [`NoiseError`].
 pub type Result<T> = std::result::Result<T, NoiseError>;
+
+/// A number for a message: as Rust prints it for magnitudes from 1e-4 to below 1e6, in
+/// scientific notation beyond them (a `1e300` printed by `{}` is a 301-digit decimal).
+pub(crate) fn num(v: f64) -> String {
+    let a = v.abs();
+    if a.is_finite() && a != 0.0 && !(1e-4..1e6).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}

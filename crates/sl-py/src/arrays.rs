@@ -160,6 +160,27 @@ fn depth_input_readable<'py>(
     )))
 }
 
+/// A `uint16` depth array's values as they are (masked entries 0), with its `depth_scale`
+/// checked as [`depth_input`] checks it; `None` for any other dtype.
+pub(crate) fn u16_input(
+    obj: &Bound<'_, PyAny>,
+    depth_scale: Option<f64>,
+) -> PyResult<Option<Image<u16>>> {
+    let read = readable(obj)?;
+    let (h, w, _) = shape_of(&read)?;
+    let Ok(a) = read.extract::<PyReadonlyArray2<'_, u16>>() else {
+        return Ok(None);
+    };
+    let Some(scale) = depth_scale else {
+        return Err(value_error(
+            "uint16 depth needs depth_scale (units per metre: 1000 for millimetres, 5000 for TUM)",
+        ));
+    };
+    check_depth_scale(scale)?;
+    let values: Vec<u16> = a.as_array().iter().copied().collect();
+    Image::from_vec(w, h, values).map(Some).map_err(value_error)
+}
+
 /// Checks that a depth map has the camera's size.
 pub(crate) fn check_camera(view: &DepthView<'_>, camera: &Camera) -> PyResult<()> {
     let k = &camera.intrinsics;

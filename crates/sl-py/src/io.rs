@@ -6,9 +6,9 @@ use numpy::PyArray2;
 use numpy::prelude::*;
 use pyo3::prelude::*;
 use sl_io::Limits;
-use sl_io::depth::{DepthEncoding, DepthFormat, ReadConfig};
+use sl_io::depth::{DepthEncoding, DepthFormat, RawDepth, ReadConfig};
 
-use crate::arrays::{depth_array, depth_input};
+use crate::arrays::{depth_array, depth_input, u16_input};
 use crate::errors::{io_error, value_error};
 use crate::threads::compute;
 
@@ -53,8 +53,10 @@ pub(crate) fn read_depth<'py>(
 
 /// Writes a depth map (metres) as 16-bit PNG or TIFF (by extension or ``format``) at
 /// ``depth_scale`` units per metre (1000 = millimetres), atomically. Invalid pixels (0, NaN,
-/// negative) are stored as 0; a depth the encoding cannot hold raises ``ValueError``/``OSError``.
-/// A ``uint16`` array is taken as depth in units of ``depth_scale`` (written as it is).
+/// negative) are stored as 0; a depth the encoding cannot hold (below one unit, or above 65534
+/// units: 65535 marks missing depth, as in 7-Scenes) raises ``ValueError``/``OSError``.
+/// A ``uint16`` array is taken as depth in units of ``depth_scale`` and written as it is,
+/// every value included: 0 and 65535 read back as invalid.
 #[pyfunction]
 #[pyo3(signature = (path, depth, depth_scale = 1000.0, format = None))]
 pub(crate) fn write_depth(
@@ -82,7 +84,12 @@ pub(crate) fn write_depth(
             )));
         }
     };
-    // A uint16 array is depth in units of this same scale: written as it is.
+    // A uint16 array is depth in units of this same scale: its values are the file's, 65535
+    // (which no depth in metres may round to) included.
+    if let Some(values) = u16_input(depth, Some(depth_scale))? {
+        let raw = RawDepth { values, encoding };
+        return compute(py, || sl_io::depth::write_raw_depth(&path, &raw)).map_err(io_error);
+    }
     let integer = depth
         .cast::<numpy::PyUntypedArray>()
         .is_ok_and(|a| a.dtype().kind() == b'u');

@@ -32,6 +32,7 @@ mod io;
 mod noise;
 mod noise_stats;
 mod planes;
+mod reals;
 mod repr;
 mod threads;
 mod track;

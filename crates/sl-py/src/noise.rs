@@ -1,13 +1,18 @@
 //! The noise model: `analyze` (depth-resolution analysis, the paper's Figure 2) and `simulate`
 //! (seeded Kinect frames of named scenes).
 
+use std::collections::HashMap;
+
 use numpy::PyArray2;
+use pyo3::exceptions::{PyOverflowError, PyTypeError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, named_scene};
 
 use crate::arrays::{depth_array, depth_input, image_array};
 use crate::camera::{PyCamera, camera_or_default};
 use crate::errors::value_error;
+use crate::reals::is_bool;
 use crate::repr::py_opt;
 use crate::threads::compute;
 
@@ -72,6 +77,50 @@ pub(crate) fn analyze(
     })
 }
 
+/// `min_return`: a number, not a bool (`True` is 1 to Python).
+fn min_return_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
+    crate::reals::real(obj, "min_return")
+}
+
+/// `reflectance`: a dict of labels to reflectances, neither of them a bool (`True` would be
+/// label 1, or reflectance 1); a label beyond any integer type names no surface (a
+/// `ValueError`, not pyo3's `OverflowError`).
+fn reflectance_arg(obj: &Bound<'_, PyAny>) -> PyResult<Option<HashMap<i64, f64>>> {
+    if obj.is_none() {
+        return Ok(None);
+    }
+    let Ok(dict) = obj.cast::<PyDict>() else {
+        // pyo3's TypeError for anything but a dict.
+        return obj.extract().map(Some);
+    };
+    let mut map = HashMap::with_capacity(dict.len());
+    for (label, rho) in dict.iter() {
+        if is_bool(&label)? {
+            return Err(PyTypeError::new_err(format!(
+                "reflectance: label {label} is a bool; labels are integers (1.., as in the \
+                 labels image)"
+            )));
+        }
+        if is_bool(&rho)? {
+            return Err(PyTypeError::new_err(format!(
+                "reflectance: the reflectance of label {label} is a bool ({rho}); reflectances \
+                 are numbers in [0, 1]"
+            )));
+        }
+        let l = match label.extract::<i64>() {
+            Ok(l) => l,
+            Err(e) if e.is_instance_of::<PyOverflowError>(obj.py()) => {
+                return Err(value_error(format!(
+                    "no surface {label} (labels are 16-bit: at most 65535)"
+                )));
+            }
+            Err(e) => return Err(e),
+        };
+        map.insert(l, rho.extract::<f64>()?);
+    }
+    Ok(Some(map))
+}
+
 type SimResult<'py> = (
     Bound<'py, PyArray2<f32>>,
     Bound<'py, PyArray2<f32>>,
@@ -89,7 +138,9 @@ type SimResult<'py> = (
 /// ``min_return`` (realistic model; 0 = off) drops out pixels whose surface returns less of the
 /// pattern than a white surface facing the camera at 1 m times it (``reflectance·cos θ / r²``,
 /// r in metres: dark and far surfaces); ``reflectance`` maps surface labels to their infrared
-/// reflectance in [0, 1] (every other surface reflects 1).
+/// reflectance in [0, 1] (every other surface reflects 1), which only that drop-out reads: a
+/// ``reflectance`` without a positive ``min_return`` (or with ``noise="white"``) raises
+/// ``ValueError``.
 #[pyfunction]
 #[pyo3(signature = (scene, seed = 0, camera = None, *, noise = "realistic", min_return = 0.0, reflectance = None))]
 pub(crate) fn simulate<'py>(
@@ -98,14 +149,15 @@ pub(crate) fn simulate<'py>(
     #[pyo3(from_py_with = crate::ints::int)] seed: u64,
     camera: Option<&PyCamera>,
     noise: &str,
-    min_return: f64,
-    reflectance: Option<std::collections::HashMap<i64, f64>>,
+    #[pyo3(from_py_with = min_return_arg)] min_return: f64,
+    #[pyo3(from_py_with = reflectance_arg)] reflectance: Option<HashMap<i64, f64>>,
 ) -> PyResult<SimResult<'py>> {
     // An unknown name's error lists the scenes.
     let mut named = named_scene(scene).map_err(value_error)?;
     // In label order, so that the first bad entry is the one reported whatever the dict's order.
     let mut entries: Vec<(i64, f64)> = reflectance.unwrap_or_default().into_iter().collect();
     entries.sort_by_key(|e| e.0);
+    let any_reflectance = !entries.is_empty();
     for (label, rho) in entries {
         let label = u16::try_from(label).map_err(|_| {
             value_error(format!(
@@ -134,11 +186,24 @@ pub(crate) fn simulate<'py>(
             );
             cfg.min_return = min_return;
             cfg.validate().map_err(value_error)?;
+            if any_reflectance && min_return == 0.0 {
+                return Err(value_error(
+                    "reflectance has no effect without a positive min_return: only the \
+                     realistic model's drop-out of weak returns reads a reflectance, and \
+                     min_return=0 (the default) turns it off",
+                ));
+            }
             NoiseModel::Realistic(cfg)
         }
         "white" if min_return != 0.0 => {
             return Err(value_error(
                 "min_return is a drop-out of the realistic model; the white model has none",
+            ));
+        }
+        "white" if any_reflectance => {
+            return Err(value_error(
+                "reflectance has no effect with noise=\"white\": only the realistic model's \
+                 drop-out of weak returns (a positive min_return) reads a reflectance",
             ));
         }
         "white" => NoiseModel::White,

@@ -441,7 +441,8 @@ def test_simulate_draws_the_realistic_sensor_by_default(kinect):
 
 def test_simulate_drops_out_weak_returns():
     # min_return: pixels whose surface returns less than reflectance * cos(theta) / r**2 drop
-    # out; a darker surface drops out nearer. Without the bound a reflectance changes nothing.
+    # out; a darker surface drops out nearer. Without the bound nothing reads a reflectance: an
+    # error, as for `sldepth simulate --reflectance`.
     depth, truth, labels = sldepth.simulate("boxes", seed=3)
     bound, _, _ = sldepth.simulate("boxes", seed=3, min_return=0.04)
     dark, _, _ = sldepth.simulate("boxes", seed=3, min_return=0.04, reflectance={1: 0.1})
@@ -450,7 +451,8 @@ def test_simulate_drops_out_weak_returns():
     floor = labels == 1
     assert valid(dark[floor]) < valid(bound[floor])
     assert np.array_equal(bound[~floor], dark[~floor])
-    same, _, _ = sldepth.simulate("boxes", seed=3, reflectance={1: 0.1})
+    # An empty dict sets nothing and needs no bound.
+    same, _, _ = sldepth.simulate("boxes", seed=3, reflectance={})
     assert np.array_equal(same, depth)
     for kwargs, says in [
         ({"reflectance": {1: 2.0}}, "must be in"),
@@ -458,6 +460,9 @@ def test_simulate_drops_out_weak_returns():
         ({"reflectance": {999: 0.5}}, "no surface 999"),
         ({"min_return": -1.0}, "min_return"),
         ({"min_return": 0.04, "noise": "white"}, "realistic model"),
+        ({"reflectance": {1: 0.1}}, "no effect without a positive min_return"),
+        ({"reflectance": {1: 0.1}, "min_return": 0.0}, "no effect without a positive min_return"),
+        ({"reflectance": {1: 0.1}, "noise": "white"}, 'no effect with noise="white"'),
     ]:
         with pytest.raises(ValueError, match=says):
             sldepth.simulate("boxes", **kwargs)

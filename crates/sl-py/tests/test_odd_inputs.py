@@ -57,6 +57,23 @@ def test_integers_out_of_range_are_valueerrors_naming_the_range(small_cam, wall,
         sldepth.filter(wall, small_cam, radius=2.0)
 
 
+def test_bools_are_no_numbers_for_the_weak_return_bound():
+    # bool is a subclass of int: True was taken as min_return 1.0 and as label 1.
+    for flag in (True, False, np.True_):
+        with pytest.raises(TypeError, match="min_return must be a number, not a bool"):
+            sldepth.simulate("boxes", min_return=flag)
+        with pytest.raises(TypeError, match="reflectance: label .* is a bool"):
+            sldepth.simulate("boxes", min_return=0.04, reflectance={flag: 0.5})
+        with pytest.raises(TypeError, match="reflectance: the reflectance of label 1 is a bool"):
+            sldepth.simulate("boxes", min_return=0.04, reflectance={1: flag})
+    # A label beyond any integer type names no surface (it was an OverflowError).
+    with pytest.raises(sldepth.SlDepthError, match="no surface 1180591620717411303424"):
+        sldepth.simulate("boxes", min_return=0.04, reflectance={2**70: 0.5})
+    # Integers and NumPy floats stay numbers.
+    depth, _, _ = sldepth.simulate("boxes", min_return=np.float64(0.04), reflectance={1: 0})
+    assert (depth > 0).sum() > 0
+
+
 def test_arrays_numpy_hands_over_in_any_layout_read_alike(small_cam, wall):
     expected = sldepth.filter(wall, small_cam)
     buf = np.zeros(wall.size * 4 + 1, np.uint8)
@@ -99,6 +116,15 @@ def test_files_and_sequences_odd_but_legal(tmp_path, small_cam, wall):
     sldepth.write_depth(tmp_path / "u.png", u16, depth_scale=1000)
     back = sldepth.read_depth(tmp_path / "u.png", depth_scale=1000)
     np.testing.assert_array_equal(np.round(back * 1000).astype(np.uint16), u16)
+    # Every uint16 value, 65535 (7-Scenes' "no depth") included; 0 and 65535 read back invalid.
+    edge = np.array([[0, 1, 65534, 65535]], np.uint16)
+    for name in ("edge.png", "edge.tiff"):
+        sldepth.write_depth(tmp_path / name, edge, depth_scale=1000)
+        back = sldepth.read_depth(tmp_path / name, depth_scale=1000)
+        np.testing.assert_allclose(back, [[0.0, 0.001, 65.534, 0.0]], rtol=1e-6)
+    # In metres the encoding holds at most 65534 units.
+    with pytest.raises(sldepth.SlDepthIOError, match="max depth 65.534 m"):
+        sldepth.write_depth(tmp_path / "far.png", np.full((1, 1), 65.535, np.float32))
     # What read_trajectory refuses is not written.
     with pytest.raises(sldepth.SlDepthIOError, match="finite"):
         sldepth.write_trajectory(tmp_path / "t.txt", [math.nan], np.eye(4)[None])

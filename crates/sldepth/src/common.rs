@@ -43,25 +43,44 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
         .ok_or_else(|| format!("{s:?} is too large"))
 }
 
+/// A number for a message, compact whatever its size: as Rust prints it (`0.04`, `-3`, `NaN`)
+/// for magnitudes from 1e-4 to below 1e6, in scientific notation (`1e300`, `-2.5e-7`) beyond
+/// them, where `{}` would print a `1e300` as a 301-digit decimal.
+pub fn num<T>(v: T) -> String
+where
+    T: Copy + Into<f64> + std::fmt::Display + std::fmt::LowerExp,
+{
+    let a = v.into().abs();
+    if a.is_finite() && a != 0.0 && !(1e-4..1e6).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// Checks a `--depth-scale` value: finite and within what a 16-bit depth file can mean.
 pub fn check_depth_scale(s: f64) -> Result<()> {
     if !(MIN_UNITS_PER_M..=MAX_UNITS_PER_M).contains(&s) {
         bail!(
-            "--depth-scale {s:e}: must be between {MIN_UNITS_PER_M} and {MAX_UNITS_PER_M:e} units per metre \
-             (1000 = millimetres, 5000 = TUM)"
+            "--depth-scale {}: must be between {} and {} units per metre \
+             (1000 = millimetres, 5000 = TUM)",
+            num(s),
+            num(MIN_UNITS_PER_M),
+            num(MAX_UNITS_PER_M)
         );
     }
     Ok(())
 }
 
 /// Checks a numeric option: finite and within `range` (inclusive), else an error naming the
-/// option and the valid range.
+/// option and the valid range (the numbers printed by [`num`]).
 pub fn check_range(name: &str, v: f64, range: std::ops::RangeInclusive<f64>) -> Result<()> {
     if !range.contains(&v) {
         bail!(
-            "{name} {v}: must be a number from {} to {}",
-            range.start(),
-            range.end()
+            "{name} {}: must be a number from {} to {}",
+            num(v),
+            num(*range.start()),
+            num(*range.end())
         );
     }
     Ok(())
@@ -553,4 +572,26 @@ pub fn print_json(value: &serde_json::Value) -> Result<()> {
 pub fn round_to(v: f64, digits: i32) -> f64 {
     let p = 10f64.powi(digits);
     (v * p).round() / p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::num;
+
+    #[test]
+    fn numbers_in_messages_are_compact_at_any_size() {
+        assert_eq!(num(0.04), "0.04");
+        assert_eq!(num(-3.0), "-3");
+        assert_eq!(num(0.0), "0");
+        assert_eq!(num(1e-4), "0.0001");
+        assert_eq!(num(999_999.0), "999999");
+        assert_eq!(num(1e6), "1e6");
+        assert_eq!(num(1e300), "1e300");
+        assert_eq!(num(-1e300), "-1e300");
+        assert_eq!(num(2.5e-7), "2.5e-7");
+        assert_eq!(num(f64::NAN), "NaN");
+        assert_eq!(num(f64::NEG_INFINITY), "-inf");
+        // An `f32` option prints as the `f32` it was parsed into.
+        assert_eq!(num(1e30_f32), "1e30");
+    }
 }

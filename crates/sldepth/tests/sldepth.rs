@@ -193,8 +193,6 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         valid(&["--min-return", "0.04", "--reflectance", "1=0.1"]),
     );
     assert!(all > bound && bound > dark, "{all} {bound} {dark}");
-    // Without the bound a reflectance changes nothing.
-    assert_eq!(valid(&["--reflectance", "1=0.1"]), all);
     let v = json_of(&run(&["--min-return", "0.04", "--reflectance", "1=0.1"]));
     assert_eq!(v["min_return"], 0.04);
     assert_eq!(v["surfaces"][0]["reflectance"], 0.1);
@@ -204,10 +202,54 @@ fn simulate_drops_out_dark_and_far_surfaces_with_min_return() {
         (vec!["--reflectance", "1=2"], "must be in [0, 1]"),
         (vec!["--reflectance", "x"], "expected LABEL=R"),
         (vec!["--reflectance", "999=0.5"], "no surface 999"),
-        (vec!["--min-return=-1"], "min_return -1"),
+        // Labels are 16-bit: beyond them a well-formed LABEL=R names no surface either.
+        (vec!["--reflectance", "65536=0.5"], "no surface 65536"),
+        (vec!["--reflectance=-1=0.5"], "no surface -1"),
+        (
+            vec![
+                "--reflectance",
+                "123456789012345678901234567890123456789012=0.5",
+            ],
+            "no surface 123456789012345678901234567890123456789012 (the scene has labels 1..=",
+        ),
+        (vec!["--reflectance", "1.5=0.5"], "expected LABEL=R"),
+        (vec!["--reflectance", "1=dark"], "expected LABEL=R"),
+        (
+            vec!["--min-return=-1"],
+            "--min-return -1: must be a finite number >= 0",
+        ),
         (
             vec!["--noise", "white", "--min-return", "0.04"],
             "realistic model",
+        ),
+        // Without the bound, or with the white model, nothing reads a reflectance: an error
+        // saying why rather than a reflectance the JSON shows and the frame ignores.
+        (
+            vec!["--reflectance", "1=0.1"],
+            "--reflectance has no effect without a positive --min-return",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--min-return", "0"],
+            "--reflectance has no effect without a positive --min-return",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--noise", "white"],
+            "--reflectance has no effect with --noise white",
+        ),
+        (
+            vec![
+                "--reflectance",
+                "1=0.1",
+                "--noise",
+                "white",
+                "--min-return",
+                "0",
+            ],
+            "--reflectance has no effect with --noise white",
+        ),
+        (
+            vec!["--reflectance", "1=0.1", "--min-return=-1"],
+            "--min-return -1: must be",
         ),
     ] {
         let o = run(&bad);

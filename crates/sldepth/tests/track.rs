@@ -657,3 +657,51 @@ fn track_json_has_no_timings_of_frames_it_never_tracked() {
     }
     assert!(v["step_ms_median"].as_f64().unwrap() >= 0.0);
 }
+
+/// A sequence folder without a frame is an error naming the folder and the files it should
+/// hold (it said only "no depth frames in the sequence").
+#[test]
+fn track_names_the_files_an_empty_sequence_folder_lacks() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("empty-scene");
+    std::fs::create_dir_all(dir.join("depth")).unwrap();
+    // Files of other names do not count as frames.
+    std::fs::write(dir.join("frame-000000.color.png"), b"").unwrap();
+    std::fs::write(dir.join("depth.txt"), "# timestamp filename\n").unwrap();
+    let d = dir.to_str().unwrap();
+    for (source, says) in [
+        (
+            "--7scenes",
+            vec![
+                format!("--7scenes {d}: no depth frames in the folder"),
+                "frame-NNNNNN.depth.png".to_string(),
+            ],
+        ),
+        (
+            "--o3d",
+            vec![format!("--o3d {d}: no depth images in {d}/depth")],
+        ),
+        (
+            "--tum",
+            vec![format!(
+                "--tum {d}: {d}/depth.txt lists no depth frames (expected lines `TIME DEPTH_FILE`)"
+            )],
+        ),
+    ] {
+        let out = sldepth(&["track", source, d]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{source}: {err}");
+        for s in &says {
+            assert!(
+                err.contains(s.as_str()),
+                "{source}: expected {s:?} in {err}"
+            );
+        }
+    }
+    // A sequence with frames and --max-frames 0 has none left: the error says which option.
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 1);
+    let out = sldepth(&["track", "--tum", seq.to_str().unwrap(), "--max-frames", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--max-frames 0: no frame left"), "{err}");
+}

@@ -82,6 +82,63 @@ fn depth_files_round_trip_in_every_encoding() {
     }
 }
 
+/// Stored integers are written as they are, every 16-bit value included: 65535 is no depth to
+/// `write_depth` (it refuses a depth of 65535 units, which would read back as the 7-Scenes
+/// sentinel) but a legitimate stored value to `write_raw_depth`, and it reads back invalid.
+#[test]
+fn raw_values_round_trip_as_they_are_65535_included() {
+    let dir = tempfile::tempdir().unwrap();
+    let values = Image::from_vec(4, 2, vec![0, 1, 1000, 8191, 65534, 65535, 40000, 7]).unwrap();
+    for (name, encoding) in [
+        ("raw.png", DepthEncoding::png(1000.0)),
+        ("raw.tiff", DepthEncoding::tiff(5000.0)),
+        ("raw-sun.png", DepthEncoding::sun()),
+    ] {
+        let path = dir.path().join(name);
+        let raw = sl_io::RawDepth {
+            values: values.clone(),
+            encoding,
+        };
+        sl_io::write_raw_depth(&path, &raw).unwrap();
+        let back = read_raw_depth(&path, &options(&encoding)).unwrap();
+        assert_eq!(back.values, values, "{name}");
+        // The file holds 65535, so the reader reports the 7-Scenes sentinel.
+        assert_eq!(back.encoding.invalid_value, INVALID_SENTINEL, "{name}");
+        let depth = read_depth(&path, &options(&encoding)).unwrap().depth;
+        let valid: Vec<bool> = depth.data().iter().map(|z| *z > 0.0).collect();
+        assert_eq!(
+            valid,
+            [false, true, true, true, true, false, true, true],
+            "{name}"
+        );
+    }
+    // The metric writer refuses the same 65535 units as a depth, naming the valid range.
+    let z = DepthImage::from_image(Image::from_vec(1, 1, vec![65.535_f32]).unwrap());
+    let e = write_depth(dir.path().join("m.png"), &z, &DepthEncoding::png(1000.0)).unwrap_err();
+    assert!(matches!(e, IoError::DepthOutOfRange { .. }), "{e}");
+    // NYU raw disparity has 11 bits: a larger value would make the file unreadable.
+    let nyu = sl_io::RawDepth {
+        values: Image::from_vec(2, 1, vec![700, 2048]).unwrap(),
+        encoding: DepthEncoding::nyu_raw(),
+    };
+    let e = sl_io::write_raw_depth(dir.path().join("n.pgm"), &nyu).unwrap_err();
+    assert!(
+        e.to_string().contains("raw value 2048 at pixel (1, 0)"),
+        "{e}"
+    );
+    let nyu = sl_io::RawDepth {
+        values: Image::from_vec(2, 1, vec![700, 2047]).unwrap(),
+        encoding: DepthEncoding::nyu_raw(),
+    };
+    sl_io::write_raw_depth(dir.path().join("n.pgm"), &nyu).unwrap();
+    assert_eq!(
+        read_raw_depth(dir.path().join("n.pgm"), &ReadConfig::default())
+            .unwrap()
+            .values,
+        nyu.values
+    );
+}
+
 #[test]
 fn extension_inference_and_sentinel() {
     let dir = tempfile::tempdir().unwrap();

@@ -149,7 +149,7 @@ impl RealisticNoise {
         if !(self.min_return.is_finite() && self.min_return >= 0.0) {
             return bad(format!(
                 "min_return {} must be a finite number >= 0",
-                self.min_return
+                crate::error::num(self.min_return)
             ));
         }
         Ok(())

@@ -111,7 +111,8 @@ impl Scene {
     pub fn set_reflectance(&mut self, label: u16, reflectance: f64) -> Result<()> {
         if !(0.0..=1.0).contains(&reflectance) {
             return Err(NoiseError::InvalidParameter(format!(
-                "reflectance {reflectance} of surface {label} must be in [0, 1]"
+                "reflectance {} of surface {label} must be in [0, 1]",
+                crate::error::num(reflectance)
             )));
         }
         let slot = usize::from(label)

@@ -132,6 +132,15 @@ fn bad_bounds_and_reflectances_are_errors() {
     assert!(scene.set_reflectance(0, 0.5).is_err());
     assert!(scene.set_reflectance(3, 0.5).is_err());
     assert_eq!(scene.reflectance(2), 0.5);
+    // Absurd numbers are printed compactly, not as 300-digit decimals.
+    let mut noise = RealisticNoise::default();
+    noise.min_return = -1e300;
+    let err = noise.validate().unwrap_err().to_string();
+    assert!(err.contains("min_return -1e300 must be"), "{err}");
+    let err = scene.set_reflectance(2, 1e300).unwrap_err().to_string();
+    assert!(err.contains("reflectance 1e300 of surface 2"), "{err}");
+    let err = scene.set_reflectance(2, 1.5).unwrap_err().to_string();
+    assert!(err.contains("reflectance 1.5 of surface 2"), "{err}");
 }
 
 proptest! {

@@ -96,8 +96,10 @@ def read_depth(
 def write_depth(
     path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
 ) -> None:
-    """16-bit PNG/TIFF at depth_scale units per metre, written atomically; a uint16 array is
-    taken at depth_scale units per metre (written as it is)."""
+    """16-bit PNG/TIFF at depth_scale units per metre, written atomically (depth above 65534
+    units is refused: 65535 marks missing depth, as in 7-Scenes); a uint16 array is taken at
+    depth_scale units per metre and written as it is, every value included (0 and 65535 read
+    back as invalid)."""
 
 class Analysis:
     valid_pixels: int
@@ -126,7 +128,9 @@ def simulate(
     paper's independent Gaussian disparity noise (Algorithm 1's model). min_return (realistic
     model, 0 = off): pixels whose surface returns less than reflectance * cos(theta) / r**2
     (r in metres, relative to a white surface facing the camera at 1 m) drop out; reflectance
-    maps labels to their infrared reflectance in [0, 1] (others reflect 1)."""
+    maps labels to their infrared reflectance in [0, 1] (others reflect 1), which only that
+    drop-out reads: without a positive min_return (or with noise="white") it raises
+    ValueError."""
 
 def noise_stats(
     depth: _Depth,

@@ -253,7 +253,7 @@ pub fn run(args: Args) -> Result<()> {
     if !(0.0..=1e30_f32).contains(&args.min_weight) {
         bail!(
             "--min-weight {}: must be a number from 0 to 1e30",
-            args.min_weight
+            crate::common::num(args.min_weight)
         );
     }
     check_range("--slice-m", args.slice_m, -1e6..=1e6)?;

@@ -1,9 +1,11 @@
 //! `sldepth simulate`: render a named synthetic scene through the Kinect noise model.
 
+use std::num::IntErrorKind;
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result, anyhow, bail};
 use clap::builder::PossibleValuesParser;
+use sl_noise::NoiseError;
 use sl_noise::sim::{KinectSimulator, NoiseModel, RealisticNoise, SCENE_NAMES, named_scene};
 
 use crate::common::{
@@ -59,7 +61,8 @@ pub struct Args {
     #[arg(long, value_name = "R")]
     pub min_return: Option<f64>,
     /// Infrared reflectance of a surface, `LABEL=R` with R in [0, 1] (labels as --labels
-    /// writes them; every other surface reflects 1). Repeatable. Only --min-return reads it.
+    /// writes them; every other surface reflects 1). Repeatable. Only the realistic model's
+    /// drop-out of weak returns reads it: an error without a positive --min-return.
     #[arg(long, value_name = "LABEL=R")]
     pub reflectance: Vec<String>,
     /// Print a JSON summary.
@@ -89,18 +92,60 @@ pub fn run(args: Args) -> Result<()> {
         ("--truth", args.truth.as_deref()),
         ("--labels", args.labels.as_deref()),
     ])?;
+    let min_return = args.min_return.unwrap_or(0.0);
+    if !(min_return.is_finite() && min_return >= 0.0) {
+        bail!(
+            "--min-return {}: must be a finite number >= 0 (0 = off)",
+            crate::common::num(min_return)
+        );
+    }
+    // 0 is the default (off), which the white model has too, as Python's `simulate`.
+    if args.noise == "white" && min_return != 0.0 {
+        bail!("--min-return is a drop-out of the realistic model; the white model has none");
+    }
     let mut named = named_scene(&args.scene)?;
     for spec in &args.reflectance {
-        let parsed = spec.split_once('=').and_then(|(l, r)| {
-            Some((l.trim().parse::<u16>().ok()?, r.trim().parse::<f64>().ok()?))
-        });
-        let Some((label, rho)) = parsed else {
-            bail!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
+        let malformed = || anyhow!("--reflectance {spec}: expected LABEL=R, e.g. 2=0.1");
+        let (l, r) = spec.split_once('=').ok_or_else(malformed)?;
+        let (l, r) = (l.trim(), r.trim());
+        let rho = r.parse::<f64>().map_err(|_| malformed())?;
+        // A whole number beyond the 16-bit labels is well formed: it names no surface.
+        let label = match l.parse::<i128>() {
+            Ok(v) => u16::try_from(v).ok(),
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    IntErrorKind::PosOverflow | IntErrorKind::NegOverflow
+                ) =>
+            {
+                None
+            }
+            Err(_) => return Err(malformed()),
         };
-        named
-            .scene
-            .set_reflectance(label, rho)
-            .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
+        match label {
+            Some(label) => named.scene.set_reflectance(label, rho),
+            None => Err(NoiseError::InvalidParameter(format!(
+                "no surface {l} (the scene has labels 1..={})",
+                named.scene.len()
+            ))),
+        }
+        .with_context(|| format!("--reflectance {spec} (scene {})", args.scene))?;
+    }
+    // A reflectance read by nothing would be a silent no-op (and the JSON would show it).
+    if !args.reflectance.is_empty() {
+        if args.noise == "white" {
+            bail!(
+                "--reflectance has no effect with --noise white: only the realistic model's \
+                 drop-out of weak returns (a positive --min-return) reads a reflectance"
+            );
+        }
+        if min_return == 0.0 {
+            bail!(
+                "--reflectance has no effect without a positive --min-return: only the \
+                 realistic model's drop-out of weak returns reads a reflectance, and \
+                 --min-return 0 (the default) turns it off"
+            );
+        }
     }
     let (intrinsics, mut sim) = match &args.camera {
         Some(_) => {
@@ -134,13 +179,7 @@ pub fn run(args: Args) -> Result<()> {
     if let Some(sp) = args.speckle {
         realistic.speckle_px = sp;
     }
-    if let Some(m) = args.min_return {
-        // 0 is the default (off), which the white model has too, as Python's `simulate`.
-        if args.noise == "white" && m != 0.0 {
-            bail!("--min-return is a drop-out of the realistic model; the white model has none");
-        }
-        realistic.min_return = m;
-    }
+    realistic.min_return = min_return;
     realistic.validate()?;
     sim.noise = match args.noise.as_str() {
         "white" => NoiseModel::White,
@@ -148,7 +187,10 @@ pub fn run(args: Args) -> Result<()> {
     };
     if let Some(s) = args.sigma_d_px {
         if !(s.is_finite() && (0.0..=100.0).contains(&s)) {
-            bail!("--sigma-d-px {s}: must be a number from 0 to 100 pixels");
+            bail!(
+                "--sigma-d-px {}: must be a number from 0 to 100 pixels",
+                crate::common::num(s)
+            );
         }
         sim.sensor.sigma_d_px = s;
     }
@@ -178,7 +220,7 @@ pub fn run(args: Args) -> Result<()> {
             "width": frame.depth.width(),
             "height": frame.depth.height(),
             "valid_pixels": valid,
-            "min_return": args.min_return.unwrap_or(0.0),
+            "min_return": min_return,
             "surfaces": named.label_names.iter().map(|(l, n)| serde_json::json!({"label": l, "name": n, "reflectance": named.scene.reflectance(*l)})).collect::<Vec<_>>(),
         }))?;
     } else {

@@ -252,11 +252,32 @@ fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
             _ => Ok(Camera::preset(default_preset)?),
         }
     };
+    // A folder without a frame: an error naming the folder and what was looked for in it.
     if let Some(dir) = &args.tum {
         let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            let assoc = dir.join("associations.txt");
+            let (list, line) = if assoc.is_file() {
+                (assoc, "RGB_TIME RGB_FILE DEPTH_TIME DEPTH_FILE")
+            } else {
+                (dir.join("depth.txt"), "TIME DEPTH_FILE")
+            };
+            bail!(
+                "--tum {}: {} lists no depth frames (expected lines `{line}`)",
+                dir.display(),
+                list.display()
+            );
+        }
         Ok((frames, crate::common::tum_camera(dir, &args.input)?, 5000.0))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            bail!(
+                "--7scenes {}: no depth frames in the folder (expected 7-Scenes files named \
+                 frame-NNNNNN.depth.png, e.g. frame-000000.depth.png)",
+                dir.display()
+            );
+        }
         Ok((
             frames,
             camera("7-scenes", Some(dir.join("camera-intrinsics.txt")))?,
@@ -264,6 +285,14 @@ fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
         ))
     } else if let Some(dir) = &args.o3d {
         let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            let sub = dir.join("depth");
+            bail!(
+                "--o3d {}: no depth images in {} (expected .png, .tif, .tiff or .pgm files)",
+                dir.display(),
+                if sub.is_dir() { sub } else { dir.clone() }.display()
+            );
+        }
         Ok((
             frames,
             camera("kinect-v1", Some(dir.join("camera.json")))?,
@@ -486,7 +515,8 @@ pub fn run(args: Args) -> Result<()> {
         frames.truncate(n);
     }
     if frames.is_empty() {
-        bail!("no depth frames in the sequence");
+        // The source has frames (`load_source` refuses an empty one): --max-frames took them.
+        bail!("--max-frames 0: no frame left to track (give 1 or more)");
     }
     crate::common::check_outputs_spare_inputs(
         &[
@@ -545,7 +575,7 @@ pub fn run(args: Args) -> Result<()> {
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
         bail!(
             "--new-fragment-after-s must be positive (inf: never), got {}",
-            args.new_fragment_after_s
+            crate::common::num(args.new_fragment_after_s)
         );
     }
     let mut cfg = ReconstructionConfig::default_for(camera.sensor);
