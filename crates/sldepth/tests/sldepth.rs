@@ -904,3 +904,24 @@ fn fuse_prefilter_names_the_filters_track_uses() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("multiscale, single, none"), "{err}");
 }
+
+/// `fuse` on a sequence folder with no frames names the option and the folder.
+#[test]
+fn fuse_names_the_folder_that_had_no_frames() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let out = dir.path().join("mesh.ply");
+    let o = sldepth(&[
+        "fuse",
+        "--7scenes",
+        path_str(dir.path()),
+        "--output",
+        path_str(&out),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--7scenes") && err.contains(path_str(dir.path())),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

@@ -274,8 +274,18 @@ pub fn run(args: Args) -> Result<()> {
         frames.truncate(n);
     }
     if frames.is_empty() {
+        // Name the source that had none.
+        let source = [
+            ("--7scenes", &args.seven_scenes),
+            ("--tum", &args.tum),
+            ("--o3d-log", &args.o3d_log),
+            ("--frames", &args.frames),
+        ]
+        .into_iter()
+        .find_map(|(flag, p)| p.as_ref().map(|p| format!(" in {flag} {}", p.display())))
+        .unwrap_or_default();
         bail!(
-            "no frames to fuse: `fuse` needs frames with poses (7-Scenes' frame-*.pose.txt, a TUM \
+            "no frames to fuse{source}: `fuse` needs frames with poses (7-Scenes' frame-*.pose.txt, a TUM \
              folder's groundtruth.txt, an Open3D .log); for a recording without poses use \
              `sldepth track ... --mesh`"
         );
