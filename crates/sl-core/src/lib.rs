@@ -29,6 +29,7 @@
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod compact;
 pub mod error;
 pub mod image;
 pub mod intrinsics;
@@ -43,6 +44,7 @@ pub mod view;
 pub mod whole;
 
 pub use camera::Camera;
+pub use compact::Compact;
 pub use error::{CoreError, Result};
 pub use image::{DepthImage, DisparityImage, Image, PixelPoint, ValidStats};
 pub use intrinsics::Intrinsics;

@@ -103,14 +103,16 @@ impl ReconstructionConfig {
             && !(s > 0.0 && s <= 1.0)
         {
             return Err(TrackError::InvalidConfig(format!(
-                "model_scale must lie in (0, 1], got {s}"
+                "model_scale must lie in (0, 1], got {}",
+                sl_core::Compact(s)
             )));
         }
         if let Some(s) = self.new_fragment_after_s
             && (s.is_nan() || s <= 0.0)
         {
             return Err(TrackError::InvalidConfig(format!(
-                "new_fragment_after_s must be positive (None: never), got {s}"
+                "new_fragment_after_s must be positive (None: never), got {}",
+                sl_core::Compact(s)
             )));
         }
         Ok(())

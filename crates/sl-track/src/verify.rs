@@ -101,7 +101,8 @@ impl VerifyConfig {
         for (name, v) in pos {
             if !(v.is_finite() && v > 0.0) {
                 return Err(TrackError::InvalidConfig(format!(
-                    "{name} must be positive, got {v}"
+                    "{name} must be positive, got {}",
+                    sl_core::Compact(v)
                 )));
             }
         }
@@ -112,7 +113,8 @@ impl VerifyConfig {
         for (name, v) in fracs {
             if !(0.0..=1.0).contains(&v) {
                 return Err(TrackError::InvalidConfig(format!(
-                    "{name} must lie in [0, 1], got {v}"
+                    "{name} must lie in [0, 1], got {}",
+                    sl_core::Compact(v)
                 )));
             }
         }

@@ -397,7 +397,8 @@ impl TsdfConfig {
                 Ok(())
             } else {
                 Err(TsdfError::InvalidParameter(format!(
-                    "{name} = {v} must be positive and finite"
+                    "{name} = {} must be positive and finite",
+                    sl_core::Compact(v)
                 )))
             }
         };
@@ -412,7 +413,8 @@ impl TsdfConfig {
         {
             return Err(TsdfError::InvalidParameter(format!(
                 "min_depth_m = {} must be in [0, max_depth_m = {})",
-                self.min_depth_m, self.max_depth_m
+                sl_core::Compact(self.min_depth_m),
+                sl_core::Compact(self.max_depth_m)
             )));
         }
         // The block keys address ±(MAX_BLOCK_COORD − 2) blocks about the origin (the margin
@@ -425,13 +427,15 @@ impl TsdfConfig {
             return Err(TsdfError::InvalidParameter(format!(
                 "voxel_m = {:e} addresses only ±{reach_m:.3e} m about the origin, less than \
                  max_depth_m = {} m: a larger voxel_m",
-                self.voxel_m, self.max_depth_m
+                self.voxel_m,
+                sl_core::Compact(self.max_depth_m)
             )));
         }
         if self.trunc_m < self.voxel_m {
             return Err(TsdfError::InvalidParameter(format!(
                 "trunc_m = {} must be at least one voxel ({} m)",
-                self.trunc_m, self.voxel_m
+                sl_core::Compact(self.trunc_m),
+                sl_core::Compact(self.voxel_m)
             )));
         }
         if let Truncation::SensorAdaptive {
@@ -443,12 +447,14 @@ impl TsdfConfig {
             sensor.validate()?;
             if !(sigmas.is_finite() && sigmas > 0.0 && sigmas <= 100.0) {
                 return Err(TsdfError::InvalidParameter(format!(
-                    "truncation sigmas = {sigmas} must be in (0, 100]"
+                    "truncation sigmas = {} must be in (0, 100]",
+                    sl_core::Compact(sigmas)
                 )));
             }
             if !(max_m.is_finite() && max_m > 0.0) {
                 return Err(TsdfError::InvalidParameter(format!(
-                    "truncation max_m = {max_m} must be positive and finite"
+                    "truncation max_m = {} must be positive and finite",
+                    sl_core::Compact(max_m)
                 )));
             }
         }
@@ -456,7 +462,8 @@ impl TsdfConfig {
             sensor.validate()?;
             if !(floor_m.is_finite() && floor_m >= 0.0) {
                 return Err(TsdfError::InvalidParameter(format!(
-                    "floor_m = {floor_m} must be >= 0"
+                    "floor_m = {} must be >= 0",
+                    sl_core::Compact(floor_m)
                 )));
             }
         }

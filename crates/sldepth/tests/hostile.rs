@@ -661,6 +661,34 @@ fn absurd_numbers_are_printed_compactly_in_range_errors() {
             vec!["--slice-m -1e300: must be a number from -1e6 to 1e6"],
         ),
         (
+            vec![
+                "fuse",
+                "--7scenes",
+                s(&missing),
+                "-o",
+                &m_ply,
+                "--voxel-m",
+                "1e300",
+            ],
+            vec!["--voxel-m 1e300: must be a number from 0.0001 to 1"],
+        ),
+        (
+            vec![
+                "fuse",
+                "--7scenes",
+                s(&missing),
+                "-o",
+                &m_ply,
+                "--trunc-m",
+                "1e300",
+            ],
+            vec!["--trunc-m 1e300: must be a number from 0.0001 to 10"],
+        ),
+        (
+            vec!["track", "--7scenes", s(&missing), "--model-scale", "1e300"],
+            vec!["--model-scale 1e300: must be a number from 0.001 to 1"],
+        ),
+        (
             vec!["track", "--7scenes", s(&missing), "--voxel-m", "1e-300"],
             vec!["--voxel-m 1e-300: must be a number from 0.0001 to 1"],
         ),

@@ -50,7 +50,7 @@ pub fn ate(
             "only {} of {} estimated poses have a ground-truth pose within {} s: did you pass the right files?",
             pairs.len(),
             est.len(),
-            config.max_gap_s
+            sl_core::Compact(config.max_gap_s)
         )));
     }
     let g: Vec<Point3<f64>> = pairs.iter().map(|&(i, _)| gt[i].1.centre()).collect();

@@ -74,25 +74,25 @@ impl TrajectoryConfig {
         if !(self.max_gap_s.is_finite() && self.max_gap_s > 0.0) {
             return Err(EvalError::InvalidParameter(format!(
                 "max_gap_s = {} must be positive and finite",
-                self.max_gap_s
+                sl_core::Compact(self.max_gap_s)
             )));
         }
         if !(self.delta.is_finite() && self.delta > 0.0) {
             return Err(EvalError::InvalidParameter(format!(
                 "delta = {} must be positive and finite",
-                self.delta
+                sl_core::Compact(self.delta)
             )));
         }
         if !(self.offset_s.is_finite() && self.offset_s.abs() <= MAX_OFFSET_S) {
             return Err(EvalError::InvalidParameter(format!(
                 "offset_s = {} must be finite and at most {MAX_OFFSET_S} s either way",
-                self.offset_s
+                sl_core::Compact(self.offset_s)
             )));
         }
         if self.delta_unit == DeltaUnit::Frames && self.delta.fract() != 0.0 {
             return Err(EvalError::InvalidParameter(format!(
                 "delta = {} frames must be a whole number",
-                self.delta
+                sl_core::Compact(self.delta)
             )));
         }
         Ok(())

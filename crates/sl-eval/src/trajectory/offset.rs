@@ -58,8 +58,8 @@ impl OffsetSearch {
             return Err(EvalError::InvalidParameter(format!(
                 "offset search ±{} s in steps of {} s: the range must be within ±{} s and the \
                  step positive",
-                self.max_s,
-                self.step_s,
+                sl_core::Compact(self.max_s),
+                sl_core::Compact(self.step_s),
                 super::MAX_OFFSET_S
             )));
         }
@@ -145,7 +145,8 @@ pub fn estimate_time_offset(
         None => Err(EvalError::InvalidParameter(format!(
             "no offset within ±{} s associates three estimated poses with the ground truth \
              within {} s: did you pass the right files?",
-            search.max_s, config.max_gap_s
+            sl_core::Compact(search.max_s),
+            sl_core::Compact(config.max_gap_s)
         ))),
     }
 }

@@ -276,7 +276,10 @@ impl TrackerConfig {
             ("samples_per_noise_window", self.samples_per_noise_window),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return bad(format!("{name} must be positive, got {v}"));
+                return bad(format!(
+                    "{name} must be positive, got {}",
+                    sl_core::Compact(v)
+                ));
             }
         }
         for (name, v) in [
@@ -284,13 +287,16 @@ impl TrackerConfig {
             ("noise_window_y_px", self.noise_window_y_px),
         ] {
             if !(v.is_finite() && (1.0..=1000.0).contains(&v)) {
-                return bad(format!("{name} must lie in [1, 1000], got {v}"));
+                return bad(format!(
+                    "{name} must lie in [1, 1000], got {}",
+                    sl_core::Compact(v)
+                ));
             }
         }
         if !(self.lateral_sigma_px.is_finite() && (0.0..=100.0).contains(&self.lateral_sigma_px)) {
             return bad(format!(
                 "lateral_sigma_px must lie in [0, 100], got {}",
-                self.lateral_sigma_px
+                sl_core::Compact(self.lateral_sigma_px)
             ));
         }
         if !(self.rolling_shutter_readout_s.is_finite()
@@ -298,13 +304,14 @@ impl TrackerConfig {
         {
             return bad(format!(
                 "rolling_shutter_readout_s must lie in [0, frame_interval_s = {}], got {}",
-                self.frame_interval_s, self.rolling_shutter_readout_s
+                sl_core::Compact(self.frame_interval_s),
+                sl_core::Compact(self.rolling_shutter_readout_s)
             ));
         }
         if !(self.allowance_fine_m.is_finite() && self.allowance_fine_m >= 0.0) {
             return bad(format!(
                 "allowance_fine_m must be >= 0, got {}",
-                self.allowance_fine_m
+                sl_core::Compact(self.allowance_fine_m)
             ));
         }
         for (name, v) in [
@@ -312,7 +319,10 @@ impl TrackerConfig {
             ("max_correction_deg", self.max_correction_deg),
         ] {
             if !(v > 0.0 && v <= 180.0) {
-                return bad(format!("{name} must lie in (0, 180], got {v}"));
+                return bad(format!(
+                    "{name} must lie in (0, 180], got {}",
+                    sl_core::Compact(v)
+                ));
             }
         }
         if !(0.0..=1.0).contains(&self.min_inlier_fraction)

@@ -58,7 +58,8 @@ impl ModelReference {
     pub fn new(camera: &Intrinsics, scale: f64, config: RaycastConfig) -> Result<Self> {
         if !(scale > 0.0 && scale <= 1.0) {
             return Err(TrackError::InvalidConfig(format!(
-                "model reference scale {scale} must be in (0, 1]"
+                "model reference scale {} must be in (0, 1]",
+                sl_core::Compact(scale)
             )));
         }
         config.validate()?;

@@ -41,7 +41,7 @@ impl MeshConfig {
         if !(self.min_weight.is_finite() && self.min_weight >= 0.0) {
             return Err(TsdfError::InvalidParameter(format!(
                 "min_weight = {} must be a finite, non-negative weight",
-                self.min_weight
+                sl_core::Compact(f64::from(self.min_weight))
             )));
         }
         Ok(())

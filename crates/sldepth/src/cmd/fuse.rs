@@ -257,6 +257,13 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     check_range("--slice-m", args.slice_m, -1e6..=1e6)?;
+    // The same bounds as `sldepth track`: beyond them the volume's geometry is meaningless
+    // (a 1e300 m voxel overflowed into a "voxel too small" error).
+    check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
+    check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
+    if let Some(t) = args.trunc_m {
+        check_range("--trunc-m", t, 1e-4..=10.0)?;
+    }
     if let Some(s) = args.input.depth_scale {
         check_depth_scale(s)?;
     }

@@ -505,6 +505,9 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
+    if let Some(m) = args.model_scale {
+        check_range("--model-scale", m, 1e-3..=1.0)?;
+    }
     check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
     if let Some(s) = args.input.depth_scale {
         check_depth_scale(s)?;
