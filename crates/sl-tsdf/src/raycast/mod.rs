@@ -80,13 +80,13 @@ impl RaycastConfig {
         if !(self.step_fraction > 0.0 && self.step_fraction <= 1.0) {
             return bad(format!(
                 "step_fraction = {} must be in (0, 1]",
-                sl_core::Compact(f64::from(self.step_fraction))
+                sl_core::Compact(self.step_fraction)
             ));
         }
         if !(self.min_step_voxels > 0.0 && self.min_step_voxels <= 2.0) {
             return bad(format!(
                 "min_step_voxels = {} must be in (0, 2]",
-                sl_core::Compact(f64::from(self.min_step_voxels))
+                sl_core::Compact(self.min_step_voxels)
             ));
         }
         if self.refine_iterations > 16 {
