@@ -446,9 +446,9 @@ impl PlaneExtractor {
         if count == 0.0 {
             return Border::Unproven;
         }
-        let step = (sum / count).abs();
+        let step_px = (sum / count).abs();
         let largest = 2.0 * (tau - self.noise.pixel_bound_px());
-        let beyond = step - largest;
+        let beyond = step_px - largest;
         // Each difference has the noise of two cells (their positive correlation only lowers
         // it); the differences along a border are correlated as sums of cells are.
         let var_step = 2.0 * (var / count).min(self.noise.var_cell);
