@@ -149,49 +149,7 @@ impl PlyData {
     /// Checks that every attribute has one entry per vertex, that face indices are in range
     /// (and fit a PLY `int`), and that the scalar name is a usable PLY identifier.
     pub fn validate(&self) -> std::result::Result<(), String> {
-        let n = self.positions.len();
-        if let Some(v) = &self.normals
-            && v.len() != n
-        {
-            return Err(format!("{} normals for {n} vertices", v.len()));
-        }
-        if let Some(v) = &self.colors
-            && v.len() != n
-        {
-            return Err(format!("{} colours for {n} vertices", v.len()));
-        }
-        if let Some(s) = &self.scalar {
-            if s.values.len() != n {
-                return Err(format!(
-                    "{} values of scalar {:?} for {n} vertices",
-                    s.values.len(),
-                    s.name
-                ));
-            }
-            let bad_char = s.name.chars().any(|c| c.is_whitespace() || c.is_control());
-            if s.name.is_empty() || bad_char || RESERVED.contains(&s.name.as_str()) {
-                return Err(format!(
-                    "scalar name {:?} must be a non-empty PLY identifier without whitespace and not one of {RESERVED:?}",
-                    s.name
-                ));
-            }
-        }
-        if n > i32::MAX as usize && !self.faces.is_empty() {
-            return Err(format!(
-                "{n} vertices cannot be indexed by PLY int face indices"
-            ));
-        }
-        if let Some((i, f)) = self
-            .faces
-            .iter()
-            .enumerate()
-            .find(|(_, f)| f.iter().any(|&v| v as usize >= n))
-        {
-            return Err(format!(
-                "face {i} {f:?} refers to a vertex beyond the {n} vertices"
-            ));
-        }
-        Ok(())
+        PlyView::of_data(self).validate()
     }
 }
 
@@ -291,7 +249,7 @@ fn scalar_prop(name: &str, t: ScalarType) -> PropertyDef {
     PropertyDef::new(name.to_string(), PropertyType::Scalar(t))
 }
 
-fn header_for(data: &PlyData, format: PlyFormat) -> Header {
+fn header_for(data: &PlyView<'_>, format: PlyFormat) -> Header {
     let mut header = Header::new();
     header.encoding = match format {
         PlyFormat::BinaryLittleEndian => Encoding::BinaryLittleEndian,
@@ -337,7 +295,7 @@ fn header_for(data: &PlyData, format: PlyFormat) -> Header {
 /// on a statically dispatched `Vec<u8>` instead of the `dyn Write` of [`write_atomic`]).
 const ENCODE_CHUNK_BYTES: usize = 1 << 20;
 
-fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io::Result<()> {
+fn write_body(out: &mut dyn Write, data: &PlyView<'_>, format: PlyFormat) -> std::io::Result<()> {
     let header = header_for(data, format);
     let mut chunk: Vec<u8> = Vec::with_capacity(ENCODE_CHUNK_BYTES + 4096);
     let vw = Writer::<VertexOut>::new();
@@ -345,14 +303,10 @@ fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io
     let Some(vdef) = header.elements.get("vertex") else {
         return Err(std::io::Error::other("internal: vertex element missing"));
     };
-    for (i, p) in data.positions.iter().enumerate() {
+    for i in 0..data.positions.len() {
         let v = VertexOut {
-            p: *p,
-            n: data
-                .normals
-                .as_ref()
-                .and_then(|n| n.get(i).copied())
-                .unwrap_or_default(),
+            p: data.positions.get(i),
+            n: data.normals.map(|n| n.get(i)).unwrap_or_default(),
             c: data
                 .colors
                 .as_ref()
@@ -377,7 +331,7 @@ fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io
     }
     if let Some(fdef) = header.elements.get("face") {
         let fw = Writer::<FaceOut>::new();
-        for f in &data.faces {
+        for f in data.faces {
             // `validate` checked every index is below the vertex count, which fits in i32.
             let face = FaceOut {
                 idx: [f[0] as i32, f[1] as i32, f[2] as i32],
@@ -401,28 +355,33 @@ fn write_body(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io
 /// (see [`PlyData::validate`]) is an [`std::io::ErrorKind::InvalidInput`] error. Files should be
 /// written with [`write_ply`], which is atomic.
 pub fn encode_ply(out: &mut dyn Write, data: &PlyData, format: PlyFormat) -> std::io::Result<()> {
+    let data = PlyView::of_data(data);
     data.validate()
         .map_err(|m| std::io::Error::new(std::io::ErrorKind::InvalidInput, m))?;
-    write_body(out, data, format)
+    write_body(out, &data, format)
 }
 
 /// Writes a cloud or mesh atomically. Mismatched attribute lengths, out-of-range face indices or
 /// a bad scalar name are [`IoError::InvalidData`].
 pub fn write_ply(path: impl AsRef<Path>, data: &PlyData, format: PlyFormat) -> Result<()> {
-    let path = path.as_ref();
-    data.validate()
-        .map_err(|m| IoError::invalid_data(path, m))?;
-    write_atomic(path, |w| write_body(w, data, format))
+    write_view(path.as_ref(), &PlyView::of_data(data), format)
 }
 
-/// Writes an `sl-core` [`Mesh`](sl_core::Mesh) atomically (through [`PlyData::from_mesh`] and
-/// [`write_ply`], so the file is the same as for the equivalent [`PlyData`]).
+/// Writes an `sl-core` [`Mesh`](sl_core::Mesh) atomically: the same file as [`write_ply`] of
+/// [`PlyData::from_mesh`], read from the mesh in place (no copy of it is made).
 pub fn write_mesh_ply(
     path: impl AsRef<Path>,
     mesh: &sl_core::Mesh,
     format: PlyFormat,
 ) -> Result<()> {
-    write_ply(path, &PlyData::from_mesh(mesh), format)
+    write_view(path.as_ref(), &PlyView::of_mesh(mesh), format)
+}
+
+/// [`write_ply`] of a view.
+fn write_view(path: &Path, data: &PlyView<'_>, format: PlyFormat) -> Result<()> {
+    data.validate()
+        .map_err(|m| IoError::invalid_data(path, m))?;
+    write_atomic(path, |w| write_body(w, data, format))
 }
 
 /// Reads a PLY file as an `sl-core` [`Mesh`](sl_core::Mesh) (see [`read_ply`]; colours are
@@ -432,6 +391,9 @@ pub fn read_mesh_ply(path: impl AsRef<Path>) -> Result<sl_core::Mesh> {
 }
 
 mod read;
+mod view;
+
+use view::PlyView;
 
 pub use read::{read_ply, read_ply_with_limits};
 
@@ -610,6 +572,9 @@ property float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\
         }
         let cloud = sl_core::Mesh::new(vec![Point3::new(1.0, 2.0, 3.0)], vec![]);
         assert_eq!(PlyData::from_mesh(&cloud).normals, None);
+        write_mesh_ply(&a, &cloud, PlyFormat::Ascii).unwrap();
+        write_ply(&b, &PlyData::from_mesh(&cloud), PlyFormat::Ascii).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
         let mut bad = mesh.clone();
         bad.triangles.push([0, 1, 3]);
         assert!(write_mesh_ply(&a, &bad, PlyFormat::Ascii).is_err());

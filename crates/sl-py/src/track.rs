@@ -138,9 +138,12 @@ pub(crate) fn track_in_map<'py>(
 /// shutter loses 0, 4 and 4 frames). ``keyframes``: when every other attempt on a frame fails,
 /// align it against earlier frames kept at spread poses (default; as ``sldepth track``,
 /// ``--no-keyframes`` turns it off): a camera lost in a fast turn is found again where it looks
-/// at something it saw before (TUM fr1/rpy every 4th frame: 7 lost frames → none). One tracker
-/// may be used from several Python threads: its
-/// calls take turns.
+/// at something it saw before (TUM fr1/rpy every 4th frame: 7 lost frames → none).
+/// ``memory_budget_bytes``: what the model's blocks may hold, all fragments together (default
+/// 4 GiB); a frame it cannot hold is not fused and the model is full from then on
+/// (``model_full``): the next frames are tracked against the frame before and not fused, as
+/// ``sldepth track`` does at its ``--max-memory``. One tracker may be used from several Python
+/// threads: its calls take turns.
 #[pyclass(name = "Tracker", module = "sldepth", frozen)]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -190,7 +193,7 @@ impl PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true, memory_budget_bytes = 4usize << 30))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -204,6 +207,7 @@ impl PyTracker {
         rolling_shutter_ms: Option<f64>,
         estimate_noise: bool,
         keyframes: bool,
+        #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
     ) -> PyResult<Self> {
         let readout_s = match rolling_shutter_ms {
             Some(ms) => ms / 1000.0,
@@ -234,6 +238,7 @@ impl PyTracker {
         cfg.tracker.rolling_shutter_readout_s = readout_s;
         cfg.tracker.estimate_noise = estimate_noise;
         cfg.tracker.keyframe_relocalisation = keyframes;
+        cfg.tsdf.memory_budget_bytes = memory_budget_bytes;
         let noise_meter = estimate_noise.then(|| cfg.tracker.noise_meter());
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
@@ -325,6 +330,14 @@ impl PyTracker {
             pose_array(py, &result.pose.to_matrix())?,
             result.status.as_str(),
         ))
+    }
+
+    /// Why the current fragment's model is full (``None`` while it is not): a frame's blocks
+    /// did not fit in ``memory_budget_bytes``; from that frame on, frames are tracked against
+    /// the frame before and not fused, and ``extract_mesh`` holds the frames before it.
+    #[getter]
+    fn model_full(&self, py: Python<'_>) -> PyResult<Option<String>> {
+        self.with_state(py, |s| s.rec.model_full().map(str::to_owned))
     }
 
     /// Why the last frame was lost, or why the attempts before its recovery failed (for

@@ -610,6 +610,25 @@ def test_tracker_follows_a_still_camera_and_fuses(kinect):
         assert np.abs(pose[:3, 3]).max() < 0.002
 
 
+def test_a_tracker_whose_model_is_full_tracks_on_without_fusing(kinect):
+    depth = sldepth.simulate("boxes", seed=3)[0]
+    roomy = sldepth.Tracker(kinect)
+    for _ in range(3):
+        roomy.track(depth)
+    assert roomy.model_full is None and len(roomy.extract_mesh()) > 1000
+    # A budget no block fits in: the first frames are not fused, the camera is still tracked
+    # (against the frame before) where it is.
+    tight = sldepth.Tracker(kinect, memory_budget_bytes=1)
+    for _ in range(3):
+        pose, status = tight.track(depth)
+    assert status in ("tracked", "tracked-against-frame"), status
+    assert np.abs(pose[:3, 3]).max() < 0.002
+    assert "memory budget" in tight.model_full
+    assert len(tight.extract_mesh()) == 0
+    with pytest.raises(TypeError):
+        sldepth.Tracker(kinect, memory_budget_bytes=1.5)
+
+
 def test_tracker_measures_each_raw_frame_against_the_camera_model(kinect):
     # A sensor twice as noisy as the camera says (sigma_D 0.14 px behind the 0.07 px Kinect):
     # the raw frame's pixel variance is about 3.4 times the model's, measured before the

@@ -33,11 +33,22 @@
 //! longer makes fewer fragments. Rejoining makes a short time cheap — a fragment started too
 //! early is joined back when the camera returns. The default is one second (docs/bench/track.md,
 //! "Session 17").
+//!
+//! # A model that reaches the memory budget
+//! The fragments share one budget, [`TsdfConfig::memory_budget_bytes`] of
+//! [`ReconstructionConfig::tsdf`]: the current fragment's volume may use what the suspended one
+//! does not hold. A frame whose blocks the budget cannot hold is not fused (the volume is left
+//! as it was) and the fragment's model is **full** from then on ([`Step::model_full`] on that
+//! frame, [`Reconstruction::model_full`], [`Fragment::model_full`]): its next frames are tracked
+//! against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
+//! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused, so a long
+//! recording keeps its trajectory to the end and its mesh holds what was fused before. Nothing
+//! is dropped from the model to make room (the mesh would lose it).
 
 use std::time::Instant;
 
 use sl_core::{Camera, DepthImage, Intrinsics, SensorModel, WorldToWorld};
-use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfVolume};
+use sl_tsdf::{RaycastConfig, TsdfConfig, TsdfError, TsdfVolume};
 
 use crate::error::{Result, TrackError};
 use crate::track::{FrameResult, ModelReference, Tracker, TrackerConfig};
@@ -131,6 +142,9 @@ pub struct Fragment {
     /// Set when the fragment ended because the camera came back to the fragment before it
     /// (see the module docs), and a frame had a pose in both.
     pub joined: Option<FragmentJoin>,
+    /// Set when the fragment's model reached the memory budget (see the module docs): why, as
+    /// the fusion's message. Its frames from then on are tracked but not in `volume`.
+    pub model_full: Option<String>,
 }
 
 /// How a fragment that ended by rejoining the fragment before it relates to that one.
@@ -170,6 +184,13 @@ pub struct Step {
     pub finished: Option<Fragment>,
     /// Where the time went.
     pub timings: StepTimings,
+    /// Whether the frame went into the model (a tracked frame is not fused once its fragment's
+    /// model is full; a rolling-shutter fragment's first frame waits for the second's).
+    pub fused: bool,
+    /// Set on the frame whose fusion found its fragment's model full (the memory budget reached,
+    /// see the module docs): the fusion's message. Later frames of the fragment are tracked
+    /// against the last frame and not fused.
+    pub model_full: Option<String>,
 }
 
 /// Tracks a depth sequence and fuses it, fragment by fragment (see the module docs).
@@ -257,6 +278,9 @@ struct Live {
     /// A rolling-shutter fragment's first frame and pose, fused once the second frame gives
     /// the camera's motion.
     first_frame: Option<(DepthImage, sl_core::CameraToWorld)>,
+    /// Set once a frame's blocks did not fit in the memory budget (the fusion's message): the
+    /// model is full, frames are tracked against the last frame and no longer fused.
+    model_full: Option<String>,
 }
 
 impl Live {
@@ -268,7 +292,33 @@ impl Live {
             model: cfg.model_reference(camera)?,
             tracked: 0,
             first_frame: None,
+            model_full: None,
         })
+    }
+
+    /// Fuses `depth` from `pose` unless the model is full. A frame the memory budget cannot
+    /// hold leaves the volume as it was and makes the model full. Returns whether it was fused.
+    ///
+    /// # Errors
+    /// The fusion's other errors (a size mismatch, a pose out of range).
+    fn fuse(
+        &mut self,
+        depth: &DepthImage,
+        intrinsics: &Intrinsics,
+        pose: &sl_core::CameraToWorld,
+    ) -> Result<bool> {
+        if self.model_full.is_some() {
+            return Ok(false);
+        }
+        match self.volume.integrate(depth, intrinsics, pose) {
+            Ok(_) => Ok(true),
+            Err(e @ (TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. })) => {
+                self.model_full = Some(e.to_string());
+                self.tracker.use_global_shutter();
+                Ok(false)
+            }
+            Err(e) => Err(e.into()),
+        }
     }
 
     /// Tracks `depth` against the model, or against the last frame while the model holds no
@@ -288,7 +338,7 @@ impl Live {
         noise_scale: Option<f64>,
     ) -> Result<FrameResult> {
         self.tracker.set_noise_scale(noise_scale);
-        let model = if self.tracked > 1 {
+        let model = if self.tracked > 1 && self.model_full.is_none() {
             self.model.maps()
         } else {
             None
@@ -305,20 +355,22 @@ impl Live {
     /// empty.
     ///
     /// # Errors
-    /// A volume over its memory budget.
+    /// The fusion's errors but the memory budget's (a frame it cannot hold makes the model
+    /// full).
     fn into_fragment(
         mut self,
         joined: Option<FragmentJoin>,
         intrinsics: &Intrinsics,
     ) -> Result<Fragment> {
         if let Some((first, pose)) = self.first_frame.take() {
-            self.volume.integrate(&first, intrinsics, &pose)?;
+            self.fuse(&first, intrinsics, &pose)?;
         }
         Ok(Fragment {
             index: self.index,
             volume: self.volume,
             tracked_frames: self.tracked,
             joined,
+            model_full: self.model_full,
         })
     }
 }
@@ -355,8 +407,8 @@ impl Reconstruction {
     /// that its parallel phases split on the spot.
     ///
     /// # Errors
-    /// As [`Tracker::track_at`]; a volume over its memory budget
-    /// ([`TsdfConfig::memory_budget_bytes`]).
+    /// As [`Tracker::track_at`]. A frame the memory budget cannot hold is not an error: it is
+    /// not fused and the fragment's model is full (see the module docs).
     pub fn step(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
         crate::pool::on_pool(|| self.step_on_pool(depth, timestamp_s))
     }
@@ -393,6 +445,7 @@ impl Reconstruction {
                 });
                 if let Some(old) = self.suspended.take() {
                     let ended = std::mem::replace(&mut self.current, old);
+                    self.share_budget();
                     finished = Some(ended.into_fragment(joined, &self.camera.intrinsics)?);
                 }
                 result = back;
@@ -420,11 +473,13 @@ impl Reconstruction {
                     .replace(ended)
                     .map(|f| f.into_fragment(None, &self.camera.intrinsics))
                     .transpose()?;
+                self.share_budget();
                 result = self.current.track(depth, timestamp_s, self.noise_scale)?;
             }
         }
         let track_ms = ms_since(t0);
         let (mut integrate_ms, mut raycast_ms) = (None, None);
+        let (mut fused, mut model_full) = (false, None);
         if result.status.is_tracked() {
             let t1 = Instant::now();
             let k = self.camera.intrinsics;
@@ -438,6 +493,7 @@ impl Reconstruction {
             if live.volume.frame_count() == 0 {
                 live.volume.set_band_sensor(live.tracker.frame_sensor())?;
             }
+            let was_full = live.model_full.is_some();
             let raw = depth;
             let depth = match live.tracker.rolling_shutter_motion() {
                 Some(motion) => {
@@ -446,7 +502,7 @@ impl Reconstruction {
                         .get_or_insert_with(|| DepthImage::invalid(k.width, k.height));
                     if let Some((first, pose)) = live.first_frame.take() {
                         self.rectifier.rectify(&first, &k, &motion, readout, moved);
-                        live.volume.integrate(&*moved, &k, &pose)?;
+                        live.fuse(&*moved, &k, &pose)?;
                     }
                     self.rectifier.rectify(depth, &k, &motion, readout, moved);
                     Some(&*moved)
@@ -458,11 +514,14 @@ impl Reconstruction {
                 None => Some(depth),
             };
             if let Some(depth) = depth {
-                live.volume.integrate(depth, &k, &result.pose)?;
+                fused = live.fuse(depth, &k, &result.pose)?;
+            }
+            if !was_full {
+                model_full.clone_from(&live.model_full);
             }
             let depth = depth.unwrap_or(raw);
             integrate_ms = Some(ms_since(t1));
-            if self.cfg.frame_to_model && live.first_frame.is_none() {
+            if self.cfg.frame_to_model && live.first_frame.is_none() && live.model_full.is_none() {
                 let t2 = Instant::now();
                 live.model.update_from_frame(
                     &live.volume,
@@ -485,7 +544,28 @@ impl Reconstruction {
                 raycast_ms,
                 step_ms: ms_since(t0),
             },
+            fused,
+            model_full,
         })
+    }
+
+    /// Gives the current fragment the part of the budget the suspended one does not hold (see
+    /// the module docs).
+    fn share_budget(&mut self) {
+        let held = self
+            .suspended
+            .as_ref()
+            .map_or(0, |s| s.volume.memory_bytes());
+        let total = self.cfg.tsdf.memory_budget_bytes;
+        self.current
+            .volume
+            .set_memory_budget_bytes(total.saturating_sub(held));
+    }
+
+    /// Why the current fragment's model is full, when it is (see the module docs): its frames
+    /// are tracked against the last frame and not fused.
+    pub fn model_full(&self) -> Option<&str> {
+        self.current.model_full.as_deref()
     }
 
     /// The current fragment's index.
@@ -507,18 +587,25 @@ impl Reconstruction {
     /// while no frame waits, else a copy with the fragment's first frame fused as it was
     /// measured (a rolling-shutter fragment's first frame waits for the second frame's motion,
     /// so a fragment of one tracked frame would mesh empty). For meshing the current fragment
-    /// mid-sequence.
+    /// mid-sequence. A waiting frame the memory budget cannot hold is left out.
     ///
     /// # Errors
-    /// A volume over its memory budget.
+    /// The fusion's errors but the memory budget's.
     pub fn volume_with_waiting_frame(&self) -> Result<std::borrow::Cow<'_, TsdfVolume>> {
         let live = &self.current;
         match &live.first_frame {
             None => Ok(std::borrow::Cow::Borrowed(&live.volume)),
+            Some(_) if live.model_full.is_some() => Ok(std::borrow::Cow::Borrowed(&live.volume)),
             Some((first, pose)) => {
                 let mut volume = live.volume.clone();
-                volume.integrate(first, &self.camera.intrinsics, pose)?;
-                Ok(std::borrow::Cow::Owned(volume))
+                match volume.integrate(first, &self.camera.intrinsics, pose) {
+                    Ok(_) => Ok(std::borrow::Cow::Owned(volume)),
+                    // The frame would make the model full: the volume without it.
+                    Err(TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. }) => {
+                        Ok(std::borrow::Cow::Borrowed(&live.volume))
+                    }
+                    Err(e) => Err(e.into()),
+                }
             }
         }
     }
@@ -545,11 +632,11 @@ impl Reconstruction {
 
     /// Ends the reconstruction and hands over the fragments not yet handed over (the current
     /// one and a suspended one), in order of their index. A fragment that ended with a single
-    /// tracked frame holds that frame.
+    /// tracked frame holds that frame (unless the memory budget cannot hold it: the fragment's
+    /// model is then full, [`Fragment::model_full`]).
     ///
     /// # Errors
-    /// A volume over its memory budget ([`TsdfConfig::memory_budget_bytes`]) while the last
-    /// waiting frame is fused.
+    /// The fusion's errors but the memory budget's, while a last waiting frame is fused.
     pub fn finish(self) -> Result<Vec<Fragment>> {
         let k = self.camera.intrinsics;
         let mut out = self

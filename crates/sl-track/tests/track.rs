@@ -983,6 +983,79 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
     assert!(out.iter().all(|o| o.2 == 0));
 }
 
+/// A model that reaches the memory budget stops growing, and tracking goes on: the frame whose
+/// blocks do not fit is not fused (the volume keeps what it had, the step says why once), and
+/// every later frame is tracked against the frame before, within the same error bounds as
+/// the rest of these tests, and not fused. The budget is what the volume held after three
+/// frames, so a moving camera's next new blocks do not fit.
+#[test]
+fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
+    let (cam, truth, frames) = sequence(12, 61);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    for (i, d) in frames[..3].iter().enumerate() {
+        rec.step(d, Some(i as f64 * dt)).unwrap();
+    }
+    cfg.tsdf.memory_budget_bytes = rec.volume().block_count() * sl_tsdf::volume::BYTES_PER_BLOCK;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    let (mut poses, mut full_at, mut blocks) = (Vec::new(), Vec::new(), None);
+    for (i, d) in frames.iter().enumerate() {
+        let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+        assert!(
+            step.result.status.is_tracked(),
+            "frame {i}: {:?}",
+            step.result.status
+        );
+        if let Some(why) = &step.model_full {
+            assert!(why.contains("memory budget"), "{why}");
+            full_at.push(i);
+            blocks = Some(rec.volume().block_count());
+        }
+        if !full_at.is_empty() {
+            assert!(!step.fused && rec.model_full().is_some(), "frame {i}");
+            assert_eq!(Some(rec.volume().block_count()), blocks, "frame {i}");
+        }
+        poses.push(step.result.pose);
+    }
+    assert_eq!(full_at.len(), 1, "the model is full once: {full_at:?}");
+    assert!(full_at[0] >= 3 && full_at[0] < 11, "{full_at:?}");
+    for (i, e) in errors(&truth, &poses).iter().enumerate() {
+        assert!(e.0 < 0.01 && e.1 < 0.5, "frame {i}: {e:?}");
+    }
+    let left = rec.finish().unwrap();
+    assert_eq!(left.len(), 1);
+    assert_eq!(left[0].tracked_frames, 12);
+    assert_eq!(left[0].volume.frame_count(), full_at[0]);
+    assert!(left[0].model_full.is_some());
+    assert!(left[0].volume.memory_bytes() <= cfg.tsdf.memory_budget_bytes);
+}
+
+/// The fragments share one memory budget: a new fragment's volume may use what the suspended
+/// one does not hold (the carried camera of the test above, fragment 0 suspended to the end).
+#[test]
+fn a_new_fragment_gets_the_budget_the_suspended_one_leaves() {
+    let (cam, _, frames_a) = sequence(8, 11);
+    let (_, _, frames_b) = sequence_in("figure-walls", 8, 41);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    cfg.new_fragment_after_s = Some(0.1);
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    for (i, d) in frames_a.iter().chain(&frames_b).enumerate() {
+        rec.step(d, Some(i as f64 * dt)).unwrap();
+    }
+    assert_eq!((rec.fragment(), rec.suspended_fragment()), (1, Some(0)));
+    let current_budget = rec.volume().params().memory_budget_bytes;
+    let left = rec.finish().unwrap();
+    let held = left[0].volume.memory_bytes();
+    assert!(held > 0);
+    assert_eq!(current_budget, cfg.tsdf.memory_budget_bytes - held);
+}
+
 /// A camera that jumps 18 cm and 18° while tracking is lost (plane fallback off, so nothing
 /// bridges the jump), then walks back to where it was lost and rests there: fragment 1 starts
 /// after 0.1 s of failed alignments and tracks the way back; when a frame aligns to the

@@ -35,7 +35,9 @@ struct Cli {
     /// Memory budget, bytes (suffixes K, M, G: powers of 1024). Every input is checked
     /// against limits derived from it before anything is allocated: pixels per image (budget /
     /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
-    /// elements, and the TSDF of `fuse` (3/4 of it). Default 4G.
+    /// elements, the TSDF of `fuse` (3/4 of it, its mesh included) and the model of `track`
+    /// (1/2 of it, its mesh at the end within the whole; a full model stops growing and the
+    /// camera is tracked frame to frame from there). Default 4G.
     #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_bytes)]
     max_memory: Option<u64>,
     #[command(subcommand)]

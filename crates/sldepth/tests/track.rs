@@ -216,6 +216,70 @@ fn track_writes_trajectory_log_mesh_and_json() {
     assert!(m.vertex_count() > 1000);
 }
 
+/// A model that reaches the memory budget (`--max-memory`; the TSDF gets 3/4 of it) does not
+/// stop the run: the frame that would not fit and every later one are tracked against the
+/// frame before and not fused, said once on standard error and counted in the JSON
+/// (`unfused`, and per fragment `fused` and `model_full_at_frame`); the trajectory has every
+/// frame and still follows the camera, and the mesh holds the frames fused before.
+#[test]
+fn track_goes_on_frame_to_frame_when_the_model_reaches_the_memory_budget() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 6);
+    let (traj, mesh) = (tmp.path().join("traj.txt"), tmp.path().join("mesh.ply"));
+    let (traj_s, mesh_s) = (traj.to_str().unwrap(), mesh.to_str().unwrap());
+    let seq_s = seq.to_str().unwrap();
+    let args = [
+        "track",
+        "--tum",
+        seq_s,
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.005",
+        "--output",
+        traj_s,
+        "--mesh",
+        mesh_s,
+        "--json",
+    ];
+    let (roomy, _) = sldepth_json(&args);
+    assert_eq!(
+        (roomy["lost"].as_u64(), roomy["unfused"].as_u64()),
+        (Some(0), Some(0))
+    );
+    assert_eq!(
+        roomy["fragments"][0]["model_full_at_frame"],
+        serde_json::Value::Null
+    );
+    let roomy_vertices = roomy["vertices"].as_u64().unwrap();
+
+    // 150M: a model of 75 MB holds the first frames of this sequence but not all six (100M
+    // holds none, 200M all).
+    let mut tight = vec!["--max-memory", "150M"];
+    tight.extend_from_slice(&args);
+    let (v, stderr) = sldepth_json(&tight);
+    assert_eq!(v["lost"], 0, "{stderr}");
+    let full_at = v["fragments"][0]["model_full_at_frame"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("the model did not fill: {v}"));
+    assert!((1..6).contains(&full_at), "{v}");
+    // The preset's rolling shutter: frame 0 waits for frame 1's motion and is fused with it.
+    assert_eq!(v["fragments"][0]["fused"].as_u64(), Some(full_at), "{v}");
+    assert_eq!(v["unfused"].as_u64(), Some(6 - full_at), "{v}");
+    assert_eq!(stderr.matches("model is full").count(), 1, "{stderr}");
+    assert!(stderr.contains("--max-memory"), "{stderr}");
+    let rows = pose_rows(&traj);
+    assert_eq!(rows.len(), 6);
+    assert_moved_5_cm(&rows[5]);
+    let vertices = v["vertices"].as_u64().unwrap();
+    assert!(
+        vertices > 1000 && vertices < roomy_vertices,
+        "{vertices} / {roomy_vertices}"
+    );
+    assert!(sl_io::read_mesh_ply(&mesh).unwrap().vertex_count() > 1000);
+}
+
 /// A sensor three times noisier than the camera's model (σ_D 0.2 px behind the Kinect's 0.07,
 /// realistic correlated noise): each raw frame's measured noise sets the prefilter's range
 /// kernel, as it sets the tracker's weights (a frame smoothed for 0.07 px keeps most of its

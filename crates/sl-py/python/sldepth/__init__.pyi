@@ -413,6 +413,7 @@ class Tracker:
         rolling_shutter_ms: Optional[float] = None,
         estimate_noise: bool = True,
         keyframes: bool = True,
+        memory_budget_bytes: int = 4 << 30,
     ) -> None:
         """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
         last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
@@ -430,7 +431,13 @@ class Tracker:
         camera's model and track a noisier frame with its own noise (default; as sldepth track,
         --model-noise-only turns it off); keyframes: when every other attempt on a frame
         fails, align it against earlier frames kept at spread poses (default; as sldepth
-        track, --no-keyframes turns it off)."""
+        track, --no-keyframes turns it off); memory_budget_bytes: what the model's blocks may
+        hold, all fragments together (default 4 GiB): a frame it cannot hold is not fused
+        and the model is full from then on (model_full), later frames tracked against the
+        frame before and not fused."""
+    @property
+    def model_full(self) -> Optional[str]:
+        """Why the current fragment's model is full (its memory budget reached), or None."""
     @property
     def rolling_shutter_ms(self) -> float:
         """The rolling-shutter readout the tracker models, milliseconds (0: global shutter)."""

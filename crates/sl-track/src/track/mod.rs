@@ -317,6 +317,15 @@ impl Tracker {
         self.rolling_motion
     }
 
+    /// Aligns the next frames as a global shutter's ([`TrackerConfig::rolling_shutter_readout_s`]
+    /// = 0): what [`crate::Reconstruction`] does when a full model leaves it tracking frame to
+    /// frame (there a readout made TUM fr1/rpy-200's trajectory worse, ATE 3.08 → 3.98 cm;
+    /// docs/bench/track.md, session 79).
+    pub(crate) fn use_global_shutter(&mut self) {
+        self.cfg.rolling_shutter_readout_s = 0.0;
+        self.rolling_motion = None;
+    }
+
     /// The last well-tracked pose (`None` before the first frame with valid depth).
     pub fn last_good_pose(&self) -> Option<CameraToWorld> {
         self.last_good.map(CameraToWorld::from_isometry)

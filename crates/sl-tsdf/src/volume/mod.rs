@@ -169,6 +169,14 @@ impl TsdfVolume {
         Ok(())
     }
 
+    /// Replaces the memory budget ([`TsdfConfig::memory_budget_bytes`]) for the frames still to
+    /// come: a caller holding several volumes shares one budget between them. A budget below
+    /// [`TsdfVolume::memory_bytes`] keeps every block and refuses the next frame that would
+    /// allocate one ([`TsdfError::MemoryBudget`], the volume unchanged).
+    pub fn set_memory_budget_bytes(&mut self, bytes: usize) {
+        self.params.memory_budget_bytes = bytes;
+    }
+
     /// Number of allocated blocks.
     pub fn block_count(&self) -> usize {
         self.blocks.len()

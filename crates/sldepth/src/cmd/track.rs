@@ -436,6 +436,10 @@ struct FragmentOut {
     /// The fragment it rejoined and the transform into that one's world.
     joined: Option<sl_track::FragmentJoin>,
     mesh: Option<WrittenMesh>,
+    /// Frames fused into its volume.
+    fused: usize,
+    /// The frame whose fusion found its model full (the memory budget reached).
+    model_full_at: Option<usize>,
 }
 
 impl FragmentOut {
@@ -445,6 +449,8 @@ impl FragmentOut {
             tracked: 0,
             joined: None,
             mesh: None,
+            fused: 0,
+            model_full_at: None,
         }
     }
 
@@ -452,6 +458,7 @@ impl FragmentOut {
         self.tracked = done.tracked_frames;
         self.joined = done.joined;
         self.mesh = mesh;
+        self.fused = done.volume.frame_count();
     }
 }
 
@@ -462,8 +469,28 @@ struct WrittenMesh {
     triangles: usize,
 }
 
-/// Writes the mesh of a finished fragment (when `--mesh` was given).
+/// Writes the mesh of a finished fragment (when `--mesh` was given). A mesh that cannot be
+/// made or written (over the memory budget, a full disk) is said on standard error and kept
+/// in `errors`: the run goes on, its trajectories are written, and it fails at the end.
 fn write_fragment_mesh(
+    args: &Args,
+    fragment: &sl_track::Fragment,
+    budget_bytes: usize,
+    errors: &mut Vec<String>,
+) -> Option<WrittenMesh> {
+    match try_write_fragment_mesh(args, fragment, budget_bytes) {
+        Ok(mesh) => mesh,
+        Err(e) => {
+            let e = format!("fragment {}'s mesh not written: {e:#}", fragment.index);
+            errln!("error: {e}");
+            errors.push(e);
+            None
+        }
+    }
+}
+
+/// [`write_fragment_mesh`], failing.
+fn try_write_fragment_mesh(
     args: &Args,
     fragment: &sl_track::Fragment,
     budget_bytes: usize,
@@ -600,7 +627,11 @@ pub fn run(args: Args) -> Result<()> {
     };
     cfg.tsdf.max_depth_m = args.max_depth_m;
     cfg.tsdf.depth_lookup = args.depth_lookup;
-    cfg.tsdf.memory_budget_bytes = limits().tsdf_budget_bytes;
+    // The model gets half the budget, so that its mesh fits in the rest at the end even when it
+    // is full: a mesh can take as much memory as its volume (TUM fr1/rpy-200 fused without a
+    // prefilter: 1.15 GB of mesh for 1.07 GB of blocks).
+    cfg.tsdf.memory_budget_bytes =
+        usize::try_from(limits().max_memory_bytes / 2).unwrap_or(usize::MAX);
     cfg.frame_to_model = !args.frame_to_frame;
     cfg.model_scale = args.model_scale;
     cfg.new_fragment_after_s = args
@@ -636,6 +667,8 @@ pub fn run(args: Args) -> Result<()> {
     let mut counts = [0usize; 6];
     let mut lost_frames = Vec::new();
     let mut skipped_frames = Vec::new();
+    // Meshes that could not be written (the run goes on; it fails once the trajectories are).
+    let mut mesh_errors: Vec<String> = Vec::new();
     // Per fragment: its first frame, and its mesh once written.
     let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
     let wall = Instant::now();
@@ -716,7 +749,11 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if let Some(done) = &step.finished {
-            let mesh = write_fragment_mesh(&args, done, params.memory_budget_bytes)?;
+            // Meshed beside the current fragment's volume, within the TSDF's share.
+            let budget = limits()
+                .tsdf_budget_bytes
+                .saturating_sub(rec.volume().memory_bytes());
+            let mesh = write_fragment_mesh(&args, done, budget, &mut mesh_errors);
             if let Some(out) = fragments.get_mut(done.index) {
                 out.finish(done, mesh);
             }
@@ -732,6 +769,15 @@ pub fn run(args: Args) -> Result<()> {
                         " (no frame with a pose in both: kept in its own world frame)"
                     }
                 );
+            }
+        }
+        if let Some(why) = &step.model_full {
+            errln!(
+                "warning: frame {i}: fragment {}'s model is full, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before and not fused; its mesh holds the frames before this one",
+                step.fragment
+            );
+            if let Some(out) = fragments.get_mut(step.fragment) {
+                out.model_full_at.get_or_insert(i);
             }
         }
         let r = step.result;
@@ -778,8 +824,15 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
 
-    for done in rec.finish()? {
-        let mesh = write_fragment_mesh(&args, &done, params.memory_budget_bytes)?;
+    // The last meshes may use the whole budget (no frame is held any more) but what the
+    // fragments still to mesh hold: a full model leaves its mesh the other half.
+    let left = rec.finish()?;
+    let mut held: usize = left.iter().map(|f| f.volume.memory_bytes()).sum();
+    let whole = usize::try_from(limits().max_memory_bytes).unwrap_or(usize::MAX);
+    for done in left {
+        held -= done.volume.memory_bytes();
+        let budget = whole.saturating_sub(held);
+        let mesh = write_fragment_mesh(&args, &done, budget, &mut mesh_errors);
         if let Some(out) = fragments.get_mut(done.index) {
             out.finish(&done, mesh);
         }
@@ -802,6 +855,11 @@ pub fn run(args: Args) -> Result<()> {
             )?;
         }
     }
+    // Tracked frames in no model: their fragment's model had reached the memory budget.
+    let unfused_frames: usize = fragments
+        .iter()
+        .map(|f| f.tracked.saturating_sub(f.fused))
+        .sum();
     // The JSON's vertex and triangle counts are fragment 0's (the whole run's when there is
     // one fragment).
     let mesh_size = fragments
@@ -820,6 +878,8 @@ pub fn run(args: Args) -> Result<()> {
                     "index": index,
                     "first_frame": f.first_frame,
                     "tracked": f.tracked,
+                    "fused": f.fused,
+                    "model_full_at_frame": f.model_full_at,
                     "joined_into": f.joined.map(|j| j.into),
                     "world": world,
                     "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
@@ -835,6 +895,8 @@ pub fn run(args: Args) -> Result<()> {
             "lost_frames": lost_frames,
             "skipped": skipped_frames.len(),
             "skipped_frames": skipped_frames,
+            // Tracked but not fused: their fragment's model had reached the memory budget.
+            "unfused": unfused_frames,
             "recovered": counts[TrackStatus::Recovered as usize],
             "relocalised": counts[TrackStatus::Relocalised as usize],
             "tracked_against_frame": counts[TrackStatus::TrackedAgainstFrame as usize],
@@ -874,6 +936,7 @@ pub fn run(args: Args) -> Result<()> {
             "fragments": fragments_json,
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
+            "mesh_errors": mesh_errors,
         }))?;
     } else {
         errln!(
@@ -897,6 +960,11 @@ pub fn run(args: Args) -> Result<()> {
                     .collect::<Vec<_>>()
             );
         }
+        if unfused_frames > 0 {
+            errln!(
+                "{unfused_frames} tracked frames not fused: the model reached the memory budget (--max-memory)"
+            );
+        }
         let noisier: Vec<f64> = noise_scales.iter().copied().filter(|&s| s > 1.0).collect();
         if !noisier.is_empty() {
             errln!(
@@ -905,6 +973,12 @@ pub fn run(args: Args) -> Result<()> {
                 median(&noisier)
             );
         }
+    }
+    if !mesh_errors.is_empty() {
+        bail!(
+            "{} (the trajectory and everything else were written)",
+            mesh_errors.join("; ")
+        );
     }
     Ok(())
 }
