@@ -2,7 +2,7 @@
 
 use numpy::PyArray2;
 use pyo3::prelude::*;
-use sl_filter::{FilterConfig, Method, MultiScale, Window, multiscale_by_default};
+use sl_filter::{FilterConfig, MAX_RADIUS_PX, Method, MultiScale, Window, multiscale_by_default};
 
 use crate::arrays::{check_camera, depth_array, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
@@ -13,7 +13,8 @@ use crate::threads::compute;
 ///
 /// ``method``: ``"adaptive"`` (the paper's bilateral filter with range σ_d = k·Z², k from the
 /// camera's noise model), ``"bilateral"`` (fixed σ_d), ``"gaussian"``, ``"disparity"`` (bilateral
-/// in disparity). ``radius`` (pixels, window 2r+1, default 3), ``sigma_s`` (pixels), and the
+/// in disparity). ``radius`` (pixels, window 2r+1, default 3, at most 32), ``sigma_s`` (pixels;
+/// without ``radius`` the window grows to ceil(2·sigma_s), at most 32), and the
 /// method's range parameter (``k_per_m``, ``sigma_d_m`` or ``sigma_disp_px``) override the
 /// defaults. ``window``: ``"square"`` (default, the full 2r+1 square) or ``"disc"`` (dx² + dy²
 /// ≤ r², OpenCV's ``bilateralFilter`` window, about half the taps). ``depth_scale`` converts
@@ -47,6 +48,18 @@ pub(crate) fn filter<'py>(
     let camera = camera_or_default(camera);
     let method = method.parse::<Method>().map_err(value_error)?;
     let mut config = FilterConfig::new(method);
+    if let (None, Some(s)) = (radius, sigma_s) {
+        let r = (2.0 * s).ceil();
+        if s.is_finite() && r > MAX_RADIUS_PX as f64 {
+            return Err(value_error(format!(
+                "sigma_s = {}: the window radius it implies, ceil(2·sigma_s) = {} px, exceeds \
+                 the maximum {MAX_RADIUS_PX} px; pass radius (at most {MAX_RADIUS_PX}) to keep \
+                 this sigma_s in a smaller window",
+                sl_core::Compact(s),
+                sl_core::Compact(r)
+            )));
+        }
+    }
     config.radius_px = radius;
     config.sigma_s_px = sigma_s;
     config.k_per_m = k_per_m;

@@ -227,7 +227,9 @@ pub const DEPTH_EXTS: [&str; 4] = ["png", "tif", "tiff", "pgm"];
 
 /// The encoding to write a depth output in: the output's extension picks the container (a
 /// `.png` keeps SUN RGB-D's bit rotation when the input had it), the rest (scale, invalid
-/// value) follows `input`.
+/// value) follows `input`. A `.pgm` is NYU raw Kinect disparity, the one PGM depth encoding
+/// there is: only a NYU raw input is written as one (any other would silently change from
+/// depth units to disparity); a NYU raw input written as `.png` or `.tif` is in millimetres.
 pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncoding> {
     let Some(format) = DepthFormat::from_path(path) else {
         bail!(
@@ -239,7 +241,14 @@ pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncodi
         (DepthFormat::Png, DepthFormat::Png | DepthFormat::Sun) => *input,
         (DepthFormat::Tiff, DepthFormat::Tiff) => *input,
         (DepthFormat::NyuRaw, DepthFormat::NyuRaw) => *input,
-        (DepthFormat::NyuRaw, _) => DepthEncoding::nyu_raw(),
+        (DepthFormat::NyuRaw, f) => bail!(
+            "{}: a .pgm is written as NYU raw Kinect disparity, which only a NYU raw input keeps; \
+             this input is {} depth at {} units per metre: name a .png or .tif output to write \
+             it in its own encoding",
+            path.display(),
+            f.name(),
+            num(input.units_per_m)
+        ),
         (f, DepthFormat::NyuRaw) => DepthEncoding::for_format(f),
         (f, _) => DepthEncoding {
             format: f,

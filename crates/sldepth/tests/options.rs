@@ -57,6 +57,57 @@ fn wall_sequence(dir: &Path) -> (PathBuf, PathBuf) {
 }
 
 #[test]
+fn filter_sigma_s_beyond_the_largest_window_names_the_option_and_the_way_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f.png");
+    let input = testdata("floor-seed1-depth.png");
+    let o = sldepth(&["filter", s(&input), s(&out), "--sigma-s", "20"]);
+    assert_fails(
+        &o,
+        1,
+        &[
+            "--sigma-s 20",
+            "ceil(2·σ_s) = 40 px",
+            "maximum 32 px",
+            "--radius",
+        ],
+    );
+    assert!(!out.exists());
+    // With a radius the same σ_s is accepted.
+    let o = sldepth(&[
+        "filter",
+        s(&input),
+        s(&out),
+        "--sigma-s",
+        "20",
+        "--radius",
+        "3",
+        "--single-scale",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn filter_writes_a_pgm_only_for_a_nyu_raw_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f.pgm");
+    // A millimetre PNG written as .pgm would have become NYU raw disparity, not the input's
+    // encoding that the help promises.
+    let o = sldepth(&["filter", s(&testdata("floor-seed1-depth.png")), s(&out)]);
+    assert_fails(
+        &o,
+        1,
+        &[
+            "f.pgm",
+            "NYU raw Kinect disparity",
+            "this input is png depth at 1000 units per metre",
+            ".png or .tif",
+        ],
+    );
+    assert!(!out.exists());
+}
+
+#[test]
 fn fuse_refuses_a_tum_ground_truth_with_a_repeated_timestamp() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
