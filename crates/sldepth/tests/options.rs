@@ -108,6 +108,71 @@ fn filter_writes_a_pgm_only_for_a_nyu_raw_input() {
 }
 
 #[test]
+fn fuse_prints_the_min_weight_as_typed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (list, cam) = wall_sequence(dir.path());
+    let o = sldepth(&[
+        "fuse",
+        "--frames",
+        s(&list),
+        "--camera",
+        s(&cam),
+        "--min-weight",
+        "1e300",
+    ]);
+    assert_fails(
+        &o,
+        1,
+        &["--min-weight 1e300: must be a number from 0 to 1e30"],
+    );
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("inf"));
+}
+
+#[test]
+fn fuse_writes_the_mesh_when_the_slice_misses_the_volume() {
+    let dir = tempfile::tempdir().unwrap();
+    let (list, cam) = wall_sequence(dir.path());
+    let mesh = dir.path().join("m.ply");
+    let slice = dir.path().join("slice.png");
+    let fuse = |slice_m: &str| {
+        sldepth(&[
+            "fuse",
+            "--frames",
+            s(&list),
+            "--camera",
+            s(&cam),
+            "-o",
+            s(&mesh),
+            "--slice-png",
+            s(&slice),
+            "--slice-m",
+            slice_m,
+        ])
+    };
+    // The wall is at z = 1.5 m: z = 10 m crosses no block.
+    let o = fuse("10");
+    assert_fails(
+        &o,
+        1,
+        &[
+            "--slice-png",
+            "not written (",
+            "m.ply written)",
+            "--slice-m 10",
+            "no allocated block crosses the plane z = 10 m",
+            "the allocated blocks span z from",
+        ],
+    );
+    assert!(std::fs::metadata(&mesh).unwrap().len() > 0);
+    assert!(!slice.exists());
+    // Through the wall, both are written.
+    std::fs::remove_file(&mesh).unwrap();
+    let o = fuse("1.5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(mesh.exists() && slice.exists());
+}
+
+#[test]
 fn fuse_refuses_a_tum_ground_truth_with_a_repeated_timestamp() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
