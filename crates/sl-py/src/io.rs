@@ -22,7 +22,7 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 /// 5000 for TUM —, NYU raw disparity ``.pgm``, or SUN RGB-D ``format="sun"``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
 /// ``max_memory_bytes`` bounds what reading may allocate (the CLI's ``--max-memory``; default
-/// 4 GiB, at least 16 MiB): an image whose header declares more pixels than the budget allows
+/// 4 GiB, at least 16 MiB: a smaller one raises ``ValueError``): an image whose header declares more pixels than the budget allows
 /// (budget / 256 bytes per pixel, what the algorithms may need per pixel: 16.7 million pixels
 /// at the default) is refused with ``OSError`` before it is decoded.
 #[pyfunction]
@@ -37,6 +37,12 @@ pub(crate) fn read_depth<'py>(
     let mut opts = ReadConfig::default();
     opts.format = parse_format(format)?;
     opts.scale_units_per_m = depth_scale;
+    let min = sl_io::limits::MIN_MEMORY_BYTES;
+    if let Some(b) = max_memory_bytes.filter(|&b| b < min) {
+        return Err(crate::errors::value_error(format!(
+            "max_memory_bytes = {b} is below the minimum budget of {min} bytes (16 MiB)"
+        )));
+    }
     let limits = max_memory_bytes.map_or_else(Limits::default, Limits::for_memory);
     let loaded = compute(py, || {
         sl_io::depth::read_depth_with_limits(&path, &opts, &limits)

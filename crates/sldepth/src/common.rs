@@ -43,6 +43,21 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
         .ok_or_else(|| format!("{s:?} is too large"))
 }
 
+/// Parses `--max-memory`: a byte count ([`parse_bytes`]) of at least
+/// [`sl_io::limits::MIN_MEMORY_BYTES`] (16 MiB: below it no frame could be read; refused, not
+/// silently raised).
+pub fn parse_memory(s: &str) -> std::result::Result<u64, String> {
+    let n = parse_bytes(s)?;
+    let min = sl_io::limits::MIN_MEMORY_BYTES;
+    if n < min {
+        return Err(format!(
+            "{s:?} ({n} bytes) is below the minimum budget of {}M ({min} bytes)",
+            min >> 20
+        ));
+    }
+    Ok(n)
+}
+
 /// A number for a message, compact whatever its size: as Rust prints it (`0.04`, `-3`, `NaN`)
 /// for magnitudes from 1e-4 to below 1e6, in scientific notation (`1e300`, `-2.5e-7`) beyond
 /// them, where `{}` would print a `1e300` as a 301-digit decimal.

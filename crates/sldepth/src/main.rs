@@ -35,8 +35,9 @@ struct Cli {
     /// Memory budget, bytes (suffixes K, M, G: powers of 1024). Every input is checked
     /// against limits derived from it before anything is allocated: pixels per image (budget /
     /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
-    /// elements, and the TSDF of `fuse` (3/4 of it). Default 4G.
-    #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_bytes)]
+    /// elements, and the TSDF of `fuse` (3/4 of it). Default 4G; at least 16M (a smaller
+    /// budget is refused).
+    #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_memory)]
     max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,

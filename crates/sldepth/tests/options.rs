@@ -201,6 +201,16 @@ fn fuse_refuses_a_tum_ground_truth_with_a_repeated_timestamp() {
 }
 
 #[test]
+fn max_memory_below_the_floor_is_refused() {
+    let o = sldepth(&["--max-memory", "1", "cameras"]);
+    assert_fails(&o, 2, &["--max-memory", "below the minimum budget of 16M"]);
+    let o = sldepth(&["--max-memory", "16M", "cameras"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = sldepth(&["--help"]);
+    assert!(String::from_utf8_lossy(&o.stdout).contains("at least 16M"));
+}
+
+#[test]
 fn info_on_a_directory_says_so() {
     let dir = tempfile::tempdir().unwrap();
     let o = sldepth(&["info", s(dir.path())]);
