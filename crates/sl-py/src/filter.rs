@@ -4,7 +4,7 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_filter::{FilterConfig, MAX_RADIUS_PX, Method, MultiScale, Window, multiscale_by_default};
 
-use crate::arrays::{check_camera, depth_array, depth_input};
+use crate::arrays::{camera_for_depth, depth_array, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
 use crate::errors::value_error;
 use crate::threads::compute;
@@ -27,6 +27,9 @@ use crate::threads::compute;
 /// larger, build the range kernels for the measured σ_D (the camera's a floor; explicit range
 /// parameters win). Off by default here: it costs 0.2–0.4 ms per 640×480 frame, a third of a
 /// 7×7 pass, and ``noise_stats(...)["model_effective_sigma_d_px"]`` measures a sensor once.
+/// A frame whose size is the camera's divided by a whole number up to 8 (320×240 for a
+/// 640×480 camera) is the camera's sensor decimated (``camera.resampled(1/n)``), as ``sldepth``
+/// reads it.
 #[pyfunction]
 #[pyo3(signature = (depth, camera = None, method = "adaptive", *, radius = None, sigma_s = None, k_per_m = None, sigma_d_m = None, sigma_disp_px = None, window = "square", depth_scale = None, multiscale = None, estimate_noise = false))]
 #[allow(clippy::too_many_arguments)]
@@ -36,18 +39,15 @@ pub(crate) fn filter<'py>(
     camera: Option<&PyCamera>,
     method: &str,
     #[pyo3(from_py_with = crate::ints::opt_int)] radius: Option<usize>,
-    sigma_s: Option<f64>,
-    k_per_m: Option<f64>,
-    sigma_d_m: Option<f64>,
-    sigma_disp_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::sigma_s)] sigma_s: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::k_per_m)] k_per_m: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::sigma_d_m)] sigma_d_m: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::sigma_disp_px)] sigma_disp_px: Option<f64>,
     window: &str,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     multiscale: Option<bool>,
     estimate_noise: bool,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-    let camera = camera_or_default(camera);
-    let method = method.parse::<Method>().map_err(value_error)?;
-    let mut config = FilterConfig::new(method);
     if let (None, Some(s)) = (radius, sigma_s) {
         let r = (2.0 * s).ceil();
         if s.is_finite() && r > MAX_RADIUS_PX as f64 {
@@ -60,6 +60,9 @@ pub(crate) fn filter<'py>(
             )));
         }
     }
+    let camera = camera_or_default(camera);
+    let method = method.parse::<Method>().map_err(value_error)?;
+    let mut config = FilterConfig::new(method);
     config.radius_px = radius;
     config.sigma_s_px = sigma_s;
     config.k_per_m = k_per_m;
@@ -70,7 +73,7 @@ pub(crate) fn filter<'py>(
     config.build(&camera.sensor).map_err(value_error)?;
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
-    check_camera(&view, &camera)?;
+    let camera = camera_for_depth(&view, &camera, "depth")?;
     let multiscale = multiscale.unwrap_or_else(|| multiscale_by_default(method));
     let out = compute(py, || -> Result<_, String> {
         let scale = if estimate_noise {

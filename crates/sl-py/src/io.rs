@@ -30,7 +30,7 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 pub(crate) fn read_depth<'py>(
     py: Python<'py>,
     path: PathBuf,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     format: Option<&str>,
     #[pyo3(from_py_with = crate::ints::opt_int)] max_memory_bytes: Option<u64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
@@ -69,7 +69,7 @@ pub(crate) fn write_depth(
     py: Python<'_>,
     path: PathBuf,
     depth: &Bound<'_, PyAny>,
-    depth_scale: f64,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: f64,
     format: Option<&str>,
 ) -> PyResult<()> {
     let format = match parse_format(format)? {

@@ -449,11 +449,10 @@ pub fn parse_format(args: &InputArgs) -> Result<Option<DepthFormat>> {
 pub fn camera_for_frames(camera: &Camera, width: usize, height: usize) -> Option<Camera> {
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
     let k = &camera.intrinsics;
-    if (width, height) == (k.width, k.height) {
-        return Some(*camera);
+    let (resampled, n) = camera.for_frames(width, height)?;
+    if n == 1 {
+        return Some(resampled);
     }
-    let n = (2..=8usize).find(|&n| width * n == k.width && height * n == k.height)?;
-    let resampled = camera.resampled(1.0 / n as f64).ok()?;
     if NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
         return Some(resampled);
     }
