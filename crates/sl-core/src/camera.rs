@@ -17,6 +17,8 @@ pub struct Camera {
 pub const KINECT_BASELINE_M: f64 = 0.075;
 /// Default sub-pixel disparity steps of a Kinect v1.
 pub const KINECT_SUBPIXEL_STEPS: u32 = 8;
+/// Largest whole decimation of a camera's frames that [`Camera::for_frames`] recognises.
+pub const MAX_DECIMATION: usize = 8;
 
 impl Camera {
     /// The `kinect-v1` preset: 640×480, f = 580 px, c = (319.5, 239.5), B = 0.075 m, 1/8 px.
@@ -70,6 +72,20 @@ impl Camera {
         })
     }
 
+    /// The camera of frames `width`×`height` taken by this camera's sensor, and the decimation
+    /// factor: itself (factor 1) at its own size; the same sensor decimated
+    /// ([`Camera::resampled`]`(1/n)`: intrinsics scaled, noise model kept) when the frames are
+    /// its size divided by a whole `n` from 2 to [`MAX_DECIMATION`] (a QVGA stream of a VGA
+    /// sensor, a driver's decimation); `None` for any other size.
+    pub fn for_frames(&self, width: usize, height: usize) -> Option<(Self, usize)> {
+        let k = &self.intrinsics;
+        if (width, height) == (k.width, k.height) {
+            return Some((*self, 1));
+        }
+        let n = (2..=MAX_DECIMATION).find(|&n| width * n == k.width && height * n == k.height)?;
+        Some((self.resampled(1.0 / n as f64).ok()?, n))
+    }
+
     /// Image pixels per pixel of the sensor, `fx / sensor.focal_px`: 1 for a camera at its
     /// sensor's resolution, 0.5 for [`Camera::resampled`]`(0.5)`. Quantities the sensor defines
     /// in its own pixels (the block-matching window over which its error is correlated) span
@@ -84,5 +100,25 @@ impl Camera {
 impl Default for Camera {
     fn default() -> Self {
         Self::kinect_v1()
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frames_a_whole_fraction_of_the_camera_are_its_sensor_decimated() {
+        let c = Camera::kinect_v1();
+        assert_eq!(c.for_frames(640, 480), Some((c, 1)));
+        let (half, n) = c.for_frames(320, 240).unwrap();
+        assert_eq!(n, 2);
+        assert_eq!((half.intrinsics.width, half.intrinsics.height), (320, 240));
+        assert_eq!(half.sensor, c.sensor);
+        assert_eq!(c.for_frames(80, 60).map(|(_, n)| n), Some(8));
+        assert!(c.for_frames(64, 48).is_none()); // 1/10
+        assert!(c.for_frames(320, 480).is_none());
+        assert!(c.for_frames(1280, 960).is_none());
     }
 }

@@ -491,6 +491,14 @@ pub fn read_raw_depth_with_limits(
     limits: &Limits,
 ) -> Result<RawDepth> {
     let path = path.as_ref();
+    // Said first: a folder's name has no depth extension, and "cannot infer the format" would
+    // send the user looking for a format option.
+    if path.is_dir() {
+        return Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: "is a directory, not a depth file".into(),
+        });
+    }
     let format = resolve_format(path, options.format)?;
     let mut encoding = DepthEncoding::for_format(format);
     match (format, options.scale_units_per_m) {
@@ -774,6 +782,20 @@ mod tests {
         );
         assert_eq!(DepthFormat::from_path(Path::new("b.jpg")), None);
         assert_eq!(DepthFormat::from_path(Path::new("noext")), None);
+    }
+
+    #[test]
+    fn a_directory_is_said_to_be_one() {
+        let dir = tempfile::tempdir().unwrap();
+        for name in ["plain", "looks-like.png"] {
+            let d = dir.path().join(name);
+            std::fs::create_dir(&d).unwrap();
+            let e = read_depth(&d, &ReadConfig::default())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("is a directory, not a depth file"), "{e}");
+            assert!(!e.contains("cannot infer"), "{e}");
+        }
     }
 
     #[test]

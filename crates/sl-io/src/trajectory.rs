@@ -146,7 +146,8 @@ fn parse_n<const N: usize>(
 }
 
 /// Reads a TUM trajectory (`groundtruth.txt` or any `timestamp tx ty tz qx qy qz qw` file),
-/// sorted by timestamp.
+/// sorted by timestamp. A timestamp that appears twice is an error naming both lines (as
+/// `sldepth eval-traj` has always refused it: which of two poses at one instant holds?).
 pub fn read_tum_trajectory(path: impl AsRef<Path>) -> Result<Vec<TimedPose>> {
     read_tum_trajectory_with_limits(path, &Limits::default())
 }
@@ -167,13 +168,37 @@ pub fn read_tum_trajectory_with_limits(
             [v[4], v[5], v[6], v[7]],
         )
         .map_err(|e| IoError::core(path, Some(n), e))?;
-        poses.push(TimedPose {
-            timestamp: v[0],
-            pose,
-        });
+        poses.push((
+            n,
+            TimedPose {
+                timestamp: v[0],
+                pose,
+            },
+        ));
     }
-    poses.sort_by(|a, b| a.timestamp.total_cmp(&b.timestamp));
-    Ok(poses)
+    // Stable: of two equal stamps the earlier line comes first.
+    poses.sort_by(|a, b| a.1.timestamp.total_cmp(&b.1.timestamp));
+    if let Some(w) = poses
+        .windows(2)
+        .find(|w| w[0].1.timestamp == w[1].1.timestamp)
+    {
+        return Err(IoError::parse(
+            path,
+            w[1].0,
+            format!(
+                "timestamp {} s appears twice (also on line {}): a trajectory has one pose per \
+                 instant",
+                // TUM's ten-digit stamps as they are, an absurd one compactly.
+                if w[1].1.timestamp.abs() < 1e15 {
+                    w[1].1.timestamp.to_string()
+                } else {
+                    sl_core::Compact(w[1].1.timestamp).to_string()
+                },
+                w[0].0
+            ),
+        ));
+    }
+    Ok(poses.into_iter().map(|(_, p)| p).collect())
 }
 
 /// How the timestamps `ts` of one trajectory file are printed: with 6 decimals (TUM's
@@ -851,6 +876,19 @@ mod tests {
         let e = read_tum_trajectory(&p).unwrap_err();
         assert!(matches!(e, IoError::Core { line: Some(1), .. }), "{e}");
         assert!(e.to_string().contains("gt.txt:1"), "{e}");
+        // A repeated timestamp (in any order) names both lines.
+        std::fs::write(
+            &p,
+            "# c\n2 0 0 0 0 0 0 1\n1 0 0 0 0 0 0 1\n2 1 0 0 0 0 0 1\n",
+        )
+        .unwrap();
+        let e = read_tum_trajectory(&p).unwrap_err();
+        assert!(matches!(e, IoError::Parse { line: 4, .. }), "{e}");
+        assert!(
+            e.to_string()
+                .contains("timestamp 2 s appears twice (also on line 2)"),
+            "{e}"
+        );
     }
 
     #[test]

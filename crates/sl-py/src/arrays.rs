@@ -39,10 +39,10 @@ impl DepthInput<'_> {
     }
 }
 
-fn shape_of(obj: &Bound<'_, PyAny>) -> PyResult<(usize, usize, String)> {
+fn shape_of(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<(usize, usize, String)> {
     let arr = obj.cast::<PyUntypedArray>().map_err(|_| {
         value_error(format!(
-            "depth must be a NumPy array of shape (H, W), got {}",
+            "{name} must be a NumPy array of shape (H, W), got {}",
             obj.get_type()
                 .name()
                 .map_or_else(|_| "?".into(), |n| n.to_string())
@@ -51,7 +51,7 @@ fn shape_of(obj: &Bound<'_, PyAny>) -> PyResult<(usize, usize, String)> {
     let dtype = arr.dtype().str()?.to_string();
     if arr.ndim() != 2 {
         return Err(value_error(format!(
-            "depth must be 2-D (H, W), got an array of shape {:?}",
+            "{name} must be 2-D (H, W), got an array of shape {:?}",
             arr.shape()
         )));
     }
@@ -93,7 +93,7 @@ fn readable<'py>(obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
 /// Whether [`depth_input`] reads `obj`'s own buffer in place (no copy of any kind).
 pub(crate) fn is_borrowed(obj: &Bound<'_, PyAny>, depth_scale: Option<f64>) -> PyResult<bool> {
     let read = readable(obj)?;
-    Ok(read.is(obj) && depth_input_readable(&read, depth_scale)?.is_borrowed())
+    Ok(read.is(obj) && depth_input_readable(&read, "depth", depth_scale)?.is_borrowed())
 }
 
 /// The valid range of `depth_scale` for integer depth, as for files (`sl_io`).
@@ -113,20 +113,30 @@ pub(crate) fn depth_input<'py>(
     obj: &Bound<'py, PyAny>,
     depth_scale: Option<f64>,
 ) -> PyResult<DepthInput<'py>> {
-    depth_input_readable(&readable(obj)?, depth_scale)
+    depth_input_named(obj, "depth", depth_scale)
+}
+
+/// [`depth_input`] of the argument `name` (`depth_a`, `depth_b`), which its errors name.
+pub(crate) fn depth_input_named<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    depth_scale: Option<f64>,
+) -> PyResult<DepthInput<'py>> {
+    depth_input_readable(&readable(obj)?, name, depth_scale)
 }
 
 /// [`depth_input`] of an array [`readable`] has prepared.
 fn depth_input_readable<'py>(
     obj: &Bound<'py, PyAny>,
+    name: &str,
     depth_scale: Option<f64>,
 ) -> PyResult<DepthInput<'py>> {
-    let (h, w, dtype) = shape_of(obj)?;
+    let (h, w, dtype) = shape_of(obj, name)?;
     if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f32>>() {
         if depth_scale.is_some() {
-            return Err(value_error(
-                "depth_scale applies to integer depth; float depth is already in metres",
-            ));
+            return Err(value_error(format!(
+                "depth_scale applies to integer depth; {name} is float, already in metres"
+            )));
         }
         if a.is_c_contiguous() {
             return Ok(DepthInput::Borrowed(a));
@@ -135,17 +145,18 @@ fn depth_input_readable<'py>(
     }
     if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, f64>>() {
         if depth_scale.is_some() {
-            return Err(value_error(
-                "depth_scale applies to integer depth; float depth is already in metres",
-            ));
+            return Err(value_error(format!(
+                "depth_scale applies to integer depth; {name} is float, already in metres"
+            )));
         }
         return owned(h, w, a.as_array().iter().map(|&v| v as f32));
     }
     if let Ok(a) = obj.extract::<PyReadonlyArray2<'py, u16>>() {
         let Some(scale) = depth_scale else {
-            return Err(value_error(
-                "uint16 depth needs depth_scale (units per metre: 1000 for millimetres, 5000 for TUM)",
-            ));
+            return Err(value_error(format!(
+                "{name} is uint16 depth, which needs depth_scale (units per metre: 1000 for \
+                 millimetres, 5000 for TUM)"
+            )));
         };
         check_depth_scale(scale)?;
         let inv = 1.0 / scale;
@@ -156,7 +167,7 @@ fn depth_input_readable<'py>(
         );
     }
     Err(value_error(format!(
-        "depth must be float32, float64 (metres) or uint16 (with depth_scale), got dtype {dtype}"
+        "{name} must be float32, float64 (metres) or uint16 (with depth_scale), got dtype {dtype}"
     )))
 }
 
@@ -167,7 +178,7 @@ pub(crate) fn u16_input(
     depth_scale: Option<f64>,
 ) -> PyResult<Option<Image<u16>>> {
     let read = readable(obj)?;
-    let (h, w, _) = shape_of(&read)?;
+    let (h, w, _) = shape_of(&read, "depth")?;
     let Ok(a) = read.extract::<PyReadonlyArray2<'_, u16>>() else {
         return Ok(None);
     };
@@ -179,6 +190,30 @@ pub(crate) fn u16_input(
     check_depth_scale(scale)?;
     let values: Vec<u16> = a.as_array().iter().copied().collect();
     Image::from_vec(w, h, values).map(Some).map_err(value_error)
+}
+
+/// The camera of a depth map, as `sldepth` reads frames: `camera` at its own size; its sensor
+/// decimated (`Camera.resampled(1/n)`: intrinsics scaled, noise model kept) when the map is its
+/// size divided by a whole `n` from 2 to 8 (a 320×240 frame of a 640×480 camera); any other
+/// size is an error naming the argument `name`.
+pub(crate) fn camera_for_depth(
+    view: &DepthView<'_>,
+    camera: &Camera,
+    name: &str,
+) -> PyResult<Camera> {
+    let k = &camera.intrinsics;
+    match camera.for_frames(view.width(), view.height()) {
+        Some((c, _)) => Ok(c),
+        None => Err(value_error(format!(
+            "{name} is {}x{} (W x H) but the camera is {}x{}, nor its size divided by a whole \
+             number up to {}; pass a Camera of the depth's size",
+            view.width(),
+            view.height(),
+            k.width,
+            k.height,
+            sl_core::camera::MAX_DECIMATION
+        ))),
+    }
 }
 
 /// Checks that a depth map has the camera's size.

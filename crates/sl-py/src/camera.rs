@@ -59,13 +59,13 @@ impl PyCamera {
     fn new(
         #[pyo3(from_py_with = crate::ints::int)] width: usize,
         #[pyo3(from_py_with = crate::ints::int)] height: usize,
-        fx: f64,
-        fy: f64,
-        cx: f64,
-        cy: f64,
-        baseline_m: f64,
+        #[pyo3(from_py_with = crate::reals::fx)] fx: f64,
+        #[pyo3(from_py_with = crate::reals::fy)] fy: f64,
+        #[pyo3(from_py_with = crate::reals::cx)] cx: f64,
+        #[pyo3(from_py_with = crate::reals::cy)] cy: f64,
+        #[pyo3(from_py_with = crate::reals::baseline_m)] baseline_m: f64,
         #[pyo3(from_py_with = crate::ints::int)] subpixel: u32,
-        sigma_d_px: f64,
+        #[pyo3(from_py_with = crate::reals::sigma_d_px)] sigma_d_px: f64,
     ) -> PyResult<Self> {
         let intrinsics = Intrinsics::new(width, height, fx, fy, cx, cy).map_err(value_error)?;
         let sensor = SensorModel::new(fx, baseline_m, subpixel, sigma_d_px).map_err(value_error)?;
@@ -201,7 +201,10 @@ impl PyCamera {
     /// window) is kept, so the tracker and the plane extractor weigh the decimated frames as
     /// the same sensor's. The lens model, if any, is kept (it acts on normalised
     /// coordinates). A ``factor`` that is not positive raises ``ValueError``.
-    fn resampled(&self, factor: f64) -> PyResult<Self> {
+    fn resampled(
+        &self,
+        #[pyo3(from_py_with = crate::reals::factor)] factor: f64,
+    ) -> PyResult<Self> {
         Ok(Self {
             inner: check_size(self.inner.resampled(factor).map_err(value_error)?)?,
             lens: self.lens,
@@ -247,7 +250,7 @@ pub(crate) fn undistort<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: &PyCamera,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<Bound<'py, numpy::PyArray2<f32>>> {
     let input = crate::arrays::depth_input(depth, depth_scale)?;
     let view = input.view()?;

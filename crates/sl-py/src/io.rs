@@ -22,7 +22,7 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 /// 5000 for TUM —, NYU raw disparity ``.pgm``, or SUN RGB-D ``format="sun"``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
 /// ``max_memory_bytes`` bounds what reading may allocate (the CLI's ``--max-memory``; default
-/// 4 GiB, at least 16 MiB): an image whose header declares more pixels than the budget allows
+/// 4 GiB, at least 16 MiB: a smaller one raises ``ValueError``): an image whose header declares more pixels than the budget allows
 /// (budget / 256 bytes per pixel, what the algorithms may need per pixel: 16.7 million pixels
 /// at the default) is refused with ``OSError`` before it is decoded.
 #[pyfunction]
@@ -30,13 +30,19 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 pub(crate) fn read_depth<'py>(
     py: Python<'py>,
     path: PathBuf,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     format: Option<&str>,
     #[pyo3(from_py_with = crate::ints::opt_int)] max_memory_bytes: Option<u64>,
 ) -> PyResult<Bound<'py, PyArray2<f32>>> {
     let mut opts = ReadConfig::default();
     opts.format = parse_format(format)?;
     opts.scale_units_per_m = depth_scale;
+    let min = sl_io::limits::MIN_MEMORY_BYTES;
+    if let Some(b) = max_memory_bytes.filter(|&b| b < min) {
+        return Err(crate::errors::value_error(format!(
+            "max_memory_bytes = {b} is below the minimum budget of {min} bytes (16 MiB)"
+        )));
+    }
     let limits = max_memory_bytes.map_or_else(Limits::default, Limits::for_memory);
     let loaded = compute(py, || {
         sl_io::depth::read_depth_with_limits(&path, &opts, &limits)
@@ -63,7 +69,7 @@ pub(crate) fn write_depth(
     py: Python<'_>,
     path: PathBuf,
     depth: &Bound<'_, PyAny>,
-    depth_scale: f64,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: f64,
     format: Option<&str>,
 ) -> PyResult<()> {
     let format = match parse_format(format)? {

@@ -60,7 +60,7 @@ pub(crate) fn analyze(
     py: Python<'_>,
     depth: &Bound<'_, PyAny>,
     camera: Option<&PyCamera>,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<PyAnalysis> {
     let camera = camera_or_default(camera);
     let input = depth_input(depth, depth_scale)?;
@@ -77,9 +77,17 @@ pub(crate) fn analyze(
     })
 }
 
-/// `min_return`: a number, not a bool (`True` is 1 to Python).
+/// `min_return`: a finite number >= 0, not a bool (`True` is 1 to Python), checked before the
+/// noise model is chosen (a NaN is no drop-out setting of either model).
 fn min_return_arg(obj: &Bound<'_, PyAny>) -> PyResult<f64> {
-    crate::reals::real(obj, "min_return")
+    let v = crate::reals::real(obj, "min_return")?;
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(value_error(format!(
+            "min_return = {} must be a finite number >= 0 (0 = off)",
+            sl_core::Compact(v)
+        )));
+    }
+    Ok(v)
 }
 
 /// `reflectance`: a dict of labels to reflectances, neither of them a bool (`True` would be

@@ -2,17 +2,46 @@
 //! autocorrelation, terrace widths, occlusion bands; `sl_noise::stats`), on the planes
 //! `sl-planes` finds or on labels the caller gives, as `sldepth noise-stats --json` reports them.
 
-use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyReadonlyArray2, PyUntypedArray, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyModule;
 use sl_core::Image;
 use sl_noise::stats::{NoiseStatsConfig, noise_stats as stats};
 use sl_planes::{PlaneConfig, extract_planes, frame_noise_scale};
 
-use crate::arrays::{check_camera, depth_input};
+use crate::arrays::{camera_for_depth, depth_input};
 use crate::camera::{PyCamera, camera_or_default};
 use crate::errors::value_error;
 use crate::threads::compute;
+
+/// `labels` as a uint16 (H, W) array, or a `ValueError` naming the argument (pyo3's own
+/// conversion error says neither which argument nor what it wants).
+fn labels_input<'py>(obj: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArray2<'py, u16>> {
+    let Ok(arr) = obj.cast::<PyUntypedArray>() else {
+        return Err(value_error(format!(
+            "labels must be a uint16 NumPy array of shape (H, W) (0 = no region), got {}",
+            obj.get_type()
+                .name()
+                .map_or_else(|_| "?".into(), |n| n.to_string())
+        )));
+    };
+    if arr.ndim() != 2 {
+        return Err(value_error(format!(
+            "labels must be 2-D (H, W), got an array of shape {:?}",
+            arr.shape()
+        )));
+    }
+    obj.extract::<PyReadonlyArray2<'py, u16>>().map_err(|_| {
+        let dtype = arr
+            .dtype()
+            .str()
+            .map_or_else(|_| "?".into(), |d| d.to_string());
+        value_error(format!(
+            "labels must be uint16 (H, W) (0 = no region, as extract_planes returns them), got \
+             dtype {dtype}; convert with labels.astype(numpy.uint16)"
+        ))
+    })
+}
 
 /// The noise statistics of a depth map with planar regions, as a dict with the keys of
 /// ``sldepth noise-stats --json``: ``sigma_d_px`` (median RMS disparity residual of 64-px tiles
@@ -33,20 +62,24 @@ pub(crate) fn noise_stats<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
-    labels: Option<PyReadonlyArray2<'py, u16>>,
+    labels: Option<&Bound<'py, PyAny>>,
     #[pyo3(from_py_with = crate::ints::int)] min_plane_pixels: usize,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let camera = camera_or_default(camera);
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
-    check_camera(&view, &camera)?;
+    let camera = camera_for_depth(&view, &camera, "depth")?;
+    let labels = labels
+        .filter(|l| !l.is_none())
+        .map(labels_input)
+        .transpose()?;
     let given = match &labels {
         Some(l) => {
             let (h, w) = (l.shape()[0], l.shape()[1]);
             if (w, h) != (view.width(), view.height()) {
                 return Err(value_error(format!(
-                    "labels are {w}x{h}, the depth map {}x{}",
+                    "labels are {w}x{h} (W x H), the depth map {}x{}",
                     view.width(),
                     view.height()
                 )));

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo, RegionExplanation};
 use sl_track::DepthMotionConfig;
 
-use crate::arrays::{check_camera, depth_input, image_array, pose_array};
+use crate::arrays::{camera_for_depth, depth_input, depth_input_named, image_array, pose_array};
 use crate::camera::{PyCamera, camera_or_default};
 use crate::errors::value_error;
 use crate::repr::{py_bool, py_opt};
@@ -220,17 +220,17 @@ pub(crate) fn extract_planes<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
-    threshold_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::threshold_px)] threshold_px: Option<f64>,
     #[pyo3(from_py_with = crate::ints::opt_int)] min_pixels: Option<usize>,
-    log_threshold_px: Option<f64>,
-    log_sigma_px: Option<f64>,
-    bend_px_per_px2: Option<f64>,
-    max_normal_sigma_deg: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::log_threshold_px)] log_threshold_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::log_sigma_px)] log_sigma_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::bend_px_per_px2)] bend_px_per_px2: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::max_normal_sigma_deg)] max_normal_sigma_deg: Option<f64>,
     split_creases: Option<bool>,
     refine_seams: Option<bool>,
     give_back_taken_in: Option<bool>,
     estimate_noise: Option<bool>,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<(Bound<'py, PyArray2<u16>>, Vec<PyPlane>)> {
     let params = PlaneParams {
         threshold_px,
@@ -260,18 +260,18 @@ pub(crate) fn explain_planes<'py>(
     py: Python<'py>,
     depth: &Bound<'py, PyAny>,
     camera: Option<&PyCamera>,
-    threshold_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::threshold_px)] threshold_px: Option<f64>,
     #[pyo3(from_py_with = crate::ints::opt_int)] min_pixels: Option<usize>,
-    log_threshold_px: Option<f64>,
-    log_sigma_px: Option<f64>,
-    bend_px_per_px2: Option<f64>,
-    max_normal_sigma_deg: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::log_threshold_px)] log_threshold_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::log_sigma_px)] log_sigma_px: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::bend_px_per_px2)] bend_px_per_px2: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::max_normal_sigma_deg)] max_normal_sigma_deg: Option<f64>,
     split_creases: Option<bool>,
     refine_seams: Option<bool>,
     give_back_taken_in: Option<bool>,
     estimate_noise: Option<bool>,
     #[pyo3(from_py_with = crate::ints::opt_int)] min_region_pixels: Option<usize>,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<Explained<'py>> {
     let params = PlaneParams {
         threshold_px,
@@ -317,7 +317,7 @@ fn run_extraction<'py>(
     let explain = explain.map(|min| min.unwrap_or(config.min_pixels));
     let input = depth_input(depth, depth_scale)?;
     let view = input.view()?;
-    check_camera(&view, &camera)?;
+    let camera = camera_for_depth(&view, &camera, "depth")?;
     let (seg, regions) = compute(py, || {
         with_extractor(config, |e| {
             let seg = e.extract_depth(view, &camera)?;
@@ -380,6 +380,8 @@ impl PyMotion {
 /// section 3.5), verified against both depth maps (``verify``), optionally refined by
 /// point-to-plane ICP that is kept only when the depth data confirm it (``icp``). An
 /// undetermined motion is returned with ``determined = False`` and the reason, never a guess.
+/// Frames whose size is the camera's divided by a whole number up to 8 are its sensor decimated
+/// (``camera.resampled(1/n)``), as ``sldepth motion`` reads them.
 #[pyfunction]
 #[pyo3(signature = (depth_a, depth_b, camera = None, *, icp = true, verify = true, depth_scale = None))]
 pub(crate) fn motion(
@@ -389,14 +391,22 @@ pub(crate) fn motion(
     camera: Option<&PyCamera>,
     icp: bool,
     verify: bool,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
 ) -> PyResult<PyMotion> {
     let camera = camera_or_default(camera);
-    let a = depth_input(depth_a, depth_scale)?;
-    let b = depth_input(depth_b, depth_scale)?;
+    let a = depth_input_named(depth_a, "depth_a", depth_scale)?;
+    let b = depth_input_named(depth_b, "depth_b", depth_scale)?;
     let (va, vb) = (a.view()?, b.view()?);
-    check_camera(&va, &camera)?;
-    check_camera(&vb, &camera)?;
+    let camera = camera_for_depth(&va, &camera, "depth_a")?;
+    if (vb.width(), vb.height()) != (va.width(), va.height()) {
+        return Err(value_error(format!(
+            "depth_b is {}x{} (W x H) but depth_a is {}x{}: both frames come from one camera",
+            vb.width(),
+            vb.height(),
+            va.width(),
+            va.height()
+        )));
+    }
     let (da, db) = (va.to_image(), vb.to_image());
     let mut cfg = DepthMotionConfig::default();
     cfg.icp = icp;

@@ -52,10 +52,10 @@ pub(crate) fn track_in_map<'py>(
     camera: &PyCamera,
     frames: Vec<Bound<'py, PyAny>>,
     start_pose: &Bound<'py, PyAny>,
-    depth_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     weighting: &str,
     prefilter: &str,
-    model_scale: Option<f64>,
+    #[pyo3(from_py_with = crate::reals::model_scale)] model_scale: Option<f64>,
 ) -> PyResult<Vec<TrackedFrame<'py>>> {
     let camera = camera.inner;
     let start = crate::arrays::pose_input(start_pose)?;
@@ -199,12 +199,14 @@ impl PyTracker {
         camera: &PyCamera,
         weighting: &str,
         frame_to_model: bool,
-        voxel_m: f64,
-        model_scale: Option<f64>,
+        #[pyo3(from_py_with = crate::reals::voxel_m)] voxel_m: f64,
+        #[pyo3(from_py_with = crate::reals::model_scale)] model_scale: Option<f64>,
         prefilter: &str,
         lens: &str,
-        new_fragment_after_s: Option<f64>,
-        rolling_shutter_ms: Option<f64>,
+        #[pyo3(from_py_with = crate::reals::new_fragment_after_s)] new_fragment_after_s: Option<
+            f64,
+        >,
+        #[pyo3(from_py_with = crate::reals::rolling_shutter_ms)] rolling_shutter_ms: Option<f64>,
         estimate_noise: bool,
         keyframes: bool,
         #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
@@ -268,8 +270,8 @@ impl PyTracker {
         &self,
         py: Python<'py>,
         depth: &Bound<'py, PyAny>,
-        depth_scale: Option<f64>,
-        timestamp_s: Option<f64>,
+        #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
+        #[pyo3(from_py_with = crate::reals::timestamp_s)] timestamp_s: Option<f64>,
     ) -> PyResult<TrackedFrame<'py>> {
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;

@@ -119,10 +119,10 @@ pub(crate) fn evaluate_trajectory<'py>(
     poses: &Bound<'py, PyAny>,
     gt_timestamps_s: Vec<f64>,
     gt_poses: &Bound<'py, PyAny>,
-    max_gap_s: f64,
-    delta: f64,
+    #[pyo3(from_py_with = crate::reals::max_gap_s)] max_gap_s: f64,
+    #[pyo3(from_py_with = crate::reals::delta)] delta: f64,
     delta_unit: &str,
-    offset_s: f64,
+    #[pyo3(from_py_with = crate::reals::offset_s)] offset_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (est, gt) = estimate_and_truth(timestamps_s, poses, gt_timestamps_s, gt_poses)?;
     let mut config = TrajectoryConfig::default();
@@ -166,9 +166,9 @@ pub(crate) fn estimate_time_offset<'py>(
     poses: &Bound<'py, PyAny>,
     gt_timestamps_s: Vec<f64>,
     gt_poses: &Bound<'py, PyAny>,
-    max_gap_s: f64,
-    max_s: f64,
-    step_s: f64,
+    #[pyo3(from_py_with = crate::reals::max_gap_s)] max_gap_s: f64,
+    #[pyo3(from_py_with = crate::reals::max_s)] max_s: f64,
+    #[pyo3(from_py_with = crate::reals::step_s)] step_s: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (est, gt) = estimate_and_truth(timestamps_s, poses, gt_timestamps_s, gt_poses)?;
     let mut config = TrajectoryConfig::default();

@@ -13,7 +13,9 @@ use sl_tsdf::{
     WeightMode,
 };
 
-use crate::arrays::{check_camera, depth_array, depth_input, image_array, pose_input, rows3_array};
+use crate::arrays::{
+    camera_for_depth, depth_array, depth_input, image_array, pose_input, rows3_array,
+};
 use crate::camera::PyCamera;
 use crate::errors::{SlDepthIOError, value_error};
 use crate::threads::{compute, compute_read, compute_write};
@@ -75,15 +77,15 @@ impl PyTsdfVolume {
     #[pyo3(signature = (voxel_m = 0.004, trunc_m = 0.02, weight = "inv-z4", *, max_depth_m = 4.0, min_depth_m = 0.1, memory_budget_bytes = 4usize << 30, depth_lookup = "nearest", truncation = "sensor", trunc_sigmas = 3.0, estimate_noise = true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        voxel_m: f64,
-        trunc_m: f64,
+        #[pyo3(from_py_with = crate::reals::voxel_m)] voxel_m: f64,
+        #[pyo3(from_py_with = crate::reals::trunc_m)] trunc_m: f64,
         weight: &str,
-        max_depth_m: f64,
-        min_depth_m: f64,
+        #[pyo3(from_py_with = crate::reals::max_depth_m)] max_depth_m: f64,
+        #[pyo3(from_py_with = crate::reals::min_depth_m)] min_depth_m: f64,
         #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
         depth_lookup: &str,
         truncation: &str,
-        trunc_sigmas: f64,
+        #[pyo3(from_py_with = crate::reals::trunc_sigmas)] trunc_sigmas: f64,
         estimate_noise: bool,
     ) -> PyResult<Self> {
         let sensor_weight = weight == "sensor";
@@ -123,7 +125,9 @@ impl PyTsdfVolume {
     }
 
     /// Integrates one depth frame (metres, (H, W)) seen by ``camera`` at ``pose``, a (4, 4)
-    /// camera-to-world matrix. Returns the number of blocks allocated by this frame.
+    /// camera-to-world matrix. Returns the number of blocks allocated by this frame. A frame
+    /// whose size is the camera's divided by a whole number up to 8 is the camera's sensor
+    /// decimated (``camera.resampled(1/n)``), as ``sldepth fuse`` reads it.
     #[pyo3(signature = (depth, camera, pose, *, depth_scale = None))]
     fn integrate(
         &self,
@@ -131,13 +135,12 @@ impl PyTsdfVolume {
         depth: &Bound<'_, PyAny>,
         camera: &PyCamera,
         pose: &Bound<'_, PyAny>,
-        depth_scale: Option<f64>,
+        #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     ) -> PyResult<usize> {
-        let camera = camera.inner;
         let pose = pose_input(pose)?;
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
-        check_camera(&view, &camera)?;
+        let camera = camera_for_depth(&view, &camera.inner, "depth")?;
         let stats = compute_write(py, &self.state, |state| -> Result<_, String> {
             if state.volume.frame_count() == 0 {
                 first_frame(state, &view, &camera)?;
@@ -168,7 +171,11 @@ impl PyTsdfVolume {
     /// Extracts the zero crossing as a triangle mesh (marching cubes over the observed voxels;
     /// cubes with a corner weight below ``min_weight`` are skipped).
     #[pyo3(signature = (min_weight = 0.0))]
-    fn extract_mesh(&self, py: Python<'_>, min_weight: f32) -> PyResult<PyMesh> {
+    fn extract_mesh(
+        &self,
+        py: Python<'_>,
+        #[pyo3(from_py_with = crate::reals::min_weight)] min_weight: f32,
+    ) -> PyResult<PyMesh> {
         let opts = mesh_config(min_weight)?;
         let mesh = self.read(py, |volume| volume.extract_mesh(&opts))?;
         PyMesh::from_mesh(py, mesh)
@@ -180,7 +187,7 @@ impl PyTsdfVolume {
         &self,
         py: Python<'_>,
         path: PathBuf,
-        min_weight: f32,
+        #[pyo3(from_py_with = crate::reals::min_weight)] min_weight: f32,
         ascii: bool,
     ) -> PyResult<()> {
         let opts = mesh_config(min_weight)?;
@@ -204,8 +211,8 @@ impl PyTsdfVolume {
         py: Python<'py>,
         camera: &PyCamera,
         pose: &Bound<'_, PyAny>,
-        min_depth_m: f64,
-        max_depth_m: f64,
+        #[pyo3(from_py_with = crate::reals::min_depth_m)] min_depth_m: f64,
+        #[pyo3(from_py_with = crate::reals::max_depth_m)] max_depth_m: f64,
     ) -> PyResult<(
         Bound<'py, PyArray2<f32>>,
         Bound<'py, PyArray3<f32>>,
@@ -245,7 +252,7 @@ impl PyTsdfVolume {
         &self,
         py: Python<'py>,
         axis: &str,
-        coord_m: f64,
+        #[pyo3(from_py_with = crate::reals::coord_m)] coord_m: f64,
         #[pyo3(from_py_with = crate::ints::int)] pixels_per_voxel: usize,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let spec = SliceSpec {

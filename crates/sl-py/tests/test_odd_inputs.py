@@ -141,7 +141,7 @@ def test_files_and_sequences_odd_but_legal(tmp_path, small_cam, wall):
     # The budget's message names the keyword, not the command line's option.
     sldepth.write_depth(tmp_path / "big.png", np.zeros((2048, 2048), np.float32))
     with pytest.raises(sldepth.SlDepthIOError, match="max_memory_bytes="):
-        sldepth.read_depth(tmp_path / "big.png", max_memory_bytes=1)
+        sldepth.read_depth(tmp_path / "big.png", max_memory_bytes=16 << 20)
 
 
 def test_one_volume_and_one_tracker_serve_several_threads(small_cam, wall):
@@ -169,3 +169,108 @@ def test_one_volume_and_one_tracker_serve_several_threads(small_cam, wall):
     assert errors == []
     assert vol.frame_count == 8
     assert len(tracker.frame_fragments) == 8
+
+
+# The third audit: arguments named in their own words, compact numbers, and frames of a
+# decimated camera read as the command line reads them.
+
+
+def _line_trajectory(n=10):
+    stamps = [100.0 + 0.1 * i for i in range(n)]
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    poses[:, 0, 3] = np.arange(n, dtype=float)
+    return stamps, poses
+
+
+def test_rpe_pairs_a_pose_only_with_a_later_one():
+    t, p = _line_trajectory()
+    # A delta so long that i + delta rounds paired every pose with the first; one shorter
+    # than the spacing paired each pose with itself (an RPE of 0).
+    for unit in ("frames", "seconds"):
+        with pytest.raises(ValueError, match=f"only 0 pose pairs 1e20 {unit} apart"):
+            sldepth.evaluate_trajectory(t, p, t, p, delta=1e20, delta_unit=unit)
+    with pytest.raises(ValueError, match="delta = 0.001 seconds is shorter than the spacing"):
+        sldepth.evaluate_trajectory(t, p, t, p, delta=0.001, delta_unit="seconds")
+    assert sldepth.evaluate_trajectory(t, p, t, p)["rpe"]["pairs"] == 8
+
+
+def test_filter_sigma_s_beyond_the_largest_window_names_sigma_s_and_radius(small_cam, wall):
+    with pytest.raises(ValueError, match=r"sigma_s = 20: .* = 40 px, exceeds the maximum 32 px; pass radius"):
+        sldepth.filter(wall, small_cam, sigma_s=20)
+    assert sldepth.filter(wall, small_cam, sigma_s=20, radius=3, multiscale=False).shape == wall.shape
+
+
+def test_tsdf_slice_prints_a_far_plane_compactly(small_cam, wall):
+    vol = sldepth.TsdfVolume(voxel_m=0.01, trunc_m=0.04)
+    vol.integrate(wall, small_cam, np.eye(4))
+    with pytest.raises(ValueError, match="plane z = 1e300 m .*span z from") as e:
+        vol.slice("z", 1e300)
+    assert "0000000000" not in str(e.value)
+
+
+def test_array_errors_name_the_argument(small_cam, wall):
+    with pytest.raises(ValueError, match=r"labels must be uint16 .* got dtype int32"):
+        sldepth.noise_stats(wall, small_cam, labels=np.ones((48, 64), dtype=np.int32))
+    with pytest.raises(ValueError, match=r"labels must be 2-D \(H, W\), got an array of shape \[48, 64, 1\]"):
+        sldepth.noise_stats(wall, small_cam, labels=np.ones((48, 64, 1), dtype=np.uint16))
+    with pytest.raises(ValueError, match="depth_b must be float32, float64"):
+        sldepth.motion(wall, wall.astype(np.int8), small_cam)
+    with pytest.raises(ValueError, match="depth_b must be 2-D"):
+        sldepth.motion(wall, wall[None], small_cam)
+    with pytest.raises(ValueError, match="depth_b is 32x48 .* but depth_a is 64x48"):
+        sldepth.motion(wall, wall[:, :32].copy(), small_cam)
+
+
+@pytest.mark.parametrize("flag", [True, False, np.bool_(True)])
+def test_bools_are_no_numbers_for_any_float_argument(small_cam, wall, flag):
+    t, p = _line_trajectory()
+    calls = {
+        "sigma_s": lambda: sldepth.filter(wall, small_cam, sigma_s=flag),
+        "k_per_m": lambda: sldepth.filter(wall, small_cam, k_per_m=flag),
+        "threshold_px": lambda: sldepth.extract_planes(wall, small_cam, threshold_px=flag),
+        "voxel_m": lambda: sldepth.TsdfVolume(voxel_m=flag),
+        "min_weight": lambda: sldepth.TsdfVolume().extract_mesh(min_weight=flag),
+        "delta": lambda: sldepth.evaluate_trajectory(t, p, t, p, delta=flag),
+        "fx": lambda: sldepth.Camera(64, 48, flag, 58.0, 31.5, 23.5),
+        "factor": lambda: small_cam.resampled(flag),
+        "depth_scale": lambda: sldepth.analyze(wall, small_cam, depth_scale=flag),
+    }
+    for name, call in calls.items():
+        with pytest.raises(TypeError, match=f"{name} must be a number, not a bool"):
+            call()
+
+
+def test_a_nan_min_return_is_not_finite_whatever_the_noise_model():
+    for noise in ("realistic", "white"):
+        with pytest.raises(ValueError, match="min_return = NaN must be a finite number >= 0"):
+            sldepth.simulate("floor", noise=noise, min_return=float("nan"))
+    with pytest.raises(ValueError, match="min_return = -1e300 must be"):
+        sldepth.simulate("floor", min_return=-1e300)
+
+
+def test_decimated_frames_are_read_as_the_sensor_decimated(kinect, three_planes):
+    # A 320x240 frame of the 640x480 camera, as `sldepth` and `analyze` accept it.
+    full = three_planes[0]
+    half = full[::2, ::2].copy()
+    assert sldepth.filter(half, kinect).shape == (240, 320)
+    np.testing.assert_array_equal(
+        sldepth.filter(half, kinect), sldepth.filter(half, kinect.resampled(0.5))
+    )
+    m = sldepth.motion(half, half, kinect)
+    assert m.planes_a >= 3
+    assert not m.determined or m.rotation_deg < 0.1
+    vol = sldepth.TsdfVolume()
+    assert vol.integrate(half, kinect, np.eye(4)) > 0
+    other = sldepth.TsdfVolume()
+    other.integrate(half, kinect.resampled(0.5), np.eye(4))
+    assert vol.block_count == other.block_count
+    # Any other size still names the argument and both sizes.
+    with pytest.raises(ValueError, match="depth is 300x240 .* camera is 640x480"):
+        sldepth.filter(half[:, :300].copy(), kinect)
+
+
+def test_read_depth_refuses_a_budget_below_the_floor(tmp_path):
+    with pytest.raises(ValueError, match="max_memory_bytes = 1 is below the minimum"):
+        sldepth.read_depth(tmp_path / "x.png", max_memory_bytes=1)
+    with pytest.raises(OSError, match="is a directory, not a depth file"):
+        sldepth.read_depth(tmp_path)

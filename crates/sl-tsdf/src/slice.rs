@@ -97,7 +97,8 @@ impl TsdfVolume {
         if !(1..=16).contains(&spec.pixels_per_voxel) || !spec.coord_m.is_finite() {
             return Err(TsdfError::InvalidParameter(format!(
                 "slice needs 1..=16 pixels per voxel and a finite coordinate, got {} / {}",
-                spec.pixels_per_voxel, spec.coord_m
+                spec.pixels_per_voxel,
+                sl_core::Compact(spec.coord_m)
             )));
         }
         let vm = self.params().voxel_m;
@@ -118,9 +119,25 @@ impl TsdfVolume {
                     }
                 }
                 if !lo[0].is_finite() {
+                    // Where the blocks are along the axis, to pick a plane that crosses them.
+                    let span = self.block_coords().map(|b| b[a]).fold(
+                        None,
+                        |acc: Option<(i32, i32)>, c| {
+                            Some(acc.map_or((c, c), |(l, h)| (l.min(c), h.max(c))))
+                        },
+                    );
+                    let name = ["x", "y", "z"][a];
+                    let extent = match span {
+                        Some((l, h)) => format!(
+                            "the allocated blocks span {name} from {} to {} m",
+                            sl_core::Compact(f64::from(l) * bs as f64 * vm),
+                            sl_core::Compact((f64::from(h) + 1.0) * bs as f64 * vm)
+                        ),
+                        None => "no block is allocated: nothing was fused".into(),
+                    };
                     return Err(TsdfError::InvalidParameter(format!(
-                        "no allocated block crosses the plane {:?} = {} m",
-                        spec.axis, spec.coord_m
+                        "no allocated block crosses the plane {name} = {} m ({extent})",
+                        sl_core::Compact(spec.coord_m)
                     )));
                 }
                 ([lo[0], hi[0]], [lo[1], hi[1]])
@@ -131,7 +148,9 @@ impl TsdfVolume {
         let (wf, hf) = (size(window.0), size(window.1));
         if !(wf >= 1.0 && hf >= 1.0 && wf <= MAX_SLICE_PX as f64 && hf <= MAX_SLICE_PX as f64) {
             return Err(TsdfError::InvalidParameter(format!(
-                "slice window {window:?} gives {wf}x{hf} pixels (max {MAX_SLICE_PX} per side)"
+                "slice window {window:?} gives {}x{} pixels (max {MAX_SLICE_PX} per side)",
+                sl_core::Compact(wf),
+                sl_core::Compact(hf)
             )));
         }
         let (w, h) = (wf as usize, hf as usize);

@@ -550,6 +550,27 @@ fn slice_shows_the_zero_crossing_at_the_wall() {
     assert!(front[0] > front[2]);
     let image = vol.slice_rgb(&SliceSpec::new(Axis::Y, 0.0)).unwrap();
     assert!(image.width() > 10 && image.height() > 4);
+    // A plane that misses the blocks names itself compactly and says where the blocks are.
+    for coord in [5.0, 1e300] {
+        let e = vol
+            .slice(&SliceSpec::new(Axis::Z, coord))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!(
+                "no allocated block crosses the plane z = {} m",
+                if coord == 5.0 { "5" } else { "1e300" }
+            )) && e.contains("the allocated blocks span z from"),
+            "{e}"
+        );
+        assert!(!e.contains("000000000"), "{e}");
+    }
+    let empty = TsdfVolume::new(params(0.01, 0.04, WeightMode::InvZ4)).unwrap();
+    let e = empty
+        .slice(&SliceSpec::new(Axis::X, 0.0))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nothing was fused"), "{e}");
 }
 
 proptest! {

@@ -43,6 +43,21 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
         .ok_or_else(|| format!("{s:?} is too large"))
 }
 
+/// Parses `--max-memory`: a byte count ([`parse_bytes`]) of at least
+/// [`sl_io::limits::MIN_MEMORY_BYTES`] (16 MiB: below it no frame could be read; refused, not
+/// silently raised).
+pub fn parse_memory(s: &str) -> std::result::Result<u64, String> {
+    let n = parse_bytes(s)?;
+    let min = sl_io::limits::MIN_MEMORY_BYTES;
+    if n < min {
+        return Err(format!(
+            "{s:?} ({n} bytes) is below the minimum budget of {}M ({min} bytes)",
+            min >> 20
+        ));
+    }
+    Ok(n)
+}
+
 /// A number for a message, compact whatever its size: as Rust prints it (`0.04`, `-3`, `NaN`)
 /// for magnitudes from 1e-4 to below 1e6, in scientific notation (`1e300`, `-2.5e-7`) beyond
 /// them, where `{}` would print a `1e300` as a 301-digit decimal.
@@ -227,7 +242,9 @@ pub const DEPTH_EXTS: [&str; 4] = ["png", "tif", "tiff", "pgm"];
 
 /// The encoding to write a depth output in: the output's extension picks the container (a
 /// `.png` keeps SUN RGB-D's bit rotation when the input had it), the rest (scale, invalid
-/// value) follows `input`.
+/// value) follows `input`. A `.pgm` is NYU raw Kinect disparity, the one PGM depth encoding
+/// there is: only a NYU raw input is written as one (any other would silently change from
+/// depth units to disparity); a NYU raw input written as `.png` or `.tif` is in millimetres.
 pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncoding> {
     let Some(format) = DepthFormat::from_path(path) else {
         bail!(
@@ -239,7 +256,14 @@ pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncodi
         (DepthFormat::Png, DepthFormat::Png | DepthFormat::Sun) => *input,
         (DepthFormat::Tiff, DepthFormat::Tiff) => *input,
         (DepthFormat::NyuRaw, DepthFormat::NyuRaw) => *input,
-        (DepthFormat::NyuRaw, _) => DepthEncoding::nyu_raw(),
+        (DepthFormat::NyuRaw, f) => bail!(
+            "{}: a .pgm is written as NYU raw Kinect disparity, which only a NYU raw input keeps; \
+             this input is {} depth at {} units per metre: name a .png or .tif output to write \
+             it in its own encoding",
+            path.display(),
+            f.name(),
+            num(input.units_per_m)
+        ),
         (f, DepthFormat::NyuRaw) => DepthEncoding::for_format(f),
         (f, _) => DepthEncoding {
             format: f,
@@ -425,11 +449,10 @@ pub fn parse_format(args: &InputArgs) -> Result<Option<DepthFormat>> {
 pub fn camera_for_frames(camera: &Camera, width: usize, height: usize) -> Option<Camera> {
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
     let k = &camera.intrinsics;
-    if (width, height) == (k.width, k.height) {
-        return Some(*camera);
+    let (resampled, n) = camera.for_frames(width, height)?;
+    if n == 1 {
+        return Some(resampled);
     }
-    let n = (2..=8usize).find(|&n| width * n == k.width && height * n == k.height)?;
-    let resampled = camera.resampled(1.0 / n as f64).ok()?;
     if NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
         return Some(resampled);
     }

@@ -37,8 +37,9 @@ struct Cli {
     /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
     /// elements, the TSDF of `fuse` (3/4 of it, its mesh included) and the model of `track`
     /// (1/2 of it, its mesh at the end within the whole; a full model stops growing and the
-    /// camera is tracked frame to frame from there). Default 4G.
-    #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_bytes)]
+    /// camera is tracked frame to frame from there). Default 4G; at least 16M (a smaller
+    /// budget is refused).
+    #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_memory)]
     max_memory: Option<u64>,
     #[command(subcommand)]
     command: Command,

@@ -196,7 +196,7 @@ fn eval_traj_errors_are_clear() {
         "100.0 0 0 0 0 0 0 1\n100.0 1 0 0 0 0 0 1\n100.1 1 0 0 0 0 0 1\n",
     );
     let one = write(dir.path(), "one.txt", "100.0 0 0 0 0 0 0 1\n");
-    let cases: [(&[&str], &str); 9] = [
+    let cases: [(&[&str], &str); 14] = [
         (&["eval-traj", &one, &gt], "at least two poses"),
         (
             &["eval-traj", "/nonexistent/est.txt", &gt],
@@ -210,7 +210,49 @@ fn eval_traj_errors_are_clear() {
             &["eval-traj", &gt, &gt, "--delta-unit", "minutes"],
             "minutes",
         ),
-        (&["eval-traj", &gt, &gt, "--offset-ms", "nan"], "offset_s"),
+        (
+            &["eval-traj", &gt, &gt, "--offset-ms", "nan"],
+            "--offset-ms NaN: must be finite and at most 60000 ms either way",
+        ),
+        (
+            &["eval-traj", &gt, &gt, "--offset-ms", "1e300"],
+            "--offset-ms 1e300: must be finite and at most 60000 ms",
+        ),
+        // Without --estimate-offset the range would be ignored.
+        (
+            &["eval-traj", &gt, &gt, "--offset-search-ms", "10"],
+            "--offset-search-ms applies to --estimate-offset",
+        ),
+        // A pair is a pose and a strictly later one: a delta so long that `i + delta` rounds
+        // paired every pose with the first, one shorter than the spacing each with itself.
+        (
+            &["eval-traj", &gt, &gt, "--delta", "1e20"],
+            "--delta 1e20 frames",
+        ),
+        (
+            &[
+                "eval-traj",
+                &gt,
+                &gt,
+                "--delta",
+                "1e20",
+                "--delta-unit",
+                "seconds",
+            ],
+            "--delta 1e20 seconds",
+        ),
+        (
+            &[
+                "eval-traj",
+                &gt,
+                &gt,
+                "--delta",
+                "0.001",
+                "--delta-unit",
+                "s",
+            ],
+            "delta = 0.001 seconds is shorter than the spacing",
+        ),
         (
             &[
                 "eval-traj",

@@ -117,8 +117,10 @@ pub(crate) fn sorted_estimate(
         // Adding the same value keeps the order but may round two near stamps together.
         if let Some(w) = v.windows(2).find(|w| w[0].0 >= w[1].0) {
             return Err(EvalError::InvalidParameter(format!(
-                "estimated trajectory: two timestamps become equal at {} s after the {} s offset",
-                w[0].0, config.offset_s
+                "estimated trajectory: two timestamps become equal at {} s after the {} s clock \
+                 offset",
+                sl_core::Compact(w[0].0),
+                sl_core::Compact(config.offset_s)
             )));
         }
     }

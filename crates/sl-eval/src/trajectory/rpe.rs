@@ -61,15 +61,18 @@ pub struct RpeResult {
 /// RPE of `est` against `gt` (see the module docs) with `evaluate_rpe.py`'s definitions:
 ///
 /// * pairs `(i, j)` of estimated poses with `j` the pose whose index (frames) or timestamp
-///   (seconds) is nearest to `i`'s plus `delta`, skipping `j` = the last pose (as TUM does);
-///   all pairs are used (TUM samples 10 000 when there are more);
+///   (seconds) is nearest to `i`'s plus `delta`, skipping `j` = the last pose (as TUM does)
+///   and any `j` not strictly after `i` (a delta shorter than the poses' spacing pairs a pose
+///   with itself, one so large that `i + delta` rounds pairs it with the first: neither is a
+///   motion); all pairs are used (TUM samples 10 000 when there are more);
 /// * each end is matched to the ground-truth pose of nearest timestamp, and the pair is
 ///   skipped when either is more than twice the median ground-truth interval away;
 /// * with relative motions `Δ = P₁⁻¹·P₀`, the error is `E = Δ_est⁻¹·Δ_gt`: its translation
 ///   length and its rotation angle `acos((tr R − 1)/2)`.
 ///
 /// Fails when fewer than two estimated poses overlap the ground truth or fewer than two pairs
-/// remain.
+/// remain (the message names `delta` and its unit, and says when the delta is shorter than
+/// the poses' spacing).
 pub fn rpe(
     est: &[StampedPose],
     gt: &[StampedPose],
@@ -115,9 +118,14 @@ pub fn rpe(
     let max_gap_s = 2.0 * median;
     let mut trans = Vec::new();
     let mut rot = Vec::new();
+    // Poses whose nearest partner `delta` later is themselves.
+    let mut with_itself = 0usize;
     for i in 0..n {
         let j = closest_index(&index, index[i] + config.delta);
-        if j == n - 1 {
+        if j == i {
+            with_itself += 1;
+        }
+        if j <= i || j == n - 1 {
             continue;
         }
         let g0 = closest_index(&stamps_gt, stamps_est[i]);
@@ -137,11 +145,19 @@ pub fn rpe(
         rot.push(c.acos());
     }
     if trans.len() < 2 {
+        let unit = config.delta_unit.name();
+        let delta = sl_core::Compact(config.delta);
+        let why = if with_itself > n / 2 {
+            format!(
+                "delta = {delta} {unit} is shorter than the spacing of the estimated poses, \
+                 which pairs most poses with themselves"
+            )
+        } else {
+            format!("too short a trajectory for delta = {delta} {unit}?")
+        };
         return Err(EvalError::InvalidParameter(format!(
-            "only {} pose pairs {} {} apart have ground truth: too short a trajectory for this delta?",
+            "only {} pose pairs {delta} {unit} apart have ground truth: {why}",
             trans.len(),
-            config.delta,
-            config.delta_unit.name()
         )));
     }
     Ok(RpeResult {

@@ -323,3 +323,39 @@ fn bad_offsets_are_errors() {
     let late: Vec<StampedPose> = est.iter().map(|(s, p)| (s + 30.0, *p)).collect();
     assert!(estimate_time_offset(&late, &gt, &cfg, &OffsetSearch::default()).is_err());
 }
+
+#[test]
+fn a_pair_is_a_pose_and_a_strictly_later_one() {
+    let gt = wiggly(60);
+    let msg = |delta: f64, delta_unit: DeltaUnit| -> String {
+        let cfg = TrajectoryConfig {
+            delta,
+            delta_unit,
+            ..TrajectoryConfig::default()
+        };
+        rpe(&gt, &gt, &cfg).unwrap_err().to_string()
+    };
+    // So long that `i + delta` rounds to `delta`, whose nearest pose by TUM's bisection is the
+    // first: each pose was paired with pose 0 (an RPE of the trajectory run backwards).
+    for unit in [DeltaUnit::Frames, DeltaUnit::Seconds] {
+        let e = msg(1e20, unit);
+        assert!(
+            e.contains("only 0 pose pairs 1e20") && e.contains(unit.name()),
+            "{e}"
+        );
+        assert!(e.contains("too short a trajectory for delta = 1e20"), "{e}");
+    }
+    // Shorter than the poses' 1/30 s spacing: each pose was its own pair, an RPE of 0.
+    let e = msg(0.001, DeltaUnit::Seconds);
+    assert!(
+        e.contains("delta = 0.001 seconds is shorter than the spacing"),
+        "{e}"
+    );
+    // Just over half the spacing pairs neighbours, as before.
+    let cfg = TrajectoryConfig {
+        delta: 0.02,
+        delta_unit: DeltaUnit::Seconds,
+        ..TrajectoryConfig::default()
+    };
+    assert_eq!(rpe(&gt, &gt, &cfg).unwrap().pairs, 58);
+}

@@ -12,6 +12,9 @@ _Path = Union[str, PathLike]
 #: Depth: (H, W) float32/float64 metres, or uint16 with ``depth_scale`` units per metre.
 _Depth = npt.NDArray[Union[np.float32, np.float64, np.uint16]]
 _Pose = Union[npt.NDArray[np.floating], Sequence[Sequence[float]]]
+#: Every float argument refuses a bool (TypeError naming it): True is not 1.0 here.
+#: A frame whose size is the camera's divided by a whole n up to 8 (320x240 for a 640x480
+#: camera) is read as the camera's sensor decimated, camera.resampled(1/n), as `sldepth` does.
 
 class SlDepthError(ValueError): ...
 class SlDepthIOError(OSError): ...
@@ -90,7 +93,8 @@ def read_depth(
     max_memory_bytes: Optional[int] = None,
 ) -> npt.NDArray[np.float32]:
     """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun".
-    max_memory_bytes bounds the read (default 4 GiB); too large an image raises OSError
+    max_memory_bytes bounds the read (default 4 GiB, at least 16 MiB: less raises ValueError);
+    too large an image raises OSError
     from its header, before decoding."""
 
 def write_depth(
@@ -130,7 +134,7 @@ def simulate(
     (r in metres, relative to a white surface facing the camera at 1 m) drop out; reflectance
     maps labels to their infrared reflectance in [0, 1] (others reflect 1), which only that
     drop-out reads: without a positive min_return (or with noise="white") it raises
-    ValueError."""
+    ValueError. min_return must be a finite number >= 0 (NaN raises ValueError)."""
 
 def noise_stats(
     depth: _Depth,
@@ -144,8 +148,8 @@ def noise_stats(
     `sldepth noise-stats --json`: sigma_d_px, bands (sigma_D per depth band), acf (residual
     autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands,
     the predicted projector shadow, and by_shadow: the edges and those with a band per bin of
-    predicted shadow, upper_px 2, 5, 10, None), invalid_fraction; None where not measured. labels (uint16,
-    0 = none) default to the planes extract_planes finds (>= min_plane_pixels). Against the
+    predicted shadow, upper_px 2, 5, 10, None), invalid_fraction; None where not measured. labels (uint16
+    (H, W), 0 = none; another dtype or shape raises ValueError naming labels) default to the planes extract_planes finds (>= min_plane_pixels). Against the
     camera's own model: model_sigma_d_px, model_variance_scale (the frame's pixel variance over
     the model's, 1 when within it, as extract_planes measures it) and model_effective_sigma_d_px
     (the sigma_D that variance means)."""
@@ -177,7 +181,9 @@ def filter(
     multiscale: coarse disparity passes after the filter (None: yes for adaptive and
     disparity, as ``sldepth filter``; False: the paper's single pass); estimate_noise: range
     kernels for the frame's measured sigma_D when it is significantly above the camera's
-    (as ``sldepth filter`` by default; 0.2-0.4 ms more per 640x480 frame)."""
+    (as ``sldepth filter`` by default; 0.2-0.4 ms more per 640x480 frame). radius at most 32;
+    sigma_s alone sets radius ceil(2*sigma_s), so a sigma_s above 16 needs a radius. A frame
+    of the camera decimated by a whole n up to 8 is accepted (see _Depth)."""
 
 class Mesh:
     @property
@@ -232,7 +238,8 @@ class TsdfVolume:
         *,
         depth_scale: Optional[float] = None,
     ) -> int:
-        """pose: (4, 4) camera-to-world. Returns blocks allocated."""
+        """pose: (4, 4) camera-to-world. Returns blocks allocated. A frame of the camera
+        decimated by a whole n up to 8 is fused as camera.resampled(1/n)."""
     def extract_mesh(self, min_weight: float = 0.0) -> Mesh: ...
     def write_ply(self, path: _Path, min_weight: float = 0.0, ascii: bool = False) -> None: ...
     def slice(
@@ -369,7 +376,9 @@ def motion(
     verify: bool = True,
     depth_scale: Optional[float] = None,
 ) -> Motion:
-    """X_a = T X_b between two frames of one camera; determined=False when undetermined."""
+    """X_a = T X_b between two frames of one camera; determined=False when undetermined.
+    depth_a and depth_b have one size: the camera's, or the camera's divided by a whole n up to
+    8 (its sensor decimated)."""
 
 def track_in_map(
     volume: TsdfVolume,
@@ -501,7 +510,9 @@ def evaluate_trajectory(
     """ATE (after Horn's rigid alignment) and RPE (over delta frames or seconds) with the TUM
     benchmark's definitions, as `sldepth eval-traj --json`: {"ate_m": {rmse, mean, median,
     std, min, max}, "rpe": {"translation_m": {...}, "rotation_deg": {...}, pairs, ...}, ...}.
-    offset_s (seconds) is added to the estimate's timestamps before matching them."""
+    offset_s (seconds) is added to the estimate's timestamps before matching them. An RPE pair
+    is a pose and a strictly later one: a delta that pairs no pose with a later one (longer than
+    the trajectory, or shorter than its pose spacing) raises ValueError."""
 
 def estimate_time_offset(
     timestamps_s: Sequence[float],

@@ -3,14 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use serde_json::json;
 use sl_eval::trajectory::{
-    AteResult, DeltaUnit, ErrorStats, OffsetSearch, RpeResult, StampedPose, TimeOffset,
-    TrajectoryConfig, ate, estimate_time_offset, rpe,
+    AteResult, DeltaUnit, ErrorStats, MAX_OFFSET_S, OffsetSearch, RpeResult, StampedPose,
+    TimeOffset, TrajectoryConfig, ate, estimate_time_offset, rpe,
 };
 
-use crate::common::{limits, print_json, round_to};
+use crate::common::{limits, num, print_json, round_to};
 
 /// Options of `sldepth eval-traj`.
 #[derive(Debug, clap::Args)]
@@ -54,15 +54,14 @@ pub struct Args {
     /// (the depth timestamps lag the motion capture: docs/bench/track.md, session 61).
     #[arg(long)]
     pub estimate_offset: bool,
-    /// Range of `--estimate-offset`, milliseconds either way.
-    #[arg(
-        long,
-        value_name = "MS",
-        default_value_t = 100.0,
-        allow_negative_numbers = true
-    )]
-    pub offset_search_ms: f64,
+    /// Range of `--estimate-offset`, milliseconds either way (default 100; only with
+    /// `--estimate-offset`).
+    #[arg(long, value_name = "MS", allow_negative_numbers = true)]
+    pub offset_search_ms: Option<f64>,
 }
+
+/// Default of `--offset-search-ms`, milliseconds.
+const DEFAULT_OFFSET_SEARCH_MS: f64 = 100.0;
 
 /// Reads a TUM trajectory within the run's limits.
 fn read(path: &Path, what: &str) -> Result<Vec<StampedPose>> {
@@ -89,6 +88,18 @@ pub fn run(args: Args) -> Result<()> {
     config.max_gap_s = args.max_gap_s;
     config.delta = args.delta;
     config.delta_unit = DeltaUnit::parse(&args.delta_unit)?;
+    // Checked here to name the option and its unit (the library's check says `offset_s`).
+    let max_offset_ms = MAX_OFFSET_S * 1e3;
+    if !(args.offset_ms.is_finite() && args.offset_ms.abs() <= max_offset_ms) {
+        bail!(
+            "--offset-ms {}: must be finite and at most {} ms either way",
+            num(args.offset_ms),
+            num(max_offset_ms)
+        );
+    }
+    if args.offset_search_ms.is_some() && !args.estimate_offset {
+        bail!("--offset-search-ms applies to --estimate-offset, which is not given");
+    }
     config.offset_s = args.offset_ms * 1e-3;
     config.validate()?;
     let est = read(&args.estimated, "estimated")?;
@@ -96,7 +107,7 @@ pub fn run(args: Args) -> Result<()> {
     let found: Option<TimeOffset> = if args.estimate_offset {
         // Every whole millisecond (the default step) within the range.
         let mut search = OffsetSearch::default();
-        search.max_s = args.offset_search_ms * 1e-3;
+        search.max_s = args.offset_search_ms.unwrap_or(DEFAULT_OFFSET_SEARCH_MS) * 1e-3;
         let f = estimate_time_offset(&est, &gt, &config, &search)
             .context("estimating the clock offset")?;
         config.offset_s = f.offset_s;
@@ -105,7 +116,13 @@ pub fn run(args: Args) -> Result<()> {
         None
     };
     let a: AteResult = ate(&est, &gt, &config).context("absolute trajectory error")?;
-    let r: RpeResult = rpe(&est, &gt, &config).context("relative pose error")?;
+    let r: RpeResult = rpe(&est, &gt, &config).with_context(|| {
+        format!(
+            "relative pose error over --delta {} {}",
+            num(config.delta),
+            config.delta_unit.name()
+        )
+    })?;
     if args.json {
         print_json(&json!({
             "estimated": args.estimated.display().to_string(),

@@ -9,11 +9,13 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
 use serde_json::json;
-use sl_filter::{DepthFilter, FilterConfig, Isa, Method, MultiScale, RangeKernel, Window};
+use sl_filter::{
+    DepthFilter, FilterConfig, Isa, MAX_RADIUS_PX, Method, MultiScale, RangeKernel, Window,
+};
 
 use crate::common::{
     DEPTH_EXTS, InputArgs, check_distinct_outputs, check_output, check_outputs_spare_inputs,
-    load_depth, output_encoding, print_json, round_to, save_depth,
+    load_depth, num, output_encoding, print_json, round_to, save_depth,
 };
 
 /// Most `--repeat` runs (a timing loop, not a way to keep the machine busy for days).
@@ -25,18 +27,21 @@ pub struct Args {
     /// Input depth map (16-bit PNG/TIFF, NYU raw PGM, SUN PNG).
     #[arg(value_name = "IN")]
     pub input_path: PathBuf,
-    /// Output depth map, written in the input's encoding and depth scale.
+    /// Output depth map, written in the input's encoding and depth scale: `.png` or `.tif`
+    /// (a NYU raw input: millimetres), or `.pgm` for a NYU raw input only (NYU raw Kinect
+    /// disparity; refused for any other input).
     #[arg(value_name = "OUT")]
     pub output: PathBuf,
     /// Filter: `gaussian`, `bilateral` (fixed range σ), `adaptive` (σ_d = k·Z², from the sensor
     /// model: no tuning needed) or `disparity` (bilateral on D = f·B/Z with a constant σ).
     #[arg(long, default_value = "adaptive", value_parser = PossibleValuesParser::new(Method::NAMES).try_map(|s| s.parse::<Method>()))]
     pub method: Method,
-    /// Window radius, pixels (window = 2r+1 square; 2 and 3 are the fast paths). Default 3, or
-    /// ceil(2·σ_s) when only --sigma-s is given.
+    /// Window radius, pixels (window = 2r+1 square; 2 and 3 are the fast paths; at most 32).
+    /// Default 3, or ceil(2·σ_s) when only --sigma-s is given.
     #[arg(long, value_name = "PX")]
     pub radius: Option<usize>,
-    /// Spatial σ, pixels. Default radius/2.
+    /// Spatial σ, pixels. Default radius/2. Without --radius the window grows to ceil(2·σ_s),
+    /// at most 32 px: a larger σ_s needs --radius.
     #[arg(long, value_name = "PX")]
     pub sigma_s: Option<f64>,
     /// Window shape: `square` (every pixel of the 2r+1 square) or `disc` (dx² + dy² ≤ r²,
@@ -92,6 +97,18 @@ pub struct Args {
 
 /// The filter the options describe, for a camera's sensor model.
 pub fn build_filter(args: &Args, sensor: &sl_core::SensorModel) -> Result<DepthFilter> {
+    if let (None, Some(s)) = (args.radius, args.sigma_s) {
+        let r = (2.0 * s).ceil();
+        if s.is_finite() && r > MAX_RADIUS_PX as f64 {
+            bail!(
+                "--sigma-s {}: the window radius it implies, ceil(2·σ_s) = {} px, exceeds the \
+                 maximum {MAX_RADIUS_PX} px; pass --radius (at most {MAX_RADIUS_PX}) to keep \
+                 this σ_s in a smaller window",
+                num(s),
+                num(r)
+            );
+        }
+    }
     let mut config = FilterConfig::new(args.method);
     config.radius_px = args.radius;
     config.sigma_s_px = args.sigma_s;

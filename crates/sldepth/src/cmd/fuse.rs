@@ -76,9 +76,9 @@ pub struct Args {
     #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = PossibleValuesParser::new(DepthLookup::NAMES).try_map(|s| s.parse::<DepthLookup>()))]
     pub depth_lookup: DepthLookup,
     /// Skip marching cubes with a corner whose accumulated weight is below this (1 = one
-    /// observation at 1 m).
+    /// observation at 1 m), from 0 to 1e30.
     #[arg(long, value_name = "W", default_value_t = 0.0)]
-    pub min_weight: f32,
+    pub min_weight: f64,
     /// Memory the voxel blocks, the candidate blocks of a frame and the mesh extraction may use,
     /// bytes; exceeding it stops with an error. Default (and maximum): 3/4 of --max-memory.
     #[arg(long, value_name = "BYTES")]
@@ -112,7 +112,9 @@ pub struct Args {
     #[arg(long, value_name = "M", default_value_t = 0.0)]
     pub slice_m: f64,
     /// Write the cross-section of F (blue behind, red in front of the surface, zero crossing in
-    /// black, grey unobserved) as PNG.
+    /// black, grey unobserved) as PNG. When no fused block crosses the plane (--slice-axis,
+    /// --slice-m) the mesh and --render-png are still written, and the command then fails
+    /// saying where the blocks are.
     #[arg(long, value_name = "FILE.png")]
     pub slice_png: Option<PathBuf>,
     /// Write a shaded rendering of the mesh seen from the first frame's camera as PNG.
@@ -248,14 +250,9 @@ pub fn run(args: Args) -> Result<()> {
         ("--slice-png", args.slice_png.as_deref()),
         ("--render-png", args.render_png.as_deref()),
     ])?;
-    // Checked as the `f32` the option is parsed into (1e30 rounds up in `f32`: an `f64` bound
-    // refused the documented maximum).
-    if !(0.0..=1e30_f32).contains(&args.min_weight) {
-        bail!(
-            "--min-weight {}: must be a number from 0 to 1e30",
-            crate::common::num(args.min_weight)
-        );
-    }
+    // Read as an `f64` (an `f32` parse turned 1e300 into `inf`, which the message then
+    // printed) and checked before it becomes the `f32` of the mesh configuration.
+    check_range("--min-weight", args.min_weight, 0.0..=1e30)?;
     check_range("--slice-m", args.slice_m, -1e6..=1e6)?;
     // The same bounds as `sldepth track`: beyond them the volume's geometry is meaningless
     // (a 1e300 m voxel overflowed into a "voxel too small" error).
@@ -412,22 +409,27 @@ pub fn run(args: Args) -> Result<()> {
 
     let t0 = Instant::now();
     let mut mesh_config = MeshConfig::default();
-    mesh_config.min_weight = args.min_weight;
+    mesh_config.min_weight = args.min_weight as f32;
     let mesh = volume.extract_mesh_within(&mesh_config, params.memory_budget_bytes)?;
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
     if mesh.vertex_count() == 0 {
         errln!(
             "note: the mesh is empty: no fused surface within --max-depth-m {} m and --min-weight \
              {} (surfaces farther away are left out; is --depth-scale right?)",
-            params.max_depth_m,
-            args.min_weight
+            crate::common::num(params.max_depth_m),
+            crate::common::num(args.min_weight)
         );
     }
 
-    // The images are made before the first byte is written: a failure writes nothing.
-    let slice = match &args.slice_png {
-        Some(png) => Some((png, volume.slice_rgb(&SliceSpec::new(axis, args.slice_m))?)),
-        None => None,
+    // The images are made before the first byte is written: a failure writes nothing. The
+    // slice is the exception: a plane that misses the fused blocks is a wrong --slice-m, not a
+    // failed fusion, so the mesh of the whole run is written before that error is reported.
+    let (slice, slice_error) = match &args.slice_png {
+        Some(png) => match volume.slice_rgb(&SliceSpec::new(axis, args.slice_m)) {
+            Ok(img) => (Some((png, img)), None),
+            Err(e) => (None, Some((png, e))),
+        },
+        None => (None, None),
     };
     let render = match (&args.render_png, first_pose) {
         (Some(png), Some(pose)) => Some((png, sl_eval::render::render_mesh(&mesh, &k, &pose)?)),
@@ -487,6 +489,25 @@ pub fn run(args: Args) -> Result<()> {
             volume.memory_bytes() as f64 / (1 << 20) as f64,
             extract_ms
         );
+    }
+    if let Some((png, e)) = slice_error {
+        let written: Vec<String> = [args.output.as_ref(), args.render_png.as_ref()]
+            .into_iter()
+            .flatten()
+            .map(|p| p.display().to_string())
+            .collect();
+        let note = if written.is_empty() {
+            String::new()
+        } else {
+            format!(" ({} written)", written.join(" and "))
+        };
+        return Err(anyhow::Error::new(e).context(format!(
+            "--slice-png {} not written{note}: --slice-axis {} --slice-m {} misses the fused \
+             volume",
+            png.display(),
+            args.slice_axis,
+            crate::common::num(args.slice_m)
+        )));
     }
     Ok(())
 }
