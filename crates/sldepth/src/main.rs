@@ -35,9 +35,10 @@ struct Cli {
     /// Memory budget, bytes (suffixes K, M, G: powers of 1024). Every input is checked
     /// against limits derived from it before anything is allocated: pixels per image (budget /
     /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
-    /// elements, the TSDF of `fuse` (3/4 of it, its mesh included) and the model of `track`
-    /// (1/2 of it, its mesh at the end within the whole; a full model stops growing and the
-    /// camera is tracked frame to frame from there). Default 4G; at least 16M (a smaller
+    /// elements, and the TSDF of `fuse` and `track` (1/3 of it for the blocks, 3/4 for the blocks
+    /// and their mesh: extracting a mesh takes about as much memory as its volume). A full
+    /// volume ends `fuse` with the mesh of the frames before; in `track` it stops growing and
+    /// the camera is tracked frame to frame from there. Default 4G; at least 16M (a smaller
     /// budget is refused).
     #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_memory)]
     max_memory: Option<u64>,

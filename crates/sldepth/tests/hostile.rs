@@ -315,7 +315,7 @@ fn fuse_counts_candidate_blocks_against_the_budget_as_they_are_found() {
     assert!(!mesh.exists());
     // Within the budget the same sequence fuses (with the former fixed 2 cm band: the default
     // sensor-adaptive band, up to 7.7 cm at 4 m, needs 14 159 blocks = 56 MiB here, over the
-    // 48 MiB TSDF share of 64M), and a budget over the TSDF share is refused.
+    // 21 MiB TSDF share of 64M), and a budget over the TSDF share is refused.
     let ok = run_bounded(&[
         "fuse",
         "--frames",

@@ -83,8 +83,8 @@ impl TsdfVolume {
 
     /// [`TsdfVolume::extract_mesh`] within a memory budget: after the per-block tables are
     /// built (a fixed cost per block) and before any mesh buffer is allocated, the volume, the
-    /// tables and the mesh (vertices with their attributes, triangles twice: per-block lists and
-    /// the final array) are counted against `budget_bytes`; past it the result is
+    /// tables and the mesh (vertices with their attributes, and room for the table's triangles of
+    /// every cube, written in place) are counted against `budget_bytes`; past it the result is
     /// [`crate::TsdfError::MeshBudget`]. The mesh is the same as
     /// [`TsdfVolume::extract_mesh`]'s.
     pub fn extract_mesh_within(
@@ -146,12 +146,19 @@ impl TsdfVolume {
         offsets.push(total);
 
         let tab = table();
+        // Per block, the table's triangles of its cubes: room for its triangles (a cube whose
+        // edge vertex is not kept has none).
+        let tri_room: Vec<usize> = per_block
+            .iter()
+            .map(|bv| {
+                bv.cubes
+                    .iter()
+                    .map(|&(_, case)| tab.triangles(case).len())
+                    .sum()
+            })
+            .collect();
+        let triangles: usize = tri_room.iter().sum();
         if budget_bytes != usize::MAX {
-            let triangles: usize = per_block
-                .iter()
-                .flat_map(|bv| bv.cubes.iter())
-                .map(|&(_, case)| tab.triangles(case).len())
-                .sum();
             let vertices = total as usize;
             let per_vertex =
                 12 + if opts.normals { 12 } else { 0 } + if opts.confidence { 4 } else { 0 };
@@ -171,7 +178,7 @@ impl TsdfVolume {
                 .memory_bytes()
                 .saturating_add(tables)
                 .saturating_add(vertices.saturating_mul(per_vertex))
-                .saturating_add(triangles.saturating_mul(2 * 12));
+                .saturating_add(triangles.saturating_mul(12));
             if needed > budget_bytes {
                 return Err(crate::TsdfError::MeshBudget {
                     vertices,
@@ -209,7 +216,11 @@ impl TsdfVolume {
         let mut conf = split_chunks(confidence, lens());
         nrm.resize_with(per_block.len(), || &mut []);
         conf.resize_with(per_block.len(), || &mut []);
-        let mut outs = pos.into_iter().zip(nrm).zip(conf).enumerate();
+        // Each block writes its triangles into its room of one array, which is then compacted
+        // in place (no second copy of the triangles).
+        let mut all_tris = vec![[0u32; 3]; triangles];
+        let rooms = split_chunks(&mut all_tris, tri_room.iter().copied());
+        let mut outs = pos.into_iter().zip(nrm).zip(conf).zip(rooms).enumerate();
         let mut items = Vec::new();
         loop {
             let chunk: Vec<_> = outs.by_ref().take(CHUNK).collect();
@@ -218,26 +229,28 @@ impl TsdfVolume {
             }
             items.push(chunk);
         }
-        let tri_lists: Vec<Vec<[u32; 3]>> = run_on_threads(
+        let written: Vec<Vec<usize>> = run_on_threads(
             items,
             || (BlockGrid::new(), EdgeWindow::new()),
             |(grid, win), chunk| {
-                let mut tris = Vec::new();
-                for (slot, ((p, nr), cf)) in chunk {
+                let mut counts = Vec::with_capacity(chunk.len());
+                for (slot, (((p, nr), cf), room)) in chunk {
                     let bv = &per_block[slot];
                     block_vertex_data(&mc, grid, slot, bv, p, nr, cf);
-                    tris.extend_from_slice(&block_triangles(bv, &per_block, &offsets, tab, win));
+                    counts.push(block_triangles(bv, &per_block, &offsets, tab, win, room));
                 }
-                tris
+                counts
             },
         );
-        mesh.triangles = vec![[0; 3]; tri_lists.iter().map(Vec::len).sum()];
-        let tris = split_chunks(&mut mesh.triangles, tri_lists.iter().map(Vec::len));
-        run_on_threads(
-            tris.into_iter().zip(&tri_lists).collect(),
-            || (),
-            |_, (dst, src)| dst.copy_from_slice(src),
-        );
+        // Blocks in order: each block's triangles move down to follow the ones before.
+        let (mut from, mut to) = (0, 0);
+        for (room, n) in tri_room.iter().zip(written.iter().flatten()) {
+            all_tris.copy_within(from..from + n, to);
+            from += room;
+            to += n;
+        }
+        all_tris.truncate(to);
+        mesh.triangles = all_tris;
         Ok(mesh)
     }
 }

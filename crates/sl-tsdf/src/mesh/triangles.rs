@@ -24,7 +24,8 @@ impl EdgeWindow {
 }
 
 /// Phase C of [`TsdfVolume::extract_mesh`]: the triangles of the cubes of one block, with
-/// global vertex indices.
+/// global vertex indices, written into `out` (room for the table's triangles of each of its
+/// cubes); returns how many were written (a cube with an edge vertex not kept has none).
 #[inline(never)]
 pub(super) fn block_triangles(
     bv: &BlockVertices,
@@ -32,9 +33,10 @@ pub(super) fn block_triangles(
     offsets: &[u32],
     tab: &McTable,
     win: &mut EdgeWindow,
-) -> Vec<[u32; 3]> {
+    out: &mut [[u32; 3]],
+) -> usize {
     if bv.cubes.is_empty() {
-        return Vec::new();
+        return 0;
     }
     // A new tag; entries with another tag are stale (after 2^32 calls, start afresh).
     win.tag = win.tag.wrapping_add(1);
@@ -73,7 +75,7 @@ pub(super) fn block_triangles(
             }
         }
     }
-    let mut out = Vec::with_capacity(bv.cubes.len() * 2);
+    let mut written = 0;
     'cube: for &(ci, case) in &bv.cubes {
         let (lx, ly, lz) = (
             usize::from(ci & 7),
@@ -90,10 +92,14 @@ pub(super) fn block_triangles(
                     _ => continue 'cube,
                 }
             }
-            out.push(idx);
+            // `out` holds the table's triangles of every cube: a cube skipped leaves room.
+            if let Some(slot) = out.get_mut(written) {
+                *slot = idx;
+                written += 1;
+            }
         }
     }
-    out
+    written
 }
 
 /// Per cube edge, the offset of its owner voxel and axis in the window index of

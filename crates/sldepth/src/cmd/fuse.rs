@@ -12,7 +12,8 @@ use sl_filter::Prefilter;
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
 use sl_io::trajectory::Frame;
 use sl_tsdf::{
-    Axis, DepthLookup, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfVolume, WeightMode,
+    Axis, DepthLookup, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfError, TsdfVolume,
+    WeightMode,
 };
 
 use crate::common::{
@@ -80,7 +81,10 @@ pub struct Args {
     #[arg(long, value_name = "W", default_value_t = 0.0)]
     pub min_weight: f64,
     /// Memory the voxel blocks, the candidate blocks of a frame and the mesh extraction may use,
-    /// bytes; exceeding it stops with an error. Default (and maximum): 3/4 of --max-memory.
+    /// bytes. Default (and maximum): 1/3 of --max-memory for the blocks, 3/4 for the blocks and
+    /// the mesh together (extracting a mesh takes about as much memory as its volume). A frame whose blocks would exceed it ends the
+    /// fusion there: the mesh of the frames before it is written (nothing when it is the first),
+    /// then the command fails.
     #[arg(long, value_name = "BYTES")]
     pub memory_budget_bytes: Option<usize>,
     /// Smooth every frame before fusing it, as `sldepth track --prefilter` names the filters:
@@ -353,7 +357,9 @@ pub fn run(args: Args) -> Result<()> {
     );
     let mut integrate_ms = Vec::with_capacity(frames.len());
     let mut first_pose: Option<CameraToWorld> = None;
-    for f in &frames {
+    // The frame whose blocks did not fit, and why: the fusion ends there.
+    let mut full: Option<(usize, String)> = None;
+    for (i, f) in frames.iter().enumerate() {
         let mut depth: DepthImage = match first_depth.take() {
             Some(d) => d,
             None => {
@@ -398,9 +404,22 @@ pub fn run(args: Args) -> Result<()> {
                 .with_context(|| format!("filtering {}", f.depth_path.display()))?;
         }
         let t0 = Instant::now();
-        volume
-            .integrate(&depth, &k, &f.pose)
-            .with_context(|| format!("integrating {}", f.depth_path.display()))?;
+        match volume.integrate(&depth, &k, &f.pose) {
+            Ok(_) => {}
+            Err(e @ (TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. }))
+                if i > 0 =>
+            {
+                errln!(
+                    "error: frame {i} ({}): {e}; the mesh of the {i} frames before it is written",
+                    f.depth_path.display()
+                );
+                full = Some((i, format!("{}: {e}", f.depth_path.display())));
+                break;
+            }
+            Err(e) => {
+                return Err(e).with_context(|| format!("integrating {}", f.depth_path.display()));
+            }
+        }
         integrate_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         first_pose.get_or_insert(f.pose);
         bar.inc(1);
@@ -410,7 +429,12 @@ pub fn run(args: Args) -> Result<()> {
     let t0 = Instant::now();
     let mut mesh_config = MeshConfig::default();
     mesh_config.min_weight = args.min_weight as f32;
-    let mesh = volume.extract_mesh_within(&mesh_config, params.memory_budget_bytes)?;
+    // The volume's share twice over, unless a budget was given (it bounds both).
+    let mesh_budget = match args.memory_budget_bytes {
+        Some(_) => params.memory_budget_bytes,
+        None => limits().mesh_budget_bytes,
+    };
+    let mesh = volume.extract_mesh_within(&mesh_config, mesh_budget)?;
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
     if mesh.vertex_count() == 0 {
         errln!(
@@ -447,11 +471,14 @@ pub fn run(args: Args) -> Result<()> {
     for (png, img) in slice.iter().chain(render.iter()) {
         sl_tsdf::io::write_png(png, img).with_context(|| format!("writing {}", png.display()))?;
     }
-    let total_ms: f64 = integrate_ms.iter().sum();
+    // (An empty sum would be −0.)
+    let total_ms: f64 = integrate_ms.iter().fold(0.0, |a, b| a + b);
     let med = median(&mut integrate_ms.clone());
     if args.json {
         print_json(&serde_json::json!({
             "frames": frames.len(),
+            // Frames in the volume: all of them unless it reached its memory budget.
+            "fused": volume.frame_count(),
             "integrate_ms_median": round_to(med, 3),
             "integrate_ms_total": round_to(total_ms, 3),
             "extract_ms": round_to(extract_ms, 3),
@@ -481,7 +508,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         errln!(
             "fused {} frames ({:.1} ms/frame median): {} vertices, {} triangles, {} blocks ({:.1} MiB); marching cubes {:.0} ms",
-            frames.len(),
+            volume.frame_count(),
             med,
             mesh.vertex_count(),
             mesh.triangle_count(),
@@ -508,6 +535,12 @@ pub fn run(args: Args) -> Result<()> {
             args.slice_axis,
             crate::common::num(args.slice_m)
         )));
+    }
+    if let Some((i, e)) = full {
+        bail!(
+            "{e}: fused {i} of {} frames (the mesh of those was written); raise --max-memory or --voxel-m",
+            frames.len()
+        );
     }
     Ok(())
 }

@@ -627,11 +627,9 @@ pub fn run(args: Args) -> Result<()> {
     };
     cfg.tsdf.max_depth_m = args.max_depth_m;
     cfg.tsdf.depth_lookup = args.depth_lookup;
-    // The model gets half the budget, so that its mesh fits in the rest at the end even when it
-    // is full: a mesh can take as much memory as its volume (TUM fr1/rpy-200 fused without a
-    // prefilter: 1.15 GB of mesh for 1.07 GB of blocks).
-    cfg.tsdf.memory_budget_bytes =
-        usize::try_from(limits().max_memory_bytes / 2).unwrap_or(usize::MAX);
+    // The volume's share (`Limits::tsdf_budget_bytes`), so that the mesh of a full model fits
+    // beside it at the end (`Limits::mesh_budget_bytes`).
+    cfg.tsdf.memory_budget_bytes = limits().tsdf_budget_bytes;
     cfg.frame_to_model = !args.frame_to_frame;
     cfg.model_scale = args.model_scale;
     cfg.new_fragment_after_s = args
@@ -751,7 +749,7 @@ pub fn run(args: Args) -> Result<()> {
         if let Some(done) = &step.finished {
             // Meshed beside the current fragment's volume, within the TSDF's share.
             let budget = limits()
-                .tsdf_budget_bytes
+                .mesh_budget_bytes
                 .saturating_sub(rec.volume().memory_bytes());
             let mesh = write_fragment_mesh(&args, done, budget, &mut mesh_errors);
             if let Some(out) = fragments.get_mut(done.index) {
@@ -824,11 +822,10 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
 
-    // The last meshes may use the whole budget (no frame is held any more) but what the
-    // fragments still to mesh hold: a full model leaves its mesh the other half.
+    // Each mesh within the TSDF's share but what the fragments still to mesh hold.
     let left = rec.finish()?;
     let mut held: usize = left.iter().map(|f| f.volume.memory_bytes()).sum();
-    let whole = usize::try_from(limits().max_memory_bytes).unwrap_or(usize::MAX);
+    let whole = limits().mesh_budget_bytes;
     for done in left {
         held -= done.volume.memory_bytes();
         let budget = whole.saturating_sub(held);
