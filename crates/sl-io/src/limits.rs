@@ -10,7 +10,7 @@
 //! | [`Limits::max_decoded_bytes`] | 128 MiB | the `image` decoder's own allocation cap |
 //! | [`Limits::max_text_bytes`] | 64 MiB | text inputs, counted while streaming (pipes and FIFOs too) |
 //! | [`Limits::max_text_lines`] | 1 048 576 | text inputs, counted while streaming |
-//! | [`Limits::max_frames`] | 16 384 | trajectories, associations, frame lists |
+//! | [`Limits::max_frames`] | 524 288 (4.8 h at 30 Hz) | trajectories, associations, frame lists |
 //! | [`Limits::max_ply_elements`] | 33 554 432 | PLY element counts, from the header |
 //! | [`Limits::tsdf_budget_bytes`] | 1.33 GiB | TSDF voxel blocks and candidate blocks |
 //! | [`Limits::mesh_budget_bytes`] | 3 GiB | a TSDF volume and the mesh extracted from it |
@@ -53,8 +53,11 @@ pub const BYTES_PER_TEXT_BYTE: u64 = 64;
 /// Budget bytes per line of a text input.
 pub const BYTES_PER_TEXT_LINE: u64 = 4096;
 
-/// Budget bytes per frame of a sequence (its path and pose, and the per-frame timings).
-pub const BYTES_PER_FRAME: u64 = 256 << 10;
+/// Budget bytes per frame of a sequence (its path and pose, and the per-frame timings and
+/// status): `sldepth track`, the heaviest holder, keeps about 0.5 KiB per frame (path, pose or
+/// the reason it was lost, eight timings). 256 KiB until session 79 refused a 9-minute
+/// recording at the default budget.
+pub const BYTES_PER_FRAME: u64 = 8 << 10;
 
 /// Budget bytes per PLY element (parsed record, copy into `PlyData`).
 pub const BYTES_PER_PLY_ELEMENT: u64 = 128;
@@ -180,7 +183,8 @@ mod tests {
         assert!(l.check_pixels(4096, 4096).is_ok());
         assert!(l.check_pixels(16384, 16384).is_err());
         assert!(l.check_pixels(65537, 1).is_err());
-        assert!(l.max_frames >= 4096, "{}", l.max_frames);
+        // An hour at 30 Hz.
+        assert!(l.max_frames >= 108_000, "{}", l.max_frames);
         assert_eq!(l.max_decoded_bytes, MAX_DECODE_BYTES);
         assert_eq!(l.max_text_bytes, MAX_TEXT_BYTES);
     }
