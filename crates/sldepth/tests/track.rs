@@ -260,6 +260,17 @@ fn track_goes_on_frame_to_frame_when_the_model_reaches_the_memory_budget() {
     tight.extend_from_slice(&args);
     let (v, stderr) = sldepth_json(&tight);
     assert_eq!(v["lost"], 0, "{stderr}");
+    // The model stayed within its third of the budget, with fewer blocks than the roomy run's.
+    let fragment = &v["fragments"][0];
+    assert!(
+        fragment["model_bytes"].as_u64().unwrap() <= (225 << 20) / 3,
+        "{v}"
+    );
+    let blocks = fragment["blocks"].as_u64().unwrap();
+    assert!(
+        blocks > 0 && blocks < roomy["fragments"][0]["blocks"].as_u64().unwrap(),
+        "{v}"
+    );
     let full_at = v["fragments"][0]["model_full_at_frame"]
         .as_u64()
         .unwrap_or_else(|| panic!("the model did not fill: {v}"));

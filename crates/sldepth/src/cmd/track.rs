@@ -438,6 +438,9 @@ struct FragmentOut {
     mesh: Option<WrittenMesh>,
     /// Frames fused into its volume.
     fused: usize,
+    /// Its volume's blocks and their memory, bytes (what `--max-memory` bounds).
+    blocks: usize,
+    model_bytes: usize,
     /// The frame whose fusion found its model full (the memory budget reached).
     model_full_at: Option<usize>,
 }
@@ -450,6 +453,8 @@ impl FragmentOut {
             joined: None,
             mesh: None,
             fused: 0,
+            blocks: 0,
+            model_bytes: 0,
             model_full_at: None,
         }
     }
@@ -459,6 +464,8 @@ impl FragmentOut {
         self.joined = done.joined;
         self.mesh = mesh;
         self.fused = done.volume.frame_count();
+        self.blocks = done.volume.block_count();
+        self.model_bytes = done.volume.memory_bytes();
     }
 }
 
@@ -876,6 +883,8 @@ pub fn run(args: Args) -> Result<()> {
                     "first_frame": f.first_frame,
                     "tracked": f.tracked,
                     "fused": f.fused,
+                    "blocks": f.blocks,
+                    "model_bytes": f.model_bytes,
                     "model_full_at_frame": f.model_full_at,
                     "joined_into": f.joined.map(|j| j.into),
                     "world": world,
