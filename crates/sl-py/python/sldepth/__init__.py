@@ -94,7 +94,9 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
     takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
     (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``,
-    ``new_fragment_after_s``, ``rolling_shutter_ms``). A single path or array is not a
+    ``new_fragment_after_s``, ``rolling_shutter_ms``, ``estimate_noise``, ``keyframes``,
+    ``memory_budget_bytes``: a model that reaches it stops growing and the camera is tracked
+    frame to frame from there, ``tracker.model_full``). A single path or array is not a
     sequence: it raises ``TypeError`` (pass a list, e.g. of ``sorted(glob.glob(...))``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of

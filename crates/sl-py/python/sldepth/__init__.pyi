@@ -544,6 +544,9 @@ def track_sequence(
     lens: str = "auto",
     new_fragment_after_s: Optional[float] = 1.0,
     rolling_shutter_ms: Optional[float] = None,
+    estimate_noise: bool = True,
+    keyframes: bool = True,
+    memory_budget_bytes: int = 4 << 30,
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the
