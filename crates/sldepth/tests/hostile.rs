@@ -12,6 +12,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 
+mod common;
+use common::{s, testdata};
+
 /// The budget the bomb tests give `--max-memory`.
 const BUDGET: &str = "64M";
 const BUDGET_BYTES: u64 = 64 << 20;
@@ -92,16 +95,6 @@ fn assert_typed_error(out: &Output, needles: &[&str]) {
     for n in needles {
         assert!(stderr.contains(n), "expected {n:?} in: {stderr}");
     }
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn testdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../testdata")
-        .join(name)
 }
 
 fn entries(dir: &Path) -> Vec<String> {

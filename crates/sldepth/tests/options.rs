@@ -8,22 +8,15 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+use common::{s, testdata};
+
 fn sldepth(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_sldepth"))
         .args(args)
         .env("RUST_BACKTRACE", "0")
         .output()
         .expect("the sldepth binary runs")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn testdata(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../testdata")
-        .join(name)
 }
 
 /// A failure with exit code `code` whose standard error contains every needle.
