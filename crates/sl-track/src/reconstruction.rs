@@ -41,9 +41,11 @@
 //! as it was) and the fragment's model is **full** from then on ([`Step::model_full`] on that
 //! frame, [`Reconstruction::model_full`], [`Fragment::model_full`]): its next frames are tracked
 //! against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
-//! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused, so a long
-//! recording keeps its trajectory to the end and its mesh holds what was fused before. Nothing
-//! is dropped from the model to make room (the mesh would lose it).
+//! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused,
+//! so a long recording keeps its trajectory to the end and its mesh holds what was fused
+//! before. Nothing is dropped from the model to make room (the mesh would lose it). Tracking
+//! on against the full model, not fused, was tried: frames it barely covers went 10–14 cm
+//! astray on TUM fr1/rpy (docs/bench/track.md, session 79).
 
 use std::time::Instant;
 
