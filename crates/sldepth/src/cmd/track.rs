@@ -754,7 +754,7 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if let Some(done) = &step.finished {
-            // Meshed beside the current fragment's volume, within the TSDF's share.
+            // Meshed beside the current fragment's volume, within the volume-and-mesh share.
             let budget = limits()
                 .mesh_budget_bytes
                 .saturating_sub(rec.volume().memory_bytes());
@@ -829,7 +829,7 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
 
-    // Each mesh within the TSDF's share but what the fragments still to mesh hold.
+    // Each mesh within the volume-and-mesh share but what the fragments still to mesh hold.
     let left = rec.finish()?;
     let mut held: usize = left.iter().map(|f| f.volume.memory_bytes()).sum();
     let whole = limits().mesh_budget_bytes;
