@@ -80,6 +80,18 @@ impl Mesh {
         self.triangles.len()
     }
 
+    /// Bytes the mesh's buffers hold (their capacity, not just their length): positions,
+    /// normals, triangles and the scalar's values and name.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.positions.capacity() * size_of::<Point3<f32>>()
+            + self.normals.capacity() * size_of::<Vector3<f32>>()
+            + self.triangles.capacity() * size_of::<[u32; 3]>()
+            + self.scalar.as_ref().map_or(0, |s| {
+                s.values.capacity() * size_of::<f32>() + s.name.capacity()
+            })
+    }
+
     /// `true` when the mesh has no vertices.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
@@ -269,6 +281,19 @@ mod tests {
             ],
             vec![[0, 1, 2], [0, 2, 3]],
         )
+    }
+
+    /// Every buffer is counted: 12 bytes a position, a normal and a triangle, 4 a scalar value.
+    #[test]
+    fn memory_bytes_counts_every_buffer() {
+        let mut m = square();
+        m.positions.shrink_to_fit();
+        m.triangles.shrink_to_fit();
+        assert_eq!(m.memory_bytes(), 4 * 12 + 2 * 12);
+        let m = m
+            .with_normals(vec![Vector3::z(); 4])
+            .with_scalar(String::from("w"), vec![1.0; 4]);
+        assert_eq!(m.memory_bytes(), 4 * 12 + 4 * 12 + 2 * 12 + 4 * 4 + 1);
     }
 
     #[test]

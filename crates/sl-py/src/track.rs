@@ -139,10 +139,13 @@ pub(crate) fn track_in_map<'py>(
 /// align it against earlier frames kept at spread poses (default; as ``sldepth track``,
 /// ``--no-keyframes`` turns it off): a camera lost in a fast turn is found again where it looks
 /// at something it saw before (TUM fr1/rpy every 4th frame: 7 lost frames → none).
-/// ``memory_budget_bytes``: what the model's blocks may hold, all fragments together (default
-/// 4 GiB); a frame it cannot hold is not fused and the model is full from then on
-/// (``model_full``): the next frames are tracked against the frame before and not fused, as
-/// ``sldepth track`` does at its ``--max-memory``. One tracker may be used from several Python
+/// ``memory_budget_bytes``: what the model's blocks may hold, all fragments together with the
+/// meshes kept of the finished ones (default 4 GiB); a frame it cannot hold is not fused and
+/// the model is full from then on (``model_full``): the next frames are tracked against the
+/// frame before and not fused, as ``sldepth track`` does at its ``--max-memory``. A finished
+/// fragment's mesh is made when it finishes, within what the budget leaves, and kept (its bytes
+/// taken from the budget); one that does not fit is not kept, and ``extract_mesh(fragment=k)``
+/// says so. One tracker may be used from several Python
 /// threads: its calls take turns.
 #[pyclass(name = "Tracker", module = "sldepth", frozen)]
 #[derive(Debug)]
@@ -166,8 +169,9 @@ struct TrackerState {
     noise_meter: Option<sl_planes::NoiseMeter>,
     /// The last raw frame's pixel variance over the model's (1 within it or not measured).
     last_noise_scale: f64,
-    /// The meshes of the finished fragments, by index (`None`: not finished).
-    finished: Vec<Option<Mesh>>,
+    /// The meshes of the finished fragments, by index (`None`: not finished; an error: the
+    /// mesh did not fit in the budget).
+    finished: Vec<Option<Result<Mesh, String>>>,
     /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
     joins: Vec<(usize, usize, sl_core::nalgebra::Matrix4<f64>)>,
     /// The fragment of every frame given to `track`.
@@ -304,18 +308,38 @@ impl PyTracker {
                 .unwrap_or_else(|| view.to_image());
             let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
             let state = &mut *guard;
-            // A finished fragment's volume becomes its mesh at once (a small part of the
-            // volume's memory).
+            // A finished fragment's volume becomes its mesh at once (about 0.4 times the
+            // volume's bytes on TUM fr1/rpy), made within what the budget leaves beside the
+            // volumes still held and the meshes kept (the finished volume is counted in the
+            // extraction's own budget), and then taken from the budget.
             if let Some(f) = step.finished {
-                let mut mesh = f.volume.extract_mesh(&MeshConfig::default());
-                // A fragment that rejoined the one before is kept in that one's world frame.
-                if let Some(j) = &f.joined {
-                    mesh.transform(j.transform.isometry());
-                }
+                let budget = state
+                    .rec
+                    .config()
+                    .tsdf
+                    .memory_budget_bytes
+                    .saturating_sub(state.rec.memory_bytes())
+                    .saturating_sub(state.rec.reserved_bytes());
+                let kept = match f.volume.extract_mesh_within(&MeshConfig::default(), budget) {
+                    Ok(mut mesh) => {
+                        // A fragment that rejoined the one before is kept in that one's
+                        // world frame.
+                        if let Some(j) = &f.joined {
+                            mesh.transform(j.transform.isometry());
+                        }
+                        state.rec.reserve_bytes(mesh.memory_bytes());
+                        Ok(mesh)
+                    }
+                    Err(e) => Err(format!(
+                        "fragment {}'s mesh was not kept: {e} (memory_budget_bytes)",
+                        f.index
+                    )),
+                };
+                drop(f.volume);
                 if state.finished.len() <= f.index {
                     state.finished.resize_with(f.index + 1, || None);
                 }
-                state.finished[f.index] = Some(mesh);
+                state.finished[f.index] = Some(kept);
                 if let Some(j) = f.joined {
                     state.joins.push((f.index, j.into, j.transform.to_matrix()));
                 }
@@ -332,6 +356,13 @@ impl PyTracker {
             pose_array(py, &result.pose.to_matrix())?,
             result.status.as_str(),
         ))
+    }
+
+    /// Bytes the tracker holds against ``memory_budget_bytes``: the volumes of the current and
+    /// the suspended fragment and the meshes kept of the finished ones.
+    #[getter]
+    fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_state(py, |s| s.rec.memory_bytes() + s.rec.reserved_bytes())
     }
 
     /// Why the current fragment's model is full (``None`` while it is not): a frame's blocks
@@ -427,17 +458,15 @@ impl PyTracker {
     ) -> PyResult<PyMesh> {
         let mesh = compute_locked(py, &self.state, |state| -> Result<_, String> {
             match fragment {
-                Some(f) if f != state.rec.fragment() => state
-                    .finished
-                    .get(f)
-                    .and_then(Option::as_ref)
-                    .cloned()
-                    .ok_or_else(|| {
-                        format!(
+                Some(f) if f != state.rec.fragment() => {
+                    match state.finished.get(f).and_then(Option::as_ref) {
+                        Some(kept) => kept.clone(),
+                        None => Err(format!(
                             "fragment {f} is neither finished nor the current one ({})",
                             state.rec.fragment()
-                        )
-                    }),
+                        )),
+                    }
+                }
                 _ => state
                     .rec
                     .volume_with_waiting_frame()

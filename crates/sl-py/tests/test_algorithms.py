@@ -786,6 +786,37 @@ def test_a_camera_carried_elsewhere_goes_on_in_a_new_fragment(kinect):
         sldepth.Tracker(kinect, new_fragment_after_s=0.0)
 
 
+def test_a_finished_fragments_mesh_is_kept_within_the_memory_budget(kinect):
+    # The places of the test above: fragment 1 finishes when the camera comes back to fragment
+    # 0. Its mesh is kept and its bytes come out of the budget; with a budget that holds the
+    # two volumes but not the mesh beside them, the mesh is not kept and asking for it says so.
+    boxes = sldepth.simulate("boxes", seed=3)[0]
+    walls = sldepth.simulate("figure-walls", seed=4)[0]
+    frames = [boxes] * 2 + [walls] * 7
+
+    def run(budget):
+        t = sldepth.Tracker(kinect, new_fragment_after_s=2 / 30, memory_budget_bytes=budget)
+        for d in frames:
+            t.track(d)
+        before = t.memory_bytes
+        assert t.track(boxes)[1] == "relocalised" and t.fragment == 0
+        return t, before
+
+    roomy, both_volumes = run(4 << 30)
+    assert both_volumes > 0
+    mesh = roomy.extract_mesh(fragment=1)
+    assert len(mesh) > 1000
+    # Fragment 1's volume is gone; its mesh (positions, normals, triangles, confidence) is
+    # counted beside fragment 0's volume.
+    kept = sum(a.nbytes for a in (mesh.vertices, mesh.normals, mesh.triangles, mesh.confidence))
+    assert kept + 1_000_000 < roomy.memory_bytes < 4 << 30
+    tight, _ = run(both_volumes)
+    with pytest.raises(ValueError, match="fragment 1's mesh was not kept.*memory_budget_bytes"):
+        tight.extract_mesh(fragment=1)
+    assert len(tight.extract_mesh()) > 1000
+
+
+
 def test_track_sequence_moves_joined_fragments_into_the_older_world():
     from sldepth import _poses_in_joined_worlds
 

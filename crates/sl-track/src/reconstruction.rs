@@ -37,7 +37,8 @@
 //! # A model that reaches the memory budget
 //! The fragments share one budget, [`TsdfConfig::memory_budget_bytes`] of
 //! [`ReconstructionConfig::tsdf`]: the current fragment's volume may use what the suspended one
-//! does not hold. A frame whose blocks the budget cannot hold is not fused (the volume is left
+//! does not hold, nor the caller for what it keeps of the fragments handed over
+//! ([`Reconstruction::reserve_bytes`]). A frame whose blocks the budget cannot hold is not fused (the volume is left
 //! as it was) and the fragment's model is **full** from then on ([`Step::model_full`] on that
 //! frame, [`Reconstruction::model_full`], [`Fragment::model_full`]): its next frames are tracked
 //! against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
@@ -259,6 +260,9 @@ pub struct Reconstruction {
     rejoin_wait: u64,
     /// The noise scale of the next frames, measured by the caller ([`Reconstruction::set_noise_scale`]).
     noise_scale: Option<f64>,
+    /// Bytes of the budget the caller holds outside the fragments' volumes
+    /// ([`Reconstruction::reserve_bytes`]).
+    reserved_bytes: usize,
 }
 
 /// Frame intervals between two tries of the suspended fragment (0.2 s at 30 Hz). A try is the
@@ -395,6 +399,7 @@ impl Reconstruction {
             last_time_s: None,
             rejoin_wait: 0,
             noise_scale: None,
+            reserved_bytes: 0,
             rectified: None,
             rectifier,
         })
@@ -551,17 +556,44 @@ impl Reconstruction {
         })
     }
 
-    /// Gives the current fragment the part of the budget the suspended one does not hold (see
-    /// the module docs).
+    /// Gives the current fragment the part of the budget that neither the suspended one nor the
+    /// caller ([`Reconstruction::reserve_bytes`]) holds (see the module docs).
     fn share_budget(&mut self) {
         let held = self
             .suspended
             .as_ref()
-            .map_or(0, |s| s.volume.memory_bytes());
+            .map_or(0, |s| s.volume.memory_bytes())
+            .saturating_add(self.reserved_bytes);
         let total = self.cfg.tsdf.memory_budget_bytes;
         self.current
             .volume
             .set_memory_budget_bytes(total.saturating_sub(held));
+    }
+
+    /// Bytes the fragments' volumes hold now: the current one's and the suspended one's
+    /// ([`TsdfVolume::memory_bytes`]). A [`Step::finished`] fragment's volume is no longer
+    /// counted: it is the caller's.
+    pub fn memory_bytes(&self) -> usize {
+        self.current.volume.memory_bytes()
+            + self
+                .suspended
+                .as_ref()
+                .map_or(0, |s| s.volume.memory_bytes())
+    }
+
+    /// Takes `bytes` more out of the budget the fragments share, for what the caller keeps of
+    /// the fragments it was handed (Python's `Tracker` keeps each finished fragment's mesh),
+    /// so that the volumes and those stay within [`TsdfConfig::memory_budget_bytes`] together.
+    /// The current fragment's volume gets what is left; a volume already beyond it keeps its
+    /// blocks, and its next frame that needs a block makes its model full.
+    pub fn reserve_bytes(&mut self, bytes: usize) {
+        self.reserved_bytes = self.reserved_bytes.saturating_add(bytes);
+        self.share_budget();
+    }
+
+    /// The bytes reserved with [`Reconstruction::reserve_bytes`] so far.
+    pub fn reserved_bytes(&self) -> usize {
+        self.reserved_bytes
     }
 
     /// Why the current fragment's model is full, when it is (see the module docs): its frames

@@ -1056,6 +1056,63 @@ fn a_new_fragment_gets_the_budget_the_suspended_one_leaves() {
     assert_eq!(current_budget, cfg.tsdf.memory_budget_bytes - held);
 }
 
+/// What the caller reserves for what it keeps (Python's `Tracker` keeps finished fragments'
+/// meshes) is taken from the budget the fragments share: the current fragment gets the budget
+/// less the suspended volume and the reservation, and `memory_bytes` counts both volumes.
+#[test]
+fn the_callers_reservation_comes_out_of_the_fragments_budget() {
+    let (cam, _, frames_a) = sequence(8, 11);
+    let (_, _, frames_b) = sequence_in("figure-walls", 8, 41);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    cfg.new_fragment_after_s = Some(0.1);
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    rec.reserve_bytes(1 << 20);
+    assert_eq!(
+        rec.volume().params().memory_budget_bytes,
+        cfg.tsdf.memory_budget_bytes - (1 << 20)
+    );
+    for (i, d) in frames_a.iter().chain(&frames_b).enumerate() {
+        rec.step(d, Some(i as f64 * dt)).unwrap();
+    }
+    rec.reserve_bytes(1 << 20);
+    assert_eq!(rec.reserved_bytes(), 2 << 20);
+    assert_eq!((rec.fragment(), rec.suspended_fragment()), (1, Some(0)));
+    let current = rec.volume().memory_bytes();
+    let current_budget = rec.volume().params().memory_budget_bytes;
+    let all = rec.memory_bytes();
+    let left = rec.finish().unwrap();
+    let suspended = left[0].volume.memory_bytes();
+    assert!(suspended > 0 && current > 0);
+    assert_eq!(all, suspended + current);
+    assert_eq!(
+        current_budget,
+        cfg.tsdf.memory_budget_bytes - suspended - (2 << 20)
+    );
+}
+
+/// A reservation beyond what is left makes the current fragment's model full at its next
+/// frame that needs a block; tracking goes on.
+#[test]
+fn a_reservation_of_the_whole_budget_fills_the_model_and_tracking_goes_on() {
+    let (cam, _, frames) = sequence(6, 11);
+    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+    cfg.tsdf.voxel_m = 0.01;
+    cfg.tsdf.trunc_m = 0.05;
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    rec.reserve_bytes(cfg.tsdf.memory_budget_bytes);
+    for (i, d) in frames.iter().enumerate() {
+        let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+        assert!(step.result.status.is_tracked(), "frame {i}");
+        assert!(!step.fused, "frame {i}");
+    }
+    assert!(rec.model_full().is_some());
+    assert_eq!(rec.volume().block_count(), 0);
+}
+
 /// A camera that jumps 18 cm and 18° while tracking is lost (plane fallback off, so nothing
 /// bridges the jump), then walks back to where it was lost and rests there: fragment 1 starts
 /// after 0.1 s of failed alignments and tracks the way back; when a frame aligns to the

@@ -441,9 +441,14 @@ class Tracker:
         --model-noise-only turns it off); keyframes: when every other attempt on a frame
         fails, align it against earlier frames kept at spread poses (default; as sldepth
         track, --no-keyframes turns it off); memory_budget_bytes: what the model's blocks may
-        hold, all fragments together (default 4 GiB): a frame it cannot hold is not fused
-        and the model is full from then on (model_full), later frames tracked against the
-        frame before and not fused."""
+        hold, all fragments together with the meshes kept of finished fragments (default
+        4 GiB): a frame it cannot hold is not fused and the model is full from then on
+        (model_full), later frames tracked against the frame before and not fused; a
+        finished fragment's mesh that does not fit in what is left is not kept."""
+    @property
+    def memory_bytes(self) -> int:
+        """Bytes held against memory_budget_bytes: the current and suspended fragments'
+        volumes and the meshes kept of finished fragments."""
     @property
     def model_full(self) -> Optional[str]:
         """Why the current fragment's model is full (its memory budget reached), or None."""

@@ -754,10 +754,11 @@ pub fn run(args: Args) -> Result<()> {
             );
         }
         if let Some(done) = &step.finished {
-            // Meshed beside the current fragment's volume, within the volume-and-mesh share.
+            // Meshed beside the volumes still held (the current fragment's and a suspended
+            // one's), within the volume-and-mesh share.
             let budget = limits()
                 .mesh_budget_bytes
-                .saturating_sub(rec.volume().memory_bytes());
+                .saturating_sub(rec.memory_bytes());
             let mesh = write_fragment_mesh(&args, done, budget, &mut mesh_errors);
             if let Some(out) = fragments.get_mut(done.index) {
                 out.finish(done, mesh);
