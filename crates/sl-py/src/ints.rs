@@ -3,10 +3,12 @@
 //! `sldepth.SlDepthError` (a `ValueError`) naming the accepted range when the value does not
 //! fit the Rust type — a negative count or size, or one beyond the type's maximum — where
 //! pyo3's own conversion raises `OverflowError`, which is not a `ValueError`. A value that is
-//! not an integer at all (a float, a string) stays pyo3's `TypeError`. pyo3 notes the
-//! argument's name on either error ("while processing 'radius'").
+//! not an integer at all (a float, a string) stays pyo3's `TypeError`, and so is a bool
+//! (`True` is the integer 1 to Python; as for the float arguments, [`crate::reals`], it is
+//! refused rather than read as a count or a seed). pyo3 notes the argument's name on either
+//! error ("while processing 'radius'").
 
-use pyo3::exceptions::PyOverflowError;
+use pyo3::exceptions::{PyOverflowError, PyTypeError};
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
@@ -30,8 +32,14 @@ macro_rules! bounded {
 }
 bounded!(u16, u32, u64, usize);
 
-/// The Python integer `obj` as `T`; out of `T`'s range, a `ValueError` naming the range.
+/// The Python integer `obj` as `T`; out of `T`'s range, a `ValueError` naming the range; a bool,
+/// a `TypeError`.
 pub(crate) fn int<T: Bounded>(obj: &Bound<'_, PyAny>) -> PyResult<T> {
+    if crate::reals::is_bool(obj)? {
+        return Err(PyTypeError::new_err(format!(
+            "expected an integer, not a bool ({obj})"
+        )));
+    }
     let out_of_range = |shown: String| {
         let (lo, hi) = T::range();
         value_error(format!("expected an integer in {lo}..={hi}, got {shown}"))

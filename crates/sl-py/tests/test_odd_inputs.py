@@ -240,6 +240,24 @@ def test_bools_are_no_numbers_for_any_float_argument(small_cam, wall, flag):
             call()
 
 
+@pytest.mark.parametrize("flag", [True, False, np.bool_(True)])
+def test_bools_are_no_numbers_for_any_integer_argument(small_cam, wall, flag):
+    # bool is a subclass of int: True was taken as a seed of 1 or a radius of 1.
+    calls = [
+        lambda: sldepth.Camera(flag, 48, 58.0, 58.0, 31.5, 23.5),
+        lambda: sldepth.filter(wall, small_cam, radius=flag),
+        lambda: sldepth.simulate("three-planes", seed=flag),
+        lambda: sldepth.noise_stats(wall, small_cam, min_plane_pixels=flag),
+        lambda: sldepth.extract_planes(wall, small_cam, min_pixels=flag),
+        lambda: sldepth.TsdfVolume(memory_budget_bytes=flag),
+        lambda: sldepth.Tracker(small_cam).extract_mesh(fragment=flag),
+        lambda: sldepth.set_num_threads(flag),
+    ]
+    for call in calls:
+        with pytest.raises(TypeError, match="expected an integer, not a bool"):
+            call()
+
+
 def test_a_nan_min_return_is_not_finite_whatever_the_noise_model():
     for noise in ("realistic", "white"):
         with pytest.raises(ValueError, match="min_return = NaN must be a finite number >= 0"):
