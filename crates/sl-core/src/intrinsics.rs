@@ -144,12 +144,30 @@ impl Intrinsics {
     pub fn scaled(&self, factor: f64) -> Result<Self> {
         if !(factor.is_finite() && factor > 0.0) {
             return Err(CoreError::InvalidIntrinsics(format!(
-                "scale factor {factor} must be positive"
+                "scale factor {} must be positive",
+                crate::Compact(factor)
+            )));
+        }
+        let (w, h) = (
+            ((self.width as f64) * factor).round(),
+            ((self.height as f64) * factor).round(),
+        );
+        // Checked before the conversion, which would saturate a huge side into a wrong size.
+        let max_side = f64::from(1u32 << 16);
+        if w > max_side || h > max_side {
+            return Err(CoreError::InvalidIntrinsics(format!(
+                "scale factor {} makes a {}x{} image of this {}x{} one: each side must be at \
+                 most 65536 pixels",
+                crate::Compact(factor),
+                crate::Compact(w),
+                crate::Compact(h),
+                self.width,
+                self.height
             )));
         }
         Self::new(
-            ((self.width as f64) * factor).round() as usize,
-            ((self.height as f64) * factor).round() as usize,
+            w as usize,
+            h as usize,
             self.fx * factor,
             self.fy * factor,
             (self.cx + 0.5) * factor - 0.5,
@@ -161,6 +179,26 @@ impl Intrinsics {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A factor that makes a side beyond 65536 pixels says so with the sizes, compactly (the
+    /// conversion saturated 640·1e300 into 18446744073709551615 before).
+    #[test]
+    fn a_huge_scale_factor_names_the_size_it_would_make() {
+        let e = Intrinsics::kinect_v1()
+            .scaled(1e300)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("scale factor 1e300 makes a 6.4e302x4.8e302 image of this 640x480 one"),
+            "{e}"
+        );
+        let e = Intrinsics::kinect_v1()
+            .scaled(103.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("makes a 65920x49440 image"), "{e}");
+        assert_eq!(Intrinsics::kinect_v1().scaled(102.0).unwrap().width, 65280);
+    }
 
     #[test]
     fn project_back_project_round_trip() {

@@ -49,7 +49,12 @@ impl LensDistortion {
     pub fn new(k1: f64, k2: f64, p1: f64, p2: f64, k3: f64) -> Result<Self> {
         if [k1, k2, p1, p2, k3].iter().any(|v| !v.is_finite()) {
             return Err(CoreError::InvalidIntrinsics(format!(
-                "lens distortion coefficients must be finite, got ({k1}, {k2}, {p1}, {p2}, {k3})"
+                "lens distortion coefficients must be finite, got ({}, {}, {}, {}, {})",
+                crate::Compact(k1),
+                crate::Compact(k2),
+                crate::Compact(p1),
+                crate::Compact(p2),
+                crate::Compact(k3)
             )));
         }
         Ok(Self { k1, k2, p1, p2, k3 })

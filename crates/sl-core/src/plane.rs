@@ -33,7 +33,11 @@ impl Plane {
         let len = normal.norm();
         if !(len.is_finite() && len > 1e-12 && offset_m.is_finite()) {
             return Err(CoreError::DegeneratePlane(format!(
-                "normal {normal:?} / offset {offset_m} cannot describe a plane"
+                "normal ({}, {}, {}) / offset {} cannot describe a plane",
+                crate::Compact(normal.x),
+                crate::Compact(normal.y),
+                crate::Compact(normal.z),
+                crate::Compact(offset_m)
             )));
         }
         Ok(Self {

@@ -348,7 +348,10 @@ impl DepthFilter {
                     ));
                 }
                 if !in_range(fb_px_m, 1e-6, 1e9) {
-                    return bad(format!("f*B {fb_px_m} px*m must be positive"));
+                    return bad(format!(
+                        "f*B {} px*m must be positive",
+                        sl_core::Compact(fb_px_m)
+                    ));
                 }
             }
             _ => {}

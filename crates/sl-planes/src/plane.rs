@@ -62,7 +62,8 @@ impl DisparityAffine {
         let m = plane.paper_coefficients()?;
         if !(fb.is_finite() && fb > 0.0) {
             return Err(PlanesError::InvalidConfig(format!(
-                "f·B = {fb} must be positive"
+                "f·B = {} must be positive",
+                sl_core::Compact(fb)
             )));
         }
         let a = -fb * m.x / k.fx;
@@ -76,7 +77,8 @@ impl DisparityAffine {
     pub fn to_plane(&self, k: &Intrinsics, fb: f64) -> Result<Plane> {
         if !(fb.is_finite() && fb > 0.0) {
             return Err(PlanesError::InvalidConfig(format!(
-                "f·B = {fb} must be positive"
+                "f·B = {} must be positive",
+                sl_core::Compact(fb)
             )));
         }
         let m = Vector3::new(

@@ -75,7 +75,8 @@ pub fn metric_ransac(
     if !(cfg.threshold_m.is_finite() && cfg.threshold_m > 0.0) || cfg.min_pixels < 3 {
         return Err(PlanesError::InvalidConfig(format!(
             "threshold_m = {} must be positive, min_pixels = {} at least 3",
-            cfg.threshold_m, cfg.min_pixels
+            sl_core::Compact(cfg.threshold_m),
+            cfg.min_pixels
         )));
     }
     let (w, h) = (depth.width(), depth.height());

@@ -281,7 +281,8 @@ impl PyTsdfVolume {
     fn band_m(&self, py: Python<'_>, z_m: f64) -> PyResult<f64> {
         if !(z_m.is_finite() && z_m > 0.0) {
             return Err(value_error(format!(
-                "z_m {z_m}: a depth must be finite and positive"
+                "z_m {}: a depth must be finite and positive",
+                sl_core::Compact(z_m)
             )));
         }
         self.read(py, |v| v.params().band_at(z_m))

@@ -2,6 +2,7 @@
 result or a misleading message; docs/bench/README.md, session 47)."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -292,3 +293,38 @@ def test_read_depth_refuses_a_budget_below_the_floor(tmp_path):
         sldepth.read_depth(tmp_path / "x.png", max_memory_bytes=1)
     with pytest.raises(OSError, match="is a directory, not a depth file"):
         sldepth.read_depth(tmp_path)
+
+
+def test_every_float_argument_out_of_range_is_printed_compactly(small_cam, wall):
+    # A huge value in an error is printed as 1e300, not as its 301 digits: every float
+    # argument of the functions below, at ±1e300, either works or says why in a short line.
+    t = np.arange(5, dtype=float)
+    poses = np.tile(np.eye(4), (5, 1, 1))
+    poses[:, 0, 3] = t * 0.01
+    calls = {
+        "extract_planes": (lambda **k: sldepth.extract_planes(wall, small_cam, **k),
+                           ["threshold_px", "log_threshold_px", "log_sigma_px",
+                            "bend_px_per_px2", "max_normal_sigma_deg"]),
+        "explain_planes": (lambda **k: sldepth.explain_planes(wall, small_cam, **k),
+                           ["threshold_px", "log_sigma_px", "max_normal_sigma_deg"]),
+        "filter": (lambda **k: sldepth.filter(wall, small_cam, **k), ["sigma_s", "k_per_m", "sigma_d_m", "sigma_disp_px"]),
+        "resampled": (lambda **k: small_cam.resampled(**k), ["factor"]),
+        "TsdfVolume": (lambda **k: sldepth.TsdfVolume(**k),
+                       ["voxel_m", "trunc_m", "max_depth_m", "min_depth_m", "trunc_sigmas"]),
+        "Tracker": (lambda **k: sldepth.Tracker(small_cam, **k),
+                    ["voxel_m", "model_scale", "rolling_shutter_ms"]),
+        "evaluate_trajectory": (lambda **k: sldepth.evaluate_trajectory(t, poses, t, poses, **k),
+                                ["delta", "max_gap_s", "offset_s"]),
+    }
+    long_numbers = 0
+    for name, (call, params) in calls.items():
+        for param in params:
+            for value in (1e300, -1e300):
+                try:
+                    call(**{param: value})
+                except (ValueError, TypeError) as e:
+                    assert "unexpected keyword" not in str(e), (name, param)
+                    if re.search(r"\d{20}", str(e)):
+                        long_numbers += 1
+                        print(name, param, value, str(e)[:120])
+    assert long_numbers == 0

@@ -121,13 +121,13 @@ impl VerifyConfig {
         if !(self.outlier_weight.is_finite() && self.outlier_weight >= 0.0) {
             return Err(TrackError::InvalidConfig(format!(
                 "outlier_weight must be ≥ 0, got {}",
-                self.outlier_weight
+                sl_core::Compact(self.outlier_weight)
             )));
         }
         if !(self.inlier_sigmas.is_finite() && self.inlier_sigmas >= 0.0) {
             return Err(TrackError::InvalidConfig(format!(
                 "inlier_sigmas must be ≥ 0, got {}",
-                self.inlier_sigmas
+                sl_core::Compact(self.inlier_sigmas)
             )));
         }
         if self.max_samples < 100 || self.refine_hypotheses == 0 {

@@ -121,7 +121,8 @@ pub fn segcomp_detail(
     }
     if !(t > 0.5 && t <= 1.0) {
         return Err(EvalError::InvalidParameter(format!(
-            "tolerance {t} must be in (0.5, 1]"
+            "tolerance {} must be in (0.5, 1]",
+            sl_core::Compact(t)
         )));
     }
     let ok = |i: usize| valid.is_none_or(|v| v[i]);

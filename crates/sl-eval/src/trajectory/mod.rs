@@ -141,15 +141,17 @@ pub(crate) fn sorted(traj: &[StampedPose], name: &str) -> Result<Vec<StampedPose
             && iso.rotation.coords.iter().all(|c| c.is_finite()))
         {
             return Err(EvalError::InvalidParameter(format!(
-                "{name} trajectory: the pose at {t} s is not finite"
+                "{name} trajectory: the pose at {} s is not finite",
+                sl_core::Compact(*t)
             )));
         }
         let far = iso.translation.vector.amax();
         if far > MAX_POSITION_M {
             return Err(EvalError::InvalidParameter(format!(
-                "{name} trajectory: the position at {t} s is {far:e} m from the origin, beyond \
+                "{name} trajectory: the position at {} s is {far:e} m from the origin, beyond \
                  {MAX_POSITION_M:e} m (the alignment's sums of squares would overflow long before \
-                 any camera got there: metres expected)"
+                 any camera got there: metres expected)",
+                sl_core::Compact(*t)
             )));
         }
     }

@@ -229,7 +229,8 @@ impl PlaneConfig {
                 Ok(())
             } else {
                 Err(PlanesError::InvalidConfig(format!(
-                    "{name} = {v} must be positive and finite"
+                    "{name} = {} must be positive and finite",
+                    sl_core::Compact(v)
                 )))
             }
         };
@@ -243,26 +244,27 @@ impl PlaneConfig {
         ] {
             if !(v.is_finite() && (1.0..=64.0).contains(&v)) {
                 return Err(PlanesError::InvalidConfig(format!(
-                    "{name} = {v} must be in [1, 64]"
+                    "{name} = {} must be in [1, 64]",
+                    sl_core::Compact(v)
                 )));
             }
         }
         if !(self.bend_px_per_px2.is_finite() && self.bend_px_per_px2 >= 0.0) {
             return Err(PlanesError::InvalidConfig(format!(
                 "bend_px_per_px2 = {} must be finite and at least 0",
-                self.bend_px_per_px2
+                sl_core::Compact(self.bend_px_per_px2)
             )));
         }
         if self.max_normal_sigma_deg.is_nan() || self.max_normal_sigma_deg <= 0.0 {
             return Err(PlanesError::InvalidConfig(format!(
                 "max_normal_sigma_deg = {} must be positive (infinite: report every plane)",
-                self.max_normal_sigma_deg
+                sl_core::Compact(self.max_normal_sigma_deg)
             )));
         }
         if self.log_sigma_px > 16.0 {
             return Err(PlanesError::InvalidConfig(format!(
                 "log_sigma_px = {} must be at most 16",
-                self.log_sigma_px
+                sl_core::Compact(self.log_sigma_px)
             )));
         }
         if self.min_pixels < 3 {

@@ -122,7 +122,8 @@ impl MotionConfig {
         for (name, v) in angles {
             if !(v > 0.0 && v <= 180.0) {
                 return Err(TrackError::InvalidConfig(format!(
-                    "{name} must lie in (0, 180], got {v}"
+                    "{name} must lie in (0, 180], got {}",
+                    sl_core::Compact(v)
                 )));
             }
         }
@@ -132,7 +133,8 @@ impl MotionConfig {
         ] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(TrackError::InvalidConfig(format!(
-                    "{name} must be positive, got {v}"
+                    "{name} must be positive, got {}",
+                    sl_core::Compact(v)
                 )));
             }
         }

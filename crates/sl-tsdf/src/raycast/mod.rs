@@ -74,7 +74,8 @@ impl RaycastConfig {
         {
             return bad(format!(
                 "raycast depth range [{}, {}] m must satisfy 0 < min_depth_m < max_depth_m",
-                self.min_depth_m, self.max_depth_m
+                sl_core::Compact(self.min_depth_m),
+                sl_core::Compact(self.max_depth_m)
             ));
         }
         if !(self.step_fraction > 0.0 && self.step_fraction <= 1.0) {
