@@ -896,3 +896,22 @@ fn track_takes_unpadded_frame_numbers_in_their_order() {
     }
 }
 
+/// A frame that measures far noisier than any sensor, here every frame of a sensor with
+/// σ_D 0.2 px read at 200 times its depth scale (a wrong `--depth-scale`: about 20 px of
+/// disparity noise), is tracked with the largest σ_D a sensor model may have: the run stopped
+/// at the first frame on "model: invalid sensor model: disparity noise 1.65e1 px must be in
+/// [0, 10]" before, naming neither the option nor the measurement.
+#[test]
+fn track_goes_on_past_frames_noisier_than_any_sensor_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let mut sensor = sl_core::SensorModel::kinect_v1();
+    sensor.sigma_d_px = 0.2;
+    write_sequence_through(&seq, 3, 1, &KinectSimulator::with_sensor(sensor).white());
+    let (v, stderr) = kinect_track_json(&seq, &["--depth-scale", "1e6"]);
+    assert_eq!(v["frames"], 3, "{v}");
+    assert_eq!(v["skipped"], 0, "{v}");
+    assert!(!stderr.contains("invalid sensor model"), "{stderr}");
+    let sigma = v["prefilter_sigma_d_px_median"].as_f64().unwrap();
+    assert_eq!(sigma, sl_core::sensor::MAX_SIGMA_D_PX, "{v}");
+}

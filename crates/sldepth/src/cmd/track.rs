@@ -604,9 +604,9 @@ pub fn run(args: Args) -> Result<()> {
             format!(
                 "--prefilter {} for this camera (f = {} px, B = {} m, sigma_d = {} px); --prefilter none skips it",
                 prefilter.name(),
-                camera.sensor.focal_px,
-                camera.sensor.baseline_m,
-                camera.sensor.sigma_d_px
+                crate::common::num(camera.sensor.focal_px),
+                crate::common::num(camera.sensor.baseline_m),
+                crate::common::num(camera.sensor.sigma_d_px)
             )
         })?;
     }
