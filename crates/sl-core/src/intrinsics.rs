@@ -72,14 +72,18 @@ impl Intrinsics {
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&v)) {
                 return Err(CoreError::InvalidIntrinsics(format!(
-                    "{name} = {v:e} must be in [{MIN_FOCAL_PX}, {MAX_FOCAL_PX:e}] pixels"
+                    "{name} = {} must be in [{MIN_FOCAL_PX}, {}] pixels",
+                    crate::Compact(v),
+                    crate::Compact(MAX_FOCAL_PX)
                 )));
             }
         }
         for (name, v) in [("cx", self.cx), ("cy", self.cy)] {
             if !(v.is_finite() && v.abs() <= MAX_PRINCIPAL_PX) {
                 return Err(CoreError::InvalidIntrinsics(format!(
-                    "{name} = {v:e} must be in [-{MAX_PRINCIPAL_PX:e}, {MAX_PRINCIPAL_PX:e}] pixels"
+                    "{name} = {} must be in [-{max}, {max}] pixels",
+                    crate::Compact(v),
+                    max = crate::Compact(MAX_PRINCIPAL_PX)
                 )));
             }
         }
@@ -224,6 +228,25 @@ mod tests {
         assert!(Intrinsics::new(640, 480, -5.0, 500.0, 1.0, 1.0).is_err());
         assert!(Intrinsics::new(640, 480, 500.0, f64::NAN, 1.0, 1.0).is_err());
         assert!(Intrinsics::new(640, 480, 500.0, 500.0, 319.5, 239.5).is_ok());
+    }
+
+    /// The refused value comes back as it was written (`-517.3`, `0`), not as `-5.173e2` and
+    /// `0e0`.
+    #[test]
+    fn refused_values_are_repeated_compactly() {
+        let e = |k: Result<Intrinsics>| k.unwrap_err().to_string();
+        let neg = e(Intrinsics::new(640, 480, -517.3, 500.0, 1.0, 1.0));
+        assert!(
+            neg.contains("fx = -517.3 must be in [1, 1e7] pixels"),
+            "{neg}"
+        );
+        let zero = e(Intrinsics::new(640, 480, 500.0, 0.0, 1.0, 1.0));
+        assert!(zero.contains("fy = 0 must be"), "{zero}");
+        let far = e(Intrinsics::new(640, 480, 500.0, 500.0, 1e300, 1.0));
+        assert!(
+            far.contains("cx = 1e300 must be in [-1e7, 1e7] pixels"),
+            "{far}"
+        );
     }
 
     #[test]

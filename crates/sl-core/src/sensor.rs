@@ -4,6 +4,7 @@
 //! estimated to `1/q` pixel (q = 8 for the Kinect) with a constant noise `σ_D`, so the depth
 //! noise grows with the square of depth: `σ_Z = Z²·σ_D / (f·B)` and `∂Z/∂D = −Z² / (f·B)`.
 
+use crate::Compact;
 use crate::error::{CoreError, Result};
 
 /// Disparity-domain sensor model of a structured-light camera.
@@ -63,8 +64,9 @@ impl SensorModel {
         use crate::intrinsics::{MAX_FOCAL_PX, MIN_FOCAL_PX};
         if !(self.focal_px.is_finite() && (MIN_FOCAL_PX..=MAX_FOCAL_PX).contains(&self.focal_px)) {
             return Err(CoreError::InvalidSensor(format!(
-                "focal length {:e} px must be in [{MIN_FOCAL_PX}, {MAX_FOCAL_PX:e}]",
-                self.focal_px
+                "focal length {} px must be in [{MIN_FOCAL_PX}, {}]",
+                Compact(self.focal_px),
+                Compact(MAX_FOCAL_PX)
             )));
         }
         if !(self.baseline_m.is_finite()
@@ -72,8 +74,8 @@ impl SensorModel {
             && self.baseline_m <= MAX_BASELINE_M)
         {
             return Err(CoreError::InvalidSensor(format!(
-                "baseline {:e} m must be in (0, {MAX_BASELINE_M}]",
-                self.baseline_m
+                "baseline {} m must be in (0, {MAX_BASELINE_M}]",
+                Compact(self.baseline_m)
             )));
         }
         if !(1..=MAX_SUBPIXEL_STEPS).contains(&self.subpixel_steps) {
@@ -84,8 +86,8 @@ impl SensorModel {
         }
         if !(self.sigma_d_px.is_finite() && (0.0..=MAX_SIGMA_D_PX).contains(&self.sigma_d_px)) {
             return Err(CoreError::InvalidSensor(format!(
-                "disparity noise {:e} px must be in [0, {MAX_SIGMA_D_PX}]",
-                self.sigma_d_px
+                "disparity noise {} px must be in [0, {MAX_SIGMA_D_PX}]",
+                Compact(self.sigma_d_px)
             )));
         }
         Ok(())
@@ -158,10 +160,16 @@ impl SensorModel {
     }
 
     /// This model with its `σ_D` raised to [`SensorModel::sigma_d_for_variance_scale`]: the
-    /// sensor whose pixel variance is `variance_scale` times this one's (itself at 1).
+    /// sensor whose pixel variance is `variance_scale` times this one's (itself at 1), its
+    /// `σ_D` at most [`MAX_SIGMA_D_PX`], so that the result is a valid model whatever a frame
+    /// measured (a frame read at the wrong depth scale measures hundreds of times the
+    /// variance, and every command that tracked, fused or filtered it stopped on an invalid
+    /// sensor model).
     pub fn with_variance_scale(&self, variance_scale: f64) -> Self {
         Self {
-            sigma_d_px: self.sigma_d_for_variance_scale(variance_scale),
+            sigma_d_px: self
+                .sigma_d_for_variance_scale(variance_scale)
+                .min(MAX_SIGMA_D_PX),
             ..*self
         }
     }
@@ -208,6 +216,34 @@ mod tests {
         }
         assert_eq!(s.depth_to_disparity(0.0), 0.0);
         assert_eq!(s.disparity_to_depth(-1.0), 0.0);
+    }
+
+    /// A frame measured far noisier than any sensor (read at the wrong depth scale) still
+    /// gives a valid model, at the largest σ_D one may have: tracking and fusing it stopped on
+    /// "invalid sensor model: disparity noise 1.65e1 px" before.
+    #[test]
+    fn variance_scaled_models_stay_valid() {
+        let s = SensorModel::kinect_v1();
+        for scale in [1.0, 4.0, 1e5, 1e300, f64::INFINITY] {
+            let scaled = s.with_variance_scale(scale);
+            assert!(scaled.validate().is_ok(), "{scale}: {scaled:?}");
+        }
+        assert_eq!(s.with_variance_scale(1e5).sigma_d_px, MAX_SIGMA_D_PX);
+        let four = s.with_variance_scale(4.0).sigma_d_px;
+        assert_eq!(four, s.sigma_d_for_variance_scale(4.0));
+        assert!(four > 2.0 * s.sigma_d_px && four < MAX_SIGMA_D_PX, "{four}");
+    }
+
+    /// Refused values come back as written (`-0.075`, `0`), not as `-7.5e-2` and `0e0`.
+    #[test]
+    fn refused_values_are_repeated_compactly() {
+        let e = |s: Result<SensorModel>| s.unwrap_err().to_string();
+        let b = e(SensorModel::new(580.0, -0.075, 8, 0.07));
+        assert!(b.contains("baseline -0.075 m must be in (0, 10]"), "{b}");
+        let f = e(SensorModel::new(0.0, 0.075, 8, 0.07));
+        assert!(f.contains("focal length 0 px must be in [1, 1e7]"), "{f}");
+        let d = e(SensorModel::new(580.0, 0.075, 8, 16.5));
+        assert!(d.contains("disparity noise 16.5 px"), "{d}");
     }
 
     #[test]

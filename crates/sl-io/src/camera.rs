@@ -14,7 +14,10 @@
 //! `intrinsic_matrix` is the 3×3 matrix `K` in **column-major** order. The last three keys are
 //! ours and optional (defaults: the Kinect's 0.075 m, 8 steps, σ_D 0.07 px), so any Open3D camera
 //! file reads. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
-//! length differs from `fx` (it defaults to `fx`).
+//! length differs from `fx` (it defaults to `fx`). Other keys (the metadata other tools write
+//! beside Open3D's three) are ignored, except one that names a sensor quantity in another
+//! spelling (`baseline`, `baseline_mm`, `sigma_d`, `sub_pixel`, ...): that is refused, since
+//! ignoring it would leave the Kinect default in its place without a word.
 
 use std::path::Path;
 
@@ -40,6 +43,10 @@ pub const DEFAULT_HEIGHT: usize = 480;
 const MATRIX_TOLERANCE: f64 = 1e-9;
 
 #[derive(Debug, Serialize, Deserialize)]
+#[serde(
+    expecting = "a camera object with `width`, `height` and `intrinsic_matrix` \
+                     (9 numbers, column-major)"
+)]
 struct CameraJson {
     width: usize,
     height: usize,
@@ -54,7 +61,64 @@ struct CameraJson {
     sensor_focal_px: Option<f64>,
 }
 
-/// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern.
+/// The optional sensor keys of a camera file.
+const SENSOR_KEYS: [&str; 4] = ["baseline_m", "subpixel", "sigma_d_px", "sensor_focal_px"];
+
+/// Parts of a key that name one of the sensor quantities of [`SENSOR_KEYS`].
+const SENSOR_KEY_STEMS: [&str; 5] = ["baseline", "subpixel", "sub_pixel", "sigma", "sensor_focal"];
+
+/// Refuses a key of `text` (a JSON object) that is not one of ours but names a sensor
+/// quantity (`baseline`, `sigma_d`): a misspelt sensor key would otherwise be ignored and the
+/// Kinect default used in its place.
+fn check_sensor_key_spelling(path: &Path, text: &str) -> Result<()> {
+    let keys: std::collections::BTreeMap<String, serde::de::IgnoredAny> =
+        serde_json::from_str(text).map_err(|source| IoError::Json {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let misspelt = keys.keys().find(|k| {
+        let lower = k.to_ascii_lowercase();
+        !SENSOR_KEYS.contains(&k.as_str()) && SENSOR_KEY_STEMS.iter().any(|s| lower.contains(s))
+    });
+    match misspelt {
+        Some(k) => Err(IoError::malformed(
+            path,
+            format!(
+                "unknown key {k:?}: the sensor keys are `baseline_m` (metres), `subpixel` \
+                 (disparity steps per pixel), `sigma_d_px` (pixels) and `sensor_focal_px` \
+                 (pixels); a misspelt one would leave the Kinect default in its place"
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// Refuses intrinsics whose principal point lies outside their own image (the pixels' extent,
+/// `[-0.5, width - 0.5]` × `[-0.5, height - 0.5]` with pixel centres at whole coordinates): a
+/// depth camera's lies near the image centre, and one outside is the calibration of another
+/// image size (a 1280×720 `K`, c = (640, 360), read as the assumed 640×480), which every
+/// command would otherwise use without a word.
+fn check_principal_point(path: &Path, k: &Intrinsics) -> Result<()> {
+    let within = |c: f64, side: usize| (-0.5..=side as f64 - 0.5).contains(&c);
+    let inside = within(k.cx, k.width) && within(k.cy, k.height);
+    if inside {
+        return Ok(());
+    }
+    Err(IoError::malformed(
+        path,
+        format!(
+            "principal point ({}, {}) px lies outside the {}x{} image: intrinsics of another \
+             image size?",
+            sl_core::Compact(k.cx),
+            sl_core::Compact(k.cy),
+            k.width,
+            k.height
+        ),
+    ))
+}
+
+/// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern and that the
+/// principal point lies in the image.
 fn intrinsics_from_k(
     path: &Path,
     width: usize,
@@ -78,8 +142,10 @@ fn intrinsics_from_k(
             ));
         }
     }
-    Intrinsics::new(width, height, k[0][0], k[1][1], k[0][2], k[1][2])
-        .map_err(|e| IoError::core(path, None, e))
+    let intrinsics = Intrinsics::new(width, height, k[0][0], k[1][1], k[0][2], k[1][2])
+        .map_err(|e| IoError::core(path, None, e))?;
+    check_principal_point(path, &intrinsics)?;
+    Ok(intrinsics)
 }
 
 /// Reads an Open3D `PinholeCameraIntrinsic` JSON file into a [`Camera`]; the sensor model comes
@@ -102,6 +168,7 @@ pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> 
         path: path.to_path_buf(),
         source,
     })?;
+    check_sensor_key_spelling(path, &text)?;
     let m = json.intrinsic_matrix;
     // Column-major: m[col * 3 + row].
     let k = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
@@ -145,6 +212,8 @@ pub fn write_camera_json(path: impl AsRef<Path>, camera: &Camera) -> Result<()> 
         .validate()
         .and_then(|_| camera.sensor.validate())
         .map_err(|e| IoError::core(path, None, e))?;
+    // What the reader would refuse is not written.
+    check_principal_point(path, &camera.intrinsics)?;
     let text = camera_to_json(camera);
     write_atomic(path, |w| {
         w.write_all(text.as_bytes())?;
@@ -280,6 +349,93 @@ mod tests {
             let err = read_camera_json(&p).unwrap_err();
             assert!(err.to_string().contains("bad.json"), "{err}");
         }
+    }
+
+    /// A sensor key in another spelling is refused (it was ignored, and the Kinect's 75 mm
+    /// baseline used without a word); other tools' metadata keys are still ignored.
+    #[test]
+    fn misspelt_sensor_keys_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        let k = r#""width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]"#;
+        for key in [
+            "baseline",
+            "baseline_mm",
+            "Sigma_D",
+            "sub_pixel",
+            "sensor_focal",
+        ] {
+            std::fs::write(&p, format!(r#"{{{k}, "{key}": 0.2}}"#)).unwrap();
+            let err = read_camera_json(&p).unwrap_err().to_string();
+            assert!(err.contains("cam.json"), "{err}");
+            assert!(err.contains(&format!("unknown key \"{key}\"")), "{err}");
+            assert!(err.contains("`baseline_m` (metres)"), "{err}");
+        }
+        // Azure Kinect recordings' Open3D intrinsics carry such metadata.
+        std::fs::write(
+            &p,
+            format!(r#"{{{k}, "color_mode": "MJPG_720P", "serial_number_": "x", "stream_length_usec": 1}}"#),
+        )
+        .unwrap();
+        assert_eq!(
+            read_camera_json(&p).unwrap().sensor.baseline_m,
+            KINECT_BASELINE_M
+        );
+        // Not a camera object at all: the message says what one is, not an internal type name.
+        std::fs::write(&p, "null").unwrap();
+        let err = read_camera_json(&p).unwrap_err().to_string();
+        assert!(
+            err.contains("expected a camera object with `width`"),
+            "{err}"
+        );
+        assert!(!err.contains("CameraJson"), "{err}");
+    }
+
+    /// A principal point outside the image the file describes is refused, naming it: it was
+    /// used without a word (a 7-Scenes-style matrix of a 1280x720 camera read as 640x480).
+    #[test]
+    fn principal_point_outside_the_image_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        for (cx, cy) in [
+            (5000.0, 239.5),
+            (-300.0, 239.5),
+            (319.5, 480.0),
+            (319.5, -0.75),
+        ] {
+            std::fs::write(
+                &p,
+                format!(
+                    r#"{{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, {cx}, {cy}, 1]}}"#
+                ),
+            )
+            .unwrap();
+            let err = read_camera_json(&p).unwrap_err().to_string();
+            assert!(err.contains("cam.json"), "{err}");
+            assert!(
+                err.contains(&format!(
+                    "principal point ({cx}, {cy}) px lies outside the 640x480 image"
+                )),
+                "{err}"
+            );
+        }
+        // The image's edges are inside.
+        std::fs::write(
+            &p,
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, -0.5, 479.5, 1]}"#,
+        )
+        .unwrap();
+        assert!(read_camera_json(&p).is_ok());
+        let t = dir.path().join("camera-intrinsics.txt");
+        std::fs::write(&t, "912 0 640\n0 912 360\n0 0 1\n").unwrap();
+        let err = read_7scenes_intrinsics(&t).unwrap_err().to_string();
+        assert!(
+            err.contains("(640, 360) px lies outside the 640x480 image"),
+            "{err}"
+        );
+        let mut cam = Camera::kinect_v1();
+        cam.intrinsics.cx = 700.0;
+        assert!(write_camera_json(&p, &cam).is_err());
     }
 
     #[test]

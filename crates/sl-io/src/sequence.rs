@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 use crate::text::read_text;
-use crate::trajectory::check_frames;
+use crate::trajectory::{check_frames, natural_order};
 
 /// One depth frame of a sequence.
 #[derive(Debug, Clone, PartialEq)]
@@ -86,8 +86,9 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
     Ok(out)
 }
 
-/// The `frame-XXXXXX.depth.png` images of a 7-Scenes sequence folder, sorted by name (poses,
-/// when present, are not read).
+/// The `frame-XXXXXX.depth.png` images of a 7-Scenes sequence folder, sorted by name in
+/// [`crate::trajectory::natural_order`] (`frame-9` before `frame-10` where the numbers are
+/// not zero-padded; poses, when present, are not read).
 pub fn read_7scenes_depth_frames(
     dir: impl AsRef<Path>,
     limits: &Limits,
@@ -105,7 +106,7 @@ pub fn read_7scenes_depth_frames(
             files.push(path);
         }
     }
-    files.sort();
+    files.sort_by(|a, b| natural_order(a.as_os_str(), b.as_os_str()));
     Ok(files
         .into_iter()
         .map(|depth_path| SequenceFrame {
@@ -115,8 +116,8 @@ pub fn read_7scenes_depth_frames(
         .collect())
 }
 
-/// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`, sorted by name;
-/// `dir` itself when it has no `depth` subfolder).
+/// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`, sorted by name in
+/// [`crate::trajectory::natural_order`]; `dir` itself when it has no `depth` subfolder).
 pub fn read_open3d_depth_frames(
     dir: impl AsRef<Path>,
     limits: &Limits,
@@ -141,5 +142,50 @@ fn short_number(v: f64) -> String {
         format!("{v:.6}")
     } else {
         format!("{v:e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Unpadded 7-Scenes-style and Open3D-style names come in the order they were recorded:
+    /// by bytes, `frame-10` came before `frame-8` and the tracked trajectory was shuffled
+    /// without a word.
+    #[test]
+    fn unpadded_frame_numbers_keep_their_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("depth")).unwrap();
+        for i in [8, 9, 10, 11] {
+            std::fs::write(d.join(format!("frame-{i}.depth.png")), b"").unwrap();
+            std::fs::write(d.join("depth").join(format!("{i}.png")), b"").unwrap();
+        }
+        let names = |frames: Vec<SequenceFrame>| -> Vec<String> {
+            frames
+                .iter()
+                .map(|f| {
+                    f.depth_path
+                        .file_name()
+                        .unwrap()
+                        .to_string_lossy()
+                        .into_owned()
+                })
+                .collect()
+        };
+        let limits = Limits::default();
+        assert_eq!(
+            names(read_7scenes_depth_frames(d, &limits).unwrap()),
+            [
+                "frame-8.depth.png",
+                "frame-9.depth.png",
+                "frame-10.depth.png",
+                "frame-11.depth.png"
+            ]
+        );
+        assert_eq!(
+            names(read_open3d_depth_frames(d, &limits).unwrap()),
+            ["8.png", "9.png", "10.png", "11.png"]
+        );
     }
 }

@@ -568,7 +568,8 @@ pub fn write_open3d_log(path: impl AsRef<Path>, poses: &[CameraToWorld]) -> Resu
     write_atomic(path, |w| w.write_all(text.as_bytes()))
 }
 
-/// Depth image files (`.png`, `.tif`, `.tiff`, `.pgm`) in `dir`, sorted by name.
+/// Depth image files (`.png`, `.tif`, `.tiff`, `.pgm`) in `dir`, sorted by name in
+/// [`natural_order`] (`9.png` before `10.png`).
 pub fn list_depth_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>> {
     let dir = dir.as_ref();
     let mut files = Vec::new();
@@ -578,12 +579,50 @@ pub fn list_depth_files(dir: impl AsRef<Path>) -> Result<Vec<PathBuf>> {
             files.push(path);
         }
     }
-    files.sort();
+    files.sort_by(|a, b| natural_order(a.as_os_str(), b.as_os_str()));
     Ok(files)
 }
 
-/// Pairs an Open3D `.log` with the depth images of `depth_dir` (sorted by name): entry
-/// `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
+/// The order of numbered file names: runs of ASCII digits compare as the numbers they are
+/// (`frame-9` before `frame-10`, `2.png` before `10.png`), everything else byte by byte; names
+/// equal by that (`frame-007`, `frame-7`) in plain byte order. Zero-padded names sort as they
+/// do by bytes; unpadded ones sort in the order they were recorded in, not `1, 10, 11, 2`,
+/// which would silently shuffle a trajectory. The order of Open3D's reconstruction system
+/// (`sorted_alphanum`), so an Open3D `.log` pairs with the images it was made from.
+pub fn natural_order(a: &std::ffi::OsStr, b: &std::ffi::OsStr) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    fn digits(s: &[u8], from: usize) -> usize {
+        s[from..]
+            .iter()
+            .position(|c| !c.is_ascii_digit())
+            .map_or(s.len(), |n| from + n)
+    }
+    fn trim_zeros(s: &[u8]) -> &[u8] {
+        let zeros = s.iter().take_while(|&&c| c == b'0').count();
+        &s[zeros..]
+    }
+    let (x, y) = (a.as_encoded_bytes(), b.as_encoded_bytes());
+    let (mut i, mut j) = (0, 0);
+    while i < x.len() && j < y.len() {
+        let order = if x[i].is_ascii_digit() && y[j].is_ascii_digit() {
+            let (ei, ej) = (digits(x, i), digits(y, j));
+            let (m, n) = (trim_zeros(&x[i..ei]), trim_zeros(&y[j..ej]));
+            (i, j) = (ei, ej);
+            m.len().cmp(&n.len()).then_with(|| m.cmp(n))
+        } else {
+            let o = x[i].cmp(&y[j]);
+            (i, j) = (i + 1, j + 1);
+            o
+        };
+        if order != Ordering::Equal {
+            return order;
+        }
+    }
+    (x.len() - i).cmp(&(y.len() - j)).then_with(|| x.cmp(y))
+}
+
+/// Pairs an Open3D `.log` with the depth images of `depth_dir` (sorted by name in
+/// [`natural_order`]): entry `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
 pub fn read_open3d_log_frames(
     log_path: impl AsRef<Path>,
     depth_dir: impl AsRef<Path>,
@@ -656,7 +695,8 @@ pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<CameraToWorld> {
     CameraToWorld::from_row_major(&m).map_err(|e| IoError::core(path, None, e))
 }
 
-/// Reads a 7-Scenes sequence directory: every `frame-XXXXXX.pose.txt`, sorted by name, with its
+/// Reads a 7-Scenes sequence directory: every `frame-XXXXXX.pose.txt`, sorted by name in
+/// [`natural_order`], with its
 /// `frame-XXXXXX.depth.png` (which must exist).
 pub fn read_7scenes_sequence(dir: impl AsRef<Path>) -> Result<Vec<Frame>> {
     read_7scenes_sequence_with_limits(dir, &Limits::default())
@@ -682,7 +722,7 @@ pub fn read_7scenes_sequence_with_limits(
             pose_files.push((stem.to_string(), path));
         }
     }
-    pose_files.sort();
+    pose_files.sort_by(|a, b| natural_order(a.1.as_os_str(), b.1.as_os_str()));
     pose_files
         .into_iter()
         .map(|(stem, pose_path)| {
@@ -974,5 +1014,55 @@ mod tests {
         )
         .unwrap();
         assert!(read_7scenes_sequence(d).is_err());
+    }
+
+    /// Numbers in names sort as numbers: unpadded frames in the order they were recorded, not
+    /// `10, 11, 8, 9` (a silently shuffled trajectory before); padded ones as by bytes.
+    #[test]
+    fn numbered_names_sort_as_numbers() {
+        let sorted = |names: &[&str]| {
+            let mut v: Vec<std::ffi::OsString> = names.iter().map(Into::into).collect();
+            v.sort_by(|a, b| natural_order(a, b));
+            v.into_iter()
+                .map(|s| s.into_string().unwrap())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(
+            sorted(&["10.png", "9.png", "100.png", "8.png", "11.png"]),
+            ["8.png", "9.png", "10.png", "11.png", "100.png"]
+        );
+        assert_eq!(
+            sorted(&["frame-000010.depth.png", "frame-000009.depth.png"]),
+            ["frame-000009.depth.png", "frame-000010.depth.png"]
+        );
+        assert_eq!(
+            sorted(&["b2", "a10", "a9", "a", "a09", "a9x", "2b"]),
+            ["2b", "a", "a09", "a9", "a9x", "a10", "b2"]
+        );
+        assert_eq!(
+            sorted(&["1305031229.564442.png", "1305031229.528784.png"]),
+            ["1305031229.528784.png", "1305031229.564442.png"]
+        );
+        // Digit runs beyond any integer type compare too.
+        assert_eq!(
+            sorted(&[
+                "99999999999999999999999.png",
+                "100000000000000000000000.png"
+            ]),
+            [
+                "99999999999999999999999.png",
+                "100000000000000000000000.png"
+            ]
+        );
+        let dir = tempfile::tempdir().unwrap();
+        for i in [8, 9, 10, 11] {
+            std::fs::write(dir.path().join(format!("{i}.png")), b"").unwrap();
+        }
+        let names: Vec<String> = list_depth_files(dir.path())
+            .unwrap()
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["8.png", "9.png", "10.png", "11.png"]);
     }
 }

@@ -100,8 +100,9 @@ pub(crate) fn is_borrowed(obj: &Bound<'_, PyAny>, depth_scale: Option<f64>) -> P
 fn check_depth_scale(scale: f64) -> PyResult<()> {
     if !(sl_io::depth::MIN_UNITS_PER_M..=sl_io::depth::MAX_UNITS_PER_M).contains(&scale) {
         return Err(value_error(format!(
-            "depth_scale {scale:e} units per metre is outside 1 to 1e6 (1000 for millimetres, \
-             5000 for TUM)"
+            "depth_scale {} units per metre is outside 1 to 1e6 (1000 for millimetres, 5000 for \
+             TUM)",
+            sl_core::Compact(scale)
         )));
     }
     Ok(())

@@ -226,9 +226,20 @@ impl PyCamera {
             .preset_name
             .as_deref()
             .map_or_else(String::new, |p| format!(", preset={p:?}"));
+        // Numbers compact (a 1e-300 m baseline is not 300 digits), each still a Python float
+        // literal.
+        let c = sl_core::Compact;
         format!(
             "Camera(width={}, height={}, fx={}, fy={}, cx={}, cy={}, baseline_m={}, subpixel={}, sigma_d_px={}{preset})",
-            k.width, k.height, k.fx, k.fy, k.cx, k.cy, s.baseline_m, s.subpixel_steps, s.sigma_d_px
+            k.width,
+            k.height,
+            c(k.fx),
+            c(k.fy),
+            c(k.cx),
+            c(k.cy),
+            c(s.baseline_m),
+            s.subpixel_steps,
+            c(s.sigma_d_px)
         )
     }
 }

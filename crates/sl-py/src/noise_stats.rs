@@ -50,7 +50,8 @@ fn labels_input<'py>(obj: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArray2<'py, 
 /// runs of equal depth), ``occlusion`` (invalid bands left and right of foreground objects,
 /// with the projector shadow the geometry predicts, and ``by_shadow``: the edges, and those with
 /// a band, per bin of predicted shadow), ``invalid_fraction``, ``regions``,
-/// ``pixels``. Values that could not be measured are ``None``. ``labels`` (uint16 (H, W),
+/// ``pixels``, ``fb_px_m`` (the camera's f·B the disparities were computed with, px·m). Values
+/// that could not be measured are ``None``. ``labels`` (uint16 (H, W),
 /// 0 = none) gives the planar regions; by default they are the planes ``extract_planes`` finds
 /// with at least ``min_plane_pixels`` sensor pixels. Against the camera's own model:
 /// ``model_sigma_d_px`` (its σ_D), ``model_variance_scale`` (how many times the model's pixel
@@ -110,6 +111,7 @@ pub(crate) fn noise_stats<'py>(
         let mut v = serde_json::to_value(&s).map_err(|e| e.to_string())?;
         if let Some(o) = v.as_object_mut() {
             let sensor = camera.sensor;
+            o.insert("fb_px_m".into(), sensor.fb().into());
             o.insert("model_sigma_d_px".into(), sensor.sigma_d_px.into());
             o.insert("model_variance_scale".into(), scale.into());
             o.insert(

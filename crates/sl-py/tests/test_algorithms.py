@@ -498,6 +498,8 @@ def test_noise_stats_measure_a_sensor_against_its_camera_model(kinect):
     nominal, _, _ = sldepth.simulate("boxes", seed=3, camera=kinect)
     s = sldepth.noise_stats(nominal, kinect)
     assert s["model_sigma_d_px"] == pytest.approx(kinect.sigma_d_px)
+    # The keys of `sldepth noise-stats --json` but its `path`: f·B was missing.
+    assert s["fb_px_m"] == pytest.approx(kinect.fx * kinect.baseline_m)
     assert s["model_variance_scale"] == 1.0
     assert s["model_effective_sigma_d_px"] == pytest.approx(kinect.sigma_d_px)
     noisier = sldepth.Camera(

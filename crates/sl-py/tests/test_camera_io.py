@@ -42,6 +42,20 @@ def test_open3d_style_constructor_and_validation():
         sldepth.Camera(320, 240, 290.0, 290.0, 159.5, 119.5, baseline_m=float("nan"))
 
 
+def test_numbers_are_repeated_compactly():
+    # The refused value as it was given (-517.3, 0), not -5.173e2 / 0e0; a repr is no 300-digit
+    # decimal, and still evaluates back to the camera.
+    with pytest.raises(ValueError, match=r"fx = -517\.3 must be in \[1, 1e7\] pixels"):
+        sldepth.Camera(640, 480, -517.3, 500.0, 319.5, 239.5)
+    with pytest.raises(ValueError, match=r"baseline -0\.075 m must be"):
+        sldepth.Camera(640, 480, 500.0, 500.0, 319.5, 239.5, baseline_m=-0.075)
+    with pytest.raises(ValueError, match=r"depth_scale 0 units per metre is outside"):
+        sldepth.filter(np.full((48, 64), 2000, dtype=np.uint16), depth_scale=0)
+    tiny = sldepth.Camera(640, 480, 517.3, 516.5, 318.6, 255.3, baseline_m=1e-300)
+    assert "baseline_m=1e-300," in repr(tiny) and len(repr(tiny)) < 200
+    assert eval(repr(tiny), {"Camera": sldepth.Camera}) == tiny
+
+
 @pytest.mark.parametrize("ext", ["png", "tiff"])
 def test_depth_round_trip(tmp_path, ext):
     rng = np.random.default_rng(1)

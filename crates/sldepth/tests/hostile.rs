@@ -275,6 +275,53 @@ fn absurd_camera_numbers_are_refused_with_the_valid_range() {
     assert_typed_error(&o, &["fx", "must be in [1, 1e7] pixels"]);
 }
 
+/// A camera file that misspells a sensor key is refused by every command that reads it, naming
+/// the key: `"baseline": 0.2` used to be ignored and the Kinect's 75 mm used without a word.
+#[test]
+fn a_misspelt_camera_sensor_key_is_refused_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let cam = dir.path().join("cam.json");
+    std::fs::write(
+        &cam,
+        r#"{"width": 640, "height": 480, "intrinsic_matrix": [580, 0, 0, 0, 580, 0, 319.5, 239.5, 1], "baseline": 0.2}"#,
+    )
+    .unwrap();
+    let depth = testdata("floor-seed1-depth.png");
+    for cmd in ["info", "analyze", "noise-stats"] {
+        let o = run(&[cmd, s(&depth), "--camera", s(&cam)]);
+        assert_typed_error(
+            &o,
+            &["cam.json", "unknown key \"baseline\"", "`baseline_m`"],
+        );
+    }
+}
+
+/// A camera the prefilter cannot serve is named with its numbers compact: a 1e-300 m baseline
+/// was printed as a 300-digit decimal.
+#[test]
+fn track_names_an_absurd_camera_compactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let cam = dir.path().join("cam.json");
+    std::fs::write(
+        &cam,
+        r#"{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 32, 24, 1], "baseline_m": 1e-300}"#,
+    )
+    .unwrap();
+    let seq = dir.path().join("seq");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let depth = sl_core::DepthImage::from_vec(64, 48, vec![1.5; 64 * 48]).unwrap();
+    sl_io::write_depth(
+        seq.join("depth/0.png"),
+        &depth,
+        &sl_io::DepthEncoding::default(),
+    )
+    .unwrap();
+    let o = run(&["track", "--o3d", s(&seq), "--camera", s(&cam)]);
+    assert_typed_error(&o, &["B = 1e-300 m", "--prefilter none skips it"]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!stderr.contains("0000000000"), "{stderr}");
+}
+
 /// A small frame (64x48 at 1.5 m) with its camera and a one-line frame list.
 fn small_sequence(dir: &Path) -> (PathBuf, PathBuf) {
     let depth = sl_core::DepthImage::from_vec(64, 48, vec![1.5; 64 * 48]).unwrap();

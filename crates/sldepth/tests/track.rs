@@ -848,3 +848,70 @@ fn track_names_the_files_an_empty_sequence_folder_lacks() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--max-frames 0: no frame left"), "{err}");
 }
+
+/// An Open3D-style folder whose images are numbered without zero padding (`8.png` … `11.png`)
+/// is tracked in the order of its numbers: sorted by bytes (`10, 11, 8, 9`) the camera seemed
+/// to jump back 3 cm at the third frame, a trajectory shuffled without a word.
+#[test]
+fn track_takes_unpadded_frame_numbers_in_their_order() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 4);
+    let o3d = tmp.path().join("o3d");
+    std::fs::create_dir_all(o3d.join("depth")).unwrap();
+    let list = std::fs::read_to_string(seq.join("depth.txt")).unwrap();
+    let names = list.lines().filter(|l| !l.starts_with('#'));
+    for (i, line) in names.enumerate() {
+        let name = line.split_whitespace().nth(1).unwrap();
+        let to = o3d.join("depth").join(format!("{}.png", 8 + i));
+        std::fs::copy(seq.join(name), to).unwrap();
+    }
+    let traj = tmp.path().join("traj.txt");
+    let args = [
+        "track",
+        "--o3d",
+        o3d.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--depth-scale",
+        "5000",
+        "--voxel-m",
+        "0.01",
+        "--output",
+        traj.to_str().unwrap(),
+        "--json",
+    ];
+    let (v, _) = sldepth_json(&args);
+    assert_eq!(v["lost"], 0, "{v}");
+    // 1 cm per frame, away from the first.
+    let rows = pose_rows(&traj);
+    assert_eq!(rows.len(), 4);
+    for (i, r) in rows.iter().enumerate() {
+        let moved = (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
+        assert!(
+            (moved - 0.01 * i as f64).abs() < 0.004,
+            "frame {i} moved {moved} m from the first, expected {} m",
+            0.01 * i as f64
+        );
+    }
+}
+
+/// A frame that measures far noisier than any sensor, here every frame of a sensor with
+/// σ_D 0.2 px read at 200 times its depth scale (a wrong `--depth-scale`: about 20 px of
+/// disparity noise), is tracked with the largest σ_D a sensor model may have: the run stopped
+/// at the first frame on "model: invalid sensor model: disparity noise 1.65e1 px must be in
+/// [0, 10]" before, naming neither the option nor the measurement.
+#[test]
+fn track_goes_on_past_frames_noisier_than_any_sensor_model() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let mut sensor = sl_core::SensorModel::kinect_v1();
+    sensor.sigma_d_px = 0.2;
+    write_sequence_through(&seq, 3, 1, &KinectSimulator::with_sensor(sensor).white());
+    let (v, stderr) = kinect_track_json(&seq, &["--depth-scale", "1e6"]);
+    assert_eq!(v["frames"], 3, "{v}");
+    assert_eq!(v["skipped"], 0, "{v}");
+    assert!(!stderr.contains("invalid sensor model"), "{stderr}");
+    let sigma = v["prefilter_sigma_d_px_median"].as_f64().unwrap();
+    assert_eq!(sigma, sl_core::sensor::MAX_SIGMA_D_PX, "{v}");
+}

@@ -61,8 +61,9 @@ pub struct Args {
     /// the `7-scenes` camera (fx = fy = 585, c = (320, 240)) unless given.
     #[arg(long = "7scenes", value_name = "DIR", group = "source")]
     pub seven_scenes: Option<PathBuf>,
-    /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, millimetres unless
-    /// --depth-scale) and an optional `DIR/camera.json`.
+    /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, numbers as numbers:
+    /// `9.png` before `10.png`; millimetres unless --depth-scale) and an optional
+    /// `DIR/camera.json`.
     #[arg(long, value_name = "DIR", group = "source")]
     pub o3d: Option<PathBuf>,
     /// Use only the first N frames.
@@ -603,9 +604,9 @@ pub fn run(args: Args) -> Result<()> {
             format!(
                 "--prefilter {} for this camera (f = {} px, B = {} m, sigma_d = {} px); --prefilter none skips it",
                 prefilter.name(),
-                camera.sensor.focal_px,
-                camera.sensor.baseline_m,
-                camera.sensor.sigma_d_px
+                crate::common::num(camera.sensor.focal_px),
+                crate::common::num(camera.sensor.baseline_m),
+                crate::common::num(camera.sensor.sigma_d_px)
             )
         })?;
     }
