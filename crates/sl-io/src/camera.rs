@@ -137,7 +137,8 @@ fn intrinsics_from_k(
             return Err(IoError::malformed(
                 path,
                 format!(
-                    "intrinsic matrix entry {name} is {v}, expected {want} (no skew, K[2] = [0, 0, 1])"
+                    "intrinsic matrix entry {name} is {}, expected {want} (no skew, K[2] = [0, 0, 1])",
+                    sl_core::Compact(v)
                 ),
             ));
         }

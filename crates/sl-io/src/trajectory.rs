@@ -236,7 +236,7 @@ pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Resu
         return Err(IoError::InvalidConfig {
             message: format!(
                 "pose {i} has timestamp {}: a trajectory's timestamps must be finite seconds",
-                p.timestamp
+                sl_core::Compact(p.timestamp)
             ),
         });
     }
@@ -432,7 +432,10 @@ pub fn read_tum_sequence_at_offset(
     if !offset_s.is_finite() {
         return Err(IoError::Format {
             path: dir.join("groundtruth.txt"),
-            message: format!("clock offset {offset_s} s must be finite"),
+            message: format!(
+                "clock offset {} s must be finite",
+                sl_core::Compact(offset_s)
+            ),
         });
     }
     let (depth, poses) = read_tum_parts(dir, max_gap_s, limits)?;
@@ -453,7 +456,10 @@ fn read_tum_parts(
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
         return Err(IoError::Format {
             path: gt_path,
-            message: format!("maximum time difference {max_dt_s} s must be positive"),
+            message: format!(
+                "maximum time difference {} s must be positive",
+                sl_core::Compact(max_dt_s)
+            ),
         });
     }
     let poses = read_tum_trajectory_with_limits(&gt_path, limits)?;

@@ -100,7 +100,8 @@ pub fn algorithm1_with(p: &Algorithm1Params) -> Result<Algorithm1> {
     {
         return Err(NoiseError::InvalidParameter(format!(
             "baseline {} mm and focal length {} px must be positive",
-            p.baseline_mm, p.focal_px
+            sl_core::Compact(p.baseline_mm),
+            sl_core::Compact(p.focal_px)
         )));
     }
     if p.subpixel_steps == 0 || p.z_min_mm == 0 || p.z_max_mm <= p.z_min_mm {

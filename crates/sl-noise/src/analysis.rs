@@ -83,7 +83,8 @@ impl AnalysisConfig {
         let step = self.depth_step_m;
         if !(step.is_finite() && step > 0.0) {
             return Err(NoiseError::InvalidParameter(format!(
-                "depth step {step} m must be positive"
+                "depth step {} m must be positive",
+                sl_core::Compact(step)
             )));
         }
         if self.subpixel_steps == Some(0) {

@@ -87,7 +87,7 @@ impl NoiseStatsConfig {
         if !(self.jump_m.is_finite() && self.jump_m > 0.0) {
             return Err(NoiseError::InvalidParameter(format!(
                 "jump_m = {} must be positive",
-                self.jump_m
+                sl_core::Compact(self.jump_m)
             )));
         }
         if self
@@ -102,7 +102,7 @@ impl NoiseStatsConfig {
         if !(self.pixels_per_sensor_pixel.is_finite() && self.pixels_per_sensor_pixel > 0.0) {
             return Err(NoiseError::InvalidParameter(format!(
                 "pixels_per_sensor_pixel = {} must be positive",
-                self.pixels_per_sensor_pixel
+                sl_core::Compact(self.pixels_per_sensor_pixel)
             )));
         }
         if self.tile_px == 0 {
@@ -332,7 +332,8 @@ pub fn disparity_residuals(
     }
     if !(fb_px_m.is_finite() && fb_px_m > 0.0) {
         return Err(NoiseError::InvalidParameter(format!(
-            "f·B = {fb_px_m} must be positive"
+            "f·B = {} must be positive",
+            sl_core::Compact(fb_px_m)
         )));
     }
     if tile_px == 0 {

@@ -70,7 +70,8 @@ pub(super) fn positive(v: f64, what: &str) -> Result<()> {
         Ok(())
     } else {
         Err(NoiseError::DegenerateGeometry(format!(
-            "{what} = {v} must be positive and finite"
+            "{what} = {} must be positive and finite",
+            sl_core::Compact(v)
         )))
     }
 }

@@ -136,7 +136,7 @@ impl RealisticNoise {
         if !(self.max_incidence_deg > 0.0 && self.max_incidence_deg <= 90.0) {
             return bad(format!(
                 "max_incidence_deg {} must be in (0, 90]",
-                self.max_incidence_deg
+                sl_core::Compact(self.max_incidence_deg)
             ));
         }
         if !(self.registration_baseline_m.is_finite()
