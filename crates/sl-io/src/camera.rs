@@ -13,7 +13,8 @@
 //!
 //! `intrinsic_matrix` is the 3×3 matrix `K` in **column-major** order. The last three keys are
 //! ours and optional (defaults: the Kinect's 0.075 m, 8 steps, σ_D 0.07 px), so any Open3D camera
-//! file reads. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
+//! file reads. Open3D's `PinholeCameraParameters` files (an `intrinsic` object of this form
+//! beside an `extrinsic` pose) read as their intrinsic object. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
 //! length differs from `fx` (it defaults to `fx`). Other keys (the metadata other tools write
 //! beside Open3D's three) are ignored, except one that names a sensor quantity in another
 //! spelling (`baseline`, `baseline_mm`, `sigma_d`, `sub_pixel`, ...): that is refused, since
@@ -70,12 +71,10 @@ const SENSOR_KEY_STEMS: [&str; 5] = ["baseline", "subpixel", "sub_pixel", "sigma
 /// Refuses a key of `text` (a JSON object) that is not one of ours but names a sensor
 /// quantity (`baseline`, `sigma_d`): a misspelt sensor key would otherwise be ignored and the
 /// Kinect default used in its place.
-fn check_sensor_key_spelling(path: &Path, text: &str) -> Result<()> {
-    let keys: std::collections::BTreeMap<String, serde::de::IgnoredAny> =
-        serde_json::from_str(text).map_err(|source| IoError::Json {
-            path: path.to_path_buf(),
-            source,
-        })?;
+fn check_sensor_key_spelling(
+    path: &Path,
+    keys: &serde_json::Map<String, serde_json::Value>,
+) -> Result<()> {
     let misspelt = keys.keys().find(|k| {
         let lower = k.to_ascii_lowercase();
         !SENSOR_KEYS.contains(&k.as_str()) && SENSOR_KEY_STEMS.iter().any(|s| lower.contains(s))
@@ -90,6 +89,36 @@ fn check_sensor_key_spelling(path: &Path, text: &str) -> Result<()> {
             ),
         )),
         None => Ok(()),
+    }
+}
+
+/// The camera object of a camera file: the file's own top-level object, or for Open3D's
+/// `PinholeCameraParameters` (what `open3d.io.write_pinhole_camera_parameters` writes: the
+/// camera's `extrinsic` pose beside an `intrinsic` object, and no `intrinsic_matrix` at the
+/// top) its `intrinsic` object, with the sensor keys of the top level where it has none of its
+/// own. The extrinsic pose is not a property of the camera and is not read.
+fn intrinsic_object(value: serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    let Value::Object(mut top) = value else {
+        return value;
+    };
+    if top.contains_key("intrinsic_matrix") {
+        return Value::Object(top);
+    }
+    match top.remove("intrinsic") {
+        Some(Value::Object(mut inner)) => {
+            for key in SENSOR_KEYS {
+                if let Some(v) = top.remove(key) {
+                    inner.entry(key).or_insert(v);
+                }
+            }
+            Value::Object(inner)
+        }
+        Some(other) => {
+            top.insert("intrinsic".into(), other);
+            Value::Object(top)
+        }
+        None => Value::Object(top),
     }
 }
 
@@ -165,11 +194,20 @@ pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> 
         MAX_CAMERA_BYTES.min(limits.max_text_bytes),
         limits.max_text_lines,
     )?;
-    let json: CameraJson = serde_json::from_str(&text).map_err(|source| IoError::Json {
+    let json_error = |source| IoError::Json {
         path: path.to_path_buf(),
         source,
-    })?;
-    check_sensor_key_spelling(path, &text)?;
+    };
+    let value: serde_json::Value = serde_json::from_str(&text).map_err(json_error)?;
+    // Both levels of a `PinholeCameraParameters` file are checked.
+    if let serde_json::Value::Object(keys) = &value {
+        check_sensor_key_spelling(path, keys)?;
+    }
+    let value = intrinsic_object(value);
+    if let serde_json::Value::Object(keys) = &value {
+        check_sensor_key_spelling(path, keys)?;
+    }
+    let json: CameraJson = serde_json::from_value(value).map_err(json_error)?;
     let m = json.intrinsic_matrix;
     // Column-major: m[col * 3 + row].
     let k = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
@@ -331,6 +369,44 @@ mod tests {
         assert_eq!(cam.sensor.focal_px, 525.0);
         assert_eq!(cam.sensor.baseline_m, KINECT_BASELINE_M);
         assert_eq!(cam.sensor.subpixel_steps, 8);
+    }
+
+    /// Open3D's `PinholeCameraParameters` (the intrinsic object nested beside an extrinsic
+    /// pose) reads as its intrinsic object; sensor keys may sit at either level. It was refused
+    /// as "missing field `width`".
+    #[test]
+    fn open3d_pinhole_camera_parameters_read_their_intrinsics() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("params.json");
+        std::fs::write(
+            &p,
+            r#"{"class_name": "PinholeCameraParameters",
+                "extrinsic": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0.5, 0, 0, 1],
+                "intrinsic": {"width": 640, "height": 480,
+                              "intrinsic_matrix": [525.0, 0, 0, 0, 526.0, 0, 319.5, 239.5, 1]},
+                "baseline_m": 0.05, "version_major": 1, "version_minor": 0}"#,
+        )
+        .unwrap();
+        let cam = read_camera_json(&p).unwrap();
+        assert_eq!(
+            cam.intrinsics,
+            Intrinsics::new(640, 480, 525.0, 526.0, 319.5, 239.5).unwrap()
+        );
+        assert_eq!(cam.sensor.baseline_m, 0.05);
+        // A misspelt sensor key at the top level is still refused.
+        std::fs::write(
+            &p,
+            r#"{"intrinsic": {"width": 640, "height": 480,
+                "intrinsic_matrix": [525.0, 0, 0, 0, 525.0, 0, 319.5, 239.5, 1]},
+                "baseline": 0.05}"#,
+        )
+        .unwrap();
+        let e = read_camera_json(&p).unwrap_err().to_string();
+        assert!(e.contains("unknown key \"baseline\""), "{e}");
+        // An `intrinsic` that is not an object is no camera.
+        std::fs::write(&p, r#"{"intrinsic": [1, 2, 3]}"#).unwrap();
+        let e = read_camera_json(&p).unwrap_err().to_string();
+        assert!(e.contains("params.json") && e.contains("width"), "{e}");
     }
 
     #[test]

@@ -278,7 +278,8 @@ pub struct InputArgs {
     /// Camera: a preset name (`sldepth cameras` lists them: kinect-v1, tum-fr1, 7-scenes,
     /// nyu-v2, icl-nuim, primesense, d435, oak-d, ...) or a camera JSON file (Open3D
     /// `PinholeCameraIntrinsic` format: `width`, `height`, column-major `intrinsic_matrix`, with
-    /// optional `baseline_m` (metres) and `subpixel` (disparity steps per pixel)). An existing
+    /// optional `baseline_m` (metres) and `subpixel` (disparity steps per pixel); Open3D's
+    /// `PinholeCameraParameters` file is read for its `intrinsic` object). An existing
     /// file wins over a preset of the same name. Default: the `kinect-v1` preset (640x480,
     /// f = 580 px, c = (319.5, 239.5), B = 0.075 m, 1/8 px).
     #[arg(long, value_name = "NAME|FILE", global = true)]
