@@ -1033,21 +1033,34 @@ fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
     assert!(left[0].volume.memory_bytes() <= cfg.tsdf.memory_budget_bytes);
 }
 
-/// The fragments share one memory budget: a new fragment's volume may use what the suspended
-/// one does not hold (the carried camera of the test above, fragment 0 suspended to the end).
-#[test]
-fn a_new_fragment_gets_the_budget_the_suspended_one_leaves() {
-    let (cam, _, frames_a) = sequence(8, 11);
+/// A camera carried from one place to another (the boxes, then the figure before walls), with
+/// 1 cm voxels and a new fragment after 0.1 s: fragment 0 is suspended to the end.
+fn carried_camera() -> (Camera, ReconstructionConfig, Vec<DepthImage>) {
+    let (cam, _, mut frames) = sequence(8, 11);
     let (_, _, frames_b) = sequence_in("figure-walls", 8, 41);
+    frames.extend(frames_b);
     let mut cfg = ReconstructionConfig::default_for(cam.sensor);
     cfg.tsdf.voxel_m = 0.01;
     cfg.tsdf.trunc_m = 0.05;
     cfg.new_fragment_after_s = Some(0.1);
-    let dt = cfg.tracker.frame_interval_s;
-    let mut rec = Reconstruction::new(cam, cfg).unwrap();
-    for (i, d) in frames_a.iter().chain(&frames_b).enumerate() {
+    (cam, cfg, frames)
+}
+
+/// Steps `rec` through `frames` at the tracker's frame interval.
+fn step_all(rec: &mut Reconstruction, frames: &[DepthImage]) {
+    let dt = rec.config().tracker.frame_interval_s;
+    for (i, d) in frames.iter().enumerate() {
         rec.step(d, Some(i as f64 * dt)).unwrap();
     }
+}
+
+/// The fragments share one memory budget: a new fragment's volume may use what the suspended
+/// one does not hold (the carried camera of the test above, fragment 0 suspended to the end).
+#[test]
+fn a_new_fragment_gets_the_budget_the_suspended_one_leaves() {
+    let (cam, cfg, frames) = carried_camera();
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    step_all(&mut rec, &frames);
     assert_eq!((rec.fragment(), rec.suspended_fragment()), (1, Some(0)));
     let current_budget = rec.volume().params().memory_budget_bytes;
     let left = rec.finish().unwrap();
@@ -1061,22 +1074,14 @@ fn a_new_fragment_gets_the_budget_the_suspended_one_leaves() {
 /// less the suspended volume and the reservation, and `memory_bytes` counts both volumes.
 #[test]
 fn the_callers_reservation_comes_out_of_the_fragments_budget() {
-    let (cam, _, frames_a) = sequence(8, 11);
-    let (_, _, frames_b) = sequence_in("figure-walls", 8, 41);
-    let mut cfg = ReconstructionConfig::default_for(cam.sensor);
-    cfg.tsdf.voxel_m = 0.01;
-    cfg.tsdf.trunc_m = 0.05;
-    cfg.new_fragment_after_s = Some(0.1);
-    let dt = cfg.tracker.frame_interval_s;
+    let (cam, cfg, frames) = carried_camera();
     let mut rec = Reconstruction::new(cam, cfg).unwrap();
     rec.reserve_bytes(1 << 20);
     assert_eq!(
         rec.volume().params().memory_budget_bytes,
         cfg.tsdf.memory_budget_bytes - (1 << 20)
     );
-    for (i, d) in frames_a.iter().chain(&frames_b).enumerate() {
-        rec.step(d, Some(i as f64 * dt)).unwrap();
-    }
+    step_all(&mut rec, &frames);
     rec.reserve_bytes(1 << 20);
     assert_eq!(rec.reserved_bytes(), 2 << 20);
     assert_eq!((rec.fragment(), rec.suspended_fragment()), (1, Some(0)));
