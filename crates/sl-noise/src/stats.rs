@@ -259,8 +259,9 @@ pub struct OcclusionBands {
 pub struct Terraces {
     /// Summary of the complete runs of equal depth along rows.
     pub widths: WidthStats,
-    /// Upper edges of the histogram bins, pixels (the last bin is open).
-    pub bin_upper_px: Vec<usize>,
+    /// Upper edges of the histogram bins, pixels; `None` for the last bin, which is open (JSON
+    /// `null`, Python `None`, as the other open or missing values).
+    pub bin_upper_px: Vec<Option<usize>>,
     /// Fraction of runs per bin.
     pub fractions: Vec<f64>,
 }
@@ -629,7 +630,10 @@ pub fn noise_stats(
     let total = runs.len().max(1) as f64;
     let terraces = Terraces {
         widths: WidthStats::from_widths(runs),
-        bin_upper_px: TERRACE_BINS.to_vec(),
+        bin_upper_px: TERRACE_BINS
+            .iter()
+            .map(|&u| (u != usize::MAX).then_some(u))
+            .collect(),
         fractions: counts.iter().map(|c| *c as f64 / total).collect(),
     };
 
@@ -804,6 +808,9 @@ mod tests {
         // Every pixel differs from its neighbours: all terraces are 1 px wide.
         assert_eq!(s.terraces.widths.median_px, 1.0);
         assert_eq!(s.terraces.fractions[0], 1.0);
+        // The open last bin has no upper edge (it printed as 2⁶⁴ − 1 in JSON and Python).
+        assert_eq!(s.terraces.bin_upper_px.last(), Some(&None));
+        assert_eq!(s.terraces.bin_upper_px[..2], [Some(1), Some(2)]);
     }
 
     /// A noise-free plane has no noise to correlate: no autocorrelation (NaN), where the float

@@ -484,6 +484,9 @@ def test_noise_stats_tell_realistic_from_white_noise(kinect):
     bands = s_real["occlusion"]["left"]["widths"]["count"] + s_real["occlusion"]["right"]["widths"]["count"]
     assert bands > 0
     assert s_white["occlusion"]["left"]["widths"]["count"] == 0
+    # The terrace histogram's last bin is open: no upper edge (it was 2**64 - 1).
+    assert s_real["terraces"]["bin_upper_px"] == [1, 2, 4, 8, 16, 32, None]
+    assert abs(sum(s_real["terraces"]["fractions"]) - 1) < 1e-9
     # Labels given by the caller (the simulator's surfaces) instead of extracted planes.
     s_given = sldepth.noise_stats(real, kinect, truth_labels)
     assert s_given["regions"] > 0 and abs(s_given["sigma_d_px"] - s_real["sigma_d_px"]) < 0.03

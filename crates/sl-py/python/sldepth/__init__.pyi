@@ -146,7 +146,8 @@ def noise_stats(
 ) -> Dict[str, Any]:
     """The real-noise statistics of a depth map with planar regions, with the keys of
     `sldepth noise-stats --json`: sigma_d_px, bands (sigma_D per depth band), acf (residual
-    autocorrelation at lags 1-16 px, x and y), terraces, occlusion (left/right invalid bands,
+    autocorrelation at lags 1-16 px, x and y), terraces (bin_upper_px 1, 2, 4, 8, 16, 32, None:
+    the last bin is open), occlusion (left/right invalid bands,
     the predicted projector shadow, and by_shadow: the edges and those with a band per bin of
     predicted shadow, upper_px 2, 5, 10, None), invalid_fraction; None where not measured. labels (uint16
     (H, W), 0 = none; another dtype or shape raises ValueError naming labels) default to the planes extract_planes finds (>= min_plane_pixels). Against the
