@@ -53,7 +53,8 @@ impl PyAnalysis {
 
 /// Depth-resolution analysis (the paper's Figure 2): the slope of ln ΔZ vs ln Z over the map's
 /// distinct depths, the quantum c of ΔZ ≈ c·Z², the implied f·B and the disparity sub-pixel
-/// steps.
+/// steps. The map has the camera's size (default the ``kinect-v1`` preset) or that size divided
+/// by a whole number (its sensor decimated), as ``sldepth analyze`` reads it.
 #[pyfunction]
 #[pyo3(signature = (depth, camera = None, *, depth_scale = None))]
 pub(crate) fn analyze(
@@ -64,7 +65,10 @@ pub(crate) fn analyze(
 ) -> PyResult<PyAnalysis> {
     let camera = camera_or_default(camera);
     let input = depth_input(depth, depth_scale)?;
-    let image = input.view()?.to_image();
+    let view = input.view()?;
+    // The camera's size, or its sensor decimated, as `sldepth analyze` accepts.
+    let camera = crate::arrays::camera_for_depth(&view, &camera, "depth")?;
+    let image = view.to_image();
     let a = compute(py, || sl_noise::analyze(&image, &camera.sensor)).map_err(value_error)?;
     Ok(PyAnalysis {
         valid_pixels: a.valid_pixels,

@@ -283,9 +283,13 @@ def test_decimated_frames_are_read_as_the_sensor_decimated(kinect, three_planes)
     other = sldepth.TsdfVolume()
     other.integrate(half, kinect.resampled(0.5), np.eye(4))
     assert vol.block_count == other.block_count
-    # Any other size still names the argument and both sizes.
+    assert sldepth.analyze(half, kinect).subpixel_steps == 8
+    # Any other size still names the argument and both sizes, in analyze too (it took any
+    # size, where `sldepth analyze` refuses a camera of another size).
     with pytest.raises(ValueError, match="depth is 300x240 .* camera is 640x480"):
         sldepth.filter(half[:, :300].copy(), kinect)
+    with pytest.raises(ValueError, match="depth is 300x240 .* camera is 640x480"):
+        sldepth.analyze(half[:, :300].copy(), kinect)
 
 
 def test_read_depth_refuses_a_budget_below_the_floor(tmp_path):

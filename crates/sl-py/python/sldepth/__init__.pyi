@@ -116,7 +116,10 @@ class Analysis:
 
 def analyze(
     depth: _Depth, camera: Optional[Camera] = None, *, depth_scale: Optional[float] = None
-) -> Analysis: ...
+) -> Analysis:
+    """Depth-resolution analysis (slope of ln dZ vs ln Z, quantum, implied f*B, sub-pixel
+    steps). depth has the camera's size (default kinect-v1) or that size divided by a whole
+    number, as sldepth analyze reads it."""
 def simulate(
     scene: str,
     seed: int = 0,
