@@ -27,6 +27,9 @@ pub struct Intrinsics {
     pub cy: f64,
 }
 
+/// Largest image side [`Intrinsics::validate`] accepts, pixels.
+pub const MAX_SIDE_PX: usize = 1 << 16;
+
 /// Largest focal length [`Intrinsics::validate`] accepts, pixels (10⁷: a 65536-pixel-wide image
 /// with a 0.4° field of view; beyond that the numbers only produce overflowing geometry).
 pub const MAX_FOCAL_PX: f64 = 1e7;
@@ -63,9 +66,9 @@ impl Intrinsics {
                 self.width, self.height
             )));
         }
-        if self.width > 1 << 16 || self.height > 1 << 16 {
+        if self.width > MAX_SIDE_PX || self.height > MAX_SIDE_PX {
             return Err(CoreError::InvalidIntrinsics(format!(
-                "image size {}x{} exceeds 65536 pixels per side",
+                "image size {}x{} exceeds {MAX_SIDE_PX} pixels per side",
                 self.width, self.height
             )));
         }
@@ -157,11 +160,11 @@ impl Intrinsics {
             ((self.height as f64) * factor).round(),
         );
         // Checked before the conversion, which would saturate a huge side into a wrong size.
-        let max_side = f64::from(1u32 << 16);
+        let max_side = MAX_SIDE_PX as f64;
         if w > max_side || h > max_side {
             return Err(CoreError::InvalidIntrinsics(format!(
                 "scale factor {} makes a {}x{} image of this {}x{} one: each side must be at \
-                 most 65536 pixels",
+                 most {MAX_SIDE_PX} pixels",
                 crate::Compact(factor),
                 crate::Compact(w),
                 crate::Compact(h),

@@ -14,8 +14,9 @@
 //! `intrinsic_matrix` is the 3×3 matrix `K` in **column-major** order. The last three keys are
 //! ours and optional (defaults: the Kinect's 0.075 m, 8 steps, σ_D 0.07 px), so any Open3D camera
 //! file reads. Open3D's `PinholeCameraParameters` files (an `intrinsic` object of this form
-//! beside an `extrinsic` pose) read as their intrinsic object. A fourth optional key, `sensor_focal_px`, is written only when the sensor's focal
-//! length differs from `fx` (it defaults to `fx`). Other keys (the metadata other tools write
+//! beside an `extrinsic` pose) read as their intrinsic object. A fourth optional key,
+//! `sensor_focal_px`, is written only when the sensor's focal length differs from `fx` (it
+//! defaults to `fx`). Other keys (the metadata other tools write
 //! beside Open3D's three) are ignored, except one that names a sensor quantity in another
 //! spelling (`baseline`, `baseline_mm`, `sigma_d`, `sub_pixel`, ...): that is refused, since
 //! ignoring it would leave the Kinect default in its place without a word.
@@ -68,7 +69,7 @@ const SENSOR_KEYS: [&str; 4] = ["baseline_m", "subpixel", "sigma_d_px", "sensor_
 /// Parts of a key that name one of the sensor quantities of [`SENSOR_KEYS`].
 const SENSOR_KEY_STEMS: [&str; 5] = ["baseline", "subpixel", "sub_pixel", "sigma", "sensor_focal"];
 
-/// Refuses a key of `text` (a JSON object) that is not one of ours but names a sensor
+/// Refuses a key of `keys` (a JSON object's) that is not one of ours but names a sensor
 /// quantity (`baseline`, `sigma_d`): a misspelt sensor key would otherwise be ignored and the
 /// Kinect default used in its place.
 fn check_sensor_key_spelling(
@@ -92,34 +93,31 @@ fn check_sensor_key_spelling(
     }
 }
 
-/// The camera object of a camera file: the file's own top-level object, or for Open3D's
-/// `PinholeCameraParameters` (what `open3d.io.write_pinhole_camera_parameters` writes: the
-/// camera's `extrinsic` pose beside an `intrinsic` object, and no `intrinsic_matrix` at the
-/// top) its `intrinsic` object, with the sensor keys of the top level where it has none of its
-/// own. The extrinsic pose is not a property of the camera and is not read.
-fn intrinsic_object(value: serde_json::Value) -> serde_json::Value {
+/// The camera object of a camera file, its sensor keys' spelling checked: the file's own
+/// top-level object, or for Open3D's `PinholeCameraParameters` (what
+/// `open3d.io.write_pinhole_camera_parameters` writes: the camera's `extrinsic` pose beside an
+/// `intrinsic` object, and no `intrinsic_matrix` at the top) its `intrinsic` object, with the
+/// sensor keys of the top level where it has none of its own. The extrinsic pose is not a
+/// property of the camera and is not read.
+fn camera_object(path: &Path, value: serde_json::Value) -> Result<serde_json::Value> {
     use serde_json::Value;
     let Value::Object(mut top) = value else {
-        return value;
+        return Ok(value);
     };
+    check_sensor_key_spelling(path, &top)?;
     if top.contains_key("intrinsic_matrix") {
-        return Value::Object(top);
+        return Ok(Value::Object(top));
     }
-    match top.remove("intrinsic") {
-        Some(Value::Object(mut inner)) => {
-            for key in SENSOR_KEYS {
-                if let Some(v) = top.remove(key) {
-                    inner.entry(key).or_insert(v);
-                }
-            }
-            Value::Object(inner)
+    let Some(Value::Object(mut inner)) = top.remove("intrinsic") else {
+        return Ok(Value::Object(top));
+    };
+    check_sensor_key_spelling(path, &inner)?;
+    for key in SENSOR_KEYS {
+        if let Some(v) = top.remove(key) {
+            inner.entry(key).or_insert(v);
         }
-        Some(other) => {
-            top.insert("intrinsic".into(), other);
-            Value::Object(top)
-        }
-        None => Value::Object(top),
     }
+    Ok(Value::Object(inner))
 }
 
 /// Refuses intrinsics whose principal point lies outside their own image (the pixels' extent,
@@ -198,15 +196,7 @@ pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> 
         path: path.to_path_buf(),
         source,
     };
-    let value: serde_json::Value = serde_json::from_str(&text).map_err(json_error)?;
-    // Both levels of a `PinholeCameraParameters` file are checked.
-    if let serde_json::Value::Object(keys) = &value {
-        check_sensor_key_spelling(path, keys)?;
-    }
-    let value = intrinsic_object(value);
-    if let serde_json::Value::Object(keys) = &value {
-        check_sensor_key_spelling(path, keys)?;
-    }
+    let value = camera_object(path, serde_json::from_str(&text).map_err(json_error)?)?;
     let json: CameraJson = serde_json::from_value(value).map_err(json_error)?;
     let m = json.intrinsic_matrix;
     // Column-major: m[col * 3 + row].

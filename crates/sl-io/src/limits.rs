@@ -24,8 +24,8 @@
 /// another name for it (the Python keyword) replace this one string in the messages.
 pub const BUDGET_OPTION: &str = "--max-memory";
 
-/// Largest accepted image side, pixels (the same bound as `sl_core::Intrinsics::validate`).
-pub const MAX_SIDE: usize = 65536;
+/// Largest accepted image side, pixels (`sl_core::Intrinsics::validate`'s bound).
+pub const MAX_SIDE: usize = sl_core::intrinsics::MAX_SIDE_PX;
 
 /// Largest decoded image of the default limits, bytes ([`Limits::max_decoded_bytes`]).
 pub const MAX_DECODE_BYTES: u64 = DEFAULT_MAX_MEMORY_BYTES / BYTES_PER_DECODED_BYTE;

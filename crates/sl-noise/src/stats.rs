@@ -266,8 +266,9 @@ pub struct Terraces {
     pub fractions: Vec<f64>,
 }
 
-/// Upper edges of the terrace histogram bins.
-const TERRACE_BINS: [usize; 7] = [1, 2, 4, 8, 16, 32, usize::MAX];
+/// Upper edges of the terrace histogram bins, pixels (`None`: the last bin is open).
+const TERRACE_BINS: [Option<usize>; 7] =
+    [Some(1), Some(2), Some(4), Some(8), Some(16), Some(32), None];
 
 /// The result of [`noise_stats`].
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -623,17 +624,14 @@ pub fn noise_stats(
     for &wd in &runs {
         let b = TERRACE_BINS
             .iter()
-            .position(|u| wd as usize <= *u)
+            .position(|u| u.is_none_or(|u| wd as usize <= u))
             .unwrap_or(TERRACE_BINS.len() - 1);
         counts[b] += 1;
     }
     let total = runs.len().max(1) as f64;
     let terraces = Terraces {
         widths: WidthStats::from_widths(runs),
-        bin_upper_px: TERRACE_BINS
-            .iter()
-            .map(|&u| (u != usize::MAX).then_some(u))
-            .collect(),
+        bin_upper_px: TERRACE_BINS.to_vec(),
         fractions: counts.iter().map(|c| *c as f64 / total).collect(),
     };
 

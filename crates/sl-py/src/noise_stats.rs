@@ -47,9 +47,10 @@ fn labels_input<'py>(obj: &Bound<'py, PyAny>) -> PyResult<PyReadonlyArray2<'py, 
 /// ``sldepth noise-stats --json``: ``sigma_d_px`` (median RMS disparity residual of 64-px tiles
 /// of the regions after an affine fit, pixels), ``bands`` (σ_D per depth band), ``acf``
 /// (residual autocorrelation at lags 1, 2, 4, 8, 16 px along x and y), ``terraces`` (widths of
-/// runs of equal depth; the histogram's ``bin_upper_px`` ends with ``None``, its open bin), ``occlusion`` (invalid bands left and right of foreground objects,
-/// with the projector shadow the geometry predicts, and ``by_shadow``: the edges, and those with
-/// a band, per bin of predicted shadow), ``invalid_fraction``, ``regions``,
+/// runs of equal depth; the histogram's ``bin_upper_px`` ends with ``None``, its open bin),
+/// ``occlusion`` (invalid bands left and right of foreground objects, with the projector
+/// shadow the geometry predicts, and ``by_shadow``: the edges, and those with a band, per bin
+/// of predicted shadow), ``invalid_fraction``, ``regions``,
 /// ``pixels``, ``fb_px_m`` (the camera's f·B the disparities were computed with, px·m). Values
 /// that could not be measured are ``None``. ``labels`` (uint16 (H, W),
 /// 0 = none) gives the planar regions; by default they are the planes ``extract_planes`` finds

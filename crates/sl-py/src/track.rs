@@ -145,8 +145,7 @@ pub(crate) fn track_in_map<'py>(
 /// frame before and not fused, as ``sldepth track`` does at its ``--max-memory``. A finished
 /// fragment's mesh is made when it finishes, within what the budget leaves, and kept (its bytes
 /// taken from the budget); one that does not fit is not kept, and ``extract_mesh(fragment=k)``
-/// says so. One tracker may be used from several Python
-/// threads: its calls take turns.
+/// says so. One tracker may be used from several Python threads: its calls take turns.
 #[pyclass(name = "Tracker", module = "sldepth", frozen)]
 #[derive(Debug)]
 pub struct PyTracker {
@@ -176,6 +175,12 @@ struct TrackerState {
     joins: Vec<(usize, usize, sl_core::nalgebra::Matrix4<f64>)>,
     /// The fragment of every frame given to `track`.
     frame_fragments: Vec<usize>,
+}
+
+/// Bytes a tracker holds against its `memory_budget_bytes`: the fragments' volumes and the
+/// meshes it keeps of the finished ones (reserved in `rec`).
+fn held_bytes(rec: &Reconstruction) -> usize {
+    rec.memory_bytes() + rec.reserved_bytes()
 }
 
 /// The message of a tracker whose lock holder panicked (no call of this crate should).
@@ -318,8 +323,7 @@ impl PyTracker {
                     .config()
                     .tsdf
                     .memory_budget_bytes
-                    .saturating_sub(state.rec.memory_bytes())
-                    .saturating_sub(state.rec.reserved_bytes());
+                    .saturating_sub(held_bytes(&state.rec));
                 let kept = match f.volume.extract_mesh_within(&MeshConfig::default(), budget) {
                     Ok(mut mesh) => {
                         // A fragment that rejoined the one before is kept in that one's
@@ -362,7 +366,7 @@ impl PyTracker {
     /// the suspended fragment and the meshes kept of the finished ones.
     #[getter]
     fn memory_bytes(&self, py: Python<'_>) -> PyResult<usize> {
-        self.with_state(py, |s| s.rec.memory_bytes() + s.rec.reserved_bytes())
+        self.with_state(py, |s| held_bytes(&s.rec))
     }
 
     /// Why the current fragment's model is full (``None`` while it is not): a frame's blocks

@@ -38,10 +38,10 @@
 //! The fragments share one budget, [`TsdfConfig::memory_budget_bytes`] of
 //! [`ReconstructionConfig::tsdf`]: the current fragment's volume may use what the suspended one
 //! does not hold, nor the caller for what it keeps of the fragments handed over
-//! ([`Reconstruction::reserve_bytes`]). A frame whose blocks the budget cannot hold is not fused (the volume is left
-//! as it was) and the fragment's model is **full** from then on ([`Step::model_full`] on that
-//! frame, [`Reconstruction::model_full`], [`Fragment::model_full`]): its next frames are tracked
-//! against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
+//! ([`Reconstruction::reserve_bytes`]). A frame whose blocks the budget cannot hold is not
+//! fused (the volume is left as it was) and the fragment's model is **full** from then on
+//! ([`Step::model_full`] on that frame, [`Reconstruction::model_full`],
+//! [`Fragment::model_full`]): its next frames are tracked against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
 //! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused,
 //! so a long recording keeps its trajectory to the end and its mesh holds what was fused
 //! before. Nothing is dropped from the model to make room (the mesh would lose it). Tracking
