@@ -48,8 +48,8 @@ impl NoiseStatsConfig {
     }
 
     /// Checks the settings: `jump_m` must be a positive number, the band edges ascending and
-    /// `tile_px` positive ([`NoiseError::InvalidParameter`] otherwise). [`noise_stats`](super::noise_stats) checks
-    /// the same first.
+    /// `tile_px` positive ([`NoiseError::InvalidParameter`] otherwise).
+    /// [`noise_stats`](super::noise_stats) checks the same first.
     pub fn validate(&self) -> Result<()> {
         if !(self.jump_m.is_finite() && self.jump_m > 0.0) {
             return Err(NoiseError::InvalidParameter(format!(
