@@ -44,6 +44,8 @@ mod align;
 mod associate;
 mod better_fit;
 mod config;
+mod fallbacks;
+mod frame;
 mod frame_planes;
 mod keyframes;
 mod model;
@@ -62,9 +64,7 @@ use nalgebra::Isometry3;
 use sl_core::{Camera, CameraToWorld, DepthImage, SensorModel};
 use sl_planes::NoiseMeter;
 
-use crate::depth_motion::motion_between_depths;
 use crate::error::{Result, TrackError};
-use align::ratio;
 use frame_planes::FramePlanes;
 use keyframes::Keyframes;
 use pyramid::{Level, Pyramid, normal_radius};
@@ -162,20 +162,6 @@ impl FrameResult {
             failure: Some(failure),
         }
     }
-}
-
-/// The first alignment of a frame: from the constant-velocity prediction.
-struct AlignPlan {
-    /// The last good pose.
-    last: Isometry3<f64>,
-    /// Frame intervals since it (≥ 1).
-    n: u32,
-    row_timing: Option<solve::RowTiming>,
-    predicted: Isometry3<f64>,
-    /// The position prior's variance about the prediction, m².
-    predicted_var: f64,
-    /// The prior's variance for a start with no velocity known, m².
-    unknown_var: f64,
 }
 
 /// Tracks the camera through a depth sequence (see the module docs). Reuse one tracker for a
@@ -400,65 +386,18 @@ impl Tracker {
         crate::pool::on_pool(|| self.track_frame(depth, model, Some(timestamp_s)))
     }
 
+    /// One frame, in the order of the module documentation: the frame's noise and pyramid,
+    /// the degenerate-view check beside the first alignment, the fallbacks while it fails, and
+    /// the bookkeeping of a tracked or lost frame.
     fn track_frame(
         &mut self,
         depth: &DepthImage,
         model: Option<&ReferenceMaps>,
         timestamp_s: Option<f64>,
     ) -> Result<FrameResult> {
-        let k = self.camera.intrinsics;
-        let size_err = |w: usize, h: usize| TrackError::SizeMismatch {
-            expected_width: k.width,
-            expected_height: k.height,
-            width: w,
-            height: h,
-        };
-        if depth.width() != k.width || depth.height() != k.height {
-            return Err(size_err(depth.width(), depth.height()));
-        }
-        if let Some(m) = model {
-            let mk = &m.intrinsics;
-            if mk.width * mk.height != m.points.len()
-                || m.normals.len() != m.points.len()
-                || m.variance_m2.len() != m.points.len()
-            {
-                return Err(TrackError::InvalidConfig(
-                    "reference maps of inconsistent sizes".into(),
-                ));
-            }
-        }
+        self.check_sizes(depth, model)?;
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
-        // The frame's own noise level: every σ of this frame (the alignment's weights and
-        // gates, the degenerate-view checks, the planes) follows it.
-        self.noise_scale = if let Some(s) = self.given_noise_scale {
-            if s.is_finite() { s.max(1.0) } else { 1.0 }
-        } else if self.cfg.estimate_noise {
-            let model = Camera {
-                intrinsics: k,
-                sensor: self.model_sensor,
-            };
-            self.noise_meter.measure(depth, &model)?.max(1.0)
-        } else {
-            1.0
-        };
-        self.camera.sensor = self.model_sensor.with_variance_scale(self.noise_scale);
-        self.row_timing = None;
-        self.finest_mean_depth_m = None;
-        self.rolling_motion = None;
-        self.model_given = model.is_some();
-        let sensor = self.camera.sensor;
-        // Level 0 is sampled every `stride0` pixels by the alignment against a model: its
-        // normals are computed there only, the rest if the frame is ever needed as a reference
-        // (`refresh_last_ref`). Frame-to-frame tracking needs them all.
-        let stride0 = if model.is_some() {
-            self.cfg
-                .sample_stride(0, self.camera.pixels_per_sensor_pixel())
-        } else {
-            1
-        };
-        self.pyramid
-            .build(depth.data(), &k, &sensor, self.cfg.levels, stride0)?;
-        self.last_timestamp_s = timestamp_s;
+        self.prepare_frame(depth, model, timestamp_s)?;
         // A view whose geometry leaves some direction of the pose to the motion prior (a
         // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
         // an alignment returned would be the prior's guess along that direction. Nor does such
@@ -469,348 +408,28 @@ impl Tracker {
         if self.last_good.is_some() {
             self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
         }
-        // The first alignment's start and prior (a tracker with a last good pose).
-        let plan = self.last_good.map(|last| {
-            let n = self.intervals_since_good.max(1);
-            // A rolling shutter: the rows' poses on the constant-velocity path from the last
-            // good pose, once the reference holds frames moved to their poses (the second
-            // frame is aligned as a whole to the first, which is skewed alike at constant
-            // velocity; a relocalising frame's path from the last good pose is unknown).
-            let row_timing = (self.cfg.rolling_shutter_readout_s > 0.0
-                && self.lost_run == 0
-                && self.velocity_known)
-                .then(|| solve::RowTiming {
-                    last,
-                    intervals: n,
-                    readout_fraction: self.cfg.rolling_shutter_readout_fraction(),
-                });
-            // Constant velocity, also across lost and dropped frames (the camera kept moving
-            // meanwhile): the last good pose moved by one step per frame interval since.
-            let mut predicted = last;
-            for _ in 0..n.min(31) {
-                predicted *= self.velocity;
-            }
-            // The position prior of an alignment from the prediction: how far the camera's
-            // path can leave the constant-velocity line in `n` frame intervals (σ ∝ n²); with
-            // no velocity known, and for every other start, the largest plausible motion in
-            // one. The acceptance bounds (`max_correction_*`) stay those of one frame: the
-            // prediction carries the motion over a gap, and what is left to correct is the
-            // departure from constant velocity (TUM fr1/rpy's motion capture: 5.6 mm RMS,
-            // 17.5 mm at most over 4 intervals, against the 5 cm bound). Bounds scaled with
-            // the gap let ICP's wrong minima through (the sequence taken every fourth frame:
-            // ATE 2.5 → 10.6 cm).
-            let unknown_var = self.cfg.max_correction_m * self.cfg.max_correction_m;
-            let predicted_var = if self.velocity_known && self.lost_run == 0 {
-                self.cfg.acceleration_variance_m2() * f64::from(n).powi(4)
-            } else {
-                unknown_var
-            };
-            AlignPlan {
-                last,
-                n,
-                row_timing,
-                predicted: solve::renormalized(predicted),
-                predicted_var,
-                unknown_var,
-            }
-        });
+        let plan = self.plan_alignment();
         if let Some(p) = &plan {
             self.row_timing = p.row_timing;
             if model.is_none() {
                 self.refresh_last_ref();
             }
         }
-        // The structure check (plane extraction and the weakest direction of the frame alone,
-        // about 1.8 ms of mostly sequential work on a 640×480 frame) and the first alignment's
-        // iterations (parallel over pixels) read the same pyramid and nothing of each other:
-        // they run side by side, and the iterations are judged once the check's planes are
-        // there. On a frame the check rejects the iterations are wasted.
         let (weakest_sigma_m, first_iterated) = if checked {
-            let mut structure = std::mem::take(&mut self.structure);
-            let this = &*self;
-            let (gate, iterated) = rayon::join(
-                || -> Result<(f64, f64)> {
-                    // The acceptance checks' scale too: a sequential sum over the finest
-                    // level, off the critical path here.
-                    let scale_m = this.finest_mean_depth();
-                    let Some(level) = this.pyramid.levels.get(check_level) else {
-                        return Ok((f64::NAN, scale_m));
-                    };
-                    structure.segment(level, check_level, &this.camera, &this.cfg)?;
-                    let sigma = structure
-                        .weakest_sigma_m(
-                            level,
-                            check_level,
-                            &this.camera,
-                            &this.cfg,
-                            |_, _| Some(solve::OnReference::NONE),
-                            structure::MustAgree::default(),
-                        )
-                        .sigma_m;
-                    Ok((sigma, scale_m))
-                },
-                || {
-                    plan.as_ref().map(|p| {
-                        this.iterate(
-                            &p.predicted,
-                            model.unwrap_or(&this.last_ref),
-                            p.predicted_var,
-                            false,
-                        )
-                    })
-                },
-            );
-            self.structure = structure;
-            let (sigma, scale_m) = gate?;
-            self.finest_mean_depth_m = Some(scale_m);
-            (sigma, iterated)
+            self.check_structure_beside_first_alignment(check_level, plan.as_ref(), model)?
         } else {
             (f64::NAN, None)
         };
         if weakest_sigma_m > prior_sigma_m {
-            self.row_timing = None;
-            let (pose, what) = match self.last_good {
-                Some(last) => {
-                    self.mark_lost();
-                    (CameraToWorld::from_isometry(last), "degenerate view")
-                }
-                None => (
-                    self.initial_pose,
-                    "first frame: degenerate view, waiting for one that pins the pose",
-                ),
-            };
-            let why = if weakest_sigma_m.is_finite() {
-                format!(
-                    "{what}: the geometry leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm (a single plane, a bare corridor)",
-                    weakest_sigma_m * 1e3,
-                    prior_sigma_m * 1e3
-                )
-            } else if depth.data().iter().any(|&z| z > 0.0 && z.is_finite()) {
-                format!(
-                    "{what}: the geometry leaves one direction of the pose undetermined (a single plane, a bare corridor)"
-                )
-            } else {
-                // Nothing to align at all: say so rather than call it a degenerate view.
-                let what = if self.last_good.is_some() {
-                    "lost"
-                } else {
-                    "first frame: waiting for one with depth"
-                };
-                format!("{what}: no valid depth in the frame")
-            };
-            let mut r = FrameResult::lost_unaligned(pose, why);
-            r.weakest_sigma_m = weakest_sigma_m;
-            return Ok(r);
+            return Ok(self.lost_to_degenerate_view(depth, weakest_sigma_m, prior_sigma_m));
         }
-        let Some(AlignPlan {
-            last,
-            n,
-            predicted,
-            predicted_var,
-            unknown_var,
-            ..
-        }) = plan
-        else {
+        let Some(plan) = plan else {
             let mut r = self.initialise(depth);
             r.weakest_sigma_m = weakest_sigma_m;
             return Ok(r);
         };
-        let mut iterations = 0;
-        let reference = model.unwrap_or(&self.last_ref);
-        let mut first = match first_iterated {
-            Some(it) => self.judge(&predicted, reference, it),
-            None => self.align(&predicted, reference, predicted_var, false),
-        };
-        iterations += first.iterations;
-        let mut recovered = false;
-        let mut against_frame = false;
-        // Why the plane fallback, when tried, gave no pose either (for the lost frame's report).
-        let mut fallback_failure: Option<String> = None;
-        // The damped starts: the prediction and the last good pose. After a few lost frames
-        // the prediction is the last good pose with the same prior (the velocity is
-        // forgotten), and the same start would give the same result: it runs once.
-        let starts = [(predicted, predicted_var), (last, unknown_var)];
-        let distinct = if starts[0] == starts[1] { 1 } else { 2 };
-        // Not after a disputed pose: the damped starts are for an iteration that did not
-        // converge, and from another start against the same reference the alignment can slide
-        // further along the disputed direction, where the objecting samples leave the window
-        // they are counted in (room 3021 with a shaking camera: 34 mm, session 41). The last
-        // frame, a reference of its own, is asked next.
-        let model_disputed = first.disputed && model.is_some();
-        let restarts = if model_disputed { 0 } else { distinct };
-        // Every restart runs, and one that passes the checks is kept only over another that
-        // fits clearly worse (`Tracker::keep_better`): a fallback runs because the frame left
-        // the prediction's basin, and the first start that passes can have settled in a
-        // wrong minimum of its own.
-        if first.failure.is_some() {
-            let mut found = None;
-            for &(start, var) in &starts[..restarts] {
-                let again = self.align(&start, model.unwrap_or(&self.last_ref), var, true);
-                iterations += again.iterations;
-                if again.failure.is_none() {
-                    found = Some(self.keep_better(found, again, model.unwrap_or(&self.last_ref)));
-                }
-            }
-            if let Some(attempt) = found {
-                first = attempt;
-            }
-        }
-        // The model can disagree with a frame where the last frame does not. On TUM fr1/rpy
-        // (hand-held, turning at up to 120°/s), one step against a model fused with the
-        // motion-capture poses errs by 2–6 cm where the same step against the previous frame
-        // errs by 0.2–1 cm: likely a view-dependent depth distortion or the rolling shutter,
-        // which differ between the views the model averages and agree between consecutive
-        // frames. Try the last good frame before the plane fallback, in the order the model
-        // was tried: plain Gauss–Newton from the prediction first, then the damped starts.
-        // Damped steps are taken only when they lower the robust objective, which the 1/8-pixel
-        // quantisation makes rough: along a weakly constrained direction they stop early, short
-        // of the data's optimum and near the prediction, so the next velocity lags the camera
-        // and the next prediction with it. On the simulated Kinect corridor, where every frame
-        // falls back to the last one (the end wall lies beyond the fused range), that shrinkage
-        // lost 0.5 mm per 4 mm step along the axis (six noise seeds: −13 mm by frame 28, every
-        // seed short; plain Gauss–Newton first: −3 mm, within the noise; docs/bench/track.md,
-        // session 55). The damped starts run too, and one of them is kept only where it fits
-        // the frame clearly better (`Tracker::keep_better`): from the prediction, centimetres
-        // from a shaking camera, plain Gauss–Newton can pass every check in a wrong minimum
-        // (simulated room 6006 with the camera shaken: 33 mm off, reported σ 6.6 mm, while
-        // the damped start from the last pose reaches the camera within 2 mm and a robust
-        // objective 21 % lower; docs/bench/track.md, session 63).
-        if first.failure.is_some() && model.is_some() {
-            self.refresh_last_ref();
-            let plain = std::iter::once((predicted, predicted_var, false));
-            let damped = starts[..distinct].iter().map(|&(s, v)| (s, v, true));
-            let mut found = None;
-            for (start, var, damped) in plain.chain(damped) {
-                let again = self.align(&start, &self.last_ref, var, damped);
-                iterations += again.iterations;
-                if again.failure.is_none() {
-                    found = Some(self.keep_better(found, again, &self.last_ref));
-                }
-            }
-            if let Some(attempt) = found {
-                first = attempt;
-                against_frame = true;
-            }
-        }
-        if first.failure.is_some() && self.cfg.plane_fallback {
-            let planes =
-                motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?;
-            if let Some(m) = planes.pose() {
-                let start = solve::renormalized(last * m.into_isometry());
-                let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
-                iterations += again.iterations;
-                match again.failure {
-                    None => {
-                        first = again;
-                        recovered = true;
-                    }
-                    Some(why) => {
-                        fallback_failure = Some(format!(
-                            "plane fallback: the alignment from its verified estimate failed: {why}"
-                        ));
-                    }
-                }
-            } else if let Err(e) = &planes.motion {
-                fallback_failure = Some(format!("plane fallback: {e}"));
-            }
-        }
-        // Where the camera looks at something seen before: each keyframe from its own pose.
-        let mut keyframe_pose = None;
-        if first.failure.is_some() && self.cfg.keyframe_relocalisation {
-            let search = self.relocalise_on_keyframes(&last, unknown_var)?;
-            iterations += search.iterations;
-            if let Some((pose, attempt)) = search.found {
-                first = attempt;
-                keyframe_pose = Some(pose);
-                recovered = true;
-            }
-        }
-        // A frame found at a keyframe is judged as a relocalisation too.
-        if first.failure.is_none() && (self.start_is_a_guess() || keyframe_pose.is_some()) {
-            // Relocalising, or the first step of the sequence: the start (the last good pose,
-            // or the prediction) may be several frames' motion from the camera, where point-to-plane ICP can settle in a wrong
-            // minimum that trades a rotation for a translation and still passes every check
-            // (docs/bench/track.md, "Session 17"). Align again from starts turned about the
-            // camera's horizontal and vertical axes and keep the best fit by the robust
-            // objective over all the frame's points.
-            let reference = match (keyframe_pose, self.keyframes.reference()) {
-                (Some(_), Some(keyframe)) => keyframe,
-                _ if against_frame => &self.last_ref,
-                _ => model.unwrap_or(&self.last_ref),
-            };
-            let centre = keyframe_pose.unwrap_or(last);
-            let cfg = &self.cfg;
-            let mut best = first.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
-            for (axis, sign) in [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)] {
-                let mut turn = nalgebra::Vector3::zeros();
-                turn[axis] = sign * RELOCALISATION_TURN_DEG.to_radians();
-                let start = centre * Isometry3::rotation(turn);
-                let alt = self.align(&start, reference, unknown_var, true);
-                iterations += alt.iterations;
-                let cost = alt.stats.total_loss(cfg.gate_sigmas, cfg.huber_k);
-                if alt.failure.is_none() && cost < best {
-                    best = cost;
-                    first = alt;
-                }
-            }
-        }
-        let result = match first.failure {
-            None => {
-                let status = if self.lost_run > 0 {
-                    TrackStatus::Relocalised
-                } else if recovered {
-                    TrackStatus::Recovered
-                } else if against_frame {
-                    TrackStatus::TrackedAgainstFrame
-                } else {
-                    TrackStatus::Tracked
-                };
-                // Found again at a keyframe, the path from the last good pose is unknown: the
-                // next frame starts from a guess, as after the first frame of a sequence.
-                self.velocity = match keyframe_pose {
-                    Some(_) => Isometry3::identity(),
-                    None => solve::renormalized(solve::nth_root(&(last.inverse() * first.pose), n)),
-                };
-                self.velocity_known = keyframe_pose.is_none();
-                // The frame's rows as the camera at its pose would have measured them, for
-                // when it is the reference (frame to frame, the fallback to the last frame).
-                let readout_fraction = self.cfg.rolling_shutter_readout_fraction();
-                self.rolling_motion = (readout_fraction > 0.0).then(|| {
-                    if let Some(l0) = self.pyramid.levels.first_mut() {
-                        l0.undo_rolling_shutter(&self.velocity, readout_fraction);
-                    }
-                    self.velocity
-                });
-                self.accept(depth, first.pose);
-                self.lost_run = 0;
-                status
-            }
-            Some(_) => {
-                self.mark_lost();
-                TrackStatus::Lost
-            }
-        };
-        let pose = if result.is_tracked() {
-            first.pose
-        } else {
-            last
-        };
-        Ok(FrameResult {
-            status: result,
-            pose: CameraToWorld::from_isometry(pose),
-            overlap_fraction: ratio(first.stats.associated, first.stats.valid),
-            inlier_fraction: ratio(first.stats.inliers, first.stats.associated),
-            rms_m: (ratio(first.stats.r2_m2, first.stats.inliers)).sqrt(),
-            rms_normalised: (ratio(first.stats.chi2, first.stats.inliers)).sqrt(),
-            condition: first.condition,
-            iterations,
-            // The binding one of the frame's own σ and its overlap's.
-            weakest_sigma_m: weakest_sigma_m.max(first.overlap_sigma_m),
-            failure: first.failure.map(|why| match fallback_failure {
-                Some(fallback) => format!("{why}; {fallback}"),
-                None => why,
-            }),
-        })
+        let outcome = self.align_with_fallbacks(depth, model, &plan, first_iterated)?;
+        Ok(self.conclude(depth, outcome, &plan, weakest_sigma_m))
     }
 
     /// Whether the frame being tracked starts from a guess rather than a constant-velocity
