@@ -14,7 +14,9 @@
 //! 6. [`generator_markers`]: a leftover generator marker comment (`// @name-list …`);
 //! 7. [`thread_locals`]: a `thread_local!` outside the files listed in `THREAD_LOCAL_FILES`;
 //! 8. [`python_lock_sites`]: a lock taken (`.lock()`, `.read()`, `.write()`, their `try_`
-//!    forms) in sl-py outside the files listed in `PY_LOCK_FILES`.
+//!    forms) in sl-py outside the files listed in `PY_LOCK_FILES`;
+//! 9. [`long_source_files`]: a Rust source file whose code (the lines before an inline test
+//!    module) runs past `MAX_CODE_LINES`.
 //!
 //! The tests also plant one violation of each rule in a temporary tree and check that the rule
 //! reports it.
@@ -64,6 +66,11 @@ const LOCK_CALLS: &[&str] = &[
     ".try_read()",
     ".try_write()",
 ];
+/// The most lines of code a source file may hold before its inline test module (rule 9): a
+/// file longer than this has more than one job, and is split by role into a folder module
+/// (as sl-noise's `stats`, sl-io's `trajectory`, sl-track's `track`). Test files count too:
+/// a long test file is split by what it tests.
+const MAX_CODE_LINES: usize = 1000;
 /// The one file allowed to contain `unsafe`: sl-filter's ISA dispatch.
 const UNSAFE_FILE: &str = "crates/sl-filter/src/kernel.rs";
 
@@ -129,7 +136,34 @@ pub fn check_all(root: &Path) -> Vec<Violation> {
     v.extend(generator_markers(root));
     v.extend(thread_locals(root));
     v.extend(python_lock_sites(root));
+    v.extend(long_source_files(root));
     v
+}
+
+/// Rule 9: no Rust source file of the crates or xtask (their `src`, `tests`, `benches` and
+/// `examples`) holds more than [`MAX_CODE_LINES`] lines before its first top-level
+/// `#[cfg(test)]`.
+pub fn long_source_files(root: &Path) -> Vec<Violation> {
+    let mut files = Vec::new();
+    for dir in crate_dirs(root) {
+        rust_files(&dir, &mut files);
+    }
+    rust_files(&root.join("xtask"), &mut files);
+    files
+        .into_iter()
+        .filter_map(|f| {
+            let text = fs::read_to_string(&f).unwrap_or_default();
+            let n = code_lines(&text).len();
+            (n > MAX_CODE_LINES).then(|| Violation {
+                file: rel(root, &f),
+                line: MAX_CODE_LINES + 1,
+                message: format!(
+                    "{n} lines of code before any test module, more than {MAX_CODE_LINES}: split \
+                     the file by role (see tidy rule 9)"
+                ),
+            })
+        })
+        .collect()
 }
 
 /// Rule 8: sl-py takes locks only in the files of [`PY_LOCK_FILES`]. A binding that needs an
@@ -675,6 +709,25 @@ mod tests {
         let v = python_lock_sites(t.path());
         assert_eq!(v.len(), 1, "{v:?}");
         assert!(v[0].file.ends_with("volume.rs") && v[0].line == 3);
+    }
+
+    #[test]
+    fn planted_long_source_file_fails() {
+        let t = clean_tree();
+        let lines = |n: usize| "fn f() {}\n".repeat(n);
+        // The module doc and `MAX_CODE_LINES` more: one line too many.
+        let long = format!("//! Long.\n{}", lines(MAX_CODE_LINES));
+        write(t.path(), "crates/sl-demo/src/long.rs", &long);
+        // At the limit, with an inline test module beyond it.
+        let tested = format!(
+            "//! Fine.\n{}#[cfg(test)]\nmod tests {{\n{}}}\n",
+            lines(MAX_CODE_LINES - 1),
+            lines(10)
+        );
+        write(t.path(), "crates/sl-demo/src/tested.rs", &tested);
+        let v = long_source_files(t.path());
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(v[0].file.ends_with("long.rs"), "{v:?}");
     }
 
     #[test]
