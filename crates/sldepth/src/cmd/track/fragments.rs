@@ -1,0 +1,204 @@
+//! The run's record of its fragments (`sl_track::Reconstruction`): where each starts, what it
+//! tracked and fused, which one it rejoined, and its mesh, written as soon as the fragment is
+//! handed over, to `--mesh` or its `.fragment-k` name.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use sl_core::WorldToWorld;
+use sl_track::{Reconstruction, Step};
+use sl_tsdf::MeshConfig;
+
+use super::Args;
+use crate::common::limits;
+
+/// What the run did with one fragment.
+pub(super) struct FragmentOut {
+    pub(super) first_frame: usize,
+    pub(super) tracked: usize,
+    /// The fragment it rejoined and the transform into that one's world.
+    pub(super) joined: Option<sl_track::FragmentJoin>,
+    pub(super) mesh: Option<WrittenMesh>,
+    /// Frames fused into its volume.
+    pub(super) fused: usize,
+    /// Its volume's blocks and their memory, bytes (what `--max-memory` bounds).
+    pub(super) blocks: usize,
+    pub(super) model_bytes: usize,
+    /// The frame whose fusion found its model full (the memory budget reached).
+    pub(super) model_full_at: Option<usize>,
+}
+
+impl FragmentOut {
+    pub(super) fn starting_at(first_frame: usize) -> Self {
+        Self {
+            first_frame,
+            tracked: 0,
+            joined: None,
+            mesh: None,
+            fused: 0,
+            blocks: 0,
+            model_bytes: 0,
+            model_full_at: None,
+        }
+    }
+
+    fn finish(&mut self, done: &sl_track::Fragment, mesh: Option<WrittenMesh>) {
+        self.tracked = done.tracked_frames;
+        self.joined = done.joined;
+        self.mesh = mesh;
+        self.fused = done.volume.frame_count();
+        self.blocks = done.volume.block_count();
+        self.model_bytes = done.volume.memory_bytes();
+    }
+}
+
+/// A fragment's mesh as written.
+pub(super) struct WrittenMesh {
+    pub(super) path: PathBuf,
+    pub(super) vertices: usize,
+    pub(super) triangles: usize,
+}
+
+/// Writes the mesh of a finished fragment (when `--mesh` was given). A mesh that cannot be
+/// made or written (over the memory budget, a full disk) is said on standard error and kept
+/// in `errors`: the run goes on, its trajectories are written, and it fails at the end.
+fn write_fragment_mesh(
+    args: &Args,
+    fragment: &sl_track::Fragment,
+    budget_bytes: usize,
+    errors: &mut Vec<String>,
+) -> Option<WrittenMesh> {
+    match try_write_fragment_mesh(args, fragment, budget_bytes) {
+        Ok(mesh) => mesh,
+        Err(e) => {
+            let e = format!("fragment {}'s mesh not written: {e:#}", fragment.index);
+            errln!("error: {e}");
+            errors.push(e);
+            None
+        }
+    }
+}
+
+/// [`write_fragment_mesh`], failing.
+fn try_write_fragment_mesh(
+    args: &Args,
+    fragment: &sl_track::Fragment,
+    budget_bytes: usize,
+) -> Result<Option<WrittenMesh>> {
+    let Some(p) = &args.mesh else {
+        return Ok(None);
+    };
+    let mut mesh = fragment
+        .volume
+        .extract_mesh_within(&MeshConfig::default(), budget_bytes)?;
+    // A fragment that rejoined the one before is written in that one's world frame.
+    if let Some(j) = &fragment.joined {
+        mesh.transform(j.transform.isometry());
+    }
+    let path = fragment_path(p, fragment.index);
+    sl_tsdf::io::write_mesh_ply(&path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(Some(WrittenMesh {
+        path,
+        vertices: mesh.vertex_count(),
+        triangles: mesh.triangle_count(),
+    }))
+}
+
+/// The fragment bookkeeping of frame `i`'s step: a fragment it started, the fragment it handed
+/// over (meshed, beside the volumes `rec` still holds) and a model it found full, each said on
+/// standard error.
+pub(super) fn note_step(
+    args: &Args,
+    i: usize,
+    step: &Step,
+    rec: &Reconstruction,
+    fragments: &mut Vec<FragmentOut>,
+    mesh_errors: &mut Vec<String>,
+) {
+    if step.fragment >= fragments.len() {
+        fragments.push(FragmentOut::starting_at(i));
+        errln!(
+            "frame {i}: lost for over {} s, fragment {} starts",
+            args.new_fragment_after_s,
+            step.fragment
+        );
+    }
+    if let Some(done) = &step.finished {
+        // Meshed beside the volumes still held (the current fragment's and a suspended
+        // one's), within the volume-and-mesh share.
+        let budget = limits()
+            .mesh_budget_bytes
+            .saturating_sub(rec.memory_bytes());
+        let mesh = write_fragment_mesh(args, done, budget, mesh_errors);
+        if let Some(out) = fragments.get_mut(done.index) {
+            out.finish(done, mesh);
+        }
+        if done.index > step.fragment {
+            errln!(
+                "frame {i}: back in fragment {}; fragment {} ({} frames) rejoins it{}",
+                step.fragment,
+                done.index,
+                done.tracked_frames,
+                if done.joined.is_some() {
+                    ""
+                } else {
+                    " (no frame with a pose in both: kept in its own world frame)"
+                }
+            );
+        }
+    }
+    if let Some(why) = &step.model_full {
+        errln!(
+            "warning: frame {i}: fragment {}'s model is full, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before and not fused; its mesh holds the frames before this one",
+            step.fragment
+        );
+        if let Some(out) = fragments.get_mut(step.fragment) {
+            out.model_full_at.get_or_insert(i);
+        }
+    }
+}
+
+/// Meshes the fragments `Reconstruction::finish` handed back: each within the volume-and-mesh
+/// share but what the fragments still to mesh hold.
+pub(super) fn mesh_finished(
+    args: &Args,
+    left: Vec<sl_track::Fragment>,
+    fragments: &mut [FragmentOut],
+    mesh_errors: &mut Vec<String>,
+) {
+    let mut held: usize = left.iter().map(|f| f.volume.memory_bytes()).sum();
+    let whole = limits().mesh_budget_bytes;
+    for done in left {
+        held -= done.volume.memory_bytes();
+        let budget = whole.saturating_sub(held);
+        let mesh = write_fragment_mesh(args, &done, budget, mesh_errors);
+        if let Some(out) = fragments.get_mut(done.index) {
+            out.finish(&done, mesh);
+        }
+    }
+}
+
+/// The fragment whose world frame fragment `f`'s poses are written in, and the transform there.
+pub(super) fn world_of(f: usize, fragments: &[FragmentOut]) -> (usize, Option<WorldToWorld>) {
+    match fragments.get(f).and_then(|o| o.joined) {
+        Some(j) => (j.into, Some(j.transform)),
+        None => (f, None),
+    }
+}
+
+/// The file of fragment `fragment`: `path` itself for fragment 0, else `stem.fragment-k.ext`.
+pub(super) fn fragment_path(path: &Path, fragment: usize) -> PathBuf {
+    if fragment == 0 {
+        return path.to_path_buf();
+    }
+    let stem = path.file_stem().map_or_else(
+        || "output".to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    );
+    let name = match path.extension() {
+        Some(e) => format!("{stem}.fragment-{fragment}.{}", e.to_string_lossy()),
+        None => format!("{stem}.fragment-{fragment}"),
+    };
+    path.with_file_name(name)
+}

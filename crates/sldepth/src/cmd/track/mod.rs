@@ -1,0 +1,391 @@
+//! `sldepth track`: where was the camera — track a raw depth recording (no poses given) with
+//! `sl_track::Tracker`, fuse every tracked frame into a TSDF (1/Z⁴ weights) and write the
+//! trajectory and, with `--mesh`, the mesh.
+//!
+//! Trajectory output (`--output`, TUM format `timestamp tx ty tz qx qy qz qw`, camera to
+//! world): one line per input frame. A frame that could not be tracked gets a comment line
+//! `# <timestamp> lost: <reason>` (an unreadable frame `# <timestamp> skipped: <reason>`)
+//! instead of a pose — TUM tools skip comments, so a lost frame is missing from the
+//! evaluation rather than given a wrong pose. Frames without timestamps (7-Scenes, Open3D
+//! folders) use their index as the timestamp. The tracker is given the time between frames
+//! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder.
+//! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
+//! frame index; lost frames are left out and listed in the JSON).
+//!
+//! Fragments (`sl_track::Reconstruction`): when frames that could be aligned keep failing for
+//! `--new-fragment-after-s` (default 1 s), the recording goes on in a new fragment with its own
+//! volume and world frame (its first camera); when the camera comes back to the lost fragment,
+//! tracking goes on there and the newer fragment is joined to it. One trajectory per world
+//! frame: fragment 0's (with the fragments joined to it, moved into its frame) to the given
+//! `--output` and `--output-log`, any other fragment's to the same names with `.fragment-k`
+//! before the extension; each fragment's mesh to `--mesh` / `.fragment-k` (in the world of the
+//! fragment it joined), written as soon as the fragment is handed over. In a trajectory the
+//! frames of other worlds are comment lines `# <timestamp> in fragment <k>`; the JSON lists the
+//! fragments.
+//!
+//! Frames whose size is the camera's divided by a whole number (320×240 for a 640×480 preset:
+//! a QVGA stream, a driver's decimation) are tracked as that sensor decimated
+//! (`common::camera_for_frames`, `Camera::resampled`: intrinsics scaled, the sensor's noise
+//! model and block-matching window kept), with a note on standard error, as in every command
+//! that reads depth. A camera JSON says the same with `sensor_focal_px`.
+
+mod config;
+mod fragments;
+mod prepare;
+mod report;
+mod source;
+mod trajectory_text;
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use clap::builder::{PossibleValuesParser, TypedValueParser};
+use sl_filter::Prefilter;
+use sl_io::depth::ReadConfig;
+use sl_track::{Reconstruction, WeightMode};
+use sl_tsdf::DepthLookup;
+
+use crate::common::{
+    InputArgs, LensArgs, check_depth_scale, check_output, check_range, limits, parse_format,
+};
+use fragments::FragmentOut;
+use prepare::FramePrep;
+use report::Tally;
+use trajectory_text::Row;
+
+/// Options of `sldepth track`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
+    /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
+    /// and the `tum-fr1`, `tum-fr2` or `tum-fr3` camera, whichever the folder's name says
+    /// (fr1 when it names none), unless given.
+    #[arg(long, value_name = "DIR", group = "source")]
+    pub tum: Option<PathBuf>,
+    /// A 7-Scenes sequence folder (`frame-XXXXXX.depth.png`, millimetres; poses are not read);
+    /// the `7-scenes` camera (fx = fy = 585, c = (320, 240)) unless given.
+    #[arg(long = "7scenes", value_name = "DIR", group = "source")]
+    pub seven_scenes: Option<PathBuf>,
+    /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, numbers as numbers:
+    /// `9.png` before `10.png`; millimetres unless --depth-scale) and an optional
+    /// `DIR/camera.json`.
+    #[arg(long, value_name = "DIR", group = "source")]
+    pub o3d: Option<PathBuf>,
+    /// Use only the first N frames.
+    #[arg(long, value_name = "N")]
+    pub max_frames: Option<usize>,
+    /// Trajectory output, TUM format (camera to world; lost frames as `#` comment lines).
+    #[arg(long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Trajectory output, Open3D `.log` (tracked frames only).
+    #[arg(long, value_name = "FILE")]
+    pub output_log: Option<PathBuf>,
+    /// Write the fused mesh (binary PLY) at the end.
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
+    /// Voxel edge of the fused volume, metres.
+    #[arg(long, value_name = "M", default_value_t = 0.004)]
+    pub voxel_m: f64,
+    /// A fixed truncation band, metres. Default, as `sldepth fuse`: per observation
+    /// max(5 voxels, 3·σ_Z(Z)) up to 12 cm (the sensor-adaptive band).
+    #[arg(long, value_name = "M")]
+    pub trunc_m: Option<f64>,
+    /// Ignore depths beyond this for fusion, metres.
+    #[arg(long, value_name = "M", default_value_t = 4.0)]
+    pub max_depth_m: f64,
+    /// Where a voxel reads the frame's depth, as for `sldepth fuse`: `nearest` (default) or
+    /// `bilinear`. Bilinear fuses surfaces seen at grazing angles without a staircase (on a
+    /// simulated corridor the model's normals no longer lean 4° towards the camera) but takes
+    /// 1.6-2x as long to integrate, and the tracker's conditioning test was calibrated on
+    /// nearest-pixel models (docs/bench/track.md, "Session 26").
+    #[arg(long, value_name = "MODE", default_value = "nearest", value_parser = PossibleValuesParser::new(DepthLookup::NAMES).try_map(|s| s.parse::<DepthLookup>()))]
+    pub depth_lookup: DepthLookup,
+    /// Residual weighting of the tracker: `inv-var` (the sensor model's variance, default) or
+    /// `uniform`.
+    #[arg(long, value_name = "MODE", default_value = "inv-var")]
+    pub weighting: String,
+    /// Track each frame against the previous tracked frame instead of the fused model's
+    /// raycast (frame-to-model, the default). Neither loses a frame of TUM fr1/rpy-200 or
+    /// 7-Scenes; frame to frame is less accurate on TUM fr1/rpy-200 (ATE 3.08 against 2.86
+    /// cm), more accurate on 7-Scenes (0.47 against 0.67 cm) and about half as costly per
+    /// frame (docs/bench/track.md, sessions 33 and 57).
+    #[arg(long)]
+    pub frame_to_frame: bool,
+    /// Render the fused model for tracking at this fraction of the camera's resolution, in
+    /// (0, 1]. Default: one pixel per 4 pixels of the sensor along each axis (0.25 for a
+    /// 640x480 Kinect, 0.5 for its 320x240 stream): the sensor resolves no detail finer than
+    /// its ~9x11-pixel block-matching window; the raycast costs a small part of a
+    /// full-resolution one with the same accuracy on TUM fr1/rpy and 7-Scenes
+    /// (docs/bench/track.md); 1 renders at full resolution.
+    #[arg(long, value_name = "FRACTION")]
+    pub model_scale: Option<f64>,
+    /// The finest pyramid level the tracker aligns: 0 = full resolution (default), 1 = half,
+    /// 2 = quarter. Level 1 makes a step about 1.5x cheaper at the same accuracy on TUM
+    /// fr1/rpy and 7-Scenes, but is 2-3x less accurate on simulated sequences with known poses
+    /// (docs/bench/track.md).
+    #[arg(long, value_name = "LEVEL", default_value_t = 0, value_parser = clap::value_parser!(u8).range(0..=5))]
+    pub finest_level: u8,
+    /// Smooth every frame before tracking and fusing it: `multiscale` (default: the default
+    /// filter of `sldepth filter` with its coarse passes 2 and 4 px apart, not its third 8 px
+    /// apart, which cost frames at faster motion; it removes the spatially correlated error of
+    /// real sensors: on 7-Scenes it lowers the frame-to-frame ATE from 1.30 to 0.73 cm,
+    /// elsewhere the trajectories are as accurate as raw), `single` (the adaptive filter's single 7×7
+    /// pass) or `none`. The range kernel follows each raw frame's measured noise (see
+    /// `--model-noise-only`).
+    #[arg(long, value_name = "FILTER", default_value = "multiscale", value_parser = PossibleValuesParser::new(Prefilter::NAMES).try_map(|s| s.parse::<Prefilter>()))]
+    pub prefilter: Prefilter,
+    #[command(flatten)]
+    pub lens: LensArgs,
+    /// The sensor's rolling-shutter readout time, milliseconds (first image row to last), or
+    /// `auto` (default): the camera preset's readout when tracking against the fused model (30
+    /// ms, an estimate, for the Kinect v1 / PrimeSense-class presets and the data sets they
+    /// recorded: `--tum`, `--7scenes`; 0 for a camera JSON file, `icl-nuim` and the
+    /// global-shutter active-stereo presets), 0 frame to frame (there it made TUM fr1/rpy-200's
+    /// ATE worse, 3.19 → 3.69 cm). With a readout each row is aligned from its own pose on the
+    /// constant-velocity path from the last tracked frame, frames are fused moved to the middle
+    /// of their readout, and a pose is the camera's at that middle. 0: a global shutter. At most
+    /// the frame interval (33.3 ms at 30 Hz). Frame to model on TUM fr1/rpy-200 (motion
+    /// capture): RPE 5.1 → 4.5 mm and 0.65 → 0.60° per frame, ATE 2.80 → 2.83 cm, and every
+    /// 2nd, 3rd or 4th frame alone (2–4× the motion) tracked with no frame lost (global
+    /// shutter: 0, 4 and 4 lost since session 62's keyframes); on 7-Scenes, whose reference poses come from a
+    /// global-shutter tracker, the ATE against them rises from 0.60 to 0.66 cm. It costs about
+    /// 1–3 ms per frame (docs/bench/track.md, sessions 19, 20 and 44)
+    #[arg(long, value_name = "MS|auto", default_value = "auto")]
+    pub rolling_shutter_ms: String,
+    /// No plane-based fallback when ICP fails.
+    #[arg(long)]
+    pub no_plane_fallback: bool,
+    /// No relocalisation against keyframes (earlier frames kept at spread poses) when every
+    /// other attempt fails: a lost camera is then only found again near its last good pose.
+    /// With them, TUM fr1/rpy taken every 4th frame (up to 13° per step) loses no frame and
+    /// stays one fragment (without: 7 lost, a second fragment; docs/bench/track.md, session 62).
+    #[arg(long)]
+    pub no_keyframes: bool,
+    /// Track every frame with the camera's noise model as given. By default each raw frame's
+    /// disparity noise is measured on its own 16×16- and 32×32-pixel patches (before the prefilter) and,
+    /// when it is significantly larger than the model's, the frame is smoothed and tracked
+    /// with it (the prefilter's range kernel, the tracker's weights, gates and degenerate-view
+    /// checks): a sensor noisier than its preset or camera JSON says is otherwise smoothed too
+    /// little and tracked with its uncertainty understated. The camera's σ_D is a floor.
+    #[arg(long)]
+    pub model_noise_only: bool,
+    /// Instruction set of the tracker's and the fusion's inner loops, for benchmarks:
+    /// `portable`, `avx2` or `avx512` (default: the widest this CPU supports; one it does not
+    /// support falls back to the widest it does). Every choice gives the same trajectory and mesh, bit for bit. The
+    /// prefilter's kernels always use the widest.
+    #[arg(long, value_parser = ["portable", "avx2", "avx512"])]
+    pub isa: Option<String>,
+    /// Start a new fragment (its own volume, mesh and world frame: its first camera) after
+    /// this many seconds of frames that could be aligned but were lost (the camera has left the
+    /// place where tracking was lost); frames without depth or with a degenerate view do not
+    /// count. When the camera comes back to the lost fragment, tracking goes on there and the
+    /// newer fragment is joined to it (its poses go into the older one's trajectory). Fragment
+    /// 0 goes to --output/--output-log/--mesh, fragment k to the same names with `.fragment-k`
+    /// before the extension. `inf`: never.
+    #[arg(long, value_name = "S", default_value_t = 1.0)]
+    pub new_fragment_after_s: f64,
+    /// Print a JSON summary on standard output.
+    #[arg(long)]
+    pub json: bool,
+    /// Print one diagnostic line per frame on standard error (residual, inliers,
+    /// conditioning, the fallback taken).
+    #[arg(long)]
+    pub verbose: bool,
+    #[command(flatten)]
+    pub input: InputArgs,
+}
+
+/// Runs `sldepth track`.
+pub fn run(args: Args) -> Result<()> {
+    for (opt, path, exts) in [
+        ("--output", &args.output, &["txt"][..]),
+        ("--output-log", &args.output_log, &["log"][..]),
+        ("--mesh", &args.mesh, &["ply"][..]),
+    ] {
+        if let Some(p) = path {
+            check_output(opt, p, exts)?;
+        }
+    }
+    check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
+    if let Some(m) = args.model_scale {
+        check_range("--model-scale", m, 1e-3..=1.0)?;
+    }
+    check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
+    if let Some(s) = args.input.depth_scale {
+        check_depth_scale(s)?;
+    }
+    let weighting = WeightMode::parse(&args.weighting)?;
+    let (mut frames, camera, default_scale) = source::load_source(&args)?;
+    if let Some(n) = args.max_frames {
+        frames.truncate(n);
+    }
+    if frames.is_empty() {
+        // The source has frames (`load_source` refuses an empty one): --max-frames took them.
+        bail!("--max-frames 0: no frame left to track (give 1 or more)");
+    }
+    crate::common::check_outputs_spare_inputs(
+        &[
+            ("--output", args.output.as_deref()),
+            ("--output-log", args.output_log.as_deref()),
+            ("--mesh", args.mesh.as_deref()),
+        ],
+        source::source_files(&args)
+            .iter()
+            .map(PathBuf::as_path)
+            .chain(frames.iter().map(|f| f.depth_path.as_path())),
+    )?;
+    let mut read_opts = ReadConfig::default();
+    read_opts.format = parse_format(&args.input)?;
+    read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
+    // Frames a whole fraction of the camera's size are its sensor decimated; any other size
+    // is reported per frame below. The first frame, read for its size, is not read again.
+    let (camera, first_depth) = crate::common::camera_for_sequence(
+        camera,
+        frames.first().map(|f| f.depth_path.as_path()),
+        &read_opts,
+    );
+    let k = camera.intrinsics;
+    limits()
+        .check_pixels(k.width as u64, k.height as u64)
+        .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
+    // After the size check: the map holds one index per pixel.
+    let implied = source::implied_preset(&args);
+    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
+    let prefilter = args.prefilter;
+    prepare::check_prefilter(prefilter, &camera)?;
+    if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
+        bail!(
+            "--new-fragment-after-s must be positive (inf: never), got {}",
+            crate::common::num(args.new_fragment_after_s)
+        );
+    }
+    let cfg = config::reconstruction_config(&args, &camera, weighting, implied)?;
+    // The raw frames' noise against the camera's model (the prefilter hides it).
+    let noise_meter = (!args.model_noise_only).then(|| cfg.tracker.noise_meter());
+    let mut prep = FramePrep::new(
+        read_opts,
+        first_depth,
+        camera,
+        undistort,
+        prefilter,
+        noise_meter,
+    );
+    let mut rec = Reconstruction::new(camera, cfg)?;
+
+    let bar = indicatif::ProgressBar::new(frames.len() as u64);
+    if !std::io::stderr().is_terminal() || args.json {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "tracking {bar:40} {pos}/{len} frames, {per_sec}, {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let mut rows: Vec<(f64, Row)> = Vec::with_capacity(frames.len());
+    let mut tally = Tally::default();
+    // Meshes that could not be written (the run goes on; it fails once the trajectories are).
+    let mut mesh_errors: Vec<String> = Vec::new();
+    // Per fragment: its first frame, and its mesh once written.
+    let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
+    let wall = Instant::now();
+    let debug = args.verbose;
+    for (i, f) in frames.iter().enumerate() {
+        let t = f.timestamp.unwrap_or(i as f64);
+        let raw = prep.read(f);
+        // A frame of another size is a wrong camera, not an unreadable frame: the same error
+        // whatever the layout, before the lens model or the prefilter would refuse it as a
+        // skip.
+        if let Ok(d) = &raw {
+            prep.check_size(f, d)?;
+        }
+        let prepared = Instant::now();
+        let depth = match prep.prepare(raw, &mut rec) {
+            Ok(d) => d,
+            Err(e) => {
+                errln!(
+                    "warning: skipping frame {i} ({}): {e}",
+                    f.depth_path.display()
+                );
+                tally.skipped_frames.push(i);
+                rows.push((t, Row::Skipped(e.to_string().replace('\n', " "))));
+                bar.inc(1);
+                continue;
+            }
+        };
+        let prepare = prepared.elapsed().as_secs_f64() * 1e3;
+        // The tracker is told how many frame intervals passed: from the timestamps of a TUM
+        // recording (frames its driver dropped), else one per frame of the folder, so an
+        // unreadable frame skipped above is a longer step rather than a surprise.
+        let time_s = f
+            .timestamp
+            .unwrap_or(i as f64 * rec.config().tracker.frame_interval_s);
+        let step = rec
+            .step(&depth, Some(time_s))
+            .with_context(|| format!("tracking {}", f.depth_path.display()))?;
+        fragments::note_step(&args, i, &step, &rec, &mut fragments, &mut mesh_errors);
+        let r = step.result;
+        let tm = step.timings;
+        tally.track_ms.push(tm.track_ms);
+        tally.counts[r.status as usize] += 1;
+        if debug {
+            errln!(
+                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} weakest σ {:.2} mm it {} {:.1} ms {}",
+                r.status.as_str(),
+                r.overlap_fraction,
+                r.inlier_fraction,
+                r.rms_m,
+                r.rms_normalised,
+                r.condition,
+                r.weakest_sigma_m * 1e3,
+                r.iterations,
+                tm.track_ms,
+                r.failure.as_deref().unwrap_or("")
+            );
+        }
+        if r.status.is_tracked() {
+            tally.track_ms_tracked.push(tm.track_ms);
+            tally.integrate_ms.extend(tm.integrate_ms);
+            tally.raycast_ms.extend(tm.raycast_ms);
+            rows.push((t, Row::Pose(r.pose, step.fragment)));
+        } else {
+            tally.lost_frames.push(i);
+            let why = r.failure.unwrap_or_default();
+            rows.push((t, Row::Lost(why)));
+        }
+        tally.step_ms.push(tm.step_ms);
+        tally.prepare_ms.push(prepare);
+        tally.frame_ms.push(prepare + tm.step_ms);
+        bar.set_message(format!("{} lost", tally.lost_frames.len()));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    tally.wall_s = wall.elapsed().as_secs_f64();
+    if !frames.is_empty() && tally.skipped_frames.len() == frames.len() {
+        bail!(
+            "none of the {} frames could be read (each is named above); nothing was written",
+            frames.len()
+        );
+    }
+
+    fragments::mesh_finished(&args, rec.finish()?, &mut fragments, &mut mesh_errors);
+    trajectory_text::write_trajectories(&args, &rows, &fragments)?;
+    report::print(
+        &args,
+        &cfg,
+        frames.len(),
+        &tally,
+        &prep,
+        &fragments,
+        &mesh_errors,
+    )?;
+    if !mesh_errors.is_empty() {
+        bail!(
+            "{} (the trajectory and everything else were written)",
+            mesh_errors.join("; ")
+        );
+    }
+    Ok(())
+}

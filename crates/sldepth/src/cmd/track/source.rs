@@ -1,0 +1,113 @@
+//! The sequence to track: its depth frames and camera from `--tum`, `--7scenes` or `--o3d`,
+//! the other files of the source (which no output may replace) and the camera preset the
+//! source implies.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use sl_core::Camera;
+use sl_io::sequence::SequenceFrame;
+
+use super::Args;
+use crate::common::{camera_from_arg, limits};
+
+/// The files of the chosen source besides its depth frames, which no output may replace.
+pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
+    let o3d_camera = args.o3d.as_ref().map(|d| d.join("camera.json"));
+    crate::common::sequence_files(
+        args.tum.as_deref(),
+        args.seven_scenes.as_deref(),
+        o3d_camera.into_iter().chain(args.input.camera.clone()),
+    )
+}
+
+/// The frames, the camera and the default depth scale of the chosen source.
+pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
+    let lim = limits();
+    let camera = |default_preset: &str, file: Option<PathBuf>| -> Result<Camera> {
+        if let Some(c) = &args.input.camera {
+            return camera_from_arg(c);
+        }
+        if let Some(p) = &file {
+            crate::common::refuse_non_file("camera file", p)?;
+        }
+        match file {
+            Some(p) if p.is_file() => {
+                let is_json = p
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+                if is_json {
+                    sl_io::camera::read_camera_json_with_limits(&p, &lim)
+                } else {
+                    sl_io::camera::read_camera(&p)
+                }
+                .with_context(|| format!("reading camera {}", p.display()))
+            }
+            _ => Ok(Camera::preset(default_preset)?),
+        }
+    };
+    // A folder without a frame: an error naming the folder and what was looked for in it.
+    if let Some(dir) = &args.tum {
+        let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            let assoc = dir.join("associations.txt");
+            let (list, line) = if assoc.is_file() {
+                (assoc, "RGB_TIME RGB_FILE DEPTH_TIME DEPTH_FILE")
+            } else {
+                (dir.join("depth.txt"), "TIME DEPTH_FILE")
+            };
+            bail!(
+                "--tum {}: {} lists no depth frames (expected lines `{line}`)",
+                dir.display(),
+                list.display()
+            );
+        }
+        Ok((frames, crate::common::tum_camera(dir, &args.input)?, 5000.0))
+    } else if let Some(dir) = &args.seven_scenes {
+        let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            bail!(
+                "--7scenes {}: no depth frames in the folder (expected 7-Scenes files named \
+                 frame-NNNNNN.depth.png, e.g. frame-000000.depth.png)",
+                dir.display()
+            );
+        }
+        Ok((
+            frames,
+            camera("7-scenes", Some(dir.join("camera-intrinsics.txt")))?,
+            1000.0,
+        ))
+    } else if let Some(dir) = &args.o3d {
+        let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
+        if frames.is_empty() {
+            let sub = dir.join("depth");
+            bail!(
+                "--o3d {}: no depth images in {} (expected .png, .tif, .tiff or .pgm files)",
+                dir.display(),
+                if sub.is_dir() { sub } else { dir.clone() }.display()
+            );
+        }
+        Ok((
+            frames,
+            camera("kinect-v1", Some(dir.join("camera.json")))?,
+            1000.0,
+        ))
+    } else {
+        bail!("give the sequence with --tum DIR, --7scenes DIR or --o3d DIR")
+    }
+}
+
+/// The preset the source implies when no `--camera` is given: a TUM folder's, 7-Scenes', or
+/// the `kinect-v1` default of an Open3D folder without `camera.json`.
+pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
+    if let Some(dir) = &args.tum {
+        Some(crate::common::tum_preset(dir))
+    } else if args.seven_scenes.is_some() {
+        Some("7-scenes")
+    } else {
+        args.o3d
+            .as_ref()
+            .filter(|dir| !dir.join("camera.json").is_file())
+            .map(|_| "kinect-v1")
+    }
+}
