@@ -54,7 +54,7 @@ pub fn read_tum_sequence_at_offset(
     Ok(associate_interpolated(&depth, &poses, offset_s, max_gap_s))
 }
 
-/// Depth frames `(timestamp, path)`, as [`associate`] takes them.
+/// Depth frames `(timestamp, path)`, as [`associate()`] takes them.
 type TimedDepth = Vec<(f64, PathBuf)>;
 
 /// The timestamped depth frames and the ground-truth poses of a TUM folder, after checking the
