@@ -4,7 +4,7 @@
 use serde::Serialize;
 use sl_core::DepthImage;
 
-use super::{WidthStats, quantile_sorted};
+use super::{WidthStats, median};
 
 /// Invalid bands on one side of foreground objects.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -63,6 +63,65 @@ pub struct OcclusionBands {
     pub right: SideBands,
 }
 
+/// The edges of one side of foreground objects, as they are found.
+struct SideEdges {
+    /// Per band: its width, the predicted shadow, the foreground and background depths.
+    widths: Vec<f64>,
+    shadows: Vec<f64>,
+    fg: Vec<f64>,
+    bg: Vec<f64>,
+    /// Edges with no invalid pixel between foreground and background.
+    direct: usize,
+    bins: [ShadowBin; SHADOW_BINS_PX.len()],
+}
+
+impl SideEdges {
+    fn new() -> Self {
+        Self {
+            widths: Vec::new(),
+            shadows: Vec::new(),
+            fg: Vec::new(),
+            bg: Vec::new(),
+            direct: 0,
+            bins: SHADOW_BINS_PX.map(|upper_px| ShadowBin {
+                upper_px,
+                edges: 0,
+                with_band: 0,
+            }),
+        }
+    }
+
+    /// An edge between foreground depth `fg` and background depth `bg`, `run` invalid pixels
+    /// apart, whose projector shadow is predicted `shadow` pixels wide.
+    fn add(&mut self, run: usize, shadow: f64, fg: f64, bg: f64) {
+        let i = SHADOW_BINS_PX
+            .iter()
+            .position(|u| shadow < *u)
+            .unwrap_or(SHADOW_BINS_PX.len() - 1);
+        self.bins[i].edges += 1;
+        self.bins[i].with_band += usize::from(run > 0);
+        if run == 0 {
+            self.direct += 1;
+        } else {
+            self.widths.push(run as f64);
+            self.shadows.push(shadow);
+            self.fg.push(fg);
+            self.bg.push(bg);
+        }
+    }
+
+    fn finish(self) -> SideBands {
+        SideBands {
+            widths: WidthStats::from_widths(self.widths),
+            median_shadow_px: median(self.shadows),
+            direct_edges: self.direct,
+            median_fg_m: median(self.fg),
+            median_bg_m: median(self.bg),
+            by_shadow: self.bins.to_vec(),
+        }
+    }
+}
+
 /// The invalid bands at occlusion edges, per row (see the module documentation).
 pub fn occlusion_bands(
     depth: &DepthImage,
@@ -73,25 +132,7 @@ pub fn occlusion_bands(
     let (w, h) = (depth.width(), depth.height());
     let zs = depth.data();
     let valid = |z: f32| z > 0.0 && z.is_finite();
-    let (mut lw, mut ls, mut ld) = (Vec::new(), Vec::new(), 0usize);
-    let (mut rw, mut rs, mut rd) = (Vec::new(), Vec::new(), 0usize);
-    let bins = || {
-        SHADOW_BINS_PX.map(|upper_px| ShadowBin {
-            upper_px,
-            edges: 0,
-            with_band: 0,
-        })
-    };
-    let (mut lbins, mut rbins) = (bins(), bins());
-    let count = |bins: &mut [ShadowBin; SHADOW_BINS_PX.len()], shadow: f64, band: bool| {
-        let i = SHADOW_BINS_PX
-            .iter()
-            .position(|u| shadow < *u)
-            .unwrap_or(SHADOW_BINS_PX.len() - 1);
-        bins[i].edges += 1;
-        bins[i].with_band += usize::from(band);
-    };
-    let (mut lf, mut lb, mut rf, mut rb) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut left, mut right) = (SideEdges::new(), SideEdges::new());
     for y in 0..h {
         let row = &zs[y * w..(y + 1) * w];
         let mut prev: Option<usize> = None;
@@ -106,50 +147,18 @@ pub fn occlusion_bands(
                     let shadow = fb_px_m * (1.0 / za.min(zb) - 1.0 / za.max(zb));
                     if zb - za > jump_m {
                         // Foreground on the left: the band lies on its right.
-                        count(&mut rbins, shadow, run > 0);
-                        if run == 0 {
-                            rd += 1;
-                        } else {
-                            rw.push(run as f64);
-                            rs.push(shadow);
-                            rf.push(za);
-                            rb.push(zb);
-                        }
+                        right.add(run, shadow, za, zb);
                     } else if za - zb > jump_m {
-                        count(&mut lbins, shadow, run > 0);
-                        if run == 0 {
-                            ld += 1;
-                        } else {
-                            lw.push(run as f64);
-                            ls.push(shadow);
-                            lf.push(zb);
-                            lb.push(za);
-                        }
+                        left.add(run, shadow, zb, za);
                     }
                 }
             }
             prev = Some(x);
         }
     }
-    let med = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        quantile_sorted(&v, 0.5)
-    };
-    let side = |widths: Vec<f64>,
-                shadows: Vec<f64>,
-                direct: usize,
-                fg: Vec<f64>,
-                bg: Vec<f64>,
-                bins: [ShadowBin; SHADOW_BINS_PX.len()]| SideBands {
-        widths: WidthStats::from_widths(widths),
-        median_shadow_px: med(shadows),
-        direct_edges: direct,
-        median_fg_m: med(fg),
-        median_bg_m: med(bg),
-        by_shadow: bins.to_vec(),
-    };
+    // Every depth here is valid (positive and finite), so the medians see no NaN.
     OcclusionBands {
-        left: side(lw, ls, ld, lf, lb, lbins),
-        right: side(rw, rs, rd, rf, rb, rbins),
+        left: left.finish(),
+        right: right.finish(),
     }
 }
