@@ -63,13 +63,14 @@ pub(super) fn band_sigmas(
     }
     let bands = band_edges_m
         .windows(2)
-        .enumerate()
-        .map(|(b, e)| BandSigma {
+        .zip(band_rms)
+        .zip(band_px)
+        .map(|((e, rms), pixels)| BandSigma {
             z_lo_m: e[0],
             z_hi_m: e[1],
-            pixels: band_px[b],
-            tiles: band_rms[b].len(),
-            sigma_d_px: median(band_rms[b].clone()),
+            pixels,
+            tiles: rms.len(),
+            sigma_d_px: median(rms),
         })
         .collect();
     (bands, median(all_rms), pixels)

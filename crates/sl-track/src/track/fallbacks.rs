@@ -112,12 +112,13 @@ impl Tracker {
         starts: &[(Isometry3<f64>, f64)],
         model: Option<&ReferenceMaps>,
     ) {
+        let reference = model.unwrap_or(&self.last_ref);
         let mut found = None;
         for &(start, var) in starts {
-            let again = self.align(&start, model.unwrap_or(&self.last_ref), var, true);
+            let again = self.align(&start, reference, var, true);
             o.iterations += again.iterations;
             if again.failure.is_none() {
-                found = Some(self.keep_better(found, again, model.unwrap_or(&self.last_ref)));
+                found = Some(self.keep_better(found, again, reference));
             }
         }
         if let Some(attempt) = found {
