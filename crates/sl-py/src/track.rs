@@ -140,9 +140,17 @@ pub(crate) fn track_in_map<'py>(
 /// ``--no-keyframes`` turns it off): a camera lost in a fast turn is found again where it looks
 /// at something it saw before (TUM fr1/rpy every 4th frame: 7 lost frames → none).
 /// ``memory_budget_bytes``: what the model's blocks may hold, all fragments together with the
-/// meshes kept of the finished ones (default 4 GiB); a frame it cannot hold is not fused and
-/// the model is full from then on (``model_full``): the next frames are tracked against the
-/// frame before and not fused, as ``sldepth track`` does at its ``--max-memory``. A finished
+/// meshes kept of the finished ones (default 4 GiB). ``when_model_full``: what happens when a
+/// frame's blocks do not fit in it, as ``sldepth track --when-model-full``: ``"continue"``
+/// (default) hands the full fragment over (its mesh is kept, see below) and goes on in a new
+/// fragment with a fresh volume in the *same* world frame, fusing that frame there (a
+/// continuation, listed in ``joins`` with the identity transform; its mesh overlaps the one
+/// before where the camera saw the same surfaces); ``"stop-fusing"``: the model is full from
+/// then on (``model_full``), the next frames are tracked against the frame before and not
+/// fused. A continuation whose fresh volume cannot hold even its first frame (the meshes kept
+/// leave too little) stops fusing the same way. A full fragment's mesh must fit in what the
+/// budget leaves once its volume is dropped (making it holds both, as ``extract_mesh()`` of a
+/// full model does). A finished
 /// fragment's mesh is made when it finishes, within what the budget leaves, and kept (its bytes
 /// taken from the budget); one that does not fit is not kept, and ``extract_mesh(fragment=k)``
 /// says so. One tracker may be used from several Python threads: its calls take turns.
@@ -202,7 +210,7 @@ impl PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true, memory_budget_bytes = 4usize << 30))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true, memory_budget_bytes = 4usize << 30, when_model_full = "continue"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -219,7 +227,17 @@ impl PyTracker {
         estimate_noise: bool,
         keyframes: bool,
         #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
+        when_model_full: &str,
     ) -> PyResult<Self> {
+        let new_volume_when_full = match when_model_full {
+            "continue" => true,
+            "stop-fusing" => false,
+            other => {
+                return Err(value_error(format!(
+                    "unknown when_model_full {other:?}: use \"continue\" or \"stop-fusing\""
+                )));
+            }
+        };
         let readout_s = match rolling_shutter_ms {
             Some(ms) => ms / 1000.0,
             None if frame_to_model => camera.rolling_shutter_readout_s(),
@@ -250,6 +268,7 @@ impl PyTracker {
         cfg.tracker.estimate_noise = estimate_noise;
         cfg.tracker.keyframe_relocalisation = keyframes;
         cfg.tsdf.memory_budget_bytes = memory_budget_bytes;
+        cfg.new_volume_when_full = new_volume_when_full;
         let noise_meter = estimate_noise.then(|| cfg.tracker.noise_meter());
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
@@ -318,16 +337,26 @@ impl PyTracker {
             // volumes still held and the meshes kept (the finished volume is counted in the
             // extraction's own budget), and then taken from the budget.
             if let Some(f) = step.finished {
+                // A full model's fragment handed over to a continuation: its mesh must fit in
+                // what the budget leaves once its volume is dropped (making it holds both at
+                // once, as `extract_mesh()` of a full model does); the continuation gets the
+                // rest.
+                let freed = if step.continued == Some(f.index) {
+                    f.volume.memory_bytes()
+                } else {
+                    0
+                };
                 let budget = state
                     .rec
                     .config()
                     .tsdf
                     .memory_budget_bytes
-                    .saturating_sub(held_bytes(&state.rec));
+                    .saturating_sub(held_bytes(&state.rec))
+                    .saturating_add(freed);
                 let kept = match f.volume.extract_mesh_within(&MeshConfig::default(), budget) {
                     Ok(mut mesh) => {
                         // A fragment that rejoined the one before is kept in that one's
-                        // world frame.
+                        // world frame (a continuation's is already in it: the identity).
                         if let Some(j) = &f.joined {
                             mesh.transform(j.transform.isometry());
                         }
@@ -370,8 +399,10 @@ impl PyTracker {
     }
 
     /// Why the current fragment's model is full (``None`` while it is not): a frame's blocks
-    /// did not fit in ``memory_budget_bytes``; from that frame on, frames are tracked against
-    /// the frame before and not fused, and ``extract_mesh`` holds the frames before it.
+    /// did not fit in ``memory_budget_bytes`` and no continuation took over
+    /// (``when_model_full="stop-fusing"``, or a continuation that could not hold its first
+    /// frame); from that frame on, frames are tracked against the frame before and not fused,
+    /// and ``extract_mesh`` holds the frames before it.
     #[getter]
     fn model_full(&self, py: Python<'_>) -> PyResult<Option<String>> {
         self.with_state(py, |s| s.rec.model_full().map(str::to_owned))
@@ -439,10 +470,11 @@ impl PyTracker {
         self.with_state(py, |s| s.frame_fragments.clone())
     }
 
-    /// The fragments that ended by rejoining the fragment before them (the camera came back
-    /// where that one was lost): a list of ``(fragment, into, transform)`` with ``transform``
-    /// the (4, 4) float64 matrix from ``fragment``'s world frame to ``into``'s
-    /// (``transform @ pose`` is a pose of ``fragment`` in ``into``'s world).
+    /// The finished fragments that ended by rejoining the fragment before them (the camera came
+    /// back where that one was lost), or that continue a full one (``when_model_full``, the
+    /// identity): a list of ``(fragment, into, transform)`` with ``transform`` the (4, 4)
+    /// float64 matrix from ``fragment``'s world frame to ``into``'s (``transform @ pose`` is a
+    /// pose of ``fragment`` in ``into``'s world).
     #[getter]
     fn joins<'py>(&self, py: Python<'py>) -> PyResult<Vec<Join<'py>>> {
         self.with_state(py, |s| s.joins.clone())?

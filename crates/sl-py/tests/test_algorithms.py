@@ -634,6 +634,57 @@ def test_a_tracker_whose_model_is_full_tracks_on_without_fusing(kinect):
         sldepth.Tracker(kinect, memory_budget_bytes=1.5)
 
 
+def test_a_full_model_goes_on_in_a_fresh_volume_in_the_same_world(kinect):
+    # A camera moving sideways (the view shifts 8 px a frame, the new columns without depth)
+    # brings a few new blocks into the model with every frame. With the smallest of a few
+    # budgets at which the model fills at the third frame or later (found with
+    # when_model_full="stop-fusing", under which the model just stops growing and fragment 0
+    # goes on), by default the tracker hands fragment 0 over, keeps its mesh and goes on in a
+    # continuation, fragment 1: a fresh volume in the same world frame, so its poses go on
+    # where fragment 0's ended. Here one frame needs nearly the whole budget (about 29,000
+    # blocks), so beside fragment 0's kept mesh the continuation cannot hold its first frame:
+    # it says so (model_full) and tracks on against the frame before, as "stop-fusing" does.
+    depth = sldepth.simulate("boxes", seed=3)[0]
+
+    def moved(k):
+        d = np.zeros_like(depth)
+        d[:, 8 * k :] = depth[:, : depth.shape[1] - 8 * k]
+        return d
+
+    frames = [moved(k) for k in range(10)]
+
+    def full_at(budget):
+        t = sldepth.Tracker(kinect, memory_budget_bytes=budget, when_model_full="stop-fusing")
+        for i, d in enumerate(frames):
+            assert t.track(d)[1] in ("initialised", "tracked", "tracked-against-frame")
+            if t.model_full is not None:
+                assert t.fragment == 0 and "memory budget" in t.model_full
+                return i
+        return None
+
+    budget = next(
+        b << 20 for b in range(100, 400, 10) if (full_at(b << 20) or 0) >= 2
+    )
+    first_full = full_at(budget)
+    roomy = sldepth.Tracker(kinect)
+    roomy_poses = [roomy.track(d)[0] for d in frames]
+    assert roomy.fragment == 0 and roomy.model_full is None
+    t = sldepth.Tracker(kinect, memory_budget_bytes=budget)
+    for d, expected in zip(frames, roomy_poses):
+        pose, status = t.track(d)
+        assert status in ("initialised", "tracked", "tracked-against-frame"), status
+        # In the first camera's world (a continuation does not restart at the identity):
+        # within 2 cm of the roomy tracker's over 20 cm of motion (shifted frames are no exact
+        # rigid motion, and a continuation's first frames are tracked frame to frame).
+        assert np.abs(pose[:3, 3] - expected[:3, 3]).max() < 0.02
+    assert t.frame_fragments == [0] * first_full + [1] * (10 - first_full)
+    assert t.fragment == 1 and t.joins == []
+    assert len(t.extract_mesh(fragment=0)) > 1000
+    assert "memory budget" in t.model_full and len(t.extract_mesh(fragment=1)) == 0
+    with pytest.raises(ValueError, match="when_model_full"):
+        sldepth.Tracker(kinect, when_model_full="evict")
+
+
 def test_tracker_measures_each_raw_frame_against_the_camera_model(kinect):
     # A sensor twice as noisy as the camera says (sigma_D 0.14 px behind the 0.07 px Kinect):
     # the raw frame's pixel variance is about 3.4 times the model's, measured before the

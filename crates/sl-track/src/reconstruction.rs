@@ -39,14 +39,32 @@
 //! [`ReconstructionConfig::tsdf`]: the current fragment's volume may use what the suspended one
 //! does not hold, nor the caller for what it keeps of the fragments handed over
 //! ([`Reconstruction::reserve_bytes`]). A frame whose blocks the budget cannot hold is not
-//! fused (the volume is left as it was) and the fragment's model is **full** from then on
-//! ([`Step::model_full`] on that frame, [`Reconstruction::model_full`],
-//! [`Fragment::model_full`]): its next frames are tracked against the last tracked frame, as with `frame_to_model = false` and a global shutter (a
-//! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused,
-//! so a long recording keeps its trajectory to the end and its mesh holds what was fused
-//! before. Nothing is dropped from the model to make room (the mesh would lose it). Tracking
-//! on against the full model, not fused, was tried: frames it barely covers went 10–14 cm
-//! astray on TUM fr1/rpy (docs/bench/track.md, session 79).
+//! fused into it (the volume is left as it was) and the fragment's model is **full**
+//! ([`Step::model_full`] on that frame, [`Fragment::model_full`]).
+//!
+//! By default ([`ReconstructionConfig::new_volume_when_full`]) the reconstruction then goes on
+//! in a **continuation**: a new fragment with a fresh volume in the *same* world frame, tracked
+//! by the same tracker (its motion, keyframes and pose carry on). The frame the full model
+//! could not hold ([`Step::continued`] on that frame) is the continuation's first: it is fused
+//! with the next frame (as a rolling-shutter fragment's first frame is), so that the full
+//! fragment, handed over at once ([`Step::finished`]), can be meshed by the caller beside an
+//! empty volume; its volume's memory goes to the continuation. A continuation is joined to the fragment it
+//! continues by the identity ([`Fragment::continues`], and [`Fragment::joined`] unless it later
+//! rejoins a suspended fragment), so its poses and mesh are already in that world. So a
+//! recording longer than the budget is tracked against a model to its end and fused whole, as a
+//! sequence of meshes that overlap where the camera saw the same surfaces again (they are not
+//! merged). The first frames of a continuation are tracked as a fragment's first frames are:
+//! against the last frame until its model holds two frames.
+//!
+//! Without continuations, or when a continuation's volume cannot hold even its first frame
+//! (the suspended fragment and the caller's reserve leave it too little), the fragment's next
+//! frames are tracked against the last tracked frame ([`Reconstruction::model_full`]), as with
+//! `frame_to_model = false` and a global shutter (a rolling-shutter readout made
+//! frame-to-frame tracking worse on TUM fr1/rpy), and not fused, so the trajectory goes on to
+//! the end and the mesh holds what was fused before. Nothing is dropped from a model to make
+//! room (the mesh would lose it). Tracking on against the full model, not fused, was tried:
+//! frames it barely covers went 10–14 cm astray on TUM fr1/rpy (docs/bench/track.md, session
+//! 79).
 
 use std::time::Instant;
 
@@ -73,6 +91,10 @@ pub struct ReconstructionConfig {
     /// (see the module docs), counted in whole frame intervals
     /// ([`TrackerConfig::frame_interval_s`], at least one); `None` never starts one. Default 1 s.
     pub new_fragment_after_s: Option<f64>,
+    /// When a fragment's model reaches the memory budget, go on in a continuation: a fresh
+    /// volume in the same world frame (see the module docs). Default `true`; `false` tracks
+    /// the rest against the last frame and fuses nothing more.
+    pub new_volume_when_full: bool,
 }
 
 impl ReconstructionConfig {
@@ -85,6 +107,7 @@ impl ReconstructionConfig {
             frame_to_model: true,
             model_scale: None,
             new_fragment_after_s: Some(1.0),
+            new_volume_when_full: true,
         }
     }
 
@@ -146,8 +169,12 @@ pub struct Fragment {
     /// (see the module docs), and a frame had a pose in both.
     pub joined: Option<FragmentJoin>,
     /// Set when the fragment's model reached the memory budget (see the module docs): why, as
-    /// the fusion's message. Its frames from then on are tracked but not in `volume`.
+    /// the fusion's message. Its frames from then on are in a continuation, or tracked but not
+    /// in `volume` when there is none.
     pub model_full: Option<String>,
+    /// The fragment this one continues in a fresh volume, that fragment's model being full
+    /// (see the module docs): its world frame is that fragment's.
+    pub continues: Option<usize>,
 }
 
 /// How a fragment that ended by rejoining the fragment before it relates to that one.
@@ -191,9 +218,14 @@ pub struct Step {
     /// model is full; a rolling-shutter fragment's first frame waits for the second's).
     pub fused: bool,
     /// Set on the frame whose fusion found its fragment's model full (the memory budget reached,
-    /// see the module docs): the fusion's message. Later frames of the fragment are tracked
-    /// against the last frame and not fused.
+    /// see the module docs): the fusion's message. When [`Step::continued`] is set too, the
+    /// frame is the continuation's first (fused with the next step); otherwise later frames of
+    /// the fragment are tracked against the last frame and not fused.
     pub model_full: Option<String>,
+    /// Set on the frame that started a continuation (see the module docs): the fragment whose
+    /// full model it continues (handed over in [`Step::finished`]). `fragment` is the
+    /// continuation's index.
+    pub continued: Option<usize>,
 }
 
 /// Tracks a depth sequence and fuses it, fragment by fragment (see the module docs).
@@ -287,6 +319,8 @@ struct Live {
     /// Set once a frame's blocks did not fit in the memory budget (the fusion's message): the
     /// model is full, frames are tracked against the last frame and no longer fused.
     model_full: Option<String>,
+    /// The fragment this one continues in a fresh volume (see the module docs).
+    continues: Option<usize>,
 }
 
 impl Live {
@@ -299,6 +333,7 @@ impl Live {
             tracked: 0,
             first_frame: None,
             model_full: None,
+            continues: None,
         })
     }
 
@@ -320,7 +355,6 @@ impl Live {
             Ok(_) => Ok(true),
             Err(e @ (TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. })) => {
                 self.model_full = Some(e.to_string());
-                self.tracker.use_global_shutter();
                 Ok(false)
             }
             Err(e) => Err(e.into()),
@@ -375,9 +409,40 @@ impl Live {
             index: self.index,
             volume: self.volume,
             tracked_frames: self.tracked,
-            joined,
+            joined: joined.or(self.continues.map(identity_join)),
             model_full: self.model_full,
+            continues: self.continues,
         })
+    }
+
+    /// Hands over this fragment's full volume and goes on as a continuation of it (see the
+    /// module docs): index `index`, a fresh volume, the same tracker and model reference, no
+    /// frame tracked yet.
+    ///
+    /// # Errors
+    /// A volume of `cfg` that cannot be made.
+    fn continue_in(&mut self, index: usize, cfg: &ReconstructionConfig) -> Result<Fragment> {
+        let volume = std::mem::replace(&mut self.volume, TsdfVolume::new(cfg.tsdf)?);
+        let done = Fragment {
+            index: self.index,
+            volume,
+            tracked_frames: self.tracked,
+            joined: self.continues.map(identity_join),
+            model_full: self.model_full.take(),
+            continues: self.continues,
+        };
+        self.index = index;
+        self.continues = Some(done.index);
+        self.tracked = 0;
+        Ok(done)
+    }
+}
+
+/// The join of a continuation to the fragment it continues: the same world frame.
+fn identity_join(into: usize) -> FragmentJoin {
+    FragmentJoin {
+        into,
+        transform: WorldToWorld::identity(),
     }
 }
 
@@ -486,7 +551,7 @@ impl Reconstruction {
         }
         let track_ms = ms_since(t0);
         let (mut integrate_ms, mut raycast_ms) = (None, None);
-        let (mut fused, mut model_full) = (false, None);
+        let (mut fused, mut model_full, mut continued) = (false, None, None);
         if result.status.is_tracked() {
             let t1 = Instant::now();
             let k = self.camera.intrinsics;
@@ -518,13 +583,49 @@ impl Reconstruction {
                     live.first_frame = Some((depth.clone(), result.pose));
                     None
                 }
-                None => Some(depth),
+                None => {
+                    // A continuation's first frame, without a readout to move it by.
+                    if let Some((first, pose)) = live.first_frame.take() {
+                        live.fuse(&first, &k, &pose)?;
+                    }
+                    Some(depth)
+                }
             };
             if let Some(depth) = depth {
                 fused = live.fuse(depth, &k, &result.pose)?;
             }
             if !was_full {
                 model_full.clone_from(&live.model_full);
+            }
+            if model_full.is_some() {
+                // The model is full now. Go on in a continuation, unless this step already
+                // hands a fragment over or the full volume holds no frame (a continuation that
+                // could not hold its first frame). This frame is the continuation's first: it
+                // waits, as a rolling-shutter fragment's first frame does, and is fused with
+                // the next step, after the caller has meshed and dropped the full volume.
+                if self.cfg.new_volume_when_full
+                    && finished.is_none()
+                    && live.volume.frame_count() > 0
+                {
+                    let done = live.continue_in(self.next_index, &self.cfg)?;
+                    self.next_index += 1;
+                    continued = Some(done.index);
+                    finished = Some(done);
+                    // The full volume is the caller's now: the continuation gets the budget
+                    // that neither the suspended fragment nor the caller holds.
+                    let held = self
+                        .suspended
+                        .as_ref()
+                        .map_or(0, |s| s.volume.memory_bytes())
+                        .saturating_add(self.reserved_bytes);
+                    let budget = self.cfg.tsdf.memory_budget_bytes.saturating_sub(held);
+                    live.volume.set_memory_budget_bytes(budget);
+                    live.volume.set_band_sensor(live.tracker.frame_sensor())?;
+                    live.first_frame = Some((raw.clone(), result.pose));
+                }
+                if live.model_full.is_some() {
+                    live.tracker.use_global_shutter();
+                }
             }
             let depth = depth.unwrap_or(raw);
             integrate_ms = Some(ms_since(t1));
@@ -553,6 +654,7 @@ impl Reconstruction {
             },
             fused,
             model_full,
+            continued,
         })
     }
 

@@ -37,8 +37,9 @@ struct Cli {
     /// 256: 4096x4096 at the default), text input size and lines, frames per sequence, PLY
     /// elements, and the TSDF of `fuse` and `track` (1/3 of it for the blocks, 3/4 for the blocks
     /// and their mesh: extracting a mesh takes about as much memory as its volume). A full
-    /// volume ends `fuse` with the mesh of the frames before; in `track` it stops growing and
-    /// the camera is tracked frame to frame from there. Default 4G; at least 16M (a smaller
+    /// volume ends `fuse` with the mesh of the frames before; in `track` its fragment is meshed
+    /// and the run goes on in a fresh volume in the same world frame (`--when-model-full`).
+    /// Default 4G; at least 16M (a smaller
     /// budget is refused).
     #[arg(long, value_name = "BYTES", global = true, value_parser = common::parse_memory)]
     max_memory: Option<u64>,

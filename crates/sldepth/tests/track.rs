@@ -217,12 +217,15 @@ fn track_writes_trajectory_log_mesh_and_json() {
 }
 
 /// A model that reaches the memory budget (`--max-memory`; the TSDF gets 1/3 of it) does not
-/// stop the run: the frame that would not fit and every later one are tracked against the
-/// frame before and not fused, said once on standard error and counted in the JSON
-/// (`unfused`, and per fragment `fused` and `model_full_at_frame`); the trajectory has every
-/// frame and still follows the camera, and the mesh holds the frames fused before.
+/// stop the run. With `--when-model-full stop-fusing` the frame that would not fit and every
+/// later one are tracked against the frame before and not fused, said once on standard error
+/// and counted in the JSON (`unfused`, and per fragment `fused` and `model_full_at_frame`);
+/// the trajectory has every frame and still follows the camera, and the mesh holds the frames
+/// fused before. By default the run goes on in a continuation: fragment 1, a fresh volume in
+/// fragment 0's world frame, takes that frame and the rest, so every frame is fused, the one
+/// trajectory still follows the camera, and the continuation's mesh is written beside.
 #[test]
-fn track_goes_on_frame_to_frame_when_the_model_reaches_the_memory_budget() {
+fn track_goes_on_when_the_model_reaches_the_memory_budget() {
     let tmp = tempfile::tempdir().unwrap();
     let seq = tmp.path().join("seq");
     write_sequence(&seq, 6);
@@ -258,6 +261,7 @@ fn track_goes_on_frame_to_frame_when_the_model_reaches_the_memory_budget() {
     // holds none, 83 MB all; the simulation is seeded, so the run is the same everywhere).
     let mut tight = vec!["--max-memory", "225M"];
     tight.extend_from_slice(&args);
+    tight.extend_from_slice(&["--when-model-full", "stop-fusing"]);
     let (v, stderr) = sldepth_json(&tight);
     assert_eq!(v["lost"], 0, "{stderr}");
     // The model stayed within its third of the budget, with fewer blocks than the roomy run's.
@@ -289,6 +293,45 @@ fn track_goes_on_frame_to_frame_when_the_model_reaches_the_memory_budget() {
         "{vertices} / {roomy_vertices}"
     );
     assert!(sl_io::read_mesh_ply(&mesh).unwrap().vertex_count() > 1000);
+
+    // The default: a continuation from the frame the full model could not hold.
+    let mut continued = vec!["--max-memory", "225M"];
+    continued.extend_from_slice(&args);
+    let (c, stderr) = sldepth_json(&continued);
+    assert_eq!(
+        (c["lost"].as_u64(), c["unfused"].as_u64()),
+        (Some(0), Some(0)),
+        "{c}"
+    );
+    let fragments = c["fragments"].as_array().unwrap();
+    assert!(fragments.len() >= 2, "{c}");
+    assert_eq!(
+        fragments[0]["model_full_at_frame"].as_u64(),
+        Some(full_at),
+        "{c}"
+    );
+    assert_eq!(fragments[0]["fused"].as_u64(), Some(full_at), "{c}");
+    assert_eq!(fragments[1]["first_frame"].as_u64(), Some(full_at), "{c}");
+    let mut fused = 0;
+    for (k, f) in fragments.iter().enumerate() {
+        fused += f["fused"].as_u64().unwrap();
+        assert_eq!(f["world"], 0, "{c}");
+        assert_eq!(f["joined_into"], serde_json::Value::Null, "{c}");
+        let continues = (k > 0).then(|| k as u64 - 1);
+        assert_eq!(f["continues"].as_u64(), continues, "{c}");
+        assert!(f["model_bytes"].as_u64().unwrap() <= (225 << 20) / 3, "{c}");
+    }
+    assert_eq!(fused, 6, "{c}");
+    assert!(
+        stderr.contains("fragment 1 goes on in a new volume in the same world frame"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("not fused"), "{stderr}");
+    let rows = pose_rows(&traj);
+    assert_eq!(rows.len(), 6);
+    assert_moved_5_cm(&rows[5]);
+    let second = tmp.path().join("mesh.fragment-1.ply");
+    assert!(sl_io::read_mesh_ply(&second).unwrap().vertex_count() > 1000);
 }
 
 /// A volume that reaches the memory budget ends `fuse` at that frame, but not before the mesh of

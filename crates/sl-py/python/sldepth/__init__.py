@@ -95,7 +95,9 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
     (``weighting``, ``frame_to_model``, ``voxel_m``, ``model_scale``, ``prefilter``, ``lens``,
     ``new_fragment_after_s``, ``rolling_shutter_ms``, ``estimate_noise``, ``keyframes``,
-    ``memory_budget_bytes``: a model that reaches it stops growing and the camera is tracked
+    ``memory_budget_bytes`` and ``when_model_full``: by default a model that reaches the budget
+    is handed over as a fragment and the sequence goes on in a fresh volume in the same world
+    frame; with ``when_model_full="stop-fusing"`` it stops growing and the camera is tracked
     frame to frame from there, ``tracker.model_full``). A single path or array is not a
     sequence: it raises ``TypeError`` (pass a list, e.g. of ``sorted(glob.glob(...))``).
 
@@ -155,7 +157,9 @@ def _poses_in_joined_worlds(poses, frame_fragments, joins):
     out = np.array(poses, dtype=np.float64, copy=True)
     into = {f: (j, np.asarray(t, dtype=np.float64)) for f, j, t in joins}
     for i, f in enumerate(frame_fragments):
-        # A fragment rejoins the one suspended before it, which was live then: one step.
-        if f in into:
+        # On through the fragment that one joined (a continuation is joined to the fragment
+        # it continues by the identity); joins always go to an older fragment.
+        while f in into and into[f][0] < f:
             out[i] = into[f][1] @ out[i]
+            f = into[f][0]
     return out

@@ -427,6 +427,7 @@ class Tracker:
         estimate_noise: bool = True,
         keyframes: bool = True,
         memory_budget_bytes: int = 4 << 30,
+        when_model_full: str = "continue",
     ) -> None:
         """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
         last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
@@ -446,16 +447,19 @@ class Tracker:
         fails, align it against earlier frames kept at spread poses (default; as sldepth
         track, --no-keyframes turns it off); memory_budget_bytes: what the model's blocks may
         hold, all fragments together with the meshes kept of finished fragments (default
-        4 GiB): a frame it cannot hold is not fused and the model is full from then on
-        (model_full), later frames tracked against the frame before and not fused; a
-        finished fragment's mesh that does not fit in what is left is not kept."""
+        4 GiB); when_model_full: "continue" (default: a frame the model cannot hold hands the
+        full fragment over and starts a continuation, a new fragment with a fresh volume in the
+        same world frame, listed in joins with the identity; meshes overlap where the camera
+        came back) or "stop-fusing" (the model is full from then on, model_full; later frames
+        tracked against the frame before and not fused); a finished fragment's mesh that does
+        not fit in what is left is not kept."""
     @property
     def memory_bytes(self) -> int:
         """Bytes held against memory_budget_bytes: the current and suspended fragments'
         volumes and the meshes kept of finished fragments."""
     @property
     def model_full(self) -> Optional[str]:
-        """Why the current fragment's model is full (its memory budget reached), or None."""
+        """Why the current fragment's model is full (its memory budget reached, no continuation took over), or None."""
     @property
     def rolling_shutter_ms(self) -> float:
         """The rolling-shutter readout the tracker models, milliseconds (0: global shutter)."""
@@ -491,7 +495,7 @@ class Tracker:
         """The fragment of every frame given to track(), in order."""
     @property
     def joins(self) -> List[Tuple[int, int, npt.NDArray[np.float64]]]:
-        """(fragment, into, (4, 4) transform from fragment's world to into's) for each fragment that rejoined the one before."""
+        """(fragment, into, (4, 4) transform from fragment's world to into's) for each finished fragment that rejoined the one before, or continues a full one (the identity)."""
     def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
         """The fused mesh of fragment `fragment` (None: the current one; a rejoined fragment's is in the world of the one it rejoined)."""
 
@@ -556,6 +560,7 @@ def track_sequence(
     estimate_noise: bool = True,
     keyframes: bool = True,
     memory_budget_bytes: int = 4 << 30,
+    when_model_full: str = "continue",
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the

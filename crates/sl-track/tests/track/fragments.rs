@@ -92,14 +92,10 @@ fn a_camera_carried_elsewhere_while_lost_goes_on_in_a_new_fragment() {
     assert!(out.iter().all(|o| o.2 == 0));
 }
 
-/// A model that reaches the memory budget stops growing, and tracking goes on: the frame whose
-/// blocks do not fit is not fused (the volume keeps what it had, the step says why once), and
-/// every later frame is tracked against the frame before, within the same error bounds as
-/// the rest of these tests, and not fused. The budget is what the volume held after three
-/// frames, so a moving camera's next new blocks do not fit.
-#[test]
-fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
-    let (cam, truth, frames) = sequence(12, 61);
+/// The configuration of the memory-budget tests: 1 cm voxels, and a budget of what the volume
+/// held after the first three frames of `frames`, so a moving camera's next new blocks do not
+/// fit.
+fn three_frame_budget(cam: Camera, frames: &[DepthImage]) -> ReconstructionConfig {
     let mut cfg = ReconstructionConfig::default_for(cam.sensor);
     cfg.tsdf.voxel_m = 0.01;
     cfg.tsdf.trunc_m = 0.05;
@@ -109,6 +105,20 @@ fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
         rec.step(d, Some(i as f64 * dt)).unwrap();
     }
     cfg.tsdf.memory_budget_bytes = rec.volume().block_count() * sl_tsdf::volume::BYTES_PER_BLOCK;
+    cfg
+}
+
+/// Without continuations (`new_volume_when_full = false`) a model that reaches the memory
+/// budget stops growing, and tracking goes on: the frame whose blocks do not fit is not fused
+/// (the volume keeps what it had, the step says why once), and every later frame is tracked
+/// against the frame before, within the same error bounds as the rest of these tests, and not
+/// fused.
+#[test]
+fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
+    let (cam, truth, frames) = sequence(12, 61);
+    let mut cfg = three_frame_budget(cam, &frames);
+    cfg.new_volume_when_full = false;
+    let dt = cfg.tracker.frame_interval_s;
     let mut rec = Reconstruction::new(cam, cfg).unwrap();
     let (mut poses, mut full_at, mut blocks) = (Vec::new(), Vec::new(), None);
     for (i, d) in frames.iter().enumerate() {
@@ -140,6 +150,76 @@ fn a_model_at_its_memory_budget_stops_growing_and_tracking_goes_on() {
     assert_eq!(left[0].volume.frame_count(), full_at[0]);
     assert!(left[0].model_full.is_some());
     assert!(left[0].volume.memory_bytes() <= cfg.tsdf.memory_budget_bytes);
+}
+
+/// By default a model that reaches the memory budget is handed over and the reconstruction
+/// goes on in a continuation: a fresh volume in the same world frame, tracked by the same
+/// tracker. Every frame is tracked within the bounds of these tests *against the truth's
+/// world frame* (the poses go on in the first camera's frame across continuations), every
+/// frame is fused exactly once (the one the full model could not hold goes into the
+/// continuation), each handed-over fragment is full and joined to the one it continues by
+/// the identity, and no volume passes the budget.
+#[test]
+fn a_full_model_goes_on_in_a_continuation_in_the_same_world_frame() {
+    let (cam, truth, frames) = sequence(12, 61);
+    let cfg = three_frame_budget(cam, &frames);
+    assert!(cfg.new_volume_when_full, "the default");
+    let dt = cfg.tracker.frame_interval_s;
+    let mut rec = Reconstruction::new(cam, cfg).unwrap();
+    let (mut poses, mut handed) = (Vec::new(), Vec::new());
+    for (i, d) in frames.iter().enumerate() {
+        let before = rec.fragment();
+        let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+        assert!(
+            step.result.status.is_tracked(),
+            "frame {i}: {:?}",
+            step.result
+        );
+        assert_eq!(
+            step.continued.is_some(),
+            step.model_full.is_some(),
+            "frame {i}"
+        );
+        // The frame the full model could not hold waits to be fused with the next.
+        assert_eq!(step.fused, step.continued.is_none(), "frame {i}");
+        if let Some(full) = step.continued {
+            assert_eq!(full, before, "frame {i}");
+            assert_eq!(step.fragment, before + 1, "frame {i}");
+            let done = step.finished.expect("the full fragment is handed over");
+            assert_eq!(done.index, full);
+            assert!(done.model_full.is_some() && done.volume.frame_count() > 0);
+            assert_eq!(done.continues, full.checked_sub(1), "frame {i}");
+            assert_eq!(done.joined.map(|j| j.into), done.continues);
+            handed.push(done);
+        } else {
+            assert!(step.finished.is_none(), "frame {i}");
+        }
+        assert!(rec.model_full().is_none(), "frame {i}");
+        poses.push(step.result.pose);
+    }
+    assert!(!handed.is_empty(), "the budget is reached");
+    for (i, e) in errors(&truth, &poses).iter().enumerate() {
+        assert!(e.0 < 0.01 && e.1 < 0.5, "frame {i}: {e:?}");
+    }
+    let left = rec.finish().unwrap();
+    assert_eq!(left.len(), 1);
+    let last = &left[0];
+    assert_eq!(last.continues, Some(handed.len() - 1));
+    let identity = sl_core::nalgebra::Isometry3::identity();
+    assert_eq!(last.joined.map(|j| j.into), last.continues);
+    for f in handed.iter().chain(&left) {
+        if let Some(j) = f.joined {
+            assert_eq!(j.transform.isometry(), &identity, "fragment {}", f.index);
+        }
+        assert!(f.volume.memory_bytes() <= cfg.tsdf.memory_budget_bytes);
+    }
+    let fused: usize = handed
+        .iter()
+        .chain(&left)
+        .map(|f| f.volume.frame_count())
+        .sum();
+    let tracked: usize = handed.iter().chain(&left).map(|f| f.tracked_frames).sum();
+    assert_eq!((fused, tracked), (12, 12));
 }
 
 /// A camera carried from one place to another (the boxes, then the figure before walls), with

@@ -45,6 +45,7 @@ pub(super) fn reconstruction_config(
         .new_fragment_after_s
         .is_finite()
         .then_some(args.new_fragment_after_s);
+    cfg.new_volume_when_full = args.when_model_full == "continue";
     Ok(cfg)
 }
 

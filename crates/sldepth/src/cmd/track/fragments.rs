@@ -26,6 +26,8 @@ pub(super) struct FragmentOut {
     pub(super) model_bytes: usize,
     /// The frame whose fusion found its model full (the memory budget reached).
     pub(super) model_full_at: Option<usize>,
+    /// The fragment whose full model it continues, in that one's world frame.
+    pub(super) continues: Option<usize>,
 }
 
 impl FragmentOut {
@@ -39,12 +41,22 @@ impl FragmentOut {
             blocks: 0,
             model_bytes: 0,
             model_full_at: None,
+            continues: None,
         }
+    }
+
+    /// The fragment it rejoined (a continuation's join to the fragment it continues is not a
+    /// rejoin).
+    pub(super) fn rejoined(&self) -> Option<usize> {
+        self.joined
+            .map(|j| j.into)
+            .filter(|&into| Some(into) != self.continues)
     }
 
     fn finish(&mut self, done: &sl_track::Fragment, mesh: Option<WrittenMesh>) {
         self.tracked = done.tracked_frames;
         self.joined = done.joined;
+        self.continues = done.continues;
         self.mesh = mesh;
         self.fused = done.volume.frame_count();
         self.blocks = done.volume.block_count();
@@ -118,11 +130,18 @@ pub(super) fn note_step(
 ) {
     if step.fragment >= fragments.len() {
         fragments.push(FragmentOut::starting_at(i));
-        errln!(
-            "frame {i}: lost for over {} s, fragment {} starts",
-            args.new_fragment_after_s,
-            step.fragment
-        );
+        match step.continued {
+            Some(full) => errln!(
+                "frame {i}: fragment {full}'s model is full ({}): fragment {} goes on in a new volume in the same world frame",
+                step.model_full.as_deref().unwrap_or("the memory budget"),
+                step.fragment
+            ),
+            None => errln!(
+                "frame {i}: lost for over {} s, fragment {} starts",
+                args.new_fragment_after_s,
+                step.fragment
+            ),
+        }
     }
     if let Some(done) = &step.finished {
         // Meshed beside the volumes still held (the current fragment's and a suspended
@@ -133,6 +152,9 @@ pub(super) fn note_step(
         let mesh = write_fragment_mesh(args, done, budget, mesh_errors);
         if let Some(out) = fragments.get_mut(done.index) {
             out.finish(done, mesh);
+            if step.continued == Some(done.index) {
+                out.model_full_at.get_or_insert(i);
+            }
         }
         if done.index > step.fragment {
             errln!(
@@ -148,7 +170,11 @@ pub(super) fn note_step(
             );
         }
     }
-    if let Some(why) = &step.model_full {
+    if let Some(why) = step
+        .model_full
+        .as_ref()
+        .filter(|_| step.continued.is_none())
+    {
         errln!(
             "warning: frame {i}: fragment {}'s model is full, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before and not fused; its mesh holds the frames before this one",
             step.fragment
@@ -179,12 +205,23 @@ pub(super) fn mesh_finished(
     }
 }
 
-/// The fragment whose world frame fragment `f`'s poses are written in, and the transform there.
+/// The fragment whose world frame fragment `f`'s poses are written in, and the transform there:
+/// through the fragment it joined, and on through the one that one joined (a continuation is
+/// joined to the fragment it continues; joins always go to an older fragment).
 pub(super) fn world_of(f: usize, fragments: &[FragmentOut]) -> (usize, Option<WorldToWorld>) {
-    match fragments.get(f).and_then(|o| o.joined) {
-        Some(j) => (j.into, Some(j.transform)),
-        None => (f, None),
+    let (mut world, mut transform) = (f, None::<WorldToWorld>);
+    while let Some(j) = fragments
+        .get(world)
+        .and_then(|o| o.joined)
+        .filter(|j| j.into < world)
+    {
+        transform = Some(match transform {
+            Some(t) => j.transform * t,
+            None => j.transform,
+        });
+        world = j.into;
     }
+    (world, transform)
 }
 
 /// The file of fragment `fragment`: `path` itself for fragment 0, else `stem.fragment-k.ext`.

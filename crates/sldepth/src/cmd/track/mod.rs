@@ -186,6 +186,12 @@ pub struct Args {
     /// before the extension. `inf`: never.
     #[arg(long, value_name = "S", default_value_t = 1.0)]
     pub new_fragment_after_s: f64,
+    /// When a fragment's model reaches the memory budget (--max-memory): `continue` (default)
+    /// goes on in a new fragment with a fresh volume in the same world frame (same trajectory,
+    /// its mesh to the next `.fragment-k` name; meshes overlap where the camera came back),
+    /// `stop-fusing` tracks the rest against the frame before and fuses nothing more.
+    #[arg(long, value_name = "WHAT", default_value = "continue", value_parser = ["continue", "stop-fusing"])]
+    pub when_model_full: String,
     /// Print a JSON summary on standard output.
     #[arg(long)]
     pub json: bool,

@@ -70,7 +70,8 @@ pub(super) fn print(
                     "blocks": f.blocks,
                     "model_bytes": f.model_bytes,
                     "model_full_at_frame": f.model_full_at,
-                    "joined_into": f.joined.map(|j| j.into),
+                    "joined_into": f.rejoined(),
+                    "continues": f.continues,
                     "world": world,
                     "output": args.output.as_ref().map(|p| fragment_path(p, world).display().to_string()),
                     "mesh": f.mesh.as_ref().map(|m| m.path.display().to_string()),
@@ -146,9 +147,19 @@ pub(super) fn print(
                 fragments
                     .iter()
                     .enumerate()
-                    .filter_map(|(k, f)| f.joined.map(|j| (k, j.into)))
+                    .filter_map(|(k, f)| f.rejoined().map(|into| (k, into)))
                     .collect::<Vec<_>>()
             );
+            let continued: Vec<_> = fragments
+                .iter()
+                .enumerate()
+                .filter_map(|(k, f)| f.continues.map(|full| (k, full)))
+                .collect();
+            if !continued.is_empty() {
+                errln!(
+                    "continuations of a full model, in its world frame (fragment, of): {continued:?}"
+                );
+            }
         }
         if unfused_frames > 0 {
             errln!(
