@@ -597,9 +597,10 @@ impl Reconstruction {
             if !was_full {
                 model_full.clone_from(&live.model_full);
             }
-            if model_full.is_some() {
-                // The model is full now. Go on in a continuation, unless this step already
-                // hands a fragment over or the full volume holds no frame (a continuation that
+            if live.model_full.is_some() {
+                // The model is full (now, or since a step that already handed a fragment
+                // over). Go on in a continuation, unless this step hands a fragment over (the
+                // next one tries again) or the full volume holds no frame (a continuation that
                 // could not hold its first frame). This frame is the continuation's first: it
                 // waits, as a rolling-shutter fragment's first frame does, and is fused with
                 // the next step, after the caller has meshed and dropped the full volume.
@@ -622,8 +623,10 @@ impl Reconstruction {
                     live.volume.set_memory_budget_bytes(budget);
                     live.volume.set_band_sensor(live.tracker.frame_sensor())?;
                     live.first_frame = Some((raw.clone(), result.pose));
+                    live.tracker
+                        .restore_rolling_shutter(self.cfg.tracker.rolling_shutter_readout_s);
                 }
-                if live.model_full.is_some() {
+                if live.model_full.is_some() && model_full.is_some() {
                     live.tracker.use_global_shutter();
                 }
             }

@@ -312,6 +312,13 @@ impl Tracker {
         self.rolling_motion = None;
     }
 
+    /// Models a rolling-shutter readout of `readout_s` again (after
+    /// [`Tracker::use_global_shutter`]; a continuation of a full model tracks against a model
+    /// again); the motion across the readout is measured anew from the next tracked frames.
+    pub(crate) fn restore_rolling_shutter(&mut self, readout_s: f64) {
+        self.cfg.rolling_shutter_readout_s = readout_s;
+    }
+
     /// The last well-tracked pose (`None` before the first frame with valid depth).
     pub fn last_good_pose(&self) -> Option<CameraToWorld> {
         self.last_good.map(CameraToWorld::from_isometry)
