@@ -792,3 +792,72 @@ impl Reconstruction {
 fn ms_since(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sl_core::nalgebra::Vector3;
+
+    /// A corner of three walls seen by a still Kinect at 320×240 (the type's example).
+    fn corner() -> (Camera, DepthImage) {
+        let cam = Camera::kinect_v1().resampled(0.5).unwrap();
+        let k = cam.intrinsics;
+        let walls = [
+            (Vector3::new(0.3f64, 0.2, -1.0).normalize(), 2.0f64),
+            (Vector3::new(-0.8, 0.1, -0.6).normalize(), 1.5),
+            (Vector3::new(0.1, -0.9, -0.4).normalize(), 1.2),
+        ];
+        let mut z = vec![0f32; k.width * k.height];
+        for (i, zi) in z.iter_mut().enumerate() {
+            let ray = k.ray((i % k.width) as f64, (i / k.width) as f64);
+            let near = walls
+                .iter()
+                .map(|(n, d)| -d / n.dot(&ray))
+                .filter(|s| *s > 0.0);
+            *zi = near.fold(f64::INFINITY, f64::min) as f32;
+        }
+        (cam, DepthImage::from_vec(k.width, k.height, z).unwrap())
+    }
+
+    /// A model found full in a step that could not go on in a continuation (one that handed
+    /// another fragment over) goes on in one at the next step: that step's frame is the
+    /// continuation's first, fused with the step after, and the full fragment is handed over
+    /// with every frame it fused. Without continuations the model stays full.
+    #[test]
+    fn a_full_model_left_by_a_busy_step_continues_at_the_next() {
+        let (cam, depth) = corner();
+        for continue_when_full in [true, false] {
+            let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+            cfg.new_volume_when_full = continue_when_full;
+            let mut rec = Reconstruction::new(cam, cfg).unwrap();
+            for _ in 0..3 {
+                assert!(rec.step(&depth, None).unwrap().result.status.is_tracked());
+            }
+            let fused = rec.volume().frame_count();
+            assert!(fused > 0);
+            // What a step that handed a fragment over leaves: a full model, not continued.
+            rec.current.model_full = Some("full".into());
+            let step = rec.step(&depth, None).unwrap();
+            assert!(step.result.status.is_tracked() && step.model_full.is_none());
+            if !continue_when_full {
+                assert!(step.continued.is_none() && step.finished.is_none());
+                assert_eq!((rec.fragment(), rec.model_full()), (0, Some("full")));
+                continue;
+            }
+            assert_eq!(
+                (step.continued, step.fragment, step.fused),
+                (Some(0), 1, false)
+            );
+            let done = step.finished.expect("the full fragment is handed over");
+            assert_eq!((done.index, done.volume.frame_count()), (0, fused));
+            assert_eq!(done.model_full.as_deref(), Some("full"));
+            assert!(rec.model_full().is_none() && rec.volume().frame_count() == 0);
+            let next = rec.step(&depth, None).unwrap();
+            assert!(next.fused && next.finished.is_none() && next.fragment == 1);
+            assert_eq!(rec.volume().frame_count(), 2);
+            let left = rec.finish().unwrap();
+            assert_eq!(left[0].continues, Some(0));
+            assert_eq!(left[0].joined.map(|j| j.into), Some(0));
+        }
+    }
+}
