@@ -205,23 +205,7 @@ pub struct Args {
 
 /// Runs `sldepth track`.
 pub fn run(args: Args) -> Result<()> {
-    for (opt, path, exts) in [
-        ("--output", &args.output, &["txt"][..]),
-        ("--output-log", &args.output_log, &["log"][..]),
-        ("--mesh", &args.mesh, &["ply"][..]),
-    ] {
-        if let Some(p) = path {
-            check_output(opt, p, exts)?;
-        }
-    }
-    check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
-    if let Some(m) = args.model_scale {
-        check_range("--model-scale", m, 1e-3..=1.0)?;
-    }
-    check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
-    if let Some(s) = args.input.depth_scale {
-        check_depth_scale(s)?;
-    }
+    check_args(&args)?;
     let weighting = WeightMode::parse(&args.weighting)?;
     let (mut frames, camera, default_scale) = source::load_source(&args)?;
     if let Some(n) = args.max_frames {
@@ -280,16 +264,7 @@ pub fn run(args: Args) -> Result<()> {
     );
     let mut rec = Reconstruction::new(camera, cfg)?;
 
-    let bar = indicatif::ProgressBar::new(frames.len() as u64);
-    if !std::io::stderr().is_terminal() || args.json {
-        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
-    }
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "tracking {bar:40} {pos}/{len} frames, {per_sec}, {msg}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
+    let bar = progress_bar(frames.len(), args.json);
     let mut rows: Vec<(f64, Row)> = Vec::with_capacity(frames.len());
     let mut tally = Tally::default();
     // Meshes that could not be written (the run goes on; it fails once the trajectories are).
@@ -297,7 +272,6 @@ pub fn run(args: Args) -> Result<()> {
     // Per fragment: its first frame, and its mesh once written.
     let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
     let wall = Instant::now();
-    let debug = args.verbose;
     for (i, f) in frames.iter().enumerate() {
         let t = f.timestamp.unwrap_or(i as f64);
         let raw = prep.read(f);
@@ -332,38 +306,7 @@ pub fn run(args: Args) -> Result<()> {
             .step(&depth, Some(time_s))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
         fragments::note_step(&args, i, &step, &rec, &mut fragments, &mut mesh_errors);
-        let r = step.result;
-        let tm = step.timings;
-        tally.track_ms.push(tm.track_ms);
-        tally.counts[r.status as usize] += 1;
-        if debug {
-            errln!(
-                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} weakest σ {:.2} mm it {} {:.1} ms {}",
-                r.status.as_str(),
-                r.overlap_fraction,
-                r.inlier_fraction,
-                r.rms_m,
-                r.rms_normalised,
-                r.condition,
-                r.weakest_sigma_m * 1e3,
-                r.iterations,
-                tm.track_ms,
-                r.failure.as_deref().unwrap_or("")
-            );
-        }
-        if r.status.is_tracked() {
-            tally.track_ms_tracked.push(tm.track_ms);
-            tally.integrate_ms.extend(tm.integrate_ms);
-            tally.raycast_ms.extend(tm.raycast_ms);
-            rows.push((t, Row::Pose(r.pose, step.fragment)));
-        } else {
-            tally.lost_frames.push(i);
-            let why = r.failure.unwrap_or_default();
-            rows.push((t, Row::Lost(why)));
-        }
-        tally.step_ms.push(tm.step_ms);
-        tally.prepare_ms.push(prepare);
-        tally.frame_ms.push(prepare + tm.step_ms);
+        rows.push((t, tally.record(i, step, prepare, args.verbose)));
         bar.set_message(format!("{} lost", tally.lost_frames.len()));
         bar.inc(1);
     }
@@ -394,4 +337,42 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The checks of `args` that need no input: output names, option ranges, the depth scale.
+fn check_args(args: &Args) -> Result<()> {
+    for (opt, path, exts) in [
+        ("--output", &args.output, &["txt"][..]),
+        ("--output-log", &args.output_log, &["log"][..]),
+        ("--mesh", &args.mesh, &["ply"][..]),
+    ] {
+        if let Some(p) = path {
+            check_output(opt, p, exts)?;
+        }
+    }
+    check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
+    if let Some(m) = args.model_scale {
+        check_range("--model-scale", m, 1e-3..=1.0)?;
+    }
+    check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
+    if let Some(s) = args.input.depth_scale {
+        check_depth_scale(s)?;
+    }
+    Ok(())
+}
+
+/// The progress bar of `len` frames on standard error (hidden with `--json` or when standard
+/// error is not a terminal).
+fn progress_bar(len: usize, json: bool) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len as u64);
+    if !std::io::stderr().is_terminal() || json {
+        bar.set_draw_target(indicatif::ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "tracking {bar:40} {pos}/{len} frames, {per_sec}, {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
 }

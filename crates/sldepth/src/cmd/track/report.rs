@@ -1,11 +1,12 @@
 //! What the run says at the end: the JSON summary (`--json`) or a few lines on standard error.
 
 use anyhow::Result;
-use sl_track::{ReconstructionConfig, TrackStatus};
+use sl_track::{ReconstructionConfig, Step, TrackStatus};
 
 use super::Args;
 use super::fragments::{FragmentOut, fragment_path, world_of};
 use super::prepare::FramePrep;
+use super::trajectory_text::Row;
 use crate::common::{print_json, round_to};
 
 /// What the run counted and timed, frame by frame.
@@ -29,6 +30,44 @@ pub(super) struct Tally {
     pub(super) frame_ms: Vec<f64>,
     /// The whole loop over the frames, seconds.
     pub(super) wall_s: f64,
+}
+
+impl Tally {
+    /// Counts frame `i`'s step, whose frame took `prepare_ms` to prepare, and returns its
+    /// trajectory row; with `verbose`, one diagnostic line on standard error.
+    pub(super) fn record(&mut self, i: usize, step: Step, prepare_ms: f64, verbose: bool) -> Row {
+        let r = step.result;
+        let tm = step.timings;
+        self.track_ms.push(tm.track_ms);
+        self.counts[r.status as usize] += 1;
+        if verbose {
+            errln!(
+                "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} weakest σ {:.2} mm it {} {:.1} ms {}",
+                r.status.as_str(),
+                r.overlap_fraction,
+                r.inlier_fraction,
+                r.rms_m,
+                r.rms_normalised,
+                r.condition,
+                r.weakest_sigma_m * 1e3,
+                r.iterations,
+                tm.track_ms,
+                r.failure.as_deref().unwrap_or("")
+            );
+        }
+        self.step_ms.push(tm.step_ms);
+        self.prepare_ms.push(prepare_ms);
+        self.frame_ms.push(prepare_ms + tm.step_ms);
+        if r.status.is_tracked() {
+            self.track_ms_tracked.push(tm.track_ms);
+            self.integrate_ms.extend(tm.integrate_ms);
+            self.raycast_ms.extend(tm.raycast_ms);
+            Row::Pose(r.pose, step.fragment)
+        } else {
+            self.lost_frames.push(i);
+            Row::Lost(r.failure.unwrap_or_default())
+        }
+    }
 }
 
 /// Reports the run of `args` with `cfg` over `frame_count` frames: the JSON summary on standard
