@@ -612,15 +612,13 @@ impl Reconstruction {
                     self.next_index += 1;
                     continued = Some(done.index);
                     finished = Some(done);
-                    // The full volume is the caller's now: the continuation gets the budget
-                    // that neither the suspended fragment nor the caller holds.
-                    let held = self
-                        .suspended
-                        .as_ref()
-                        .map_or(0, |s| s.volume.memory_bytes())
-                        .saturating_add(self.reserved_bytes);
-                    let budget = self.cfg.tsdf.memory_budget_bytes.saturating_sub(held);
-                    live.volume.set_memory_budget_bytes(budget);
+                    // The full volume is the caller's now (`share_budget`, which `live`'s borrow
+                    // keeps from being called here).
+                    live.volume.set_memory_budget_bytes(current_share(
+                        &self.cfg,
+                        self.suspended.as_ref(),
+                        self.reserved_bytes,
+                    ));
                     live.volume.set_band_sensor(live.tracker.frame_sensor())?;
                     live.first_frame = Some((raw.clone(), result.pose));
                     live.tracker
@@ -664,15 +662,8 @@ impl Reconstruction {
     /// Gives the current fragment the part of the budget that neither the suspended one nor the
     /// caller ([`Reconstruction::reserve_bytes`]) holds (see the module docs).
     fn share_budget(&mut self) {
-        let held = self
-            .suspended
-            .as_ref()
-            .map_or(0, |s| s.volume.memory_bytes())
-            .saturating_add(self.reserved_bytes);
-        let total = self.cfg.tsdf.memory_budget_bytes;
-        self.current
-            .volume
-            .set_memory_budget_bytes(total.saturating_sub(held));
+        let share = current_share(&self.cfg, self.suspended.as_ref(), self.reserved_bytes);
+        self.current.volume.set_memory_budget_bytes(share);
     }
 
     /// Bytes the fragments' volumes hold now: the current one's and the suspended one's
@@ -787,6 +778,19 @@ impl Reconstruction {
         out.sort_by_key(|f| f.index);
         Ok(out)
     }
+}
+
+/// The part of `cfg`'s budget the current fragment's volume gets: what neither the suspended
+/// fragment nor the caller's reserve (`reserved_bytes`) holds.
+fn current_share(
+    cfg: &ReconstructionConfig,
+    suspended: Option<&Live>,
+    reserved_bytes: usize,
+) -> usize {
+    let held = suspended
+        .map_or(0, |s| s.volume.memory_bytes())
+        .saturating_add(reserved_bytes);
+    cfg.tsdf.memory_budget_bytes.saturating_sub(held)
 }
 
 fn ms_since(t: Instant) -> f64 {
