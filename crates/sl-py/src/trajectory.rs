@@ -109,7 +109,11 @@ fn stats_dict<'py>(py: Python<'py>, s: &ErrorStats) -> PyResult<Bound<'py, PyDic
 /// (``delta_unit``), ``translation_m`` and ``rotation_deg``. Each error is a dict of ``rmse``,
 /// ``mean``, ``median``, ``std``, ``min``, ``max``. Timestamps in seconds, poses (N, 4, 4)
 /// camera-to-world (``read_trajectory``, ``track_sequence``). ``offset_s`` is added to the
-/// estimate's timestamps first (``estimate_time_offset`` measures it).
+/// estimate's timestamps first (``estimate_time_offset`` measures it). ``per_pose``: each
+/// matched pose's error after the ATE's alignment, in the estimate's time order, as float64
+/// arrays ``timestamps_s`` (the estimate's own, before ``offset_s``), ``gt_timestamps_s``,
+/// ``translation_m`` and ``rotation_deg`` (the orientation's error after the rotation of the
+/// world that fits the orientations best), to see where a trajectory goes wrong.
 #[pyfunction]
 #[pyo3(signature = (timestamps_s, poses, gt_timestamps_s, gt_poses, *, max_gap_s = 0.02, delta = 1.0, delta_unit = "frames", offset_s = 0.0))]
 #[allow(clippy::too_many_arguments)]
@@ -139,6 +143,21 @@ pub(crate) fn evaluate_trajectory<'py>(
     out.set_item("max_gap_s", config.max_gap_s)?;
     out.set_item("offset_s", config.offset_s)?;
     out.set_item("ate_m", stats_dict(py, &a.stats_m)?)?;
+    let pp = PyDict::new(py);
+    let column = |f: fn(&sl_eval::trajectory::PoseError) -> f64| -> Vec<f64> {
+        a.per_pose.iter().map(f).collect()
+    };
+    pp.set_item("timestamps_s", column(|e| e.timestamp_s).into_pyarray(py))?;
+    pp.set_item(
+        "gt_timestamps_s",
+        column(|e| e.ground_truth_timestamp_s).into_pyarray(py),
+    )?;
+    pp.set_item(
+        "translation_m",
+        column(|e| e.translation_m).into_pyarray(py),
+    )?;
+    pp.set_item("rotation_deg", column(|e| e.rotation_deg).into_pyarray(py))?;
+    out.set_item("per_pose", pp)?;
     let rp = PyDict::new(py);
     rp.set_item("delta", config.delta)?;
     rp.set_item("delta_unit", config.delta_unit.name())?;

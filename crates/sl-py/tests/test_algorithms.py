@@ -532,6 +532,13 @@ def test_trajectories_round_trip_and_evaluate(tmp_path):
     r = sldepth.evaluate_trajectory(t, bumped, t, gt)
     assert r["ate_m"]["max"] == pytest.approx(0.03 * 19 / 20, rel=0.05)  # the alignment absorbs 1/20
     assert r["rpe"]["translation_m"]["max"] == pytest.approx(0.03, rel=1e-6)
+    # Per pose: the displaced pose carries the largest error, at its own timestamp.
+    pp = r["per_pose"]
+    assert pp["translation_m"].dtype == np.float64 and pp["translation_m"].shape == (20,)
+    assert np.array_equal(pp["timestamps_s"], t) and np.array_equal(pp["gt_timestamps_s"], t)
+    assert int(np.argmax(pp["translation_m"])) == 10
+    assert pp["translation_m"].max() == pytest.approx(r["ate_m"]["max"], abs=1e-12)
+    assert pp["rotation_deg"].max() < 1e-5
     # Files: written atomically, read back by time.
     path = tmp_path / "est.txt"
     sldepth.write_trajectory(path, t, est)

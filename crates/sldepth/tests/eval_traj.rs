@@ -1,5 +1,5 @@
-//! End-to-end tests of `sldepth eval-traj`: a hand-worked trajectory pair (text and JSON), a
-//! rigidly moved copy, a clock offset given and measured, and clear errors on bad input.
+//! End-to-end tests of `sldepth eval-traj`: a hand-worked trajectory pair (text and JSON), each
+//! pose's error (`--per-pose`), a rigidly moved copy, a clock offset given and measured, and clear errors on bad input.
 
 // Test code: a panic is a failed test.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
@@ -56,6 +56,61 @@ fn eval_traj_reports_hand_worked_ate_and_rpe() {
         o.status.success() && text.contains("ATE") && text.contains("RPE"),
         "{text}"
     );
+}
+
+/// `--per-pose`: one line per matched pose, in time order, the displaced pose the largest,
+/// matching the JSON's worst pose and `ate_m.max`; a file name that is not `.txt`, or an input,
+/// is refused before anything is read.
+#[test]
+fn eval_traj_writes_each_poses_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let gt = write(dir.path(), "gt.txt", &four_poses(0.0));
+    let est = write(dir.path(), "est.txt", &four_poses(0.3));
+    let out = dir.path().join("per-pose.txt");
+    let o = sldepth(&[
+        "eval-traj",
+        &est,
+        &gt,
+        "--json",
+        "--per-pose",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 4, "{text}");
+    for (i, r) in rows.iter().enumerate() {
+        let t = 100.0 + 0.1 * i as f64;
+        assert_eq!(r.len(), 4, "{text}");
+        assert!((r[0] - t).abs() < 1e-9 && (r[1] - t).abs() < 1e-9, "{text}");
+        // Identity orientations everywhere: no rotation error.
+        assert_eq!(r[3], 0.0, "{text}");
+    }
+    let worst = rows.iter().max_by(|a, b| a[2].total_cmp(&b[2])).unwrap();
+    assert!((worst[0] - 100.1).abs() < 1e-9, "{text}");
+    let max = j["ate_m"]["max"].as_f64().unwrap();
+    assert!((worst[2] - max).abs() < 2e-6, "{text} {max}");
+    assert_eq!(j["ate_worst_pose"]["timestamp"], 100.1);
+    assert_eq!(j["per_pose"], out.to_str().unwrap());
+    // Text mode names the worst pose.
+    let o = sldepth(&["eval-traj", &est, &gt]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("largest at the estimate's timestamp 100.100000"),
+        "{text}"
+    );
+    // Refused up front: another format, and an input as the output (left as it was).
+    for bad in [dir.path().join("e.csv").to_str().unwrap(), est.as_str()] {
+        let o = sldepth(&["eval-traj", &est, &gt, "--per-pose", bad]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains("--per-pose"), "{err}");
+    }
+    assert_eq!(std::fs::read_to_string(&est).unwrap(), four_poses(0.3));
 }
 
 #[test]

@@ -5,6 +5,7 @@
 use sl_core::CameraToCamera;
 use sl_core::nalgebra::{Matrix3, Point3, Vector3};
 
+use super::offset::{best_world_rotation, orientation_error_rad};
 use super::{StampedPose, TrajectoryConfig, associate, sorted, sorted_estimate};
 use crate::error::{EvalError, Result};
 
@@ -23,6 +24,28 @@ pub struct AteResult {
     pub ground_truth: usize,
     /// The rigid motion applied to the estimate: `X_gt = T·X_est`.
     pub alignment: CameraToCamera,
+    /// Each matched pose's error after the alignment, in the estimate's time order: where a
+    /// trajectory goes wrong, not only by how much (evo's per-pose APE).
+    pub per_pose: Vec<PoseError>,
+}
+
+/// One matched pose's error after the ATE's rigid alignment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseError {
+    /// The estimated pose's timestamp, seconds, as in the estimate (before
+    /// [`TrajectoryConfig::offset_s`]).
+    pub timestamp_s: f64,
+    /// The timestamp of the ground-truth pose it was matched to, seconds.
+    pub ground_truth_timestamp_s: f64,
+    /// Distance of the aligned estimated camera centre from the ground truth's, metres (the
+    /// ATE's error).
+    pub translation_m: f64,
+    /// Angle between the estimated orientation and the ground truth's, degrees, after the
+    /// rotation of the world that fits the estimate's orientations best (as
+    /// [`estimate_time_offset`](super::estimate_time_offset) measures them), not after the
+    /// ATE's alignment: that one is fitted to positions, which pin its rotation poorly where
+    /// the camera barely moves. Not part of the ATE, which compares positions only.
+    pub rotation_deg: f64,
 }
 
 /// ATE of `est` against `gt` (see the module docs): the positions of the poses associated
@@ -35,6 +58,8 @@ pub fn ate(
     config: &TrajectoryConfig,
 ) -> Result<AteResult> {
     config.validate()?;
+    // The estimate's own stamps, in the same order (the offset keeps the order).
+    let stamps: Vec<f64> = sorted(est, "estimated")?.iter().map(|p| p.0).collect();
     let est = sorted_estimate(est, config)?;
     let gt = sorted(gt, "ground-truth")?;
     if est.len() < 2 || gt.len() < 2 {
@@ -66,12 +91,32 @@ pub fn ate(
         trans.into(),
         sl_core::nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
     ));
+    // Orientations are compared after the world rotation that fits them best, not after the
+    // position alignment: where the camera barely moves (TUM's fr1/rpy spans a few
+    // centimetres), the positions pin that alignment's rotation to several degrees.
+    let world = best_world_rotation(&gt, &est, &pairs).ok_or_else(|| {
+        EvalError::InvalidParameter(
+            "the orientations' alignment did not converge (non-finite rotations?)".into(),
+        )
+    })?;
+    let mut per_pose: Vec<PoseError> = pairs
+        .iter()
+        .zip(&errors)
+        .map(|(&(i, j), &translation_m)| PoseError {
+            timestamp_s: stamps[j],
+            ground_truth_timestamp_s: gt[i].0,
+            translation_m,
+            rotation_deg: orientation_error_rad(&world, &gt[i], &est[j]).to_degrees(),
+        })
+        .collect();
+    per_pose.sort_by(|a, b| a.timestamp_s.total_cmp(&b.timestamp_s));
     Ok(AteResult {
         stats_m: ErrorStats::of(&errors),
         matched: pairs.len(),
         estimated: est.len(),
         ground_truth: gt.len(),
         alignment,
+        per_pose,
     })
 }
 

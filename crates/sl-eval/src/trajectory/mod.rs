@@ -18,7 +18,7 @@ mod offset;
 mod rpe;
 mod stats;
 
-pub use align::{AteResult, ate};
+pub use align::{AteResult, PoseError, ate};
 pub use associate::associate;
 pub use offset::{MAX_OFFSETS_TRIED, OffsetSearch, TimeOffset, estimate_time_offset};
 pub use rpe::{DeltaUnit, RpeResult, rpe};

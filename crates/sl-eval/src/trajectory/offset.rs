@@ -161,22 +161,46 @@ fn orientation_rmse_deg(
     if pairs.len() < 3 {
         return None;
     }
-    let rot = |p: &StampedPose| *p.1.isometry().rotation.to_rotation_matrix().matrix();
+    let world = best_world_rotation(gt, est, pairs)?;
+    let sum_sq: f64 = pairs
+        .iter()
+        .map(|&(i, j)| orientation_error_rad(&world, &gt[i], &est[j]).powi(2))
+        .sum();
+    Some((sum_sq / pairs.len() as f64).sqrt().to_degrees())
+}
+
+/// The rotation of the world that turns the estimate's orientations of `pairs` nearest to the
+/// ground truth's (the polar factor of `Σ R_gt·R_estᵀ`, with the reflection fix); `None` when
+/// its decomposition fails.
+pub(super) fn best_world_rotation(
+    gt: &[StampedPose],
+    est: &[StampedPose],
+    pairs: &[(usize, usize)],
+) -> Option<Matrix3<f64>> {
     let m: Matrix3<f64> = pairs
         .iter()
-        .map(|&(i, j)| rot(&gt[i]) * rot(&est[j]).transpose())
+        .map(|&(i, j)| rotation(&gt[i]) * rotation(&est[j]).transpose())
         .sum();
-    // The rotation nearest to `m` (the polar factor, with the reflection fix).
     let svd = m.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
     let mut d = Matrix3::identity();
     d[(2, 2)] = (u * v_t).determinant().signum();
-    let world = u * d * v_t;
-    let sum_sq: f64 = pairs
-        .iter()
-        .map(|&(i, j)| angle(&(rot(&gt[i]).transpose() * world * rot(&est[j]))).powi(2))
-        .sum();
-    Some((sum_sq / pairs.len() as f64).sqrt().to_degrees())
+    Some(u * d * v_t)
+}
+
+/// The angle, radians, between a ground-truth orientation and an estimated one turned by
+/// `world`.
+pub(super) fn orientation_error_rad(
+    world: &Matrix3<f64>,
+    gt: &StampedPose,
+    est: &StampedPose,
+) -> f64 {
+    angle(&(rotation(gt).transpose() * world * rotation(est)))
+}
+
+/// A pose's orientation as a matrix.
+fn rotation(p: &StampedPose) -> Matrix3<f64> {
+    *p.1.isometry().rotation.to_rotation_matrix().matrix()
 }
 
 /// The angle of a rotation matrix, radians, from both its sine (the skew part) and its cosine

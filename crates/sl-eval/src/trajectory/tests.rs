@@ -84,6 +84,78 @@ fn hand_worked_three_pose_ate() {
     assert!((s.mean - 0.4 / 3.0).abs() < 1e-12);
     assert!((s.median - 0.1).abs() < 1e-12);
     assert!((s.max - 0.2).abs() < 1e-12 && (s.min - 0.1).abs() < 1e-12);
+    // Per pose, in time order: the same distances. (The ground truth is a line, so the
+    // alignment may turn the estimate half a turn about it; the orientations' errors are
+    // tested on a trajectory that pins the alignment, below.)
+    let per: Vec<(f64, f64, f64)> = a
+        .per_pose
+        .iter()
+        .map(|p| (p.timestamp_s, p.ground_truth_timestamp_s, p.translation_m))
+        .collect();
+    assert_eq!(per.len(), 3);
+    for (got, want) in per.iter().zip([(0.0, 0.1), (0.1, 0.2), (0.2, 0.1)]) {
+        assert_eq!((got.0, got.1), (want.0, want.0), "{per:?}");
+        assert!((got.2 - want.1).abs() < 1e-12, "{per:?}");
+    }
+}
+
+/// A camera that keeps one orientation while it moves, estimated with the right positions and
+/// four orientations turned about its y axis by ±7.5° and ±30°: the turns cancel in the
+/// orientations' fit of the world (its rotation is the identity), so each pose's rotation error
+/// is its own turn, and the ATE is zero.
+#[test]
+fn hand_worked_per_pose_rotation_errors() {
+    let facing = UnitQuaternion::from_euler_angles(0.3, -0.2, 1.1);
+    let gt: Vec<StampedPose> = wiggly(30)
+        .into_iter()
+        .map(|(s, p)| {
+            let iso = Isometry3::from_parts(p.isometry().translation, facing);
+            (s, CameraToWorld::from_isometry(iso))
+        })
+        .collect();
+    let turns = [(4, 7.5), (11, -7.5), (20, 30.0), (25, -30.0)];
+    let turn_of = |i: usize| turns.iter().find(|t| t.0 == i).map_or(0.0, |t| t.1);
+    let est: Vec<StampedPose> = gt
+        .iter()
+        .enumerate()
+        .map(|(i, (s, p))| {
+            let turn =
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), f64::to_radians(turn_of(i)));
+            let mut iso = *p.isometry();
+            iso.rotation *= turn;
+            (*s, CameraToWorld::from_isometry(iso))
+        })
+        .collect();
+    let a = ate(&est, &gt, &TrajectoryConfig::default()).unwrap();
+    assert!(a.stats_m.max < 1e-9);
+    for (i, p) in a.per_pose.iter().enumerate() {
+        let want = turn_of(i).abs();
+        assert!((p.rotation_deg - want).abs() < 1e-6, "pose {i}: {p:?}");
+    }
+}
+
+/// The per-pose errors of a rigidly moved trajectory are all zero, one per matched pose, in
+/// the estimate's time order and with its own timestamps (before a clock offset), however
+/// the estimate was ordered.
+#[test]
+fn per_pose_errors_follow_the_estimates_own_clock() {
+    let gt = wiggly(40);
+    let t = Isometry3::new(Vector3::new(-2.0, 0.5, 1.0), Vector3::new(0.1, 0.7, -0.4));
+    // 25 ms late, listed backwards.
+    let est: Vec<StampedPose> = gt
+        .iter()
+        .rev()
+        .map(|(s, p)| (s + 0.025, CameraToWorld::from_isometry(t * p.isometry())))
+        .collect();
+    let mut cfg = TrajectoryConfig::default();
+    cfg.offset_s = -0.025;
+    let a = ate(&est, &gt, &cfg).unwrap();
+    assert_eq!(a.per_pose.len(), 40);
+    for (p, (s, _)) in a.per_pose.iter().zip(&gt) {
+        assert_eq!(p.timestamp_s, s + 0.025);
+        assert_eq!(p.ground_truth_timestamp_s, *s);
+        assert!(p.translation_m < 1e-9 && p.rotation_deg < 1e-5, "{p:?}");
+    }
 }
 
 #[test]
@@ -267,7 +339,20 @@ fn a_clock_offset_is_found_and_undone() {
     };
     assert!(ate(&est, &gt, &shifted).unwrap().stats_m.rmse < 1e-9);
     assert!(rpe(&est, &gt, &shifted).unwrap().rotation_deg.max < 1e-5);
-    assert!(ate(&est, &gt, &cfg).unwrap().stats_m.rmse > 1e-4);
+    let unshifted = ate(&est, &gt, &cfg).unwrap();
+    assert!(unshifted.stats_m.rmse > 1e-4);
+    // The per-pose orientation errors are the offset search's: their RMS at no offset.
+    let rms = (unshifted
+        .per_pose
+        .iter()
+        .map(|p| p.rotation_deg.powi(2))
+        .sum::<f64>()
+        / unshifted.per_pose.len() as f64)
+        .sqrt();
+    assert!(
+        (rms - found.rotation_rmse_at_zero_deg).abs() < 1e-9,
+        "{rms} {found:?}"
+    );
     // The same lag the other way, and none.
     let (gt, est) = turning_camera(-0.035);
     let found = estimate_time_offset(&est, &gt, &cfg, &OffsetSearch::default()).unwrap();

@@ -523,7 +523,11 @@ def evaluate_trajectory(
     """ATE (after Horn's rigid alignment) and RPE (over delta frames or seconds) with the TUM
     benchmark's definitions, as `sldepth eval-traj --json`: {"ate_m": {rmse, mean, median,
     std, min, max}, "rpe": {"translation_m": {...}, "rotation_deg": {...}, pairs, ...}, ...}.
-    offset_s (seconds) is added to the estimate's timestamps before matching them. An RPE pair
+    offset_s (seconds) is added to the estimate's timestamps before matching them. "per_pose":
+    {"timestamps_s", "gt_timestamps_s", "translation_m", "rotation_deg"}, float64 arrays (M,)
+    of each matched pose's error after the alignment, in the estimate's time order (its own
+    timestamps, before offset_s; the orientation's error after the world rotation that fits
+    the orientations best). An RPE pair
     is a pose and a strictly later one: a delta that pairs no pose with a later one (longer than
     the trajectory, or shorter than its pose spacing) raises ValueError."""
 

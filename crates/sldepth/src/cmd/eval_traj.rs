@@ -1,16 +1,17 @@
 //! `sldepth eval-traj`: absolute trajectory error and relative pose error of an estimated
 //! trajectory against ground truth, both TUM-format files (TUM benchmark definitions).
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use serde_json::json;
 use sl_eval::trajectory::{
-    AteResult, DeltaUnit, ErrorStats, MAX_OFFSET_S, OffsetSearch, RpeResult, StampedPose,
-    TimeOffset, TrajectoryConfig, ate, estimate_time_offset, rpe,
+    AteResult, DeltaUnit, ErrorStats, MAX_OFFSET_S, OffsetSearch, PoseError, RpeResult,
+    StampedPose, TimeOffset, TrajectoryConfig, ate, estimate_time_offset, rpe,
 };
 
-use crate::common::{limits, num, print_json, round_to};
+use crate::common::{check_output, check_outputs_spare_inputs, limits, num, print_json, round_to};
 
 /// Options of `sldepth eval-traj`.
 #[derive(Debug, clap::Args)]
@@ -58,6 +59,13 @@ pub struct Args {
     /// `--estimate-offset`).
     #[arg(long, value_name = "MS", allow_negative_numbers = true)]
     pub offset_search_ms: Option<f64>,
+    /// Write each matched pose's error after the ATE's alignment to this text file (`.txt`,
+    /// written atomically): one line per pose in the estimate's time order, `timestamp
+    /// gt_timestamp translation_error_m rotation_error_deg` (the estimate's own timestamp,
+    /// before `--offset-ms`; the rotation error is the angle between the aligned orientation
+    /// and the ground truth's), to see where a trajectory goes wrong, not only by how much.
+    #[arg(long, value_name = "FILE")]
+    pub per_pose: Option<PathBuf>,
 }
 
 /// Default of `--offset-search-ms`, milliseconds.
@@ -82,6 +90,23 @@ fn stats_json(s: &ErrorStats, digits: i32) -> serde_json::Value {
     })
 }
 
+/// Writes the per-pose errors of `--per-pose` (atomically).
+fn write_per_pose(path: &Path, errors: &[PoseError]) -> Result<()> {
+    let mut text = String::from(
+        "# sldepth eval-traj: each matched pose's error after the ATE's rigid alignment\n\
+         # timestamp gt_timestamp translation_error_m rotation_error_deg\n",
+    );
+    for e in errors {
+        writeln!(
+            text,
+            "{:.6} {:.6} {:.6} {:.4}",
+            e.timestamp_s, e.ground_truth_timestamp_s, e.translation_m, e.rotation_deg
+        )?;
+    }
+    sl_io::atomic::write_atomic(path, |w| w.write_all(text.as_bytes()))?;
+    Ok(())
+}
+
 /// Runs `sldepth eval-traj`.
 pub fn run(args: Args) -> Result<()> {
     let mut config = TrajectoryConfig::default();
@@ -102,6 +127,13 @@ pub fn run(args: Args) -> Result<()> {
     }
     config.offset_s = args.offset_ms * 1e-3;
     config.validate()?;
+    if let Some(p) = &args.per_pose {
+        check_output("--per-pose", p, &["txt"])?;
+        check_outputs_spare_inputs(
+            &[("--per-pose", Some(p.as_path()))],
+            [args.estimated.as_path(), args.ground_truth.as_path()],
+        )?;
+    }
     let est = read(&args.estimated, "estimated")?;
     let gt = read(&args.ground_truth, "ground-truth")?;
     let found: Option<TimeOffset> = if args.estimate_offset {
@@ -123,6 +155,13 @@ pub fn run(args: Args) -> Result<()> {
             config.delta_unit.name()
         )
     })?;
+    if let Some(p) = &args.per_pose {
+        write_per_pose(p, &a.per_pose).with_context(|| format!("--per-pose {}", p.display()))?;
+    }
+    let worst = a
+        .per_pose
+        .iter()
+        .max_by(|x, y| x.translation_m.total_cmp(&y.translation_m));
     if args.json {
         print_json(&json!({
             "estimated": args.estimated.display().to_string(),
@@ -139,6 +178,12 @@ pub fn run(args: Args) -> Result<()> {
                 "matched": f.matched,
             })),
             "ate_m": stats_json(&a.stats_m, 6),
+            "ate_worst_pose": worst.map(|w| json!({
+                "timestamp": w.timestamp_s,
+                "translation_m": round_to(w.translation_m, 6),
+                "rotation_deg": round_to(w.rotation_deg, 4),
+            })),
+            "per_pose": args.per_pose.as_ref().map(|p| p.display().to_string()),
             "rpe": {
                 "delta": config.delta,
                 "delta_unit": config.delta_unit.name(),
@@ -175,6 +220,14 @@ pub fn run(args: Args) -> Result<()> {
             s.median,
             s.max
         )?;
+        if let Some(w) = worst {
+            outln!(
+                "  largest at the estimate's timestamp {:.6}: {:.4} m (its orientation {:.3}° off, after the best rotation of the world)",
+                w.timestamp_s,
+                w.translation_m,
+                w.rotation_deg
+            )?;
+        }
         outln!(
             "RPE over {} {} ({} pairs)",
             config.delta,
