@@ -147,8 +147,10 @@ fn per_pose_errors_follow_the_estimates_own_clock() {
         .rev()
         .map(|(s, p)| (s + 0.025, CameraToWorld::from_isometry(t * p.isometry())))
         .collect();
-    let mut cfg = TrajectoryConfig::default();
-    cfg.offset_s = -0.025;
+    let cfg = TrajectoryConfig {
+        offset_s: -0.025,
+        ..TrajectoryConfig::default()
+    };
     let a = ate(&est, &gt, &cfg).unwrap();
     assert_eq!(a.per_pose.len(), 40);
     for (p, (s, _)) in a.per_pose.iter().zip(&gt) {
