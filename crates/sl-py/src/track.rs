@@ -147,8 +147,9 @@ pub(crate) fn track_in_map<'py>(
 /// continuation, listed in ``joins`` with the identity transform; its mesh overlaps the one
 /// before where the camera saw the same surfaces); ``"stop-fusing"``: the model is full from
 /// then on (``model_full``), the next frames are tracked against the frame before and not
-/// fused. A continuation whose fresh volume cannot hold even its first frame (the meshes kept
-/// leave too little) stops fusing the same way. A full fragment's mesh must fit in what the
+/// fused. A fresh volume (a fragment's or a continuation's) that cannot hold even its first
+/// frame (the meshes kept leave too little) tries every next frame until one fits, tracking
+/// against the frame before meanwhile. A full fragment's mesh must fit in what the
 /// budget leaves once its volume is dropped (making it holds both, as ``extract_mesh()`` of a
 /// full model does). A finished
 /// fragment's mesh is made when it finishes, within what the budget leaves, and kept (its bytes
@@ -400,9 +401,10 @@ impl PyTracker {
 
     /// Why the current fragment's model is full (``None`` while it is not): a frame's blocks
     /// did not fit in ``memory_budget_bytes`` and no continuation took over
-    /// (``when_model_full="stop-fusing"``, or a continuation that could not hold its first
-    /// frame); from that frame on, frames are tracked against the frame before and not fused,
-    /// and ``extract_mesh`` holds the frames before it.
+    /// (``when_model_full="stop-fusing"``, or a fresh volume that could not hold its first
+    /// frame: it takes the next frame that fits, and this is ``None`` again); from that frame
+    /// on, frames are tracked against the frame before and not fused, and ``extract_mesh``
+    /// holds the frames before it.
     #[getter]
     fn model_full(&self, py: Python<'_>) -> PyResult<Option<String>> {
         self.with_state(py, |s| s.rec.model_full().map(str::to_owned))

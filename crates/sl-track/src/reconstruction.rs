@@ -56,13 +56,14 @@
 //! merged). The first frames of a continuation are tracked as a fragment's first frames are:
 //! against the last frame until its model holds two frames.
 //!
-//! Without continuations, or when a continuation's volume cannot hold even its first frame
-//! (the suspended fragment and the caller's reserve leave it too little), the fragment's next
-//! frames are tracked against the last tracked frame ([`Reconstruction::model_full`]), as with
-//! `frame_to_model = false` and a global shutter (a rolling-shutter readout made
-//! frame-to-frame tracking worse on TUM fr1/rpy), and not fused, so the trajectory goes on to
-//! the end and the mesh holds what was fused before. Nothing is dropped from a model to make
-//! room (the mesh would lose it). Tracking on against the full model, not fused, was tried:
+//! Without continuations, the fragment's next frames are tracked against the last tracked
+//! frame ([`Reconstruction::model_full`]), as with `frame_to_model = false` and a global
+//! shutter (a rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and
+//! not fused, so the trajectory goes on to the end and the mesh holds what was fused before.
+//! A volume that holds no frame yet (a fragment's or a continuation's first frame alone needs
+//! more blocks than the budget leaves it) is tried again with every frame: frames too large
+//! are skipped and tracked as above, and the first that fits starts the model. Nothing is
+//! dropped from a model to make room (the mesh would lose it). Tracking on against the full model, not fused, was tried:
 //! frames it barely covers went 10–14 cm astray on TUM fr1/rpy (docs/bench/track.md, session
 //! 79).
 
@@ -220,7 +221,10 @@ pub struct Step {
     /// Set on the frame whose fusion found its fragment's model full (the memory budget reached,
     /// see the module docs): the fusion's message. When [`Step::continued`] is set too, the
     /// frame is the continuation's first (fused with the next step); otherwise later frames of
-    /// the fragment are tracked against the last frame and not fused.
+    /// the fragment are tracked against the last frame and not fused, unless the volume holds
+    /// no frame yet: then every later frame is tried, and a step whose frame fits after a
+    /// waiting first frame was refused reports both (`fused` and this set, while
+    /// [`Reconstruction::model_full`] is `None` again).
     pub model_full: Option<String>,
     /// Set on the frame that started a continuation (see the module docs): the fragment whose
     /// full model it continues (handed over in [`Step::finished`]). `fragment` is the
@@ -319,6 +323,9 @@ struct Live {
     /// Set once a frame's blocks did not fit in the memory budget (the fusion's message): the
     /// model is full, frames are tracked against the last frame and no longer fused.
     model_full: Option<String>,
+    /// The message of the last frame the budget refused in the current step (taken by the
+    /// step): set even when a later frame of the step fits an empty volume.
+    refused: Option<String>,
     /// The fragment this one continues in a fresh volume (see the module docs).
     continues: Option<usize>,
 }
@@ -333,6 +340,7 @@ impl Live {
             tracked: 0,
             first_frame: None,
             model_full: None,
+            refused: None,
             continues: None,
         })
     }
@@ -348,13 +356,19 @@ impl Live {
         intrinsics: &Intrinsics,
         pose: &sl_core::CameraToWorld,
     ) -> Result<bool> {
-        if self.model_full.is_some() {
+        // An empty volume is tried again with every frame: a frame whose blocks alone are more
+        // than the budget is skipped, and a later one that fits starts the model.
+        if self.model_full.is_some() && self.volume.frame_count() > 0 {
             return Ok(false);
         }
         match self.volume.integrate(depth, intrinsics, pose) {
-            Ok(_) => Ok(true),
+            Ok(_) => {
+                self.model_full = None;
+                Ok(true)
+            }
             Err(e @ (TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. })) => {
                 self.model_full = Some(e.to_string());
+                self.refused.clone_from(&self.model_full);
                 Ok(false)
             }
             Err(e) => Err(e.into()),
@@ -594,8 +608,14 @@ impl Reconstruction {
             if let Some(depth) = depth {
                 fused = live.fuse(depth, &k, &result.pose)?;
             }
+            let refused = live.refused.take();
             if !was_full {
-                model_full.clone_from(&live.model_full);
+                model_full = refused;
+            } else if live.model_full.is_none() {
+                // An empty volume took a frame at last (see `Live::fuse`): its fragment is
+                // tracked as any other again.
+                live.tracker
+                    .restore_rolling_shutter(self.cfg.tracker.rolling_shutter_readout_s);
             }
             if live.model_full.is_some() {
                 // The model is full (now, or since a step that already handed a fragment
@@ -693,7 +713,8 @@ impl Reconstruction {
     }
 
     /// Why the current fragment's model is full, when it is (see the module docs): its frames
-    /// are tracked against the last frame and not fused.
+    /// are tracked against the last frame and not fused (a volume that holds no frame yet is
+    /// tried again with each frame).
     pub fn model_full(&self) -> Option<&str> {
         self.current.model_full.as_deref()
     }

@@ -332,6 +332,28 @@ fn track_goes_on_when_the_model_reaches_the_memory_budget() {
     assert_moved_5_cm(&rows[5]);
     let second = tmp.path().join("mesh.fragment-1.ply");
     assert!(sl_io::read_mesh_ply(&second).unwrap().vertex_count() > 1000);
+
+    // 201M: a model of 67 MB holds no frame of this sequence. Each frame is tried (none fits),
+    // said once, and named as the fragment's first frame, not as a full model's later frames.
+    let mut none = vec!["--max-memory", "201M"];
+    none.extend_from_slice(&args);
+    let (n, stderr) = sldepth_json(&none);
+    assert_eq!(
+        (n["lost"].as_u64(), n["unfused"].as_u64()),
+        (Some(0), Some(6)),
+        "{n}"
+    );
+    assert_eq!(n["fragments"].as_array().map(Vec::len), Some(1), "{n}");
+    assert_eq!(n["fragments"][0]["fused"], 0, "{n}");
+    assert_eq!(
+        stderr
+            .matches("fragment 0's volume cannot hold its first frame")
+            .count(),
+        1,
+        "{stderr}"
+    );
+    assert!(!stderr.contains("model is full"), "{stderr}");
+    assert_eq!(pose_rows(&traj).len(), 6);
 }
 
 /// A volume that reaches the memory budget ends `fuse` at that frame, but not before the mesh of

@@ -451,8 +451,9 @@ class Tracker:
         full fragment over and starts a continuation, a new fragment with a fresh volume in the
         same world frame, listed in joins with the identity; meshes overlap where the camera
         came back) or "stop-fusing" (the model is full from then on, model_full; later frames
-        tracked against the frame before and not fused); a finished fragment's mesh that does
-        not fit in what is left is not kept."""
+        tracked against the frame before and not fused); a fresh volume that cannot hold its
+        first frame takes the next frame that fits; a finished fragment's mesh that does not
+        fit in what is left is not kept."""
     @property
     def memory_bytes(self) -> int:
         """Bytes held against memory_budget_bytes: the current and suspended fragments'

@@ -222,6 +222,75 @@ fn a_full_model_goes_on_in_a_continuation_in_the_same_world_frame() {
     assert_eq!((fused, tracked), (12, 12));
 }
 
+/// A fragment whose first frame alone needs more blocks than the budget (the first frame sees
+/// the whole scene, the later ones only the middle of the image): the frame is skipped, said
+/// once, and the next frame that fits starts the model; every later frame is fused and
+/// tracked, with a global shutter and with a rolling-shutter readout (whose first frame waits
+/// for the second's motion, so the refusal is found on the second step). Before, the fragment
+/// stayed full and empty to the end (7 frames tracked against the last frame, none fused).
+#[test]
+fn a_first_frame_larger_than_the_budget_is_skipped_and_the_next_starts_the_model() {
+    let (cam, truth, mut frames) = sequence(8, 71);
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    for f in &mut frames[1..] {
+        for (y, row) in f.as_image_mut().rows_mut().enumerate() {
+            for (x, z) in row.iter_mut().enumerate() {
+                if !(w / 5..4 * w / 5).contains(&x) || !(h / 5..4 * h / 5).contains(&y) {
+                    *z = 0.0;
+                }
+            }
+        }
+    }
+    // The budget: the blocks of the seven cropped frames fused alone; the whole first frame
+    // needs more.
+    let blocks = |frames: &[DepthImage]| {
+        let mut cfg = ReconstructionConfig::default_for(cam.sensor);
+        (cfg.tsdf.voxel_m, cfg.tsdf.trunc_m) = (0.01, 0.05);
+        cfg.tracker.rolling_shutter_readout_s = 0.0;
+        let mut rec = Reconstruction::new(cam, cfg).unwrap();
+        for (i, d) in frames.iter().enumerate() {
+            rec.step(d, Some(i as f64 * cfg.tracker.frame_interval_s))
+                .unwrap();
+        }
+        (cfg, rec.volume().block_count())
+    };
+    let (mut budget, cropped) = blocks(&frames[1..]);
+    let (_, whole) = blocks(&frames[..1]);
+    assert!(whole > cropped, "{whole} {cropped}");
+    budget.tsdf.memory_budget_bytes = cropped * sl_tsdf::volume::BYTES_PER_BLOCK;
+    for readout_s in [0.0, 0.03] {
+        let mut cfg = budget;
+        cfg.tracker.rolling_shutter_readout_s = readout_s;
+        let dt = cfg.tracker.frame_interval_s;
+        let mut rec = Reconstruction::new(cam, cfg).unwrap();
+        let (mut poses, mut refused) = (Vec::new(), Vec::new());
+        for (i, d) in frames.iter().enumerate() {
+            let step = rec.step(d, Some(i as f64 * dt)).unwrap();
+            assert!(
+                step.result.status.is_tracked(),
+                "readout {readout_s}, frame {i}"
+            );
+            assert!(step.continued.is_none() && step.finished.is_none());
+            if step.model_full.is_some() {
+                refused.push(i);
+            }
+            poses.push(step.result.pose);
+        }
+        let found_at = usize::from(readout_s > 0.0);
+        assert_eq!(refused, vec![found_at], "readout {readout_s}");
+        assert!(rec.model_full().is_none());
+        assert_eq!(rec.volume().frame_count(), frames.len() - 1);
+        assert!(rec.volume().memory_bytes() <= cfg.tsdf.memory_budget_bytes);
+        // The simulated frames have a global shutter: the poses are checked against the truth
+        // where the tracker models it (a 30 ms readout skews the model of these frames).
+        if readout_s == 0.0 {
+            for (i, e) in errors(&truth, &poses).iter().enumerate() {
+                assert!(e.0 < 0.01 && e.1 < 0.5, "frame {i}: {e:?}");
+            }
+        }
+    }
+}
+
 /// A camera carried from one place to another (the boxes, then the figure before walls), with
 /// 1 cm voxels and a new fragment after 0.1 s: fragment 0 is suspended to the end.
 fn carried_camera() -> (Camera, ReconstructionConfig, Vec<DepthImage>) {

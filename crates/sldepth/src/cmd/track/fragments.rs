@@ -170,18 +170,40 @@ pub(super) fn note_step(
             );
         }
     }
+    let k = step.fragment;
     if let Some(why) = step
         .model_full
         .as_ref()
         .filter(|_| step.continued.is_none())
     {
-        errln!(
-            "warning: frame {i}: fragment {}'s model is full, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before and not fused; its mesh holds the frames before this one",
-            step.fragment
-        );
-        if let Some(out) = fragments.get_mut(step.fragment) {
+        if rec.model_full().is_none() {
+            // A waiting first frame was refused and this frame started the model.
+            errln!(
+                "warning: frame {i}: fragment {k}'s first frame was not fused, {why}: --max-memory, --voxel-m. Its model starts with this frame"
+            );
+        } else if rec.volume().frame_count() == 0 {
+            errln!(
+                "warning: frame {i}: fragment {k}'s volume cannot hold its first frame, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before, and each is fused if it fits"
+            );
+        } else {
+            errln!(
+                "warning: frame {i}: fragment {k}'s model is full, {why}: --max-memory, --voxel-m. Its next frames are tracked against the frame before and not fused; its mesh holds the frames before this one"
+            );
+        }
+        if let Some(out) = fragments.get_mut(k) {
             out.model_full_at.get_or_insert(i);
         }
+    }
+    if let Some(out) = fragments.get_mut(k)
+        && step.fused
+        && out.model_full_at.is_some()
+        && rec.model_full().is_none()
+    {
+        // An empty volume took a frame at last: the fragment is not full.
+        if step.model_full.is_none() {
+            errln!("frame {i}: fragment {k}'s model starts with this frame");
+        }
+        out.model_full_at = None;
     }
 }
 

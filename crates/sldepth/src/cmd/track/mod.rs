@@ -189,7 +189,9 @@ pub struct Args {
     /// When a fragment's model reaches the memory budget (--max-memory): `continue` (default)
     /// goes on in a new fragment with a fresh volume in the same world frame (same trajectory,
     /// its mesh to the next `.fragment-k` name; meshes overlap where the camera came back),
-    /// `stop-fusing` tracks the rest against the frame before and fuses nothing more.
+    /// `stop-fusing` tracks the rest against the frame before and fuses nothing more. Either
+    /// way, a fresh volume whose first frame alone needs more than the budget skips it and
+    /// takes the next frame that fits.
     #[arg(long, value_name = "WHAT", default_value = "continue", value_parser = ["continue", "stop-fusing"])]
     pub when_model_full: String,
     /// Print a JSON summary on standard output.
