@@ -182,8 +182,33 @@ struct TrackerState {
     finished: Vec<Option<Result<Mesh, String>>>,
     /// Fragments that rejoined the one before: (fragment, into, 4×4 transform into its world).
     joins: Vec<(usize, usize, sl_core::nalgebra::Matrix4<f64>)>,
+    /// Per finished fragment, the fragment it continues (`Fragment::continues`).
+    continues: Vec<Option<usize>>,
     /// The fragment of every frame given to `track`.
     frame_fragments: Vec<usize>,
+}
+
+impl TrackerState {
+    /// A continuation that rejoined an older fragment (`join`) shares its world frame with the
+    /// fragments it continues, from `from` back to the first of them: their kept meshes move
+    /// into the rejoined fragment's world, and the first is joined there (its poses follow in
+    /// `track_sequence`), so one continuous track stays in one world.
+    fn join_continued(&mut self, from: usize, join: &sl_track::FragmentJoin) {
+        let mut k = from;
+        loop {
+            if let Some(Some(Ok(mesh))) = self.finished.get_mut(k) {
+                mesh.transform(join.transform.isometry());
+            }
+            match self.continues.get(k).copied().flatten() {
+                // Continuations always continue an older fragment.
+                Some(q) if q < k => k = q,
+                _ => break,
+            }
+        }
+        if !self.joins.iter().any(|&(f, _, _)| f == k) {
+            self.joins.push((k, join.into, join.transform.to_matrix()));
+        }
+    }
 }
 
 /// Bytes a tracker holds against its `memory_budget_bytes`: the fragments' volumes and the
@@ -284,6 +309,7 @@ impl PyTracker {
                 last_noise_scale: 1.0,
                 finished: Vec::new(),
                 joins: Vec::new(),
+                continues: Vec::new(),
                 frame_fragments: Vec::new(),
             }),
         })
@@ -372,10 +398,15 @@ impl PyTracker {
                 drop(f.volume);
                 if state.finished.len() <= f.index {
                     state.finished.resize_with(f.index + 1, || None);
+                    state.continues.resize(f.index + 1, None);
                 }
                 state.finished[f.index] = Some(kept);
+                state.continues[f.index] = f.continues;
                 if let Some(j) = f.joined {
                     state.joins.push((f.index, j.into, j.transform.to_matrix()));
+                    if let Some(p) = f.continues.filter(|&p| p != j.into) {
+                        state.join_continued(p, &j);
+                    }
                 }
             }
             let fragment = state.rec.fragment();
@@ -476,7 +507,9 @@ impl PyTracker {
     /// back where that one was lost), or that continue a full one (``when_model_full``, the
     /// identity): a list of ``(fragment, into, transform)`` with ``transform`` the (4, 4)
     /// float64 matrix from ``fragment``'s world frame to ``into``'s (``transform @ pose`` is a
-    /// pose of ``fragment`` in ``into``'s world).
+    /// pose of ``fragment`` in ``into``'s world). When a continuation rejoins, the first of
+    /// the fragments it continues (their world frame is one) is listed as joined there too,
+    /// and their kept meshes are moved into that world.
     #[getter]
     fn joins<'py>(&self, py: Python<'py>) -> PyResult<Vec<Join<'py>>> {
         self.with_state(py, |s| s.joins.clone())?

@@ -1022,3 +1022,60 @@ def test_tracker_takes_timestamps(kinect):
     with pytest.raises(ValueError, match="not a finite number of seconds"):
         t.track(frames[1], timestamp_s=float("nan"))
     assert t.track(frames[1], timestamp_s=5.033)[1] == "tracked"
+
+
+def _shared_data():
+    """The shared real-data folder (SLDEPTH_DATA, else ../shared/data beside the checkout), or
+    a skip with the reason."""
+    import os
+    import pathlib
+
+    env = os.environ.get("SLDEPTH_DATA")
+    here = pathlib.Path(__file__).resolve().parents[3] / ".." / "shared" / "data"
+    path = pathlib.Path(env) if env else here
+    if not path.is_dir():
+        pytest.skip(f"real data not found ({path}; set SLDEPTH_DATA)")
+    return path
+
+
+def test_a_continuation_that_rejoins_moves_the_fragments_it_continues():
+    # TUM fr1/rpy-200 frames 0-29, 90 of its frames upside down (lost, then a new fragment
+    # after 0.3 s), frames 29-79 (back: a rejoin). With this budget the new fragment fills and
+    # goes on in continuations, and one of them rejoins fragment 0: the first fragment of its
+    # chain is joined there too, so every frame's pose and every kept mesh is in fragment 0's
+    # world (before, the chain's first fragment stayed in the upside-down camera's world).
+    tum = _shared_data() / "tum-fr1-rpy-200"
+    names = [l.split()[1] for l in open(tum / "depth.txt") if not l.startswith("#")]
+    order = [(False, i) for i in range(30)] + [(True, i) for i in range(90)]
+    order += [(False, i) for i in range(29, 80)]
+    frames = []
+    for upside_down, i in order:
+        d = sldepth.read_depth(tum / names[i], depth_scale=5000.0)
+        frames.append(np.ascontiguousarray(d[::-1, ::-1]) if upside_down else d)
+    cam = sldepth.Camera.preset("tum-fr1")
+    poses, statuses, t = sldepth.track_sequence(
+        frames,
+        cam,
+        timestamps_s=[1000.0 + k / 30.0 for k in range(len(frames))],
+        keyframes=False,
+        new_fragment_after_s=0.3,
+        memory_budget_bytes=(800 << 20) // 3,
+    )
+    into = {f: j for f, j, _ in t.joins}
+    continuations = {f for f, j, m in t.joins if j == f - 1 and np.allclose(m, np.eye(4))}
+
+    def world(f):
+        while f in into and into[f] < f:
+            f = into[f]
+        return f
+
+    assert len(poses) == len(frames)
+    assert {world(f) for f in set(t.frame_fragments)} == {0}, t.joins
+    # The first fragment of a continued chain, joined into fragment 0; its kept mesh lies
+    # where fragment 0's does (the camera saw the same desk).
+    roots = [f for f in into if f not in continuations and into[f] == 0 and f + 1 in continuations]
+    assert roots, t.joins
+    c0 = t.extract_mesh(fragment=0).vertices.mean(axis=0)
+    for r in roots:
+        c = t.extract_mesh(fragment=r).vertices.mean(axis=0)
+        assert np.linalg.norm(c - c0) < 0.6, (r, c, c0)

@@ -50,7 +50,11 @@
 //! fragment, handed over at once ([`Step::finished`]), can be meshed by the caller beside an
 //! empty volume; its volume's memory goes to the continuation. A continuation is joined to the fragment it
 //! continues by the identity ([`Fragment::continues`], and [`Fragment::joined`] unless it later
-//! rejoins a suspended fragment), so its poses and mesh are already in that world. So a
+//! rejoins a suspended fragment), so its poses and mesh are already in that world. A
+//! continuation that rejoins a suspended fragment is in one world frame with the fragments it
+//! continues (back to the first, which has no `continues`): its join moves them too, and
+//! callers that keep their poses or meshes apply it to them (`sldepth track` and Python's
+//! `Tracker` join the first of them to the same fragment). So a
 //! recording longer than the budget is tracked against a model to its end and fused whole, as a
 //! sequence of meshes that overlap where the camera saw the same surfaces again (they are not
 //! merged). The first frames of a continuation are tracked as a fragment's first frames are:

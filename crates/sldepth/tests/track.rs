@@ -980,3 +980,106 @@ fn track_goes_on_past_frames_noisier_than_any_sensor_model() {
     let sigma = v["prefilter_sigma_d_px_median"].as_f64().unwrap();
     assert_eq!(sigma, sl_core::sensor::MAX_SIGMA_D_PX, "{v}");
 }
+
+/// A continuation that rejoins an older fragment moves the fragments it continues with it (one
+/// world frame): TUM fr1/rpy-200 frames 0–29, then 90 of its frames turned upside down (the
+/// camera somewhere it never was: lost, and after 0.3 s a new fragment), then frames 29–79 (the
+/// camera back: a rejoin). At 800M the new fragment fills and goes on in continuations, and the
+/// last of them rejoins fragment 0. Every fragment ends in fragment 0's world: one trajectory
+/// file, and the first fragment of the chain, whose mesh was written before the rejoin, is
+/// rewritten there (before: its poses in a file of their own and its mesh about 4 m away, in
+/// the upside-down camera's world).
+#[test]
+fn a_continuation_that_rejoins_moves_the_fragments_it_continues() {
+    let Some(data) = sl_testkit::data_dir_or_skip("the continuation rejoin test") else {
+        return;
+    };
+    let tum = data.join("tum-fr1-rpy-200");
+    let names: Vec<String> = std::fs::read_to_string(tum.join("depth.txt"))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().nth(1).unwrap().to_owned())
+        .collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let order: Vec<(bool, usize)> = (0..30)
+        .map(|i| (false, i))
+        .chain((0..90).map(|i| (true, i)))
+        .chain((29..80).map(|i| (false, i)))
+        .collect();
+    let mut list = String::from("# timestamp filename\n");
+    let read = sl_io::depth::ReadConfig::default();
+    for (k, &(upside_down, i)) in order.iter().enumerate() {
+        let mut raw = sl_io::depth::read_raw_depth(tum.join(&names[i]), &read).unwrap();
+        if upside_down {
+            raw.values.data_mut().reverse();
+        }
+        let name = format!("depth/{k:05}.png");
+        sl_io::depth::write_raw_depth(seq.join(&name), &raw).unwrap();
+        list.push_str(&format!("{:.6} {name}\n", 1000.0 + k as f64 / 30.0));
+    }
+    std::fs::write(seq.join("depth.txt"), list).unwrap();
+    let (traj, mesh) = (tmp.path().join("traj.txt"), tmp.path().join("m.ply"));
+    let (v, stderr) = sldepth_json(&[
+        "--max-memory",
+        "800M",
+        "track",
+        "--tum",
+        seq.to_str().unwrap(),
+        "--no-keyframes",
+        "--new-fragment-after-s",
+        "0.3",
+        "--output",
+        traj.to_str().unwrap(),
+        "--mesh",
+        mesh.to_str().unwrap(),
+        "--json",
+    ]);
+    let fragments = v["fragments"].as_array().unwrap();
+    // The case: a continuation that rejoined fragment 0.
+    let rejoined = fragments
+        .iter()
+        .find(|f| f["continues"].is_u64() && f["joined_into"] == 0)
+        .unwrap_or_else(|| panic!("no continuation rejoined fragment 0: {v}\n{stderr}"));
+    // Its chain, back to the fragment that started after the loss.
+    let mut k = rejoined["continues"].as_u64().unwrap() as usize;
+    while let Some(p) = fragments[k]["continues"].as_u64() {
+        k = p as usize;
+    }
+    let first = &fragments[k];
+    assert_eq!(first["joined_into"], 0, "{v}");
+    for f in fragments {
+        assert_eq!(f["world"], 0, "{v}");
+    }
+    let files: Vec<_> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.starts_with("traj"))
+        .collect();
+    assert_eq!(files, vec!["traj.txt".to_owned()], "{v}");
+    assert_eq!(
+        pose_rows(&traj).len() + v["lost"].as_u64().unwrap() as usize,
+        order.len()
+    );
+    // The chain's first mesh overlaps fragment 0's, where the camera was.
+    let centroid = |p: &Path| {
+        let m = sl_io::read_mesh_ply(p).unwrap();
+        let n = m.positions.len() as f32;
+        m.positions.iter().fold([0.0f32; 3], |a, q| {
+            [a[0] + q.x / n, a[1] + q.y / n, a[2] + q.z / n]
+        })
+    };
+    let (c0, c1) = (
+        centroid(&mesh),
+        centroid(Path::new(first["mesh"].as_str().unwrap())),
+    );
+    let d = c0
+        .iter()
+        .zip(&c1)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    assert!(d < 0.6, "{c0:?} {c1:?}");
+}

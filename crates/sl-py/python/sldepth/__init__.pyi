@@ -496,7 +496,7 @@ class Tracker:
         """The fragment of every frame given to track(), in order."""
     @property
     def joins(self) -> List[Tuple[int, int, npt.NDArray[np.float64]]]:
-        """(fragment, into, (4, 4) transform from fragment's world to into's) for each finished fragment that rejoined the one before, or continues a full one (the identity)."""
+        """(fragment, into, (4, 4) transform from fragment's world to into's) for each finished fragment that rejoined the one before, or continues a full one (the identity); when a continuation rejoins, the first fragment of its chain is joined there too (one world frame)."""
     def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
         """The fused mesh of fragment `fragment` (None: the current one; a rejoined fragment's is in the world of the one it rejoined)."""
 

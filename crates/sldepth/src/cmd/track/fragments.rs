@@ -156,6 +156,11 @@ pub(super) fn note_step(
                 out.model_full_at.get_or_insert(i);
             }
         }
+        if let (Some(j), Some(p)) = (done.joined, done.continues)
+            && j.into != p
+        {
+            join_continued_chain(fragments, p, j, mesh_errors);
+        }
         if done.index > step.fragment {
             errln!(
                 "frame {i}: back in fragment {}; fragment {} ({} frames) rejoins it{}",
@@ -205,6 +210,53 @@ pub(super) fn note_step(
         }
         out.model_full_at = None;
     }
+}
+
+/// A continuation that rejoined an older fragment (`join`) shares its world frame with the
+/// fragments it continues, from `from` back to the first of them: the first is joined there
+/// too (their poses follow it through `world_of`), and their meshes, written before the join
+/// was known, are rewritten in that world (read back within the run's limits, moved, written
+/// atomically). A mesh that cannot be is said and kept in `errors`.
+fn join_continued_chain(
+    fragments: &mut [FragmentOut],
+    from: usize,
+    join: sl_track::FragmentJoin,
+    errors: &mut Vec<String>,
+) {
+    let mut k = from;
+    loop {
+        if let Some(m) = fragments.get(k).and_then(|f| f.mesh.as_ref())
+            && let Err(e) = move_mesh(&m.path, &join.transform)
+        {
+            let e = format!(
+                "fragment {k}'s mesh not moved into fragment {}'s world: {e:#}",
+                join.into
+            );
+            errln!("error: {e}");
+            errors.push(e);
+        }
+        match fragments.get(k).and_then(|f| f.continues) {
+            // Continuations always continue an older fragment.
+            Some(q) if q < k => k = q,
+            _ => break,
+        }
+    }
+    if let Some(first) = fragments.get_mut(k)
+        && first.joined.is_none()
+    {
+        first.joined = Some(join);
+    }
+}
+
+/// Rewrites the mesh at `path` moved by `transform`.
+fn move_mesh(path: &Path, transform: &WorldToWorld) -> Result<()> {
+    let mut mesh = sl_io::ply::read_ply_with_limits(path, &limits())
+        .with_context(|| format!("reading {}", path.display()))?
+        .into_mesh();
+    mesh.transform(transform.isometry());
+    sl_tsdf::io::write_mesh_ply(path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
 }
 
 /// Meshes the fragments `Reconstruction::finish` handed back: each within the volume-and-mesh
