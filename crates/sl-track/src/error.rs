@@ -68,9 +68,37 @@ pub type Result<T> = std::result::Result<T, TrackError>;
 
 /// The message of [`TrackError::TimestampOrder`].
 fn timestamp_message(previous_s: f64, timestamp_s: f64) -> String {
+    let (t, p) = (stamp(timestamp_s), stamp(previous_s));
     if !timestamp_s.is_finite() {
-        format!("timestamp {timestamp_s} s is not a finite number of seconds")
+        format!("timestamp {t} s is not a finite number of seconds")
     } else {
-        format!("timestamp {timestamp_s} s is not after the previous frame's {previous_s} s")
+        format!("timestamp {t} s is not after the previous frame's {p} s")
+    }
+}
+
+/// A timestamp as written (every digit of a clock's seconds), or in exponent form when it is
+/// too large to be one (a 300-digit number helps nobody).
+fn stamp(t: f64) -> String {
+    if t.abs() < 1e15 {
+        t.to_string()
+    } else {
+        sl_core::Compact(t).to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::timestamp_message;
+
+    /// A clock's timestamp keeps its digits; an absurd one is short.
+    #[test]
+    fn timestamps_in_messages_are_readable() {
+        let m = timestamp_message(1305031229.528784, 1305031229.5);
+        assert!(
+            m.contains("1305031229.5 s") && m.contains("1305031229.528784 s"),
+            "{m}"
+        );
+        let m = timestamp_message(0.0, -1e300);
+        assert!(m.contains("-1e300") && m.len() < 80, "{m}");
     }
 }

@@ -28,6 +28,11 @@ pub fn parse_bytes(s: &str) -> std::result::Result<u64, String> {
     let t = s.trim();
     let split = t.find(|c: char| !c.is_ascii_digit()).unwrap_or(t.len());
     let (num, unit) = t.split_at(split);
+    if unit.starts_with(['.', ',']) {
+        return Err(format!(
+            "{s:?}: a byte count is a whole number of units (1536M, not 1.5G)"
+        ));
+    }
     let n: u64 = num
         .parse()
         .map_err(|_| format!("{s:?} is not a byte count (e.g. 512M, 8G, 1073741824)"))?;
@@ -600,7 +605,20 @@ pub fn round_to(v: f64, digits: i32) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    use super::{num, parse_bytes};
+
+    /// Whole numbers of bytes or of K, M, G, T (powers of 1024); a fraction says what to write.
+    #[test]
+    fn byte_counts_are_whole_numbers_of_units() {
+        assert_eq!(parse_bytes(" 100M "), Ok(100 << 20));
+        assert_eq!(parse_bytes("2GiB"), Ok(2 << 30));
+        assert_eq!(parse_bytes("1073741824"), Ok(1 << 30));
+        for fraction in ["1.5G", "0.5M", "1,5G"] {
+            let e = parse_bytes(fraction).unwrap_err();
+            assert!(e.contains("whole number") && e.contains("1536M"), "{e}");
+        }
+        assert!(parse_bytes("3X").unwrap_err().contains("unknown unit"));
+    }
 
     #[test]
     fn numbers_in_messages_are_compact_at_any_size() {
