@@ -57,8 +57,11 @@
 //! `Tracker` join the first of them to the same fragment). So a
 //! recording longer than the budget is tracked against a model to its end and fused whole, as a
 //! sequence of meshes that overlap where the camera saw the same surfaces again (they are not
-//! merged). The first frames of a continuation are tracked as a fragment's first frames are:
-//! against the last frame until its model holds two frames.
+//! merged). The frame after a continuation's first is tracked against the full model it
+//! continues, rendered from the first frame's pose before the full volume is handed over (as
+//! it would have been without the budget; TUM fr1/rpy-200 at `--max-memory` 300M / 400M / 800M: ATE
+//! 3.17 / 3.80 / 2.59 → 2.87 / 3.27 / 2.48 cm against the frame before; docs/bench/track.md,
+//! session 83), then against its own model.
 //!
 //! Without continuations, the fragment's next frames are tracked against the last tracked
 //! frame ([`Reconstruction::model_full`]), as with `frame_to_model = false` and a global
@@ -327,6 +330,9 @@ struct Live {
     /// Set once a frame's blocks did not fit in the memory budget (the fusion's message): the
     /// model is full, frames are tracked against the last frame and no longer fused.
     model_full: Option<String>,
+    /// A continuation's first frames are tracked against the full model it continues (its
+    /// rendering from the continuation's first frame), until its own model is rendered.
+    on_full_model: bool,
     /// The message of the last frame the budget refused in the current step (taken by the
     /// step): set even when a later frame of the step fits an empty volume.
     refused: Option<String>,
@@ -344,6 +350,7 @@ impl Live {
             tracked: 0,
             first_frame: None,
             model_full: None,
+            on_full_model: false,
             refused: None,
             continues: None,
         })
@@ -387,7 +394,8 @@ impl Live {
     /// the one-frame model the simulated OAK-D room 3012's second frame slid 23.8 mm along its
     /// weakest direction at a reported σ of 6.6 mm; against the first frame it is 7.7 mm off
     /// at σ 3.5 mm (docs/bench/track.md, session 45). A rolling-shutter fragment's first frame
-    /// waits for the second anyway (see [`Reconstruction::step`]).
+    /// waits for the second anyway (see [`Reconstruction::step`]). A continuation's first
+    /// frames are tracked against the full model it continues (`on_full_model`).
     /// `noise_scale`: the frame's noise measured elsewhere ([`Tracker::set_noise_scale`]).
     fn track(
         &mut self,
@@ -396,7 +404,7 @@ impl Live {
         noise_scale: Option<f64>,
     ) -> Result<FrameResult> {
         self.tracker.set_noise_scale(noise_scale);
-        let model = if self.tracked > 1 && self.model_full.is_none() {
+        let model = if (self.tracked > 1 || self.on_full_model) && self.model_full.is_none() {
             self.model.maps()
         } else {
             None
@@ -624,15 +632,30 @@ impl Reconstruction {
             if live.model_full.is_some() {
                 // The model is full (now, or since a step that already handed a fragment
                 // over). Go on in a continuation, unless this step hands a fragment over (the
-                // next one tries again) or the full volume holds no frame (a continuation that
-                // could not hold its first frame). This frame is the continuation's first: it
-                // waits, as a rolling-shutter fragment's first frame does, and is fused with
-                // the next step, after the caller has meshed and dropped the full volume.
+                // next one tries again) or the full volume holds no frame (its first frame did
+                // not fit: it tries the next ones, see `Live::fuse`). This frame is the
+                // continuation's first: it waits, as a rolling-shutter fragment's first frame
+                // does, and is fused with the next step, after the caller has meshed and
+                // dropped the full volume. The next frame is tracked against the full model
+                // rendered from this frame's pose, as it would have been without the budget,
+                // not against this frame alone.
                 if self.cfg.new_volume_when_full
                     && finished.is_none()
                     && live.volume.frame_count() > 0
                 {
+                    if self.cfg.frame_to_model {
+                        let t2 = Instant::now();
+                        live.model.update_from_frame(
+                            &live.volume,
+                            &result.pose,
+                            &live.tracker.frame_sensor(),
+                            depth.unwrap_or(raw),
+                            &k,
+                        )?;
+                        raycast_ms = Some(ms_since(t2));
+                    }
                     let done = live.continue_in(self.next_index, &self.cfg)?;
+                    live.on_full_model = self.cfg.frame_to_model;
                     self.next_index += 1;
                     continued = Some(done.index);
                     finished = Some(done);
@@ -664,6 +687,7 @@ impl Reconstruction {
                     &k,
                 )?;
                 raycast_ms = Some(ms_since(t2));
+                live.on_full_model = false;
             }
             live.tracked += 1;
         }
@@ -881,8 +905,13 @@ mod tests {
             assert_eq!((done.index, done.volume.frame_count()), (0, fused));
             assert_eq!(done.model_full.as_deref(), Some("full"));
             assert!(rec.model_full().is_none() && rec.volume().frame_count() == 0);
+            // The continuation's next frame is tracked against the full model, rendered from
+            // this frame's pose; once its own model is rendered, against that one.
+            assert!(step.timings.raycast_ms.is_some());
+            assert!(rec.current.on_full_model && rec.current.model.maps().is_some());
             let next = rec.step(&depth, None).unwrap();
             assert!(next.fused && next.finished.is_none() && next.fragment == 1);
+            assert!(next.result.status.is_tracked() && !rec.current.on_full_model);
             assert_eq!(rec.volume().frame_count(), 2);
             let left = rec.finish().unwrap();
             assert_eq!(left[0].continues, Some(0));
