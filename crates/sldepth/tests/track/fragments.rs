@@ -115,6 +115,7 @@ fn track_goes_on_when_the_model_reaches_the_memory_budget() {
         "{stderr}"
     );
     assert!(!stderr.contains("not fused"), "{stderr}");
+    assert!(!stderr.contains("continuations fused"), "{stderr}");
     let rows = pose_rows(&traj);
     assert_eq!(rows.len(), 6);
     assert_moved_5_cm(&rows[5]);
@@ -142,6 +143,26 @@ fn track_goes_on_when_the_model_reaches_the_memory_budget() {
     );
     assert!(!stderr.contains("model is full"), "{stderr}");
     assert_eq!(pose_rows(&traj).len(), 6);
+
+    // 210M: each continuation holds one frame (fragments of one frame, one mesh each): said.
+    // At 225M (above) they hold more, and nothing is said.
+    let mut thin = vec!["--max-memory", "210M"];
+    thin.extend_from_slice(&args);
+    let (t, stderr) = sldepth_json(&thin);
+    let fused: Vec<u64> = t["fragments"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["fused"].as_u64().unwrap())
+        .collect();
+    assert!(
+        fused.len() > 3 && fused.iter().all(|&n| n <= 1),
+        "{fused:?}"
+    );
+    assert!(
+        stderr.contains("continuations fused one frame or none"),
+        "{stderr}"
+    );
 }
 
 /// A volume that reaches the memory budget ends `fuse` at that frame, but not before the mesh of

@@ -95,6 +95,18 @@ pub(super) fn print(
         .map(|m| (m.vertices, m.triangles));
     let (tm, im) = (median(&tally.track_ms), median(&tally.integrate_ms));
     let median_or_null = |v: &[f64]| (!v.is_empty()).then(|| round_to(median(v), 3));
+    // Continuations of one frame or none fuse nothing together: the budget holds about one
+    // frame's blocks, and each frame costs a fragment and a mesh.
+    let continuations = fragments.iter().filter(|f| f.continues.is_some()).count();
+    let thin = fragments
+        .iter()
+        .filter(|f| f.continues.is_some() && f.fused <= 1)
+        .count();
+    if continuations >= 2 && 2 * thin > continuations {
+        errln!(
+            "warning: {thin} of {continuations} continuations fused one frame or none: the model's budget holds about one frame's blocks (raise --max-memory or --voxel-m)"
+        );
+    }
     if args.json {
         let fragments_json = fragments
             .iter()
