@@ -682,7 +682,7 @@ def test_a_full_model_goes_on_in_a_fresh_volume_in_the_same_world(kinect):
         assert status in ("initialised", "tracked", "tracked-against-frame"), status
         # In the first camera's world (a continuation does not restart at the identity):
         # within 2 cm of the roomy tracker's over 20 cm of motion (shifted frames are no exact
-        # rigid motion, and a continuation's first frames are tracked frame to frame).
+        # rigid motion, and a continuation that cannot hold its first frame tracks frame to frame).
         assert np.abs(pose[:3, 3] - expected[:3, 3]).max() < 0.02
     assert t.frame_fragments == [0] * first_full + [1] * (10 - first_full)
     assert t.fragment == 1 and t.joins == []
