@@ -42,37 +42,35 @@
 //! fused into it (the volume is left as it was) and the fragment's model is **full**
 //! ([`Step::model_full`] on that frame, [`Fragment::model_full`]).
 //!
-//! By default ([`ReconstructionConfig::new_volume_when_full`]) the reconstruction then goes on
-//! in a **continuation**: a new fragment with a fresh volume in the *same* world frame, tracked
-//! by the same tracker (its motion, keyframes and pose carry on). The frame the full model
-//! could not hold ([`Step::continued`] on that frame) is the continuation's first: it is fused
-//! with the next frame (as a rolling-shutter fragment's first frame is), so that the full
-//! fragment, handed over at once ([`Step::finished`]), can be meshed by the caller beside an
-//! empty volume; its volume's memory goes to the continuation. A continuation is joined to the fragment it
-//! continues by the identity ([`Fragment::continues`], and [`Fragment::joined`] unless it later
-//! rejoins a suspended fragment), so its poses and mesh are already in that world. A
-//! continuation that rejoins a suspended fragment is in one world frame with the fragments it
-//! continues (back to the first, which has no `continues`): its join moves them too, and
-//! callers that keep their poses or meshes apply it to them (`sldepth track` and Python's
-//! `Tracker` join the first of them to the same fragment). So a
-//! recording longer than the budget is tracked against a model to its end and fused whole, as a
-//! sequence of meshes that overlap where the camera saw the same surfaces again (they are not
-//! merged). The frame after a continuation's first is tracked against the full model it
-//! continues, rendered from the first frame's pose before the full volume is handed over (as
-//! it would have been without the budget; TUM fr1/rpy-200 at `--max-memory` 300M / 400M / 800M: ATE
+//! By default ([`ReconstructionConfig::new_volume_when_full`]) the reconstruction then goes on in a
+//! **continuation**: a new fragment with a fresh volume in the *same* world frame, tracked by the
+//! same tracker (its motion, keyframes and pose carry on). The frame the full model could not hold
+//! ([`Step::continued`] on that frame) is the continuation's first: it is fused with the next frame
+//! (as a rolling-shutter fragment's first frame is), so that the full fragment, handed over at once
+//! ([`Step::finished`]), can be meshed by the caller beside an empty volume; its volume's memory
+//! goes to the continuation. A continuation is joined to the fragment it continues by the identity
+//! ([`Fragment::continues`], and [`Fragment::joined`] unless it later rejoins a suspended
+//! fragment), so its poses and mesh are already in that world. A continuation that rejoins a
+//! suspended fragment is in one world frame with the fragments it continues (back to the first,
+//! which has no `continues`): its join moves them too, and callers that keep their poses or meshes
+//! apply it to them (`sldepth track` and Python's `Tracker` join the first of them to the same
+//! fragment). So a recording longer than the budget is tracked against a model to its end and fused
+//! whole, as a sequence of meshes that overlap where the camera saw the same surfaces again (they
+//! are not merged). The frame after a continuation's first is tracked against the full model it
+//! continues, rendered from the first frame's pose before the full volume is handed over (as it
+//! would have been without the budget; TUM fr1/rpy-200 at `--max-memory` 300M / 400M / 800M: ATE
 //! 3.17 / 3.80 / 2.59 → 2.87 / 3.27 / 2.48 cm against the frame before; docs/bench/track.md,
 //! session 83), then against its own model.
 //!
-//! Without continuations, the fragment's next frames are tracked against the last tracked
-//! frame ([`Reconstruction::model_full`]), as with `frame_to_model = false` and a global
-//! shutter (a rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and
-//! not fused, so the trajectory goes on to the end and the mesh holds what was fused before.
-//! A volume that holds no frame yet (a fragment's or a continuation's first frame alone needs
-//! more blocks than the budget leaves it) is tried again with every frame: frames too large
-//! are skipped and tracked as above, and the first that fits starts the model. Nothing is
-//! dropped from a model to make room (the mesh would lose it). Tracking on against the full model, not fused, was tried:
-//! frames it barely covers went 10–14 cm astray on TUM fr1/rpy (docs/bench/track.md, session
-//! 79).
+//! Without continuations, the fragment's next frames are tracked against the last tracked frame
+//! ([`Reconstruction::model_full`]), as with `frame_to_model = false` and a global shutter (a
+//! rolling-shutter readout made frame-to-frame tracking worse on TUM fr1/rpy), and not fused, so
+//! the trajectory goes on to the end and the mesh holds what was fused before. A volume that holds
+//! no frame yet (a fragment's or a continuation's first frame alone needs more blocks than the
+//! budget leaves it) is tried again with every frame: frames too large are skipped and tracked as
+//! above, and the first that fits starts the model. Nothing is dropped from a model to make room
+//! (the mesh would lose it). Tracking on against the full model, not fused, was tried: frames it
+//! barely covers went 10–14 cm astray on TUM fr1/rpy (docs/bench/track.md, session 79).
 
 use std::time::Instant;
 
