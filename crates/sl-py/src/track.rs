@@ -194,19 +194,19 @@ impl TrackerState {
     /// into the rejoined fragment's world, and the first is joined there (its poses follow in
     /// `track_sequence`), so one continuous track stays in one world.
     fn join_continued(&mut self, from: usize, join: &sl_track::FragmentJoin) {
-        let mut k = from;
-        loop {
+        let continues = &self.continues;
+        let chain: Vec<usize> =
+            sl_track::continued_chain(from, |k| continues.get(k).copied().flatten()).collect();
+        for &k in &chain {
             if let Some(Some(Ok(mesh))) = self.finished.get_mut(k) {
                 mesh.transform(join.transform.isometry());
             }
-            match self.continues.get(k).copied().flatten() {
-                // Continuations always continue an older fragment.
-                Some(q) if q < k => k = q,
-                _ => break,
-            }
         }
-        if !self.joins.iter().any(|&(f, _, _)| f == k) {
-            self.joins.push((k, join.into, join.transform.to_matrix()));
+        if let Some(&first) = chain.last()
+            && !self.joins.iter().any(|&(f, _, _)| f == first)
+        {
+            self.joins
+                .push((first, join.into, join.transform.to_matrix()));
         }
     }
 }
@@ -395,6 +395,7 @@ impl PyTracker {
                         f.index
                     )),
                 };
+                let rejoin = f.rejoin();
                 drop(f.volume);
                 if state.finished.len() <= f.index {
                     state.finished.resize_with(f.index + 1, || None);
@@ -404,9 +405,9 @@ impl PyTracker {
                 state.continues[f.index] = f.continues;
                 if let Some(j) = f.joined {
                     state.joins.push((f.index, j.into, j.transform.to_matrix()));
-                    if let Some(p) = f.continues.filter(|&p| p != j.into) {
-                        state.join_continued(p, &j);
-                    }
+                }
+                if let (Some(j), Some(p)) = (rejoin, f.continues) {
+                    state.join_continued(p, &j);
                 }
             }
             let fragment = state.rec.fragment();

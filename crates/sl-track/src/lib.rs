@@ -85,6 +85,7 @@ pub use motion::{
 };
 pub use reconstruction::{
     Fragment, FragmentJoin, Reconstruction, ReconstructionConfig, Step, StepTimings,
+    continued_chain,
 };
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};

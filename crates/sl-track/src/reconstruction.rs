@@ -53,8 +53,8 @@
 //! fragment), so its poses and mesh are already in that world. A continuation that rejoins a
 //! suspended fragment is in one world frame with the fragments it continues (back to the first,
 //! which has no `continues`): its join moves them too, and callers that keep their poses or meshes
-//! apply it to them (`sldepth track` and Python's `Tracker` join the first of them to the same
-//! fragment). So a recording longer than the budget is tracked against a model to its end and fused
+//! apply it to them ([`continued_chain`]; `sldepth track` and Python's `Tracker` join the first
+//! of them to the same fragment). So a recording longer than the budget is tracked against a model to its end and fused
 //! whole, as a sequence of meshes that overlap where the camera saw the same surfaces again (they
 //! are not merged). The frame after a continuation's first is tracked against the full model it
 //! continues, rendered from the first frame's pose before the full volume is handed over (as it
@@ -181,6 +181,26 @@ pub struct Fragment {
     /// The fragment this one continues in a fresh volume, that fragment's model being full
     /// (see the module docs): its world frame is that fragment's.
     pub continues: Option<usize>,
+}
+
+impl Fragment {
+    /// The join of a fragment that ended by rejoining a suspended fragment: [`Fragment::joined`]
+    /// unless it is a continuation's identity link to the fragment it continues.
+    pub fn rejoin(&self) -> Option<FragmentJoin> {
+        self.joined.filter(|j| Some(j.into) != self.continues)
+    }
+}
+
+/// The fragments a chain of continuations holds, from fragment `from` back to the first of them
+/// (the one that continues none), with `continues` giving each fragment's
+/// [`Fragment::continues`]: one world frame, which a rejoin of the chain's last continuation
+/// moves as a whole (see the module docs). A link that does not go to an older fragment ends the
+/// chain.
+pub fn continued_chain(
+    from: usize,
+    continues: impl Fn(usize) -> Option<usize>,
+) -> impl Iterator<Item = usize> {
+    std::iter::successors(Some(from), move |&k| continues(k).filter(|&q| q < k))
 }
 
 /// How a fragment that ended by rejoining the fragment before it relates to that one.

@@ -6,7 +6,7 @@ use sl_core::CameraToCamera;
 use sl_core::nalgebra::{Matrix3, Point3, Vector3};
 
 use super::offset::{best_world_rotation, orientation_error_rad};
-use super::{StampedPose, TrajectoryConfig, associate, sorted, sorted_estimate};
+use super::{StampedPose, TrajectoryConfig, associate, on_truth_clock, sorted};
 use crate::error::{EvalError, Result};
 
 use super::stats::ErrorStats;
@@ -59,8 +59,9 @@ pub fn ate(
 ) -> Result<AteResult> {
     config.validate()?;
     // The estimate's own stamps, in the same order (the offset keeps the order).
-    let stamps: Vec<f64> = sorted(est, "estimated")?.iter().map(|p| p.0).collect();
-    let est = sorted_estimate(est, config)?;
+    let est = sorted(est, "estimated")?;
+    let stamps: Vec<f64> = est.iter().map(|p| p.0).collect();
+    let est = on_truth_clock(est, config)?;
     let gt = sorted(gt, "ground-truth")?;
     if est.len() < 2 || gt.len() < 2 {
         return Err(EvalError::InvalidParameter(format!(

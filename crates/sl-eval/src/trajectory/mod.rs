@@ -109,7 +109,15 @@ pub(crate) fn sorted_estimate(
     est: &[StampedPose],
     config: &TrajectoryConfig,
 ) -> Result<Vec<StampedPose>> {
-    let mut v = sorted(est, "estimated")?;
+    on_truth_clock(sorted(est, "estimated")?, config)
+}
+
+/// The estimate `v`, already sorted by [`sorted`], moved onto the ground truth's clock by
+/// `config.offset_s`.
+pub(crate) fn on_truth_clock(
+    mut v: Vec<StampedPose>,
+    config: &TrajectoryConfig,
+) -> Result<Vec<StampedPose>> {
     if config.offset_s != 0.0 {
         for p in &mut v {
             p.0 += config.offset_s;

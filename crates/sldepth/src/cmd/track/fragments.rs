@@ -156,9 +156,7 @@ pub(super) fn note_step(
                 out.model_full_at.get_or_insert(i);
             }
         }
-        if let (Some(j), Some(p)) = (done.joined, done.continues)
-            && j.into != p
-        {
+        if let (Some(j), Some(p)) = (done.rejoin(), done.continues) {
             join_continued_chain(fragments, p, j, mesh_errors);
         }
         if done.index > step.fragment {
@@ -223,8 +221,9 @@ fn join_continued_chain(
     join: sl_track::FragmentJoin,
     errors: &mut Vec<String>,
 ) {
-    let mut k = from;
-    loop {
+    let chain: Vec<usize> =
+        sl_track::continued_chain(from, |k| fragments.get(k).and_then(|f| f.continues)).collect();
+    for &k in &chain {
         if let Some(m) = fragments.get(k).and_then(|f| f.mesh.as_ref())
             && let Err(e) = move_mesh(&m.path, &join.transform)
         {
@@ -235,13 +234,8 @@ fn join_continued_chain(
             errln!("error: {e}");
             errors.push(e);
         }
-        match fragments.get(k).and_then(|f| f.continues) {
-            // Continuations always continue an older fragment.
-            Some(q) if q < k => k = q,
-            _ => break,
-        }
     }
-    if let Some(first) = fragments.get_mut(k)
+    if let Some(first) = chain.last().and_then(|&k| fragments.get_mut(k))
         && first.joined.is_none()
     {
         first.joined = Some(join);
