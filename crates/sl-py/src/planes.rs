@@ -361,6 +361,10 @@ pub struct PyMotion {
     planes_b: usize,
     /// Matched plane pairs.
     matched_planes: usize,
+    /// When the verification could not decide: the (4, 4) float64 alignments ``X_a = T·X_b``
+    /// the two frames do not rule out, best first, each more than 15° from those before it (at
+    /// most three; more evidence, such as a fused model, can tell them apart). Empty otherwise.
+    candidates: Vec<Py<PyArray2<f64>>>,
 }
 
 #[pymethods]
@@ -439,5 +443,10 @@ pub(crate) fn motion(
         planes_a: r.planes_a.len(),
         planes_b: r.planes_b.len(),
         matched_planes: r.motion.as_ref().map_or(0, |m| m.matches.len()),
+        candidates: r
+            .candidates
+            .iter()
+            .map(|c| pose_array(py, &c.to_matrix()).map(Bound::unbind))
+            .collect::<PyResult<_>>()?,
     })
 }

@@ -252,6 +252,43 @@ def test_motion_of_a_frame_with_itself_is_identity(kinect, three_planes):
 def test_motion_undetermined_is_reported_not_guessed(small_cam, wall):
     m = sldepth.motion(wall, wall, small_cam)
     assert not m.determined and m.matrix is None and m.reason
+    # One plane proposes no rotation at all: nothing to hand back.
+    assert m.candidates == []
+
+
+def test_an_undecided_motion_hands_back_the_camera_among_its_candidates():
+    # TUM fr1/rpy-200 frames 70 and 78 (20 degrees apart): the planes propose rotations the
+    # two frames cannot tell apart, so the motion is undetermined, and the candidates (for a
+    # caller with more evidence, as the tracker's model) hold the camera's rotation.
+    tum = _shared_data() / "tum-fr1-rpy-200"
+    names = [l.split()[1] for l in open(tum / "depth.txt") if not l.startswith("#")]
+    a, b = (sldepth.read_depth(tum / names[i], depth_scale=5000.0) for i in (70, 78))
+    m = sldepth.motion(a, b, sldepth.Camera.preset("tum-fr1"), icp=False)
+    assert not m.determined and m.matrix is None and "ambiguous" in m.reason
+    assert 2 <= len(m.candidates) <= 3
+    for c in m.candidates:
+        assert c.shape == (4, 4) and c.dtype == np.float64
+        assert np.allclose(c[:3, :3] @ c[:3, :3].T, np.eye(3), atol=1e-9)
+    # Camera-to-camera rotation of the motion capture (quaternion x y z w per stamp).
+    stamps = [float(l.split()[0]) for l in open(tum / "depth.txt") if not l.startswith("#")]
+    gt = np.loadtxt(tum / "groundtruth.txt")
+
+    def rot(t):
+        x, y, z, w = gt[np.argmin(np.abs(gt[:, 0] - t)), 4:8]
+        return np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
+
+    truth = rot(stamps[70]).T @ rot(stamps[78])
+    errors = [
+        np.degrees(np.arccos(np.clip((np.trace(truth.T @ c[:3, :3]) - 1) / 2, -1, 1)))
+        for c in m.candidates
+    ]
+    assert min(errors) < 3.0 and max(errors) > 10.0, errors
 
 
 def test_tsdf_of_a_wall(small_cam, wall, tmp_path):

@@ -316,6 +316,23 @@ pub fn tum_rpy_200_sequence_at_offset(max_frames: usize, offset_s: f64) -> Optio
     tum_rpy_200_posed(max_frames, Some(offset_s))
 }
 
+/// The `tum-fr1-rpy-200` folder and its `depth.txt` entries in order (`(stamp, file)` as
+/// written, comment lines left out), for tests that build a sequence of their own from its frames
+/// (every k-th, reordered, some turned); `None` after the skip message when the data is absent.
+pub fn tum_rpy_200_depth_list(what: &str) -> Option<(PathBuf, Vec<(String, String)>)> {
+    let dir = data_dir_or_skip(what)?.join("tum-fr1-rpy-200");
+    let text = std::fs::read_to_string(dir.join("depth.txt")).ok()?;
+    let entries = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .filter_map(|l| {
+            let mut it = l.split_whitespace();
+            Some((it.next()?.to_owned(), it.next()?.to_owned()))
+        })
+        .collect();
+    Some((dir, entries))
+}
+
 fn tum_rpy_200_posed(max_frames: usize, offset_s: Option<f64>) -> Option<PosedSequence> {
     let dir = data_dir_or_skip("tum-fr1-rpy-200")?.join("tum-fr1-rpy-200");
     // `depth.txt` as TUM ships it (the folder has no `associations.txt`).

@@ -9,7 +9,7 @@ use sl_core::{Camera, CameraToCamera, DepthImage};
 use crate::error::{Result, TrackError};
 use crate::motion::{
     IcpConfig, IcpOutcome, MotionConfig, MotionFrame, PlaneMotion, VerifyConfig, estimate_motion,
-    estimate_motion_verified, refine_motion_icp_verified,
+    estimate_motion_verified_or_candidates, refine_motion_icp_verified,
 };
 use sl_planes::{PlaneConfig, PlaneExtractor, PlaneInfo};
 
@@ -59,6 +59,12 @@ pub struct DepthMotion {
     pub motion: std::result::Result<PlaneMotion, TrackError>,
     /// The ICP refinement and whether it was kept (with `icp` and a determined motion).
     pub icp: Option<IcpOutcome>,
+    /// When the verification could not decide ([`TrackError::MotionNotVerified`]): the
+    /// refined alignments `X_a = R·X_b + t` the depth data do not rule out, best first, each
+    /// more than [`MotionConfig::distinct_deg`] from those before it (at most three). Evidence
+    /// beyond the two frames can tell them apart: the tracker aligns its fused model from
+    /// each. Empty otherwise.
+    pub candidates: Vec<CameraToCamera>,
 }
 
 impl DepthMotion {
@@ -92,8 +98,10 @@ pub fn motion_between_depths(
     let planes_a = extractor.extract_depth(depth_a, camera)?.planes;
     let planes_b = extractor.extract_depth(depth_b, camera)?.planes;
     let vcfg = VerifyConfig::default();
-    let estimate = if cfg.verify {
-        estimate_motion_verified(
+    let (estimate, candidates) = if cfg.verify {
+        // An undetermined motion, before any decision, comes as the outer error: reported
+        // below like the decision's own.
+        estimate_motion_verified_or_candidates(
             MotionFrame {
                 depth: depth_a,
                 planes: &planes_a,
@@ -107,8 +115,12 @@ pub fn motion_between_depths(
             &cfg.motion,
             &vcfg,
         )
+        .unwrap_or_else(|e| (Err(e), Vec::new()))
     } else {
-        estimate_motion(&planes_a, &planes_b, None, &cfg.motion)
+        (
+            estimate_motion(&planes_a, &planes_b, None, &cfg.motion),
+            Vec::new(),
+        )
     };
     let motion = match estimate {
         Ok(m) => Ok(m),
@@ -143,5 +155,9 @@ pub fn motion_between_depths(
         planes_b,
         motion,
         icp,
+        candidates: candidates
+            .into_iter()
+            .map(CameraToCamera::from_isometry)
+            .collect(),
     })
 }

@@ -517,3 +517,30 @@ fn a_large_rotation_with_little_overlap_is_verified_right_or_refused() {
         Err(e) => panic!("{e}"),
     }
 }
+
+/// TUM fr1/rpy-200 frames 70 and 78 (20° apart): the planes propose rotations the two frames
+/// cannot tell apart (the camera's, and others 70–110° away), so the estimate is not
+/// verified, and the candidates it hands back for a caller with more evidence (the tracker
+/// aligns its fused model from each) hold the camera's rotation.
+#[test]
+fn an_undecided_estimate_hands_back_the_camera_among_its_candidates() {
+    let Some(seq) = sl_testkit::tum_rpy_200_sequence(79) else {
+        return;
+    };
+    let ((da, pa), (db, pb)) = (&seq.frames[70], &seq.frames[78]);
+    let m = sl_track::motion_between_depths(da, db, &seq.camera, &Default::default()).unwrap();
+    let truth = pa.isometry().inverse() * pb.isometry();
+    match &m.motion {
+        Err(TrackError::MotionNotVerified { .. }) => {}
+        other => panic!("expected an undecided estimate: {other:?}"),
+    }
+    assert!(m.pose().is_none());
+    assert!((2..=3).contains(&m.candidates.len()), "{:?}", m.candidates);
+    let errors: Vec<f64> = m
+        .candidates
+        .iter()
+        .map(|c| c.rotation().angle_to(&truth.rotation).to_degrees())
+        .collect();
+    assert!(errors.iter().any(|e| *e < 3.0), "{errors:?}");
+    assert!(errors.iter().any(|e| *e > 10.0), "{errors:?}");
+}

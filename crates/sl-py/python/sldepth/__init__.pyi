@@ -370,6 +370,7 @@ class Motion:
     planes_a: int
     planes_b: int
     matched_planes: int
+    candidates: list[npt.NDArray[np.float64]]
 
 def motion(
     depth_a: _Depth,

@@ -270,5 +270,6 @@ pub use icp::{
 };
 pub use kabsch::weighted_kabsch;
 use kabsch::*;
+pub(crate) use verified::estimate_motion_verified_or_candidates;
 use verified::*;
 pub use verified::{MotionFrame, estimate_motion_verified};

@@ -22,6 +22,9 @@ pub(super) const COARSE_SAMPLES: usize = 300;
 /// Points per frame of the local refinement and of the perturbation check.
 pub(super) const SPARSE_SAMPLES: usize = 1000;
 
+/// Most alignments [`estimate_motion_verified_or_candidates`] hands back when it cannot decide.
+pub(crate) const MAX_CANDIDATES: usize = 3;
+
 /// Plane normals (besides the camera axes) about which the verified alignment is perturbed.
 pub(super) const MAX_PERTURB_PLANES: usize = 6;
 
@@ -135,6 +138,22 @@ pub fn estimate_motion_verified(
     cfg: &MotionConfig,
     vcfg: &VerifyConfig,
 ) -> Result<PlaneMotion> {
+    let (motion, _) = estimate_motion_verified_or_candidates(a, b, camera, guess, cfg, vcfg)?;
+    motion
+}
+
+/// [`estimate_motion_verified`], and when its decision is "not verified", the refined
+/// alignments the data could not rule out (best first, each more than `distinct_deg` from
+/// those before it): for a caller with evidence of its own to tell them apart, such as the
+/// tracker's fused model. Empty when the estimate is verified or no alignment is left.
+pub(crate) fn estimate_motion_verified_or_candidates(
+    a: MotionFrame<'_>,
+    b: MotionFrame<'_>,
+    camera: &Camera,
+    guess: Option<&CameraToCamera>,
+    cfg: &MotionConfig,
+    vcfg: &VerifyConfig,
+) -> Result<(Result<PlaneMotion>, Vec<Isometry3<f64>>)> {
     cfg.validate()?;
     vcfg.validate()?;
     let guess = guess.map(CameraToCamera::isometry);
@@ -160,7 +179,13 @@ pub fn estimate_motion_verified(
     // hypothesise (above) → rank → refine → decide → the plane estimate.
     let coarse = rank(&hyps, &g, &mut check, vcfg);
     let checked = refine(&coarse, &hyps, &g, &mut check, a, b, cfg, vcfg);
-    let decision = decide(&checked, hyps.len(), &mut check, a, cfg, vcfg)?;
+    let decision = match decide(&checked, hyps.len(), &mut check, a, cfg, vcfg) {
+        Ok(d) => d,
+        Err(e @ TrackError::MotionNotVerified { .. }) => {
+            return Ok((Err(e), unrefuted(&checked, cfg, vcfg)));
+        }
+        Err(e) => return Err(e),
+    };
     let (best, aligned) = (&checked[decision.best], checked[decision.best].aligned);
     let Decision {
         inlier_fraction,
@@ -180,7 +205,7 @@ pub fn estimate_motion_verified(
         &(r * g.rotation.to_rotation_matrix().inverse()),
         &matches,
     );
-    Ok(PlaneMotion {
+    let motion = PlaneMotion {
         rotation,
         translation_m,
         translation_partial_m,
@@ -197,7 +222,34 @@ pub fn estimate_motion_verified(
             samples: check.samples(),
             aligned: CameraToCamera::from_isometry(aligned),
         }),
-    })
+    };
+    Ok((Ok(motion), Vec::new()))
+}
+
+/// The refined alignments of `checked` (best first) that the data do not rule out: each overlaps
+/// the other frame with `min_overlap_fraction` of the points and explains a share of them not
+/// significantly below `min_inlier_fraction` (the test `decide` applies to the alternatives),
+/// and lies more than `distinct_deg` from every one kept before it; at most
+/// [`MAX_CANDIDATES`].
+fn unrefuted(checked: &[Checked], cfg: &MotionConfig, vcfg: &VerifyConfig) -> Vec<Isometry3<f64>> {
+    let distinct = cfg.distinct_deg.to_radians();
+    let mut kept: Vec<Isometry3<f64>> = Vec::new();
+    for c in checked {
+        if kept.len() >= MAX_CANDIDATES {
+            break;
+        }
+        let s = &c.score;
+        let possible = s.overlap_fraction() >= vcfg.min_overlap_fraction
+            && inlier_share_upper_bound(s) >= vcfg.min_inlier_fraction;
+        if possible
+            && kept
+                .iter()
+                .all(|k| k.rotation.angle_to(&c.aligned.rotation) > distinct)
+        {
+            kept.push(c.aligned);
+        }
+    }
+    kept
 }
 
 /// Greedy one-to-one plane matches (by decreasing weight) consistent with a motion: normals
@@ -508,5 +560,53 @@ mod wilson_tests {
             assert!(b >= p && b <= 1.0, "{i}/{n}: {b}");
         }
         assert_eq!(inlier_share_upper_bound(&score(0, 0)), 1.0);
+    }
+
+    fn checked(turn_deg: f64, inliers: usize, overlap: usize, total: usize) -> Checked {
+        Checked {
+            aligned: Isometry3::rotation(Vector3::y() * turn_deg.to_radians()),
+            score: Score {
+                inliers,
+                overlap,
+                total,
+            },
+            support: 1.0,
+            matches: Vec::new(),
+            rotation: Rotation3::identity(),
+        }
+    }
+
+    #[test]
+    fn the_candidates_are_the_distinct_alignments_the_samples_do_not_rule_out() {
+        let (cfg, vcfg) = (MotionConfig::default(), VerifyConfig::default());
+        let angles = |c: &[Checked]| -> Vec<f64> {
+            unrefuted(c, &cfg, &vcfg)
+                .iter()
+                .map(|p| p.rotation.angle().to_degrees().round())
+                .collect()
+        };
+        // TUM fr1/rpy 65 -> 70 (every 5th frame): two rotations 15°+ apart at 89 % each.
+        let two = [checked(0.0, 439, 493, 900), checked(20.0, 438, 493, 900)];
+        assert_eq!(angles(&two), [0.0, 20.0]);
+        // Best first; one within `distinct_deg` of a kept one is the same minimum.
+        let near = [
+            checked(0.0, 439, 493, 900),
+            checked(10.0, 439, 493, 900),
+            checked(30.0, 439, 493, 900),
+        ];
+        assert_eq!(angles(&near), [0.0, 30.0]);
+        // Significantly below `min_inlier_fraction` (70 % of 2,000), or overlapping too
+        // little (100 of 2,000 samples < 15 %): ruled out.
+        let out = [
+            checked(0.0, 1400, 2000, 2000),
+            checked(40.0, 95, 100, 2000),
+            checked(80.0, 450, 493, 900),
+        ];
+        assert_eq!(angles(&out), [80.0]);
+        // At most `MAX_CANDIDATES`.
+        let many: Vec<Checked> = (0..6)
+            .map(|k| checked(20.0 * f64::from(k), 480, 493, 900))
+            .collect();
+        assert_eq!(unrefuted(&many, &cfg, &vcfg).len(), MAX_CANDIDATES);
     }
 }

@@ -28,7 +28,11 @@
 //! objective's per-sample terms, the sensor's correlated error counted): a fallback runs
 //! because the frame left the prediction's basin, and the first start that passes can have
 //! settled in a wrong minimum. Then from the verified plane-based estimate between
-//! the last good frame and this one ([`crate::motion_between_depths`]); then against each
+//! the last good frame and this one ([`crate::motion_between_depths`]), or, where the two
+//! frames cannot tell several plane-based alignments apart, from each of them
+//! ([`crate::DepthMotion::candidates`]) against the model, which has more to say: kept only
+//! when the planes' best passes and every other converges within 15° of it or fits clearly
+//! worse; then against each
 //! keyframe (accepted frames kept at spread poses, [`TrackerConfig::keyframe_relocalisation`])
 //! from its own pose, the best that passes kept. When all fail the frame
 //! is [`TrackStatus::Lost`] with the last good pose — never a pose it could not check — and the

@@ -232,3 +232,67 @@ fn a_bare_corridor_is_a_degenerate_view_at_full_resolution() {
         pose = pose * step;
     }
 }
+
+/// Rectangular simulated rooms of the room benchmark seen through a D435 (room 3003) and a
+/// D415 (room 3004), tracked as `rooms_track --camera` does (frame to model, the tracker's
+/// defaults): the view turns to mostly one wall, and the plane fallback's two frames cannot
+/// tell the camera's own turn from the room turned by about 180°. Against the model the
+/// camera's turn fails the degenerate-overlap check, while the turned room lands on another
+/// part of the model, passes and even fits better. A pose from such a candidate was 2.2–2.7 m
+/// and 180° off (session 84, before the rule that the planes' best must pass and every other
+/// candidate fit clearly worse); every step reported tracked must be right within the room
+/// benchmark's 2 cm and 1°.
+#[test]
+fn a_room_turned_by_180_degrees_is_not_taken_for_the_camera() {
+    for (seed, preset, frames) in [(3003u64, "d435", 20u64), (3004, "d415", 12)] {
+        let room = sl_noise::sim::room_scene(seed).unwrap();
+        let (cam, sim) = room.camera_and_simulator(Some(preset)).unwrap();
+        let k = cam.intrinsics;
+        let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
+        let mut vcfg = TsdfConfig::default();
+        vcfg.voxel_m = 0.008;
+        vcfg.trunc_m = 0.04;
+        vcfg.truncation = sl_tsdf::Truncation::sensor_adaptive(cam.sensor);
+        let mut volume = TsdfVolume::new(vcfg).unwrap();
+        let mut reference = ModelReference::new(
+            &k,
+            ModelReference::default_scale(&cam),
+            RaycastConfig::default(),
+        )
+        .unwrap();
+        let mut path = HandHeldPath::new(seed, 0.0);
+        let mut pose = room.pose;
+        let mut last: Option<(Isometry3<f64>, Isometry3<f64>)> = None;
+        let (mut fused, mut tracked) = (0usize, 0usize);
+        for i in 0..frames {
+            let d = sim.simulate(&room.scene, &k, &pose, seed * 1000 + i).depth;
+            let model = if fused > 1 { reference.maps() } else { None };
+            let r = tracker.track(&d, model).unwrap();
+            if r.status.is_tracked() {
+                volume.integrate(&d, &k, &r.pose).unwrap();
+                fused += 1;
+                tracked += 1;
+                reference
+                    .update_from_frame(&volume, &r.pose, &tracker.frame_sensor(), &d, &k)
+                    .unwrap();
+                if let Some((t, e)) = last {
+                    let off = (t.inverse() * pose.isometry()).inverse()
+                        * (e.inverse() * r.pose.isometry());
+                    let (m, deg) = (
+                        off.translation.vector.norm(),
+                        off.rotation.angle().to_degrees(),
+                    );
+                    assert!(
+                        m <= 0.02 && deg <= 1.0,
+                        "room {seed} ({preset}) frame {i} {}: step off by {:.1} mm / {deg:.1}°",
+                        r.status.as_str(),
+                        m * 1e3
+                    );
+                }
+                last = Some((*pose.isometry(), *r.pose.isometry()));
+            }
+            pose = path.advance(&pose);
+        }
+        assert!(tracked >= 3, "room {seed}: {tracked} frames tracked");
+    }
+}

@@ -70,6 +70,20 @@ fn rotation_rows(pose: &CameraToCamera) -> Vec<f64> {
         .collect()
 }
 
+/// The JSON of an undecided estimate's candidates (`DepthMotion::candidates`).
+fn candidates_json(candidates: &[CameraToCamera]) -> Value {
+    candidates
+        .iter()
+        .map(|c| {
+            json!({
+                "rotation": rotation_rows(c),
+                "rotation_deg": round_to(c.rotation_angle_deg(), 4),
+                "translation_m": vec3(&c.translation(), 6),
+            })
+        })
+        .collect()
+}
+
 /// The JSON of an undetermined motion.
 fn undetermined_json(err: &TrackError, planes_a: usize, planes_b: usize) -> Value {
     let (inlier, alternative) = match err {
@@ -154,6 +168,7 @@ pub fn run(args: Args) -> Result<()> {
             if args.json {
                 let mut v = undetermined_json(e, pa.len(), pb.len());
                 v["undistorted"] = json!(undistorter.is_some());
+                v["candidates"] = candidates_json(&result.candidates);
                 print_json(&v)?;
             } else {
                 outln!(
@@ -161,6 +176,18 @@ pub fn run(args: Args) -> Result<()> {
                     pa.len(),
                     pb.len()
                 )?;
+                if !result.candidates.is_empty() {
+                    let angles: Vec<String> = result
+                        .candidates
+                        .iter()
+                        .map(|c| format!("{:.1}°", c.rotation_angle_deg()))
+                        .collect();
+                    outln!(
+                        "the two frames cannot tell apart {} alignments (rotations {}; --json lists them)",
+                        angles.len(),
+                        angles.join(", ")
+                    )?;
+                }
             }
             bail!("{e}");
         }

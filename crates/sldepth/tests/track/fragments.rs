@@ -333,16 +333,11 @@ fn track_goes_on_in_a_new_fragment_and_writes_it_beside_the_first() {
 /// the upside-down camera's world).
 #[test]
 fn a_continuation_that_rejoins_moves_the_fragments_it_continues() {
-    let Some(data) = sl_testkit::data_dir_or_skip("the continuation rejoin test") else {
+    let Some((tum, entries)) = sl_testkit::tum_rpy_200_depth_list("the continuation rejoin test")
+    else {
         return;
     };
-    let tum = data.join("tum-fr1-rpy-200");
-    let names: Vec<String> = std::fs::read_to_string(tum.join("depth.txt"))
-        .unwrap()
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split_whitespace().nth(1).unwrap().to_owned())
-        .collect();
+    let names: Vec<String> = entries.into_iter().map(|(_, name)| name).collect();
     let tmp = tempfile::tempdir().unwrap();
     let seq = tmp.path().join("seq");
     std::fs::create_dir_all(seq.join("depth")).unwrap();

@@ -11,6 +11,7 @@ use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_io::depth::{DepthEncoding, write_depth};
 use sl_noise::sim::{KinectSimulator, named_scene};
 
+mod fast_motion;
 mod fragments;
 
 fn sldepth(args: &[&str]) -> Output {
