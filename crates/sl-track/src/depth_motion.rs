@@ -155,9 +155,6 @@ pub fn motion_between_depths(
         planes_b,
         motion,
         icp,
-        candidates: candidates
-            .into_iter()
-            .map(CameraToCamera::from_isometry)
-            .collect(),
+        candidates,
     })
 }

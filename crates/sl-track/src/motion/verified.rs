@@ -23,7 +23,7 @@ pub(super) const COARSE_SAMPLES: usize = 300;
 pub(super) const SPARSE_SAMPLES: usize = 1000;
 
 /// Most alignments [`estimate_motion_verified_or_candidates`] hands back when it cannot decide.
-pub(crate) const MAX_CANDIDATES: usize = 3;
+const MAX_CANDIDATES: usize = 3;
 
 /// Plane normals (besides the camera axes) about which the verified alignment is perturbed.
 pub(super) const MAX_PERTURB_PLANES: usize = 6;
@@ -153,7 +153,7 @@ pub(crate) fn estimate_motion_verified_or_candidates(
     guess: Option<&CameraToCamera>,
     cfg: &MotionConfig,
     vcfg: &VerifyConfig,
-) -> Result<(Result<PlaneMotion>, Vec<Isometry3<f64>>)> {
+) -> Result<(Result<PlaneMotion>, Vec<CameraToCamera>)> {
     cfg.validate()?;
     vcfg.validate()?;
     let guess = guess.map(CameraToCamera::isometry);
@@ -231,7 +231,7 @@ pub(crate) fn estimate_motion_verified_or_candidates(
 /// significantly below `min_inlier_fraction` (the test `decide` applies to the alternatives),
 /// and lies more than `distinct_deg` from every one kept before it; at most
 /// [`MAX_CANDIDATES`].
-fn unrefuted(checked: &[Checked], cfg: &MotionConfig, vcfg: &VerifyConfig) -> Vec<Isometry3<f64>> {
+fn unrefuted(checked: &[Checked], cfg: &MotionConfig, vcfg: &VerifyConfig) -> Vec<CameraToCamera> {
     let distinct = cfg.distinct_deg.to_radians();
     let mut kept: Vec<Isometry3<f64>> = Vec::new();
     for c in checked {
@@ -249,7 +249,9 @@ fn unrefuted(checked: &[Checked], cfg: &MotionConfig, vcfg: &VerifyConfig) -> Ve
             kept.push(c.aligned);
         }
     }
-    kept
+    kept.into_iter()
+        .map(CameraToCamera::from_isometry)
+        .collect()
 }
 
 /// Greedy one-to-one plane matches (by decreasing weight) consistent with a motion: normals
@@ -582,7 +584,7 @@ mod wilson_tests {
         let angles = |c: &[Checked]| -> Vec<f64> {
             unrefuted(c, &cfg, &vcfg)
                 .iter()
-                .map(|p| p.rotation.angle().to_degrees().round())
+                .map(|p| p.rotation_angle_deg().round())
                 .collect()
         };
         // TUM fr1/rpy 65 -> 70 (every 5th frame): two rotations 15°+ apart at 89 % each.
