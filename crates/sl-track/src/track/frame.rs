@@ -258,6 +258,7 @@ impl Tracker {
             against_frame,
             fallback_failure,
             keyframe_pose,
+            ..
         } = outcome;
         let (last, n) = (plan.last, plan.n);
         let result = match first.failure {

@@ -22,7 +22,10 @@
 //! plausible. The attempts, until one passes: Gauss–Newton from the prediction; the same with
 //! Levenberg–Marquardt step control from the prediction and from the last good pose; when the
 //! reference is the model, both again against the last good frame
-//! ([`TrackStatus::TrackedAgainstFrame`]). Once the first attempt has failed, every start of
+//! ([`TrackStatus::TrackedAgainstFrame`]), where a pose that passes is challenged by the
+//! alignment from the verified plane-based estimate against the same frame: replaced when that
+//! one passes and fits the frame clearly better, no pose when it fits clearly better and
+//! fails. Once the first attempt has failed, every start of
 //! a stage runs, and where several pass the earliest is kept unless a later one fits the frame
 //! clearly better than the noise explains (`better_fit`: a paired test on the robust
 //! objective's per-sample terms, the sensor's correlated error counted): a fallback runs
@@ -89,7 +92,8 @@ pub enum TrackStatus {
     /// that keyframe, started a successful ICP.
     Recovered,
     /// The model reference disagreed (every start failed its checks); the frame was aligned
-    /// to the last good frame instead.
+    /// to the last good frame instead (and no alignment from the plane-based estimate against
+    /// that frame fitted it clearly better).
     TrackedAgainstFrame,
     /// Aligned again after one or more lost frames.
     Relocalised,
