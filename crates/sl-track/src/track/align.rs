@@ -415,3 +415,52 @@ impl Tracker {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    #![allow(clippy::unwrap_used)]
+    use nalgebra::{Isometry3, Vector3};
+    use sl_core::Camera;
+
+    use super::super::{Tracker, TrackerConfig};
+    use super::{Origin, SinceLast};
+
+    fn tracker() -> Tracker {
+        Tracker::new(
+            Camera::preset("kinect-v1").unwrap(),
+            TrackerConfig::default(),
+        )
+        .unwrap()
+    }
+
+    fn at(x_m: f64, turn_deg: f64) -> Isometry3<f64> {
+        Isometry3::new(
+            Vector3::new(x_m, 0.0, 0.0),
+            Vector3::new(0.0, turn_deg.to_radians(), 0.0),
+        )
+    }
+
+    /// From a start near the camera the pose may move `max_correction_m` (5 cm) from it; from
+    /// a plane-based hypothesis it may move further from the start, as long as the camera has
+    /// not moved more than 5 cm per frame interval from the last good pose; the rotation bound
+    /// (20°) holds from either start.
+    #[test]
+    fn a_hypothesis_is_judged_by_the_cameras_motion_since_the_last_pose() {
+        let t = tracker();
+        let last = at(0.0, 0.0);
+        let start = at(0.02, 25.0);
+        let pose = at(0.08, 27.0); // 6 cm from the start, 8 cm from the last pose
+        assert!(t.implausible(&start, &pose, Origin::Near).is_some());
+        let two = Origin::Hypothesis(SinceLast { last, intervals: 2 });
+        assert_eq!(t.implausible(&start, &pose, two), None);
+        let one = Origin::Hypothesis(SinceLast { last, intervals: 1 });
+        let why = t.implausible(&start, &pose, one).unwrap();
+        assert!(why.contains("from the last good pose"), "{why}");
+        // Within 5 cm of a near start: plausible.
+        assert_eq!(t.implausible(&start, &at(0.06, 26.0), Origin::Near), None);
+        // 21° from the start is too far from either.
+        let turned = at(0.02, 46.0);
+        assert!(t.implausible(&start, &turned, Origin::Near).is_some());
+        assert!(t.implausible(&start, &turned, two).is_some());
+    }
+}
