@@ -17,43 +17,6 @@ pub(super) struct Iterated {
     pub(super) iterations: usize,
 }
 
-/// What an alignment's start is, for the plausibility of where the alignment ends
-/// ([`Tracker::judge`]).
-#[derive(Debug, Clone, Copy)]
-pub(super) enum Origin {
-    /// A start near the camera (the constant-velocity prediction, the last good pose or one
-    /// turned from it, a keyframe's pose): the pose may end at most
-    /// [`TrackerConfig::max_correction_m`](super::TrackerConfig::max_correction_m) and
-    /// `max_correction_deg` from it.
-    Near,
-    /// A hypothesis of the camera's motion since the last good frame (the plane-based estimate
-    /// between the two frames): its translation is the estimate's, weakest at large turns
-    /// (3.5 cm off at a 28° turn of TUM fr1/rpy), so it is not a place the camera is known to
-    /// be near. The pose may end at most `max_correction_deg` from it in rotation, and in
-    /// translation at most `max_correction_m` per frame interval from the last good pose —
-    /// the bound's own reason: a hand-held camera at up to 1.5 m/s moves 5 cm in a 30 Hz
-    /// interval.
-    Hypothesis(SinceLast),
-}
-
-/// The last good pose and the frame intervals since it: where a hypothesis of the camera's
-/// motion starts from.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct SinceLast {
-    /// The last good pose.
-    pub(super) last: Isometry3<f64>,
-    /// Frame intervals since it (≥ 1).
-    pub(super) intervals: u32,
-}
-
-impl SinceLast {
-    /// The camera's pose a motion `step` since the last good frame (this frame in its
-    /// coordinates) puts it at.
-    pub(super) fn start(&self, step: Isometry3<f64>) -> Isometry3<f64> {
-        solve::renormalized(self.last * step)
-    }
-}
-
 /// One alignment attempt's outcome.
 pub(super) struct Attempt {
     pub(super) pose: Isometry3<f64>,
@@ -102,20 +65,7 @@ impl Tracker {
         damped: bool,
     ) -> Attempt {
         let iterated = self.iterate(start, reference, prior_var_m2, damped);
-        self.judge(start, reference, iterated, Origin::Near)
-    }
-
-    /// [`Tracker::align`], damped, from a start that is a hypothesis of the camera's motion
-    /// ([`Origin::Hypothesis`]).
-    pub(super) fn align_hypothesis(
-        &self,
-        start: &Isometry3<f64>,
-        reference: &ReferenceMaps,
-        prior_var_m2: f64,
-        since: SinceLast,
-    ) -> Attempt {
-        let iterated = self.iterate(start, reference, prior_var_m2, true);
-        self.judge(start, reference, iterated, Origin::Hypothesis(since))
+        self.judge(start, reference, iterated)
     }
 
     /// The iterations of [`Tracker::align`]: the pose they reach and the finest level's
@@ -244,7 +194,6 @@ impl Tracker {
         start: &Isometry3<f64>,
         reference: &ReferenceMaps,
         it: Iterated,
-        origin: Origin,
     ) -> Attempt {
         let cfg = &self.cfg;
         let sensor = &self.camera.sensor;
@@ -261,6 +210,7 @@ impl Tracker {
             .finest_mean_depth_m
             .unwrap_or_else(|| self.finest_mean_depth());
         let condition = solve::condition(&stats, scale_m);
+        let correction = start.inverse() * pose;
         let frac = ratio(stats.inliers, stats.associated);
         let finest_stride = stride_of(finest_l);
         // Against the last frame on its planes' normals, the normal equations hold no false
@@ -286,8 +236,16 @@ impl Tracker {
                 "conditioning {condition:.2e} below {:.0e}",
                 cfg.min_condition
             ))
+        } else if correction.translation.vector.norm() > cfg.max_correction_m
+            || correction.rotation.angle().to_degrees() > cfg.max_correction_deg
+        {
+            Some(format!(
+                "correction of {:.3} m / {:.1}° from the start is implausible",
+                correction.translation.vector.norm(),
+                correction.rotation.angle().to_degrees()
+            ))
         } else {
-            self.implausible(start, &pose, origin)
+            None
         };
         // The frame can pin the pose down while the part of it that overlaps the reference
         // does not (a model that holds one wall of the room so far, surfaces beyond the fused
@@ -373,94 +331,4 @@ fn mean_depth(level: &pyramid::Level) -> f64 {
         .filter(|z| **z > 0.0)
         .fold((0.0f64, 0usize), |(s, n), z| (s + f64::from(*z), n + 1));
     if n > 0 { s / n as f64 } else { 1.0 }
-}
-
-impl Tracker {
-    /// Why an alignment from `start` that ended at `pose` is implausible (see [`Origin`]), or
-    /// `None`.
-    fn implausible(
-        &self,
-        start: &Isometry3<f64>,
-        pose: &Isometry3<f64>,
-        origin: Origin,
-    ) -> Option<String> {
-        let cfg = &self.cfg;
-        let correction = start.inverse() * pose;
-        let turned_deg = correction.rotation.angle().to_degrees();
-        match origin {
-            Origin::Near => {
-                let moved_m = correction.translation.vector.norm();
-                (moved_m > cfg.max_correction_m || turned_deg > cfg.max_correction_deg).then(|| {
-                    format!(
-                        "correction of {moved_m:.3} m / {turned_deg:.1}° from the start is implausible"
-                    )
-                })
-            }
-            Origin::Hypothesis(SinceLast { last, intervals }) => {
-                let moved_m = (pose.translation.vector - last.translation.vector).norm();
-                let bound_m = cfg.max_correction_m * f64::from(intervals.max(1));
-                if turned_deg > cfg.max_correction_deg {
-                    Some(format!(
-                        "correction of {turned_deg:.1}° from the start is implausible"
-                    ))
-                } else if moved_m > bound_m {
-                    Some(format!(
-                        "a move of {moved_m:.3} m from the last good pose in {intervals} frame \
-                         interval(s) is implausible (at most {bound_m:.3} m)"
-                    ))
-                } else {
-                    None
-                }
-            }
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    #![allow(clippy::unwrap_used)]
-    use nalgebra::{Isometry3, Vector3};
-    use sl_core::Camera;
-
-    use super::super::{Tracker, TrackerConfig};
-    use super::{Origin, SinceLast};
-
-    fn tracker() -> Tracker {
-        Tracker::new(
-            Camera::preset("kinect-v1").unwrap(),
-            TrackerConfig::default(),
-        )
-        .unwrap()
-    }
-
-    fn at(x_m: f64, turn_deg: f64) -> Isometry3<f64> {
-        Isometry3::new(
-            Vector3::new(x_m, 0.0, 0.0),
-            Vector3::new(0.0, turn_deg.to_radians(), 0.0),
-        )
-    }
-
-    /// From a start near the camera the pose may move `max_correction_m` (5 cm) from it; from
-    /// a plane-based hypothesis it may move further from the start, as long as the camera has
-    /// not moved more than 5 cm per frame interval from the last good pose; the rotation bound
-    /// (20°) holds from either start.
-    #[test]
-    fn a_hypothesis_is_judged_by_the_cameras_motion_since_the_last_pose() {
-        let t = tracker();
-        let last = at(0.0, 0.0);
-        let start = at(0.02, 25.0);
-        let pose = at(0.08, 27.0); // 6 cm from the start, 8 cm from the last pose
-        assert!(t.implausible(&start, &pose, Origin::Near).is_some());
-        let two = Origin::Hypothesis(SinceLast { last, intervals: 2 });
-        assert_eq!(t.implausible(&start, &pose, two), None);
-        let one = Origin::Hypothesis(SinceLast { last, intervals: 1 });
-        let why = t.implausible(&start, &pose, one).unwrap();
-        assert!(why.contains("from the last good pose"), "{why}");
-        // Within 5 cm of a near start: plausible.
-        assert_eq!(t.implausible(&start, &at(0.06, 26.0), Origin::Near), None);
-        // 21° from the start is too far from either.
-        let turned = at(0.02, 46.0);
-        assert!(t.implausible(&start, &turned, Origin::Near).is_some());
-        assert!(t.implausible(&start, &turned, two).is_some());
-    }
 }

@@ -197,7 +197,7 @@ mod tests {
             stats,
             iterations: 0,
         };
-        tracker.judge(pose, reference, it, crate::track::align::Origin::Near)
+        tracker.judge(pose, reference, it)
     }
 
     /// Two alignments from starts within the basin (the truth and 5 mm from it), which

@@ -104,10 +104,7 @@ pub struct TrackerConfig {
     /// (the constant-velocity prediction), metres: a hand-held camera moving at up to
     /// 1.5 m/s covers 5 cm between two frames at 30 Hz, so even from a prediction of no
     /// motion at all a larger correction came from a wrong association (real Kinect data:
-    /// ICP sliding 12 cm along a counter top between two 7-Scenes frames 3 mm apart). From
-    /// the plane-based estimate, a hypothesis of the motion whose translation is weak at
-    /// large turns, the bound applies to the camera's move from the last good pose instead,
-    /// this much per frame interval since it...
+    /// ICP sliding 12 cm along a counter top between two 7-Scenes frames 3 mm apart)...
     pub max_correction_m: f64,
     /// ... or rotation, degrees (fast hand-held rotation, 300 °/s, is 10° per frame at 30 Hz;
     /// twice that).

@@ -6,7 +6,7 @@
 use nalgebra::Isometry3;
 use sl_core::DepthImage;
 
-use super::align::{Attempt, Iterated, Origin, SinceLast};
+use super::align::{Attempt, Iterated};
 use super::frame::AlignPlan;
 use super::{RELOCALISATION_TURN_DEG, ReferenceMaps, Tracker};
 use crate::depth_motion::{DepthMotion, motion_between_depths};
@@ -49,17 +49,14 @@ impl Tracker {
     ) -> Result<Outcome> {
         let AlignPlan {
             last,
-            n,
             predicted,
             predicted_var,
             unknown_var,
             ..
         } = *plan;
-        // The plane-based estimate's starts: hypotheses of the motion since `last`.
-        let since = SinceLast { last, intervals: n };
         let reference = model.unwrap_or(&self.last_ref);
         let first = match first_iterated {
-            Some(it) => self.judge(&predicted, reference, it, Origin::Near),
+            Some(it) => self.judge(&predicted, reference, it),
             None => self.align(&predicted, reference, predicted_var, false),
         };
         let mut o = Outcome {
@@ -89,11 +86,11 @@ impl Tracker {
         if o.failed() && model.is_some() {
             self.align_against_last_frame(&mut o, &starts[..distinct], predicted, predicted_var);
             if !o.failed() && self.cfg.plane_fallback {
-                self.challenge_from_planes(&mut o, depth, since, unknown_var)?;
+                self.challenge_from_planes(&mut o, depth, last, unknown_var)?;
             }
         }
         if o.failed() && self.cfg.plane_fallback {
-            self.align_from_planes(&mut o, depth, model, since, unknown_var)?;
+            self.align_from_planes(&mut o, depth, model, last, unknown_var)?;
         }
         // Where the camera looks at something seen before: each keyframe from its own pose.
         if o.failed() && self.cfg.keyframe_relocalisation {
@@ -214,14 +211,14 @@ impl Tracker {
         &self,
         o: &mut Outcome,
         depth: &DepthImage,
-        since: SinceLast,
+        last: Isometry3<f64>,
         unknown_var: f64,
     ) -> Result<()> {
         let Some(m) = self.planes_between(o, depth)?.pose() else {
             return Ok(());
         };
-        let start = since.start(m.into_isometry());
-        let alt = self.align_hypothesis(&start, &self.last_ref, unknown_var, since);
+        let start = super::solve::renormalized(last * m.into_isometry());
+        let alt = self.align(&start, &self.last_ref, unknown_var, true);
         o.iterations += alt.iterations;
         if !self.fits_clearly_better(&alt, &o.first, &self.last_ref) {
             return Ok(());
@@ -252,14 +249,13 @@ impl Tracker {
         o: &mut Outcome,
         depth: &DepthImage,
         model: Option<&ReferenceMaps>,
-        since: SinceLast,
+        last: Isometry3<f64>,
         unknown_var: f64,
     ) -> Result<()> {
         let planes = self.planes_between(o, depth)?.clone();
         if let Some(m) = planes.pose() {
-            let start = since.start(m.into_isometry());
-            let reference = model.unwrap_or(&self.last_ref);
-            let again = self.align_hypothesis(&start, reference, unknown_var, since);
+            let start = super::solve::renormalized(last * m.into_isometry());
+            let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
             o.iterations += again.iterations;
             match again.failure {
                 None => {
@@ -277,10 +273,9 @@ impl Tracker {
             let starts: Vec<Isometry3<f64>> = planes
                 .candidates
                 .iter()
-                .map(|c| since.start(c.into_isometry()))
+                .map(|c| super::solve::renormalized(last * c.into_isometry()))
                 .collect();
-            let (found, iterations) =
-                self.align_from_candidates(&starts, reference, unknown_var, since);
+            let (found, iterations) = self.align_from_candidates(&starts, reference, unknown_var);
             o.iterations += iterations;
             match found {
                 Ok(attempt) => {
@@ -311,12 +306,11 @@ impl Tracker {
         starts: &[Isometry3<f64>],
         reference: &ReferenceMaps,
         unknown_var: f64,
-        since: SinceLast,
     ) -> (std::result::Result<Attempt, String>, usize) {
         let mut iterations = 0;
         let mut attempts: Vec<Attempt> = Vec::with_capacity(starts.len());
         for start in starts {
-            let a = self.align_hypothesis(start, reference, unknown_var, since);
+            let a = self.align(start, reference, unknown_var, true);
             iterations += a.iterations;
             attempts.push(a);
         }

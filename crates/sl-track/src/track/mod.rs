@@ -31,10 +31,7 @@
 //! objective's per-sample terms, the sensor's correlated error counted): a fallback runs
 //! because the frame left the prediction's basin, and the first start that passes can have
 //! settled in a wrong minimum. Then from the verified plane-based estimate between
-//! the last good frame and this one ([`crate::motion_between_depths`]; an alignment from it is
-//! held to the camera's own motion since the last good pose, `max_correction_m` per frame
-//! interval, not to a correction from the estimate, whose translation is weak at large
-//! turns), or, where the two
+//! the last good frame and this one ([`crate::motion_between_depths`]), or, where the two
 //! frames cannot tell several plane-based alignments apart, from each of them
 //! ([`crate::DepthMotion::candidates`]) against the model, which has more to say: kept only
 //! when the planes' best passes and every other converges within 15° of it or fits clearly
