@@ -180,20 +180,16 @@ impl Tracker {
         }
     }
 
-    /// The plane-based estimate between the last good frame and `depth`, computed once per
-    /// frame and kept in `o`.
-    fn planes_between<'o>(
-        &self,
-        o: &'o mut Outcome,
-        depth: &DepthImage,
-    ) -> Result<&'o DepthMotion> {
-        let planes = match o.planes.take() {
-            Some(p) => p,
+    /// The plane-based estimate between the last good frame and `depth`: the one kept in `o`
+    /// when this frame has computed it already (taken out; put it back to share it), else
+    /// computed.
+    fn planes_between(&self, o: &mut Outcome, depth: &DepthImage) -> Result<DepthMotion> {
+        match o.planes.take() {
+            Some(p) => Ok(p),
             None => {
-                motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)?
+                motion_between_depths(&self.last_depth, depth, &self.camera, &self.cfg.fallback)
             }
-        };
-        Ok(o.planes.insert(planes))
+        }
     }
 
     /// A pose found against the last good frame after the model refused the frame, challenged
@@ -214,7 +210,11 @@ impl Tracker {
         last: Isometry3<f64>,
         unknown_var: f64,
     ) -> Result<()> {
-        let Some(m) = self.planes_between(o, depth)?.pose() else {
+        let planes = self.planes_between(o, depth)?;
+        let pose = planes.pose();
+        // Kept for the plane fallback, should this pose be refuted.
+        o.planes = Some(planes);
+        let Some(m) = pose else {
             return Ok(());
         };
         let start = super::solve::renormalized(last * m.into_isometry());
@@ -252,7 +252,7 @@ impl Tracker {
         last: Isometry3<f64>,
         unknown_var: f64,
     ) -> Result<()> {
-        let planes = self.planes_between(o, depth)?.clone();
+        let planes = self.planes_between(o, depth)?;
         if let Some(m) = planes.pose() {
             let start = super::solve::renormalized(last * m.into_isometry());
             let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
