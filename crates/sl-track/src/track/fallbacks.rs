@@ -4,7 +4,7 @@
 //! the module documentation).
 
 use nalgebra::Isometry3;
-use sl_core::DepthImage;
+use sl_core::{CameraToCamera, DepthImage};
 
 use super::align::{Attempt, Iterated};
 use super::frame::AlignPlan;
@@ -217,7 +217,7 @@ impl Tracker {
         let Some(m) = pose else {
             return Ok(());
         };
-        let start = super::solve::renormalized(last * m.into_isometry());
+        let start = start_from_planes(last, m);
         let alt = self.align(&start, &self.last_ref, unknown_var, true);
         o.iterations += alt.iterations;
         if !self.fits_clearly_better(&alt, &o.first, &self.last_ref) {
@@ -254,7 +254,7 @@ impl Tracker {
     ) -> Result<()> {
         let planes = self.planes_between(o, depth)?;
         if let Some(m) = planes.pose() {
-            let start = super::solve::renormalized(last * m.into_isometry());
+            let start = start_from_planes(last, m);
             let again = self.align(&start, model.unwrap_or(&self.last_ref), unknown_var, true);
             o.iterations += again.iterations;
             match again.failure {
@@ -273,7 +273,7 @@ impl Tracker {
             let starts: Vec<Isometry3<f64>> = planes
                 .candidates
                 .iter()
-                .map(|c| super::solve::renormalized(last * c.into_isometry()))
+                .map(|&c| start_from_planes(last, c))
                 .collect();
             let (found, iterations) = self.align_from_candidates(&starts, reference, unknown_var);
             o.iterations += iterations;
@@ -383,4 +383,10 @@ impl Tracker {
             }
         }
     }
+}
+
+/// The camera's pose a plane-based motion `step` (this frame in the last good frame's
+/// coordinates, `X_last = step · X_this`) puts it at from the `last` good pose.
+fn start_from_planes(last: Isometry3<f64>, step: CameraToCamera) -> Isometry3<f64> {
+    super::solve::renormalized(last * step.into_isometry())
 }
