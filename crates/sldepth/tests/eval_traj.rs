@@ -5,14 +5,9 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn sldepth(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sldepth"))
-        .args(args)
-        .output()
-        .expect("the sldepth binary runs")
-}
+mod common;
+use common::sldepth;
 
 fn write(dir: &Path, name: &str, text: &str) -> String {
     let p = dir.join(name);

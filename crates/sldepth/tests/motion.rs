@@ -4,14 +4,8 @@
 // Test code: a panic is a failed test.
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
 
-use std::process::{Command, Output};
-
-fn sldepth(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sldepth"))
-        .args(args)
-        .output()
-        .expect("the sldepth binary runs")
-}
+mod common;
+use common::sldepth;
 
 /// TUM fr1/rpy-200 frames 70 and 78 (20° apart): the planes propose rotations the frames cannot
 /// tell apart. The command fails as undetermined (no pose printed), and says how many

@@ -6,18 +6,10 @@
 #![allow(clippy::panic, clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
-use common::{s, testdata};
-
-fn sldepth(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sldepth"))
-        .args(args)
-        .env("RUST_BACKTRACE", "0")
-        .output()
-        .expect("the sldepth binary runs")
-}
+use common::{s, sldepth, testdata};
 
 /// A failure with exit code `code` whose standard error contains every needle.
 fn assert_fails(o: &Output, code: i32, needles: &[&str]) {

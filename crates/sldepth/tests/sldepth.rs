@@ -8,15 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 mod common;
-use common::testdata;
-
-fn sldepth(args: &[&str]) -> Output {
-    #[allow(clippy::expect_used)]
-    Command::new(env!("CARGO_BIN_EXE_sldepth"))
-        .args(args)
-        .output()
-        .expect("the sldepth binary runs")
-}
+use common::{sldepth, testdata};
 
 fn json_of(out: &Output) -> serde_json::Value {
     assert!(

@@ -1,8 +1,19 @@
-//! Shared helpers of the `sldepth` binary's integration tests: paths of the project's generated
-//! test data, and paths as the command line's arguments.
-#![allow(dead_code, clippy::unwrap_used)]
+//! Shared helpers of the `sldepth` binary's integration tests: running the binary, paths of the
+//! project's generated test data, and paths as the command line's arguments.
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs the `sldepth` binary built for these tests with `args` (no backtrace on a panic: the
+/// tests read its standard error).
+pub fn sldepth(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sldepth"))
+        .args(args)
+        .env("RUST_BACKTRACE", "0")
+        .output()
+        .expect("the sldepth binary runs")
+}
 
 /// A path as a command-line argument (the tests' paths are UTF-8).
 pub fn s(p: &Path) -> &str {

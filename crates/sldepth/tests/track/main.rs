@@ -4,22 +4,18 @@
 #![allow(clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use sl_core::CameraToCamera;
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use sl_io::depth::{DepthEncoding, write_depth};
 use sl_noise::sim::{KinectSimulator, named_scene};
 
+#[path = "../common/mod.rs"]
+mod common;
+use common::sldepth;
+
 mod fast_motion;
 mod fragments;
-
-fn sldepth(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sldepth"))
-        .args(args)
-        .output()
-        .expect("the sldepth binary runs")
-}
 
 /// Runs `sldepth` with `args` (ending in `--json`), which must succeed: its JSON summary and
 /// its standard error.
