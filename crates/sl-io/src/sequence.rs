@@ -10,6 +10,78 @@ use crate::limits::Limits;
 use crate::text::read_text;
 use crate::trajectory::{check_frames, natural_order};
 
+/// How a sequence folder lays out its depth frames (the folders `sldepth track --tum`,
+/// `--7scenes` and `--o3d` read).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum SequenceLayout {
+    /// A TUM RGB-D folder: `associations.txt` or `depth.txt` ([`read_tum_depth_frames`]).
+    Tum,
+    /// A 7-Scenes folder: `frame-XXXXXX.depth.png` ([`read_7scenes_depth_frames`]).
+    SevenScenes,
+    /// An Open3D-style folder: `depth/*.png` ([`read_open3d_depth_frames`]).
+    Open3d,
+}
+
+impl SequenceLayout {
+    /// The layout of the folder `dir` by what it holds: TUM when it has `associations.txt` or
+    /// `depth.txt`, 7-Scenes when it has a `frame-*.depth.png`, Open3D when it has a `depth`
+    /// folder. A folder with none of them is an error that lists what was looked for.
+    pub fn infer(dir: impl AsRef<Path>) -> Result<Self> {
+        let dir = dir.as_ref();
+        if dir.join("associations.txt").is_file() || dir.join("depth.txt").is_file() {
+            return Ok(Self::Tum);
+        }
+        for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+            let entry = entry.map_err(|e| IoError::io(dir, e))?;
+            if entry
+                .file_name()
+                .to_str()
+                .is_some_and(|n| n.starts_with("frame-") && n.ends_with(".depth.png"))
+            {
+                return Ok(Self::SevenScenes);
+            }
+        }
+        if dir.join("depth").is_dir() {
+            return Ok(Self::Open3d);
+        }
+        Err(IoError::malformed(
+            dir,
+            "cannot tell the sequence's layout: no depth.txt or associations.txt of a TUM \
+             folder, no frame-*.depth.png of a 7-Scenes folder, no depth/ folder of an Open3D one",
+        ))
+    }
+}
+
+impl std::str::FromStr for SequenceLayout {
+    type Err = String;
+
+    /// `tum`, `7scenes` (or `7-scenes`), `open3d` (or `o3d`).
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "tum" => Ok(Self::Tum),
+            "7scenes" | "7-scenes" => Ok(Self::SevenScenes),
+            "open3d" | "o3d" => Ok(Self::Open3d),
+            other => Err(format!(
+                "unknown sequence layout {other:?}: \"tum\", \"7scenes\" or \"open3d\""
+            )),
+        }
+    }
+}
+
+/// The depth frames of the sequence folder `dir` in `layout`.
+pub fn read_depth_frames(
+    dir: impl AsRef<Path>,
+    layout: SequenceLayout,
+    limits: &Limits,
+) -> Result<Vec<SequenceFrame>> {
+    match layout {
+        SequenceLayout::Tum => read_tum_depth_frames(dir, limits),
+        SequenceLayout::SevenScenes => read_7scenes_depth_frames(dir, limits),
+        SequenceLayout::Open3d => read_open3d_depth_frames(dir, limits),
+    }
+}
+
 /// One depth frame of a sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceFrame {
@@ -187,5 +259,38 @@ mod tests {
             names(read_open3d_depth_frames(d, &limits).unwrap()),
             ["8.png", "9.png", "10.png", "11.png"]
         );
+    }
+
+    /// A folder's layout is read from what it holds, in the order TUM, 7-Scenes, Open3D, and a
+    /// folder with none of them is an error that says what was looked for.
+    #[test]
+    fn the_layout_is_inferred_from_the_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let err = SequenceLayout::infer(d).unwrap_err().to_string();
+        assert!(err.contains("cannot tell the sequence's layout"), "{err}");
+        std::fs::create_dir(d.join("depth")).unwrap();
+        assert_eq!(SequenceLayout::infer(d).unwrap(), SequenceLayout::Open3d);
+        std::fs::write(d.join("frame-000000.depth.png"), b"").unwrap();
+        assert_eq!(
+            SequenceLayout::infer(d).unwrap(),
+            SequenceLayout::SevenScenes
+        );
+        std::fs::write(d.join("depth.txt"), "1.0 depth/a.png\n2.0 depth/b.png\n").unwrap();
+        assert_eq!(SequenceLayout::infer(d).unwrap(), SequenceLayout::Tum);
+        let frames = read_depth_frames(d, SequenceLayout::Tum, &Limits::default()).unwrap();
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[1].timestamp, Some(2.0));
+        assert_eq!(frames[1].depth_path, d.join("depth/b.png"));
+        assert!(SequenceLayout::infer(d.join("missing")).is_err());
+    }
+
+    #[test]
+    fn layouts_parse_by_their_names() {
+        assert_eq!("tum".parse(), Ok(SequenceLayout::Tum));
+        assert_eq!("7-scenes".parse(), Ok(SequenceLayout::SevenScenes));
+        assert_eq!("o3d".parse(), Ok(SequenceLayout::Open3d));
+        let err = "bag".parse::<SequenceLayout>().unwrap_err();
+        assert!(err.contains("\"tum\", \"7scenes\" or \"open3d\""), "{err}");
     }
 }

@@ -116,3 +116,67 @@ def test_undistort_resamples_through_the_preset_lens():
     assert np.array_equal(same, z) and same is not z
     with pytest.raises(ValueError):
         sldepth.undistort(z[:100], tum)
+
+
+def _write_frames(folder, names, scale, seeds=(3, 4, 5)):
+    folder.mkdir(parents=True, exist_ok=True)
+    for name, seed in zip(names, seeds):
+        sldepth.write_depth(folder / name, sldepth.simulate("boxes", seed=seed)[0], depth_scale=scale)
+
+
+def test_read_sequence_reads_a_tum_folder_for_track_sequence(kinect, tmp_path):
+    seq = tmp_path / "tum"
+    _write_frames(seq / "depth", ["10.000000.png", "10.033000.png", "10.133000.png"], 5000)
+    (seq / "depth.txt").write_text(
+        "# depth maps\n# timestamp filename\n"
+        "10.000000 depth/10.000000.png\n10.033000 depth/10.033000.png\n10.133000 depth/10.133000.png\n"
+    )
+    paths, times = sldepth.read_sequence(seq)
+    assert [p.rsplit("/", 1)[-1] for p in paths] == ["10.000000.png", "10.033000.png", "10.133000.png"]
+    assert times.dtype == np.float64 and np.allclose(times, [10.0, 10.033, 10.133])
+    assert sldepth.read_sequence(seq, layout="tum")[0] == paths
+    # End to end, as `sldepth track --tum`: a still camera with a dropped frame.
+    poses, statuses, _ = sldepth.track_sequence(
+        paths, kinect, depth_scale=5000, timestamps_s=times, rolling_shutter_ms=0
+    )
+    assert statuses[0] == "initialised" and all(s == "tracked" for s in statuses[1:]), statuses
+    assert np.abs(poses[:, :3, 3]).max() < 0.01
+    # associations.txt wins over depth.txt when both are there (its depth columns).
+    (seq / "associations.txt").write_text(
+        "10.0 rgb/a.png 10.000000 depth/10.000000.png\n10.1 rgb/b.png 10.133000 depth/10.133000.png\n"
+    )
+    paths2, times2 = sldepth.read_sequence(seq)
+    assert len(paths2) == 2 and np.allclose(times2, [10.0, 10.133])
+    # Timestamps out of order are an error naming the file, never a reordered trajectory.
+    (seq / "associations.txt").unlink()
+    (seq / "depth.txt").write_text("10.1 depth/10.033000.png\n10.0 depth/10.000000.png\n")
+    with pytest.raises(OSError, match="depth.txt"):
+        sldepth.read_sequence(seq)
+
+
+def test_read_sequence_reads_7scenes_and_open3d_folders_in_natural_order(tmp_path):
+    seven = tmp_path / "seven"
+    _write_frames(seven, ["frame-2.depth.png", "frame-10.depth.png", "frame-9.depth.png"], 1000)
+    (seven / "frame-2.pose.txt").write_text("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    paths, times = sldepth.read_sequence(seven)
+    assert times is None
+    assert [p.rsplit("/", 1)[-1] for p in paths] == [
+        "frame-2.depth.png", "frame-9.depth.png", "frame-10.depth.png"
+    ]
+    o3d = tmp_path / "o3d"
+    _write_frames(o3d / "depth", ["1.png", "10.png", "2.png"], 1000)
+    paths, times = sldepth.read_sequence(o3d)
+    assert times is None
+    assert [p.rsplit("/", 1)[-1] for p in paths] == ["1.png", "2.png", "10.png"]
+    assert sldepth.read_sequence(o3d, layout="open3d")[0] == paths
+
+
+def test_read_sequence_errors(tmp_path):
+    with pytest.raises(OSError, match="not a folder"):
+        sldepth.read_sequence(tmp_path / "missing")
+    with pytest.raises(OSError, match="cannot tell the sequence's layout"):
+        sldepth.read_sequence(tmp_path)
+    with pytest.raises(ValueError, match='unknown sequence layout "bag": "tum", "7scenes" or "open3d"'):
+        sldepth.read_sequence(tmp_path, layout="bag")
+    with pytest.raises(OSError):
+        sldepth.read_sequence(tmp_path, layout="tum")

@@ -501,6 +501,17 @@ class Tracker:
     def extract_mesh(self, fragment: Optional[int] = None) -> Mesh:
         """The fused mesh of fragment `fragment` (None: the current one; a rejoined fragment's is in the world of the one it rejoined)."""
 
+def read_sequence(
+    path: _Path, layout: Optional[str] = None
+) -> Tuple[List[str], Optional[npt.NDArray[np.float64]]]:
+    """The depth frames of a sequence folder, in order, as `sldepth track` reads them:
+    (paths, timestamps_s), timestamps a float64 array (N,) of seconds or None where the layout
+    has none. layout: "tum" (associations.txt when present, else depth.txt; timestamps must
+    increase), "7scenes" (frame-XXXXXX.depth.png), "open3d" (depth/*.png, by name); None
+    infers it from the folder. Feed both to track_sequence(paths, camera, depth_scale=...,
+    timestamps_s=...). A missing folder, one whose layout cannot be inferred, or a malformed
+    list raises OSError; an unknown layout name ValueError."""
+
 def read_trajectory(
     path: _Path,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
