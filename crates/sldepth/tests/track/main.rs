@@ -682,3 +682,62 @@ fn track_goes_on_past_frames_noisier_than_any_sensor_model() {
     let sigma = v["prefilter_sigma_d_px_median"].as_f64().unwrap();
     assert_eq!(sigma, sl_core::sensor::MAX_SIGMA_D_PX, "{v}");
 }
+
+/// `sldepth track DIR` reads the layout from the folder: a TUM folder tracks exactly as with
+/// `--tum`, the same frames written as an Open3D-style `depth/` folder are found by name, and a
+/// folder of neither kind is an error that says what was looked for.
+#[test]
+fn track_reads_the_layout_of_a_folder_given_without_an_option() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    write_sequence(&seq, 4);
+    let (traj_opt, traj_pos) = (tmp.path().join("opt.txt"), tmp.path().join("pos.txt"));
+    let (j_opt, _) = kinect_track_json(&seq, &["--output", traj_opt.to_str().unwrap()]);
+    let (j_pos, _) = sldepth_json(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.01",
+        "--output",
+        traj_pos.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(j_pos["tracked"], j_opt["tracked"]);
+    assert_eq!(
+        std::fs::read_to_string(&traj_pos).unwrap(),
+        std::fs::read_to_string(&traj_opt).unwrap()
+    );
+    // Without depth.txt the same images are an Open3D-style folder (no timestamps; its depth
+    // scale is millimetres unless given).
+    std::fs::remove_file(seq.join("depth.txt")).unwrap();
+    let (j_o3d, _) = sldepth_json(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--camera",
+        "kinect-v1",
+        "--depth-scale",
+        "5000",
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    assert_eq!(j_o3d["tracked"], 4, "{j_o3d}");
+    let empty = tmp.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    let out = sldepth(&["track", empty.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("cannot tell the sequence's layout"),
+        "{stderr}"
+    );
+    let both = sldepth(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--tum",
+        seq.to_str().unwrap(),
+    ]);
+    assert!(!both.status.success());
+}

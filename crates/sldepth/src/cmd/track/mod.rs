@@ -58,6 +58,12 @@ use trajectory_text::Row;
 /// Options of `sldepth track`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
+    /// The sequence folder, its layout read from what it holds: a TUM folder when it has
+    /// `depth.txt` or `associations.txt` (as --tum), a 7-Scenes folder when it has
+    /// `frame-*.depth.png` (as --7scenes), an Open3D-style folder when it has a `depth` folder
+    /// (as --o3d). Or name the layout with one of those options.
+    #[arg(value_name = "DIR", group = "source")]
+    pub sequence: Option<PathBuf>,
     /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
     /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
     /// and the `tum-fr1`, `tum-fr2` or `tum-fr3` camera, whichever the folder's name says
@@ -206,7 +212,8 @@ pub struct Args {
 }
 
 /// Runs `sldepth track`.
-pub fn run(args: Args) -> Result<()> {
+pub fn run(mut args: Args) -> Result<()> {
+    source::resolve_layout(&mut args)?;
     check_args(&args)?;
     let weighting = WeightMode::parse(&args.weighting)?;
     let (mut frames, camera, default_scale) = source::load_source(&args)?;

@@ -6,10 +6,34 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use sl_core::Camera;
-use sl_io::sequence::SequenceFrame;
+use sl_io::sequence::{SequenceFrame, SequenceLayout};
 
 use super::Args;
 use crate::common::{camera_from_arg, limits};
+
+/// A sequence folder given without its layout (`sldepth track DIR`) becomes the option of the
+/// layout it holds (`--tum`, `--7scenes` or `--o3d`).
+pub(super) fn resolve_layout(args: &mut Args) -> Result<()> {
+    let Some(dir) = args.sequence.take() else {
+        return Ok(());
+    };
+    if !dir.is_dir() {
+        bail!(
+            "{}: not a folder (give a sequence folder: TUM, 7-Scenes or Open3D-style)",
+            dir.display()
+        );
+    }
+    match SequenceLayout::infer(&dir)? {
+        SequenceLayout::Tum => args.tum = Some(dir),
+        SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
+        SequenceLayout::Open3d => args.o3d = Some(dir),
+        other => bail!(
+            "{}: a {other:?} folder is not read by `sldepth track`",
+            dir.display()
+        ),
+    }
+    Ok(())
+}
 
 /// The files of the chosen source besides its depth frames, which no output may replace.
 pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
