@@ -29,15 +29,14 @@ fn sldepth_json(args: &[&str]) -> (serde_json::Value, String) {
 /// `sldepth track --tum SEQ --camera kinect-v1 --voxel-m 0.01 EXTRA --json`, which must
 /// succeed: its JSON summary and its standard error.
 fn kinect_track_json(seq: &Path, extra: &[&str]) -> (serde_json::Value, String) {
-    let mut args = vec![
-        "track",
-        "--tum",
-        seq.to_str().unwrap(),
-        "--camera",
-        "kinect-v1",
-        "--voxel-m",
-        "0.01",
-    ];
+    kinect_track_json_from(&["--tum", seq.to_str().unwrap()], extra)
+}
+
+/// [`kinect_track_json`] with the sequence given by `source` (`["--tum", DIR]`, `[DIR]`, ...).
+fn kinect_track_json_from(source: &[&str], extra: &[&str]) -> (serde_json::Value, String) {
+    let mut args = vec!["track"];
+    args.extend_from_slice(source);
+    args.extend_from_slice(&["--camera", "kinect-v1", "--voxel-m", "0.01"]);
     args.extend_from_slice(extra);
     args.push("--json");
     sldepth_json(&args)
@@ -693,17 +692,8 @@ fn track_reads_the_layout_of_a_folder_given_without_an_option() {
     write_sequence(&seq, 4);
     let (traj_opt, traj_pos) = (tmp.path().join("opt.txt"), tmp.path().join("pos.txt"));
     let (j_opt, _) = kinect_track_json(&seq, &["--output", traj_opt.to_str().unwrap()]);
-    let (j_pos, _) = sldepth_json(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--camera",
-        "kinect-v1",
-        "--voxel-m",
-        "0.01",
-        "--output",
-        traj_pos.to_str().unwrap(),
-        "--json",
-    ]);
+    let track_folder = |extra: &[&str]| kinect_track_json_from(&[seq.to_str().unwrap()], extra).0;
+    let j_pos = track_folder(&["--output", traj_pos.to_str().unwrap()]);
     assert_eq!(j_pos["tracked"], j_opt["tracked"]);
     assert_eq!(
         std::fs::read_to_string(&traj_pos).unwrap(),
@@ -712,17 +702,7 @@ fn track_reads_the_layout_of_a_folder_given_without_an_option() {
     // Without depth.txt the same images are an Open3D-style folder (no timestamps; its depth
     // scale is millimetres unless given).
     std::fs::remove_file(seq.join("depth.txt")).unwrap();
-    let (j_o3d, _) = sldepth_json(&[
-        "track",
-        seq.to_str().unwrap(),
-        "--camera",
-        "kinect-v1",
-        "--depth-scale",
-        "5000",
-        "--voxel-m",
-        "0.01",
-        "--json",
-    ]);
+    let j_o3d = track_folder(&["--depth-scale", "5000"]);
     assert_eq!(j_o3d["tracked"], 4, "{j_o3d}");
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
