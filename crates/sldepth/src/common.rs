@@ -603,6 +603,18 @@ pub fn round_to(v: f64, digits: i32) -> f64 {
     (v * p).round() / p
 }
 
+/// The layout of a sequence folder given without one (`sldepth track DIR`, `sldepth fuse DIR`):
+/// what `sl_io::sequence::SequenceLayout::infer` reads from it, or why there is none.
+pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {
+    if !dir.is_dir() {
+        bail!(
+            "{}: not a folder (give a sequence folder: TUM, 7-Scenes or Open3D-style)",
+            dir.display()
+        );
+    }
+    Ok(sl_io::sequence::SequenceLayout::infer(dir)?)
+}
+
 #[cfg(test)]
 mod tests {
     use super::{num, parse_bytes};

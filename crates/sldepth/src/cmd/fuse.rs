@@ -24,6 +24,12 @@ use crate::common::{
 /// Options of `sldepth fuse`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
+    /// The sequence folder, its layout read from what it holds: a TUM folder (`depth.txt` or
+    /// `associations.txt`, with `groundtruth.txt`) as --tum, a 7-Scenes folder
+    /// (`frame-*.depth.png` with their `.pose.txt`) as --7scenes, an Open3D-style folder (a
+    /// `depth` folder and one `.log` trajectory beside it) as --o3d-log LOG --depth-dir DIR/depth.
+    #[arg(value_name = "DIR", group = "source")]
+    pub sequence: Option<PathBuf>,
     /// Frame list: each line is a depth image path (relative to the list's directory) followed
     /// by the 16 numbers of a row-major 4x4 camera-to-world pose in metres; `#` starts a comment.
     #[arg(long, value_name = "LIST", group = "source")]
@@ -239,7 +245,44 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 /// Runs `sldepth fuse`.
-pub fn run(args: Args) -> Result<()> {
+/// A sequence folder given without its layout (`sldepth fuse DIR`) becomes the options of the
+/// layout it holds: `--tum`, `--7scenes`, or for an Open3D-style folder `--o3d-log` (its one
+/// `.log` file) with `--depth-dir DIR/depth`.
+fn resolve_layout(args: &mut Args) -> Result<()> {
+    use sl_io::sequence::SequenceLayout;
+    let Some(dir) = args.sequence.take() else {
+        return Ok(());
+    };
+    match crate::common::sequence_layout(&dir)? {
+        SequenceLayout::Tum => args.tum = Some(dir),
+        SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
+        SequenceLayout::Open3d => {
+            let logs: Vec<PathBuf> = std::fs::read_dir(&dir)
+                .with_context(|| format!("listing {}", dir.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "log"))
+                .collect();
+            let [log] = logs.as_slice() else {
+                bail!(
+                    "{}: an Open3D-style folder needs exactly one .log trajectory beside its \
+                     depth/ folder to fuse (found {}); name it with --o3d-log FILE --depth-dir DIR",
+                    dir.display(),
+                    logs.len()
+                );
+            };
+            args.o3d_log = Some(log.clone());
+            args.depth_dir = Some(dir.join("depth"));
+        }
+        other => bail!(
+            "{}: a {other:?} folder is not read by `sldepth fuse`",
+            dir.display()
+        ),
+    }
+    Ok(())
+}
+
+pub fn run(mut args: Args) -> Result<()> {
+    resolve_layout(&mut args)?;
     // Every argument is checked before any work, so that a failing command writes nothing.
     if let Some(out) = &args.output {
         check_output("--output", out, &["ply"])?;

@@ -721,3 +721,54 @@ fn track_reads_the_layout_of_a_folder_given_without_an_option() {
     ]);
     assert!(!both.status.success());
 }
+
+/// `sldepth fuse DIR` reads the layout from the folder as `track DIR` does: a TUM folder fuses
+/// as with `--tum`, and an Open3D-style folder (a `depth` folder and one `.log` beside it) as
+/// with `--o3d-log LOG --depth-dir DIR/depth`; a second `.log` makes it ambiguous, an error.
+#[test]
+fn fuse_reads_the_layout_of_a_folder_given_without_an_option() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 3);
+    let mut gt = String::from("# timestamp tx ty tz qx qy qz qw\n");
+    let mut log = String::new();
+    for (i, t) in stamps.iter().enumerate() {
+        gt.push_str(&format!("{t:.6} 0 0 0 0 0 0 1\n"));
+        log.push_str(&format!(
+            "{i} {i} {}\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+            i + 1
+        ));
+    }
+    std::fs::write(seq.join("groundtruth.txt"), gt).unwrap();
+    let fuse_json = |source: &[&str]| -> serde_json::Value {
+        let mut args = vec!["fuse"];
+        args.extend_from_slice(source);
+        args.extend_from_slice(&["--voxel-m", "0.02", "--json"]);
+        sldepth_json(&args).0
+    };
+    let dir = seq.to_str().unwrap();
+    let (by_dir, by_tum) = (fuse_json(&[dir]), fuse_json(&["--tum", dir]));
+    assert_eq!(by_dir["frames"], 3);
+    assert_eq!(by_dir["vertices"], by_tum["vertices"]);
+    // The same frames as an Open3D-style folder: no depth.txt, a trajectory log beside depth/.
+    std::fs::remove_file(seq.join("depth.txt")).unwrap();
+    std::fs::write(seq.join("trajectory.log"), &log).unwrap();
+    let depth_dir = seq.join("depth");
+    let log_path = seq.join("trajectory.log");
+    let by_log = fuse_json(&[
+        "--o3d-log",
+        log_path.to_str().unwrap(),
+        "--depth-dir",
+        depth_dir.to_str().unwrap(),
+        "--depth-scale",
+        "5000",
+    ]);
+    let by_dir = fuse_json(&[dir, "--depth-scale", "5000"]);
+    assert_eq!(by_dir["frames"], 3);
+    assert_eq!(by_dir["vertices"], by_log["vertices"]);
+    std::fs::write(seq.join("other.log"), &log).unwrap();
+    let out = sldepth(&["fuse", dir, "--depth-scale", "5000"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(stderr.contains("exactly one .log trajectory"), "{stderr}");
+}

@@ -17,13 +17,7 @@ pub(super) fn resolve_layout(args: &mut Args) -> Result<()> {
     let Some(dir) = args.sequence.take() else {
         return Ok(());
     };
-    if !dir.is_dir() {
-        bail!(
-            "{}: not a folder (give a sequence folder: TUM, 7-Scenes or Open3D-style)",
-            dir.display()
-        );
-    }
-    match SequenceLayout::infer(&dir)? {
+    match crate::common::sequence_layout(&dir)? {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
         SequenceLayout::Open3d => args.o3d = Some(dir),
