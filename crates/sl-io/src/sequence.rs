@@ -82,6 +82,57 @@ pub fn read_depth_frames(
     }
 }
 
+/// The trajectory of an Open3D-style folder: its one `.log` file (`odometry.log`,
+/// `trajectory.log`, ...) beside the `depth` folder. None, or more than one, is an error that
+/// says so.
+pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
+    let dir = dir.as_ref();
+    let mut logs = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
+        let path = entry.map_err(|e| IoError::io(dir, e))?.path();
+        if path.is_file() && path.extension().is_some_and(|e| e == "log") {
+            logs.push(path);
+        }
+    }
+    match <[PathBuf; 1]>::try_from(logs) {
+        Ok([log]) => Ok(log),
+        Err(logs) => Err(IoError::malformed(
+            dir,
+            format!(
+                "an Open3D-style folder needs exactly one .log trajectory beside its depth/ \
+                 folder for its poses (found {})",
+                logs.len()
+            ),
+        )),
+    }
+}
+
+/// The frames of a sequence folder with their poses, as `sldepth fuse DIR` reads them: a TUM
+/// folder's depth frames with the `groundtruth.txt` pose nearest in time (within `max_dt_s`;
+/// frames without one are left out), a 7-Scenes folder's `frame-*.pose.txt`, an Open3D-style
+/// folder's `.log` ([`open3d_log_of`]) with the images of its `depth` folder.
+pub fn read_posed_frames(
+    dir: impl AsRef<Path>,
+    layout: SequenceLayout,
+    max_dt_s: f64,
+    limits: &Limits,
+) -> Result<Vec<crate::trajectory::Frame>> {
+    let dir = dir.as_ref();
+    match layout {
+        SequenceLayout::Tum => {
+            Ok(crate::trajectory::read_tum_sequence_with_limits(dir, max_dt_s, limits)?.frames)
+        }
+        SequenceLayout::SevenScenes => {
+            crate::trajectory::read_7scenes_sequence_with_limits(dir, limits)
+        }
+        SequenceLayout::Open3d => crate::trajectory::read_open3d_log_frames_with_limits(
+            open3d_log_of(dir)?,
+            dir.join("depth"),
+            limits,
+        ),
+    }
+}
+
 /// One depth frame of a sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceFrame {
@@ -283,6 +334,29 @@ mod tests {
         assert_eq!(frames[1].timestamp, Some(2.0));
         assert_eq!(frames[1].depth_path, d.join("depth/b.png"));
         assert!(SequenceLayout::infer(d.join("missing")).is_err());
+    }
+
+    /// An Open3D-style folder's poses come from its one `.log`; a second one is an error.
+    #[test]
+    fn an_open3d_folder_has_one_trajectory_log() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("depth")).unwrap();
+        assert!(
+            open3d_log_of(d)
+                .unwrap_err()
+                .to_string()
+                .contains("found 0")
+        );
+        std::fs::write(d.join("odometry.log"), "").unwrap();
+        assert_eq!(open3d_log_of(d).unwrap(), d.join("odometry.log"));
+        std::fs::write(d.join("other.log"), "").unwrap();
+        assert!(
+            open3d_log_of(d)
+                .unwrap_err()
+                .to_string()
+                .contains("found 2")
+        );
     }
 
     #[test]

@@ -289,6 +289,16 @@ pub(crate) fn pose_input(obj: &Bound<'_, PyAny>) -> PyResult<sl_core::CameraToWo
     sl_core::CameraToWorld::from_row_major(&flat).map_err(value_error)
 }
 
+/// A NumPy (N, 4, 4) float64 array of poses' homogeneous matrices (`to_matrix()` of any of the
+/// typed poses), in order.
+pub(crate) fn poses_array<'py>(
+    py: Python<'py>,
+    matrices: &[sl_core::nalgebra::Matrix4<f64>],
+) -> Bound<'py, numpy::PyArray3<f64>> {
+    numpy::ndarray::Array3::from_shape_fn((matrices.len(), 4, 4), |(k, i, j)| matrices[k][(i, j)])
+        .into_pyarray(py)
+}
+
 /// A NumPy (4, 4) float64 array of a pose's homogeneous matrix (`to_matrix()` of any of the
 /// typed poses).
 pub(crate) fn pose_array<'py>(

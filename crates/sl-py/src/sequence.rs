@@ -3,15 +3,41 @@
 
 use std::path::PathBuf;
 
-use numpy::{IntoPyArray, PyArray1};
+use numpy::{IntoPyArray, PyArray1, PyArray3};
 use pyo3::prelude::*;
 use sl_io::Limits;
-use sl_io::sequence::{SequenceLayout, read_depth_frames};
+use sl_io::sequence::{SequenceLayout, read_depth_frames, read_posed_frames};
 
+use crate::arrays::poses_array;
 use crate::errors::{SlDepthIOError, io_error, value_error};
 
 /// A sequence's frame paths, and their timestamps (seconds) where the layout has them.
 type Frames<'py> = (Vec<String>, Option<Bound<'py, PyArray1<f64>>>);
+
+/// A posed sequence's frame paths, their timestamps where the layout has them, and their
+/// camera-to-world poses (N, 4, 4).
+type PosedFrames<'py> = (
+    Vec<String>,
+    Option<Bound<'py, PyArray1<f64>>>,
+    Bound<'py, PyArray3<f64>>,
+);
+
+/// The folder `path` and its layout, named or inferred.
+fn folder_layout(path: &std::path::Path, layout: Option<&str>) -> PyResult<SequenceLayout> {
+    let named = layout
+        .map(|l| l.parse::<SequenceLayout>().map_err(value_error))
+        .transpose()?;
+    if !path.is_dir() {
+        return Err(SlDepthIOError::new_err(format!(
+            "{}: not a folder (a sequence is a folder of depth images)",
+            path.display()
+        )));
+    }
+    match named {
+        Some(l) => Ok(l),
+        None => SequenceLayout::infer(path).map_err(io_error),
+    }
+}
 
 /// The depth frames of a sequence folder, in order, as ``sldepth track`` reads them:
 /// ``(paths, timestamps_s)``, a list of ``str`` and a float64 array (N,) of seconds — or
@@ -29,19 +55,7 @@ pub(crate) fn read_sequence<'py>(
     path: PathBuf,
     layout: Option<&str>,
 ) -> PyResult<Frames<'py>> {
-    let named = layout
-        .map(|l| l.parse::<SequenceLayout>().map_err(value_error))
-        .transpose()?;
-    if !path.is_dir() {
-        return Err(SlDepthIOError::new_err(format!(
-            "{}: not a folder (a sequence is a folder of depth images)",
-            path.display()
-        )));
-    }
-    let layout = match named {
-        Some(l) => l,
-        None => SequenceLayout::infer(&path).map_err(io_error)?,
-    };
+    let layout = folder_layout(&path, layout)?;
     let frames = read_depth_frames(&path, layout, &Limits::default()).map_err(io_error)?;
     let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
     let paths = frames
@@ -49,4 +63,40 @@ pub(crate) fn read_sequence<'py>(
         .map(|f| f.depth_path.to_string_lossy().into_owned())
         .collect();
     Ok((paths, times.map(|t| t.into_pyarray(py))))
+}
+
+/// The frames of a sequence folder with their poses, as ``sldepth fuse DIR`` reads them:
+/// ``(paths, timestamps_s, poses)``, ``poses`` a float64 array (N, 4, 4) of camera-to-world
+/// matrices. ``layout`` as for ``read_sequence``: a TUM folder's frames get the
+/// ``groundtruth.txt`` pose nearest in time (within ``max_dt_s`` seconds; frames without one are
+/// left out), a 7-Scenes folder's its ``frame-*.pose.txt``, an Open3D-style folder's come from
+/// its one ``.log`` beside ``depth/`` (none or several raise ``OSError``). Then
+/// ``for p, T in zip(paths, poses): volume.integrate(read_depth(p, depth_scale), camera, T)``.
+#[pyfunction]
+#[pyo3(signature = (path, layout = None, *, max_dt_s = 0.02))]
+pub(crate) fn read_posed_sequence<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    layout: Option<&str>,
+    max_dt_s: f64,
+) -> PyResult<PosedFrames<'py>> {
+    if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
+        return Err(value_error(format!(
+            "max_dt_s must be a positive number of seconds, got {max_dt_s}"
+        )));
+    }
+    let layout = folder_layout(&path, layout)?;
+    let frames =
+        read_posed_frames(&path, layout, max_dt_s, &Limits::default()).map_err(io_error)?;
+    let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
+    let matrices: Vec<_> = frames.iter().map(|f| f.pose.to_matrix()).collect();
+    let paths = frames
+        .into_iter()
+        .map(|f| f.depth_path.to_string_lossy().into_owned())
+        .collect();
+    Ok((
+        paths,
+        times.map(|t| t.into_pyarray(py)),
+        poses_array(py, &matrices),
+    ))
 }

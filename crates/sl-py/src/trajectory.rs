@@ -2,7 +2,6 @@
 //! ground truth with the TUM benchmark's definitions (`sl_eval::trajectory`), as `sldepth
 //! eval-traj` reports it.
 
-use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray1, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -12,7 +11,7 @@ use sl_eval::trajectory::{
 };
 use sl_io::trajectory::TimedPose;
 
-use crate::arrays::pose_input;
+use crate::arrays::{pose_input, poses_array};
 use crate::errors::{io_error, value_error};
 
 /// Timestamps (N,) and poses (N, 4, 4) as NumPy arrays.
@@ -28,16 +27,8 @@ pub(crate) fn read_trajectory<'py>(
 ) -> PyResult<Trajectory<'py>> {
     let poses = sl_io::trajectory::read_tum_trajectory(&path).map_err(io_error)?;
     let times: Vec<f64> = poses.iter().map(|p| p.timestamp).collect();
-    let mut m = Array3::<f64>::zeros((poses.len(), 4, 4));
-    for (i, p) in poses.iter().enumerate() {
-        let h = p.pose.to_matrix();
-        for r in 0..4 {
-            for c in 0..4 {
-                m[(i, r, c)] = h[(r, c)];
-            }
-        }
-    }
-    Ok((times.into_pyarray(py), m.into_pyarray(py)))
+    let matrices: Vec<_> = poses.iter().map(|p| p.pose.to_matrix()).collect();
+    Ok((times.into_pyarray(py), poses_array(py, &matrices)))
 }
 
 /// Timestamps and poses from Python: one finite timestamp per (4, 4) camera-to-world pose.

@@ -180,3 +180,38 @@ def test_read_sequence_errors(tmp_path):
         sldepth.read_sequence(tmp_path, layout="bag")
     with pytest.raises(OSError):
         sldepth.read_sequence(tmp_path, layout="tum")
+
+
+def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_path):
+    # A TUM folder: each frame takes the ground-truth pose nearest in time, within max_dt_s.
+    seq = tmp_path / "tum"
+    _write_frames(seq / "depth", ["10.000000.png", "10.033000.png", "10.066000.png"], 5000)
+    (seq / "depth.txt").write_text(
+        "10.000000 depth/10.000000.png\n10.033000 depth/10.033000.png\n10.066000 depth/10.066000.png\n"
+    )
+    (seq / "groundtruth.txt").write_text(
+        "# timestamp tx ty tz qx qy qz qw\n10.005 0 0 0 0 0 0 1\n10.038 0.5 0 0 0 0 0 1\n"
+    )
+    paths, times, poses = sldepth.read_posed_sequence(seq)
+    assert len(paths) == 2 and np.allclose(times, [10.0, 10.033])
+    assert poses.shape == (2, 4, 4) and poses.dtype == np.float64
+    assert np.allclose(poses[1][:3, 3], [0.5, 0, 0]) and np.allclose(poses[0], np.eye(4))
+    assert len(sldepth.read_posed_sequence(seq, max_dt_s=0.001)[0]) == 0
+    with pytest.raises(ValueError, match="max_dt_s"):
+        sldepth.read_posed_sequence(seq, max_dt_s=0.0)
+    # The frames fuse as `sldepth fuse DIR` would.
+    vol = sldepth.TsdfVolume(voxel_m=0.02)
+    for p, T in zip(paths, poses):
+        vol.integrate(sldepth.read_depth(p, depth_scale=5000), kinect, T)
+    assert len(vol.extract_mesh()) > 1000
+    # An Open3D-style folder: its one .log beside depth/; a second one is ambiguous.
+    o3d = tmp_path / "o3d"
+    _write_frames(o3d / "depth", ["0.png", "1.png"], 1000)
+    (o3d / "odometry.log").write_text(
+        "".join(f"{i} {i} {i + 1}\n1 0 0 0\n0 1 0 {0.1 * i}\n0 0 1 0\n0 0 0 1\n" for i in range(2))
+    )
+    paths, times, poses = sldepth.read_posed_sequence(o3d)
+    assert times is None and len(paths) == 2 and np.isclose(poses[1][1, 3], 0.1)
+    (o3d / "other.log").write_text("")
+    with pytest.raises(OSError, match="exactly one .log"):
+        sldepth.read_posed_sequence(o3d)

@@ -512,6 +512,15 @@ def read_sequence(
     timestamps_s=...). A missing folder, one whose layout cannot be inferred, or a malformed
     list raises OSError; an unknown layout name ValueError."""
 
+def read_posed_sequence(
+    path: _Path, layout: Optional[str] = None, *, max_dt_s: float = 0.02
+) -> Tuple[List[str], Optional[npt.NDArray[np.float64]], npt.NDArray[np.float64]]:
+    """The frames of a sequence folder with their poses, as `sldepth fuse DIR` reads them:
+    (paths, timestamps_s, poses), poses a float64 array (N, 4, 4) camera-to-world. A TUM
+    folder's frames get the groundtruth.txt pose nearest in time (within max_dt_s seconds;
+    frames without one are left out), a 7-Scenes folder's its frame-*.pose.txt, an Open3D-style
+    folder's its one .log beside depth/ (none or several: OSError). layout as read_sequence."""
+
 def read_trajectory(
     path: _Path,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:

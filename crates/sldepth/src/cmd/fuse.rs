@@ -257,20 +257,9 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
         SequenceLayout::Open3d => {
-            let logs: Vec<PathBuf> = std::fs::read_dir(&dir)
-                .with_context(|| format!("listing {}", dir.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.is_file() && p.extension().is_some_and(|e| e == "log"))
-                .collect();
-            let [log] = logs.as_slice() else {
-                bail!(
-                    "{}: an Open3D-style folder needs exactly one .log trajectory beside its \
-                     depth/ folder to fuse (found {}); name it with --o3d-log FILE --depth-dir DIR",
-                    dir.display(),
-                    logs.len()
-                );
-            };
-            args.o3d_log = Some(log.clone());
+            let log = sl_io::sequence::open3d_log_of(&dir)
+                .context("name the trajectory with --o3d-log FILE --depth-dir DIR")?;
+            args.o3d_log = Some(log);
             args.depth_dir = Some(dir.join("depth"));
         }
         other => bail!(
