@@ -5,6 +5,8 @@
 
 use std::path::{Path, PathBuf};
 
+use sl_core::Camera;
+
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 use crate::text::read_text;
@@ -131,6 +133,67 @@ pub fn read_posed_frames(
             limits,
         ),
     }
+}
+
+/// The TUM camera preset a TUM folder's name implies: `tum-fr2` or `tum-fr3` when its path
+/// names `freiburg2` or `freiburg3`, else `tum-fr1` (TUM's sequence folders are named
+/// `rgbd_dataset_freiburgN_...`).
+pub fn tum_preset_name(dir: impl AsRef<Path>) -> &'static str {
+    let dir = dir.as_ref();
+    let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let names = full.to_string_lossy().to_ascii_lowercase();
+    if names.contains("freiburg2") {
+        "tum-fr2"
+    } else if names.contains("freiburg3") {
+        "tum-fr3"
+    } else {
+        "tum-fr1"
+    }
+}
+
+/// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`,
+/// an Open3D-style folder's `camera.json`; `None` for TUM (its camera is a preset).
+pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<PathBuf> {
+    match layout {
+        SequenceLayout::Tum => None,
+        SequenceLayout::SevenScenes => Some(dir.as_ref().join("camera-intrinsics.txt")),
+        SequenceLayout::Open3d => Some(dir.as_ref().join("camera.json")),
+    }
+}
+
+/// The camera a sequence folder implies, as `sldepth track DIR` and `sldepth fuse DIR` use it
+/// when none is given, and the preset it is when it is one: the folder's camera file
+/// ([`camera_file_of`]) when it has one (a path there that is not a regular file is an error),
+/// else the layout's preset — TUM the one its name implies ([`tum_preset_name`], with the
+/// lens model and rolling shutter of TUM's Kinects), 7-Scenes `7-scenes`, Open3D `kinect-v1`.
+pub fn sequence_camera(
+    dir: impl AsRef<Path>,
+    layout: SequenceLayout,
+    limits: &Limits,
+) -> Result<(Camera, Option<&'static str>)> {
+    let dir = dir.as_ref();
+    if let Some(file) = camera_file_of(dir, layout)
+        && let Ok(m) = std::fs::metadata(&file)
+    {
+        if !m.is_file() {
+            return Err(IoError::malformed(
+                &file,
+                "exists but is not a regular file (a camera file was expected)",
+            ));
+        }
+        let camera = match layout {
+            SequenceLayout::Open3d => crate::camera::read_camera_json_with_limits(&file, limits)?,
+            _ => crate::camera::read_camera(&file)?,
+        };
+        return Ok((camera, None));
+    }
+    let preset = match layout {
+        SequenceLayout::Tum => tum_preset_name(dir),
+        SequenceLayout::SevenScenes => "7-scenes",
+        SequenceLayout::Open3d => "kinect-v1",
+    };
+    let camera = Camera::preset(preset).map_err(|e| IoError::core(dir, None, e))?;
+    Ok((camera, Some(preset)))
 }
 
 /// One depth frame of a sequence.
@@ -357,6 +420,35 @@ mod tests {
                 .to_string()
                 .contains("found 2")
         );
+    }
+
+    /// A folder's camera: its camera file when it has one, else the layout's preset (TUM's by
+    /// the folder's name).
+    #[test]
+    fn a_sequence_folder_implies_its_camera() {
+        let dir = tempfile::tempdir().unwrap();
+        let lim = Limits::default();
+        let fr3 = dir.path().join("rgbd_dataset_freiburg3_office");
+        std::fs::create_dir(&fr3).unwrap();
+        let (cam, preset) = sequence_camera(&fr3, SequenceLayout::Tum, &lim).unwrap();
+        assert_eq!(preset, Some("tum-fr3"));
+        assert_eq!(cam, Camera::preset("tum-fr3").unwrap());
+        assert_eq!(tum_preset_name(dir.path()), "tum-fr1");
+        let seven = dir.path().join("seven");
+        std::fs::create_dir(&seven).unwrap();
+        let (_, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
+        assert_eq!(preset, Some("7-scenes"));
+        std::fs::write(
+            seven.join("camera-intrinsics.txt"),
+            "500 0 320\n0 500 240\n0 0 1\n",
+        )
+        .unwrap();
+        let (cam, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
+        assert_eq!((preset, cam.intrinsics.fx), (None, 500.0));
+        let o3d = dir.path().join("o3d");
+        std::fs::create_dir_all(o3d.join("camera.json")).unwrap();
+        let err = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap_err();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
     }
 
     #[test]

@@ -42,6 +42,16 @@ fn check_size(camera: Camera) -> PyResult<Camera> {
 }
 
 impl PyCamera {
+    /// `camera` as Python sees it: with the preset's lens model when it is the preset `preset`.
+    pub(crate) fn wrap(camera: Camera, preset: Option<&str>) -> PyResult<Self> {
+        let found = preset.map(preset::find).transpose().map_err(value_error)?;
+        Ok(Self {
+            inner: check_size(camera)?,
+            lens: found.and_then(|p| p.lens),
+            preset_name: found.map(|p| p.name.to_owned()),
+        })
+    }
+
     /// The preset's rolling-shutter readout, seconds (0 for explicit intrinsics).
     pub(crate) fn rolling_shutter_readout_s(&self) -> f64 {
         self.preset_name

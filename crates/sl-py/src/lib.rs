@@ -61,6 +61,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(noise_stats::noise_stats, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::read_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::read_posed_sequence, m)?)?;
+    m.add_function(wrap_pyfunction!(sequence::sequence_camera, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::read_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::write_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::evaluate_trajectory, m)?)?;

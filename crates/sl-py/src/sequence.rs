@@ -1,5 +1,7 @@
-//! Depth sequences on disk: `read_sequence`, the frames `sldepth track --tum / --7scenes /
-//! --o3d` reads, for `track_sequence`.
+//! Depth sequences on disk: `read_sequence`, the frames `sldepth track DIR` reads (for
+//! `track_sequence`), `read_posed_sequence`, the frames and poses `sldepth fuse DIR` reads, and
+//! `sequence_camera`, the camera both use for the folder.
+//! The folders are listed and read with the GIL released, as every computation.
 
 use std::path::PathBuf;
 
@@ -9,7 +11,9 @@ use sl_io::Limits;
 use sl_io::sequence::{SequenceLayout, read_depth_frames, read_posed_frames};
 
 use crate::arrays::poses_array;
+use crate::camera::PyCamera;
 use crate::errors::{SlDepthIOError, io_error, value_error};
+use crate::threads::compute;
 
 /// A sequence's frame paths, and their timestamps (seconds) where the layout has them.
 type Frames<'py> = (Vec<String>, Option<Bound<'py, PyArray1<f64>>>);
@@ -23,7 +27,11 @@ type PosedFrames<'py> = (
 );
 
 /// The folder `path` and its layout, named or inferred.
-fn folder_layout(path: &std::path::Path, layout: Option<&str>) -> PyResult<SequenceLayout> {
+fn folder_layout(
+    py: Python<'_>,
+    path: &std::path::Path,
+    layout: Option<&str>,
+) -> PyResult<SequenceLayout> {
     let named = layout
         .map(|l| l.parse::<SequenceLayout>().map_err(value_error))
         .transpose()?;
@@ -35,7 +43,7 @@ fn folder_layout(path: &std::path::Path, layout: Option<&str>) -> PyResult<Seque
     }
     match named {
         Some(l) => Ok(l),
-        None => SequenceLayout::infer(path).map_err(io_error),
+        None => compute(py, || SequenceLayout::infer(path)).map_err(io_error),
     }
 }
 
@@ -55,8 +63,9 @@ pub(crate) fn read_sequence<'py>(
     path: PathBuf,
     layout: Option<&str>,
 ) -> PyResult<Frames<'py>> {
-    let layout = folder_layout(&path, layout)?;
-    let frames = read_depth_frames(&path, layout, &Limits::default()).map_err(io_error)?;
+    let layout = folder_layout(py, &path, layout)?;
+    let frames =
+        compute(py, || read_depth_frames(&path, layout, &Limits::default())).map_err(io_error)?;
     let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
     let paths = frames
         .into_iter()
@@ -69,8 +78,8 @@ pub(crate) fn read_sequence<'py>(
 /// ``(paths, timestamps_s, poses)``, ``poses`` a float64 array (N, 4, 4) of camera-to-world
 /// matrices. ``layout`` as for ``read_sequence``: a TUM folder's frames get the
 /// ``groundtruth.txt`` pose nearest in time (within ``max_dt_s`` seconds; frames without one are
-/// left out), a 7-Scenes folder's its ``frame-*.pose.txt``, an Open3D-style folder's come from
-/// its one ``.log`` beside ``depth/`` (none or several raise ``OSError``). Then
+/// left out), a 7-Scenes folder's frames their ``frame-*.pose.txt``, an Open3D-style folder's
+/// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``). Then
 /// ``for p, T in zip(paths, poses): volume.integrate(read_depth(p, depth_scale), camera, T)``.
 #[pyfunction]
 #[pyo3(signature = (path, layout = None, *, max_dt_s = 0.02))]
@@ -85,9 +94,11 @@ pub(crate) fn read_posed_sequence<'py>(
             "max_dt_s must be a positive number of seconds, got {max_dt_s}"
         )));
     }
-    let layout = folder_layout(&path, layout)?;
-    let frames =
-        read_posed_frames(&path, layout, max_dt_s, &Limits::default()).map_err(io_error)?;
+    let layout = folder_layout(py, &path, layout)?;
+    let frames = compute(py, || {
+        read_posed_frames(&path, layout, max_dt_s, &Limits::default())
+    })
+    .map_err(io_error)?;
     let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
     let matrices: Vec<_> = frames.iter().map(|f| f.pose.to_matrix()).collect();
     let paths = frames
@@ -99,4 +110,25 @@ pub(crate) fn read_posed_sequence<'py>(
         times.map(|t| t.into_pyarray(py)),
         poses_array(py, &matrices),
     ))
+}
+
+/// The camera a sequence folder implies, as ``sldepth track DIR`` and ``sldepth fuse DIR`` use
+/// it when none is given: the folder's camera file when it has one (7-Scenes'
+/// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``), else the layout's preset — a
+/// TUM folder the ``tum-fr1``, ``tum-fr2`` or ``tum-fr3`` preset its name says (fr1 when it names
+/// none; with that Kinect's lens model and rolling shutter), 7-Scenes ``7-scenes``, Open3D
+/// ``kinect-v1``. ``layout`` as for ``read_sequence``.
+#[pyfunction]
+#[pyo3(signature = (path, layout = None))]
+pub(crate) fn sequence_camera(
+    py: Python<'_>,
+    path: PathBuf,
+    layout: Option<&str>,
+) -> PyResult<PyCamera> {
+    let layout = folder_layout(py, &path, layout)?;
+    let (camera, preset) = compute(py, || {
+        sl_io::sequence::sequence_camera(&path, layout, &Limits::default())
+    })
+    .map_err(io_error)?;
+    PyCamera::wrap(camera, preset)
 }

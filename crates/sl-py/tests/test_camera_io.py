@@ -215,3 +215,23 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
     (o3d / "other.log").write_text("")
     with pytest.raises(OSError, match="exactly one .log"):
         sldepth.read_posed_sequence(o3d)
+
+
+def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
+    fr2 = tmp_path / "rgbd_dataset_freiburg2_xyz"
+    _write_frames(fr2 / "depth", ["1.000000.png"], 5000, seeds=(3,))
+    (fr2 / "depth.txt").write_text("1.000000 depth/1.000000.png\n")
+    cam = sldepth.sequence_camera(fr2)
+    assert cam.preset_name == "tum-fr2" and cam.lens is not None and cam.rolling_shutter_ms > 0
+    seven = tmp_path / "seven"
+    _write_frames(seven, ["frame-000000.depth.png"], 1000, seeds=(3,))
+    assert sldepth.sequence_camera(seven).preset_name == "7-scenes"
+    (seven / "camera-intrinsics.txt").write_text("500 0 320\n0 500 240\n0 0 1\n")
+    cam = sldepth.sequence_camera(seven)
+    assert cam.preset_name is None and cam.fx == 500.0
+    o3d = tmp_path / "o3d"
+    _write_frames(o3d / "depth", ["0.png"], 1000, seeds=(3,))
+    assert sldepth.sequence_camera(o3d).preset_name == "kinect-v1"
+    (o3d / "camera.json").mkdir()
+    with pytest.raises(OSError, match="not a regular file"):
+        sldepth.sequence_camera(o3d)

@@ -381,15 +381,7 @@ pub fn undistorter(
 /// The TUM preset a folder's name implies: `tum-fr2` / `tum-fr3` when its path says
 /// `freiburg2` / `freiburg3`, else `tum-fr1`.
 pub fn tum_preset(dir: &Path) -> &'static str {
-    let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let names = full.to_string_lossy().to_ascii_lowercase();
-    if names.contains("freiburg2") {
-        "tum-fr2"
-    } else if names.contains("freiburg3") {
-        "tum-fr3"
-    } else {
-        "tum-fr1"
-    }
+    sl_io::sequence::tum_preset_name(dir)
 }
 
 /// Refuses a path that exists but is not a regular file (a directory, device, FIFO, socket or

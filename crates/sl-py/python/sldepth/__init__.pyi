@@ -521,6 +521,13 @@ def read_posed_sequence(
     frames without one are left out), a 7-Scenes folder's its frame-*.pose.txt, an Open3D-style
     folder's its one .log beside depth/ (none or several: OSError). layout as read_sequence."""
 
+def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
+    """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it
+    when none is given: its camera file (7-Scenes camera-intrinsics.txt, an Open3D folder's
+    camera.json) when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
+    or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter), 7-Scenes
+    "7-scenes", Open3D "kinect-v1". layout as read_sequence."""
+
 def read_trajectory(
     path: _Path,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:

@@ -2,7 +2,7 @@
 //! the other files of the source (which no output may replace) and the camera preset the
 //! source implies.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use sl_core::Camera;
@@ -42,27 +42,18 @@ pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
 /// The frames, the camera and the default depth scale of the chosen source.
 pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     let lim = limits();
-    let camera = |default_preset: &str, file: Option<PathBuf>| -> Result<Camera> {
+    // The camera: `--camera`, else the folder's camera file or its layout's preset (as Python's
+    // `sequence_camera`).
+    let camera = |dir: &Path, layout: SequenceLayout| -> Result<Camera> {
         if let Some(c) = &args.input.camera {
             return camera_from_arg(c);
         }
-        if let Some(p) = &file {
-            crate::common::refuse_non_file("camera file", p)?;
+        if let Some(p) = sl_io::sequence::camera_file_of(dir, layout) {
+            crate::common::refuse_non_file("camera file", &p)?;
         }
-        match file {
-            Some(p) if p.is_file() => {
-                let is_json = p
-                    .extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-                if is_json {
-                    sl_io::camera::read_camera_json_with_limits(&p, &lim)
-                } else {
-                    sl_io::camera::read_camera(&p)
-                }
-                .with_context(|| format!("reading camera {}", p.display()))
-            }
-            _ => Ok(Camera::preset(default_preset)?),
-        }
+        let (camera, _) = sl_io::sequence::sequence_camera(dir, layout, &lim)
+            .with_context(|| format!("reading the camera of {}", dir.display()))?;
+        Ok(camera)
     };
     // A folder without a frame: an error naming the folder and what was looked for in it.
     if let Some(dir) = &args.tum {
@@ -90,11 +81,7 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
                 dir.display()
             );
         }
-        Ok((
-            frames,
-            camera("7-scenes", Some(dir.join("camera-intrinsics.txt")))?,
-            1000.0,
-        ))
+        Ok((frames, camera(dir, SequenceLayout::SevenScenes)?, 1000.0))
     } else if let Some(dir) = &args.o3d {
         let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
         if frames.is_empty() {
@@ -105,11 +92,7 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
                 if sub.is_dir() { sub } else { dir.clone() }.display()
             );
         }
-        Ok((
-            frames,
-            camera("kinect-v1", Some(dir.join("camera.json")))?,
-            1000.0,
-        ))
+        Ok((frames, camera(dir, SequenceLayout::Open3d)?, 1000.0))
     } else {
         bail!("give the sequence with --tum DIR, --7scenes DIR or --o3d DIR")
     }
