@@ -595,6 +595,25 @@ pub fn round_to(v: f64, digits: i32) -> f64 {
     (v * p).round() / p
 }
 
+/// The camera of the sequence folder `dir` in `layout`: `--camera` when given, else the
+/// folder's camera file or its layout's preset (`sl_io::sequence::sequence_camera`, the rule
+/// Python's `sequence_camera` gives too). A camera file that is not a regular file is an error.
+pub fn folder_camera(
+    args: &InputArgs,
+    dir: &Path,
+    layout: sl_io::sequence::SequenceLayout,
+) -> Result<Camera> {
+    if args.camera.is_some() {
+        return load_camera(args);
+    }
+    if let Some(p) = sl_io::sequence::camera_file_of(dir, layout) {
+        refuse_non_file("camera file", &p)?;
+    }
+    let (camera, _) = sl_io::sequence::sequence_camera(dir, layout, &limits())
+        .with_context(|| format!("reading the camera of {}", dir.display()))?;
+    Ok(camera)
+}
+
 /// The layout of a sequence folder given without one (`sldepth track DIR`, `sldepth fuse DIR`):
 /// what `sl_io::sequence::SequenceLayout::infer` reads from it, or why there is none.
 pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {

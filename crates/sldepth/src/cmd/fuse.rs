@@ -2,7 +2,7 @@
 //! TSDF with the 1/Z⁴ noise weights, then marching cubes.
 
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
@@ -10,6 +10,7 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use sl_core::{Camera, CameraToWorld, DepthImage};
 use sl_filter::Prefilter;
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
+use sl_io::sequence::SequenceLayout;
 use sl_io::trajectory::Frame;
 use sl_tsdf::{
     Axis, DepthLookup, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfError, TsdfVolume,
@@ -167,29 +168,9 @@ fn source_files(args: &Args) -> Vec<PathBuf> {
 
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
-    let camera_or = |default: Option<PathBuf>| -> Result<Camera> {
-        if let (None, Some(p)) = (&args.input.camera, &default) {
-            crate::common::refuse_non_file("camera file", p)?;
-        }
-        match (&args.input.camera, default) {
-            (Some(_), _) => load_camera(&args.input),
-            (None, Some(p)) if p.is_file() => {
-                let is_json = p
-                    .extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("json"));
-                if is_json {
-                    sl_io::camera::read_camera_json_with_limits(&p, &limits())
-                } else {
-                    sl_io::camera::read_camera(&p)
-                }
-                .with_context(|| format!("reading camera {}", p.display()))
-            }
-            _ => load_camera(&args.input),
-        }
-    };
     if let Some(list) = &args.frames {
         let frames = sl_io::trajectory::read_frame_list(list, &limits())?;
-        Ok((frames, camera_or(None)?, None))
+        Ok((frames, load_camera(&args.input)?, None))
     } else if let Some(dir) = &args.tum {
         let seq = sl_io::trajectory::read_tum_sequence_with_limits(
             dir,
@@ -210,7 +191,12 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         };
         let frames =
             sl_io::trajectory::read_open3d_log_frames_with_limits(log, depth_dir, &limits())?;
-        let cam = camera_or(log.parent().map(|d| d.join("camera.json")))?;
+        // The camera of the folder the log lies in, as an Open3D-style folder's.
+        let cam = crate::common::folder_camera(
+            &args.input,
+            log.parent().unwrap_or(Path::new(".")),
+            SequenceLayout::Open3d,
+        )?;
         Ok((frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::trajectory::read_7scenes_sequence_with_limits(dir, &limits())?;
@@ -222,7 +208,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
                 depth_frames - frames.len()
             );
         }
-        let cam = camera_or(Some(dir.join("camera-intrinsics.txt")))?;
+        let cam = crate::common::folder_camera(&args.input, dir, SequenceLayout::SevenScenes)?;
         Ok((frames, cam, None))
     } else {
         bail!(
@@ -249,7 +235,6 @@ fn median(v: &mut [f64]) -> f64 {
 /// layout it holds: `--tum`, `--7scenes`, or for an Open3D-style folder `--o3d-log` (its one
 /// `.log` file) with `--depth-dir DIR/depth`.
 fn resolve_layout(args: &mut Args) -> Result<()> {
-    use sl_io::sequence::SequenceLayout;
     let Some(dir) = args.sequence.take() else {
         return Ok(());
     };

@@ -4,12 +4,12 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 use sl_core::Camera;
 use sl_io::sequence::{SequenceFrame, SequenceLayout};
 
 use super::Args;
-use crate::common::{camera_from_arg, limits};
+use crate::common::limits;
 
 /// A sequence folder given without its layout (`sldepth track DIR`) becomes the option of the
 /// layout it holds (`--tum`, `--7scenes` or `--o3d`).
@@ -42,19 +42,7 @@ pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
 /// The frames, the camera and the default depth scale of the chosen source.
 pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     let lim = limits();
-    // The camera: `--camera`, else the folder's camera file or its layout's preset (as Python's
-    // `sequence_camera`).
-    let camera = |dir: &Path, layout: SequenceLayout| -> Result<Camera> {
-        if let Some(c) = &args.input.camera {
-            return camera_from_arg(c);
-        }
-        if let Some(p) = sl_io::sequence::camera_file_of(dir, layout) {
-            crate::common::refuse_non_file("camera file", &p)?;
-        }
-        let (camera, _) = sl_io::sequence::sequence_camera(dir, layout, &lim)
-            .with_context(|| format!("reading the camera of {}", dir.display()))?;
-        Ok(camera)
-    };
+    let camera = |dir: &Path, layout| crate::common::folder_camera(&args.input, dir, layout);
     // A folder without a frame: an error naming the folder and what was looked for in it.
     if let Some(dir) = &args.tum {
         let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
