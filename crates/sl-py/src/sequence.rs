@@ -26,6 +26,18 @@ type PosedFrames<'py> = (
     Bound<'py, PyArray3<f64>>,
 );
 
+/// The frames' paths as strings, and their timestamps when every frame has one.
+fn paths_and_times<'py>(
+    py: Python<'py>,
+    frames: impl Iterator<Item = (PathBuf, Option<f64>)>,
+) -> Frames<'py> {
+    let (paths, times): (Vec<String>, Vec<Option<f64>>) = frames
+        .map(|(p, t)| (p.to_string_lossy().into_owned(), t))
+        .unzip();
+    let times: Option<Vec<f64>> = times.into_iter().collect();
+    (paths, times.map(|t| t.into_pyarray(py)))
+}
+
 /// The folder `path` and its layout, named or inferred.
 fn folder_layout(
     py: Python<'_>,
@@ -66,12 +78,10 @@ pub(crate) fn read_sequence<'py>(
     let layout = folder_layout(py, &path, layout)?;
     let frames =
         compute(py, || read_depth_frames(&path, layout, &Limits::default())).map_err(io_error)?;
-    let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
-    let paths = frames
-        .into_iter()
-        .map(|f| f.depth_path.to_string_lossy().into_owned())
-        .collect();
-    Ok((paths, times.map(|t| t.into_pyarray(py))))
+    Ok(paths_and_times(
+        py,
+        frames.into_iter().map(|f| (f.depth_path, f.timestamp)),
+    ))
 }
 
 /// The frames of a sequence folder with their poses, as ``sldepth fuse DIR`` reads them:
@@ -99,17 +109,10 @@ pub(crate) fn read_posed_sequence<'py>(
         read_posed_frames(&path, layout, max_dt_s, &Limits::default())
     })
     .map_err(io_error)?;
-    let times: Option<Vec<f64>> = frames.iter().map(|f| f.timestamp).collect();
     let matrices: Vec<_> = frames.iter().map(|f| f.pose.to_matrix()).collect();
-    let paths = frames
-        .into_iter()
-        .map(|f| f.depth_path.to_string_lossy().into_owned())
-        .collect();
-    Ok((
-        paths,
-        times.map(|t| t.into_pyarray(py)),
-        poses_array(py, &matrices),
-    ))
+    let (paths, times) =
+        paths_and_times(py, frames.into_iter().map(|f| (f.depth_path, f.timestamp)));
+    Ok((paths, times, poses_array(py, &matrices)))
 }
 
 /// The camera a sequence folder implies, as ``sldepth track DIR`` and ``sldepth fuse DIR`` use

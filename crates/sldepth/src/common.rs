@@ -327,7 +327,7 @@ pub fn tum_camera(dir: &Path, args: &InputArgs) -> Result<Camera> {
     if args.camera.is_some() {
         return load_camera(args);
     }
-    let preset = tum_preset(dir);
+    let preset = sl_io::sequence::tum_preset_name(dir);
     errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
     Ok(Camera::preset(preset)?)
 }
@@ -376,12 +376,6 @@ pub fn undistorter(
         "note: undistorting the depth with the `{name}` lens model (--lens none keeps it as it is)"
     );
     Some(sl_core::Undistorter::new(&camera.intrinsics, &model))
-}
-
-/// The TUM preset a folder's name implies: `tum-fr2` / `tum-fr3` when its path says
-/// `freiburg2` / `freiburg3`, else `tum-fr1`.
-pub fn tum_preset(dir: &Path) -> &'static str {
-    sl_io::sequence::tum_preset_name(dir)
 }
 
 /// Refuses a path that exists but is not a regular file (a directory, device, FIFO, socket or

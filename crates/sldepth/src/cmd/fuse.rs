@@ -230,7 +230,6 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Runs `sldepth fuse`.
 /// A sequence folder given without its layout (`sldepth fuse DIR`) becomes the options of the
 /// layout it holds: `--tum`, `--7scenes`, or for an Open3D-style folder `--o3d-log` (its one
 /// `.log` file) with `--depth-dir DIR/depth`.
@@ -255,6 +254,7 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
     Ok(())
 }
 
+/// Runs `sldepth fuse`.
 pub fn run(mut args: Args) -> Result<()> {
     resolve_layout(&mut args)?;
     // Every argument is checked before any work, so that a failing command writes nothing.
@@ -342,7 +342,7 @@ pub fn run(mut args: Args) -> Result<()> {
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     // After the size check: the map holds one index per pixel.
-    let implied = args.tum.as_deref().map(crate::common::tum_preset);
+    let implied = args.tum.as_deref().map(sl_io::sequence::tum_preset_name);
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;

@@ -2,14 +2,14 @@
 //! the other files of the source (which no output may replace) and the camera preset the
 //! source implies.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use sl_core::Camera;
 use sl_io::sequence::{SequenceFrame, SequenceLayout};
 
 use super::Args;
-use crate::common::limits;
+use crate::common::{folder_camera, limits};
 
 /// A sequence folder given without its layout (`sldepth track DIR`) becomes the option of the
 /// layout it holds (`--tum`, `--7scenes` or `--o3d`).
@@ -42,7 +42,6 @@ pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
 /// The frames, the camera and the default depth scale of the chosen source.
 pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f64)> {
     let lim = limits();
-    let camera = |dir: &Path, layout| crate::common::folder_camera(&args.input, dir, layout);
     // A folder without a frame: an error naming the folder and what was looked for in it.
     if let Some(dir) = &args.tum {
         let frames = sl_io::sequence::read_tum_depth_frames(dir, &lim)?;
@@ -69,7 +68,8 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
                 dir.display()
             );
         }
-        Ok((frames, camera(dir, SequenceLayout::SevenScenes)?, 1000.0))
+        let camera = folder_camera(&args.input, dir, SequenceLayout::SevenScenes)?;
+        Ok((frames, camera, 1000.0))
     } else if let Some(dir) = &args.o3d {
         let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
         if frames.is_empty() {
@@ -80,7 +80,8 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
                 if sub.is_dir() { sub } else { dir.clone() }.display()
             );
         }
-        Ok((frames, camera(dir, SequenceLayout::Open3d)?, 1000.0))
+        let camera = folder_camera(&args.input, dir, SequenceLayout::Open3d)?;
+        Ok((frames, camera, 1000.0))
     } else {
         bail!("give the sequence with --tum DIR, --7scenes DIR or --o3d DIR")
     }
@@ -90,7 +91,7 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
 /// the `kinect-v1` default of an Open3D folder without `camera.json`.
 pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
     if let Some(dir) = &args.tum {
-        Some(crate::common::tum_preset(dir))
+        Some(sl_io::sequence::tum_preset_name(dir))
     } else if args.seven_scenes.is_some() {
         Some("7-scenes")
     } else {
