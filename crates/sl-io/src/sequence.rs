@@ -161,11 +161,28 @@ pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<P
     }
 }
 
+/// The camera preset of the sensor a sequence folder of `layout` was recorded with, as far as
+/// the layout says: a TUM folder's by its name ([`tum_preset_name`]: TUM's Kinects, with their
+/// lens models and rolling shutters), 7-Scenes `7-scenes` (a Kinect v1), an Open3D-style
+/// folder without a `camera.json` `kinect-v1`; `None` for an Open3D-style folder with its own
+/// `camera.json` (any camera). `sldepth track` models that preset's rolling shutter and lens
+/// when no `--camera` is given, whether the intrinsics come from the preset or from the
+/// folder's camera file.
+pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'static str> {
+    let dir = dir.as_ref();
+    match layout {
+        SequenceLayout::Tum => Some(tum_preset_name(dir)),
+        SequenceLayout::SevenScenes => Some("7-scenes"),
+        SequenceLayout::Open3d => (!dir.join("camera.json").is_file()).then_some("kinect-v1"),
+    }
+}
+
 /// The camera a sequence folder implies, as `sldepth track DIR` and `sldepth fuse DIR` use it
-/// when none is given, and the preset it is when it is one: the folder's camera file
-/// ([`camera_file_of`]) when it has one (a path there that is not a regular file is an error),
-/// else the layout's preset — TUM the one its name implies ([`tum_preset_name`], with the
-/// lens model and rolling shutter of TUM's Kinects), 7-Scenes `7-scenes`, Open3D `kinect-v1`.
+/// when none is given, and the preset of its sensor ([`sensor_preset`]): the folder's camera
+/// file ([`camera_file_of`]) when it has one (a path there that is not a regular file is an
+/// error), else that preset's camera — TUM the one its name implies, 7-Scenes `7-scenes`,
+/// Open3D `kinect-v1`. A 7-Scenes folder's `camera-intrinsics.txt` gives the intrinsics and
+/// `7-scenes` the sensor, as the command line takes them.
 pub fn sequence_camera(
     dir: impl AsRef<Path>,
     layout: SequenceLayout,
@@ -185,13 +202,10 @@ pub fn sequence_camera(
             SequenceLayout::Open3d => crate::camera::read_camera_json_with_limits(&file, limits)?,
             _ => crate::camera::read_camera(&file)?,
         };
-        return Ok((camera, None));
+        return Ok((camera, sensor_preset(dir, layout)));
     }
-    let preset = match layout {
-        SequenceLayout::Tum => tum_preset_name(dir),
-        SequenceLayout::SevenScenes => "7-scenes",
-        SequenceLayout::Open3d => "kinect-v1",
-    };
+    // Without a camera file every layout names its sensor (an Open3D folder: `kinect-v1`).
+    let preset = sensor_preset(dir, layout).unwrap_or("kinect-v1");
     let camera = Camera::preset(preset).map_err(|e| IoError::core(dir, None, e))?;
     Ok((camera, Some(preset)))
 }
@@ -443,10 +457,26 @@ mod tests {
             "500 0 320\n0 500 240\n0 0 1\n",
         )
         .unwrap();
+        // The file's intrinsics, the data set's sensor (its rolling shutter, for the tracker).
         let (cam, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
-        assert_eq!((preset, cam.intrinsics.fx), (None, 500.0));
+        assert_eq!((preset, cam.intrinsics.fx), (Some("7-scenes"), 500.0));
         let o3d = dir.path().join("o3d");
-        std::fs::create_dir_all(o3d.join("camera.json")).unwrap();
+        std::fs::create_dir(&o3d).unwrap();
+        let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
+        assert_eq!(
+            (preset, cam),
+            (Some("kinect-v1"), Camera::preset("kinect-v1").unwrap())
+        );
+        // Its own camera.json: any camera, no preset implied.
+        std::fs::write(
+            o3d.join("camera.json"),
+            r#"{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 32, 24, 1]}"#,
+        )
+        .unwrap();
+        let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
+        assert_eq!((preset, cam.intrinsics.width), (None, 64));
+        std::fs::remove_file(o3d.join("camera.json")).unwrap();
+        std::fs::create_dir(o3d.join("camera.json")).unwrap();
         let err = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap_err();
         assert!(err.to_string().contains("not a regular file"), "{err}");
     }

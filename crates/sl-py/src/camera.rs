@@ -19,7 +19,8 @@ pub struct PyCamera {
     pub(crate) inner: Camera,
     /// The lens distortion of the images, when the preset publishes one (TUM fr1/fr2).
     pub(crate) lens: Option<sl_core::LensDistortion>,
-    /// The preset it was made from (kept by `resampled`), `None` for explicit intrinsics.
+    /// The preset it was made from (kept by `resampled`), or the preset of the sensor of a
+    /// sequence folder's camera file (`sequence_camera`); `None` for explicit intrinsics.
     pub(crate) preset_name: Option<String>,
 }
 
@@ -42,7 +43,8 @@ fn check_size(camera: Camera) -> PyResult<Camera> {
 }
 
 impl PyCamera {
-    /// `camera` as Python sees it: with the preset's lens model when it is the preset `preset`.
+    /// `camera` as Python sees it, with the lens model and rolling shutter of `preset`: the preset
+    /// it is, or the one whose sensor it has (a sequence folder's camera file).
     pub(crate) fn wrap(camera: Camera, preset: Option<&str>) -> PyResult<Self> {
         let found = preset.map(preset::find).transpose().map_err(value_error)?;
         Ok(Self {
@@ -104,7 +106,9 @@ impl PyCamera {
         preset::names().collect()
     }
 
-    /// The name of the preset this camera was made from (``None`` for explicit intrinsics).
+    /// The name of the preset this camera was made from, or whose sensor (lens model, rolling
+    /// shutter) a sequence folder's camera file was recorded with (``sequence_camera``);
+    /// ``None`` for explicit intrinsics.
     #[getter]
     fn preset_name(&self) -> Option<&str> {
         self.preset_name.as_deref()

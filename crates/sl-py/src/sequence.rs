@@ -120,7 +120,10 @@ pub(crate) fn read_posed_sequence<'py>(
 /// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``), else the layout's preset — a
 /// TUM folder the ``tum-fr1``, ``tum-fr2`` or ``tum-fr3`` preset its name says (fr1 when it names
 /// none; with that Kinect's lens model and rolling shutter), 7-Scenes ``7-scenes``, Open3D
-/// ``kinect-v1``. ``layout`` as for ``read_sequence``.
+/// ``kinect-v1``. A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the
+/// sensor (``preset_name``, and its 30 ms ``rolling_shutter_ms`` for ``track_sequence``), as on
+/// the command line; an Open3D folder's ``camera.json`` names no preset. ``layout`` as for
+/// ``read_sequence``.
 #[pyfunction]
 #[pyo3(signature = (path, layout = None))]
 pub(crate) fn sequence_camera(

@@ -227,11 +227,21 @@ def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
     _write_frames(seven, ["frame-000000.depth.png"], 1000, seeds=(3,))
     assert sldepth.sequence_camera(seven).preset_name == "7-scenes"
     (seven / "camera-intrinsics.txt").write_text("500 0 320\n0 500 240\n0 0 1\n")
+    # The file's intrinsics with the data set's sensor: the 7-Scenes Kinect's rolling shutter,
+    # which `sldepth track --7scenes` models too.
     cam = sldepth.sequence_camera(seven)
-    assert cam.preset_name is None and cam.fx == 500.0
+    assert cam.preset_name == "7-scenes" and cam.fx == 500.0
+    assert cam.rolling_shutter_ms == sldepth.Camera.preset("7-scenes").rolling_shutter_ms > 0
     o3d = tmp_path / "o3d"
     _write_frames(o3d / "depth", ["0.png"], 1000, seeds=(3,))
     assert sldepth.sequence_camera(o3d).preset_name == "kinect-v1"
+    # An Open3D folder's own camera.json: any camera, no preset.
+    (o3d / "camera.json").write_text(
+        '{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 32, 24, 1]}'
+    )
+    cam = sldepth.sequence_camera(o3d)
+    assert cam.preset_name is None and cam.width == 64 and cam.rolling_shutter_ms == 0
+    (o3d / "camera.json").unlink()
     (o3d / "camera.json").mkdir()
     with pytest.raises(OSError, match="not a regular file"):
         sldepth.sequence_camera(o3d)

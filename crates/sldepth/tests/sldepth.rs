@@ -152,6 +152,27 @@ fn simulate_realistic_by_default_and_noise_stats_measures_it() {
     assert_eq!(left(&white), Some(0));
 }
 
+/// The text report of a frame without occlusion bands (the white model makes none) says so,
+/// rather than printing the NaN statistics of no runs.
+#[test]
+fn noise_stats_text_says_no_band_rather_than_nan() {
+    let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("tempdir: {e}"));
+    let out = simulated(
+        dir.path(),
+        "white.png",
+        "figure-walls",
+        &["--noise", "white"],
+    );
+    let o = sldepth(&["noise-stats", path_str(&out)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(!text.contains("NaN"), "{text}");
+    assert!(
+        text.contains("occlusion bands  left of foreground: no band;"),
+        "{text}"
+    );
+}
+
 /// `--min-return` drops weak returns; `--reflectance` darkens one surface, which then drops out
 /// where its return falls below the bound; bad specifications are errors that name them.
 #[test]

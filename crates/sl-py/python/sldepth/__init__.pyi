@@ -44,7 +44,8 @@ class Camera:
     def presets() -> List[str]: ...
     @property
     def preset_name(self) -> Optional[str]:
-        """The preset this camera was made from (kept by resampled), None for explicit intrinsics."""
+        """The preset this camera was made from (kept by resampled), or whose sensor a sequence
+        folder's camera file was recorded with (sequence_camera); None for explicit intrinsics."""
     @property
     def lens(self) -> Optional[Tuple[float, float, float, float, float]]:
         """Lens distortion (k1, k2, p1, p2, k3) of the preset's images, or None (pinhole)."""
@@ -526,7 +527,9 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     when none is given: its camera file (7-Scenes camera-intrinsics.txt, an Open3D folder's
     camera.json) when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
     or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter), 7-Scenes
-    "7-scenes", Open3D "kinect-v1". layout as read_sequence."""
+    "7-scenes", Open3D "kinect-v1". A 7-Scenes camera file gives the intrinsics and "7-scenes"
+    the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
+    camera.json names no preset. layout as read_sequence."""
 
 def read_trajectory(
     path: _Path,

@@ -97,26 +97,46 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     outln!("  residual autocorrelation (lag: x / y)")?;
+    // A lag longer than every planar region is unmeasured (NaN, `null` in JSON).
+    let acf = |v: f64| {
+        if v.is_nan() {
+            "–".to_owned()
+        } else {
+            format!("{v:.3}")
+        }
+    };
     for c in &s.acf {
-        outln!("    {:>3} px  {:.3} / {:.3}", c.lag, c.x, c.y)?;
+        outln!("    {:>3} px  {} / {}", c.lag, acf(c.x), acf(c.y))?;
     }
     let t = &s.terraces.widths;
-    outln!(
-        "  terraces along rows: {} runs, median {:.1} px, mean {:.1}, p10 {:.1}, p90 {:.1}",
-        t.count,
-        t.median_px,
-        t.mean_px,
-        t.p10_px,
-        t.p90_px
-    )?;
-    for (name, side) in [("left", &s.occlusion.left), ("right", &s.occlusion.right)] {
+    if t.count == 0 {
+        outln!("  terraces along rows: none")?;
+    } else {
         outln!(
-            "  occlusion bands {name:>5} of foreground: {} runs, median {:.1} px (p10 {:.1}, p90 {:.1}); projector shadow alone {:.1} px; {} edges without a band",
-            side.widths.count,
-            side.widths.median_px,
-            side.widths.p10_px,
-            side.widths.p90_px,
-            side.median_shadow_px,
+            "  terraces along rows: {} runs, median {:.1} px, mean {:.1}, p10 {:.1}, p90 {:.1}",
+            t.count,
+            t.median_px,
+            t.mean_px,
+            t.p10_px,
+            t.p90_px
+        )?;
+    }
+    for (name, side) in [("left", &s.occlusion.left), ("right", &s.occlusion.right)] {
+        // Without a band there is no width to give (the statistics are NaN, `null` in JSON).
+        let bands = if side.widths.count == 0 {
+            "no band".to_owned()
+        } else {
+            format!(
+                "{} runs, median {:.1} px (p10 {:.1}, p90 {:.1}); projector shadow alone {:.1} px",
+                side.widths.count,
+                side.widths.median_px,
+                side.widths.p10_px,
+                side.widths.p90_px,
+                side.median_shadow_px
+            )
+        };
+        outln!(
+            "  occlusion bands {name:>5} of foreground: {bands}; {} edges without a band",
             side.direct_edges
         )?;
         // The same edges by the shadow their depths predict: where they have bands at all.

@@ -87,17 +87,16 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
     }
 }
 
-/// The preset the source implies when no `--camera` is given: a TUM folder's, 7-Scenes', or
-/// the `kinect-v1` default of an Open3D folder without `camera.json`.
+/// The preset of the sensor the source implies when no `--camera` is given
+/// (`sl_io::sequence::sensor_preset`): a TUM folder's, 7-Scenes', or the `kinect-v1` default of
+/// an Open3D folder without `camera.json`.
 pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
-    if let Some(dir) = &args.tum {
-        Some(sl_io::sequence::tum_preset_name(dir))
-    } else if args.seven_scenes.is_some() {
-        Some("7-scenes")
+    let (dir, layout) = if let Some(dir) = &args.tum {
+        (dir, SequenceLayout::Tum)
+    } else if let Some(dir) = &args.seven_scenes {
+        (dir, SequenceLayout::SevenScenes)
     } else {
-        args.o3d
-            .as_ref()
-            .filter(|dir| !dir.join("camera.json").is_file())
-            .map(|_| "kinect-v1")
-    }
+        (args.o3d.as_ref()?, SequenceLayout::Open3d)
+    };
+    sl_io::sequence::sensor_preset(dir, layout)
 }
