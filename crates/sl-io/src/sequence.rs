@@ -109,30 +109,59 @@ pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
     }
 }
 
+/// The frames of a sequence folder that have a pose ([`read_posed_frames`]), and how many of
+/// its depth frames have none and were left out.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub struct PosedFrames {
+    /// The frames with their poses, in the sequence's order.
+    pub frames: Vec<crate::trajectory::Frame>,
+    /// Depth frames of the folder left out for want of a pose: a TUM frame without a
+    /// `groundtruth.txt` pose within `max_dt_s`, a 7-Scenes frame without its
+    /// `frame-*.pose.txt`, an Open3D-style folder's images beyond its `.log`'s entries.
+    pub without_pose: usize,
+}
+
 /// The frames of a sequence folder with their poses, as `sldepth fuse DIR` reads them: a TUM
 /// folder's depth frames with the `groundtruth.txt` pose nearest in time (within `max_dt_s`;
 /// frames without one are left out), a 7-Scenes folder's `frame-*.pose.txt`, an Open3D-style
-/// folder's `.log` ([`open3d_log_of`]) with the images of its `depth` folder.
+/// folder's `.log` ([`open3d_log_of`]) with the images of its `depth` folder; with the count
+/// of depth frames left out for want of a pose.
 pub fn read_posed_frames(
     dir: impl AsRef<Path>,
     layout: SequenceLayout,
     max_dt_s: f64,
     limits: &Limits,
-) -> Result<Vec<crate::trajectory::Frame>> {
+) -> Result<PosedFrames> {
     let dir = dir.as_ref();
-    match layout {
+    let (frames, without_pose) = match layout {
         SequenceLayout::Tum => {
-            Ok(crate::trajectory::read_tum_sequence_with_limits(dir, max_dt_s, limits)?.frames)
+            let seq = crate::trajectory::read_tum_sequence_with_limits(dir, max_dt_s, limits)?;
+            let without = seq.without_pose.len();
+            (seq.frames, without)
         }
         SequenceLayout::SevenScenes => {
-            crate::trajectory::read_7scenes_sequence_with_limits(dir, limits)
+            // Read by its pose files: the depth frames without one are counted apart.
+            let frames = crate::trajectory::read_7scenes_sequence_with_limits(dir, limits)?;
+            let depth = read_7scenes_depth_frames(dir, limits)?.len();
+            let without = depth.saturating_sub(frames.len());
+            (frames, without)
         }
-        SequenceLayout::Open3d => crate::trajectory::read_open3d_log_frames_with_limits(
-            open3d_log_of(dir)?,
-            dir.join("depth"),
-            limits,
-        ),
-    }
+        SequenceLayout::Open3d => {
+            let frames = crate::trajectory::read_open3d_log_frames_with_limits(
+                open3d_log_of(dir)?,
+                dir.join("depth"),
+                limits,
+            )?;
+            let depth = read_open3d_depth_frames(dir, limits)?.len();
+            let without = depth.saturating_sub(frames.len());
+            (frames, without)
+        }
+    };
+    Ok(PosedFrames {
+        frames,
+        without_pose,
+    })
 }
 
 /// The TUM camera preset a TUM folder's name implies: `tum-fr2` or `tum-fr3` when its path
@@ -387,6 +416,30 @@ mod tests {
             names(read_open3d_depth_frames(d, &limits).unwrap()),
             ["8.png", "9.png", "10.png", "11.png"]
         );
+    }
+
+    /// The posed frames come with the count of depth frames left out for want of a pose: a
+    /// 7-Scenes frame without its pose file, an Open3D image beyond the `.log`'s entries.
+    #[test]
+    fn depth_frames_without_a_pose_are_counted() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let lim = Limits::default();
+        for i in 0..3 {
+            std::fs::write(d.join(format!("frame-{i:06}.depth.png")), b"").unwrap();
+        }
+        let pose = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+        std::fs::write(d.join("frame-000001.pose.txt"), pose).unwrap();
+        let posed = read_posed_frames(d, SequenceLayout::SevenScenes, 0.02, &lim).unwrap();
+        assert_eq!((posed.frames.len(), posed.without_pose), (1, 2));
+        let o3d = d.join("o3d");
+        std::fs::create_dir_all(o3d.join("depth")).unwrap();
+        for i in 0..3 {
+            std::fs::write(o3d.join("depth").join(format!("{i}.png")), b"").unwrap();
+        }
+        std::fs::write(o3d.join("traj.log"), format!("0 0 1\n{pose}")).unwrap();
+        let posed = read_posed_frames(&o3d, SequenceLayout::Open3d, 0.02, &lim).unwrap();
+        assert_eq!((posed.frames.len(), posed.without_pose), (1, 2));
     }
 
     /// A folder's layout is read from what it holds, in the order TUM, 7-Scenes, Open3D, and a

@@ -89,7 +89,9 @@ pub(crate) fn read_sequence<'py>(
 /// matrices. ``layout`` as for ``read_sequence``: a TUM folder's frames get the
 /// ``groundtruth.txt`` pose nearest in time (within ``max_dt_s`` seconds; frames without one are
 /// left out), a 7-Scenes folder's frames their ``frame-*.pose.txt``, an Open3D-style folder's
-/// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``). Then
+/// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``).
+/// Depth frames left out for want of a pose are counted in a ``UserWarning``, as ``sldepth
+/// fuse`` notes them. Then
 /// ``for p, T in zip(paths, poses): volume.integrate(read_depth(p, depth_scale), camera, T)``.
 #[pyfunction]
 #[pyo3(signature = (path, layout = None, *, max_dt_s = 0.02))]
@@ -105,10 +107,32 @@ pub(crate) fn read_posed_sequence<'py>(
         )));
     }
     let layout = folder_layout(py, &path, layout)?;
-    let frames = compute(py, || {
+    let posed = compute(py, || {
         read_posed_frames(&path, layout, max_dt_s, &Limits::default())
     })
     .map_err(io_error)?;
+    // Frames left out are said, as `sldepth fuse DIR` notes them (a warning, not an error: a
+    // TUM recording's first and last frames often fall outside its motion capture).
+    if posed.without_pose > 0 {
+        let why = match layout {
+            SequenceLayout::Tum => format!("no groundtruth.txt pose within {max_dt_s} s"),
+            SequenceLayout::SevenScenes => "no pose file (frame-*.pose.txt)".to_owned(),
+            _ => "no entry in the .log".to_owned(),
+        };
+        let message = format!(
+            "{}: {} depth frames have {why} and are left out",
+            path.display(),
+            posed.without_pose,
+        );
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(
+            py,
+            &category,
+            &std::ffi::CString::new(message).unwrap_or_default(),
+            1,
+        )?;
+    }
+    let frames = posed.frames;
     let matrices: Vec<_> = frames.iter().map(|f| f.pose.to_matrix()).collect();
     let (paths, times) =
         paths_and_times(py, frames.into_iter().map(|f| (f.depth_path, f.timestamp)));

@@ -1,5 +1,7 @@
 """Camera model, presets and depth files."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -192,11 +194,14 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
     (seq / "groundtruth.txt").write_text(
         "# timestamp tx ty tz qx qy qz qw\n10.005 0 0 0 0 0 0 1\n10.038 0.5 0 0 0 0 0 1\n"
     )
-    paths, times, poses = sldepth.read_posed_sequence(seq)
+    # The third frame has no pose within 0.02 s: left out, and said, as `sldepth fuse` notes it.
+    with pytest.warns(UserWarning, match=r"1 depth frames have no groundtruth.txt pose within 0.02 s"):
+        paths, times, poses = sldepth.read_posed_sequence(seq)
     assert len(paths) == 2 and np.allclose(times, [10.0, 10.033])
     assert poses.shape == (2, 4, 4) and poses.dtype == np.float64
     assert np.allclose(poses[1][:3, 3], [0.5, 0, 0]) and np.allclose(poses[0], np.eye(4))
-    assert len(sldepth.read_posed_sequence(seq, max_dt_s=0.001)[0]) == 0
+    with pytest.warns(UserWarning, match="3 depth frames"):
+        assert len(sldepth.read_posed_sequence(seq, max_dt_s=0.001)[0]) == 0
     with pytest.raises(ValueError, match="max_dt_s"):
         sldepth.read_posed_sequence(seq, max_dt_s=0.0)
     # The frames fuse as `sldepth fuse DIR` would.
@@ -210,8 +215,20 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
     (o3d / "odometry.log").write_text(
         "".join(f"{i} {i} {i + 1}\n1 0 0 0\n0 1 0 {0.1 * i}\n0 0 1 0\n0 0 0 1\n" for i in range(2))
     )
-    paths, times, poses = sldepth.read_posed_sequence(o3d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # every image has its pose: nothing to say
+        paths, times, poses = sldepth.read_posed_sequence(o3d)
     assert times is None and len(paths) == 2 and np.isclose(poses[1][1, 3], 0.1)
+    _write_frames(o3d / "depth", ["2.png"], 1000)
+    with pytest.warns(UserWarning, match=r"1 depth frames have no entry in the \.log"):
+        assert len(sldepth.read_posed_sequence(o3d)[0]) == 2
+    # A 7-Scenes folder is read by its pose files; a depth frame without one is said.
+    seven = tmp_path / "seven"
+    _write_frames(seven, ["frame-000000.depth.png", "frame-000001.depth.png"], 1000)
+    (seven / "frame-000000.pose.txt").write_text("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    with pytest.warns(UserWarning, match=r"1 depth frames have no pose file"):
+        paths, times, poses = sldepth.read_posed_sequence(seven)
+    assert times is None and [p[-22:] for p in paths] == ["frame-000000.depth.png"]
     (o3d / "other.log").write_text("")
     with pytest.raises(OSError, match="exactly one .log"):
         sldepth.read_posed_sequence(o3d)

@@ -520,7 +520,8 @@ def read_posed_sequence(
     (paths, timestamps_s, poses), poses a float64 array (N, 4, 4) camera-to-world. A TUM
     folder's frames get the groundtruth.txt pose nearest in time (within max_dt_s seconds;
     frames without one are left out), a 7-Scenes folder's its frame-*.pose.txt, an Open3D-style
-    folder's its one .log beside depth/ (none or several: OSError). layout as read_sequence."""
+    folder's its one .log beside depth/ (none or several: OSError). Depth frames left out for
+    want of a pose are counted in a UserWarning. layout as read_sequence."""
 
 def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it

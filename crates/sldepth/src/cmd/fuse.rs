@@ -166,21 +166,27 @@ fn source_files(args: &Args) -> Vec<PathBuf> {
     )
 }
 
+/// The frames of a posed sequence folder (sl-io's reader, as Python's `read_posed_sequence`).
+fn posed_frames(dir: &Path, layout: SequenceLayout) -> Result<sl_io::sequence::PosedFrames> {
+    Ok(sl_io::sequence::read_posed_frames(
+        dir,
+        layout,
+        sl_io::trajectory::DEFAULT_MAX_DT_S,
+        &limits(),
+    )?)
+}
+
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     if let Some(list) = &args.frames {
         let frames = sl_io::trajectory::read_frame_list(list, &limits())?;
         Ok((frames, load_camera(&args.input)?, None))
     } else if let Some(dir) = &args.tum {
-        let seq = sl_io::trajectory::read_tum_sequence_with_limits(
-            dir,
-            sl_io::trajectory::DEFAULT_MAX_DT_S,
-            &limits(),
-        )?;
-        if !seq.without_pose.is_empty() {
+        let seq = posed_frames(dir, SequenceLayout::Tum)?;
+        if seq.without_pose > 0 {
             errln!(
                 "note: {} depth frames have no pose within 20 ms and are skipped",
-                seq.without_pose.len()
+                seq.without_pose
             );
         }
         let camera = crate::common::tum_camera(dir, &args.input)?;
@@ -199,17 +205,16 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         )?;
         Ok((frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
-        let frames = sl_io::trajectory::read_7scenes_sequence_with_limits(dir, &limits())?;
         // The sequence is read by its pose files: say so when depth frames have none.
-        let depth_frames = sl_io::sequence::read_7scenes_depth_frames(dir, &limits())?.len();
-        if depth_frames > frames.len() {
+        let seq = posed_frames(dir, SequenceLayout::SevenScenes)?;
+        if seq.without_pose > 0 {
             errln!(
                 "note: {} depth frames have no pose file (frame-*.pose.txt) and are skipped",
-                depth_frames - frames.len()
+                seq.without_pose
             );
         }
         let cam = crate::common::folder_camera(&args.input, dir, SequenceLayout::SevenScenes)?;
-        Ok((frames, cam, None))
+        Ok((seq.frames, cam, None))
     } else {
         bail!(
             "give the frames with --frames LIST, --tum DIR, --o3d-log FILE --depth-dir DIR or --7scenes DIR"
