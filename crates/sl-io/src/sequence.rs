@@ -26,6 +26,17 @@ pub enum SequenceLayout {
 }
 
 impl SequenceLayout {
+    /// The depth units per metre of the layout's 16-bit depth images: 5000 for TUM (as TUM
+    /// ships its sequences), millimetres (1000) for 7-Scenes and Open3D-style folders.
+    /// `sldepth track` and `sldepth fuse` read a folder's frames at this scale unless
+    /// `--depth-scale` is given.
+    pub fn depth_scale(self) -> f64 {
+        match self {
+            Self::Tum => 5000.0,
+            Self::SevenScenes | Self::Open3d => 1000.0,
+        }
+    }
+
     /// The layout of the folder `dir` by what it holds: TUM when it has `associations.txt` or
     /// `depth.txt`, 7-Scenes when it has a `frame-*.depth.png`, Open3D when it has a `depth`
     /// folder. A folder with none of them is an error that lists what was looked for.
@@ -539,6 +550,10 @@ mod tests {
         assert_eq!("tum".parse(), Ok(SequenceLayout::Tum));
         assert_eq!("7-scenes".parse(), Ok(SequenceLayout::SevenScenes));
         assert_eq!("o3d".parse(), Ok(SequenceLayout::Open3d));
+        // TUM ships 5000 units per metre; the others millimetres.
+        assert_eq!(SequenceLayout::Tum.depth_scale(), 5000.0);
+        assert_eq!(SequenceLayout::SevenScenes.depth_scale(), 1000.0);
+        assert_eq!(SequenceLayout::Open3d.depth_scale(), 1000.0);
         let err = "bag".parse::<SequenceLayout>().unwrap_err();
         assert!(err.contains("\"tum\", \"7scenes\" or \"open3d\""), "{err}");
     }

@@ -162,3 +162,18 @@ pub(crate) fn sequence_camera(
     .map_err(io_error)?;
     PyCamera::wrap(camera, preset)
 }
+
+/// The depth units per metre of a sequence folder's 16-bit depth images, as ``sldepth track
+/// DIR`` and ``sldepth fuse DIR`` read them: 5000 for a TUM folder, 1000 (millimetres) for
+/// 7-Scenes and Open3D-style folders. Pass it as ``depth_scale`` to ``track_sequence`` or
+/// ``read_depth`` (a TUM frame read as millimetres is five times too deep). ``layout`` as for
+/// ``read_sequence``.
+#[pyfunction]
+#[pyo3(signature = (path, layout = None))]
+pub(crate) fn sequence_depth_scale(
+    py: Python<'_>,
+    path: PathBuf,
+    layout: Option<&str>,
+) -> PyResult<f64> {
+    Ok(folder_layout(py, &path, layout)?.depth_scale())
+}

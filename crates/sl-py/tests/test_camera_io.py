@@ -234,6 +234,25 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
         sldepth.read_posed_sequence(o3d)
 
 
+def test_sequence_depth_scale_is_the_layouts_as_the_command_line_reads_it(tmp_path):
+    tum = tmp_path / "tum"
+    _write_frames(tum / "depth", ["1.000000.png"], 5000, seeds=(3,))
+    (tum / "depth.txt").write_text("1.000000 depth/1.000000.png\n")
+    assert sldepth.sequence_depth_scale(tum) == 5000.0
+    # Read at that scale, the frame is the one written; as millimetres, five times too deep.
+    z = sldepth.simulate("boxes", seed=3)[0]
+    read = sldepth.read_depth(tum / "depth" / "1.000000.png", depth_scale=sldepth.sequence_depth_scale(tum))
+    assert np.allclose(read, z, atol=2e-4)
+    seven = tmp_path / "seven"
+    _write_frames(seven, ["frame-000000.depth.png"], 1000, seeds=(3,))
+    assert sldepth.sequence_depth_scale(seven) == 1000.0
+    assert sldepth.sequence_depth_scale(seven, layout="open3d") == 1000.0
+    with pytest.raises(OSError, match="cannot tell the sequence's layout"):
+        sldepth.sequence_depth_scale(tmp_path)
+    with pytest.raises(ValueError, match="unknown sequence layout"):
+        sldepth.sequence_depth_scale(seven, layout="bag")
+
+
 def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
     fr2 = tmp_path / "rgbd_dataset_freiburg2_xyz"
     _write_frames(fr2 / "depth", ["1.000000.png"], 5000, seeds=(3,))

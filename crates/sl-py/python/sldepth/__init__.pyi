@@ -532,6 +532,12 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
     camera.json names no preset. layout as read_sequence."""
 
+def sequence_depth_scale(path: _Path, layout: Optional[str] = None) -> float:
+    """Depth units per metre of a sequence folder's 16-bit images, as `sldepth track DIR` /
+    `sldepth fuse DIR` read them: 5000 for a TUM folder, 1000 (millimetres) for 7-Scenes and
+    Open3D-style folders. Pass it as depth_scale to track_sequence or read_depth (a TUM frame
+    read as millimetres is five times too deep). layout as read_sequence."""
+
 def read_trajectory(
     path: _Path,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:

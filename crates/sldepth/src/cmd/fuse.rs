@@ -190,7 +190,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
             );
         }
         let camera = crate::common::tum_camera(dir, &args.input)?;
-        Ok((seq.frames, camera, Some(5000.0)))
+        Ok((seq.frames, camera, Some(SequenceLayout::Tum.depth_scale())))
     } else if let Some(log) = &args.o3d_log {
         let Some(depth_dir) = &args.depth_dir else {
             bail!("--o3d-log needs --depth-dir");

@@ -58,7 +58,11 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
                 list.display()
             );
         }
-        Ok((frames, crate::common::tum_camera(dir, &args.input)?, 5000.0))
+        Ok((
+            frames,
+            crate::common::tum_camera(dir, &args.input)?,
+            SequenceLayout::Tum.depth_scale(),
+        ))
     } else if let Some(dir) = &args.seven_scenes {
         let frames = sl_io::sequence::read_7scenes_depth_frames(dir, &lim)?;
         if frames.is_empty() {
@@ -69,7 +73,7 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
             );
         }
         let camera = folder_camera(&args.input, dir, SequenceLayout::SevenScenes)?;
-        Ok((frames, camera, 1000.0))
+        Ok((frames, camera, SequenceLayout::SevenScenes.depth_scale()))
     } else if let Some(dir) = &args.o3d {
         let frames = sl_io::sequence::read_open3d_depth_frames(dir, &lim)?;
         if frames.is_empty() {
@@ -81,7 +85,7 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
             );
         }
         let camera = folder_camera(&args.input, dir, SequenceLayout::Open3d)?;
-        Ok((frames, camera, 1000.0))
+        Ok((frames, camera, SequenceLayout::Open3d.depth_scale()))
     } else {
         bail!("give the sequence with --tum DIR, --7scenes DIR or --o3d DIR")
     }
