@@ -26,15 +26,19 @@ type PosedFrames<'py> = (
     Bound<'py, PyArray3<f64>>,
 );
 
-/// The frames' paths as strings, and their timestamps when every frame has one.
+/// The frames' paths as strings, and their timestamps where the layout has them (TUM; `None`
+/// for the others, an empty sequence included).
 fn paths_and_times<'py>(
     py: Python<'py>,
+    layout: SequenceLayout,
     frames: impl Iterator<Item = (PathBuf, Option<f64>)>,
 ) -> Frames<'py> {
     let (paths, times): (Vec<String>, Vec<Option<f64>>) = frames
         .map(|(p, t)| (p.to_string_lossy().into_owned(), t))
         .unzip();
-    let times: Option<Vec<f64>> = times.into_iter().collect();
+    let times = (layout == SequenceLayout::Tum)
+        .then(|| times.into_iter().collect::<Option<Vec<f64>>>())
+        .flatten();
     (paths, times.map(|t| t.into_pyarray(py)))
 }
 
@@ -80,6 +84,7 @@ pub(crate) fn read_sequence<'py>(
         compute(py, || read_depth_frames(&path, layout, &Limits::default())).map_err(io_error)?;
     Ok(paths_and_times(
         py,
+        layout,
         frames.into_iter().map(|f| (f.depth_path, f.timestamp)),
     ))
 }
@@ -134,8 +139,11 @@ pub(crate) fn read_posed_sequence<'py>(
     }
     let frames = posed.frames;
     let matrices: Vec<_> = frames.iter().map(|f| f.pose.to_matrix()).collect();
-    let (paths, times) =
-        paths_and_times(py, frames.into_iter().map(|f| (f.depth_path, f.timestamp)));
+    let (paths, times) = paths_and_times(
+        py,
+        layout,
+        frames.into_iter().map(|f| (f.depth_path, f.timestamp)),
+    );
     Ok((paths, times, poses_array(py, &matrices)))
 }
 

@@ -229,6 +229,11 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
     with pytest.warns(UserWarning, match=r"1 depth frames have no pose file"):
         paths, times, poses = sldepth.read_posed_sequence(seven)
     assert times is None and [p[-22:] for p in paths] == ["frame-000000.depth.png"]
+    # With no pose file at all: no frame, and still no timestamps (7-Scenes has none).
+    (seven / "frame-000000.pose.txt").unlink()
+    with pytest.warns(UserWarning, match=r"2 depth frames have no pose file"):
+        paths, times, poses = sldepth.read_posed_sequence(seven)
+    assert paths == [] and times is None and poses.shape == (0, 4, 4)
     (o3d / "other.log").write_text("")
     with pytest.raises(OSError, match="exactly one .log"):
         sldepth.read_posed_sequence(o3d)
