@@ -17,6 +17,8 @@
 //!   ASCII, through `ply-rs`.
 //! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`,
 //!   7-Scenes `frame-*.pose.txt`, all as [`Frame`]s with [`sl_core::CameraToWorld`] poses.
+//! - [`sequence`]: a recording's folder as `sldepth track DIR` and `sldepth fuse DIR` read it
+//!   (its layout and depth scale, its frames, their poses, the camera it implies).
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
 //!   rename), so readers never see half-written output.
 //!
