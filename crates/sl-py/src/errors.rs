@@ -25,7 +25,13 @@ pub(crate) fn value_error(e: impl std::fmt::Display) -> PyErr {
 
 /// An `OSError` subclass with the message of an I/O error.
 pub(crate) fn io_error(e: sl_io::IoError) -> PyErr {
-    SlDepthIOError::new_err(e.to_string())
+    // sl-io names the command line's option for a limit; from Python the limit is the default
+    // budget's (only `read_depth` takes `max_memory_bytes`, and maps the hint itself).
+    let hint = format!("raise it with {}", sl_io::limits::BUDGET_OPTION);
+    SlDepthIOError::new_err(e.to_string().replace(
+        &hint,
+        "a limit of the default 4 GiB memory budget, which `sldepth --max-memory` raises",
+    ))
 }
 
 /// Registers the exception types on the module.

@@ -239,6 +239,17 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
         sldepth.read_posed_sequence(o3d)
 
 
+def test_a_sequence_list_over_the_limits_is_refused_with_a_python_hint(tmp_path):
+    # More lines than the default budget's text limit: refused while it streams in, and the
+    # message does not send a Python user to a command-line option.
+    seq = tmp_path / "tum"
+    seq.mkdir()
+    (seq / "depth.txt").write_text("\n" * ((1 << 20) + 1))
+    with pytest.raises(OSError, match="default 4 GiB memory budget") as e:
+        sldepth.read_sequence(seq)
+    assert "raise it with --max-memory" not in str(e.value)
+
+
 def test_sequence_depth_scale_is_the_layouts_as_the_command_line_reads_it(tmp_path):
     tum = tmp_path / "tum"
     _write_frames(tum / "depth", ["1.000000.png"], 5000, seeds=(3,))
