@@ -143,6 +143,18 @@ def test_read_sequence_reads_a_tum_folder_for_track_sequence(kinect, tmp_path):
     )
     assert statuses[0] == "initialised" and all(s == "tracked" for s in statuses[1:]), statuses
     assert np.abs(poses[:, :3, 3]).max() < 0.01
+    # The folder itself, in one call: its frames, timestamps and depth scale, as above.
+    poses_dir, statuses_dir, _ = sldepth.track_sequence(seq, kinect, rolling_shutter_ms=0)
+    assert statuses_dir == statuses and np.array_equal(poses_dir, poses)
+    # Without a camera, the folder's (tum-fr1 by its name, with its lens and rolling shutter).
+    poses_own, statuses_own, tracker = sldepth.track_sequence(seq, layout="tum")
+    assert statuses_own[0] == "initialised" and tracker.rolling_shutter_ms == 30
+    with pytest.raises(TypeError, match="needs a camera"):
+        sldepth.track_sequence(paths)
+    with pytest.raises(TypeError, match="layout is for a recording's folder"):
+        sldepth.track_sequence(paths, kinect, layout="tum")
+    with pytest.raises(TypeError, match="not a single str"):
+        sldepth.track_sequence(paths[0], kinect)
     # associations.txt wins over depth.txt when both are there (its depth columns).
     (seq / "associations.txt").write_text(
         "10.0 rgb/a.png 10.000000 depth/10.000000.png\n10.1 rgb/b.png 10.133000 depth/10.133000.png\n"

@@ -93,11 +93,17 @@ __all__ = [
 ]
 
 
-def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tracker_options):
+def track_sequence(
+    frames, camera=None, *, depth_scale=None, timestamps_s=None, layout=None, **tracker_options
+):
     """Tracks a depth sequence from its first frame on and fuses it (``sldepth track`` in one call).
 
     ``frames``: depth arrays (float32 metres, or uint16 with ``depth_scale`` units per metre) or
-    paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order.
+    paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order;
+    or a recording's folder (TUM, 7-Scenes or Open3D-style, ``layout`` as ``read_sequence``),
+    read as ``sldepth track DIR`` reads it: its frames and timestamps (``read_sequence``), and
+    unless given its camera (``sequence_camera``) and depth scale (``sequence_depth_scale``).
+    ``camera`` is needed for arrays and lists of paths.
     ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
     takes the frames as consecutive. ``tracker_options`` are those of ``Tracker``
@@ -120,14 +126,26 @@ def track_sequence(frames, camera, *, depth_scale=None, timestamps_s=None, **tra
     """
     import numpy as np
 
-    if isinstance(frames, (str, bytes, _os.PathLike)) or (
+    if isinstance(frames, (str, bytes, _os.PathLike)) and _os.path.isdir(frames):
+        folder = _os.fsdecode(frames)
+        frames, times = read_sequence(folder, layout)
+        camera = sequence_camera(folder, layout) if camera is None else camera
+        if depth_scale is None:
+            depth_scale = sequence_depth_scale(folder, layout)
+        if timestamps_s is None:
+            timestamps_s = times
+    elif isinstance(frames, (str, bytes, _os.PathLike)) or (
         isinstance(frames, np.ndarray) and frames.ndim < 3
     ):
         raise TypeError(
             "frames must be a sequence of depth arrays or paths (a list, e.g. "
-            "sorted(glob.glob('depth/*.png'))), not a single "
+            "sorted(glob.glob('depth/*.png'))) or a recording's folder, not a single "
             f"{type(frames).__name__}"
         )
+    elif layout is not None:
+        raise TypeError("layout is for a recording's folder; frames is a sequence")
+    if camera is None:
+        raise TypeError("track_sequence needs a camera for depth arrays or a list of paths")
     tracker = Tracker(camera, **tracker_options)
     frames = list(frames)
     if timestamps_s is None:

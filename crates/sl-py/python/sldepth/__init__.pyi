@@ -587,11 +587,12 @@ def estimate_time_offset(
     `sldepth eval-traj --estimate-offset`."""
 
 def track_sequence(
-    frames: Iterable[Union[_Depth, _Path]],
-    camera: Camera,
+    frames: Union[Iterable[Union[_Depth, _Path]], _Path],
+    camera: Optional[Camera] = None,
     *,
     depth_scale: Optional[float] = None,
     timestamps_s: Optional[Iterable[float]] = None,
+    layout: Optional[str] = None,
     weighting: str = "inv-var",
     frame_to_model: bool = True,
     voxel_m: float = 0.004,
@@ -607,4 +608,7 @@ def track_sequence(
 ) -> Tuple[npt.NDArray[np.float64], List[str], Tracker]:
     """Tracks and fuses depth frames (arrays, or paths read with depth_scale) in order, with
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the
-    Tracker with the fused model)."""
+    Tracker with the fused model). frames may be a recording's folder (layout as
+    read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
+    given, camera (sequence_camera) and depth scale (sequence_depth_scale). camera is needed
+    for arrays and lists of paths."""
