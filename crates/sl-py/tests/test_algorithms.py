@@ -1116,3 +1116,19 @@ def test_a_continuation_that_rejoins_moves_the_fragments_it_continues():
     for r in roots:
         c = t.extract_mesh(fragment=r).vertices.mean(axis=0)
         assert np.linalg.norm(c - c0) < 0.6, (r, c, c0)
+
+
+def test_track_sequence_takes_a_real_recordings_folder_as_the_command_line_does():
+    # The 30 TUM fr1/rpy frames as TUM ships them (associations.txt): in one call, the
+    # folder's frames, timestamps, camera (tum-fr1 by its name, lens model and rolling
+    # shutter) and depth scale (5000), exactly as the explicit calls give them; no frame lost.
+    tum = _shared_data() / "tum-fr1-rpy"
+    poses, statuses, tracker = sldepth.track_sequence(tum)
+    assert statuses[0] == "initialised" and statuses.count("tracked") == len(statuses) - 1
+    paths, times = sldepth.read_sequence(tum)
+    cam = sldepth.sequence_camera(tum)
+    assert cam.preset_name == "tum-fr1" and sldepth.sequence_depth_scale(tum) == 5000.0
+    explicit, statuses_e, _ = sldepth.track_sequence(
+        paths, cam, depth_scale=5000.0, timestamps_s=times
+    )
+    assert statuses_e == statuses and np.array_equal(explicit, poses)
