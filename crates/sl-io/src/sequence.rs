@@ -260,16 +260,17 @@ pub struct SequenceFrame {
 }
 
 /// The depth frames of a TUM RGB-D sequence folder as TUM ships it: `associations.txt`
-/// (`rgb_ts rgb_path depth_ts depth_path`) when present, else `depth.txt`
-/// (`timestamp path`); `#` lines are comments, paths are relative to the folder. The RGB
-/// images are not needed. Timestamps must increase strictly.
+/// (`rgb_ts rgb_path depth_ts depth_path`; depth first when its first path lies in a `depth`
+/// folder and its second does not, as ICL-NUIM's TUM-format archives write it) when present,
+/// else `depth.txt` (`timestamp path`); `#` lines are comments, paths are relative to the
+/// folder. The RGB images are not needed. Timestamps must increase strictly.
 pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<Vec<SequenceFrame>> {
     let dir = dir.as_ref();
     let assoc = dir.join("associations.txt");
-    let (path, ts_col, path_col, min_cols) = if assoc.is_file() {
-        (assoc, 2, 3, 4)
+    let (path, associations, min_cols) = if assoc.is_file() {
+        (assoc, true, 4)
     } else {
-        (dir.join("depth.txt"), 0, 1, 2)
+        (dir.join("depth.txt"), false, 2)
     };
     let text = read_text(&path, limits.max_text_bytes, limits.max_text_lines)?;
     let mut out: Vec<SequenceFrame> = Vec::new();
@@ -287,6 +288,11 @@ pub fn read_tum_depth_frames(dir: impl AsRef<Path>, limits: &Limits) -> Result<V
                 format!("expected at least {min_cols} fields, found {}", toks.len()),
             ));
         }
+        let (ts_col, path_col) = if associations {
+            crate::trajectory::association_depth_columns(&toks)
+        } else {
+            (0, 1)
+        };
         let t: f64 = toks[ts_col]
             .parse()
             .ok()
@@ -427,6 +433,38 @@ mod tests {
             names(read_open3d_depth_frames(d, &limits).unwrap()),
             ["8.png", "9.png", "10.png", "11.png"]
         );
+    }
+
+    /// ICL-NUIM's TUM-format archives write `associations.txt` depth first
+    /// (`0 depth/0.png 0 rgb/0.png`): its depth paths are read, not its colour images.
+    /// TUM's own order (colour first) is kept, also when no path names its folder.
+    #[test]
+    fn associations_written_depth_first_give_the_depth_frames() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let lim = Limits::default();
+        std::fs::write(
+            d.join("associations.txt"),
+            "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n",
+        )
+        .unwrap();
+        let frames = read_tum_depth_frames(d, &lim).unwrap();
+        assert_eq!(frames[1].depth_path, d.join("depth/1.png"));
+        assert_eq!(frames[1].timestamp, Some(1.0));
+        let assoc =
+            crate::trajectory::read_tum_associations_with_limits(d.join("associations.txt"), &lim)
+                .unwrap();
+        assert_eq!(assoc[0].depth_path, d.join("depth/0.png"));
+        assert_eq!(assoc[0].rgb_path, d.join("rgb/0.png"));
+        for text in [
+            "1.0 rgb/a.png 1.01 depth/a.png\n",
+            "1.0 a.png 1.01 b.png\n",
+            "1.0 depth/a.png 1.01 depth/b.png\n",
+        ] {
+            std::fs::write(d.join("associations.txt"), text).unwrap();
+            let frames = read_tum_depth_frames(d, &lim).unwrap();
+            assert_eq!(frames[0].timestamp, Some(1.01), "{text}");
+        }
     }
 
     /// The posed frames come with the count of depth frames left out for want of a pose: a

@@ -1,7 +1,8 @@
 //! Camera trajectories of RGB-D datasets, as depth [`Frame`]s with camera-to-world poses.
 //!
 //! - TUM RGB-D: `groundtruth.txt` (`timestamp tx ty tz qx qy qz qw`, `#` comments) and
-//!   `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`); each depth frame gets the
+//!   `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`, or depth first as ICL-NUIM's
+//!   TUM-format archives write it, told by the `depth` folder of its path); each depth frame gets the
 //!   ground-truth pose nearest in time, within a maximum difference ([`DEFAULT_MAX_DT_S`]),
 //!   or the pose interpolated at its time plus a clock offset ([`associate_interpolated`]).
 //! - Open3D `.log`: a line `i j n`, then the four rows of a 4×4 camera-to-world matrix.
@@ -35,6 +36,7 @@ pub use open3d_log::{
 };
 pub(crate) use parse::check_frames;
 pub use seven_scenes::{read_7scenes_sequence, read_7scenes_sequence_with_limits, read_pose_txt};
+pub(crate) use tum::association_depth_columns;
 pub use tum::{
     Association, read_tum_associations, read_tum_associations_with_limits, read_tum_trajectory,
     read_tum_trajectory_with_limits, timestamp_printer, write_tum_trajectory,

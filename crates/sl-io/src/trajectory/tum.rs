@@ -142,8 +142,25 @@ pub fn write_tum_trajectory(path: impl AsRef<Path>, poses: &[TimedPose]) -> Resu
     write_atomic(path, |w| w.write_all(text.as_bytes()))
 }
 
+/// The columns of the depth frame's time and path in a line of an `associations.txt`: TUM's
+/// order (`rgb_ts rgb_path depth_ts depth_path`, what TUM's `associate.py` writes) is columns
+/// 2 and 3, unless the first path lies in a `depth` folder and the second does not, as in
+/// ICL-NUIM's TUM-format archives (`0 depth/0.png 0 rgb/0.png`) or an `associate.py` run with
+/// its two lists the other way round: then columns 0 and 1. `toks` has at least 4 fields.
+pub(crate) fn association_depth_columns(toks: &[&str]) -> (usize, usize) {
+    let in_depth_folder = |p: &str| {
+        Path::new(p)
+            .parent()
+            .is_some_and(|d| d.iter().any(|c| c.eq_ignore_ascii_case("depth")))
+    };
+    let depth_first = toks.len() >= 4 && in_depth_folder(toks[1]) && !in_depth_folder(toks[3]);
+    if depth_first { (0, 1) } else { (2, 3) }
+}
+
 /// Reads a TUM `associations.txt` (`rgb_ts rgb_path depth_ts depth_path`, extra columns
-/// ignored); relative paths are resolved against the file's directory.
+/// ignored; a line whose first path lies in a `depth` folder and whose second does not is read
+/// the other way round, see ICL-NUIM's `0 depth/0.png 0 rgb/0.png`); relative paths are
+/// resolved against the file's directory.
 pub fn read_tum_associations(path: impl AsRef<Path>) -> Result<Vec<Association>> {
     read_tum_associations_with_limits(path, &Limits::default())
 }
@@ -170,11 +187,13 @@ pub fn read_tum_associations_with_limits(
                 ),
             ));
         }
+        let (dt, dp) = association_depth_columns(&toks);
+        let (rt, rp) = if dt == 0 { (2, 3) } else { (0, 1) };
         out.push(Association {
-            rgb_timestamp: parse_f64(path, n, toks[0], "rgb timestamp")?,
-            rgb_path: base.join(toks[1]),
-            depth_timestamp: parse_f64(path, n, toks[2], "depth timestamp")?,
-            depth_path: base.join(toks[3]),
+            rgb_timestamp: parse_f64(path, n, toks[rt], "rgb timestamp")?,
+            rgb_path: base.join(toks[rp]),
+            depth_timestamp: parse_f64(path, n, toks[dt], "depth timestamp")?,
+            depth_path: base.join(toks[dp]),
         });
     }
     Ok(out)
