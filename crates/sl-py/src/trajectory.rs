@@ -17,15 +17,18 @@ use crate::errors::{io_error, value_error};
 /// Timestamps (N,) and poses (N, 4, 4) as NumPy arrays.
 type Trajectory<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray3<f64>>);
 
-/// Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, camera-to-world,
-/// ``#`` comments; e.g. a sequence's ``groundtruth.txt`` or ``sldepth track --output``):
-/// ``(timestamps_s, poses)``, float64 arrays (N,) and (N, 4, 4), sorted by time.
+/// Reads a trajectory file: TUM format (``timestamp tx ty tz qx qy qz qw`` per line,
+/// camera-to-world, ``#`` comments; e.g. a sequence's ``groundtruth.txt`` or ``sldepth track
+/// --output``), or an Open3D ``.log`` (entries ``i i n``, each pose stamped with its frame
+/// number ``i``, as ``sldepth track`` stamps a folder's frames without timestamps; a pairwise
+/// registration log raises ``OSError``): ``(timestamps_s, poses)``, float64 arrays (N,) and
+/// (N, 4, 4), sorted by time.
 #[pyfunction]
 pub(crate) fn read_trajectory<'py>(
     py: Python<'py>,
     path: std::path::PathBuf,
 ) -> PyResult<Trajectory<'py>> {
-    let poses = sl_io::trajectory::read_tum_trajectory(&path).map_err(io_error)?;
+    let poses = sl_io::trajectory::read_trajectory(&path).map_err(io_error)?;
     let times: Vec<f64> = poses.iter().map(|p| p.timestamp).collect();
     let matrices: Vec<_> = poses.iter().map(|p| p.pose.to_matrix()).collect();
     Ok((times.into_pyarray(py), poses_array(py, &matrices)))

@@ -589,6 +589,22 @@ def test_trajectories_round_trip_and_evaluate(tmp_path):
         sldepth.read_trajectory(tmp_path / "missing.txt")
 
 
+def test_an_open3d_log_is_read_as_a_trajectory_stamped_by_frame(tmp_path):
+    # Entries `i i n` in any order come back by frame number, their poses with them; a pose
+    # graph's pairwise entry `i j n` is refused as not a camera pose.
+    def entry(i, j, x):
+        return f"{i} {j} 3\n1 0 0 {x}\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"
+
+    log = tmp_path / "odometry.log"
+    log.write_text(entry(2, 2, 0.5) + entry(0, 0, 0.0) + entry(1, 1, 0.25))
+    t, poses = sldepth.read_trajectory(log)
+    assert t.tolist() == [0.0, 1.0, 2.0]
+    assert poses[:, 0, 3].tolist() == [0.0, 0.25, 0.5]
+    log.write_text(entry(0, 0, 0.0) + entry(0, 1, 0.1))
+    with pytest.raises(OSError, match="relates two frames"):
+        sldepth.read_trajectory(log)
+
+
 def test_a_clock_offset_is_found_and_applied():
     # A camera turning about changing axes; its frames stamped 25 ms after the instants they
     # show, the ground truth sampled every millisecond on the true clock.

@@ -80,7 +80,8 @@ enum Command {
     /// tracked as that sensor decimated, as every command reads them.
     Track(cmd::track::Args),
     /// Trajectory accuracy against ground truth (TUM benchmark definitions): ATE after rigid
-    /// alignment and RPE per frame or per second, from two TUM-format trajectory files.
+    /// alignment and RPE per frame or per second, from two trajectory files (TUM format, or an
+    /// Open3D `.log` stamped with its frame numbers).
     EvalTraj(cmd::eval_traj::Args),
     /// List the camera presets `--camera NAME` accepts: intrinsics, baseline, disparity
     /// sub-pixel steps, noise, range and the source of the numbers.

@@ -323,3 +323,59 @@ fn eval_traj_errors_are_clear() {
         assert!(!err.contains("panicked"), "{err}");
     }
 }
+
+/// Four poses as an Open3D `.log` (entries `i i n`, camera to world), the second moved by `dy`.
+fn four_poses_log(dy: f64, second_j: usize) -> String {
+    let mut s = String::new();
+    for i in 0..4 {
+        let y = if i == 1 { dy } else { 0.0 };
+        let j = if i == 1 { second_j } else { i };
+        s += &format!("{i} {j} 4\n1 0 0 {i}\n0 1 0 {y}\n0 0 1 0\n0 0 0 1\n");
+    }
+    s
+}
+
+/// An Open3D `.log` is read with its frame numbers as timestamps, either side: against the
+/// frame-numbered TUM file of the same poses it gives what the TUM pair gives; a pairwise
+/// registration log (`i j n`, j ≠ i) is refused, saying why.
+#[test]
+fn eval_traj_reads_open3d_logs_by_frame_number() {
+    let dir = tempfile::tempdir().unwrap();
+    let numbered = |dy: f64| -> String {
+        let mut s = String::new();
+        for i in 0..4 {
+            let y = if i == 1 { dy } else { 0.0 };
+            s += &format!("{i} {i}.0 {y} 0.0 0 0 0 1\n");
+        }
+        s
+    };
+    let gt_txt = write(dir.path(), "gt.txt", &numbered(0.0));
+    let est_txt = write(dir.path(), "est.txt", &numbered(0.3));
+    let gt_log = write(dir.path(), "gt.log", &four_poses_log(0.0, 1));
+    let est_log = write(dir.path(), "est.LOG", &four_poses_log(0.3, 1));
+    let run = |est: &str, gt: &str| -> serde_json::Value {
+        let o = sldepth(&["eval-traj", est, gt, "--json"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let reference = run(&est_txt, &gt_txt);
+    assert_eq!(reference["poses_matched"], 4);
+    assert!(reference["ate_m"]["rmse"].as_f64().unwrap() > 0.05);
+    for (est, gt) in [
+        (&est_log, &gt_log),
+        (&est_txt, &gt_log),
+        (&est_log, &gt_txt),
+    ] {
+        let j = run(est, gt);
+        assert_eq!(j["poses_matched"], 4, "{est} {gt}");
+        assert_eq!(j["ate_m"], reference["ate_m"], "{est} {gt}");
+        assert_eq!(j["rpe"], reference["rpe"], "{est} {gt}");
+    }
+    let pairwise = write(dir.path(), "odometry.log", &four_poses_log(0.0, 2));
+    let o = sldepth(&["eval-traj", &est_txt, &pairwise]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("`1 2 4`") && err.contains("relates two frames"),
+        "{err}"
+    );
+}

@@ -6,6 +6,7 @@
 //!   ground-truth pose nearest in time, within a maximum difference ([`DEFAULT_MAX_DT_S`]),
 //!   or the pose interpolated at its time plus a clock offset ([`associate_interpolated`]).
 //! - Open3D `.log`: a line `i j n`, then the four rows of a 4×4 camera-to-world matrix.
+//!   [`read_trajectory`] reads either kind as timestamped poses (a `.log` by frame number).
 //! - 7-Scenes: one `frame-XXXXXX.pose.txt` (4×4 camera-to-world, row-major) per frame next to
 //!   `frame-XXXXXX.depth.png`.
 //!
@@ -18,6 +19,7 @@ mod frame_list;
 mod open3d_log;
 mod parse;
 mod seven_scenes;
+mod stamped;
 #[cfg(test)]
 mod tests;
 mod tum;
@@ -36,6 +38,7 @@ pub use open3d_log::{
 };
 pub(crate) use parse::check_frames;
 pub use seven_scenes::{read_7scenes_sequence, read_7scenes_sequence_with_limits, read_pose_txt};
+pub use stamped::{read_trajectory, read_trajectory_with_limits};
 pub(crate) use tum::association_depth_columns;
 pub use tum::{
     Association, read_tum_associations, read_tum_associations_with_limits, read_tum_trajectory,

@@ -541,7 +541,8 @@ def sequence_depth_scale(path: _Path, layout: Optional[str] = None) -> float:
 def read_trajectory(
     path: _Path,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
-    """(timestamps_s (N,), poses (N, 4, 4) camera-to-world) of a TUM trajectory file, by time."""
+    """(timestamps_s (N,), poses (N, 4, 4) camera-to-world) of a TUM trajectory file, or of an
+    Open3D .log (entries `i i n`, each pose stamped with its frame number i), by time."""
 
 def write_trajectory(
     path: _Path, timestamps_s: Sequence[float], poses: npt.NDArray[np.floating]

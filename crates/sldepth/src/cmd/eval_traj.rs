@@ -1,5 +1,7 @@
 //! `sldepth eval-traj`: absolute trajectory error and relative pose error of an estimated
-//! trajectory against ground truth, both TUM-format files (TUM benchmark definitions).
+//! trajectory against ground truth (TUM benchmark definitions), each a TUM-format file or an
+//! Open3D `.log` (its entries' frame numbers as their timestamps, as `sldepth track` stamps the
+//! frames of folders without timestamps).
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -17,10 +19,13 @@ use crate::common::{check_output, check_outputs_spare_inputs, limits, num, print
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Estimated trajectory, TUM format (`timestamp tx ty tz qx qy qz qw` per line,
-    /// camera-to-world, `#` comments).
+    /// camera-to-world, `#` comments), or an Open3D `.log` (`sldepth track --output-log`):
+    /// a `.log` file's pose of entry `i j n` is stamped with its frame number `i`, the
+    /// timestamp `sldepth track --output` gives the frames of a 7-Scenes or Open3D folder.
     #[arg(value_name = "EST")]
     pub estimated: PathBuf,
-    /// Ground-truth trajectory, TUM format (e.g. a sequence's `groundtruth.txt`).
+    /// Ground-truth trajectory, TUM format (e.g. a sequence's `groundtruth.txt`) or an
+    /// Open3D `.log` (e.g. an Open3D-style folder's `odometry.log`), read as EST is.
     #[arg(value_name = "GT")]
     pub ground_truth: PathBuf,
     /// Print JSON instead of text.
@@ -71,9 +76,10 @@ pub struct Args {
 /// Default of `--offset-search-ms`, milliseconds.
 const DEFAULT_OFFSET_SEARCH_MS: f64 = 100.0;
 
-/// Reads a TUM trajectory within the run's limits.
+/// Reads a trajectory (TUM, or an Open3D `.log` stamped with its frame numbers) within the
+/// run's limits.
 fn read(path: &Path, what: &str) -> Result<Vec<StampedPose>> {
-    let poses = sl_io::trajectory::read_tum_trajectory_with_limits(path, &limits())
+    let poses = sl_io::trajectory::read_trajectory_with_limits(path, &limits())
         .with_context(|| format!("reading the {what} trajectory"))?;
     Ok(poses.iter().map(|p| (p.timestamp, p.pose)).collect())
 }

@@ -197,6 +197,17 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         };
         let frames =
             sl_io::trajectory::read_open3d_log_frames_with_limits(log, depth_dir, &limits())?;
+        // As sl-io counts them for an Open3D-style folder: the images the log has no entry for.
+        let images = sl_io::trajectory::list_depth_files(depth_dir)?.len();
+        if images > frames.len() {
+            errln!(
+                "note: {} depth images of {} have no pose in {} ({} entries) and are skipped",
+                images - frames.len(),
+                depth_dir.display(),
+                log.display(),
+                frames.len()
+            );
+        }
         // The camera of the folder the log lies in, as an Open3D-style folder's.
         let cam = crate::common::folder_camera(
             &args.input,

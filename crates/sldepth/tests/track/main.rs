@@ -766,6 +766,16 @@ fn fuse_reads_the_layout_of_a_folder_given_without_an_option() {
     let by_dir = fuse_json(&[dir, "--depth-scale", "5000"]);
     assert_eq!(by_dir["frames"], 3);
     assert_eq!(by_dir["vertices"], by_log["vertices"]);
+    // A log shorter than the depth folder: the image without an entry is skipped, and said.
+    let two_entries: String = log.lines().take(10).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&log_path, two_entries).unwrap();
+    let (short, stderr) = sldepth_json(&["fuse", dir, "--depth-scale", "5000", "--json"]);
+    assert_eq!(short["frames"], 2);
+    assert!(
+        stderr.contains("note: 1 depth images of") && stderr.contains("(2 entries)"),
+        "{stderr}"
+    );
+    std::fs::write(&log_path, &log).unwrap();
     std::fs::write(seq.join("other.log"), &log).unwrap();
     let out = sldepth(&["fuse", dir, "--depth-scale", "5000"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
