@@ -13,8 +13,11 @@
 //! | `NyuRaw` | PGM `P5`, 16-bit **little-endian** | raw disparity, 1/8 px | `351.3 / (1092.5 − v)` | `v ≥ 1093` (2047) |
 //!
 //! Common scales: 1000 units per metre (millimetres: 7-Scenes, ICL-NUIM, PCL, SUN RGB-D), 5000
-//! (TUM RGB-D). 7-Scenes marks invalid pixels with 65535 rather than 0; the sentinel a file uses
-//! is recorded in [`DepthEncoding::invalid_value`] so that it round-trips.
+//! (TUM RGB-D). Without a scale given, a PNG or TIFF is read at 1000, or at 5000 when it lies
+//! in the `depth` folder of a TUM sequence folder
+//! ([`depth_scale_of_file`](crate::sequence::depth_scale_of_file)). 7-Scenes marks invalid
+//! pixels with 65535 rather than 0; the sentinel a file uses is recorded in
+//! [`DepthEncoding::invalid_value`] so that it round-trips.
 
 use std::fmt;
 use std::path::Path;
@@ -381,15 +384,17 @@ fn rebuild(w: usize, h: usize, data: Vec<f32>) -> Image<f32> {
 
 /// How [`read_depth`] interprets a file.
 ///
-/// `#[non_exhaustive]`: start from [`ReadConfig::default`] (format from the extension, 1000
-/// units per metre) and set what you need with [`ReadConfig::with_format`] /
+/// `#[non_exhaustive]`: start from [`ReadConfig::default`] (format from the extension, the
+/// scale of the file's place: 1000 units per metre, 5000 in a TUM folder) and set what you need with [`ReadConfig::with_format`] /
 /// [`ReadConfig::with_scale`] or by assigning the fields.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[non_exhaustive]
 pub struct ReadConfig {
     /// The format; `None` infers it from the extension ([`DepthFormat::from_path`]).
     pub format: Option<DepthFormat>,
-    /// Units per metre for PNG/TIFF/SUN; `None` = 1000 (millimetres). Must lie in
+    /// Units per metre for PNG/TIFF/SUN; `None` = the scale of the file's place, 5000 for a
+    /// PNG or TIFF in a TUM RGB-D folder's `depth` folder
+    /// ([`crate::sequence::depth_scale_of_file`]), else 1000 (millimetres). Must lie in
     /// [`MIN_UNITS_PER_M`]`..=`[`MAX_UNITS_PER_M`]; giving it for `nyu-raw` (which stores
     /// disparity) is an error.
     pub scale_units_per_m: Option<f64>,
@@ -511,6 +516,11 @@ pub fn read_raw_depth_with_limits(
             });
         }
         (_, Some(s)) => encoding.units_per_m = s,
+        (DepthFormat::Png | DepthFormat::Tiff, None) => {
+            if let Some(s) = crate::sequence::depth_scale_of_file(path) {
+                encoding.units_per_m = s;
+            }
+        }
         (_, None) => {}
     }
     encoding.validate(path)?;
@@ -532,7 +542,8 @@ pub fn read_raw_depth_with_limits(
 /// Reads a depth file into metres.
 ///
 /// The format comes from `options.format` or the extension; the scale from
-/// `options.scale_units_per_m` (default 1000). Non-16-bit or multi-channel images are rejected
+/// `options.scale_units_per_m` (default: 5000 for a frame of a TUM RGB-D folder, see
+/// [`crate::sequence::depth_scale_of_file`]; else 1000). Non-16-bit or multi-channel images are rejected
 /// with [`IoError::UnsupportedImage`]; decoding is bounded by [`crate::limits`].
 pub fn read_depth(path: impl AsRef<Path>, options: &ReadConfig) -> Result<LoadedDepth> {
     read_depth_with_limits(path, options, &Limits::default())
@@ -782,6 +793,33 @@ mod tests {
         );
         assert_eq!(DepthFormat::from_path(Path::new("b.jpg")), None);
         assert_eq!(DepthFormat::from_path(Path::new("noext")), None);
+    }
+
+    /// A PNG in a TUM folder's `depth` folder (beside `depth.txt` or `associations.txt`) is
+    /// read at TUM's 5000 units per metre unless a scale is given; the same file elsewhere, or
+    /// in a `depth` folder of a folder that is no TUM sequence, at 1000.
+    #[test]
+    fn a_tum_folders_frame_is_read_at_its_scale() {
+        let dir = tempfile::tempdir().unwrap();
+        let seq = dir.path().join("rgbd_dataset_freiburg1_xyz");
+        std::fs::create_dir_all(seq.join("depth")).unwrap();
+        let frame = seq.join("depth").join("1.png");
+        let depth = DepthImage::from_image(Image::from_vec(2, 1, vec![0.0f32, 1.0]).unwrap());
+        write_depth(&frame, &depth, &DepthEncoding::png(5000.0)).unwrap();
+        let read = |opts: &ReadConfig| read_depth(&frame, opts).unwrap();
+        // No depth.txt yet: not a TUM folder.
+        assert_eq!(read(&ReadConfig::default()).depth.data()[1], 5.0);
+        for index in ["depth.txt", "associations.txt"] {
+            std::fs::write(seq.join(index), "").unwrap();
+            let loaded = read(&ReadConfig::default());
+            assert_eq!(loaded.encoding.units_per_m, 5000.0, "{index}");
+            assert_eq!(loaded.depth.data()[1], 1.0, "{index}");
+            assert_eq!(
+                read(&ReadConfig::default().with_scale(1000.0)).depth.data()[1],
+                5.0
+            );
+            std::fs::remove_file(seq.join(index)).unwrap();
+        }
     }
 
     #[test]

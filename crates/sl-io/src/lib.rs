@@ -41,7 +41,8 @@
 //! depth.data_mut()[3] = 0.0;
 //! write_depth(&path, &depth, &DepthEncoding::tum())?;
 //!
-//! // Reading needs the scale (a PNG does not record it); the encoding comes back for writing.
+//! // Reading needs the scale (a PNG does not record it; only a frame in a TUM folder's `depth`
+//! // folder is read at TUM's 5000 without one); the encoding comes back for writing.
 //! let loaded = read_depth(&path, &ReadConfig::default().with_scale(5000.0))?;
 //! assert_eq!(loaded.encoding, DepthEncoding::tum());
 //! assert_eq!(loaded.depth.valid_count(), 7);

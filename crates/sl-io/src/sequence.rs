@@ -82,6 +82,27 @@ impl std::str::FromStr for SequenceLayout {
     }
 }
 
+/// The TUM RGB-D sequence folder a depth image lies in: the parent of its `depth` folder when
+/// that holds `depth.txt` or `associations.txt` (as TUM and ICL-NUIM's TUM-format archives ship
+/// them); `None` for an image anywhere else.
+pub fn tum_folder_of_file(path: &Path) -> Option<&Path> {
+    let folder = path.parent()?;
+    if folder.file_name()? != "depth" {
+        return None;
+    }
+    let sequence = folder.parent()?;
+    (sequence.join("depth.txt").is_file() || sequence.join("associations.txt").is_file())
+        .then_some(sequence)
+}
+
+/// The depth units per metre a depth image's place implies: 5000 for an image of a TUM RGB-D
+/// folder ([`tum_folder_of_file`], [`SequenceLayout::depth_scale`]); `None` anywhere else.
+/// [`crate::depth::read_depth`] reads a PNG or TIFF at this scale when none is given, so a TUM
+/// frame opened on its own is not read five times too deep.
+pub fn depth_scale_of_file(path: impl AsRef<Path>) -> Option<f64> {
+    tum_folder_of_file(path.as_ref()).map(|_| SequenceLayout::Tum.depth_scale())
+}
+
 /// The depth frames of the sequence folder `dir` in `layout`.
 pub fn read_depth_frames(
     dir: impl AsRef<Path>,

@@ -72,6 +72,20 @@ def test_depth_round_trip(tmp_path, ext):
     assert np.max(np.abs(back - z)) <= 0.5 / 5000 + 1e-6
 
 
+def test_a_tum_folders_frame_is_read_at_tums_scale(tmp_path):
+    # A frame in the depth/ folder of a TUM RGB-D folder (depth.txt beside it) is stored at
+    # 5000 units per metre: read so without a depth_scale; anywhere else 1000 is assumed.
+    z = np.full((48, 64), 1.5, dtype=np.float32)
+    seq = tmp_path / "rgbd_dataset_freiburg1_desk"
+    (seq / "depth").mkdir(parents=True)
+    frame = seq / "depth" / "1.png"
+    sldepth.write_depth(frame, z, depth_scale=5000)
+    assert np.allclose(sldepth.read_depth(frame), 7.5)
+    (seq / "depth.txt").write_text("1.0 depth/1.png\n")
+    assert np.allclose(sldepth.read_depth(frame), 1.5)
+    assert np.allclose(sldepth.read_depth(frame, depth_scale=1000), 7.5)
+
+
 def test_uint16_input_needs_a_scale(small_cam):
     mm = np.full((48, 64), 2000, dtype=np.uint16)
     with pytest.raises(ValueError, match="depth_scale"):

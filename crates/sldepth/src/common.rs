@@ -8,7 +8,9 @@ use anyhow::{Context, Result, bail};
 use clap::builder::PossibleValuesParser;
 use sl_core::{Camera, DepthImage};
 use sl_io::Limits;
-use sl_io::depth::{DepthEncoding, DepthFormat, MAX_UNITS_PER_M, MIN_UNITS_PER_M, ReadConfig};
+use sl_io::depth::{
+    DEFAULT_UNITS_PER_M, DepthEncoding, DepthFormat, MAX_UNITS_PER_M, MIN_UNITS_PER_M, ReadConfig,
+};
 
 static LIMITS: OnceLock<Limits> = OnceLock::new();
 
@@ -289,8 +291,11 @@ pub struct InputArgs {
     /// f = 580 px, c = (319.5, 239.5), B = 0.075 m, 1/8 px).
     #[arg(long, value_name = "NAME|FILE", global = true)]
     pub camera: Option<PathBuf>,
-    /// Depth units per metre of 16-bit PNG/TIFF depth (1000 = millimetres, the default;
-    /// 5000 = TUM RGB-D).
+    /// Depth units per metre of 16-bit PNG/TIFF depth (1000 = millimetres; 5000 = TUM RGB-D).
+    /// Default: 5000 for a frame in the `depth` folder of a TUM folder (beside `depth.txt` or
+    /// `associations.txt`; its camera is then the folder's TUM preset unless `--camera` is
+    /// given) or with a `--camera tum-*` preset, else 1000; a sequence folder's own scale for
+    /// `track` and `fuse`.
     #[arg(long, value_name = "UNITS_PER_M", global = true)]
     pub depth_scale: Option<f64>,
     /// Depth file format where the extension does not tell: `png`, `tiff`, `nyu-raw` (NYU raw
@@ -304,8 +309,12 @@ pub struct InputArgs {
 pub struct Loaded {
     /// Depth in metres, 0 = invalid.
     pub depth: DepthImage,
-    /// Camera (from `--camera`, or the `kinect-v1` preset).
+    /// Camera (from `--camera`; else a TUM folder's preset for its frames, NYU's calibration
+    /// for NYU raw disparity, or the `kinect-v1` preset).
     pub camera: Camera,
+    /// The preset the file's place implied without `--camera` (a TUM folder's), for the lens
+    /// model of `--lens auto` ([`undistorter`]'s `implied_preset`).
+    pub implied_preset: Option<&'static str>,
     /// The file's encoding, to write results back the same way.
     pub encoding: DepthEncoding,
 }
@@ -475,6 +484,38 @@ pub fn camera_for_sequence(
     (camera, Some(depth))
 }
 
+/// The depth units per metre of the files of `--camera`'s preset when they are not the
+/// millimetres every reader assumes (`tum-fr1/2/3`: 5000), so that `--camera tum-fr1` reads a
+/// TUM frame as TUM stores it; `None` for other presets, camera files and no `--camera`.
+pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
+    let name = args.camera.as_deref().filter(|p| !p.is_file())?;
+    match sl_core::preset::find(&name.to_string_lossy())
+        .ok()?
+        .depth_units
+    {
+        sl_core::preset::DepthUnits::UnitsPerMetre(u) if u != DEFAULT_UNITS_PER_M => Some(u),
+        _ => None,
+    }
+}
+
+/// The camera of a frame read from the TUM folder `dir` without `--camera`: the preset its name
+/// implies (`sl_io::sequence::tum_preset_name`), with a note on standard error, once per run,
+/// that also names the scale the frame was read at (`units_per_m`, the folder's 5000 unless
+/// `--depth-scale` said otherwise).
+fn tum_frame_camera(dir: &Path, units_per_m: f64) -> Result<Camera> {
+    static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    let preset = sl_io::sequence::tum_preset_name(dir);
+    if !NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        errln!(
+            "note: a frame of the TUM folder {}: camera `{preset}` (--camera overrides it), \
+             read at {} units per metre",
+            dir.display(),
+            num(units_per_m)
+        );
+    }
+    Ok(Camera::preset(preset)?)
+}
+
 /// Reads a depth map with the options of `args` and checks it against the camera (frames a
 /// whole fraction of the camera's size are its sensor decimated, see [`camera_for_frames`]).
 pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
@@ -484,15 +525,32 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     let format = parse_format(args)?;
     let mut opts = ReadConfig::default();
     opts.format = format;
-    opts.scale_units_per_m = args.depth_scale;
+    // Without --depth-scale: the file's place (a TUM folder: 5000, sl-io's rule), else the
+    // --camera preset's files' scale.
+    let scaled = matches!(
+        format.or_else(|| DepthFormat::from_path(path)),
+        Some(DepthFormat::Png | DepthFormat::Tiff)
+    );
+    opts.scale_units_per_m = args
+        .depth_scale
+        .or_else(|| preset_depth_scale(args).filter(|_| scaled));
     let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
-    let camera = match (&args.camera, loaded.encoding.format) {
+    let tum_folder = sl_io::sequence::tum_folder_of_file(path);
+    let implied_preset = match (&args.camera, tum_folder) {
+        (None, Some(dir)) if loaded.encoding.format != DepthFormat::NyuRaw => {
+            Some(sl_io::sequence::tum_preset_name(dir))
+        }
+        _ => None,
+    };
+    let camera = match (&args.camera, loaded.encoding.format, tum_folder) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the
         // f·B of the NYU toolbox conversion), which is the right default for it.
-        (None, DepthFormat::NyuRaw) => Camera {
+        (None, DepthFormat::NyuRaw, _) => Camera {
             intrinsics: sl_io::depth::nyu_intrinsics(),
             sensor: sl_io::depth::nyu_sensor_model(),
         },
+        // A frame of a TUM folder: the camera `sldepth track DIR` takes for that folder.
+        (None, _, Some(dir)) => tum_frame_camera(dir, loaded.encoding.units_per_m)?,
         _ => load_camera(args)?,
     };
     let k = &camera.intrinsics;
@@ -508,11 +566,12 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         );
     };
     if args.depth_scale.is_none() && loaded.encoding.format != DepthFormat::NyuRaw {
-        note_depth_out_of_range(path, &loaded.depth, args);
+        note_depth_out_of_range(path, &loaded.depth, args, loaded.encoding.units_per_m);
     }
     Ok(Loaded {
         depth: loaded.depth,
         camera,
+        implied_preset,
         encoding: loaded.encoding,
     })
 }
@@ -521,7 +580,12 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
 /// outside the camera's range (the `--camera` preset's, else the Kinect's 0.5–5 m): the usual
 /// cause is a file stored at another scale (TUM RGB-D: 5000 units per metre), whose surfaces
 /// would otherwise come out silently five times too far.
-fn note_depth_out_of_range(path: &Path, depth: &sl_core::DepthImage, args: &InputArgs) {
+fn note_depth_out_of_range(
+    path: &Path,
+    depth: &sl_core::DepthImage,
+    args: &InputArgs,
+    units_per_m: f64,
+) {
     let preset = args
         .camera
         .as_deref()
@@ -546,11 +610,13 @@ fn note_depth_out_of_range(path: &Path, depth: &sl_core::DepthImage, args: &Inpu
     let mid = z.len() / 2;
     let median = f64::from(*z.select_nth_unstable_by(mid, f32::total_cmp).1);
     if median > p.max_depth_m || median < p.min_depth_m {
-        let hint = match p.depth_units {
-            sl_core::preset::DepthUnits::UnitsPerMetre(u) if u != 1000.0 => {
-                format!(" (`{}` files store {u} units per metre)", p.name)
-            }
-            _ => " (TUM RGB-D files store 5000 units per metre)".to_string(),
+        let hint = if units_per_m != DEFAULT_UNITS_PER_M {
+            format!(
+                " (read at {} units per metre; millimetre files need --depth-scale 1000)",
+                num(units_per_m)
+            )
+        } else {
+            " (TUM RGB-D files store 5000 units per metre)".to_string()
         };
         // A camera file has no range of its own: the Kinect's is the yardstick then.
         let whose = match args.camera.as_deref().filter(|c| c.is_file()) {

@@ -32,7 +32,12 @@ pub fn run(args: Args) -> Result<()> {
         [args.depth.as_path()],
     )?;
     let mut loaded = load_depth(&args.depth, &args.input)?;
-    if let Some(u) = crate::common::undistorter(&args.lens, &args.input, None, &loaded.camera) {
+    if let Some(u) = crate::common::undistorter(
+        &args.lens,
+        &args.input,
+        loaded.implied_preset,
+        &loaded.camera,
+    ) {
         loaded.depth = u.apply(&loaded.depth)?;
     }
     let points = loaded.depth.to_points(&loaded.camera.intrinsics)?;

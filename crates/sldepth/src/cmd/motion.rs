@@ -149,7 +149,8 @@ pub fn run(args: Args) -> Result<()> {
             }
         );
     }
-    let undistorter = crate::common::undistorter(&args.lens, &args.input, None, &a.camera);
+    let undistorter =
+        crate::common::undistorter(&args.lens, &args.input, a.implied_preset, &a.camera);
     if let Some(u) = &undistorter {
         a.depth = u.apply(&a.depth)?;
         b.depth = u.apply(&b.depth)?;
