@@ -390,7 +390,9 @@ fn rebuild(w: usize, h: usize, data: Vec<f32>) -> Image<f32> {
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[non_exhaustive]
 pub struct ReadConfig {
-    /// The format; `None` infers it from the extension ([`DepthFormat::from_path`]).
+    /// The format; `None` infers it from the extension ([`DepthFormat::from_path`]), and a PNG
+    /// of a SUN RGB-D sample's `depth` folder is SUN's
+    /// ([`crate::sequence::sun_folder_of_file`]).
     pub format: Option<DepthFormat>,
     /// Units per metre for PNG/TIFF/SUN; `None` = the scale of the file's place, 5000 for a
     /// PNG or TIFF in a TUM RGB-D folder's `depth` folder
@@ -472,7 +474,16 @@ pub struct RawDepth {
 }
 
 fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthFormat> {
-    match format.or_else(|| DepthFormat::from_path(path)) {
+    // A PNG of a SUN RGB-D sample's depth folder is SUN's bit-rotated millimetres.
+    let by_place = || {
+        (DepthFormat::from_path(path) == Some(DepthFormat::Png)
+            && crate::sequence::sun_folder_of_file(path).is_some())
+        .then_some(DepthFormat::Sun)
+    };
+    match format
+        .or_else(by_place)
+        .or_else(|| DepthFormat::from_path(path))
+    {
         Some(f) => Ok(f),
         None => Err(IoError::Format {
             path: path.to_path_buf(),
@@ -819,6 +830,40 @@ mod tests {
                 5.0
             );
             std::fs::remove_file(seq.join(index)).unwrap();
+        }
+    }
+
+    /// A PNG in a SUN RGB-D sample's `depth` or `depth_bfx` folder (beside `intrinsics.txt`
+    /// and `image/`) is read as SUN's bit-rotated millimetres without a format; the same file
+    /// elsewhere as a plain PNG, eight times too deep.
+    #[test]
+    fn a_sun_samples_frame_is_read_as_sun() {
+        let dir = tempfile::tempdir().unwrap();
+        let sample = dir.path().join("NYU0001");
+        for sub in ["depth", "depth_bfx", "image"] {
+            std::fs::create_dir_all(sample.join(sub)).unwrap();
+        }
+        let depth = DepthImage::from_image(Image::from_vec(2, 1, vec![0.0f32, 1.5]).unwrap());
+        for sub in ["depth", "depth_bfx"] {
+            let frame = sample.join(sub).join("NYU0001.png");
+            write_depth(&frame, &depth, &DepthEncoding::sun()).unwrap();
+            let plain = read_depth(&frame, &ReadConfig::default()).unwrap();
+            assert_eq!(
+                plain.encoding.format,
+                DepthFormat::Png,
+                "no intrinsics.txt yet"
+            );
+            std::fs::write(
+                sample.join("intrinsics.txt"),
+                "518.9 0 284.6\n0 519.5 208.7\n0 0 1\n",
+            )
+            .unwrap();
+            let sun = read_depth(&frame, &ReadConfig::default()).unwrap();
+            assert_eq!(sun.encoding.format, DepthFormat::Sun);
+            assert_eq!(sun.depth.data()[1], 1.5);
+            let cam = crate::sequence::sun_camera(&sample, 561, 427).unwrap();
+            assert_eq!(cam.intrinsics.fx, 518.9);
+            std::fs::remove_file(sample.join("intrinsics.txt")).unwrap();
         }
     }
 

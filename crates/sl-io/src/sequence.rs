@@ -95,6 +95,32 @@ pub fn tum_folder_of_file(path: &Path) -> Option<&Path> {
         .then_some(sequence)
 }
 
+/// The SUN RGB-D sample folder a depth image lies in: the parent of its `depth` or `depth_bfx`
+/// folder when that holds `intrinsics.txt` and an `image` folder, as SUN RGB-D ships every
+/// sample; `None` for an image anywhere else. Such a PNG is SUN's bit-rotated millimetres
+/// ([`crate::depth::DepthFormat::Sun`]), which [`crate::depth::read_depth`] takes when no
+/// format is given, and `intrinsics.txt` its camera's 3×3 matrix ([`sun_camera`]).
+pub fn sun_folder_of_file(path: &Path) -> Option<&Path> {
+    let folder = path.parent()?;
+    let name = folder.file_name()?;
+    if name != "depth" && name != "depth_bfx" {
+        return None;
+    }
+    let sample = folder.parent()?;
+    (sample.join("intrinsics.txt").is_file() && sample.join("image").is_dir()).then_some(sample)
+}
+
+/// The camera of a SUN RGB-D sample folder for its `width`×`height` depth images: the
+/// intrinsics of its `intrinsics.txt` (a row-major 3×3 matrix) with the Kinect v1 sensor
+/// model (baseline, 1/8-px disparity steps, σ_D) at that focal length — SUN RGB-D's Kinect v1,
+/// Xtion and RealSense samples are all triangulating sensors; its Kinect v2 (time of flight)
+/// samples follow the model only roughly.
+pub fn sun_camera(sample: impl AsRef<Path>, width: usize, height: usize) -> Result<Camera> {
+    let file = sample.as_ref().join("intrinsics.txt");
+    let k = crate::camera::read_intrinsics_txt(&file, width, height)?;
+    Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))
+}
+
 /// The depth units per metre a depth image's place implies: 5000 for an image of a TUM RGB-D
 /// folder ([`tum_folder_of_file`], [`SequenceLayout::depth_scale`]); `None` anywhere else.
 /// [`crate::depth::read_depth`] reads a PNG or TIFF at this scale when none is given, so a TUM

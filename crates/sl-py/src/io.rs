@@ -21,7 +21,8 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 /// Reads a depth map (16-bit PNG/TIFF at ``depth_scale`` units per metre — when None, 5000 for
 /// a frame in the ``depth`` folder of a TUM RGB-D folder (beside ``depth.txt`` or
 /// ``associations.txt``), else 1000 —, NYU raw disparity ``.pgm``, or SUN RGB-D
-/// ``format="sun"``) into a float32
+/// ``format="sun"``, taken without it for a PNG in a SUN RGB-D sample's ``depth`` or
+/// ``depth_bfx`` folder beside its ``intrinsics.txt``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
 /// ``max_memory_bytes`` bounds what reading may allocate (the CLI's ``--max-memory``; default
 /// 4 GiB, at least 16 MiB: a smaller one raises ``ValueError``): an image whose header declares more pixels than the budget allows

@@ -299,7 +299,9 @@ pub struct InputArgs {
     #[arg(long, value_name = "UNITS_PER_M", global = true)]
     pub depth_scale: Option<f64>,
     /// Depth file format where the extension does not tell: `png`, `tiff`, `nyu-raw` (NYU raw
-    /// Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG).
+    /// Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG; taken without it for a PNG in
+    /// a SUN RGB-D sample's `depth` or `depth_bfx` folder, whose `intrinsics.txt` then gives
+    /// the camera unless `--camera` is given).
     #[arg(long, value_name = "FORMAT", global = true, value_parser = PossibleValuesParser::new(DepthFormat::NAMES))]
     pub format: Option<String>,
 }
@@ -516,6 +518,23 @@ fn tum_frame_camera(dir: &Path, units_per_m: f64) -> Result<Camera> {
     Ok(Camera::preset(preset)?)
 }
 
+/// The camera of a SUN RGB-D sample's frame read without `--camera`: its `intrinsics.txt` at the
+/// frame's size (`sl_io::sequence::sun_camera`), with a note on standard error, once per run.
+fn sun_frame_camera(sample: &Path, depth: &DepthImage) -> Result<Camera> {
+    static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    let camera = sl_io::sequence::sun_camera(sample, depth.width(), depth.height())?;
+    if !NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        errln!(
+            "note: a frame of the SUN RGB-D sample {}: SUN's bit-rotated millimetres, the \
+             camera of its intrinsics.txt (fx {} px) with the Kinect v1 sensor model \
+             (--camera and --format override them)",
+            sample.display(),
+            num(camera.intrinsics.fx)
+        );
+    }
+    Ok(camera)
+}
+
 /// Reads a depth map with the options of `args` and checks it against the camera (frames a
 /// whole fraction of the camera's size are its sensor decimated, see [`camera_for_frames`]).
 pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
@@ -551,6 +570,11 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         },
         // A frame of a TUM folder: the camera `sldepth track DIR` takes for that folder.
         (None, _, Some(dir)) => tum_frame_camera(dir, loaded.encoding.units_per_m)?,
+        // A SUN RGB-D sample's frame: its own intrinsics.txt.
+        (None, DepthFormat::Sun, None) => match sl_io::sequence::sun_folder_of_file(path) {
+            Some(sample) => sun_frame_camera(sample, &loaded.depth)?,
+            None => load_camera(args)?,
+        },
         _ => load_camera(args)?,
     };
     let k = &camera.intrinsics;

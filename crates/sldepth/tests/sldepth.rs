@@ -58,52 +58,6 @@ fn info_reports_size_and_depth_range() {
     assert!(zmin < zmed && zmed < zmax);
 }
 
-/// A TUM frame is read as TUM stores it without `--depth-scale`: in the `depth` folder of a TUM
-/// folder at 5000 units per metre with the camera its folder implies (a note says both), or at
-/// the `--camera tum-fr1` preset's 5000; elsewhere, at 1000. `--depth-scale` still wins.
-#[test]
-fn a_tum_frame_is_read_at_tums_scale() {
-    let dir = tempfile::tempdir().unwrap();
-    let seq = dir.path().join("rgbd_dataset_freiburg2_desk");
-    std::fs::create_dir_all(seq.join("depth")).unwrap();
-    let frame = seq.join("depth").join("1.png");
-    // The committed floor frame (millimetres) rewritten at 5000 units per metre.
-    let mm = testdata("floor-seed1-depth.png");
-    let depth = sl_io::depth::read_depth(&mm, &sl_io::depth::ReadConfig::default())
-        .unwrap()
-        .depth;
-    sl_io::depth::write_depth(&frame, &depth, &sl_io::depth::DepthEncoding::png(5000.0)).unwrap();
-    let median = |args: &[&str]| -> (f64, String) {
-        let o = sldepth(args);
-        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
-        assert!(o.status.success(), "{stderr}");
-        (json_of(&o)["z_median_m"].as_f64().unwrap(), stderr)
-    };
-    let (truth, _) = median(&["info", path_str(&mm), "--json"]);
-    let (alone, _) = median(&["info", path_str(&frame), "--json"]);
-    assert!((alone - 5.0 * truth).abs() < 0.01, "{alone} vs {truth}");
-    std::fs::write(seq.join("depth.txt"), "1.0 depth/1.png\n").unwrap();
-    let (in_folder, note) = median(&["info", path_str(&frame), "--json"]);
-    assert!((in_folder - truth).abs() < 0.001, "{in_folder} vs {truth}");
-    assert!(
-        note.contains("camera `tum-fr2`") && note.contains("5000 units per metre"),
-        "{note}"
-    );
-    // The folder's preset brings its lens model, as `track DIR` takes it.
-    let ply = dir.path().join("cloud.ply");
-    let o = sldepth(&["cloud", path_str(&frame), "--output", path_str(&ply)]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        o.status.success() && err.contains("with the `tum-fr2` lens model"),
-        "{err}"
-    );
-    let (given, _) = median(&["info", path_str(&frame), "--json", "--depth-scale", "1000"]);
-    assert!((given - 5.0 * truth).abs() < 0.01, "{given}");
-    std::fs::remove_file(seq.join("depth.txt")).unwrap();
-    let (preset, _) = median(&["info", path_str(&frame), "--json", "--camera", "tum-fr1"]);
-    assert!((preset - truth).abs() < 0.001, "{preset} vs {truth}");
-}
-
 /// Regression over the committed floor frame: the analysis recovers the simulator's
 /// f·B = 580 px × 0.075 m = 43.5 px·m within 1 %, its 1/8 px steps, and a slope near 2.
 #[test]

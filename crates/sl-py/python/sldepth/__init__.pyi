@@ -95,7 +95,8 @@ def read_depth(
 ) -> npt.NDArray[np.float32]:
     """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun".
     depth_scale (units per metre) None: 5000 for a frame of a TUM RGB-D folder (its depth/
-    beside depth.txt or associations.txt), else 1000.
+    beside depth.txt or associations.txt), else 1000. A PNG in a SUN RGB-D sample's depth/ or
+    depth_bfx/ folder (beside intrinsics.txt and image/) is read as format "sun" by default.
     max_memory_bytes bounds the read (default 4 GiB, at least 16 MiB: less raises ValueError);
     too large an image raises OSError
     from its header, before decoding."""
