@@ -251,7 +251,8 @@ pub fn write_camera_json(path: impl AsRef<Path>, camera: &Camera) -> Result<()> 
 }
 
 /// Reads a plain-text 3×3 intrinsic matrix (row-major, whitespace-separated, e.g. 7-Scenes'
-/// `camera-intrinsics.txt`) for an image of `width`×`height` pixels.
+/// `camera-intrinsics.txt`), or a 4×4 one whose top-left 3×3 is it (ScanNet's
+/// `intrinsic_depth.txt`), for an image of `width`×`height` pixels.
 pub fn read_intrinsics_txt(
     path: impl AsRef<Path>,
     width: usize,
@@ -273,29 +274,31 @@ pub fn read_intrinsics_txt(
             let v: f64 = tok
                 .parse()
                 .map_err(|_| IoError::parse(path, i + 1, format!("{tok:?} is not a number")))?;
-            if values.len() == 9 {
+            if values.len() == 16 {
                 return Err(IoError::parse(
                     path,
                     i + 1,
-                    "more than 9 numbers in a 3x3 intrinsic matrix",
+                    "more than 16 numbers in a 3x3 (or 4x4) intrinsic matrix",
                 ));
             }
             values.push(v);
         }
     }
-    if values.len() != 9 {
-        return Err(IoError::malformed(
-            path,
-            format!(
-                "found {} numbers, a 3x3 intrinsic matrix needs 9",
-                values.len()
-            ),
-        ));
-    }
+    let n = match values.len() {
+        9 => 3,
+        16 => 4,
+        other => {
+            return Err(IoError::malformed(
+                path,
+                format!("found {other} numbers, a 3x3 intrinsic matrix needs 9 (a 4x4 one 16)"),
+            ));
+        }
+    };
+    let at = |r: usize, c: usize| values[r * n + c];
     let k = [
-        [values[0], values[1], values[2]],
-        [values[3], values[4], values[5]],
-        [values[6], values[7], values[8]],
+        [at(0, 0), at(0, 1), at(0, 2)],
+        [at(1, 0), at(1, 1), at(1, 2)],
+        [at(2, 0), at(2, 1), at(2, 2)],
     ];
     intrinsics_from_k(path, width, height, k)
 }

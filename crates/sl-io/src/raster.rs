@@ -73,6 +73,20 @@ fn open(path: &Path) -> Result<BufReader<File>> {
     Ok(BufReader::new(f))
 }
 
+/// The width and height an image file's header declares (PNG, TIFF, PNM: whatever the
+/// decoder recognises), nothing decoded; for sizing a camera, checked against `limits`.
+pub(crate) fn image_size(path: &Path, limits: &Limits) -> Result<(usize, usize)> {
+    let (w, h) = image::ImageReader::new(open(path)?)
+        .with_guessed_format()
+        .map_err(|e| IoError::io(path, e))?
+        .into_dimensions()
+        .map_err(|e| image_error(path, e))?;
+    limits
+        .check_pixels(u64::from(w), u64::from(h))
+        .map_err(|m| IoError::too_large(path, m))?;
+    Ok((w as usize, h as usize))
+}
+
 /// Decodes a 16-bit single-channel PNG or TIFF; any other layout is
 /// [`IoError::UnsupportedImage`].
 pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> Result<Image<u16>> {

@@ -142,11 +142,8 @@ pub fn read_depth_frames(
     }
 }
 
-/// The trajectory of an Open3D-style folder: its one `.log` file (`odometry.log`,
-/// `trajectory.log`, ...) beside the `depth` folder. None, or more than one, is an error that
-/// says so.
-pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
-    let dir = dir.as_ref();
+/// The `.log` files of a folder.
+fn logs_of(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut logs = Vec::new();
     for entry in std::fs::read_dir(dir).map_err(|e| IoError::io(dir, e))? {
         let path = entry.map_err(|e| IoError::io(dir, e))?.path();
@@ -154,13 +151,28 @@ pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
             logs.push(path);
         }
     }
+    Ok(logs)
+}
+
+/// Whether a folder holds a `.log` file.
+fn has_log(dir: &Path) -> Result<bool> {
+    Ok(!logs_of(dir)?.is_empty())
+}
+
+/// The trajectory of an Open3D-style folder: its one `.log` file (`odometry.log`,
+/// `trajectory.log`, ...) beside the `depth` folder. None, or more than one, is an error that
+/// says so. (A ScanNet export has a `pose` folder instead, which [`read_posed_frames`] reads.)
+pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
+    let dir = dir.as_ref();
+    let logs = logs_of(dir)?;
     match <[PathBuf; 1]>::try_from(logs) {
         Ok([log]) => Ok(log),
         Err(logs) => Err(IoError::malformed(
             dir,
             format!(
                 "an Open3D-style folder needs exactly one .log trajectory beside its depth/ \
-                 folder for its poses (found {})",
+                 folder for its poses, or a pose/ folder of 4x4 matrices as ScanNet exports \
+                 (found {} .log files)",
                 logs.len()
             ),
         )),
@@ -176,15 +188,18 @@ pub struct PosedFrames {
     pub frames: Vec<crate::trajectory::Frame>,
     /// Depth frames of the folder left out for want of a pose: a TUM frame without a
     /// `groundtruth.txt` pose within `max_dt_s`, a 7-Scenes frame without its
-    /// `frame-*.pose.txt`, an Open3D-style folder's images beyond its `.log`'s entries.
+    /// `frame-*.pose.txt`, an Open3D-style folder's images beyond its `.log`'s entries (a
+    /// ScanNet export's without a `pose/` file or with its `-inf` matrix).
     pub without_pose: usize,
 }
 
 /// The frames of a sequence folder with their poses, as `sldepth fuse DIR` reads them: a TUM
 /// folder's depth frames with the `groundtruth.txt` pose nearest in time (within `max_dt_s`;
 /// frames without one are left out), a 7-Scenes folder's `frame-*.pose.txt`, an Open3D-style
-/// folder's `.log` ([`open3d_log_of`]) with the images of its `depth` folder; with the count
-/// of depth frames left out for want of a pose.
+/// folder's `.log` ([`open3d_log_of`]) with the images of its `depth` folder — or, without a
+/// `.log`, the `pose/<n>.txt` of each `depth/<n>.png` as ScanNet exports a scan
+/// ([`crate::trajectory::read_pose_folder_frames`]); with the count of depth frames left out
+/// for want of a pose.
 pub fn read_posed_frames(
     dir: impl AsRef<Path>,
     layout: SequenceLayout,
@@ -204,6 +219,10 @@ pub fn read_posed_frames(
             let depth = read_7scenes_depth_frames(dir, limits)?.len();
             let without = depth.saturating_sub(frames.len());
             (frames, without)
+        }
+        // A ScanNet export: no `.log`, a `pose` folder.
+        SequenceLayout::Open3d if !has_log(dir)? && dir.join("pose").is_dir() => {
+            crate::trajectory::read_pose_folder_frames(dir, limits)?
         }
         SequenceLayout::Open3d => {
             let frames = crate::trajectory::read_open3d_log_frames_with_limits(
@@ -238,21 +257,39 @@ pub fn tum_preset_name(dir: impl AsRef<Path>) -> &'static str {
     }
 }
 
+/// The camera files an Open3D-style folder may hold, in the order they are looked for: its
+/// `camera.json` (Open3D), else ScanNet's `intrinsic/intrinsic_depth.txt` or
+/// `intrinsic_depth.txt` (a 4×4 matrix whose top-left 3×3 is the depth camera's).
+const OPEN3D_CAMERA_FILES: [&str; 3] = [
+    "camera.json",
+    "intrinsic/intrinsic_depth.txt",
+    "intrinsic_depth.txt",
+];
+
 /// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`,
-/// an Open3D-style folder's `camera.json`; `None` for TUM (its camera is a preset).
+/// an Open3D-style folder's `camera.json` or, for a ScanNet export, its
+/// `intrinsic/intrinsic_depth.txt` (the first that exists; `camera.json` when none does);
+/// `None` for TUM (its camera is a preset).
 pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<PathBuf> {
+    let dir = dir.as_ref();
     match layout {
         SequenceLayout::Tum => None,
-        SequenceLayout::SevenScenes => Some(dir.as_ref().join("camera-intrinsics.txt")),
-        SequenceLayout::Open3d => Some(dir.as_ref().join("camera.json")),
+        SequenceLayout::SevenScenes => Some(dir.join("camera-intrinsics.txt")),
+        SequenceLayout::Open3d => Some(
+            OPEN3D_CAMERA_FILES
+                .iter()
+                .map(|f| dir.join(f))
+                .find(|p| std::fs::symlink_metadata(p).is_ok())
+                .unwrap_or_else(|| dir.join(OPEN3D_CAMERA_FILES[0])),
+        ),
     }
 }
 
 /// The camera preset of the sensor a sequence folder of `layout` was recorded with, as far as
 /// the layout says: a TUM folder's by its name ([`tum_preset_name`]: TUM's Kinects, with their
 /// lens models and rolling shutters), 7-Scenes `7-scenes` (a Kinect v1), an Open3D-style
-/// folder without a `camera.json` `kinect-v1`; `None` for an Open3D-style folder with its own
-/// `camera.json` (any camera). `sldepth track` models that preset's rolling shutter and lens
+/// folder without a camera file `kinect-v1`; `None` for an Open3D-style folder with its own
+/// camera file (`camera.json`, or a ScanNet export's `intrinsic_depth.txt`: any camera). `sldepth track` models that preset's rolling shutter and lens
 /// when no `--camera` is given, whether the intrinsics come from the preset or from the
 /// folder's camera file.
 pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'static str> {
@@ -260,7 +297,9 @@ pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'
     match layout {
         SequenceLayout::Tum => Some(tum_preset_name(dir)),
         SequenceLayout::SevenScenes => Some("7-scenes"),
-        SequenceLayout::Open3d => (!dir.join("camera.json").is_file()).then_some("kinect-v1"),
+        SequenceLayout::Open3d => camera_file_of(dir, SequenceLayout::Open3d)
+            .is_none_or(|f| !f.is_file())
+            .then_some("kinect-v1"),
     }
 }
 
@@ -285,8 +324,26 @@ pub fn sequence_camera(
                 "exists but is not a regular file (a camera file was expected)",
             ));
         }
+        let is_json = file.extension().is_some_and(|e| e == "json");
         let camera = match layout {
-            SequenceLayout::Open3d => crate::camera::read_camera_json_with_limits(&file, limits)?,
+            SequenceLayout::Open3d if is_json => {
+                crate::camera::read_camera_json_with_limits(&file, limits)?
+            }
+            // A ScanNet export's matrix, at the size of its depth images.
+            SequenceLayout::Open3d => {
+                let first = read_open3d_depth_frames(dir, limits)?
+                    .into_iter()
+                    .next()
+                    .ok_or_else(|| {
+                        IoError::malformed(
+                            dir,
+                            "no depth image to size the camera of its intrinsics by",
+                        )
+                    })?;
+                let (w, h) = crate::raster::image_size(&first.depth_path, limits)?;
+                let k = crate::camera::read_intrinsics_txt(&file, w, h)?;
+                Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))?
+            }
             _ => crate::camera::read_camera(&file)?,
         };
         return Ok((camera, sensor_preset(dir, layout)));

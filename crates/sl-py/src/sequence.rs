@@ -94,7 +94,9 @@ pub(crate) fn read_sequence<'py>(
 /// matrices. ``layout`` as for ``read_sequence``: a TUM folder's frames get the
 /// ``groundtruth.txt`` pose nearest in time (within ``max_dt_s`` seconds; frames without one are
 /// left out), a 7-Scenes folder's frames their ``frame-*.pose.txt``, an Open3D-style folder's
-/// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``).
+/// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``)
+/// or, without a ``.log``, each ``depth/<n>.png`` the ``pose/<n>.txt`` of a ScanNet export (its
+/// ``-inf`` matrix: no pose).
 /// Depth frames left out for want of a pose are counted in a ``UserWarning``, as ``sldepth
 /// fuse`` notes them. Then
 /// ``for p, T in zip(paths, poses): volume.integrate(read_depth(p, depth_scale), camera, T)``.
@@ -122,6 +124,9 @@ pub(crate) fn read_posed_sequence<'py>(
         let why = match layout {
             SequenceLayout::Tum => format!("no groundtruth.txt pose within {max_dt_s} s"),
             SequenceLayout::SevenScenes => "no pose file (frame-*.pose.txt)".to_owned(),
+            _ if path.join("pose").is_dir() && sl_io::sequence::open3d_log_of(&path).is_err() => {
+                "no pose (no pose/ file, or ScanNet's -inf matrix)".to_owned()
+            }
             _ => "no entry in the .log".to_owned(),
         };
         let message = format!(
@@ -149,7 +154,8 @@ pub(crate) fn read_posed_sequence<'py>(
 
 /// The camera a sequence folder implies, as ``sldepth track DIR`` and ``sldepth fuse DIR`` use
 /// it when none is given: the folder's camera file when it has one (7-Scenes'
-/// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``), else the layout's preset — a
+/// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``, a ScanNet export's
+/// ``intrinsic/intrinsic_depth.txt`` at its depth images' size), else the layout's preset — a
 /// TUM folder the ``tum-fr1``, ``tum-fr2`` or ``tum-fr3`` preset its name says (fr1 when it names
 /// none; with that Kinect's lens model and rolling shutter), 7-Scenes ``7-scenes``, Open3D
 /// ``kinect-v1``. A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the

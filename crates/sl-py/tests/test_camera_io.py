@@ -265,6 +265,28 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
         sldepth.read_posed_sequence(o3d)
 
 
+def test_a_scannet_export_reads_as_a_posed_sequence_with_its_camera(tmp_path):
+    # depth/<n>.png, pose/<n>.txt (a -inf matrix: no pose), intrinsic/intrinsic_depth.txt (4x4).
+    scan = tmp_path / "scene0000_00"
+    _write_frames(scan / "depth", ["0.png", "1.png", "2.png"], 1000)
+    (scan / "pose").mkdir()
+    (scan / "pose" / "0.txt").write_text("1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    (scan / "pose" / "1.txt").write_text("-inf -inf -inf -inf\n" * 4)
+    (scan / "pose" / "2.txt").write_text("1 0 0 0.2\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+    (scan / "intrinsic").mkdir()
+    (scan / "intrinsic" / "intrinsic_depth.txt").write_text(
+        "577.590698 0 318.905426 0\n0 578.729797 242.683609 0\n0 0 1 0\n0 0 0 1\n"
+    )
+    with pytest.warns(UserWarning, match=r"1 depth frames have no pose \(no pose/ file, or ScanNet"):
+        paths, times, poses = sldepth.read_posed_sequence(scan)
+    assert times is None and [p[-5:] for p in paths] == ["0.png", "2.png"]
+    assert np.isclose(poses[1][0, 3], 0.2)
+    cam = sldepth.sequence_camera(scan)
+    assert np.isclose(cam.fx, 577.590698) and np.isclose(cam.cy, 242.683609)
+    assert (cam.width, cam.height) == (640, 480)
+    assert sldepth.sequence_depth_scale(scan) == 1000.0
+
+
 def test_a_sequence_list_over_the_limits_is_refused_with_a_python_hint(tmp_path):
     # More lines than the default budget's text limit: refused while it streams in, and the
     # message does not send a Python user to a command-line option.

@@ -98,3 +98,80 @@ fn a_sun_rgbd_frame_is_read_with_its_sample() {
         "{note}"
     );
 }
+
+/// A ScanNet export (`depth/<n>.png`, `pose/<n>.txt`, `intrinsic/intrinsic_depth.txt`, no
+/// `.log`) is fused from its folder alone, its `-inf` pose left out and counted, and tracked
+/// with the camera of its 4x4 intrinsic matrix.
+#[test]
+fn a_scannet_export_fuses_and_tracks_from_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = dir.path().join("scene0000_00");
+    for sub in ["depth", "pose", "intrinsic"] {
+        std::fs::create_dir_all(scan.join(sub)).unwrap();
+    }
+    let frame = testdata("three-planes-seed3-depth.png");
+    let identity = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+    for i in 0..3 {
+        std::fs::copy(&frame, scan.join("depth").join(format!("{i}.png"))).unwrap();
+        let pose = if i == 1 {
+            "-inf -inf -inf -inf\n".repeat(4)
+        } else {
+            identity.to_owned()
+        };
+        std::fs::write(scan.join("pose").join(format!("{i}.txt")), pose).unwrap();
+    }
+    std::fs::write(
+        scan.join("intrinsic/intrinsic_depth.txt"),
+        "577.590698 0.000000 318.905426 0.000000\n0.000000 578.729797 242.683609 0.000000\n\
+         0.000000 0.000000 1.000000 0.000000\n0.000000 0.000000 0.000000 1.000000\n",
+    )
+    .unwrap();
+    let dir_arg = path_str(&scan);
+    let mesh = dir.path().join("mesh.ply");
+    let o = sldepth(&[
+        "fuse",
+        dir_arg,
+        "--voxel-m",
+        "0.02",
+        "--output",
+        path_str(&mesh),
+        "--json",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(json_of(&o)["frames"], 2, "{err}");
+    assert!(err.contains("note: 1 depth frames have no pose"), "{err}");
+    assert!(mesh.is_file());
+    // The same frames through the explicit option.
+    let o = sldepth(&["fuse", "--scannet", dir_arg, "--voxel-m", "0.02", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(json_of(&o)["frames"], 2);
+    // Tracking reads the folder as an Open3D-style one, with the ScanNet camera (an identical
+    // frame three times: no motion).
+    let traj = dir.path().join("traj.txt");
+    let o = sldepth(&[
+        "track",
+        dir_arg,
+        "--voxel-m",
+        "0.02",
+        "--output",
+        path_str(&traj),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(json_of(&o)["frames"], 3);
+    // With the camera a 640x480 Kinect preset instead (focal 580, not 577.6), fusion is not
+    // the same: the folder's own matrix was used.
+    let o = sldepth(&["fuse", dir_arg, "--voxel-m", "0.02", "--json"]);
+    let own = json_of(&o)["vertices"].clone();
+    let o = sldepth(&[
+        "fuse",
+        dir_arg,
+        "--voxel-m",
+        "0.02",
+        "--json",
+        "--camera",
+        "kinect-v1",
+    ]);
+    assert_ne!(json_of(&o)["vertices"], own);
+}

@@ -9,6 +9,8 @@
 //!   [`read_trajectory`] reads either kind as timestamped poses (a `.log` by frame number).
 //! - 7-Scenes: one `frame-XXXXXX.pose.txt` (4×4 camera-to-world, row-major) per frame next to
 //!   `frame-XXXXXX.depth.png`.
+//! - ScanNet's exports: `pose/<n>.txt` (the same 4×4 matrices; `-inf` for a frame without a
+//!   pose) for `depth/<n>.png` ([`read_pose_folder_frames`]).
 //!
 //! All poses follow the `sl_core::pose` convention `X_w = R·X_c + t`; matrices are
 //! re-orthonormalised by [`sl_core::pose_from_matrix`], which rejects non-rigid ones.
@@ -18,6 +20,7 @@ mod depth_files;
 mod frame_list;
 mod open3d_log;
 mod parse;
+mod pose_folder;
 mod seven_scenes;
 mod stamped;
 #[cfg(test)]
@@ -37,6 +40,7 @@ pub use open3d_log::{
     read_open3d_log_with_limits, write_open3d_log,
 };
 pub(crate) use parse::check_frames;
+pub use pose_folder::read_pose_folder_frames;
 pub use seven_scenes::{read_7scenes_sequence, read_7scenes_sequence_with_limits, read_pose_txt};
 pub use stamped::{read_trajectory, read_trajectory_with_limits};
 pub(crate) use tum::association_depth_columns;

@@ -523,13 +523,16 @@ def read_posed_sequence(
     (paths, timestamps_s, poses), poses a float64 array (N, 4, 4) camera-to-world. A TUM
     folder's frames get the groundtruth.txt pose nearest in time (within max_dt_s seconds;
     frames without one are left out), a 7-Scenes folder's its frame-*.pose.txt, an Open3D-style
-    folder's its one .log beside depth/ (none or several: OSError). Depth frames left out for
-    want of a pose are counted in a UserWarning. layout as read_sequence."""
+    folder's its one .log beside depth/ (none or several: OSError) or, without a .log, the
+    pose/<n>.txt of each depth/<n>.png as ScanNet exports a scan (a -inf matrix: no pose).
+    Depth frames left out for want of a pose are counted in a UserWarning. layout as
+    read_sequence."""
 
 def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it
     when none is given: its camera file (7-Scenes camera-intrinsics.txt, an Open3D folder's
-    camera.json) when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
+    camera.json, a ScanNet export's intrinsic/intrinsic_depth.txt at its depth images' size)
+    when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
     or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter), 7-Scenes
     "7-scenes", Open3D "kinect-v1". A 7-Scenes camera file gives the intrinsics and "7-scenes"
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D

@@ -28,9 +28,16 @@ pub struct Args {
     /// The sequence folder, its layout read from what it holds: a TUM folder (`depth.txt` or
     /// `associations.txt`, with `groundtruth.txt`) as --tum, a 7-Scenes folder
     /// (`frame-*.depth.png` with their `.pose.txt`) as --7scenes, an Open3D-style folder (a
-    /// `depth` folder and one `.log` trajectory beside it) as --o3d-log LOG --depth-dir DIR/depth.
+    /// `depth` folder and one `.log` trajectory beside it) as --o3d-log LOG --depth-dir DIR/depth,
+    /// a ScanNet export (`depth` and `pose` folders, no `.log`) as --scannet.
     #[arg(value_name = "DIR", group = "source")]
     pub sequence: Option<PathBuf>,
+    /// A ScanNet scan as its SensReader exports it: `depth/<n>.png` (millimetres) with
+    /// `pose/<n>.txt` (4x4 camera-to-world; a frame whose matrix is `-inf`, or that has no pose
+    /// file, is left out and counted); its `intrinsic/intrinsic_depth.txt` (or
+    /// `intrinsic_depth.txt`) is the camera when --camera is not given.
+    #[arg(long, value_name = "DIR", group = "source")]
+    pub scannet: Option<PathBuf>,
     /// Frame list: each line is a depth image path (relative to the list's directory) followed
     /// by the 16 numbers of a row-major 4x4 camera-to-world pose in metres; `#` starts a comment.
     #[arg(long, value_name = "LIST", group = "source")]
@@ -159,10 +166,15 @@ fn source_files(args: &Args) -> Vec<PathBuf> {
         .into_iter()
         .flatten()
         .cloned();
+    // A ScanNet export's camera file.
+    let scannet_camera = args
+        .scannet
+        .as_ref()
+        .and_then(|d| sl_io::sequence::camera_file_of(d, SequenceLayout::Open3d));
     crate::common::sequence_files(
         args.tum.as_deref(),
         args.seven_scenes.as_deref(),
-        given.chain(log_camera),
+        given.chain(log_camera).chain(scannet_camera),
     )
 }
 
@@ -215,6 +227,17 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
             SequenceLayout::Open3d,
         )?;
         Ok((frames, cam, None))
+    } else if let Some(dir) = &args.scannet {
+        let seq = posed_frames(dir, SequenceLayout::Open3d)?;
+        if seq.without_pose > 0 {
+            errln!(
+                "note: {} depth frames have no pose (no pose/ file, or ScanNet's -inf matrix) and \
+                 are skipped",
+                seq.without_pose
+            );
+        }
+        let cam = crate::common::folder_camera(&args.input, dir, SequenceLayout::Open3d)?;
+        Ok((seq.frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
         // The sequence is read by its pose files: say so when depth frames have none.
         let seq = posed_frames(dir, SequenceLayout::SevenScenes)?;
@@ -228,7 +251,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         Ok((seq.frames, cam, None))
     } else {
         bail!(
-            "give the frames with --frames LIST, --tum DIR, --o3d-log FILE --depth-dir DIR or --7scenes DIR"
+            "give the frames with --frames LIST, --tum DIR, --o3d-log FILE --depth-dir DIR, --7scenes DIR or --scannet DIR"
         )
     }
 }
@@ -256,6 +279,12 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
     match crate::common::sequence_layout(&dir)? {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
+        // A ScanNet export: poses in a pose/ folder, no .log.
+        SequenceLayout::Open3d
+            if dir.join("pose").is_dir() && sl_io::sequence::open3d_log_of(&dir).is_err() =>
+        {
+            args.scannet = Some(dir);
+        }
         SequenceLayout::Open3d => {
             let log = sl_io::sequence::open3d_log_of(&dir)
                 .context("name the trajectory with --o3d-log FILE --depth-dir DIR")?;

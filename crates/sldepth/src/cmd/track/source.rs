@@ -31,7 +31,10 @@ pub(super) fn resolve_layout(args: &mut Args) -> Result<()> {
 
 /// The files of the chosen source besides its depth frames, which no output may replace.
 pub(super) fn source_files(args: &Args) -> Vec<PathBuf> {
-    let o3d_camera = args.o3d.as_ref().map(|d| d.join("camera.json"));
+    let o3d_camera = args
+        .o3d
+        .as_ref()
+        .and_then(|d| sl_io::sequence::camera_file_of(d, SequenceLayout::Open3d));
     crate::common::sequence_files(
         args.tum.as_deref(),
         args.seven_scenes.as_deref(),
