@@ -604,7 +604,7 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
 /// outside the camera's range (the `--camera` preset's, else the Kinect's 0.5–5 m): the usual
 /// cause is a file stored at another scale (TUM RGB-D: 5000 units per metre), whose surfaces
 /// would otherwise come out silently five times too far.
-fn note_depth_out_of_range(
+pub fn note_depth_out_of_range(
     path: &Path,
     depth: &sl_core::DepthImage,
     args: &InputArgs,

@@ -175,3 +175,38 @@ fn a_scannet_export_fuses_and_tracks_from_its_folder() {
     ]);
     assert_ne!(json_of(&o)["vertices"], own);
 }
+
+/// TUM frames copied into an Open3D-style folder (no `depth.txt`) are read as millimetres, five
+/// times too deep: `track` and `fuse` say so at the first frame, as the single-file commands do.
+#[test]
+fn a_sequence_read_at_the_wrong_scale_is_said_to_be() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("copied");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let mm = testdata("floor-seed1-depth.png");
+    let depth = sl_io::depth::read_depth(&mm, &sl_io::depth::ReadConfig::default())
+        .unwrap()
+        .depth;
+    for i in 0..2 {
+        let frame = seq.join("depth").join(format!("{i}.png"));
+        sl_io::depth::write_depth(&frame, &depth, &sl_io::depth::DepthEncoding::png(5000.0))
+            .unwrap();
+    }
+    let o = sldepth(&["track", path_str(&seq), "--voxel-m", "0.02", "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("0.png: median depth") && err.contains("--depth-scale"),
+        "{err}"
+    );
+    let o = sldepth(&[
+        "track",
+        path_str(&seq),
+        "--voxel-m",
+        "0.02",
+        "--json",
+        "--depth-scale",
+        "5000",
+    ]);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("median depth"));
+}

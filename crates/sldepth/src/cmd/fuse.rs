@@ -382,6 +382,14 @@ pub fn run(mut args: Args) -> Result<()> {
         frames.first().map(|f| f.depth_path.as_path()),
         &read_opts,
     );
+    // Frames at another scale than they are read at are far out of range: say so at the first.
+    if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
+        let units = read_opts.scale_units_per_m.unwrap_or_else(|| {
+            sl_io::sequence::depth_scale_of_file(&f.depth_path)
+                .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
+        });
+        crate::common::note_depth_out_of_range(&f.depth_path, d, &args.input, units);
+    }
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)

@@ -245,6 +245,10 @@ pub fn run(mut args: Args) -> Result<()> {
         frames.first().map(|f| f.depth_path.as_path()),
         &read_opts,
     );
+    // A folder of TUM frames read as millimetres is five times too deep: say so at the first.
+    if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
+        crate::common::note_depth_out_of_range(&f.depth_path, d, &args.input, default_scale);
+    }
     let k = camera.intrinsics;
     limits()
         .check_pixels(k.width as u64, k.height as u64)
