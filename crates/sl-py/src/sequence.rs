@@ -177,6 +177,22 @@ pub(crate) fn sequence_camera(
     PyCamera::wrap(camera, preset)
 }
 
+/// The camera of a SUN RGB-D sample folder (``depth/``, ``image/`` and ``intrinsics.txt``) for
+/// its ``width`` × ``height`` depth images, as ``sldepth`` takes it for a frame of the sample:
+/// the intrinsics of ``intrinsics.txt`` with the Kinect v1 sensor model at that focal length.
+/// ``read_depth`` reads the sample's frames in SUN's format by itself.
+#[pyfunction]
+pub(crate) fn sun_camera(
+    py: Python<'_>,
+    path: PathBuf,
+    width: usize,
+    height: usize,
+) -> PyResult<PyCamera> {
+    let camera =
+        compute(py, || sl_io::sequence::sun_camera(&path, width, height)).map_err(io_error)?;
+    PyCamera::wrap(camera, None)
+}
+
 /// The depth units per metre of a sequence folder's 16-bit depth images, as ``sldepth track
 /// DIR`` and ``sldepth fuse DIR`` read them: 5000 for a TUM folder, 1000 (millimetres) for
 /// 7-Scenes and Open3D-style folders. Pass it as ``depth_scale`` to ``track_sequence`` or

@@ -86,6 +86,25 @@ def test_a_tum_folders_frame_is_read_at_tums_scale(tmp_path):
     assert np.allclose(sldepth.read_depth(frame, depth_scale=1000), 7.5)
 
 
+def test_a_sun_rgbd_samples_frame_and_camera(tmp_path):
+    # A SUN RGB-D sample: its depth/ PNG is SUN's bit-rotated millimetres, read as such without a
+    # format; its intrinsics.txt is the camera (sun_camera) for the frame's size.
+    sample = tmp_path / "NYU0001"
+    (sample / "depth").mkdir(parents=True)
+    frame = sample / "depth" / "NYU0001.png"
+    # 1500 mm rotated left by 3 bits, as SUN stores it, written as the integers they are.
+    rotated = ((1500 << 3) | (1500 >> 13)) & 0xFFFF
+    sldepth.write_depth(frame, np.full((48, 64), rotated, dtype=np.uint16), depth_scale=1000)
+    assert not np.allclose(sldepth.read_depth(frame), 1.5)  # not yet a sample: a plain PNG
+    (sample / "image").mkdir()
+    (sample / "intrinsics.txt").write_text("60 0 31.5\n0 60 23.5\n0 0 1\n")
+    assert np.allclose(sldepth.read_depth(frame), 1.5)
+    cam = sldepth.sun_camera(sample, 64, 48)
+    assert (cam.fx, cam.cx, cam.width, cam.height) == (60.0, 31.5, 64, 48)
+    with pytest.raises(OSError, match="principal point"):
+        sldepth.sun_camera(sample, 16, 12)
+
+
 def test_uint16_input_needs_a_scale(small_cam):
     mm = np.full((48, 64), 2000, dtype=np.uint16)
     with pytest.raises(ValueError, match="depth_scale"):

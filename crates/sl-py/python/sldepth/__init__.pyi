@@ -538,6 +538,12 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
     camera.json names no preset. layout as read_sequence."""
 
+def sun_camera(path: _Path, width: int, height: int) -> Camera:
+    """The camera of a SUN RGB-D sample folder (depth/, image/, intrinsics.txt) for its
+    width x height depth images: intrinsics.txt's matrix with the Kinect v1 sensor model at that
+    focal length, as `sldepth` takes it for the sample's frames (which read_depth reads in SUN's
+    format by itself). A principal point outside the image raises OSError."""
+
 def sequence_depth_scale(path: _Path, layout: Optional[str] = None) -> float:
     """Depth units per metre of a sequence folder's 16-bit images, as `sldepth track DIR` /
     `sldepth fuse DIR` read them: 5000 for a TUM folder, 1000 (millimetres) for 7-Scenes and
