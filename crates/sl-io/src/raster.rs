@@ -73,8 +73,8 @@ fn open(path: &Path) -> Result<BufReader<File>> {
     Ok(BufReader::new(f))
 }
 
-/// The width and height an image file's header declares (PNG, TIFF, PNM: whatever the
-/// decoder recognises), nothing decoded; for sizing a camera, checked against `limits`.
+/// The width and height a PNG or TIFF file's header declares, nothing decoded; for sizing a
+/// camera, checked against `limits`.
 pub(crate) fn image_size(path: &Path, limits: &Limits) -> Result<(usize, usize)> {
     let (w, h) = image::ImageReader::new(open(path)?)
         .with_guessed_format()

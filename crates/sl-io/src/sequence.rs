@@ -154,9 +154,12 @@ fn logs_of(dir: &Path) -> Result<Vec<PathBuf>> {
     Ok(logs)
 }
 
-/// Whether a folder holds a `.log` file.
-fn has_log(dir: &Path) -> Result<bool> {
-    Ok(!logs_of(dir)?.is_empty())
+/// Whether an Open3D-style folder keeps its poses as ScanNet exports them: a `pose` folder
+/// and no `.log` (which [`read_posed_frames`] then reads, and `sldepth fuse DIR` takes as
+/// `--scannet`). An unreadable folder is not one.
+pub fn has_pose_folder(dir: impl AsRef<Path>) -> bool {
+    let dir = dir.as_ref();
+    dir.join("pose").is_dir() && logs_of(dir).is_ok_and(|logs| logs.is_empty())
 }
 
 /// The trajectory of an Open3D-style folder: its one `.log` file (`odometry.log`,
@@ -221,7 +224,7 @@ pub fn read_posed_frames(
             (frames, without)
         }
         // A ScanNet export: no `.log`, a `pose` folder.
-        SequenceLayout::Open3d if !has_log(dir)? && dir.join("pose").is_dir() => {
+        SequenceLayout::Open3d if has_pose_folder(dir) => {
             crate::trajectory::read_pose_folder_frames(dir, limits)?
         }
         SequenceLayout::Open3d => {
@@ -297,9 +300,9 @@ pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'
     match layout {
         SequenceLayout::Tum => Some(tum_preset_name(dir)),
         SequenceLayout::SevenScenes => Some("7-scenes"),
-        SequenceLayout::Open3d => camera_file_of(dir, SequenceLayout::Open3d)
-            .is_none_or(|f| !f.is_file())
-            .then_some("kinect-v1"),
+        SequenceLayout::Open3d => (!camera_file_of(dir, SequenceLayout::Open3d)
+            .is_some_and(|f| f.is_file()))
+        .then_some("kinect-v1"),
     }
 }
 

@@ -124,7 +124,7 @@ pub(crate) fn read_posed_sequence<'py>(
         let why = match layout {
             SequenceLayout::Tum => format!("no groundtruth.txt pose within {max_dt_s} s"),
             SequenceLayout::SevenScenes => "no pose file (frame-*.pose.txt)".to_owned(),
-            _ if path.join("pose").is_dir() && sl_io::sequence::open3d_log_of(&path).is_err() => {
+            _ if sl_io::sequence::has_pose_folder(&path) => {
                 "no pose (no pose/ file, or ScanNet's -inf matrix)".to_owned()
             }
             _ => "no entry in the .log".to_owned(),

@@ -500,13 +500,12 @@ pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
     }
 }
 
-/// The camera of a frame read from the TUM folder `dir` without `--camera`: the preset its name
-/// implies (`sl_io::sequence::tum_preset_name`), with a note on standard error, once per run,
+/// The camera of a frame read from the TUM folder `dir` without `--camera`: `preset`, the one its
+/// name implies (`sl_io::sequence::tum_preset_name`), with a note on standard error, once per run,
 /// that also names the scale the frame was read at (`units_per_m`, the folder's 5000 unless
 /// `--depth-scale` said otherwise).
-fn tum_frame_camera(dir: &Path, units_per_m: f64) -> Result<Camera> {
+fn tum_frame_camera(dir: &Path, preset: &str, units_per_m: f64) -> Result<Camera> {
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-    let preset = sl_io::sequence::tum_preset_name(dir);
     if !NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
         errln!(
             "note: a frame of the TUM folder {}: camera `{preset}` (--camera overrides it), \
@@ -554,14 +553,15 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         .depth_scale
         .or_else(|| preset_depth_scale(args).filter(|_| scaled));
     let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
-    let tum_folder = sl_io::sequence::tum_folder_of_file(path);
-    let implied_preset = match (&args.camera, tum_folder) {
+    // A frame of a TUM folder read without --camera: the folder and the preset its name implies.
+    let tum = match (&args.camera, sl_io::sequence::tum_folder_of_file(path)) {
         (None, Some(dir)) if loaded.encoding.format != DepthFormat::NyuRaw => {
-            Some(sl_io::sequence::tum_preset_name(dir))
+            Some((dir, sl_io::sequence::tum_preset_name(dir)))
         }
         _ => None,
     };
-    let camera = match (&args.camera, loaded.encoding.format, tum_folder) {
+    let implied_preset = tum.map(|(_, preset)| preset);
+    let camera = match (&args.camera, loaded.encoding.format, tum) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the
         // f·B of the NYU toolbox conversion), which is the right default for it.
         (None, DepthFormat::NyuRaw, _) => Camera {
@@ -569,7 +569,9 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
             sensor: sl_io::depth::nyu_sensor_model(),
         },
         // A frame of a TUM folder: the camera `sldepth track DIR` takes for that folder.
-        (None, _, Some(dir)) => tum_frame_camera(dir, loaded.encoding.units_per_m)?,
+        (None, _, Some((dir, preset))) => {
+            tum_frame_camera(dir, preset, loaded.encoding.units_per_m)?
+        }
         // A SUN RGB-D sample's frame: its own intrinsics.txt.
         (None, DepthFormat::Sun, None) => match sl_io::sequence::sun_folder_of_file(path) {
             Some(sample) => sun_frame_camera(sample, &loaded.depth)?,

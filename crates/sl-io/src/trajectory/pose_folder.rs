@@ -4,12 +4,12 @@
 
 use std::path::Path;
 
+use super::Frame;
 use super::depth_files::list_depth_files;
 use super::parse::check_frames;
-use super::{Frame, read_pose_txt};
+use super::seven_scenes::{parse_pose_txt, read_pose_text};
 use crate::error::Result;
 use crate::limits::Limits;
-use crate::text::read_text;
 
 /// The depth images of `dir/depth` (in [`natural_order`](super::natural_order)) with the pose of
 /// `dir/pose/<stem>.txt` (a 4×4 camera-to-world matrix, row-major, as 7-Scenes' pose files),
@@ -33,12 +33,17 @@ pub fn read_pose_folder_frames(
         let mut name = stem.to_os_string();
         name.push(".txt");
         let pose_path = dir.join("pose").join(name);
-        if !pose_path.is_file() || marks_no_pose(&pose_path)? {
+        if !pose_path.is_file() {
+            without += 1;
+            continue;
+        }
+        let text = read_pose_text(&pose_path)?;
+        if marks_no_pose(&text) {
             without += 1;
             continue;
         }
         frames.push(Frame {
-            pose: read_pose_txt(&pose_path)?,
+            pose: parse_pose_txt(&pose_path, &text)?,
             depth_path,
             timestamp: None,
         });
@@ -46,17 +51,17 @@ pub fn read_pose_folder_frames(
     Ok((frames, without))
 }
 
-/// Whether a pose file is ScanNet's mark of a frame without a pose: 16 entries, none finite.
-fn marks_no_pose(path: &Path) -> Result<bool> {
-    let text = read_text(path, 1 << 20, 1 << 10)?;
+/// Whether a pose file's text is ScanNet's mark of a frame without a pose: 16 entries, none
+/// finite.
+fn marks_no_pose(text: &str) -> bool {
     let mut n = 0;
     for tok in text.split_whitespace() {
         match tok.parse::<f64>() {
             Ok(v) if !v.is_finite() => n += 1,
-            _ => return Ok(false),
+            _ => return false,
         }
     }
-    Ok(n == 16)
+    n == 16
 }
 
 #[cfg(test)]

@@ -16,11 +16,20 @@ use crate::text::read_text;
 /// Reads one 4×4 row-major pose file (7-Scenes `frame-XXXXXX.pose.txt`).
 pub fn read_pose_txt(path: impl AsRef<Path>) -> Result<CameraToWorld> {
     let path = path.as_ref();
-    let text = read_text(path, 1 << 20, 1 << 10)?;
+    parse_pose_txt(path, &read_pose_text(path)?)
+}
+
+/// The text of a pose file, within the bounds a 4×4 matrix needs.
+pub(super) fn read_pose_text(path: &Path) -> Result<String> {
+    read_text(path, 1 << 20, 1 << 10)
+}
+
+/// The pose of a pose file's `text` (errors name `path`).
+pub(super) fn parse_pose_txt(path: &Path, text: &str) -> Result<CameraToWorld> {
     let mut m = [0.0; 16];
     let mut k = 0;
     let mut last_line = 1;
-    for (n, line) in crate::text::text_lines(&text).enumerate() {
+    for (n, line) in crate::text::text_lines(text).enumerate() {
         last_line = n + 1;
         for tok in line.split_whitespace() {
             if k == 16 {

@@ -280,9 +280,7 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
         // A ScanNet export: poses in a pose/ folder, no .log.
-        SequenceLayout::Open3d
-            if dir.join("pose").is_dir() && sl_io::sequence::open3d_log_of(&dir).is_err() =>
-        {
+        SequenceLayout::Open3d if sl_io::sequence::has_pose_folder(&dir) => {
             args.scannet = Some(dir);
         }
         SequenceLayout::Open3d => {
