@@ -52,6 +52,23 @@ impl Mesh {
         }
     }
 
+    /// Mirrors the mesh in `y` (`F = diag(1, −1, 1)`): positions and normals get `−y`, and each
+    /// triangle's winding is reversed so its corners stay counter-clockwise seen from the side
+    /// its (mirrored) normal points to. The mesh of a camera trajectory reflected with
+    /// [`crate::CameraToWorld::y_reflected`] (a data set that renders with y up, as ICL-NUIM's
+    /// TUM-format files): the two stay in one frame. Applying it twice gives the mesh back.
+    pub fn reflect_y(&mut self) {
+        for p in &mut self.positions {
+            p.y = -p.y;
+        }
+        for n in &mut self.normals {
+            n.y = -n.y;
+        }
+        for t in &mut self.triangles {
+            t.swap(1, 2);
+        }
+    }
+
     /// Adds vertex normals.
     #[must_use]
     pub fn with_normals(self, normals: Vec<Vector3<f32>>) -> Self {
@@ -250,6 +267,33 @@ impl Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The mirror keeps each face's normal on the side its vertex normals point to, and undoes
+    /// itself.
+    #[test]
+    fn a_mirrored_mesh_keeps_its_faces_facing_their_normals() {
+        let n = Vector3::new(0.2f32, 0.5, -1.0).normalize();
+        let mut mesh = Mesh::new(
+            vec![
+                Point3::new(0.0, 0.0, 2.0),
+                Point3::new(1.0, 0.1, 2.0),
+                Point3::new(0.0, 1.0, 2.5),
+            ],
+            vec![[0, 1, 2]],
+        )
+        .with_normals(vec![n; 3]);
+        // Make the face's corners counter-clockwise seen from its normal's side.
+        if mesh.face_normal(0).unwrap().dot(&n) < 0.0 {
+            mesh.triangles[0].swap(1, 2);
+        }
+        let original = mesh.clone();
+        mesh.reflect_y();
+        assert_eq!(mesh.positions[1], Point3::new(1.0, -0.1, 2.0));
+        assert_eq!(mesh.normals[0], Vector3::new(n.x, -n.y, n.z));
+        assert!(mesh.face_normal(0).unwrap().dot(&mesh.normals[0]) > 0.0);
+        mesh.reflect_y();
+        assert_eq!(mesh, original);
+    }
 
     /// A rigid move keeps the shape: positions and normals move together, lengths are kept.
     #[test]

@@ -106,6 +106,16 @@ pub fn rotation_angle_deg(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> f
     a.angle_to(b).to_degrees()
 }
 
+/// `F·T·F` with `F = diag(1, −1, 1)`: see `CameraToWorld::y_reflected`.
+fn reflect_y(t: &Isometry3<f64>) -> Isometry3<f64> {
+    let v = t.translation.vector;
+    let q = t.rotation.quaternion();
+    Isometry3::from_parts(
+        Translation3::new(v.x, -v.y, v.z),
+        UnitQuaternion::new_unchecked(Quaternion::new(q.w, -q.i, q.j, -q.k)),
+    )
+}
+
 /// Defines a pose newtype over `Isometry3<f64>` with the shared constructors and accessors.
 macro_rules! typed_pose {
     ($(#[$doc:meta])* $name:ident, $from:literal, $to:literal) => {
@@ -173,6 +183,16 @@ macro_rules! typed_pose {
             #[doc = concat!("Maps a direction from ", $from, " to ", $to, " coordinates (rotation only).")]
             pub fn transform_vector(&self, v: &Vector3<f64>) -> Vector3<f64> {
                 self.0.transform_vector(v)
+            }
+
+            /// The same transform seen in mirrored frames, `F·T·F` with `F = diag(1, −1, 1)`
+            /// on both sides: translation `(x, −y, z)`, rotation axis `(−x, y, −z)` by the same
+            /// angle. It converts between sldepth's right-handed camera frame (x right, y down,
+            /// z forward) and a data set that renders with the image y axis up in a
+            /// left-handed frame (ICL-NUIM's TUM-format files, published fy = −480), both ways:
+            /// applying it twice gives the pose back.
+            pub fn y_reflected(&self) -> Self {
+                Self(reflect_y(&self.0))
             }
         }
 
@@ -420,6 +440,27 @@ mod tests {
             proptest::prop_assert!((t_ab.transform_point(&x_b) - x_a).norm() < 1e-9);
             proptest::prop_assert!(close(&(t_ab * pose_b.inverse()).to_matrix(), &ext.to_matrix()));
             proptest::prop_assert!(close(&(t_ab * t_ab.inverse()).to_matrix(), &Matrix4::identity()));
+        }
+
+        /// The y reflection is `F·T·F` as matrices, an involution, and it maps the mirror
+        /// image of a point through the mirrored pose: `F·(T·X) = T'·(F·X)`.
+        #[test]
+        fn y_reflection_is_the_mirrored_pose(
+            a in proptest::array::uniform6(-2.0..2.0f64),
+            x in proptest::array::uniform3(-5.0..5.0f64),
+        ) {
+            let pose = CameraToWorld::from_isometry(iso(a));
+            let f = Matrix4::from_diagonal(&nalgebra::Vector4::new(1.0, -1.0, 1.0, 1.0));
+            let r = pose.y_reflected();
+            proptest::prop_assert!(close(&r.to_matrix(), &(f * pose.to_matrix() * f)));
+            proptest::prop_assert!(close(&r.y_reflected().to_matrix(), &pose.to_matrix()));
+            let mirror = |p: nalgebra::Point3<f64>| nalgebra::Point3::new(p.x, -p.y, p.z);
+            let p = nalgebra::Point3::from(x);
+            proptest::prop_assert!((mirror(pose.transform_point(&p)) - r.transform_point(&mirror(p))).norm() < 1e-9);
+            // Relative motions keep their size: RPE is the same in either frame.
+            let m = CameraToCamera::between(&pose, &CameraToWorld::identity());
+            let mr = CameraToCamera::between(&r, &CameraToWorld::identity());
+            proptest::prop_assert!((m.rotation_angle_deg() - mr.rotation_angle_deg()).abs() < 1e-9);
         }
     }
 }

@@ -13,6 +13,7 @@
 //! | `ros-default` | ROS/OpenNI default Kinect intrinsics | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | ROS `openni_camera` default; Open3D `PrimeSenseDefault` |
 //! | `pcl-openni` | PCL's OpenNI grabber default | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | PCL OpenNI grabber, c = (320, 240) |
 //! | `icl-nuim` | ICL-NUIM (synthetic, Kinect-like noise) | 640×480 | 525 | 0.075 | 1/8 | 0.5–5 | 1000 | ICL-NUIM `camera.json` |
+//! | `icl-nuim-tum` | ICL-NUIM's own TUM-format archives | 640×480 | 481.2 / 480 | 0.075 | 1/8 | 0.5–5 | 5000 | ICL-NUIM web page (fx 481.20, fy −480.00: its y axis points up, see below) |
 //! | `d415` | Intel RealSense D415 | 1280×720 | 912 | 0.055 | 1/32 | 0.3–10 | 1000 | D400 datasheet (baseline, 1/32 px sub-pixel); typical factory fx — calibrate your unit |
 //! | `d435` | Intel RealSense D435 / D435i | 848×480 | 426 | 0.050 | 1/32 | 0.3–10 | 1000 | D400 datasheet; typical fx at 848×480 — calibrate your unit |
 //! | `d455` | Intel RealSense D455 | 1280×720 | 640 | 0.095 | 1/32 | 0.6–10 | 1000 | D400 datasheet; typical fx — calibrate your unit |
@@ -27,6 +28,13 @@
 //! and Python's `Tracker` model when tracking against the fused model; `icl-nuim` (rendered
 //! images) and the active-stereo presets have none (global shutters; the D415's rolling-shutter
 //! readout is not published).
+//!
+//! `icl-nuim-tum` is the camera of ICL-NUIM's own TUM-format archives (`living_room_trajN_frei_png`,
+//! `traj0_frei_png`, ...), whose published fy is −480: POV-Ray renders in a left-handed frame,
+//! image y up. The preset keeps the focal length's size; the mirror belongs to the data set's
+//! trajectories, which sldepth reads and writes through [`crate::CameraToWorld::y_reflected`]
+//! (`sl_io::sequence::icl_nuim_tum_folder`). Open3D's copy of ICL-NUIM (`icl-nuim`) is
+//! re-rendered at 525 px in the usual frame.
 //!
 //! σ_D is the paper's 0.07 px for the structured-light cameras. For the active-stereo cameras it
 //! is the 0.08 px "subpixel RMS" Intel quotes for a well-textured target (D400 tuning guide);
@@ -276,6 +284,17 @@ pub const PRESETS: &[SensorPreset] = &[
         )
     },
     SensorPreset {
+        // Rendered images: every row from the frame's one pose.
+        rolling_shutter_readout_s: 0.0,
+        ..kinect(
+            "icl-nuim-tum",
+            "ICL-NUIM's TUM-format archives (synthetic, Kinect-like noise; fy published as -480: y up)",
+            (481.2, 480.0, 319.5, 239.5),
+            DepthUnits::UnitsPerMetre(5000.0),
+            "ICL-NUIM web page (VaFRIC codes): fx 481.20, fy -480.00, c = (319.5, 239.5); depth / 5000 as in TUM",
+        )
+    },
+    SensorPreset {
         name: "d415",
         description: "Intel RealSense D415 active stereo (1280x720)",
         width: 1280,
@@ -467,7 +486,7 @@ mod tests {
                 "{name}"
             );
         }
-        for name in ["icl-nuim", "d435", "d455", "oak-d", "d415"] {
+        for name in ["icl-nuim", "icl-nuim-tum", "d435", "d455", "oak-d", "d415"] {
             assert_eq!(find(name).unwrap().rolling_shutter_readout_s, 0.0, "{name}");
         }
     }

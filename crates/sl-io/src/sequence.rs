@@ -244,11 +244,80 @@ pub fn read_posed_frames(
     })
 }
 
-/// The TUM camera preset a TUM folder's name implies: `tum-fr2` or `tum-fr3` when its path
-/// names `freiburg2` or `freiburg3`, else `tum-fr1` (TUM's sequence folders are named
-/// `rgbd_dataset_freiburgN_...`).
+/// Whether the TUM-layout folder `dir` is one of ICL-NUIM's own TUM-format archives
+/// (`living_room_trajN_frei_png`, `trajN_frei_png`, ...): its `associations.txt` lists the depth
+/// image first and stamps it with a whole frame number (`0 depth/0.png 0 rgb/0.png`), which no
+/// TUM recording does (TUM's lines start with the colour image's time in seconds). Such a
+/// folder
+///
+/// - is a rendering at ICL-NUIM's published intrinsics ([`tum_preset_name`]: `icl-nuim-tum`);
+/// - numbers its frames instead of timing them: one frame interval per number
+///   (`sldepth track` and Python's `track_sequence` take frame `n` at `n / 30` s);
+/// - and renders with the image y axis up (published fy = −480): its ground truth
+///   (`groundtruth.txt`, or the data set's `*.gt.freiburg` beside the frames, see
+///   [`tum_ground_truth_of`]) is read into sldepth's frame with
+///   [`sl_core::CameraToWorld::y_reflected`], and `sldepth track` writes its trajectory and mesh
+///   back in the data set's frame, so they compare with its ground truth directly.
+///
+/// Only the file's first line is looked at; a folder without `associations.txt` is not one.
+pub fn icl_nuim_tum_folder(dir: impl AsRef<Path>) -> bool {
+    let path = dir.as_ref().join("associations.txt");
+    // The first line is all that is needed: a few hundred bytes.
+    let Ok(file) = std::fs::File::open(&path) else {
+        return false;
+    };
+    let mut head = String::new();
+    let _ = std::io::Read::read_to_string(&mut std::io::Read::take(file, 4096), &mut head);
+    let Some(line) = crate::text::text_lines(&head)
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))
+    else {
+        return false;
+    };
+    let toks: Vec<&str> = line.split_whitespace().collect();
+    if toks.len() < 4 {
+        return false;
+    }
+    let whole = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+    crate::trajectory::association_depth_columns(&toks) == (0, 1) && whole(toks[0])
+}
+
+/// The ground-truth file of a TUM-layout folder: its `groundtruth.txt`, else the one
+/// `*.gt.freiburg` file in it (ICL-NUIM ships `livingRoom0.gt.freiburg`, `traj0.gt.freiburg`,
+/// ... beside its TUM-format archives), else `groundtruth.txt` (for the error that names it).
+pub fn tum_ground_truth_of(dir: impl AsRef<Path>) -> PathBuf {
+    let dir = dir.as_ref();
+    let tum = dir.join("groundtruth.txt");
+    if tum.exists() {
+        return tum;
+    }
+    let freiburg: Vec<PathBuf> = std::fs::read_dir(dir)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.ends_with(".gt.freiburg"))
+        })
+        .take(2)
+        .collect();
+    match freiburg.as_slice() {
+        [one] => one.clone(),
+        _ => tum,
+    }
+}
+
+/// The TUM camera preset a TUM folder implies: `icl-nuim-tum` for one of ICL-NUIM's
+/// TUM-format archives ([`icl_nuim_tum_folder`]), else by its name — `tum-fr2` or `tum-fr3`
+/// when its path names `freiburg2` or `freiburg3`, else `tum-fr1` (TUM's sequence folders are
+/// named `rgbd_dataset_freiburgN_...`).
 pub fn tum_preset_name(dir: impl AsRef<Path>) -> &'static str {
     let dir = dir.as_ref();
+    if icl_nuim_tum_folder(dir) {
+        return "icl-nuim-tum";
+    }
     let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
     let names = full.to_string_lossy().to_ascii_lowercase();
     if names.contains("freiburg2") {
@@ -572,6 +641,60 @@ mod tests {
             let frames = read_tum_depth_frames(d, &lim).unwrap();
             assert_eq!(frames[0].timestamp, Some(1.01), "{text}");
         }
+    }
+
+    /// One of ICL-NUIM's TUM-format folders is told by its associations (depth first, frame
+    /// numbers): its preset, and its `*.gt.freiburg` read into sldepth's frame (y reflected).
+    /// TUM's own folders are not one.
+    #[test]
+    fn an_icl_nuim_tum_folder_is_told_by_its_associations() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let lim = Limits::default();
+        assert!(!icl_nuim_tum_folder(d));
+        for (text, icl) in [
+            (
+                "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n",
+                true,
+            ),
+            ("# comment\n\n12 depth/12.png 12 rgb/12.png\n", true),
+            ("1305031229.52 rgb/a.png 1305031229.53 depth/a.png\n", false),
+            ("0.5 depth/0.png 0.5 rgb/0.png\n", false),
+            ("0 rgb/0.png 0 depth/0.png\n", false),
+            ("0 depth/0.png\n", false),
+        ] {
+            std::fs::write(d.join("associations.txt"), text).unwrap();
+            assert_eq!(icl_nuim_tum_folder(d), icl, "{text}");
+            let want = if icl { "icl-nuim-tum" } else { "tum-fr1" };
+            assert_eq!(tum_preset_name(d), want, "{text}");
+        }
+        std::fs::write(
+            d.join("associations.txt"),
+            "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n",
+        )
+        .unwrap();
+        // Without groundtruth.txt, the one *.gt.freiburg is the ground truth.
+        assert_eq!(tum_ground_truth_of(d), d.join("groundtruth.txt"));
+        let gt = d.join("livingRoom0.gt.freiburg");
+        // Frame 1: at (0.5, 0.25, −2), turned 90° about x (qx = sin 45°).
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        std::fs::write(&gt, format!("1 0.5 0.25 -2 {h} 0 0 {h}\n")).unwrap();
+        assert_eq!(tum_ground_truth_of(d), gt);
+        let seq = crate::trajectory::read_tum_sequence_with_limits(d, 0.02, &lim).unwrap();
+        assert_eq!(seq.frames.len(), 1);
+        assert_eq!(seq.without_pose.len(), 1);
+        let pose = seq.frames[0].pose;
+        let t = pose.translation();
+        assert_eq!((t.x, t.y, t.z), (0.5, -0.25, -2.0));
+        // The mirrored rotation turns the other way about x.
+        let axis = pose.rotation().axis().unwrap();
+        assert!((axis.x + 1.0).abs() < 1e-12, "{axis:?}");
+        // Read as written by the plain trajectory reader.
+        let raw = crate::trajectory::read_trajectory(&gt).unwrap();
+        assert_eq!(raw[0].pose.translation().y, 0.25);
+        // groundtruth.txt wins, as TUM names it.
+        std::fs::write(d.join("groundtruth.txt"), "1 0 0 0 0 0 0 1\n").unwrap();
+        assert_eq!(tum_ground_truth_of(d), d.join("groundtruth.txt"));
     }
 
     /// The posed frames come with the count of depth frames left out for want of a pose: a

@@ -193,6 +193,18 @@ pub(crate) fn sun_camera(
     PyCamera::wrap(camera, None)
 }
 
+/// Whether a TUM-layout folder is one of ICL-NUIM's own TUM-format archives: its
+/// ``associations.txt`` lists the depth image first, stamped with its frame number
+/// (``0 depth/0.png 0 rgb/0.png``). Such a folder's camera is the ``icl-nuim-tum`` preset
+/// (``sequence_camera``), ``track_sequence`` takes its frame numbers as frames 1/30 s apart, and
+/// it renders with the image y axis up: ``read_posed_sequence`` gives its ground truth in
+/// sldepth's frame (y down), and ``F @ pose @ F`` with ``F = diag(1, -1, 1, 1)`` turns a pose
+/// either way (``sldepth track`` writes its trajectory and mesh in the data set's frame).
+#[pyfunction]
+pub(crate) fn icl_nuim_tum_folder(path: PathBuf) -> bool {
+    sl_io::sequence::icl_nuim_tum_folder(path)
+}
+
 /// The depth units per metre of a sequence folder's 16-bit depth images, as ``sldepth track
 /// DIR`` and ``sldepth fuse DIR`` read them: 5000 for a TUM folder, 1000 (millimetres) for
 /// 7-Scenes and Open3D-style folders. Pass it as ``depth_scale`` to ``track_sequence`` or

@@ -306,6 +306,33 @@ def test_a_scannet_export_reads_as_a_posed_sequence_with_its_camera(tmp_path):
     assert sldepth.sequence_depth_scale(scan) == 1000.0
 
 
+def test_an_icl_nuim_tum_folder_reads_its_y_up_ground_truth_into_sldepths_frame(tmp_path):
+    # ICL-NUIM's TUM-format archive: associations depth first with frame numbers, the
+    # data set's livingRoomN.gt.freiburg beside it (frame 0 has no pose), depth / 5000.
+    icl = tmp_path / "living_room_traj0_frei_png"
+    _write_frames(icl / "depth", ["0.png", "1.png", "2.png"], 5000)
+    (icl / "associations.txt").write_text(
+        "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n2 depth/2.png 2 rgb/2.png\n"
+    )
+    h = np.sqrt(0.5)
+    (icl / "livingRoom0.gt.freiburg").write_text(
+        f"1 0.5 0.25 -2 0 0 0 1\n2 0.5 0.3 -2 {h} 0 0 {h}\n"
+    )
+    assert sldepth.icl_nuim_tum_folder(icl)
+    assert not sldepth.icl_nuim_tum_folder(tmp_path)
+    cam = sldepth.sequence_camera(icl)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy) == (481.2, 480.0, 319.5, 239.5)
+    assert sldepth.sequence_depth_scale(icl) == 5000.0
+    with pytest.warns(UserWarning, match="1 depth frames"):
+        paths, times, poses = sldepth.read_posed_sequence(icl)
+    assert [p[-5:] for p in paths] == ["1.png", "2.png"] and list(times) == [1.0, 2.0]
+    # y negated; a turn about x turns the other way: F @ P @ F.
+    f = np.diag([1.0, -1.0, 1.0, 1.0])
+    raw = sldepth.read_trajectory(icl / "livingRoom0.gt.freiburg")[1]
+    assert np.allclose(poses, f @ raw @ f)
+    assert np.isclose(poses[0][1, 3], -0.25) and np.isclose(poses[1][1, 2], 1.0)
+
+
 def test_a_sequence_list_over_the_limits_is_refused_with_a_python_hint(tmp_path):
     # More lines than the default budget's text limit: refused while it streams in, and the
     # message does not send a Python user to a command-line option.

@@ -196,6 +196,8 @@ pub fn sequence_files(
         ] {
             files.push(dir.join(n));
         }
+        // An ICL-NUIM folder's `*.gt.freiburg`.
+        files.push(sl_io::sequence::tum_ground_truth_of(dir));
     }
     if let Some(dir) = seven_scenes {
         files.push(dir.join("camera-intrinsics.txt"));
@@ -329,8 +331,9 @@ pub fn load_camera(args: &InputArgs) -> Result<Camera> {
     }
 }
 
-/// The camera of a TUM RGB-D sequence folder: `--camera` when given, else the `tum-fr2` or
-/// `tum-fr3` preset when a component of the folder's path names `freiburg2` / `freiburg3` (as
+/// The camera of a TUM RGB-D sequence folder: `--camera` when given, else `icl-nuim-tum` for
+/// one of ICL-NUIM's TUM-format folders (`sl_io::sequence::icl_nuim_tum_folder`), the `tum-fr2`
+/// or `tum-fr3` preset when a component of the folder's path names `freiburg2` / `freiburg3` (as
 /// TUM names its downloads, `rgbd_dataset_freiburg2_desk`), else `tum-fr1`, with a note on
 /// standard error saying which. The three sensors' focal lengths differ by up to 3.5 %, enough
 /// to misalign fused frames.
@@ -339,7 +342,12 @@ pub fn tum_camera(dir: &Path, args: &InputArgs) -> Result<Camera> {
         return load_camera(args);
     }
     let preset = sl_io::sequence::tum_preset_name(dir);
-    errln!("note: camera `{preset}` for this TUM folder (--camera overrides it)");
+    let folder = if sl_io::sequence::icl_nuim_tum_folder(dir) {
+        "ICL-NUIM TUM-format folder"
+    } else {
+        "TUM folder"
+    };
+    errln!("note: camera `{preset}` for this {folder} (--camera overrides it)");
     Ok(Camera::preset(preset)?)
 }
 

@@ -210,3 +210,95 @@ fn a_sequence_read_at_the_wrong_scale_is_said_to_be() {
     ]);
     assert!(!String::from_utf8_lossy(&o.stderr).contains("median depth"));
 }
+
+/// The vertex count and the mean y of a PLY mesh's vertices.
+fn mean_y(ply: &Path) -> (usize, f64) {
+    let mesh = sl_io::ply::read_ply(ply).unwrap().into_mesh();
+    assert!(mesh.vertex_count() > 0);
+    let sum: f64 = mesh.positions.iter().map(|p| f64::from(p.y)).sum();
+    (mesh.vertex_count(), sum / mesh.vertex_count() as f64)
+}
+
+/// One of ICL-NUIM's TUM-format folders (associations depth first with frame numbers, its
+/// `*.gt.freiburg` beside them) is told from a TUM folder: the `icl-nuim-tum` camera, and the
+/// trajectory and meshes of `track` and `fuse` in the data set's y-up frame — the same frames
+/// in a TUM folder give the same meshes mirrored in y.
+#[test]
+fn an_icl_nuim_tum_folder_is_tracked_and_fused_in_its_own_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let mm = testdata("figure-walls-seed2-depth.png");
+    let depth = sl_io::depth::read_depth(&mm, &sl_io::depth::ReadConfig::default())
+        .unwrap()
+        .depth;
+    let identity = "0 0 0 0 0 0 1";
+    let make = |name: &str, icl: bool| {
+        let seq = dir.path().join(name);
+        std::fs::create_dir_all(seq.join("depth")).unwrap();
+        let (mut list, mut gt) = (String::new(), String::new());
+        for i in 0..3 {
+            let frame = seq.join("depth").join(format!("{i}.png"));
+            sl_io::depth::write_depth(&frame, &depth, &sl_io::depth::DepthEncoding::png(5000.0))
+                .unwrap();
+            if icl {
+                list.push_str(&format!("{i} depth/{i}.png {i} rgb/{i}.png\n"));
+            } else {
+                list.push_str(&format!("{i} depth/{i}.png\n"));
+            }
+            gt.push_str(&format!("{i} {identity}\n"));
+        }
+        let (list_name, gt_name) = if icl {
+            ("associations.txt", "livingRoom0.gt.freiburg")
+        } else {
+            ("depth.txt", "groundtruth.txt")
+        };
+        std::fs::write(seq.join(list_name), list).unwrap();
+        std::fs::write(seq.join(gt_name), gt).unwrap();
+        seq
+    };
+    let icl = make("living_room_traj0_frei_png", true);
+    let tum = make("tum", false);
+    let run = |seq: &Path, what: &str, extra: &[&str]| -> (Output, std::path::PathBuf) {
+        let mesh = seq.with_extension(format!("{what}.ply"));
+        let mut args = vec![what, path_str(seq), "--voxel-m", "0.02"];
+        args.extend_from_slice(extra);
+        let out_flag = if what == "track" {
+            "--mesh"
+        } else {
+            "--output"
+        };
+        let mesh_str = mesh.to_str().unwrap().to_owned();
+        args.extend_from_slice(&[out_flag, &mesh_str]);
+        let o = sldepth(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (o, mesh)
+    };
+    let traj = dir.path().join("icl.txt");
+    let (o, icl_track) = run(&icl, "track", &["--output", path_str(&traj)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("camera `icl-nuim-tum` for this ICL-NUIM TUM-format folder")
+            && err.contains("one of ICL-NUIM's TUM-format folders"),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(&traj).unwrap();
+    assert!(text.contains("# in the data set's y-up frame"), "{text}");
+    // Stamped with the frame numbers, as its ground truth.
+    let stamps: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().next().unwrap())
+        .collect();
+    assert_eq!(stamps, ["0.000000", "1.000000", "2.000000"], "{text}");
+    // The same frames and camera as a TUM folder: the mesh mirrored in y.
+    let (_, tum_track) = run(&tum, "track", &["--camera", "icl-nuim-tum"]);
+    let (a, b) = (mean_y(&icl_track), mean_y(&tum_track));
+    // (The scene's mean y is not 0 itself, so the mirror shows.)
+    assert!(b.1.abs() > 0.05, "{b:?}");
+    assert!(a.0 == b.0 && (a.1 + b.1).abs() < 1e-5, "{a:?} {b:?}");
+    // `fuse` reads the *.gt.freiburg and writes its mesh in the same frame.
+    let (o, icl_fuse) = run(&icl, "fuse", &[]);
+    assert!(String::from_utf8_lossy(&o.stderr).contains("its ground truth (y up)"));
+    let (_, tum_fuse) = run(&tum, "fuse", &["--camera", "icl-nuim-tum"]);
+    let (a, b) = (mean_y(&icl_fuse), mean_y(&tum_fuse));
+    assert!(a.0 == b.0 && (a.1 + b.1).abs() < 1e-5, "{a:?} {b:?}");
+}

@@ -10,12 +10,15 @@ use super::{TimedPose, TumSequence, associate, associate_interpolated};
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 
-/// Reads a TUM sequence directory: `dir/groundtruth.txt` and the depth frames as TUM ships
-/// them (`associations.txt` when present, else `depth.txt`; see
+/// Reads a TUM sequence directory: `dir/groundtruth.txt` (or the one `*.gt.freiburg` of an
+/// ICL-NUIM folder, [`tum_ground_truth_of`](crate::sequence::tum_ground_truth_of)) and the
+/// depth frames as TUM ships them (`associations.txt` when present, else `depth.txt`; see
 /// [`read_tum_depth_frames`](crate::sequence::read_tum_depth_frames)), matching each depth
 /// frame to the nearest ground-truth pose within `max_dt_s` seconds ([`DEFAULT_MAX_DT_S`] =
 /// 0.02 s is the usual choice). A non-positive or non-finite tolerance is an error naming
-/// `groundtruth.txt`.
+/// `groundtruth.txt`. The poses of one of ICL-NUIM's TUM-format folders (rendered with y up,
+/// [`icl_nuim_tum_folder`](crate::sequence::icl_nuim_tum_folder)) come in sldepth's frame
+/// ([`sl_core::CameraToWorld::y_reflected`]).
 pub fn read_tum_sequence(dir: impl AsRef<Path>, max_dt_s: f64) -> Result<TumSequence> {
     read_tum_sequence_with_limits(dir, max_dt_s, &Limits::default())
 }
@@ -64,7 +67,7 @@ fn read_tum_parts(
     max_dt_s: f64,
     limits: &Limits,
 ) -> Result<(TimedDepth, Vec<TimedPose>)> {
-    let gt_path = dir.join("groundtruth.txt");
+    let gt_path = crate::sequence::tum_ground_truth_of(dir);
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
         return Err(IoError::Format {
             path: gt_path,
@@ -74,7 +77,13 @@ fn read_tum_parts(
             ),
         });
     }
-    let poses = read_tum_trajectory_with_limits(&gt_path, limits)?;
+    let mut poses = read_tum_trajectory_with_limits(&gt_path, limits)?;
+    // ICL-NUIM renders with y up: its poses into sldepth's frame.
+    if crate::sequence::icl_nuim_tum_folder(dir) {
+        for p in &mut poses {
+            p.pose = p.pose.y_reflected();
+        }
+    }
     let depth: TimedDepth = crate::sequence::read_tum_depth_frames(dir, limits)?
         .into_iter()
         .filter_map(|f| Some((f.timestamp?, f.depth_path)))

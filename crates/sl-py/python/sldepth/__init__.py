@@ -46,6 +46,7 @@ from ._sldepth import (
     read_sequence,
     sequence_camera,
     sequence_depth_scale,
+    icl_nuim_tum_folder,
     sun_camera,
     read_trajectory,
     set_num_threads,
@@ -85,6 +86,7 @@ __all__ = [
     "read_sequence",
     "sequence_camera",
     "sequence_depth_scale",
+    "icl_nuim_tum_folder",
     "sun_camera",
     "set_num_threads",
     "simulate",
@@ -104,7 +106,9 @@ def track_sequence(
     paths of depth files (read with ``read_depth(path, depth_scale=depth_scale)``), in order;
     or a recording's folder (TUM, 7-Scenes or Open3D-style, ``layout`` as ``read_sequence``),
     read as ``sldepth track DIR`` reads it: its frames and timestamps (``read_sequence``), and
-    unless given its camera (``sequence_camera``) and depth scale (``sequence_depth_scale``).
+    unless given its camera (``sequence_camera``) and depth scale (``sequence_depth_scale``);
+    one of ICL-NUIM's TUM-format folders (``icl_nuim_tum_folder``) has its frame numbers taken
+    as frames 1/30 s apart, and its poses come in sldepth's frame (y down, not the data set's).
     ``camera`` is needed for arrays and lists of paths.
     ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
@@ -136,6 +140,9 @@ def track_sequence(
             depth_scale = sequence_depth_scale(folder, layout)
         if timestamps_s is None:
             timestamps_s = times
+            # ICL-NUIM's TUM-format folders number their frames: one 30 Hz interval each.
+            if times is not None and icl_nuim_tum_folder(folder):
+                timestamps_s = [float(t) / 30.0 for t in times]
     elif isinstance(frames, (str, bytes, _os.PathLike)) or (
         isinstance(frames, np.ndarray) and frames.ndim < 3
     ):

@@ -525,8 +525,9 @@ def read_posed_sequence(
     frames without one are left out), a 7-Scenes folder's its frame-*.pose.txt, an Open3D-style
     folder's its one .log beside depth/ (none or several: OSError) or, without a .log, the
     pose/<n>.txt of each depth/<n>.png as ScanNet exports a scan (a -inf matrix: no pose).
-    Depth frames left out for want of a pose are counted in a UserWarning. layout as
-    read_sequence."""
+    An ICL-NUIM TUM-format folder (icl_nuim_tum_folder) reads its *.gt.freiburg when it has no
+    groundtruth.txt, its y-up poses turned into sldepth's frame. Depth frames left out for want
+    of a pose are counted in a UserWarning. layout as read_sequence."""
 
 def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it
@@ -549,6 +550,13 @@ def sequence_depth_scale(path: _Path, layout: Optional[str] = None) -> float:
     `sldepth fuse DIR` read them: 5000 for a TUM folder, 1000 (millimetres) for 7-Scenes and
     Open3D-style folders. Pass it as depth_scale to track_sequence or read_depth (a TUM frame
     read as millimetres is five times too deep). layout as read_sequence."""
+
+def icl_nuim_tum_folder(path: _Path) -> bool:
+    """Whether a TUM-layout folder is one of ICL-NUIM's own TUM-format archives (associations.txt
+    lists the depth image first, stamped with its frame number). Its camera is `icl-nuim-tum`,
+    track_sequence takes its frame numbers as frames 1/30 s apart, and it renders with y up:
+    read_posed_sequence gives its ground truth in sldepth's frame (y down); F @ pose @ F with
+    F = diag(1, -1, 1, 1) turns a pose either way."""
 
 def read_trajectory(
     path: _Path,
@@ -623,5 +631,6 @@ def track_sequence(
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the
     Tracker with the fused model). frames may be a recording's folder (layout as
     read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
-    given, camera (sequence_camera) and depth scale (sequence_depth_scale). camera is needed
-    for arrays and lists of paths."""
+    given, camera (sequence_camera) and depth scale (sequence_depth_scale); an ICL-NUIM
+    TUM-format folder's frame numbers are frames 1/30 s apart, its poses in sldepth's frame.
+    camera is needed for arrays and lists of paths."""

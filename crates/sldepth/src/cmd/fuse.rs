@@ -45,7 +45,9 @@ pub struct Args {
     /// A TUM RGB-D sequence directory as TUM ships it (groundtruth.txt, and associations.txt
     /// or depth.txt); the depth scale defaults to 5000 units/m and the camera to the
     /// `tum-fr1`, `tum-fr2` or `tum-fr3` preset, whichever the folder's name says (fr1
-    /// when it names none).
+    /// when it names none). One of ICL-NUIM's TUM-format folders (associations depth first,
+    /// frame numbers) takes `icl-nuim-tum` and its `*.gt.freiburg` when there is no
+    /// groundtruth.txt; its poses are y up, and the mesh is written in its frame.
     #[arg(long, value_name = "DIR", group = "source")]
     pub tum: Option<PathBuf>,
     /// An Open3D trajectory `.log` (camera-to-world); needs --depth-dir. A `camera.json` beside
@@ -199,6 +201,13 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
             errln!(
                 "note: {} depth frames have no pose within 20 ms and are skipped",
                 seq.without_pose
+            );
+        }
+        if sl_io::sequence::icl_nuim_tum_folder(dir) {
+            errln!(
+                "note: {} is one of ICL-NUIM's TUM-format folders: its ground truth (y up) is \
+                 fused in sldepth's frame, and the mesh written back in the data set's",
+                dir.display()
             );
         }
         let camera = crate::common::tum_camera(dir, &args.input)?;
@@ -503,7 +512,7 @@ pub fn run(mut args: Args) -> Result<()> {
         Some(_) => params.memory_budget_bytes,
         None => limits().mesh_budget_bytes,
     };
-    let mesh = volume.extract_mesh_within(&mesh_config, mesh_budget)?;
+    let mut mesh = volume.extract_mesh_within(&mesh_config, mesh_budget)?;
     let extract_ms = t0.elapsed().as_secs_f64() * 1e3;
     if mesh.vertex_count() == 0 {
         errln!(
@@ -528,6 +537,14 @@ pub fn run(mut args: Args) -> Result<()> {
         (Some(png), Some(pose)) => Some((png, sl_eval::render::render_mesh(&mesh, &k, &pose)?)),
         _ => None,
     };
+    // An ICL-NUIM folder's mesh in its y-up frame, as its ground truth and `sldepth track`'s.
+    if args
+        .tum
+        .as_deref()
+        .is_some_and(sl_io::sequence::icl_nuim_tum_folder)
+    {
+        mesh.reflect_y();
+    }
     if let Some(out) = &args.output {
         let format = if args.ascii {
             sl_io::ply::PlyFormat::Ascii

@@ -107,6 +107,10 @@ fn try_write_fragment_mesh(
     if let Some(j) = &fragment.joined {
         mesh.transform(j.transform.isometry());
     }
+    // In the data set's frame, as the trajectory (ICL-NUIM: y up).
+    if args.data_y_up {
+        mesh.reflect_y();
+    }
     let path = fragment_path(p, fragment.index);
     sl_tsdf::io::write_mesh_ply(&path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
         .with_context(|| format!("writing {}", path.display()))?;
@@ -157,7 +161,7 @@ pub(super) fn note_step(
             }
         }
         if let (Some(j), Some(p)) = (done.rejoin(), done.continues) {
-            join_continued_chain(fragments, p, j, mesh_errors);
+            join_continued_chain(fragments, p, j, args.data_y_up, mesh_errors);
         }
         if done.index > step.fragment {
             errln!(
@@ -219,13 +223,14 @@ fn join_continued_chain(
     fragments: &mut [FragmentOut],
     from: usize,
     join: sl_track::FragmentJoin,
+    y_up: bool,
     errors: &mut Vec<String>,
 ) {
     let chain: Vec<usize> =
         sl_track::continued_chain(from, |k| fragments.get(k).and_then(|f| f.continues)).collect();
     for &k in &chain {
         if let Some(m) = fragments.get(k).and_then(|f| f.mesh.as_ref())
-            && let Err(e) = move_mesh(&m.path, &join.transform)
+            && let Err(e) = move_mesh(&m.path, &join.transform, y_up)
         {
             let e = format!(
                 "fragment {k}'s mesh not moved into fragment {}'s world: {e:#}",
@@ -242,11 +247,17 @@ fn join_continued_chain(
     }
 }
 
-/// Rewrites the mesh at `path` moved by `transform`.
-fn move_mesh(path: &Path, transform: &WorldToWorld) -> Result<()> {
+/// Rewrites the mesh at `path` moved by `transform`; a mesh written in a y-up data set's
+/// frame (`y_up`) is moved by the same transform seen there.
+fn move_mesh(path: &Path, transform: &WorldToWorld, y_up: bool) -> Result<()> {
     let mut mesh = sl_io::ply::read_ply_with_limits(path, &limits())
         .with_context(|| format!("reading {}", path.display()))?
         .into_mesh();
+    let transform = if y_up {
+        transform.y_reflected()
+    } else {
+        *transform
+    };
     mesh.transform(transform.isometry());
     sl_tsdf::io::write_mesh_ply(path, &mesh, sl_io::ply::PlyFormat::BinaryLittleEndian)
         .with_context(|| format!("writing {}", path.display()))?;

@@ -12,6 +12,12 @@
 //! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
 //! frame index; lost frames are left out and listed in the JSON).
 //!
+//! One of ICL-NUIM's TUM-format folders (`sl_io::sequence::icl_nuim_tum_folder`) stamps its
+//! frames with their numbers, which the tracker takes as one frame interval each, and renders
+//! with the image y axis up: its trajectories and meshes are written in that frame
+//! (`CameraToWorld::y_reflected`, `Mesh::reflect_y`), as its `*.gt.freiburg`, so they compare
+//! with the data set's ground truth and meshes directly.
+//!
 //! Fragments (`sl_track::Reconstruction`): when frames that could be aligned keep failing for
 //! `--new-fragment-after-s` (default 1 s), the recording goes on in a new fragment with its own
 //! volume and world frame (its first camera); when the camera comes back to the lost fragment,
@@ -67,7 +73,9 @@ pub struct Args {
     /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
     /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
     /// and the `tum-fr1`, `tum-fr2` or `tum-fr3` camera, whichever the folder's name says
-    /// (fr1 when it names none), unless given.
+    /// (fr1 when it names none), unless given. One of ICL-NUIM's TUM-format folders
+    /// (associations depth first, frame numbers) takes the `icl-nuim-tum` camera, its frame
+    /// numbers as frames 1/30 s apart, and gets its trajectory and mesh in its y-up frame.
     #[arg(long, value_name = "DIR", group = "source")]
     pub tum: Option<PathBuf>,
     /// A 7-Scenes sequence folder (`frame-XXXXXX.depth.png`, millimetres; poses are not read);
@@ -207,6 +215,11 @@ pub struct Args {
     /// conditioning, the fallback taken).
     #[arg(long)]
     pub verbose: bool,
+    /// Set from the source, not an option: the folder is one of ICL-NUIM's TUM-format archives,
+    /// rendered with y up, so the trajectories and meshes are written in its frame
+    /// (`sl_io::sequence::icl_nuim_tum_folder`).
+    #[arg(skip)]
+    pub data_y_up: bool,
     #[command(flatten)]
     pub input: InputArgs,
 }
@@ -217,6 +230,8 @@ pub fn run(mut args: Args) -> Result<()> {
     check_args(&args)?;
     let weighting = WeightMode::parse(&args.weighting)?;
     let (mut frames, camera, default_scale) = source::load_source(&args)?;
+    // ICL-NUIM's TUM-format folders number their frames and render with y up.
+    let frame_numbers = source::icl_nuim_folder(&mut args);
     if let Some(n) = args.max_frames {
         frames.truncate(n);
     }
@@ -312,9 +327,12 @@ pub fn run(mut args: Args) -> Result<()> {
         // The tracker is told how many frame intervals passed: from the timestamps of a TUM
         // recording (frames its driver dropped), else one per frame of the folder, so an
         // unreadable frame skipped above is a longer step rather than a surprise.
-        let time_s = f
-            .timestamp
-            .unwrap_or(i as f64 * rec.config().tracker.frame_interval_s);
+        let interval_s = rec.config().tracker.frame_interval_s;
+        let time_s = match f.timestamp {
+            Some(n) if frame_numbers => n * interval_s,
+            Some(t) => t,
+            None => i as f64 * interval_s,
+        };
         let step = rec
             .step(&depth, Some(time_s))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;

@@ -107,3 +107,23 @@ pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
     };
     sl_io::sequence::sensor_preset(dir, layout)
 }
+
+/// Whether the source is one of ICL-NUIM's TUM-format folders (`--tum` only): then its stamps
+/// are frame numbers and its frame has y up (`args.data_y_up` is set), said once on standard
+/// error.
+pub(super) fn icl_nuim_folder(args: &mut Args) -> bool {
+    let Some(dir) = &args.tum else {
+        return false;
+    };
+    if !sl_io::sequence::icl_nuim_tum_folder(dir) {
+        return false;
+    }
+    errln!(
+        "note: {} is one of ICL-NUIM's TUM-format folders: its frame numbers are taken as frames \
+         1/30 s apart, and the trajectory and mesh are written in its y-up frame, as its \
+         *.gt.freiburg ground truth",
+        dir.display()
+    );
+    args.data_y_up = true;
+    true
+}

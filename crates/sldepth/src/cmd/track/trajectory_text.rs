@@ -30,32 +30,42 @@ pub(super) fn write_trajectories(
             continue;
         }
         if let Some(p) = &args.output {
-            write_text(&fragment_path(p, index), &tum_text(rows, index, fragments))?;
+            let text = tum_text(rows, index, fragments, args.data_y_up);
+            write_text(&fragment_path(p, index), &text)?;
         }
         if let Some(p) = &args.output_log {
-            write_text(&fragment_path(p, index), &log_text(rows, index, fragments))?;
+            let text = log_text(rows, index, fragments, args.data_y_up);
+            write_text(&fragment_path(p, index), &text)?;
         }
     }
     Ok(())
 }
 
-/// The pose of a row of fragment `f` in the world of fragment `world`, if it belongs there.
+/// The pose of a row of fragment `f` in the world of fragment `world`, if it belongs there;
+/// reflected into the data set's frame when it renders with y up (`y_up`, ICL-NUIM).
 fn pose_in(
     p: &CameraToWorld,
     f: usize,
     world: usize,
     fragments: &[FragmentOut],
+    y_up: bool,
 ) -> Option<CameraToWorld> {
     match world_of(f, fragments) {
-        (w, t) if w == world => Some(t.map_or(*p, |t| t * *p)),
+        (w, t) if w == world => {
+            let p = t.map_or(*p, |t| t * *p);
+            Some(if y_up { p.y_reflected() } else { p })
+        }
         _ => None,
     }
 }
 
-/// The TUM trajectory in fragment `world`'s frame: its poses and those of the fragments that
-/// rejoined it, the other frames as comments.
-fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> String {
+/// The TUM trajectory in fragment `world`'s frame (reflected with `y_up`, see [`pose_in`]): its
+/// poses and those of the fragments that rejoined it, the other frames as comments.
+fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut], y_up: bool) -> String {
     let mut s = String::from("# sldepth track: timestamp tx ty tz qx qy qz qw (camera to world)\n");
+    if y_up {
+        s.push_str("# in the data set's y-up frame (ICL-NUIM), as its ground truth\n");
+    }
     if world > 0 {
         let _ = writeln!(
             s,
@@ -69,7 +79,7 @@ fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> Str
     for (t, row) in rows {
         let t = stamp(*t);
         match row {
-            Row::Pose(p, f) => match pose_in(p, *f, world, fragments) {
+            Row::Pose(p, f) => match pose_in(p, *f, world, fragments, y_up) {
                 None => {
                     let _ = writeln!(s, "# {t} in fragment {f}");
                 }
@@ -94,13 +104,13 @@ fn tum_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> Str
     s
 }
 
-/// The Open3D `.log` of the tracked frames in fragment `world`'s frame.
-fn log_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut]) -> String {
+/// The Open3D `.log` of the tracked frames in fragment `world`'s frame (reflected with `y_up`).
+fn log_text(rows: &[(f64, Row)], world: usize, fragments: &[FragmentOut], y_up: bool) -> String {
     let n = rows.len();
     let mut s = String::new();
     for (i, (_, row)) in rows.iter().enumerate() {
         if let Row::Pose(p, f) = row
-            && let Some(p) = pose_in(p, *f, world, fragments)
+            && let Some(p) = pose_in(p, *f, world, fragments, y_up)
         {
             let m = p.to_matrix();
             let _ = writeln!(s, "{i} {i} {n}");
