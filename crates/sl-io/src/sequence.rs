@@ -163,20 +163,35 @@ pub fn has_pose_folder(dir: impl AsRef<Path>) -> bool {
 }
 
 /// The trajectory of an Open3D-style folder: its one `.log` file (`odometry.log`,
-/// `trajectory.log`, ...) beside the `depth` folder. None, or more than one, is an error that
-/// says so. (A ScanNet export has a `pose` folder instead, which [`read_posed_frames`] reads.)
+/// `trajectory.log`, ...) beside the `depth` folder; of several, `trajectory.log` — the name of
+/// the camera trajectory Open3D's reconstruction system writes and Open3D's
+/// `SampleRedwoodRGBDImages` ships beside its `odometry.log`. None, or several without a
+/// `trajectory.log`, is an error that says so. (A ScanNet export has a `pose` folder instead,
+/// which [`read_posed_frames`] reads.)
 pub fn open3d_log_of(dir: impl AsRef<Path>) -> Result<PathBuf> {
     let dir = dir.as_ref();
-    let logs = logs_of(dir)?;
+    let mut logs = logs_of(dir)?;
+    if logs.len() > 1
+        && let Some(t) = logs.iter().find(|p| p.ends_with("trajectory.log"))
+    {
+        return Ok(t.clone());
+    }
+    logs.sort();
+    let names: Vec<String> = logs
+        .iter()
+        .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+        .collect();
     match <[PathBuf; 1]>::try_from(logs) {
         Ok([log]) => Ok(log),
         Err(logs) => Err(IoError::malformed(
             dir,
             format!(
-                "an Open3D-style folder needs exactly one .log trajectory beside its depth/ \
-                 folder for its poses, or a pose/ folder of 4x4 matrices as ScanNet exports \
-                 (found {} .log files)",
-                logs.len()
+                "an Open3D-style folder needs one .log trajectory beside its depth/ folder for \
+                 its poses (of several, the one named trajectory.log), or a pose/ folder of 4x4 \
+                 matrices as ScanNet exports (found {} .log files{}{})",
+                logs.len(),
+                if names.is_empty() { "" } else { ": " },
+                names.join(", ")
             ),
         )),
     }
@@ -244,42 +259,48 @@ pub fn read_posed_frames(
     })
 }
 
-/// Whether the TUM-layout folder `dir` is one of ICL-NUIM's own TUM-format archives
-/// (`living_room_trajN_frei_png`, `trajN_frei_png`, ...): its `associations.txt` lists the depth
-/// image first and stamps it with a whole frame number (`0 depth/0.png 0 rgb/0.png`), which no
-/// TUM recording does (TUM's lines start with the colour image's time in seconds). Such a
-/// folder
+/// Whether a TUM-layout folder numbers its frames instead of timing them: its
+/// `associations.txt` lists the depth image first and stamps it with a whole number
+/// (`0 depth/0.png 0 rgb/0.png`, as ICL-NUIM's TUM-format archives and the converters that copy
+/// them write it), where TUM's lines start with the colour image's time in seconds. Such stamps
+/// are frames, not seconds: `sldepth track` and Python's `track_sequence` take frame `n` at
+/// `n / 30` s (one frame interval each), and write the numbers back as they were. Only the first
+/// line is looked at; a folder without `associations.txt` does not.
+pub fn tum_stamps_are_frame_numbers(dir: impl AsRef<Path>) -> bool {
+    crate::text::first_data_fields(&dir.as_ref().join("associations.txt")).is_some_and(|f| {
+        let toks: Vec<&str> = f.iter().map(String::as_str).collect();
+        toks.len() >= 4
+            && crate::trajectory::association_depth_columns(&toks) == (0, 1)
+            && crate::text::is_whole_number(toks[0])
+    })
+}
+
+/// Whether the TUM-layout folder `dir` is one of ICL-NUIM's own TUM-format archives: it numbers
+/// its frames ([`tum_stamps_are_frame_numbers`]) and either holds the data set's ground truth
+/// (a `*.gt.freiburg` file) or keeps the archive's name (`living_room_traj0_frei_png`,
+/// `traj2n_frei_png`, ...: it contains `frei_png`). Such a folder
 ///
 /// - is a rendering at ICL-NUIM's published intrinsics ([`tum_preset_name`]: `icl-nuim-tum`);
-/// - numbers its frames instead of timing them: one frame interval per number
-///   (`sldepth track` and Python's `track_sequence` take frame `n` at `n / 30` s);
 /// - and renders with the image y axis up (published fy = −480): its ground truth
-///   (`groundtruth.txt`, or the data set's `*.gt.freiburg` beside the frames, see
-///   [`tum_ground_truth_of`]) is read into sldepth's frame with
-///   [`sl_core::CameraToWorld::y_reflected`], and `sldepth track` writes its trajectory and mesh
-///   back in the data set's frame, so they compare with its ground truth directly.
+///   (`groundtruth.txt`, or the `*.gt.freiburg` beside the frames, see [`tum_ground_truth_of`])
+///   is read into sldepth's frame with [`sl_core::CameraToWorld::y_reflected`], and
+///   `sldepth track` and `fuse` write trajectories and meshes back in the data set's frame, so
+///   they compare with its ground truth directly.
 ///
-/// Only the file's first line is looked at; a folder without `associations.txt` is not one.
+/// A folder that numbers its frames under another name, without a `*.gt.freiburg`, is not taken
+/// for one: the mirror would turn a right-handed recording's outputs inside out.
 pub fn icl_nuim_tum_folder(dir: impl AsRef<Path>) -> bool {
-    let path = dir.as_ref().join("associations.txt");
-    // The first line is all that is needed: a few hundred bytes.
-    let Ok(file) = std::fs::File::open(&path) else {
-        return false;
-    };
-    let mut head = String::new();
-    let _ = std::io::Read::read_to_string(&mut std::io::Read::take(file, 4096), &mut head);
-    let Some(line) = crate::text::text_lines(&head)
-        .map(str::trim)
-        .find(|l| !l.is_empty() && !l.starts_with('#'))
-    else {
-        return false;
-    };
-    let toks: Vec<&str> = line.split_whitespace().collect();
-    if toks.len() < 4 {
+    let dir = dir.as_ref();
+    if !tum_stamps_are_frame_numbers(dir) {
         return false;
     }
-    let whole = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
-    crate::trajectory::association_depth_columns(&toks) == (0, 1) && whole(toks[0])
+    let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    let named = full.file_name().is_some_and(|n| {
+        n.to_string_lossy()
+            .to_ascii_lowercase()
+            .contains("frei_png")
+    });
+    named || icl_ground_truth_of(dir).is_some()
 }
 
 /// The ground-truth file of a TUM-layout folder: its `groundtruth.txt`, else the one
@@ -291,7 +312,13 @@ pub fn tum_ground_truth_of(dir: impl AsRef<Path>) -> PathBuf {
     if tum.exists() {
         return tum;
     }
-    let freiburg: Vec<PathBuf> = std::fs::read_dir(dir)
+    icl_ground_truth_of(dir).unwrap_or(tum)
+}
+
+/// The one `*.gt.freiburg` file (ICL-NUIM's ground truth) in `dir`; `None` when there is none,
+/// or more than one.
+fn icl_ground_truth_of(dir: &Path) -> Option<PathBuf> {
+    let found: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
@@ -303,10 +330,7 @@ pub fn tum_ground_truth_of(dir: impl AsRef<Path>) -> PathBuf {
         })
         .take(2)
         .collect();
-    match freiburg.as_slice() {
-        [one] => one.clone(),
-        _ => tum,
-    }
+    <[PathBuf; 1]>::try_from(found).ok().map(|[one]| one)
 }
 
 /// The TUM camera preset a TUM folder implies: `icl-nuim-tum` for one of ICL-NUIM's
@@ -329,18 +353,25 @@ pub fn tum_preset_name(dir: impl AsRef<Path>) -> &'static str {
     }
 }
 
-/// The camera files an Open3D-style folder may hold, in the order they are looked for: its
-/// `camera.json` (Open3D), else ScanNet's `intrinsic/intrinsic_depth.txt` or
-/// `intrinsic_depth.txt` (a 4×4 matrix whose top-left 3×3 is the depth camera's).
-const OPEN3D_CAMERA_FILES: [&str; 3] = [
+/// The camera files an Open3D-style folder may hold, in the order they are looked for, each an
+/// Open3D `PinholeCameraIntrinsic` JSON but the last two: `camera.json` (Open3D's ICL-NUIM
+/// sample), `camera_intrinsic.json` (what Open3D's RealSense recorder writes beside `depth/`),
+/// `intrinsic.json` (Open3D's Azure Kinect MKV reader), `camera_primesense.json` (Open3D's
+/// Redwood samples), else ScanNet's `intrinsic/intrinsic_depth.txt` or `intrinsic_depth.txt` (a
+/// 4×4 matrix whose top-left 3×3 is the depth camera's).
+const OPEN3D_CAMERA_FILES: [&str; 6] = [
     "camera.json",
+    "camera_intrinsic.json",
+    "intrinsic.json",
+    "camera_primesense.json",
     "intrinsic/intrinsic_depth.txt",
     "intrinsic_depth.txt",
 ];
 
 /// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`,
-/// an Open3D-style folder's `camera.json` or, for a ScanNet export, its
-/// `intrinsic/intrinsic_depth.txt` (the first that exists; `camera.json` when none does);
+/// an Open3D-style folder's `camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
+/// `camera_primesense.json`, as Open3D's tools and samples name it) or, for a ScanNet export,
+/// its `intrinsic/intrinsic_depth.txt` (the first that exists; `camera.json` when none does);
 /// `None` for TUM (its camera is a preset).
 pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<PathBuf> {
     let dir = dir.as_ref();
@@ -357,13 +388,20 @@ pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<P
     }
 }
 
+/// The camera of an Open3D-style folder without a camera file: `ros-default` (fx = fy = 525,
+/// c = (319.5, 239.5)), Open3D's `PrimeSenseDefault`, which Open3D's own reconstruction system
+/// takes for such a folder — depth registered to the colour camera, as Open3D's pipelines and
+/// data sets (Redwood, its TUM and ICL-NUIM copies) keep it.
+pub const OPEN3D_DEFAULT_PRESET: &str = "ros-default";
+
 /// The camera preset of the sensor a sequence folder of `layout` was recorded with, as far as
 /// the layout says: a TUM folder's by its name ([`tum_preset_name`]: TUM's Kinects, with their
 /// lens models and rolling shutters), 7-Scenes `7-scenes` (a Kinect v1), an Open3D-style
-/// folder without a camera file `kinect-v1`; `None` for an Open3D-style folder with its own
-/// camera file (`camera.json`, or a ScanNet export's `intrinsic_depth.txt`: any camera). `sldepth track` models that preset's rolling shutter and lens
-/// when no `--camera` is given, whether the intrinsics come from the preset or from the
-/// folder's camera file.
+/// folder without a camera file [`OPEN3D_DEFAULT_PRESET`]; `None` for an Open3D-style folder
+/// with its own camera file (`camera.json` and the others Open3D's tools write, or a ScanNet
+/// export's `intrinsic_depth.txt`: any camera). `sldepth track` models that preset's rolling
+/// shutter and lens when no `--camera` is given, whether the intrinsics come from the preset or
+/// from the folder's camera file.
 pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'static str> {
     let dir = dir.as_ref();
     match layout {
@@ -371,15 +409,15 @@ pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'
         SequenceLayout::SevenScenes => Some("7-scenes"),
         SequenceLayout::Open3d => (!camera_file_of(dir, SequenceLayout::Open3d)
             .is_some_and(|f| f.is_file()))
-        .then_some("kinect-v1"),
+        .then_some(OPEN3D_DEFAULT_PRESET),
     }
 }
 
 /// The camera a sequence folder implies, as `sldepth track DIR` and `sldepth fuse DIR` use it
 /// when none is given, and the preset of its sensor ([`sensor_preset`]): the folder's camera
 /// file ([`camera_file_of`]) when it has one (a path there that is not a regular file is an
-/// error), else that preset's camera — TUM the one its name implies, 7-Scenes `7-scenes`,
-/// Open3D `kinect-v1`. A 7-Scenes folder's `camera-intrinsics.txt` gives the intrinsics and
+/// error), else that preset's camera — TUM the one its name implies (an ICL-NUIM TUM-format
+/// folder `icl-nuim-tum`), 7-Scenes `7-scenes`, Open3D [`OPEN3D_DEFAULT_PRESET`]. A 7-Scenes folder's `camera-intrinsics.txt` gives the intrinsics and
 /// `7-scenes` the sensor, as the command line takes them.
 pub fn sequence_camera(
     dir: impl AsRef<Path>,
@@ -420,8 +458,8 @@ pub fn sequence_camera(
         };
         return Ok((camera, sensor_preset(dir, layout)));
     }
-    // Without a camera file every layout names its sensor (an Open3D folder: `kinect-v1`).
-    let preset = sensor_preset(dir, layout).unwrap_or("kinect-v1");
+    // Without a camera file every layout names its sensor (an Open3D folder: Open3D's default).
+    let preset = sensor_preset(dir, layout).unwrap_or(OPEN3D_DEFAULT_PRESET);
     let camera = Camera::preset(preset).map_err(|e| IoError::core(dir, None, e))?;
     Ok((camera, Some(preset)))
 }
@@ -652,6 +690,8 @@ mod tests {
         let d = dir.path();
         let lim = Limits::default();
         assert!(!icl_nuim_tum_folder(d));
+        let d = &d.join("living_room_traj0_frei_png");
+        std::fs::create_dir(d).unwrap();
         for (text, icl) in [
             (
                 "0 depth/0.png 0 rgb/0.png\n1 depth/1.png 1 rgb/1.png\n",
@@ -695,6 +735,20 @@ mod tests {
         // groundtruth.txt wins, as TUM names it.
         std::fs::write(d.join("groundtruth.txt"), "1 0 0 0 0 0 0 1\n").unwrap();
         assert_eq!(tum_ground_truth_of(d), d.join("groundtruth.txt"));
+        // Numbered frames under another name are frames, not ICL-NUIM's y-up renders, unless
+        // the data set's ground truth lies beside them.
+        let other = dir.path().join("my_scan");
+        std::fs::create_dir(&other).unwrap();
+        std::fs::write(
+            other.join("associations.txt"),
+            "0 depth/0.png 0 rgb/0.png\n",
+        )
+        .unwrap();
+        assert!(tum_stamps_are_frame_numbers(&other) && !icl_nuim_tum_folder(&other));
+        assert_eq!(tum_preset_name(&other), "tum-fr1");
+        std::fs::write(other.join("traj0.gt.freiburg"), "").unwrap();
+        assert!(icl_nuim_tum_folder(&other));
+        assert!(!tum_stamps_are_frame_numbers(dir.path()));
     }
 
     /// The posed frames come with the count of depth frames left out for want of a pose: a
@@ -760,12 +814,15 @@ mod tests {
         std::fs::write(d.join("odometry.log"), "").unwrap();
         assert_eq!(open3d_log_of(d).unwrap(), d.join("odometry.log"));
         std::fs::write(d.join("other.log"), "").unwrap();
+        let e = open3d_log_of(d).unwrap_err().to_string();
         assert!(
-            open3d_log_of(d)
-                .unwrap_err()
-                .to_string()
-                .contains("found 2")
+            e.contains("found 2 .log files: odometry.log, other.log"),
+            "{e}"
         );
+        // Of several, trajectory.log (Open3D's Redwood sample: trajectory.log, odometry.log).
+        std::fs::remove_file(d.join("other.log")).unwrap();
+        std::fs::write(d.join("trajectory.log"), "").unwrap();
+        assert_eq!(open3d_log_of(d).unwrap(), d.join("trajectory.log"));
     }
 
     /// A folder's camera: its camera file when it has one, else the layout's preset (TUM's by
@@ -797,8 +854,17 @@ mod tests {
         let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
         assert_eq!(
             (preset, cam),
-            (Some("kinect-v1"), Camera::preset("kinect-v1").unwrap())
+            (Some("ros-default"), Camera::preset("ros-default").unwrap())
         );
+        // Open3D's Redwood sample names its camera camera_primesense.json.
+        std::fs::write(
+            o3d.join("camera_primesense.json"),
+            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]}"#,
+        )
+        .unwrap();
+        let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
+        assert_eq!((preset, cam.intrinsics.fx), (None, 525.0));
+        std::fs::remove_file(o3d.join("camera_primesense.json")).unwrap();
         // Its own camera.json: any camera, no preset implied.
         std::fs::write(
             o3d.join("camera.json"),

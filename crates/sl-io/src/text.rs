@@ -89,9 +89,49 @@ pub(crate) fn text_lines(text: &str) -> impl Iterator<Item = &str> {
     text.lines().flat_map(|l| l.split('\r'))
 }
 
+/// The whitespace-separated fields of the first line of the file at `path` that is not blank or
+/// a `#` comment, looking no further than its first 4 KB (enough for a line of any trajectory or
+/// association file); `None` when it is not a regular file (a named pipe would block the
+/// opening), cannot be opened or has no such line there. For telling a file's kind by its
+/// content, not for reading it.
+pub(crate) fn first_data_fields(path: &Path) -> Option<Vec<String>> {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return None;
+    }
+    let file = std::fs::File::open(path).ok()?;
+    let mut head = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::Read::take(file, 4096), &mut head).ok()?;
+    let head = String::from_utf8_lossy(&head);
+    let line = text_lines(&head)
+        .map(str::trim)
+        .find(|l| !l.is_empty() && !l.starts_with('#'))?;
+    Some(line.split_whitespace().map(str::to_owned).collect())
+}
+
+/// Whether `field` is a whole number written with digits only (`12`, not `12.0` or `-1`).
+pub(crate) fn is_whole_number(field: &str) -> bool {
+    !field.is_empty() && field.bytes().all(|b| b.is_ascii_digit())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The first data line's fields, past comments and blank lines; nothing for a folder or a
+    /// missing file.
+    #[test]
+    fn the_first_data_line_tells_a_files_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.txt");
+        std::fs::write(&p, "# head\n\n  0 1 3 \n1 0 0 0\n").unwrap();
+        assert_eq!(first_data_fields(&p).unwrap(), ["0", "1", "3"]);
+        assert!(first_data_fields(dir.path()).is_none());
+        assert!(first_data_fields(&dir.path().join("missing")).is_none());
+        std::fs::write(&p, "# only a comment\n").unwrap();
+        assert!(first_data_fields(&p).is_none());
+        assert!(is_whole_number("12") && !is_whole_number("1.5") && !is_whole_number("-1"));
+        assert!(!is_whole_number(""));
+    }
 
     #[test]
     fn counts_bytes_and_lines_while_reading() {

@@ -64,6 +64,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sequence::sequence_camera, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::sequence_depth_scale, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::icl_nuim_tum_folder, m)?)?;
+    m.add_function(wrap_pyfunction!(sequence::tum_stamps_are_frame_numbers, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::sun_camera, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::read_trajectory, m)?)?;
     m.add_function(wrap_pyfunction!(trajectory::write_trajectory, m)?)?;

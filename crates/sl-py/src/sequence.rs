@@ -157,8 +157,10 @@ pub(crate) fn read_posed_sequence<'py>(
 /// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``, a ScanNet export's
 /// ``intrinsic/intrinsic_depth.txt`` at its depth images' size), else the layout's preset — a
 /// TUM folder the ``tum-fr1``, ``tum-fr2`` or ``tum-fr3`` preset its name says (fr1 when it names
-/// none; with that Kinect's lens model and rolling shutter), 7-Scenes ``7-scenes``, Open3D
-/// ``kinect-v1``. A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the
+/// none; with that Kinect's lens model and rolling shutter; an ICL-NUIM TUM-format folder
+/// ``icl-nuim-tum``), 7-Scenes ``7-scenes``, Open3D ``ros-default`` (Open3D's PrimeSenseDefault;
+/// its camera file may also be ``camera_intrinsic.json``, ``intrinsic.json`` or
+/// ``camera_primesense.json``, as Open3D's tools name it). A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the
 /// sensor (``preset_name``, and its 30 ms ``rolling_shutter_ms`` for ``track_sequence``), as on
 /// the command line; an Open3D folder's ``camera.json`` names no preset. ``layout`` as for
 /// ``read_sequence``.
@@ -195,7 +197,8 @@ pub(crate) fn sun_camera(
 
 /// Whether a TUM-layout folder is one of ICL-NUIM's own TUM-format archives: its
 /// ``associations.txt`` lists the depth image first, stamped with its frame number
-/// (``0 depth/0.png 0 rgb/0.png``). Such a folder's camera is the ``icl-nuim-tum`` preset
+/// (``0 depth/0.png 0 rgb/0.png``), and it holds a ``*.gt.freiburg`` or keeps the archive's name
+/// (``..._frei_png``). Such a folder's camera is the ``icl-nuim-tum`` preset
 /// (``sequence_camera``), ``track_sequence`` takes its frame numbers as frames 1/30 s apart, and
 /// it renders with the image y axis up: ``read_posed_sequence`` gives its ground truth in
 /// sldepth's frame (y down), and ``F @ pose @ F`` with ``F = diag(1, -1, 1, 1)`` turns a pose
@@ -203,6 +206,14 @@ pub(crate) fn sun_camera(
 #[pyfunction]
 pub(crate) fn icl_nuim_tum_folder(path: PathBuf) -> bool {
     sl_io::sequence::icl_nuim_tum_folder(path)
+}
+
+/// Whether a TUM-layout folder stamps its frames with their numbers instead of times: its
+/// ``associations.txt`` lists the depth image first with a whole-number stamp, as ICL-NUIM's
+/// archives do. ``track_sequence`` takes such stamps as frames 1/30 s apart.
+#[pyfunction]
+pub(crate) fn tum_stamps_are_frame_numbers(path: PathBuf) -> bool {
+    sl_io::sequence::tum_stamps_are_frame_numbers(path)
 }
 
 /// The depth units per metre of a sequence folder's 16-bit depth images, as ``sldepth track

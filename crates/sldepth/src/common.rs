@@ -703,8 +703,18 @@ pub fn folder_camera(
     if let Some(p) = sl_io::sequence::camera_file_of(dir, layout) {
         refuse_non_file("camera file", &p)?;
     }
-    let (camera, _) = sl_io::sequence::sequence_camera(dir, layout, &limits())
+    let (camera, preset) = sl_io::sequence::sequence_camera(dir, layout, &limits())
         .with_context(|| format!("reading the camera of {}", dir.display()))?;
+    // A folder without a camera file: say which preset stands in, as for a TUM folder.
+    if layout == sl_io::sequence::SequenceLayout::Open3d
+        && let Some(p) = preset
+    {
+        errln!(
+            "note: camera `{p}` (Open3D's PrimeSenseDefault, as Open3D takes a folder without \
+             intrinsics) for {}: no camera file in it (--camera overrides it)",
+            dir.display()
+        );
+    }
     Ok(camera)
 }
 

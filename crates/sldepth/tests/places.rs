@@ -302,3 +302,64 @@ fn an_icl_nuim_tum_folder_is_tracked_and_fused_in_its_own_frame() {
     let (a, b) = (mean_y(&icl_fuse), mean_y(&tum_fuse));
     assert!(a.0 == b.0 && (a.1 + b.1).abs() < 1e-5, "{a:?} {b:?}");
 }
+
+/// Open3D's Redwood sample as Open3D ships it: `depth/`, `trajectory.log` beside
+/// `odometry.log`, the camera in `camera_primesense.json`; fused from the folder with the
+/// trajectory and that camera, and a `.log` written as `*-traj.txt` (Redwood's name) read as a
+/// `.log` by `eval-traj`. Without a camera file the folder takes Open3D's PrimeSenseDefault.
+#[test]
+fn an_open3d_redwood_sample_fuses_from_its_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("SampleRedwoodRGBDImages");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let frame = testdata("figure-walls-seed2-depth.png");
+    let mut log = String::new();
+    for i in 0..5 {
+        std::fs::copy(&frame, seq.join("depth").join(format!("{i:05}.png"))).unwrap();
+        log.push_str(&format!(
+            "{i} {i} 3\n1 0 0 {}\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+            0.01 * i as f64
+        ));
+    }
+    std::fs::write(seq.join("trajectory.log"), &log).unwrap();
+    // The pairwise odometry beside it is not a trajectory of camera poses.
+    std::fs::write(
+        seq.join("odometry.log"),
+        "0 1 3\n1 0 0 0.01\n0 1 0 0\n0 0 1 0\n0 0 0 1\n",
+    )
+    .unwrap();
+    let fuse = |extra: &[&str]| -> (serde_json::Value, String) {
+        let mut args = vec!["fuse", path_str(&seq), "--voxel-m", "0.02", "--json"];
+        args.extend_from_slice(extra);
+        let o = sldepth(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        (json_of(&o), err)
+    };
+    let (v, err) = fuse(&[]);
+    assert_eq!(v["frames"], 5, "{err}");
+    assert!(err.contains("camera `ros-default`"), "{err}");
+    let (default, _) = fuse(&["--camera", "ros-default"]);
+    assert_eq!(v["vertices"], default["vertices"]);
+    std::fs::write(
+        seq.join("camera_primesense.json"),
+        r#"{"width": 640, "height": 480, "intrinsic_matrix": [550, 0, 0, 0, 550, 0, 319.5, 239.5, 1]}"#,
+    )
+    .unwrap();
+    let (own, err) = fuse(&[]);
+    assert!(!err.contains("camera `ros-default`"), "{err}");
+    assert_ne!(own["vertices"], default["vertices"]);
+    // eval-traj: the trajectory against itself written under Redwood's name.
+    let traj = dir.path().join("livingroom1-traj.txt");
+    std::fs::write(&traj, &log).unwrap();
+    let o = sldepth(&[
+        "eval-traj",
+        path_str(&seq.join("trajectory.log")),
+        path_str(&traj),
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = json_of(&o);
+    assert_eq!(v["poses_matched"], 5, "{v}");
+    assert_eq!(v["ate_m"]["rmse"].as_f64(), Some(0.0), "{v}");
+}

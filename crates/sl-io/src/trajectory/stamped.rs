@@ -7,8 +7,19 @@ use super::{TimedPose, read_open3d_log_with_limits, read_tum_trajectory_with_lim
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 
+/// Whether a file of another name holds an Open3D `.log`: its first line that is not blank or a
+/// `#` comment is three whole numbers (an entry's `i j n`), where a TUM line has eight numbers
+/// and its timestamp. The Redwood and Augmented ICL-NUIM data sets ship their trajectories so
+/// (`livingroom1-traj.txt`). Only the first 4 KB are looked at; an unreadable file is not one
+/// (the TUM reader then says why).
+fn holds_a_log(path: &Path) -> bool {
+    crate::text::first_data_fields(path)
+        .is_some_and(|f| f.len() == 3 && f.iter().all(|t| crate::text::is_whole_number(t)))
+}
+
 /// Reads a camera trajectory as timestamped camera-to-world poses: an Open3D `.log` (told by
-/// its extension, any case) with each entry `i i n` stamped with its frame number `i` — the
+/// its extension, any case, or by its content in a file of another name: the Redwood data
+/// sets' `*-traj.txt`) with each entry `i i n` stamped with its frame number `i` — the
 /// timestamp `sldepth track` gives the frames of a 7-Scenes or Open3D folder — else a TUM
 /// file ([`read_tum_trajectory`](super::read_tum_trajectory)); sorted by timestamp either way.
 /// A `.log` entry `i j n` with `j ≠ i` is a registration between two frames (a pose graph's
@@ -25,7 +36,8 @@ pub fn read_trajectory_with_limits(
     let path = path.as_ref();
     let is_log = path
         .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("log"));
+        .is_some_and(|e| e.eq_ignore_ascii_case("log"))
+        || holds_a_log(path);
     if !is_log {
         return read_tum_trajectory_with_limits(path, limits);
     }
@@ -89,6 +101,15 @@ mod tests {
         let tum = dir.path().join("traj.txt");
         std::fs::write(&tum, "7.5 1 2 3 0 0 0 1\n").unwrap();
         assert_eq!(read_trajectory(&tum).unwrap()[0].timestamp, 7.5);
+        // A .log's content in a .txt (Redwood's `livingroom1-traj.txt`) is read as a .log.
+        let redwood = dir.path().join("livingroom1-traj.txt");
+        std::fs::write(&redwood, entry(1, 1, 0.25) + &entry(0, 0, 0.0)).unwrap();
+        let poses = read_trajectory(&redwood).unwrap();
+        assert_eq!(poses.len(), 2);
+        assert_eq!(poses[1].pose.isometry().translation.vector.x, 0.25);
+        // A TUM file whose stamps are whole numbers is still TUM (eight fields).
+        std::fs::write(&tum, "# t x y z qx qy qz qw\n3 1 2 3 0 0 0 1\n").unwrap();
+        assert_eq!(read_trajectory(&tum).unwrap()[0].timestamp, 3.0);
 
         std::fs::write(&log, entry(0, 0, 0.0) + &entry(0, 1, 0.1)).unwrap();
         let e = read_trajectory(&log).unwrap_err().to_string();

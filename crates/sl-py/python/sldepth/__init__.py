@@ -47,6 +47,7 @@ from ._sldepth import (
     sequence_camera,
     sequence_depth_scale,
     icl_nuim_tum_folder,
+    tum_stamps_are_frame_numbers,
     sun_camera,
     read_trajectory,
     set_num_threads,
@@ -87,6 +88,7 @@ __all__ = [
     "sequence_camera",
     "sequence_depth_scale",
     "icl_nuim_tum_folder",
+    "tum_stamps_are_frame_numbers",
     "sun_camera",
     "set_num_threads",
     "simulate",
@@ -107,8 +109,10 @@ def track_sequence(
     or a recording's folder (TUM, 7-Scenes or Open3D-style, ``layout`` as ``read_sequence``),
     read as ``sldepth track DIR`` reads it: its frames and timestamps (``read_sequence``), and
     unless given its camera (``sequence_camera``) and depth scale (``sequence_depth_scale``);
-    one of ICL-NUIM's TUM-format folders (``icl_nuim_tum_folder``) has its frame numbers taken
-    as frames 1/30 s apart, and its poses come in sldepth's frame (y down, not the data set's).
+    a folder that stamps its frames with their numbers (``tum_stamps_are_frame_numbers``, as
+    ICL-NUIM's TUM-format archives do) has them taken as frames 1/30 s apart, and the poses of
+    an ICL-NUIM folder (``icl_nuim_tum_folder``) come in sldepth's frame (y down, not the data
+    set's).
     ``camera`` is needed for arrays and lists of paths.
     ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
@@ -140,8 +144,8 @@ def track_sequence(
             depth_scale = sequence_depth_scale(folder, layout)
         if timestamps_s is None:
             timestamps_s = times
-            # ICL-NUIM's TUM-format folders number their frames: one 30 Hz interval each.
-            if times is not None and icl_nuim_tum_folder(folder):
+            # Frames stamped with their numbers (ICL-NUIM's): one 30 Hz interval each.
+            if times is not None and tum_stamps_are_frame_numbers(folder):
                 timestamps_s = [float(t) / 30.0 for t in times]
     elif isinstance(frames, (str, bytes, _os.PathLike)) or (
         isinstance(frames, np.ndarray) and frames.ndim < 3

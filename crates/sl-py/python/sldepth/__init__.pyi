@@ -534,8 +534,10 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     when none is given: its camera file (7-Scenes camera-intrinsics.txt, an Open3D folder's
     camera.json, a ScanNet export's intrinsic/intrinsic_depth.txt at its depth images' size)
     when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
-    or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter), 7-Scenes
-    "7-scenes", Open3D "kinect-v1". A 7-Scenes camera file gives the intrinsics and "7-scenes"
+    or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter; an ICL-NUIM
+    TUM-format folder "icl-nuim-tum"), 7-Scenes "7-scenes", Open3D "ros-default" (Open3D's
+    PrimeSenseDefault; camera files also camera_intrinsic.json, intrinsic.json,
+    camera_primesense.json as Open3D's tools name them). A 7-Scenes camera file gives the intrinsics and "7-scenes"
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
     camera.json names no preset. layout as read_sequence."""
 
@@ -551,10 +553,15 @@ def sequence_depth_scale(path: _Path, layout: Optional[str] = None) -> float:
     Open3D-style folders. Pass it as depth_scale to track_sequence or read_depth (a TUM frame
     read as millimetres is five times too deep). layout as read_sequence."""
 
+def tum_stamps_are_frame_numbers(path: _Path) -> bool:
+    """Whether a TUM-layout folder stamps its frames with their numbers (associations.txt lists
+    the depth image first with a whole-number stamp, as ICL-NUIM's archives do);
+    track_sequence takes such stamps as frames 1/30 s apart."""
+
 def icl_nuim_tum_folder(path: _Path) -> bool:
-    """Whether a TUM-layout folder is one of ICL-NUIM's own TUM-format archives (associations.txt
-    lists the depth image first, stamped with its frame number). Its camera is `icl-nuim-tum`,
-    track_sequence takes its frame numbers as frames 1/30 s apart, and it renders with y up:
+    """Whether a TUM-layout folder is one of ICL-NUIM's own TUM-format archives (its frames
+    numbered, tum_stamps_are_frame_numbers, and a *.gt.freiburg in it or the archive's name,
+    ..._frei_png). Its camera is `icl-nuim-tum`, and it renders with y up:
     read_posed_sequence gives its ground truth in sldepth's frame (y down); F @ pose @ F with
     F = diag(1, -1, 1, 1) turns a pose either way."""
 
@@ -631,6 +638,7 @@ def track_sequence(
     their timestamps (seconds) when given: (poses (N, 4, 4) camera-to-world, statuses, the
     Tracker with the fused model). frames may be a recording's folder (layout as
     read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
-    given, camera (sequence_camera) and depth scale (sequence_depth_scale); an ICL-NUIM
-    TUM-format folder's frame numbers are frames 1/30 s apart, its poses in sldepth's frame.
+    given, camera (sequence_camera) and depth scale (sequence_depth_scale); frame-number stamps
+    (tum_stamps_are_frame_numbers) are frames 1/30 s apart, an ICL-NUIM folder's poses in
+    sldepth's frame.
     camera is needed for arrays and lists of paths."""

@@ -28,7 +28,8 @@ pub struct Args {
     /// The sequence folder, its layout read from what it holds: a TUM folder (`depth.txt` or
     /// `associations.txt`, with `groundtruth.txt`) as --tum, a 7-Scenes folder
     /// (`frame-*.depth.png` with their `.pose.txt`) as --7scenes, an Open3D-style folder (a
-    /// `depth` folder and one `.log` trajectory beside it) as --o3d-log LOG --depth-dir DIR/depth,
+    /// `depth` folder and one `.log` trajectory beside it, or `trajectory.log` of several) as
+    /// --o3d-log LOG --depth-dir DIR/depth,
     /// a ScanNet export (`depth` and `pose` folders, no `.log`) as --scannet.
     #[arg(value_name = "DIR", group = "source")]
     pub sequence: Option<PathBuf>,
@@ -50,8 +51,9 @@ pub struct Args {
     /// groundtruth.txt; its poses are y up, and the mesh is written in its frame.
     #[arg(long, value_name = "DIR", group = "source")]
     pub tum: Option<PathBuf>,
-    /// An Open3D trajectory `.log` (camera-to-world); needs --depth-dir. A `camera.json` beside
-    /// the log is used when --camera is not given.
+    /// An Open3D trajectory `.log` (camera-to-world); needs --depth-dir. A `camera.json` (or
+    /// another name Open3D's tools give it) beside the log is used when --camera is not given,
+    /// else `ros-default`, as Open3D takes such a folder.
     #[arg(long, value_name = "FILE", group = "source", requires = "depth_dir")]
     pub o3d_log: Option<PathBuf>,
     /// Directory of the depth images of --o3d-log (sorted by name, numbers as numbers: `9.png`

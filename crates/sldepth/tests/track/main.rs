@@ -414,8 +414,8 @@ fn track_models_the_presets_rolling_shutter_against_the_model() {
         let said = stderr.contains("rolling shutter (30 ms readout");
         assert_eq!(said, want == 30.0, "{extra:?}");
     }
-    // An Open3D folder (`depth/`): the `kinect-v1` default without `camera.json`, none with
-    // one (a camera file says nothing of its shutter).
+    // An Open3D folder (`depth/`): the `ros-default` (a Kinect-class preset) without a camera
+    // file, none with one (a camera file says nothing of its shutter).
     let o3d_readout = |seq: &Path| {
         let dir = seq.to_str().unwrap();
         let (v, _) = sldepth_json(&[
@@ -776,9 +776,18 @@ fn fuse_reads_the_layout_of_a_folder_given_without_an_option() {
         "{stderr}"
     );
     std::fs::write(&log_path, &log).unwrap();
-    std::fs::write(seq.join("other.log"), &log).unwrap();
+    // Of several .log files, trajectory.log (as Open3D's Redwood sample ships it beside its
+    // odometry.log); without one of that name, none is guessed.
+    std::fs::write(seq.join("other.log"), "0 1 3\n").unwrap();
+    let both = fuse_json(&[dir, "--depth-scale", "5000"]);
+    assert_eq!(both["vertices"], by_log["vertices"]);
+    std::fs::rename(&log_path, seq.join("odometry.log")).unwrap();
     let out = sldepth(&["fuse", dir, "--depth-scale", "5000"]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
-    assert!(stderr.contains("exactly one .log trajectory"), "{stderr}");
+    assert!(
+        stderr.contains("needs one .log trajectory")
+            && stderr.contains("found 2 .log files: odometry.log, other.log"),
+        "{stderr}"
+    );
 }

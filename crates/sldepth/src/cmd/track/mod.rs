@@ -12,9 +12,10 @@
 //! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
 //! frame index; lost frames are left out and listed in the JSON).
 //!
-//! One of ICL-NUIM's TUM-format folders (`sl_io::sequence::icl_nuim_tum_folder`) stamps its
-//! frames with their numbers, which the tracker takes as one frame interval each, and renders
-//! with the image y axis up: its trajectories and meshes are written in that frame
+//! A TUM-layout folder that stamps its frames with their numbers
+//! (`sl_io::sequence::tum_stamps_are_frame_numbers`) has them taken as one frame interval each.
+//! One of ICL-NUIM's TUM-format folders (`sl_io::sequence::icl_nuim_tum_folder`) does, and
+//! renders with the image y axis up: its trajectories and meshes are written in that frame
 //! (`CameraToWorld::y_reflected`, `Mesh::reflect_y`), as its `*.gt.freiburg`, so they compare
 //! with the data set's ground truth and meshes directly.
 //!
@@ -84,7 +85,9 @@ pub struct Args {
     pub seven_scenes: Option<PathBuf>,
     /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, numbers as numbers:
     /// `9.png` before `10.png`; millimetres unless --depth-scale) and an optional
-    /// `DIR/camera.json`.
+    /// `DIR/camera.json` (or `camera_intrinsic.json`, `intrinsic.json`, `camera_primesense.json`,
+    /// as Open3D's tools name it); without one, the camera Open3D takes for such a folder,
+    /// `ros-default` (PrimeSenseDefault, 525 px).
     #[arg(long, value_name = "DIR", group = "source")]
     pub o3d: Option<PathBuf>,
     /// Use only the first N frames.
@@ -230,8 +233,8 @@ pub fn run(mut args: Args) -> Result<()> {
     check_args(&args)?;
     let weighting = WeightMode::parse(&args.weighting)?;
     let (mut frames, camera, default_scale) = source::load_source(&args)?;
-    // ICL-NUIM's TUM-format folders number their frames and render with y up.
-    let frame_numbers = source::icl_nuim_folder(&mut args);
+    // Frames stamped with their numbers (ICL-NUIM's TUM-format folders, which render with y up).
+    let frame_numbers = source::stamps_and_frame(&mut args);
     if let Some(n) = args.max_frames {
         frames.truncate(n);
     }

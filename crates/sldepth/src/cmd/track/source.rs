@@ -95,8 +95,8 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
 }
 
 /// The preset of the sensor the source implies when no `--camera` is given
-/// (`sl_io::sequence::sensor_preset`): a TUM folder's, 7-Scenes', or the `kinect-v1` default of
-/// an Open3D folder without `camera.json`.
+/// (`sl_io::sequence::sensor_preset`): a TUM folder's, 7-Scenes', or the `ros-default` of an
+/// Open3D folder without a camera file (Open3D's PrimeSenseDefault).
 pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
     let (dir, layout) = if let Some(dir) = &args.tum {
         (dir, SequenceLayout::Tum)
@@ -108,22 +108,31 @@ pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
     sl_io::sequence::sensor_preset(dir, layout)
 }
 
-/// Whether the source is one of ICL-NUIM's TUM-format folders (`--tum` only): then its stamps
-/// are frame numbers and its frame has y up (`args.data_y_up` is set), said once on standard
-/// error.
-pub(super) fn icl_nuim_folder(args: &mut Args) -> bool {
+/// How the source's stamps and frame are read (`--tum` only): whether its stamps are frame
+/// numbers (`sl_io::sequence::tum_stamps_are_frame_numbers`), returned, and whether it is one of
+/// ICL-NUIM's TUM-format folders, whose frame has y up (`args.data_y_up` is set); each said once
+/// on standard error.
+pub(super) fn stamps_and_frame(args: &mut Args) -> bool {
     let Some(dir) = &args.tum else {
         return false;
     };
-    if !sl_io::sequence::icl_nuim_tum_folder(dir) {
+    if !sl_io::sequence::tum_stamps_are_frame_numbers(dir) {
         return false;
     }
-    errln!(
-        "note: {} is one of ICL-NUIM's TUM-format folders: its frame numbers are taken as frames \
-         1/30 s apart, and the trajectory and mesh are written in its y-up frame, as its \
-         *.gt.freiburg ground truth",
-        dir.display()
-    );
-    args.data_y_up = true;
+    if sl_io::sequence::icl_nuim_tum_folder(dir) {
+        errln!(
+            "note: {} is one of ICL-NUIM's TUM-format folders: its frame numbers are taken as \
+             frames 1/30 s apart, and the trajectory and mesh are written in its y-up frame, as \
+             its *.gt.freiburg ground truth",
+            dir.display()
+        );
+        args.data_y_up = true;
+    } else {
+        errln!(
+            "note: {} stamps its frames with numbers (associations depth first): taken as frames \
+             1/30 s apart",
+            dir.display()
+        );
+    }
     true
 }
