@@ -259,31 +259,13 @@ pub fn read_intrinsics_txt(
     height: usize,
 ) -> Result<Intrinsics> {
     let path = path.as_ref();
-    let limits = Limits::default();
-    limits
-        .check_pixels(width as u64, height as u64)
-        .map_err(|m| IoError::too_large(path, m))?;
-    let text = read_text(
+    let values = read_camera_numbers(
         path,
-        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
-        limits.max_text_lines,
+        width,
+        height,
+        16,
+        "more than 16 numbers in a 3x3 (or 4x4) intrinsic matrix",
     )?;
-    let mut values = Vec::with_capacity(9);
-    for (i, line) in crate::text::text_lines(&text).enumerate() {
-        for tok in line.split_whitespace() {
-            let v: f64 = tok
-                .parse()
-                .map_err(|_| IoError::parse(path, i + 1, format!("{tok:?} is not a number")))?;
-            if values.len() == 16 {
-                return Err(IoError::parse(
-                    path,
-                    i + 1,
-                    "more than 16 numbers in a 3x3 (or 4x4) intrinsic matrix",
-                ));
-            }
-            values.push(v);
-        }
-    }
     let n = match values.len() {
         9 => 3,
         16 => 4,
@@ -301,6 +283,73 @@ pub fn read_intrinsics_txt(
         [at(2, 0), at(2, 1), at(2, 2)],
     ];
     intrinsics_from_k(path, width, height, k)
+}
+
+/// The numbers of a small camera text file for frames of `width`×`height` pixels (checked
+/// against the default limits first), whitespace-separated on any number of lines, `#` lines
+/// being comments; more than `max` is an error saying `too_many`, naming the line.
+fn read_camera_numbers(
+    path: &Path,
+    width: usize,
+    height: usize,
+    max: usize,
+    too_many: &str,
+) -> Result<Vec<f64>> {
+    let limits = Limits::default();
+    limits
+        .check_pixels(width as u64, height as u64)
+        .map_err(|m| IoError::too_large(path, m))?;
+    let text = read_text(
+        path,
+        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
+        limits.max_text_lines,
+    )?;
+    let mut values = Vec::with_capacity(max);
+    for (i, line) in crate::text::text_lines(&text).enumerate() {
+        if line.trim_start().starts_with('#') {
+            continue;
+        }
+        for tok in line.split_whitespace() {
+            let v: f64 = tok
+                .parse()
+                .map_err(|_| IoError::parse(path, i + 1, format!("{tok:?} is not a number")))?;
+            if values.len() == max {
+                return Err(IoError::parse(path, i + 1, too_many));
+            }
+            values.push(v);
+        }
+    }
+    Ok(values)
+}
+
+/// Reads a pinhole camera written as the four numbers `fx fy cx cy` (pixels; on one line or
+/// several, `#` lines are comments), as the ETH3D SLAM benchmark's `calibration.txt` holds the
+/// intrinsics of its undistorted images, for frames of `width`×`height` pixels.
+pub fn read_fx_fy_cx_cy_txt(
+    path: impl AsRef<Path>,
+    width: usize,
+    height: usize,
+) -> Result<Intrinsics> {
+    let path = path.as_ref();
+    let v = read_camera_numbers(
+        path,
+        width,
+        height,
+        4,
+        "more than the four numbers fx fy cx cy",
+    )?;
+    let [fx, fy, cx, cy] = <[f64; 4]>::try_from(v.as_slice()).map_err(|_| {
+        IoError::malformed(
+            path,
+            format!("found {} numbers, expected the four fx fy cx cy", v.len()),
+        )
+    })?;
+    intrinsics_from_k(
+        path,
+        width,
+        height,
+        [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]],
+    )
 }
 
 /// Reads 7-Scenes' `camera-intrinsics.txt`, assuming the Kinect's 640×480 frames

@@ -160,7 +160,8 @@ pub(crate) fn read_posed_sequence<'py>(
 /// none; with that Kinect's lens model and rolling shutter; an ICL-NUIM TUM-format folder
 /// ``icl-nuim-tum``), 7-Scenes ``7-scenes``, Open3D ``ros-default`` (Open3D's PrimeSenseDefault;
 /// its camera file may also be ``camera_intrinsic.json``, ``intrinsic.json`` or
-/// ``camera_primesense.json``, as Open3D's tools name it). A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the
+/// ``camera_primesense.json``, as Open3D's tools name it; a TUM-layout folder's
+/// ``calibration.txt``, the ETH3D SLAM benchmark's ``fx fy cx cy``, names no preset). A 7-Scenes folder's camera file gives the intrinsics and ``7-scenes`` the
 /// sensor (``preset_name``, and its 30 ms ``rolling_shutter_ms`` for ``track_sequence``), as on
 /// the command line; an Open3D folder's ``camera.json`` names no preset. ``layout`` as for
 /// ``read_sequence``.

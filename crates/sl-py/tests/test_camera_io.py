@@ -333,6 +333,19 @@ def test_an_icl_nuim_tum_folder_reads_its_y_up_ground_truth_into_sldepths_frame(
     assert np.isclose(poses[0][1, 3], -0.25) and np.isclose(poses[1][1, 2], 1.0)
 
 
+def test_an_eth3d_folder_takes_its_calibration(tmp_path):
+    # ETH3D SLAM: depth.txt, depth/ at 5000 units per metre, calibration.txt "fx fy cx cy".
+    eth = tmp_path / "sofa_1"
+    _write_frames(eth / "depth", ["1.5.png"], 5000, seeds=(3,))
+    (eth / "depth.txt").write_text("1.5 depth/1.5.png\n")
+    assert sldepth.sequence_camera(eth).preset_name == "tum-fr1"
+    (eth / "calibration.txt").write_text("560.5 561.5 320.2 240.1\n")
+    cam = sldepth.sequence_camera(eth)
+    assert (cam.fx, cam.fy, cam.cx, cam.cy) == (560.5, 561.5, 320.2, 240.1)
+    assert cam.preset_name is None and cam.rolling_shutter_ms == 0 and cam.lens is None
+    assert sldepth.sequence_depth_scale(eth) == 5000.0
+
+
 def test_a_sequence_list_over_the_limits_is_refused_with_a_python_hint(tmp_path):
     # More lines than the default budget's text limit: refused while it streams in, and the
     # message does not send a Python user to a command-line option.

@@ -196,8 +196,9 @@ pub fn sequence_files(
         ] {
             files.push(dir.join(n));
         }
-        // An ICL-NUIM folder's `*.gt.freiburg`.
+        // An ICL-NUIM folder's `*.gt.freiburg`, an ETH3D folder's calibration.
         files.push(sl_io::sequence::tum_ground_truth_of(dir));
+        files.push(dir.join(sl_io::sequence::TUM_CALIBRATION_FILE));
     }
     if let Some(dir) = seven_scenes {
         files.push(dir.join("camera-intrinsics.txt"));
@@ -331,7 +332,9 @@ pub fn load_camera(args: &InputArgs) -> Result<Camera> {
     }
 }
 
-/// The camera of a TUM RGB-D sequence folder: `--camera` when given, else `icl-nuim-tum` for
+/// The camera of a TUM RGB-D sequence folder: `--camera` when given, else the folder's own
+/// `calibration.txt` (the ETH3D SLAM benchmark's `fx fy cx cy`, sized by its first depth frame),
+/// else `icl-nuim-tum` for
 /// one of ICL-NUIM's TUM-format folders (`sl_io::sequence::icl_nuim_tum_folder`), the `tum-fr2`
 /// or `tum-fr3` preset when a component of the folder's path names `freiburg2` / `freiburg3` (as
 /// TUM names its downloads, `rgbd_dataset_freiburg2_desk`), else `tum-fr1`, with a note on
@@ -340,6 +343,21 @@ pub fn load_camera(args: &InputArgs) -> Result<Camera> {
 pub fn tum_camera(dir: &Path, args: &InputArgs) -> Result<Camera> {
     if args.camera.is_some() {
         return load_camera(args);
+    }
+    // Its own calibration (ETH3D): any camera, no preset.
+    if sl_io::sequence::sensor_preset(dir, sl_io::sequence::SequenceLayout::Tum).is_none() {
+        let (camera, _) =
+            sl_io::sequence::sequence_camera(dir, sl_io::sequence::SequenceLayout::Tum, &limits())
+                .with_context(|| format!("reading the camera of {}", dir.display()))?;
+        errln!(
+            "note: the camera of {} ({}x{}, fx {} px) for this folder, with the Kinect v1 sensor \
+             model (--camera overrides it)",
+            dir.join(sl_io::sequence::TUM_CALIBRATION_FILE).display(),
+            camera.intrinsics.width,
+            camera.intrinsics.height,
+            num(camera.intrinsics.fx)
+        );
+        return Ok(camera);
     }
     let preset = sl_io::sequence::tum_preset_name(dir);
     let folder = if sl_io::sequence::icl_nuim_tum_folder(dir) {
@@ -509,20 +527,38 @@ pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
 }
 
 /// The camera of a frame read from the TUM folder `dir` without `--camera`: `preset`, the one its
-/// name implies (`sl_io::sequence::tum_preset_name`), with a note on standard error, once per run,
-/// that also names the scale the frame was read at (`units_per_m`, the folder's 5000 unless
-/// `--depth-scale` said otherwise).
-fn tum_frame_camera(dir: &Path, preset: &str, units_per_m: f64) -> Result<Camera> {
+/// name implies (`sl_io::sequence::sensor_preset`), or without one the folder's own calibration
+/// (`sl_io::sequence::sequence_camera`: ETH3D's `calibration.txt`), with a note on standard
+/// error, once per run, that also names the scale the frame was read at (`units_per_m`, the
+/// folder's 5000 unless `--depth-scale` said otherwise).
+fn tum_frame_camera(dir: &Path, preset: Option<&str>, units_per_m: f64) -> Result<Camera> {
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    let (camera, which) = match preset {
+        Some(p) => (Camera::preset(p)?, format!("camera `{p}`")),
+        None => {
+            let (c, _) = sl_io::sequence::sequence_camera(
+                dir,
+                sl_io::sequence::SequenceLayout::Tum,
+                &limits(),
+            )?;
+            (
+                c,
+                format!(
+                    "the camera of its {}",
+                    sl_io::sequence::TUM_CALIBRATION_FILE
+                ),
+            )
+        }
+    };
     if !NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
         errln!(
-            "note: a frame of the TUM folder {}: camera `{preset}` (--camera overrides it), \
-             read at {} units per metre",
+            "note: a frame of the TUM folder {}: {which} (--camera overrides it), read at {} \
+             units per metre",
             dir.display(),
             num(units_per_m)
         );
     }
-    Ok(Camera::preset(preset)?)
+    Ok(camera)
 }
 
 /// The camera of a SUN RGB-D sample's frame read without `--camera`: its `intrinsics.txt` at the
@@ -563,12 +599,13 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
     // A frame of a TUM folder read without --camera: the folder and the preset its name implies.
     let tum = match (&args.camera, sl_io::sequence::tum_folder_of_file(path)) {
-        (None, Some(dir)) if loaded.encoding.format != DepthFormat::NyuRaw => {
-            Some((dir, sl_io::sequence::tum_preset_name(dir)))
-        }
+        (None, Some(dir)) if loaded.encoding.format != DepthFormat::NyuRaw => Some((
+            dir,
+            sl_io::sequence::sensor_preset(dir, sl_io::sequence::SequenceLayout::Tum),
+        )),
         _ => None,
     };
-    let implied_preset = tum.map(|(_, preset)| preset);
+    let implied_preset = tum.and_then(|(_, preset)| preset);
     let camera = match (&args.camera, loaded.encoding.format, tum) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the
         // f·B of the NYU toolbox conversion), which is the right default for it.

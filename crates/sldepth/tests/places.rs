@@ -363,3 +363,69 @@ fn an_open3d_redwood_sample_fuses_from_its_folder() {
     assert_eq!(v["poses_matched"], 5, "{v}");
     assert_eq!(v["ate_m"]["rmse"].as_f64(), Some(0.0), "{v}");
 }
+
+/// A TUM-layout folder with the ETH3D SLAM benchmark's `calibration.txt` (`fx fy cx cy`) is
+/// tracked and its frames read with that camera, and none of a TUM Kinect's lens model or
+/// rolling shutter; `--camera` still wins.
+#[test]
+fn an_eth3d_folder_takes_its_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let seq = dir.path().join("sofa_1");
+    std::fs::create_dir_all(seq.join("depth")).unwrap();
+    let mm = testdata("figure-walls-seed2-depth.png");
+    let depth = sl_io::depth::read_depth(&mm, &sl_io::depth::ReadConfig::default())
+        .unwrap()
+        .depth;
+    let mut list = String::new();
+    for i in 0..3 {
+        let name = format!("depth/{}.png", 10 + i);
+        sl_io::depth::write_depth(
+            seq.join(&name),
+            &depth,
+            &sl_io::depth::DepthEncoding::png(5000.0),
+        )
+        .unwrap();
+        list.push_str(&format!("{}.037 {name}\n", 10 + i));
+    }
+    std::fs::write(seq.join("depth.txt"), list).unwrap();
+    std::fs::write(seq.join("calibration.txt"), "560.5 560.5 320.2 240.1\n").unwrap();
+    let o = sldepth(&["track", path_str(&seq), "--voxel-m", "0.02", "--json"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("calibration.txt (640x480, fx 560.5 px)"),
+        "{err}"
+    );
+    assert!(!err.contains("lens model"), "{err}");
+    let v = json_of(&o);
+    assert_eq!(
+        (v["frames"].as_u64(), v["rolling_shutter_ms"].as_f64()),
+        (Some(3), Some(0.0))
+    );
+    // One frame on its own: the folder's scale and calibration.
+    let frame = seq.join("depth/10.png");
+    let o = sldepth(&[
+        "cloud",
+        path_str(&frame),
+        "--output",
+        path_str(&dir.path().join("c.ply")),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && err.contains("the camera of its calibration.txt"),
+        "{err}"
+    );
+    let o = sldepth(&[
+        "track",
+        path_str(&seq),
+        "--camera",
+        "tum-fr1",
+        "--voxel-m",
+        "0.02",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && !err.contains("calibration.txt"),
+        "{err}"
+    );
+}

@@ -537,7 +537,8 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter; an ICL-NUIM
     TUM-format folder "icl-nuim-tum"), 7-Scenes "7-scenes", Open3D "ros-default" (Open3D's
     PrimeSenseDefault; camera files also camera_intrinsic.json, intrinsic.json,
-    camera_primesense.json as Open3D's tools name them). A 7-Scenes camera file gives the intrinsics and "7-scenes"
+    camera_primesense.json as Open3D's tools name them; a TUM-layout folder's calibration.txt,
+    ETH3D's "fx fy cx cy", names no preset). A 7-Scenes camera file gives the intrinsics and "7-scenes"
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
     camera.json names no preset. layout as read_sequence."""
 

@@ -404,7 +404,10 @@ pub fn run(mut args: Args) -> Result<()> {
         .check_pixels(k.width as u64, k.height as u64)
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     // After the size check: the map holds one index per pixel.
-    let implied = args.tum.as_deref().map(sl_io::sequence::tum_preset_name);
+    let implied = args
+        .tum
+        .as_deref()
+        .and_then(|d| sl_io::sequence::sensor_preset(d, SequenceLayout::Tum));
     let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;

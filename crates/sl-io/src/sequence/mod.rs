@@ -3,9 +3,18 @@
 //! Open3D-style folder (`depth/*.png`). Timestamps must increase strictly: a sequence out of
 //! order is an error naming the line, never a silently reordered trajectory.
 
+mod camera;
+mod places;
+
 use std::path::{Path, PathBuf};
 
-use sl_core::Camera;
+pub use camera::{
+    OPEN3D_DEFAULT_PRESET, TUM_CALIBRATION_FILE, camera_file_of, sensor_preset, sequence_camera,
+};
+pub use places::{
+    depth_scale_of_file, icl_nuim_tum_folder, sun_camera, sun_folder_of_file, tum_folder_of_file,
+    tum_ground_truth_of, tum_preset_name, tum_stamps_are_frame_numbers,
+};
 
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
@@ -80,53 +89,6 @@ impl std::str::FromStr for SequenceLayout {
             )),
         }
     }
-}
-
-/// The TUM RGB-D sequence folder a depth image lies in: the parent of its `depth` folder when
-/// that holds `depth.txt` or `associations.txt` (as TUM and ICL-NUIM's TUM-format archives ship
-/// them); `None` for an image anywhere else.
-pub fn tum_folder_of_file(path: &Path) -> Option<&Path> {
-    let folder = path.parent()?;
-    if folder.file_name()? != "depth" {
-        return None;
-    }
-    let sequence = folder.parent()?;
-    (sequence.join("depth.txt").is_file() || sequence.join("associations.txt").is_file())
-        .then_some(sequence)
-}
-
-/// The SUN RGB-D sample folder a depth image lies in: the parent of its `depth` or `depth_bfx`
-/// folder when that holds `intrinsics.txt` and an `image` folder, as SUN RGB-D ships every
-/// sample; `None` for an image anywhere else. Such a PNG is SUN's bit-rotated millimetres
-/// ([`crate::depth::DepthFormat::Sun`]), which [`crate::depth::read_depth`] takes when no
-/// format is given, and `intrinsics.txt` its camera's 3×3 matrix ([`sun_camera`]).
-pub fn sun_folder_of_file(path: &Path) -> Option<&Path> {
-    let folder = path.parent()?;
-    let name = folder.file_name()?;
-    if name != "depth" && name != "depth_bfx" {
-        return None;
-    }
-    let sample = folder.parent()?;
-    (sample.join("intrinsics.txt").is_file() && sample.join("image").is_dir()).then_some(sample)
-}
-
-/// The camera of a SUN RGB-D sample folder for its `width`×`height` depth images: the
-/// intrinsics of its `intrinsics.txt` (a row-major 3×3 matrix) with the Kinect v1 sensor
-/// model (baseline, 1/8-px disparity steps, σ_D) at that focal length — SUN RGB-D's Kinect v1,
-/// Xtion and RealSense samples are all triangulating sensors; its Kinect v2 (time of flight)
-/// samples follow the model only roughly.
-pub fn sun_camera(sample: impl AsRef<Path>, width: usize, height: usize) -> Result<Camera> {
-    let file = sample.as_ref().join("intrinsics.txt");
-    let k = crate::camera::read_intrinsics_txt(&file, width, height)?;
-    Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))
-}
-
-/// The depth units per metre a depth image's place implies: 5000 for an image of a TUM RGB-D
-/// folder ([`tum_folder_of_file`], [`SequenceLayout::depth_scale`]); `None` anywhere else.
-/// [`crate::depth::read_depth`] reads a PNG or TIFF at this scale when none is given, so a TUM
-/// frame opened on its own is not read five times too deep.
-pub fn depth_scale_of_file(path: impl AsRef<Path>) -> Option<f64> {
-    tum_folder_of_file(path.as_ref()).map(|_| SequenceLayout::Tum.depth_scale())
 }
 
 /// The depth frames of the sequence folder `dir` in `layout`.
@@ -259,211 +221,6 @@ pub fn read_posed_frames(
     })
 }
 
-/// Whether a TUM-layout folder numbers its frames instead of timing them: its
-/// `associations.txt` lists the depth image first and stamps it with a whole number
-/// (`0 depth/0.png 0 rgb/0.png`, as ICL-NUIM's TUM-format archives and the converters that copy
-/// them write it), where TUM's lines start with the colour image's time in seconds. Such stamps
-/// are frames, not seconds: `sldepth track` and Python's `track_sequence` take frame `n` at
-/// `n / 30` s (one frame interval each), and write the numbers back as they were. Only the first
-/// line is looked at; a folder without `associations.txt` does not.
-pub fn tum_stamps_are_frame_numbers(dir: impl AsRef<Path>) -> bool {
-    crate::text::first_data_fields(&dir.as_ref().join("associations.txt")).is_some_and(|f| {
-        let toks: Vec<&str> = f.iter().map(String::as_str).collect();
-        toks.len() >= 4
-            && crate::trajectory::association_depth_columns(&toks) == (0, 1)
-            && crate::text::is_whole_number(toks[0])
-    })
-}
-
-/// Whether the TUM-layout folder `dir` is one of ICL-NUIM's own TUM-format archives: it numbers
-/// its frames ([`tum_stamps_are_frame_numbers`]) and either holds the data set's ground truth
-/// (a `*.gt.freiburg` file) or keeps the archive's name (`living_room_traj0_frei_png`,
-/// `traj2n_frei_png`, ...: it contains `frei_png`). Such a folder
-///
-/// - is a rendering at ICL-NUIM's published intrinsics ([`tum_preset_name`]: `icl-nuim-tum`);
-/// - and renders with the image y axis up (published fy = −480): its ground truth
-///   (`groundtruth.txt`, or the `*.gt.freiburg` beside the frames, see [`tum_ground_truth_of`])
-///   is read into sldepth's frame with [`sl_core::CameraToWorld::y_reflected`], and
-///   `sldepth track` and `fuse` write trajectories and meshes back in the data set's frame, so
-///   they compare with its ground truth directly.
-///
-/// A folder that numbers its frames under another name, without a `*.gt.freiburg`, is not taken
-/// for one: the mirror would turn a right-handed recording's outputs inside out.
-pub fn icl_nuim_tum_folder(dir: impl AsRef<Path>) -> bool {
-    let dir = dir.as_ref();
-    if !tum_stamps_are_frame_numbers(dir) {
-        return false;
-    }
-    let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let named = full.file_name().is_some_and(|n| {
-        n.to_string_lossy()
-            .to_ascii_lowercase()
-            .contains("frei_png")
-    });
-    named || icl_ground_truth_of(dir).is_some()
-}
-
-/// The ground-truth file of a TUM-layout folder: its `groundtruth.txt`, else the one
-/// `*.gt.freiburg` file in it (ICL-NUIM ships `livingRoom0.gt.freiburg`, `traj0.gt.freiburg`,
-/// ... beside its TUM-format archives), else `groundtruth.txt` (for the error that names it).
-pub fn tum_ground_truth_of(dir: impl AsRef<Path>) -> PathBuf {
-    let dir = dir.as_ref();
-    let tum = dir.join("groundtruth.txt");
-    if tum.exists() {
-        return tum;
-    }
-    icl_ground_truth_of(dir).unwrap_or(tum)
-}
-
-/// The one `*.gt.freiburg` file (ICL-NUIM's ground truth) in `dir`; `None` when there is none,
-/// or more than one.
-fn icl_ground_truth_of(dir: &Path) -> Option<PathBuf> {
-    let found: Vec<PathBuf> = std::fs::read_dir(dir)
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| {
-            p.file_name()
-                .and_then(|n| n.to_str())
-                .is_some_and(|n| n.ends_with(".gt.freiburg"))
-        })
-        .take(2)
-        .collect();
-    <[PathBuf; 1]>::try_from(found).ok().map(|[one]| one)
-}
-
-/// The TUM camera preset a TUM folder implies: `icl-nuim-tum` for one of ICL-NUIM's
-/// TUM-format archives ([`icl_nuim_tum_folder`]), else by its name — `tum-fr2` or `tum-fr3`
-/// when its path names `freiburg2` or `freiburg3`, else `tum-fr1` (TUM's sequence folders are
-/// named `rgbd_dataset_freiburgN_...`).
-pub fn tum_preset_name(dir: impl AsRef<Path>) -> &'static str {
-    let dir = dir.as_ref();
-    if icl_nuim_tum_folder(dir) {
-        return "icl-nuim-tum";
-    }
-    let full = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    let names = full.to_string_lossy().to_ascii_lowercase();
-    if names.contains("freiburg2") {
-        "tum-fr2"
-    } else if names.contains("freiburg3") {
-        "tum-fr3"
-    } else {
-        "tum-fr1"
-    }
-}
-
-/// The camera files an Open3D-style folder may hold, in the order they are looked for, each an
-/// Open3D `PinholeCameraIntrinsic` JSON but the last two: `camera.json` (Open3D's ICL-NUIM
-/// sample), `camera_intrinsic.json` (what Open3D's RealSense recorder writes beside `depth/`),
-/// `intrinsic.json` (Open3D's Azure Kinect MKV reader), `camera_primesense.json` (Open3D's
-/// Redwood samples), else ScanNet's `intrinsic/intrinsic_depth.txt` or `intrinsic_depth.txt` (a
-/// 4×4 matrix whose top-left 3×3 is the depth camera's).
-const OPEN3D_CAMERA_FILES: [&str; 6] = [
-    "camera.json",
-    "camera_intrinsic.json",
-    "intrinsic.json",
-    "camera_primesense.json",
-    "intrinsic/intrinsic_depth.txt",
-    "intrinsic_depth.txt",
-];
-
-/// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`,
-/// an Open3D-style folder's `camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
-/// `camera_primesense.json`, as Open3D's tools and samples name it) or, for a ScanNet export,
-/// its `intrinsic/intrinsic_depth.txt` (the first that exists; `camera.json` when none does);
-/// `None` for TUM (its camera is a preset).
-pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<PathBuf> {
-    let dir = dir.as_ref();
-    match layout {
-        SequenceLayout::Tum => None,
-        SequenceLayout::SevenScenes => Some(dir.join("camera-intrinsics.txt")),
-        SequenceLayout::Open3d => Some(
-            OPEN3D_CAMERA_FILES
-                .iter()
-                .map(|f| dir.join(f))
-                .find(|p| std::fs::symlink_metadata(p).is_ok())
-                .unwrap_or_else(|| dir.join(OPEN3D_CAMERA_FILES[0])),
-        ),
-    }
-}
-
-/// The camera of an Open3D-style folder without a camera file: `ros-default` (fx = fy = 525,
-/// c = (319.5, 239.5)), Open3D's `PrimeSenseDefault`, which Open3D's own reconstruction system
-/// takes for such a folder — depth registered to the colour camera, as Open3D's pipelines and
-/// data sets (Redwood, its TUM and ICL-NUIM copies) keep it.
-pub const OPEN3D_DEFAULT_PRESET: &str = "ros-default";
-
-/// The camera preset of the sensor a sequence folder of `layout` was recorded with, as far as
-/// the layout says: a TUM folder's by its name ([`tum_preset_name`]: TUM's Kinects, with their
-/// lens models and rolling shutters), 7-Scenes `7-scenes` (a Kinect v1), an Open3D-style
-/// folder without a camera file [`OPEN3D_DEFAULT_PRESET`]; `None` for an Open3D-style folder
-/// with its own camera file (`camera.json` and the others Open3D's tools write, or a ScanNet
-/// export's `intrinsic_depth.txt`: any camera). `sldepth track` models that preset's rolling
-/// shutter and lens when no `--camera` is given, whether the intrinsics come from the preset or
-/// from the folder's camera file.
-pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'static str> {
-    let dir = dir.as_ref();
-    match layout {
-        SequenceLayout::Tum => Some(tum_preset_name(dir)),
-        SequenceLayout::SevenScenes => Some("7-scenes"),
-        SequenceLayout::Open3d => (!camera_file_of(dir, SequenceLayout::Open3d)
-            .is_some_and(|f| f.is_file()))
-        .then_some(OPEN3D_DEFAULT_PRESET),
-    }
-}
-
-/// The camera a sequence folder implies, as `sldepth track DIR` and `sldepth fuse DIR` use it
-/// when none is given, and the preset of its sensor ([`sensor_preset`]): the folder's camera
-/// file ([`camera_file_of`]) when it has one (a path there that is not a regular file is an
-/// error), else that preset's camera — TUM the one its name implies (an ICL-NUIM TUM-format
-/// folder `icl-nuim-tum`), 7-Scenes `7-scenes`, Open3D [`OPEN3D_DEFAULT_PRESET`]. A 7-Scenes folder's `camera-intrinsics.txt` gives the intrinsics and
-/// `7-scenes` the sensor, as the command line takes them.
-pub fn sequence_camera(
-    dir: impl AsRef<Path>,
-    layout: SequenceLayout,
-    limits: &Limits,
-) -> Result<(Camera, Option<&'static str>)> {
-    let dir = dir.as_ref();
-    if let Some(file) = camera_file_of(dir, layout)
-        && let Ok(m) = std::fs::metadata(&file)
-    {
-        if !m.is_file() {
-            return Err(IoError::malformed(
-                &file,
-                "exists but is not a regular file (a camera file was expected)",
-            ));
-        }
-        let is_json = file.extension().is_some_and(|e| e == "json");
-        let camera = match layout {
-            SequenceLayout::Open3d if is_json => {
-                crate::camera::read_camera_json_with_limits(&file, limits)?
-            }
-            // A ScanNet export's matrix, at the size of its depth images.
-            SequenceLayout::Open3d => {
-                let first = read_open3d_depth_frames(dir, limits)?
-                    .into_iter()
-                    .next()
-                    .ok_or_else(|| {
-                        IoError::malformed(
-                            dir,
-                            "no depth image to size the camera of its intrinsics by",
-                        )
-                    })?;
-                let (w, h) = crate::raster::image_size(&first.depth_path, limits)?;
-                let k = crate::camera::read_intrinsics_txt(&file, w, h)?;
-                Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))?
-            }
-            _ => crate::camera::read_camera(&file)?,
-        };
-        return Ok((camera, sensor_preset(dir, layout)));
-    }
-    // Without a camera file every layout names its sensor (an Open3D folder: Open3D's default).
-    let preset = sensor_preset(dir, layout).unwrap_or(OPEN3D_DEFAULT_PRESET);
-    let camera = Camera::preset(preset).map_err(|e| IoError::core(dir, None, e))?;
-    Ok((camera, Some(preset)))
-}
-
 /// One depth frame of a sequence.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SequenceFrame {
@@ -567,13 +324,7 @@ pub fn read_7scenes_depth_frames(
         }
     }
     files.sort_by(|a, b| natural_order(a.as_os_str(), b.as_os_str()));
-    Ok(files
-        .into_iter()
-        .map(|depth_path| SequenceFrame {
-            depth_path,
-            timestamp: None,
-        })
-        .collect())
+    Ok(untimed(files))
 }
 
 /// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`, sorted by name in
@@ -586,13 +337,18 @@ pub fn read_open3d_depth_frames(
     let sub = dir.join("depth");
     let files = crate::trajectory::list_depth_files(if sub.is_dir() { &sub } else { dir })?;
     check_frames(dir, files.len(), limits)?;
-    Ok(files
+    Ok(untimed(files))
+}
+
+/// Depth frames without timestamps (7-Scenes and Open3D-style folders have none).
+fn untimed(files: Vec<PathBuf>) -> Vec<SequenceFrame> {
+    files
         .into_iter()
         .map(|depth_path| SequenceFrame {
             depth_path,
             timestamp: None,
         })
-        .collect())
+        .collect()
 }
 
 /// A timestamp for a message: fixed-point seconds for ordinary values, scientific notation
@@ -608,6 +364,7 @@ fn short_number(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sl_core::Camera;
 
     /// Unpadded 7-Scenes-style and Open3D-style names come in the order they were recorded:
     /// by bytes, `frame-10` came before `frame-8` and the tracked trajectory was shuffled
@@ -856,24 +613,18 @@ mod tests {
             (preset, cam),
             (Some("ros-default"), Camera::preset("ros-default").unwrap())
         );
-        // Open3D's Redwood sample names its camera camera_primesense.json.
-        std::fs::write(
-            o3d.join("camera_primesense.json"),
-            r#"{"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]}"#,
-        )
-        .unwrap();
-        let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
-        assert_eq!((preset, cam.intrinsics.fx), (None, 525.0));
-        std::fs::remove_file(o3d.join("camera_primesense.json")).unwrap();
-        // Its own camera.json: any camera, no preset implied.
-        std::fs::write(
-            o3d.join("camera.json"),
-            r#"{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 32, 24, 1]}"#,
-        )
-        .unwrap();
-        let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
-        assert_eq!((preset, cam.intrinsics.width), (None, 64));
-        std::fs::remove_file(o3d.join("camera.json")).unwrap();
+        // Its own camera file: any camera, no preset implied — camera.json, or the name
+        // Open3D's Redwood sample gives it.
+        for name in ["camera_primesense.json", "camera.json"] {
+            std::fs::write(
+                o3d.join(name),
+                r#"{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 32, 24, 1]}"#,
+            )
+            .unwrap();
+            let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
+            assert_eq!((preset, cam.intrinsics.width), (None, 64), "{name}");
+            std::fs::remove_file(o3d.join(name)).unwrap();
+        }
         std::fs::create_dir(o3d.join("camera.json")).unwrap();
         let err = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap_err();
         assert!(err.to_string().contains("not a regular file"), "{err}");
