@@ -198,6 +198,31 @@ pub struct ResolutionAnalysis {
     pub disparity_bin_offset_px: f64,
 }
 
+/// Largest distance of the robust slope of `ln ΔZ` against `ln Z` from the model's 2 for a frame
+/// to count as disparity-quantised depth ([`ResolutionAnalysis::quantised_like_the_model`]):
+/// real Kinect-class frames measure 1.9–2.1; rendered, resampled or filtered depth, or depth
+/// rounded to a fixed step, lands far from it.
+pub const SLOPE_PLAUSIBLE_DEVIATION: f64 = 0.5;
+
+impl ResolutionAnalysis {
+    /// Whether the frame's depth steps grow as `Z²` (robust slope within
+    /// [`SLOPE_PLAUSIBLE_DEVIATION`] of 2), as a structured-light sensor's disparity-quantised
+    /// depth does: only then does the implied `f·B` mean anything.
+    pub fn quantised_like_the_model(&self) -> bool {
+        (self.slope_robust - 2.0).abs() <= SLOPE_PLAUSIBLE_DEVIATION
+    }
+
+    /// The implied `f·B` over the camera's (`sensor`), when the frame is quantised like the model
+    /// and the analysis determined one. The depth steps follow `ΔZ = Z²/(q·f·B)`, so a frame read
+    /// at `k` times its true scale (depths `k` times too deep) implies `k·f·B`: real frames at
+    /// their right scale give 0.89–1.12 (TUM, 7-Scenes, the PrimeSense frames, ICL-NUIM), the
+    /// same frames read five times too deep 5.4–5.6 — however near or far the scene is.
+    pub fn fb_ratio(&self, sensor: &SensorModel) -> Option<f64> {
+        let fb = self.fb_px_m.filter(|v| v.is_finite() && *v > 0.0)?;
+        (self.quantised_like_the_model() && sensor.fb() > 0.0).then(|| fb / sensor.fb())
+    }
+}
+
 /// Analyses a depth map with the options of a camera's sensor model ([`AnalysisConfig::for_sensor`]).
 pub fn analyze(depth: &DepthImage, sensor: &SensorModel) -> Result<ResolutionAnalysis> {
     analyze_with(depth, &AnalysisConfig::for_sensor(sensor))

@@ -637,7 +637,13 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         );
     };
     if args.depth_scale.is_none() && loaded.encoding.format != DepthFormat::NyuRaw {
-        note_depth_out_of_range(path, &loaded.depth, args, loaded.encoding.units_per_m);
+        note_doubtful_depth_scale(
+            path,
+            &loaded.depth,
+            args,
+            loaded.encoding.units_per_m,
+            &camera.sensor,
+        );
     }
     Ok(Loaded {
         depth: loaded.depth,
@@ -647,15 +653,24 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     })
 }
 
-/// A note on standard error when a frame read at the default scale has its median depth
-/// outside the camera's range (the `--camera` preset's, else the Kinect's 0.5–5 m): the usual
-/// cause is a file stored at another scale (TUM RGB-D: 5000 units per metre), whose surfaces
-/// would otherwise come out silently five times too far.
-pub fn note_depth_out_of_range(
+/// A note on standard error when a frame read without `--depth-scale` looks stored at another
+/// scale than it was read at — the usual cause a TUM RGB-D file (5000 units per metre) read as
+/// millimetres, whose surfaces would otherwise come out silently five times too far. Two
+/// independent signs, the first that holds is said:
+///
+/// - its median depth lies outside the camera's range (the `--camera` preset's, else the
+///   Kinect's 0.5–5 m);
+/// - its depth steps (`sl_noise::analysis`, the paper's `ΔZ = Z²/(q·f·B)`) imply an `f·B` more
+///   than [`SCALE_DOUBT_FACTOR`] times the camera's (`sensor`) or less than its inverse: depths
+///   read at `k` times their scale imply `k·f·B`, however near the scene. This catches a
+///   close-range recording read five times too deep, which stays inside the range. Only a frame
+///   whose steps grow as `Z²` is judged so (rendered or filtered depth is not).
+pub fn note_doubtful_depth_scale(
     path: &Path,
     depth: &sl_core::DepthImage,
     args: &InputArgs,
     units_per_m: f64,
+    sensor: &sl_core::SensorModel,
 ) {
     let preset = args
         .camera
@@ -666,6 +681,14 @@ pub fn note_depth_out_of_range(
     let Ok(p) = sl_core::preset::find(&preset).or_else(|_| sl_core::preset::find("kinect-v1"))
     else {
         return;
+    };
+    let hint = if units_per_m != DEFAULT_UNITS_PER_M {
+        format!(
+            " (read at {} units per metre; millimetre files need --depth-scale 1000)",
+            num(units_per_m)
+        )
+    } else {
+        " (TUM RGB-D files store 5000 units per metre)".to_string()
     };
     // Every 7th pixel is plenty for a median.
     let mut z: Vec<f32> = depth
@@ -681,14 +704,6 @@ pub fn note_depth_out_of_range(
     let mid = z.len() / 2;
     let median = f64::from(*z.select_nth_unstable_by(mid, f32::total_cmp).1);
     if median > p.max_depth_m || median < p.min_depth_m {
-        let hint = if units_per_m != DEFAULT_UNITS_PER_M {
-            format!(
-                " (read at {} units per metre; millimetre files need --depth-scale 1000)",
-                num(units_per_m)
-            )
-        } else {
-            " (TUM RGB-D files store 5000 units per metre)".to_string()
-        };
         // A camera file has no range of its own: the Kinect's is the yardstick then.
         let whose = match args.camera.as_deref().filter(|c| c.is_file()) {
             Some(file) => format!(
@@ -705,8 +720,40 @@ pub fn note_depth_out_of_range(
             p.min_depth_m,
             p.max_depth_m
         );
+        return;
+    }
+    if let Some(ratio) = doubtful_fb_ratio(depth, sensor) {
+        let how = if ratio > 1.0 {
+            format!("{ratio:.1} times too deep")
+        } else {
+            format!("{:.1} times too shallow", 1.0 / ratio)
+        };
+        errln!(
+            "note: {}: its depth steps (which grow as Z²/(q·f·B)) imply f·B = {:.1} px·m against \
+             the camera's {:.1}: the depths look {how}; is --depth-scale right?{hint}",
+            path.display(),
+            ratio * sensor.fb(),
+            sensor.fb()
+        );
     }
 }
+
+/// The frame's implied `f·B` over the camera's (`sl_noise::analysis::ResolutionAnalysis::fb_ratio`)
+/// when it lies beyond [`SCALE_DOUBT_FACTOR`] either way; `None` when it does not, or when the
+/// frame's depth is not quantised like the model's.
+fn doubtful_fb_ratio(depth: &sl_core::DepthImage, sensor: &sl_core::SensorModel) -> Option<f64> {
+    let ratio = sl_noise::analysis::analyze(depth, sensor)
+        .ok()?
+        .fb_ratio(sensor)?;
+    (!(1.0 / SCALE_DOUBT_FACTOR..=SCALE_DOUBT_FACTOR).contains(&ratio)).then_some(ratio)
+}
+
+/// How far a frame's implied `f·B` may lie from its camera's before
+/// [`note_doubtful_depth_scale`] doubts the scale: real frames at their scale give 0.89–1.12
+/// times the camera's (calibration off by a few percent), a file read at another data set's
+/// scale 5 times or a fifth. 2 leaves the first alone and catches any scale error of 2× or
+/// more.
+pub const SCALE_DOUBT_FACTOR: f64 = 2.0;
 
 /// Writes a depth map in the given encoding (atomically).
 pub fn save_depth(path: &Path, depth: &DepthImage, encoding: &DepthEncoding) -> Result<()> {
@@ -769,7 +816,41 @@ pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {
 
 #[cfg(test)]
 mod tests {
-    use super::{num, parse_bytes};
+    use super::{doubtful_fb_ratio, num, parse_bytes};
+
+    /// A close-range frame (0.6–1.0 m, disparity-quantised to 1/8 px, stored in whole units)
+    /// read five times too deep stays inside the Kinect's range, but its depth steps imply five
+    /// times the camera's f·B; read at its scale, or a fifth too shallow, it is judged right.
+    #[test]
+    fn a_frame_read_at_another_scale_is_told_by_its_depth_steps() {
+        let sensor = sl_core::Camera::kinect_v1().sensor;
+        let (w, h) = (320usize, 240usize);
+        let frame = |units_per_m: f64, read_at: f64| {
+            let data: Vec<f32> = (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64, (i / w) as f64);
+                    let z = 0.6 + 0.4 * (x / w as f64) + 0.05 * (y / h as f64);
+                    let d = (sensor.fb() / z * 8.0).round() / 8.0;
+                    ((sensor.fb() / d * units_per_m).round() / read_at) as f32
+                })
+                .collect();
+            sl_core::DepthImage::from_vec(w, h, data).unwrap()
+        };
+        assert_eq!(doubtful_fb_ratio(&frame(1000.0, 1000.0), &sensor), None);
+        assert_eq!(doubtful_fb_ratio(&frame(5000.0, 5000.0), &sensor), None);
+        let deep = doubtful_fb_ratio(&frame(5000.0, 1000.0), &sensor).unwrap();
+        assert!((deep - 5.0).abs() < 0.5, "{deep}");
+        // Rounded to a fixed 1 mm step instead (filtered or rendered depth): not judged.
+        let flat = sl_core::DepthImage::from_vec(
+            w,
+            h,
+            (0..w * h)
+                .map(|i| (3.0 + 0.001 * (i % 1500) as f64) as f32)
+                .collect(),
+        )
+        .unwrap();
+        assert_eq!(doubtful_fb_ratio(&flat, &sensor), None);
+    }
 
     /// Whole numbers of bytes or of K, M, G, T (powers of 1024); a fraction says what to write.
     #[test]

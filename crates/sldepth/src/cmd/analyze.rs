@@ -25,11 +25,6 @@ pub struct Args {
     pub input: InputArgs,
 }
 
-/// Largest distance of the robust slope of ln ΔZ against ln Z from the model's 2 for a frame to
-/// count as disparity-quantised depth (real Kinect-class frames: 1.9–2.1; the bound is a
-/// plausibility check, wide enough for a frame with few distinct depths).
-const SLOPE_PLAUSIBLE_DEVIATION: f64 = 0.5;
-
 /// Runs `sldepth analyze`.
 pub fn run(args: Args) -> Result<()> {
     if let Some(plot) = &args.plot {
@@ -62,7 +57,7 @@ pub fn run(args: Args) -> Result<()> {
     // frames measure 1.9–2.1): a slope far from it says the frame is not such depth (rendered,
     // resampled, filtered, or stored at another scale), and what follows from the quantum
     // (f·B, the sub-pixel step) means nothing.
-    let quantised_like_the_model = (a.slope_robust - 2.0).abs() <= SLOPE_PLAUSIBLE_DEVIATION;
+    let quantised_like_the_model = a.quantised_like_the_model();
     if !quantised_like_the_model {
         errln!(
             "note: {}: depth steps grow as Z^{:.2}, not Z² (robust slope): this frame's depth does \

@@ -397,7 +397,13 @@ pub fn run(mut args: Args) -> Result<()> {
             sl_io::sequence::depth_scale_of_file(&f.depth_path)
                 .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
         });
-        crate::common::note_depth_out_of_range(&f.depth_path, d, &args.input, units);
+        crate::common::note_doubtful_depth_scale(
+            &f.depth_path,
+            d,
+            &args.input,
+            units,
+            &camera.sensor,
+        );
     }
     let k = camera.intrinsics;
     limits()

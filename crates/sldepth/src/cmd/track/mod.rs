@@ -265,7 +265,13 @@ pub fn run(mut args: Args) -> Result<()> {
     );
     // A folder of TUM frames read as millimetres is five times too deep: say so at the first.
     if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
-        crate::common::note_depth_out_of_range(&f.depth_path, d, &args.input, default_scale);
+        crate::common::note_doubtful_depth_scale(
+            &f.depth_path,
+            d,
+            &args.input,
+            default_scale,
+            &camera.sensor,
+        );
     }
     let k = camera.intrinsics;
     limits()
