@@ -72,14 +72,11 @@ pub const OPEN3D_DEFAULT_PRESET: &str = "ros-default";
 /// from the folder's camera file.
 pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'static str> {
     let dir = dir.as_ref();
+    let own_file = camera_file_of(dir, layout).is_some_and(|f| f.is_file());
     match layout {
-        SequenceLayout::Tum => (!camera_file_of(dir, SequenceLayout::Tum)
-            .is_some_and(|f| f.is_file()))
-        .then(|| tum_preset_name(dir)),
+        SequenceLayout::Tum => (!own_file).then(|| tum_preset_name(dir)),
         SequenceLayout::SevenScenes => Some("7-scenes"),
-        SequenceLayout::Open3d => (!camera_file_of(dir, SequenceLayout::Open3d)
-            .is_some_and(|f| f.is_file()))
-        .then_some(OPEN3D_DEFAULT_PRESET),
+        SequenceLayout::Open3d => (!own_file).then_some(OPEN3D_DEFAULT_PRESET),
     }
 }
 
@@ -108,22 +105,25 @@ pub fn sequence_camera(
             ));
         }
         let is_json = file.extension().is_some_and(|e| e == "json");
+        // Files that give no image size: read at the size of the folder's first depth frame,
+        // with the Kinect v1 sensor model at their focal length.
+        let sized = |frames: Vec<super::SequenceFrame>, read: SizedReader| -> Result<Camera> {
+            let (w, h) = first_frame_size(dir, frames, limits)?;
+            Camera::from_intrinsics(read(&file, w, h)?, None, None)
+                .map_err(|e| IoError::core(&file, None, e))
+        };
         let camera = match layout {
             SequenceLayout::Open3d if is_json => {
                 crate::camera::read_camera_json_with_limits(&file, limits)?
             }
-            // A ScanNet export's matrix, at the size of its depth images.
-            SequenceLayout::Open3d => {
-                let (w, h) = first_frame_size(dir, read_open3d_depth_frames(dir, limits)?, limits)?;
-                let k = crate::camera::read_intrinsics_txt(&file, w, h)?;
-                Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))?
-            }
-            // ETH3D's `fx fy cx cy`, at the size of its depth images.
-            SequenceLayout::Tum => {
-                let (w, h) = first_frame_size(dir, read_tum_depth_frames(dir, limits)?, limits)?;
-                let k = crate::camera::read_fx_fy_cx_cy_txt(&file, w, h)?;
-                Camera::from_intrinsics(k, None, None).map_err(|e| IoError::core(&file, None, e))?
-            }
+            // A ScanNet export's matrix.
+            SequenceLayout::Open3d => sized(read_open3d_depth_frames(dir, limits)?, |p, w, h| {
+                crate::camera::read_intrinsics_txt(p, w, h)
+            })?,
+            // ETH3D's `fx fy cx cy`.
+            SequenceLayout::Tum => sized(read_tum_depth_frames(dir, limits)?, |p, w, h| {
+                crate::camera::read_fx_fy_cx_cy_txt(p, w, h)
+            })?,
             _ => crate::camera::read_camera(&file)?,
         };
         return Ok((camera, sensor_preset(dir, layout)));
@@ -133,6 +133,9 @@ pub fn sequence_camera(
     let camera = Camera::preset(preset).map_err(|e| IoError::core(dir, None, e))?;
     Ok((camera, Some(preset)))
 }
+
+/// A reader of a camera text file that gives no image size, for frames of the given size.
+type SizedReader = fn(&Path, usize, usize) -> Result<sl_core::Intrinsics>;
 
 /// The size of the first of a folder's depth frames (from its header), which sizes a camera file
 /// that gives no image size; a folder without a frame is an error.

@@ -205,13 +205,6 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
                 seq.without_pose
             );
         }
-        if sl_io::sequence::icl_nuim_tum_folder(dir) {
-            errln!(
-                "note: {} is one of ICL-NUIM's TUM-format folders: its ground truth (y up) is \
-                 fused in sldepth's frame, and the mesh written back in the data set's",
-                dir.display()
-            );
-        }
         let camera = crate::common::tum_camera(dir, &args.input)?;
         Ok((seq.frames, camera, Some(SequenceLayout::Tum.depth_scale())))
     } else if let Some(log) = &args.o3d_log {
@@ -350,6 +343,19 @@ pub fn run(mut args: Args) -> Result<()> {
         ),
     };
     let (mut frames, camera, default_scale) = load_source(&args)?;
+    // An ICL-NUIM folder's poses are y up: read into sldepth's frame by sl-io, the mesh written
+    // back in the data set's.
+    let data_y_up = args
+        .tum
+        .as_deref()
+        .is_some_and(sl_io::sequence::icl_nuim_tum_folder);
+    if let (true, Some(dir)) = (data_y_up, &args.tum) {
+        errln!(
+            "note: {} is one of ICL-NUIM's TUM-format folders: its ground truth (y up) is fused \
+             in sldepth's frame, and the mesh written back in the data set's",
+            dir.display()
+        );
+    }
     if let Some(n) = args.max_frames {
         frames.truncate(n);
     }
@@ -549,11 +555,7 @@ pub fn run(mut args: Args) -> Result<()> {
         _ => None,
     };
     // An ICL-NUIM folder's mesh in its y-up frame, as its ground truth and `sldepth track`'s.
-    if args
-        .tum
-        .as_deref()
-        .is_some_and(sl_io::sequence::icl_nuim_tum_folder)
-    {
+    if data_y_up {
         mesh.reflect_y();
     }
     if let Some(out) = &args.output {
