@@ -154,8 +154,9 @@ pub(crate) fn read_posed_sequence<'py>(
 
 /// The camera a sequence folder implies, as ``sldepth track DIR`` and ``sldepth fuse DIR`` use
 /// it when none is given: the folder's camera file when it has one (7-Scenes'
-/// ``camera-intrinsics.txt``, an Open3D folder's ``camera.json``, a ScanNet export's
-/// ``intrinsic/intrinsic_depth.txt`` at its depth images' size), else the layout's preset — a
+/// ``camera-intrinsics.txt``, the folder's own or its scene's above it as 3DMatch keeps it; an
+/// Open3D folder's ``camera.json``; a ScanNet export's ``intrinsic/intrinsic_depth.txt``; text
+/// files at the size of the folder's depth images), else the layout's preset — a
 /// TUM folder the ``tum-fr1``, ``tum-fr2`` or ``tum-fr3`` preset its name says (fr1 when it names
 /// none; with that Kinect's lens model and rolling shutter; an ICL-NUIM TUM-format folder
 /// ``icl-nuim-tum``), 7-Scenes ``7-scenes``, Open3D ``ros-default`` (Open3D's PrimeSenseDefault;

@@ -391,6 +391,12 @@ def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
     cam = sldepth.sequence_camera(seven)
     assert cam.preset_name == "7-scenes" and cam.fx == 500.0
     assert cam.rolling_shutter_ms == sldepth.Camera.preset("7-scenes").rolling_shutter_ms > 0
+    # 3DMatch's layout: the scene's camera file above its seq-XX folders.
+    seq = tmp_path / "scene" / "seq-01"
+    _write_frames(seq, ["frame-000000.depth.png"], 1000, seeds=(3,))
+    (seq.parent / "camera-intrinsics.txt").write_text("550 0 320\n0 550 240\n0 0 1\n")
+    cam = sldepth.sequence_camera(seq)
+    assert cam.preset_name == "7-scenes" and cam.fx == 550.0 and cam.width == 640
     o3d = tmp_path / "o3d"
     _write_frames(o3d / "depth", ["0.png"], 1000, seeds=(3,))
     # Without a camera file, Open3D's PrimeSenseDefault, as Open3D takes such a folder.

@@ -201,7 +201,11 @@ pub fn sequence_files(
         files.push(dir.join(sl_io::sequence::TUM_CALIBRATION_FILE));
     }
     if let Some(dir) = seven_scenes {
-        files.push(dir.join("camera-intrinsics.txt"));
+        // Its camera file, the scene's above it in 3DMatch's layout.
+        files.extend(sl_io::sequence::camera_file_of(
+            dir,
+            sl_io::sequence::SequenceLayout::SevenScenes,
+        ));
         if let Ok(entries) = std::fs::read_dir(dir) {
             files.extend(
                 entries
@@ -290,8 +294,12 @@ pub struct InputArgs {
     /// `PinholeCameraIntrinsic` format: `width`, `height`, column-major `intrinsic_matrix`, with
     /// optional `baseline_m` (metres) and `subpixel` (disparity steps per pixel); Open3D's
     /// `PinholeCameraParameters` file is read for its `intrinsic` object). An existing
-    /// file wins over a preset of the same name. Default: the `kinect-v1` preset (640x480,
-    /// f = 580 px, c = (319.5, 239.5), B = 0.075 m, 1/8 px).
+    /// file wins over a preset of the same name. Default: for a frame of a sequence folder the
+    /// folder's camera, as `track DIR` takes it (a TUM folder's preset or ETH3D's
+    /// `calibration.txt`, a 7-Scenes frame's `camera-intrinsics.txt`, its own or its scene's as
+    /// 3DMatch keeps it, an Open3D folder's `camera_intrinsic.json` and the like beside
+    /// `depth/`); else the `kinect-v1` preset (640x480, f = 580 px, c = (319.5, 239.5),
+    /// B = 0.075 m, 1/8 px).
     #[arg(long, value_name = "NAME|FILE", global = true)]
     pub camera: Option<PathBuf>,
     /// Depth units per metre of 16-bit PNG/TIFF depth (1000 = millimetres; 5000 = TUM RGB-D).
@@ -314,11 +322,12 @@ pub struct InputArgs {
 pub struct Loaded {
     /// Depth in metres, 0 = invalid.
     pub depth: DepthImage,
-    /// Camera (from `--camera`; else a TUM folder's preset for its frames, NYU's calibration
-    /// for NYU raw disparity, or the `kinect-v1` preset).
+    /// Camera (from `--camera`; else a sequence folder's camera for its frames, NYU's
+    /// calibration for NYU raw disparity, a SUN RGB-D sample's intrinsics, or the `kinect-v1`
+    /// preset).
     pub camera: Camera,
-    /// The preset the file's place implied without `--camera` (a TUM folder's), for the lens
-    /// model of `--lens auto` ([`undistorter`]'s `implied_preset`).
+    /// The preset the file's place implied without `--camera` (a TUM folder's, 7-Scenes'), for
+    /// the lens model of `--lens auto` ([`undistorter`]'s `implied_preset`).
     pub implied_preset: Option<&'static str>,
     /// The file's encoding, to write results back the same way.
     pub encoding: DepthEncoding,
@@ -526,39 +535,45 @@ pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
     }
 }
 
-/// The camera of a frame read from the TUM folder `dir` without `--camera`: `preset`, the one its
-/// name implies (`sl_io::sequence::sensor_preset`), or without one the folder's own calibration
-/// (`sl_io::sequence::sequence_camera`: ETH3D's `calibration.txt`), with a note on standard
-/// error, once per run, that also names the scale the frame was read at (`units_per_m`, the
-/// folder's 5000 unless `--depth-scale` said otherwise).
-fn tum_frame_camera(dir: &Path, preset: Option<&str>, units_per_m: f64) -> Result<Camera> {
+/// The camera of a frame read from the sequence folder `dir` (in `layout`) without `--camera`:
+/// the one `sldepth track DIR` takes for the folder (`sl_io::sequence::sequence_camera`: its
+/// camera file — ETH3D's `calibration.txt`, 7-Scenes' or 3DMatch's `camera-intrinsics.txt`, an
+/// Open3D folder's `camera_intrinsic.json` and the like — else the preset of its sensor, a TUM
+/// folder's by its name), and that preset, with a note on standard error, once per run, that
+/// also names the scale the frame was read at (`units_per_m`: a TUM folder's 5000 unless
+/// `--depth-scale` said otherwise).
+fn folder_frame_camera(
+    dir: &Path,
+    layout: sl_io::sequence::SequenceLayout,
+    units_per_m: f64,
+) -> Result<(Camera, Option<&'static str>)> {
+    use sl_io::sequence::SequenceLayout;
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-    let (camera, which) = match preset {
-        Some(p) => (Camera::preset(p)?, format!("camera `{p}`")),
-        None => {
-            let (c, _) = sl_io::sequence::sequence_camera(
-                dir,
-                sl_io::sequence::SequenceLayout::Tum,
-                &limits(),
-            )?;
-            (
-                c,
-                format!(
-                    "the camera of its {}",
-                    sl_io::sequence::TUM_CALIBRATION_FILE
-                ),
-            )
-        }
-    };
+    let (camera, preset) = sl_io::sequence::sequence_camera(dir, layout, &limits())
+        .with_context(|| format!("reading the camera of {}", dir.display()))?;
     if !NOTED.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        let which = match (sl_io::sequence::camera_file_of(dir, layout), preset) {
+            (Some(file), _) if file.is_file() => format!(
+                "the camera of its {} (fx {} px)",
+                file.file_name().unwrap_or_default().to_string_lossy(),
+                num(camera.intrinsics.fx)
+            ),
+            (_, Some(p)) => format!("camera `{p}`"),
+            (_, None) => "its camera".into(),
+        };
+        let kind = match layout {
+            SequenceLayout::Tum => "TUM",
+            SequenceLayout::SevenScenes => "7-Scenes",
+            _ => "Open3D-style",
+        };
         errln!(
-            "note: a frame of the TUM folder {}: {which} (--camera overrides it), read at {} \
+            "note: a frame of the {kind} folder {}: {which} (--camera overrides it), read at {} \
              units per metre",
             dir.display(),
             num(units_per_m)
         );
     }
-    Ok(camera)
+    Ok((camera, preset))
 }
 
 /// The camera of a SUN RGB-D sample's frame read without `--camera`: its `intrinsics.txt` at the
@@ -597,29 +612,38 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
         .depth_scale
         .or_else(|| preset_depth_scale(args).filter(|_| scaled));
     let loaded = sl_io::depth::read_depth_with_limits(path, &opts, &limits())?;
-    // A frame of a TUM folder read without --camera: the folder and the preset its name implies.
-    let tum = match (&args.camera, sl_io::sequence::tum_folder_of_file(path)) {
-        (None, Some(dir)) if loaded.encoding.format != DepthFormat::NyuRaw => Some((
-            dir,
-            sl_io::sequence::sensor_preset(dir, sl_io::sequence::SequenceLayout::Tum),
-        )),
+    // A frame of a sequence folder (TUM, 7-Scenes, Open3D-style with a camera file) read
+    // without --camera: the camera `sldepth track DIR` takes for that folder, and its preset.
+    let place = match (&args.camera, loaded.encoding.format) {
+        (None, DepthFormat::Png | DepthFormat::Tiff) => {
+            sl_io::sequence::sequence_folder_of_file(path)
+        }
         _ => None,
     };
-    let implied_preset = tum.and_then(|(_, preset)| preset);
-    let camera = match (&args.camera, loaded.encoding.format, tum) {
+    let folder = match place {
+        Some((dir, layout)) => Some(folder_frame_camera(
+            dir,
+            layout,
+            loaded.encoding.units_per_m,
+        )?),
+        None => None,
+    };
+    let implied_preset = folder.and_then(|(_, preset)| preset);
+    let mut preset_sensor = sensor_from_preset(args, place);
+    let camera = match (&args.camera, loaded.encoding.format, folder) {
         // NYU raw disparity comes with its own calibration (depth camera intrinsics and the
         // f·B of the NYU toolbox conversion), which is the right default for it.
         (None, DepthFormat::NyuRaw, _) => Camera {
             intrinsics: sl_io::depth::nyu_intrinsics(),
             sensor: sl_io::depth::nyu_sensor_model(),
         },
-        // A frame of a TUM folder: the camera `sldepth track DIR` takes for that folder.
-        (None, _, Some((dir, preset))) => {
-            tum_frame_camera(dir, preset, loaded.encoding.units_per_m)?
-        }
+        (None, _, Some((camera, _))) => camera,
         // A SUN RGB-D sample's frame: its own intrinsics.txt.
         (None, DepthFormat::Sun, None) => match sl_io::sequence::sun_folder_of_file(path) {
-            Some(sample) => sun_frame_camera(sample, &loaded.depth)?,
+            Some(sample) => {
+                preset_sensor = false;
+                sun_frame_camera(sample, &loaded.depth)?
+            }
             None => load_camera(args)?,
         },
         _ => load_camera(args)?,
@@ -642,7 +666,7 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
             &loaded.depth,
             args,
             loaded.encoding.units_per_m,
-            &camera.sensor,
+            preset_sensor.then_some(&camera.sensor),
         );
     }
     Ok(Loaded {
@@ -664,13 +688,16 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
 ///   than [`SCALE_DOUBT_FACTOR`] times the camera's (`sensor`) or less than its inverse: depths
 ///   read at `k` times their scale imply `k·f·B`, however near the scene. This catches a
 ///   close-range recording read five times too deep, which stays inside the range. Only a frame
-///   whose steps grow as `Z²` is judged so (rendered or filtered depth is not).
+///   whose steps grow as `Z²` is judged so (rendered or filtered depth is not), and only
+///   against a preset's sensor (`sensor` is `None` otherwise, see [`sensor_from_preset`]): a
+///   camera file that gives intrinsics alone takes the Kinect's baseline and 1/8-px steps,
+///   which would make a RealSense D4xx frame (1/32 px) look 2.7–5 times too deep.
 pub fn note_doubtful_depth_scale(
     path: &Path,
     depth: &sl_core::DepthImage,
     args: &InputArgs,
     units_per_m: f64,
-    sensor: &sl_core::SensorModel,
+    sensor: Option<&sl_core::SensorModel>,
 ) {
     let preset = args
         .camera
@@ -722,6 +749,9 @@ pub fn note_doubtful_depth_scale(
         );
         return;
     }
+    let Some(sensor) = sensor else {
+        return;
+    };
     if let Some(ratio) = doubtful_fb_ratio(depth, sensor) {
         let how = if ratio > 1.0 {
             format!("{ratio:.1} times too deep")
@@ -735,6 +765,23 @@ pub fn note_doubtful_depth_scale(
             ratio * sensor.fb(),
             sensor.fb()
         );
+    }
+}
+
+/// Whether the camera's sensor model (baseline, disparity sub-pixel steps) is a preset's: a
+/// `--camera` preset name, or without `--camera` the preset of the sequence folder `folder`
+/// (its layout and camera file, `sl_io::sequence::camera_file_of`) when it has no camera file,
+/// or the `kinect-v1` default. A camera file (`--camera FILE`, a folder's `camera_intrinsic.json`
+/// or `camera-intrinsics.txt`, ...) may give the intrinsics alone, the Kinect's sensor filled in.
+pub fn sensor_from_preset(
+    args: &InputArgs,
+    folder: Option<(&Path, sl_io::sequence::SequenceLayout)>,
+) -> bool {
+    match &args.camera {
+        Some(c) => !c.is_file(),
+        None => !folder
+            .and_then(|(dir, layout)| sl_io::sequence::camera_file_of(dir, layout))
+            .is_some_and(|f| f.is_file()),
     }
 }
 

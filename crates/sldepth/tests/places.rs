@@ -429,3 +429,88 @@ fn an_eth3d_folder_takes_its_calibration() {
         "{err}"
     );
 }
+
+/// A frame opened on its own in a sequence folder takes the camera `track DIR` takes for the
+/// folder: a 7-Scenes-layout frame the `camera-intrinsics.txt` of its scene (3DMatch keeps it
+/// above `seq-01/`), a frame of an Open3D RealSense recording (848×480) its
+/// `camera_intrinsic.json`, where the default 640×480 camera refused it. A camera file that
+/// gives the intrinsics alone leaves the sensor to the Kinect's defaults, so the frame's depth
+/// steps are not judged against it (a D435's 1/32-px steps would look 2.7 times too deep).
+#[test]
+fn a_frame_takes_its_sequence_folders_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("sun3d-scene");
+    let seq = scene.join("seq-01");
+    std::fs::create_dir_all(&seq).unwrap();
+    let frame = seq.join("frame-000000.depth.png");
+    std::fs::copy(testdata("floor-seed1-depth.png"), &frame).unwrap();
+    std::fs::write(
+        scene.join("camera-intrinsics.txt"),
+        "550 0 320\n0 550 240\n0 0 1\n",
+    )
+    .unwrap();
+    let json = dir.path().join("same.json");
+    std::fs::write(
+        &json,
+        r#"{"width": 640, "height": 480, "intrinsic_matrix": [550, 0, 0, 0, 550, 0, 320, 240, 1]}"#,
+    )
+    .unwrap();
+    let cloud = |extra: &[&str], out: &str| -> (Vec<u8>, String) {
+        let ply = dir.path().join(out);
+        let mut args = vec!["cloud", path_str(&frame), "--output", path_str(&ply)];
+        args.extend_from_slice(extra);
+        let o = sldepth(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        (std::fs::read(&ply).unwrap(), err)
+    };
+    let (implied, note) = cloud(&[], "a.ply");
+    assert!(
+        note.contains("the camera of its camera-intrinsics.txt (fx 550 px)"),
+        "{note}"
+    );
+    let (given, note) = cloud(&["--camera", path_str(&json)], "b.ply");
+    assert!(!note.contains("camera-intrinsics"), "{note}");
+    assert_eq!(implied, given, "the scene's camera, as if given");
+
+    // Open3D's RealSense recorder: depth/ and camera_intrinsic.json.
+    let rs = dir.path().join("realsense");
+    std::fs::create_dir_all(rs.join("depth")).unwrap();
+    let frame = rs.join("depth/000000.png");
+    let o = sldepth(&[
+        "simulate",
+        "--scene",
+        "boxes",
+        "--seed",
+        "3",
+        "--camera",
+        "d435",
+        "--output",
+        path_str(&frame),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let planes = || {
+        sldepth(&[
+            "planes",
+            path_str(&frame),
+            "--output",
+            path_str(&dir.path().join("labels.png")),
+        ])
+    };
+    let o = planes();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("848x480"), "{err}");
+    std::fs::write(
+        rs.join("camera_intrinsic.json"),
+        r#"{"width": 848, "height": 480, "intrinsic_matrix": [426, 0, 0, 0, 426, 0, 424, 240, 1]}"#,
+    )
+    .unwrap();
+    let o = planes();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("the camera of its camera_intrinsic.json (fx 426 px)"),
+        "{err}"
+    );
+    assert!(!err.contains("depth steps"), "{err}");
+}

@@ -7,7 +7,10 @@ use std::path::{Path, PathBuf};
 
 use sl_core::Camera;
 
-use super::{SequenceLayout, read_open3d_depth_frames, read_tum_depth_frames, tum_preset_name};
+use super::{
+    SequenceLayout, read_7scenes_depth_frames, read_open3d_depth_frames, read_tum_depth_frames,
+    tum_preset_name,
+};
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
 
@@ -26,8 +29,9 @@ const OPEN3D_CAMERA_FILES: [&str; 6] = [
     "intrinsic_depth.txt",
 ];
 
-/// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`,
-/// an Open3D-style folder's `camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
+/// The camera file a sequence folder of `layout` may hold: 7-Scenes' `camera-intrinsics.txt`
+/// ([`SEVEN_SCENES_CAMERA_FILE`]; the folder's own, else its parent's, where 3DMatch's RGB-D
+/// scenes keep it above their `seq-XX` folders), an Open3D-style folder's `camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
 /// `camera_primesense.json`, as Open3D's tools and samples name it) or, for a ScanNet export,
 /// its `intrinsic/intrinsic_depth.txt` (the first that exists; `camera.json` when none does);
 /// for a TUM-layout folder its [`TUM_CALIBRATION_FILE`] when it has one (the ETH3D SLAM
@@ -35,19 +39,37 @@ const OPEN3D_CAMERA_FILES: [&str; 6] = [
 pub fn camera_file_of(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<PathBuf> {
     let dir = dir.as_ref();
     match layout {
-        SequenceLayout::Tum => {
-            Some(dir.join(TUM_CALIBRATION_FILE)).filter(|p| std::fs::symlink_metadata(p).is_ok())
+        SequenceLayout::Tum => Some(dir.join(TUM_CALIBRATION_FILE)).filter(|p| present(p)),
+        SequenceLayout::SevenScenes => {
+            // 3DMatch's RGB-D scenes (7-Scenes, SUN3D, BundleFusion, ... in 7-Scenes' layout)
+            // keep one file per scene, above its `seq-XX` folders.
+            let own = dir.join(SEVEN_SCENES_CAMERA_FILE);
+            let scene = dir.parent().map(|p| p.join(SEVEN_SCENES_CAMERA_FILE));
+            Some(match scene {
+                Some(s) if !present(&own) && present(&s) => s,
+                _ => own,
+            })
         }
-        SequenceLayout::SevenScenes => Some(dir.join("camera-intrinsics.txt")),
         SequenceLayout::Open3d => Some(
             OPEN3D_CAMERA_FILES
                 .iter()
                 .map(|f| dir.join(f))
-                .find(|p| std::fs::symlink_metadata(p).is_ok())
+                .find(|p| present(p))
                 .unwrap_or_else(|| dir.join(OPEN3D_CAMERA_FILES[0])),
         ),
     }
 }
+
+/// Whether something is at `path` (any kind of file: one that is not a regular file is then
+/// reported by [`sequence_camera`] rather than passed over).
+fn present(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok()
+}
+
+/// The camera file of a 7-Scenes-layout folder: a 3×3 intrinsic matrix, row by row. 7-Scenes
+/// itself publishes its camera on its web page only; 3DMatch's conversions of 7-Scenes, SUN3D,
+/// BundleFusion, RGB-D Scenes v2 and Analysis-by-Synthesis ship this file with each scene.
+pub const SEVEN_SCENES_CAMERA_FILE: &str = "camera-intrinsics.txt";
 
 /// The camera file of a TUM-layout folder that is not one of TUM's: the ETH3D SLAM benchmark
 /// ships `calibration.txt` (`fx fy cx cy` of its undistorted images, 739×458 at about 27 Hz,
@@ -85,10 +107,11 @@ pub fn sensor_preset(dir: impl AsRef<Path>, layout: SequenceLayout) -> Option<&'
 /// file ([`camera_file_of`]) when it has one (a path there that is not a regular file is an
 /// error), else that preset's camera — TUM the one its name implies (an ICL-NUIM TUM-format
 /// folder `icl-nuim-tum`), 7-Scenes `7-scenes`, Open3D [`OPEN3D_DEFAULT_PRESET`]. A 7-Scenes
-/// folder's `camera-intrinsics.txt` gives the intrinsics and `7-scenes` the sensor, as the
-/// command line takes them. A TUM-layout folder's `calibration.txt` and a ScanNet export's
-/// matrix are sized by the folder's first depth image; their sensor is the Kinect v1 model at
-/// their focal length.
+/// folder's `camera-intrinsics.txt` (its own or its scene's, see [`camera_file_of`]) gives the
+/// intrinsics and `7-scenes` the sensor's rolling shutter, as the command line takes them. A
+/// 7-Scenes folder's `camera-intrinsics.txt`, a TUM-layout folder's `calibration.txt` and a
+/// ScanNet export's matrix are sized by the folder's first depth image (a folder without one is
+/// an error); their sensor is the Kinect v1 model at their focal length.
 pub fn sequence_camera(
     dir: impl AsRef<Path>,
     layout: SequenceLayout,
@@ -124,7 +147,13 @@ pub fn sequence_camera(
             SequenceLayout::Tum => sized(read_tum_depth_frames(dir, limits)?, |p, w, h| {
                 crate::camera::read_fx_fy_cx_cy_txt(p, w, h)
             })?,
-            _ => crate::camera::read_camera(&file)?,
+            // 7-Scenes' (and 3DMatch's) matrix, for frames of the first one's size: 640×480
+            // for 7-Scenes and every scene 3DMatch converted.
+            SequenceLayout::SevenScenes => {
+                sized(read_7scenes_depth_frames(dir, limits)?, |p, w, h| {
+                    crate::camera::read_intrinsics_txt(p, w, h)
+                })?
+            }
         };
         return Ok((camera, sensor_preset(dir, layout)));
     }

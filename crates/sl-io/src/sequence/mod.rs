@@ -9,11 +9,13 @@ mod places;
 use std::path::{Path, PathBuf};
 
 pub use camera::{
-    OPEN3D_DEFAULT_PRESET, TUM_CALIBRATION_FILE, camera_file_of, sensor_preset, sequence_camera,
+    OPEN3D_DEFAULT_PRESET, SEVEN_SCENES_CAMERA_FILE, TUM_CALIBRATION_FILE, camera_file_of,
+    sensor_preset, sequence_camera,
 };
 pub use places::{
-    depth_scale_of_file, icl_nuim_tum_folder, sun_camera, sun_folder_of_file, tum_folder_of_file,
-    tum_ground_truth_of, tum_preset_name, tum_stamps_are_frame_numbers,
+    depth_scale_of_file, icl_nuim_tum_folder, sequence_folder_of_file, sun_camera,
+    sun_folder_of_file, tum_folder_of_file, tum_ground_truth_of, tum_preset_name,
+    tum_stamps_are_frame_numbers,
 };
 
 use crate::error::{IoError, Result};
@@ -594,18 +596,44 @@ mod tests {
         assert_eq!(preset, Some("tum-fr3"));
         assert_eq!(cam, Camera::preset("tum-fr3").unwrap());
         assert_eq!(tum_preset_name(dir.path()), "tum-fr1");
-        let seven = dir.path().join("seven");
-        std::fs::create_dir(&seven).unwrap();
-        let (_, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
-        assert_eq!(preset, Some("7-scenes"));
-        std::fs::write(
-            seven.join("camera-intrinsics.txt"),
-            "500 0 320\n0 500 240\n0 0 1\n",
+        // 3DMatch's layout: the scene's camera file above its `seq-XX` folders.
+        let scene = dir.path().join("scene");
+        let seven = scene.join("seq-01");
+        std::fs::create_dir_all(&seven).unwrap();
+        let (cam, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
+        assert_eq!(
+            (preset, cam),
+            (Some("7-scenes"), Camera::preset("7-scenes").unwrap())
+        );
+        let depth = sl_core::DepthImage::from_vec(320, 240, vec![1.0; 320 * 240]).unwrap();
+        crate::depth::write_depth(
+            seven.join("frame-000000.depth.png"),
+            &depth,
+            &crate::depth::DepthEncoding::png(1000.0),
         )
         .unwrap();
-        // The file's intrinsics, the data set's sensor (its rolling shutter, for the tracker).
+        let k = |fx: u32| format!("{fx} 0 160\n0 {fx} 120\n0 0 1\n");
+        std::fs::write(scene.join(SEVEN_SCENES_CAMERA_FILE), k(290)).unwrap();
+        assert_eq!(
+            camera_file_of(&seven, SequenceLayout::SevenScenes),
+            Some(scene.join(SEVEN_SCENES_CAMERA_FILE))
+        );
+        // The file's intrinsics at the frames' size, the data set's sensor (its rolling
+        // shutter, for the tracker).
         let (cam, preset) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
-        assert_eq!((preset, cam.intrinsics.fx), (Some("7-scenes"), 500.0));
+        let i = cam.intrinsics;
+        assert_eq!(
+            (preset, i.fx, i.width, i.height),
+            (Some("7-scenes"), 290.0, 320, 240)
+        );
+        // The folder's own file wins over the scene's.
+        std::fs::write(seven.join(SEVEN_SCENES_CAMERA_FILE), k(300)).unwrap();
+        let (cam, _) = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap();
+        assert_eq!(cam.intrinsics.fx, 300.0);
+        // Without a frame to size it by, the file is an error that says so.
+        std::fs::remove_file(seven.join("frame-000000.depth.png")).unwrap();
+        let e = sequence_camera(&seven, SequenceLayout::SevenScenes, &lim).unwrap_err();
+        assert!(e.to_string().contains("no depth frame"), "{e}");
         let o3d = dir.path().join("o3d");
         std::fs::create_dir(&o3d).unwrap();
         let (cam, preset) = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap();
@@ -628,6 +656,43 @@ mod tests {
         std::fs::create_dir(o3d.join("camera.json")).unwrap();
         let err = sequence_camera(&o3d, SequenceLayout::Open3d, &lim).unwrap_err();
         assert!(err.to_string().contains("not a regular file"), "{err}");
+    }
+
+    /// A frame's place names its sequence folder: a TUM folder's `depth/` image, a 7-Scenes
+    /// frame's folder, an Open3D-style folder's `depth/` image only when the folder has a
+    /// camera file.
+    #[test]
+    fn a_frame_is_placed_in_its_sequence_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("depth")).unwrap();
+        let frame = d.join("depth/000000.png");
+        // A `depth/` folder alone: no sequence.
+        assert_eq!(sequence_folder_of_file(&frame), None);
+        std::fs::write(d.join("camera_intrinsic.json"), "{}").unwrap();
+        assert_eq!(
+            sequence_folder_of_file(&frame),
+            Some((d, SequenceLayout::Open3d))
+        );
+        std::fs::write(d.join("depth.txt"), "").unwrap();
+        assert_eq!(
+            sequence_folder_of_file(&frame),
+            Some((d, SequenceLayout::Tum))
+        );
+        let seven = d.join("seq-01/frame-000150.depth.png");
+        assert_eq!(
+            sequence_folder_of_file(&seven),
+            Some((d.join("seq-01").as_path(), SequenceLayout::SevenScenes))
+        );
+        // A bare relative name lies in the current folder.
+        assert_eq!(
+            sequence_folder_of_file(Path::new("frame-000150.depth.png")),
+            Some((Path::new("."), SequenceLayout::SevenScenes))
+        );
+        assert_eq!(
+            sequence_folder_of_file(Path::new("frame-000150.color.png")),
+            None
+        );
     }
 
     #[test]

@@ -23,6 +23,44 @@ pub fn tum_folder_of_file(path: &Path) -> Option<&Path> {
         .then_some(sequence)
 }
 
+/// The sequence folder a depth image lies in, and its layout, by the image's place:
+///
+/// - an image of a TUM folder's `depth/` ([`tum_folder_of_file`]);
+/// - a 7-Scenes-layout frame (`frame-XXXXXX.depth.png`): its folder;
+/// - an image in the `depth/` folder of an Open3D-style folder that holds a camera file
+///   ([`super::camera_file_of`]: `camera.json`, the names Open3D's RealSense recorder, Azure
+///   Kinect reader and Redwood samples give it, a ScanNet export's matrix);
+///
+/// `None` anywhere else: a `depth/` folder alone says nothing of the camera. A frame opened on
+/// its own can then take the camera of its folder ([`super::sequence_camera`]), the one
+/// `sldepth track` and `sldepth fuse` take for the whole folder.
+pub fn sequence_folder_of_file(path: &Path) -> Option<(&Path, SequenceLayout)> {
+    if let Some(dir) = tum_folder_of_file(path) {
+        return Some((dir, SequenceLayout::Tum));
+    }
+    let folder = or_current(path.parent()?);
+    let name = path.file_name()?.to_str()?;
+    if name.starts_with("frame-") && name.ends_with(".depth.png") {
+        return Some((folder, SequenceLayout::SevenScenes));
+    }
+    if folder.file_name()? != "depth" {
+        return None;
+    }
+    let dir = or_current(folder.parent()?);
+    super::camera_file_of(dir, SequenceLayout::Open3d)
+        .is_some_and(|f| f.is_file())
+        .then_some((dir, SequenceLayout::Open3d))
+}
+
+/// `dir`, or the current folder for the empty parent of a relative path's first component.
+fn or_current(dir: &Path) -> &Path {
+    if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    }
+}
+
 /// The SUN RGB-D sample folder a depth image lies in: the parent of its `depth` or `depth_bfx`
 /// folder when that holds `intrinsics.txt` and an `image` folder, as SUN RGB-D ships every
 /// sample; `None` for an image anywhere else. Such a PNG is SUN's bit-rotated millimetres

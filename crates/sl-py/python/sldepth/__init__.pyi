@@ -531,8 +531,9 @@ def read_posed_sequence(
 
 def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it
-    when none is given: its camera file (7-Scenes camera-intrinsics.txt, an Open3D folder's
-    camera.json, a ScanNet export's intrinsic/intrinsic_depth.txt at its depth images' size)
+    when none is given: its camera file (7-Scenes camera-intrinsics.txt, the folder's own or its
+    scene's above it as 3DMatch keeps it; an Open3D folder's camera.json; a ScanNet export's
+    intrinsic/intrinsic_depth.txt; text files at the size of the folder's depth images)
     when it has one, else the layout's preset: a TUM folder "tum-fr1", "tum-fr2"
     or "tum-fr3" by its name (with that Kinect's lens model and rolling shutter; an ICL-NUIM
     TUM-format folder "icl-nuim-tum"), 7-Scenes "7-scenes", Open3D "ros-default" (Open3D's

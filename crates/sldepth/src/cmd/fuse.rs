@@ -403,12 +403,25 @@ pub fn run(mut args: Args) -> Result<()> {
             sl_io::sequence::depth_scale_of_file(&f.depth_path)
                 .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
         });
+        // The folder whose camera file, if any, gave the camera.
+        let folder = (args.tum.as_deref().map(|d| (d, SequenceLayout::Tum)))
+            .or(args
+                .seven_scenes
+                .as_deref()
+                .map(|d| (d, SequenceLayout::SevenScenes)))
+            .or(args.scannet.as_deref().map(|d| (d, SequenceLayout::Open3d)))
+            .or(args
+                .o3d_log
+                .as_deref()
+                .and_then(Path::parent)
+                .map(|d| (d, SequenceLayout::Open3d)));
+        let preset_sensor = crate::common::sensor_from_preset(&args.input, folder);
         crate::common::note_doubtful_depth_scale(
             &f.depth_path,
             d,
             &args.input,
             units,
-            &camera.sensor,
+            preset_sensor.then_some(&camera.sensor),
         );
     }
     let k = camera.intrinsics;

@@ -265,12 +265,13 @@ pub fn run(mut args: Args) -> Result<()> {
     );
     // A folder of TUM frames read as millimetres is five times too deep: say so at the first.
     if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
+        let preset_sensor = crate::common::sensor_from_preset(&args.input, source::folder(&args));
         crate::common::note_doubtful_depth_scale(
             &f.depth_path,
             d,
             &args.input,
             default_scale,
-            &camera.sensor,
+            preset_sensor.then_some(&camera.sensor),
         );
     }
     let k = camera.intrinsics;

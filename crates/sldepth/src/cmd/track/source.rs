@@ -2,7 +2,7 @@
 //! the other files of the source (which no output may replace) and the camera preset the
 //! source implies.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use sl_core::Camera;
@@ -98,14 +98,19 @@ pub(super) fn load_source(args: &Args) -> Result<(Vec<SequenceFrame>, Camera, f6
 /// (`sl_io::sequence::sensor_preset`): a TUM folder's, 7-Scenes', or the `ros-default` of an
 /// Open3D folder without a camera file (Open3D's PrimeSenseDefault).
 pub(super) fn implied_preset(args: &Args) -> Option<&'static str> {
-    let (dir, layout) = if let Some(dir) = &args.tum {
-        (dir, SequenceLayout::Tum)
-    } else if let Some(dir) = &args.seven_scenes {
-        (dir, SequenceLayout::SevenScenes)
-    } else {
-        (args.o3d.as_ref()?, SequenceLayout::Open3d)
-    };
+    let (dir, layout) = folder(args)?;
     sl_io::sequence::sensor_preset(dir, layout)
+}
+
+/// The sequence folder of the source and its layout (`--tum`, `--7scenes` or `--o3d`).
+pub(super) fn folder(args: &Args) -> Option<(&Path, SequenceLayout)> {
+    if let Some(dir) = &args.tum {
+        Some((dir, SequenceLayout::Tum))
+    } else if let Some(dir) = &args.seven_scenes {
+        Some((dir, SequenceLayout::SevenScenes))
+    } else {
+        Some((args.o3d.as_ref()?, SequenceLayout::Open3d))
+    }
 }
 
 /// How the source's stamps and frame are read (`--tum` only): whether its stamps are frame
