@@ -62,6 +62,7 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sequence::read_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::read_posed_sequence, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::sequence_camera, m)?)?;
+    m.add_function(wrap_pyfunction!(sequence::frame_camera, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::sequence_depth_scale, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::icl_nuim_tum_folder, m)?)?;
     m.add_function(wrap_pyfunction!(sequence::tum_stamps_are_frame_numbers, m)?)?;

@@ -1,6 +1,7 @@
 //! Depth sequences on disk: `read_sequence`, the frames `sldepth track DIR` reads (for
 //! `track_sequence`), `read_posed_sequence`, the frames and poses `sldepth fuse DIR` reads, and
-//! `sequence_camera`, the camera both use for the folder.
+//! `sequence_camera`, the camera both use for the folder, and `frame_camera`, that camera for
+//! one of the folder's frames.
 //! The folders are listed and read with the GIL released, as every computation.
 
 use std::path::PathBuf;
@@ -179,6 +180,28 @@ pub(crate) fn sequence_camera(
     })
     .map_err(io_error)?;
     PyCamera::wrap(camera, preset)
+}
+
+/// The camera of the sequence folder a depth image lies in, as ``sldepth`` takes it for a frame
+/// read without ``--camera`` (and ``sldepth track`` for the whole folder): an image in a TUM
+/// folder's ``depth/``, a 7-Scenes-layout frame (``frame-XXXXXX.depth.png``: its folder's or its
+/// scene's ``camera-intrinsics.txt``, else ``7-scenes``), an image in the ``depth/`` folder of an
+/// Open3D-style folder that has a camera file (``camera_intrinsic.json`` as Open3D's RealSense
+/// recorder writes it, and the other names ``sequence_camera`` reads) — that folder's
+/// ``sequence_camera``. ``None`` for an image anywhere else: give the camera yourself
+/// (``Camera.preset("kinect-v1")`` is the command line's default; a SUN RGB-D sample's frames
+/// take ``sun_camera``). A camera file in the folder that cannot be read raises ``OSError``.
+#[pyfunction]
+pub(crate) fn frame_camera(py: Python<'_>, path: PathBuf) -> PyResult<Option<PyCamera>> {
+    let found = compute(py, || {
+        sl_io::sequence::sequence_folder_of_file(&path)
+            .map(|(dir, layout)| sl_io::sequence::sequence_camera(dir, layout, &Limits::default()))
+            .transpose()
+    })
+    .map_err(io_error)?;
+    found
+        .map(|(camera, preset)| PyCamera::wrap(camera, preset))
+        .transpose()
 }
 
 /// The camera of a SUN RGB-D sample folder (``depth/``, ``image/`` and ``intrinsics.txt``) for

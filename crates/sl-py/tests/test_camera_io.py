@@ -397,6 +397,11 @@ def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
     (seq.parent / "camera-intrinsics.txt").write_text("550 0 320\n0 550 240\n0 0 1\n")
     cam = sldepth.sequence_camera(seq)
     assert cam.preset_name == "7-scenes" and cam.fx == 550.0 and cam.width == 640
+    # One of its frames: the same camera, as `sldepth` takes it for the frame alone.
+    cam = sldepth.frame_camera(seq / "frame-000000.depth.png")
+    assert cam.preset_name == "7-scenes" and cam.fx == 550.0
+    # A frame in no sequence folder: none.
+    assert sldepth.frame_camera(tmp_path / "loose.png") is None
     o3d = tmp_path / "o3d"
     _write_frames(o3d / "depth", ["0.png"], 1000, seeds=(3,))
     # Without a camera file, Open3D's PrimeSenseDefault, as Open3D takes such a folder.
@@ -407,6 +412,7 @@ def test_sequence_camera_is_the_folders_as_the_command_line_picks_it(tmp_path):
     )
     cam = sldepth.sequence_camera(o3d)
     assert cam.preset_name is None and cam.width == 64 and cam.rolling_shutter_ms == 0
+    assert sldepth.frame_camera(o3d / "depth" / "0.png").width == 64
     (o3d / "camera.json").unlink()
     (o3d / "camera.json").mkdir()
     with pytest.raises(OSError, match="not a regular file"):

@@ -543,6 +543,16 @@ def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     the sensor (preset_name, its 30 ms rolling_shutter_ms), as on the command line; an Open3D
     camera.json names no preset. layout as read_sequence."""
 
+def frame_camera(path: _Path) -> Optional[Camera]:
+    """The camera of the sequence folder a depth image lies in, as `sldepth` takes it for a
+    frame read without --camera: an image in a TUM folder's depth/, a 7-Scenes-layout frame
+    (frame-XXXXXX.depth.png: its folder's or its scene's camera-intrinsics.txt, else
+    "7-scenes"), an image in the depth/ folder of an Open3D-style folder with a camera file
+    (camera_intrinsic.json as Open3D's RealSense recorder writes it, and the names
+    sequence_camera reads): that folder's sequence_camera. None for an image anywhere else
+    (Camera.preset("kinect-v1") is the command line's default; a SUN RGB-D sample's frames take
+    sun_camera). A camera file that cannot be read raises OSError."""
+
 def sun_camera(path: _Path, width: int, height: int) -> Camera:
     """The camera of a SUN RGB-D sample folder (depth/, image/, intrinsics.txt) for its
     width x height depth images: intrinsics.txt's matrix with the Kinect v1 sensor model at that
