@@ -159,26 +159,40 @@ fn parse_weight(name: &str, camera: &Camera) -> Result<WeightMode> {
     Ok(WeightMode::parse(name)?)
 }
 
+/// The sequence folder of the chosen source and its layout, whose camera file (if any) gives
+/// the camera without `--camera`: `--tum`, `--7scenes`, `--scannet` (Open3D-style), or the
+/// folder of `--o3d-log`.
+fn source_folder(args: &Args) -> Option<(&Path, SequenceLayout)> {
+    let tum = args.tum.as_deref().map(|d| (d, SequenceLayout::Tum));
+    let seven = || {
+        args.seven_scenes
+            .as_deref()
+            .map(|d| (d, SequenceLayout::SevenScenes))
+    };
+    let open3d = || {
+        args.scannet
+            .as_deref()
+            .or_else(|| args.o3d_log.as_deref().and_then(Path::parent))
+            .map(|d| (d, SequenceLayout::Open3d))
+    };
+    tum.or_else(seven).or_else(open3d)
+}
+
 /// The files of the chosen source besides its depth frames, which no output may replace.
 fn source_files(args: &Args) -> Vec<PathBuf> {
-    let log_camera = args
-        .o3d_log
-        .as_ref()
-        .and_then(|log| log.parent())
-        .map(|d| d.join("camera.json"));
     let given = [&args.frames, &args.o3d_log, &args.input.camera]
         .into_iter()
         .flatten()
         .cloned();
-    // A ScanNet export's camera file.
-    let scannet_camera = args
-        .scannet
-        .as_ref()
-        .and_then(|d| sl_io::sequence::camera_file_of(d, SequenceLayout::Open3d));
+    // An Open3D-style folder's (or a ScanNet export's) camera file; a TUM or 7-Scenes folder's
+    // is among `sequence_files`' own.
+    let open3d_camera = source_folder(args)
+        .filter(|(_, layout)| *layout == SequenceLayout::Open3d)
+        .and_then(|(dir, layout)| sl_io::sequence::camera_file_of(dir, layout));
     crate::common::sequence_files(
         args.tum.as_deref(),
         args.seven_scenes.as_deref(),
-        given.chain(log_camera).chain(scannet_camera),
+        given.chain(open3d_camera),
     )
 }
 
@@ -403,19 +417,7 @@ pub fn run(mut args: Args) -> Result<()> {
             sl_io::sequence::depth_scale_of_file(&f.depth_path)
                 .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
         });
-        // The folder whose camera file, if any, gave the camera.
-        let folder = (args.tum.as_deref().map(|d| (d, SequenceLayout::Tum)))
-            .or(args
-                .seven_scenes
-                .as_deref()
-                .map(|d| (d, SequenceLayout::SevenScenes)))
-            .or(args.scannet.as_deref().map(|d| (d, SequenceLayout::Open3d)))
-            .or(args
-                .o3d_log
-                .as_deref()
-                .and_then(Path::parent)
-                .map(|d| (d, SequenceLayout::Open3d)));
-        let preset_sensor = crate::common::sensor_from_preset(&args.input, folder);
+        let preset_sensor = crate::common::sensor_from_preset(&args.input, source_folder(&args));
         crate::common::note_doubtful_depth_scale(
             &f.depth_path,
             d,
