@@ -85,6 +85,11 @@ fn main() {
             &b,
         );
     }
+    // Float depth in a TIFF (metres, as ROS and OpenCV write it).
+    let b = bytes_of("tif", |p| {
+        write_depth(p, &d, &DepthEncoding::tiff_f32(1.0)).unwrap()
+    });
+    put(&root, "depth_tiff", "ramp-f32.tif", &b);
     put(
         &root,
         "depth_pgm",

@@ -1,5 +1,6 @@
-//! Depth images on disk: 16-bit PNG and TIFF at any scale, NYU Depth v2 raw Kinect disparity
-//! (PGM), and SUN RGB-D's bit-rotated PNG.
+//! Depth images on disk: 16-bit PNG and TIFF at any scale, floating-point TIFF (ROS `32FC1`,
+//! OpenCV's float arrays), NYU Depth v2 raw Kinect disparity (PGM), and SUN RGB-D's bit-rotated
+//! PNG.
 //!
 //! [`read_depth`] returns the depth in metres together with the [`DepthEncoding`] it was stored
 //! in, and [`write_depth`] writes any [`DepthImage`] in a given encoding, so a tool can write its
@@ -9,6 +10,7 @@
 //! |---|---|---|---|---|
 //! | `Png` | 16-bit grey PNG | depth units | `v / units_per_m` | 0 and 65535 |
 //! | `Tiff` | 16-bit grey TIFF | depth units | `v / units_per_m` | 0 and 65535 |
+//! | `TiffF32` | 32-bit float grey TIFF (64-bit read too) | depth units, metres by default | `v / units_per_m` (1) | 0, negative, NaN, ±∞ |
 //! | `Sun` | 16-bit grey PNG | `mm` rotated left by 3 bits | `rotr(v, 3) / units_per_m` (1000) | 0 and 65535 |
 //! | `NyuRaw` | PGM `P5`, 16-bit **little-endian** | raw disparity, 1/8 px | `351.3 / (1092.5 − v)` | `v ≥ 1093` (2047) |
 //!
@@ -18,6 +20,11 @@
 //! ([`depth_scale_of_file`](crate::sequence::depth_scale_of_file)). 7-Scenes marks invalid
 //! pixels with 65535 rather than 0; the sentinel a file uses is recorded in
 //! [`DepthEncoding::invalid_value`] so that it round-trips.
+//!
+//! A `.tif` file is read by what it stores: 16-bit integers as `Tiff`, floating point as
+//! `TiffF32` (at 1 unit per metre unless a scale is given: ROS and OpenCV keep metres), and
+//! written back the same way. Float depth has no integer values, so [`read_raw_depth`] refuses
+//! it.
 
 use std::fmt;
 use std::path::Path;
@@ -27,12 +34,15 @@ use sl_core::{DepthImage, DisparityImage, Image, Intrinsics, SensorModel};
 
 use crate::atomic::write_atomic;
 use crate::error::{IoError, Result};
+use crate::float_tiff::{TiffSamples, decode_float_grey, tiff_samples, write_float_grey};
 use crate::limits::Limits;
 use crate::pnm::{PnmKind, read_pnm};
 use crate::raster::{Container, check_writable_size, decode_l16, write_png_l16, write_tiff_l16};
 
 /// Default depth scale: millimetres.
 pub const DEFAULT_UNITS_PER_M: f64 = 1000.0;
+/// Default scale of floating-point TIFF depth: metres (ROS `32FC1`, OpenCV, renderers).
+pub const FLOAT_UNITS_PER_M: f64 = 1.0;
 /// The TUM RGB-D depth scale (value / 5000 = metres).
 pub const TUM_UNITS_PER_M: f64 = 5000.0;
 /// Smallest depth scale accepted: 1 unit per metre (a 16-bit file then spans 65 km).
@@ -67,6 +77,10 @@ pub enum DepthFormat {
     Png,
     /// 16-bit single-channel TIFF, `units_per_m` units per metre.
     Tiff,
+    /// Floating-point single-channel TIFF (32-bit; 64-bit is read too), `units_per_m` units per
+    /// metre ([`FLOAT_UNITS_PER_M`], metres, unless a scale is given). A `.tif` holding float
+    /// samples is read as this whatever format was asked for among `tiff` and `tiff-f32`.
+    TiffF32,
     /// NYU Depth v2 raw Kinect disparity: binary PGM, 16-bit little-endian raw values.
     NyuRaw,
     /// SUN RGB-D: 16-bit PNG of millimetres rotated left by 3 bits.
@@ -75,23 +89,30 @@ pub enum DepthFormat {
 
 impl DepthFormat {
     /// All formats, in the order of their names in [`DepthFormat::NAMES`].
-    pub const ALL: [DepthFormat; 4] = [Self::Png, Self::Tiff, Self::NyuRaw, Self::Sun];
+    pub const ALL: [DepthFormat; 5] = [
+        Self::Png,
+        Self::Tiff,
+        Self::TiffF32,
+        Self::NyuRaw,
+        Self::Sun,
+    ];
     /// The accepted names (`--format` values).
-    pub const NAMES: [&'static str; 4] = ["png", "tiff", "nyu-raw", "sun"];
+    pub const NAMES: [&'static str; 5] = ["png", "tiff", "tiff-f32", "nyu-raw", "sun"];
 
-    /// The canonical name: `png`, `tiff`, `nyu-raw` or `sun`.
+    /// The canonical name: `png`, `tiff`, `tiff-f32`, `nyu-raw` or `sun`.
     pub fn name(self) -> &'static str {
         match self {
             Self::Png => "png",
             Self::Tiff => "tiff",
+            Self::TiffF32 => "tiff-f32",
             Self::NyuRaw => "nyu-raw",
             Self::Sun => "sun",
         }
     }
 
     /// The format implied by a file extension (case-insensitive): `.png` → `Png`,
-    /// `.tif`/`.tiff` → `Tiff`, `.pgm` → `NyuRaw`. SUN RGB-D files are ordinary `.png` files and
-    /// must be named explicitly.
+    /// `.tif`/`.tiff` → `Tiff` (read as `TiffF32` when it stores floats), `.pgm` → `NyuRaw`.
+    /// SUN RGB-D files are ordinary `.png` files and must be named explicitly.
     pub fn from_path(path: &Path) -> Option<Self> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
@@ -116,18 +137,19 @@ impl fmt::Display for DepthFormat {
 
 /// Error of [`DepthFormat::from_str`].
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("unknown depth format {0:?} (expected one of: png, tiff, nyu-raw, sun)")]
+#[error("unknown depth format {0:?} (expected one of: png, tiff, tiff-f32, nyu-raw, sun)")]
 pub struct UnknownFormat(pub String);
 
 impl FromStr for DepthFormat {
     type Err = UnknownFormat;
 
-    /// Parses `png`, `tiff` (or `tif`), `nyu-raw` (or `nyu`, `pgm`), `sun` (or `sun-rgbd`),
-    /// case-insensitively.
+    /// Parses `png`, `tiff` (or `tif`), `tiff-f32` (or `tiff-float`, `tif-f32`), `nyu-raw` (or
+    /// `nyu`, `pgm`), `sun` (or `sun-rgbd`), case-insensitively.
     fn from_str(s: &str) -> std::result::Result<Self, Self::Err> {
         match s.trim().to_ascii_lowercase().replace('_', "-").as_str() {
             "png" => Ok(Self::Png),
             "tiff" | "tif" => Ok(Self::Tiff),
+            "tiff-f32" | "tif-f32" | "tiff-float" | "tif-float" | "float-tiff" => Ok(Self::TiffF32),
             "nyu-raw" | "nyu" | "pgm" => Ok(Self::NyuRaw),
             "sun" | "sun-rgbd" | "sunrgbd" => Ok(Self::Sun),
             _ => Err(UnknownFormat(s.to_string())),
@@ -140,12 +162,14 @@ impl FromStr for DepthFormat {
 pub struct DepthEncoding {
     /// Container and value transform.
     pub format: DepthFormat,
-    /// Integer units per metre (1000 = millimetres, 5000 = TUM). Ignored by
-    /// [`DepthFormat::NyuRaw`], whose values are disparities (set to 1000 there).
+    /// Units per metre (1000 = millimetres, 5000 = TUM; 1 = metres, float TIFF's default).
+    /// Ignored by [`DepthFormat::NyuRaw`], whose values are disparities (set to 1000 there).
     pub units_per_m: f64,
-    /// The stored value of an invalid pixel: 0 or 65535 (7-Scenes) for PNG/TIFF/SUN,
-    /// [`NYU_INVALID_RAW`] for NYU raw. On read, 0 and 65535 are *both* invalid whatever this
-    /// says; it only decides what [`write_depth`] stores for invalid pixels.
+    /// The stored value of an invalid pixel: 0 or 65535 (7-Scenes) for PNG/TIFF/SUN, 0 for
+    /// float TIFF (whose reader also takes NaN, ±∞ and negative values for no depth),
+    /// [`NYU_INVALID_RAW`] for NYU raw. On reading an integer file, 0 and 65535 are *both*
+    /// invalid whatever this says; it only decides what [`write_depth`] stores for invalid
+    /// pixels.
     pub invalid_value: u16,
 }
 
@@ -170,6 +194,15 @@ impl DepthEncoding {
     pub fn tiff(units_per_m: f64) -> Self {
         Self {
             format: DepthFormat::Tiff,
+            ..Self::png(units_per_m)
+        }
+    }
+
+    /// Floating-point (32-bit) TIFF at `units_per_m` ([`FLOAT_UNITS_PER_M`] = metres, as ROS
+    /// and OpenCV keep float depth), invalid = 0.
+    pub fn tiff_f32(units_per_m: f64) -> Self {
+        Self {
+            format: DepthFormat::TiffF32,
             ..Self::png(units_per_m)
         }
     }
@@ -201,11 +234,13 @@ impl DepthEncoding {
         }
     }
 
-    /// The default encoding of a format: 1000 units per metre, the format's invalid value.
+    /// The default encoding of a format: 1000 units per metre (float TIFF: metres), the
+    /// format's invalid value.
     pub fn for_format(format: DepthFormat) -> Self {
         match format {
             DepthFormat::Png => Self::png(DEFAULT_UNITS_PER_M),
             DepthFormat::Tiff => Self::tiff(DEFAULT_UNITS_PER_M),
+            DepthFormat::TiffF32 => Self::tiff_f32(FLOAT_UNITS_PER_M),
             DepthFormat::Sun => Self::sun(),
             DepthFormat::NyuRaw => Self::nyu_raw(),
         }
@@ -231,14 +266,17 @@ impl DepthEncoding {
     pub fn min_depth_m(&self) -> f64 {
         match self.format {
             DepthFormat::NyuRaw => NYU_DEPTH_NUMERATOR / NYU_DOFF,
+            DepthFormat::TiffF32 => f64::from(f32::MIN_POSITIVE) / self.units_per_m,
             _ => 1.0 / self.units_per_m,
         }
     }
 
-    /// Largest depth that can be stored, metres (65534 units, or raw 1092 for NYU: 702.6 m).
+    /// Largest depth that can be stored, metres (65534 units, or raw 1092 for NYU: 702.6 m; the
+    /// largest `f32` for float TIFF).
     pub fn max_depth_m(&self) -> f64 {
         match self.format {
             DepthFormat::NyuRaw => NYU_DEPTH_NUMERATOR / (NYU_DOFF - f64::from(NYU_MAX_VALID_RAW)),
+            DepthFormat::TiffF32 => f64::from(f32::MAX) / self.units_per_m,
             _ => f64::from(MAX_VALID_UNITS) / self.units_per_m,
         }
     }
@@ -255,6 +293,7 @@ impl DepthEncoding {
         }
         let ok = match self.format {
             DepthFormat::NyuRaw => self.invalid_value > NYU_MAX_VALID_RAW,
+            DepthFormat::TiffF32 => self.invalid_value == 0,
             _ => self.invalid_value == 0 || self.invalid_value == INVALID_SENTINEL,
         };
         if !ok {
@@ -266,6 +305,8 @@ impl DepthEncoding {
                     self.format,
                     if self.format == DepthFormat::NyuRaw {
                         "2047"
+                    } else if self.format == DepthFormat::TiffF32 {
+                        "0"
                     } else {
                         "0 or 65535"
                     }
@@ -280,7 +321,7 @@ impl DepthEncoding {
         let (w, h) = raw.dimensions();
         let data = match self.format {
             DepthFormat::NyuRaw => raw.data().iter().map(|&v| nyu_raw_value_to_m(v)).collect(),
-            DepthFormat::Png | DepthFormat::Tiff => {
+            DepthFormat::Png | DepthFormat::Tiff | DepthFormat::TiffF32 => {
                 let s = self.units_per_m;
                 raw.data().iter().map(|&v| units_to_m(v, s)).collect()
             }
@@ -320,7 +361,7 @@ impl DepthEncoding {
                     }
                     raw as u16
                 }
-                DepthFormat::Png | DepthFormat::Tiff | DepthFormat::Sun => {
+                DepthFormat::Png | DepthFormat::Tiff | DepthFormat::TiffF32 | DepthFormat::Sun => {
                     let u = (f64::from(z) * self.units_per_m).round();
                     if !(1.0..=f64::from(MAX_VALID_UNITS)).contains(&u) {
                         return Err(out_of_range(i, z));
@@ -494,6 +535,65 @@ fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthForma
     }
 }
 
+/// The format [`read_depth`] reads `path` in: `format`, else the one its place and extension
+/// imply, a TIFF settled by its samples (floating point → [`DepthFormat::TiffF32`]). Reads a
+/// TIFF's header (within the default [`Limits`]), nothing of other files. A caller that turns a
+/// camera preset into a depth scale asks this first: float depth carries no preset's scale.
+pub fn depth_format_of_file(
+    path: impl AsRef<Path>,
+    format: Option<DepthFormat>,
+) -> Result<DepthFormat> {
+    let path = path.as_ref();
+    settle_tiff(path, resolve_format(path, format)?, &Limits::default())
+}
+
+/// The format a TIFF is read as, by its samples: float grey → `TiffF32`, else `Tiff` (asked for
+/// as `tiff-f32`, an integer TIFF is an error). Other formats are returned as they are.
+fn settle_tiff(path: &Path, format: DepthFormat, limits: &Limits) -> Result<DepthFormat> {
+    if !matches!(format, DepthFormat::Tiff | DepthFormat::TiffF32) {
+        return Ok(format);
+    }
+    match tiff_samples(path, limits)? {
+        TiffSamples::FloatGrey(_) => Ok(DepthFormat::TiffF32),
+        TiffSamples::Other if format == DepthFormat::TiffF32 => Err(IoError::UnsupportedImage {
+            path: path.to_path_buf(),
+            found: "a TIFF that is not single-channel floating point".into(),
+            expected: "float depth (tiff-f32); a 16-bit TIFF is read as tiff".into(),
+        }),
+        TiffSamples::Other => Ok(DepthFormat::Tiff),
+    }
+}
+
+/// Reads a floating-point TIFF into metres: `v / units_per_m` (metres unless a scale is
+/// given); 0, negative, NaN and infinite values are no depth.
+fn read_float_depth(path: &Path, options: &ReadConfig, limits: &Limits) -> Result<LoadedDepth> {
+    let encoding = DepthEncoding::tiff_f32(options.scale_units_per_m.unwrap_or(FLOAT_UNITS_PER_M));
+    encoding.validate(path)?;
+    let values = decode_float_grey(path, limits)?;
+    let (w, h) = values.dimensions();
+    let s = encoding.units_per_m;
+    let data = values
+        .data()
+        .iter()
+        .map(|&v| float_units_to_m(v, s))
+        .collect();
+    Ok(LoadedDepth {
+        depth: DepthImage::from_image(rebuild(w, h, data)),
+        encoding,
+    })
+}
+
+/// Metres of one float sample at `units_per_m`; 0 (no depth) unless positive and finite, in
+/// the file and in metres, and a normal `f32` in metres (no denormal depth).
+fn float_units_to_m(v: f32, units_per_m: f64) -> f32 {
+    let m = (f64::from(v) / units_per_m) as f32;
+    if v > 0.0 && v.is_finite() && m >= f32::MIN_POSITIVE && m.is_finite() {
+        m
+    } else {
+        0.0
+    }
+}
+
 /// Reads the stored integer values of a depth file (see [`RawDepth`]).
 pub fn read_raw_depth(path: impl AsRef<Path>, options: &ReadConfig) -> Result<RawDepth> {
     read_raw_depth_with_limits(path, options, &Limits::default())
@@ -515,7 +615,14 @@ pub fn read_raw_depth_with_limits(
             message: "is a directory, not a depth file".into(),
         });
     }
-    let format = resolve_format(path, options.format)?;
+    let format = settle_tiff(path, resolve_format(path, options.format)?, limits)?;
+    if format == DepthFormat::TiffF32 {
+        return Err(IoError::UnsupportedImage {
+            path: path.to_path_buf(),
+            found: "floating-point TIFF depth".into(),
+            expected: "a depth file of integer values (read_depth reads float TIFF depth)".into(),
+        });
+    }
     let mut encoding = DepthEncoding::for_format(format);
     match (format, options.scale_units_per_m) {
         (DepthFormat::NyuRaw, Some(_)) => {
@@ -537,7 +644,7 @@ pub fn read_raw_depth_with_limits(
     encoding.validate(path)?;
     let values = match format {
         DepthFormat::Png | DepthFormat::Sun => decode_l16(path, Container::Png, limits)?,
-        DepthFormat::Tiff => decode_l16(path, Container::Tiff, limits)?,
+        DepthFormat::Tiff | DepthFormat::TiffF32 => decode_l16(path, Container::Tiff, limits)?,
         DepthFormat::NyuRaw => read_nyu_raw_with_limits(path, limits)?,
     };
     let values = match format {
@@ -567,6 +674,12 @@ pub fn read_depth_with_limits(
     limits: &Limits,
 ) -> Result<LoadedDepth> {
     let path = path.as_ref();
+    if !path.is_dir() {
+        let format = settle_tiff(path, resolve_format(path, options.format)?, limits)?;
+        if format == DepthFormat::TiffF32 {
+            return read_float_depth(path, options, limits);
+        }
+    }
     let RawDepth { values, encoding } = read_raw_depth_with_limits(path, options, limits)?;
     // `values` is already un-rotated for SUN: decode it as a plain PNG at the same scale.
     let plain = DepthEncoding {
@@ -599,11 +712,27 @@ pub fn write_depth(
     let path = path.as_ref();
     encoding.validate(path)?;
     check_writable_size(path, depth.width(), depth.height())?;
+    if encoding.format == DepthFormat::TiffF32 {
+        let s = encoding.units_per_m;
+        let values: Vec<f32> = depth
+            .data()
+            .iter()
+            .map(|&z| {
+                let v = (f64::from(z) * s) as f32;
+                if z > 0.0 && z.is_finite() && v.is_finite() {
+                    v
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        return write_float_grey(path, depth.width(), depth.height(), &values);
+    }
     let values = encoding.encode(path, depth)?;
     let (w, h) = (depth.width(), depth.height());
     match encoding.format {
         DepthFormat::Png | DepthFormat::Sun => write_png_l16(path, w, h, &values),
-        DepthFormat::Tiff => write_tiff_l16(path, w, h, &values),
+        DepthFormat::Tiff | DepthFormat::TiffF32 => write_tiff_l16(path, w, h, &values),
         DepthFormat::NyuRaw => write_nyu_pgm(path, w, h, &values),
     }
 }
@@ -614,7 +743,8 @@ pub fn write_depth(
 ///
 /// Nothing is converted or refused for PNG, TIFF and SUN: every 16-bit value is written,
 /// and a 0 or 65535 (the [`INVALID_SENTINEL`] 7-Scenes marks missing depth with) reads back
-/// as no depth, whatever `raw.encoding.invalid_value` says.
+/// as no depth, whatever `raw.encoding.invalid_value` says. A `TiffF32` encoding is refused:
+/// float depth has no integer values ([`write_depth`] writes it).
 ///
 /// # Errors
 /// The checks of [`write_depth`] on the encoding (its scale) and the image size; an NYU raw
@@ -629,6 +759,12 @@ pub fn write_raw_depth(path: impl AsRef<Path>, raw: &RawDepth) -> Result<()> {
     match raw.encoding.format {
         DepthFormat::Png => write_png_l16(path, w, h, values),
         DepthFormat::Tiff => write_tiff_l16(path, w, h, values),
+        DepthFormat::TiffF32 => Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: "float TIFF depth has no integer values to write as they are \
+                      (write_depth writes it)"
+                .into(),
+        }),
         DepthFormat::Sun => {
             let rotated: Vec<u16> = values.iter().map(|v| v.rotate_left(3)).collect();
             write_png_l16(path, w, h, &rotated)

@@ -8,7 +8,8 @@
 //! ```
 //!
 //! - [`depth`]: 16-bit PNG / TIFF depth at any scale (1000 units/m default, 5000 for TUM; 0 and
-//!   65535 invalid), NYU Depth v2 raw Kinect disparity PGM, SUN RGB-D bit-rotated PNG. Reading
+//!   65535 invalid), floating-point TIFF (metres by default), NYU Depth v2 raw Kinect disparity
+//!   PGM, SUN RGB-D bit-rotated PNG. Reading
 //!   returns the [`DepthEncoding`] so output can be written the way the input was stored.
 //! - [`rgb`]: colour frames in (PNG, TIFF, PPM), 8-bit RGB / grey and 16-bit label PNGs out.
 //! - [`camera`]: Open3D `PinholeCameraIntrinsic` JSON plus sensor-model keys → [`sl_core::Camera`];
@@ -62,6 +63,7 @@ pub mod atomic;
 pub mod camera;
 pub mod depth;
 pub mod error;
+mod float_tiff;
 pub mod limits;
 pub mod ply;
 mod pnm;

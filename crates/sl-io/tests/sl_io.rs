@@ -5,6 +5,8 @@
 
 use std::path::PathBuf;
 
+#[path = "sl_io/float_tiff.rs"]
+mod float_tiff;
 #[path = "sl_io/fuzz.rs"]
 mod fuzz;
 #[path = "sl_io/real_data.rs"]

@@ -20,7 +20,9 @@ fn parse_format(format: Option<&str>) -> PyResult<Option<DepthFormat>> {
 
 /// Reads a depth map (16-bit PNG/TIFF at ``depth_scale`` units per metre — when None, 5000 for
 /// a frame in the ``depth`` folder of a TUM RGB-D folder (beside ``depth.txt`` or
-/// ``associations.txt``), else 1000 —, NYU raw disparity ``.pgm``, or SUN RGB-D
+/// ``associations.txt``), else 1000 —, a floating-point TIFF (ROS ``32FC1``, ``cv2.imwrite``
+/// of a float array: metres when ``depth_scale`` is None; ``format="tiff-f32"``, or ``"tiff"``
+/// which reads either kind), NYU raw disparity ``.pgm``, or SUN RGB-D
 /// ``format="sun"``, taken without it for a PNG in a SUN RGB-D sample's ``depth`` or
 /// ``depth_bfx`` folder beside its ``intrinsics.txt``) into a float32
 /// (H, W) array of metres, 0 = invalid. ``format`` is inferred from the extension when None.
@@ -61,18 +63,20 @@ pub(crate) fn read_depth<'py>(
 }
 
 /// Writes a depth map (metres) as 16-bit PNG or TIFF (by extension or ``format``) at
-/// ``depth_scale`` units per metre (1000 = millimetres), atomically. Invalid pixels (0, NaN,
-/// negative) are stored as 0; a depth the encoding cannot hold (below one unit, or above 65534
+/// ``depth_scale`` units per metre (None: 1000 = millimetres), atomically, or as a 32-bit
+/// float TIFF with ``format="tiff-f32"`` (None: metres). Invalid pixels (0, NaN, negative)
+/// are stored as 0; a depth the 16-bit encodings cannot hold (below one unit, or above 65534
 /// units: 65535 marks missing depth, as in 7-Scenes) raises ``ValueError``/``OSError``.
 /// A ``uint16`` array is taken as depth in units of ``depth_scale`` and written as it is,
-/// every value included: 0 and 65535 read back as invalid.
+/// every value included: 0 and 65535 read back as invalid (a float TIFF stores it in metres
+/// times ``depth_scale``).
 #[pyfunction]
-#[pyo3(signature = (path, depth, depth_scale = 1000.0, format = None))]
+#[pyo3(signature = (path, depth, depth_scale = None, format = None))]
 pub(crate) fn write_depth(
     py: Python<'_>,
     path: PathBuf,
     depth: &Bound<'_, PyAny>,
-    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: f64,
+    #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     format: Option<&str>,
 ) -> PyResult<()> {
     let format = match parse_format(format)? {
@@ -84,18 +88,28 @@ pub(crate) fn write_depth(
             ))
         })?,
     };
+    let integer_scale = depth_scale.unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M);
     let encoding = match format {
-        DepthFormat::Png => DepthEncoding::png(depth_scale),
-        DepthFormat::Tiff => DepthEncoding::tiff(depth_scale),
+        DepthFormat::Png => DepthEncoding::png(integer_scale),
+        DepthFormat::Tiff => DepthEncoding::tiff(integer_scale),
+        DepthFormat::TiffF32 => {
+            DepthEncoding::tiff_f32(depth_scale.unwrap_or(sl_io::depth::FLOAT_UNITS_PER_M))
+        }
         other => {
             return Err(value_error(format!(
-                "writing {other} depth is not supported; use png or tiff"
+                "writing {other} depth is not supported; use png, tiff or tiff-f32"
             )));
         }
     };
+    let depth_scale = encoding.units_per_m;
     // A uint16 array is depth in units of this same scale: its values are the file's, 65535
-    // (which no depth in metres may round to) included.
-    if let Some(values) = u16_input(depth, Some(depth_scale))? {
+    // (which no depth in metres may round to) included. Float files take it as depth below.
+    let raw_values = if format == DepthFormat::TiffF32 {
+        None
+    } else {
+        u16_input(depth, Some(depth_scale))?
+    };
+    if let Some(values) = raw_values {
         let raw = RawDepth { values, encoding };
         return compute(py, || sl_io::depth::write_raw_depth(&path, &raw)).map_err(io_error);
     }

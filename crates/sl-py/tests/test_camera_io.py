@@ -72,6 +72,34 @@ def test_depth_round_trip(tmp_path, ext):
     assert np.max(np.abs(back - z)) <= 0.5 / 5000 + 1e-6
 
 
+def test_float_tiff_depth_round_trips_exactly_in_metres(tmp_path):
+    # A 32-bit float TIFF (as ROS 32FC1 depth and cv2.imwrite of a float array store it): metres
+    # by default, bit for bit; "tiff" and "tiff-f32" both read it; invalid pixels come back 0.
+    rng = np.random.default_rng(2)
+    z = rng.uniform(0.5, 4.0, size=(48, 64)).astype(np.float32)
+    z[5, 7] = 0.0
+    z[6, 8] = np.nan
+    path = tmp_path / "ros.tif"
+    sldepth.write_depth(path, z, format="tiff-f32")
+    expected = np.nan_to_num(z, nan=0.0)
+    for fmt in (None, "tiff", "tiff-f32"):
+        back = sldepth.read_depth(path, format=fmt)
+        assert back.dtype == np.float32 and np.array_equal(back, expected)
+    # Millimetres as floats, read at that scale; read without it, metres as stored.
+    mm = tmp_path / "mm.tif"
+    sldepth.write_depth(mm, z, depth_scale=1000, format="tiff-f32")
+    assert np.allclose(sldepth.read_depth(mm, depth_scale=1000), expected, rtol=1e-6)
+    assert np.allclose(sldepth.read_depth(mm), expected * 1000, rtol=1e-6)
+    # uint16 depth units, converted at depth_scale, are stored at that scale as floats.
+    sldepth.write_depth(mm, np.full((4, 5), 1500, np.uint16), depth_scale=1000, format="tiff-f32")
+    assert np.allclose(sldepth.read_depth(mm, depth_scale=1000), 1.5)
+    # A 16-bit TIFF is not float depth.
+    u16 = tmp_path / "u16.tif"
+    sldepth.write_depth(u16, z)
+    with pytest.raises(OSError, match="tiff-f32"):
+        sldepth.read_depth(u16, format="tiff-f32")
+
+
 def test_a_tum_folders_frame_is_read_at_tums_scale(tmp_path):
     # A frame in the depth/ folder of a TUM RGB-D folder (depth.txt beside it) is stored at
     # 5000 units per metre: read so without a depth_scale; anywhere else 1000 is assumed.

@@ -259,6 +259,7 @@ pub const DEPTH_EXTS: [&str; 4] = ["png", "tif", "tiff", "pgm"];
 /// value) follows `input`. A `.pgm` is NYU raw Kinect disparity, the one PGM depth encoding
 /// there is: only a NYU raw input is written as one (any other would silently change from
 /// depth units to disparity); a NYU raw input written as `.png` or `.tif` is in millimetres.
+/// A float TIFF input written as `.tif` stays float at its scale, as `.png` becomes millimetres.
 pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncoding> {
     let Some(format) = DepthFormat::from_path(path) else {
         bail!(
@@ -268,7 +269,8 @@ pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncodi
     };
     Ok(match (format, input.format) {
         (DepthFormat::Png, DepthFormat::Png | DepthFormat::Sun) => *input,
-        (DepthFormat::Tiff, DepthFormat::Tiff) => *input,
+        // A float TIFF input stays float (its scale, metres by default); a 16-bit one 16-bit.
+        (DepthFormat::Tiff, DepthFormat::Tiff | DepthFormat::TiffF32) => *input,
         (DepthFormat::NyuRaw, DepthFormat::NyuRaw) => *input,
         (DepthFormat::NyuRaw, f) => bail!(
             "{}: a .pgm is written as NYU raw Kinect disparity, which only a NYU raw input keeps; \
@@ -278,7 +280,8 @@ pub fn output_encoding(path: &Path, input: &DepthEncoding) -> Result<DepthEncodi
             f.name(),
             num(input.units_per_m)
         ),
-        (f, DepthFormat::NyuRaw) => DepthEncoding::for_format(f),
+        // Integer files from disparity or float depth: millimetres.
+        (f, DepthFormat::NyuRaw | DepthFormat::TiffF32) => DepthEncoding::for_format(f),
         (f, _) => DepthEncoding {
             format: f,
             ..*input
@@ -306,10 +309,12 @@ pub struct InputArgs {
     /// Default: 5000 for a frame in the `depth` folder of a TUM folder (beside `depth.txt` or
     /// `associations.txt`; its camera is then the folder's TUM preset unless `--camera` is
     /// given) or with a `--camera tum-*` preset, else 1000; a sequence folder's own scale for
-    /// `track` and `fuse`.
+    /// `track` and `fuse`. A floating-point TIFF (ROS `32FC1`, OpenCV's float arrays) is read
+    /// in metres unless this says otherwise.
     #[arg(long, value_name = "UNITS_PER_M", global = true)]
     pub depth_scale: Option<f64>,
-    /// Depth file format where the extension does not tell: `png`, `tiff`, `nyu-raw` (NYU raw
+    /// Depth file format where the extension does not tell: `png`, `tiff` (16-bit, or 32/64-bit
+    /// float read as `tiff-f32`: a `.tif` is read by what it stores), `tiff-f32`, `nyu-raw` (NYU raw
     /// Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG; taken without it for a PNG in
     /// a SUN RGB-D sample's `depth` or `depth_bfx` folder, whose `intrinsics.txt` then gives
     /// the camera unless `--camera` is given).
@@ -535,17 +540,28 @@ pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
     }
 }
 
+/// Whether a sequence's frames store float depth, judged by its first frame (a float TIFF:
+/// metres unless `--depth-scale` says otherwise, whatever scale its folder's kind implies).
+pub fn float_frames(first: Option<&Path>, format: Option<DepthFormat>) -> bool {
+    first.is_some_and(|p| {
+        matches!(
+            sl_io::depth::depth_format_of_file(p, format),
+            Ok(DepthFormat::TiffF32)
+        )
+    })
+}
+
 /// The camera of a frame read from the sequence folder `dir` (in `layout`) without `--camera`:
 /// the one `sldepth track DIR` takes for the folder (`sl_io::sequence::sequence_camera`: its
 /// camera file — ETH3D's `calibration.txt`, 7-Scenes' or 3DMatch's `camera-intrinsics.txt`, an
 /// Open3D folder's `camera_intrinsic.json` and the like — else the preset of its sensor, a TUM
 /// folder's by its name), and that preset, with a note on standard error, once per run, that
-/// also names the scale the frame was read at (`units_per_m`: a TUM folder's 5000 unless
-/// `--depth-scale` said otherwise).
+/// also names the scale the frame was read at (`encoding`: a TUM folder's 5000 unless
+/// `--depth-scale` said otherwise; a float TIFF's metres).
 fn folder_frame_camera(
     dir: &Path,
     layout: sl_io::sequence::SequenceLayout,
-    units_per_m: f64,
+    encoding: &DepthEncoding,
 ) -> Result<(Camera, Option<&'static str>)> {
     use sl_io::sequence::SequenceLayout;
     static NOTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
@@ -566,11 +582,18 @@ fn folder_frame_camera(
             SequenceLayout::SevenScenes => "7-Scenes",
             _ => "Open3D-style",
         };
+        let scale = match (encoding.format, encoding.units_per_m) {
+            (DepthFormat::TiffF32, u) if u == sl_io::depth::FLOAT_UNITS_PER_M => {
+                "read as float metres".to_string()
+            }
+            (DepthFormat::TiffF32, u) => {
+                format!("read as float depth at {} units per metre", num(u))
+            }
+            (_, u) => format!("read at {} units per metre", num(u)),
+        };
         errln!(
-            "note: a frame of the {kind} folder {}: {which} (--camera overrides it), read at {} \
-             units per metre",
+            "note: a frame of the {kind} folder {}: {which} (--camera overrides it), {scale}",
             dir.display(),
-            num(units_per_m)
         );
     }
     Ok((camera, preset))
@@ -604,10 +627,13 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     opts.format = format;
     // Without --depth-scale: the file's place (a TUM folder: 5000, sl-io's rule), else the
     // --camera preset's files' scale.
-    let scaled = matches!(
-        format.or_else(|| DepthFormat::from_path(path)),
-        Some(DepthFormat::Png | DepthFormat::Tiff)
-    );
+    // A float TIFF (metres, unless --depth-scale says otherwise) takes no preset's scale.
+    let scaled = args.depth_scale.is_none()
+        && preset_depth_scale(args).is_some()
+        && matches!(
+            sl_io::depth::depth_format_of_file(path, format),
+            Ok(DepthFormat::Png | DepthFormat::Tiff)
+        );
     opts.scale_units_per_m = args
         .depth_scale
         .or_else(|| preset_depth_scale(args).filter(|_| scaled));
@@ -615,17 +641,13 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
     // A frame of a sequence folder (TUM, 7-Scenes, Open3D-style with a camera file) read
     // without --camera: the camera `sldepth track DIR` takes for that folder, and its preset.
     let place = match (&args.camera, loaded.encoding.format) {
-        (None, DepthFormat::Png | DepthFormat::Tiff) => {
+        (None, DepthFormat::Png | DepthFormat::Tiff | DepthFormat::TiffF32) => {
             sl_io::sequence::sequence_folder_of_file(path)
         }
         _ => None,
     };
     let folder = match place {
-        Some((dir, layout)) => Some(folder_frame_camera(
-            dir,
-            layout,
-            loaded.encoding.units_per_m,
-        )?),
+        Some((dir, layout)) => Some(folder_frame_camera(dir, layout, &loaded.encoding)?),
         None => None,
     };
     let implied_preset = folder.and_then(|(_, preset)| preset);

@@ -46,6 +46,7 @@ fn valid_files() -> Vec<(&'static str, Vec<u8>)> {
     for (name, enc) in [
         ("d.png", DepthEncoding::default()),
         ("d.tiff", DepthEncoding::tiff(1000.0)),
+        ("f.tiff", DepthEncoding::tiff_f32(1.0)),
         ("d.pgm", DepthEncoding::nyu_raw()),
     ] {
         let p = dir.path().join(name);
@@ -190,7 +191,7 @@ proptest! {
 
     /// Byte flips in valid files never panic any reader.
     #[test]
-    fn flipped_bytes_never_panic(file in 0usize..5, flips in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8)) {
+    fn flipped_bytes_never_panic(file in 0usize..6, flips in prop::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8)) {
         let files = valid_files();
         let (name, mut bytes) = files[file].clone();
         for (i, b) in flips {

@@ -93,21 +93,26 @@ def read_depth(
     *,
     max_memory_bytes: Optional[int] = None,
 ) -> npt.NDArray[np.float32]:
-    """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "nyu-raw", "sun".
-    depth_scale (units per metre) None: 5000 for a frame of a TUM RGB-D folder (its depth/
-    beside depth.txt or associations.txt), else 1000. A PNG in a SUN RGB-D sample's depth/ or
+    """(H, W) float32 metres, 0 = invalid. format: "png", "tiff", "tiff-f32", "nyu-raw",
+    "sun". depth_scale (units per metre) None: 5000 for a frame of a TUM RGB-D folder (its
+    depth/ beside depth.txt or associations.txt), else 1000; a float TIFF (ROS 32FC1,
+    cv2.imwrite of a float array: "tiff" reads both kinds) in metres. A PNG in a SUN RGB-D sample's depth/ or
     depth_bfx/ folder (beside intrinsics.txt and image/) is read as format "sun" by default.
     max_memory_bytes bounds the read (default 4 GiB, at least 16 MiB: less raises ValueError);
     too large an image raises OSError
     from its header, before decoding."""
 
 def write_depth(
-    path: _Path, depth: _Depth, depth_scale: float = 1000.0, format: Optional[str] = None
+    path: _Path,
+    depth: _Depth,
+    depth_scale: Optional[float] = None,
+    format: Optional[str] = None,
 ) -> None:
-    """16-bit PNG/TIFF at depth_scale units per metre, written atomically (depth above 65534
-    units is refused: 65535 marks missing depth, as in 7-Scenes); a uint16 array is taken at
-    depth_scale units per metre and written as it is, every value included (0 and 65535 read
-    back as invalid)."""
+    """16-bit PNG/TIFF at depth_scale units per metre (None: 1000), written atomically (depth
+    above 65534 units is refused: 65535 marks missing depth, as in 7-Scenes); a uint16 array
+    is taken at depth_scale units per metre and written as it is, every value included (0 and
+    65535 read back as invalid). format="tiff-f32": a 32-bit float TIFF of metres times
+    depth_scale (None: metres), invalid pixels stored as 0."""
 
 class Analysis:
     valid_pixels: int

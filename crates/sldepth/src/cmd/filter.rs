@@ -24,12 +24,13 @@ const MAX_REPEAT: usize = 100_000;
 /// Options of `sldepth filter`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input depth map (16-bit PNG/TIFF, NYU raw PGM, SUN PNG).
+    /// Input depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG).
     #[arg(value_name = "IN")]
     pub input_path: PathBuf,
     /// Output depth map, written in the input's encoding and depth scale: `.png` or `.tif`
-    /// (a NYU raw input: millimetres), or `.pgm` for a NYU raw input only (NYU raw Kinect
-    /// disparity; refused for any other input).
+    /// (a NYU raw input: millimetres; a float TIFF input: a float `.tif` at its scale, a
+    /// millimetre `.png`), or `.pgm` for a NYU raw input only (NYU raw Kinect disparity;
+    /// refused for any other input).
     #[arg(value_name = "OUT")]
     pub output: PathBuf,
     /// Filter: `gaussian`, `bilateral` (fixed range σ), `adaptive` (σ_d = k·Z², from the sensor

@@ -10,7 +10,7 @@ use crate::common::{InputArgs, load_depth, print_json, round_to};
 /// Options of `sldepth info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Depth map (16-bit PNG/TIFF, NYU raw PGM, SUN PNG).
+    /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG).
     #[arg(value_name = "DEPTH")]
     pub depth: PathBuf,
     /// Print JSON instead of text.

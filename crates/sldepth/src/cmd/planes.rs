@@ -20,7 +20,7 @@ use crate::common::{
 /// Arguments of `sldepth planes`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Depth map (PNG/TIFF/NYU raw PGM).
+    /// Depth map (PNG/TIFF, float TIFF, NYU raw PGM).
     pub depth: PathBuf,
     /// Output label image: 16-bit PNG, 0 = not on a plane, i = plane id.
     #[arg(long, short)]
