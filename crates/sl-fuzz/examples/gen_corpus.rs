@@ -106,6 +106,23 @@ fn main() {
         "open3d.json",
         br#"{"width": 64, "height": 48, "intrinsic_matrix": [52.5, 0, 0, 0, 52.5, 0, 31.5, 23.5, 1]}"#,
     );
+    // ROS camera calibrations (the same target reads its bytes as YAML too).
+    put(
+        &root,
+        "camera_json",
+        "ros1-camera-info.yaml",
+        b"header: \n  seq: 1\n  frame_id: \"/camera_depth_optical_frame\"\nheight: 48\nwidth: 64\n\
+          distortion_model: \"plumb_bob\"\nD: [0.0, 0.0, 0.0, 0.0, 0.0]\n\
+          K: [52.5, 0.0, 31.5, 0.0, 52.5, 23.5, 0.0, 0.0, 1.0]\nbinning_x: 0\nbinning_y: 0\n---\n",
+    );
+    put(
+        &root,
+        "camera_json",
+        "ost.yaml",
+        b"image_width: 64\nimage_height: 48\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [ 52.5, 0., \
+          31.5, 0., 52.5,\n      23.5, 0., 0., 1. ]\ndistortion_model: plumb_bob\n\
+          distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [ -0.1, 0.2, 0., 0., 0. ]\n",
+    );
     put(
         &root,
         "intrinsics_txt",

@@ -118,10 +118,14 @@ pub fn depth_sun(data: &[u8]) {
     read_depth_as("d.sun.png", data, DepthFormat::Sun);
 }
 
-/// Open3D camera JSON.
+/// Open3D camera JSON, and the same bytes as a ROS camera calibration YAML.
 pub fn camera_json(data: &[u8]) {
     with_file("camera.json", data, |p| {
         let _ = sl_io::camera::read_camera_json_with_limits(p, &fuzz_limits());
+    });
+    // The same bytes as a ROS camera calibration / CameraInfo YAML.
+    with_file("camera.yaml", data, |p| {
+        let _ = sl_io::ros_camera::read_ros_camera(p, &fuzz_limits());
     });
 }
 

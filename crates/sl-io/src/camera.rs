@@ -146,7 +146,7 @@ fn check_principal_point(path: &Path, k: &Intrinsics) -> Result<()> {
 
 /// Builds intrinsics from a row-major 3×3 `K`, checking the zero pattern and that the
 /// principal point lies in the image.
-fn intrinsics_from_k(
+pub(crate) fn intrinsics_from_k(
     path: &Path,
     width: usize,
     height: usize,

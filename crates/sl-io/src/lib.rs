@@ -69,6 +69,7 @@ pub mod ply;
 mod pnm;
 mod raster;
 pub mod rgb;
+pub mod ros_camera;
 pub mod sequence;
 mod text;
 pub mod trajectory;

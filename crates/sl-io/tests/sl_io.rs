@@ -11,6 +11,8 @@ mod float_tiff;
 mod fuzz;
 #[path = "sl_io/real_data.rs"]
 mod real_data;
+#[path = "sl_io/ros_camera.rs"]
+mod ros_camera;
 #[path = "sl_io/round_trip.rs"]
 mod round_trip;
 

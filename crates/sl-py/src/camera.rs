@@ -100,6 +100,45 @@ impl PyCamera {
         })
     }
 
+    /// The camera of a camera file, as ``sldepth --camera FILE`` reads it: an Open3D
+    /// ``PinholeCameraIntrinsic`` JSON (with optional ``baseline_m``, ``subpixel``,
+    /// ``sigma_d_px``), or a ROS camera calibration ``.yaml``/``.yml`` (``camera_calibration``'s
+    /// file, or a ``CameraInfo`` saved from ``rostopic echo`` / ``ros2 topic echo``: its ``K``,
+    /// the Kinect sensor model, and its non-zero ``plumb_bob`` distortion as ``lens``, which
+    /// ``undistort`` then undoes). A file that is not one camera raises ``OSError`` naming it.
+    #[staticmethod]
+    fn from_file(py: Python<'_>, path: std::path::PathBuf) -> PyResult<Self> {
+        let limits = sl_io::Limits::default();
+        let (camera, lens) = if sl_io::ros_camera::is_ros_camera_file(&path) {
+            let ros =
+                crate::threads::compute(py, || sl_io::ros_camera::read_ros_camera(&path, &limits))
+                    .map_err(crate::errors::io_error)?;
+            let camera =
+                Camera::from_intrinsics(ros.intrinsics, None, None).map_err(value_error)?;
+            (camera, ros.lens)
+        } else if path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        {
+            let camera = crate::threads::compute(py, || {
+                sl_io::camera::read_camera_json_with_limits(&path, &limits)
+            })
+            .map_err(crate::errors::io_error)?;
+            (camera, None)
+        } else {
+            return Err(value_error(format!(
+                "{}: a camera file is .json (Open3D) or .yaml (ROS)",
+                path.display()
+            )));
+        };
+        Ok(Self {
+            inner: check_size(camera)?,
+            lens,
+            preset_name: None,
+        })
+    }
+
     /// The names of every preset.
     #[staticmethod]
     fn presets() -> Vec<&'static str> {
@@ -123,8 +162,8 @@ impl PyCamera {
         self.rolling_shutter_readout_s() * 1e3
     }
 
-    /// The lens distortion ``(k1, k2, p1, p2, k3)`` (OpenCV's order) of the preset's images, or
-    /// ``None`` (pinhole). ``tum-fr1`` / ``tum-fr2`` depth is registered to the distorted colour
+    /// The lens distortion ``(k1, k2, p1, p2, k3)`` (OpenCV's order) of the preset's images (or
+    /// of a ROS camera file's, ``Camera.from_file``), or ``None`` (pinhole). ``tum-fr1`` / ``tum-fr2`` depth is registered to the distorted colour
     /// image: ``sldepth.undistort(depth, camera)`` resamples it into the pinhole image.
     #[getter]
     fn lens(&self) -> Option<(f64, f64, f64, f64, f64)> {

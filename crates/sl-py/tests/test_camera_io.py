@@ -181,6 +181,48 @@ def test_undistort_resamples_through_the_preset_lens():
         sldepth.undistort(z[:100], tum)
 
 
+def test_camera_from_file_reads_open3d_json_and_ros_calibrations(tmp_path):
+    # A ROS camera calibration with TUM fr1's published numbers: the preset's intrinsics and
+    # lens, so undistort() resamples alike.
+    cal = tmp_path / "fr1.yaml"
+    cal.write_text(
+        "image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+        "  data: [517.3, 0., 318.6, 0., 516.5,\n    255.3, 0., 0., 1.]\n"
+        "distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n"
+        "  data: [0.2624, -0.9531, -0.0054, 0.0026, 1.1633]\n"
+    )
+    cam = sldepth.Camera.from_file(cal)
+    tum = sldepth.Camera.preset("tum-fr1")
+    assert (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy) == (640, 480, 517.3, 516.5, 318.6, 255.3)
+    assert cam.lens == tum.lens and cam.preset_name is None
+    z = np.tile(np.linspace(1.0, 2.0, 640, dtype=np.float32), (480, 1))
+    assert np.array_equal(sldepth.undistort(z, cam), sldepth.undistort(z, tum))
+    # A ROS 2 echo (block lists), no distortion.
+    echo = tmp_path / "info.yml"
+    echo.write_text(
+        "header:\n  frame_id: depth\nheight: 480\nwidth: 848\ndistortion_model: plumb_bob\n"
+        "d:\n- 0.0\n- 0.0\n- 0.0\n- 0.0\n- 0.0\nk:\n"
+        + "".join(f"- {v}\n" for v in (426.0, 0.0, 423.5, 0.0, 426.0, 239.5, 0.0, 0.0, 1.0))
+    )
+    d435 = sldepth.Camera.from_file(echo)
+    assert (d435.width, d435.fx, d435.cx) == (848, 426.0, 423.5) and d435.lens is None
+    # An Open3D JSON with its sensor keys.
+    js = tmp_path / "camera_intrinsic.json"
+    js.write_text(
+        '{"width": 64, "height": 48, "intrinsic_matrix": [60, 0, 0, 0, 60, 0, 31.5, 23.5, 1], '
+        '"baseline_m": 0.05, "subpixel": 32}'
+    )
+    small = sldepth.Camera.from_file(js)
+    assert (small.width, small.fx, small.baseline_m, small.subpixel) == (64, 60.0, 0.05, 32)
+    # Not one camera: OSError naming the file; an unknown kind: ValueError.
+    bad = tmp_path / "binned.yaml"
+    bad.write_text(echo.read_text() + "binning_x: 2\n")
+    with pytest.raises(OSError, match="binned.yaml"):
+        sldepth.Camera.from_file(bad)
+    with pytest.raises(ValueError, match="json"):
+        sldepth.Camera.from_file(tmp_path / "camera.txt")
+
+
 def _write_frames(folder, names, scale, seeds=(3, 4, 5)):
     folder.mkdir(parents=True, exist_ok=True)
     for name, seed in zip(names, seeds):

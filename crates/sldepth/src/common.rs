@@ -296,7 +296,10 @@ pub struct InputArgs {
     /// nyu-v2, icl-nuim, primesense, d435, oak-d, ...) or a camera JSON file (Open3D
     /// `PinholeCameraIntrinsic` format: `width`, `height`, column-major `intrinsic_matrix`, with
     /// optional `baseline_m` (metres) and `subpixel` (disparity steps per pixel); Open3D's
-    /// `PinholeCameraParameters` file is read for its `intrinsic` object). An existing
+    /// `PinholeCameraParameters` file is read for its `intrinsic` object), or a ROS camera
+    /// calibration `.yaml` (`camera_calibration`'s file, or a `CameraInfo` message saved from
+    /// `rostopic echo` / `ros2 topic echo`: its `K`, and its `plumb_bob` distortion undone by
+    /// `--lens auto`, with the Kinect sensor model). An existing
     /// file wins over a preset of the same name. Default: for a frame of a sequence folder the
     /// folder's camera, as `track DIR` takes it (a TUM folder's preset or ETH3D's
     /// `calibration.txt`, a 7-Scenes frame's `camera-intrinsics.txt`, its own or its scene's as
@@ -391,7 +394,8 @@ pub struct LensArgs {
     /// camera is a preset with published distortion (`tum-fr1`, `tum-fr2`: their depth is
     /// registered to the distorted colour image, which bends every surface by up to 6 % at
     /// the corners; nearest neighbour, depth values unchanged), `none` uses the frames as
-    /// they are. Cameras from a JSON file have no lens model.
+    /// they are; also a ROS camera file's non-zero `plumb_bob` distortion (`--camera
+    /// calib.yaml`). Cameras from a JSON file have no lens model.
     #[arg(long, value_name = "MODE", default_value = "auto", value_parser = ["auto", "none"])]
     pub lens: String,
 }
@@ -417,6 +421,23 @@ pub fn undistorter(
 ) -> Option<sl_core::Undistorter> {
     if lens.lens == "none" {
         return None;
+    }
+    // A ROS camera file's own plumb_bob distortion (an IR camera calibrated with
+    // `camera_calibration`: its raw depth image is not rectified).
+    if let Some(file) = input
+        .camera
+        .as_deref()
+        .filter(|p| p.is_file() && sl_io::ros_camera::is_ros_camera_file(p))
+    {
+        let model = sl_io::ros_camera::read_ros_camera(file, &limits())
+            .ok()?
+            .lens?;
+        errln!(
+            "note: undistorting the depth with the plumb_bob model of {} (--lens none keeps it \
+             as it is)",
+            file.display()
+        );
+        return Some(sl_core::Undistorter::new(&camera.intrinsics, &model));
     }
     let name = preset_name(input, implied_preset)?;
     let model = sl_core::preset::find(&name)
@@ -453,8 +474,9 @@ pub fn refuse_non_file(what: &str, path: &Path) -> Result<()> {
     }
 }
 
-/// A `--camera` value: an existing file is read as camera JSON; anything else must name a
-/// preset (the error lists them, and says the file does not exist when it looks like a path).
+/// A `--camera` value: an existing file is read as camera JSON, or as a ROS camera calibration
+/// (`.yaml`/`.yml`: `camera_calibration`'s file or a saved `CameraInfo` echo, the Kinect sensor
+/// model with its intrinsics); anything else must name a preset (the error lists them, and says the file does not exist when it looks like a path).
 pub fn camera_from_arg(value: &Path) -> Result<Camera> {
     // A directory named like a preset (a folder `d435` of recordings) does not hide the preset;
     // any other name that exists but is no file is an error, not a silent preset lookup.
@@ -462,12 +484,21 @@ pub fn camera_from_arg(value: &Path) -> Result<Camera> {
     if sl_core::preset::find(&name).is_err() {
         refuse_non_file("--camera", value)?;
     }
+    if value.is_file() && sl_io::ros_camera::is_ros_camera_file(value) {
+        let ros = sl_io::ros_camera::read_ros_camera(value, &limits())
+            .with_context(|| format!("reading camera {}", value.display()))?;
+        return Camera::from_intrinsics(ros.intrinsics, None, None)
+            .with_context(|| format!("reading camera {}", value.display()));
+    }
     if value.is_file() {
         return sl_io::camera::read_camera_json_with_limits(value, &limits())
             .with_context(|| format!("reading camera {}", value.display()));
     }
     Camera::preset(&name).map_err(|e| {
-        let looks_like_file = name.contains('/') || name.ends_with(".json");
+        let looks_like_file = name.contains('/')
+            || [".json", ".yaml", ".yml", ".txt"]
+                .iter()
+                .any(|e| name.ends_with(e));
         if looks_like_file {
             anyhow::anyhow!("--camera {name}: no such file, and not a preset ({e})")
         } else {

@@ -41,6 +41,12 @@ class Camera:
     def preset(name: str) -> Camera:
         """A named camera: "kinect-v1", "tum-fr1", "d435", ... (see presets())."""
     @staticmethod
+    def from_file(path: _Path) -> Camera:
+        """The camera of an Open3D PinholeCameraIntrinsic .json, or of a ROS camera calibration
+        .yaml (camera_calibration's file, or a CameraInfo saved from rostopic echo / ros2 topic
+        echo: its K, the Kinect sensor model, its non-zero plumb_bob distortion as lens, which
+        undistort() undoes). OSError names a file that is not one camera."""
+    @staticmethod
     def presets() -> List[str]: ...
     @property
     def preset_name(self) -> Optional[str]:
@@ -48,7 +54,8 @@ class Camera:
         folder's camera file was recorded with (sequence_camera); None for explicit intrinsics."""
     @property
     def lens(self) -> Optional[Tuple[float, float, float, float, float]]:
-        """Lens distortion (k1, k2, p1, p2, k3) of the preset's images, or None (pinhole)."""
+        """Lens distortion (k1, k2, p1, p2, k3) of the preset's images (or of a ROS camera file's,
+        Camera.from_file), or None (pinhole)."""
     @property
     def rolling_shutter_ms(self) -> float:
         """The preset's rolling-shutter readout, milliseconds (30 for the Kinect-class presets,
