@@ -84,10 +84,10 @@ pub struct Args {
     #[arg(long = "7scenes", value_name = "DIR", group = "source")]
     pub seven_scenes: Option<PathBuf>,
     /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, numbers as numbers:
-    /// `9.png` before `10.png`; millimetres unless --depth-scale) and an optional
-    /// `DIR/camera.json` (or `camera_intrinsic.json`, `intrinsic.json`, `camera_primesense.json`,
-    /// as Open3D's tools name it); without one, the camera Open3D takes for such a folder,
-    /// `ros-default` (PrimeSenseDefault, 525 px).
+    /// `9.png` before `10.png`; millimetres, float TIFF metres, unless --depth-scale) and an
+    /// optional `DIR/camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
+    /// `camera_primesense.json`, as Open3D's tools name it); without one, the camera Open3D
+    /// takes for such a folder, `ros-default` (PrimeSenseDefault, 525 px).
     #[arg(long, value_name = "DIR", group = "source")]
     pub o3d: Option<PathBuf>,
     /// Use only the first N frames.
