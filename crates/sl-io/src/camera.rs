@@ -215,6 +215,28 @@ pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> 
     Ok(Camera { intrinsics, sensor })
 }
 
+/// Whether a camera JSON states its sensor — both `baseline_m` and `subpixel`, as
+/// [`write_camera_json`] writes them — rather than giving the intrinsics alone, with the
+/// Kinect's baseline and 1/8-px steps assumed by [`read_camera_json`]. A tool that judges a
+/// frame's depth steps against the sensor (the depth-scale check of `sldepth`) may trust only
+/// a stated one: a RealSense's 1/32-px steps against an assumed Kinect look 2.7–5 times too
+/// deep. Errors as [`read_camera_json_with_limits`].
+pub fn camera_json_states_sensor(path: impl AsRef<Path>, limits: &Limits) -> Result<bool> {
+    let path = path.as_ref();
+    let text = read_text(
+        path,
+        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
+        limits.max_text_lines,
+    )?;
+    let json_error = |source| IoError::Json {
+        path: path.to_path_buf(),
+        source,
+    };
+    let value = camera_object(path, serde_json::from_str(&text).map_err(json_error)?)?;
+    let json: CameraJson = serde_json::from_value(value).map_err(json_error)?;
+    Ok(json.baseline_m.is_some() && json.subpixel.is_some())
+}
+
 /// The JSON text [`write_camera_json`] writes.
 pub fn camera_to_json(camera: &Camera) -> String {
     let k = &camera.intrinsics;
@@ -392,6 +414,33 @@ mod tests {
         cam.sensor.focal_px = 590.0;
         write_camera_json(&p, &cam).unwrap();
         assert_eq!(read_camera_json(&p).unwrap(), cam);
+    }
+
+    /// A file `write_camera_json` wrote states its sensor; Open3D's intrinsics alone, or one of
+    /// the two keys, do not.
+    #[test]
+    fn a_json_states_its_sensor_with_both_keys() {
+        let dir = tempfile::tempdir().unwrap();
+        let lim = Limits::default();
+        let p = dir.path().join("cam.json");
+        write_camera_json(&p, &Camera::kinect_v1()).unwrap();
+        assert!(camera_json_states_sensor(&p, &lim).unwrap());
+        let k = r#""width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]"#;
+        for (extra, stated) in [
+            ("", false),
+            (r#", "baseline_m": 0.05"#, false),
+            (r#", "subpixel": 32"#, false),
+            (r#", "baseline_m": 0.05, "subpixel": 32"#, true),
+        ] {
+            std::fs::write(&p, format!("{{{k}{extra}}}")).unwrap();
+            assert_eq!(
+                camera_json_states_sensor(&p, &lim).unwrap(),
+                stated,
+                "{extra}"
+            );
+        }
+        std::fs::write(&p, "{").unwrap();
+        assert!(camera_json_states_sensor(&p, &lim).is_err());
     }
 
     #[test]

@@ -742,9 +742,10 @@ pub fn load_depth(path: &Path, args: &InputArgs) -> Result<Loaded> {
 ///   read at `k` times their scale imply `k·f·B`, however near the scene. This catches a
 ///   close-range recording read five times too deep, which stays inside the range. Only a frame
 ///   whose steps grow as `Z²` is judged so (rendered or filtered depth is not), and only
-///   against a preset's sensor (`sensor` is `None` otherwise, see [`sensor_from_preset`]): a
-///   camera file that gives intrinsics alone takes the Kinect's baseline and 1/8-px steps,
-///   which would make a RealSense D4xx frame (1/32 px) look 2.7–5 times too deep.
+///   against a known sensor, a preset's or a camera JSON's stated one (`sensor` is `None`
+///   otherwise, see [`sensor_from_preset`]): a camera file that gives intrinsics alone takes
+///   the Kinect's baseline and 1/8-px steps, which would make a RealSense D4xx frame (1/32 px)
+///   look 2.7–5 times too deep.
 pub fn note_doubtful_depth_scale(
     path: &Path,
     depth: &sl_core::DepthImage,
@@ -821,20 +822,28 @@ pub fn note_doubtful_depth_scale(
     }
 }
 
-/// Whether the camera's sensor model (baseline, disparity sub-pixel steps) is a preset's: a
-/// `--camera` preset name, or without `--camera` the preset of the sequence folder `folder`
-/// (its layout and camera file, `sl_io::sequence::camera_file_of`) when it has no camera file,
-/// or the `kinect-v1` default. A camera file (`--camera FILE`, a folder's `camera_intrinsic.json`
-/// or `camera-intrinsics.txt`, ...) may give the intrinsics alone, the Kinect's sensor filled in.
+/// Whether the camera's sensor model (baseline, disparity sub-pixel steps) is known rather than
+/// assumed: a `--camera` preset name, or without `--camera` the preset of the sequence folder
+/// `folder` (its layout and camera file, `sl_io::sequence::camera_file_of`) when it has no
+/// camera file, or the `kinect-v1` default; or a camera JSON (`--camera FILE`, a folder's
+/// `camera_intrinsic.json`, ...) that states `baseline_m` and `subpixel`
+/// (`sl_io::camera::camera_json_states_sensor`). Other camera files give the intrinsics alone,
+/// the Kinect's sensor filled in.
 pub fn sensor_from_preset(
     args: &InputArgs,
     folder: Option<(&Path, sl_io::sequence::SequenceLayout)>,
 ) -> bool {
+    let stated = |f: &Path| {
+        f.extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+            && sl_io::camera::camera_json_states_sensor(f, &limits()).unwrap_or(false)
+    };
     match &args.camera {
-        Some(c) => !c.is_file(),
-        None => !folder
+        Some(c) => !c.is_file() || stated(c),
+        None => folder
             .and_then(|(dir, layout)| sl_io::sequence::camera_file_of(dir, layout))
-            .is_some_and(|f| f.is_file()),
+            .filter(|f| f.is_file())
+            .is_none_or(|f| stated(&f)),
     }
 }
 

@@ -514,3 +514,62 @@ fn a_frame_takes_its_sequence_folders_camera() {
     );
     assert!(!err.contains("depth steps"), "{err}");
 }
+
+/// A camera JSON that states its sensor (`baseline_m` and `subpixel`, as `sldepth` writes one)
+/// is trusted for the depth-steps scale check, as a preset is; one that gives the intrinsics
+/// alone is not (its Kinect baseline and 1/8-px steps are assumed, and a RealSense frame would
+/// look 2.7–5 times too deep against them).
+#[test]
+fn a_camera_json_that_states_its_sensor_judges_the_depth_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let frame = |scale: &str| {
+        let p = dir.path().join(format!("floor-{scale}.png"));
+        let o = sldepth(&[
+            "simulate",
+            "--scene",
+            "floor",
+            "--seed",
+            "3",
+            "--camera",
+            "d435",
+            "--depth-scale",
+            scale,
+            "--output",
+            path_str(&p),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        p
+    };
+    let (right, deep) = (frame("1000"), frame("2500"));
+    let k =
+        r#""width": 848, "height": 480, "intrinsic_matrix": [426, 0, 0, 0, 426, 0, 424, 240, 1]"#;
+    let full = dir.path().join("full.json");
+    std::fs::write(
+        &full,
+        format!(r#"{{{k}, "baseline_m": 0.05, "subpixel": 32}}"#),
+    )
+    .unwrap();
+    let bare = dir.path().join("bare.json");
+    std::fs::write(&bare, format!("{{{k}}}")).unwrap();
+    let note = |f: &Path, camera: &Path| {
+        let o = sldepth(&["info", path_str(f), "--camera", path_str(camera)]);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        err
+    };
+    // Read as millimetres, the frame stored at 2500 units per metre is 2.5 times too deep: its
+    // depths stay inside the range check's 0.5–5 m, its steps say so.
+    let n = note(&deep, &full);
+    assert!(
+        n.contains("depth steps") && n.contains("2.5 times too deep"),
+        "{n}"
+    );
+    assert!(
+        !note(&right, &full).contains("note"),
+        "at the right scale: no note"
+    );
+    assert!(
+        !note(&deep, &bare).contains("depth steps"),
+        "intrinsics alone: not judged"
+    );
+}
