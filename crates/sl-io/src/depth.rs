@@ -388,6 +388,14 @@ impl fmt::Display for DepthEncoding {
                 "nyu-raw (Kinect raw disparity, invalid {})",
                 self.invalid_value
             ),
+            DepthFormat::TiffF32 if self.units_per_m == FLOAT_UNITS_PER_M => {
+                f.write_str("tiff-f32 (metres, invalid 0 and NaN)")
+            }
+            DepthFormat::TiffF32 => write!(
+                f,
+                "tiff-f32 ({} units/m, invalid 0 and NaN)",
+                self.units_per_m
+            ),
             fmt => write!(
                 f,
                 "{fmt} ({} units/m, invalid {})",
