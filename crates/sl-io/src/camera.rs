@@ -187,17 +187,7 @@ pub fn read_camera_json(path: impl AsRef<Path>) -> Result<Camera> {
 /// [`Limits::max_pixels`] is refused here, before any command allocates a frame of its size.
 pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> Result<Camera> {
     let path = path.as_ref();
-    let text = read_text(
-        path,
-        MAX_CAMERA_BYTES.min(limits.max_text_bytes),
-        limits.max_text_lines,
-    )?;
-    let json_error = |source| IoError::Json {
-        path: path.to_path_buf(),
-        source,
-    };
-    let value = camera_object(path, serde_json::from_str(&text).map_err(json_error)?)?;
-    let json: CameraJson = serde_json::from_value(value).map_err(json_error)?;
+    let json = parse_camera_json(path, limits)?;
     let m = json.intrinsic_matrix;
     // Column-major: m[col * 3 + row].
     let k = [[m[0], m[3], m[6]], [m[1], m[4], m[7]], [m[2], m[5], m[8]]];
@@ -222,7 +212,13 @@ pub fn read_camera_json_with_limits(path: impl AsRef<Path>, limits: &Limits) -> 
 /// a stated one: a RealSense's 1/32-px steps against an assumed Kinect look 2.7–5 times too
 /// deep. Errors as [`read_camera_json_with_limits`].
 pub fn camera_json_states_sensor(path: impl AsRef<Path>, limits: &Limits) -> Result<bool> {
-    let path = path.as_ref();
+    let json = parse_camera_json(path.as_ref(), limits)?;
+    Ok(json.baseline_m.is_some() && json.subpixel.is_some())
+}
+
+/// The keys of a camera JSON file (its `intrinsic` object for Open3D's
+/// `PinholeCameraParameters`), read within `limits`.
+fn parse_camera_json(path: &Path, limits: &Limits) -> Result<CameraJson> {
     let text = read_text(
         path,
         MAX_CAMERA_BYTES.min(limits.max_text_bytes),
@@ -233,8 +229,7 @@ pub fn camera_json_states_sensor(path: impl AsRef<Path>, limits: &Limits) -> Res
         source,
     };
     let value = camera_object(path, serde_json::from_str(&text).map_err(json_error)?)?;
-    let json: CameraJson = serde_json::from_value(value).map_err(json_error)?;
-    Ok(json.baseline_m.is_some() && json.subpixel.is_some())
+    serde_json::from_value(value).map_err(json_error)
 }
 
 /// The JSON text [`write_camera_json`] writes.

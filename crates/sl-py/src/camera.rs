@@ -163,8 +163,9 @@ impl PyCamera {
     }
 
     /// The lens distortion ``(k1, k2, p1, p2, k3)`` (OpenCV's order) of the preset's images (or
-    /// of a ROS camera file's, ``Camera.from_file``), or ``None`` (pinhole). ``tum-fr1`` / ``tum-fr2`` depth is registered to the distorted colour
-    /// image: ``sldepth.undistort(depth, camera)`` resamples it into the pinhole image.
+    /// of a ROS camera file's, ``Camera.from_file``), or ``None`` (pinhole). ``tum-fr1`` /
+    /// ``tum-fr2`` depth is registered to the distorted colour image:
+    /// ``sldepth.undistort(depth, camera)`` resamples it into the pinhole image.
     #[getter]
     fn lens(&self) -> Option<(f64, f64, f64, f64, f64)> {
         self.lens.map(|l| (l.k1, l.k2, l.p1, l.p2, l.k3))

@@ -317,10 +317,10 @@ pub struct InputArgs {
     #[arg(long, value_name = "UNITS_PER_M", global = true)]
     pub depth_scale: Option<f64>,
     /// Depth file format where the extension does not tell: `png`, `tiff` (16-bit, or 32/64-bit
-    /// float read as `tiff-f32`: a `.tif` is read by what it stores), `tiff-f32`, `nyu-raw` (NYU raw
-    /// Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG; taken without it for a PNG in
-    /// a SUN RGB-D sample's `depth` or `depth_bfx` folder, whose `intrinsics.txt` then gives
-    /// the camera unless `--camera` is given).
+    /// float read as `tiff-f32`: a `.tif` is read by what it stores), `tiff-f32`, `nyu-raw`
+    /// (NYU raw Kinect disparity PGM), `sun` (SUN RGB-D bit-rotated PNG; taken without it for a
+    /// PNG in a SUN RGB-D sample's `depth` or `depth_bfx` folder, whose `intrinsics.txt` then
+    /// gives the camera unless `--camera` is given).
     #[arg(long, value_name = "FORMAT", global = true, value_parser = PossibleValuesParser::new(DepthFormat::NAMES))]
     pub format: Option<String>,
 }
@@ -476,7 +476,8 @@ pub fn refuse_non_file(what: &str, path: &Path) -> Result<()> {
 
 /// A `--camera` value: an existing file is read as camera JSON, or as a ROS camera calibration
 /// (`.yaml`/`.yml`: `camera_calibration`'s file or a saved `CameraInfo` echo, the Kinect sensor
-/// model with its intrinsics); anything else must name a preset (the error lists them, and says the file does not exist when it looks like a path).
+/// model with its intrinsics); anything else must name a preset (the error lists them, and
+/// says the file does not exist when it looks like a path).
 pub fn camera_from_arg(value: &Path) -> Result<Camera> {
     // A directory named like a preset (a folder `d435` of recordings) does not hide the preset;
     // any other name that exists but is no file is an error, not a silent preset lookup.
@@ -571,15 +572,25 @@ pub fn preset_depth_scale(args: &InputArgs) -> Option<f64> {
     }
 }
 
-/// Whether a sequence's frames store float depth, judged by its first frame (a float TIFF:
-/// metres unless `--depth-scale` says otherwise, whatever scale its folder's kind implies).
-pub fn float_frames(first: Option<&Path>, format: Option<DepthFormat>) -> bool {
-    first.is_some_and(|p| {
+/// The scale a sequence's frames are read at without `--depth-scale`: `folder_default` (its
+/// layout's), unless its first frame stores float depth, which is metres whatever scale the
+/// folder's kind implies.
+pub fn frames_default_scale(
+    first: Option<&Path>,
+    format: Option<DepthFormat>,
+    folder_default: Option<f64>,
+) -> Option<f64> {
+    let float = first.is_some_and(|p| {
         matches!(
             sl_io::depth::depth_format_of_file(p, format),
             Ok(DepthFormat::TiffF32)
         )
-    })
+    });
+    if float {
+        Some(sl_io::depth::FLOAT_UNITS_PER_M)
+    } else {
+        folder_default
+    }
 }
 
 /// The camera of a frame read from the sequence folder `dir` (in `layout`) without `--camera`:

@@ -403,15 +403,11 @@ pub fn run(mut args: Args) -> Result<()> {
     )?;
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
-    // Float frames are metres: no folder's integer scale for them.
-    let default_scale = if crate::common::float_frames(
+    let default_scale = crate::common::frames_default_scale(
         frames.first().map(|f| f.depth_path.as_path()),
         read_opts.format,
-    ) {
-        Some(sl_io::depth::FLOAT_UNITS_PER_M)
-    } else {
-        default_scale
-    };
+        default_scale,
+    );
     read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
     // Frames a whole fraction of the camera's size are its sensor decimated; any other size
     // is an error at the frame. The first frame, read for its size, is not read again.
