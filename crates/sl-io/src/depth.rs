@@ -615,15 +615,34 @@ pub fn read_raw_depth_with_limits(
     limits: &Limits,
 ) -> Result<RawDepth> {
     let path = path.as_ref();
-    // Said first: a folder's name has no depth extension, and "cannot infer the format" would
-    // send the user looking for a format option.
+    read_raw_in(
+        path,
+        file_format(path, options.format, limits)?,
+        options,
+        limits,
+    )
+}
+
+/// The format `path` is read in ([`depth_format_of_file`]), a directory refused first: a
+/// folder's name has no depth extension, and "cannot infer the format" would send the user
+/// looking for a format option.
+fn file_format(path: &Path, format: Option<DepthFormat>, limits: &Limits) -> Result<DepthFormat> {
     if path.is_dir() {
         return Err(IoError::Format {
             path: path.to_path_buf(),
             message: "is a directory, not a depth file".into(),
         });
     }
-    let format = settle_tiff(path, resolve_format(path, options.format)?, limits)?;
+    settle_tiff(path, resolve_format(path, format)?, limits)
+}
+
+/// [`read_raw_depth_with_limits`] of a file whose format is settled.
+fn read_raw_in(
+    path: &Path,
+    format: DepthFormat,
+    options: &ReadConfig,
+    limits: &Limits,
+) -> Result<RawDepth> {
     if format == DepthFormat::TiffF32 {
         return Err(IoError::UnsupportedImage {
             path: path.to_path_buf(),
@@ -682,13 +701,11 @@ pub fn read_depth_with_limits(
     limits: &Limits,
 ) -> Result<LoadedDepth> {
     let path = path.as_ref();
-    if !path.is_dir() {
-        let format = settle_tiff(path, resolve_format(path, options.format)?, limits)?;
-        if format == DepthFormat::TiffF32 {
-            return read_float_depth(path, options, limits);
-        }
+    let format = file_format(path, options.format, limits)?;
+    if format == DepthFormat::TiffF32 {
+        return read_float_depth(path, options, limits);
     }
-    let RawDepth { values, encoding } = read_raw_depth_with_limits(path, options, limits)?;
+    let RawDepth { values, encoding } = read_raw_in(path, format, options, limits)?;
     // `values` is already un-rotated for SUN: decode it as a plain PNG at the same scale.
     let plain = DepthEncoding {
         format: if encoding.format == DepthFormat::Sun {
