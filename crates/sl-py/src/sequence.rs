@@ -27,8 +27,9 @@ type PosedFrames<'py> = (
     Bound<'py, PyArray3<f64>>,
 );
 
-/// The frames' paths as strings, and their timestamps where the layout has them (TUM; `None`
-/// for the others, an empty sequence included).
+/// The frames' paths as strings, and their timestamps where every frame has one (TUM, and an
+/// Open3D-style folder whose file names are times; `None` otherwise, an empty sequence of
+/// another layout than TUM's included).
 fn paths_and_times<'py>(
     py: Python<'py>,
     layout: SequenceLayout,
@@ -37,7 +38,7 @@ fn paths_and_times<'py>(
     let (paths, times): (Vec<String>, Vec<Option<f64>>) = frames
         .map(|(p, t)| (p.to_string_lossy().into_owned(), t))
         .unzip();
-    let times = (layout == SequenceLayout::Tum)
+    let times = (layout == SequenceLayout::Tum || !times.is_empty())
         .then(|| times.into_iter().collect::<Option<Vec<f64>>>())
         .flatten();
     (paths, times.map(|t| t.into_pyarray(py)))
@@ -66,10 +67,12 @@ fn folder_layout(
 
 /// The depth frames of a sequence folder, in order, as ``sldepth track`` reads them:
 /// ``(paths, timestamps_s)``, a list of ``str`` and a float64 array (N,) of seconds — or
-/// ``None`` where the layout has no timestamps. ``layout``: ``"tum"`` (``associations.txt`` when
+/// ``None`` where the folder has no timestamps. ``layout``: ``"tum"`` (``associations.txt`` when
 /// present, else ``depth.txt``, as TUM ships a sequence: timestamps must increase strictly),
 /// ``"7scenes"`` (``frame-XXXXXX.depth.png``, no timestamps), ``"open3d"`` (``depth/*.png``, or
-/// the folder's own images, by name); ``None`` infers it from what the folder holds. The paths
+/// the folder's own images: by the times their names state when every name is one, such as
+/// ``1305031102.160407.png`` or 19-digit nanoseconds, which are then the timestamps, else by
+/// name without timestamps); ``None`` infers it from what the folder holds. The paths
 /// go straight into ``track_sequence(paths, camera, depth_scale=..., timestamps_s=...)``.
 /// A missing folder, one whose layout cannot be inferred, or a malformed list raises
 /// ``OSError``; an unknown layout name ``ValueError``.

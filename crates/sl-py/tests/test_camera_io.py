@@ -288,6 +288,26 @@ def test_read_sequence_reads_7scenes_and_open3d_folders_in_natural_order(tmp_pat
     assert sldepth.read_sequence(o3d, layout="open3d")[0] == paths
 
 
+def test_read_sequence_times_an_open3d_folder_named_by_its_timestamps(tmp_path):
+    # Times written with as few decimals as they need (str(stamp.to_sec())): by the numbers in
+    # the names 100.1 came before 100.0333; now in time order, with the times as timestamps.
+    o3d = tmp_path / "o3d"
+    _write_frames(o3d / "depth", ["100.1.png", "100.0333.png", "100.0667.png"], 1000)
+    paths, times = sldepth.read_sequence(o3d)
+    assert [p.rsplit("/", 1)[-1] for p in paths] == [
+        "100.0333.png", "100.0667.png", "100.1.png"
+    ]
+    np.testing.assert_array_equal(times, [100.0333, 100.0667, 100.1])
+    ns = tmp_path / "ns"
+    _write_frames(ns / "depth", ["1305031229664358000.png", "1305031229628790000.png"], 1000)
+    paths, times = sldepth.read_sequence(ns)
+    assert paths[0].endswith("1305031229628790000.png")
+    np.testing.assert_allclose(times, [1305031229.62879, 1305031229.664358], rtol=0, atol=1e-6)
+    _write_frames(o3d / "depth", ["100.10.png"], 1000)
+    with pytest.raises(OSError, match="name the same time"):
+        sldepth.read_sequence(o3d)
+
+
 def test_read_sequence_errors(tmp_path):
     with pytest.raises(OSError, match="not a folder"):
         sldepth.read_sequence(tmp_path / "missing")

@@ -1,7 +1,8 @@
 //! Depth sequences without poses, for tracking: the frames of a TUM RGB-D folder (`depth.txt`,
 //! or `associations.txt` when present), a 7-Scenes folder (`frame-XXXXXX.depth.png`) and an
-//! Open3D-style folder (`depth/*.png`). Timestamps must increase strictly: a sequence out of
-//! order is an error naming the line, never a silently reordered trajectory.
+//! Open3D-style folder (`depth/*.png`, timed when its names are times). Timestamps must increase
+//! strictly: a sequence out of order is an error naming the line, never a silently reordered
+//! trajectory.
 
 mod camera;
 mod places;
@@ -228,7 +229,8 @@ pub fn read_posed_frames(
 pub struct SequenceFrame {
     /// The depth image.
     pub depth_path: PathBuf,
-    /// Timestamp, seconds (TUM); `None` where the layout has none.
+    /// Timestamp, seconds: TUM's, or the time an Open3D-style folder's file names state
+    /// ([`read_open3d_depth_frames`]); `None` where the folder has none.
     pub timestamp: Option<f64>,
 }
 
@@ -329,20 +331,55 @@ pub fn read_7scenes_depth_frames(
     Ok(untimed(files))
 }
 
-/// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`, sorted by name in
-/// [`crate::trajectory::natural_order`]; `dir` itself when it has no `depth` subfolder).
+/// The depth images of an Open3D-style folder (`dir/depth/*.png|tif|pgm`; `dir` itself when it
+/// has no `depth` subfolder), in the order of [`crate::trajectory::list_depth_files`]: by the
+/// times their names state when every name states one
+/// ([`crate::trajectory::name_timestamp_s`]: `1305031102.160407.png`, or nanoseconds), which
+/// become the frames' timestamps, else by name in [`crate::trajectory::natural_order`], without
+/// timestamps. Two names stating the same time are an error naming both.
 pub fn read_open3d_depth_frames(
     dir: impl AsRef<Path>,
     limits: &Limits,
 ) -> Result<Vec<SequenceFrame>> {
     let dir = dir.as_ref();
     let sub = dir.join("depth");
-    let files = crate::trajectory::list_depth_files(if sub.is_dir() { &sub } else { dir })?;
+    let folder = if sub.is_dir() { sub } else { dir.to_path_buf() };
+    let files = crate::trajectory::list_depth_files(&folder)?;
     check_frames(dir, files.len(), limits)?;
-    Ok(untimed(files))
+    let Some(times) = crate::trajectory::name_timestamps_s(&files) else {
+        return Ok(untimed(files));
+    };
+    // Sorted by time: only neighbours can be equal.
+    if let Some(i) = (1..times.len()).find(|&i| times[i] <= times[i - 1]) {
+        let name = |p: &Path| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
+        return Err(IoError::Malformed {
+            path: folder,
+            message: format!(
+                "{} and {} name the same time, {} s: frames named by their timestamps need one \
+                 time each",
+                name(&files[i - 1]),
+                name(&files[i]),
+                short_number(times[i])
+            ),
+        });
+    }
+    Ok(files
+        .into_iter()
+        .zip(times)
+        .map(|(depth_path, t)| SequenceFrame {
+            depth_path,
+            timestamp: Some(t),
+        })
+        .collect())
 }
 
-/// Depth frames without timestamps (7-Scenes and Open3D-style folders have none).
+/// Depth frames without timestamps (7-Scenes folders, and Open3D-style folders whose names are
+/// not times).
 fn untimed(files: Vec<PathBuf>) -> Vec<SequenceFrame> {
     files
         .into_iter()
@@ -371,6 +408,38 @@ mod tests {
     /// Unpadded 7-Scenes-style and Open3D-style names come in the order they were recorded:
     /// by bytes, `frame-10` came before `frame-8` and the tracked trajectory was shuffled
     /// without a word.
+    /// An Open3D-style folder whose names are times is timed by them, in their order; two
+    /// names of one time are an error naming both; frame numbers leave the frames untimed.
+    #[test]
+    fn an_open3d_folder_named_by_times_is_timed_by_them() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir(d.join("depth")).unwrap();
+        for n in ["100.2", "100.15", "100.0333"] {
+            std::fs::write(d.join("depth").join(format!("{n}.png")), b"").unwrap();
+        }
+        let limits = Limits::default();
+        let frames = read_open3d_depth_frames(d, &limits).unwrap();
+        let times: Vec<Option<f64>> = frames.iter().map(|f| f.timestamp).collect();
+        assert_eq!(times, [Some(100.0333), Some(100.15), Some(100.2)]);
+        assert!(frames[0].depth_path.ends_with("depth/100.0333.png"));
+        std::fs::write(d.join("depth").join("100.20.png"), b"").unwrap();
+        let e = read_open3d_depth_frames(d, &limits)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("100.2.png and 100.20.png name the same time, 100.200000 s"),
+            "{e}"
+        );
+        let numbered = tempfile::tempdir().unwrap();
+        for i in 0..3 {
+            std::fs::write(numbered.path().join(format!("{i:06}.png")), b"").unwrap();
+        }
+        let frames = read_open3d_depth_frames(numbered.path(), &limits).unwrap();
+        assert_eq!(frames.len(), 3);
+        assert!(frames.iter().all(|f| f.timestamp.is_none()));
+    }
+
     #[test]
     fn unpadded_frame_numbers_keep_their_order() {
         let dir = tempfile::tempdir().unwrap();

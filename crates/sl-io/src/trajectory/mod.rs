@@ -33,7 +33,9 @@ use std::path::PathBuf;
 use sl_core::CameraToWorld;
 
 pub use associate::{associate, associate_interpolated, interpolated_pose, nearest_pose};
-pub use depth_files::{list_depth_files, natural_order};
+pub use depth_files::{
+    NANOSECOND_DIGITS, list_depth_files, name_timestamp_s, name_timestamps_s, natural_order,
+};
 pub use frame_list::read_frame_list;
 pub use open3d_log::{
     LogEntry, read_open3d_log, read_open3d_log_frames, read_open3d_log_frames_with_limits,

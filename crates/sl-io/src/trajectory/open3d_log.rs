@@ -118,8 +118,9 @@ pub fn write_open3d_log(path: impl AsRef<Path>, poses: &[CameraToWorld]) -> Resu
     write_atomic(path, |w| w.write_all(text.as_bytes()))
 }
 
-/// Pairs an Open3D `.log` with the depth images of `depth_dir` (sorted by name in
-/// [`natural_order`]): entry `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
+/// Pairs an Open3D `.log` with the depth images of `depth_dir` (in the order of
+/// [`list_depth_files`]: by name in [`natural_order`], or by time when every name is one):
+/// entry `i j n` takes the `i`-th image. An index beyond the images is an error naming the log.
 pub fn read_open3d_log_frames(
     log_path: impl AsRef<Path>,
     depth_dir: impl AsRef<Path>,

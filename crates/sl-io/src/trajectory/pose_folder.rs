@@ -11,7 +11,7 @@ use super::seven_scenes::{parse_pose_txt, read_pose_text};
 use crate::error::Result;
 use crate::limits::Limits;
 
-/// The depth images of `dir/depth` (in [`natural_order`](super::natural_order)) with the pose of
+/// The depth images of `dir/depth` (in the order of [`list_depth_files`]) with the pose of
 /// `dir/pose/<stem>.txt` (a 4×4 camera-to-world matrix, row-major, as 7-Scenes' pose files),
 /// and how many images have none: no pose file, or ScanNet's mark of a frame without a pose —
 /// a matrix whose every entry is not finite (`-inf`). Any other malformed pose file is an

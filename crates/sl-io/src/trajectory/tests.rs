@@ -275,3 +275,70 @@ fn numbered_names_sort_as_numbers() {
         .collect();
     assert_eq!(names, ["8.png", "9.png", "10.png", "11.png"]);
 }
+
+/// Names that state times sort by time, even written with as few decimals as they need
+/// (Python's `str(stamp.to_sec())`): by their digit runs `…229.62879` came after
+/// `…229.664358`, and 172 of TUM fr1/rpy-200's frames renamed so were out of order. Frame
+/// numbers, and a folder where one name is not a time, sort by name.
+#[test]
+fn names_that_are_times_sort_by_time() {
+    let names = |dir: &std::path::Path| -> Vec<String> {
+        list_depth_files(dir)
+            .unwrap()
+            .iter()
+            .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+            .collect()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    for n in [
+        "1305031229.664358",
+        "1305031229.62879",
+        "1305031229.7",
+        "1305031229.596617",
+    ] {
+        std::fs::write(dir.path().join(format!("{n}.png")), b"").unwrap();
+    }
+    assert_eq!(
+        names(dir.path()),
+        [
+            "1305031229.596617.png",
+            "1305031229.62879.png",
+            "1305031229.664358.png",
+            "1305031229.7.png"
+        ]
+    );
+    // One name that is not a time: every name sorts by its numbers, as before.
+    std::fs::write(dir.path().join("notes.png"), b"").unwrap();
+    assert_eq!(
+        names(dir.path())[..2],
+        ["1305031229.7.png", "1305031229.62879.png"]
+    );
+
+    // Nanoseconds: 19 digits from 2001 on; the fraction keeps its digits.
+    let ns = std::path::Path::new("1305031229664358000.png");
+    let t = name_timestamp_s(ns).unwrap();
+    assert_eq!(format!("{t:.6}"), "1305031229.664358");
+    for not_a_time in [
+        "000042.png",
+        "42.png",
+        "frame-000042.depth.png",
+        "0999999999999999999.png",
+        "1305031229.png",
+        ".5.png",
+        "5..png",
+        "1.2.3.png",
+        "1e9.png",
+        "1305031229.66a.png",
+    ] {
+        assert_eq!(
+            name_timestamp_s(std::path::Path::new(not_a_time)),
+            None,
+            "{not_a_time}"
+        );
+    }
+    assert_eq!(
+        name_timestamp_s(std::path::Path::new("0.033.tif")),
+        Some(0.033)
+    );
+    assert_eq!(name_timestamps_s(&[]), None);
+}

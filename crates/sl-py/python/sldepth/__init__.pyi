@@ -521,10 +521,11 @@ def read_sequence(
     path: _Path, layout: Optional[str] = None
 ) -> Tuple[List[str], Optional[npt.NDArray[np.float64]]]:
     """The depth frames of a sequence folder, in order, as `sldepth track` reads them:
-    (paths, timestamps_s), timestamps a float64 array (N,) of seconds or None where the layout
+    (paths, timestamps_s), timestamps a float64 array (N,) of seconds or None where the folder
     has none. layout: "tum" (associations.txt when present, else depth.txt; timestamps must
-    increase), "7scenes" (frame-XXXXXX.depth.png), "open3d" (depth/*.png, by name); None
-    infers it from the folder. Feed both to track_sequence(paths, camera, depth_scale=...,
+    increase), "7scenes" (frame-XXXXXX.depth.png), "open3d" (depth/*.png: by the times their
+    names state when every name is one, e.g. 1305031102.160407.png or 19-digit nanoseconds,
+    which are then the timestamps, else by name); None infers it from the folder. Feed both to track_sequence(paths, camera, depth_scale=...,
     timestamps_s=...). A missing folder, one whose layout cannot be inferred, or a malformed
     list raises OSError; an unknown layout name ValueError."""
 

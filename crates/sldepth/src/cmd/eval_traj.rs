@@ -21,7 +21,8 @@ pub struct Args {
     /// Estimated trajectory, TUM format (`timestamp tx ty tz qx qy qz qw` per line,
     /// camera-to-world, `#` comments), or an Open3D `.log` (`sldepth track --output-log`):
     /// a `.log` file's pose of entry `i j n` is stamped with its frame number `i`, the
-    /// timestamp `sldepth track --output` gives the frames of a 7-Scenes or Open3D folder.
+    /// timestamp `sldepth track --output` gives the frames of a 7-Scenes folder or of an
+    /// Open3D folder whose file names are not times.
     #[arg(value_name = "EST")]
     pub estimated: PathBuf,
     /// Ground-truth trajectory, TUM format (e.g. a sequence's `groundtruth.txt`) or an

@@ -57,7 +57,8 @@ pub struct Args {
     #[arg(long, value_name = "FILE", group = "source", requires = "depth_dir")]
     pub o3d_log: Option<PathBuf>,
     /// Directory of the depth images of --o3d-log (sorted by name, numbers as numbers: `9.png`
-    /// before `10.png`, as Open3D orders them; entry i uses image i).
+    /// before `10.png`, as Open3D orders them; names that are all times, in time order; entry
+    /// i uses image i).
     #[arg(long, value_name = "DIR")]
     pub depth_dir: Option<PathBuf>,
     /// A 7-Scenes sequence directory (frame-*.depth.png + frame-*.pose.txt); its

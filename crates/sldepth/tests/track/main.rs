@@ -662,6 +662,41 @@ fn track_takes_unpadded_frame_numbers_in_their_order() {
     }
 }
 
+/// An Open3D-style folder whose images are named by their times, written with as few decimals
+/// as they need (Python's `str(stamp.to_sec())`), is tracked in time order and stamped with
+/// them: by the numbers in the names, `100.1` came before `100.0333` (a trajectory shuffled
+/// without a word, stamped 0, 1, 2, … so no ground truth could be matched to it).
+#[test]
+fn track_takes_the_times_frame_names_state() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let o3d = tmp.path().join("o3d");
+    std::fs::create_dir_all(o3d.join("depth")).unwrap();
+    let names = ["100.0", "100.0333", "100.0667", "100.1"];
+    for (i, t) in stamps.iter().enumerate() {
+        let from = seq.join("depth").join(format!("{t:.6}.png"));
+        std::fs::copy(from, o3d.join("depth").join(format!("{}.png", names[i]))).unwrap();
+    }
+    let traj = tmp.path().join("traj.txt");
+    let (v, _) = kinect_track_json_from(
+        &[o3d.to_str().unwrap()],
+        &["--depth-scale", "5000", "--output", traj.to_str().unwrap()],
+    );
+    assert_eq!(v["lost"], 0, "{v}");
+    let rows = pose_rows(&traj);
+    let times: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+    assert_eq!(times, [100.0, 100.0333, 100.0667, 100.1]);
+    for (i, r) in rows.iter().enumerate() {
+        let moved = (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt();
+        assert!(
+            (moved - 0.01 * i as f64).abs() < 0.004,
+            "frame {i} moved {moved} m from the first, expected {} m",
+            0.01 * i as f64
+        );
+    }
+}
+
 /// A frame that measures far noisier than any sensor, here every frame of a sensor with
 /// σ_D 0.2 px read at 200 times its depth scale (a wrong `--depth-scale`: about 20 px of
 /// disparity noise), is tracked with the largest σ_D a sensor model may have: the run stopped
@@ -699,11 +734,21 @@ fn track_reads_the_layout_of_a_folder_given_without_an_option() {
         std::fs::read_to_string(&traj_pos).unwrap(),
         std::fs::read_to_string(&traj_opt).unwrap()
     );
-    // Without depth.txt the same images are an Open3D-style folder (no timestamps; its depth
-    // scale is millimetres unless given).
+    // Without depth.txt the same images are an Open3D-style folder (its depth scale is
+    // millimetres unless given), timed by their names (`100.033333.png`): the same trajectory.
     std::fs::remove_file(seq.join("depth.txt")).unwrap();
-    let j_o3d = track_folder(&["--depth-scale", "5000"]);
+    let traj_o3d = tmp.path().join("o3d.txt");
+    let j_o3d = track_folder(&[
+        "--depth-scale",
+        "5000",
+        "--output",
+        traj_o3d.to_str().unwrap(),
+    ]);
     assert_eq!(j_o3d["tracked"], 4, "{j_o3d}");
+    assert_eq!(
+        std::fs::read_to_string(&traj_o3d).unwrap(),
+        std::fs::read_to_string(&traj_opt).unwrap()
+    );
     let empty = tmp.path().join("empty");
     std::fs::create_dir(&empty).unwrap();
     let out = sldepth(&["track", empty.to_str().unwrap()]);

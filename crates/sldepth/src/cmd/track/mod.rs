@@ -6,9 +6,12 @@
 //! world): one line per input frame. A frame that could not be tracked gets a comment line
 //! `# <timestamp> lost: <reason>` (an unreadable frame `# <timestamp> skipped: <reason>`)
 //! instead of a pose — TUM tools skip comments, so a lost frame is missing from the
-//! evaluation rather than given a wrong pose. Frames without timestamps (7-Scenes, Open3D
-//! folders) use their index as the timestamp. The tracker is given the time between frames
-//! (`Tracker::track_at`): TUM's timestamps, else one 1/30 s interval per frame of the folder.
+//! evaluation rather than given a wrong pose. An Open3D-style folder whose file names are times
+//! (`1305031102.160407.png`, or nanoseconds: `sl_io::trajectory::name_timestamp_s`) is stamped
+//! with them; frames without timestamps (7-Scenes, and Open3D folders of frame numbers) use
+//! their index as the timestamp. The tracker is given the time between frames
+//! (`Tracker::track_at`): the frames' timestamps, else one 1/30 s interval per frame of the
+//! folder.
 //! `--output-log` writes the tracked frames as an Open3D `.log` (metadata `i i n`, `i` the
 //! frame index; lost frames are left out and listed in the JSON).
 //!
@@ -84,7 +87,9 @@ pub struct Args {
     #[arg(long = "7scenes", value_name = "DIR", group = "source")]
     pub seven_scenes: Option<PathBuf>,
     /// An Open3D-style folder: depth images in `DIR/depth` (sorted by name, numbers as numbers:
-    /// `9.png` before `10.png`; millimetres, float TIFF metres, unless --depth-scale) and an
+    /// `9.png` before `10.png`; when every name is a time, `1305031102.2.png` or 19-digit
+    /// nanoseconds, in time order and stamped with it; millimetres, float TIFF metres, unless
+    /// --depth-scale) and an
     /// optional `DIR/camera.json` (or `camera_intrinsic.json`, `intrinsic.json`,
     /// `camera_primesense.json`, as Open3D's tools name it); without one, the camera Open3D
     /// takes for such a folder, `ros-default` (PrimeSenseDefault, 525 px).
