@@ -123,6 +123,78 @@ fn main() {
           31.5, 0., 52.5,\n      23.5, 0., 0., 1. ]\ndistortion_model: plumb_bob\n\
           distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [ -0.1, 0.2, 0., 0., 0. ]\n",
     );
+    // ROS 1 bags: two 4×3 depth frames (16-bit millimetres, big-endian in the second, a padded
+    // row), an infrared mono16 stream and the camera info beside them, in bz2 and lz4 chunks.
+    {
+        use sl_testkit::rosbag_writer::{Msg, camera_info, image, write_bag};
+        let conns = [
+            (0, "/camera/depth/image_raw", "sensor_msgs/Image"),
+            (1, "/camera/depth/camera_info", "sensor_msgs/CameraInfo"),
+            (2, "/camera/ir/image", "sensor_msgs/Image"),
+        ];
+        let mut msgs = Vec::new();
+        for i in 0..2u32 {
+            let mm: Vec<u8> = (0..12u16)
+                .flat_map(|p| {
+                    let v = if p == 5 { 0 } else { 1000 + p };
+                    if i == 1 {
+                        v.to_be_bytes()
+                    } else {
+                        v.to_le_bytes()
+                    }
+                })
+                .collect();
+            let t = (100 + i, 0);
+            msgs.push(Msg {
+                conn: 0,
+                time: t,
+                data: image(t, 4, 3, "16UC1", i == 1, &mm, 2),
+            });
+            msgs.push(Msg {
+                conn: 2,
+                time: t,
+                data: image(t, 4, 3, "mono16", false, &mm, 0),
+            });
+            msgs.push(Msg {
+                conn: 1,
+                time: t,
+                data: camera_info(4, 3, 3.5, "plumb_bob", &[0.1, 0.0, 0.0, 0.0, 0.0], 0),
+            });
+        }
+        for compression in ["bz2", "lz4"] {
+            let b = bytes_of("bag", |p| {
+                write_bag(p, &conns, &msgs, compression, 3).unwrap()
+            });
+            put(&root, "rosbag", &format!("kinect-{compression}.bag"), &b);
+        }
+        // `compressedDepth`: the configuration header, then a 16-bit PNG of millimetres.
+        let png = bytes_of("png", |p| {
+            write_depth(p, &ramp(4, 3), &DepthEncoding::png(1000.0)).unwrap()
+        });
+        let mut data = [0u8; 12].to_vec();
+        data.extend_from_slice(&png);
+        let mut m = Vec::new();
+        for v in [0u32, 100, 0, 0] {
+            m.extend_from_slice(&v.to_le_bytes());
+        }
+        let format = b"16UC1; compressedDepth png";
+        m.extend_from_slice(&(format.len() as u32).to_le_bytes());
+        m.extend_from_slice(format);
+        m.extend_from_slice(&(data.len() as u32).to_le_bytes());
+        m.extend_from_slice(&data);
+        let conns = [(
+            0,
+            "/camera/depth/image_raw/compressedDepth",
+            "sensor_msgs/CompressedImage",
+        )];
+        let msgs = [Msg {
+            conn: 0,
+            time: (100, 0),
+            data: m,
+        }];
+        let b = bytes_of("bag", |p| write_bag(p, &conns, &msgs, "none", 1).unwrap());
+        put(&root, "rosbag", "compressed-depth.bag", &b);
+    }
     put(
         &root,
         "intrinsics_txt",

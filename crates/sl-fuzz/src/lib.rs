@@ -27,6 +27,7 @@ pub const TARGETS: &[(&str, Target)] = &[
     ("depth_pgm", depth_pgm),
     ("depth_sun", depth_sun),
     ("camera_json", camera_json),
+    ("rosbag", rosbag),
     ("intrinsics_txt", intrinsics_txt),
     ("tum_trajectory", tum_trajectory),
     ("tum_associations", tum_associations),
@@ -126,6 +127,27 @@ pub fn camera_json(data: &[u8]) {
     // The same bytes as a ROS camera calibration / CameraInfo YAML.
     with_file("camera.yaml", data, |p| {
         let _ = sl_io::ros_camera::read_ros_camera(p, &fuzz_limits());
+    });
+}
+
+/// A ROS 1 bag: its index, topics, depth topic, the first frames of it and its camera.
+pub fn rosbag(data: &[u8]) {
+    with_file("rec.bag", data, |p| {
+        let Ok(mut bag) = sl_io::rosbag::RosBag::open(p, &fuzz_limits()) else {
+            return;
+        };
+        let _ = bag.topics();
+        let Ok(topic) = bag.depth_topic(None) else {
+            return;
+        };
+        if let Ok(messages) = bag.messages(&topic) {
+            for m in messages.iter().take(16) {
+                let _ = bag.read_depth(m, 1000.0, 1.0);
+            }
+        }
+        if let Some(info) = bag.camera_info_topic(&topic) {
+            let _ = bag.camera(&info);
+        }
     });
 }
 

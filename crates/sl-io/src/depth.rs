@@ -405,7 +405,7 @@ impl fmt::Display for DepthEncoding {
     }
 }
 
-fn units_to_m(v: u16, units_per_m: f64) -> f32 {
+pub(crate) fn units_to_m(v: u16, units_per_m: f64) -> f32 {
     if v == 0 || v == INVALID_SENTINEL {
         0.0
     } else {
@@ -593,7 +593,7 @@ fn read_float_depth(path: &Path, options: &ReadConfig, limits: &Limits) -> Resul
 
 /// Metres of one float sample at `units_per_m`; 0 (no depth) unless positive and finite, in
 /// the file and in metres, and a normal `f32` in metres (no denormal depth).
-fn float_units_to_m(v: f32, units_per_m: f64) -> f32 {
+pub(crate) fn float_units_to_m(v: f32, units_per_m: f64) -> f32 {
     let m = (f64::from(v) / units_per_m) as f32;
     if v > 0.0 && v.is_finite() && m >= f32::MIN_POSITIVE && m.is_finite() {
         m

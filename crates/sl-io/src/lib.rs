@@ -18,6 +18,7 @@
 //!   ASCII, through `ply-rs`.
 //! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`,
 //!   7-Scenes `frame-*.pose.txt`, all as [`Frame`]s with [`sl_core::CameraToWorld`] poses.
+//! - [`rosbag`]: ROS 1 bags — a recording's depth topic frame by frame, and its camera info.
 //! - [`sequence`]: a recording's folder as `sldepth track DIR` and `sldepth fuse DIR` read it
 //!   (its layout and depth scale, its frames, their poses, the camera it implies).
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
@@ -70,6 +71,7 @@ mod pnm;
 mod raster;
 pub mod rgb;
 pub mod ros_camera;
+pub mod rosbag;
 pub mod sequence;
 mod text;
 pub mod trajectory;

@@ -113,6 +113,18 @@ pub(crate) fn decode_l16(path: &Path, container: Container, limits: &Limits) -> 
     }
 }
 
+/// Decodes a 16-bit single-channel PNG held in `bytes` (errors name `path`, where they came
+/// from): a ROS `compressedDepth` image.
+pub(crate) fn decode_png_l16_bytes(
+    path: &Path,
+    bytes: &[u8],
+    limits: &Limits,
+) -> Result<Image<u16>> {
+    let dec = PngDecoder::with_limits(Cursor::new(bytes), limits.image_limits())
+        .map_err(|e| image_error(path, e))?;
+    read_l16(path, dec, limits)
+}
+
 /// Decodes a 16-bit grey image into a buffer allocated here: a header within a raised budget
 /// (see [`Limits`]) whose pixels this process cannot address is an error
 /// ([`IoError::TooLarge`], [`probe_room`]), not an abort on allocation failure. The buffer is

@@ -215,36 +215,83 @@ pub fn read_ros_camera(path: impl AsRef<Path>, limits: &Limits) -> Result<RosCam
             format!("{k_name} has {} numbers, a 3x3 matrix needs 9", k.len()),
         ));
     }
-    let mut m = [[0.0; 3]; 3];
+    let mut m = [0.0; 9];
     for (i, v) in k.iter().enumerate() {
-        m[i / 3][i % 3] = number(path, &k_name, v)?;
+        m[i] = number(path, &k_name, v)?;
     }
+    let scalar = |name: &str| -> Result<f64> {
+        f.scalars
+            .get(name)
+            .map_or(Ok(0.0), |v| number(path, name, v))
+    };
+    let binning = (scalar("binning_x")?, scalar("binning_y")?);
+    let roi = [
+        scalar("roi.x_offset")?,
+        scalar("roi.y_offset")?,
+        scalar("roi.width")?,
+        scalar("roi.height")?,
+    ];
+    let distortion_model = first_scalar(&f, &["distortion_model"])
+        .map(|(v, _)| v.trim().to_string())
+        .unwrap_or_default();
+    let d: Vec<f64> = match first_list(&f, &["distortion_coefficients.data", "D", "d"]) {
+        Some((d, name)) => d
+            .iter()
+            .map(|v| number(path, &name, v))
+            .collect::<Result<_>>()?,
+        None => Vec::new(),
+    };
+    camera_info_to_camera(
+        path,
+        &CameraInfo {
+            width,
+            height,
+            k: m,
+            binning,
+            roi,
+            distortion_model,
+            d,
+        },
+    )
+}
+
+/// The fields of a ROS `sensor_msgs/CameraInfo` that make a camera, as a YAML file or a bag
+/// message states them.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct CameraInfo {
+    /// Image size, pixels.
+    pub(crate) width: usize,
+    pub(crate) height: usize,
+    /// `K`, row by row.
+    pub(crate) k: [f64; 9],
+    /// `binning_x`, `binning_y` (0 and 1 mean none).
+    pub(crate) binning: (f64, f64),
+    /// The region of interest: `x_offset`, `y_offset`, `width`, `height` (0 width and height:
+    /// the whole image).
+    pub(crate) roi: [f64; 4],
+    /// `distortion_model` as written.
+    pub(crate) distortion_model: String,
+    /// `D`.
+    pub(crate) d: Vec<f64>,
+}
+
+/// The camera of a `CameraInfo` (see [`read_ros_camera`] for what is refused); errors name
+/// `path`.
+pub(crate) fn camera_info_to_camera(path: &Path, info: &CameraInfo) -> Result<RosCamera> {
+    let (width, height) = (info.width, info.height);
     // Binning and a region of interest change the published image against `K`.
-    for name in ["binning_x", "binning_y"] {
-        if let Some(v) = f.scalars.get(name) {
-            let b = number(path, name, v)?;
-            if b > 1.0 {
-                return Err(IoError::malformed(
-                    path,
-                    format!(
-                        "{name} is {v}: binned images are not read (their intrinsics are `K` \
-                         divided by the binning)"
-                    ),
-                ));
-            }
+    for (name, b) in [("binning_x", info.binning.0), ("binning_y", info.binning.1)] {
+        if b > 1.0 {
+            return Err(IoError::malformed(
+                path,
+                format!(
+                    "{name} is {b}: binned images are not read (their intrinsics are `K` \
+                     divided by the binning)"
+                ),
+            ));
         }
     }
-    let roi = |name: &str| -> Result<f64> {
-        f.scalars
-            .get(&format!("roi.{name}"))
-            .map_or(Ok(0.0), |v| number(path, &format!("roi.{name}"), v))
-    };
-    let (rx, ry, rw, rh) = (
-        roi("x_offset")?,
-        roi("y_offset")?,
-        roi("width")?,
-        roi("height")?,
-    );
+    let [rx, ry, rw, rh] = info.roi;
     let whole = rx == 0.0
         && ry == 0.0
         && (rw == 0.0 || rw == width as f64)
@@ -258,17 +305,11 @@ pub fn read_ros_camera(path: impl AsRef<Path>, limits: &Limits) -> Result<RosCam
             ),
         ));
     }
+    let k = info.k;
+    let m = [[k[0], k[1], k[2]], [k[3], k[4], k[5]], [k[6], k[7], k[8]]];
     let intrinsics = intrinsics_from_k(path, width, height, m)?;
-    let distortion_model = first_scalar(&f, &["distortion_model"])
-        .map(|(v, _)| v.trim().to_string())
-        .unwrap_or_default();
-    let d: Vec<f64> = match first_list(&f, &["distortion_coefficients.data", "D", "d"]) {
-        Some((d, name)) => d
-            .iter()
-            .map(|v| number(path, &name, v))
-            .collect::<Result<_>>()?,
-        None => Vec::new(),
-    };
+    let distortion_model = info.distortion_model.clone();
+    let d = &info.d;
     let lens = if d.iter().all(|&v| v == 0.0) {
         None
     } else if distortion_model == "plumb_bob" && d.len() == 5 {

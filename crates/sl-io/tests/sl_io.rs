@@ -13,6 +13,8 @@ mod fuzz;
 mod real_data;
 #[path = "sl_io/ros_camera.rs"]
 mod ros_camera;
+#[path = "sl_io/rosbag.rs"]
+mod rosbag;
 #[path = "sl_io/round_trip.rs"]
 mod round_trip;
 

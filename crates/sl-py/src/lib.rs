@@ -34,6 +34,7 @@ mod noise_stats;
 mod planes;
 mod reals;
 mod repr;
+mod rosbag;
 mod sequence;
 mod threads;
 mod track;
@@ -51,6 +52,8 @@ fn _sldepth(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<tsdf::PyTsdfVolume>()?;
     m.add_class::<tsdf::PyMesh>()?;
     m.add_class::<track::PyTracker>()?;
+    m.add_class::<rosbag::PyRosBag>()?;
+    m.add_class::<rosbag::PyBagFrames>()?;
     m.add_class::<planes::PyPlane>()?;
     m.add_class::<planes::PyUnlabelledRegion>()?;
     m.add_class::<planes::PyMotion>()?;

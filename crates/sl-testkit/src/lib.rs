@@ -17,6 +17,8 @@
 //! # Ok::<(), sl_core::CoreError>(())
 //! ```
 
+pub mod rosbag_writer;
+
 use std::path::{Path, PathBuf};
 
 use sl_core::{Camera, DepthImage};

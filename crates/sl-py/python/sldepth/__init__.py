@@ -21,10 +21,12 @@ import os as _os
 
 from ._sldepth import (
     Analysis,
+    BagFrames,
     Camera,
     Mesh,
     Motion,
     Plane,
+    RosBag,
     SlDepthError,
     SlDepthIOError,
     Tracker,
@@ -61,10 +63,12 @@ from ._sldepth import (
 
 __all__ = [
     "Analysis",
+    "BagFrames",
     "Camera",
     "Mesh",
     "Motion",
     "Plane",
+    "RosBag",
     "SlDepthError",
     "SlDepthIOError",
     "Tracker",
@@ -102,7 +106,14 @@ __all__ = [
 
 
 def track_sequence(
-    frames, camera=None, *, depth_scale=None, timestamps_s=None, layout=None, **tracker_options
+    frames,
+    camera=None,
+    *,
+    depth_scale=None,
+    timestamps_s=None,
+    layout=None,
+    topic=None,
+    **tracker_options,
 ):
     """Tracks a depth sequence from its first frame on and fuses it (``sldepth track`` in one call).
 
@@ -114,7 +125,10 @@ def track_sequence(
     a folder that stamps its frames with their numbers (``tum_stamps_are_frame_numbers``, as
     ICL-NUIM's TUM-format archives do) has them taken as frames 1/30 s apart, and the poses of
     an ICL-NUIM folder (``icl_nuim_tum_folder``) come in sldepth's frame (y down, not the data
-    set's).
+    set's); or a ROS 1 bag's path (``.bag``, as ``sldepth track REC.bag``): the depth topic
+    ``topic`` (None: the one image topic holding depth, ``RosBag.depth_topic``), read frame by
+    frame with its header stamps, and unless given the camera of its ``camera_info``
+    (``RosBag.camera``).
     ``camera`` is needed for arrays and lists of paths.
     ``timestamps_s``: the frames' times in seconds (one per frame, increasing), so frames the
     recording dropped are predicted across (``Tracker.track(..., timestamp_s=)``); ``None``
@@ -138,6 +152,23 @@ def track_sequence(
     """
     import numpy as np
 
+    if topic is not None and not _is_bag(frames):
+        raise TypeError("topic is for a ROS bag's path; frames is not one")
+    if _is_bag(frames):
+        if layout is not None or timestamps_s is not None:
+            raise TypeError("a ROS bag has its own layout and timestamps")
+        bag = RosBag(_os.fsdecode(frames))
+        camera = bag.camera(topic) if camera is None else camera
+        tracker = Tracker(camera, **tracker_options)
+        poses = []
+        statuses = []
+        for t, depth in bag.depth_frames(topic, depth_scale):
+            pose, status = tracker.track(depth, timestamp_s=t)
+            poses.append(pose)
+            statuses.append(status)
+        stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
+        stacked = _poses_in_joined_worlds(stacked, tracker.frame_fragments, tracker.joins)
+        return stacked, statuses, tracker
     if isinstance(frames, (str, bytes, _os.PathLike)) and _os.path.isdir(frames):
         folder = _os.fsdecode(frames)
         frames, times = read_sequence(folder, layout)
@@ -185,6 +216,15 @@ def track_sequence(
     stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
     stacked = _poses_in_joined_worlds(stacked, tracker.frame_fragments, tracker.joins)
     return stacked, statuses, tracker
+
+
+def _is_bag(frames):
+    """Whether ``frames`` is the path of a ROS bag file (``.bag``)."""
+    return (
+        isinstance(frames, (str, bytes, _os.PathLike))
+        and _os.fsdecode(frames).lower().endswith(".bag")
+        and _os.path.isfile(frames)
+    )
 
 
 def _poses_in_joined_worlds(poses, frame_fragments, joins):

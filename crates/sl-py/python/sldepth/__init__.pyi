@@ -426,6 +426,35 @@ def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> boo
     """Whether the array would be read in place (C-contiguous float32)."""
 
 
+class RosBag:
+    """A ROS 1 bag (format 2.0; chunks none, bz2 or lz4), as `sldepth track REC.bag` reads it.
+    Opening reads its index; a file that is not a bag, or a bag without an index (`rosbag
+    reindex`), raises OSError."""
+    def __init__(self, path: _Path) -> None: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def topics(self) -> List[Tuple[str, str, int]]:
+        """(topic, message type, messages) of every topic, by name."""
+    def depth_topic(self, topic: Optional[str] = None) -> str:
+        """topic when given, else the one image topic holding depth (16UC1 millimetres, 32FC1
+        metres, or mono16 on a topic named for depth); several raise OSError naming them."""
+    def camera(self, topic: Optional[str] = None) -> Camera:
+        """The camera of the sensor_msgs/CameraInfo beside the depth topic (or of the camera
+        info topic named): intrinsics with the Kinect's noise model, plumb_bob lens as lens."""
+    def depth_frames(
+        self, topic: Optional[str] = None, depth_scale: Optional[float] = None
+    ) -> "BagFrames":
+        """(stamp_s, depth) of every frame of the depth topic in recorded order; depth float32
+        (H, W) metres, 16-bit images divided by depth_scale (None: 1000), float ones by it
+        (None: 1)."""
+
+class BagFrames:
+    """The depth frames of a bag's topic: an iterator of (stamp_s, depth) with len()."""
+    def __len__(self) -> int: ...
+    def __iter__(self) -> "BagFrames": ...
+    def __next__(self) -> Tuple[float, npt.NDArray[np.float32]]: ...
+
 class Tracker:
     """Noise-weighted camera tracking against the model being fused (sldepth track)."""
 
@@ -646,6 +675,7 @@ def track_sequence(
     depth_scale: Optional[float] = None,
     timestamps_s: Optional[Iterable[float]] = None,
     layout: Optional[str] = None,
+    topic: Optional[str] = None,
     weighting: str = "inv-var",
     frame_to_model: bool = True,
     voxel_m: float = 0.004,
@@ -665,5 +695,7 @@ def track_sequence(
     read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
     given, camera (sequence_camera) and depth scale (sequence_depth_scale); frame-number stamps
     (tum_stamps_are_frame_numbers) are frames 1/30 s apart, an ICL-NUIM folder's poses in
-    sldepth's frame.
+    sldepth's frame. Or a ROS 1 bag's path (.bag): its depth topic (topic, else
+    RosBag.depth_topic), frame by frame with the header stamps, and unless given the camera of
+    its camera_info (RosBag.camera).
     camera is needed for arrays and lists of paths."""

@@ -1,4 +1,4 @@
-//! `sldepth info`: size and depth statistics of a depth map.
+//! `sldepth info`: size and depth statistics of a depth map; the topics of a ROS bag.
 
 use std::path::PathBuf;
 
@@ -10,8 +10,9 @@ use crate::common::{InputArgs, load_depth, print_json, round_to};
 /// Options of `sldepth info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG).
-    #[arg(value_name = "DEPTH")]
+    /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG), or a ROS 1 bag (`.bag`:
+    /// its topics, their message types and counts, and the depth topic `sldepth track` takes).
+    #[arg(value_name = "DEPTH|BAG")]
     pub depth: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -22,6 +23,9 @@ pub struct Args {
 
 /// Runs `sldepth info`.
 pub fn run(args: Args) -> Result<()> {
+    if args.depth.is_file() && sl_io::rosbag::is_bag_file(&args.depth) {
+        return bag_info(&args);
+    }
     let loaded = load_depth(&args.depth, &args.input)?;
     let d = &loaded.depth;
     let stats = d.stats();
@@ -66,6 +70,34 @@ pub fn run(args: Args) -> Result<()> {
                 s.max
             )?,
             None => outln!("  depth         no valid pixel")?,
+        }
+    }
+    Ok(())
+}
+
+/// The topics of a ROS bag and the depth topic `track` would take (or why none).
+fn bag_info(args: &Args) -> Result<()> {
+    let mut bag = sl_io::rosbag::RosBag::open(&args.depth, &crate::common::limits())?;
+    let topics = bag.topics();
+    let depth = bag.depth_topic(None);
+    if args.json {
+        let list: Vec<_> = topics
+            .iter()
+            .map(|t| json!({"topic": t.topic, "type": t.message_type, "messages": t.messages}))
+            .collect();
+        print_json(&json!({
+            "path": args.depth.display().to_string(),
+            "topics": list,
+            "depth_topic": depth.as_ref().ok(),
+        }))?;
+    } else {
+        outln!("{} (ROS 1 bag)", args.depth.display())?;
+        for t in &topics {
+            outln!("  {}  {}  {} messages", t.topic, t.message_type, t.messages)?;
+        }
+        match &depth {
+            Ok(t) => outln!("  depth topic   {t} (what `sldepth track` reads)")?,
+            Err(e) => outln!("  depth topic   none chosen: {e}")?,
         }
     }
     Ok(())

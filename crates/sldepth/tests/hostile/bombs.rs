@@ -230,3 +230,48 @@ fn text_line_and_frame_counts_are_capped() {
     let o = run_bounded(&["fuse", "--tum", s(&tum), "--camera", s(&cam)]);
     assert_typed_error(&o, &["associations.txt", "too large", "lines"]);
 }
+
+/// A ROS bag whose one chunk holds a 4000×4000 16-bit depth image of zeros (32 MB; 1.6 KB as
+/// bz2): refused from the chunk's header, beyond the 2 MiB decoded-bytes share of the 64 MiB
+/// budget, by `track` (`info` lists the topic and says why it chose none); the same chunk with its header claiming 1000 bytes is
+/// refused when the decompressor passes them, not after inflating all of it.
+#[test]
+fn bag_bombs_are_refused_within_the_budget() {
+    use sl_testkit::rosbag_writer::{Msg, image, write_bag};
+    let dir = tempfile::tempdir().unwrap();
+    let bomb = dir.path().join("bomb.bag");
+    let zeros = vec![0u8; 4000 * 4000 * 2];
+    let msgs = vec![Msg {
+        conn: 0,
+        time: (1, 0),
+        data: image((1, 0), 4000, 4000, "16UC1", false, &zeros, 0),
+    }];
+    let conns = [(0, "/camera/depth/image_raw", "sensor_msgs/Image")];
+    write_bag(&bomb, &conns, &msgs, "bz2", 1).unwrap();
+    assert!(std::fs::metadata(&bomb).unwrap().len() < 64 << 10);
+    let o = run_bounded(&["track", s(&bomb), "--camera", "kinect-v1"]);
+    assert_typed_error(&o, &["bomb.bag", "budget"]);
+    let o = run_bounded(&["info", s(&bomb)]);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        stdout.contains("/camera/depth/image_raw  sensor_msgs/Image  1 messages")
+            && stdout.contains("none chosen")
+            && stdout.contains("budget"),
+        "{stdout}"
+    );
+    // The header lies: 1000 bytes.
+    let mut bytes = std::fs::read(&bomb).unwrap();
+    let at = bytes.windows(5).position(|w| w == b"size=").unwrap() + 5;
+    bytes[at..at + 4].copy_from_slice(&1000u32.to_le_bytes());
+    let liar = dir.path().join("liar.bag");
+    std::fs::write(&liar, bytes).unwrap();
+    let o = run_bounded(&["track", s(&liar), "--camera", "kinect-v1"]);
+    assert_typed_error(
+        &o,
+        &[
+            "liar.bag",
+            "decompresses to 1001+ bytes, its header says 1000",
+        ],
+    );
+}

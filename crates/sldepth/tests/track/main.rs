@@ -14,6 +14,7 @@ use sl_noise::sim::{KinectSimulator, named_scene};
 mod common;
 use common::sldepth;
 
+mod bag;
 mod fast_motion;
 mod fragments;
 

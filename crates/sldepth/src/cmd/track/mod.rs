@@ -39,6 +39,7 @@
 //! model and block-matching window kept), with a note on standard error, as in every command
 //! that reads depth. A camera JSON says the same with `sensor_focal_px`.
 
+mod bag;
 mod config;
 mod fragments;
 mod prepare;
@@ -71,9 +72,19 @@ pub struct Args {
     /// The sequence folder, its layout read from what it holds: a TUM folder when it has
     /// `depth.txt` or `associations.txt` (as --tum), a 7-Scenes folder when it has
     /// `frame-*.depth.png` (as --7scenes), an Open3D-style folder when it has a `depth` folder
-    /// (as --o3d). Or name the layout with one of those options.
-    #[arg(value_name = "DIR", group = "source")]
+    /// (as --o3d). Or name the layout with one of those options. Or a ROS 1 bag (`.bag`):
+    /// its depth topic (--topic, else the one image topic holding depth: 16UC1 millimetres or
+    /// 32FC1 metres), stamped with its images' header stamps, with the camera of the
+    /// `camera_info` topic beside it unless --camera is given.
+    #[arg(value_name = "DIR|BAG", group = "source")]
     pub sequence: Option<PathBuf>,
+    /// The depth topic of a ROS bag (`/camera/depth/image_raw`); by default the one image
+    /// topic whose images hold depth.
+    #[arg(long, value_name = "TOPIC")]
+    pub topic: Option<String>,
+    /// Set from the source, not an option: the ROS bag given as the sequence.
+    #[arg(skip)]
+    pub bag: Option<PathBuf>,
     /// A TUM RGB-D sequence folder as TUM ships it: `depth.txt` (or `associations.txt` when
     /// present) and the depth PNGs; the RGB images are not needed. Depth scale 5000 units/m
     /// and the `tum-fr1`, `tum-fr2` or `tum-fr3` camera, whichever the folder's name says
@@ -237,7 +248,30 @@ pub fn run(mut args: Args) -> Result<()> {
     source::resolve_layout(&mut args)?;
     check_args(&args)?;
     let weighting = WeightMode::parse(&args.weighting)?;
-    let (mut frames, camera, default_scale) = source::load_source(&args)?;
+    if args.topic.is_some() && args.bag.is_none() {
+        bail!("--topic names a topic of a ROS bag; the sequence is not one (give REC.bag)");
+    }
+    let (mut frames, camera, default_scale, mut bag) = match &args.bag {
+        Some(path) => {
+            let given = args
+                .input
+                .camera
+                .as_deref()
+                .map(crate::common::camera_from_arg)
+                .transpose()?;
+            let b = bag::load(path, args.topic.as_deref(), given)?;
+            (
+                b.frames,
+                b.camera,
+                b.default_scale,
+                Some((b.reader, b.lens)),
+            )
+        }
+        None => {
+            let (frames, camera, scale) = source::load_source(&args)?;
+            (frames, camera, scale, None)
+        }
+    };
     // Frames stamped with their numbers (ICL-NUIM's TUM-format folders, which render with y up).
     let frame_numbers = source::stamps_and_frame(&mut args);
     if let Some(n) = args.max_frames {
@@ -269,11 +303,28 @@ pub fn run(mut args: Args) -> Result<()> {
     read_opts.scale_units_per_m = Some(args.input.depth_scale.unwrap_or(default_scale));
     // Frames a whole fraction of the camera's size are its sensor decimated; any other size
     // is reported per frame below. The first frame, read for its size, is not read again.
-    let (camera, first_depth) = crate::common::camera_for_sequence(
-        camera,
-        frames.first().map(|f| f.depth_path.as_path()),
-        &read_opts,
-    );
+    let (camera, first_depth, first_stamp) = match &mut bag {
+        Some((reader, _)) => {
+            let scale = read_opts.scale_units_per_m.unwrap_or(default_scale);
+            match reader.read(0, scale) {
+                (Ok(d), stamp) => {
+                    let camera = crate::common::camera_for_frames(&camera, d.width(), d.height())
+                        .unwrap_or(camera);
+                    (camera, Some(d), stamp)
+                }
+                // Reported at the frame, as an unreadable file is.
+                (Err(_), _) => (camera, None, None),
+            }
+        }
+        None => {
+            let (camera, first) = crate::common::camera_for_sequence(
+                camera,
+                frames.first().map(|f| f.depth_path.as_path()),
+                &read_opts,
+            );
+            (camera, first, None)
+        }
+    };
     // A folder of TUM frames read as millimetres is five times too deep: say so at the first.
     if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
         let preset_sensor = crate::common::sensor_from_preset(&args.input, source::folder(&args));
@@ -291,7 +342,17 @@ pub fn run(mut args: Args) -> Result<()> {
         .map_err(|m| anyhow::anyhow!("camera: {m}"))?;
     // After the size check: the map holds one index per pixel.
     let implied = source::implied_preset(&args);
-    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
+    let bag_lens = bag.as_ref().and_then(|(_, lens)| *lens);
+    let undistort = match bag_lens {
+        Some(lens) if args.lens.lens != "none" => {
+            errln!(
+                "note: undistorting the depth with the plumb_bob model of the bag's camera_info \
+                 (--lens none keeps it as it is)"
+            );
+            Some(sl_core::Undistorter::new(&camera.intrinsics, &lens))
+        }
+        _ => crate::common::undistorter(&args.lens, &args.input, implied, &camera),
+    };
     let prefilter = args.prefilter;
     prepare::check_prefilter(prefilter, &camera)?;
     if args.new_fragment_after_s.is_nan() || args.new_fragment_after_s <= 0.0 {
@@ -305,7 +366,8 @@ pub fn run(mut args: Args) -> Result<()> {
     let noise_meter = (!args.model_noise_only).then(|| cfg.tracker.noise_meter());
     let mut prep = FramePrep::new(
         read_opts,
-        first_depth,
+        first_depth.map(|d| (d, first_stamp)),
+        bag.map(|(reader, _)| reader),
         camera,
         undistort,
         prefilter,
@@ -322,8 +384,10 @@ pub fn run(mut args: Args) -> Result<()> {
     let mut fragments: Vec<FragmentOut> = vec![FragmentOut::starting_at(0)];
     let wall = Instant::now();
     for (i, f) in frames.iter().enumerate() {
-        let t = f.timestamp.unwrap_or(i as f64);
-        let raw = prep.read(f);
+        let (raw, stamp) = prep.read(i, f);
+        // A bag frame's stamp is its image header's, read with it.
+        let stamp = stamp.or(f.timestamp);
+        let t = stamp.unwrap_or(i as f64);
         // A frame of another size is a wrong camera, not an unreadable frame: the same error
         // whatever the layout, before the lens model or the prefilter would refuse it as a
         // skip.
@@ -349,7 +413,7 @@ pub fn run(mut args: Args) -> Result<()> {
         // recording (frames its driver dropped), else one per frame of the folder, so an
         // unreadable frame skipped above is a longer step rather than a surprise.
         let interval_s = rec.config().tracker.frame_interval_s;
-        let time_s = match f.timestamp {
+        let time_s = match stamp {
             Some(n) if frame_numbers => n * interval_s,
             Some(t) => t,
             None => i as f64 * interval_s,

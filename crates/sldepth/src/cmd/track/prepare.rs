@@ -10,6 +10,7 @@ use sl_io::sequence::SequenceFrame;
 use sl_planes::NoiseMeter;
 use sl_track::Reconstruction;
 
+use super::bag::BagFrames;
 use crate::common::limits;
 
 /// A camera the prefilter cannot serve (a baseline or focal length so extreme that its range
@@ -33,8 +34,10 @@ pub(super) fn check_prefilter(prefilter: Prefilter, camera: &Camera) -> Result<(
 /// Reads and prepares the frames of the sequence, one by one, and keeps what it measured.
 pub(super) struct FramePrep {
     read_opts: ReadConfig,
-    /// The first frame, read for its size: not read again.
-    first_depth: Option<DepthImage>,
+    /// The first frame, read for its size (and a bag frame's stamp): not read again.
+    first_depth: Option<(DepthImage, Option<f64>)>,
+    /// The frames of a ROS bag, read by index; `None`: files.
+    bag: Option<BagFrames>,
     camera: Camera,
     undistort: Option<Undistorter>,
     prefilter: Prefilter,
@@ -48,12 +51,14 @@ pub(super) struct FramePrep {
 }
 
 impl FramePrep {
-    /// Frames read with `read_opts` (`first_depth`: the first frame, already read) for
+    /// Frames read with `read_opts` (`first_depth`: the first frame, already read, and its stamp;
+    /// `bag`: the frames of a ROS bag, read by index, rather than files) for
     /// `camera`, undistorted by `undistort`, measured by `noise_meter` and smoothed by
     /// `prefilter`.
     pub(super) fn new(
         read_opts: ReadConfig,
-        first_depth: Option<DepthImage>,
+        first_depth: Option<(DepthImage, Option<f64>)>,
+        bag: Option<BagFrames>,
         camera: Camera,
         undistort: Option<Undistorter>,
         prefilter: Prefilter,
@@ -62,6 +67,7 @@ impl FramePrep {
         Self {
             read_opts,
             first_depth,
+            bag,
             camera,
             undistort,
             prefilter,
@@ -76,14 +82,27 @@ impl FramePrep {
         self.undistort.is_some()
     }
 
-    /// Frame `f`'s depth as its file holds it, or why it could not be read.
-    pub(super) fn read(&mut self, f: &SequenceFrame) -> Result<DepthImage> {
-        match self.first_depth.take() {
-            Some(d) => Ok(d),
-            None => read_depth_with_limits(&f.depth_path, &self.read_opts, &limits())
-                .map(|l| l.depth)
-                .map_err(anyhow::Error::from),
+    /// Frame `i` (`f`)'s depth as its file or bag message holds it, or why it could not be
+    /// read; and a bag frame's stamp.
+    pub(super) fn read(
+        &mut self,
+        i: usize,
+        f: &SequenceFrame,
+    ) -> (Result<DepthImage>, Option<f64>) {
+        if let Some((d, stamp)) = self.first_depth.take() {
+            return (Ok(d), stamp);
         }
+        if let Some(bag) = &mut self.bag {
+            let scale = self
+                .read_opts
+                .scale_units_per_m
+                .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M);
+            return bag.read(i, scale);
+        }
+        let d = read_depth_with_limits(&f.depth_path, &self.read_opts, &limits())
+            .map(|l| l.depth)
+            .map_err(anyhow::Error::from);
+        (d, None)
     }
 
     /// Refuses a frame of another size than the camera's.

@@ -17,6 +17,10 @@ pub(super) fn resolve_layout(args: &mut Args) -> Result<()> {
     let Some(dir) = args.sequence.take() else {
         return Ok(());
     };
+    if dir.is_file() && sl_io::rosbag::is_bag_file(&dir) {
+        args.bag = Some(dir);
+        return Ok(());
+    }
     match crate::common::sequence_layout(&dir)? {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),

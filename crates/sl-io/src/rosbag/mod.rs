@@ -1,0 +1,642 @@
+//! ROS 1 bag files (`.bag`, format 2.0): the depth images and camera calibration a robot
+//! recorded, read straight from the bag — TUM RGB-D ships every sequence as one, and a Kinect,
+//! Xtion or RealSense driver under ROS records its depth as `sensor_msgs/Image`.
+//!
+//! Written by hand (no crate reads bags within a memory budget): the bag's index (connections
+//! and chunk places, at the end of the file) is read first; a topic's messages are then found
+//! from the index records after each chunk, without decompressing anything; a message is read
+//! by decompressing its chunk (`none`, `bz2` through the `bzip2` crate, `lz4` frames through
+//! `lz4_flex`), which is kept for the next message. Every length is checked against the file
+//! and [`Limits::max_decoded_bytes`] before a buffer is sized from it.
+//!
+//! Depth: `16UC1` and `mono16` are units (millimetres by ROS's REP 118, 0 = none), `32FC1`
+//! metres (NaN = none; TUM's bags store `/camera/depth/image` so); `image_transport`'s
+//! `compressedDepth` (`sensor_msgs/CompressedImage`, what a robot records over a network) is
+//! read in its PNG form, `16UC1` millimetres or `32FC1` as quantised inverse depth (its RVL form
+//! is refused by name). The frame's time is its message header's stamp (the sensor's), not the
+//! time the recorder received it.
+//!
+//! ```
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! use sl_io::Limits;
+//! use sl_io::rosbag::RosBag;
+//!
+//! // A file that is not a bag is an error that says what was expected.
+//! let dir = tempfile::tempdir()?;
+//! let path = dir.path().join("not.bag");
+//! std::fs::write(&path, b"hello")?;
+//! let err = RosBag::open(&path, &Limits::default()).unwrap_err();
+//! assert!(err.to_string().contains("not a ROS 1 bag"));
+//! # Ok(())
+//! # }
+//! ```
+
+mod messages;
+mod records;
+
+use std::fs::File;
+use std::io::{BufReader, Read};
+use std::path::{Path, PathBuf};
+
+use sl_core::DepthImage;
+
+pub use messages::DepthEncodingKind;
+use records::{Header, MAGIC, MAX_HEADER_BYTES, op, read_at, read_record, record_in};
+
+use crate::error::{IoError, Result};
+use crate::limits::Limits;
+use crate::ros_camera::{RosCamera, camera_info_to_camera};
+
+/// The message type of a depth or colour image.
+pub const IMAGE_TYPE: &str = "sensor_msgs/Image";
+/// The message type of a compressed image (`image_transport`'s `compressedDepth` for depth).
+pub const COMPRESSED_IMAGE_TYPE: &str = "sensor_msgs/CompressedImage";
+/// The message type of a camera calibration.
+pub const CAMERA_INFO_TYPE: &str = "sensor_msgs/CameraInfo";
+
+/// One topic of a bag.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BagTopic {
+    /// Its name (`/camera/depth/image`).
+    pub topic: String,
+    /// Its message type (`sensor_msgs/Image`).
+    pub message_type: String,
+    /// How many messages the bag holds on it (from the index).
+    pub messages: u64,
+}
+
+/// Where one message lies (found by [`RosBag::messages`], read by [`RosBag::read_depth`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BagMessage {
+    chunk_pos: u64,
+    offset: u32,
+    /// A `sensor_msgs/CompressedImage` rather than an `Image`.
+    compressed: bool,
+    /// When the recorder received it, seconds (the message's own stamp is read with it).
+    pub record_time_s: f64,
+}
+
+/// A depth frame read from a bag.
+#[derive(Debug, Clone)]
+pub struct BagDepth {
+    /// The image header's stamp, seconds (the record time when the stamp is 0).
+    pub stamp_s: f64,
+    /// Depth in metres, 0 = none.
+    pub depth: DepthImage,
+    /// How the message stored it.
+    pub kind: DepthEncodingKind,
+}
+
+#[derive(Debug, Clone)]
+struct Connection {
+    id: u32,
+    topic: String,
+    message_type: String,
+}
+
+#[derive(Debug, Clone)]
+struct ChunkInfo {
+    pos: u64,
+    /// `(connection, messages)` in the chunk.
+    counts: Vec<(u32, u32)>,
+}
+
+/// An open ROS 1 bag (see the module docs).
+#[derive(Debug)]
+pub struct RosBag {
+    path: PathBuf,
+    file: BufReader<File>,
+    file_len: u64,
+    limits: Limits,
+    connections: Vec<Connection>,
+    chunks: Vec<ChunkInfo>,
+    /// The chunk decompressed last: its place and records.
+    cache: Option<(u64, Vec<u8>)>,
+}
+
+/// Whether `path` names a ROS bag by its extension (`.bag`).
+pub fn is_bag_file(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bag"))
+}
+
+impl RosBag {
+    /// Opens a bag and reads its index (connections and chunk places).
+    ///
+    /// # Errors
+    /// A file that is not a bag of format 2.0, a bag without an index (a recording that was not
+    /// closed: `rosbag reindex` writes one), or a malformed or truncated record.
+    pub fn open(path: impl AsRef<Path>, limits: &Limits) -> Result<Self> {
+        let path = path.as_ref().to_path_buf();
+        let f = File::open(&path).map_err(|e| IoError::io(&path, e))?;
+        let file_len = f.metadata().map_err(|e| IoError::io(&path, e))?.len();
+        let mut file = BufReader::new(f);
+        let mut magic = [0u8; 13];
+        let got = file
+            .read(&mut magic)
+            .and_then(|n| {
+                if n < magic.len() {
+                    file.read_exact(&mut magic[n..]).map(|()| magic.len())
+                } else {
+                    Ok(n)
+                }
+            })
+            .unwrap_or(0);
+        if got < magic.len() || &magic != MAGIC {
+            let v1 = magic.starts_with(b"#ROSBAG V1");
+            return Err(IoError::malformed(
+                &path,
+                if v1 {
+                    "a ROS bag of format 1.x, which is not read (ROS since 2010 writes 2.0)"
+                } else {
+                    "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)"
+                },
+            ));
+        }
+        let header = read_record(&path, &mut file, file_len)?;
+        if header.header.op(&path)? != op::BAG_HEADER {
+            return Err(IoError::malformed(
+                &path,
+                "the first record is not the bag header",
+            ));
+        }
+        let index_pos = header.header.u64(&path, "index_pos")?;
+        if index_pos == 0 || index_pos >= file_len {
+            return Err(IoError::malformed(
+                &path,
+                "the bag has no index (its recording was not closed): `rosbag reindex` writes one",
+            ));
+        }
+        let mut bag = Self {
+            path,
+            file,
+            file_len,
+            limits: *limits,
+            connections: Vec::new(),
+            chunks: Vec::new(),
+            cache: None,
+        };
+        bag.read_index(index_pos)?;
+        // A bag cut short inside its index (at a record's end) would otherwise lose chunks
+        // without a word.
+        let conns = header.header.u32(&bag.path, "conn_count")?;
+        let chunks = header.header.u32(&bag.path, "chunk_count")?;
+        if (bag.connections.len(), bag.chunks.len()) != (conns as usize, chunks as usize) {
+            return Err(IoError::malformed(
+                &bag.path,
+                format!(
+                    "the index holds {} connections and {} chunks, the bag header says {conns} \
+                     and {chunks} (a bag cut short)",
+                    bag.connections.len(),
+                    bag.chunks.len()
+                ),
+            ));
+        }
+        Ok(bag)
+    }
+
+    /// The bag's file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Connections and chunk infos, from `index_pos` to the end of the file.
+    fn read_index(&mut self, index_pos: u64) -> Result<()> {
+        use std::io::Seek;
+        let path = self.path.clone();
+        self.file
+            .seek(std::io::SeekFrom::Start(index_pos))
+            .map_err(|e| IoError::io(&path, e))?;
+        while self
+            .file
+            .stream_position()
+            .map_err(|e| IoError::io(&path, e))?
+            < self.file_len
+        {
+            let r = read_record(&path, &mut self.file, self.file_len)?;
+            match r.header.op(&path)? {
+                op::CONNECTION => {
+                    if r.data_len > MAX_HEADER_BYTES {
+                        return Err(IoError::malformed(
+                            &path,
+                            format!("a connection record of {} bytes", r.data_len),
+                        ));
+                    }
+                    let id = r.header.u32(&path, "conn")?;
+                    let topic = r.header.text(&path, "topic")?;
+                    let data = read_at(&path, &mut self.file, r.data_pos, r.data_len)?;
+                    let fields = Header::parse(&path, &data)?;
+                    let message_type = fields.text(&path, "type")?;
+                    self.connections.push(Connection {
+                        id,
+                        topic,
+                        message_type,
+                    });
+                }
+                op::CHUNK_INFO => {
+                    let pos = r.header.u64(&path, "chunk_pos")?;
+                    let n = r.header.u32(&path, "count")?;
+                    if u64::from(n) * 8 != u64::from(r.data_len) {
+                        return Err(IoError::malformed(
+                            &path,
+                            format!("a chunk info of {n} connections has {} bytes", r.data_len),
+                        ));
+                    }
+                    let data = read_at(&path, &mut self.file, r.data_pos, r.data_len)?;
+                    let counts = data
+                        .chunks_exact(8)
+                        .map(|c| {
+                            let w =
+                                |i: usize| u32::from_le_bytes([c[i], c[i + 1], c[i + 2], c[i + 3]]);
+                            (w(0), w(4))
+                        })
+                        .collect();
+                    self.chunks.push(ChunkInfo { pos, counts });
+                }
+                _ => {}
+            }
+            self.file
+                .seek(std::io::SeekFrom::Start(r.data_pos + u64::from(r.data_len)))
+                .map_err(|e| IoError::io(&path, e))?;
+        }
+        Ok(())
+    }
+
+    /// The bag's topics, by name, with their message types and counts.
+    pub fn topics(&self) -> Vec<BagTopic> {
+        let mut out: Vec<BagTopic> = Vec::new();
+        for c in &self.connections {
+            let n: u64 = self
+                .chunks
+                .iter()
+                .flat_map(|k| &k.counts)
+                .filter(|(id, _)| *id == c.id)
+                .map(|(_, n)| u64::from(*n))
+                .sum();
+            match out.iter_mut().find(|t| t.topic == c.topic) {
+                Some(t) => t.messages += n,
+                None => out.push(BagTopic {
+                    topic: c.topic.clone(),
+                    message_type: c.message_type.clone(),
+                    messages: n,
+                }),
+            }
+        }
+        out.sort_by(|a, b| a.topic.cmp(&b.topic));
+        out
+    }
+
+    /// The messages of `topic`, in the order they were recorded (at most
+    /// [`Limits::max_frames`]).
+    ///
+    /// # Errors
+    /// A topic the bag does not have (the error lists those it has), more messages than the
+    /// limit, or a malformed index.
+    pub fn messages(&mut self, topic: &str) -> Result<Vec<BagMessage>> {
+        let ids: Vec<u32> = self
+            .connections
+            .iter()
+            .filter(|c| c.topic == topic)
+            .map(|c| c.id)
+            .collect();
+        if ids.is_empty() {
+            let have: Vec<String> = self.topics().into_iter().map(|t| t.topic).collect();
+            return Err(IoError::malformed(
+                &self.path,
+                format!("no topic {topic:?} (the bag has {})", have.join(", ")),
+            ));
+        }
+        let path = self.path.clone();
+        let compressed = self.message_type(topic) == Some(COMPRESSED_IMAGE_TYPE);
+        let mut out = Vec::new();
+        let chunks: Vec<ChunkInfo> = self
+            .chunks
+            .iter()
+            .filter(|c| c.counts.iter().any(|(id, _)| ids.contains(id)))
+            .cloned()
+            .collect();
+        for chunk in &chunks {
+            use std::io::Seek;
+            self.file
+                .seek(std::io::SeekFrom::Start(chunk.pos))
+                .map_err(|e| IoError::io(&path, e))?;
+            let c = read_record(&path, &mut self.file, self.file_len)?;
+            if c.header.op(&path)? != op::CHUNK {
+                return Err(IoError::malformed(
+                    &path,
+                    format!(
+                        "the index points at byte {} for a chunk, which is none",
+                        chunk.pos
+                    ),
+                ));
+            }
+            // One index record per connection of the chunk follows it.
+            for _ in 0..chunk.counts.len() {
+                let r = read_record(&path, &mut self.file, self.file_len)?;
+                if r.header.op(&path)? != op::INDEX_DATA {
+                    break;
+                }
+                let conn = r.header.u32(&path, "conn")?;
+                if !ids.contains(&conn) {
+                    continue;
+                }
+                let n = r.header.u32(&path, "count")?;
+                if u64::from(n) * 12 != u64::from(r.data_len) {
+                    return Err(IoError::malformed(
+                        &path,
+                        format!("an index record of {n} messages has {} bytes", r.data_len),
+                    ));
+                }
+                if out.len() + n as usize > self.limits.max_frames {
+                    return Err(IoError::too_large(
+                        &path,
+                        format!(
+                            "{topic} has more than {} messages, the limit of frames a \
+                             sequence may have (raise --max-memory)",
+                            self.limits.max_frames
+                        ),
+                    ));
+                }
+                let data = read_at(&path, &mut self.file, r.data_pos, r.data_len)?;
+                for e in data.chunks_exact(12) {
+                    let w = |i: usize| u32::from_le_bytes([e[i], e[i + 1], e[i + 2], e[i + 3]]);
+                    out.push(BagMessage {
+                        chunk_pos: chunk.pos,
+                        offset: w(8),
+                        compressed,
+                        record_time_s: records::time_s(w(0), w(4)),
+                    });
+                }
+                self.file
+                    .seek(std::io::SeekFrom::Start(r.data_pos + u64::from(r.data_len)))
+                    .map_err(|e| IoError::io(&path, e))?;
+            }
+        }
+        // Chunks are written in time order, and a chunk's index too; a stable sort keeps that
+        // order among equal times.
+        out.sort_by(|a, b| a.record_time_s.total_cmp(&b.record_time_s));
+        Ok(out)
+    }
+
+    /// The serialised message `m` (its chunk decompressed, or kept from the last call).
+    fn message(&mut self, m: &BagMessage) -> Result<&[u8]> {
+        let path = self.path.clone();
+        if self
+            .cache
+            .as_ref()
+            .is_none_or(|(pos, _)| *pos != m.chunk_pos)
+        {
+            self.cache = None;
+            let records = self.decompress_chunk(m.chunk_pos)?;
+            self.cache = Some((m.chunk_pos, records));
+        }
+        let Some((_, records)) = &self.cache else {
+            return Err(IoError::malformed(&path, "no chunk"));
+        };
+        let (h, data, _) = record_in(&path, records, m.offset as usize)?;
+        if h.op(&path)? != op::MESSAGE {
+            return Err(IoError::malformed(
+                &path,
+                format!(
+                    "the index points at offset {} of the chunk at byte {} for a message, \
+                     which is none",
+                    m.offset, m.chunk_pos
+                ),
+            ));
+        }
+        Ok(data)
+    }
+
+    /// The records of the chunk at `pos`, decompressed within the budget.
+    fn decompress_chunk(&mut self, pos: u64) -> Result<Vec<u8>> {
+        use std::io::Seek;
+        let path = self.path.clone();
+        self.file
+            .seek(std::io::SeekFrom::Start(pos))
+            .map_err(|e| IoError::io(&path, e))?;
+        let c = read_record(&path, &mut self.file, self.file_len)?;
+        let compression = c.header.text(&path, "compression")?;
+        let size = c.header.u32(&path, "size")?;
+        let budget = self.limits.max_decoded_bytes;
+        if u64::from(size) > budget || u64::from(c.data_len) > budget {
+            return Err(IoError::too_large(
+                &path,
+                format!(
+                    "a chunk of {} bytes ({size} decompressed) is beyond the {budget}-byte \
+                     budget of one decoded buffer (raise --max-memory)",
+                    c.data_len
+                ),
+            ));
+        }
+        let data = read_at(&path, &mut self.file, c.data_pos, c.data_len)?;
+        let mut out = Vec::with_capacity(size as usize);
+        let take = u64::from(size) + 1;
+        let got = match compression.as_str() {
+            "none" => {
+                out = data;
+                Ok(out.len())
+            }
+            "bz2" => bzip2::read::BzDecoder::new(&data[..])
+                .take(take)
+                .read_to_end(&mut out),
+            "lz4" => lz4_flex::frame::FrameDecoder::new(&data[..])
+                .take(take)
+                .read_to_end(&mut out),
+            other => {
+                return Err(IoError::malformed(
+                    &path,
+                    format!("a chunk compressed as {other:?} (bags use none, bz2 or lz4)"),
+                ));
+            }
+        };
+        match got {
+            Ok(n) if n == size as usize => Ok(out),
+            Ok(n) => Err(IoError::malformed(
+                &path,
+                format!(
+                    "the chunk at byte {pos} decompresses to {n}{} bytes, its header says {size}",
+                    if n > size as usize { "+" } else { "" }
+                ),
+            )),
+            Err(e) => Err(IoError::malformed(
+                &path,
+                format!("the {compression} chunk at byte {pos} does not decompress: {e}"),
+            )),
+        }
+    }
+
+    /// The type of the messages of `topic`, if the bag has it.
+    pub fn message_type(&self, topic: &str) -> Option<&str> {
+        self.connections
+            .iter()
+            .find(|c| c.topic == topic)
+            .map(|c| c.message_type.as_str())
+    }
+
+    /// How the image message `m` stores depth (`None`: an image that is not depth).
+    ///
+    /// # Errors
+    /// As [`RosBag::read_depth`], but for the pixels.
+    pub fn depth_kind(&mut self, m: &BagMessage) -> Result<Option<DepthEncodingKind>> {
+        Ok(self
+            .image_encoding(m)?
+            .as_deref()
+            .and_then(DepthEncodingKind::of))
+    }
+
+    /// The depth image of message `m` (of a `sensor_msgs/Image` topic): 16-bit values divided by
+    /// `units_per_m` (ROS's millimetres: 1000), floats by `float_units_per_m` (metres: 1).
+    ///
+    /// # Errors
+    /// A message that is not a depth image, pixels beyond the limits, or a malformed chunk.
+    pub fn read_depth(
+        &mut self,
+        m: &BagMessage,
+        units_per_m: f64,
+        float_units_per_m: f64,
+    ) -> Result<BagDepth> {
+        let path = self.path.clone();
+        let limits = self.limits;
+        let compressed = m.compressed;
+        let b = self.message(m)?;
+        let (stamp_s, depth, encoding) = if compressed {
+            let c = messages::compressed_image(&path, b)?;
+            let depth =
+                messages::compressed_depth_of(&path, &c, units_per_m, float_units_per_m, &limits)?;
+            let encoding = messages::compressed_depth_encoding(&c.format)
+                .unwrap_or_default()
+                .to_string();
+            (c.stamp_s, depth, encoding)
+        } else {
+            let img = messages::image(&path, b)?;
+            let depth = messages::depth_of(&path, &img, units_per_m, float_units_per_m, &limits)?;
+            (img.stamp_s, depth, img.encoding)
+        };
+        let kind = DepthEncodingKind::of(&encoding).unwrap_or(DepthEncodingKind::U16);
+        let stamp_s = if stamp_s > 0.0 {
+            stamp_s
+        } else {
+            m.record_time_s
+        };
+        Ok(BagDepth {
+            stamp_s,
+            depth,
+            kind,
+        })
+    }
+
+    /// The camera of the first message on the `sensor_msgs/CameraInfo` topic `topic`.
+    ///
+    /// # Errors
+    /// No such topic or message, or a calibration [`crate::ros_camera::read_ros_camera`] would
+    /// refuse (binning, a region of interest, a distortion other than `plumb_bob`).
+    pub fn camera(&mut self, topic: &str) -> Result<RosCamera> {
+        let path = self.path.clone();
+        let first = self
+            .messages(topic)?
+            .into_iter()
+            .next()
+            .ok_or_else(|| IoError::malformed(&path, format!("{topic} has no message")))?;
+        let b = self.message(&first)?;
+        let info = messages::camera_info(&path, b)?;
+        self.limits
+            .check_pixels(info.width as u64, info.height as u64)
+            .map_err(|e| IoError::too_large(&path, e))?;
+        camera_info_to_camera(&path, &info)
+    }
+
+    /// The depth topic to read: `requested` when given (it must be an image topic), else the one
+    /// image topic whose first message holds depth (`16UC1`, `32FC1`, or `mono16` on a topic
+    /// named for depth; an infrared `mono16` stream is not depth), a `compressedDepth` topic
+    /// counting as one.
+    ///
+    /// # Errors
+    /// No depth topic, or several (the error lists them: name one).
+    pub fn depth_topic(&mut self, requested: Option<&str>) -> Result<String> {
+        let path = self.path.clone();
+        if let Some(t) = requested {
+            return match self.message_type(t) {
+                Some(IMAGE_TYPE | COMPRESSED_IMAGE_TYPE) => Ok(t.to_string()),
+                Some(other) => Err(IoError::malformed(
+                    &path,
+                    format!("{t} carries {other}, not {IMAGE_TYPE}"),
+                )),
+                None => self.messages(t).map(|_| t.to_string()),
+            };
+        }
+        let images: Vec<String> = self
+            .topics()
+            .into_iter()
+            .filter(|t| {
+                (t.message_type == IMAGE_TYPE || t.message_type == COMPRESSED_IMAGE_TYPE)
+                    && t.messages > 0
+            })
+            .map(|t| t.topic)
+            .collect();
+        let mut depth = Vec::new();
+        for t in &images {
+            let Some(first) = self.messages(t)?.into_iter().next() else {
+                continue;
+            };
+            let named = t.to_ascii_lowercase().contains("depth");
+            let kind = self.depth_kind(&first)?;
+            let is_depth = match kind {
+                Some(DepthEncodingKind::F32) => true,
+                Some(DepthEncodingKind::U16) => {
+                    named || self.image_encoding(&first)?.as_deref() == Some("16UC1")
+                }
+                None => false,
+            };
+            if is_depth {
+                depth.push(t.clone());
+            }
+        }
+        match depth.len() {
+            1 => Ok(depth.swap_remove(0)),
+            0 => Err(IoError::malformed(
+                &path,
+                format!(
+                    "no depth image topic (16UC1, 32FC1, or mono16 named for depth) among its \
+                     image topics: {}",
+                    if images.is_empty() {
+                        "none".to_string()
+                    } else {
+                        images.join(", ")
+                    }
+                ),
+            )),
+            _ => Err(IoError::malformed(
+                &path,
+                format!(
+                    "several depth image topics: {}; name one (--topic)",
+                    depth.join(", ")
+                ),
+            )),
+        }
+    }
+
+    /// The encoding of image message `m` (of a `compressedDepth` image, the encoding its format
+    /// names; `None` for another compressed image).
+    fn image_encoding(&mut self, m: &BagMessage) -> Result<Option<String>> {
+        let path = self.path.clone();
+        let compressed = m.compressed;
+        let b = self.message(m)?;
+        if compressed {
+            let c = messages::compressed_image(&path, b)?;
+            return Ok(messages::compressed_depth_encoding(&c.format).map(str::to_string));
+        }
+        Ok(Some(messages::image(&path, b)?.encoding))
+    }
+
+    /// The `sensor_msgs/CameraInfo` topic beside the image topic `image_topic`
+    /// (`/camera/depth/image` → `/camera/depth/camera_info`; a transport's topic
+    /// `/camera/depth/image_raw/compressedDepth` → the same), if the bag has it.
+    pub fn camera_info_topic(&self, image_topic: &str) -> Option<String> {
+        let ns = image_topic.rsplit_once('/').map_or("", |(ns, _)| ns);
+        let parent = ns.rsplit_once('/').map_or("", |(p, _)| p);
+        [ns, parent]
+            .iter()
+            .map(|n| format!("{n}/camera_info"))
+            .find(|t| self.message_type(t) == Some(CAMERA_INFO_TYPE))
+    }
+}

@@ -1,0 +1,197 @@
+//! `sldepth.RosBag`: a ROS 1 bag's depth topic and camera, and its depth frames one by one.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use numpy::PyArray2;
+use pyo3::prelude::*;
+use sl_core::Camera;
+use sl_io::Limits;
+use sl_io::rosbag::{BagMessage, CAMERA_INFO_TYPE, DepthEncodingKind, RosBag};
+
+use crate::arrays::depth_array;
+use crate::camera::PyCamera;
+use crate::errors::{io_error, value_error};
+use crate::threads::compute;
+
+/// A ROS 1 bag (``.bag``, format 2.0; chunks uncompressed, ``bz2`` or ``lz4``), as
+/// ``sldepth track REC.bag`` reads it. ``RosBag(path)`` reads its index (nothing is
+/// decompressed); ``topics`` lists ``(topic, type, messages)``; ``depth_topic()`` finds the one
+/// image topic holding depth (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a
+/// topic named for depth, or ``image_transport``'s ``compressedDepth`` in its PNG form); ``camera()`` reads the ``camera_info`` beside it (its ``plumb_bob``
+/// lens as ``Camera.lens``, which ``Tracker`` undoes); ``depth_frames()`` iterates
+/// ``(stamp_s, depth)`` pairs, depth a float32 (H, W) array of metres (0 = none), stamped with
+/// the image header's stamp. A file that is not a bag, a bag without an index (``rosbag
+/// reindex`` writes one) or a malformed one raises ``OSError``.
+#[pyclass(name = "RosBag", module = "sldepth", frozen)]
+#[derive(Debug)]
+pub struct PyRosBag {
+    path: PathBuf,
+    bag: Mutex<RosBag>,
+}
+
+impl PyRosBag {
+    fn with_bag<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut RosBag) -> sl_io::Result<T> + Send,
+    ) -> PyResult<T> {
+        crate::threads::compute_locked(py, &self.bag, f)
+            .map_err(|_| value_error("the bag's lock was poisoned by a panic"))?
+            .map_err(io_error)
+    }
+}
+
+#[pymethods]
+impl PyRosBag {
+    #[new]
+    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let bag = compute(py, || RosBag::open(&path, &Limits::default())).map_err(io_error)?;
+        Ok(Self {
+            path,
+            bag: Mutex::new(bag),
+        })
+    }
+
+    /// The bag's file.
+    #[getter]
+    fn path(&self) -> PathBuf {
+        self.path.clone()
+    }
+
+    /// ``(topic, message type, messages)`` of every topic, by name.
+    #[getter]
+    fn topics(&self, py: Python<'_>) -> PyResult<Vec<(String, String, u64)>> {
+        self.with_bag(py, |b| {
+            Ok(b.topics()
+                .into_iter()
+                .map(|t| (t.topic, t.message_type, t.messages))
+                .collect())
+        })
+    }
+
+    /// The depth topic: ``topic`` when given (an image topic of the bag), else the one image
+    /// topic whose images hold depth; several raise ``OSError`` naming them.
+    #[pyo3(signature = (topic = None))]
+    fn depth_topic(&self, py: Python<'_>, topic: Option<String>) -> PyResult<String> {
+        self.with_bag(py, move |b| b.depth_topic(topic.as_deref()))
+    }
+
+    /// The camera of the ``sensor_msgs/CameraInfo`` beside the depth topic (``topic``, or the
+    /// one ``depth_topic()`` finds; ``/camera/depth/image`` → ``/camera/depth/camera_info``), or
+    /// of the camera info topic ``topic`` itself: its intrinsics with the Kinect's noise model,
+    /// its ``plumb_bob`` lens as ``lens``. No such topic, binning, a region of interest or
+    /// another distortion model raise ``OSError``.
+    #[pyo3(signature = (topic = None))]
+    fn camera(&self, py: Python<'_>, topic: Option<String>) -> PyResult<PyCamera> {
+        let path = self.path.clone();
+        let ros = self.with_bag(py, move |b| {
+            let info = match topic {
+                Some(t) if b.message_type(&t) == Some(CAMERA_INFO_TYPE) => t,
+                t => {
+                    let depth = b.depth_topic(t.as_deref())?;
+                    b.camera_info_topic(&depth)
+                        .ok_or_else(|| sl_io::IoError::Malformed {
+                            path: path.clone(),
+                            message: format!(
+                                "no sensor_msgs/CameraInfo topic beside {depth}; give the camera \
+                                 yourself (Camera.preset, Camera.from_file)"
+                            ),
+                        })?
+                }
+            };
+            b.camera(&info)
+        })?;
+        let camera = Camera::from_intrinsics(ros.intrinsics, None, None).map_err(value_error)?;
+        Ok(PyCamera {
+            inner: camera,
+            lens: ros.lens,
+            preset_name: None,
+        })
+    }
+
+    /// The depth frames of ``topic`` (None: ``depth_topic()``), in the order they were
+    /// recorded: an iterator of ``(stamp_s, depth)`` with ``len()``. 16-bit images are divided by
+    /// ``depth_scale`` (None: 1000, ROS's millimetres), float images by it (None: 1, metres).
+    #[pyo3(signature = (topic = None, depth_scale = None))]
+    fn depth_frames(
+        &self,
+        py: Python<'_>,
+        topic: Option<String>,
+        #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
+    ) -> PyResult<PyBagFrames> {
+        let path = self.path.clone();
+        let (bag, messages, kind) = compute(py, move || {
+            let mut bag = RosBag::open(&path, &Limits::default())?;
+            let topic = bag.depth_topic(topic.as_deref())?;
+            let messages = bag.messages(&topic)?;
+            let kind = match messages.first() {
+                Some(m) => bag.depth_kind(m)?,
+                None => None,
+            };
+            Ok::<_, sl_io::IoError>((bag, messages, kind))
+        })
+        .map_err(io_error)?;
+        let units_per_m = depth_scale.unwrap_or(match kind {
+            Some(DepthEncodingKind::F32) => sl_io::depth::FLOAT_UNITS_PER_M,
+            _ => sl_io::depth::DEFAULT_UNITS_PER_M,
+        });
+        Ok(PyBagFrames {
+            len: messages.len(),
+            state: Mutex::new(FramesState {
+                bag,
+                messages,
+                next: 0,
+                units_per_m,
+            }),
+        })
+    }
+
+    fn __repr__(&self) -> String {
+        format!("RosBag({:?})", self.path.display().to_string())
+    }
+}
+
+/// The depth frames of a bag's topic (``RosBag.depth_frames``): an iterator of
+/// ``(stamp_s, depth)``, with ``len()``.
+#[pyclass(name = "BagFrames", module = "sldepth", frozen)]
+#[derive(Debug)]
+pub struct PyBagFrames {
+    len: usize,
+    state: Mutex<FramesState>,
+}
+
+#[derive(Debug)]
+struct FramesState {
+    bag: RosBag,
+    messages: Vec<BagMessage>,
+    next: usize,
+    units_per_m: f64,
+}
+
+#[pymethods]
+impl PyBagFrames {
+    fn __len__(&self) -> usize {
+        self.len
+    }
+
+    fn __iter__(slf: PyRef<'_, Self>) -> PyRef<'_, Self> {
+        slf
+    }
+
+    fn __next__<'py>(&self, py: Python<'py>) -> PyResult<Option<(f64, Bound<'py, PyArray2<f32>>)>> {
+        let frame = crate::threads::compute_locked(py, &self.state, |s| {
+            let Some(m) = s.messages.get(s.next).copied() else {
+                return Ok(None);
+            };
+            s.next += 1;
+            s.bag.read_depth(&m, s.units_per_m, s.units_per_m).map(Some)
+        })
+        .map_err(|_| value_error("the bag's lock was poisoned by a panic"))?
+        .map_err(io_error)?;
+        match frame {
+            None => Ok(None),
+            Some(d) => Ok(Some((d.stamp_s, depth_array(py, d.depth)?))),
+        }
+    }
+}

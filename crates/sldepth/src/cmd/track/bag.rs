@@ -1,0 +1,135 @@
+//! A ROS 1 bag as the sequence to track (`sldepth track REC.bag [--topic T]`): its depth topic
+//! (the one image topic holding depth unless named), its frames in the order they were
+//! recorded, stamped with their image headers' stamps, and its camera — `--camera`, else the
+//! `camera_info` topic beside the depth topic (the Kinect's noise model at its focal length, its
+//! `plumb_bob` lens undone with `--lens auto`).
+
+use std::path::Path;
+
+use anyhow::{Context, Result, bail};
+use sl_core::{Camera, DepthImage, LensDistortion};
+use sl_io::rosbag::{BagMessage, DepthEncodingKind, RosBag};
+use sl_io::sequence::SequenceFrame;
+
+use crate::common::limits;
+
+/// The frames of a bag's depth topic, read one by one as tracking asks for them.
+pub(super) struct BagFrames {
+    bag: RosBag,
+    messages: Vec<BagMessage>,
+    /// The stamp of the last frame read, which the next must follow.
+    last_stamp_s: Option<f64>,
+}
+
+/// What a bag gives `track`.
+pub(super) struct BagSource {
+    /// One frame per message (the bag's path; the record time until the stamp is read).
+    pub(super) frames: Vec<SequenceFrame>,
+    pub(super) camera: Camera,
+    /// The lens model of the bag's `camera_info` (`None` with `--camera`, or none to undo).
+    pub(super) lens: Option<LensDistortion>,
+    /// Units per metre of the topic's depth: 1000 for 16-bit millimetres, 1 for float metres.
+    pub(super) default_scale: f64,
+    pub(super) reader: BagFrames,
+}
+
+/// Opens the bag at `path` and finds its depth topic (`topic`, or the one that holds depth) and
+/// camera (`camera`, else the topic's `camera_info`), said on standard error.
+pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> Result<BagSource> {
+    let mut bag = RosBag::open(path, &limits())?;
+    let topic = bag.depth_topic(topic)?;
+    let messages = bag.messages(&topic)?;
+    let Some(first) = messages.first().copied() else {
+        bail!("{}: {topic} has no message", path.display());
+    };
+    let Some(kind) = bag.depth_kind(&first)? else {
+        bail!(
+            "{}: the images of {topic} are not depth (16UC1, mono16 or 32FC1); name the depth \
+             topic with --topic",
+            path.display()
+        );
+    };
+    let default_scale = match kind {
+        DepthEncodingKind::F32 => sl_io::depth::FLOAT_UNITS_PER_M,
+        DepthEncodingKind::U16 => sl_io::depth::DEFAULT_UNITS_PER_M,
+    };
+    let (camera, lens, whose) = match camera {
+        Some(c) => (c, None, "--camera".to_string()),
+        None => {
+            let Some(info) = bag.camera_info_topic(&topic) else {
+                bail!(
+                    "{}: no sensor_msgs/CameraInfo topic beside {topic} (expected {}); give the \
+                     camera with --camera NAME|FILE",
+                    path.display(),
+                    topic
+                        .rsplit_once('/')
+                        .map_or("/camera_info".to_string(), |(ns, _)| format!(
+                            "{ns}/camera_info"
+                        ))
+                );
+            };
+            let ros = bag
+                .camera(&info)
+                .with_context(|| format!("reading the camera of {info}"))?;
+            let camera = Camera::from_intrinsics(ros.intrinsics, None, None)
+                .with_context(|| format!("the camera of {info}"))?;
+            (camera, ros.lens, info)
+        }
+    };
+    let k = camera.intrinsics;
+    errln!(
+        "note: {}: tracking {topic} ({} frames, {}), camera from {whose} (fx {}, {}x{})",
+        path.display(),
+        messages.len(),
+        match kind {
+            DepthEncodingKind::F32 => "32FC1 metres",
+            DepthEncodingKind::U16 => "16-bit millimetres unless --depth-scale",
+        },
+        crate::common::num(k.fx),
+        k.width,
+        k.height
+    );
+    let frames = messages
+        .iter()
+        .map(|m| SequenceFrame {
+            depth_path: path.to_path_buf(),
+            timestamp: Some(m.record_time_s),
+        })
+        .collect();
+    Ok(BagSource {
+        frames,
+        camera,
+        lens,
+        default_scale,
+        reader: BagFrames {
+            bag,
+            messages,
+            last_stamp_s: None,
+        },
+    })
+}
+
+impl BagFrames {
+    /// Frame `i`'s depth at `units_per_m` and its stamp. A stamp that does not follow the last
+    /// frame read is an error for that frame (tracking skips it, saying why).
+    pub(super) fn read(&mut self, i: usize, units_per_m: f64) -> (Result<DepthImage>, Option<f64>) {
+        let Some(m) = self.messages.get(i).copied() else {
+            return (Err(anyhow::anyhow!("no message {i}")), None);
+        };
+        let d = match self.bag.read_depth(&m, units_per_m, units_per_m) {
+            Ok(d) => d,
+            Err(e) => return (Err(e.into()), None),
+        };
+        if let Some(last) = self.last_stamp_s.filter(|&l| d.stamp_s <= l) {
+            return (
+                Err(anyhow::anyhow!(
+                    "its stamp {:.6} s does not follow the frame before's {last:.6} s",
+                    d.stamp_s
+                )),
+                None,
+            );
+        }
+        self.last_stamp_s = Some(d.stamp_s);
+        (Ok(d.depth), Some(d.stamp_s))
+    }
+}

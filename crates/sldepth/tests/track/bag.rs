@@ -1,0 +1,125 @@
+//! `sldepth track REC.bag`: a ROS 1 bag's depth topic tracked as the same frames in a folder
+//! are, its camera from the `camera_info` beside the topic, its frames stamped with their
+//! images' header stamps.
+
+use std::path::Path;
+
+use sl_io::depth::{ReadConfig, read_depth};
+use sl_testkit::rosbag_writer::{Conn, Msg, camera_info, image, write_bag};
+
+use super::{kinect_track_json_from, sldepth, sldepth_json, write_sequence};
+
+const DEPTH: Conn = (0, "/camera/depth/image", "sensor_msgs/Image");
+const INFO: Conn = (1, "/camera/depth/camera_info", "sensor_msgs/CameraInfo");
+const RGB: Conn = (2, "/camera/rgb/image_color", "sensor_msgs/Image");
+
+/// The frames of the TUM folder `seq` (stamped `stamps`) as a bag the way TUM's bags hold them:
+/// `32FC1` metres, stamped by their headers, received 25 ms later; a `camera_info` of the
+/// Kinect's 580 px; an RGB topic beside.
+fn bag_of(seq: &Path, stamps: &[f64], bag: &Path, compression: &str) {
+    let mut msgs = Vec::new();
+    for t in stamps {
+        let file = seq.join("depth").join(format!("{t:.6}.png"));
+        let d = read_depth(&file, &ReadConfig::default().with_scale(5000.0))
+            .unwrap()
+            .depth;
+        let bytes: Vec<u8> = d.data().iter().flat_map(|v| v.to_le_bytes()).collect();
+        let secs = t.floor() as u32;
+        let nsecs = ((t - t.floor()) * 1e9).round() as u32;
+        let received = (secs, nsecs + 25_000_000);
+        let w = d.width() as u32;
+        let h = d.height() as u32;
+        msgs.push(Msg {
+            conn: 0,
+            time: received,
+            data: image((secs, nsecs), w, h, "32FC1", false, &bytes, 0),
+        });
+        msgs.push(Msg {
+            conn: 1,
+            time: received,
+            data: camera_info(w, h, 580.0, "plumb_bob", &[0.0; 5], 0),
+        });
+        msgs.push(Msg {
+            conn: 2,
+            time: received,
+            data: image((secs, nsecs), 1, 1, "rgb8", false, &[1, 2, 3], 0),
+        });
+    }
+    write_bag(bag, &[DEPTH, INFO, RGB], &msgs, compression, 2).unwrap();
+}
+
+/// The bag's trajectory is the folder's, line for line (the same depths, the headers' stamps
+/// rather than the 25-ms-later record times), with bz2 and lz4 chunks alike; without
+/// `--camera` the bag's `camera_info` is the camera; a topic that is not depth is refused.
+#[test]
+fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let folder_traj = tmp.path().join("folder.txt");
+    let (_, _) = kinect_track_json_from(
+        &["--tum", seq.to_str().unwrap()],
+        &["--output", folder_traj.to_str().unwrap()],
+    );
+    let folder = std::fs::read_to_string(&folder_traj).unwrap();
+    for compression in ["bz2", "lz4"] {
+        let bag = tmp.path().join(format!("rec-{compression}.bag"));
+        bag_of(&seq, &stamps, &bag, compression);
+        let traj = tmp.path().join(format!("{compression}.txt"));
+        let (v, stderr) = kinect_track_json_from(
+            &[bag.to_str().unwrap()],
+            &["--output", traj.to_str().unwrap()],
+        );
+        assert_eq!(v["tracked"], 4, "{v}");
+        assert!(
+            stderr.contains("tracking /camera/depth/image (4 frames, 32FC1 metres)"),
+            "{stderr}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(&traj).unwrap(),
+            folder,
+            "{compression}"
+        );
+    }
+    let bag = tmp.path().join("rec-lz4.bag");
+    // `info` lists the topics and the one `track` takes.
+    let (v, _) = sldepth_json(&["info", bag.to_str().unwrap(), "--json"]);
+    assert_eq!(v["depth_topic"], "/camera/depth/image", "{v}");
+    assert_eq!(v["topics"][1]["messages"], 4, "{v}");
+    assert_eq!(v["topics"][0]["type"], "sensor_msgs/CameraInfo", "{v}");
+    let (v, stderr) = sldepth_json(&[
+        "track",
+        bag.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    assert_eq!(v["tracked"], 4, "{v}");
+    assert!(
+        stderr.contains("camera from /camera/depth/camera_info (fx 580, 640x480)"),
+        "{stderr}"
+    );
+    let out = sldepth(&[
+        "track",
+        bag.to_str().unwrap(),
+        "--topic",
+        "/camera/rgb/image_color",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("/camera/rgb/image_color are not depth"),
+        "{err}"
+    );
+    let out = sldepth(&["track", bag.to_str().unwrap(), "--topic", "/none"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no topic \"/none\" (the bag has /camera/depth/camera_info, /camera/depth/image, /camera/rgb/image_color)"), "{err}");
+    let out = sldepth(&[
+        "track",
+        seq.to_str().unwrap(),
+        "--topic",
+        "/camera/depth/image",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--topic names a topic of a ROS bag"), "{err}");
+}
