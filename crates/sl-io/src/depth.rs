@@ -534,6 +534,12 @@ fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthForma
         .or_else(|| DepthFormat::from_path(path))
     {
         Some(f) => Ok(f),
+        None if crate::rosbag::is_bag_file(path) => Err(IoError::Format {
+            path: path.to_path_buf(),
+            message: "a ROS bag is a recording, not one depth map: `sldepth track` reads it, \
+                      `sldepth info` lists its topics (Python: sldepth.RosBag)"
+                .into(),
+        }),
         None => Err(IoError::Format {
             path: path.to_path_buf(),
             message: "cannot infer the depth format from the extension (.png, .tif, .tiff, .pgm); \

@@ -330,7 +330,15 @@ impl RosBag {
                     ),
                 ));
             }
-            // One index record per connection of the chunk follows it.
+            // One index record per connection of the chunk follows it; together they list as
+            // many messages of the topic as the chunk info says.
+            let expected: u64 = chunk
+                .counts
+                .iter()
+                .filter(|(id, _)| ids.contains(id))
+                .map(|(_, n)| u64::from(*n))
+                .sum();
+            let before = out.len();
             for _ in 0..chunk.counts.len() {
                 let r = read_record(&path, &mut self.file, self.file_len)?;
                 if r.header.op(&path)? != op::INDEX_DATA {
@@ -370,6 +378,17 @@ impl RosBag {
                 self.file
                     .seek(std::io::SeekFrom::Start(r.data_pos + u64::from(r.data_len)))
                     .map_err(|e| IoError::io(&path, e))?;
+            }
+            let found = (out.len() - before) as u64;
+            if found != expected {
+                return Err(IoError::malformed(
+                    &path,
+                    format!(
+                        "the index records after the chunk at byte {} list {found} messages of \
+                         {topic}, its chunk info {expected}",
+                        chunk.pos
+                    ),
+                ));
             }
         }
         // Chunks are written in time order, and a chunk's index too; a stable sort keeps that

@@ -192,6 +192,25 @@ fn malformed_bags_are_refused() {
         e.contains("the bag header says 3 and 3 (a bag cut short)"),
         "{e}"
     );
+    // The first chunk info counting one depth message more than the index records after its
+    // chunk list (its pairs are `conn, count`; the depth topic's connection is 0).
+    let mut miscounted = bytes.clone();
+    let record_at = find(&bytes, op6) - 4;
+    let header_len =
+        u32::from_le_bytes(miscounted[record_at..record_at + 4].try_into().unwrap()) as usize;
+    let data_at = record_at + 4 + header_len + 4;
+    let n_pairs =
+        u32::from_le_bytes(miscounted[data_at - 4..data_at].try_into().unwrap()) as usize / 8;
+    for pair in (data_at..data_at + 8 * n_pairs).step_by(8) {
+        if miscounted[pair..pair + 4] == 0u32.to_le_bytes() {
+            miscounted[pair + 4] += 1;
+        }
+    }
+    let e = open(&miscounted, "miscounted.bag");
+    assert!(
+        e.contains("messages of /camera/depth/image_raw, its chunk info"),
+        "{e}"
+    );
     // An unindexed bag (a recording that was not closed).
     let mut unindexed = bytes.clone();
     let at = find(&unindexed, b"index_pos=") + 10;

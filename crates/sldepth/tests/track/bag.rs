@@ -114,6 +114,28 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     let out = sldepth(&["track", bag.to_str().unwrap(), "--topic", "/none"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no topic \"/none\" (the bag has /camera/depth/camera_info, /camera/depth/image, /camera/rgb/image_color)"), "{err}");
+    // A bag is no depth map, and has no poses to fuse at: each said, with what reads it.
+    let labels = tmp.path().join("l.png");
+    let out = sldepth(&[
+        "planes",
+        bag.to_str().unwrap(),
+        "-o",
+        labels.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("a ROS bag is a recording, not one depth map"),
+        "{err}"
+    );
+    let mesh = tmp.path().join("m.ply");
+    let out = sldepth(&[
+        "fuse",
+        bag.to_str().unwrap(),
+        "--output",
+        mesh.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("a ROS bag holds no poses to fuse at"), "{err}");
     let out = sldepth(&[
         "track",
         seq.to_str().unwrap(),
