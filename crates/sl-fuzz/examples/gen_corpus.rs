@@ -194,6 +194,30 @@ fn main() {
         }];
         let b = bytes_of("bag", |p| write_bag(p, &conns, &msgs, "none", 1).unwrap());
         put(&root, "rosbag", "compressed-depth.bag", &b);
+        // A ROS 2 bag in MCAP: two CDR depth frames and the camera info, in zstd chunks.
+        let conns = [
+            (1, "/camera/depth/image_rect_raw", "sensor_msgs/msg/Image"),
+            (2, "/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo"),
+        ];
+        let mut msgs = Vec::new();
+        for i in 0..2u32 {
+            let mm: Vec<u8> = (0..12u16).flat_map(|p| (1000 + p).to_le_bytes()).collect();
+            let t = (100 + i, 0);
+            msgs.push(Msg {
+                conn: 1,
+                time: t,
+                data: sl_testkit::rosbag_writer::image_cdr(t, 4, 3, "16UC1", &mm),
+            });
+            msgs.push(Msg {
+                conn: 2,
+                time: t,
+                data: sl_testkit::rosbag_writer::camera_info_cdr(4, 3, 3.5, "plumb_bob", &[0.0; 5]),
+            });
+        }
+        let b = bytes_of("mcap", |p| {
+            sl_testkit::rosbag_writer::write_mcap(p, &conns, &msgs, "zstd", 2).unwrap()
+        });
+        put(&root, "rosbag", "ros2-zstd.mcap", &b);
     }
     put(
         &root,

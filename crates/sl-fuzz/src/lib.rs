@@ -130,7 +130,8 @@ pub fn camera_json(data: &[u8]) {
     });
 }
 
-/// A ROS 1 bag: its index, topics, depth topic, the first frames of it and its camera.
+/// A robot recording (a ROS 1 bag, or MCAP: the reader tells them by their first bytes): its
+/// index, topics, depth topic, the first frames of it and its camera.
 pub fn rosbag(data: &[u8]) {
     with_file("rec.bag", data, |p| {
         let Ok(mut bag) = sl_io::rosbag::RosBag::open(p, &fuzz_limits()) else {

@@ -14,8 +14,9 @@ use crate::camera::PyCamera;
 use crate::errors::{io_error, value_error};
 use crate::threads::compute;
 
-/// A ROS 1 bag (``.bag``, format 2.0; chunks uncompressed, ``bz2`` or ``lz4``), as
-/// ``sldepth track REC.bag`` reads it. ``RosBag(path)`` reads its index (nothing is
+/// A robot recording, as ``sldepth track REC`` reads it: a ROS 1 bag (``.bag``, format 2.0;
+/// chunks uncompressed, ``bz2`` or ``lz4``) or a ROS 2 bag in MCAP (``.mcap``, or the bag's
+/// folder with ``metadata.yaml``; chunks uncompressed, ``zstd`` or ``lz4``; CDR messages). ``RosBag(path)`` reads its index (nothing is
 /// decompressed); ``topics`` lists ``(topic, type, messages)``; ``depth_topic()`` finds the one
 /// image topic holding depth (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a
 /// topic named for depth, or ``image_transport``'s ``compressedDepth`` in its PNG form); ``camera()`` reads the ``camera_info`` beside it (its ``plumb_bob``

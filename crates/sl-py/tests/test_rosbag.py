@@ -194,3 +194,28 @@ def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
     expected = [np.nan_to_num(z, nan=0.0) for z in metres]
     for (_, z), e in zip(got, expected):
         np.testing.assert_array_equal(z, e)
+
+
+def test_a_ros2_mcap_bag_written_by_rosbags_reads_the_same(tmp_path):
+    """ROS 2 (MCAP, CDR) by the independent `rosbags` writer: the bag's folder, 16UC1."""
+    rosbag2 = pytest.importorskip("rosbags.rosbag2")
+    typesys = pytest.importorskip("rosbags.typesys")
+    ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+    Image = ts.types["sensor_msgs/msg/Image"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    mm = _frames(2)
+    folder = tmp_path / "rec"
+    with rosbag2.Writer(folder, version=8, storage_plugin=rosbag2.StoragePlugin.MCAP) as w:
+        c = w.add_connection("/camera/depth/image_rect_raw", Image.__msgtype__, typestore=ts)
+        for i, d in enumerate(mm):
+            h = Header(stamp=Time(sec=70 + i, nanosec=125_000_000), frame_id="d")
+            msg = Image(header=h, height=480, width=640, encoding="16UC1", is_bigendian=0,
+                        step=640 * 2, data=np.frombuffer(d.tobytes(), np.uint8))
+            w.write(c, (80 + i) * 10**9, ts.serialize_cdr(msg, Image.__msgtype__))
+    bag = sldepth.RosBag(folder)
+    assert bag.topics == [("/camera/depth/image_rect_raw", "sensor_msgs/Image", 2)]
+    got = list(bag.depth_frames())
+    assert [t for t, _ in got] == pytest.approx([70.125, 71.125], abs=1e-9)
+    for (_, z), d in zip(got, mm):
+        np.testing.assert_array_equal(z, (d.astype(np.float64) / 1000).astype(np.float32))

@@ -1,7 +1,8 @@
-//! A ROS 1 bag writer (format 2.0) for tests: records as the format's specification lays them
+//! ROS bag writers for tests: a ROS 1 bag (format 2.0) as the format's specification lays it
 //! out (chunks of `none`, `bz2` or `lz4`, each followed by its index records; connections and
-//! chunk infos at the end), and the two messages a depth recording needs. `sl-io` reads bags;
-//! nothing in the product writes them.
+//! chunk infos at the end), an MCAP file as `ros2 bag record` writes one (chunks of none,
+//! `zstd` or `lz4`, message indexes, the summary and footer), and the messages a depth
+//! recording needs, in ROS 1 and in CDR. `sl-io` reads bags; nothing in the product writes them.
 
 use std::io::Write;
 use std::path::Path;
@@ -254,4 +255,195 @@ pub fn camera_info(w: u32, h: u32, f: f64, model: &str, d: &[f64], binning: u32)
     }
     b.push(0);
     b
+}
+
+/// A CDR serialiser (little-endian encapsulation, primitives aligned from after its header).
+struct Cdr(Vec<u8>);
+
+impl Cdr {
+    fn new() -> Self {
+        Self(vec![0, 1, 0, 0])
+    }
+    fn align(&mut self, n: usize) {
+        while !(self.0.len() - 4).is_multiple_of(n) {
+            self.0.push(0);
+        }
+    }
+    fn u32(&mut self, v: u32) {
+        self.align(4);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn f64(&mut self, v: f64) {
+        self.align(8);
+        self.0.extend_from_slice(&v.to_le_bytes());
+    }
+    fn string(&mut self, s: &str) {
+        self.u32(s.len() as u32 + 1);
+        self.0.extend_from_slice(s.as_bytes());
+        self.0.push(0);
+    }
+    fn header(&mut self, stamp: (u32, u32)) {
+        self.u32(stamp.0);
+        self.u32(stamp.1);
+        self.string("camera_depth_optical_frame");
+    }
+}
+
+/// A ROS 2 `sensor_msgs/msg/Image` in CDR (`w`×`h`, rows as `pixels` holds them).
+pub fn image_cdr(stamp: (u32, u32), w: u32, h: u32, encoding: &str, pixels: &[u8]) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.header(stamp);
+    c.u32(h);
+    c.u32(w);
+    c.string(encoding);
+    c.0.push(0);
+    c.u32(pixels.len() as u32 / h.max(1));
+    c.u32(pixels.len() as u32);
+    c.0.extend_from_slice(pixels);
+    c.0
+}
+
+/// A ROS 2 `sensor_msgs/msg/CameraInfo` in CDR (a `w`×`h` pinhole camera, `fx = fy = f`).
+pub fn camera_info_cdr(w: u32, h: u32, f: f64, model: &str, d: &[f64]) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.header((1, 0));
+    c.u32(h);
+    c.u32(w);
+    c.string(model);
+    c.u32(d.len() as u32);
+    for v in d {
+        c.f64(*v);
+    }
+    let (cx, cy) = (f64::from(w) / 2.0 - 0.5, f64::from(h) / 2.0 - 0.5);
+    let k = [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0];
+    let r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    let p = [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    for v in k.iter().chain(&r).chain(&p) {
+        c.f64(*v);
+    }
+    for v in [0u32; 6] {
+        c.u32(v);
+    }
+    c.0.push(0);
+    c.0
+}
+
+fn mcap_record(out: &mut Vec<u8>, op: u8, content: &[u8]) {
+    out.push(op);
+    out.extend_from_slice(&(content.len() as u64).to_le_bytes());
+    out.extend_from_slice(content);
+}
+
+fn mcap_string(b: &mut Vec<u8>, s: &str) {
+    b.extend_from_slice(&(s.len() as u32).to_le_bytes());
+    b.extend_from_slice(s.as_bytes());
+}
+
+/// Writes an MCAP file as `ros2 bag record` does: the messages (CDR) in chunks of
+/// `per_chunk`, compressed as `compression` (`""`, `"zstd"` or `"lz4"`), each followed by its
+/// message index records; then the summary (schemas, channels, chunk indexes) and the footer.
+/// `conns` name the ROS 2 types (`sensor_msgs/msg/Image`).
+pub fn write_mcap(
+    path: &Path,
+    conns: &[Conn],
+    msgs: &[Msg],
+    compression: &str,
+    per_chunk: usize,
+) -> std::io::Result<()> {
+    let mut out = b"\x89MCAP0\r\n".to_vec();
+    let mut header = Vec::new();
+    mcap_string(&mut header, "ros2");
+    mcap_string(&mut header, "sl-testkit");
+    mcap_record(&mut out, 0x01, &header);
+    let mut chunk_indexes = Vec::new();
+    for group in msgs.chunks(per_chunk.max(1)) {
+        let mut records = Vec::new();
+        let mut index: Vec<(u32, Vec<u8>)> = Vec::new();
+        for (seq, m) in group.iter().enumerate() {
+            let t = u64::from(m.time.0) * 1_000_000_000 + u64::from(m.time.1);
+            let offset = records.len() as u64;
+            let mut content = Vec::new();
+            content.extend_from_slice(&(m.conn as u16).to_le_bytes());
+            content.extend_from_slice(&(seq as u32).to_le_bytes());
+            content.extend_from_slice(&t.to_le_bytes());
+            content.extend_from_slice(&t.to_le_bytes());
+            content.extend_from_slice(&m.data);
+            mcap_record(&mut records, 0x05, &content);
+            let entry = match index.iter().position(|(c, _)| *c == m.conn) {
+                Some(i) => &mut index[i].1,
+                None => {
+                    index.push((m.conn, Vec::new()));
+                    let last = index.len() - 1;
+                    &mut index[last].1
+                }
+            };
+            entry.extend_from_slice(&t.to_le_bytes());
+            entry.extend_from_slice(&offset.to_le_bytes());
+        }
+        let compressed = match compression {
+            "" => records.clone(),
+            "zstd" => ruzstd::encoding::compress_to_vec(
+                &records[..],
+                ruzstd::encoding::CompressionLevel::Fastest,
+            ),
+            other => compress(other, &records)?,
+        };
+        let chunk_at = out.len() as u64;
+        let mut chunk = Vec::new();
+        chunk.extend_from_slice(&0u64.to_le_bytes());
+        chunk.extend_from_slice(&u64::MAX.to_le_bytes());
+        chunk.extend_from_slice(&(records.len() as u64).to_le_bytes());
+        chunk.extend_from_slice(&0u32.to_le_bytes());
+        mcap_string(&mut chunk, compression);
+        chunk.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
+        chunk.extend_from_slice(&compressed);
+        mcap_record(&mut out, 0x06, &chunk);
+        let chunk_len = out.len() as u64 - chunk_at;
+        let index_start = out.len() as u64;
+        let mut offsets = Vec::new();
+        for (conn, entries) in &index {
+            offsets.extend_from_slice(&(*conn as u16).to_le_bytes());
+            offsets.extend_from_slice(&(out.len() as u64).to_le_bytes());
+            let mut content = (*conn as u16).to_le_bytes().to_vec();
+            content.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+            content.extend_from_slice(entries);
+            mcap_record(&mut out, 0x07, &content);
+        }
+        let mut ci = Vec::new();
+        ci.extend_from_slice(&0u64.to_le_bytes());
+        ci.extend_from_slice(&u64::MAX.to_le_bytes());
+        ci.extend_from_slice(&chunk_at.to_le_bytes());
+        ci.extend_from_slice(&chunk_len.to_le_bytes());
+        ci.extend_from_slice(&(offsets.len() as u32).to_le_bytes());
+        ci.extend_from_slice(&offsets);
+        ci.extend_from_slice(&(out.len() as u64 - index_start).to_le_bytes());
+        mcap_string(&mut ci, compression);
+        ci.extend_from_slice(&(compressed.len() as u64).to_le_bytes());
+        ci.extend_from_slice(&(records.len() as u64).to_le_bytes());
+        chunk_indexes.push(ci);
+    }
+    mcap_record(&mut out, 0x0F, &0u32.to_le_bytes());
+    let summary_start = out.len() as u64;
+    for (i, c) in conns.iter().enumerate() {
+        let mut schema = ((i + 1) as u16).to_le_bytes().to_vec();
+        mcap_string(&mut schema, c.2);
+        mcap_string(&mut schema, "ros2msg");
+        mcap_string(&mut schema, "");
+        mcap_record(&mut out, 0x03, &schema);
+        let mut channel = (c.0 as u16).to_le_bytes().to_vec();
+        channel.extend_from_slice(&((i + 1) as u16).to_le_bytes());
+        mcap_string(&mut channel, c.1);
+        mcap_string(&mut channel, "cdr");
+        channel.extend_from_slice(&0u32.to_le_bytes());
+        mcap_record(&mut out, 0x04, &channel);
+    }
+    for ci in &chunk_indexes {
+        mcap_record(&mut out, 0x08, ci);
+    }
+    let mut footer = summary_start.to_le_bytes().to_vec();
+    footer.extend_from_slice(&0u64.to_le_bytes());
+    footer.extend_from_slice(&0u32.to_le_bytes());
+    mcap_record(&mut out, 0x02, &footer);
+    out.extend_from_slice(b"\x89MCAP0\r\n");
+    std::fs::write(path, out)
 }

@@ -925,7 +925,7 @@ pub fn folder_camera(
 /// The layout of a sequence folder given without one (`sldepth track DIR`, `sldepth fuse DIR`):
 /// what `sl_io::sequence::SequenceLayout::infer` reads from it, or why there is none.
 pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {
-    if dir.is_file() && sl_io::rosbag::is_bag_file(dir) {
+    if sl_io::rosbag::is_bag_file(dir) {
         bail!(
             "{}: a ROS bag holds no poses to fuse at; `sldepth track {}` tracks and fuses it \
              (--mesh)",

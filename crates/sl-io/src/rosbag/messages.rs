@@ -1,7 +1,11 @@
-//! The ROS 1 serialisation of the two messages a depth recording needs: `sensor_msgs/Image`
-//! (depth as `16UC1`, `mono16` or `32FC1`) and `sensor_msgs/CameraInfo`. Little-endian
-//! fields in declaration order; a string or a variable-length array is a `u32` count and its
-//! elements; fixed-length arrays (`K`, `R`, `P`) have no count.
+//! The serialisations of the messages a depth recording needs: `sensor_msgs/Image` (depth as
+//! `16UC1`, `mono16` or `32FC1`), `CompressedImage` (`compressedDepth`) and `CameraInfo`.
+//!
+//! - **ROS 1**: little-endian fields in declaration order; a string or a variable-length array
+//!   is a `u32` count and its elements; fixed-length arrays (`K`, `R`, `P`) have no count.
+//! - **ROS 2** (CDR, little-endian encapsulation `00 01 00 00`): the same order, every
+//!   primitive aligned to its size from the end of the 4-byte encapsulation header, strings
+//!   counting their terminating NUL; `std_msgs/Header` has no `seq`.
 
 use std::path::Path;
 
@@ -11,21 +15,64 @@ use crate::error::{IoError, Result};
 use crate::limits::Limits;
 use crate::ros_camera::CameraInfo;
 
+/// How a message is serialised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Encoding {
+    /// ROS 1 (packed, little-endian).
+    Ros1,
+    /// ROS 2's CDR (aligned, little-endian encapsulation).
+    Cdr,
+}
+
 /// Reads fields off a serialised message; every read is bounds-checked.
 struct Fields<'a> {
     path: &'a Path,
     b: &'a [u8],
     at: usize,
     what: &'static str,
+    /// CDR: primitives aligned from `at` = 4, after the encapsulation header.
+    cdr: bool,
 }
 
 impl<'a> Fields<'a> {
-    fn new(path: &'a Path, b: &'a [u8], what: &'static str) -> Self {
-        Self {
+    fn new(path: &'a Path, b: &'a [u8], what: &'static str, encoding: Encoding) -> Result<Self> {
+        let cdr = encoding == Encoding::Cdr;
+        if cdr {
+            // Encapsulation `00 01` is CDR little-endian (`00 00`, big-endian, is not what ROS 2
+            // writes on the machines that record depth cameras).
+            match b.get(..4) {
+                Some([0, 1, _, _]) => {}
+                Some([a, k, _, _]) => {
+                    return Err(IoError::malformed(
+                        path,
+                        format!(
+                            "a {what} message in CDR encapsulation {a:#04x} {k:#04x}, not \
+                             little-endian CDR (0x00 0x01)"
+                        ),
+                    ));
+                }
+                _ => {
+                    return Err(IoError::malformed(
+                        path,
+                        format!("a {what} message shorter than its CDR encapsulation header"),
+                    ));
+                }
+            }
+        }
+        Ok(Self {
             path,
             b,
-            at: 0,
+            at: if cdr { 4 } else { 0 },
             what,
+            cdr,
+        })
+    }
+
+    /// Skips CDR padding up to a multiple of `n` from the encapsulation header's end.
+    fn align(&mut self, n: usize) {
+        if self.cdr {
+            let rel = self.at - 4;
+            self.at += (n - rel % n) % n;
         }
     }
 
@@ -54,11 +101,13 @@ impl<'a> Fields<'a> {
     }
 
     fn u32(&mut self, field: &str) -> Result<u32> {
+        self.align(4);
         let b = self.take(4, field)?;
         Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
     }
 
     fn f64(&mut self, field: &str) -> Result<f64> {
+        self.align(8);
         let b = self.take(8, field)?;
         let mut a = [0u8; 8];
         a.copy_from_slice(b);
@@ -71,10 +120,19 @@ impl<'a> Fields<'a> {
     }
 
     fn string(&mut self, field: &str) -> Result<String> {
-        Ok(String::from_utf8_lossy(self.bytes(field)?).into_owned())
+        let cdr = self.cdr;
+        let mut s = self.bytes(field)?;
+        // CDR counts the terminating NUL.
+        if cdr && let Some((0, head)) = s.split_last() {
+            s = head;
+        }
+        Ok(String::from_utf8_lossy(s).into_owned())
     }
 
     fn f64s(&mut self, n: usize, field: &str) -> Result<Vec<f64>> {
+        if n > 0 {
+            self.align(8);
+        }
         // `take` checks the whole length before anything is allocated.
         let b = self.take(n.saturating_mul(8), field)?;
         Ok(b.chunks_exact(8)
@@ -88,7 +146,9 @@ impl<'a> Fields<'a> {
 
     /// `std_msgs/Header`: the stamp, seconds (`seq` and `frame_id` are skipped).
     fn header_stamp_s(&mut self) -> Result<f64> {
-        self.u32("header.seq")?;
+        if !self.cdr {
+            self.u32("header.seq")?;
+        }
         let secs = self.u32("header.stamp.secs")?;
         let nsecs = self.u32("header.stamp.nsecs")?;
         self.bytes("header.frame_id")?;
@@ -128,8 +188,12 @@ pub(super) struct ImageMessage<'a> {
 }
 
 /// Parses a `sensor_msgs/Image` (its pixels stay in `b`).
-pub(super) fn image<'a>(path: &'a Path, b: &'a [u8]) -> Result<ImageMessage<'a>> {
-    let mut f = Fields::new(path, b, "sensor_msgs/Image");
+pub(super) fn image<'a>(
+    path: &'a Path,
+    b: &'a [u8],
+    encoding: Encoding,
+) -> Result<ImageMessage<'a>> {
+    let mut f = Fields::new(path, b, "sensor_msgs/Image", encoding)?;
     let stamp_s = f.header_stamp_s()?;
     let height = f.u32("height")? as usize;
     let width = f.u32("width")? as usize;
@@ -231,8 +295,12 @@ pub(super) struct CompressedMessage<'a> {
 }
 
 /// Parses a `sensor_msgs/CompressedImage` (its bytes stay in `b`).
-pub(super) fn compressed_image<'a>(path: &'a Path, b: &'a [u8]) -> Result<CompressedMessage<'a>> {
-    let mut f = Fields::new(path, b, "sensor_msgs/CompressedImage");
+pub(super) fn compressed_image<'a>(
+    path: &'a Path,
+    b: &'a [u8],
+    encoding: Encoding,
+) -> Result<CompressedMessage<'a>> {
+    let mut f = Fields::new(path, b, "sensor_msgs/CompressedImage", encoding)?;
     let stamp_s = f.header_stamp_s()?;
     let format = f.string("format")?;
     let data = f.bytes("data")?;
@@ -323,8 +391,8 @@ pub(super) fn compressed_depth_of(
 }
 
 /// Parses a `sensor_msgs/CameraInfo` into the fields that make a camera.
-pub(super) fn camera_info(path: &Path, b: &[u8]) -> Result<CameraInfo> {
-    let mut f = Fields::new(path, b, "sensor_msgs/CameraInfo");
+pub(super) fn camera_info(path: &Path, b: &[u8], encoding: Encoding) -> Result<CameraInfo> {
+    let mut f = Fields::new(path, b, "sensor_msgs/CameraInfo", encoding)?;
     f.header_stamp_s()?;
     let height = f.u32("height")? as usize;
     let width = f.u32("width")? as usize;

@@ -1,20 +1,25 @@
-//! ROS 1 bag files (`.bag`, format 2.0): the depth images and camera calibration a robot
-//! recorded, read straight from the bag — TUM RGB-D ships every sequence as one, and a Kinect,
-//! Xtion or RealSense driver under ROS records its depth as `sensor_msgs/Image`.
+//! Robot recordings: ROS 1 bags (`.bag`, format 2.0) and ROS 2 bags in MCAP (`.mcap`, or the
+//! bag's folder holding `metadata.yaml` and one `.mcap`) — the depth images and camera
+//! calibration a robot recorded, read straight from the recording. TUM RGB-D ships every
+//! sequence as a ROS 1 bag; a Kinect, Xtion, RealSense or OAK-D driver under ROS records its
+//! depth as `sensor_msgs/Image`.
 //!
-//! Written by hand (no crate reads bags within a memory budget): the bag's index (connections
-//! and chunk places, at the end of the file) is read first; a topic's messages are then found
-//! from the index records after each chunk, without decompressing anything; a message is read
-//! by decompressing its chunk (`none`, `bz2` through the `bzip2` crate, `lz4` frames through
-//! `lz4_flex`), which is kept for the next message. Every length is checked against the file
-//! and [`Limits::max_decoded_bytes`] before a buffer is sized from it.
+//! Written by hand (no crate reads bags within a memory budget): the index (ROS 1: connections
+//! and chunk places at the end of the file; MCAP: the summary section the footer points at) is
+//! read first; a topic's messages are then found from the index records of each chunk, without
+//! decompressing anything; a message is read by decompressing its chunk (`none`; ROS 1 `bz2`
+//! through the `bzip2` crate; `lz4` frames through `lz4_flex`; MCAP `zstd` through `ruzstd`),
+//! which is kept for the next message. Every length is checked against the file and
+//! [`Limits::max_decoded_bytes`] before a buffer is sized from it. A ROS 2 bag in SQLite
+//! (`.db3`) is refused by name (`ros2 bag convert` writes MCAP).
 //!
-//! Depth: `16UC1` and `mono16` are units (millimetres by ROS's REP 118, 0 = none), `32FC1`
-//! metres (NaN = none; TUM's bags store `/camera/depth/image` so); `image_transport`'s
-//! `compressedDepth` (`sensor_msgs/CompressedImage`, what a robot records over a network) is
-//! read in its PNG form, `16UC1` millimetres or `32FC1` as quantised inverse depth (its RVL form
-//! is refused by name). The frame's time is its message header's stamp (the sensor's), not the
-//! time the recorder received it.
+//! Messages: ROS 1's serialisation, or ROS 2's CDR (`messages.rs`). Depth: `16UC1` and
+//! `mono16` are units (millimetres by ROS's REP 118, 0 = none), `32FC1` metres (NaN = none;
+//! TUM's bags store `/camera/depth/image` so); `image_transport`'s `compressedDepth`
+//! (`sensor_msgs/CompressedImage`, what a robot records over a network) is read in its PNG
+//! form, `16UC1` millimetres or `32FC1` as quantised inverse depth (its RVL form is refused by
+//! name). The frame's time is its message header's stamp (the sensor's), not the time the
+//! recorder received it.
 //!
 //! ```
 //! # fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -31,6 +36,7 @@
 //! # }
 //! ```
 
+mod mcap;
 mod messages;
 mod records;
 
@@ -41,6 +47,7 @@ use std::path::{Path, PathBuf};
 use sl_core::DepthImage;
 
 pub use messages::DepthEncodingKind;
+use messages::Encoding;
 use records::{Header, MAGIC, MAX_HEADER_BYTES, op, read_at, read_record, record_in};
 
 use crate::error::{IoError, Result};
@@ -69,9 +76,12 @@ pub struct BagTopic {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BagMessage {
     chunk_pos: u64,
-    offset: u32,
+    /// Where its record lies in the chunk's decompressed records.
+    offset: u64,
     /// A `sensor_msgs/CompressedImage` rather than an `Image`.
     compressed: bool,
+    /// How it is serialised (ROS 1, or ROS 2's CDR).
+    encoding: Encoding,
     /// When the recorder received it, seconds (the message's own stamp is read with it).
     pub record_time_s: f64,
 }
@@ -87,18 +97,33 @@ pub struct BagDepth {
     pub kind: DepthEncodingKind,
 }
 
+/// A topic's connection (ROS 1) or channel (MCAP).
 #[derive(Debug, Clone)]
 struct Connection {
     id: u32,
     topic: String,
+    /// As ROS 1 names it (`sensor_msgs/Image`; MCAP's `sensor_msgs/msg/Image` so renamed).
     message_type: String,
+    encoding: Encoding,
 }
 
+/// A chunk: where it lies and what it holds.
 #[derive(Debug, Clone)]
 struct ChunkInfo {
     pos: u64,
     /// `(connection, messages)` in the chunk.
     counts: Vec<(u32, u32)>,
+    /// MCAP: where each channel's message index record lies (ROS 1's follow the chunk).
+    index_at: Vec<(u32, u64)>,
+}
+
+/// The container of the recording.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    /// ROS 1 bag, format 2.0.
+    Ros1,
+    /// MCAP (ROS 2).
+    Mcap,
 }
 
 /// An open ROS 1 bag (see the module docs).
@@ -108,16 +133,127 @@ pub struct RosBag {
     file: BufReader<File>,
     file_len: u64,
     limits: Limits,
+    format: Format,
     connections: Vec<Connection>,
     chunks: Vec<ChunkInfo>,
     /// The chunk decompressed last: its place and records.
     cache: Option<(u64, Vec<u8>)>,
 }
 
-/// Whether `path` names a ROS bag by its extension (`.bag`).
+/// Whether `path` names a recording [`RosBag::open`] takes: a `.bag` (ROS 1) or `.mcap` file,
+/// or a ROS 2 bag's folder (`metadata.yaml` beside its `.mcap` or `.db3` files).
 pub fn is_bag_file(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("bag"))
+    let ext = |p: &Path, e: &str| p.extension().is_some_and(|x| x.eq_ignore_ascii_case(e));
+    if path.is_dir() {
+        return path.join("metadata.yaml").is_file()
+            && std::fs::read_dir(path).is_ok_and(|d| {
+                d.flatten()
+                    .any(|e| ext(&e.path(), "mcap") || ext(&e.path(), "db3"))
+            });
+    }
+    ext(path, "bag") || ext(path, "mcap")
+}
+
+/// `data` decompressed by `compression` (ROS 1: `none`, `bz2`, `lz4`; MCAP: empty, `zstd`,
+/// `lz4`) into exactly `size` bytes: the decoder is stopped one byte past `size` (checked
+/// against the budget by the caller), so a chunk whose header lies allocates no more.
+fn inflate(
+    path: &Path,
+    pos: u64,
+    compression: &str,
+    data: Vec<u8>,
+    size: u64,
+    budget: u64,
+) -> Result<Vec<u8>> {
+    let mut out = Vec::with_capacity(usize::try_from(size).unwrap_or(0));
+    let take = size + 1;
+    let got = match compression {
+        "none" | "" => {
+            out = data;
+            Ok(out.len())
+        }
+        "bz2" => bzip2::read::BzDecoder::new(&data[..])
+            .take(take)
+            .read_to_end(&mut out),
+        "lz4" => lz4_flex::frame::FrameDecoder::new(&data[..])
+            .take(take)
+            .read_to_end(&mut out),
+        "zstd" => {
+            // The window a frame may ask for is bounded by the budget too (an encoder may
+            // declare a window larger than its content).
+            match ruzstd::decoding::StreamingDecoder::new_with_max_window_size(&data[..], budget) {
+                Ok(d) => d.take(take).read_to_end(&mut out),
+                Err(e) => Err(std::io::Error::other(e.to_string())),
+            }
+        }
+        other => {
+            return Err(IoError::malformed(
+                path,
+                format!(
+                    "a chunk compressed as {other:?} (bags use none, bz2 or lz4; MCAP zstd or lz4)"
+                ),
+            ));
+        }
+    };
+    match got {
+        Ok(n) if n as u64 == size => Ok(out),
+        Ok(n) => Err(IoError::malformed(
+            path,
+            format!(
+                "the chunk at byte {pos} decompresses to {n}{} bytes, its header says {size}",
+                if n as u64 > size { "+" } else { "" }
+            ),
+        )),
+        Err(e) => Err(IoError::malformed(
+            path,
+            format!("the {compression} chunk at byte {pos} does not decompress: {e}"),
+        )),
+    }
+}
+
+/// The messages of `topic` the index records of the chunk at `pos` list (`found`) against
+/// those its chunk info or summary counts (`expected`).
+fn check_count(path: &Path, pos: u64, topic: &str, found: u64, expected: u64) -> Result<()> {
+    if found == expected {
+        return Ok(());
+    }
+    Err(IoError::malformed(
+        path,
+        format!(
+            "the index records of the chunk at byte {pos} list {found} messages of {topic}, \
+             its chunk info {expected}"
+        ),
+    ))
+}
+
+/// The file of a recording: `path` itself, or a ROS 2 bag folder's one `.mcap` file.
+fn bag_file_of(path: &Path) -> Result<PathBuf> {
+    if !path.is_dir() {
+        return Ok(path.to_path_buf());
+    }
+    let mut files = Vec::new();
+    let mut sqlite = false;
+    for e in std::fs::read_dir(path).map_err(|e| IoError::io(path, e))? {
+        let p = e.map_err(|e| IoError::io(path, e))?.path();
+        match p.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("mcap") => files.push(p),
+            Some(e) if e.eq_ignore_ascii_case("db3") => sqlite = true,
+            _ => {}
+        }
+    }
+    files.sort();
+    match files.len() {
+        1 => Ok(files.swap_remove(0)),
+        0 if sqlite => Err(IoError::malformed(
+            path,
+            "a ROS 2 bag in SQLite (.db3), which is not read: `ros2 bag convert` writes it as MCAP",
+        )),
+        0 => Err(IoError::malformed(path, "a folder without an .mcap file")),
+        n => Err(IoError::malformed(
+            path,
+            format!("a bag split into {n} .mcap files: give one of them"),
+        )),
+    }
 }
 
 impl RosBag {
@@ -127,7 +263,7 @@ impl RosBag {
     /// A file that is not a bag of format 2.0, a bag without an index (a recording that was not
     /// closed: `rosbag reindex` writes one), or a malformed or truncated record.
     pub fn open(path: impl AsRef<Path>, limits: &Limits) -> Result<Self> {
-        let path = path.as_ref().to_path_buf();
+        let path = bag_file_of(path.as_ref())?;
         let f = File::open(&path).map_err(|e| IoError::io(&path, e))?;
         let file_len = f.metadata().map_err(|e| IoError::io(&path, e))?.len();
         let mut file = BufReader::new(f);
@@ -142,6 +278,19 @@ impl RosBag {
                 }
             })
             .unwrap_or(0);
+        if got >= mcap::MAGIC.len() && magic.starts_with(mcap::MAGIC) {
+            let (connections, chunks) = mcap::read_summary(&path, &mut file, file_len)?;
+            return Ok(Self {
+                path,
+                file,
+                file_len,
+                limits: *limits,
+                format: Format::Mcap,
+                connections,
+                chunks,
+                cache: None,
+            });
+        }
         if got < magic.len() || &magic != MAGIC {
             let v1 = magic.starts_with(b"#ROSBAG V1");
             return Err(IoError::malformed(
@@ -149,7 +298,7 @@ impl RosBag {
                 if v1 {
                     "a ROS bag of format 1.x, which is not read (ROS since 2010 writes 2.0)"
                 } else {
-                    "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`)"
+                    "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`) nor an MCAP file"
                 },
             ));
         }
@@ -172,6 +321,7 @@ impl RosBag {
             file,
             file_len,
             limits: *limits,
+            format: Format::Ros1,
             connections: Vec::new(),
             chunks: Vec::new(),
             cache: None,
@@ -195,9 +345,17 @@ impl RosBag {
         Ok(bag)
     }
 
-    /// The bag's file.
+    /// The bag's file (a ROS 2 bag folder's `.mcap`).
     pub fn path(&self) -> &Path {
         &self.path
+    }
+
+    /// What holds the recording: `"ROS 1 bag"` or `"MCAP (ROS 2 bag)"`.
+    pub fn container(&self) -> &'static str {
+        match self.format {
+            Format::Ros1 => "ROS 1 bag",
+            Format::Mcap => "MCAP (ROS 2 bag)",
+        }
     }
 
     /// Connections and chunk infos, from `index_pos` to the end of the file.
@@ -231,6 +389,7 @@ impl RosBag {
                         id,
                         topic,
                         message_type,
+                        encoding: Encoding::Ros1,
                     });
                 }
                 op::CHUNK_INFO => {
@@ -251,7 +410,11 @@ impl RosBag {
                             (w(0), w(4))
                         })
                         .collect();
-                    self.chunks.push(ChunkInfo { pos, counts });
+                    self.chunks.push(ChunkInfo {
+                        pos,
+                        counts,
+                        index_at: Vec::new(),
+                    });
                 }
                 _ => {}
             }
@@ -308,6 +471,21 @@ impl RosBag {
         }
         let path = self.path.clone();
         let compressed = self.message_type(topic) == Some(COMPRESSED_IMAGE_TYPE);
+        let encoding = self
+            .connections
+            .iter()
+            .find(|c| c.topic == topic)
+            .map_or(Encoding::Ros1, |c| c.encoding);
+        let max_frames = self.limits.max_frames;
+        let too_many = |path: &Path| {
+            IoError::too_large(
+                path,
+                format!(
+                    "{topic} has more than {max_frames} messages, the limit of frames a sequence \
+                     may have (raise --max-memory)"
+                ),
+            )
+        };
         let mut out = Vec::new();
         let chunks: Vec<ChunkInfo> = self
             .chunks
@@ -317,6 +495,43 @@ impl RosBag {
             .collect();
         for chunk in &chunks {
             use std::io::Seek;
+            let expected: u64 = chunk
+                .counts
+                .iter()
+                .filter(|(id, _)| ids.contains(id))
+                .map(|(_, n)| u64::from(*n))
+                .sum();
+            let before = out.len();
+            if self.format == Format::Mcap {
+                for (channel, at) in &chunk.index_at {
+                    if !ids.contains(channel) {
+                        continue;
+                    }
+                    let entries =
+                        mcap::message_index(&path, &mut self.file, self.file_len, *at, max_frames)?;
+                    if out.len() + entries.len() > max_frames {
+                        return Err(too_many(&path));
+                    }
+                    out.extend(entries.into_iter().map(|(t, offset)| BagMessage {
+                        chunk_pos: chunk.pos,
+                        offset,
+                        compressed,
+                        encoding,
+                        record_time_s: records::time_s(
+                            (t / 1_000_000_000) as u32,
+                            (t % 1_000_000_000) as u32,
+                        ),
+                    }));
+                }
+                check_count(
+                    &path,
+                    chunk.pos,
+                    topic,
+                    (out.len() - before) as u64,
+                    expected,
+                )?;
+                continue;
+            }
             self.file
                 .seek(std::io::SeekFrom::Start(chunk.pos))
                 .map_err(|e| IoError::io(&path, e))?;
@@ -332,13 +547,6 @@ impl RosBag {
             }
             // One index record per connection of the chunk follows it; together they list as
             // many messages of the topic as the chunk info says.
-            let expected: u64 = chunk
-                .counts
-                .iter()
-                .filter(|(id, _)| ids.contains(id))
-                .map(|(_, n)| u64::from(*n))
-                .sum();
-            let before = out.len();
             for _ in 0..chunk.counts.len() {
                 let r = read_record(&path, &mut self.file, self.file_len)?;
                 if r.header.op(&path)? != op::INDEX_DATA {
@@ -355,23 +563,17 @@ impl RosBag {
                         format!("an index record of {n} messages has {} bytes", r.data_len),
                     ));
                 }
-                if out.len() + n as usize > self.limits.max_frames {
-                    return Err(IoError::too_large(
-                        &path,
-                        format!(
-                            "{topic} has more than {} messages, the limit of frames a \
-                             sequence may have (raise --max-memory)",
-                            self.limits.max_frames
-                        ),
-                    ));
+                if out.len() + n as usize > max_frames {
+                    return Err(too_many(&path));
                 }
                 let data = read_at(&path, &mut self.file, r.data_pos, r.data_len)?;
                 for e in data.chunks_exact(12) {
                     let w = |i: usize| u32::from_le_bytes([e[i], e[i + 1], e[i + 2], e[i + 3]]);
                     out.push(BagMessage {
                         chunk_pos: chunk.pos,
-                        offset: w(8),
+                        offset: u64::from(w(8)),
                         compressed,
+                        encoding,
                         record_time_s: records::time_s(w(0), w(4)),
                     });
                 }
@@ -379,17 +581,13 @@ impl RosBag {
                     .seek(std::io::SeekFrom::Start(r.data_pos + u64::from(r.data_len)))
                     .map_err(|e| IoError::io(&path, e))?;
             }
-            let found = (out.len() - before) as u64;
-            if found != expected {
-                return Err(IoError::malformed(
-                    &path,
-                    format!(
-                        "the index records after the chunk at byte {} list {found} messages of \
-                         {topic}, its chunk info {expected}",
-                        chunk.pos
-                    ),
-                ));
-            }
+            check_count(
+                &path,
+                chunk.pos,
+                topic,
+                (out.len() - before) as u64,
+                expected,
+            )?;
         }
         // Chunks are written in time order, and a chunk's index too; a stable sort keeps that
         // order among equal times.
@@ -412,7 +610,11 @@ impl RosBag {
         let Some((_, records)) = &self.cache else {
             return Err(IoError::malformed(&path, "no chunk"));
         };
-        let (h, data, _) = record_in(&path, records, m.offset as usize)?;
+        if self.format == Format::Mcap {
+            return mcap::message_in(&path, records, m.offset);
+        }
+        let offset = usize::try_from(m.offset).unwrap_or(usize::MAX);
+        let (h, data, _) = record_in(&path, records, offset)?;
         if h.op(&path)? != op::MESSAGE {
             return Err(IoError::malformed(
                 &path,
@@ -430,58 +632,30 @@ impl RosBag {
     fn decompress_chunk(&mut self, pos: u64) -> Result<Vec<u8>> {
         use std::io::Seek;
         let path = self.path.clone();
-        self.file
-            .seek(std::io::SeekFrom::Start(pos))
-            .map_err(|e| IoError::io(&path, e))?;
-        let c = read_record(&path, &mut self.file, self.file_len)?;
-        let compression = c.header.text(&path, "compression")?;
-        let size = c.header.u32(&path, "size")?;
         let budget = self.limits.max_decoded_bytes;
-        if u64::from(size) > budget || u64::from(c.data_len) > budget {
-            return Err(IoError::too_large(
-                &path,
-                format!(
-                    "a chunk of {} bytes ({size} decompressed) is beyond the {budget}-byte \
-                     budget of one decoded buffer (raise --max-memory)",
-                    c.data_len
-                ),
-            ));
-        }
-        let data = read_at(&path, &mut self.file, c.data_pos, c.data_len)?;
-        let mut out = Vec::with_capacity(size as usize);
-        let take = u64::from(size) + 1;
-        let got = match compression.as_str() {
-            "none" => {
-                out = data;
-                Ok(out.len())
-            }
-            "bz2" => bzip2::read::BzDecoder::new(&data[..])
-                .take(take)
-                .read_to_end(&mut out),
-            "lz4" => lz4_flex::frame::FrameDecoder::new(&data[..])
-                .take(take)
-                .read_to_end(&mut out),
-            other => {
-                return Err(IoError::malformed(
+        let (compression, size, data) = if self.format == Format::Mcap {
+            mcap::read_chunk(&path, &mut self.file, self.file_len, pos, budget)?
+        } else {
+            self.file
+                .seek(std::io::SeekFrom::Start(pos))
+                .map_err(|e| IoError::io(&path, e))?;
+            let c = read_record(&path, &mut self.file, self.file_len)?;
+            let compression = c.header.text(&path, "compression")?;
+            let size = u64::from(c.header.u32(&path, "size")?);
+            if size > budget || u64::from(c.data_len) > budget {
+                return Err(IoError::too_large(
                     &path,
-                    format!("a chunk compressed as {other:?} (bags use none, bz2 or lz4)"),
+                    format!(
+                        "a chunk of {} bytes ({size} decompressed) is beyond the {budget}-byte \
+                         budget of one decoded buffer (raise --max-memory)",
+                        c.data_len
+                    ),
                 ));
             }
+            let data = read_at(&path, &mut self.file, c.data_pos, c.data_len)?;
+            (compression, size, data)
         };
-        match got {
-            Ok(n) if n == size as usize => Ok(out),
-            Ok(n) => Err(IoError::malformed(
-                &path,
-                format!(
-                    "the chunk at byte {pos} decompresses to {n}{} bytes, its header says {size}",
-                    if n > size as usize { "+" } else { "" }
-                ),
-            )),
-            Err(e) => Err(IoError::malformed(
-                &path,
-                format!("the {compression} chunk at byte {pos} does not decompress: {e}"),
-            )),
-        }
+        inflate(&path, pos, &compression, data, size, budget)
     }
 
     /// The type of the messages of `topic`, if the bag has it.
@@ -516,10 +690,10 @@ impl RosBag {
     ) -> Result<BagDepth> {
         let path = self.path.clone();
         let limits = self.limits;
-        let compressed = m.compressed;
+        let (compressed, cdr) = (m.compressed, m.encoding);
         let b = self.message(m)?;
         let (stamp_s, depth, encoding) = if compressed {
-            let c = messages::compressed_image(&path, b)?;
+            let c = messages::compressed_image(&path, b, cdr)?;
             let depth =
                 messages::compressed_depth_of(&path, &c, units_per_m, float_units_per_m, &limits)?;
             let encoding = messages::compressed_depth_encoding(&c.format)
@@ -527,7 +701,7 @@ impl RosBag {
                 .to_string();
             (c.stamp_s, depth, encoding)
         } else {
-            let img = messages::image(&path, b)?;
+            let img = messages::image(&path, b, cdr)?;
             let depth = messages::depth_of(&path, &img, units_per_m, float_units_per_m, &limits)?;
             (img.stamp_s, depth, img.encoding)
         };
@@ -557,7 +731,7 @@ impl RosBag {
             .next()
             .ok_or_else(|| IoError::malformed(&path, format!("{topic} has no message")))?;
         let b = self.message(&first)?;
-        let info = messages::camera_info(&path, b)?;
+        let info = messages::camera_info(&path, b, first.encoding)?;
         self.limits
             .check_pixels(info.width as u64, info.height as u64)
             .map_err(|e| IoError::too_large(&path, e))?;
@@ -638,13 +812,13 @@ impl RosBag {
     /// names; `None` for another compressed image).
     fn image_encoding(&mut self, m: &BagMessage) -> Result<Option<String>> {
         let path = self.path.clone();
-        let compressed = m.compressed;
+        let (compressed, cdr) = (m.compressed, m.encoding);
         let b = self.message(m)?;
         if compressed {
-            let c = messages::compressed_image(&path, b)?;
+            let c = messages::compressed_image(&path, b, cdr)?;
             return Ok(messages::compressed_depth_encoding(&c.format).map(str::to_string));
         }
-        Ok(Some(messages::image(&path, b)?.encoding))
+        Ok(Some(messages::image(&path, b, cdr)?.encoding))
     }
 
     /// The `sensor_msgs/CameraInfo` topic beside the image topic `image_topic`

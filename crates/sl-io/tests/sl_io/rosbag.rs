@@ -358,3 +358,87 @@ fn compressed_depth_topics_are_read() {
     let e = bag.read_depth(&m, 1000.0, 1.0).unwrap_err().to_string();
     assert!(e.contains("RVL-compressed depth is not read"), "{e}");
 }
+
+/// ROS 2 bags in MCAP: CDR messages (aligned, no `seq`, NUL-terminated strings) in chunks of
+/// none, zstd and lz4, found through the summary and the message indexes; a ROS 2 bag's
+/// folder (`metadata.yaml` beside its one `.mcap`) opens as its file; cut files are refused.
+#[test]
+fn mcap_bags_give_their_depth_frames_and_camera() {
+    use sl_testkit::rosbag_writer::{camera_info_cdr, image_cdr, write_mcap};
+    let dir = tempfile::tempdir().unwrap();
+    let depth: Conn = (1, "/camera/depth/image_rect_raw", "sensor_msgs/msg/Image");
+    let info: Conn = (2, "/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo");
+    let mut msgs = Vec::new();
+    for i in 0..3u32 {
+        let mm: Vec<u8> = (0..12u16)
+            .flat_map(|p| (if p == 4 { 0 } else { 900 + 10 * i as u16 + p }).to_le_bytes())
+            .collect();
+        let t = (200 + i, 40_000_000);
+        msgs.push(Msg {
+            conn: 1,
+            time: (200 + i, 70_000_000),
+            data: image_cdr(t, 4, 3, "16UC1", &mm),
+        });
+        msgs.push(Msg {
+            conn: 2,
+            time: (200 + i, 70_000_000),
+            data: camera_info_cdr(4, 3, 3.5, "plumb_bob", &[0.05, 0.0, 0.0, 0.0, 0.0]),
+        });
+    }
+    for compression in ["", "zstd", "lz4"] {
+        let folder = dir.path().join(format!("ros2-{compression}"));
+        std::fs::create_dir(&folder).unwrap();
+        std::fs::write(
+            folder.join("metadata.yaml"),
+            "rosbag2_bagfile_information:\n",
+        )
+        .unwrap();
+        let file = folder.join("ros2_0.mcap");
+        write_mcap(&file, &[depth, info], &msgs, compression, 3).unwrap();
+        assert!(is_bag_file(&folder) && is_bag_file(&file));
+        let mut bag = RosBag::open(&folder, &Limits::default()).unwrap();
+        assert_eq!(bag.topics()[1].message_type, "sensor_msgs/Image");
+        assert_eq!(bag.topics()[1].messages, 3);
+        let topic = bag.depth_topic(None).unwrap();
+        assert_eq!(topic, depth.1);
+        let frames = bag.messages(&topic).unwrap();
+        assert_eq!(frames.len(), 3);
+        for (i, m) in frames.iter().enumerate() {
+            let d = bag.read_depth(m, 1000.0, 1.0).unwrap();
+            assert_eq!(d.stamp_s, 200.0 + i as f64 + 0.04, "{compression:?}");
+            assert_eq!(d.depth.data()[4], 0.0);
+            assert_eq!(
+                d.depth.data()[11],
+                (900.0 + 10.0 * i as f64 + 11.0) as f32 / 1000.0
+            );
+        }
+        let cam = bag.camera(&bag.camera_info_topic(&topic).unwrap()).unwrap();
+        assert_eq!((cam.intrinsics.width, cam.intrinsics.fx), (4, 3.5));
+        assert!(cam.lens.is_some());
+    }
+    // Cut short: the footer is gone, an error that says how to mend it.
+    let file = dir.path().join("ros2-zstd").join("ros2_0.mcap");
+    let bytes = std::fs::read(&file).unwrap();
+    let cut = dir.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() - 10]).unwrap();
+    let e = RosBag::open(&cut, &Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mcap recover"), "{e}");
+    for at in (8..bytes.len()).step_by(61) {
+        std::fs::write(&cut, &bytes[..at]).unwrap();
+        assert!(
+            RosBag::open(&cut, &Limits::default()).is_err(),
+            "cut at {at}"
+        );
+    }
+    // A SQLite ROS 2 bag is named, not misread.
+    let sqlite = dir.path().join("sqlite");
+    std::fs::create_dir(&sqlite).unwrap();
+    std::fs::write(sqlite.join("metadata.yaml"), "").unwrap();
+    std::fs::write(sqlite.join("sqlite_0.db3"), "").unwrap();
+    let e = RosBag::open(&sqlite, &Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("SQLite (.db3), which is not read"), "{e}");
+}

@@ -427,7 +427,8 @@ def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> boo
 
 
 class RosBag:
-    """A ROS 1 bag (format 2.0; chunks none, bz2 or lz4), as `sldepth track REC.bag` reads it.
+    """A robot recording, as `sldepth track REC` reads it: a ROS 1 bag (format 2.0; chunks none,
+    bz2 or lz4) or a ROS 2 bag in MCAP (.mcap or its folder; chunks none, zstd or lz4).
     Opening reads its index; a file that is not a bag, or a bag without an index (`rosbag
     reindex`), raises OSError."""
     def __init__(self, path: _Path) -> None: ...
@@ -695,7 +696,7 @@ def track_sequence(
     read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
     given, camera (sequence_camera) and depth scale (sequence_depth_scale); frame-number stamps
     (tum_stamps_are_frame_numbers) are frames 1/30 s apart, an ICL-NUIM folder's poses in
-    sldepth's frame. Or a ROS 1 bag's path (.bag): its depth topic (topic, else
+    sldepth's frame. Or a robot recording's path (a ROS 1 .bag, a ROS 2 .mcap or its folder): its depth topic (topic, else
     RosBag.depth_topic), frame by frame with the header stamps, and unless given the camera of
     its camera_info (RosBag.camera).
     camera is needed for arrays and lists of paths."""

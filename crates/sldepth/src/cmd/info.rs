@@ -10,8 +10,9 @@ use crate::common::{InputArgs, load_depth, print_json, round_to};
 /// Options of `sldepth info`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG), or a ROS 1 bag (`.bag`:
-    /// its topics, their message types and counts, and the depth topic `sldepth track` takes).
+    /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG), or a robot recording — a
+    /// ROS 1 bag (`.bag`), a ROS 2 bag in MCAP (`.mcap`, or its folder) —: its topics, their
+    /// message types and counts, and the depth topic `sldepth track` takes.
     #[arg(value_name = "DEPTH|BAG")]
     pub depth: PathBuf,
     /// Print JSON instead of text.
@@ -23,7 +24,7 @@ pub struct Args {
 
 /// Runs `sldepth info`.
 pub fn run(args: Args) -> Result<()> {
-    if args.depth.is_file() && sl_io::rosbag::is_bag_file(&args.depth) {
+    if sl_io::rosbag::is_bag_file(&args.depth) {
         return bag_info(&args);
     }
     let loaded = load_depth(&args.depth, &args.input)?;
@@ -87,11 +88,12 @@ fn bag_info(args: &Args) -> Result<()> {
             .collect();
         print_json(&json!({
             "path": args.depth.display().to_string(),
+            "container": bag.container(),
             "topics": list,
             "depth_topic": depth.as_ref().ok(),
         }))?;
     } else {
-        outln!("{} (ROS 1 bag)", args.depth.display())?;
+        outln!("{} ({})", args.depth.display(), bag.container())?;
         for t in &topics {
             outln!("  {}  {}  {} messages", t.topic, t.message_type, t.messages)?;
         }

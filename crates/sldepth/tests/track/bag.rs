@@ -145,3 +145,59 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--topic names a topic of a ROS bag"), "{err}");
 }
+
+/// A ROS 2 bag (MCAP, zstd chunks, CDR messages) in its folder tracks as the same frames in a
+/// folder do, line for line; `info` names its container.
+#[test]
+fn track_reads_a_ros2_mcap_bag_as_the_folder_of_its_frames() {
+    use sl_testkit::rosbag_writer::{camera_info_cdr, image_cdr, write_mcap};
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let folder_traj = tmp.path().join("folder.txt");
+    kinect_track_json_from(
+        &["--tum", seq.to_str().unwrap()],
+        &["--output", folder_traj.to_str().unwrap()],
+    );
+    let mut msgs = Vec::new();
+    for t in &stamps {
+        let file = seq.join("depth").join(format!("{t:.6}.png"));
+        let d = read_depth(&file, &ReadConfig::default().with_scale(5000.0))
+            .unwrap()
+            .depth;
+        let bytes: Vec<u8> = d.data().iter().flat_map(|v| v.to_le_bytes()).collect();
+        let stamp = (t.floor() as u32, ((t - t.floor()) * 1e9).round() as u32);
+        let (w, h) = (d.width() as u32, d.height() as u32);
+        msgs.push(Msg {
+            conn: 1,
+            time: stamp,
+            data: image_cdr(stamp, w, h, "32FC1", &bytes),
+        });
+        msgs.push(Msg {
+            conn: 2,
+            time: stamp,
+            data: camera_info_cdr(w, h, 580.0, "plumb_bob", &[0.0; 5]),
+        });
+    }
+    let bag = tmp.path().join("rosbag2_rec");
+    std::fs::create_dir(&bag).unwrap();
+    std::fs::write(bag.join("metadata.yaml"), "rosbag2_bagfile_information:\n").unwrap();
+    let conns: [Conn; 2] = [
+        (1, "/camera/depth/image_rect_raw", "sensor_msgs/msg/Image"),
+        (2, "/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo"),
+    ];
+    write_mcap(&bag.join("rosbag2_rec_0.mcap"), &conns, &msgs, "zstd", 3).unwrap();
+    let traj = tmp.path().join("mcap.txt");
+    let (v, _) = kinect_track_json_from(
+        &[bag.to_str().unwrap()],
+        &["--output", traj.to_str().unwrap()],
+    );
+    assert_eq!(v["tracked"], 4, "{v}");
+    assert_eq!(
+        std::fs::read_to_string(&traj).unwrap(),
+        std::fs::read_to_string(&folder_traj).unwrap()
+    );
+    let (v, _) = sldepth_json(&["info", bag.to_str().unwrap(), "--json"]);
+    assert_eq!(v["container"], "MCAP (ROS 2 bag)", "{v}");
+    assert_eq!(v["depth_topic"], "/camera/depth/image_rect_raw", "{v}");
+}

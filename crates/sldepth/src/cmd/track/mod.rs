@@ -72,7 +72,8 @@ pub struct Args {
     /// The sequence folder, its layout read from what it holds: a TUM folder when it has
     /// `depth.txt` or `associations.txt` (as --tum), a 7-Scenes folder when it has
     /// `frame-*.depth.png` (as --7scenes), an Open3D-style folder when it has a `depth` folder
-    /// (as --o3d). Or name the layout with one of those options. Or a ROS 1 bag (`.bag`):
+    /// (as --o3d). Or name the layout with one of those options. Or a robot recording, a ROS 1
+    /// bag (`.bag`) or a ROS 2 bag in MCAP (`.mcap`, or the bag's folder):
     /// its depth topic (--topic, else the one image topic holding depth: 16UC1 millimetres or
     /// 32FC1 metres), stamped with its images' header stamps, with the camera of the
     /// `camera_info` topic beside it unless --camera is given.

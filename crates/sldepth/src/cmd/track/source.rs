@@ -17,7 +17,7 @@ pub(super) fn resolve_layout(args: &mut Args) -> Result<()> {
     let Some(dir) = args.sequence.take() else {
         return Ok(());
     };
-    if dir.is_file() && sl_io::rosbag::is_bag_file(&dir) {
+    if sl_io::rosbag::is_bag_file(&dir) {
         args.bag = Some(dir);
         return Ok(());
     }
