@@ -98,18 +98,21 @@ pub fn write_bag(
         }
         d
     };
+    let conn_record = |c: &Conn| {
+        record(
+            &[
+                ("op", &[0x07]),
+                ("conn", &c.0.to_le_bytes()),
+                ("topic", c.1.as_bytes()),
+            ],
+            &conn_data(c),
+        )
+    };
     for group in msgs.chunks(per_chunk) {
         let mut inner = Vec::new();
         let mut index: Vec<(u32, Vec<u8>)> = Vec::new();
         for c in conns {
-            inner.extend(record(
-                &[
-                    ("op", &[0x07]),
-                    ("conn", &c.0.to_le_bytes()),
-                    ("topic", c.1.as_bytes()),
-                ],
-                &conn_data(c),
-            ));
+            inner.extend(conn_record(c));
         }
         for m in group {
             let offset = inner.len() as u32;
@@ -175,14 +178,7 @@ pub fn write_bag(
     }
     let index_pos = out.len() as u64;
     for c in conns {
-        out.extend(record(
-            &[
-                ("op", &[0x07]),
-                ("conn", &c.0.to_le_bytes()),
-                ("topic", c.1.as_bytes()),
-            ],
-            &conn_data(c),
-        ));
+        out.extend(conn_record(c));
     }
     for ci in &chunk_infos {
         out.extend_from_slice(ci);

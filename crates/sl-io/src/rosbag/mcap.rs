@@ -35,16 +35,12 @@ struct Content<'a> {
 
 impl<'a> Content<'a> {
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
-        let s = self
-            .at
-            .checked_add(n)
-            .and_then(|end| self.b.get(self.at..end))
-            .ok_or_else(|| {
-                IoError::malformed(
-                    self.path,
-                    format!("an MCAP record is cut off at its {what}"),
-                )
-            })?;
+        let s = super::records::slice_at(self.b, self.at, n).ok_or_else(|| {
+            IoError::malformed(
+                self.path,
+                format!("an MCAP record is cut off at its {what}"),
+            )
+        })?;
         self.at += n;
         Ok(s)
     }
@@ -73,6 +69,17 @@ impl<'a> Content<'a> {
     }
 }
 
+/// The opcode and content length of the record at `pos` (the reader left at its content).
+fn read_head<R: Read + Seek>(path: &Path, r: &mut R, pos: u64) -> Result<(u8, u64)> {
+    r.seek(SeekFrom::Start(pos))
+        .map_err(|e| IoError::io(path, e))?;
+    let mut head = [0u8; 9];
+    r.read_exact(&mut head).map_err(|e| truncated(path, e))?;
+    let mut len = [0u8; 8];
+    len.copy_from_slice(&head[1..]);
+    Ok((head[0], u64::from_le_bytes(len)))
+}
+
 /// Reads the record at `pos`: its opcode and content (at most `max` bytes).
 fn read_record<R: Read + Seek>(
     path: &Path,
@@ -81,13 +88,7 @@ fn read_record<R: Read + Seek>(
     pos: u64,
     max: u64,
 ) -> Result<(u8, Vec<u8>)> {
-    r.seek(SeekFrom::Start(pos))
-        .map_err(|e| IoError::io(path, e))?;
-    let mut head = [0u8; 9];
-    r.read_exact(&mut head).map_err(|e| truncated(path, e))?;
-    let mut len = [0u8; 8];
-    len.copy_from_slice(&head[1..]);
-    let len = u64::from_le_bytes(len);
+    let (code, len) = read_head(path, r, pos)?;
     if len > max || pos + 9 + len > file_len {
         return Err(IoError::malformed(
             path,
@@ -99,7 +100,7 @@ fn read_record<R: Read + Seek>(
     }
     let mut content = vec![0u8; len as usize];
     r.read_exact(&mut content).map_err(|e| truncated(path, e))?;
-    Ok((head[0], content))
+    Ok((code, content))
 }
 
 fn truncated(path: &Path, e: std::io::Error) -> IoError {
@@ -230,14 +231,8 @@ pub(super) fn read_summary<R: Read + Seek>(
         let mut counts = Vec::with_capacity(offsets.len());
         let mut index_at = Vec::with_capacity(offsets.len());
         for (channel, off) in offsets {
-            r.seek(SeekFrom::Start(off))
-                .map_err(|e| IoError::io(path, e))?;
-            let mut head = [0u8; 9];
-            r.read_exact(&mut head).map_err(|e| truncated(path, e))?;
-            let mut len = [0u8; 8];
-            len.copy_from_slice(&head[1..]);
-            let len = u64::from_le_bytes(len);
-            if head[0] != op::MESSAGE_INDEX || len < 6 || (len - 6) % 16 != 0 {
+            let (code, len) = read_head(path, r, off)?;
+            if code != op::MESSAGE_INDEX || len < 6 || (len - 6) % 16 != 0 {
                 return Err(IoError::malformed(
                     path,
                     format!("no message index record at byte {off}, where the summary says"),

@@ -77,21 +77,17 @@ impl<'a> Fields<'a> {
     }
 
     fn take(&mut self, n: usize, field: &str) -> Result<&'a [u8]> {
-        let s = self
-            .at
-            .checked_add(n)
-            .and_then(|end| self.b.get(self.at..end))
-            .ok_or_else(|| {
-                IoError::malformed(
-                    self.path,
-                    format!(
-                        "a {} message is cut off at its `{field}` ({} bytes, {n} needed from {})",
-                        self.what,
-                        self.b.len(),
-                        self.at
-                    ),
-                )
-            })?;
+        let s = super::records::slice_at(self.b, self.at, n).ok_or_else(|| {
+            IoError::malformed(
+                self.path,
+                format!(
+                    "a {} message is cut off at its `{field}` ({} bytes, {n} needed from {})",
+                    self.what,
+                    self.b.len(),
+                    self.at
+                ),
+            )
+        })?;
         self.at += n;
         Ok(s)
     }

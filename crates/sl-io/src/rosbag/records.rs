@@ -119,6 +119,11 @@ pub(super) fn time_s(secs: u32, nsecs: u32) -> f64 {
     f64::from(secs) + f64::from(nsecs) * 1e-9
 }
 
+/// The `n` bytes of `b` from `at`, if `b` holds them.
+pub(super) fn slice_at(b: &[u8], at: usize, n: usize) -> Option<&[u8]> {
+    at.checked_add(n).and_then(|end| b.get(at..end))
+}
+
 /// The little-endian `u32` at `at` in `b`, or an error saying what was expected there.
 pub(super) fn u32_at(path: &Path, b: &[u8], at: usize, what: &str) -> Result<u32> {
     b.get(at..at + 4)
