@@ -772,12 +772,10 @@ impl RosBag {
                 continue;
             };
             let named = t.to_ascii_lowercase().contains("depth");
-            let kind = self.depth_kind(&first)?;
-            let is_depth = match kind {
-                Some(DepthEncodingKind::F32) => true,
-                Some(DepthEncodingKind::U16) => {
-                    named || self.image_encoding(&first)?.as_deref() == Some("16UC1")
-                }
+            // `mono16` is depth only on a topic named for it (an infrared stream is not).
+            let is_depth = match self.image_encoding(&first)?.as_deref() {
+                Some("mono16") => named,
+                Some(e) => DepthEncodingKind::of(e).is_some(),
                 None => false,
             };
             if is_depth {
