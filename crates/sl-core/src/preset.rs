@@ -394,6 +394,32 @@ pub fn find(name: &str) -> Result<&'static SensorPreset> {
         })
 }
 
+/// Which preset models a device by the name its driver reports: a word of the name (letters
+/// and digits) starting with the model, so that a model's variants share its preset (a
+/// `D435i` or `D435if` is a D435; a `D456` has the D455's 95 mm baseline).
+const DEVICE_MODELS: &[(&str, &str)] = &[
+    ("D415", "d415"),
+    ("D435", "d435"),
+    ("D455", "d455"),
+    ("D456", "d455"),
+];
+
+/// The preset of the device called `name` as its driver reports it (`Intel RealSense D435I`
+/// → `d435`; librealsense records the name in every recording), if one models it.
+pub fn for_device_name(name: &str) -> Option<&'static SensorPreset> {
+    let upper = name.to_ascii_uppercase();
+    let words: Vec<&str> = upper.split(|c: char| !c.is_ascii_alphanumeric()).collect();
+    DEVICE_MODELS
+        .iter()
+        .find(|(model, _)| {
+            words.iter().any(|w| {
+                w.strip_prefix(model)
+                    .is_some_and(|rest| rest.chars().all(|c| c.is_ascii_alphabetic()))
+            })
+        })
+        .and_then(|(_, preset)| find(preset).ok())
+}
+
 /// The names of every preset.
 pub fn names() -> impl Iterator<Item = &'static str> {
     PRESETS.iter().map(|p| p.name)
@@ -489,6 +515,21 @@ mod tests {
         for name in ["icl-nuim", "icl-nuim-tum", "d435", "d455", "oak-d", "d415"] {
             assert_eq!(find(name).unwrap().rolling_shutter_readout_s, 0.0, "{name}");
         }
+    }
+
+    #[test]
+    fn device_names_find_their_presets() {
+        let of = |n: &str| for_device_name(n).map(|p| p.name);
+        assert_eq!(of("Intel RealSense D435"), Some("d435"));
+        assert_eq!(of("Intel RealSense D435I"), Some("d435"));
+        assert_eq!(of("Intel RealSense D435IF"), Some("d435"));
+        assert_eq!(of("Intel RealSense D415"), Some("d415"));
+        assert_eq!(of("Intel RealSense D456"), Some("d455"));
+        // Another model, or a longer number, is not one of them.
+        assert_eq!(of("Intel RealSense D405"), None);
+        assert_eq!(of("Intel RealSense L515"), None);
+        assert_eq!(of("Intel RealSense D4350"), None);
+        assert_eq!(of("Stereo Module"), None);
     }
 
     #[test]

@@ -218,6 +218,77 @@ fn main() {
             sl_testkit::rosbag_writer::write_mcap(p, &conns, &msgs, "zstd", 2).unwrap()
         });
         put(&root, "rosbag", "ros2-zstd.mcap", &b);
+        // A RealSense recording in SQLite (librealsense 2.56+): 512-byte pages (interior pages,
+        // overflow chains), the sensor's options as strings, frames' metadata.
+        let rs = |n, t, ty| (n, t, ty);
+        let conns = [
+            rs(
+                1,
+                "/device_0/sensor_0/Depth_0/image/data",
+                "sensor_msgs/msg/Image",
+            ),
+            rs(
+                2,
+                "/device_0/sensor_0/Depth_0/image/camera_info",
+                "sensor_msgs/msg/CameraInfo",
+            ),
+            rs(
+                3,
+                "/device_0/sensor_0/option/Depth_Units/value",
+                "std_msgs/msg/String",
+            ),
+            rs(4, "/device_0/info", "std_msgs/msg/String"),
+            rs(
+                5,
+                "/device_0/sensor_0/Depth_0/image/metadata",
+                "std_msgs/msg/String",
+            ),
+        ];
+        let text = |s: &str| sl_testkit::rosbag_writer::string_msg(s, true);
+        let mut msgs = vec![
+            Msg {
+                conn: 3,
+                time: (0, 0),
+                data: text("0.001000"),
+            },
+            Msg {
+                conn: 4,
+                time: (0, 0),
+                data: text("Name=Intel RealSense D435;Serial Number=1"),
+            },
+        ];
+        for i in 0..4u32 {
+            let mm: Vec<u8> = (0..320u16).flat_map(|p| (1000 + p).to_le_bytes()).collect();
+            let t = (0, 1000 + i * 33_000_000);
+            msgs.push(Msg {
+                conn: 1,
+                time: t,
+                data: sl_testkit::rosbag_writer::image_cdr(t, 20, 16, "16UC1", &mm),
+            });
+            msgs.push(Msg {
+                conn: 2,
+                time: t,
+                data: sl_testkit::rosbag_writer::camera_info_cdr(
+                    20,
+                    16,
+                    15.0,
+                    "plumb_bob",
+                    &[0.0; 5],
+                ),
+            });
+            msgs.push(Msg {
+                conn: 5,
+                time: t,
+                data: text(&format!(
+                    "Frame number={i};timestamp={}.5;",
+                    1_700_000_000_000u64 + 33 * u64::from(i)
+                )),
+            });
+        }
+        let b = bytes_of("db3", |p| {
+            sl_testkit::sqlite_writer::write_db3(p, 512, &conns, &msgs).unwrap()
+        });
+        put(&root, "rosbag", "realsense-512.db3", &b);
     }
     put(
         &root,

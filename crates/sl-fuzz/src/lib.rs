@@ -130,8 +130,9 @@ pub fn camera_json(data: &[u8]) {
     });
 }
 
-/// A robot recording (a ROS 1 bag, or MCAP: the reader tells them by their first bytes): its
-/// index, topics, depth topic, the first frames of it and its camera.
+/// A robot recording (a ROS 1 bag, MCAP or SQLite: the reader tells them by their first
+/// bytes): its index, topics, depth topic, the first frames of it, its camera and a RealSense
+/// recording's options and timestamps.
 pub fn rosbag(data: &[u8]) {
     with_file("rec.bag", data, |p| {
         let Ok(mut bag) = sl_io::rosbag::RosBag::open(p, &fuzz_limits()) else {
@@ -148,6 +149,11 @@ pub fn rosbag(data: &[u8]) {
         }
         if let Some(info) = bag.camera_info_topic(&topic) {
             let _ = bag.camera(&info);
+        }
+        let _ = bag.depth_camera(&topic);
+        let _ = bag.depth_units_per_m(&topic);
+        if let Ok(messages) = bag.messages(&topic) {
+            let _ = bag.realsense_frame_times(&topic, &messages);
         }
     });
 }

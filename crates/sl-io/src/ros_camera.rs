@@ -312,7 +312,10 @@ pub(crate) fn camera_info_to_camera(path: &Path, info: &CameraInfo) -> Result<Ro
     let d = &info.d;
     let lens = if d.iter().all(|&v| v == 0.0) {
         None
-    } else if distortion_model == "plumb_bob" && d.len() == 5 {
+    } else if (distortion_model == "plumb_bob" || distortion_model == "Brown Conrady")
+        && d.len() == 5
+    {
+        // librealsense's "Brown Conrady" is the same model, coefficients in the same order.
         Some(
             LensDistortion::new(d[0], d[1], d[2], d[3], d[4])
                 .map_err(|e| IoError::core(path, None, e))?,
@@ -322,7 +325,8 @@ pub(crate) fn camera_info_to_camera(path: &Path, info: &CameraInfo) -> Result<Ro
             path,
             format!(
                 "distortion model {distortion_model:?} with {} non-zero coefficients: only \
-                 `plumb_bob` (k1, k2, p1, p2, k3) is undone; undistort the depth first",
+                 `plumb_bob` (k1, k2, p1, p2, k3; librealsense's \"Brown Conrady\") is undone; \
+                 undistort the depth first",
                 d.len()
             ),
         ));

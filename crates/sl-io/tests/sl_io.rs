@@ -15,6 +15,8 @@ mod real_data;
 mod ros_camera;
 #[path = "sl_io/rosbag.rs"]
 mod rosbag;
+#[path = "sl_io/rosbag_db3.rs"]
+mod rosbag_db3;
 #[path = "sl_io/round_trip.rs"]
 mod round_trip;
 

@@ -1,4 +1,5 @@
-//! `sldepth.RosBag`: a ROS 1 bag's depth topic and camera, and its depth frames one by one.
+//! `sldepth.RosBag`: a robot recording's depth topic and camera, and its depth frames one by
+//! one.
 
 use std::path::PathBuf;
 use std::sync::Mutex;
@@ -15,14 +16,18 @@ use crate::errors::{io_error, value_error};
 use crate::threads::compute;
 
 /// A robot recording, as ``sldepth track REC`` reads it: a ROS 1 bag (``.bag``, format 2.0;
-/// chunks uncompressed, ``bz2`` or ``lz4``) or a ROS 2 bag in MCAP (``.mcap``, or the bag's
-/// folder with ``metadata.yaml``; chunks uncompressed, ``zstd`` or ``lz4``; CDR messages). ``RosBag(path)`` reads its index (nothing is
-/// decompressed); ``topics`` lists ``(topic, type, messages)``; ``depth_topic()`` finds the one
-/// image topic holding depth (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a
-/// topic named for depth, or ``image_transport``'s ``compressedDepth`` in its PNG form); ``camera()`` reads the ``camera_info`` beside it (its ``plumb_bob``
-/// lens as ``Camera.lens``, which ``Tracker`` undoes); ``depth_frames()`` iterates
-/// ``(stamp_s, depth)`` pairs, depth a float32 (H, W) array of metres (0 = none), stamped with
-/// the image header's stamp. A file that is not a bag, a bag without an index (``rosbag
+/// chunks uncompressed, ``bz2`` or ``lz4``), a ROS 2 bag in MCAP (``.mcap``; chunks
+/// uncompressed, ``zstd`` or ``lz4``) or in SQLite (``.db3``), or a ROS 2 bag's folder with
+/// ``metadata.yaml``; a RealSense recording (librealsense's ``.bag``, or ``.db3`` since 2.56)
+/// is one of these. ``RosBag(path)`` reads its index (nothing is decompressed); ``topics``
+/// lists ``(topic, type, messages)``; ``depth_topic()`` finds the one image topic holding depth
+/// (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a topic named for depth, or
+/// ``image_transport``'s ``compressedDepth`` in its PNG form); ``camera()`` reads the
+/// ``camera_info`` beside it (its ``plumb_bob`` lens as ``Camera.lens``, which ``Tracker``
+/// undoes; a RealSense recording's device and baseline choose the noise model);
+/// ``depth_frames()`` iterates ``(stamp_s, depth)`` pairs, depth a float32 (H, W) array of
+/// metres (0 = none), stamped with the image header's stamp (a RealSense recording's: the
+/// frame's sensor timestamp). A file that is not a bag, a bag without an index (``rosbag
 /// reindex`` writes one) or a malformed one raises ``OSError``.
 #[pyclass(name = "RosBag", module = "sldepth", frozen)]
 #[derive(Debug)]
@@ -79,41 +84,42 @@ impl PyRosBag {
     }
 
     /// The camera of the ``sensor_msgs/CameraInfo`` beside the depth topic (``topic``, or the
-    /// one ``depth_topic()`` finds; ``/camera/depth/image`` → ``/camera/depth/camera_info``), or
-    /// of the camera info topic ``topic`` itself: its intrinsics with the Kinect's noise model,
-    /// its ``plumb_bob`` lens as ``lens``. No such topic, binning, a region of interest or
-    /// another distortion model raise ``OSError``.
+    /// one ``depth_topic()`` finds; ``/camera/depth/image`` → ``/camera/depth/camera_info``;
+    /// a RealSense recording's ``.../Depth_0/image/data`` → ``.../Depth_0/info/camera_info``),
+    /// or of the camera info topic ``topic`` itself: its intrinsics, its ``plumb_bob`` lens as
+    /// ``lens``, and the noise model of the sensor — in a RealSense recording its device's
+    /// preset (``d415``, ``d435``, ``d455``) at the recorded stereo baseline, else the
+    /// Kinect's. No such topic (give the camera yourself: ``Camera.preset``,
+    /// ``Camera.from_file``), binning, a region of interest or another distortion model raise
+    /// ``OSError``.
     #[pyo3(signature = (topic = None))]
     fn camera(&self, py: Python<'_>, topic: Option<String>) -> PyResult<PyCamera> {
-        let path = self.path.clone();
-        let ros = self.with_bag(py, move |b| {
-            let info = match topic {
-                Some(t) if b.message_type(&t) == Some(CAMERA_INFO_TYPE) => t,
-                t => {
-                    let depth = b.depth_topic(t.as_deref())?;
-                    b.camera_info_topic(&depth)
-                        .ok_or_else(|| sl_io::IoError::Malformed {
-                            path: path.clone(),
-                            message: format!(
-                                "no sensor_msgs/CameraInfo topic beside {depth}; give the camera \
-                                 yourself (Camera.preset, Camera.from_file)"
-                            ),
-                        })?
-                }
-            };
-            b.camera(&info)
+        let (camera, k, lens) = self.with_bag(py, move |b| match topic {
+            Some(t) if b.message_type(&t) == Some(CAMERA_INFO_TYPE) => {
+                let ros = b.camera(&t)?;
+                Ok((None, ros.intrinsics, ros.lens))
+            }
+            t => {
+                let depth = b.depth_topic(t.as_deref())?;
+                let c = b.depth_camera(&depth)?;
+                Ok((Some(c.camera), c.camera.intrinsics, c.lens))
+            }
         })?;
-        let camera = Camera::from_intrinsics(ros.intrinsics, None, None).map_err(value_error)?;
+        let camera = match camera {
+            Some(c) => c,
+            None => Camera::from_intrinsics(k, None, None).map_err(value_error)?,
+        };
         Ok(PyCamera {
             inner: camera,
-            lens: ros.lens,
+            lens,
             preset_name: None,
         })
     }
 
     /// The depth frames of ``topic`` (None: ``depth_topic()``), in the order they were
     /// recorded: an iterator of ``(stamp_s, depth)`` with ``len()``. 16-bit images are divided by
-    /// ``depth_scale`` (None: 1000, ROS's millimetres), float images by it (None: 1, metres).
+    /// ``depth_scale`` (None: 1000, ROS's millimetres, or a RealSense recording's own depth
+    /// units), float images by it (None: 1, metres).
     #[pyo3(signature = (topic = None, depth_scale = None))]
     fn depth_frames(
         &self,
@@ -122,7 +128,7 @@ impl PyRosBag {
         #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
     ) -> PyResult<PyBagFrames> {
         let path = self.path.clone();
-        let (bag, messages, kind) = compute(py, move || {
+        let (bag, messages, units, times) = compute(py, move || {
             let mut bag = RosBag::open(&path, &Limits::default())?;
             let topic = bag.depth_topic(topic.as_deref())?;
             let messages = bag.messages(&topic)?;
@@ -130,18 +136,21 @@ impl PyRosBag {
                 Some(m) => bag.depth_kind(m)?,
                 None => None,
             };
-            Ok::<_, sl_io::IoError>((bag, messages, kind))
+            let units = match kind {
+                Some(DepthEncodingKind::F32) => sl_io::depth::FLOAT_UNITS_PER_M,
+                _ => bag.depth_units_per_m(&topic)?,
+            };
+            let times = bag.realsense_frame_times(&topic, &messages)?;
+            Ok::<_, sl_io::IoError>((bag, messages, units, times))
         })
         .map_err(io_error)?;
-        let units_per_m = depth_scale.unwrap_or(match kind {
-            Some(DepthEncodingKind::F32) => sl_io::depth::FLOAT_UNITS_PER_M,
-            _ => sl_io::depth::DEFAULT_UNITS_PER_M,
-        });
+        let units_per_m = depth_scale.unwrap_or(units);
         Ok(PyBagFrames {
             len: messages.len(),
             state: Mutex::new(FramesState {
                 bag,
                 messages,
+                times,
                 next: 0,
                 units_per_m,
             }),
@@ -166,6 +175,8 @@ pub struct PyBagFrames {
 struct FramesState {
     bag: RosBag,
     messages: Vec<BagMessage>,
+    /// A RealSense recording's sensor timestamps, where recorded.
+    times: Vec<Option<f64>>,
     next: usize,
     units_per_m: f64,
 }
@@ -185,8 +196,11 @@ impl PyBagFrames {
             let Some(m) = s.messages.get(s.next).copied() else {
                 return Ok(None);
             };
+            let time = s.times.get(s.next).copied().flatten();
             s.next += 1;
-            s.bag.read_depth(&m, s.units_per_m, s.units_per_m).map(Some)
+            let mut d = s.bag.read_depth(&m, s.units_per_m, s.units_per_m)?;
+            d.stamp_s = time.unwrap_or(d.stamp_s);
+            Ok(Some(d))
         })
         .map_err(|_| value_error("the bag's lock was poisoned by a panic"))?
         .map_err(io_error)?;

@@ -219,3 +219,153 @@ def test_a_ros2_mcap_bag_written_by_rosbags_reads_the_same(tmp_path):
     assert [t for t, _ in got] == pytest.approx([70.125, 71.125], abs=1e-9)
     for (_, z), d in zip(got, mm):
         np.testing.assert_array_equal(z, (d.astype(np.float64) / 1000).astype(np.float32))
+
+
+def _cdr_image(stamp, depth, encoding):
+    """A ROS 2 sensor_msgs/msg/Image in CDR (little-endian, aligned after the 4-byte header)."""
+    out = bytearray(b"\x00\x01\x00\x00")
+
+    def align(n):
+        while (len(out) - 4) % n:
+            out.append(0)
+
+    def u32(v):
+        align(4)
+        out.extend(struct.pack("<I", v))
+
+    def string(s):
+        b = s.encode() + b"\0"
+        u32(len(b))
+        out.extend(b)
+
+    u32(stamp[0])
+    u32(stamp[1])
+    string("depth_optical_frame")
+    u32(depth.shape[0])
+    u32(depth.shape[1])
+    string(encoding)
+    out.append(0)
+    u32(depth.shape[1] * depth.itemsize)
+    u32(depth.nbytes)
+    out.extend(depth.tobytes())
+    return bytes(out)
+
+
+_SQLITE_TOPICS = ("CREATE TABLE topics(id INTEGER PRIMARY KEY,name TEXT NOT NULL,type TEXT NOT "
+                  "NULL,serialization_format TEXT NOT NULL,offered_qos_profiles TEXT NOT NULL)")
+_SQLITE_MESSAGES = ("CREATE TABLE messages(id INTEGER PRIMARY KEY,topic_id INTEGER NOT NULL,"
+                    "timestamp INTEGER NOT NULL, data BLOB NOT NULL)")
+
+
+@pytest.mark.parametrize("page_size,journal", [(512, "delete"), (4096, "wal"), (65536, "memory")])
+def test_a_ros2_sqlite_bag_written_by_sqlite_itself_reads_the_same(tmp_path, page_size, journal):
+    """A .db3 as rosbag2_storage_sqlite3 lays it out, written by SQLite itself (Python's
+    sqlite3): pages from 512 B to 64 KiB, rows deleted after they were written (free space
+    inside the pages), rows inserted out of time order, a checkpointed WAL file."""
+    import sqlite3
+
+    mm = _frames(3)
+    path = tmp_path / "rec_0.db3"
+    db = sqlite3.connect(path)
+    db.execute(f"PRAGMA page_size={page_size}")
+    db.execute(f"PRAGMA journal_mode={journal}")
+    db.execute(_SQLITE_TOPICS)
+    db.execute(_SQLITE_MESSAGES)
+    db.execute("CREATE INDEX timestamp_idx ON messages (timestamp ASC)")
+    db.execute("INSERT INTO topics VALUES (1, '/camera/depth/image_rect_raw', "
+               "'sensor_msgs/msg/Image', 'cdr', '')")
+    db.execute("INSERT INTO topics VALUES (2, '/chatter', 'std_msgs/msg/String', 'cdr', '')")
+    order = [2, 0, 1]
+    for i in order:
+        t = (90 + i) * 10**9
+        db.execute("INSERT INTO messages (topic_id, timestamp, data) VALUES (1, ?, ?)",
+                   (t, _cdr_image((90 + i, 500_000_000), mm[i], "16UC1")))
+        for k in range(5):
+            db.execute("INSERT INTO messages (topic_id, timestamp, data) VALUES (2, ?, ?)",
+                       (t + k, b"\x00\x01\x00\x00" + struct.pack("<I", 3) + b"hi\0"))
+    db.execute("DELETE FROM messages WHERE topic_id = 2 AND timestamp % 2 = 1")
+    db.commit()
+    db.close()
+    assert not (tmp_path / "rec_0.db3-wal").exists() or (tmp_path / "rec_0.db3-wal").stat().st_size == 0
+    (tmp_path / "metadata.yaml").write_text("rosbag2_bagfile_information:\n")
+    for where in (path, tmp_path):
+        bag = sldepth.RosBag(where)
+        assert bag.topics == [("/camera/depth/image_rect_raw", "sensor_msgs/Image", 3),
+                              ("/chatter", "std_msgs/String", 9)]
+        got = list(bag.depth_frames())
+        assert [t for t, _ in got] == pytest.approx([90.5, 91.5, 92.5], abs=1e-9)
+        for (_, z), d in zip(got, mm):
+            np.testing.assert_array_equal(z, (d.astype(np.float64) / 1000).astype(np.float32))
+
+
+def test_a_ros2_sqlite_bag_written_by_rosbags_reads_the_same(tmp_path):
+    """ROS 2 in SQLite by the independent `rosbags` writer: the bag's folder, 32FC1 metres."""
+    rosbag2 = pytest.importorskip("rosbags.rosbag2")
+    typesys = pytest.importorskip("rosbags.typesys")
+    ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+    Image = ts.types["sensor_msgs/msg/Image"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    metres = [(d.astype(np.float64) / 1000).astype(np.float32) for d in _frames(2)]
+    folder = tmp_path / "rec"
+    with rosbag2.Writer(folder, version=8, storage_plugin=rosbag2.StoragePlugin.SQLITE3) as w:
+        c = w.add_connection("/camera/depth/image", Image.__msgtype__, typestore=ts)
+        for i, z in enumerate(metres):
+            h = Header(stamp=Time(sec=40 + i, nanosec=75_000_000), frame_id="d")
+            msg = Image(header=h, height=480, width=640, encoding="32FC1", is_bigendian=0,
+                        step=640 * 4, data=np.frombuffer(z.tobytes(), np.uint8))
+            w.write(c, (41 + i) * 10**9, ts.serialize_cdr(msg, Image.__msgtype__))
+    bag = sldepth.RosBag(folder)
+    assert bag.topics == [("/camera/depth/image", "sensor_msgs/Image", 2)]
+    got = list(bag.depth_frames())
+    assert [t for t, _ in got] == pytest.approx([40.075, 41.075], abs=1e-9)
+    for (_, z), e in zip(got, metres):
+        np.testing.assert_array_equal(z, e)
+
+
+def test_a_realsense_recording_by_librealsense_reads_its_units_and_timestamps(tmp_path):
+    """librealsense's own recorder (a software device; .db3 since 2.56, .bag before): the
+    depth units (0.25 mm), the device's preset and recorded baseline, and each frame's sensor
+    timestamp. Runs where pyrealsense2 (and its libusb) is installed."""
+    rs = pytest.importorskip("pyrealsense2")
+    mm = _frames(2)
+    units = [np.round(d.astype(np.float64) * 4).astype(np.uint16) for d in mm]
+    dev = rs.software_device()
+    dev.register_info(rs.camera_info.name, "Intel RealSense D455")
+    sensor = dev.add_sensor("Stereo Module")
+    intr = rs.intrinsics()
+    intr.width, intr.height, intr.ppx, intr.ppy, intr.fx, intr.fy = 640, 480, 319.5, 239.5, 580.0, 580.0
+    intr.model = rs.distortion.brown_conrady
+    intr.coeffs = [0.0] * 5
+    vs = rs.video_stream()
+    vs.type, vs.index, vs.uid, vs.width, vs.height, vs.fps, vs.bpp = rs.stream.depth, 0, 0, 640, 480, 30, 2
+    vs.fmt, vs.intrinsics = rs.format.z16, intr
+    profile = sensor.add_video_stream(vs)
+    sensor.add_read_only_option(rs.option.depth_units, 0.00025)
+    path = tmp_path / "rs.db3"
+    try:
+        recorder = rs.recorder(str(path), dev)
+    except RuntimeError:
+        path = tmp_path / "rs.bag"
+        recorder = rs.recorder(str(path), dev)
+    queue = rs.frame_queue(4)
+    sensor.open(profile)
+    sensor.start(queue)
+    for i, u in enumerate(units):
+        f = rs.software_video_frame()
+        f.pixels = np.ascontiguousarray(u).tobytes()
+        f.bpp, f.stride, f.timestamp = 2, 2 * 640, 1_700_000_000_000.0 + 33.0 * i
+        f.domain, f.frame_number = rs.timestamp_domain.system_time, i
+        f.profile = profile.as_video_stream_profile()
+        sensor.on_video_frame(f)
+        queue.wait_for_frame()
+    sensor.stop()
+    sensor.close()
+    del recorder
+    bag = sldepth.RosBag(path)
+    cam = bag.camera()
+    assert (cam.fx, cam.baseline_m) == (pytest.approx(580.0), 0.095)
+    got = list(bag.depth_frames())
+    assert [t for t, _ in got] == pytest.approx([1_700_000_000.0, 1_700_000_000.033], abs=1e-5)
+    for (_, z), u in zip(got, units):
+        np.testing.assert_array_equal(z, (u.astype(np.float64) / 4000).astype(np.float32))

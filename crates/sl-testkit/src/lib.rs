@@ -18,6 +18,7 @@
 //! ```
 
 pub mod rosbag_writer;
+pub mod sqlite_writer;
 
 use std::path::{Path, PathBuf};
 

@@ -443,3 +443,38 @@ pub fn write_mcap(
     out.extend_from_slice(b"\x89MCAP0\r\n");
     std::fs::write(path, out)
 }
+
+/// A `std_msgs/String` holding `text`, in CDR (`cdr`) or ROS 1.
+pub fn string_msg(text: &str, cdr: bool) -> Vec<u8> {
+    if cdr {
+        let mut c = Cdr::new();
+        c.string(text);
+        return c.0;
+    }
+    let mut b = Vec::new();
+    string(&mut b, text);
+    b
+}
+
+/// A `std_msgs/Float32` holding `v`, in ROS 1.
+pub fn float32_msg(v: f32) -> Vec<u8> {
+    v.to_le_bytes().to_vec()
+}
+
+/// A `diagnostic_msgs/KeyValue`, in ROS 1.
+pub fn key_value_msg(key: &str, value: &str) -> Vec<u8> {
+    let mut b = Vec::new();
+    string(&mut b, key);
+    string(&mut b, value);
+    b
+}
+
+/// A ROS 2 `sensor_msgs/msg/CompressedImage` in CDR: `format` and `data`.
+pub fn compressed_image_cdr(stamp: (u32, u32), format: &str, data: &[u8]) -> Vec<u8> {
+    let mut c = Cdr::new();
+    c.header(stamp);
+    c.string(format);
+    c.u32(data.len() as u32);
+    c.0.extend_from_slice(data);
+    c.0
+}

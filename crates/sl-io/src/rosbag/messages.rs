@@ -102,6 +102,12 @@ impl<'a> Fields<'a> {
         Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
     }
 
+    fn f32(&mut self, field: &str) -> Result<f32> {
+        self.align(4);
+        let b = self.take(4, field)?;
+        Ok(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
     fn f64(&mut self, field: &str) -> Result<f64> {
         self.align(8);
         let b = self.take(8, field)?;
@@ -422,4 +428,20 @@ pub(super) fn camera_info(path: &Path, b: &[u8], encoding: Encoding) -> Result<C
         distortion_model,
         d,
     })
+}
+
+/// A `std_msgs/Float32`'s value.
+pub(super) fn float32(path: &Path, b: &[u8], encoding: Encoding) -> Result<f32> {
+    Fields::new(path, b, "std_msgs/Float32", encoding)?.f32("data")
+}
+
+/// A `std_msgs/String`'s text.
+pub(super) fn string(path: &Path, b: &[u8], encoding: Encoding) -> Result<String> {
+    Fields::new(path, b, "std_msgs/String", encoding)?.string("data")
+}
+
+/// A `diagnostic_msgs/KeyValue`'s key and value.
+pub(super) fn key_value(path: &Path, b: &[u8], encoding: Encoding) -> Result<(String, String)> {
+    let mut f = Fields::new(path, b, "diagnostic_msgs/KeyValue", encoding)?;
+    Ok((f.string("key")?, f.string("value")?))
 }

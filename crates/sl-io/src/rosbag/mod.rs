@@ -1,8 +1,11 @@
-//! Robot recordings: ROS 1 bags (`.bag`, format 2.0) and ROS 2 bags in MCAP (`.mcap`, or the
-//! bag's folder holding `metadata.yaml` and one `.mcap`) — the depth images and camera
-//! calibration a robot recorded, read straight from the recording. TUM RGB-D ships every
-//! sequence as a ROS 1 bag; a Kinect, Xtion, RealSense or OAK-D driver under ROS records its
-//! depth as `sensor_msgs/Image`.
+//! Robot recordings: ROS 1 bags (`.bag`, format 2.0) and ROS 2 bags in MCAP (`.mcap`) or in
+//! SQLite (`.db3`, the default storage up to Humble), or a ROS 2 bag's folder holding
+//! `metadata.yaml` and one such file — the depth images and camera calibration a robot
+//! recorded, read straight from the recording. TUM RGB-D ships every sequence as a ROS 1 bag;
+//! a Kinect, Xtion, RealSense or OAK-D driver under ROS records its depth as
+//! `sensor_msgs/Image`; librealsense's own recorder (the RealSense Viewer) writes a ROS 1 bag,
+//! or a `.db3` since 2.56, whose sensor options (`realsense.rs`: depth units, stereo
+//! baseline, the device) choose the depth scale and noise model (`camera.rs`).
 //!
 //! Written by hand (no crate reads bags within a memory budget): the index (ROS 1: connections
 //! and chunk places at the end of the file; MCAP: the summary section the footer points at) is
@@ -10,8 +13,9 @@
 //! decompressing anything; a message is read by decompressing its chunk (`none`; ROS 1 `bz2`
 //! through the `bzip2` crate; `lz4` frames through `lz4_flex`; MCAP `zstd` through `ruzstd`),
 //! which is kept for the next message. Every length is checked against the file and
-//! [`Limits::max_decoded_bytes`] before a buffer is sized from it. A ROS 2 bag in SQLite
-//! (`.db3`) is refused by name (`ros2 bag convert` writes MCAP).
+//! [`Limits::max_decoded_bytes`] before a buffer is sized from it. A `.db3` is read through
+//! a read-only reader of the SQLite file format (`sqlite.rs`, `db3.rs`): its `messages` table
+//! walked once for each row's topic, time and place, a message's data read when asked for.
 //!
 //! Messages: ROS 1's serialisation, or ROS 2's CDR (`messages.rs`). Depth: `16UC1` and
 //! `mono16` are units (millimetres by ROS's REP 118, 0 = none), `32FC1` metres (NaN = none;
@@ -36,9 +40,13 @@
 //! # }
 //! ```
 
+mod camera;
+mod db3;
 mod mcap;
 mod messages;
+mod realsense;
 mod records;
+mod sqlite;
 
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -46,8 +54,10 @@ use std::path::{Path, PathBuf};
 
 use sl_core::DepthImage;
 
+pub use camera::BagCamera;
 pub use messages::DepthEncodingKind;
 use messages::Encoding;
+pub use realsense::RealSenseInfo;
 use records::{Header, MAGIC, MAX_HEADER_BYTES, op, read_at, read_record, record_in};
 
 use crate::error::{IoError, Result};
@@ -124,9 +134,11 @@ enum Format {
     Ros1,
     /// MCAP (ROS 2).
     Mcap,
+    /// SQLite (ROS 2, `.db3`).
+    Sqlite,
 }
 
-/// An open ROS 1 bag (see the module docs).
+/// An open recording (see the module docs).
 #[derive(Debug)]
 pub struct RosBag {
     path: PathBuf,
@@ -136,8 +148,10 @@ pub struct RosBag {
     format: Format,
     connections: Vec<Connection>,
     chunks: Vec<ChunkInfo>,
-    /// The chunk decompressed last: its place and records.
+    /// The chunk decompressed last: its place and records (SQLite: the message read last).
     cache: Option<(u64, Vec<u8>)>,
+    /// The index of a `.db3` bag.
+    db3: Option<db3::Db3>,
 }
 
 /// Whether `path` names a recording [`RosBag::open`] takes: a `.bag` (ROS 1) or `.mcap` file,
@@ -151,7 +165,7 @@ pub fn is_bag_file(path: &Path) -> bool {
                     .any(|e| ext(&e.path(), "mcap") || ext(&e.path(), "db3"))
             });
     }
-    ext(path, "bag") || ext(path, "mcap")
+    ext(path, "bag") || ext(path, "mcap") || ext(path, "db3")
 }
 
 /// `data` decompressed by `compression` (ROS 1: `none`, `bz2`, `lz4`; MCAP: empty, `zstd`,
@@ -226,48 +240,50 @@ fn check_count(path: &Path, pos: u64, topic: &str, found: u64, expected: u64) ->
     ))
 }
 
-/// The file of a recording: `path` itself, or a ROS 2 bag folder's one `.mcap` file.
+/// The file of a recording: `path` itself, or a ROS 2 bag folder's one `.mcap` or `.db3` file.
 fn bag_file_of(path: &Path) -> Result<PathBuf> {
     if !path.is_dir() {
         return Ok(path.to_path_buf());
     }
     let mut files = Vec::new();
-    let mut sqlite = false;
     for e in std::fs::read_dir(path).map_err(|e| IoError::io(path, e))? {
         let p = e.map_err(|e| IoError::io(path, e))?.path();
-        match p.extension().and_then(|e| e.to_str()) {
-            Some(e) if e.eq_ignore_ascii_case("mcap") => files.push(p),
-            Some(e) if e.eq_ignore_ascii_case("db3") => sqlite = true,
-            _ => {}
+        if p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("mcap") || e.eq_ignore_ascii_case("db3"))
+        {
+            files.push(p);
         }
     }
     files.sort();
     match files.len() {
         1 => Ok(files.swap_remove(0)),
-        0 if sqlite => Err(IoError::malformed(
+        0 => Err(IoError::malformed(
             path,
-            "a ROS 2 bag in SQLite (.db3), which is not read: `ros2 bag convert` writes it as MCAP",
+            "a folder without an .mcap or .db3 file",
         )),
-        0 => Err(IoError::malformed(path, "a folder without an .mcap file")),
         n => Err(IoError::malformed(
             path,
-            format!("a bag split into {n} .mcap files: give one of them"),
+            format!("a bag split into {n} files: give one of them"),
         )),
     }
 }
 
 impl RosBag {
-    /// Opens a bag and reads its index (connections and chunk places).
+    /// Opens a bag and reads its index (connections and chunk places; of a `.db3`, its topics
+    /// and every message's topic, time and place).
     ///
     /// # Errors
-    /// A file that is not a bag of format 2.0, a bag without an index (a recording that was not
-    /// closed: `rosbag reindex` writes one), or a malformed or truncated record.
+    /// A file that is not a bag (ROS 1 of format 2.0, MCAP or SQLite), a bag without an index
+    /// (a recording that was not closed: `rosbag reindex` or `mcap recover` writes one; a
+    /// `.db3` whose newest writes are still in its `-wal` file), a bag split into several
+    /// files, or a malformed or truncated record or page.
     pub fn open(path: impl AsRef<Path>, limits: &Limits) -> Result<Self> {
         let path = bag_file_of(path.as_ref())?;
         let f = File::open(&path).map_err(|e| IoError::io(&path, e))?;
         let file_len = f.metadata().map_err(|e| IoError::io(&path, e))?.len();
         let mut file = BufReader::new(f);
-        let mut magic = [0u8; 13];
+        let mut magic = [0u8; 16];
         let got = file
             .read(&mut magic)
             .and_then(|n| {
@@ -289,18 +305,40 @@ impl RosBag {
                 connections,
                 chunks,
                 cache: None,
+                db3: None,
             });
         }
-        if got < magic.len() || &magic != MAGIC {
+        if got >= magic.len() && magic == *sqlite::MAGIC {
+            let budget = limits.max_decoded_bytes;
+            let (db, connections, chunk) = db3::Db3::open(&path, &mut file, file_len, budget)?;
+            return Ok(Self {
+                path,
+                file,
+                file_len,
+                limits: *limits,
+                format: Format::Sqlite,
+                connections,
+                chunks: vec![chunk],
+                cache: None,
+                db3: Some(db),
+            });
+        }
+        if got < MAGIC.len() || magic[..MAGIC.len()] != *MAGIC {
             let v1 = magic.starts_with(b"#ROSBAG V1");
             return Err(IoError::malformed(
                 &path,
                 if v1 {
                     "a ROS bag of format 1.x, which is not read (ROS since 2010 writes 2.0)"
                 } else {
-                    "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`) nor an MCAP file"
+                    "not a ROS 1 bag (it does not start with `#ROSBAG V2.0`), an MCAP file nor \
+                     an SQLite one"
                 },
             ));
+        }
+        {
+            use std::io::Seek;
+            file.seek(std::io::SeekFrom::Start(MAGIC.len() as u64))
+                .map_err(|e| IoError::io(&path, e))?;
         }
         let header = read_record(&path, &mut file, file_len)?;
         if header.header.op(&path)? != op::BAG_HEADER {
@@ -325,6 +363,7 @@ impl RosBag {
             connections: Vec::new(),
             chunks: Vec::new(),
             cache: None,
+            db3: None,
         };
         bag.read_index(index_pos)?;
         // A bag cut short inside its index (at a record's end) would otherwise lose chunks
@@ -345,16 +384,17 @@ impl RosBag {
         Ok(bag)
     }
 
-    /// The bag's file (a ROS 2 bag folder's `.mcap`).
+    /// The bag's file (a ROS 2 bag folder's `.mcap` or `.db3`).
     pub fn path(&self) -> &Path {
         &self.path
     }
 
-    /// What holds the recording: `"ROS 1 bag"` or `"MCAP (ROS 2 bag)"`.
+    /// What holds the recording: `"ROS 1 bag"`, `"MCAP (ROS 2 bag)"` or `"SQLite (ROS 2 bag)"`.
     pub fn container(&self) -> &'static str {
         match self.format {
             Format::Ros1 => "ROS 1 bag",
             Format::Mcap => "MCAP (ROS 2 bag)",
+            Format::Sqlite => "SQLite (ROS 2 bag)",
         }
     }
 
@@ -486,6 +526,25 @@ impl RosBag {
                 ),
             )
         };
+        if let Some(db) = &self.db3 {
+            let out: Vec<BagMessage> = db
+                .entries
+                .iter()
+                .filter(|e| ids.iter().any(|&id| i64::from(id) == e.topic_id))
+                .map(|e| BagMessage {
+                    chunk_pos: u64::from(e.place.page),
+                    offset: u64::from(e.place.offset),
+                    compressed,
+                    encoding,
+                    record_time_s: e.time_ns as f64 * 1e-9,
+                })
+                .take(max_frames.saturating_add(1))
+                .collect();
+            if out.len() > max_frames {
+                return Err(too_many(&path));
+            }
+            return Ok(out);
+        }
         let mut out = Vec::new();
         let chunks: Vec<ChunkInfo> = self
             .chunks
@@ -598,6 +657,20 @@ impl RosBag {
     /// The serialised message `m` (its chunk decompressed, or kept from the last call).
     fn message(&mut self, m: &BagMessage) -> Result<&[u8]> {
         let path = self.path.clone();
+        if let Some(db) = &self.db3 {
+            // The message itself is cached, keyed by its page and cell.
+            let key = (m.chunk_pos << 16) | m.offset;
+            if self.cache.as_ref().is_none_or(|(k, _)| *k != key) {
+                self.cache = None;
+                let place = (
+                    u32::try_from(m.chunk_pos).unwrap_or(0),
+                    u16::try_from(m.offset).unwrap_or(0),
+                );
+                let data = db.data(&path, &mut self.file, place, self.limits.max_decoded_bytes)?;
+                self.cache = Some((key, data));
+            }
+            return Ok(self.cache.as_ref().map_or(&[][..], |(_, d)| d.as_slice()));
+        }
         if self
             .cache
             .as_ref()
@@ -821,13 +894,18 @@ impl RosBag {
 
     /// The `sensor_msgs/CameraInfo` topic beside the image topic `image_topic`
     /// (`/camera/depth/image` → `/camera/depth/camera_info`; a transport's topic
-    /// `/camera/depth/image_raw/compressedDepth` → the same), if the bag has it.
+    /// `/camera/depth/image_raw/compressedDepth` → the same; a RealSense recording's
+    /// `/device_0/sensor_0/Depth_0/image/data` → `/device_0/sensor_0/Depth_0/info/camera_info`),
+    /// if the bag has it.
     pub fn camera_info_topic(&self, image_topic: &str) -> Option<String> {
         let ns = image_topic.rsplit_once('/').map_or("", |(ns, _)| ns);
         let parent = ns.rsplit_once('/').map_or("", |(p, _)| p);
-        [ns, parent]
-            .iter()
-            .map(|n| format!("{n}/camera_info"))
-            .find(|t| self.message_type(t) == Some(CAMERA_INFO_TYPE))
+        [
+            format!("{ns}/camera_info"),
+            format!("{parent}/camera_info"),
+            format!("{parent}/info/camera_info"),
+        ]
+        .into_iter()
+        .find(|t| self.message_type(t) == Some(CAMERA_INFO_TYPE))
     }
 }

@@ -432,13 +432,4 @@ fn mcap_bags_give_their_depth_frames_and_camera() {
             "cut at {at}"
         );
     }
-    // A SQLite ROS 2 bag is named, not misread.
-    let sqlite = dir.path().join("sqlite");
-    std::fs::create_dir(&sqlite).unwrap();
-    std::fs::write(sqlite.join("metadata.yaml"), "").unwrap();
-    std::fs::write(sqlite.join("sqlite_0.db3"), "").unwrap();
-    let e = RosBag::open(&sqlite, &Limits::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("SQLite (.db3), which is not read"), "{e}");
 }

@@ -125,8 +125,8 @@ def track_sequence(
     a folder that stamps its frames with their numbers (``tum_stamps_are_frame_numbers``, as
     ICL-NUIM's TUM-format archives do) has them taken as frames 1/30 s apart, and the poses of
     an ICL-NUIM folder (``icl_nuim_tum_folder``) come in sldepth's frame (y down, not the data
-    set's); or a robot recording's path (a ROS 1 ``.bag``, a ROS 2 bag's ``.mcap`` or folder, as
-    ``sldepth track REC``): the depth topic
+    set's); or a robot recording's path (a ROS 1 ``.bag``, a ROS 2 bag's ``.mcap``, ``.db3`` or
+    folder, a RealSense recording, as ``sldepth track REC``): the depth topic
     ``topic`` (None: the one image topic holding depth, ``RosBag.depth_topic``), read frame by
     frame with its header stamps, and unless given the camera of its ``camera_info``
     (``RosBag.camera``).
@@ -220,16 +220,17 @@ def track_sequence(
 
 
 def _is_bag(frames):
-    """Whether ``frames`` is a robot recording's path: a ROS 1 bag (``.bag``), an MCAP file
-    (``.mcap``) or a ROS 2 bag's folder (``metadata.yaml`` beside its ``.mcap`` files)."""
+    """Whether ``frames`` is a robot recording's path: a ROS 1 bag (``.bag``), a ROS 2 bag's file
+    (``.mcap``, ``.db3``) or its folder (``metadata.yaml`` beside its ``.mcap`` or ``.db3``
+    files)."""
     if not isinstance(frames, (str, bytes, _os.PathLike)):
         return False
     path = _os.fsdecode(frames)
     if _os.path.isdir(path):
         return _os.path.isfile(_os.path.join(path, "metadata.yaml")) and any(
-            name.lower().endswith(".mcap") for name in _os.listdir(path)
+            name.lower().endswith((".mcap", ".db3")) for name in _os.listdir(path)
         )
-    return path.lower().endswith((".bag", ".mcap")) and _os.path.isfile(path)
+    return path.lower().endswith((".bag", ".mcap", ".db3")) and _os.path.isfile(path)
 
 
 def _poses_in_joined_worlds(poses, frame_fragments, joins):

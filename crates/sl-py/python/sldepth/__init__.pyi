@@ -428,9 +428,10 @@ def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> boo
 
 class RosBag:
     """A robot recording, as `sldepth track REC` reads it: a ROS 1 bag (format 2.0; chunks none,
-    bz2 or lz4) or a ROS 2 bag in MCAP (.mcap or its folder; chunks none, zstd or lz4).
-    Opening reads its index; a file that is not a bag, or a bag without an index (`rosbag
-    reindex`), raises OSError."""
+    bz2 or lz4), a ROS 2 bag in MCAP (.mcap; chunks none, zstd or lz4) or SQLite (.db3), or a
+    ROS 2 bag's folder; RealSense recordings (librealsense's .bag, or .db3 since 2.56) are
+    these. Opening reads its index; a file that is not a bag, or a bag without an index
+    (`rosbag reindex`), raises OSError."""
     def __init__(self, path: _Path) -> None: ...
     @property
     def path(self) -> str: ...
@@ -442,13 +443,16 @@ class RosBag:
         metres, or mono16 on a topic named for depth); several raise OSError naming them."""
     def camera(self, topic: Optional[str] = None) -> Camera:
         """The camera of the sensor_msgs/CameraInfo beside the depth topic (or of the camera
-        info topic named): intrinsics with the Kinect's noise model, plumb_bob lens as lens."""
+        info topic named): its intrinsics, plumb_bob lens as lens, and the noise model of a
+        RealSense recording's device (d415/d435/d455 preset, recorded stereo baseline), else
+        the Kinect's."""
     def depth_frames(
         self, topic: Optional[str] = None, depth_scale: Optional[float] = None
     ) -> "BagFrames":
         """(stamp_s, depth) of every frame of the depth topic in recorded order; depth float32
-        (H, W) metres, 16-bit images divided by depth_scale (None: 1000), float ones by it
-        (None: 1)."""
+        (H, W) metres, 16-bit images divided by depth_scale (None: 1000, or a RealSense
+        recording's depth units), float ones by it (None: 1); a RealSense recording's frames
+        stamped with their sensor timestamps."""
 
 class BagFrames:
     """The depth frames of a bag's topic: an iterator of (stamp_s, depth) with len()."""
@@ -696,7 +700,8 @@ def track_sequence(
     read_sequence), read as `sldepth track DIR` reads it: its frames, timestamps and, unless
     given, camera (sequence_camera) and depth scale (sequence_depth_scale); frame-number stamps
     (tum_stamps_are_frame_numbers) are frames 1/30 s apart, an ICL-NUIM folder's poses in
-    sldepth's frame. Or a robot recording's path (a ROS 1 .bag, a ROS 2 .mcap or its folder): its depth topic (topic, else
+    sldepth's frame. Or a robot recording's path (a ROS 1 .bag, a ROS 2 .mcap, .db3 or its
+    folder, a RealSense recording): its depth topic (topic, else
     RosBag.depth_topic), frame by frame with the header stamps, and unless given the camera of
     its camera_info (RosBag.camera).
     camera is needed for arrays and lists of paths."""

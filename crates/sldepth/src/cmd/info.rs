@@ -11,8 +11,9 @@ use crate::common::{InputArgs, load_depth, print_json, round_to};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Depth map (16-bit PNG/TIFF, float TIFF, NYU raw PGM, SUN PNG), or a robot recording — a
-    /// ROS 1 bag (`.bag`), a ROS 2 bag in MCAP (`.mcap`, or its folder) —: its topics, their
-    /// message types and counts, and the depth topic `sldepth track` takes.
+    /// ROS 1 bag (`.bag`), a ROS 2 bag in MCAP or SQLite (`.mcap`, `.db3`, or its folder), a
+    /// RealSense recording —: its topics, their message types and counts, and the depth topic
+    /// `sldepth track` takes.
     #[arg(value_name = "DEPTH|BAG")]
     pub depth: PathBuf,
     /// Print JSON instead of text.

@@ -96,7 +96,9 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     ]);
     assert_eq!(v["tracked"], 4, "{v}");
     assert!(
-        stderr.contains("camera from /camera/depth/camera_info (fx 580, 640x480)"),
+        stderr.contains(
+            "camera from /camera/depth/camera_info with the Kinect's noise model (fx 580, 640x480)"
+        ),
         "{stderr}"
     );
     let out = sldepth(&[
@@ -146,8 +148,8 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     assert!(err.contains("--topic names a topic of a ROS bag"), "{err}");
 }
 
-/// A ROS 2 bag (MCAP, zstd chunks, CDR messages) in its folder tracks as the same frames in a
-/// folder do, line for line; `info` names its container.
+/// A ROS 2 bag (MCAP, zstd chunks, CDR messages) in its folder, and the same messages in
+/// SQLite, track as the same frames in a folder do, line for line; `info` names the container.
 #[test]
 fn track_reads_a_ros2_mcap_bag_as_the_folder_of_its_frames() {
     use sl_testkit::rosbag_writer::{camera_info_cdr, image_cdr, write_mcap};
@@ -200,4 +202,19 @@ fn track_reads_a_ros2_mcap_bag_as_the_folder_of_its_frames() {
     let (v, _) = sldepth_json(&["info", bag.to_str().unwrap(), "--json"]);
     assert_eq!(v["container"], "MCAP (ROS 2 bag)", "{v}");
     assert_eq!(v["depth_topic"], "/camera/depth/image_rect_raw", "{v}");
+    // The same messages in SQLite (`.db3`, Humble's default storage), its file given alone.
+    let db3 = tmp.path().join("rec_0.db3");
+    sl_testkit::sqlite_writer::write_db3(&db3, 4096, &conns, &msgs).unwrap();
+    let traj = tmp.path().join("db3.txt");
+    let (v, _) = kinect_track_json_from(
+        &[db3.to_str().unwrap()],
+        &["--output", traj.to_str().unwrap()],
+    );
+    assert_eq!(v["tracked"], 4, "{v}");
+    assert_eq!(
+        std::fs::read_to_string(&traj).unwrap(),
+        std::fs::read_to_string(&folder_traj).unwrap()
+    );
+    let (v, _) = sldepth_json(&["info", db3.to_str().unwrap(), "--json"]);
+    assert_eq!(v["container"], "SQLite (ROS 2 bag)", "{v}");
 }

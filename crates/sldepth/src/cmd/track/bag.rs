@@ -1,8 +1,10 @@
-//! A ROS 1 bag as the sequence to track (`sldepth track REC.bag [--topic T]`): its depth topic
-//! (the one image topic holding depth unless named), its frames in the order they were
-//! recorded, stamped with their image headers' stamps, and its camera — `--camera`, else the
-//! `camera_info` topic beside the depth topic (the Kinect's noise model at its focal length, its
-//! `plumb_bob` lens undone with `--lens auto`).
+//! A robot recording as the sequence to track (`sldepth track REC [--topic T]`; a ROS 1 bag, a
+//! ROS 2 bag in MCAP or SQLite, a RealSense recording): its depth topic (the one image topic
+//! holding depth unless named), its frames in the order they were recorded, stamped with their
+//! image headers' stamps (a RealSense recording's sensor timestamps where its metadata has
+//! them), its depth units (a RealSense recording's own) and its camera — `--camera`, else the
+//! `camera_info` topic beside the depth topic with the noise model `RosBag::depth_camera`
+//! chooses (its `plumb_bob` lens undone with `--lens auto`).
 
 use std::path::Path;
 
@@ -17,6 +19,9 @@ use crate::common::limits;
 pub(super) struct BagFrames {
     bag: RosBag,
     messages: Vec<BagMessage>,
+    /// A RealSense recording's sensor timestamps of the frames, where recorded (else the image
+    /// header's stamp is the frame's time).
+    times: Vec<Option<f64>>,
     /// The stamp of the last frame read, which the next must follow.
     last_stamp_s: Option<f64>,
 }
@@ -51,39 +56,35 @@ pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> 
     };
     let default_scale = match kind {
         DepthEncodingKind::F32 => sl_io::depth::FLOAT_UNITS_PER_M,
-        DepthEncodingKind::U16 => sl_io::depth::DEFAULT_UNITS_PER_M,
+        DepthEncodingKind::U16 => bag.depth_units_per_m(&topic)?,
     };
     let (camera, lens, whose) = match camera {
         Some(c) => (c, None, "--camera".to_string()),
         None => {
-            let Some(info) = bag.camera_info_topic(&topic) else {
-                bail!(
-                    "{}: no sensor_msgs/CameraInfo topic beside {topic} (expected {}); give the \
-                     camera with --camera NAME|FILE",
-                    path.display(),
-                    topic
-                        .rsplit_once('/')
-                        .map_or("/camera_info".to_string(), |(ns, _)| format!(
-                            "{ns}/camera_info"
-                        ))
-                );
-            };
-            let ros = bag
-                .camera(&info)
-                .with_context(|| format!("reading the camera of {info}"))?;
-            let camera = Camera::from_intrinsics(ros.intrinsics, None, None)
-                .with_context(|| format!("the camera of {info}"))?;
-            (camera, ros.lens, info)
+            let c = bag
+                .depth_camera(&topic)
+                .context("the camera of the depth topic (or give it with --camera NAME|FILE)")?;
+            (
+                c.camera,
+                c.lens,
+                format!("{} with {}", c.camera_info_topic, c.sensor_source),
+            )
         }
     };
+    let times = bag.realsense_frame_times(&topic, &messages)?;
     let k = camera.intrinsics;
     errln!(
         "note: {}: tracking {topic} ({} frames, {}), camera from {whose} (fx {}, {}x{})",
         path.display(),
         messages.len(),
         match kind {
-            DepthEncodingKind::F32 => "32FC1 metres",
-            DepthEncodingKind::U16 => "16-bit millimetres unless --depth-scale",
+            DepthEncodingKind::F32 => "32FC1 metres".to_string(),
+            DepthEncodingKind::U16 if default_scale == sl_io::depth::DEFAULT_UNITS_PER_M =>
+                "16-bit millimetres unless --depth-scale".to_string(),
+            DepthEncodingKind::U16 => format!(
+                "16-bit units of {} mm as recorded, unless --depth-scale",
+                crate::common::num(1e3 / default_scale)
+            ),
         },
         crate::common::num(k.fx),
         k.width,
@@ -104,6 +105,7 @@ pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> 
         reader: BagFrames {
             bag,
             messages,
+            times,
             last_stamp_s: None,
         },
     })
@@ -116,10 +118,13 @@ impl BagFrames {
         let Some(m) = self.messages.get(i).copied() else {
             return (Err(anyhow::anyhow!("no message {i}")), None);
         };
-        let d = match self.bag.read_depth(&m, units_per_m, units_per_m) {
+        let mut d = match self.bag.read_depth(&m, units_per_m, units_per_m) {
             Ok(d) => d,
             Err(e) => return (Err(e.into()), None),
         };
+        if let Some(t) = self.times.get(i).copied().flatten() {
+            d.stamp_s = t;
+        }
         if let Some(last) = self.last_stamp_s.filter(|&l| d.stamp_s <= l) {
             return (
                 Err(anyhow::anyhow!(

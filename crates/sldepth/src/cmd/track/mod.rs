@@ -73,10 +73,12 @@ pub struct Args {
     /// `depth.txt` or `associations.txt` (as --tum), a 7-Scenes folder when it has
     /// `frame-*.depth.png` (as --7scenes), an Open3D-style folder when it has a `depth` folder
     /// (as --o3d). Or name the layout with one of those options. Or a robot recording, a ROS 1
-    /// bag (`.bag`) or a ROS 2 bag in MCAP (`.mcap`, or the bag's folder):
-    /// its depth topic (--topic, else the one image topic holding depth: 16UC1 millimetres or
-    /// 32FC1 metres), stamped with its images' header stamps, with the camera of the
-    /// `camera_info` topic beside it unless --camera is given.
+    /// bag (`.bag`), a ROS 2 bag in MCAP or SQLite (`.mcap`, `.db3`, or the bag's folder) or a
+    /// RealSense recording (librealsense's `.bag` or `.db3`): its depth topic (--topic, else
+    /// the one image topic holding depth: 16UC1 millimetres or 32FC1 metres), stamped with its
+    /// images' header stamps (a RealSense recording's: the sensor's timestamps), with the
+    /// camera of the `camera_info` topic beside it unless --camera is given (a RealSense
+    /// recording's depth units, device and stereo baseline chosen as recorded).
     #[arg(value_name = "DIR|BAG", group = "source")]
     pub sequence: Option<PathBuf>,
     /// The depth topic of a ROS bag (`/camera/depth/image_raw`); by default the one image
