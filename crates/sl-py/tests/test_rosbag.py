@@ -196,14 +196,18 @@ def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
         np.testing.assert_array_equal(z, e)
 
 
-def test_a_ros2_mcap_bag_written_by_rosbags_reads_the_same(tmp_path):
-    """ROS 2 (MCAP, CDR) by the independent `rosbags` writer: the bag's folder, 16UC1."""
+def _rosbags_ros2():
+    """The `rosbags` ROS 2 writer and the Humble types of a depth image (skips without it)."""
     rosbag2 = pytest.importorskip("rosbags.rosbag2")
     typesys = pytest.importorskip("rosbags.typesys")
     ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
-    Image = ts.types["sensor_msgs/msg/Image"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
+    return (rosbag2, ts, ts.types["sensor_msgs/msg/Image"], ts.types["std_msgs/msg/Header"],
+            ts.types["builtin_interfaces/msg/Time"])
+
+
+def test_a_ros2_mcap_bag_written_by_rosbags_reads_the_same(tmp_path):
+    """ROS 2 (MCAP, CDR) by the independent `rosbags` writer: the bag's folder, 16UC1."""
+    rosbag2, ts, Image, Header, Time = _rosbags_ros2()
     mm = _frames(2)
     folder = tmp_path / "rec"
     with rosbag2.Writer(folder, version=8, storage_plugin=rosbag2.StoragePlugin.MCAP) as w:
@@ -300,12 +304,7 @@ def test_a_ros2_sqlite_bag_written_by_sqlite_itself_reads_the_same(tmp_path, pag
 
 def test_a_ros2_sqlite_bag_written_by_rosbags_reads_the_same(tmp_path):
     """ROS 2 in SQLite by the independent `rosbags` writer: the bag's folder, 32FC1 metres."""
-    rosbag2 = pytest.importorskip("rosbags.rosbag2")
-    typesys = pytest.importorskip("rosbags.typesys")
-    ts = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
-    Image = ts.types["sensor_msgs/msg/Image"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
+    rosbag2, ts, Image, Header, Time = _rosbags_ros2()
     metres = [(d.astype(np.float64) / 1000).astype(np.float32) for d in _frames(2)]
     folder = tmp_path / "rec"
     with rosbag2.Writer(folder, version=8, storage_plugin=rosbag2.StoragePlugin.SQLITE3) as w:
