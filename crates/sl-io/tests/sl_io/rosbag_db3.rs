@@ -152,7 +152,13 @@ fn malformed_db3_bags_are_refused() {
     // hostile file could point them all at one) are refused before they are read.
     let long: &'static str = Box::leak(format!("/{}", "t".repeat(2000)).into_boxed_str());
     let topics = dir.path().join("topics.db3");
-    write_db3(&topics, 512, &[(1, long, "a/msg/B"), (2, long, "a/msg/B")], &[]).unwrap();
+    write_db3(
+        &topics,
+        512,
+        &[(1, long, "a/msg/B"), (2, long, "a/msg/B")],
+        &[],
+    )
+    .unwrap();
     assert!(RosBag::open(&topics, &Limits::default()).is_ok());
     let e = RosBag::open(&topics, &small).unwrap_err();
     assert!(e.to_string().contains("schema or topic rows of"), "{e}");
