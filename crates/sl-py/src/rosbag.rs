@@ -18,7 +18,7 @@ use crate::threads::compute;
 /// A robot recording, as ``sldepth track REC`` reads it: a ROS 1 bag (``.bag``, format 2.0;
 /// chunks uncompressed, ``bz2`` or ``lz4``), a ROS 2 bag in MCAP (``.mcap``; chunks
 /// uncompressed, ``zstd`` or ``lz4``) or in SQLite (``.db3``), or a ROS 2 bag's folder with
-/// ``metadata.yaml``; a RealSense recording (librealsense's ``.bag``, or ``.db3`` since 2.56)
+/// ``metadata.yaml`` (all its files, when the recording was split into several); a RealSense recording (librealsense's ``.bag``, or ``.db3`` since 2.56)
 /// is one of these. ``RosBag(path)`` reads its index (nothing is decompressed); ``topics``
 /// lists ``(topic, type, messages)``; ``depth_topic()`` finds the one image topic holding depth
 /// (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a topic named for depth, or

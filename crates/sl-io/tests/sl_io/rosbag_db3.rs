@@ -172,15 +172,14 @@ fn malformed_db3_bags_are_refused() {
     std::fs::write(dir.path().join("w.db3-wal"), b"pages").unwrap();
     let e = RosBag::open(&wal_file, &Limits::default()).unwrap_err();
     assert!(e.to_string().contains("-wal file"), "{e}");
-    // A bag split into two files.
-    let split = dir.path().join("split");
-    std::fs::create_dir(&split).unwrap();
-    std::fs::write(split.join("metadata.yaml"), "").unwrap();
-    for n in 0..2 {
-        std::fs::copy(&file, split.join(format!("split_{n}.db3"))).unwrap();
-    }
-    let e = RosBag::open(&split, &Limits::default()).unwrap_err();
-    assert!(e.to_string().contains("split into 2 files"), "{e}");
+    // A folder of both storages.
+    let mixed = dir.path().join("mixed");
+    std::fs::create_dir(&mixed).unwrap();
+    std::fs::write(mixed.join("metadata.yaml"), "").unwrap();
+    std::fs::copy(&file, mixed.join("mixed_0.db3")).unwrap();
+    std::fs::write(mixed.join("mixed_1.mcap"), b"").unwrap();
+    let e = RosBag::open(&mixed, &Limits::default()).unwrap_err();
+    assert!(e.to_string().contains("both .mcap and .db3"), "{e}");
     // An SQLite database that is not a bag, and a .db3 that is not SQLite.
     let mut other = bytes.clone();
     let i = other.windows(6).position(|w| w == b"topics").unwrap();
@@ -394,4 +393,56 @@ fn realsense_recordings_give_their_units_device_and_timestamps() {
         bag.depth_camera(depth2.1).unwrap().sensor_source,
         "the Kinect's noise model"
     );
+}
+
+/// A ROS 2 bag split into several files (`ros2 bag record --max-bag-size`): its folder reads as
+/// one recording, the files in the natural order of their names (`_2` before `_10`) and the
+/// messages in time order across them, for SQLite and MCAP alike; one of its files alone is
+/// that file's part.
+#[test]
+fn a_bag_split_into_files_reads_as_one_recording() {
+    let dir = tempfile::tempdir().unwrap();
+    let msgs = messages();
+    // Files 0, 2 and 10 (their names out of lexical order), ten frames each.
+    let groups: Vec<Vec<Msg>> = msgs.chunks(20).map(<[Msg]>::to_vec).collect();
+    for storage in ["db3", "mcap"] {
+        let folder = dir.path().join(format!("split-{storage}"));
+        std::fs::create_dir(&folder).unwrap();
+        std::fs::write(
+            folder.join("metadata.yaml"),
+            "rosbag2_bagfile_information:\n",
+        )
+        .unwrap();
+        for (g, n) in groups.iter().zip([0, 2, 10]) {
+            let file = folder.join(format!("split_{n}.{storage}"));
+            if storage == "db3" {
+                write_db3(&file, 1024, &[DEPTH, INFO], g).unwrap();
+            } else {
+                sl_testkit::rosbag_writer::write_mcap(&file, &[DEPTH, INFO], g, "zstd", 4).unwrap();
+            }
+        }
+        let mut bag = RosBag::open(&folder, &Limits::default()).unwrap();
+        assert_eq!(bag.files(), 3);
+        assert_eq!(bag.path(), folder.as_path());
+        assert_eq!(bag.topics()[1].messages, 30, "{storage}");
+        let frames = bag.messages(DEPTH.1).unwrap();
+        assert_eq!(frames.len(), 30);
+        for (i, m) in frames.iter().enumerate() {
+            let d = bag.read_depth(m, 1000.0, 1.0).unwrap();
+            assert_eq!(d.stamp_s, 300.0 + i as f64, "{storage}");
+            assert_eq!(d.depth.data()[1999], f32::from(mm(i as u32, 1999)) / 1000.0);
+        }
+        let one = RosBag::open(
+            folder.join(format!("split_2.{storage}")),
+            &Limits::default(),
+        )
+        .unwrap();
+        assert_eq!((one.files(), one.topics()[1].messages), (1, 10));
+        // The frame limit counts every file's messages.
+        let mut few = Limits::default();
+        few.max_frames = 25;
+        let mut bag = RosBag::open(&folder, &few).unwrap();
+        let e = bag.messages(DEPTH.1).unwrap_err();
+        assert!(matches!(e, sl_io::IoError::TooLarge { .. }), "{e}");
+    }
 }

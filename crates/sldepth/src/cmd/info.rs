@@ -90,11 +90,16 @@ fn bag_info(args: &Args) -> Result<()> {
         print_json(&json!({
             "path": args.depth.display().to_string(),
             "container": bag.container(),
+            "files": bag.files(),
             "topics": list,
             "depth_topic": depth.as_ref().ok(),
         }))?;
     } else {
-        outln!("{} ({})", args.depth.display(), bag.container())?;
+        let files = match bag.files() {
+            1 => String::new(),
+            n => format!(", in {n} files"),
+        };
+        outln!("{} ({}{files})", args.depth.display(), bag.container())?;
         for t in &topics {
             outln!("  {}  {}  {} messages", t.topic, t.message_type, t.messages)?;
         }
