@@ -116,6 +116,31 @@ impl PyRosBag {
         })
     }
 
+    /// What a RealSense recording (librealsense's ``.bag``, or ``.db3`` since 2.56) says of the
+    /// sensor behind the depth topic (``topic``, or ``depth_topic()``): a dict with
+    /// ``device`` (its name), ``depth_units_m`` (metres per 16-bit unit) and
+    /// ``stereo_baseline_m``, each None when not recorded; None for a recording that is not
+    /// librealsense's.
+    #[pyo3(signature = (topic = None))]
+    fn realsense<'py>(
+        &self,
+        py: Python<'py>,
+        topic: Option<String>,
+    ) -> PyResult<Option<Bound<'py, pyo3::types::PyDict>>> {
+        let info = self.with_bag(py, move |b| {
+            let depth = b.depth_topic(topic.as_deref())?;
+            b.realsense(&depth)
+        })?;
+        let Some(r) = info else {
+            return Ok(None);
+        };
+        let d = pyo3::types::PyDict::new(py);
+        d.set_item("device", r.device_name)?;
+        d.set_item("depth_units_m", r.depth_units_m)?;
+        d.set_item("stereo_baseline_m", r.stereo_baseline_m)?;
+        Ok(Some(d))
+    }
+
     /// The depth frames of ``topic`` (None: ``depth_topic()``), in the order they were
     /// recorded: an iterator of ``(stamp_s, depth)`` with ``len()``. 16-bit images are divided by
     /// ``depth_scale`` (None: 1000, ROS's millimetres, or a RealSense recording's own depth

@@ -296,6 +296,7 @@ def test_a_ros2_sqlite_bag_written_by_sqlite_itself_reads_the_same(tmp_path, pag
         bag = sldepth.RosBag(where)
         assert bag.topics == [("/camera/depth/image_rect_raw", "sensor_msgs/Image", 3),
                               ("/chatter", "std_msgs/String", 9)]
+        assert bag.realsense() is None
         got = list(bag.depth_frames())
         assert [t for t, _ in got] == pytest.approx([90.5, 91.5, 92.5], abs=1e-9)
         for (_, z), d in zip(got, mm):
@@ -362,6 +363,8 @@ def test_a_realsense_recording_by_librealsense_reads_its_units_and_timestamps(tm
     sensor.close()
     del recorder
     bag = sldepth.RosBag(path)
+    assert bag.realsense() == {"device": "Intel RealSense D455", "depth_units_m": 0.00025,
+                               "stereo_baseline_m": None}
     cam = bag.camera()
     assert (cam.fx, cam.baseline_m) == (pytest.approx(580.0), 0.095)
     got = list(bag.depth_frames())

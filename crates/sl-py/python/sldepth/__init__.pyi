@@ -446,6 +446,10 @@ class RosBag:
         info topic named): its intrinsics, plumb_bob lens as lens, and the noise model of a
         RealSense recording's device (d415/d435/d455 preset, recorded stereo baseline), else
         the Kinect's."""
+    def realsense(self, topic: Optional[str] = None) -> Optional[Dict[str, Any]]:
+        """What a RealSense recording says of the sensor behind the depth topic: device (name),
+        depth_units_m, stereo_baseline_m (each None when not recorded); None when the recording
+        is not librealsense's."""
     def depth_frames(
         self, topic: Optional[str] = None, depth_scale: Optional[float] = None
     ) -> "BagFrames":

@@ -77,11 +77,35 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
-/// The topics of a ROS bag and the depth topic `track` would take (or why none).
+/// The topics of a ROS bag and the depth topic `track` would take (or why none), with the
+/// camera and depth units it would read it with.
 fn bag_info(args: &Args) -> Result<()> {
     let mut bag = sl_io::rosbag::RosBag::open(&args.depth, &crate::common::limits())?;
     let topics = bag.topics();
     let depth = bag.depth_topic(None);
+    let realsense = match &depth {
+        Ok(t) => bag.realsense(t)?,
+        Err(_) => None,
+    };
+    // The units of 16-bit depth (none for float depth, which is metres).
+    let units = match &depth {
+        Ok(t) => {
+            let first = bag.messages(t)?.first().copied();
+            let kind = match first {
+                Some(m) => bag.depth_kind(&m)?,
+                None => None,
+            };
+            match kind {
+                Some(sl_io::rosbag::DepthEncodingKind::F32) => None,
+                _ => Some(bag.depth_units_per_m(t)?),
+            }
+        }
+        Err(_) => None,
+    };
+    let camera = match &depth {
+        Ok(t) => bag.depth_camera(t).map_err(|e| e.to_string()),
+        Err(_) => Err("no depth topic".to_string()),
+    };
     if args.json {
         let list: Vec<_> = topics
             .iter()
@@ -93,6 +117,21 @@ fn bag_info(args: &Args) -> Result<()> {
             "files": bag.files(),
             "topics": list,
             "depth_topic": depth.as_ref().ok(),
+            "depth_units_per_m": units,
+            "camera": camera.as_ref().ok().map(|c| json!({
+                "camera_info_topic": c.camera_info_topic,
+                "fx": c.camera.intrinsics.fx,
+                "width": c.camera.intrinsics.width,
+                "height": c.camera.intrinsics.height,
+                "baseline_m": c.camera.sensor.baseline_m,
+                "subpixel_steps": c.camera.sensor.subpixel_steps,
+                "noise_model": c.sensor_source,
+            })),
+            "realsense": realsense.as_ref().map(|r| json!({
+                "device": r.device_name,
+                "depth_units_m": r.depth_units_m,
+                "stereo_baseline_m": r.stereo_baseline_m,
+            })),
         }))?;
     } else {
         let files = match bag.files() {
@@ -106,6 +145,30 @@ fn bag_info(args: &Args) -> Result<()> {
         match &depth {
             Ok(t) => outln!("  depth topic   {t} (what `sldepth track` reads)")?,
             Err(e) => outln!("  depth topic   none chosen: {e}")?,
+        }
+        if let Some(r) = &realsense {
+            outln!(
+                "  RealSense     {}",
+                r.device_name.as_deref().unwrap_or("device not named")
+            )?;
+        }
+        if let Some(u) = units.filter(|&u| u != sl_io::depth::DEFAULT_UNITS_PER_M) {
+            outln!(
+                "  depth units   {} mm (16-bit values, as recorded)",
+                crate::common::num(1e3 / u)
+            )?;
+        }
+        match &camera {
+            Ok(c) => outln!(
+                "  camera        {} (fx {}, {}x{}) with {}",
+                c.camera_info_topic,
+                crate::common::num(c.camera.intrinsics.fx),
+                c.camera.intrinsics.width,
+                c.camera.intrinsics.height,
+                c.sensor_source
+            )?,
+            Err(e) if depth.is_ok() => outln!("  camera        none: {e}")?,
+            Err(_) => {}
         }
     }
     Ok(())

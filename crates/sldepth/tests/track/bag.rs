@@ -218,3 +218,117 @@ fn track_reads_a_ros2_mcap_bag_as_the_folder_of_its_frames() {
     let (v, _) = sldepth_json(&["info", db3.to_str().unwrap(), "--json"]);
     assert_eq!(v["container"], "SQLite (ROS 2 bag)", "{v}");
 }
+
+/// A RealSense recording as librealsense 2.56+ writes it (SQLite; `compressedDepth` frames in
+/// 0.25-mm units; the device and its options as strings): `info` says what `track` will read
+/// it with, and `track` reads it so — its depth units, its device's preset at the recorded
+/// baseline, each frame stamped with its sensor timestamp from the metadata.
+#[test]
+fn a_realsense_recording_is_read_with_its_units_device_and_timestamps() {
+    use sl_testkit::rosbag_writer::{camera_info_cdr, compressed_image_cdr, string_msg};
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 3);
+    let conns: [Conn; 5] = [
+        (
+            1,
+            "/device_0/sensor_0/Depth_0/image/data/compressedDepth",
+            "sensor_msgs/msg/CompressedImage",
+        ),
+        (
+            2,
+            "/device_0/sensor_0/Depth_0/image/camera_info",
+            "sensor_msgs/msg/CameraInfo",
+        ),
+        (
+            3,
+            "/device_0/sensor_0/option/Depth_Units/value",
+            "std_msgs/msg/String",
+        ),
+        (4, "/device_0/info", "std_msgs/msg/String"),
+        (
+            5,
+            "/device_0/sensor_0/Depth_0/image/metadata",
+            "std_msgs/msg/String",
+        ),
+    ];
+    let text = |s: &str| string_msg(s, true);
+    let mut msgs = vec![
+        Msg {
+            conn: 3,
+            time: (0, 0),
+            data: text("0.000250"),
+        },
+        Msg {
+            conn: 4,
+            time: (0, 0),
+            data: text("Name=Intel RealSense D415;Serial Number=7"),
+        },
+    ];
+    for (i, t) in stamps.iter().enumerate() {
+        let file = seq.join("depth").join(format!("{t:.6}.png"));
+        let d = read_depth(&file, &ReadConfig::default().with_scale(5000.0))
+            .unwrap()
+            .depth;
+        let units: Vec<u16> = d
+            .data()
+            .iter()
+            .map(|z| (z * 4000.0).round() as u16)
+            .collect();
+        let img = sl_core::Image::from_vec(d.width(), d.height(), units).unwrap();
+        let png = tmp.path().join(format!("{i}.png"));
+        let raw = sl_io::depth::RawDepth {
+            values: img,
+            encoding: sl_io::DepthEncoding::png(1000.0),
+        };
+        sl_io::depth::write_raw_depth(&png, &raw).unwrap();
+        let mut data = vec![0u8; 12];
+        data.extend_from_slice(&std::fs::read(&png).unwrap());
+        let rec = (0, 1000 + 33_000_000 * i as u32);
+        msgs.push(Msg {
+            conn: 1,
+            time: rec,
+            data: compressed_image_cdr(rec, "16UC1; compressedDepth png", &data),
+        });
+        let (w, h) = (d.width() as u32, d.height() as u32);
+        msgs.push(Msg {
+            conn: 2,
+            time: rec,
+            data: camera_info_cdr(w, h, 580.0, "plumb_bob", &[0.0; 5]),
+        });
+        msgs.push(Msg {
+            conn: 5,
+            time: rec,
+            data: text(&format!("Frame number={i};timestamp={:.3};", t * 1000.0)),
+        });
+    }
+    let db3 = tmp.path().join("rs.db3");
+    sl_testkit::sqlite_writer::write_db3(&db3, 4096, &conns, &msgs).unwrap();
+    let (v, _) = sldepth_json(&["info", db3.to_str().unwrap(), "--json"]);
+    assert_eq!(v["depth_units_per_m"], 4000.0, "{v}");
+    assert_eq!(v["realsense"]["device"], "Intel RealSense D415", "{v}");
+    assert_eq!(v["camera"]["baseline_m"], 0.055, "{v}");
+    assert_eq!(v["camera"]["subpixel_steps"], 32, "{v}");
+    let traj = tmp.path().join("rs.txt");
+    let (v, stderr) = sldepth_json(&[
+        "track",
+        db3.to_str().unwrap(),
+        "--output",
+        traj.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(v["tracked"], 3, "{v}");
+    assert!(
+        stderr.contains("16-bit units of 0.25 mm as recorded")
+            && stderr.contains("the d415 preset's noise model (Intel RealSense D415) at its 55 mm"),
+        "{stderr}"
+    );
+    let lines: Vec<String> = std::fs::read_to_string(&traj)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().next().unwrap().to_string())
+        .collect();
+    let want: Vec<String> = stamps.iter().map(|t| format!("{t:.6}")).collect();
+    assert_eq!(lines, want);
+}
