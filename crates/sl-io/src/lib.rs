@@ -18,7 +18,9 @@
 //!   ASCII, through `ply-rs`.
 //! - [`trajectory`]: TUM `groundtruth.txt` + `associations.txt` or `depth.txt`, Open3D `.log`,
 //!   7-Scenes `frame-*.pose.txt`, all as [`Frame`]s with [`sl_core::CameraToWorld`] poses.
-//! - [`rosbag`]: ROS 1 bags — a recording's depth topic frame by frame, and its camera info.
+//! - [`rosbag`]: robot recordings — ROS 1 bags, ROS 2 bags in MCAP or SQLite (one file or a
+//!   split recording's folder), RealSense recordings — a recording's depth topic frame by
+//!   frame, its camera info, and a RealSense sensor's depth units, device and timestamps.
 //! - [`sequence`]: a recording's folder as `sldepth track DIR` and `sldepth fuse DIR` read it
 //!   (its layout and depth scale, its frames, their poses, the camera it implies).
 //! - [`atomic`]: every file is written through [`atomic::write_atomic`] (temp file + fsync +
