@@ -478,3 +478,24 @@ pub fn compressed_image_cdr(stamp: (u32, u32), format: &str, data: &[u8]) -> Vec
     c.0.extend_from_slice(data);
     c.0
 }
+
+/// The data of `image_transport`'s `compressedDepth` for the 16-bit `values`: its 12-byte
+/// configuration header (format 0, depth quantisation `a`, `b`), then the values as a 16-bit
+/// PNG, written by sl-io through the file `scratch`.
+pub fn compressed_depth_data(
+    scratch: &Path,
+    a: f32,
+    b: f32,
+    values: &sl_core::Image<u16>,
+) -> std::io::Result<Vec<u8>> {
+    let raw = sl_io::depth::RawDepth {
+        values: values.clone(),
+        encoding: sl_io::DepthEncoding::png(1000.0),
+    };
+    sl_io::depth::write_raw_depth(scratch, &raw).map_err(std::io::Error::other)?;
+    let mut data = 0i32.to_le_bytes().to_vec();
+    data.extend_from_slice(&a.to_le_bytes());
+    data.extend_from_slice(&b.to_le_bytes());
+    data.extend_from_slice(&std::fs::read(scratch)?);
+    Ok(data)
+}

@@ -269,16 +269,9 @@ fn compressed_depth(
     values: &sl_core::Image<u16>,
 ) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
-    let png = dir.path().join("q.png");
-    let raw = sl_io::depth::RawDepth {
-        values: values.clone(),
-        encoding: sl_io::DepthEncoding::png(1000.0),
-    };
-    sl_io::depth::write_raw_depth(&png, &raw).unwrap();
-    let mut data = 0i32.to_le_bytes().to_vec();
-    data.extend_from_slice(&a.to_le_bytes());
-    data.extend_from_slice(&b.to_le_bytes());
-    data.extend_from_slice(&std::fs::read(&png).unwrap());
+    let data =
+        sl_testkit::rosbag_writer::compressed_depth_data(&dir.path().join("q.png"), a, b, values)
+            .unwrap();
     let mut m = Vec::new();
     m.extend_from_slice(&3u32.to_le_bytes());
     m.extend_from_slice(&stamp.0.to_le_bytes());

@@ -200,16 +200,9 @@ fn malformed_db3_bags_are_refused() {
 /// The 16-bit depth of a RealSense frame in a PNG of `image_transport`'s `compressedDepth`.
 fn compressed(values: &[u16]) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
-    let png = dir.path().join("q.png");
     let img = sl_core::Image::from_vec(W as usize, H as usize, values.to_vec()).unwrap();
-    let raw = sl_io::depth::RawDepth {
-        values: img,
-        encoding: sl_io::DepthEncoding::png(1000.0),
-    };
-    sl_io::depth::write_raw_depth(&png, &raw).unwrap();
-    let mut data = vec![0u8; 12];
-    data.extend_from_slice(&std::fs::read(&png).unwrap());
-    data
+    sl_testkit::rosbag_writer::compressed_depth_data(&dir.path().join("q.png"), 0.0, 0.0, &img)
+        .unwrap()
 }
 
 /// RealSense recordings as librealsense writes them: up to 2.55 a ROS 1 bag (`mono16` under

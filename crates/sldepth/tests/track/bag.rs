@@ -277,13 +277,7 @@ fn a_realsense_recording_is_read_with_its_units_device_and_timestamps() {
             .collect();
         let img = sl_core::Image::from_vec(d.width(), d.height(), units).unwrap();
         let png = tmp.path().join(format!("{i}.png"));
-        let raw = sl_io::depth::RawDepth {
-            values: img,
-            encoding: sl_io::DepthEncoding::png(1000.0),
-        };
-        sl_io::depth::write_raw_depth(&png, &raw).unwrap();
-        let mut data = vec![0u8; 12];
-        data.extend_from_slice(&std::fs::read(&png).unwrap());
+        let data = sl_testkit::rosbag_writer::compressed_depth_data(&png, 0.0, 0.0, &img).unwrap();
         let rec = (0, 1000 + 33_000_000 * i as u32);
         msgs.push(Msg {
             conn: 1,
