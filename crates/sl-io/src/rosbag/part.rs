@@ -19,17 +19,17 @@ use crate::limits::Limits;
 /// One file of a recording: its index, and the chunk (or SQLite message) read last.
 #[derive(Debug)]
 pub(super) struct Part {
-    pub(super) path: PathBuf,
-    pub(super) file: BufReader<File>,
-    pub(super) file_len: u64,
-    pub(super) limits: Limits,
-    pub(super) format: Format,
-    pub(super) connections: Vec<Connection>,
-    pub(super) chunks: Vec<ChunkInfo>,
+    path: PathBuf,
+    file: BufReader<File>,
+    file_len: u64,
+    limits: Limits,
+    format: Format,
+    connections: Vec<Connection>,
+    chunks: Vec<ChunkInfo>,
     /// The chunk decompressed last: its place and records (SQLite: the message read last).
-    pub(super) cache: Option<(u64, Vec<u8>)>,
+    cache: Option<(u64, Vec<u8>)>,
     /// The index of a `.db3` bag.
-    pub(super) db3: Option<db3::Db3>,
+    db3: Option<db3::Db3>,
 }
 
 /// `data` decompressed by `compression` (ROS 1: `none`, `bz2`, `lz4`; MCAP: empty, `zstd`,
