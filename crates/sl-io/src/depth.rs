@@ -540,12 +540,16 @@ fn resolve_format(path: &Path, format: Option<DepthFormat>) -> Result<DepthForma
                       `sldepth info` lists its topics (Python: sldepth.RosBag)"
                 .into(),
         }),
-        None => Err(IoError::Format {
-            path: path.to_path_buf(),
-            message: "cannot infer the depth format from the extension (.png, .tif, .tiff, .pgm); \
-                      name it: png, tiff, nyu-raw or sun"
-                .into(),
-        }),
+        None => match std::fs::symlink_metadata(path) {
+            // A path that names nothing: that, not its extension, is what is wrong.
+            Err(e) => Err(IoError::io(path, e)),
+            Ok(_) => Err(IoError::Format {
+                path: path.to_path_buf(),
+                message: "cannot infer the depth format from the extension (.png, .tif, .tiff, \
+                          .pgm); name it: png, tiff, nyu-raw or sun"
+                    .into(),
+            }),
+        },
     }
 }
 
@@ -943,6 +947,25 @@ mod tests {
                 (1 + x + w * y) as f32 * scale
             }
         }))
+    }
+
+    /// A path without a depth extension: missing, the error says so; present, it asks for the
+    /// format.
+    #[test]
+    fn a_missing_path_is_said_missing_not_unknown() {
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("frame_0001");
+        let e = read_depth(&missing, &ReadConfig::default()).unwrap_err();
+        assert!(
+            matches!(&e, IoError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound),
+            "{e}"
+        );
+        std::fs::write(&missing, b"depth").unwrap();
+        let e = read_depth(&missing, &ReadConfig::default()).unwrap_err();
+        assert!(
+            e.to_string().contains("cannot infer the depth format"),
+            "{e}"
+        );
     }
 
     #[test]
