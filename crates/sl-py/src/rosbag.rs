@@ -65,6 +65,19 @@ impl PyRosBag {
         self.path.clone()
     }
 
+    /// What holds the recording: ``"ROS 1 bag"``, ``"MCAP (ROS 2 bag)"`` or
+    /// ``"SQLite (ROS 2 bag)"``.
+    #[getter]
+    fn container(&self, py: Python<'_>) -> PyResult<&'static str> {
+        self.with_bag(py, |b| Ok(b.container()))
+    }
+
+    /// How many files hold the recording (a ROS 2 bag split by size or duration: several).
+    #[getter]
+    fn files(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_bag(py, |b| Ok(b.files()))
+    }
+
     /// ``(topic, message type, messages)`` of every topic, by name.
     #[getter]
     fn topics(&self, py: Python<'_>) -> PyResult<Vec<(String, String, u64)>> {

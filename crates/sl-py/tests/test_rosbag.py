@@ -294,6 +294,7 @@ def test_a_ros2_sqlite_bag_written_by_sqlite_itself_reads_the_same(tmp_path, pag
     (tmp_path / "metadata.yaml").write_text("rosbag2_bagfile_information:\n")
     for where in (path, tmp_path):
         bag = sldepth.RosBag(where)
+        assert (bag.container, bag.files) == ("SQLite (ROS 2 bag)", 1)
         assert bag.topics == [("/camera/depth/image_rect_raw", "sensor_msgs/Image", 3),
                               ("/chatter", "std_msgs/String", 9)]
         assert bag.realsense() is None
@@ -371,3 +372,28 @@ def test_a_realsense_recording_by_librealsense_reads_its_units_and_timestamps(tm
     assert [t for t, _ in got] == pytest.approx([1_700_000_000.0, 1_700_000_000.033], abs=1e-5)
     for (_, z), u in zip(got, units):
         np.testing.assert_array_equal(z, (u.astype(np.float64) / 4000).astype(np.float32))
+
+
+def test_a_ros2_bag_split_into_files_reads_as_one_recording(tmp_path):
+    """A ROS 2 bag's folder of several .db3 files (ros2 bag record --max-bag-size), written by
+    SQLite itself: one recording, its frames in time order across the files."""
+    import sqlite3
+
+    mm = _frames(3)
+    for k, n in enumerate([0, 1, 10]):
+        db = sqlite3.connect(tmp_path / f"rec_{n}.db3")
+        db.execute(_SQLITE_TOPICS)
+        db.execute(_SQLITE_MESSAGES)
+        db.execute("INSERT INTO topics VALUES (1, '/depth', 'sensor_msgs/msg/Image', 'cdr', '')")
+        db.execute("INSERT INTO messages (topic_id, timestamp, data) VALUES (1, ?, ?)",
+                   ((20 + k) * 10**9, _cdr_image((20 + k, 0), mm[k], "16UC1")))
+        db.commit()
+        db.close()
+    (tmp_path / "metadata.yaml").write_text("rosbag2_bagfile_information:\n")
+    bag = sldepth.RosBag(tmp_path)
+    assert (bag.container, bag.files) == ("SQLite (ROS 2 bag)", 3)
+    assert bag.topics == [("/depth", "sensor_msgs/Image", 3)]
+    got = list(bag.depth_frames())
+    assert [t for t, _ in got] == [20.0, 21.0, 22.0]
+    for (_, z), d in zip(got, mm):
+        np.testing.assert_array_equal(z, (d.astype(np.float64) / 1000).astype(np.float32))

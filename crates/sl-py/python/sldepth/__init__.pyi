@@ -436,6 +436,12 @@ class RosBag:
     @property
     def path(self) -> str: ...
     @property
+    def container(self) -> str:
+        """"ROS 1 bag", "MCAP (ROS 2 bag)" or "SQLite (ROS 2 bag)"."""
+    @property
+    def files(self) -> int:
+        """How many files hold the recording (a ROS 2 bag split into several: all of them)."""
+    @property
     def topics(self) -> List[Tuple[str, str, int]]:
         """(topic, message type, messages) of every topic, by name."""
     def depth_topic(self, topic: Optional[str] = None) -> str:
