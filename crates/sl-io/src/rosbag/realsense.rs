@@ -43,12 +43,17 @@ fn namespaces(topic: &str) -> Option<(String, String, String)> {
     ))
 }
 
-/// The number a `key=value;…` text gives `key` (`timestamp=1305031229528.783936;…`).
-fn keyed_number(text: &str, key: &str) -> Option<f64> {
+/// The value a `key=value;…` text gives `key` (`Name=Intel RealSense D435;…`).
+fn keyed_text<'a>(text: &'a str, key: &str) -> Option<&'a str> {
     text.split(';')
         .filter_map(|kv| kv.split_once('='))
         .find(|(k, _)| k.trim() == key)
-        .and_then(|(_, v)| v.trim().parse().ok())
+        .map(|(_, v)| v.trim())
+}
+
+/// The number a `key=value;…` text gives `key` (`timestamp=1305031229528.783936;…`).
+fn keyed_number(text: &str, key: &str) -> Option<f64> {
+    keyed_text(text, key).and_then(|v| v.parse().ok())
 }
 
 impl RosBag {
@@ -110,12 +115,8 @@ impl RosBag {
                 }
                 Some("std_msgs/String") => {
                     let t = messages::string(&path, b, encoding)?;
-                    if let Some((_, v)) = t
-                        .split(';')
-                        .filter_map(|kv| kv.split_once('='))
-                        .find(|(k, _)| k.trim() == "Name")
-                    {
-                        return Ok(Some(v.trim().to_string()));
+                    if let Some(name) = keyed_text(&t, "Name") {
+                        return Ok(Some(name.to_string()));
                     }
                 }
                 _ => return Ok(None),
