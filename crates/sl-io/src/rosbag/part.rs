@@ -324,12 +324,11 @@ impl Part {
         out
     }
 
-    /// The messages of `topic`, in the order they were recorded (at most
-    /// [`Limits::max_frames`]).
+    /// The messages of `topic` in this file (none when it has no such topic), in the order
+    /// they were recorded and marked as file `part`'s (at most [`Limits::max_frames`]).
     ///
     /// # Errors
-    /// A topic the bag does not have (the error lists those it has), more messages than the
-    /// limit, or a malformed index.
+    /// More messages than the limit, or a malformed index.
     pub(super) fn messages(&mut self, topic: &str, part: u32) -> Result<Vec<BagMessage>> {
         let ids: Vec<u32> = self
             .connections
@@ -337,13 +336,8 @@ impl Part {
             .filter(|c| c.topic == topic)
             .map(|c| c.id)
             .collect();
-        if ids.is_empty() {
-            let have: Vec<String> = self.topics().into_iter().map(|t| t.topic).collect();
-            return Err(IoError::malformed(
-                &self.path,
-                format!("no topic {topic:?} (the bag has {})", have.join(", ")),
-            ));
-        }
+        // A topic this file does not have lists no messages ([`super::RosBag::messages`] says
+        // which topics the recording has).
         let path = self.path.clone();
         let compressed = self.message_type(topic) == Some(COMPRESSED_IMAGE_TYPE);
         let encoding = self
