@@ -15,17 +15,16 @@
 //!
 //! **The range weight** `2^(t − e²)` (see [`crate::weight`]) is the log-linear `2^x`: with
 //! the difference pre-scaled by `2^11.5`, `y = T − e'²` is one multiply-add (`T` folds in the
-//! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight; its
-//! maximum with `2²³` (taken before the truncation) floors every weight at `2^−126`, the
-//! smallest normal `f32`, which keeps every product out of the slow subnormal range. Per tap: 6 vector operations on AVX-512 and
-//! AVX2 alike (difference, `y`, conversion, maximum, two sums).
+//! tap's spatial exponent) and the truncated `y` read as an `f32` *is* the weight, negated; a
+//! `y` below `−2³¹` (a weight below `2^−127`) converts to `−0.0`, exactly no weight. Per tap: 5
+//! vector operations on AVX-512 and AVX2 alike (difference, `y`, conversion, two sums). Both
+//! sums carry the negated weights; their ratio is the filter's.
 //!
 //! **Layout.** The input is copied once into a padded buffer (`r` pixels on every side and the
 //! width rounded up to the lane count). Invalid pixels and the padding hold a sentinel:
-//! a sentinel (10¹⁸) for the range filters — its range exponent is far below the floor of
-//! the weight function, so it weighs `2^−126` and moves a filtered value by at most
-//! `2^−126·10¹⁸ ≈ 10⁻²⁰` of the value; invalid neighbours need no mask — and 0 with an
-//! explicit mask for the Gaussian.
+//! a sentinel (10¹⁸) for the range filters — its range exponent is far below `−127`, so it
+//! weighs exactly 0 and invalid neighbours need no mask — and 0 with an explicit mask for the
+//! Gaussian.
 //! This is what makes the border handling "window clipped at the border, weights renormalised
 //! over the valid pixels inside the image".
 //!

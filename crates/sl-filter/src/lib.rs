@@ -124,12 +124,12 @@
 //! window unrolled, sums in registers), and AVX2+FMA / AVX-512 code selected at run time
 //! ([`Isa`]). The range filters' joint weight `w_s·w_d = 2^x` is the *log-linear* `2^x` (the
 //! bit pattern of an `f32` read as fixed point, Schraudolph's trick; `weight`): one
-//! multiply-add, a maximum and a truncating conversion per tap, within ±3 % of `2^x`
-//! (tested), with the spatial weight folded in for free, and never below `2^−126` (the smallest
-//! normal `f32`: no subnormal arithmetic; an invalid neighbour moves a value by at most
-//! `10⁻²⁰` of it). Written by hand: no crate offers a vectorised weight of this kind. With it a
-//! tap costs 6 vector operations on the AVX-512 and the AVX2 paths (10 and 12 with the degree-3
-//! polynomial `2^x` used before); both paths interleave two pixel groups (16 + 16 and 8 + 8
+//! multiply-add and a truncating conversion per tap, within ±3 % of `2^x` (tested), with the
+//! spatial weight folded in for free; weights are carried negated, so that the conversion's
+//! out-of-range result is exactly no weight below `2^−127` (far and invalid neighbours).
+//! Written by hand: no crate offers a vectorised weight of this kind. With it a tap costs 5
+//! vector operations on the AVX-512 and the AVX2 paths (10 and 12 with the degree-3 polynomial
+//! `2^x` used before, 6 with the floor at `2^−126` used until session 94); both paths interleave two pixel groups (16 + 16 and 8 + 8
 //! lanes) so that the sums' dependency chains overlap, and skip groups whose centres are all
 //! invalid (their output is 0). The filters' accuracy did not change measurably with the
 //! cheaper weight (`cargo xtask validate --only filter`: every RMSE within 0.01 mm). The

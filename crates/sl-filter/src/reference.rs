@@ -1,9 +1,9 @@
 //! A straightforward, slow implementation of every filter (per pixel, `f64`, the window clipped
 //! at the border), kept as the executable specification the fast kernel is tested against. The
 //! Gaussian's weights are `f64::exp`; the range filters' joint weight `w_s·w_d = 2^x` is the
-//! log-linear `2^x` of the fast kernels (the crate docs' *Speed*: within 3 % of `2^x`, never
-//! below `2^−126`), evaluated in `f64`. Invalid neighbours, which the fast paths weigh
-//! `2^−126`, are left out.
+//! log-linear `2^x` of the fast kernels (the crate docs' *Speed*: within 3 % of `2^x` down to
+//! `2^−126`, 0 below `2^−127`), evaluated in `f64`. Invalid neighbours, which the fast paths
+//! weigh 0, are left out.
 
 use sl_core::DepthImage;
 

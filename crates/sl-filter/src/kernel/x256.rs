@@ -3,9 +3,9 @@
 //! Bit-identical to the compiler-vectorised `chunk` with `range_weight::<true>` (asserted by
 //! the tests below): every tap performs the same fused operations in the same order — the
 //! difference `e'` and `y = T − e'²` (two multiply-adds), the truncating conversion whose bit
-//! pattern is the weight after the maximum with the floor `2^−126`, and the two sums (6
-//! vector operations and one load; 13 with the polynomial `2^x` of session 34 and before). What the explicit
-//! code adds:
+//! pattern is the negated weight (0 below `2^−127`: see [`crate::weight`]), and the two sums
+//! (5 vector operations and one load; 6 with the floor of session 93 and before, 13 with the
+//! polynomial `2^x` of session 34 and before). What the explicit code adds:
 //!
 //! - **Two 8-lane groups are interleaved**, as in the AVX-512 kernel: each group's two sums
 //!   are dependency chains of one multiply-add (or add) per tap, so one group alone waits on
@@ -15,11 +15,10 @@
 //!   group instead of held in registers.
 //! - **Groups of 16 pixels whose centres are all invalid are skipped** (their output is 0,
 //!   as in `finish`), as the AVX-512 kernel does.
-//! - **The floor before the conversion**: `vmaxps` with `2²³`, then `vcvttps2dq`, rather than
-//!   `vpmaxsd` after it (the same weights: `maxps` returns the floor for a NaN `y`, which the
-//!   conversion would have made the most negative integer): 5×5 square 0.527 → 0.518 ms, disc
-//!   0.334 → 0.325 ms, 7×7 square 0.929 → 0.912 ms (Zen 4, AVX2 code, person frame, one
-//!   thread, best of 3 interleaved runs).
+//! - **No floor**: the conversion's out-of-range result is the zero weight (negated weights,
+//!   [`crate::weight`]), so no maximum is taken: 5×5 disc 0.311 → 0.290 ms, square 0.486 →
+//!   0.448 ms (AMD EPYC, AVX2 code, person frame, one thread, best of 3 runs of 100, three
+//!   interleaved rounds; session 94).
 //! - **Three passes over a chunk**: the centres' range scales (a division each), then the taps
 //!   (only the two sums per pixel are kept), then the epilogue (another division). The
 //!   divisions leave the chain from a group's first tap to its stored result, so one group's
@@ -31,7 +30,7 @@
 use std::arch::x86_64::*;
 
 use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
-use crate::weight::{CENTRE_WEIGHT, FLOOR_BITS, TapExp};
+use crate::weight::{CENTRE_WEIGHT, TapExp};
 
 /// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
 #[inline(always)]
@@ -140,7 +139,6 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm256_set1_ps(mode.coef());
     let max_scale = _mm256_set1_ps(MAX_SCALE);
-    let floor_f = _mm256_set1_ps(FLOOR_BITS as f32);
     let zero = _mm256_setzero_ps();
     let centre = _mm256_set1_ps(CENTRE_WEIGHT);
     let inf = _mm256_set1_ps(f32::INFINITY);
@@ -192,10 +190,11 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
         let (mut sda, mut sdb) = (zero, zero);
         macro_rules! weigh {
             ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $y0:expr) => {
-                // `range_weight::<true>`: e', y = T − e'², the floor, ⌊y⌋ as bits.
+                // `range_weight::<true>`: e', y = T − e'², ⌊y⌋ as the bits of −w (−0.0
+                // when y < −2³¹ or NaN: the conversion's integer indefinite).
                 let e = _mm256_fmsub_ps($nb, $s, $zs);
                 let y = _mm256_fnmadd_ps(e, e, $y0);
-                let w = _mm256_castsi256_ps(_mm256_cvttps_epi32(_mm256_max_ps(y, floor_f)));
+                let w = _mm256_castsi256_ps(_mm256_cvttps_epi32(y));
                 $sw = _mm256_add_ps($sw, w);
                 $sd = _mm256_fmadd_ps(w, e, $sd);
             };

@@ -2,12 +2,13 @@
 //!
 //! Same arithmetic as `chunk` with `range_weight::<true>` (bit-identical, asserted by
 //! `x256`'s test for both explicit kernels): per tap the difference `e' = v_q·s − s·v_p` (one
-//! multiply-add), `y = T − e'²` (one multiply-add), its maximum with the floor `2²³` and the
-//! truncating conversion whose bit pattern is the weight (`vmaxps`, `vcvttps2dq`), and the two
-//! sums: 6 vector operations (10 with the polynomial `2^x` of session 34 and before). The
-//! floor is a float maximum before the conversion, not an integer one after it (the same
-//! weights, NaN included): 5 % faster at 5×5 and 7×7 on a Zen 4 core (square windows, person
-//! frame, one thread: 0.297 → 0.282 ms, 0.508 → 0.483 ms). Two 16-lane groups are
+//! multiply-add), `y = T − e'²` (one multiply-add), the truncating conversion whose bit pattern
+//! is the negated weight (`vcvttps2dq`; 0 below `2^−127`, see [`crate::weight`]), and the two
+//! sums: 5 vector operations (6 with the floor `vmaxps` of session 93 and before, 10 with the
+//! polynomial `2^x` of session 34 and before). Without the floor: 5×5 disc 0.193 → 0.176 ms,
+//! square 0.285 → 0.265 ms, 7×7 disc 0.321 → 0.303 ms, square 0.485 → 0.459 ms (AMD EPYC,
+//! person frame, one thread, best of 3 runs of 100, two interleaved rounds; session 94). Two
+//! 16-lane groups are
 //! interleaved, which hides the latency of each tap's dependency chain (measured ~25 % faster
 //! than one group at a time). The AVX2 kernel's three passes per chunk (scales, taps, epilogue) were tried here
 //! too: no gain on a Zen 4 core (5×5 square 0.306 → 0.310 ms at best, some runs 0.41 ms).
@@ -18,7 +19,7 @@ use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
     class, is_row, is_tap,
 };
-use crate::weight::{CENTRE_WEIGHT, FLOOR_BITS};
+use crate::weight::CENTRE_WEIGHT;
 
 /// 16 lanes from the start of `a` (at least 16 long), as an unaligned vector load.
 #[inline(always)]
@@ -91,7 +92,6 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
 ) {
     let coef = _mm512_set1_ps(mode.coef());
     let max_scale = _mm512_set1_ps(MAX_SCALE);
-    let floor_f = _mm512_set1_ps(FLOOR_BITS as f32);
     let tv: [__m512; MAX_CLASSES] = core::array::from_fn(|c| _mm512_set1_ps(t[c]));
     let zero = _mm512_setzero_ps();
     let inf = _mm512_set1_ps(f32::INFINITY);
@@ -125,9 +125,9 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             ($nb:expr, $s:ident, $zs:ident, $sw:ident, $sd:ident, $t:ident) => {
                 let e = _mm512_fmsub_ps($nb, $s, $zs);
                 let y = _mm512_fnmadd_ps(e, e, $t);
-                // ⌊y⌋'s bit pattern is the weight, at least 2^−126 (the maximum with 2^23
-                // first, which also maps NaN and −∞, invalid neighbours, to the floor).
-                let w = _mm512_castsi512_ps(_mm512_cvttps_epi32(_mm512_max_ps(y, floor_f)));
+                // ⌊y⌋'s bit pattern is the negated weight; −0.0 below −2³¹ and for NaN and
+                // −∞ (invalid neighbours): the conversion's integer indefinite.
+                let w = _mm512_castsi512_ps(_mm512_cvttps_epi32(y));
                 $sw = _mm512_add_ps($sw, w);
                 $sd = _mm512_fmadd_ps(w, e, $sd);
             };
