@@ -167,33 +167,44 @@ fn main() {
             });
             put(&root, "rosbag", &format!("kinect-{compression}.bag"), &b);
         }
-        // `compressedDepth`: the configuration header, then a 16-bit PNG of millimetres.
+        // `compressedDepth`: the configuration header, then a 16-bit PNG of millimetres; and
+        // the same with the RVL codec (runs of zeros and of values).
         let png = bytes_of("png", |p| {
             write_depth(p, &ramp(4, 3), &DepthEncoding::png(1000.0)).unwrap()
         });
-        let mut data = [0u8; 12].to_vec();
-        data.extend_from_slice(&png);
-        let mut m = Vec::new();
-        for v in [0u32, 100, 0, 0] {
-            m.extend_from_slice(&v.to_le_bytes());
+        let mm: Vec<u16> = (0..48u16)
+            .map(|i| if i % 7 < 2 { 0 } else { 900 + 13 * i })
+            .collect();
+        let rvl =
+            sl_testkit::rosbag_writer::rvl_encode(&sl_core::Image::from_vec(8, 6, mm).unwrap());
+        for (codec, image, name) in [
+            ("png", png, "compressed-depth.bag"),
+            ("rvl", rvl, "compressed-depth-rvl.bag"),
+        ] {
+            let mut data = [0u8; 12].to_vec();
+            data.extend_from_slice(&image);
+            let mut m = Vec::new();
+            for v in [0u32, 100, 0, 0] {
+                m.extend_from_slice(&v.to_le_bytes());
+            }
+            let format = format!("16UC1; compressedDepth {codec}");
+            m.extend_from_slice(&(format.len() as u32).to_le_bytes());
+            m.extend_from_slice(format.as_bytes());
+            m.extend_from_slice(&(data.len() as u32).to_le_bytes());
+            m.extend_from_slice(&data);
+            let conns = [(
+                0,
+                "/camera/depth/image_raw/compressedDepth",
+                "sensor_msgs/CompressedImage",
+            )];
+            let msgs = [Msg {
+                conn: 0,
+                time: (100, 0),
+                data: m,
+            }];
+            let b = bytes_of("bag", |p| write_bag(p, &conns, &msgs, "none", 1).unwrap());
+            put(&root, "rosbag", name, &b);
         }
-        let format = b"16UC1; compressedDepth png";
-        m.extend_from_slice(&(format.len() as u32).to_le_bytes());
-        m.extend_from_slice(format);
-        m.extend_from_slice(&(data.len() as u32).to_le_bytes());
-        m.extend_from_slice(&data);
-        let conns = [(
-            0,
-            "/camera/depth/image_raw/compressedDepth",
-            "sensor_msgs/CompressedImage",
-        )];
-        let msgs = [Msg {
-            conn: 0,
-            time: (100, 0),
-            data: m,
-        }];
-        let b = bytes_of("bag", |p| write_bag(p, &conns, &msgs, "none", 1).unwrap());
-        put(&root, "rosbag", "compressed-depth.bag", &b);
         // A ROS 2 bag in MCAP: two CDR depth frames and the camera info, in zstd chunks.
         let conns = [
             (1, "/camera/depth/image_rect_raw", "sensor_msgs/msg/Image"),

@@ -22,7 +22,7 @@ use crate::threads::compute;
 /// is one of these. ``RosBag(path)`` reads its index (nothing is decompressed); ``topics``
 /// lists ``(topic, type, messages)``; ``depth_topic()`` finds the one image topic holding depth
 /// (``16UC1`` millimetres or ``32FC1`` metres, or ``mono16`` on a topic named for depth, or
-/// ``image_transport``'s ``compressedDepth`` in its PNG form); ``camera()`` reads the
+/// ``image_transport``'s ``compressedDepth``, PNG or RVL); ``camera()`` reads the
 /// ``camera_info`` beside it (its ``plumb_bob`` lens as ``Camera.lens``, which ``Tracker``
 /// undoes; a RealSense recording's device and baseline choose the noise model);
 /// ``depth_frames()`` iterates ``(stamp_s, depth)`` pairs, depth a float32 (H, W) array of

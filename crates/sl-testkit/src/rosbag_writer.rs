@@ -479,6 +479,60 @@ pub fn compressed_image_cdr(stamp: (u32, u32), format: &str, data: &[u8]) -> Vec
     c.0
 }
 
+/// `values` as the `compressedDepth` plugin's RVL codec writes them (Wilson 2017): width and
+/// height as little-endian `u32`, then little-endian 32-bit words of nibbles filled from the
+/// most significant end; runs of zeros and of non-zero values alternate, each run's length a
+/// number of 3-bit nibbles (least significant first, bit 3 = more follow), each non-zero
+/// value its zig-zag coded difference from the previous one. Written from the format's
+/// description, independently of sl-io's decoder.
+pub fn rvl_encode(values: &sl_core::Image<u16>) -> Vec<u8> {
+    let px = values.data();
+    let mut nibbles: Vec<u8> = Vec::new();
+    let mut put = |mut v: u64| {
+        loop {
+            let more = v >> 3 != 0;
+            nibbles.push((v & 7) as u8 | if more { 8 } else { 0 });
+            v >>= 3;
+            if !more {
+                break;
+            }
+        }
+    };
+    let (mut i, mut previous) = (0, 0i64);
+    while i < px.len() {
+        let zeros = px[i..].iter().take_while(|&&v| v == 0).count();
+        put(zeros as u64);
+        i += zeros;
+        let run = px[i..].iter().take_while(|&&v| v != 0).count();
+        put(run as u64);
+        for &v in &px[i..i + run] {
+            let d = i64::from(v) - previous;
+            put(if d >= 0 { 2 * d } else { -2 * d - 1 } as u64);
+            previous = i64::from(v);
+        }
+        i += run;
+    }
+    let mut out = (values.width() as u32).to_le_bytes().to_vec();
+    out.extend_from_slice(&(values.height() as u32).to_le_bytes());
+    for word in nibbles.chunks(8) {
+        let w = (0..8).fold(0u32, |w, k| {
+            (w << 4) | u32::from(word.get(k).copied().unwrap_or(0))
+        });
+        out.extend_from_slice(&w.to_le_bytes());
+    }
+    out
+}
+
+/// The data of `image_transport`'s `compressedDepth` with its RVL codec: the 12-byte
+/// configuration header (format 0, depth quantisation `a`, `b`), then [`rvl_encode`].
+pub fn compressed_depth_rvl_data(a: f32, b: f32, values: &sl_core::Image<u16>) -> Vec<u8> {
+    let mut data = 0i32.to_le_bytes().to_vec();
+    data.extend_from_slice(&a.to_le_bytes());
+    data.extend_from_slice(&b.to_le_bytes());
+    data.extend_from_slice(&rvl_encode(values));
+    data
+}
+
 /// The data of `image_transport`'s `compressedDepth` for the 16-bit `values`: its 12-byte
 /// configuration header (format 0, depth quantisation `a`, `b`), then the values as a 16-bit
 /// PNG, written by sl-io through the file `scratch`.

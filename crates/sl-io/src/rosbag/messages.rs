@@ -291,7 +291,8 @@ pub(super) fn depth_of(
 /// A `sensor_msgs/CompressedImage` of `image_transport`'s `compressedDepth` plugin.
 pub(super) struct CompressedMessage<'a> {
     pub(super) stamp_s: f64,
-    /// `"16UC1; compressedDepth png"` (or without ` png`, as older plugins write it).
+    /// `"16UC1; compressedDepth png"` (or without ` png`, as older plugins write it), or
+    /// `"… compressedDepth rvl"`.
     pub(super) format: String,
     pub(super) data: &'a [u8],
 }
@@ -322,12 +323,35 @@ pub(super) fn compressed_depth_encoding(format: &str) -> Option<&str> {
         .then_some(encoding.trim())
 }
 
-/// Bytes of the `compressedDepth` configuration header before the PNG: the format (`i32`, 0
+/// The codec of a `compressedDepth` image, as the plugin's decoder tells it from the format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Codec {
+    Png,
+    Rvl,
+}
+
+impl Codec {
+    /// `"… compressedDepth png"`, `"… compressedDepth rvl"`, or a bare `"… compressedDepth"`
+    /// (PNG: older plugins name no codec); `None` for another codec.
+    fn of(format: &str) -> Option<Self> {
+        let (_, rest) = format.split_once(';')?;
+        let rest = rest.trim();
+        if rest.contains("compressedDepth rvl") {
+            Some(Self::Rvl)
+        } else if rest.contains("compressedDepth png") || rest == "compressedDepth" {
+            Some(Self::Png)
+        } else {
+            None
+        }
+    }
+}
+
+/// Bytes of the `compressedDepth` configuration header before the PNG or RVL image: the format (`i32`, 0
 /// for inverse depth) and the two depth quantisation parameters (`f32`).
 const CONFIG_HEADER_BYTES: usize = 12;
 
-/// The depth of a `compressedDepth` image, metres (0 = none): a `16UC1` PNG of units divided
-/// by `units_per_m`; a `32FC1` one stores inverse depth, `q = a / z + b` as 16-bit values (0 =
+/// The depth of a `compressedDepth` image, metres (0 = none): a `16UC1` image (PNG or RVL) of
+/// units divided by `units_per_m`; a `32FC1` one stores inverse depth, `q = a / z + b` as 16-bit values (0 =
 /// none), decoded as `z = a / (q − b)` and divided by `float_units_per_m`.
 pub(super) fn compressed_depth_of(
     path: &Path,
@@ -346,23 +370,25 @@ pub(super) fn compressed_depth_of(
             ),
         )
     })?;
-    if m.format.contains("rvl") {
-        return Err(IoError::malformed(
-            path,
-            format!(
-                "format {:?}: RVL-compressed depth is not read (record the png form, or the raw \
-                 topic)",
-                m.format
-            ),
-        ));
-    }
-    let Some((config, png)) = m.data.split_at_checked(CONFIG_HEADER_BYTES) else {
+    let Some((config, image)) = m.data.split_at_checked(CONFIG_HEADER_BYTES) else {
         return Err(IoError::malformed(
             path,
             "a compressedDepth image shorter than its 12-byte configuration header",
         ));
     };
-    let q = crate::raster::decode_png_l16_bytes(path, png, limits)?;
+    let q = match Codec::of(&m.format) {
+        Some(Codec::Png) => crate::raster::decode_png_l16_bytes(path, image, limits)?,
+        Some(Codec::Rvl) => super::rvl::decode(path, image, limits)?,
+        None => {
+            return Err(IoError::malformed(
+                path,
+                format!(
+                    "format {:?}: a compressedDepth codec other than png and rvl",
+                    m.format
+                ),
+            ));
+        }
+    };
     let (w, h) = (q.width(), q.height());
     let values = q.into_vec();
     let out: Vec<f32> = match kind {

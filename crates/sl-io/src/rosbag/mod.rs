@@ -21,9 +21,8 @@
 //! Messages: ROS 1's serialisation, or ROS 2's CDR (`messages.rs`). Depth: `16UC1` and
 //! `mono16` are units (millimetres by ROS's REP 118, 0 = none), `32FC1` metres (NaN = none;
 //! TUM's bags store `/camera/depth/image` so); `image_transport`'s `compressedDepth`
-//! (`sensor_msgs/CompressedImage`, what a robot records over a network) is read in its PNG
-//! form, `16UC1` millimetres or `32FC1` as quantised inverse depth (its RVL form is refused by
-//! name). The frame's time is its message header's stamp (the sensor's), not the time the
+//! (`sensor_msgs/CompressedImage`, what a robot records over a network) is read in both its
+//! codecs, PNG and RVL (`rvl.rs`), `16UC1` millimetres or `32FC1` as quantised inverse depth. The frame's time is its message header's stamp (the sensor's), not the time the
 //! recorder received it.
 //!
 //! ```
@@ -48,6 +47,7 @@ mod messages;
 mod part;
 mod realsense;
 mod records;
+mod rvl;
 mod sqlite;
 
 use std::path::{Path, PathBuf};

@@ -260,7 +260,8 @@ fn find(hay: &[u8], needle: &[u8]) -> usize {
 }
 
 /// A `sensor_msgs/CompressedImage` of `image_transport`'s `compressedDepth`: `format`, then
-/// the 12-byte configuration header (format 0, quantisation `a`, `b`) and the PNG of `values`.
+/// the 12-byte configuration header (format 0, quantisation `a`, `b`) and `values` as a PNG,
+/// or RVL when `format` names it.
 fn compressed_depth(
     stamp: (u32, u32),
     format: &str,
@@ -269,9 +270,12 @@ fn compressed_depth(
     values: &sl_core::Image<u16>,
 ) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
-    let data =
+    let data = if format.ends_with("rvl") {
+        sl_testkit::rosbag_writer::compressed_depth_rvl_data(a, b, values)
+    } else {
         sl_testkit::rosbag_writer::compressed_depth_data(&dir.path().join("q.png"), a, b, values)
-            .unwrap();
+            .unwrap()
+    };
     let mut m = Vec::new();
     m.extend_from_slice(&3u32.to_le_bytes());
     m.extend_from_slice(&stamp.0.to_le_bytes());
@@ -288,7 +292,7 @@ fn compressed_depth(
 /// `compressedDepth` topics (what a robot records over a network): `16UC1` PNG millimetres,
 /// and `32FC1` as quantised inverse depth `q = a/z + b`, decoded as `z = a/(q − b)`; the topic
 /// found by its format, its camera info one level up (`…/image_raw/compressedDepth` →
-/// `…/camera_info`); RVL refused by name.
+/// `…/camera_info`); the RVL codec too.
 #[test]
 fn compressed_depth_topics_are_read() {
     let dir = tempfile::tempdir().unwrap();
@@ -338,18 +342,41 @@ fn compressed_depth_topics_are_read() {
     let d = bag.read_depth(&m, 1000.0, 1.0).unwrap();
     assert_eq!(d.kind, DepthEncodingKind::F32);
     assert_eq!(d.depth.data(), &[1.0, 2.0, 0.0]);
-    // RVL, the plugin's other codec: refused by name.
+    // RVL, the plugin's other codec, in both encodings; a codec it does not have is refused.
     let rvl = dir.path().join("rvl.bag");
-    let msgs = vec![Msg {
-        conn: 0,
-        time: (7, 0),
-        data: compressed_depth((7, 0), "16UC1; compressedDepth rvl", 0.0, 0.0, &mm),
-    }];
-    write_bag(&rvl, &[mm_topic], &msgs, "none", 8);
+    let msgs = vec![
+        Msg {
+            conn: 0,
+            time: (7, 0),
+            data: compressed_depth((7, 0), "16UC1; compressedDepth rvl", 0.0, 0.0, &mm),
+        },
+        Msg {
+            conn: 3,
+            time: (7, 0),
+            data: compressed_depth((7, 0), "32FC1; compressedDepth rvl", a, b, &q),
+        },
+        Msg {
+            conn: 0,
+            time: (8, 0),
+            data: compressed_depth((8, 0), "16UC1; compressedDepth jpeg", 0.0, 0.0, &mm),
+        },
+    ];
+    write_bag(&rvl, &[mm_topic, f_topic], &msgs, "none", 8);
     let mut bag = RosBag::open(&rvl, &Limits::default()).unwrap();
     let m = bag.messages(mm_topic.1).unwrap()[0];
+    let d = bag.read_depth(&m, 1000.0, 1.0).unwrap();
+    assert_eq!(d.kind, DepthEncodingKind::U16);
+    assert_eq!(d.depth.data(), &[1.0, 0.0, 1.5, 2.0, 2.5, 65.534]);
+    let m = bag.messages(f_topic.1).unwrap()[0];
+    let d = bag.read_depth(&m, 1000.0, 1.0).unwrap();
+    assert_eq!(d.kind, DepthEncodingKind::F32);
+    assert_eq!(d.depth.data(), &[1.0, 2.0, 0.0]);
+    let m = bag.messages(mm_topic.1).unwrap()[1];
     let e = bag.read_depth(&m, 1000.0, 1.0).unwrap_err().to_string();
-    assert!(e.contains("RVL-compressed depth is not read"), "{e}");
+    assert!(
+        e.contains("a compressedDepth codec other than png and rvl"),
+        "{e}"
+    );
 }
 
 /// ROS 2 bags in MCAP: CDR messages (aligned, no `seq`, NUL-terminated strings) in chunks of
