@@ -101,16 +101,21 @@ pub(crate) fn read_sequence<'py>(
 /// frames the poses of its one ``.log`` beside ``depth/`` (none or several raise ``OSError``)
 /// or, without a ``.log``, each ``depth/<n>.png`` the ``pose/<n>.txt`` of a ScanNet export (its
 /// ``-inf`` matrix: no pose).
+/// With ``trajectory`` (a file: ``sldepth track``'s output or another system's estimate,
+/// camera to world), its poses instead of the folder's own, as ``sldepth fuse DIR --trajectory
+/// FILE``: a TUM-format file by time (nearest within ``max_dt_s``; frames without timestamps by
+/// their index, as ``track`` stamps them), an Open3D ``.log`` by frame number.
 /// Depth frames left out for want of a pose are counted in a ``UserWarning``, as ``sldepth
 /// fuse`` notes them. Then
 /// ``for p, T in zip(paths, poses): volume.integrate(read_depth(p, depth_scale), camera, T)``.
 #[pyfunction]
-#[pyo3(signature = (path, layout = None, *, max_dt_s = 0.02))]
+#[pyo3(signature = (path, layout = None, *, max_dt_s = 0.02, trajectory = None))]
 pub(crate) fn read_posed_sequence<'py>(
     py: Python<'py>,
     path: PathBuf,
     layout: Option<&str>,
     max_dt_s: f64,
+    trajectory: Option<PathBuf>,
 ) -> PyResult<PosedFrames<'py>> {
     if !(max_dt_s.is_finite() && max_dt_s > 0.0) {
         return Err(value_error(format!(
@@ -118,14 +123,22 @@ pub(crate) fn read_posed_sequence<'py>(
         )));
     }
     let layout = folder_layout(py, &path, layout)?;
-    let posed = compute(py, || {
-        read_posed_frames(&path, layout, max_dt_s, &Limits::default())
+    let posed = compute(py, || match &trajectory {
+        Some(t) => sl_io::sequence::read_frames_along_trajectory(
+            &path,
+            layout,
+            t,
+            max_dt_s,
+            &Limits::default(),
+        ),
+        None => read_posed_frames(&path, layout, max_dt_s, &Limits::default()),
     })
     .map_err(io_error)?;
     // Frames left out are said, as `sldepth fuse DIR` notes them (a warning, not an error: a
     // TUM recording's first and last frames often fall outside its motion capture).
     if posed.without_pose > 0 {
         let why = match layout {
+            _ if trajectory.is_some() => "no pose in the trajectory".to_owned(),
             SequenceLayout::Tum => format!("no groundtruth.txt pose within {max_dt_s} s"),
             SequenceLayout::SevenScenes => "no pose file (frame-*.pose.txt)".to_owned(),
             _ if sl_io::sequence::has_pose_folder(&path) => {

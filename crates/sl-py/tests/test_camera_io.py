@@ -374,6 +374,36 @@ def test_read_posed_sequence_gives_each_layouts_poses_for_fusion(kinect, tmp_pat
         sldepth.read_posed_sequence(o3d)
 
 
+def test_read_posed_sequence_along_a_trajectory_file(tmp_path):
+    # A TUM folder without ground truth, along an estimate: by time; a lost frame (a comment
+    # line, as `sldepth track` writes it) has no pose, and is said.
+    seq = tmp_path / "tum"
+    _write_frames(seq / "depth", ["10.000000.png", "10.033000.png", "10.066000.png"], 5000)
+    (seq / "depth.txt").write_text(
+        "10.000000 depth/10.000000.png\n10.033000 depth/10.033000.png\n10.066000 depth/10.066000.png\n"
+    )
+    est = tmp_path / "est.txt"
+    est.write_text(
+        "# sldepth track\n10.000000 0 0 0 0 0 0 1\n# 10.033000 lost: test\n10.070 0.3 0 0 0 0 0 1\n"
+    )
+    with pytest.warns(UserWarning, match=r"1 depth frames have no pose in the trajectory"):
+        paths, times, poses = sldepth.read_posed_sequence(seq, trajectory=est)
+    assert np.allclose(times, [10.0, 10.066]) and np.allclose(poses[1][:3, 3], [0.3, 0, 0])
+    # An Open3D .log by frame number; a 7-Scenes folder (no timestamps) likewise.
+    log = tmp_path / "est.log"
+    log.write_text("".join(f"{i} {i} 3\n1 0 0 {i}\n0 1 0 0\n0 0 1 0\n0 0 0 1\n" for i in (0, 2)))
+    seven = tmp_path / "seven"
+    _write_frames(seven, [f"frame-00000{i}.depth.png" for i in range(3)], 1000)
+    with pytest.warns(UserWarning, match="1 depth frames"):
+        paths, times, poses = sldepth.read_posed_sequence(seven, trajectory=log)
+    assert times is None and [p[-22:] for p in paths] == ["frame-000000.depth.png", "frame-000002.depth.png"]
+    assert np.isclose(poses[1][0, 3], 2.0)
+    # Another recording's trajectory: no frame has a pose, an OSError that says how they match.
+    (tmp_path / "far.txt").write_text("900 0 0 0 0 0 0 1\n")
+    with pytest.raises(OSError, match="gives none of the 3 depth frames"):
+        sldepth.read_posed_sequence(seq, trajectory=tmp_path / "far.txt")
+
+
 def test_a_scannet_export_reads_as_a_posed_sequence_with_its_camera(tmp_path):
     # depth/<n>.png, pose/<n>.txt (a -inf matrix: no pose), intrinsic/intrinsic_depth.txt (4x4).
     scan = tmp_path / "scene0000_00"

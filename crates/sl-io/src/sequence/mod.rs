@@ -2,13 +2,16 @@
 //! or `associations.txt` when present), a 7-Scenes folder (`frame-XXXXXX.depth.png`) and an
 //! Open3D-style folder (`depth/*.png`, timed when its names are times). Timestamps must increase
 //! strictly: a sequence out of order is an error naming the line, never a silently reordered
-//! trajectory.
+//! trajectory. With poses: the folder's own ([`read_posed_frames`]), or a trajectory file's
+//! (`along.rs`, [`read_frames_along_trajectory`]).
 
+mod along;
 mod camera;
 mod places;
 
 use std::path::{Path, PathBuf};
 
+pub use along::read_frames_along_trajectory;
 pub use camera::{
     OPEN3D_DEFAULT_PRESET, SEVEN_SCENES_CAMERA_FILE, TUM_CALIBRATION_FILE, camera_file_of,
     sensor_preset, sequence_camera,

@@ -44,7 +44,7 @@ pub use open3d_log::{
 pub(crate) use parse::check_frames;
 pub use pose_folder::read_pose_folder_frames;
 pub use seven_scenes::{read_7scenes_sequence, read_7scenes_sequence_with_limits, read_pose_txt};
-pub use stamped::{read_trajectory, read_trajectory_with_limits};
+pub use stamped::{is_open3d_log, read_trajectory, read_trajectory_with_limits};
 pub(crate) use tum::association_depth_columns;
 pub use tum::{
     Association, read_tum_associations, read_tum_associations_with_limits, read_tum_trajectory,

@@ -17,6 +17,16 @@ fn holds_a_log(path: &Path) -> bool {
         .is_some_and(|f| f.len() == 3 && f.iter().all(|t| crate::text::is_whole_number(t)))
 }
 
+/// Whether [`read_trajectory`] reads `path` as an Open3D `.log` (its extension, any case, or
+/// its first data line `i j n` of three whole numbers), whose poses are stamped with frame
+/// numbers, rather than as a TUM file of times.
+pub fn is_open3d_log(path: impl AsRef<Path>) -> bool {
+    let path = path.as_ref();
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("log"))
+        || holds_a_log(path)
+}
+
 /// Reads a camera trajectory as timestamped camera-to-world poses: an Open3D `.log` (told by
 /// its extension, any case, or by its content in a file of another name: the Redwood data
 /// sets' `*-traj.txt`) with each entry `i i n` stamped with its frame number `i` — the
@@ -34,11 +44,7 @@ pub fn read_trajectory_with_limits(
     limits: &Limits,
 ) -> Result<Vec<TimedPose>> {
     let path = path.as_ref();
-    let is_log = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("log"))
-        || holds_a_log(path);
-    if !is_log {
+    if !is_open3d_log(path) {
         return read_tum_trajectory_with_limits(path, limits);
     }
     let entries = read_open3d_log_with_limits(path, limits)?;

@@ -574,7 +574,11 @@ def read_sequence(
     list raises OSError; an unknown layout name ValueError."""
 
 def read_posed_sequence(
-    path: _Path, layout: Optional[str] = None, *, max_dt_s: float = 0.02
+    path: _Path,
+    layout: Optional[str] = None,
+    *,
+    max_dt_s: float = 0.02,
+    trajectory: Optional[_Path] = None,
 ) -> Tuple[List[str], Optional[npt.NDArray[np.float64]], npt.NDArray[np.float64]]:
     """The frames of a sequence folder with their poses, as `sldepth fuse DIR` reads them:
     (paths, timestamps_s, poses), poses a float64 array (N, 4, 4) camera-to-world. A TUM
@@ -584,7 +588,11 @@ def read_posed_sequence(
     pose/<n>.txt of each depth/<n>.png as ScanNet exports a scan (a -inf matrix: no pose).
     An ICL-NUIM TUM-format folder (icl_nuim_tum_folder) reads its *.gt.freiburg when it has no
     groundtruth.txt, its y-up poses turned into sldepth's frame. Depth frames left out for want
-    of a pose are counted in a UserWarning. layout as read_sequence."""
+    of a pose are counted in a UserWarning. layout as read_sequence. With trajectory (a file:
+    sldepth track's output or another system's estimate, camera to world) its poses instead
+    of the folder's own, as `sldepth fuse DIR --trajectory FILE`: a TUM-format file by time
+    (nearest within max_dt_s; frames without timestamps by their index), an Open3D .log by
+    frame number."""
 
 def sequence_camera(path: _Path, layout: Optional[str] = None) -> Camera:
     """The camera a sequence folder implies, as `sldepth track DIR` / `sldepth fuse DIR` use it

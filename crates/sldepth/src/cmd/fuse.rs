@@ -65,6 +65,16 @@ pub struct Args {
     /// camera-intrinsics.txt is used when --camera is not given.
     #[arg(long = "7scenes", value_name = "DIR", group = "source")]
     pub seven_scenes: Option<PathBuf>,
+    /// Fuse the sequence folder (DIR, --tum, --7scenes or --scannet) along this trajectory
+    /// instead of its own poses: `sldepth track`'s `--output` (a TUM file, or its Open3D
+    /// `.log`), or another system's estimate (camera to world). A TUM-format file is matched by
+    /// time, each frame to the pose nearest its timestamp within 20 ms (frames without
+    /// timestamps, as 7-Scenes', by their index, as `track` stamps them); a `.log` by frame
+    /// number. Frames without a pose (frames `track` lost) are skipped and counted. The folder
+    /// needs no poses of its own: `track DIR --output traj.txt`, then `fuse DIR --trajectory
+    /// traj.txt --voxel-m 0.002` re-fuses a raw recording at another resolution.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["frames", "o3d_log"])]
+    pub trajectory: Option<PathBuf>,
     /// Use only the first N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<usize>,
@@ -181,10 +191,15 @@ fn source_folder(args: &Args) -> Option<(&Path, SequenceLayout)> {
 
 /// The files of the chosen source besides its depth frames, which no output may replace.
 fn source_files(args: &Args) -> Vec<PathBuf> {
-    let given = [&args.frames, &args.o3d_log, &args.input.camera]
-        .into_iter()
-        .flatten()
-        .cloned();
+    let given = [
+        &args.frames,
+        &args.o3d_log,
+        &args.input.camera,
+        &args.trajectory,
+    ]
+    .into_iter()
+    .flatten()
+    .cloned();
     // An Open3D-style folder's (or a ScanNet export's) camera file; a TUM or 7-Scenes folder's
     // is among `sequence_files`' own.
     let open3d_camera = source_folder(args)
@@ -207,9 +222,48 @@ fn posed_frames(dir: &Path, layout: SequenceLayout) -> Result<sl_io::sequence::P
     )?)
 }
 
+/// The frames of the chosen sequence folder with the poses of `--trajectory`, and the
+/// camera.
+fn load_along_trajectory(args: &Args, traj: &Path) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
+    let Some((dir, layout)) = source_folder(args) else {
+        bail!(
+            "--trajectory gives the poses of a sequence folder: give the folder (DIR, --tum, \
+             --7scenes or --scannet)"
+        );
+    };
+    let seq = sl_io::sequence::read_frames_along_trajectory(
+        dir,
+        layout,
+        traj,
+        sl_io::trajectory::DEFAULT_MAX_DT_S,
+        &limits(),
+    )?;
+    if seq.without_pose > 0 {
+        errln!(
+            "note: {} depth frames of {} have no pose in {} and are skipped",
+            seq.without_pose,
+            dir.display(),
+            traj.display()
+        );
+    }
+    let (camera, scale) = match layout {
+        SequenceLayout::Tum => (
+            crate::common::tum_camera(dir, &args.input)?,
+            Some(SequenceLayout::Tum.depth_scale()),
+        ),
+        _ => (
+            crate::common::folder_camera(&args.input, dir, layout)?,
+            None,
+        ),
+    };
+    Ok((seq.frames, camera, scale))
+}
+
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
-    if let Some(list) = &args.frames {
+    if let Some(traj) = &args.trajectory {
+        load_along_trajectory(args, traj)
+    } else if let Some(list) = &args.frames {
         let frames = sl_io::trajectory::read_frame_list(list, &limits())?;
         Ok((frames, load_camera(&args.input)?, None))
     } else if let Some(dir) = &args.tum {
@@ -298,8 +352,11 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
     match crate::common::sequence_layout(&dir)? {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
-        // A ScanNet export: poses in a pose/ folder, no .log.
-        SequenceLayout::Open3d if sl_io::sequence::has_pose_folder(&dir) => {
+        // A ScanNet export: poses in a pose/ folder, no .log; or an Open3D-style folder fused
+        // along --trajectory (its own poses, if any, are not read).
+        SequenceLayout::Open3d
+            if sl_io::sequence::has_pose_folder(&dir) || args.trajectory.is_some() =>
+        {
             args.scannet = Some(dir);
         }
         SequenceLayout::Open3d => {

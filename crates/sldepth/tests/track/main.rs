@@ -17,6 +17,7 @@ use common::sldepth;
 mod bag;
 mod fast_motion;
 mod fragments;
+mod fuse_along;
 
 /// Runs `sldepth` with `args` (ending in `--json`), which must succeed: its JSON summary and
 /// its standard error.
