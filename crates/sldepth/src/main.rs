@@ -20,6 +20,7 @@ macro_rules! errln {
 
 mod cmd;
 mod common;
+mod recording;
 
 use std::process::ExitCode;
 

@@ -236,6 +236,11 @@ impl RosBag {
         self.parts.len()
     }
 
+    /// The recording's files, in the order they are read (one, or a split ROS 2 bag's).
+    pub fn file_paths(&self) -> Vec<PathBuf> {
+        self.parts.iter().map(|p| p.path().to_path_buf()).collect()
+    }
+
     /// What holds the recording: `"ROS 1 bag"`, `"MCAP (ROS 2 bag)"` or `"SQLite (ROS 2 bag)"`.
     pub fn container(&self) -> &'static str {
         self.parts

@@ -116,7 +116,8 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     let out = sldepth(&["track", bag.to_str().unwrap(), "--topic", "/none"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("no topic \"/none\" (the bag has /camera/depth/camera_info, /camera/depth/image, /camera/rgb/image_color)"), "{err}");
-    // A bag is no depth map, and has no poses to fuse at: each said, with what reads it.
+    // A bag is no depth map, and has no poses of its own to fuse at: each said, with what
+    // reads it.
     let labels = tmp.path().join("l.png");
     let out = sldepth(&[
         "planes",
@@ -137,7 +138,64 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
         mesh.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("a ROS bag holds no poses to fuse at"), "{err}");
+    assert!(
+        err.contains("a recording holds no camera poses: fuse it along a trajectory"),
+        "{err}"
+    );
+    // Along the trajectory `track` wrote: each message posed by its stamp, the mesh the
+    // folder's along the same trajectory, byte for byte.
+    let fuse_along = |source: &[&str], mesh: &Path| {
+        let mut args = vec!["fuse"];
+        args.extend_from_slice(source);
+        args.extend_from_slice(&[
+            "--trajectory",
+            folder_traj.to_str().unwrap(),
+            "--camera",
+            "kinect-v1",
+            "--voxel-m",
+            "0.01",
+            "--output",
+            mesh.to_str().unwrap(),
+            "--json",
+        ]);
+        sldepth_json(&args)
+    };
+    let folder_mesh = tmp.path().join("folder.ply");
+    let (by_bag, stderr) = fuse_along(&[bag.to_str().unwrap()], &mesh);
+    let (by_folder, _) = fuse_along(&["--tum", seq.to_str().unwrap()], &folder_mesh);
+    assert_eq!(by_bag["frames"], 4, "{stderr}");
+    assert!(
+        stderr.contains("fusing /camera/depth/image (4 frames, 32FC1 metres)"),
+        "{stderr}"
+    );
+    assert_eq!(by_bag["vertices"], by_folder["vertices"]);
+    assert_eq!(
+        std::fs::read(&mesh).unwrap(),
+        std::fs::read(&folder_mesh).unwrap()
+    );
+    // A frame without a pose within 20 ms of its stamp is skipped, and said.
+    let two: String = folder
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .take(2)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let short = tmp.path().join("short.txt");
+    std::fs::write(&short, two).unwrap();
+    let (v, stderr) = sldepth_json(&[
+        "fuse",
+        bag.to_str().unwrap(),
+        "--trajectory",
+        short.to_str().unwrap(),
+        "--voxel-m",
+        "0.01",
+        "--json",
+    ]);
+    assert_eq!(v["frames"], 2, "{v}");
+    assert!(
+        stderr.contains("note: 2 frames of") && stderr.contains("(within 0.02 s of its stamp)"),
+        "{stderr}"
+    );
     let out = sldepth(&[
         "track",
         seq.to_str().unwrap(),

@@ -39,7 +39,6 @@
 //! model and block-matching window kept), with a note on standard error, as in every command
 //! that reads depth. A camera JSON says the same with `sensor_focal_px`.
 
-mod bag;
 mod config;
 mod fragments;
 mod prepare;
@@ -262,7 +261,7 @@ pub fn run(mut args: Args) -> Result<()> {
                 .as_deref()
                 .map(crate::common::camera_from_arg)
                 .transpose()?;
-            let b = bag::load(path, args.topic.as_deref(), given)?;
+            let b = crate::recording::load(path, args.topic.as_deref(), given, "tracking")?;
             (
                 b.frames,
                 b.camera,

@@ -10,8 +10,8 @@ use sl_io::sequence::SequenceFrame;
 use sl_planes::NoiseMeter;
 use sl_track::Reconstruction;
 
-use super::bag::BagFrames;
 use crate::common::limits;
+use crate::recording::BagFrames;
 
 /// A camera the prefilter cannot serve (a baseline or focal length so extreme that its range
 /// kernel leaves the supported range) is the camera's fault, not every frame's: says so once,

@@ -1,21 +1,25 @@
 //! `sldepth fuse`: merge registered depth frames into one mesh (paper section 3.3) — a sparse
 //! TSDF with the 1/Z⁴ noise weights, then marching cubes.
 
+mod frames;
+
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use sl_core::{Camera, CameraToWorld, DepthImage};
+use sl_core::{Camera, CameraToWorld};
 use sl_filter::Prefilter;
-use sl_io::depth::{ReadConfig, read_depth_with_limits};
+use sl_io::depth::ReadConfig;
 use sl_io::sequence::SequenceLayout;
 use sl_io::trajectory::Frame;
 use sl_tsdf::{
     Axis, DepthLookup, MeshConfig, SliceSpec, Truncation, TsdfConfig, TsdfError, TsdfVolume,
     WeightMode,
 };
+
+use frames::{Frames, Recording};
 
 use crate::common::{
     InputArgs, LensArgs, check_depth_scale, check_distinct_outputs, check_output, check_range,
@@ -31,8 +35,17 @@ pub struct Args {
     /// `depth` folder and one `.log` trajectory beside it, or `trajectory.log` of several) as
     /// --o3d-log LOG --depth-dir DIR/depth,
     /// a ScanNet export (`depth` and `pose` folders, no `.log`) as --scannet.
+    /// A robot recording (a ROS 1 bag, a ROS 2 bag's `.mcap`, `.db3` or folder, a RealSense
+    /// recording) is fused along --trajectory, each depth message posed by the trajectory's pose
+    /// nearest its stamp.
     #[arg(value_name = "DIR", group = "source")]
     pub sequence: Option<PathBuf>,
+    /// The recording given as DIR (set from it: a bag, not a folder of frames).
+    #[arg(skip)]
+    pub recording: Option<PathBuf>,
+    /// The depth topic of a recording (default: the one image topic holding depth).
+    #[arg(long, value_name = "TOPIC")]
+    pub topic: Option<String>,
     /// A ScanNet scan as its SensReader exports it: `depth/<n>.png` (millimetres) with
     /// `pose/<n>.txt` (4x4 camera-to-world; a frame whose matrix is `-inf`, or that has no pose
     /// file, is left out and counted); its `intrinsic/intrinsic_depth.txt` (or
@@ -65,8 +78,8 @@ pub struct Args {
     /// camera-intrinsics.txt is used when --camera is not given.
     #[arg(long = "7scenes", value_name = "DIR", group = "source")]
     pub seven_scenes: Option<PathBuf>,
-    /// Fuse the sequence folder (DIR, --tum, --7scenes or --scannet) along this trajectory
-    /// instead of its own poses: `sldepth track`'s `--output` (a TUM file, or its Open3D
+    /// Fuse the sequence folder (DIR, --tum, --7scenes or --scannet) or the recording (DIR:
+    /// a bag, each message by its stamp) along this trajectory instead of its own poses: `sldepth track`'s `--output` (a TUM file, or its Open3D
     /// `.log`), or another system's estimate (camera to world). A TUM-format file is matched by
     /// time, each frame to the pose nearest its timestamp within 20 ms (frames without
     /// timestamps, as 7-Scenes', by their index, as `track` stamps them); a `.log` by frame
@@ -259,6 +272,47 @@ fn load_along_trajectory(args: &Args, traj: &Path) -> Result<(Vec<Frame>, Camera
     Ok((seq.frames, camera, scale))
 }
 
+/// A recording's depth frames, to be posed by `--trajectory` as they are read, its camera, the
+/// units of its depth and its lens model.
+fn load_recording(
+    args: &Args,
+    path: &Path,
+) -> Result<(Frames, Camera, f64, Option<sl_core::LensDistortion>)> {
+    let Some(traj) = &args.trajectory else {
+        bail!(
+            "{0}: a recording holds no camera poses: fuse it along a trajectory (--trajectory \
+             FILE; `sldepth track {0} --output traj.txt` writes one), or track and fuse it in one \
+             go with `sldepth track {0} --mesh mesh.ply`",
+            path.display()
+        );
+    };
+    let given = args
+        .input
+        .camera
+        .as_deref()
+        .map(crate::common::camera_from_arg)
+        .transpose()?;
+    let b = crate::recording::load(path, args.topic.as_deref(), given, "fusing")?;
+    let poses = sl_io::trajectory::read_trajectory_with_limits(traj, &limits())?;
+    let recording = Recording {
+        path: path.to_path_buf(),
+        reader: b.reader,
+        count: b.frames.len(),
+        poses,
+        trajectory: traj.clone(),
+        max_dt_s: sl_io::trajectory::DEFAULT_MAX_DT_S,
+        by_number: sl_io::trajectory::is_open3d_log(traj),
+        without_pose: 0,
+        first: None,
+    };
+    Ok((
+        Frames::Recording(Box::new(recording)),
+        b.camera,
+        b.default_scale,
+        b.lens,
+    ))
+}
+
 /// The frames and the camera of the chosen source.
 fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     if let Some(traj) = &args.trajectory {
@@ -349,6 +403,10 @@ fn resolve_layout(args: &mut Args) -> Result<()> {
     let Some(dir) = args.sequence.take() else {
         return Ok(());
     };
+    if sl_io::rosbag::is_bag_file(&dir) {
+        args.recording = Some(dir);
+        return Ok(());
+    }
     match crate::common::sequence_layout(&dir)? {
         SequenceLayout::Tum => args.tum = Some(dir),
         SequenceLayout::SevenScenes => args.seven_scenes = Some(dir),
@@ -414,7 +472,19 @@ pub fn run(mut args: Args) -> Result<()> {
             "--memory-budget-bytes {b}: over the TSDF share of the memory budget ({tsdf_budget} bytes); raise --max-memory"
         ),
     };
-    let (mut frames, camera, default_scale) = load_source(&args)?;
+    if args.topic.is_some() && args.recording.is_none() {
+        bail!("--topic names a topic of a recording; the source is not one (give REC.bag)");
+    }
+    let (mut frames, camera, default_scale, bag_lens) = match &args.recording {
+        Some(rec) => {
+            let (frames, camera, scale, lens) = load_recording(&args, rec)?;
+            (frames, camera, Some(scale), lens)
+        }
+        None => {
+            let (frames, camera, scale) = load_source(&args)?;
+            (Frames::Files(frames), camera, scale, None)
+        }
+    };
     // An ICL-NUIM folder's poses are y up: read into sldepth's frame by sl-io, the mesh written
     // back in the data set's.
     let data_y_up = args
@@ -431,7 +501,7 @@ pub fn run(mut args: Args) -> Result<()> {
     if let Some(n) = args.max_frames {
         frames.truncate(n);
     }
-    if frames.is_empty() {
+    if frames.len() == 0 {
         // Name the source that had none.
         let source = [
             ("--7scenes", &args.seven_scenes),
@@ -457,32 +527,54 @@ pub fn run(mut args: Args) -> Result<()> {
         source_files(&args)
             .iter()
             .map(PathBuf::as_path)
-            .chain(frames.iter().map(|f| f.depth_path.as_path())),
+            .chain(frames.inputs().iter().map(PathBuf::as_path)),
     )?;
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
-    let default_scale = crate::common::frames_default_scale(
-        frames.first().map(|f| f.depth_path.as_path()),
-        read_opts.format,
-        default_scale,
-    );
+    // A recording's units are its own (a RealSense recording's depth units, float metres).
+    let default_scale = match &frames {
+        Frames::Files(_) => crate::common::frames_default_scale(
+            frames.first_path(),
+            read_opts.format,
+            default_scale,
+        ),
+        Frames::Recording(_) => default_scale,
+    };
     read_opts.scale_units_per_m = args.input.depth_scale.or(default_scale);
     // Frames a whole fraction of the camera's size are its sensor decimated; any other size
     // is an error at the frame. The first frame, read for its size, is not read again.
-    let (camera, mut first_depth) = crate::common::camera_for_sequence(
-        camera,
-        frames.first().map(|f| f.depth_path.as_path()),
-        &read_opts,
-    );
+    let (camera, mut first_depth) = match &mut frames {
+        Frames::Files(_) => {
+            crate::common::camera_for_sequence(camera, frames.first_path(), &read_opts)
+        }
+        Frames::Recording(r) => {
+            let scale = read_opts
+                .scale_units_per_m
+                .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M);
+            match r.reader.read(0, scale) {
+                (Ok(d), stamp) => {
+                    let camera = crate::common::camera_for_frames(&camera, d.width(), d.height())
+                        .unwrap_or(camera);
+                    let note = d.clone();
+                    r.first = Some((d, stamp));
+                    (camera, Some(note))
+                }
+                // Reported at the frame, as an unreadable file is.
+                (Err(_), _) => (camera, None),
+            }
+        }
+    };
+    let recording = matches!(frames, Frames::Recording(_));
     // Frames at another scale than they are read at are far out of range: say so at the first.
-    if let (None, Some(d), Some(f)) = (args.input.depth_scale, &first_depth, frames.first()) {
+    if let (None, Some(d), Some(first)) =
+        (args.input.depth_scale, &first_depth, frames.first_path())
+    {
         let units = read_opts.scale_units_per_m.unwrap_or_else(|| {
-            sl_io::sequence::depth_scale_of_file(&f.depth_path)
-                .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
+            sl_io::sequence::depth_scale_of_file(first).unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M)
         });
         let preset_sensor = crate::common::sensor_from_preset(&args.input, source_folder(&args));
         crate::common::note_doubtful_depth_scale(
-            &f.depth_path,
+            first,
             d,
             &args.input,
             units,
@@ -498,7 +590,20 @@ pub fn run(mut args: Args) -> Result<()> {
         .tum
         .as_deref()
         .and_then(|d| sl_io::sequence::sensor_preset(d, SequenceLayout::Tum));
-    let undistort = crate::common::undistorter(&args.lens, &args.input, implied, &camera);
+    let undistort = match bag_lens {
+        Some(lens) if args.lens.lens != "none" => {
+            errln!(
+                "note: undistorting the depth with the plumb_bob model of the recording's \
+                 camera_info (--lens none keeps it as it is)"
+            );
+            Some(sl_core::Undistorter::new(&camera.intrinsics, &lens))
+        }
+        _ => crate::common::undistorter(&args.lens, &args.input, implied, &camera),
+    };
+    // A recording's first frame is kept by the recording itself (with its stamp).
+    if recording {
+        first_depth = None;
+    }
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
@@ -532,19 +637,21 @@ pub fn run(mut args: Args) -> Result<()> {
     let mut first_pose: Option<CameraToWorld> = None;
     // The frame whose blocks did not fit, and why: the fusion ends there.
     let mut full: Option<(usize, String)> = None;
-    for (i, f) in frames.iter().enumerate() {
-        let mut depth: DepthImage = match first_depth.take() {
-            Some(d) => d,
-            None => {
-                read_depth_with_limits(&f.depth_path, &read_opts, &limits())
-                    .with_context(|| format!("reading {}", f.depth_path.display()))?
-                    .depth
-            }
+    for i in 0..frames.len() {
+        let Some(frames::Posed {
+            mut depth,
+            pose,
+            label,
+        }) = frames.read(i, &read_opts, &mut first_depth)?
+        else {
+            // A recording's frame the trajectory has no pose for.
+            bar.inc(1);
+            continue;
         };
         if depth.width() != k.width || depth.height() != k.height {
             bail!(
                 "{}: depth map is {}x{} but the camera is {}x{} (every frame of a sequence has the camera's size; --camera names the camera)",
-                f.depth_path.display(),
+                label,
                 depth.width(),
                 depth.height(),
                 k.width,
@@ -554,7 +661,7 @@ pub fn run(mut args: Args) -> Result<()> {
         if let Some(u) = &undistort {
             depth = u
                 .apply(&depth)
-                .with_context(|| format!("undistorting {}", f.depth_path.display()))?;
+                .with_context(|| format!("undistorting {}", label))?;
         }
         if volume.frame_count() == 0 {
             // The first frame: its noise against the camera's model (before the prefilter,
@@ -565,7 +672,7 @@ pub fn run(mut args: Args) -> Result<()> {
                     &camera,
                     &sl_planes::PlaneConfig::default(),
                 )
-                .with_context(|| format!("measuring the noise of {}", f.depth_path.display()))?;
+                .with_context(|| format!("measuring the noise of {}", label))?;
             }
             band_sensor = camera.sensor.with_variance_scale(noise_scale);
             volume.set_band_sensor(band_sensor)?;
@@ -574,30 +681,55 @@ pub fn run(mut args: Args) -> Result<()> {
         if let Some(filt) = &filter {
             depth = filt
                 .apply(&depth)
-                .with_context(|| format!("filtering {}", f.depth_path.display()))?;
+                .with_context(|| format!("filtering {}", label))?;
         }
         let t0 = Instant::now();
-        match volume.integrate(&depth, &k, &f.pose) {
+        match volume.integrate(&depth, &k, &pose) {
             Ok(_) => {}
             Err(e @ (TsdfError::MemoryBudget { .. } | TsdfError::CandidateBudget { .. }))
-                if i > 0 =>
+                if volume.frame_count() > 0 =>
             {
                 errln!(
-                    "error: frame {i} ({}): {e}; the mesh of the {i} frames before it is written",
-                    f.depth_path.display()
+                    "error: frame {i} ({}): {e}; the mesh of the {} frames before it is written",
+                    label,
+                    volume.frame_count()
                 );
-                full = Some((i, format!("{}: {e}", f.depth_path.display())));
+                full = Some((i, format!("{}: {e}", label)));
                 break;
             }
             Err(e) => {
-                return Err(e).with_context(|| format!("integrating {}", f.depth_path.display()));
+                return Err(e).with_context(|| format!("integrating {}", label));
             }
         }
         integrate_ms.push(t0.elapsed().as_secs_f64() * 1e3);
-        first_pose.get_or_insert(f.pose);
+        first_pose.get_or_insert(pose);
         bar.inc(1);
     }
     bar.finish_and_clear();
+    if let Frames::Recording(r) = &frames
+        && r.without_pose > 0
+    {
+        let how = if r.by_number {
+            "by message number (an Open3D .log)".to_owned()
+        } else {
+            format!("within {} s of its stamp", r.max_dt_s)
+        };
+        if volume.frame_count() == 0 {
+            bail!(
+                "no frame of {} has a pose in {} ({} frames; a frame takes the pose {how}): \
+                 is it this recording's trajectory?",
+                r.path.display(),
+                r.trajectory.display(),
+                r.without_pose
+            );
+        }
+        errln!(
+            "note: {} frames of {} have no pose in {} ({how}) and are skipped",
+            r.without_pose,
+            r.path.display(),
+            r.trajectory.display()
+        );
+    }
 
     let t0 = Instant::now();
     let mut mesh_config = MeshConfig::default();
@@ -653,7 +785,8 @@ pub fn run(mut args: Args) -> Result<()> {
     let med = median(&mut integrate_ms.clone());
     if args.json {
         print_json(&serde_json::json!({
-            "frames": frames.len(),
+            // Frames with a pose (a recording's without one are not counted, as a folder's).
+            "frames": frames.len() - frames.without_pose(),
             // Frames in the volume: all of them unless it reached its memory budget.
             "fused": volume.frame_count(),
             "integrate_ms_median": round_to(med, 3),

@@ -1,5 +1,6 @@
-//! A robot recording as the sequence to track (`sldepth track REC [--topic T]`; a ROS 1 bag, a
-//! ROS 2 bag in MCAP or SQLite, a RealSense recording): its depth topic (the one image topic
+//! A robot recording as a sequence of depth frames, for `sldepth track REC [--topic T]` and
+//! `sldepth fuse REC --trajectory FILE` (a ROS 1 bag, a ROS 2 bag in MCAP or SQLite, a
+//! RealSense recording): its depth topic (the one image topic
 //! holding depth unless named), its frames in the order they were recorded, stamped with their
 //! image headers' stamps (a RealSense recording's sensor timestamps where its metadata has
 //! them), its depth units (a RealSense recording's own) and its camera — `--camera`, else the
@@ -16,7 +17,7 @@ use sl_io::sequence::SequenceFrame;
 use crate::common::limits;
 
 /// The frames of a bag's depth topic, read one by one as tracking asks for them.
-pub(super) struct BagFrames {
+pub(crate) struct BagFrames {
     bag: RosBag,
     messages: Vec<BagMessage>,
     /// A RealSense recording's sensor timestamps of the frames, where recorded (else the image
@@ -27,20 +28,26 @@ pub(super) struct BagFrames {
 }
 
 /// What a bag gives `track`.
-pub(super) struct BagSource {
+pub(crate) struct BagSource {
     /// One frame per message (the bag's path; the record time until the stamp is read).
-    pub(super) frames: Vec<SequenceFrame>,
-    pub(super) camera: Camera,
+    pub(crate) frames: Vec<SequenceFrame>,
+    pub(crate) camera: Camera,
     /// The lens model of the bag's `camera_info` (`None` with `--camera`, or none to undo).
-    pub(super) lens: Option<LensDistortion>,
+    pub(crate) lens: Option<LensDistortion>,
     /// Units per metre of the topic's depth: 1000 for 16-bit millimetres, 1 for float metres.
-    pub(super) default_scale: f64,
-    pub(super) reader: BagFrames,
+    pub(crate) default_scale: f64,
+    pub(crate) reader: BagFrames,
 }
 
 /// Opens the bag at `path` and finds its depth topic (`topic`, or the one that holds depth) and
-/// camera (`camera`, else the topic's `camera_info`), said on standard error.
-pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> Result<BagSource> {
+/// camera (`camera`, else the topic's `camera_info`), said on standard error (`verb`: what is
+/// done with the topic, "tracking" or "fusing").
+pub(crate) fn load(
+    path: &Path,
+    topic: Option<&str>,
+    camera: Option<Camera>,
+    verb: &str,
+) -> Result<BagSource> {
     let mut bag = RosBag::open(path, &limits())?;
     let topic = bag.depth_topic(topic)?;
     let messages = bag.messages(&topic)?;
@@ -74,7 +81,7 @@ pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> 
     let times = bag.realsense_frame_times(&topic, &messages)?;
     let k = camera.intrinsics;
     errln!(
-        "note: {}: tracking {topic} ({} frames, {}), camera from {whose} (fx {}, {}x{})",
+        "note: {}: {verb} {topic} ({} frames, {}), camera from {whose} (fx {}, {}x{})",
         path.display(),
         messages.len(),
         match kind {
@@ -112,9 +119,14 @@ pub(super) fn load(path: &Path, topic: Option<&str>, camera: Option<Camera>) -> 
 }
 
 impl BagFrames {
+    /// The recording's files.
+    pub(crate) fn files(&self) -> Vec<std::path::PathBuf> {
+        self.bag.file_paths()
+    }
+
     /// Frame `i`'s depth at `units_per_m` and its stamp. A stamp that does not follow the last
     /// frame read is an error for that frame (tracking skips it, saying why).
-    pub(super) fn read(&mut self, i: usize, units_per_m: f64) -> (Result<DepthImage>, Option<f64>) {
+    pub(crate) fn read(&mut self, i: usize, units_per_m: f64) -> (Result<DepthImage>, Option<f64>) {
         let Some(m) = self.messages.get(i).copied() else {
             return (Err(anyhow::anyhow!("no message {i}")), None);
         };
