@@ -59,6 +59,15 @@ impl PyRosBag {
         })
     }
 
+    /// Whether ``path`` names a recording ``RosBag`` opens: a ``.bag``, ``.mcap`` or ``.db3``
+    /// file, a ROS 2 bag's folder (``metadata.yaml`` beside its files), or a folder of one ROS 1
+    /// recording split by ``rosbag record --split`` (``NAME_0.bag``, ``NAME_1.bag``, ...). The rule
+    /// ``sldepth track`` and ``track_sequence`` tell a recording from a folder of frames by.
+    #[staticmethod]
+    fn is_recording(path: PathBuf) -> bool {
+        sl_io::rosbag::is_bag_file(&path)
+    }
+
     /// The bag's file.
     #[getter]
     fn path(&self) -> PathBuf {

@@ -196,6 +196,35 @@ def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
         np.testing.assert_array_equal(z, e)
 
 
+def test_a_ros1_recording_split_in_pieces_reads_as_one(tmp_path):
+    """`rosbag record --split`'s pieces (NAME_0.bag, NAME_1.bag, ...) written by `rosbags`: the
+    folder is one recording, track_sequence takes it; a bag of another name beside breaks it."""
+    rosbag1 = pytest.importorskip("rosbags.rosbag1")
+    typesys = pytest.importorskip("rosbags.typesys")
+    ts = typesys.get_typestore(typesys.Stores.ROS1_NOETIC)
+    Image = ts.types["sensor_msgs/msg/Image"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    mm = _frames(3)
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    for i, d in enumerate(mm):
+        with rosbag1.Writer(rec / f"session_2024-05-01-10-00-00_{i}.bag") as w:
+            c = w.add_connection("/camera/depth/image_raw", Image.__msgtype__, typestore=ts)
+            msg = Image(header=Header(seq=i, stamp=Time(sec=30 + i, nanosec=0), frame_id="d"),
+                        height=480, width=640, encoding="16UC1", is_bigendian=0, step=640 * 2,
+                        data=np.frombuffer(d.astype("<u2").tobytes(), np.uint8))
+            w.write(c, (30 + i) * 10**9, ts.serialize_ros1(msg, Image.__msgtype__))
+    assert sldepth.RosBag.is_recording(rec)
+    bag = sldepth.RosBag(rec)
+    assert (bag.container, bag.files) == ("ROS 1 bag", 3)
+    assert [t for t, _ in bag.depth_frames()] == [30.0, 31.0, 32.0]
+    poses, statuses, _ = sldepth.track_sequence(rec, camera=sldepth.Camera.preset("kinect-v1"))
+    assert poses.shape == (3, 4, 4)
+    (rec / "other_0.bag").write_bytes((rec / "session_2024-05-01-10-00-00_0.bag").read_bytes())
+    assert not sldepth.RosBag.is_recording(rec)
+
+
 def _rosbags_ros2():
     """The `rosbags` ROS 2 writer and the Humble types of a depth image (skips without it)."""
     rosbag2 = pytest.importorskip("rosbags.rosbag2")

@@ -1,7 +1,8 @@
 //! Robot recordings: ROS 1 bags (`.bag`, format 2.0) and ROS 2 bags in MCAP (`.mcap`) or in
 //! SQLite (`.db3`, the default storage up to Humble), or a ROS 2 bag's folder holding
 //! `metadata.yaml` and one or several such files (a recording split by size or duration, read
-//! as one: `part.rs` is one file) — the depth images and camera calibration a robot
+//! as one: `part.rs` is one file), or a folder of one ROS 1 recording's pieces
+//! (`rosbag record --split`: `NAME_0.bag`, `NAME_1.bag`, …, [`ros1_split_files`]) — the depth images and camera calibration a robot
 //! recorded, read straight from the recording. TUM RGB-D ships every sequence as a ROS 1 bag;
 //! a Kinect, Xtion, RealSense or OAK-D driver under ROS records its depth as
 //! `sensor_msgs/Image`; librealsense's own recorder (the RealSense Viewer) writes a ROS 1 bag,
@@ -150,24 +151,62 @@ pub struct RosBag {
 }
 
 /// Whether `path` names a recording [`RosBag::open`] takes: a `.bag` (ROS 1) or `.mcap` file,
-/// or a ROS 2 bag's folder (`metadata.yaml` beside its `.mcap` or `.db3` files).
+/// a ROS 2 bag's folder (`metadata.yaml` beside its `.mcap` or `.db3` files), or a folder of
+/// one ROS 1 recording split by `rosbag record --split` ([`ros1_split_files`]).
 pub fn is_bag_file(path: &Path) -> bool {
     let ext = |p: &Path, e: &str| p.extension().is_some_and(|x| x.eq_ignore_ascii_case(e));
     if path.is_dir() {
-        return path.join("metadata.yaml").is_file()
+        let ros2 = path.join("metadata.yaml").is_file()
             && std::fs::read_dir(path).is_ok_and(|d| {
                 d.flatten()
                     .any(|e| ext(&e.path(), "mcap") || ext(&e.path(), "db3"))
             });
+        return ros2 || ros1_split_files(path).is_some();
     }
     ext(path, "bag") || ext(path, "mcap") || ext(path, "db3")
 }
 
-/// The files of a recording: `path` itself, or a ROS 2 bag folder's `.mcap` or `.db3` files
-/// (a recording split by size or duration), in the natural order of their names.
+/// The files of a ROS 1 recording split by `rosbag record --split` in the folder `dir`, in
+/// order: every `.bag` file in it is named `<name>_<n>.bag` with one `<name>` (as the recorder
+/// names the pieces: `rec_0.bag`, `rec_1.bag`, …, or `rec_2024-05-01-10-00-00_0.bag`, …) and
+/// `n` counting from 0 without a gap. `None` for a folder with no `.bag` file, or with bags
+/// of different names or numbers (separate recordings: give one of them).
+pub fn ros1_split_files(dir: &Path) -> Option<Vec<PathBuf>> {
+    let mut pieces: Vec<(u64, PathBuf)> = Vec::new();
+    let mut name: Option<String> = None;
+    for e in std::fs::read_dir(dir).ok()?.flatten() {
+        let p = e.path();
+        if !p.extension().is_some_and(|x| x.eq_ignore_ascii_case("bag")) || !p.is_file() {
+            continue;
+        }
+        let stem = p.file_stem()?.to_str()?;
+        let (base, n) = stem.rsplit_once('_')?;
+        if n.is_empty() || !n.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        match &name {
+            Some(b) if b != base => return None,
+            Some(_) => {}
+            None => name = Some(base.to_owned()),
+        }
+        pieces.push((n.parse().ok()?, p));
+    }
+    pieces.sort();
+    let numbered_from_zero = pieces.iter().enumerate().all(|(i, (n, _))| *n == i as u64);
+    (!pieces.is_empty() && numbered_from_zero).then(|| pieces.into_iter().map(|(_, p)| p).collect())
+}
+
+/// The files of a recording: `path` itself, a ROS 2 bag folder's `.mcap` or `.db3` files (a
+/// recording split by size or duration), in the natural order of their names, or the pieces of
+/// a split ROS 1 recording ([`ros1_split_files`]).
 fn bag_files_of(path: &Path) -> Result<Vec<PathBuf>> {
     if !path.is_dir() {
         return Ok(vec![path.to_path_buf()]);
+    }
+    if !path.join("metadata.yaml").is_file()
+        && let Some(files) = ros1_split_files(path)
+    {
+        return Ok(files);
     }
     let mut files = Vec::new();
     for e in std::fs::read_dir(path).map_err(|e| IoError::io(path, e))? {
@@ -183,7 +222,8 @@ fn bag_files_of(path: &Path) -> Result<Vec<PathBuf>> {
     if files.is_empty() {
         return Err(IoError::malformed(
             path,
-            "a folder without an .mcap or .db3 file",
+            "a folder without an .mcap or .db3 file (a ROS 2 bag), or the .bag files of one ROS \
+             1 recording split by `rosbag record --split` (NAME_0.bag, NAME_1.bag, ...)",
         ));
     }
     let ext = |p: &PathBuf| p.extension().map(|e| e.to_ascii_lowercase());

@@ -90,6 +90,60 @@ fn a_bag_gives_its_depth_frames_and_camera() {
     }
 }
 
+/// A ROS 1 recording split by `rosbag record --split` (`NAME_0.bag`, `NAME_1.bag`, …, as many
+/// as it took): its folder reads as one recording, the pieces in number order (`_2` before
+/// `_10`) and the messages in time order across them; a folder of bags of other names, or with
+/// a piece missing, is not one recording.
+#[test]
+fn a_ros1_recording_split_into_pieces_reads_as_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir.path().join("split");
+    std::fs::create_dir(&folder).unwrap();
+    let msgs = kinect_messages();
+    // Twelve pieces, the first eleven empty of depth but for piece n's share: frames 0, 1, 2
+    // in pieces 0, 2 and 10 (out of lexical order), the camera info in each.
+    let mut pieces: Vec<Vec<Msg>> = vec![Vec::new(); 12];
+    for (frame, piece) in [0usize, 2, 10].into_iter().enumerate() {
+        pieces[piece].extend(msgs[3 * frame..3 * frame + 3].iter().cloned());
+    }
+    for (n, p) in pieces.iter().enumerate() {
+        let file = folder.join(format!("rec_2024-05-01-10-00-00_{n}.bag"));
+        let p = if p.is_empty() { &msgs[2..3] } else { &p[..] };
+        write_bag(&file, &[DEPTH, INFO, IR], p, "lz4", 2);
+    }
+    assert!(is_bag_file(&folder));
+    let files = sl_io::rosbag::ros1_split_files(&folder).unwrap();
+    assert!(
+        files[10].ends_with("rec_2024-05-01-10-00-00_10.bag"),
+        "{files:?}"
+    );
+    let mut bag = RosBag::open(&folder, &Limits::default()).unwrap();
+    assert_eq!((bag.files(), bag.container()), (12, "ROS 1 bag"));
+    let topic = bag.depth_topic(None).unwrap();
+    let frames = bag.messages(&topic).unwrap();
+    assert_eq!(frames.len(), 3);
+    for (i, m) in frames.iter().enumerate() {
+        assert_eq!(
+            bag.read_depth(m, 1000.0, 1.0).unwrap().stamp_s,
+            100.0 + i as f64
+        );
+    }
+    // A piece missing, or a bag of another name beside: separate recordings, not one.
+    let other = folder.join("other_0.bag");
+    std::fs::copy(&files[0], &other).unwrap();
+    assert!(!is_bag_file(&folder));
+    let e = RosBag::open(&folder, &Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("NAME_0.bag, NAME_1.bag"), "{e}");
+    std::fs::remove_file(&other).unwrap();
+    std::fs::remove_file(&files[5]).unwrap();
+    assert!(sl_io::rosbag::ros1_split_files(&folder).is_none());
+    // One piece alone is that piece.
+    let one = RosBag::open(&files[2], &Limits::default()).unwrap();
+    assert_eq!(one.files(), 1);
+}
+
 /// Float metres (`32FC1`, as TUM's bags hold depth), big-endian pixels, NaN and negative values
 /// as no depth; two depth topics are an error listing both.
 #[test]

@@ -220,17 +220,12 @@ def track_sequence(
 
 
 def _is_bag(frames):
-    """Whether ``frames`` is a robot recording's path: a ROS 1 bag (``.bag``), a ROS 2 bag's file
-    (``.mcap``, ``.db3``) or its folder (``metadata.yaml`` beside its ``.mcap`` or ``.db3``
-    files)."""
+    """Whether ``frames`` is a robot recording's path (``RosBag.is_recording``: a ROS 1 bag, a
+    ROS 2 bag's file or folder, or a folder of one split ROS 1 recording)."""
     if not isinstance(frames, (str, bytes, _os.PathLike)):
         return False
     path = _os.fsdecode(frames)
-    if _os.path.isdir(path):
-        return _os.path.isfile(_os.path.join(path, "metadata.yaml")) and any(
-            name.lower().endswith((".mcap", ".db3")) for name in _os.listdir(path)
-        )
-    return path.lower().endswith((".bag", ".mcap", ".db3")) and _os.path.isfile(path)
+    return (_os.path.isdir(path) or _os.path.isfile(path)) and RosBag.is_recording(path)
 
 
 def _poses_in_joined_worlds(poses, frame_fragments, joins):

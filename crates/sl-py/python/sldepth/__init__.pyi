@@ -428,11 +428,16 @@ def input_is_borrowed(depth: _Depth, depth_scale: Optional[float] = None) -> boo
 
 class RosBag:
     """A robot recording, as `sldepth track REC` reads it: a ROS 1 bag (format 2.0; chunks none,
-    bz2 or lz4), a ROS 2 bag in MCAP (.mcap; chunks none, zstd or lz4) or SQLite (.db3), or a
-    ROS 2 bag's folder; RealSense recordings (librealsense's .bag, or .db3 since 2.56) are
+    bz2 or lz4), a ROS 2 bag in MCAP (.mcap; chunks none, zstd or lz4) or SQLite (.db3), a
+    ROS 2 bag's folder, or a folder of one ROS 1 recording split in pieces (NAME_0.bag, ...); RealSense recordings (librealsense's .bag, or .db3 since 2.56) are
     these. Opening reads its index; a file that is not a bag, or a bag without an index
     (`rosbag reindex`), raises OSError."""
     def __init__(self, path: _Path) -> None: ...
+    @staticmethod
+    def is_recording(path: _Path) -> bool:
+        """Whether path names a recording RosBag opens: a .bag, .mcap or .db3 file, a ROS 2 bag's
+        folder (metadata.yaml beside its files), or a folder of one ROS 1 recording split by
+        `rosbag record --split` (NAME_0.bag, NAME_1.bag, ...)."""
     @property
     def path(self) -> str: ...
     @property

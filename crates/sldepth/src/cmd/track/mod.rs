@@ -72,7 +72,8 @@ pub struct Args {
     /// `depth.txt` or `associations.txt` (as --tum), a 7-Scenes folder when it has
     /// `frame-*.depth.png` (as --7scenes), an Open3D-style folder when it has a `depth` folder
     /// (as --o3d). Or name the layout with one of those options. Or a robot recording, a ROS 1
-    /// bag (`.bag`), a ROS 2 bag in MCAP or SQLite (`.mcap`, `.db3`, or the bag's folder) or a
+    /// bag (`.bag`, or the folder of a recording's `rosbag record --split` pieces, NAME_0.bag,
+    /// NAME_1.bag, ...), a ROS 2 bag in MCAP or SQLite (`.mcap`, `.db3`, or the bag's folder) or a
     /// RealSense recording (librealsense's `.bag` or `.db3`): its depth topic (--topic, else
     /// the one image topic holding depth: 16UC1 millimetres or 32FC1 metres), stamped with its
     /// images' header stamps (a RealSense recording's: the sensor's timestamps), with the
