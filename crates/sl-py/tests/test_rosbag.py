@@ -169,14 +169,19 @@ def test_bag_errors(tmp_path):
         sldepth.track_sequence([np.zeros((4, 4), np.float32)], topic="/x")
 
 
-def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
-    """The independent `rosbags` writer (lz4 chunks, 32FC1 metres as TUM's bags)."""
+def _rosbags_ros1():
+    """The `rosbags` ROS 1 writer and the Noetic types of a depth image (skips without it)."""
     rosbag1 = pytest.importorskip("rosbags.rosbag1")
     typesys = pytest.importorskip("rosbags.typesys")
     ts = typesys.get_typestore(typesys.Stores.ROS1_NOETIC)
-    Image = ts.types["sensor_msgs/msg/Image"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
+    types = [ts.types[n] for n in ("sensor_msgs/msg/Image", "std_msgs/msg/Header",
+                                   "builtin_interfaces/msg/Time")]
+    return (rosbag1, ts, *types)
+
+
+def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
+    """The independent `rosbags` writer (lz4 chunks, 32FC1 metres as TUM's bags)."""
+    rosbag1, ts, Image, Header, Time = _rosbags_ros1()
     metres = [(d.astype(np.float64) / 1000).astype(np.float32) for d in _frames(2)]
     metres[1][0, :3] = np.nan
     path = tmp_path / "rosbags.bag"
@@ -199,12 +204,7 @@ def test_a_bag_written_by_rosbags_reads_the_same(tmp_path):
 def test_a_ros1_recording_split_in_pieces_reads_as_one(tmp_path):
     """`rosbag record --split`'s pieces (NAME_0.bag, NAME_1.bag, ...) written by `rosbags`: the
     folder is one recording, track_sequence takes it; a bag of another name beside breaks it."""
-    rosbag1 = pytest.importorskip("rosbags.rosbag1")
-    typesys = pytest.importorskip("rosbags.typesys")
-    ts = typesys.get_typestore(typesys.Stores.ROS1_NOETIC)
-    Image = ts.types["sensor_msgs/msg/Image"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
+    rosbag1, ts, Image, Header, Time = _rosbags_ros1()
     mm = _frames(3)
     rec = tmp_path / "rec"
     rec.mkdir()
