@@ -152,7 +152,8 @@ pub struct RosBag {
 
 /// Whether `path` names a recording [`RosBag::open`] takes: a `.bag` (ROS 1) or `.mcap` file,
 /// a ROS 2 bag's folder (`metadata.yaml` beside its `.mcap` or `.db3` files), or a folder of
-/// one ROS 1 recording split by `rosbag record --split` ([`ros1_split_files`]).
+/// one ROS 1 recording split by `rosbag record --split` ([`ros1_split_files`]) that is not
+/// also a folder of depth frames ([`crate::sequence::SequenceLayout::infer`]).
 pub fn is_bag_file(path: &Path) -> bool {
     let ext = |p: &Path, e: &str| p.extension().is_some_and(|x| x.eq_ignore_ascii_case(e));
     if path.is_dir() {
@@ -161,7 +162,9 @@ pub fn is_bag_file(path: &Path) -> bool {
                 d.flatten()
                     .any(|e| ext(&e.path(), "mcap") || ext(&e.path(), "db3"))
             });
-        return ros2 || ros1_split_files(path).is_some();
+        // A folder of frames that also holds a split bag is the folder of frames.
+        let frames = crate::sequence::SequenceLayout::infer(path).is_ok();
+        return ros2 || (!frames && ros1_split_files(path).is_some());
     }
     ext(path, "bag") || ext(path, "mcap") || ext(path, "db3")
 }

@@ -112,6 +112,10 @@ fn a_ros1_recording_split_into_pieces_reads_as_one() {
         write_bag(&file, &[DEPTH, INFO, IR], p, "lz4", 2);
     }
     assert!(is_bag_file(&folder));
+    // The same pieces in a folder of TUM frames: the folder of frames.
+    std::fs::write(folder.join("depth.txt"), "").unwrap();
+    assert!(!is_bag_file(&folder));
+    std::fs::remove_file(folder.join("depth.txt")).unwrap();
     let files = sl_io::rosbag::ros1_split_files(&folder).unwrap();
     assert!(
         files[10].ends_with("rec_2024-05-01-10-00-00_10.bag"),
