@@ -346,13 +346,13 @@ impl Codec {
     }
 }
 
-/// Bytes of the `compressedDepth` configuration header before the PNG or RVL image: the format (`i32`, 0
-/// for inverse depth) and the two depth quantisation parameters (`f32`).
+/// Bytes of the `compressedDepth` configuration header before the PNG or RVL image: the
+/// format (`i32`, 0 for inverse depth) and the two depth quantisation parameters (`f32`).
 const CONFIG_HEADER_BYTES: usize = 12;
 
 /// The depth of a `compressedDepth` image, metres (0 = none): a `16UC1` image (PNG or RVL) of
-/// units divided by `units_per_m`; a `32FC1` one stores inverse depth, `q = a / z + b` as 16-bit values (0 =
-/// none), decoded as `z = a / (q − b)` and divided by `float_units_per_m`.
+/// units divided by `units_per_m`; a `32FC1` one stores inverse depth, `q = a / z + b` as
+/// 16-bit values (0 = none), decoded as `z = a / (q − b)` and divided by `float_units_per_m`.
 pub(super) fn compressed_depth_of(
     path: &Path,
     m: &CompressedMessage<'_>,

@@ -35,8 +35,8 @@ pub(super) struct Recording {
     pub(super) by_number: bool,
     /// Frames read so far without a pose within `max_dt_s`.
     pub(super) without_pose: usize,
-    /// The first frame and its stamp, read for the camera's size: not read again.
-    pub(super) first: Option<(DepthImage, Option<f64>)>,
+    /// The stamp of the first frame, read for the camera's size (the caller keeps its depth).
+    pub(super) first_stamp: Option<f64>,
 }
 
 /// One frame to integrate.
@@ -89,8 +89,8 @@ impl Frames {
         }
     }
 
-    /// Frame `i` read (`first`: the first file, already read) and posed; `None` for a
-    /// recording's frame the trajectory has no pose for.
+    /// Frame `i` read (`first`: the first frame, already read for the camera's size) and
+    /// posed; `None` for a recording's frame the trajectory has no pose for.
     ///
     /// # Errors
     /// An unreadable file or message, or a message stamped before the one before it.
@@ -117,20 +117,25 @@ impl Frames {
                     label: f.depth_path.display().to_string(),
                 }))
             }
-            Self::Recording(r) => r.read(i, read_opts),
+            Self::Recording(r) => r.read(i, read_opts, first),
         }
     }
 }
 
 impl Recording {
-    fn read(&mut self, i: usize, read_opts: &ReadConfig) -> Result<Option<Posed>> {
+    fn read(
+        &mut self,
+        i: usize,
+        read_opts: &ReadConfig,
+        first: &mut Option<DepthImage>,
+    ) -> Result<Option<Posed>> {
         let label = |stamp: Option<f64>| match stamp {
             Some(t) => format!("{} message {i} (stamp {t:.6} s)", self.path.display()),
             None => format!("{} message {i}", self.path.display()),
         };
-        let (depth, stamp) = match self.first.take() {
-            Some((d, stamp)) if i == 0 => (Ok(d), stamp),
-            _ => {
+        let (depth, stamp) = match first.take() {
+            Some(d) => (Ok(d), self.first_stamp),
+            None => {
                 let scale = read_opts
                     .scale_units_per_m
                     .unwrap_or(sl_io::depth::DEFAULT_UNITS_PER_M);

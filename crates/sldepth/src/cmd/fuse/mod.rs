@@ -303,7 +303,7 @@ fn load_recording(
         max_dt_s: sl_io::trajectory::DEFAULT_MAX_DT_S,
         by_number: sl_io::trajectory::is_open3d_log(traj),
         without_pose: 0,
-        first: None,
+        first_stamp: None,
     };
     Ok((
         Frames::Recording(Box::new(recording)),
@@ -555,16 +555,14 @@ pub fn run(mut args: Args) -> Result<()> {
                 (Ok(d), stamp) => {
                     let camera = crate::common::camera_for_frames(&camera, d.width(), d.height())
                         .unwrap_or(camera);
-                    let note = d.clone();
-                    r.first = Some((d, stamp));
-                    (camera, Some(note))
+                    r.first_stamp = stamp;
+                    (camera, Some(d))
                 }
                 // Reported at the frame, as an unreadable file is.
                 (Err(_), _) => (camera, None),
             }
         }
     };
-    let recording = matches!(frames, Frames::Recording(_));
     // Frames at another scale than they are read at are far out of range: say so at the first.
     if let (None, Some(d), Some(first)) =
         (args.input.depth_scale, &first_depth, frames.first_path())
@@ -600,10 +598,7 @@ pub fn run(mut args: Args) -> Result<()> {
         }
         _ => crate::common::undistorter(&args.lens, &args.input, implied, &camera),
     };
-    // A recording's first frame is kept by the recording itself (with its stamp).
-    if recording {
-        first_depth = None;
-    }
+
     let mut params = TsdfConfig::default();
     params.voxel_m = args.voxel_m;
     params.trunc_m = args.trunc_m.unwrap_or(5.0 * args.voxel_m);
