@@ -925,14 +925,7 @@ pub fn folder_camera(
 /// The layout of a sequence folder given without one (`sldepth track DIR`, `sldepth fuse DIR`):
 /// what `sl_io::sequence::SequenceLayout::infer` reads from it, or why there is none.
 pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {
-    if sl_io::rosbag::is_bag_file(dir) {
-        bail!(
-            "{}: a ROS bag holds no poses to fuse at; `sldepth track {}` tracks and fuses it \
-             (--mesh)",
-            dir.display(),
-            dir.display()
-        );
-    }
+    // (A recording is taken as one by the callers before they ask for a folder's layout.)
     if !dir.is_dir() {
         bail!(
             "{}: not a folder (give a sequence folder: TUM, 7-Scenes or Open3D-style)",

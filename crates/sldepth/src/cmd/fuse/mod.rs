@@ -278,6 +278,9 @@ fn load_recording(
     args: &Args,
     path: &Path,
 ) -> Result<(Frames, Camera, f64, Option<sl_core::LensDistortion>)> {
+    if !path.exists() {
+        bail!("{}: No such file or directory", path.display());
+    }
     let Some(traj) = &args.trajectory else {
         bail!(
             "{0}: a recording holds no camera poses: fuse it along a trajectory (--trajectory \
