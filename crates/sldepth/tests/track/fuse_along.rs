@@ -79,6 +79,22 @@ fn fuse_follows_the_trajectory_track_wrote() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(stderr.contains("cannot be used with"), "{stderr}");
     }
+    // --max-gap-s widens the match: the first pose, moved 0.4 s after the last frame, poses
+    // no frame at the default 20 ms, and every frame within 0.6 s.
+    let first = lines.iter().find(|l| !l.starts_with('#')).unwrap();
+    let moved = format!("100.5 {}\n", first.split_once(' ').unwrap().1);
+    std::fs::write(&txt, &moved).unwrap();
+    let out = sldepth(&["fuse", dir, "--trajectory", txt.to_str().unwrap()]);
+    assert!(!out.status.success());
+    let (wide, _) = fuse(&txt, &["--max-gap-s", "0.6"]);
+    assert_eq!(wide["frames"], 4);
+    for bad in ["0", "-1", "NaN", "1e9"] {
+        let opt = format!("--max-gap-s={bad}");
+        let out = sldepth(&["fuse", dir, "--trajectory", txt.to_str().unwrap(), &opt]);
+        assert!(!out.status.success(), "{bad}");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(stderr.contains("--max-gap-s"), "{bad}: {stderr}");
+    }
     std::fs::write(&txt, "900.5 0 0 0 0 0 0 1\n").unwrap();
     let out = sldepth(&["fuse", dir, "--trajectory", txt.to_str().unwrap()]);
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -81,13 +81,21 @@ pub struct Args {
     /// Fuse the sequence folder (DIR, --tum, --7scenes or --scannet) or the recording (DIR:
     /// a bag, each message by its stamp) along this trajectory instead of its own poses: `sldepth track`'s `--output` (a TUM file, or its Open3D
     /// `.log`), or another system's estimate (camera to world). A TUM-format file is matched by
-    /// time, each frame to the pose nearest its timestamp within 20 ms (frames without
+    /// time, each frame to the pose nearest its timestamp within --max-gap-s (frames without
     /// timestamps, as 7-Scenes', by their index, as `track` stamps them); a `.log` by frame
     /// number. Frames without a pose (frames `track` lost) are skipped and counted. The folder
     /// needs no poses of its own: `track DIR --output traj.txt`, then `fuse DIR --trajectory
     /// traj.txt --voxel-m 0.002` re-fuses a raw recording at another resolution.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["frames", "o3d_log"])]
     pub trajectory: Option<PathBuf>,
+    /// Largest time, seconds, between a depth frame and the pose it takes, where frames are
+    /// matched to poses by time: a TUM folder's `groundtruth.txt`, a TUM-format --trajectory,
+    /// a recording's messages. Frames without a pose that near are skipped and counted. The
+    /// default is TUM's `associate.py --max_difference`; a trajectory sampled more sparsely
+    /// than the frames (a keyframe trajectory, a 10 Hz odometry) needs more, at the price of
+    /// fusing frames at a pose up to this far from their own time.
+    #[arg(long, value_name = "SECONDS", default_value_t = sl_io::trajectory::DEFAULT_MAX_DT_S)]
+    pub max_gap_s: f64,
     /// Use only the first N frames.
     #[arg(long, value_name = "N")]
     pub max_frames: Option<usize>,
@@ -226,11 +234,15 @@ fn source_files(args: &Args) -> Vec<PathBuf> {
 }
 
 /// The frames of a posed sequence folder (sl-io's reader, as Python's `read_posed_sequence`).
-fn posed_frames(dir: &Path, layout: SequenceLayout) -> Result<sl_io::sequence::PosedFrames> {
+fn posed_frames(
+    dir: &Path,
+    layout: SequenceLayout,
+    max_gap_s: f64,
+) -> Result<sl_io::sequence::PosedFrames> {
     Ok(sl_io::sequence::read_posed_frames(
         dir,
         layout,
-        sl_io::trajectory::DEFAULT_MAX_DT_S,
+        max_gap_s,
         &limits(),
     )?)
 }
@@ -248,7 +260,7 @@ fn load_along_trajectory(args: &Args, traj: &Path) -> Result<(Vec<Frame>, Camera
         dir,
         layout,
         traj,
-        sl_io::trajectory::DEFAULT_MAX_DT_S,
+        args.max_gap_s,
         &limits(),
     )?;
     if seq.without_pose > 0 {
@@ -303,7 +315,7 @@ fn load_recording(
         count: b.frames.len(),
         poses,
         trajectory: traj.clone(),
-        max_dt_s: sl_io::trajectory::DEFAULT_MAX_DT_S,
+        max_dt_s: args.max_gap_s,
         by_number: sl_io::trajectory::is_open3d_log(traj),
         without_pose: 0,
         first_stamp: None,
@@ -324,11 +336,12 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         let frames = sl_io::trajectory::read_frame_list(list, &limits())?;
         Ok((frames, load_camera(&args.input)?, None))
     } else if let Some(dir) = &args.tum {
-        let seq = posed_frames(dir, SequenceLayout::Tum)?;
+        let seq = posed_frames(dir, SequenceLayout::Tum, args.max_gap_s)?;
         if seq.without_pose > 0 {
             errln!(
-                "note: {} depth frames have no pose within 20 ms and are skipped",
-                seq.without_pose
+                "note: {} depth frames have no pose within {} s (--max-gap-s) and are skipped",
+                seq.without_pose,
+                args.max_gap_s
             );
         }
         let camera = crate::common::tum_camera(dir, &args.input)?;
@@ -358,7 +371,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         )?;
         Ok((frames, cam, None))
     } else if let Some(dir) = &args.scannet {
-        let seq = posed_frames(dir, SequenceLayout::Open3d)?;
+        let seq = posed_frames(dir, SequenceLayout::Open3d, args.max_gap_s)?;
         if seq.without_pose > 0 {
             errln!(
                 "note: {} depth frames have no pose (no pose/ file, or ScanNet's -inf matrix) and \
@@ -370,7 +383,7 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
         Ok((seq.frames, cam, None))
     } else if let Some(dir) = &args.seven_scenes {
         // The sequence is read by its pose files: say so when depth frames have none.
-        let seq = posed_frames(dir, SequenceLayout::SevenScenes)?;
+        let seq = posed_frames(dir, SequenceLayout::SevenScenes, args.max_gap_s)?;
         if seq.without_pose > 0 {
             errln!(
                 "note: {} depth frames have no pose file (frame-*.pose.txt) and are skipped",
@@ -460,6 +473,9 @@ pub fn run(mut args: Args) -> Result<()> {
     // (a 1e300 m voxel overflowed into a "voxel too small" error).
     check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
     check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
+    // Positive (a gap of 0 matches nothing) and at most an hour (any recording's poses are
+    // nearer than that to its frames, and a larger number is a unit mistake).
+    check_range("--max-gap-s", args.max_gap_s, 1e-6..=3600.0)?;
     if let Some(t) = args.trunc_m {
         check_range("--trunc-m", t, 1e-4..=10.0)?;
     }
