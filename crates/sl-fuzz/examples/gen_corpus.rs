@@ -229,6 +229,76 @@ fn main() {
             sl_testkit::rosbag_writer::write_mcap(p, &conns, &msgs, "zstd", 2).unwrap()
         });
         put(&root, "rosbag", "ros2-zstd.mcap", &b);
+        // Transforms beside depth, in ROS 1 and in CDR: a moving `world → base` (two samples)
+        // and a static `base → camera_depth_optical_frame`.
+        for cdr in [false, true] {
+            use sl_testkit::rosbag_writer::{TfEntry, tf_message};
+            let tf = |t: (u32, u32), parent: &str, child: &str, x: f64| TfEntry {
+                stamp: t,
+                parent: parent.into(),
+                child: child.into(),
+                translation: [x, 0.0, 0.5],
+                rotation: [0.0, 0.0, 0.0, 1.0],
+            };
+            let ty = if cdr {
+                "tf2_msgs/msg/TFMessage"
+            } else {
+                "tf2_msgs/TFMessage"
+            };
+            let conns = [
+                (
+                    1,
+                    "/camera/depth/image_rect_raw",
+                    if cdr {
+                        "sensor_msgs/msg/Image"
+                    } else {
+                        "sensor_msgs/Image"
+                    },
+                ),
+                (3, "/tf", ty),
+                (4, "/tf_static", ty),
+            ];
+            let mut msgs = Vec::new();
+            for i in 0..2u32 {
+                let mm: Vec<u8> = (0..12u16).flat_map(|p| (1000 + p).to_le_bytes()).collect();
+                let t = (100 + i, 0);
+                msgs.push(Msg {
+                    conn: 3,
+                    time: t,
+                    data: tf_message(&[tf(t, "world", "base", f64::from(i))], cdr),
+                });
+                msgs.push(Msg {
+                    conn: 1,
+                    time: t,
+                    data: if cdr {
+                        sl_testkit::rosbag_writer::image_cdr(t, 4, 3, "16UC1", &mm)
+                    } else {
+                        image(t, 4, 3, "16UC1", false, &mm, 0)
+                    },
+                });
+            }
+            msgs.push(Msg {
+                conn: 4,
+                time: (101, 0),
+                data: tf_message(
+                    &[tf((0, 0), "base", "camera_depth_optical_frame", 0.0)],
+                    cdr,
+                ),
+            });
+            let (ext, name) = if cdr {
+                ("mcap", "tf.mcap")
+            } else {
+                ("bag", "tf.bag")
+            };
+            let b = bytes_of(ext, |p| {
+                if cdr {
+                    sl_testkit::rosbag_writer::write_mcap(p, &conns, &msgs, "", 2).unwrap()
+                } else {
+                    write_bag(p, &conns, &msgs, "none", 2).unwrap()
+                }
+            });
+            put(&root, "rosbag", name, &b);
+        }
         // A RealSense recording in SQLite (librealsense 2.56+): 512-byte pages (interior pages,
         // overflow chains), the sensor's options as strings, frames' metadata.
         let rs = |n, t, ty| (n, t, ty);

@@ -131,20 +131,29 @@ pub fn camera_json(data: &[u8]) {
 }
 
 /// A robot recording (a ROS 1 bag, MCAP or SQLite: the reader tells them by their first
-/// bytes): its index, topics, depth topic, the first frames of it, its camera and a RealSense
-/// recording's options and timestamps.
+/// bytes): its index, topics, transforms (looked up at a few times), depth topic, the first
+/// frames of it and their frame, its camera and a RealSense recording's options and timestamps.
 pub fn rosbag(data: &[u8]) {
     with_file("rec.bag", data, |p| {
         let Ok(mut bag) = sl_io::rosbag::RosBag::open(p, &fuzz_limits()) else {
             return;
         };
         let _ = bag.topics();
+        if let Ok(tree) = bag.transforms() {
+            let frames = tree.frames();
+            for (f, t) in frames.iter().zip(&frames).take(8) {
+                for time in [f.first_s, t.last_s, 0.5 * (f.first_s + t.last_s)] {
+                    let _ = tree.lookup(&f.parent, &t.frame, time, 0.02);
+                }
+            }
+        }
         let Ok(topic) = bag.depth_topic(None) else {
             return;
         };
         if let Ok(messages) = bag.messages(&topic) {
             for m in messages.iter().take(16) {
                 let _ = bag.read_depth(m, 1000.0, 1.0);
+                let _ = bag.image_frame_id(m);
             }
         }
         if let Some(info) = bag.camera_info_topic(&topic) {

@@ -8,7 +8,9 @@ use numpy::PyArray2;
 use pyo3::prelude::*;
 use sl_core::Camera;
 use sl_io::Limits;
-use sl_io::rosbag::{BagMessage, CAMERA_INFO_TYPE, DepthEncodingKind, RosBag};
+use sl_io::rosbag::{
+    BagMessage, CAMERA_INFO_TYPE, DepthEncodingKind, RosBag, TfLookupError, TfTree,
+};
 
 use crate::arrays::depth_array;
 use crate::camera::PyCamera;
@@ -33,7 +35,24 @@ use crate::threads::compute;
 #[derive(Debug)]
 pub struct PyRosBag {
     path: PathBuf,
-    bag: Mutex<RosBag>,
+    bag: Mutex<BagState>,
+}
+
+/// The open recording and, once asked for, its transforms.
+#[derive(Debug)]
+struct BagState {
+    bag: RosBag,
+    transforms: Option<TfTree>,
+}
+
+impl BagState {
+    /// The recording's transforms, read on first use.
+    fn transforms(&mut self) -> sl_io::Result<&TfTree> {
+        if self.transforms.is_none() {
+            self.transforms = Some(self.bag.transforms()?);
+        }
+        Ok(self.transforms.get_or_insert_default())
+    }
 }
 
 impl PyRosBag {
@@ -41,6 +60,14 @@ impl PyRosBag {
         &self,
         py: Python<'_>,
         f: impl FnOnce(&mut RosBag) -> sl_io::Result<T> + Send,
+    ) -> PyResult<T> {
+        self.with_state(py, |s| f(&mut s.bag))
+    }
+
+    fn with_state<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut BagState) -> sl_io::Result<T> + Send,
     ) -> PyResult<T> {
         crate::threads::compute_locked(py, &self.bag, f)
             .map_err(|_| value_error("the bag's lock was poisoned by a panic"))?
@@ -55,7 +82,10 @@ impl PyRosBag {
         let bag = compute(py, || RosBag::open(&path, &Limits::default())).map_err(io_error)?;
         Ok(Self {
             path,
-            bag: Mutex::new(bag),
+            bag: Mutex::new(BagState {
+                bag,
+                transforms: None,
+            }),
         })
     }
 
@@ -202,6 +232,83 @@ impl PyRosBag {
                 units_per_m,
             }),
         })
+    }
+
+    /// The frame the depth topic's images (``topic``, or ``depth_topic()``) name in their
+    /// headers: the camera driver's optical frame (``camera_depth_optical_frame``; z forward,
+    /// x right, y down), the frame ``tf_lookup`` poses; ``""`` when the driver set none.
+    #[pyo3(signature = (topic = None))]
+    fn image_frame(&self, py: Python<'_>, topic: Option<String>) -> PyResult<String> {
+        self.with_bag(py, move |b| {
+            let depth = b.depth_topic(topic.as_deref())?;
+            match b.messages(&depth)?.first() {
+                Some(m) => b.image_frame_id(m),
+                None => Ok(String::new()),
+            }
+        })
+    }
+
+    /// The frames of the recording's transforms (``/tf``, ``/tf_static``:
+    /// ``tf2_msgs/TFMessage``), one dict each, by name: ``frame``, ``parent``, ``static``,
+    /// ``samples``, ``first_s``, ``last_s``. Empty when the recording has none. Read on first
+    /// use and kept; a malformed message, or a frame with two parents, raises ``OSError``.
+    fn transforms<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, pyo3::types::PyDict>>> {
+        let frames = self.with_state(py, |s| Ok(s.transforms()?.frames()))?;
+        frames
+            .into_iter()
+            .map(|f| {
+                let d = pyo3::types::PyDict::new(py);
+                d.set_item("frame", f.frame)?;
+                d.set_item("parent", f.parent)?;
+                d.set_item("static", f.is_static)?;
+                d.set_item("samples", f.samples)?;
+                d.set_item("first_s", f.first_s)?;
+                d.set_item("last_s", f.last_s)?;
+                Ok(d)
+            })
+            .collect()
+    }
+
+    /// The pose of ``frame`` in ``target_frame`` at each of ``stamps_s`` (seconds, as the
+    /// frames' ``stamp_s``): a float64 (N, 4, 4) array of matrices mapping ``frame``'s points
+    /// into ``target_frame`` — for a camera's optical frame (``image_frame()``) in a world frame
+    /// (``map``, ``odom``, ``world``), the camera-to-world pose ``TsdfVolume.integrate`` takes,
+    /// as ``sldepth fuse REC --tf`` poses its frames. Each transform of the chain is
+    /// interpolated between its samples (a static one holds at any time); where a transform
+    /// has no sample within ``max_gap_s`` of a time (beyond its first or last), that matrix is
+    /// all NaN. A frame no transform names, or two frames no chain joins, raise ``ValueError``.
+    #[pyo3(signature = (target_frame, frame, stamps_s, *, max_gap_s = 0.02))]
+    fn tf_lookup<'py>(
+        &self,
+        py: Python<'py>,
+        target_frame: String,
+        frame: String,
+        stamps_s: Vec<f64>,
+        max_gap_s: f64,
+    ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
+        if !(max_gap_s.is_finite() && max_gap_s >= 0.0) {
+            return Err(value_error(format!(
+                "max_gap_s must be a non-negative number of seconds, got {max_gap_s}"
+            )));
+        }
+        let looked = self.with_state(py, move |s| {
+            let tree = s.transforms()?;
+            Ok(stamps_s
+                .iter()
+                .map(|&t| tree.lookup(&target_frame, &frame, t, max_gap_s))
+                .collect::<Vec<_>>())
+        })?;
+        let mut matrices = Vec::with_capacity(looked.len());
+        for r in looked {
+            matrices.push(match r {
+                Ok(p) => p.to_homogeneous(),
+                Err(TfLookupError::NoSample { .. }) => {
+                    sl_core::nalgebra::Matrix4::from_element(f64::NAN)
+                }
+                Err(e) => return Err(value_error(e)),
+            });
+        }
+        Ok(crate::arrays::poses_array(py, &matrices))
     }
 
     fn __repr__(&self) -> String {

@@ -426,3 +426,67 @@ def test_a_ros2_bag_split_into_files_reads_as_one_recording(tmp_path):
     assert [t for t, _ in got] == [20.0, 21.0, 22.0]
     for (_, z), d in zip(got, mm):
         np.testing.assert_array_equal(z, (d.astype(np.float64) / 1000).astype(np.float32))
+
+
+def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
+    """/tf (a base moving 1 m/s along x, sampled at 10 Hz) and /tf_static (the base -> the
+    camera's optical frame) written by the independent `rosbags` writer: the frames listed,
+    the images' frame, and the camera's pose at the depth stamps as `fuse --tf` takes it."""
+    rosbag1, ts, Image, Header, Time = _rosbags_ros1()
+    typesys = pytest.importorskip("rosbags.typesys")
+    ts.register(typesys.get_types_from_msg("geometry_msgs/TransformStamped[] transforms",
+                                           "tf2_msgs/msg/TFMessage"))
+    TF = ts.types["tf2_msgs/msg/TFMessage"]
+    TS, Tr = ts.types["geometry_msgs/msg/TransformStamped"], ts.types["geometry_msgs/msg/Transform"]
+    V3, Q = ts.types["geometry_msgs/msg/Vector3"], ts.types["geometry_msgs/msg/Quaternion"]
+
+    def tfs(sec, nsec, parent, child, t, q):
+        return TS(header=Header(seq=0, stamp=Time(sec=sec, nanosec=nsec), frame_id=parent),
+                  child_frame_id=child,
+                  transform=Tr(translation=V3(x=t[0], y=t[1], z=t[2]),
+                               rotation=Q(x=q[0], y=q[1], z=q[2], w=q[3])))
+
+    # The optical frame in the base: z forward (the base's x), x right (-y), y down (-z):
+    # the rotation of 120 degrees about (1, -1, 1), quaternion (0.5, -0.5, 0.5, -0.5).
+    optical = [0.5, -0.5, 0.5, -0.5]
+    z = (_frames(1)[0].astype(np.float64) / 1000).astype(np.float32)
+    path = tmp_path / "tf.bag"
+    with rosbag1.Writer(path) as w:
+        c_tf = w.add_connection("/tf", TF.__msgtype__, typestore=ts)
+        c_st = w.add_connection("/tf_static", TF.__msgtype__, typestore=ts)
+        c_d = w.add_connection("/camera/depth/image", Image.__msgtype__, typestore=ts)
+        st = TF(transforms=[tfs(0, 0, "base", "camera_depth_optical_frame", [0, 0, 0.5], optical)])
+        w.write(c_st, 10 * 10**9, ts.serialize_ros1(st, TF.__msgtype__))
+        for i in range(21):
+            sec, nsec = 10 + i // 10, (i % 10) * 100_000_000
+            m = TF(transforms=[tfs(sec, nsec, "/odom", "base", [i * 0.1, 0, 0], [0, 0, 0, 1])])
+            w.write(c_tf, sec * 10**9 + nsec, ts.serialize_ros1(m, TF.__msgtype__))
+        for i in range(2):
+            h = Header(seq=i, stamp=Time(sec=10 + i, nanosec=550_000_000),
+                       frame_id="camera_depth_optical_frame")
+            msg = Image(header=h, height=480, width=640, encoding="32FC1", is_bigendian=0,
+                        step=640 * 4, data=np.frombuffer(z.tobytes(), np.uint8))
+            w.write(c_d, (10 + i) * 10**9 + 560_000_000, ts.serialize_ros1(msg, Image.__msgtype__))
+    bag = sldepth.RosBag(path)
+    frames = bag.transforms()
+    assert [(f["frame"], f["parent"], f["static"], f["samples"]) for f in frames] == [
+        ("base", "odom", False, 21), ("camera_depth_optical_frame", "base", True, 1)]
+    assert frames[0]["first_s"] == 10.0 and frames[0]["last_s"] == 12.0
+    cam = bag.image_frame()
+    assert cam == "camera_depth_optical_frame"
+    stamps = [t for t, _ in bag.depth_frames()]
+    poses = bag.tf_lookup("odom", cam, stamps + [12.5])
+    assert poses.shape == (3, 4, 4) and poses.dtype == np.float64
+    for t, p in zip(stamps, poses):
+        # Interpolated between the 10 Hz samples: the base at x = t - 10, the camera 0.5 m up,
+        # looking along x with the image's y down.
+        np.testing.assert_allclose(p[:3, 3], [t - 10, 0, 0.5], atol=1e-9)
+        np.testing.assert_allclose(p[:3, 2], [1, 0, 0], atol=1e-12)
+        np.testing.assert_allclose(p[:3, 1], [0, 0, -1], atol=1e-12)
+    # Half a second after the last sample: no pose (NaN), unless the gap allows it.
+    assert np.isnan(poses[2]).all()
+    assert not np.isnan(bag.tf_lookup("odom", cam, [12.5], max_gap_s=0.6)).any()
+    with pytest.raises(ValueError, match='no transform names the frame "map"'):
+        bag.tf_lookup("map", cam, stamps)
+    with pytest.raises(ValueError, match="max_gap_s"):
+        bag.tf_lookup("odom", cam, stamps, max_gap_s=float("nan"))

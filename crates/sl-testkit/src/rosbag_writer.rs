@@ -553,3 +553,50 @@ pub fn compressed_depth_data(
     data.extend_from_slice(&std::fs::read(scratch)?);
     Ok(data)
 }
+
+/// One transform of a [`tf_message`]: the pose of `child` in `parent` at `stamp`
+/// (translation, quaternion `x, y, z, w`).
+#[derive(Debug, Clone)]
+pub struct TfEntry {
+    /// Seconds, nanoseconds.
+    pub stamp: (u32, u32),
+    /// The parent frame (`header.frame_id`).
+    pub parent: String,
+    /// The child frame (`child_frame_id`).
+    pub child: String,
+    /// Metres.
+    pub translation: [f64; 3],
+    /// `x, y, z, w`.
+    pub rotation: [f64; 4],
+}
+
+/// A `tf2_msgs/TFMessage` of `entries`, in ROS 1 (`cdr` false) or CDR.
+pub fn tf_message(entries: &[TfEntry], cdr: bool) -> Vec<u8> {
+    if cdr {
+        let mut c = Cdr::new();
+        c.u32(entries.len() as u32);
+        for e in entries {
+            c.u32(e.stamp.0);
+            c.u32(e.stamp.1);
+            c.string(&e.parent);
+            c.string(&e.child);
+            for v in e.translation.iter().chain(&e.rotation) {
+                c.f64(*v);
+            }
+        }
+        return c.0;
+    }
+    let mut b = Vec::new();
+    b.extend_from_slice(&(entries.len() as u32).to_le_bytes());
+    for e in entries {
+        b.extend_from_slice(&0u32.to_le_bytes());
+        b.extend_from_slice(&e.stamp.0.to_le_bytes());
+        b.extend_from_slice(&e.stamp.1.to_le_bytes());
+        string(&mut b, &e.parent);
+        string(&mut b, &e.child);
+        for v in e.translation.iter().chain(&e.rotation) {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    b
+}

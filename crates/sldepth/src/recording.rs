@@ -119,6 +119,17 @@ pub(crate) fn load(
 }
 
 impl BagFrames {
+    /// The recording's transforms (`/tf`, `/tf_static`) and the frame the first depth image
+    /// names in its header (empty when the driver set none).
+    pub(crate) fn transforms(&mut self) -> Result<(sl_io::rosbag::TfTree, String)> {
+        let tree = self.bag.transforms()?;
+        let frame = match self.messages.first() {
+            Some(m) => self.bag.image_frame_id(m)?,
+            None => String::new(),
+        };
+        Ok((tree, frame))
+    }
+
     /// The recording's files.
     pub(crate) fn files(&self) -> Vec<std::path::PathBuf> {
         self.bag.file_paths()

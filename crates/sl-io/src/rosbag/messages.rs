@@ -471,3 +471,63 @@ pub(super) fn key_value(path: &Path, b: &[u8], encoding: Encoding) -> Result<(St
     let mut f = Fields::new(path, b, "diagnostic_msgs/KeyValue", encoding)?;
     Ok((f.string("key")?, f.string("value")?))
 }
+
+/// The frame an image message's header names (`header.frame_id`: a camera driver's optical
+/// frame, `camera_depth_optical_frame`), for a `sensor_msgs/Image` or `CompressedImage` alike
+/// (both open with the header).
+pub(super) fn header_frame_id(path: &Path, b: &[u8], encoding: Encoding) -> Result<String> {
+    let mut f = Fields::new(path, b, "image", encoding)?;
+    if !f.cdr {
+        f.u32("header.seq")?;
+    }
+    f.u32("header.stamp.secs")?;
+    f.u32("header.stamp.nsecs")?;
+    f.string("header.frame_id")
+}
+
+/// One `geometry_msgs/TransformStamped` of a `tf2_msgs/TFMessage`: the pose of frame `child`
+/// in frame `parent` at `stamp_s`, as recorded (not yet checked).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct TransformEntry {
+    pub(super) parent: String,
+    pub(super) child: String,
+    pub(super) stamp_s: f64,
+    pub(super) translation: [f64; 3],
+    /// `x, y, z, w`, as ROS orders a quaternion.
+    pub(super) rotation_xyzw: [f64; 4],
+}
+
+/// Parses a `tf2_msgs/TFMessage` (ROS 1's `tf/tfMessage` has the same layout): its
+/// `geometry_msgs/TransformStamped[] transforms`. The count is not trusted: each entry is read
+/// off the message's own bytes, so a count beyond them is an error after the bytes run out,
+/// before anything of its size is allocated.
+pub(super) fn transforms(path: &Path, b: &[u8], encoding: Encoding) -> Result<Vec<TransformEntry>> {
+    let mut f = Fields::new(path, b, "tf2_msgs/TFMessage", encoding)?;
+    let n = f.u32("transforms")?;
+    let mut out = Vec::new();
+    for _ in 0..n {
+        if !f.cdr {
+            f.u32("header.seq")?;
+        }
+        let secs = f.u32("header.stamp.secs")?;
+        let nsecs = f.u32("header.stamp.nsecs")?;
+        let parent = f.string("header.frame_id")?;
+        let child = f.string("child_frame_id")?;
+        let mut translation = [0.0; 3];
+        for v in &mut translation {
+            *v = f.f64("transform.translation")?;
+        }
+        let mut rotation_xyzw = [0.0; 4];
+        for v in &mut rotation_xyzw {
+            *v = f.f64("transform.rotation")?;
+        }
+        out.push(TransformEntry {
+            parent,
+            child,
+            stamp_s: super::records::time_s(secs, nsecs),
+            translation,
+            rotation_xyzw,
+        });
+    }
+    Ok(out)
+}

@@ -50,6 +50,7 @@ mod realsense;
 mod records;
 mod rvl;
 mod sqlite;
+mod tf;
 
 use std::path::{Path, PathBuf};
 
@@ -59,6 +60,7 @@ pub use camera::BagCamera;
 pub use messages::DepthEncodingKind;
 use messages::Encoding;
 pub use realsense::RealSenseInfo;
+pub use tf::{TfFrame, TfLookupError, TfTree};
 
 use crate::error::{IoError, Result};
 use crate::limits::Limits;
@@ -70,6 +72,11 @@ pub const IMAGE_TYPE: &str = "sensor_msgs/Image";
 pub const COMPRESSED_IMAGE_TYPE: &str = "sensor_msgs/CompressedImage";
 /// The message type of a camera calibration.
 pub const CAMERA_INFO_TYPE: &str = "sensor_msgs/CameraInfo";
+/// The message types of transforms: `tf2`'s, and ROS 1 `tf`'s of the same layout.
+pub const TF_TYPES: [&str; 2] = ["tf2_msgs/TFMessage", "tf/tfMessage"];
+/// Memory a transform sample is allowed, bytes: a recording's transforms are held to
+/// [`Limits::max_memory_bytes`] divided by this (4 million samples at the default budget).
+pub const BYTES_PER_TRANSFORM: u64 = 1 << 10;
 
 /// One topic of a bag.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -504,6 +511,61 @@ impl RosBag {
             return Ok(messages::compressed_depth_encoding(&c.format).map(str::to_string));
         }
         Ok(Some(messages::image(&path, b, cdr)?.encoding))
+    }
+
+    /// The frame an image message names in its header (`header.frame_id`: a camera driver's
+    /// optical frame, `camera_depth_optical_frame`; empty when the driver set none).
+    ///
+    /// # Errors
+    /// A malformed message.
+    pub fn image_frame_id(&mut self, m: &BagMessage) -> Result<String> {
+        let path = self.path.clone();
+        let cdr = m.encoding;
+        let b = self.message(m)?;
+        messages::header_frame_id(&path, b, cdr)
+    }
+
+    /// The topics of transforms (`tf2_msgs/TFMessage` or ROS 1's `tf/tfMessage`: `/tf`,
+    /// `/tf_static`, or any other name), sorted.
+    pub fn tf_topics(&self) -> Vec<String> {
+        self.topics()
+            .into_iter()
+            .filter(|t| TF_TYPES.contains(&t.message_type.as_str()))
+            .map(|t| t.topic)
+            .collect()
+    }
+
+    /// Every transform the recording holds on its [`RosBag::tf_topics`], as a tree of frames
+    /// ([`TfTree`]): a topic whose name ends in `tf_static` holds static transforms, any other
+    /// transforms over time. Empty when the recording has no transforms.
+    ///
+    /// # Errors
+    /// A malformed message, more samples than the budget allows ([`BYTES_PER_TRANSFORM`]), or
+    /// transforms that make no tree (a frame with two parents, a frame its own parent).
+    pub fn transforms(&mut self) -> Result<TfTree> {
+        let path = self.path.clone();
+        let max = self.limits.max_memory_bytes / BYTES_PER_TRANSFORM;
+        let mut tree = TfTree::new();
+        for topic in self.tf_topics() {
+            let is_static = topic.ends_with("tf_static");
+            for m in self.messages(&topic)? {
+                let b = self.message(&m)?;
+                let entries = messages::transforms(&path, b, m.encoding)?;
+                tree.insert_entries(&entries, is_static)
+                    .map_err(|e| IoError::malformed(&path, format!("{topic}: {e}")))?;
+                if (tree.samples() + tree.skipped()) as u64 > max {
+                    return Err(IoError::too_large(
+                        &path,
+                        format!(
+                            "more than {max} transforms, the most the memory budget holds \
+                             (raise --max-memory)"
+                        ),
+                    ));
+                }
+            }
+        }
+        tree.finish();
+        Ok(tree)
     }
 
     /// The `sensor_msgs/CameraInfo` topic beside the image topic `image_topic`

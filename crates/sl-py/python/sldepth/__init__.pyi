@@ -468,6 +468,24 @@ class RosBag:
         (H, W) metres, 16-bit images divided by depth_scale (None: 1000, or a RealSense
         recording's depth units), float ones by it (None: 1); a RealSense recording's frames
         stamped with their sensor timestamps."""
+    def image_frame(self, topic: Optional[str] = None) -> str:
+        """The frame the depth topic's images name in their headers (the camera driver's
+        optical frame: z forward, x right, y down), the frame tf_lookup poses; "" when none."""
+    def transforms(self) -> List[Dict[str, Any]]:
+        """The frames of the recording's transforms (/tf, /tf_static), by name: dicts of frame,
+        parent, static, samples, first_s, last_s; empty without transforms. Read once, kept."""
+    def tf_lookup(
+        self,
+        target_frame: str,
+        frame: str,
+        stamps_s: Sequence[float],
+        *,
+        max_gap_s: float = 0.02,
+    ) -> npt.NDArray[np.float64]:
+        """(N, 4, 4) poses of frame in target_frame at each stamp (for the camera's optical
+        frame in a world frame: camera-to-world, as `sldepth fuse REC --tf` takes them); each
+        transform interpolated between its samples, static ones at any time; all-NaN where a
+        transform has no sample within max_gap_s. Unknown or unjoined frames raise ValueError."""
 
 class BagFrames:
     """The depth frames of a bag's topic: an iterator of (stamp_s, depth) with len()."""

@@ -106,6 +106,21 @@ fn bag_info(args: &Args) -> Result<()> {
         Ok(t) => bag.depth_camera(t).map_err(|e| e.to_string()),
         Err(_) => Err("no depth topic".to_string()),
     };
+    // The frame the depth images name, and the transforms `fuse --tf` would pose it by.
+    let image_frame = match &depth {
+        Ok(t) => match bag.messages(t)?.first().copied() {
+            Some(m) => Some(bag.image_frame_id(&m)?),
+            None => None,
+        },
+        Err(_) => None,
+    };
+    let transforms = if bag.tf_topics().is_empty() {
+        Ok(Vec::new())
+    } else {
+        bag.transforms()
+            .map(|t| t.frames())
+            .map_err(|e| e.to_string())
+    };
     if args.json {
         let list: Vec<_> = topics
             .iter()
@@ -127,6 +142,18 @@ fn bag_info(args: &Args) -> Result<()> {
                 "subpixel_steps": c.camera.sensor.subpixel_steps,
                 "noise_model": c.sensor_source,
             })),
+            "image_frame": image_frame,
+            "transforms": match &transforms {
+                Ok(frames) => json!(frames.iter().map(|f| json!({
+                    "frame": f.frame,
+                    "parent": f.parent,
+                    "static": f.is_static,
+                    "samples": f.samples,
+                    "first_s": f.first_s,
+                    "last_s": f.last_s,
+                })).collect::<Vec<_>>()),
+                Err(e) => json!({"error": e}),
+            },
             "realsense": realsense.as_ref().map(|r| json!({
                 "device": r.device_name,
                 "depth_units_m": r.depth_units_m,
@@ -169,6 +196,26 @@ fn bag_info(args: &Args) -> Result<()> {
             )?,
             Err(e) if depth.is_ok() => outln!("  camera        none: {e}")?,
             Err(_) => {}
+        }
+        if let Some(f) = image_frame.as_deref().filter(|f| !f.is_empty()) {
+            outln!("  image frame   {f}")?;
+        }
+        match &transforms {
+            Ok(frames) if frames.is_empty() => {}
+            Ok(frames) => {
+                outln!(
+                    "  transforms    (`sldepth fuse REC --tf WORLD_FRAME` poses the image frame by them)"
+                )?;
+                for f in frames {
+                    let when = if f.is_static {
+                        "static".to_string()
+                    } else {
+                        format!("{} samples, {:.3}–{:.3} s", f.samples, f.first_s, f.last_s)
+                    };
+                    outln!("    {} → {}  {when}", f.parent, f.frame)?;
+                }
+            }
+            Err(e) => outln!("  transforms    unreadable: {e}")?,
         }
     }
     Ok(())

@@ -17,6 +17,12 @@ const RGB: Conn = (2, "/camera/rgb/image_color", "sensor_msgs/Image");
 /// `32FC1` metres, stamped by their headers, received 25 ms later; a `camera_info` of the
 /// Kinect's 580 px; an RGB topic beside.
 fn bag_of(seq: &Path, stamps: &[f64], bag: &Path, compression: &str) {
+    let msgs = bag_messages(seq, stamps);
+    write_bag(bag, &[DEPTH, INFO, RGB], &msgs, compression, 2).unwrap();
+}
+
+/// The messages of [`bag_of`].
+fn bag_messages(seq: &Path, stamps: &[f64]) -> Vec<Msg> {
     let mut msgs = Vec::new();
     for t in stamps {
         let file = seq.join("depth").join(format!("{t:.6}.png"));
@@ -45,7 +51,7 @@ fn bag_of(seq: &Path, stamps: &[f64], bag: &Path, compression: &str) {
             data: image((secs, nsecs), 1, 1, "rgb8", false, &[1, 2, 3], 0),
         });
     }
-    write_bag(bag, &[DEPTH, INFO, RGB], &msgs, compression, 2).unwrap();
+    msgs
 }
 
 /// The bag's trajectory is the folder's, line for line (the same depths, the headers' stamps
@@ -139,7 +145,8 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     ]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
-        err.contains("a recording holds no camera poses: fuse it along a trajectory"),
+        err.contains("say what poses the recording's frames: a trajectory (--trajectory FILE")
+            && err.contains("or its own transforms (--tf WORLD_FRAME"),
         "{err}"
     );
     // Along the trajectory `track` wrote: each message posed by its stamp, the mesh the
@@ -193,7 +200,8 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     ]);
     assert_eq!(v["frames"], 2, "{v}");
     assert!(
-        stderr.contains("note: 2 frames of") && stderr.contains("(within 0.02 s of its stamp)"),
+        stderr.contains("note: 2 frames of")
+            && stderr.contains("(within 0.02 s of its stamp (--max-gap-s))"),
         "{stderr}"
     );
     let out = sldepth(&[
@@ -383,4 +391,158 @@ fn a_realsense_recording_is_read_with_its_units_device_and_timestamps() {
         .collect();
     let want: Vec<String> = stamps.iter().map(|t| format!("{t:.6}")).collect();
     assert_eq!(lines, want);
+}
+
+/// `fuse REC --tf WORLD`: a bag whose `/tf` holds the camera's poses (world → base, moving,
+/// sampled at the frames' stamps) and `/tf_static` the chain to the images' optical frame fuses
+/// into the mesh the same poses give as a trajectory file, byte for byte; `info` lists the
+/// frames; transforms that end early leave frames out and say why; unknown frames are named.
+#[test]
+fn fuse_poses_a_recording_by_its_transforms() {
+    use sl_testkit::rosbag_writer::{TfEntry, tf_message};
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let traj = tmp.path().join("traj.txt");
+    kinect_track_json_from(
+        &["--tum", seq.to_str().unwrap()],
+        &["--output", traj.to_str().unwrap()],
+    );
+    let text = std::fs::read_to_string(&traj).unwrap();
+    let poses: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split_whitespace().map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(poses.len(), 4);
+    let stamp = |t: f64| {
+        let secs = t.floor() as u32;
+        (secs, ((t - t.floor()) * 1e9).round() as u32)
+    };
+    const TF: Conn = (3, "/tf", "tf2_msgs/TFMessage");
+    const STATIC: Conn = (4, "/tf_static", "tf2_msgs/TFMessage");
+    let tf_bag = |n: usize, path: &Path| {
+        let mut msgs = bag_messages(&seq, &stamps);
+        msgs.push(Msg {
+            conn: 4,
+            time: stamp(stamps[0]),
+            data: tf_message(
+                &[TfEntry {
+                    stamp: (0, 0),
+                    parent: "base".into(),
+                    child: "camera_depth_optical_frame".into(),
+                    translation: [0.0; 3],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                }],
+                false,
+            ),
+        });
+        for (t, p) in stamps.iter().zip(&poses).take(n) {
+            msgs.push(Msg {
+                conn: 3,
+                time: stamp(*t),
+                data: tf_message(
+                    &[TfEntry {
+                        stamp: stamp(*t),
+                        parent: "/world".into(),
+                        child: "base".into(),
+                        translation: [p[1], p[2], p[3]],
+                        rotation: [p[4], p[5], p[6], p[7]],
+                    }],
+                    false,
+                ),
+            });
+        }
+        msgs.sort_by_key(|m| m.time);
+        write_bag(path, &[DEPTH, INFO, RGB, TF, STATIC], &msgs, "lz4", 3).unwrap();
+    };
+    let bag = tmp.path().join("tf.bag");
+    tf_bag(4, &bag);
+    let fuse = |extra: &[&str], mesh: &Path| {
+        let mut args = vec!["fuse", bag.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&[
+            "--camera",
+            "kinect-v1",
+            "--voxel-m",
+            "0.01",
+            "--output",
+            mesh.to_str().unwrap(),
+            "--json",
+        ]);
+        sldepth_json(&args)
+    };
+    let (by_tf_mesh, by_traj_mesh) = (tmp.path().join("tf.ply"), tmp.path().join("traj.ply"));
+    let (by_tf, stderr) = fuse(&["--tf", "world"], &by_tf_mesh);
+    assert_eq!(by_tf["frames"], 4, "{stderr}");
+    assert!(
+        stderr.contains("posing camera_depth_optical_frame in world from 5 transforms"),
+        "{stderr}"
+    );
+    let (by_traj, _) = fuse(&["--trajectory", traj.to_str().unwrap()], &by_traj_mesh);
+    assert_eq!(by_tf["vertices"], by_traj["vertices"]);
+    assert_eq!(
+        std::fs::read(&by_tf_mesh).unwrap(),
+        std::fs::read(&by_traj_mesh).unwrap()
+    );
+    // `info` lists the frames and names the images' frame.
+    let (v, _) = sldepth_json(&["info", bag.to_str().unwrap(), "--json"]);
+    assert_eq!(v["image_frame"], "camera_depth_optical_frame", "{v}");
+    assert_eq!(v["transforms"][0]["frame"], "base", "{v}");
+    assert_eq!(v["transforms"][0]["parent"], "world", "{v}");
+    assert_eq!(v["transforms"][0]["samples"], 4, "{v}");
+    assert_eq!(v["transforms"][1]["static"], true, "{v}");
+    // The moving transform ends after two frames: the last two (33 and 67 ms later) have no
+    // pose within 20 ms, and the message says which transform ran out; within 0.1 s they take
+    // its last sample.
+    tf_bag(2, &bag);
+    let (two, stderr) = fuse(&["--tf", "world"], &by_tf_mesh);
+    assert_eq!(two["frames"], 2, "{stderr}");
+    assert!(
+        stderr.contains("note: 2 frames of")
+            && stderr.contains("the first: the transform world → base has no sample near"),
+        "{stderr}"
+    );
+    let (wide, _) = fuse(&["--tf", "world", "--max-gap-s", "0.1"], &by_tf_mesh);
+    assert_eq!(wide["frames"], 4);
+    // Unknown frames are named with the recording's own.
+    for (args, what) in [
+        (
+            ["--tf", "map", "", ""],
+            "no transform names \"map\" (--tf); its frames: base, camera_depth_optical_frame, world",
+        ),
+        (
+            ["--tf", "world", "--tf-camera-frame", "cam"],
+            "no transform names \"cam\" (the camera's frame)",
+        ),
+    ] {
+        let args: Vec<&str> = args.into_iter().filter(|a| !a.is_empty()).collect();
+        let mut all = vec!["fuse", bag.to_str().unwrap()];
+        all.extend_from_slice(&args);
+        all.extend_from_slice(&["--output", by_tf_mesh.to_str().unwrap()]);
+        let out = sldepth(&all);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(what), "{err}");
+    }
+    // A recording without transforms, and a folder, refuse --tf with what to do instead.
+    let plain = tmp.path().join("plain.bag");
+    bag_of(&seq, &stamps, &plain, "none");
+    for (source, what) in [
+        (
+            plain.to_str().unwrap(),
+            "no transforms (no /tf or /tf_static topic",
+        ),
+        (seq.to_str().unwrap(), "the source is not a recording"),
+    ] {
+        let out = sldepth(&[
+            "fuse",
+            source,
+            "--tf",
+            "world",
+            "--output",
+            by_tf_mesh.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(what), "{err}");
+    }
 }

@@ -1,12 +1,14 @@
 //! The frames `fuse` integrates, each with its pose: depth files with theirs (a sequence folder,
 //! a frame list, an Open3D `.log`), or a robot recording's depth messages, each posed by the
-//! trajectory file's pose nearest its stamp (`fuse REC --trajectory FILE`).
+//! trajectory file's pose nearest its stamp (`fuse REC --trajectory FILE`) or by the
+//! recording's own transforms at its stamp (`fuse REC --tf WORLD`).
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use sl_core::{CameraToWorld, DepthImage};
 use sl_io::depth::{ReadConfig, read_depth_with_limits};
+use sl_io::rosbag::{TfLookupError, TfTree};
 use sl_io::trajectory::{Frame, TimedPose};
 
 use crate::common::limits;
@@ -20,19 +22,49 @@ pub(super) enum Frames {
     Recording(Box<Recording>),
 }
 
-/// A recording's depth messages and the trajectory that poses them.
+/// What poses a recording's frames.
+pub(super) enum PoseSource {
+    /// A trajectory file's poses.
+    Trajectory {
+        poses: Vec<TimedPose>,
+        /// The file, for messages.
+        file: PathBuf,
+        /// An Open3D `.log`: message `i` takes entry `i`, not a pose by time.
+        by_number: bool,
+    },
+    /// The recording's own transforms: the pose of `camera_frame` in `world` at each stamp.
+    Transforms {
+        tree: TfTree,
+        world: String,
+        camera_frame: String,
+        /// Why the first frame without a pose had none, for the messages.
+        first_miss: Option<TfLookupError>,
+    },
+}
+
+impl PoseSource {
+    /// Where the poses come from, for messages.
+    pub(super) fn describe(&self) -> String {
+        match self {
+            Self::Trajectory { file, .. } => file.display().to_string(),
+            Self::Transforms {
+                world,
+                camera_frame,
+                ..
+            } => format!("the recording's transforms ({camera_frame} in {world})"),
+        }
+    }
+}
+
+/// A recording's depth messages and what poses them.
 pub(super) struct Recording {
     pub(super) path: PathBuf,
     pub(super) reader: BagFrames,
     /// Messages of the depth topic (after `--max-frames`).
     pub(super) count: usize,
-    pub(super) poses: Vec<TimedPose>,
-    /// The trajectory file, for messages.
-    pub(super) trajectory: PathBuf,
+    pub(super) poses: PoseSource,
     /// The largest time between a frame's stamp and its pose.
     pub(super) max_dt_s: f64,
-    /// The trajectory is an Open3D `.log`: message `i` takes entry `i`, not a pose by time.
-    pub(super) by_number: bool,
     /// Frames read so far without a pose within `max_dt_s`.
     pub(super) without_pose: usize,
     /// The stamp of the first frame, read for the camera's size (the caller keeps its depth).
@@ -143,19 +175,43 @@ impl Recording {
             }
         };
         let depth = depth.with_context(|| format!("reading {}", label(stamp)))?;
+        let by_number = matches!(
+            self.poses,
+            PoseSource::Trajectory {
+                by_number: true,
+                ..
+            }
+        );
         let (t, max_dt) = match stamp {
-            _ if self.by_number => (i as f64, 0.0),
+            _ if by_number => (i as f64, 0.0),
             Some(t) => (t, self.max_dt_s),
             None => bail!(
                 "{}: no stamp to match in {}",
                 label(None),
-                self.trajectory.display()
+                self.poses.describe()
             ),
         };
-        match sl_io::trajectory::nearest_pose(&self.poses, t, max_dt) {
-            Some(p) => Ok(Some(Posed {
+        let pose = match &mut self.poses {
+            PoseSource::Trajectory { poses, .. } => {
+                sl_io::trajectory::nearest_pose(poses, t, max_dt).map(|p| p.pose)
+            }
+            PoseSource::Transforms {
+                tree,
+                world,
+                camera_frame,
+                first_miss,
+            } => match tree.lookup(world, camera_frame, t, max_dt) {
+                Ok(p) => Some(CameraToWorld::from_isometry(p)),
+                Err(e) => {
+                    first_miss.get_or_insert(e);
+                    None
+                }
+            },
+        };
+        match pose {
+            Some(pose) => Ok(Some(Posed {
                 depth,
-                pose: p.pose,
+                pose,
                 label: label(stamp),
             })),
             None => {

@@ -19,7 +19,7 @@ use sl_tsdf::{
     WeightMode,
 };
 
-use frames::{Frames, Recording};
+use frames::{Frames, PoseSource, Recording};
 
 use crate::common::{
     InputArgs, LensArgs, check_depth_scale, check_distinct_outputs, check_output, check_range,
@@ -37,7 +37,7 @@ pub struct Args {
     /// a ScanNet export (`depth` and `pose` folders, no `.log`) as --scannet.
     /// A robot recording (a ROS 1 bag, a ROS 2 bag's `.mcap`, `.db3` or folder, a RealSense
     /// recording) is fused along --trajectory, each depth message posed by the trajectory's pose
-    /// nearest its stamp.
+    /// nearest its stamp, or along its own transforms (--tf).
     #[arg(value_name = "DIR", group = "source")]
     pub sequence: Option<PathBuf>,
     /// The recording given as DIR (set from it: a bag, not a folder of frames).
@@ -88,6 +88,18 @@ pub struct Args {
     /// traj.txt --voxel-m 0.002` re-fuses a raw recording at another resolution.
     #[arg(long, value_name = "FILE", conflicts_with_all = ["frames", "o3d_log"])]
     pub trajectory: Option<PathBuf>,
+    /// Fuse a recording along the transforms it holds (`/tf`, `/tf_static`: a motion-capture
+    /// system's, a robot's odometry, a SLAM system's map): each depth frame takes the pose of
+    /// its image's frame (the `frame_id` of its header, the camera driver's optical frame) in
+    /// this frame (`map`, `odom`, `world`) at its stamp, each transform of the chain
+    /// interpolated between its samples (a static one at any time; beyond a transform's first
+    /// or last sample only within --max-gap-s). `sldepth info REC` lists the recording's frames.
+    #[arg(long, value_name = "WORLD_FRAME", conflicts_with = "trajectory")]
+    pub tf: Option<String>,
+    /// The camera's optical frame for --tf, where the depth images name none or another one
+    /// (ROS's optical frame: z forward, x right, y down, as every ROS camera driver publishes).
+    #[arg(long, value_name = "FRAME", requires = "tf")]
+    pub tf_camera_frame: Option<String>,
     /// Largest time, seconds, between a depth frame and the pose it takes, where frames are
     /// matched to poses by time: a TUM folder's `groundtruth.txt`, a TUM-format --trajectory,
     /// a recording's messages. Frames without a pose that near are skipped and counted. The
@@ -293,30 +305,37 @@ fn load_recording(
     if !path.exists() {
         bail!("{}: No such file or directory", path.display());
     }
-    let Some(traj) = &args.trajectory else {
+    if args.trajectory.is_none() && args.tf.is_none() {
         bail!(
-            "{0}: a recording holds no camera poses: fuse it along a trajectory (--trajectory \
-             FILE; `sldepth track {0} --output traj.txt` writes one), or track and fuse it in one \
-             go with `sldepth track {0} --mesh mesh.ply`",
+            "{0}: say what poses the recording's frames: a trajectory (--trajectory FILE; \
+             `sldepth track {0} --output traj.txt` writes one) or its own transforms (--tf \
+             WORLD_FRAME; `sldepth info {0}` lists them); or track and fuse it in one go with \
+             `sldepth track {0} --mesh mesh.ply`",
             path.display()
         );
-    };
+    }
     let given = args
         .input
         .camera
         .as_deref()
         .map(crate::common::camera_from_arg)
         .transpose()?;
-    let b = crate::recording::load(path, args.topic.as_deref(), given, "fusing")?;
-    let poses = sl_io::trajectory::read_trajectory_with_limits(traj, &limits())?;
+    let mut b = crate::recording::load(path, args.topic.as_deref(), given, "fusing")?;
+    let poses = match (&args.trajectory, &args.tf) {
+        (Some(traj), _) => PoseSource::Trajectory {
+            poses: sl_io::trajectory::read_trajectory_with_limits(traj, &limits())?,
+            file: traj.clone(),
+            by_number: sl_io::trajectory::is_open3d_log(traj),
+        },
+        (None, Some(world)) => transforms_of(path, &mut b.reader, world, args)?,
+        (None, None) => bail!("{}: nothing poses the recording's frames", path.display()),
+    };
     let recording = Recording {
         path: path.to_path_buf(),
         reader: b.reader,
         count: b.frames.len(),
         poses,
-        trajectory: traj.clone(),
         max_dt_s: args.max_gap_s,
-        by_number: sl_io::trajectory::is_open3d_log(traj),
         without_pose: 0,
         first_stamp: None,
     };
@@ -326,6 +345,74 @@ fn load_recording(
         b.default_scale,
         b.lens,
     ))
+}
+
+/// The recording's transforms for `--tf WORLD`, checked before any frame is read: both frames
+/// in them (the camera's from `--tf-camera-frame` or the depth images' headers), joined.
+fn transforms_of(
+    path: &Path,
+    reader: &mut crate::recording::BagFrames,
+    world: &str,
+    args: &Args,
+) -> Result<PoseSource> {
+    let (tree, image_frame) = reader.transforms()?;
+    if tree.samples() == 0 {
+        bail!(
+            "{}: no transforms (no /tf or /tf_static topic of tf2_msgs/TFMessage): fuse it \
+             along a trajectory (--trajectory FILE)",
+            path.display()
+        );
+    }
+    let camera_frame = match &args.tf_camera_frame {
+        Some(f) => f.clone(),
+        None if image_frame.trim_start_matches('/').is_empty() => bail!(
+            "{}: the depth images name no frame in their headers: name the camera's optical \
+             frame with --tf-camera-frame",
+            path.display()
+        ),
+        None => image_frame,
+    };
+    let frames = || {
+        let mut names: Vec<String> = tree
+            .frames()
+            .into_iter()
+            .flat_map(|f| [f.frame, f.parent])
+            .collect();
+        names.sort();
+        names.dedup();
+        names.join(", ")
+    };
+    for (f, opt) in [
+        (world, "--tf"),
+        (camera_frame.as_str(), "the camera's frame"),
+    ] {
+        if !tree.has_frame(f) {
+            bail!(
+                "{}: no transform names {f:?} ({opt}); its frames: {}",
+                path.display(),
+                frames()
+            );
+        }
+    }
+    if tree.skipped() > 0 {
+        errln!(
+            "note: {}: {} transforms that are not rigid (not finite, or a zero quaternion) are \
+             left out",
+            path.display(),
+            tree.skipped()
+        );
+    }
+    errln!(
+        "note: {}: posing {camera_frame} in {world} from {} transforms",
+        path.display(),
+        tree.samples()
+    );
+    Ok(PoseSource::Transforms {
+        tree,
+        world: world.to_owned(),
+        camera_frame,
+        first_miss: None,
+    })
 }
 
 /// The frames and the camera of the chosen source.
@@ -493,6 +580,12 @@ pub fn run(mut args: Args) -> Result<()> {
     };
     if args.topic.is_some() && args.recording.is_none() {
         bail!("--topic names a topic of a recording; the source is not one (give REC.bag)");
+    }
+    if args.tf.is_some() && args.recording.is_none() {
+        bail!(
+            "--tf poses a recording's frames by its transforms; the source is not a recording \
+             (give REC.bag, or a folder's poses with --trajectory)"
+        );
     }
     let (mut frames, camera, default_scale, bag_lens) = match &args.recording {
         Some(rec) => {
@@ -723,25 +816,39 @@ pub fn run(mut args: Args) -> Result<()> {
     if let Frames::Recording(r) = &frames
         && r.without_pose > 0
     {
-        let how = if r.by_number {
-            "by message number (an Open3D .log)".to_owned()
-        } else {
-            format!("within {} s of its stamp", r.max_dt_s)
+        let how = match &r.poses {
+            PoseSource::Trajectory {
+                by_number: true, ..
+            } => "by message number (an Open3D .log)".to_owned(),
+            _ => format!("within {} s of its stamp (--max-gap-s)", r.max_dt_s),
+        };
+        let (question, why) = match &r.poses {
+            PoseSource::Trajectory { .. } => (
+                "is it this recording's trajectory?".to_owned(),
+                String::new(),
+            ),
+            PoseSource::Transforms { first_miss, .. } => (
+                "are they the frames of this recording's camera?".to_owned(),
+                first_miss
+                    .as_ref()
+                    .map(|e| format!("; the first: {e}"))
+                    .unwrap_or_default(),
+            ),
         };
         if volume.frame_count() == 0 {
             bail!(
-                "no frame of {} has a pose in {} ({} frames; a frame takes the pose {how}): \
-                 is it this recording's trajectory?",
+                "no frame of {} has a pose in {} ({} frames; a frame takes the pose {how}{why}): \
+                 {question}",
                 r.path.display(),
-                r.trajectory.display(),
+                r.poses.describe(),
                 r.without_pose
             );
         }
         errln!(
-            "note: {} frames of {} have no pose in {} ({how}) and are skipped",
+            "note: {} frames of {} have no pose in {} ({how}{why}) and are skipped",
             r.without_pose,
             r.path.display(),
-            r.trajectory.display()
+            r.poses.describe()
         );
     }
 

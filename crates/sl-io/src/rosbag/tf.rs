@@ -1,0 +1,583 @@
+//! The transforms a recording holds on `/tf` and `/tf_static` (`tf2_msgs/TFMessage`, ROS 1's
+//! `tf/tfMessage`): the tree of coordinate frames a robot publishes — a motion-capture
+//! system's, a robot's odometry, a SLAM system's map — and the pose of one frame in another at
+//! a time, which is where the camera was when it took a frame.
+//!
+//! Looked up as `tf2` does it:
+//!
+//! - every frame has one parent, and a frame's pose in another goes through their nearest
+//!   common ancestor;
+//! - a transform recorded over time is interpolated between the two samples around the time
+//!   asked for (the translation linearly, the rotation along the shorter arc);
+//! - a transform of `/tf_static` holds at every time (its newest sample);
+//! - there is no extrapolation: before a transform's first sample or after its last, the
+//!   nearest sample is taken only within `max_gap_s` of it (`tf2` takes none); further away
+//!   there is no pose.
+//!
+//! Frame names are compared without a leading `/` (ROS 1's `tf` wrote `/world`, `tf2` writes
+//! `world`). Samples whose numbers make no rigid transform (not finite, a zero quaternion) are
+//! left out and counted ([`TfTree::skipped`]).
+
+use std::collections::HashMap;
+use std::fmt;
+
+use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion};
+
+/// A rigid transform between two frames of the tree (the pose of a child frame in its parent).
+type Rigid = Isometry3<f64>;
+
+use super::messages::TransformEntry;
+
+/// One frame of a [`TfTree`]: its parent and the samples of its pose there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TfFrame {
+    /// The frame (`camera_depth_optical_frame`).
+    pub frame: String,
+    /// The frame its pose is given in (`camera_link`, `odom`, `map`).
+    pub parent: String,
+    /// Whether its transform is static (`/tf_static`).
+    pub is_static: bool,
+    /// Samples of its pose (one for most static transforms).
+    pub samples: usize,
+    /// The first sample's stamp, seconds.
+    pub first_s: f64,
+    /// The last sample's stamp, seconds.
+    pub last_s: f64,
+}
+
+/// Why a pose could not be looked up.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TfLookupError {
+    /// The frame is in no transform of the recording.
+    UnknownFrame(String),
+    /// The two frames are in different trees: no chain of transforms joins them.
+    NotConnected {
+        /// The frame whose pose was asked for.
+        frame: String,
+        /// The frame it was asked in.
+        target: String,
+    },
+    /// A transform of the chain has no sample near enough to the time.
+    NoSample {
+        /// The transform's child frame.
+        frame: String,
+        /// The transform's parent frame.
+        parent: String,
+        /// The time asked for, seconds.
+        time_s: f64,
+        /// The transform's first sample, seconds.
+        first_s: f64,
+        /// The transform's last sample, seconds.
+        last_s: f64,
+    },
+}
+
+impl fmt::Display for TfLookupError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::UnknownFrame(name) => write!(f, "no transform names the frame {name:?}"),
+            Self::NotConnected { frame, target } => write!(
+                f,
+                "no chain of transforms joins {frame:?} to {target:?} (they are in different \
+                 trees)"
+            ),
+            Self::NoSample {
+                frame,
+                parent,
+                time_s,
+                first_s,
+                last_s,
+            } => write!(
+                f,
+                "the transform {parent} → {frame} has no sample near {time_s:.6} s (its samples \
+                 span {first_s:.6}–{last_s:.6} s)"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for TfLookupError {}
+
+/// The pose of a frame in its parent, sampled over time.
+#[derive(Debug, Clone)]
+struct Edge {
+    parent: String,
+    is_static: bool,
+    /// `(stamp, pose)`, sorted by stamp once the tree is built.
+    samples: Vec<(f64, Rigid)>,
+}
+
+/// The tree of frames of a recording's transforms (see the module docs), built by
+/// [`super::RosBag::transforms`] or from transforms given by hand ([`TfTree::insert`]).
+#[derive(Debug, Clone)]
+pub struct TfTree {
+    /// Each frame's edge to its parent, by the frame's name.
+    edges: HashMap<String, Edge>,
+    /// Samples left out: numbers that make no rigid transform.
+    skipped: usize,
+    /// Samples kept.
+    samples: usize,
+    /// Whether every edge's samples are in time order.
+    sorted: bool,
+}
+
+/// A frame name as compared: without ROS 1's leading `/`.
+fn normalised(name: &str) -> &str {
+    name.trim_start_matches('/')
+}
+
+impl Default for TfTree {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl TfTree {
+    /// An empty tree.
+    pub fn new() -> Self {
+        Self {
+            edges: HashMap::new(),
+            skipped: 0,
+            samples: 0,
+            sorted: true,
+        }
+    }
+
+    /// Adds one sample: the pose of `child` in `parent` at `stamp_s` (`t` in metres, the
+    /// quaternion `x, y, z, w`). A sample whose numbers make no rigid transform is counted in
+    /// [`TfTree::skipped`] and left out.
+    ///
+    /// # Errors
+    /// A frame that is its own parent, or a frame given a second parent (a frame has one
+    /// parent; the message names both).
+    pub fn insert(
+        &mut self,
+        parent: &str,
+        child: &str,
+        stamp_s: f64,
+        t: [f64; 3],
+        q_xyzw: [f64; 4],
+        is_static: bool,
+    ) -> Result<(), String> {
+        let (parent, child) = (normalised(parent), normalised(child));
+        if parent == child {
+            return Err(format!("a transform of the frame {child:?} into itself"));
+        }
+        if child.is_empty() || parent.is_empty() {
+            return Err(format!(
+                "a transform with an empty frame name ({parent:?} → {child:?})"
+            ));
+        }
+        let pose = match sl_core::pose::pose_from_translation_quaternion(t, q_xyzw) {
+            Ok(p) if stamp_s.is_finite() => p,
+            _ => {
+                self.skipped += 1;
+                return Ok(());
+            }
+        };
+        let edge = self.edges.entry(child.to_owned()).or_insert_with(|| Edge {
+            parent: parent.to_owned(),
+            is_static,
+            samples: Vec::new(),
+        });
+        if edge.parent != parent {
+            return Err(format!(
+                "the frame {child:?} has two parents, {:?} and {parent:?} (a frame of a \
+                 transform tree has one)",
+                edge.parent
+            ));
+        }
+        edge.is_static |= is_static;
+        if edge.samples.last().is_some_and(|(s, _)| *s > stamp_s) {
+            self.sorted = false;
+        }
+        edge.samples.push((stamp_s, pose));
+        self.samples += 1;
+        Ok(())
+    }
+
+    /// Adds the transforms of one message.
+    pub(super) fn insert_entries(
+        &mut self,
+        entries: &[TransformEntry],
+        is_static: bool,
+    ) -> Result<(), String> {
+        for e in entries {
+            self.insert(
+                &e.parent,
+                &e.child,
+                e.stamp_s,
+                e.translation,
+                e.rotation_xyzw,
+                is_static,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Puts every transform's samples in time order (a recording's may arrive out of order);
+    /// of samples with the same stamp the last recorded is kept.
+    pub(super) fn finish(&mut self) {
+        if self.sorted {
+            return;
+        }
+        for e in self.edges.values_mut() {
+            // Stable: among equal stamps the recording's order stays, and the last is kept.
+            e.samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let mut kept: Vec<(f64, Rigid)> = Vec::with_capacity(e.samples.len());
+            for s in e.samples.drain(..) {
+                match kept.last_mut() {
+                    Some(last) if last.0 == s.0 => *last = s,
+                    _ => kept.push(s),
+                }
+            }
+            e.samples = kept;
+        }
+        self.samples = self.edges.values().map(|e| e.samples.len()).sum();
+        self.sorted = true;
+    }
+
+    /// Samples kept.
+    pub fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// Samples left out because their numbers make no rigid transform.
+    pub fn skipped(&self) -> usize {
+        self.skipped
+    }
+
+    /// Whether any transform names `frame` (as child or parent).
+    pub fn has_frame(&self, frame: &str) -> bool {
+        let frame = normalised(frame);
+        self.edges.contains_key(frame) || self.edges.values().any(|e| e.parent == frame)
+    }
+
+    /// Every frame that has a parent, sorted by name.
+    pub fn frames(&self) -> Vec<TfFrame> {
+        let mut out: Vec<TfFrame> = self
+            .edges
+            .iter()
+            .map(|(frame, e)| TfFrame {
+                frame: frame.clone(),
+                parent: e.parent.clone(),
+                is_static: e.is_static,
+                samples: e.samples.len(),
+                first_s: e.samples.first().map_or(f64::NAN, |s| s.0),
+                last_s: e.samples.last().map_or(f64::NAN, |s| s.0),
+            })
+            .collect();
+        out.sort_by(|a, b| a.frame.cmp(&b.frame));
+        out
+    }
+
+    /// The frames from `frame` up to its root, `frame` first (a cycle, which a tree built by
+    /// [`TfTree::insert`] cannot hold but a chain of parents could, ends the walk).
+    fn chain<'a>(&'a self, frame: &'a str) -> Vec<&'a str> {
+        let mut out = vec![frame];
+        let mut at = frame;
+        while let Some(e) = self.edges.get(at) {
+            if out.len() > self.edges.len() {
+                break;
+            }
+            at = e.parent.as_str();
+            out.push(at);
+        }
+        out
+    }
+
+    /// The pose of `frame` in `target` at `time_s`: `T_target_frame`, which maps points of
+    /// `frame` into `target` (for a camera's optical frame in a world frame, the camera-to-world
+    /// pose). Each transform of the chain is interpolated at `time_s`; a transform whose
+    /// samples end before (or start after) `time_s` gives its last (first) sample within
+    /// `max_gap_s` of it.
+    ///
+    /// # Errors
+    /// An unknown frame, frames in different trees, or a transform without a sample near
+    /// enough ([`TfLookupError`]).
+    pub fn lookup(
+        &self,
+        target: &str,
+        frame: &str,
+        time_s: f64,
+        max_gap_s: f64,
+    ) -> Result<Isometry3<f64>, TfLookupError> {
+        let (target, frame) = (normalised(target), normalised(frame));
+        for f in [frame, target] {
+            if !self.has_frame(f) {
+                return Err(TfLookupError::UnknownFrame(f.to_owned()));
+            }
+        }
+        let up = self.chain(frame);
+        let down = self.chain(target);
+        // The nearest common ancestor: the first frame of `frame`'s chain on `target`'s.
+        let Some((i, j)) = up
+            .iter()
+            .enumerate()
+            .find_map(|(i, f)| down.iter().position(|g| g == f).map(|j| (i, j)))
+        else {
+            return Err(TfLookupError::NotConnected {
+                frame: frame.to_owned(),
+                target: target.to_owned(),
+            });
+        };
+        let in_ancestor = |chain: &[&str]| -> Result<Rigid, TfLookupError> {
+            // `chain[0]`'s pose in `chain[last]`: the edges composed from the ancestor down.
+            let mut pose = Rigid::identity();
+            for f in chain[..chain.len() - 1].iter().rev() {
+                pose *= self.edge_at(f, time_s, max_gap_s)?;
+            }
+            Ok(pose)
+        };
+        let frame_in_ancestor = in_ancestor(&up[..=i])?;
+        let target_in_ancestor = in_ancestor(&down[..=j])?;
+        Ok(target_in_ancestor.inverse() * frame_in_ancestor)
+    }
+
+    /// The pose of `frame` in its parent at `time_s` (see [`TfTree::lookup`]).
+    fn edge_at(&self, frame: &str, time_s: f64, max_gap_s: f64) -> Result<Rigid, TfLookupError> {
+        let Some(e) = self.edges.get(frame) else {
+            return Err(TfLookupError::UnknownFrame(frame.to_owned()));
+        };
+        let no_sample = || TfLookupError::NoSample {
+            frame: frame.to_owned(),
+            parent: e.parent.clone(),
+            time_s,
+            first_s: e.samples.first().map_or(f64::NAN, |s| s.0),
+            last_s: e.samples.last().map_or(f64::NAN, |s| s.0),
+        };
+        let (Some(first), Some(last)) = (e.samples.first(), e.samples.last()) else {
+            return Err(no_sample());
+        };
+        if e.is_static {
+            return Ok(last.1);
+        }
+        if time_s <= first.0 {
+            return if first.0 - time_s <= max_gap_s {
+                Ok(first.1)
+            } else {
+                Err(no_sample())
+            };
+        }
+        if time_s >= last.0 {
+            return if time_s - last.0 <= max_gap_s {
+                Ok(last.1)
+            } else {
+                Err(no_sample())
+            };
+        }
+        // `first.0 < time_s < last.0`: two samples around it.
+        let k = e.samples.partition_point(|s| s.0 <= time_s);
+        let ((t0, a), (t1, b)) = (e.samples[k - 1], e.samples[k]);
+        if time_s == t0 {
+            return Ok(a);
+        }
+        Ok(interpolate(&a, &b, (time_s - t0) / (t1 - t0)))
+    }
+}
+
+/// The pose a fraction `s` (0–1) of the way from `a` to `b`: the translation linearly, the
+/// rotation along the shorter arc (slerp; normalised linear interpolation where the two
+/// rotations are too close for slerp's formula).
+fn interpolate(a: &Rigid, b: &Rigid, s: f64) -> Rigid {
+    let ta = a.translation.vector;
+    let tb = b.translation.vector;
+    let t = ta + (tb - ta) * s;
+    let qa = a.rotation;
+    // The shorter arc: `q` and `−q` are the same rotation.
+    let qb = if qa.coords.dot(&b.rotation.coords) < 0.0 {
+        UnitQuaternion::new_unchecked(-b.rotation.into_inner())
+    } else {
+        b.rotation
+    };
+    let q = qa.try_slerp(&qb, s, 1e-12).unwrap_or_else(|| {
+        UnitQuaternion::new_normalize(qa.into_inner() * (1.0 - s) + qb.into_inner() * s)
+    });
+    Rigid::from_parts(Translation3::from(t), q)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sl_core::nalgebra::{Point3, Vector3};
+
+    fn q_of(axis: Vector3<f64>, deg: f64) -> [f64; 4] {
+        let q = UnitQuaternion::from_scaled_axis(axis * deg.to_radians());
+        [q.i, q.j, q.k, q.w]
+    }
+
+    /// `map → odom` static, `odom → base` moving along x and turning about z,
+    /// `base → camera_link` static, `camera_link → optical` static (the optical frame's axes).
+    fn robot() -> TfTree {
+        let mut t = TfTree::new();
+        t.insert(
+            "map",
+            "odom",
+            0.0,
+            [1.0, 2.0, 0.0],
+            q_of(Vector3::z(), 90.0),
+            true,
+        )
+        .unwrap();
+        for i in 0..=10 {
+            let s = f64::from(i);
+            t.insert(
+                "/odom",
+                "base",
+                10.0 + s,
+                [s, 0.0, 0.0],
+                q_of(Vector3::z(), 3.0 * s),
+                false,
+            )
+            .unwrap();
+        }
+        t.insert(
+            "base",
+            "camera_link",
+            0.0,
+            [0.1, 0.0, 0.5],
+            [0.0, 0.0, 0.0, 1.0],
+            true,
+        )
+        .unwrap();
+        // ROS's optical frame: z forward (the link's x), x right (−y), y down (−z).
+        let r = UnitQuaternion::from_basis_unchecked(&[
+            Vector3::new(0.0, -1.0, 0.0),
+            Vector3::new(0.0, 0.0, -1.0),
+            Vector3::new(1.0, 0.0, 0.0),
+        ]);
+        t.insert(
+            "camera_link",
+            "optical",
+            0.0,
+            [0.0; 3],
+            [r.i, r.j, r.k, r.w],
+            true,
+        )
+        .unwrap();
+        t.finish();
+        t
+    }
+
+    #[test]
+    fn a_chain_composes_its_transforms_and_interpolates_between_samples() {
+        let t = robot();
+        // At 12.5 s the base is at x = 2.5 in odom, turned 7.5° about z.
+        let p = t.lookup("map", "optical", 12.5, 0.02).unwrap();
+        let base = Rigid::from_parts(
+            Translation3::new(2.5, 0.0, 0.0),
+            UnitQuaternion::from_scaled_axis(Vector3::z() * 7.5f64.to_radians()),
+        );
+        let odom = Rigid::from_parts(
+            Translation3::new(1.0, 2.0, 0.0),
+            UnitQuaternion::from_scaled_axis(Vector3::z() * 90f64.to_radians()),
+        );
+        // The camera's origin is 0.1 m ahead of the base and 0.5 m up; its z axis looks ahead.
+        let origin = odom * base * Point3::new(0.1, 0.0, 0.5);
+        let ahead = (odom * base).rotation * Vector3::x();
+        assert!((p * Point3::origin() - origin).norm() < 1e-12);
+        assert!((p.rotation * Vector3::z() - ahead).norm() < 1e-12);
+        // The camera's y axis (image down) points down in the world.
+        assert!((p.rotation * Vector3::y() - Vector3::new(0.0, 0.0, -1.0)).norm() < 1e-12);
+        // Asked the other way round: the inverse.
+        let back = t.lookup("optical", "map", 12.5, 0.02).unwrap();
+        assert!(((back * p).to_homogeneous() - Rigid::identity().to_homogeneous()).norm() < 1e-12);
+        // Frames that share an ancestor below the root: camera_link in odom.
+        let q = t.lookup("odom", "camera_link", 10.0, 0.02).unwrap();
+        assert!((q.translation.vector - Vector3::new(0.1, 0.0, 0.5)).norm() < 1e-12);
+    }
+
+    #[test]
+    fn there_is_no_extrapolation_beyond_the_gap() {
+        let t = robot();
+        // The moving transform spans 10–20 s.
+        assert!(t.lookup("map", "optical", 20.01, 0.02).is_ok());
+        assert!(t.lookup("map", "optical", 9.99, 0.02).is_ok());
+        let e = t.lookup("map", "optical", 20.5, 0.02).unwrap_err();
+        assert!(
+            matches!(&e, TfLookupError::NoSample { frame, parent, .. } if frame == "base" && parent == "odom"),
+            "{e}"
+        );
+        assert!(e.to_string().contains("10.000000–20.000000 s"), "{e}");
+        // Static transforms hold at any time, even long before the moving ones.
+        assert!(t.lookup("map", "odom", -1e6, 0.02).is_ok());
+        assert_eq!(
+            t.lookup("map", "nowhere", 12.0, 0.02),
+            Err(TfLookupError::UnknownFrame("nowhere".into()))
+        );
+    }
+
+    #[test]
+    fn separate_trees_two_parents_and_bad_numbers_are_said() {
+        let mut t = robot();
+        t.insert(
+            "elsewhere",
+            "marker",
+            0.0,
+            [0.0; 3],
+            [0.0, 0.0, 0.0, 1.0],
+            true,
+        )
+        .unwrap();
+        assert!(matches!(
+            t.lookup("map", "marker", 12.0, 0.02),
+            Err(TfLookupError::NotConnected { .. })
+        ));
+        let e = t
+            .insert("map", "base", 11.0, [0.0; 3], [0.0, 0.0, 0.0, 1.0], false)
+            .unwrap_err();
+        assert!(e.contains("two parents"), "{e}");
+        assert!(
+            t.insert("a", "/a", 0.0, [0.0; 3], [0.0, 0.0, 0.0, 1.0], false)
+                .is_err()
+        );
+        let before = t.samples();
+        t.insert(
+            "odom",
+            "base",
+            30.0,
+            [f64::NAN, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            false,
+        )
+        .unwrap();
+        t.insert("odom", "base", 31.0, [0.0; 3], [0.0; 4], false)
+            .unwrap();
+        assert_eq!((t.samples(), t.skipped()), (before, 2));
+    }
+
+    #[test]
+    fn samples_out_of_order_are_sorted_and_the_last_of_a_stamp_kept() {
+        let mut t = TfTree::new();
+        for (s, x) in [(2.0, 2.0), (0.0, 0.0), (1.0, 5.0), (1.0, 1.0)] {
+            t.insert("w", "c", s, [x, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], false)
+                .unwrap();
+        }
+        t.finish();
+        assert_eq!(t.samples(), 3);
+        let p = t.lookup("w", "c", 1.5, 0.0).unwrap();
+        assert!((p.translation.x - 1.5).abs() < 1e-12);
+        let f = &t.frames()[0];
+        assert_eq!((f.first_s, f.last_s, f.samples), (0.0, 2.0, 3));
+    }
+
+    #[test]
+    fn rotations_interpolate_along_the_shorter_arc() {
+        let a = Rigid::from_parts(
+            Translation3::new(0.0, 0.0, 0.0),
+            UnitQuaternion::from_scaled_axis(Vector3::z() * 170f64.to_radians()),
+        );
+        // −q of a rotation of −170° (= 190°): the shorter arc passes through 180°.
+        let r = UnitQuaternion::from_scaled_axis(Vector3::z() * (-170f64).to_radians());
+        let b = Rigid::from_parts(
+            Translation3::new(2.0, 0.0, 0.0),
+            UnitQuaternion::new_unchecked(-r.into_inner()),
+        );
+        let m = interpolate(&a, &b, 0.5);
+        assert!((m.rotation.angle() - std::f64::consts::PI).abs() < 1e-9);
+        assert!((m.translation.x - 1.0).abs() < 1e-12);
+        // Equal rotations: no division by a zero angle.
+        let same = interpolate(&a, &a, 0.3);
+        assert!((same.rotation.angle_to(&a.rotation)).abs() < 1e-12);
+    }
+}
