@@ -49,6 +49,21 @@ pub(crate) fn load(
     verb: &str,
 ) -> Result<BagSource> {
     let mut bag = RosBag::open(path, &limits())?;
+    if path.is_file()
+        && let Some((at, pieces)) = sl_io::rosbag::split_piece_of(path)
+    {
+        errln!(
+            "note: {} is piece {} of {} of a recording split by `rosbag record --split`: only \
+             this piece is read (give its folder, {}, to read them all as one recording)",
+            path.display(),
+            at + 1,
+            pieces.len(),
+            path.parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new("."))
+                .display()
+        );
+    }
     let topic = bag.depth_topic(topic)?;
     let messages = bag.messages(&topic)?;
     let Some(first) = messages.first().copied() else {

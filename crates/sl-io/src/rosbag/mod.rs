@@ -206,6 +206,21 @@ pub fn ros1_split_files(dir: &Path) -> Option<Vec<PathBuf>> {
     (!pieces.is_empty() && numbered_from_zero).then(|| pieces.into_iter().map(|(_, p)| p).collect())
 }
 
+/// Where the ROS 1 bag file `path` is one piece of a recording split by `rosbag record --split`
+/// (its folder holds that recording's pieces, [`ros1_split_files`], and more than this one):
+/// its index among them and all the pieces, in order. Opened alone it reads as that piece, a
+/// part of the recording; the folder reads as the whole.
+pub fn split_piece_of(path: &Path) -> Option<(usize, Vec<PathBuf>)> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let pieces = ros1_split_files(dir).filter(|p| p.len() > 1)?;
+    let name = path.file_name()?;
+    let at = pieces.iter().position(|p| p.file_name() == Some(name))?;
+    Some((at, pieces))
+}
+
 /// The files of a recording: `path` itself, a ROS 2 bag folder's `.mcap` or `.db3` files (a
 /// recording split by size or duration), in the natural order of their names, or the pieces of
 /// a split ROS 1 recording ([`ros1_split_files`]).

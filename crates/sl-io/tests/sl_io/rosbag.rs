@@ -132,6 +132,11 @@ fn a_ros1_recording_split_into_pieces_reads_as_one() {
             100.0 + i as f64
         );
     }
+    // Each piece knows it is one: its index among all of them.
+    assert_eq!(
+        sl_io::rosbag::split_piece_of(&files[10]),
+        Some((10, files.clone()))
+    );
     // A piece missing, or a bag of another name beside: separate recordings, not one.
     let other = folder.join("other_0.bag");
     std::fs::copy(&files[0], &other).unwrap();
@@ -143,9 +148,10 @@ fn a_ros1_recording_split_into_pieces_reads_as_one() {
     std::fs::remove_file(&other).unwrap();
     std::fs::remove_file(&files[5]).unwrap();
     assert!(sl_io::rosbag::ros1_split_files(&folder).is_none());
-    // One piece alone is that piece.
+    // One piece alone is that piece; with a piece missing, no longer one of a recording.
     let one = RosBag::open(&files[2], &Limits::default()).unwrap();
     assert_eq!(one.files(), 1);
+    assert_eq!(sl_io::rosbag::split_piece_of(&files[2]), None);
 }
 
 /// Float metres (`32FC1`, as TUM's bags hold depth), big-endian pixels, NaN and negative values

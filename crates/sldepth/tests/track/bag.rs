@@ -546,3 +546,32 @@ fn fuse_poses_a_recording_by_its_transforms() {
         assert!(!out.status.success() && err.contains(what), "{err}");
     }
 }
+
+/// One piece of a recording split by `rosbag record --split`, given alone, is read alone and
+/// said to be a piece; its folder reads as the whole recording.
+#[test]
+fn a_piece_of_a_split_recording_is_said_to_be_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let seq = tmp.path().join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let msgs = bag_messages(&seq, &stamps);
+    let folder = tmp.path().join("split");
+    std::fs::create_dir(&folder).unwrap();
+    // Two frames (with their camera info and RGB) in each piece.
+    for (n, part) in msgs.chunks(6).enumerate() {
+        let file = folder.join(format!("rec_{n}.bag"));
+        write_bag(&file, &[DEPTH, INFO, RGB], part, "lz4", 2).unwrap();
+    }
+    let piece = folder.join("rec_1.bag");
+    let (v, stderr) = kinect_track_json_from(&[piece.to_str().unwrap()], &[]);
+    assert_eq!(v["frames"], 2, "{v}");
+    assert!(
+        stderr
+            .contains("rec_1.bag is piece 2 of 2 of a recording split by `rosbag record --split`")
+            && stderr.contains("give its folder"),
+        "{stderr}"
+    );
+    let (v, stderr) = kinect_track_json_from(&[folder.to_str().unwrap()], &[]);
+    assert_eq!(v["frames"], 4, "{v}");
+    assert!(!stderr.contains("is piece"), "{stderr}");
+}
