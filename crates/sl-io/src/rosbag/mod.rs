@@ -579,7 +579,6 @@ impl RosBag {
                 }
             }
         }
-        tree.finish();
         Ok(tree)
     }
 

@@ -35,7 +35,8 @@ pub struct TfFrame {
     pub frame: String,
     /// The frame its pose is given in (`camera_link`, `odom`, `map`).
     pub parent: String,
-    /// Whether its transform is static (`/tf_static`).
+    /// Whether its transform holds at any time: static (`/tf_static`), or sampled on `/tf`
+    /// more than once and never changed (ROS 1 `tf`'s republished static transforms).
     pub is_static: bool,
     /// Samples of its pose (one for most static transforms).
     pub samples: usize,
@@ -103,8 +104,20 @@ impl std::error::Error for TfLookupError {}
 struct Edge {
     parent: String,
     is_static: bool,
-    /// `(stamp, pose)`, sorted by stamp once the tree is built.
+    /// `(stamp, pose)`, in time order, one per stamp.
     samples: Vec<(f64, Rigid)>,
+    /// Whether any sample differs from the first.
+    varies: bool,
+}
+
+impl Edge {
+    /// Whether the transform holds at any time: published on `/tf_static`, or sampled more
+    /// than once on `/tf` without ever changing (ROS 1 `tf`'s `static_transform_publisher`
+    /// republished its transform on `/tf` with fresh stamps; TUM RGB-D's bags hold the
+    /// camera's own frames so).
+    fn holds_always(&self) -> bool {
+        self.is_static || (self.samples.len() > 1 && !self.varies)
+    }
 }
 
 /// The tree of frames of a recording's transforms (see the module docs), built by
@@ -117,8 +130,6 @@ pub struct TfTree {
     skipped: usize,
     /// Samples kept.
     samples: usize,
-    /// Whether every edge's samples are in time order.
-    sorted: bool,
 }
 
 /// A frame name as compared: without ROS 1's leading `/`.
@@ -139,7 +150,6 @@ impl TfTree {
             edges: HashMap::new(),
             skipped: 0,
             samples: 0,
-            sorted: true,
         }
     }
 
@@ -179,6 +189,7 @@ impl TfTree {
             parent: parent.to_owned(),
             is_static,
             samples: Vec::new(),
+            varies: false,
         });
         if edge.parent != parent {
             return Err(format!(
@@ -188,11 +199,18 @@ impl TfTree {
             ));
         }
         edge.is_static |= is_static;
-        if edge.samples.last().is_some_and(|(s, _)| *s > stamp_s) {
-            self.sorted = false;
+        if let Some((_, first)) = edge.samples.first() {
+            edge.varies |= *first != pose;
         }
-        edge.samples.push((stamp_s, pose));
-        self.samples += 1;
+        // In time order, one sample per stamp (the last recorded kept): a recording's samples
+        // come in order, so this is an append but for the odd late message.
+        let at = edge.samples.partition_point(|(t, _)| *t <= stamp_s);
+        if at > 0 && edge.samples[at - 1].0 == stamp_s {
+            edge.samples[at - 1].1 = pose;
+        } else {
+            edge.samples.insert(at, (stamp_s, pose));
+            self.samples += 1;
+        }
         Ok(())
     }
 
@@ -213,28 +231,6 @@ impl TfTree {
             )?;
         }
         Ok(())
-    }
-
-    /// Puts every transform's samples in time order (a recording's may arrive out of order);
-    /// of samples with the same stamp the last recorded is kept.
-    pub(super) fn finish(&mut self) {
-        if self.sorted {
-            return;
-        }
-        for e in self.edges.values_mut() {
-            // Stable: among equal stamps the recording's order stays, and the last is kept.
-            e.samples.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let mut kept: Vec<(f64, Rigid)> = Vec::with_capacity(e.samples.len());
-            for s in e.samples.drain(..) {
-                match kept.last_mut() {
-                    Some(last) if last.0 == s.0 => *last = s,
-                    _ => kept.push(s),
-                }
-            }
-            e.samples = kept;
-        }
-        self.samples = self.edges.values().map(|e| e.samples.len()).sum();
-        self.sorted = true;
     }
 
     /// Samples kept.
@@ -261,7 +257,7 @@ impl TfTree {
             .map(|(frame, e)| TfFrame {
                 frame: frame.clone(),
                 parent: e.parent.clone(),
-                is_static: e.is_static,
+                is_static: e.holds_always(),
                 samples: e.samples.len(),
                 first_s: e.samples.first().map_or(f64::NAN, |s| s.0),
                 last_s: e.samples.last().map_or(f64::NAN, |s| s.0),
@@ -349,7 +345,7 @@ impl TfTree {
         let (Some(first), Some(last)) = (e.samples.first(), e.samples.last()) else {
             return Err(no_sample());
         };
-        if e.is_static {
+        if e.holds_always() {
             return Ok(last.1);
         }
         if time_s <= first.0 {
@@ -455,7 +451,6 @@ mod tests {
             true,
         )
         .unwrap();
-        t.finish();
         t
     }
 
@@ -553,12 +548,56 @@ mod tests {
             t.insert("w", "c", s, [x, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], false)
                 .unwrap();
         }
-        t.finish();
         assert_eq!(t.samples(), 3);
         let p = t.lookup("w", "c", 1.5, 0.0).unwrap();
         assert!((p.translation.x - 1.5).abs() < 1e-12);
         let f = &t.frames()[0];
         assert_eq!((f.first_s, f.last_s, f.samples), (0.0, 2.0, 3));
+    }
+
+    #[test]
+    fn a_transform_republished_unchanged_holds_at_any_time() {
+        let mut t = TfTree::new();
+        // ROS 1 `tf`'s static publisher: the same transform on /tf every 0.1 s.
+        for i in 0..3 {
+            t.insert(
+                "kinect",
+                "optical",
+                10.0 + 0.1 * f64::from(i),
+                [0.0, 0.02, 0.0],
+                [0.0, 0.0, 0.0, 1.0],
+                false,
+            )
+            .unwrap();
+        }
+        // One sample alone says nothing of other times.
+        t.insert(
+            "world",
+            "kinect",
+            10.0,
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            false,
+        )
+        .unwrap();
+        assert!(t.lookup("kinect", "optical", 0.0, 0.02).is_ok());
+        assert!(t.lookup("kinect", "optical", 1e4, 0.02).is_ok());
+        assert!(t.lookup("world", "kinect", 11.0, 0.02).is_err());
+        let frames = t.frames();
+        assert!(!frames[0].is_static && frames[1].is_static);
+        // A change makes it a moving transform again.
+        t.insert(
+            "kinect",
+            "optical",
+            10.3,
+            [0.0, 0.03, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            false,
+        )
+        .unwrap();
+        assert!(t.lookup("kinect", "optical", 0.0, 0.02).is_err());
+        let p = t.lookup("kinect", "optical", 10.25, 0.02).unwrap();
+        assert!((p.translation.y - 0.025).abs() < 1e-12);
     }
 
     #[test]
