@@ -472,17 +472,18 @@ pub(super) fn key_value(path: &Path, b: &[u8], encoding: Encoding) -> Result<(St
     Ok((f.string("key")?, f.string("value")?))
 }
 
-/// The frame an image message's header names (`header.frame_id`: a camera driver's optical
-/// frame, `camera_depth_optical_frame`), for a `sensor_msgs/Image` or `CompressedImage` alike
-/// (both open with the header).
-pub(super) fn header_frame_id(path: &Path, b: &[u8], encoding: Encoding) -> Result<String> {
+/// The stamp (seconds) and frame (`header.frame_id`: a camera driver's optical frame,
+/// `camera_depth_optical_frame`) of an image message's header, for a `sensor_msgs/Image` or
+/// `CompressedImage` alike (both open with the header); nothing past it is read.
+pub(super) fn image_header(path: &Path, b: &[u8], encoding: Encoding) -> Result<(f64, String)> {
     let mut f = Fields::new(path, b, "image", encoding)?;
     if !f.cdr {
         f.u32("header.seq")?;
     }
-    f.u32("header.stamp.secs")?;
-    f.u32("header.stamp.nsecs")?;
-    f.string("header.frame_id")
+    let secs = f.u32("header.stamp.secs")?;
+    let nsecs = f.u32("header.stamp.nsecs")?;
+    let frame = f.string("header.frame_id")?;
+    Ok((super::records::time_s(secs, nsecs), frame))
 }
 
 /// One `geometry_msgs/TransformStamped` of a `tf2_msgs/TFMessage`: the pose of frame `child`

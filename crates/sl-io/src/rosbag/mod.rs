@@ -537,7 +537,20 @@ impl RosBag {
         let path = self.path.clone();
         let cdr = m.encoding;
         let b = self.message(m)?;
-        messages::header_frame_id(&path, b, cdr)
+        Ok(messages::image_header(&path, b, cdr)?.1)
+    }
+
+    /// The stamp of image message `m` (its header's, seconds; the record time when the stamp
+    /// is 0, as [`RosBag::read_depth`] stamps the frame), read without decoding its pixels.
+    ///
+    /// # Errors
+    /// A malformed message.
+    pub fn image_stamp_s(&mut self, m: &BagMessage) -> Result<f64> {
+        let path = self.path.clone();
+        let cdr = m.encoding;
+        let b = self.message(m)?;
+        let t = messages::image_header(&path, b, cdr)?.0;
+        Ok(if t > 0.0 { t } else { m.record_time_s })
     }
 
     /// The topics of transforms (`tf2_msgs/TFMessage` or ROS 1's `tf/tfMessage`: `/tf`,

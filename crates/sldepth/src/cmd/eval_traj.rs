@@ -26,9 +26,24 @@ pub struct Args {
     #[arg(value_name = "EST")]
     pub estimated: PathBuf,
     /// Ground-truth trajectory, TUM format (e.g. a sequence's `groundtruth.txt`) or an
-    /// Open3D `.log` (e.g. an Open3D-style folder's `odometry.log`), read as EST is.
+    /// Open3D `.log` (e.g. an Open3D-style folder's `odometry.log`), read as EST is; or a
+    /// recording whose transforms hold the camera's true poses (with --tf: a motion-capture
+    /// system's, as TUM RGB-D's bags hold them on `/tf`).
     #[arg(value_name = "GT")]
     pub ground_truth: PathBuf,
+    /// GT is a recording: the ground truth is the pose of its depth images' frame (the
+    /// camera's optical frame, or --tf-camera-frame) in this frame, from its `/tf` and
+    /// `/tf_static`, at each depth frame's stamp (interpolated between the transforms'
+    /// samples, as `fuse REC --tf` poses the frames; none beyond --max-gap-s of a transform's
+    /// first or last sample). `sldepth info REC` lists the frames.
+    #[arg(long, value_name = "WORLD_FRAME")]
+    pub tf: Option<String>,
+    /// The camera's optical frame for --tf, where the depth images name none or another one.
+    #[arg(long, value_name = "FRAME", requires = "tf")]
+    pub tf_camera_frame: Option<String>,
+    /// The depth topic of the --tf recording (default: the one image topic holding depth).
+    #[arg(long, value_name = "TOPIC", requires = "tf")]
+    pub topic: Option<String>,
     /// Print JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -83,6 +98,56 @@ fn read(path: &Path, what: &str) -> Result<Vec<StampedPose>> {
     let poses = sl_io::trajectory::read_trajectory_with_limits(path, &limits())
         .with_context(|| format!("reading the {what} trajectory"))?;
     Ok(poses.iter().map(|p| (p.timestamp, p.pose)).collect())
+}
+
+/// The pose of the recording's camera frame in `world` at each depth frame's stamp (frames
+/// without one left out, said on standard error).
+fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
+    let path = &args.ground_truth;
+    let mut bag = sl_io::rosbag::RosBag::open(path, &limits())?;
+    let topic = bag.depth_topic(args.topic.as_deref())?;
+    let messages = bag.messages(&topic)?;
+    let tree = bag.transforms()?;
+    if tree.samples() == 0 {
+        bail!(
+            "{}: no transforms (no /tf or /tf_static topic)",
+            path.display()
+        );
+    }
+    let camera = match (&args.tf_camera_frame, messages.first()) {
+        (Some(f), _) => f.clone(),
+        (None, Some(m)) => bag.image_frame_id(m)?,
+        (None, None) => bail!("{}: {topic} has no message", path.display()),
+    };
+    if camera.trim_start_matches('/').is_empty() {
+        bail!(
+            "{}: the depth images name no frame: give the camera's with --tf-camera-frame",
+            path.display()
+        );
+    }
+    let mut out = Vec::with_capacity(messages.len());
+    let mut first_miss = None;
+    for m in &messages {
+        let t = bag.image_stamp_s(m)?;
+        match tree.lookup(world, &camera, t, args.max_gap_s) {
+            Ok(p) => out.push((t, sl_core::CameraToWorld::from_isometry(p))),
+            Err(e @ sl_io::rosbag::TfLookupError::NoSample { .. }) => {
+                first_miss.get_or_insert(e);
+            }
+            Err(e) => bail!("{}: {e}", path.display()),
+        }
+    }
+    if let Some(e) = first_miss {
+        errln!(
+            "note: {} of {} frames of {} have no ground truth ({camera} in {world} within {} s \
+             of their stamps; the first: {e})",
+            messages.len() - out.len(),
+            messages.len(),
+            path.display(),
+            args.max_gap_s
+        );
+    }
+    Ok(out)
 }
 
 /// JSON of error statistics, rounded.
@@ -142,7 +207,23 @@ pub fn run(args: Args) -> Result<()> {
         )?;
     }
     let est = read(&args.estimated, "estimated")?;
-    let gt = read(&args.ground_truth, "ground-truth")?;
+    let gt = if sl_io::rosbag::is_bag_file(&args.ground_truth) {
+        let Some(world) = &args.tf else {
+            bail!(
+                "{0}: a recording as the ground truth: name the world frame of its transforms \
+                 with --tf WORLD_FRAME (`sldepth info {0}` lists its frames)",
+                args.ground_truth.display()
+            );
+        };
+        tf_ground_truth(&args, world).context("the ground truth of the recording's transforms")?
+    } else {
+        if args.tf.is_some() {
+            bail!(
+                "--tf takes the ground truth from a recording's transforms; GT is not a recording"
+            );
+        }
+        read(&args.ground_truth, "ground-truth")?
+    };
     let found: Option<TimeOffset> = if args.estimate_offset {
         // Every whole millisecond (the default step) within the range.
         let mut search = OffsetSearch::default();

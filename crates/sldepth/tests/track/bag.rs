@@ -492,6 +492,38 @@ fn fuse_poses_a_recording_by_its_transforms() {
     assert_eq!(v["transforms"][0]["parent"], "world", "{v}");
     assert_eq!(v["transforms"][0]["samples"], 4, "{v}");
     assert_eq!(v["transforms"][1]["static"], true, "{v}");
+    // The recording's transforms as a ground truth: the trajectory they were made from
+    // matches them exactly, frame by frame.
+    let (e, _) = sldepth_json(&[
+        "eval-traj",
+        traj.to_str().unwrap(),
+        bag.to_str().unwrap(),
+        "--tf",
+        "world",
+        "--json",
+    ]);
+    assert_eq!(e["poses_matched"], 4, "{e}");
+    assert!(e["ate_m"]["rmse"].as_f64().unwrap() < 1e-6, "{e}");
+    for (gt, tf, what) in [
+        (
+            bag.to_str().unwrap(),
+            None,
+            "name the world frame of its transforms with --tf",
+        ),
+        (
+            traj.to_str().unwrap(),
+            Some("world"),
+            "GT is not a recording",
+        ),
+    ] {
+        let mut args = vec!["eval-traj", traj.to_str().unwrap(), gt];
+        if let Some(w) = tf {
+            args.extend_from_slice(&["--tf", w]);
+        }
+        let out = sldepth(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(what), "{err}");
+    }
     // The moving transform ends after two frames: the last two (33 and 67 ms later) have no
     // pose within 20 ms, and the message says which transform ran out; within 0.1 s they take
     // its last sample.
