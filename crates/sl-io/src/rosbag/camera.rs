@@ -101,7 +101,18 @@ impl RosBag {
             ),
             (None, None) => (
                 Camera::from_intrinsics(k, None, None).map_err(core)?.sensor,
-                "the Kinect's noise model".to_string(),
+                match rs.device_name.as_deref() {
+                    None => "the Kinect's noise model".to_string(),
+                    Some(d) if is_lidar(d) => format!(
+                        "the Kinect's noise model, though the {d} is a LiDAR camera (time of \
+                         flight): its depth error does not grow as the disparity model's; \
+                         --camera FILE sets another"
+                    ),
+                    Some(d) => format!(
+                        "the Kinect's noise model (no preset models the {d}; --camera FILE \
+                         sets its baseline and sub-pixel steps)"
+                    ),
+                },
             ),
         };
         Ok(BagCamera {
@@ -113,5 +124,23 @@ impl RosBag {
             camera_info_topic: info,
             sensor_source,
         })
+    }
+}
+
+/// Whether a RealSense device's name is one of its LiDAR (time-of-flight) cameras, the L5xx
+/// series, which measure no disparity.
+fn is_lidar(name: &str) -> bool {
+    name.to_ascii_uppercase()
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .any(|w| w.len() >= 4 && w.starts_with("L5") && w[2..].bytes().all(|b| b.is_ascii_digit()))
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn lidar_cameras_are_told_by_name() {
+        assert!(super::is_lidar("Intel RealSense L515"));
+        assert!(!super::is_lidar("Intel RealSense D435I"));
+        assert!(!super::is_lidar("L5"));
     }
 }

@@ -439,3 +439,62 @@ fn a_bag_split_into_files_reads_as_one_recording() {
         assert!(matches!(e, sl_io::IoError::TooLarge { .. }), "{e}");
     }
 }
+
+/// A RealSense device no preset models gets the Kinect's model, said with the device's name;
+/// an L515 (a LiDAR camera: time of flight, no disparity) is said to be one.
+#[test]
+fn a_realsense_device_without_a_preset_is_named_in_its_noise_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let px: Vec<u8> = (0..W * H).flat_map(|_| 4000u16.to_le_bytes()).collect();
+    let conns: [Conn; 3] = [
+        (
+            0,
+            "/device_0/sensor_0/Depth_0/image/data",
+            "sensor_msgs/Image",
+        ),
+        (
+            1,
+            "/device_0/sensor_0/Depth_0/info/camera_info",
+            "sensor_msgs/CameraInfo",
+        ),
+        (4, "/device_0/info", "diagnostic_msgs/KeyValue"),
+    ];
+    for (name, said) in [
+        (
+            "Intel RealSense L515",
+            "though the Intel RealSense L515 is a LiDAR camera (time of flight)",
+        ),
+        (
+            "Intel RealSense T265",
+            "no preset models the Intel RealSense T265",
+        ),
+    ] {
+        let msgs = vec![
+            Msg {
+                conn: 4,
+                time: (0, 0),
+                data: key_value_msg("Name", name),
+            },
+            Msg {
+                conn: 1,
+                time: (0, 0),
+                data: camera_info(W, H, 380.5, "plumb_bob", &[0.0; 5], 0),
+            },
+            Msg {
+                conn: 0,
+                time: (0, 1000),
+                data: image((1, 0), W, H, "16UC1", false, &px, 0),
+            },
+        ];
+        let path = dir.path().join("rs.bag");
+        sl_testkit::rosbag_writer::write_bag(&path, &conns, &msgs, "none", 4).unwrap();
+        let mut bag = RosBag::open(&path, &Limits::default()).unwrap();
+        let cam = bag.depth_camera(conns[0].1).unwrap();
+        assert!(
+            cam.sensor_source.starts_with("the Kinect's noise model"),
+            "{}",
+            cam.sensor_source
+        );
+        assert!(cam.sensor_source.contains(said), "{}", cam.sensor_source);
+    }
+}
