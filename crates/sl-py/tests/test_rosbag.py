@@ -486,6 +486,9 @@ def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
     # Half a second after the last sample: no pose (NaN), unless the gap allows it.
     assert np.isnan(poses[2]).all()
     assert not np.isnan(bag.tf_lookup("odom", cam, [12.5], max_gap_s=0.6)).any()
+    # A NumPy array of stamps is taken as a list; a stamp that is no number has no pose.
+    np.testing.assert_array_equal(bag.tf_lookup("odom", cam, np.array(stamps)), poses[:2])
+    assert np.isnan(bag.tf_lookup("odom", cam, [float("nan")])).all()
     with pytest.raises(ValueError, match='no transform names the frame "map"'):
         bag.tf_lookup("map", cam, stamps)
     with pytest.raises(ValueError, match="max_gap_s"):

@@ -348,6 +348,9 @@ impl TfTree {
         if e.holds_always() {
             return Ok(last.1);
         }
+        if !time_s.is_finite() {
+            return Err(no_sample());
+        }
         if time_s <= first.0 {
             return if first.0 - time_s <= max_gap_s {
                 Ok(first.1)
@@ -496,6 +499,14 @@ mod tests {
         assert!(e.to_string().contains("10.000000–20.000000 s"), "{e}");
         // Static transforms hold at any time, even long before the moving ones.
         assert!(t.lookup("map", "odom", -1e6, 0.02).is_ok());
+        // A time that is no number: no sample near it (and no panic).
+        for bad in [f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                t.lookup("map", "optical", bad, 0.02),
+                Err(TfLookupError::NoSample { .. })
+            ));
+        }
+        assert!(t.lookup("map", "optical", 12.0, f64::NAN).is_ok());
         assert_eq!(
             t.lookup("map", "nowhere", 12.0, 0.02),
             Err(TfLookupError::UnknownFrame("nowhere".into()))
