@@ -21,6 +21,19 @@ fn bag_of(seq: &Path, stamps: &[f64], bag: &Path, compression: &str) {
     write_bag(bag, &[DEPTH, INFO, RGB], &msgs, compression, 2).unwrap();
 }
 
+/// A 4-frame TUM folder `seq` under `dir`, its stamps, and the trajectory `track` writes for
+/// it (`folder.txt`).
+fn tracked_sequence(dir: &Path) -> (std::path::PathBuf, Vec<f64>, std::path::PathBuf) {
+    let seq = dir.join("seq");
+    let stamps = write_sequence(&seq, 4);
+    let traj = dir.join("folder.txt");
+    kinect_track_json_from(
+        &["--tum", seq.to_str().unwrap()],
+        &["--output", traj.to_str().unwrap()],
+    );
+    (seq, stamps, traj)
+}
+
 /// The messages of [`bag_of`].
 fn bag_messages(seq: &Path, stamps: &[f64]) -> Vec<Msg> {
     let mut msgs = Vec::new();
@@ -60,13 +73,7 @@ fn bag_messages(seq: &Path, stamps: &[f64]) -> Vec<Msg> {
 #[test]
 fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     let tmp = tempfile::tempdir().unwrap();
-    let seq = tmp.path().join("seq");
-    let stamps = write_sequence(&seq, 4);
-    let folder_traj = tmp.path().join("folder.txt");
-    let (_, _) = kinect_track_json_from(
-        &["--tum", seq.to_str().unwrap()],
-        &["--output", folder_traj.to_str().unwrap()],
-    );
+    let (seq, stamps, folder_traj) = tracked_sequence(tmp.path());
     let folder = std::fs::read_to_string(&folder_traj).unwrap();
     for compression in ["bz2", "lz4"] {
         let bag = tmp.path().join(format!("rec-{compression}.bag"));
@@ -220,13 +227,7 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
 fn track_reads_a_ros2_mcap_bag_as_the_folder_of_its_frames() {
     use sl_testkit::rosbag_writer::{camera_info_cdr, image_cdr, write_mcap};
     let tmp = tempfile::tempdir().unwrap();
-    let seq = tmp.path().join("seq");
-    let stamps = write_sequence(&seq, 4);
-    let folder_traj = tmp.path().join("folder.txt");
-    kinect_track_json_from(
-        &["--tum", seq.to_str().unwrap()],
-        &["--output", folder_traj.to_str().unwrap()],
-    );
+    let (seq, stamps, folder_traj) = tracked_sequence(tmp.path());
     let mut msgs = Vec::new();
     for t in &stamps {
         let file = seq.join("depth").join(format!("{t:.6}.png"));
@@ -401,13 +402,7 @@ fn a_realsense_recording_is_read_with_its_units_device_and_timestamps() {
 fn fuse_poses_a_recording_by_its_transforms() {
     use sl_testkit::rosbag_writer::{TfEntry, tf_message};
     let tmp = tempfile::tempdir().unwrap();
-    let seq = tmp.path().join("seq");
-    let stamps = write_sequence(&seq, 4);
-    let traj = tmp.path().join("traj.txt");
-    kinect_track_json_from(
-        &["--tum", seq.to_str().unwrap()],
-        &["--output", traj.to_str().unwrap()],
-    );
+    let (seq, stamps, traj) = tracked_sequence(tmp.path());
     let text = std::fs::read_to_string(&traj).unwrap();
     let poses: Vec<Vec<f64>> = text
         .lines()
