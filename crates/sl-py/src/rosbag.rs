@@ -250,7 +250,8 @@ impl PyRosBag {
 
     /// The frames of the recording's transforms (``/tf``, ``/tf_static``:
     /// ``tf2_msgs/TFMessage``), one dict each, by name: ``frame``, ``parent``, ``static``,
-    /// ``samples``, ``first_s``, ``last_s``. Empty when the recording has none. Read on first
+    /// ``republished_constant`` (sampled on ``/tf`` and never changed, as ROS 1 ``tf``'s static
+    /// publisher republished), ``samples``, ``first_s``, ``last_s``. Empty when the recording has none. Read on first
     /// use and kept; a malformed message, or a frame with two parents, raises ``OSError``.
     fn transforms<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, pyo3::types::PyDict>>> {
         let frames = self.with_state(py, |s| Ok(s.transforms()?.frames()))?;
@@ -261,6 +262,7 @@ impl PyRosBag {
                 d.set_item("frame", f.frame)?;
                 d.set_item("parent", f.parent)?;
                 d.set_item("static", f.is_static)?;
+                d.set_item("republished_constant", f.republished_constant)?;
                 d.set_item("samples", f.samples)?;
                 d.set_item("first_s", f.first_s)?;
                 d.set_item("last_s", f.last_s)?;
@@ -274,9 +276,10 @@ impl PyRosBag {
     /// into ``target_frame`` — for a camera's optical frame (``image_frame()``) in a world frame
     /// (``map``, ``odom``, ``world``), the camera-to-world pose ``TsdfVolume.integrate`` takes,
     /// as ``sldepth fuse REC --tf`` poses its frames. Each transform of the chain is
-    /// interpolated between its samples (a static one holds at any time); where a transform
-    /// has no sample within ``max_gap_s`` of a time (beyond its first or last), that matrix is
-    /// all NaN. A frame no transform names, or two frames no chain joins, raise ``ValueError``.
+    /// interpolated between samples no more than twice its median interval apart (a static one
+    /// holds at any time); where a transform has no sample within ``max_gap_s`` of a time
+    /// (beyond its first or last, or in a gap of its samples), or the pose is not finite, that
+    /// matrix is all NaN. A frame no transform names, or two frames no chain joins, raise ``ValueError``.
     #[pyo3(signature = (target_frame, frame, stamps_s, *, max_gap_s = 0.02))]
     fn tf_lookup<'py>(
         &self,
@@ -293,21 +296,21 @@ impl PyRosBag {
         }
         let looked = self.with_state(py, move |s| {
             let tree = s.transforms()?;
-            Ok(stamps_s
-                .iter()
-                .map(|&t| tree.lookup(&target_frame, &frame, t, max_gap_s))
-                .collect::<Vec<_>>())
+            // A missing pose becomes NaN at once (its error, naming both frames, is not kept);
+            // any other error ends the call.
+            let mut matrices = Vec::with_capacity(stamps_s.len());
+            for &t in &stamps_s {
+                matrices.push(match tree.lookup(&target_frame, &frame, t, max_gap_s) {
+                    Ok(p) => p.to_homogeneous(),
+                    Err(TfLookupError::NoSample { .. } | TfLookupError::NotFinite { .. }) => {
+                        sl_core::nalgebra::Matrix4::from_element(f64::NAN)
+                    }
+                    Err(e) => return Ok(Err(e)),
+                });
+            }
+            Ok(Ok(matrices))
         })?;
-        let mut matrices = Vec::with_capacity(looked.len());
-        for r in looked {
-            matrices.push(match r {
-                Ok(p) => p.to_homogeneous(),
-                Err(TfLookupError::NoSample { .. }) => {
-                    sl_core::nalgebra::Matrix4::from_element(f64::NAN)
-                }
-                Err(e) => return Err(value_error(e)),
-            });
-        }
+        let matrices = looked.map_err(value_error)?;
         Ok(crate::arrays::poses_array(py, &matrices))
     }
 

@@ -471,6 +471,7 @@ def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
     frames = bag.transforms()
     assert [(f["frame"], f["parent"], f["static"], f["samples"]) for f in frames] == [
         ("base", "odom", False, 21), ("camera_depth_optical_frame", "base", True, 1)]
+    assert not frames[0]["republished_constant"]
     assert frames[0]["first_s"] == 10.0 and frames[0]["last_s"] == 12.0
     cam = bag.image_frame()
     assert cam == "camera_depth_optical_frame"

@@ -935,6 +935,29 @@ pub fn sequence_layout(dir: &Path) -> Result<sl_io::sequence::SequenceLayout> {
     Ok(sl_io::sequence::SequenceLayout::infer(dir)?)
 }
 
+/// The frames of a recording's transforms, for messages: sorted, each escaped (a name may
+/// hold control characters), at most 24 of them and how many more.
+pub fn frame_list(tree: &sl_io::rosbag::TfTree) -> String {
+    const SHOWN: usize = 24;
+    let mut names: Vec<String> = tree
+        .frames()
+        .into_iter()
+        .flat_map(|f| [f.frame, f.parent])
+        .collect();
+    names.sort();
+    names.dedup();
+    let more = names.len().saturating_sub(SHOWN);
+    let mut list: Vec<String> = names
+        .iter()
+        .take(SHOWN)
+        .map(|n| n.escape_debug().to_string())
+        .collect();
+    if more > 0 {
+        list.push(format!("and {more} more"));
+    }
+    list.join(", ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::{doubtful_fb_ratio, num, parse_bytes};

@@ -146,15 +146,27 @@ impl<'a> Fields<'a> {
             .collect())
     }
 
+    /// A `time` (ROS 1: unsigned seconds and nanoseconds) or `builtin_interfaces/Time` (ROS 2:
+    /// signed seconds, unsigned nanoseconds), seconds.
+    fn stamp(&mut self, field: &str) -> Result<f64> {
+        let secs = self.u32(field)?;
+        let nsecs = self.u32(field)?;
+        let secs = if self.cdr {
+            f64::from(secs as i32)
+        } else {
+            f64::from(secs)
+        };
+        Ok(secs + f64::from(nsecs) * 1e-9)
+    }
+
     /// `std_msgs/Header`: the stamp, seconds (`seq` and `frame_id` are skipped).
     fn header_stamp_s(&mut self) -> Result<f64> {
         if !self.cdr {
             self.u32("header.seq")?;
         }
-        let secs = self.u32("header.stamp.secs")?;
-        let nsecs = self.u32("header.stamp.nsecs")?;
+        let t = self.stamp("header.stamp")?;
         self.bytes("header.frame_id")?;
-        Ok(super::records::time_s(secs, nsecs))
+        Ok(t)
     }
 }
 
@@ -480,10 +492,9 @@ pub(super) fn image_header(path: &Path, b: &[u8], encoding: Encoding) -> Result<
     if !f.cdr {
         f.u32("header.seq")?;
     }
-    let secs = f.u32("header.stamp.secs")?;
-    let nsecs = f.u32("header.stamp.nsecs")?;
+    let t = f.stamp("header.stamp")?;
     let frame = f.string("header.frame_id")?;
-    Ok((super::records::time_s(secs, nsecs), frame))
+    Ok((t, frame))
 }
 
 /// One `geometry_msgs/TransformStamped` of a `tf2_msgs/TFMessage`: the pose of frame `child`
@@ -510,8 +521,7 @@ pub(super) fn transforms(path: &Path, b: &[u8], encoding: Encoding) -> Result<Ve
         if !f.cdr {
             f.u32("header.seq")?;
         }
-        let secs = f.u32("header.stamp.secs")?;
-        let nsecs = f.u32("header.stamp.nsecs")?;
+        let stamp_s = f.stamp("header.stamp")?;
         let parent = f.string("header.frame_id")?;
         let child = f.string("child_frame_id")?;
         let mut translation = [0.0; 3];
@@ -525,7 +535,7 @@ pub(super) fn transforms(path: &Path, b: &[u8], encoding: Encoding) -> Result<Ve
         out.push(TransformEntry {
             parent,
             child,
-            stamp_s: super::records::time_s(secs, nsecs),
+            stamp_s,
             translation,
             rotation_xyzw,
         });

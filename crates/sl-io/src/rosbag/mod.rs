@@ -553,19 +553,23 @@ impl RosBag {
         Ok(if t > 0.0 { t } else { m.record_time_s })
     }
 
-    /// The topics of transforms (`tf2_msgs/TFMessage` or ROS 1's `tf/tfMessage`: `/tf`,
-    /// `/tf_static`, or any other name), sorted.
+    /// The topics of transforms [`RosBag::transforms`] reads: `/tf` and `/tf_static` of
+    /// `tf2_msgs/TFMessage` (or ROS 1's `tf/tfMessage`), sorted. A robot's own namespaced
+    /// tree (`/robot1/tf`) is another tree and is not among them.
     pub fn tf_topics(&self) -> Vec<String> {
         self.topics()
             .into_iter()
-            .filter(|t| TF_TYPES.contains(&t.message_type.as_str()))
+            .filter(|t| {
+                TF_TYPES.contains(&t.message_type.as_str())
+                    && matches!(t.topic.trim_start_matches('/'), "tf" | "tf_static")
+            })
             .map(|t| t.topic)
             .collect()
     }
 
     /// Every transform the recording holds on its [`RosBag::tf_topics`], as a tree of frames
-    /// ([`TfTree`]): a topic whose name ends in `tf_static` holds static transforms, any other
-    /// transforms over time. Empty when the recording has no transforms.
+    /// ([`TfTree`]): `/tf_static` holds static transforms, `/tf` transforms over time. Empty
+    /// when the recording has no transforms.
     ///
     /// # Errors
     /// A malformed message, more samples than the budget allows ([`BYTES_PER_TRANSFORM`]), or

@@ -3,23 +3,30 @@
 //! system's, a robot's odometry, a SLAM system's map — and the pose of one frame in another at
 //! a time, which is where the camera was when it took a frame.
 //!
-//! Looked up as `tf2` does it:
+//! Looked up as `tf2` does it, with its gaps made explicit:
 //!
 //! - every frame has one parent, and a frame's pose in another goes through their nearest
-//!   common ancestor;
-//! - a transform recorded over time is interpolated between the two samples around the time
-//!   asked for (the translation linearly, the rotation along the shorter arc);
+//!   common ancestor; loops, a second parent, and a frame on both `/tf_static` and `/tf` are
+//!   refused;
 //! - a transform of `/tf_static` holds at every time (its newest sample);
-//! - there is no extrapolation: before a transform's first sample or after its last, the
-//!   nearest sample is taken only within `max_gap_s` of it (`tf2` takes none); further away
-//!   there is no pose.
+//! - a transform recorded over time is interpolated between the two samples around the time
+//!   asked for (the translation linearly, the rotation along the shorter arc) when they are no
+//!   more than twice its median interval apart — a transform published regularly; `tf2`
+//!   interpolates across any gap, which would bridge a motion capture's dropout;
+//! - there is no extrapolation: before a transform's first sample, after its last, or inside
+//!   a gap of its samples, the nearest sample is taken only within `max_gap_s` of the time
+//!   (`tf2` takes none beyond the ends); further away there is no pose. A transform
+//!   republished on `/tf` without ever changing (ROS 1 `tf`'s `static_transform_publisher`,
+//!   which TUM RGB-D's bags hold) reaches twice its interval beyond its samples.
 //!
 //! Frame names are compared without a leading `/` (ROS 1's `tf` wrote `/world`, `tf2` writes
-//! `world`). Samples whose numbers make no rigid transform (not finite, a zero quaternion) are
-//! left out and counted ([`TfTree::skipped`]).
+//! `world`). Samples that make no rigid transform (numbers not finite, a zero quaternion, a
+//! translation beyond [`MAX_TRANSLATION_M`]) or name no proper frame (empty, longer than
+//! [`MAX_FRAME_NAME_BYTES`], its own parent) are left out and counted ([`TfTree::skipped`]).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt;
+use std::sync::OnceLock;
 
 use sl_core::nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
@@ -35,9 +42,11 @@ pub struct TfFrame {
     pub frame: String,
     /// The frame its pose is given in (`camera_link`, `odom`, `map`).
     pub parent: String,
-    /// Whether its transform holds at any time: static (`/tf_static`), or sampled on `/tf`
-    /// more than once and never changed (ROS 1 `tf`'s republished static transforms).
+    /// Whether its transform is static (`/tf_static`): it holds at any time.
     pub is_static: bool,
+    /// Whether it was sampled on `/tf` more than once and never changed (ROS 1 `tf`'s
+    /// republished static transforms): it holds within twice its interval of its samples.
+    pub republished_constant: bool,
     /// Samples of its pose (one for most static transforms).
     pub samples: usize,
     /// The first sample's stamp, seconds.
@@ -57,6 +66,17 @@ pub enum TfLookupError {
         frame: String,
         /// The frame it was asked in.
         target: String,
+    },
+    /// The chain from the frame to its root is longer than [`MAX_CHAIN_FRAMES`].
+    ChainTooLong(String),
+    /// The chain's transforms compose into a pose that is not finite.
+    NotFinite {
+        /// The frame whose pose was asked for.
+        frame: String,
+        /// The frame it was asked in.
+        target: String,
+        /// The time asked for, seconds.
+        time_s: f64,
     },
     /// A transform of the chain has no sample near enough to the time.
     NoSample {
@@ -82,6 +102,18 @@ impl fmt::Display for TfLookupError {
                 "no chain of transforms joins {frame:?} to {target:?} (they are in different \
                  trees)"
             ),
+            Self::ChainTooLong(frame) => write!(
+                f,
+                "the chain of frames above {frame:?} is longer than {MAX_CHAIN_FRAMES}"
+            ),
+            Self::NotFinite {
+                frame,
+                target,
+                time_s,
+            } => write!(
+                f,
+                "the pose of {frame:?} in {target:?} at {time_s:.6} s is not finite"
+            ),
             Self::NoSample {
                 frame,
                 parent,
@@ -99,25 +131,61 @@ impl fmt::Display for TfLookupError {
 
 impl std::error::Error for TfLookupError {}
 
+/// The longest frame name kept, bytes (ROS frame names are a few dozen; a longer one is left
+/// out, so that a small recording cannot make the tree hold gigabytes of names).
+pub const MAX_FRAME_NAME_BYTES: usize = 1024;
+/// The farthest a transform may move a frame, metres: a sample beyond it is left out (no robot
+/// or camera is 10,000 km from its parent frame), so that chains of transforms stay finite.
+pub const MAX_TRANSLATION_M: f64 = 1e7;
+/// The longest chain of frames looked through (a robot's tree is a few dozen deep).
+pub const MAX_CHAIN_FRAMES: usize = 1024;
+
 /// The pose of a frame in its parent, sampled over time.
 #[derive(Debug, Clone)]
 struct Edge {
     parent: String,
+    /// Published on `/tf_static`.
     is_static: bool,
-    /// `(stamp, pose)`, in time order, one per stamp.
-    samples: Vec<(f64, Rigid)>,
-    /// Whether any sample differs from the first.
+    /// `(stamp, pose)` by stamp ([`time_key`]), one per stamp (the last recorded kept).
+    samples: BTreeMap<u64, (f64, Rigid)>,
+    /// The first sample recorded, and whether any other differs from it.
+    first: Rigid,
     varies: bool,
+    /// The median interval between consecutive samples, seconds (computed on first use).
+    interval_s: OnceLock<f64>,
 }
 
 impl Edge {
-    /// Whether the transform holds at any time: published on `/tf_static`, or sampled more
-    /// than once on `/tf` without ever changing (ROS 1 `tf`'s `static_transform_publisher`
-    /// republished its transform on `/tf` with fresh stamps; TUM RGB-D's bags hold the
-    /// camera's own frames so).
-    fn holds_always(&self) -> bool {
-        self.is_static || (self.samples.len() > 1 && !self.varies)
+    /// Whether the transform holds at any time: published on `/tf_static`.
+    fn is_static(&self) -> bool {
+        self.is_static
     }
+
+    /// Whether it was sampled more than once on `/tf` without ever changing: ROS 1 `tf`'s
+    /// `static_transform_publisher` republished its transform so, with fresh stamps (TUM
+    /// RGB-D's bags hold the camera's own frames so).
+    fn is_republished_constant(&self) -> bool {
+        !self.is_static && self.samples.len() > 1 && !self.varies
+    }
+
+    /// The median interval between consecutive samples, seconds (0 with fewer than two).
+    fn interval_s(&self) -> f64 {
+        *self.interval_s.get_or_init(|| {
+            let t: Vec<f64> = self.samples.values().map(|(t, _)| *t).collect();
+            let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            if d.is_empty() {
+                return 0.0;
+            }
+            let mid = d.len() / 2;
+            *d.select_nth_unstable_by(mid, f64::total_cmp).1
+        })
+    }
+}
+
+/// An order-preserving key of a finite stamp (`f64::total_cmp`'s order as an integer).
+fn time_key(t: f64) -> u64 {
+    let b = t.to_bits();
+    if b >> 63 == 1 { !b } else { b | (1 << 63) }
 }
 
 /// The tree of frames of a recording's transforms (see the module docs), built by
@@ -126,7 +194,7 @@ impl Edge {
 pub struct TfTree {
     /// Each frame's edge to its parent, by the frame's name.
     edges: HashMap<String, Edge>,
-    /// Samples left out: numbers that make no rigid transform.
+    /// Samples left out (see [`TfTree::skipped`]).
     skipped: usize,
     /// Samples kept.
     samples: usize,
@@ -154,12 +222,15 @@ impl TfTree {
     }
 
     /// Adds one sample: the pose of `child` in `parent` at `stamp_s` (`t` in metres, the
-    /// quaternion `x, y, z, w`). A sample whose numbers make no rigid transform is counted in
-    /// [`TfTree::skipped`] and left out.
+    /// quaternion `x, y, z, w`), from `/tf_static` (`is_static`) or `/tf`. A sample left out
+    /// ([`TfTree::skipped`]: numbers that make no rigid transform, a translation beyond
+    /// [`MAX_TRANSLATION_M`], a frame name empty, longer than [`MAX_FRAME_NAME_BYTES`] or its
+    /// own parent) is counted and is no error.
     ///
     /// # Errors
-    /// A frame that is its own parent, or a frame given a second parent (a frame has one
-    /// parent; the message names both).
+    /// Transforms that make no tree, named in the message: a frame given a second parent, a
+    /// frame on both `/tf_static` and `/tf`, a loop of frames, or a chain of more than
+    /// [`MAX_CHAIN_FRAMES`].
     pub fn insert(
         &mut self,
         parent: &str,
@@ -170,26 +241,32 @@ impl TfTree {
         is_static: bool,
     ) -> Result<(), String> {
         let (parent, child) = (normalised(parent), normalised(child));
-        if parent == child {
-            return Err(format!("a transform of the frame {child:?} into itself"));
-        }
-        if child.is_empty() || parent.is_empty() {
-            return Err(format!(
-                "a transform with an empty frame name ({parent:?} → {child:?})"
-            ));
-        }
+        let names_ok = |n: &str| !n.is_empty() && n.len() <= MAX_FRAME_NAME_BYTES;
         let pose = match sl_core::pose::pose_from_translation_quaternion(t, q_xyzw) {
-            Ok(p) if stamp_s.is_finite() => p,
+            Ok(p)
+                if stamp_s.is_finite()
+                    && names_ok(parent)
+                    && names_ok(child)
+                    && parent != child
+                    && p.translation.vector.norm() <= MAX_TRANSLATION_M =>
+            {
+                p
+            }
             _ => {
                 self.skipped += 1;
                 return Ok(());
             }
         };
+        if !self.edges.contains_key(child) {
+            self.check_new_edge(parent, child)?;
+        }
         let edge = self.edges.entry(child.to_owned()).or_insert_with(|| Edge {
             parent: parent.to_owned(),
             is_static,
-            samples: Vec::new(),
+            samples: BTreeMap::new(),
+            first: pose,
             varies: false,
+            interval_s: OnceLock::new(),
         });
         if edge.parent != parent {
             return Err(format!(
@@ -198,20 +275,43 @@ impl TfTree {
                 edge.parent
             ));
         }
-        edge.is_static |= is_static;
-        if let Some((_, first)) = edge.samples.first() {
-            edge.varies |= *first != pose;
+        if edge.is_static != is_static {
+            return Err(format!(
+                "the frame {child:?} is published both on /tf_static and on /tf (a transform \
+                 is static or moving, not both)"
+            ));
         }
-        // In time order, one sample per stamp (the last recorded kept): a recording's samples
-        // come in order, so this is an append but for the odd late message.
-        let at = edge.samples.partition_point(|(t, _)| *t <= stamp_s);
-        if at > 0 && edge.samples[at - 1].0 == stamp_s {
-            edge.samples[at - 1].1 = pose;
-        } else {
-            edge.samples.insert(at, (stamp_s, pose));
+        edge.varies |= edge.first != pose;
+        edge.interval_s = OnceLock::new();
+        if edge
+            .samples
+            .insert(time_key(stamp_s), (stamp_s, pose))
+            .is_none()
+        {
             self.samples += 1;
         }
         Ok(())
+    }
+
+    /// Refuses an edge `child → parent` that would close a loop, or hang `child` below a
+    /// chain longer than [`MAX_CHAIN_FRAMES`].
+    fn check_new_edge(&self, parent: &str, child: &str) -> Result<(), String> {
+        let mut at = parent;
+        for _ in 0..MAX_CHAIN_FRAMES {
+            if at == child {
+                return Err(format!(
+                    "the transform {parent:?} → {child:?} closes a loop of frames (a transform \
+                     tree has none)"
+                ));
+            }
+            match self.edges.get(at) {
+                Some(e) => at = e.parent.as_str(),
+                None => return Ok(()),
+            }
+        }
+        Err(format!(
+            "the frame {child:?} hangs below a chain of more than {MAX_CHAIN_FRAMES} frames"
+        ))
     }
 
     /// Adds the transforms of one message.
@@ -238,7 +338,9 @@ impl TfTree {
         self.samples
     }
 
-    /// Samples left out because their numbers make no rigid transform.
+    /// Samples left out: numbers that make no rigid transform (not finite, a zero
+    /// quaternion), a translation beyond [`MAX_TRANSLATION_M`], or a frame name that is
+    /// empty, longer than [`MAX_FRAME_NAME_BYTES`] or its own parent.
     pub fn skipped(&self) -> usize {
         self.skipped
     }
@@ -257,40 +359,48 @@ impl TfTree {
             .map(|(frame, e)| TfFrame {
                 frame: frame.clone(),
                 parent: e.parent.clone(),
-                is_static: e.holds_always(),
+                is_static: e.is_static(),
+                republished_constant: e.is_republished_constant(),
                 samples: e.samples.len(),
-                first_s: e.samples.first().map_or(f64::NAN, |s| s.0),
-                last_s: e.samples.last().map_or(f64::NAN, |s| s.0),
+                first_s: e.samples.values().next().map_or(f64::NAN, |s| s.0),
+                last_s: e.samples.values().next_back().map_or(f64::NAN, |s| s.0),
             })
             .collect();
         out.sort_by(|a, b| a.frame.cmp(&b.frame));
         out
     }
 
-    /// The frames from `frame` up to its root, `frame` first (a cycle, which a tree built by
-    /// [`TfTree::insert`] cannot hold but a chain of parents could, ends the walk).
-    fn chain<'a>(&'a self, frame: &'a str) -> Vec<&'a str> {
+    /// The frames from `frame` up to its root, `frame` first.
+    ///
+    /// # Errors
+    /// A chain longer than [`MAX_CHAIN_FRAMES`].
+    fn chain<'a>(&'a self, frame: &'a str) -> Result<Vec<&'a str>, TfLookupError> {
         let mut out = vec![frame];
         let mut at = frame;
         while let Some(e) = self.edges.get(at) {
-            if out.len() > self.edges.len() {
-                break;
+            if out.len() > MAX_CHAIN_FRAMES {
+                return Err(TfLookupError::ChainTooLong(frame.to_owned()));
             }
             at = e.parent.as_str();
             out.push(at);
         }
-        out
+        Ok(out)
     }
 
     /// The pose of `frame` in `target` at `time_s`: `T_target_frame`, which maps points of
     /// `frame` into `target` (for a camera's optical frame in a world frame, the camera-to-world
-    /// pose). Each transform of the chain is interpolated at `time_s`; a transform whose
-    /// samples end before (or start after) `time_s` gives its last (first) sample within
-    /// `max_gap_s` of it.
+    /// pose). Each transform of the chain at `time_s`:
+    ///
+    /// - a static one: its newest sample;
+    /// - between two samples no more than twice its median interval apart (a transform
+    ///   published regularly; or no more than `2·max_gap_s` apart): interpolated;
+    /// - otherwise (before its first sample, after its last, or in a gap of its samples, a
+    ///   motion capture's dropout): its nearest sample within `max_gap_s` of `time_s`, or
+    ///   within twice its interval for a transform republished unchanged; else no pose.
     ///
     /// # Errors
-    /// An unknown frame, frames in different trees, or a transform without a sample near
-    /// enough ([`TfLookupError`]).
+    /// An unknown frame, frames in different trees, a transform without a sample near
+    /// enough, or a pose that is not finite ([`TfLookupError`]).
     pub fn lookup(
         &self,
         target: &str,
@@ -304,13 +414,14 @@ impl TfTree {
                 return Err(TfLookupError::UnknownFrame(f.to_owned()));
             }
         }
-        let up = self.chain(frame);
-        let down = self.chain(target);
+        let up = self.chain(frame)?;
+        let down = self.chain(target)?;
         // The nearest common ancestor: the first frame of `frame`'s chain on `target`'s.
+        let on_down: HashMap<&str, usize> = down.iter().enumerate().map(|(j, f)| (*f, j)).collect();
         let Some((i, j)) = up
             .iter()
             .enumerate()
-            .find_map(|(i, f)| down.iter().position(|g| g == f).map(|j| (i, j)))
+            .find_map(|(i, f)| on_down.get(f).map(|&j| (i, j)))
         else {
             return Err(TfLookupError::NotConnected {
                 frame: frame.to_owned(),
@@ -327,7 +438,17 @@ impl TfTree {
         };
         let frame_in_ancestor = in_ancestor(&up[..=i])?;
         let target_in_ancestor = in_ancestor(&down[..=j])?;
-        Ok(target_in_ancestor.inverse() * frame_in_ancestor)
+        let pose = target_in_ancestor.inverse() * frame_in_ancestor;
+        let finite = pose.translation.vector.iter().all(|v| v.is_finite())
+            && pose.rotation.coords.iter().all(|v| v.is_finite());
+        if !finite {
+            return Err(TfLookupError::NotFinite {
+                frame: frame.to_owned(),
+                target: target.to_owned(),
+                time_s,
+            });
+        }
+        Ok(pose)
     }
 
     /// The pose of `frame` in its parent at `time_s` (see [`TfTree::lookup`]).
@@ -335,43 +456,52 @@ impl TfTree {
         let Some(e) = self.edges.get(frame) else {
             return Err(TfLookupError::UnknownFrame(frame.to_owned()));
         };
+        let first = e.samples.values().next();
+        let last = e.samples.values().next_back();
         let no_sample = || TfLookupError::NoSample {
             frame: frame.to_owned(),
             parent: e.parent.clone(),
             time_s,
-            first_s: e.samples.first().map_or(f64::NAN, |s| s.0),
-            last_s: e.samples.last().map_or(f64::NAN, |s| s.0),
+            first_s: first.map_or(f64::NAN, |s| s.0),
+            last_s: last.map_or(f64::NAN, |s| s.0),
         };
-        let (Some(first), Some(last)) = (e.samples.first(), e.samples.last()) else {
+        let Some(&(_, newest)) = last else {
             return Err(no_sample());
         };
-        if e.holds_always() {
-            return Ok(last.1);
+        if e.is_static() {
+            return Ok(newest);
         }
         if !time_s.is_finite() {
             return Err(no_sample());
         }
-        if time_s <= first.0 {
-            return if first.0 - time_s <= max_gap_s {
-                Ok(first.1)
-            } else {
-                Err(no_sample())
-            };
+        let key = time_key(time_s);
+        let before = e.samples.range(..=key).next_back().map(|(_, s)| *s);
+        let after = e.samples.range(key..).next().map(|(_, s)| *s);
+        let interval = e.interval_s();
+        // How far from a sample a time may be and still take it.
+        let reach = if e.is_republished_constant() {
+            max_gap_s.max(2.0 * interval)
+        } else {
+            max_gap_s
+        };
+        match (before, after) {
+            (Some((t0, a)), Some((t1, b))) => {
+                if t0 == t1 {
+                    return Ok(a);
+                }
+                if t1 - t0 <= (2.0 * interval).max(2.0 * max_gap_s) {
+                    return Ok(interpolate(&a, &b, (time_s - t0) / (t1 - t0)));
+                }
+                let (d, p) = if time_s - t0 <= t1 - time_s {
+                    (time_s - t0, a)
+                } else {
+                    (t1 - time_s, b)
+                };
+                if d <= reach { Ok(p) } else { Err(no_sample()) }
+            }
+            (Some((t, p)), None) | (None, Some((t, p))) if (time_s - t).abs() <= reach => Ok(p),
+            _ => Err(no_sample()),
         }
-        if time_s >= last.0 {
-            return if time_s - last.0 <= max_gap_s {
-                Ok(last.1)
-            } else {
-                Err(no_sample())
-            };
-        }
-        // `first.0 < time_s < last.0`: two samples around it.
-        let k = e.samples.partition_point(|s| s.0 <= time_s);
-        let ((t0, a), (t1, b)) = (e.samples[k - 1], e.samples[k]);
-        if time_s == t0 {
-            return Ok(a);
-        }
-        Ok(interpolate(&a, &b, (time_s - t0) / (t1 - t0)))
     }
 }
 
@@ -533,11 +663,10 @@ mod tests {
             .insert("map", "base", 11.0, [0.0; 3], [0.0, 0.0, 0.0, 1.0], false)
             .unwrap_err();
         assert!(e.contains("two parents"), "{e}");
-        assert!(
-            t.insert("a", "/a", 0.0, [0.0; 3], [0.0, 0.0, 0.0, 1.0], false)
-                .is_err()
-        );
         let before = t.samples();
+        // A frame its own parent is left out, as bad numbers are.
+        t.insert("a", "/a", 0.0, [0.0; 3], [0.0, 0.0, 0.0, 1.0], false)
+            .unwrap();
         t.insert(
             "odom",
             "base",
@@ -549,7 +678,7 @@ mod tests {
         .unwrap();
         t.insert("odom", "base", 31.0, [0.0; 3], [0.0; 4], false)
             .unwrap();
-        assert_eq!((t.samples(), t.skipped()), (before, 2));
+        assert_eq!((t.samples(), t.skipped()), (before, 3));
     }
 
     #[test]
@@ -567,14 +696,15 @@ mod tests {
     }
 
     #[test]
-    fn a_transform_republished_unchanged_holds_at_any_time() {
+    fn a_transform_republished_unchanged_reaches_twice_its_interval() {
         let mut t = TfTree::new();
         // ROS 1 `tf`'s static publisher: the same transform on /tf every 0.1 s.
         for i in 0..3 {
+            let s = 10.0 + 0.1 * f64::from(i);
             t.insert(
                 "kinect",
                 "optical",
-                10.0 + 0.1 * f64::from(i),
+                s,
                 [0.0, 0.02, 0.0],
                 [0.0, 0.0, 0.0, 1.0],
                 false,
@@ -591,11 +721,13 @@ mod tests {
             false,
         )
         .unwrap();
-        assert!(t.lookup("kinect", "optical", 0.0, 0.02).is_ok());
-        assert!(t.lookup("kinect", "optical", 1e4, 0.02).is_ok());
-        assert!(t.lookup("world", "kinect", 11.0, 0.02).is_err());
+        assert!(t.lookup("kinect", "optical", 9.85, 0.02).is_ok());
+        assert!(t.lookup("kinect", "optical", 10.39, 0.02).is_ok());
+        assert!(t.lookup("kinect", "optical", 9.7, 0.02).is_err());
+        assert!(t.lookup("world", "kinect", 10.1, 0.02).is_err());
         let frames = t.frames();
-        assert!(!frames[0].is_static && frames[1].is_static);
+        assert!(!frames[0].republished_constant && frames[1].republished_constant);
+        assert!(!frames[1].is_static);
         // A change makes it a moving transform again.
         t.insert(
             "kinect",
@@ -606,9 +738,81 @@ mod tests {
             false,
         )
         .unwrap();
-        assert!(t.lookup("kinect", "optical", 0.0, 0.02).is_err());
+        assert!(t.lookup("kinect", "optical", 9.85, 0.02).is_err());
         let p = t.lookup("kinect", "optical", 10.25, 0.02).unwrap();
         assert!((p.translation.y - 0.025).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_gap_in_the_samples_is_not_bridged() {
+        let mut t = TfTree::new();
+        // 100 Hz, with a dropout from 10.1 to 10.5 s.
+        let stamps = (0..=10).chain(50..=60).map(|i| 10.0 + 0.01 * f64::from(i));
+        for s in stamps {
+            t.insert("w", "c", s, [s, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0], false)
+                .unwrap();
+        }
+        assert!(t.lookup("w", "c", 10.055, 0.02).is_ok());
+        // Within 20 ms of the dropout's ends: the nearest sample; in its middle: nothing.
+        let near = t.lookup("w", "c", 10.115, 0.02).unwrap();
+        assert!((near.translation.x - 10.1).abs() < 1e-12);
+        assert!(t.lookup("w", "c", 10.3, 0.02).is_err());
+        // A wider gap asked for bridges it.
+        let wide = t.lookup("w", "c", 10.3, 0.25).unwrap();
+        assert!((wide.translation.x - 10.3).abs() < 1e-9);
+    }
+
+    #[test]
+    fn loops_and_static_moving_mixtures_are_refused_long_names_left_out() {
+        let q = [0.0, 0.0, 0.0, 1.0];
+        let mut t = TfTree::new();
+        t.insert("a", "b", 0.0, [0.0; 3], q, false).unwrap();
+        t.insert("b", "c", 0.0, [0.0; 3], q, false).unwrap();
+        let e = t.insert("c", "a", 0.0, [0.0; 3], q, false).unwrap_err();
+        assert!(e.contains("closes a loop"), "{e}");
+        let e = t.insert("a", "b", 1.0, [0.0; 3], q, true).unwrap_err();
+        assert!(e.contains("both on /tf_static and on /tf"), "{e}");
+        let long = "x".repeat(MAX_FRAME_NAME_BYTES + 1);
+        t.insert("a", &long, 0.0, [0.0; 3], q, false).unwrap();
+        t.insert("a", "far", 0.0, [2e7, 0.0, 0.0], q, false)
+            .unwrap();
+        t.insert("a", "/a", 0.0, [0.0; 3], q, false).unwrap();
+        assert_eq!((t.samples(), t.skipped()), (2, 3));
+        assert!(!t.has_frame(&long) && !t.has_frame("far"));
+    }
+
+    #[test]
+    fn long_chains_are_bounded_and_reversed_samples_are_cheap() {
+        let q = [0.0, 0.0, 0.0, 1.0];
+        // Each frame's parent given before the frame's own parent is known: the chain above a
+        // new edge is short when it is added, and grows past the bound; a lookup says so.
+        let mut deep = TfTree::new();
+        for i in 0..MAX_CHAIN_FRAMES + 2 {
+            deep.insert(
+                &format!("f{}", i + 1),
+                &format!("f{i}"),
+                0.0,
+                [0.0; 3],
+                q,
+                true,
+            )
+            .unwrap();
+        }
+        assert!(matches!(
+            deep.lookup("f5", "f0", 0.0, 0.02),
+            Err(TfLookupError::ChainTooLong(_))
+        ));
+        // A frame hung below that chain is refused when it is added.
+        let e = deep.insert("f0", "g", 0.0, [0.0; 3], q, true).unwrap_err();
+        assert!(e.contains("chain of more than"), "{e}");
+        // 200,000 samples newest first: each inserted in its place without moving the rest.
+        let mut r = TfTree::new();
+        for i in (0..200_000).rev() {
+            r.insert("w", "c", f64::from(i) * 0.01, [0.0; 3], q, false)
+                .unwrap();
+        }
+        assert_eq!(r.samples(), 200_000);
+        assert!(r.lookup("w", "c", 1000.005, 0.0).is_ok());
     }
 
     #[test]

@@ -217,6 +217,26 @@ fn malformed_and_contradictory_transforms_are_refused() {
     };
     let tree = bag.transforms().unwrap();
     assert_eq!((tree.samples(), tree.skipped()), (1, 2));
+    // A robot's namespaced tree (`/robot1/tf`) is another tree: not read as /tf is.
+    let ns: [Conn; 1] = [(1, "/robot1/tf", "tf2_msgs/TFMessage")];
+    let msgs = [Msg {
+        conn: 1,
+        time: (1, 0),
+        data: tf_message(
+            &[entry(
+                (1, 0),
+                "odom",
+                "base",
+                [0.0; 3],
+                [0.0, 0.0, 0.0, 1.0],
+            )],
+            false,
+        ),
+    }];
+    sl_testkit::rosbag_writer::write_bag(&path, &ns, &msgs, "none", 4).unwrap();
+    let mut bag = RosBag::open(&path, &Limits::default()).unwrap();
+    assert!(bag.tf_topics().is_empty());
+    assert_eq!(bag.transforms().unwrap().samples(), 0);
     // A recording without transforms gives an empty tree.
     let plain = dir.path().join("plain.bag");
     let depth: [Conn; 1] = [(0, "/d", "sensor_msgs/Image")];

@@ -110,8 +110,15 @@ fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
     let tree = bag.transforms()?;
     if tree.samples() == 0 {
         bail!(
-            "{}: no transforms (no /tf or /tf_static topic)",
-            path.display()
+            "{}: no transforms (no /tf or /tf_static topic{})",
+            path.display(),
+            match tree.skipped() {
+                0 => String::new(),
+                n => format!(
+                    ", or all {n} of its transforms left out: numbers that make no rigid \
+                     transform, or no proper frame name"
+                ),
+            }
         );
     }
     let camera = match (&args.tf_camera_frame, messages.first()) {
@@ -125,13 +132,32 @@ fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
             path.display()
         );
     }
+    if camera.trim_start_matches('/') == world.trim_start_matches('/') {
+        bail!(
+            "{}: --tf {world:?} is the camera's own frame: name the world frame the camera \
+             moves in (its frames: {})",
+            path.display(),
+            crate::common::frame_list(&tree)
+        );
+    }
+    if tree.skipped() > 0 {
+        errln!(
+            "note: {}: {} transforms are left out (numbers that make no rigid transform, or no \
+             proper frame name)",
+            path.display(),
+            tree.skipped()
+        );
+    }
     let mut out = Vec::with_capacity(messages.len());
     let mut first_miss = None;
     for m in &messages {
         let t = bag.image_stamp_s(m)?;
         match tree.lookup(world, &camera, t, args.max_gap_s) {
             Ok(p) => out.push((t, sl_core::CameraToWorld::from_isometry(p))),
-            Err(e @ sl_io::rosbag::TfLookupError::NoSample { .. }) => {
+            Err(
+                e @ (sl_io::rosbag::TfLookupError::NoSample { .. }
+                | sl_io::rosbag::TfLookupError::NotFinite { .. }),
+            ) => {
                 first_miss.get_or_insert(e);
             }
             Err(e) => bail!("{}: {e}", path.display()),
@@ -139,11 +165,13 @@ fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
     }
     if let Some(e) = first_miss {
         errln!(
-            "note: {} of {} frames of {} have no ground truth ({camera} in {world} within {} s \
-             of their stamps; the first: {e})",
+            "note: {} of {} frames of {} have no ground truth ({} in {} within {} s of their \
+             stamps; the first: {e})",
             messages.len() - out.len(),
             messages.len(),
             path.display(),
+            camera.escape_debug(),
+            world.escape_debug(),
             args.max_gap_s
         );
     }

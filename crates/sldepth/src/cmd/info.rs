@@ -115,10 +115,10 @@ fn bag_info(args: &Args) -> Result<()> {
         Err(_) => None,
     };
     let transforms = if bag.tf_topics().is_empty() {
-        Ok(Vec::new())
+        Ok((Vec::new(), 0))
     } else {
         bag.transforms()
-            .map(|t| t.frames())
+            .map(|t| (t.frames(), t.skipped()))
             .map_err(|e| e.to_string())
     };
     if args.json {
@@ -144,16 +144,18 @@ fn bag_info(args: &Args) -> Result<()> {
             })),
             "image_frame": image_frame,
             "transforms": match &transforms {
-                Ok(frames) => json!(frames.iter().map(|f| json!({
+                Ok((frames, _)) => json!(frames.iter().map(|f| json!({
                     "frame": f.frame,
                     "parent": f.parent,
                     "static": f.is_static,
+                    "republished_constant": f.republished_constant,
                     "samples": f.samples,
                     "first_s": f.first_s,
                     "last_s": f.last_s,
                 })).collect::<Vec<_>>()),
                 Err(e) => json!({"error": e}),
             },
+            "transforms_left_out": transforms.as_ref().ok().map(|t| t.1),
             "realsense": realsense.as_ref().map(|r| json!({
                 "device": r.device_name,
                 "depth_units_m": r.depth_units_m,
@@ -198,11 +200,11 @@ fn bag_info(args: &Args) -> Result<()> {
             Err(_) => {}
         }
         if let Some(f) = image_frame.as_deref().filter(|f| !f.is_empty()) {
-            outln!("  image frame   {f}")?;
+            outln!("  image frame   {}", f.escape_debug())?;
         }
         match &transforms {
-            Ok(frames) if frames.is_empty() => {}
-            Ok(frames) => {
+            Ok((frames, 0)) if frames.is_empty() => {}
+            Ok((frames, skipped)) => {
                 outln!(
                     "  transforms    (`sldepth fuse REC --tf WORLD_FRAME` poses the image frame by them)"
                 )?;
@@ -210,9 +212,29 @@ fn bag_info(args: &Args) -> Result<()> {
                     let when = if f.is_static {
                         "static".to_string()
                     } else {
-                        format!("{} samples, {:.3}–{:.3} s", f.samples, f.first_s, f.last_s)
+                        format!(
+                            "{} samples, {:.3}–{:.3} s{}",
+                            f.samples,
+                            f.first_s,
+                            f.last_s,
+                            if f.republished_constant {
+                                ", never changed"
+                            } else {
+                                ""
+                            }
+                        )
                     };
-                    outln!("    {} → {}  {when}", f.parent, f.frame)?;
+                    outln!(
+                        "    {} → {}  {when}",
+                        f.parent.escape_debug(),
+                        f.frame.escape_debug()
+                    )?;
+                }
+                if *skipped > 0 {
+                    outln!(
+                        "    ({skipped} left out: numbers that make no rigid transform, or no \
+                         proper frame name)"
+                    )?;
                 }
             }
             Err(e) => outln!("  transforms    unreadable: {e}")?,

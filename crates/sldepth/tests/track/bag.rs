@@ -542,6 +542,10 @@ fn fuse_poses_a_recording_by_its_transforms() {
             ["--tf", "world", "--tf-camera-frame", "cam"],
             "no transform names \"cam\" (the camera's frame)",
         ),
+        (
+            ["--tf", "camera_depth_optical_frame", "", ""],
+            "is the camera's own frame: name the world frame the camera moves in",
+        ),
     ] {
         let args: Vec<&str> = args.into_iter().filter(|a| !a.is_empty()).collect();
         let mut all = vec!["fuse", bag.to_str().unwrap()];

@@ -357,6 +357,15 @@ fn transforms_of(
 ) -> Result<PoseSource> {
     let (tree, image_frame) = reader.transforms()?;
     if tree.samples() == 0 {
+        if tree.skipped() > 0 {
+            bail!(
+                "{}: every one of its {} transforms is left out (numbers that make no rigid \
+                 transform, or no proper frame name): fuse it along a trajectory (--trajectory \
+                 FILE)",
+                path.display(),
+                tree.skipped()
+            );
+        }
         bail!(
             "{}: no transforms (no /tf or /tf_static topic of tf2_msgs/TFMessage): fuse it \
              along a trajectory (--trajectory FILE)",
@@ -372,16 +381,7 @@ fn transforms_of(
         ),
         None => image_frame,
     };
-    let frames = || {
-        let mut names: Vec<String> = tree
-            .frames()
-            .into_iter()
-            .flat_map(|f| [f.frame, f.parent])
-            .collect();
-        names.sort();
-        names.dedup();
-        names.join(", ")
-    };
+    let frames = || crate::common::frame_list(&tree);
     for (f, opt) in [
         (world, "--tf"),
         (camera_frame.as_str(), "the camera's frame"),
@@ -394,17 +394,27 @@ fn transforms_of(
             );
         }
     }
+    if world.trim_start_matches('/') == camera_frame.trim_start_matches('/') {
+        bail!(
+            "{}: --tf {world:?} is the camera's own frame: name the world frame the camera \
+             moves in (its frames: {})",
+            path.display(),
+            frames()
+        );
+    }
     if tree.skipped() > 0 {
         errln!(
-            "note: {}: {} transforms that are not rigid (not finite, or a zero quaternion) are \
-             left out",
+            "note: {}: {} transforms are left out (numbers that make no rigid transform, or no \
+             proper frame name)",
             path.display(),
             tree.skipped()
         );
     }
     errln!(
-        "note: {}: posing {camera_frame} in {world} from {} transforms",
+        "note: {}: posing {} in {} from {} transforms",
         path.display(),
+        camera_frame.escape_debug(),
+        world.escape_debug(),
         tree.samples()
     );
     Ok(PoseSource::Transforms {
