@@ -473,7 +473,8 @@ class RosBag:
         optical frame: z forward, x right, y down), the frame tf_lookup poses; "" when none."""
     def transforms(self) -> List[Dict[str, Any]]:
         """The frames of the recording's transforms (/tf, /tf_static), by name: dicts of frame,
-        parent, static, samples, first_s, last_s; empty without transforms. Read once, kept."""
+        parent, static, republished_constant, samples, first_s, last_s; empty without
+        transforms. Read once, kept."""
     def tf_lookup(
         self,
         target_frame: str,
@@ -484,8 +485,10 @@ class RosBag:
     ) -> npt.NDArray[np.float64]:
         """(N, 4, 4) poses of frame in target_frame at each stamp (for the camera's optical
         frame in a world frame: camera-to-world, as `sldepth fuse REC --tf` takes them); each
-        transform interpolated between its samples, static ones at any time; all-NaN where a
-        transform has no sample within max_gap_s. Unknown or unjoined frames raise ValueError."""
+        transform interpolated between samples no more than twice its median interval apart,
+        static ones at any time; all-NaN where a transform has no sample within max_gap_s
+        (beyond its samples or in a gap of them) or the pose is not finite. Unknown or
+        unjoined frames raise ValueError."""
 
 class BagFrames:
     """The depth frames of a bag's topic: an iterator of (stamp_s, depth) with len()."""

@@ -92,8 +92,10 @@ pub struct Args {
     /// system's, a robot's odometry, a SLAM system's map): each depth frame takes the pose of
     /// its image's frame (the `frame_id` of its header, the camera driver's optical frame) in
     /// this frame (`map`, `odom`, `world`) at its stamp, each transform of the chain
-    /// interpolated between its samples (a static one at any time; beyond a transform's first
-    /// or last sample only within --max-gap-s). `sldepth info REC` lists the recording's frames.
+    /// interpolated between samples no more than twice its median interval apart (a static
+    /// one at any time; beyond a transform's first or last sample, or in a gap of its samples
+    /// such as a motion capture's dropout, only its nearest sample within --max-gap-s).
+    /// `sldepth info REC` lists the recording's frames.
     #[arg(long, value_name = "WORLD_FRAME", conflicts_with = "trajectory")]
     pub tf: Option<String>,
     /// The camera's optical frame for --tf, where the depth images name none or another one
