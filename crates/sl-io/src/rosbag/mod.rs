@@ -60,7 +60,9 @@ pub use camera::BagCamera;
 pub use messages::DepthEncodingKind;
 use messages::Encoding;
 pub use realsense::RealSenseInfo;
-pub use tf::{TfFrame, TfLookupError, TfTree};
+pub use tf::{
+    MAX_CHAIN_FRAMES, MAX_FRAME_NAME_BYTES, MAX_TRANSLATION_M, TfFrame, TfLookupError, TfTree,
+};
 
 use crate::error::{IoError, Result};
 use crate::limits::Limits;

@@ -34,6 +34,23 @@ fn tracked_sequence(dir: &Path) -> (std::path::PathBuf, Vec<f64>, std::path::Pat
     (seq, stamps, traj)
 }
 
+/// `sldepth fuse ARGS` with the Kinect's camera at 10 mm voxels into `mesh`: its JSON and
+/// standard error.
+fn fuse_json(args: &[&str], mesh: &Path) -> (serde_json::Value, String) {
+    let mut all = vec!["fuse"];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&[
+        "--camera",
+        "kinect-v1",
+        "--voxel-m",
+        "0.01",
+        "--output",
+        mesh.to_str().unwrap(),
+        "--json",
+    ]);
+    sldepth_json(&all)
+}
+
 /// The messages of [`bag_of`].
 fn bag_messages(seq: &Path, stamps: &[f64]) -> Vec<Msg> {
     let mut msgs = Vec::new();
@@ -159,20 +176,9 @@ fn track_reads_a_ros_bag_as_the_folder_of_its_frames() {
     // Along the trajectory `track` wrote: each message posed by its stamp, the mesh the
     // folder's along the same trajectory, byte for byte.
     let fuse_along = |source: &[&str], mesh: &Path| {
-        let mut args = vec!["fuse"];
-        args.extend_from_slice(source);
-        args.extend_from_slice(&[
-            "--trajectory",
-            folder_traj.to_str().unwrap(),
-            "--camera",
-            "kinect-v1",
-            "--voxel-m",
-            "0.01",
-            "--output",
-            mesh.to_str().unwrap(),
-            "--json",
-        ]);
-        sldepth_json(&args)
+        let mut args = source.to_vec();
+        args.extend_from_slice(&["--trajectory", folder_traj.to_str().unwrap()]);
+        fuse_json(&args, mesh)
     };
     let folder_mesh = tmp.path().join("folder.ply");
     let (by_bag, stderr) = fuse_along(&[bag.to_str().unwrap()], &mesh);
@@ -454,18 +460,9 @@ fn fuse_poses_a_recording_by_its_transforms() {
     let bag = tmp.path().join("tf.bag");
     tf_bag(4, &bag);
     let fuse = |extra: &[&str], mesh: &Path| {
-        let mut args = vec!["fuse", bag.to_str().unwrap()];
+        let mut args = vec![bag.to_str().unwrap()];
         args.extend_from_slice(extra);
-        args.extend_from_slice(&[
-            "--camera",
-            "kinect-v1",
-            "--voxel-m",
-            "0.01",
-            "--output",
-            mesh.to_str().unwrap(),
-            "--json",
-        ]);
-        sldepth_json(&args)
+        fuse_json(&args, mesh)
     };
     let (by_tf_mesh, by_traj_mesh) = (tmp.path().join("tf.ply"), tmp.path().join("traj.ply"));
     let (by_tf, stderr) = fuse(&["--tf", "world"], &by_tf_mesh);
