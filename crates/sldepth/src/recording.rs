@@ -39,16 +39,9 @@ pub(crate) struct BagSource {
     pub(crate) reader: BagFrames,
 }
 
-/// Opens the bag at `path` and finds its depth topic (`topic`, or the one that holds depth) and
-/// camera (`camera`, else the topic's `camera_info`), said on standard error (`verb`: what is
-/// done with the topic, "tracking" or "fusing").
-pub(crate) fn load(
-    path: &Path,
-    topic: Option<&str>,
-    camera: Option<Camera>,
-    verb: &str,
-) -> Result<BagSource> {
-    let mut bag = RosBag::open(path, &limits())?;
+/// Says on standard error when `path` is one piece of a recording split by `rosbag record
+/// --split` (read alone, it is only that piece).
+pub(crate) fn note_split_piece(path: &Path) {
     if path.is_file()
         && let Some((at, pieces)) = sl_io::rosbag::split_piece_of(path)
     {
@@ -64,6 +57,19 @@ pub(crate) fn load(
                 .display()
         );
     }
+}
+
+/// Opens the bag at `path` and finds its depth topic (`topic`, or the one that holds depth) and
+/// camera (`camera`, else the topic's `camera_info`), said on standard error (`verb`: what is
+/// done with the topic, "tracking" or "fusing").
+pub(crate) fn load(
+    path: &Path,
+    topic: Option<&str>,
+    camera: Option<Camera>,
+    verb: &str,
+) -> Result<BagSource> {
+    let mut bag = RosBag::open(path, &limits())?;
+    note_split_piece(path);
     let topic = bag.depth_topic(topic)?;
     let messages = bag.messages(&topic)?;
     let Some(first) = messages.first().copied() else {

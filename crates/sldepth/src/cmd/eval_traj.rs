@@ -105,6 +105,7 @@ fn read(path: &Path, what: &str) -> Result<Vec<StampedPose>> {
 fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
     let path = &args.ground_truth;
     let mut bag = sl_io::rosbag::RosBag::open(path, &limits())?;
+    crate::recording::note_split_piece(path);
     let topic = bag.depth_topic(args.topic.as_deref())?;
     let messages = bag.messages(&topic)?;
     let tree = bag.transforms()?;

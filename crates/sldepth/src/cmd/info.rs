@@ -81,6 +81,7 @@ pub fn run(args: Args) -> Result<()> {
 /// camera and depth units it would read it with.
 fn bag_info(args: &Args) -> Result<()> {
     let mut bag = sl_io::rosbag::RosBag::open(&args.depth, &crate::common::limits())?;
+    crate::recording::note_split_piece(&args.depth);
     let topics = bag.topics();
     let depth = bag.depth_topic(None);
     let realsense = match &depth {

@@ -599,6 +599,12 @@ fn a_piece_of_a_split_recording_is_said_to_be_one() {
             && stderr.contains("give its folder"),
         "{stderr}"
     );
+    let out = sldepth(&["info", piece.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && err.contains("is piece 2 of 2"),
+        "{err}"
+    );
     let (v, stderr) = kinect_track_json_from(&[folder.to_str().unwrap()], &[]);
     assert_eq!(v["frames"], 4, "{v}");
     assert!(!stderr.contains("is piece"), "{stderr}");
