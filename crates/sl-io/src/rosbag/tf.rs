@@ -24,7 +24,7 @@
 //! translation beyond [`MAX_TRANSLATION_M`]) or name no proper frame (empty, longer than
 //! [`MAX_FRAME_NAME_BYTES`], its own parent) are left out and counted ([`TfTree::skipped`]).
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::fmt;
 use std::sync::OnceLock;
 
@@ -194,6 +194,8 @@ fn time_key(t: f64) -> u64 {
 pub struct TfTree {
     /// Each frame's edge to its parent, by the frame's name.
     edges: HashMap<String, Edge>,
+    /// Every frame that is some frame's parent.
+    parents: HashSet<String>,
     /// Samples left out (see [`TfTree::skipped`]).
     skipped: usize,
     /// Samples kept.
@@ -216,6 +218,7 @@ impl TfTree {
     pub fn new() -> Self {
         Self {
             edges: HashMap::new(),
+            parents: HashSet::new(),
             skipped: 0,
             samples: 0,
         }
@@ -259,6 +262,7 @@ impl TfTree {
         };
         if !self.edges.contains_key(child) {
             self.check_new_edge(parent, child)?;
+            self.parents.insert(parent.to_owned());
         }
         let edge = self.edges.entry(child.to_owned()).or_insert_with(|| Edge {
             parent: parent.to_owned(),
@@ -348,7 +352,7 @@ impl TfTree {
     /// Whether any transform names `frame` (as child or parent).
     pub fn has_frame(&self, frame: &str) -> bool {
         let frame = normalised(frame);
-        self.edges.contains_key(frame) || self.edges.values().any(|e| e.parent == frame)
+        self.edges.contains_key(frame) || self.parents.contains(frame)
     }
 
     /// Every frame that has a parent, sorted by name.

@@ -51,7 +51,11 @@ impl PoseSource {
                 world,
                 camera_frame,
                 ..
-            } => format!("the recording's transforms ({camera_frame} in {world})"),
+            } => format!(
+                "the recording's transforms ({} in {})",
+                camera_frame.escape_debug(),
+                world.escape_debug()
+            ),
         }
     }
 }
