@@ -16,8 +16,9 @@
 //! - there is no extrapolation: before a transform's first sample, after its last, or inside
 //!   a gap of its samples, the nearest sample is taken only within `max_gap_s` of the time
 //!   (`tf2` takes none beyond the ends); further away there is no pose. A transform
-//!   republished on `/tf` without ever changing (ROS 1 `tf`'s `static_transform_publisher`,
-//!   which TUM RGB-D's bags hold) reaches twice its interval beyond its samples.
+//!   republished on `/tf` without ever changing (ROS 1 `tf`'s `static_transform_publisher`, as
+//!   bags recorded before `/tf_static` existed hold a camera's own frames) reaches twice its
+//!   interval beyond its samples.
 //!
 //! Frame names are compared without a leading `/` (ROS 1's `tf` wrote `/world`, `tf2` writes
 //! `world`). Samples that make no rigid transform (numbers not finite, a zero quaternion, a
@@ -162,8 +163,8 @@ impl Edge {
     }
 
     /// Whether it was sampled more than once on `/tf` without ever changing: ROS 1 `tf`'s
-    /// `static_transform_publisher` republished its transform so, with fresh stamps (TUM
-    /// RGB-D's bags hold the camera's own frames so).
+    /// `static_transform_publisher` republished its transform so, with fresh stamps, before
+    /// `/tf_static` existed).
     fn is_republished_constant(&self) -> bool {
         !self.is_static && self.samples.len() > 1 && !self.varies
     }
