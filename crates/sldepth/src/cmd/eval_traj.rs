@@ -28,7 +28,7 @@ pub struct Args {
     /// Ground-truth trajectory, TUM format (e.g. a sequence's `groundtruth.txt`) or an
     /// Open3D `.log` (e.g. an Open3D-style folder's `odometry.log`), read as EST is; or a
     /// recording whose transforms hold the camera's true poses (with --tf: a motion-capture
-    /// system's, as TUM RGB-D's bags hold them on `/tf`).
+    /// system's on `/tf`).
     #[arg(value_name = "GT")]
     pub ground_truth: PathBuf,
     /// GT is a recording: the ground truth is the pose of its depth images' frame (the
