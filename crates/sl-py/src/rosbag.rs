@@ -48,10 +48,10 @@ struct BagState {
 impl BagState {
     /// The recording's transforms, read on first use.
     fn transforms(&mut self) -> sl_io::Result<&TfTree> {
-        if self.transforms.is_none() {
-            self.transforms = Some(self.bag.transforms()?);
+        match self.transforms {
+            Some(ref t) => Ok(t),
+            None => Ok(self.transforms.insert(self.bag.transforms()?)),
         }
-        Ok(self.transforms.get_or_insert_default())
     }
 }
 

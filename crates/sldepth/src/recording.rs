@@ -39,6 +39,73 @@ pub(crate) struct BagSource {
     pub(crate) reader: BagFrames,
 }
 
+/// The camera frame to pose by a recording's transforms, checked before any frame is read:
+/// `camera_override` (`--tf-camera-frame`) or the depth images' own `image_frame`; both it and
+/// `world` named by the transforms, and not the same frame. Transforms left out are said.
+/// `instead` ends the message of a recording without usable transforms (what to do instead).
+pub(crate) fn tf_camera_frame(
+    path: &Path,
+    tree: &sl_io::rosbag::TfTree,
+    world: &str,
+    camera_override: Option<&str>,
+    image_frame: &str,
+    instead: &str,
+) -> Result<String> {
+    if tree.samples() == 0 {
+        if tree.skipped() > 0 {
+            bail!(
+                "{}: every one of its {} transforms is left out (numbers that make no rigid \
+                 transform, or no proper frame name){instead}",
+                path.display(),
+                tree.skipped()
+            );
+        }
+        bail!(
+            "{}: no transforms (no /tf or /tf_static topic of tf2_msgs/TFMessage){instead}",
+            path.display()
+        );
+    }
+    let camera_frame = match camera_override {
+        Some(f) => f.to_owned(),
+        None if image_frame.trim_start_matches('/').is_empty() => bail!(
+            "{}: the depth images name no frame in their headers: name the camera's optical \
+             frame with --tf-camera-frame",
+            path.display()
+        ),
+        None => image_frame.to_owned(),
+    };
+    let frames = || crate::common::frame_list(tree);
+    for (f, opt) in [
+        (world, "--tf"),
+        (camera_frame.as_str(), "the camera's frame"),
+    ] {
+        if !tree.has_frame(f) {
+            bail!(
+                "{}: no transform names {f:?} ({opt}); its frames: {}",
+                path.display(),
+                frames()
+            );
+        }
+    }
+    if world.trim_start_matches('/') == camera_frame.trim_start_matches('/') {
+        bail!(
+            "{}: --tf {world:?} is the camera's own frame: name the world frame the camera \
+             moves in (its frames: {})",
+            path.display(),
+            frames()
+        );
+    }
+    if tree.skipped() > 0 {
+        errln!(
+            "note: {}: {} transforms are left out (numbers that make no rigid transform, or no \
+             proper frame name)",
+            path.display(),
+            tree.skipped()
+        );
+    }
+    Ok(camera_frame)
+}
+
 /// Says on standard error when `path` is one piece of a recording split by `rosbag record
 /// --split` (read alone, it is only that piece).
 pub(crate) fn note_split_piece(path: &Path) {

@@ -157,11 +157,6 @@ struct Edge {
 }
 
 impl Edge {
-    /// Whether the transform holds at any time: published on `/tf_static`.
-    fn is_static(&self) -> bool {
-        self.is_static
-    }
-
     /// Whether it was sampled more than once on `/tf` without ever changing: ROS 1 `tf`'s
     /// `static_transform_publisher` republished its transform so, with fresh stamps, before
     /// `/tf_static` existed).
@@ -364,7 +359,7 @@ impl TfTree {
             .map(|(frame, e)| TfFrame {
                 frame: frame.clone(),
                 parent: e.parent.clone(),
-                is_static: e.is_static(),
+                is_static: e.is_static,
                 republished_constant: e.is_republished_constant(),
                 samples: e.samples.len(),
                 first_s: e.samples.values().next().map_or(f64::NAN, |s| s.0),
@@ -473,7 +468,7 @@ impl TfTree {
         let Some(&(_, newest)) = last else {
             return Err(no_sample());
         };
-        if e.is_static() {
+        if e.is_static {
             return Ok(newest);
         }
         if !time_s.is_finite() {

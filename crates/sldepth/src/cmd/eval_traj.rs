@@ -33,9 +33,10 @@ pub struct Args {
     pub ground_truth: PathBuf,
     /// GT is a recording: the ground truth is the pose of its depth images' frame (the
     /// camera's optical frame, or --tf-camera-frame) in this frame, from its `/tf` and
-    /// `/tf_static`, at each depth frame's stamp (interpolated between the transforms'
-    /// samples, as `fuse REC --tf` poses the frames; none beyond --max-gap-s of a transform's
-    /// first or last sample). `sldepth info REC` lists the frames.
+    /// `/tf_static`, at each depth frame's stamp, as `fuse REC --tf` poses the frames (each
+    /// transform interpolated between samples no more than twice its median interval apart;
+    /// beyond its samples or in a gap of them, its nearest sample within --max-gap-s, which
+    /// then bounds both this and the ATE's matching). `sldepth info REC` lists the frames.
     #[arg(long, value_name = "WORLD_FRAME")]
     pub tf: Option<String>,
     /// The camera's optical frame for --tf, where the depth images name none or another one.
@@ -109,46 +110,18 @@ fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
     let topic = bag.depth_topic(args.topic.as_deref())?;
     let messages = bag.messages(&topic)?;
     let tree = bag.transforms()?;
-    if tree.samples() == 0 {
-        bail!(
-            "{}: no transforms (no /tf or /tf_static topic{})",
-            path.display(),
-            match tree.skipped() {
-                0 => String::new(),
-                n => format!(
-                    ", or all {n} of its transforms left out: numbers that make no rigid \
-                     transform, or no proper frame name"
-                ),
-            }
-        );
-    }
-    let camera = match (&args.tf_camera_frame, messages.first()) {
-        (Some(f), _) => f.clone(),
-        (None, Some(m)) => bag.image_frame_id(m)?,
-        (None, None) => bail!("{}: {topic} has no message", path.display()),
+    let image_frame = match messages.first() {
+        Some(m) => bag.image_frame_id(m)?,
+        None => bail!("{}: {topic} has no message", path.display()),
     };
-    if camera.trim_start_matches('/').is_empty() {
-        bail!(
-            "{}: the depth images name no frame: give the camera's with --tf-camera-frame",
-            path.display()
-        );
-    }
-    if camera.trim_start_matches('/') == world.trim_start_matches('/') {
-        bail!(
-            "{}: --tf {world:?} is the camera's own frame: name the world frame the camera \
-             moves in (its frames: {})",
-            path.display(),
-            crate::common::frame_list(&tree)
-        );
-    }
-    if tree.skipped() > 0 {
-        errln!(
-            "note: {}: {} transforms are left out (numbers that make no rigid transform, or no \
-             proper frame name)",
-            path.display(),
-            tree.skipped()
-        );
-    }
+    let camera = crate::recording::tf_camera_frame(
+        path,
+        &tree,
+        world,
+        args.tf_camera_frame.as_deref(),
+        &image_frame,
+        "",
+    )?;
     let mut out = Vec::with_capacity(messages.len());
     let mut first_miss = None;
     for m in &messages {

@@ -358,60 +358,14 @@ fn transforms_of(
     args: &Args,
 ) -> Result<PoseSource> {
     let (tree, image_frame) = reader.transforms()?;
-    if tree.samples() == 0 {
-        if tree.skipped() > 0 {
-            bail!(
-                "{}: every one of its {} transforms is left out (numbers that make no rigid \
-                 transform, or no proper frame name): fuse it along a trajectory (--trajectory \
-                 FILE)",
-                path.display(),
-                tree.skipped()
-            );
-        }
-        bail!(
-            "{}: no transforms (no /tf or /tf_static topic of tf2_msgs/TFMessage): fuse it \
-             along a trajectory (--trajectory FILE)",
-            path.display()
-        );
-    }
-    let camera_frame = match &args.tf_camera_frame {
-        Some(f) => f.clone(),
-        None if image_frame.trim_start_matches('/').is_empty() => bail!(
-            "{}: the depth images name no frame in their headers: name the camera's optical \
-             frame with --tf-camera-frame",
-            path.display()
-        ),
-        None => image_frame,
-    };
-    let frames = || crate::common::frame_list(&tree);
-    for (f, opt) in [
-        (world, "--tf"),
-        (camera_frame.as_str(), "the camera's frame"),
-    ] {
-        if !tree.has_frame(f) {
-            bail!(
-                "{}: no transform names {f:?} ({opt}); its frames: {}",
-                path.display(),
-                frames()
-            );
-        }
-    }
-    if world.trim_start_matches('/') == camera_frame.trim_start_matches('/') {
-        bail!(
-            "{}: --tf {world:?} is the camera's own frame: name the world frame the camera \
-             moves in (its frames: {})",
-            path.display(),
-            frames()
-        );
-    }
-    if tree.skipped() > 0 {
-        errln!(
-            "note: {}: {} transforms are left out (numbers that make no rigid transform, or no \
-             proper frame name)",
-            path.display(),
-            tree.skipped()
-        );
-    }
+    let camera_frame = crate::recording::tf_camera_frame(
+        path,
+        &tree,
+        world,
+        args.tf_camera_frame.as_deref(),
+        &image_frame,
+        ": fuse it along a trajectory (--trajectory FILE)",
+    )?;
     errln!(
         "note: {}: posing {} in {} from {} transforms",
         path.display(),
