@@ -229,6 +229,41 @@ fn main() {
             sl_testkit::rosbag_writer::write_mcap(p, &conns, &msgs, "zstd", 2).unwrap()
         });
         put(&root, "rosbag", "ros2-zstd.mcap", &b);
+        // A `realsense2_camera` recording: depth and its camera info (`Tx = 0`), and the
+        // baseline in `infra2/camera_info`'s projection matrix (`P[3] = −f·B`).
+        let conns = [
+            (0, "/camera/depth/image_rect_raw", "sensor_msgs/Image"),
+            (1, "/camera/depth/camera_info", "sensor_msgs/CameraInfo"),
+            (2, "/camera/infra2/camera_info", "sensor_msgs/CameraInfo"),
+        ];
+        let mm: Vec<u8> = (0..12u16).flat_map(|p| (1000 + p).to_le_bytes()).collect();
+        let msgs = [
+            Msg {
+                conn: 0,
+                time: (100, 0),
+                data: image((100, 0), 4, 3, "16UC1", false, &mm, 0),
+            },
+            Msg {
+                conn: 1,
+                time: (100, 0),
+                data: camera_info(4, 3, 426.0, "plumb_bob", &[0.0; 5], 0),
+            },
+            Msg {
+                conn: 2,
+                time: (100, 0),
+                data: sl_testkit::rosbag_writer::camera_info_tx(
+                    4,
+                    3,
+                    426.0,
+                    "plumb_bob",
+                    &[0.0; 5],
+                    0,
+                    -426.0 * 0.05,
+                ),
+            },
+        ];
+        let b = bytes_of("bag", |p| write_bag(p, &conns, &msgs, "none", 3).unwrap());
+        put(&root, "rosbag", "realsense2-camera.bag", &b);
         // Transforms beside depth, in ROS 1 and in CDR: a moving `world → base` (two samples)
         // and a static `base → camera_depth_optical_frame`.
         for cdr in [false, true] {

@@ -251,6 +251,7 @@ pub fn read_ros_camera(path: impl AsRef<Path>, limits: &Limits) -> Result<RosCam
             roi,
             distortion_model,
             d,
+            projection: None,
         },
     )
 }
@@ -273,6 +274,8 @@ pub(crate) struct CameraInfo {
     pub(crate) distortion_model: String,
     /// `D`.
     pub(crate) d: Vec<f64>,
+    /// `P`, row by row, when read (a bag's message; a YAML file's is not needed).
+    pub(crate) projection: Option<[f64; 12]>,
 }
 
 /// The camera of a `CameraInfo` (see [`read_ros_camera`] for what is refused); errors name

@@ -17,6 +17,8 @@ mod ros_camera;
 mod rosbag;
 #[path = "sl_io/rosbag_db3.rs"]
 mod rosbag_db3;
+#[path = "sl_io/rosbag_stereo.rs"]
+mod rosbag_stereo;
 #[path = "sl_io/rosbag_tf.rs"]
 mod rosbag_tf;
 #[path = "sl_io/round_trip.rs"]

@@ -140,8 +140,10 @@ impl PyRosBag {
     /// a RealSense recording's ``.../Depth_0/image/data`` → ``.../Depth_0/info/camera_info``),
     /// or of the camera info topic ``topic`` itself: its intrinsics, its ``plumb_bob`` lens as
     /// ``lens``, and the noise model of the sensor — in a RealSense recording its device's
-    /// preset (``d415``, ``d435``, ``d455``) at the recorded stereo baseline, else the
-    /// Kinect's. No such topic (give the camera yourself: ``Camera.preset``,
+    /// preset (``d415``, ``d435``, ``d455``) at the recorded stereo baseline; else the baseline
+    /// a ROS driver states beside the topic (``P[3] = -f*B`` of ``realsense2_camera``'s
+    /// ``infra2/camera_info``: the D400 model; of ``openni_camera``'s
+    /// ``projector/camera_info``: the Kinect's); else the Kinect's. No such topic (give the camera yourself: ``Camera.preset``,
     /// ``Camera.from_file``), binning, a region of interest or another distortion model raise
     /// ``OSError``.
     #[pyo3(signature = (topic = None))]
@@ -278,22 +280,26 @@ impl PyRosBag {
     /// as ``sldepth fuse REC --tf`` poses its frames. Each transform of the chain is
     /// interpolated between samples no more than twice its median interval apart (a static one
     /// holds at any time); where a transform has no sample within ``max_gap_s`` of a time
-    /// (beyond its first or last, or in a gap of its samples), or the pose is not finite, that
-    /// matrix is all NaN. A frame no transform names, or two frames no chain joins, raise ``ValueError``.
+    /// (beyond its first or last, or in a gap of its samples), at a NaN stamp, or where the
+    /// pose is not finite, that matrix is all NaN. ``stamps_s`` is one 1-D sequence or array of
+    /// seconds, ``max_gap_s`` from 0 to 3600 s. A frame no transform names, two frames no chain
+    /// joins, or other stamps or gaps raise ``ValueError``.
     #[pyo3(signature = (target_frame, frame, stamps_s, *, max_gap_s = 0.02))]
     fn tf_lookup<'py>(
         &self,
         py: Python<'py>,
         target_frame: String,
         frame: String,
-        stamps_s: Vec<f64>,
+        stamps_s: &Bound<'py, PyAny>,
         max_gap_s: f64,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
-        if !(max_gap_s.is_finite() && max_gap_s >= 0.0) {
+        if !(0.0..=sl_io::trajectory::MAX_GAP_S).contains(&max_gap_s) {
             return Err(value_error(format!(
-                "max_gap_s must be a non-negative number of seconds, got {max_gap_s}"
+                "max_gap_s must be from 0 to {} seconds, got {max_gap_s}",
+                sl_io::trajectory::MAX_GAP_S
             )));
         }
+        let stamps_s = stamps_vector(stamps_s)?;
         let looked = self.with_state(py, move |s| {
             let tree = s.transforms()?;
             // A missing pose becomes NaN at once (its error, naming both frames, is not kept);
@@ -302,9 +308,11 @@ impl PyRosBag {
             for &t in &stamps_s {
                 matrices.push(match tree.lookup(&target_frame, &frame, t, max_gap_s) {
                     Ok(p) => p.to_homogeneous(),
-                    Err(TfLookupError::NoSample { .. } | TfLookupError::NotFinite { .. }) => {
-                        sl_core::nalgebra::Matrix4::from_element(f64::NAN)
-                    }
+                    Err(
+                        TfLookupError::NoSample { .. }
+                        | TfLookupError::NotFinite { .. }
+                        | TfLookupError::TimeNotFinite(_),
+                    ) => sl_core::nalgebra::Matrix4::from_element(f64::NAN),
                     Err(e) => return Ok(Err(e)),
                 });
             }
@@ -317,6 +325,32 @@ impl PyRosBag {
     fn __repr__(&self) -> String {
         format!("RosBag({:?})", self.path.display().to_string())
     }
+}
+
+/// The times of `obj` as seconds: a 1-D sequence or array of real numbers (a scalar, a 2-D
+/// array or text raise `ValueError` saying so).
+fn stamps_vector(obj: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
+    let py = obj.py();
+    let bad = |got: String| {
+        value_error(format!(
+            "stamps_s must be a 1-D sequence of times in seconds (for one time, [t]), got {got}"
+        ))
+    };
+    let arr = py
+        .import("numpy")?
+        .call_method1("asarray", (obj,))
+        .map_err(|_| bad("an object NumPy cannot read as an array".into()))?;
+    let shape: Vec<usize> = arr.getattr("shape")?.extract()?;
+    let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+    if shape.len() != 1 {
+        return Err(bad(format!("an array of shape {shape:?}")));
+    }
+    if !matches!(kind.as_str(), "f" | "i" | "u") {
+        return Err(bad(format!("an array of dtype kind {kind:?}")));
+    }
+    arr.call_method1("astype", ("float64",))?
+        .call_method0("tolist")?
+        .extract()
 }
 
 /// The depth frames of a bag's topic (``RosBag.depth_frames``): an iterator of

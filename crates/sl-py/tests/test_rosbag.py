@@ -490,7 +490,19 @@ def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
     # A NumPy array of stamps is taken as a list; a stamp that is no number has no pose.
     np.testing.assert_array_equal(bag.tf_lookup("odom", cam, np.array(stamps)), poses[:2])
     assert np.isnan(bag.tf_lookup("odom", cam, [float("nan")])).all()
+    # ... even a frame's in itself; and no stamps give no poses.
+    assert np.isnan(bag.tf_lookup(cam, cam, [float("nan")])).all()
+    np.testing.assert_array_equal(bag.tf_lookup(cam, cam, [11.0])[0], np.eye(4))
+    assert bag.tf_lookup("odom", cam, []).shape == (0, 4, 4)
+    # Stamps are one 1-D sequence of numbers: anything else says so.
+    for bad in ([stamps], 11.0, ["11.0"], np.array(stamps).reshape(2, 1)):
+        with pytest.raises(ValueError, match="stamps_s must be a 1-D sequence"):
+            bag.tf_lookup("odom", cam, bad)
     with pytest.raises(ValueError, match='no transform names the frame "map"'):
         bag.tf_lookup("map", cam, stamps)
     with pytest.raises(ValueError, match="max_gap_s"):
         bag.tf_lookup("odom", cam, stamps, max_gap_s=float("nan"))
+    # At most an hour, as `sldepth fuse --max-gap-s` (a larger number is a unit mistake).
+    for gap in (-1.0, 3600.5, 1e308, float("inf")):
+        with pytest.raises(ValueError, match="max_gap_s must be from 0 to 3600"):
+            bag.tf_lookup("odom", cam, stamps, max_gap_s=gap)

@@ -231,6 +231,19 @@ pub fn image(
 
 /// A `sensor_msgs/CameraInfo` of a `w`×`h` pinhole camera with `fx = fy = f` and `d`.
 pub fn camera_info(w: u32, h: u32, f: f64, model: &str, d: &[f64], binning: u32) -> Vec<u8> {
+    camera_info_tx(w, h, f, model, d, binning, 0.0)
+}
+
+/// As [`camera_info`], with `tx` in `P[3]` (`−f·B` for the right camera of a stereo pair).
+pub fn camera_info_tx(
+    w: u32,
+    h: u32,
+    f: f64,
+    model: &str,
+    d: &[f64],
+    binning: u32,
+    tx: f64,
+) -> Vec<u8> {
     let mut b = Vec::new();
     header(&mut b, (1, 0));
     b.extend_from_slice(&h.to_le_bytes());
@@ -240,7 +253,7 @@ pub fn camera_info(w: u32, h: u32, f: f64, model: &str, d: &[f64], binning: u32)
     let (cx, cy) = (f64::from(w) / 2.0 - 0.5, f64::from(h) / 2.0 - 0.5);
     let k = [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0];
     let r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-    let p = [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let p = [f, 0.0, cx, tx, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
     for v in d.iter().chain(&k).chain(&r).chain(&p) {
         b.extend_from_slice(&v.to_le_bytes());
     }
@@ -301,6 +314,11 @@ pub fn image_cdr(stamp: (u32, u32), w: u32, h: u32, encoding: &str, pixels: &[u8
 
 /// A ROS 2 `sensor_msgs/msg/CameraInfo` in CDR (a `w`×`h` pinhole camera, `fx = fy = f`).
 pub fn camera_info_cdr(w: u32, h: u32, f: f64, model: &str, d: &[f64]) -> Vec<u8> {
+    camera_info_cdr_tx(w, h, f, model, d, 0.0)
+}
+
+/// As [`camera_info_cdr`], with `tx` in `P[3]` (`−f·B` for the right camera of a stereo pair).
+pub fn camera_info_cdr_tx(w: u32, h: u32, f: f64, model: &str, d: &[f64], tx: f64) -> Vec<u8> {
     let mut c = Cdr::new();
     c.header((1, 0));
     c.u32(h);
@@ -313,7 +331,7 @@ pub fn camera_info_cdr(w: u32, h: u32, f: f64, model: &str, d: &[f64]) -> Vec<u8
     let (cx, cy) = (f64::from(w) / 2.0 - 0.5, f64::from(h) / 2.0 - 0.5);
     let k = [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0];
     let r = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
-    let p = [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let p = [f, 0.0, cx, tx, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0];
     for v in k.iter().chain(&r).chain(&p) {
         c.f64(*v);
     }

@@ -78,18 +78,10 @@ fn band_share(bins: &[ShadowBin]) -> f64 {
     }
 }
 
+/// The median of the finite values (NaN for none).
 fn median(mut v: Vec<f64>) -> f64 {
     v.retain(|x| x.is_finite());
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
+    sl_noise::analysis::median(&mut v).unwrap_or(f64::NAN)
 }
 
 fn stats_of(depth: &DepthImage, camera: &Camera) -> Result<NoiseStats> {

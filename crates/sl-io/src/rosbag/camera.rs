@@ -1,18 +1,16 @@
 //! The camera and the depth units of a bag's depth topic, from what the recording holds: the
 //! intrinsics and lens of the `sensor_msgs/CameraInfo` beside the topic, and the noise model
-//! of the sensor behind it — a RealSense recording's device (its preset) and recorded stereo
-//! baseline, else the Kinect's model at the recorded focal length.
+//! of the sensor behind it — a librealsense recording's device (its preset) and recorded
+//! stereo baseline; else the baseline a ROS driver's stereo or projector `CameraInfo` states
+//! (`stereo.rs`); else the Kinect's model at the recorded focal length.
 
 use sl_core::preset::{ACTIVE_STEREO_SIGMA_D_PX, for_device_name};
 use sl_core::{Camera, LensDistortion, SensorModel};
 
 use super::RosBag;
+use super::stereo::{D400_SUBPIXEL_STEPS, camera_with};
 use crate::depth::DEFAULT_UNITS_PER_M;
 use crate::error::{IoError, Result};
-
-/// Sub-pixel steps of the RealSense D400 family's disparity (1/32 px), for a device with a
-/// recorded baseline but no preset.
-const D400_SUBPIXEL_STEPS: u32 = 32;
 
 /// The camera of a bag's depth topic.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,7 +48,9 @@ impl RosBag {
     /// ([`RosBag::camera_info_topic`]) and the noise model of its sensor — in a RealSense
     /// recording the preset of its device ([`sl_core::preset::for_device_name`]) at the recorded
     /// focal length and stereo baseline, or the D400 family's model at a recorded baseline;
-    /// otherwise the Kinect's model at the recorded focal length.
+    /// else the model of a baseline a ROS driver recorded beside the topic
+    /// ([`RosBag::recorded_baseline`]: `realsense2_camera`'s `infra2`, `openni_camera`'s
+    /// projector); otherwise the Kinect's model at the recorded focal length.
     ///
     /// # Errors
     /// No `camera_info` beside the topic, or one [`RosBag::camera`] refuses.
@@ -99,21 +99,24 @@ impl RosBag {
                     mm(b)
                 ),
             ),
-            (None, None) => (
-                Camera::from_intrinsics(k, None, None).map_err(core)?.sensor,
-                match rs.device_name.as_deref() {
-                    None => "the Kinect's noise model".to_string(),
-                    Some(d) if is_lidar(d) => format!(
-                        "the Kinect's noise model, though the {d} is a LiDAR camera (time of \
+            (None, None) => match self.recorded_baseline(depth_topic)? {
+                Some(r) => (camera_with(&path, k, &r)?.sensor, r.describe()),
+                None => (
+                    Camera::from_intrinsics(k, None, None).map_err(core)?.sensor,
+                    match rs.device_name.as_deref() {
+                        None => "the Kinect's noise model".to_string(),
+                        Some(d) if is_lidar(d) => format!(
+                            "the Kinect's noise model, though the {d} is a LiDAR camera (time of \
                          flight): its depth error does not grow as the disparity model's; \
                          --camera FILE sets another"
-                    ),
-                    Some(d) => format!(
-                        "the Kinect's noise model (no preset models the {d}; --camera FILE \
+                        ),
+                        Some(d) => format!(
+                            "the Kinect's noise model (no preset models the {d}; --camera FILE \
                          sets its baseline and sub-pixel steps)"
-                    ),
-                },
-            ),
+                        ),
+                    },
+                ),
+            },
         };
         Ok(BagCamera {
             camera: Camera {

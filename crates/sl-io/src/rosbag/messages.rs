@@ -444,7 +444,10 @@ pub(super) fn camera_info(path: &Path, b: &[u8], encoding: Encoding) -> Result<C
         *v = f.f64("K")?;
     }
     f.f64s(9, "R")?;
-    f.f64s(12, "P")?;
+    let mut projection = [0.0; 12];
+    for v in &mut projection {
+        *v = f.f64("P")?;
+    }
     let binning = (
         f64::from(f.u32("binning_x")?),
         f64::from(f.u32("binning_y")?),
@@ -465,6 +468,7 @@ pub(super) fn camera_info(path: &Path, b: &[u8], encoding: Encoding) -> Result<C
         roi,
         distortion_model,
         d,
+        projection: Some(projection),
     })
 }
 

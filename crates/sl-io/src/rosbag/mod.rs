@@ -50,6 +50,7 @@ mod realsense;
 mod records;
 mod rvl;
 mod sqlite;
+mod stereo;
 mod tf;
 
 use std::path::{Path, PathBuf};
@@ -60,6 +61,7 @@ pub use camera::BagCamera;
 pub use messages::DepthEncodingKind;
 use messages::Encoding;
 pub use realsense::RealSenseInfo;
+pub use stereo::{MAX_STEREO_BASELINE_M, MIN_STEREO_BASELINE_M, PairKind, RecordedBaseline};
 pub use tf::{
     MAX_CHAIN_FRAMES, MAX_FRAME_NAME_BYTES, MAX_TRANSLATION_M, TfFrame, TfLookupError, TfTree,
 };

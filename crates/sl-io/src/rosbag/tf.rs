@@ -70,6 +70,9 @@ pub enum TfLookupError {
     },
     /// The chain from the frame to its root is longer than [`MAX_CHAIN_FRAMES`].
     ChainTooLong(String),
+    /// The time asked for is not a finite number (no pose is at it, not even a frame's in
+    /// itself).
+    TimeNotFinite(f64),
     /// The chain's transforms compose into a pose that is not finite.
     NotFinite {
         /// The frame whose pose was asked for.
@@ -107,6 +110,7 @@ impl fmt::Display for TfLookupError {
                 f,
                 "the chain of frames above {frame:?} is longer than {MAX_CHAIN_FRAMES}"
             ),
+            Self::TimeNotFinite(t) => write!(f, "the time {t} s is not a finite number"),
             Self::NotFinite {
                 frame,
                 target,
@@ -414,6 +418,9 @@ impl TfTree {
                 return Err(TfLookupError::UnknownFrame(f.to_owned()));
             }
         }
+        if !time_s.is_finite() {
+            return Err(TfLookupError::TimeNotFinite(time_s));
+        }
         let up = self.chain(frame)?;
         let down = self.chain(target)?;
         // The nearest common ancestor: the first frame of `frame`'s chain on `target`'s.
@@ -629,12 +636,15 @@ mod tests {
         assert!(e.to_string().contains("10.000000–20.000000 s"), "{e}");
         // Static transforms hold at any time, even long before the moving ones.
         assert!(t.lookup("map", "odom", -1e6, 0.02).is_ok());
-        // A time that is no number: no sample near it (and no panic).
+        // A time that is no number: no pose, not even through static transforms only.
         for bad in [f64::NAN, f64::INFINITY] {
-            assert!(matches!(
-                t.lookup("map", "optical", bad, 0.02),
-                Err(TfLookupError::NoSample { .. })
-            ));
+            for (target, frame) in [("map", "optical"), ("map", "odom"), ("map", "map")] {
+                let e = t.lookup(target, frame, bad, 0.02);
+                assert!(
+                    matches!(e, Err(TfLookupError::TimeNotFinite(x)) if x.to_bits() == bad.to_bits()),
+                    "{e:?}"
+                );
+            }
         }
         assert!(t.lookup("map", "optical", 12.0, f64::NAN).is_ok());
         assert_eq!(

@@ -57,6 +57,11 @@ pub use tum_sequence::{
 /// Default largest |depth timestamp − pose timestamp| for TUM association, seconds.
 pub const DEFAULT_MAX_DT_S: f64 = 0.02;
 
+/// Largest time, seconds, between a frame and the pose matched to it that a caller should
+/// accept (an hour: any recording's poses are nearer than that to its frames, and a larger
+/// number is a unit mistake, milliseconds or nanoseconds for seconds).
+pub const MAX_GAP_S: f64 = 3600.0;
+
 /// One depth frame with its camera-to-world pose.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {

@@ -121,6 +121,16 @@ fn check(bag: &mut RosBag) {
     let e = tree.lookup("world", &frame, 102.6, 0.02).unwrap_err();
     assert!(matches!(e, TfLookupError::NoSample { .. }), "{e}");
     assert!(e.to_string().contains("world → base"), "{e}");
+    // A time that is not a number has no pose, not even a static frame's or a frame's in
+    // itself.
+    for (target, f) in [
+        ("world", frame.as_str()),
+        ("base", "camera_link"),
+        ("base", "base"),
+    ] {
+        let e = tree.lookup(target, f, f64::NAN, 0.02).unwrap_err();
+        assert!(matches!(e, TfLookupError::TimeNotFinite(_)), "{e}");
+    }
 }
 
 #[test]

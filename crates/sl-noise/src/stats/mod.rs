@@ -136,8 +136,7 @@ pub fn noise_stats(
 /// The median of the finite values (NaN for none).
 pub(super) fn median(mut v: Vec<f64>) -> f64 {
     v.retain(|x| x.is_finite());
-    v.sort_by(f64::total_cmp);
-    quantile_sorted(&v, 0.5)
+    crate::analysis::median(&mut v).unwrap_or(f64::NAN)
 }
 
 /// Linear-interpolated quantile of sorted values (NaN for none).

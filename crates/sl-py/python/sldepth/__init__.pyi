@@ -455,8 +455,10 @@ class RosBag:
     def camera(self, topic: Optional[str] = None) -> Camera:
         """The camera of the sensor_msgs/CameraInfo beside the depth topic (or of the camera
         info topic named): its intrinsics, plumb_bob lens as lens, and the noise model of a
-        RealSense recording's device (d415/d435/d455 preset, recorded stereo baseline), else
-        the Kinect's."""
+        RealSense recording's device (d415/d435/d455 preset, recorded stereo baseline); else
+        of the baseline a ROS driver states beside the topic (P[3] = -f*B of realsense2_camera's
+        infra2/camera_info: the D400 model; of openni_camera's projector/camera_info: the
+        Kinect's); else the Kinect's."""
     def realsense(self, topic: Optional[str] = None) -> Optional[Dict[str, Any]]:
         """What a RealSense recording says of the sensor behind the depth topic: device (name),
         depth_units_m, stereo_baseline_m (each None when not recorded); None when the recording
@@ -487,8 +489,9 @@ class RosBag:
         frame in a world frame: camera-to-world, as `sldepth fuse REC --tf` takes them); each
         transform interpolated between samples no more than twice its median interval apart,
         static ones at any time; all-NaN where a transform has no sample within max_gap_s
-        (beyond its samples or in a gap of them) or the pose is not finite. Unknown or
-        unjoined frames raise ValueError."""
+        (beyond its samples or in a gap of them), at a stamp that is NaN, or where the pose is
+        not finite. stamps_s is one 1-D sequence or array of seconds; max_gap_s is 0 to 3600
+        s. Unknown or unjoined frames, or other stamps or gaps, raise ValueError."""
 
 class BagFrames:
     """The depth frames of a bag's topic: an iterator of (stamp_s, depth) with len()."""

@@ -452,19 +452,6 @@ fn load_source(args: &Args) -> Result<(Vec<Frame>, Camera, Option<f64>)> {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
 /// A sequence folder given without its layout (`sldepth fuse DIR`) becomes the options of the
 /// layout it holds: `--tum`, `--7scenes`, or for an Open3D-style folder `--o3d-log` (its one
 /// `.log` file) with `--depth-dir DIR/depth`.
@@ -526,9 +513,12 @@ pub fn run(mut args: Args) -> Result<()> {
     // (a 1e300 m voxel overflowed into a "voxel too small" error).
     check_range("--voxel-m", args.voxel_m, 1e-4..=1.0)?;
     check_range("--max-depth-m", args.max_depth_m, 0.2..=100.0)?;
-    // Positive (a gap of 0 matches nothing) and at most an hour (any recording's poses are
-    // nearer than that to its frames, and a larger number is a unit mistake).
-    check_range("--max-gap-s", args.max_gap_s, 1e-6..=3600.0)?;
+    // Positive (a gap of 0 matches nothing) and at most an hour (`MAX_GAP_S`).
+    check_range(
+        "--max-gap-s",
+        args.max_gap_s,
+        1e-6..=sl_io::trajectory::MAX_GAP_S,
+    )?;
     if let Some(t) = args.trunc_m {
         check_range("--trunc-m", t, 1e-4..=10.0)?;
     }
@@ -869,7 +859,7 @@ pub fn run(mut args: Args) -> Result<()> {
     }
     // (An empty sum would be −0.)
     let total_ms: f64 = integrate_ms.iter().fold(0.0, |a, b| a + b);
-    let med = median(&mut integrate_ms.clone());
+    let med = sl_noise::analysis::median(&mut integrate_ms.clone()).unwrap_or(0.0);
     if args.json {
         print_json(&serde_json::json!({
             // Frames with a pose (a recording's without one are not counted, as a folder's).

@@ -234,16 +234,7 @@ pub(super) fn print(
     Ok(())
 }
 
+/// The median of `v` (0 for none).
 fn median(v: &[f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
+    sl_noise::analysis::median(&mut v.to_vec()).unwrap_or(0.0)
 }
