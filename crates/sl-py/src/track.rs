@@ -5,6 +5,7 @@ use numpy::PyArray2;
 use std::sync::Mutex;
 
 use pyo3::prelude::*;
+use sl_core::nalgebra::Isometry3;
 use sl_core::{Camera, Undistorter};
 use sl_filter::Prefilter;
 use sl_track::{Reconstruction, ReconstructionConfig, WeightMode};
@@ -211,6 +212,23 @@ impl TrackerState {
     }
 }
 
+/// The odometry pose of a frame: a (4, 4) rigid matrix, or `None` (also for a matrix holding
+/// NaN, as `RosBag.tf_lookup` gives where the odometry has no pose).
+fn odometry_input(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Isometry3<f64>>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let nan = obj
+        .call_method0("tolist")
+        .and_then(|l| l.extract::<Vec<Vec<f64>>>())
+        .is_ok_and(|m| m.iter().flatten().any(|v| v.is_nan()));
+    if nan {
+        return Ok(None);
+    }
+    let pose = crate::arrays::pose_input(obj).map_err(|e| value_error(format!("odometry: {e}")))?;
+    Ok(Some(*pose.isometry()))
+}
+
 /// Bytes a tracker holds against its `memory_budget_bytes`: the fragments' volumes and the
 /// meshes it keeps of the finished ones (reserved in `rec`).
 fn held_bytes(rec: &Reconstruction) -> usize {
@@ -236,7 +254,7 @@ impl PyTracker {
 #[pymethods]
 impl PyTracker {
     #[new]
-    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true, memory_budget_bytes = 4usize << 30, when_model_full = "continue"))]
+    #[pyo3(signature = (camera, *, weighting = "inv-var", frame_to_model = true, voxel_m = 0.004, model_scale = None, prefilter = "multiscale", lens = "auto", new_fragment_after_s = Some(1.0), rolling_shutter_ms = None, estimate_noise = true, keyframes = true, memory_budget_bytes = 4usize << 30, when_model_full = "continue", odometry_drift = 0.05, odometry_min_sigma_m = 0.005, odometry_min_sigma_deg = 0.5))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         camera: &PyCamera,
@@ -254,6 +272,9 @@ impl PyTracker {
         keyframes: bool,
         #[pyo3(from_py_with = crate::ints::int)] memory_budget_bytes: usize,
         when_model_full: &str,
+        odometry_drift: f64,
+        odometry_min_sigma_m: f64,
+        odometry_min_sigma_deg: f64,
     ) -> PyResult<Self> {
         let new_volume_when_full = match when_model_full {
             "continue" => true,
@@ -295,6 +316,10 @@ impl PyTracker {
         cfg.tracker.keyframe_relocalisation = keyframes;
         cfg.tsdf.memory_budget_bytes = memory_budget_bytes;
         cfg.new_volume_when_full = new_volume_when_full;
+        cfg.tracker.odometry_drift = odometry_drift;
+        cfg.tracker.odometry_rotation_drift = odometry_drift;
+        cfg.tracker.odometry_min_sigma_m = odometry_min_sigma_m;
+        cfg.tracker.odometry_min_sigma_deg = odometry_min_sigma_deg;
         let noise_meter = estimate_noise.then(|| cfg.tracker.noise_meter());
         let rec = Reconstruction::new(camera, cfg).map_err(value_error)?;
         Ok(Self {
@@ -319,15 +344,23 @@ impl PyTracker {
     /// tracked, and returns ``(pose, status)``. ``timestamp_s``: the frame's time in seconds
     /// (any origin, increasing); with it, frames the recording dropped are predicted across
     /// (the time since the previous frame in whole 1/30 s intervals); without it, the frame
-    /// follows the previous one by one interval.
-    #[pyo3(signature = (depth, depth_scale = None, *, timestamp_s = None))]
+    /// follows the previous one by one interval. ``odometry``: the camera's pose in an
+    /// odometry's frame at this frame ((4, 4), camera to odometry: a robot's wheel odometry,
+    /// another tracker's estimate, ``RosBag.tf_lookup``'s), whose motion since the last tracked
+    /// frame predicts this one and is the prior of its alignment (σ from ``odometry_drift`` and
+    /// the floors given to the constructor): where the depth leaves a direction free (a
+    /// corridor's axis, a single wall) the pose takes the odometry's instead of the frame being
+    /// lost; elsewhere the depth decides. None, or a matrix with NaN: no odometry for this frame.
+    #[pyo3(signature = (depth, depth_scale = None, *, timestamp_s = None, odometry = None))]
     fn track<'py>(
         &self,
         py: Python<'py>,
         depth: &Bound<'py, PyAny>,
         #[pyo3(from_py_with = crate::reals::depth_scale)] depth_scale: Option<f64>,
         #[pyo3(from_py_with = crate::reals::timestamp_s)] timestamp_s: Option<f64>,
+        odometry: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<TrackedFrame<'py>> {
+        let odometry = odometry_input(odometry)?;
         let input = depth_input(depth, depth_scale)?;
         let view = input.view()?;
         check_camera(&view, &self.camera)?;
@@ -357,6 +390,7 @@ impl PyTracker {
                 .apply(view, &sensor)
                 .map_err(|e| e.to_string())?
                 .unwrap_or_else(|| view.to_image());
+            rec.set_odometry(odometry);
             let step = rec.step(&depth, timestamp_s).map_err(|e| e.to_string())?;
             let state = &mut *guard;
             // A finished fragment's volume becomes its mesh at once (about 0.4 times the

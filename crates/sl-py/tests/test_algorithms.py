@@ -1017,6 +1017,28 @@ def test_tracker_reports_lost_where_the_scene_does_not_pin_the_motion(kinect):
     assert 0 < t.last_weakest_sigma_m < 0.005
 
 
+def test_tracker_takes_a_direction_the_scene_leaves_free_from_the_odometry(kinect):
+    # The same floor frame again and again while an odometry says the camera moved 1 cm a
+    # frame along its x axis (level, so along the floor): the floor pins its normal, the
+    # odometry the rest. Each frame is tracked at the odometry's position along the floor.
+    floor = sldepth.simulate("floor", seed=3)[0]
+    t = sldepth.Tracker(kinect, odometry_drift=0.05)
+    for i in range(4):
+        odometry = np.eye(4)
+        odometry[0, 3] = 0.01 * i
+        pose, status = t.track(floor, odometry=odometry)
+        assert status == ("initialised" if i == 0 else "tracked"), (i, t.last_failure)
+        np.testing.assert_allclose(pose[:3, 3], [0.01 * i, 0, 0], atol=1e-3)
+        np.testing.assert_allclose(pose[:3, :3], np.eye(3), atol=1e-3)
+    # A frame the odometry has no pose for (NaN, as RosBag.tf_lookup gives): as without one.
+    assert t.track(floor, odometry=np.full((4, 4), np.nan))[1] == "lost"
+    assert "degenerate view" in t.last_failure
+    with pytest.raises(ValueError, match="odometry"):
+        t.track(floor, odometry=np.eye(3))
+    with pytest.raises(ValueError, match="odometry_drift"):
+        sldepth.Tracker(kinect, odometry_drift=2.0)
+
+
 def assert_still_within_noise(frames, poses, kinect, timestamps_s=None):
     """The poses of a still camera's frames lie within 3σ of it, σ being the uncertainty the
     tracker reports for each frame (its weakest direction, from the sensor model), and the

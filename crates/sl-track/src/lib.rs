@@ -15,8 +15,10 @@
 //!   against [`ReferenceMaps`] (a raycast of the fused model, or the previous frame),
 //!   point-to-plane Gauss–Newton on SE(3) over a depth pyramid, a robust kernel on the
 //!   residual normalised by its standard deviation from the sensor model ([`WeightMode`]),
-//!   a constant-velocity prior, failure detection and the verified plane-based estimate as
-//!   the fallback; a frame that cannot be tracked is reported lost, never given a wrong pose.
+//!   a constant-velocity prior (or an odometry's, [`Tracker::set_odometry`], which also pins
+//!   what the depth cannot: a corridor's axis, a single wall), failure detection and the
+//!   verified plane-based estimate as the fallback; a frame that cannot be tracked is reported
+//!   lost, never given a wrong pose.
 //! * [`Reconstruction`]: the tracker and the fused model in one loop (`sldepth track`,
 //!   Python's `Tracker`), with a new fragment (own volume and world frame) when tracking stays
 //!   lost.

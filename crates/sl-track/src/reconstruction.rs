@@ -321,6 +321,8 @@ pub struct Reconstruction {
     rejoin_wait: u64,
     /// The noise scale of the next frames, measured by the caller ([`Reconstruction::set_noise_scale`]).
     noise_scale: Option<f64>,
+    /// The odometry's camera pose for the next step ([`Reconstruction::set_odometry`]).
+    odometry: Option<nalgebra::Isometry3<f64>>,
     /// Bytes of the budget the caller holds outside the fragments' volumes
     /// ([`Reconstruction::reserve_bytes`]).
     reserved_bytes: usize,
@@ -420,8 +422,10 @@ impl Live {
         depth: &DepthImage,
         timestamp_s: Option<f64>,
         noise_scale: Option<f64>,
+        odometry: Option<nalgebra::Isometry3<f64>>,
     ) -> Result<FrameResult> {
         self.tracker.set_noise_scale(noise_scale);
+        self.tracker.set_odometry(odometry);
         let model = if (self.tracked > 1 || self.on_full_model) && self.model_full.is_none() {
             self.model.maps()
         } else {
@@ -508,6 +512,7 @@ impl Reconstruction {
             last_time_s: None,
             rejoin_wait: 0,
             noise_scale: None,
+            odometry: None,
             reserved_bytes: 0,
             rectified: None,
             rectifier,
@@ -536,6 +541,14 @@ impl Reconstruction {
         self.noise_scale = scale;
     }
 
+    /// Gives the camera's pose in an odometry's frame (camera-to-odometry) at the next frame
+    /// [`Reconstruction::step`] takes, for that step only: the odometry's motion predicts the
+    /// frame and is the prior of its alignment ([`Tracker::set_odometry`]). Each fragment's
+    /// tracker relates it to its own last good frame, so the odometry's frame may be any.
+    pub fn set_odometry(&mut self, camera_in_odometry: Option<nalgebra::Isometry3<f64>>) {
+        self.odometry = camera_in_odometry;
+    }
+
     /// [`Reconstruction::step`], on a worker thread of the caller's pool.
     fn step_on_pool(&mut self, depth: &DepthImage, timestamp_s: Option<f64>) -> Result<Step> {
         let t0 = Instant::now();
@@ -543,7 +556,10 @@ impl Reconstruction {
             (Some(t), Some(p)) => u64::from(self.cfg.tracker.whole_intervals(t - p)),
             _ => 1,
         };
-        let mut result = self.current.track(depth, timestamp_s, self.noise_scale)?;
+        let odometry = self.odometry.take();
+        let mut result = self
+            .current
+            .track(depth, timestamp_s, self.noise_scale, odometry)?;
         if timestamp_s.is_some() {
             self.last_time_s = timestamp_s;
         }
@@ -551,7 +567,7 @@ impl Reconstruction {
         self.rejoin_wait = self.rejoin_wait.saturating_sub(intervals);
         if let Some(old) = self.suspended.as_mut().filter(|_| self.rejoin_wait == 0) {
             self.rejoin_wait = REJOIN_EVERY_INTERVALS;
-            let back = old.track(depth, timestamp_s, self.noise_scale)?;
+            let back = old.track(depth, timestamp_s, self.noise_scale, odometry)?;
             if back.status.is_tracked() {
                 // The camera is back where the fragment before was lost: go on there. The
                 // fragment that ends is related to it through this frame's two poses.
@@ -590,7 +606,9 @@ impl Reconstruction {
                     .map(|f| f.into_fragment(None, &self.camera.intrinsics))
                     .transpose()?;
                 self.share_budget();
-                result = self.current.track(depth, timestamp_s, self.noise_scale)?;
+                result = self
+                    .current
+                    .track(depth, timestamp_s, self.noise_scale, odometry)?;
             }
         }
         let track_ms = ms_since(t0);

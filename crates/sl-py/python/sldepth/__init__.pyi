@@ -518,8 +518,15 @@ class Tracker:
         keyframes: bool = True,
         memory_budget_bytes: int = 4 << 30,
         when_model_full: str = "continue",
+        odometry_drift: float = 0.05,
+        odometry_min_sigma_m: float = 0.005,
+        odometry_min_sigma_deg: float = 0.5,
     ) -> None:
-        """rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
+        """odometry_drift, odometry_min_sigma_m, odometry_min_sigma_deg: the uncertainty of an
+        odometry given to track() (as sldepth track --odometry-drift, ...): per axis, the floor
+        per frame interval (growing as the square root of the intervals across dropped or lost
+        frames) plus the drift times the distance (and the angle) it measured.
+        rolling_shutter_ms: the sensor's rolling-shutter readout, milliseconds (first row to
         last; as sldepth track --rolling-shutter-ms); None (default): camera.rolling_shutter_ms
         (30 for the Kinect-class presets, 0 for explicit intrinsics) when tracking against the
         model, 0 frame to frame; 0 a global shutter; at most the frame interval (33.3 ms at
@@ -560,10 +567,16 @@ class Tracker:
         depth_scale: Optional[float] = None,
         *,
         timestamp_s: Optional[float] = None,
+        odometry: Optional[npt.ArrayLike] = None,
     ) -> Tuple[npt.NDArray[np.float64], str]:
         """(pose (4, 4) camera-to-world, status: initialised/tracked/tracked-against-frame/recovered/relocalised/lost).
         timestamp_s: the frame's time, seconds, increasing (frames dropped by the recording are
-        predicted across); None: one 1/30 s interval after the previous frame."""
+        predicted across); None: one 1/30 s interval after the previous frame.
+        odometry: the camera's pose in an odometry's frame at this frame ((4, 4), camera to
+        odometry; e.g. a row of RosBag.tf_lookup("odom", camera_frame, stamps)): its motion
+        since the last tracked frame predicts this one and is the prior of its alignment; a
+        direction the depth leaves free (a corridor's axis, a single wall) takes the odometry's
+        value instead of the frame being lost. None or NaN: none for this frame."""
     @property
     def last_failure(self) -> Optional[str]:
         """Why the last frame was lost (e.g. "degenerate view: ..."), or None."""

@@ -93,11 +93,20 @@ impl Tracker {
             let level = &self.pyramid.levels[l];
             let stride = stride_of(l);
             let params = self.pass_params(l);
-            let prior = solve::Prior {
-                data_share: (stride * stride) as f64
-                    / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel()),
-                info_t: 1.0 / prior_var_m2,
-                centre_t: start.translation.vector,
+            let data_share = (stride * stride) as f64
+                / cfg.correlated_pixels(l, self.camera.pixels_per_sensor_pixel());
+            // A measured motion (the odometry's) is the prior of every start; otherwise the
+            // position prior is centred on the start.
+            let prior = match &self.frame_odometry {
+                Some(o) => o.prior(data_share, self.frame_projection),
+                None => solve::Prior {
+                    data_share,
+                    info_t: 1.0 / prior_var_m2,
+                    centre_t: start.translation.vector,
+                    info_r: 0.0,
+                    centre_r: start.rotation,
+                    data_projection: None,
+                },
             };
             // With `damped`, Levenberg–Marquardt step control: a step is taken only when it
             // lowers the objective (`Prior::cost`); one that does not is retried with the
@@ -129,7 +138,7 @@ impl Tracker {
                     break;
                 }
                 let t = pose.translation.vector;
-                let Some(xi) = solve::step(&s, &prior, &t, lambda) else {
+                let Some(xi) = solve::step(&s, &prior, &pose, lambda) else {
                     break;
                 };
                 if !xi.iter().all(|v| v.is_finite()) {
@@ -150,10 +159,7 @@ impl Tracker {
                 let sc = pass_at(&candidate);
                 iterations += 1;
                 let points = s.associated;
-                if !damped
-                    || prior.cost(&sc, points, &candidate.translation.vector)
-                        < prior.cost(&s, points, &t)
-                {
+                if !damped || prior.cost(&sc, points, &candidate) < prior.cost(&s, points, &pose) {
                     pose = candidate;
                     s = sc;
                     taken += 1;
@@ -231,7 +237,10 @@ impl Tracker {
                 "inlier fraction {frac:.3} below {}",
                 cfg.min_inlier_fraction
             ))
-        } else if condition < cfg.min_condition && !checked_by_planes {
+        } else if condition < cfg.min_condition
+            && !checked_by_planes
+            && self.frame_odometry.is_none()
+        {
             Some(format!(
                 "conditioning {condition:.2e} below {:.0e}",
                 cfg.min_condition
@@ -280,7 +289,8 @@ impl Tracker {
                 );
                 overlap_sigma_m = weakest.sigma_m;
                 let bound = cfg.motion_prior_sigma_m();
-                if overlap_sigma_m > bound {
+                // With odometry a direction the overlap leaves free takes the odometry's value.
+                if overlap_sigma_m > bound && self.frame_odometry.is_none() {
                     Some(format!(
                         "degenerate overlap: the part of the view that overlaps the reference leaves the pose uncertain by {:.1} mm (1σ) along one direction, more than the motion prior's {:.1} mm",
                         overlap_sigma_m * 1e3,

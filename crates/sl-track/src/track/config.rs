@@ -200,6 +200,21 @@ pub struct TrackerConfig {
     /// `Tracker` use by default against the fused model; the default here stays a global
     /// shutter, as the simulator renders; docs/bench/track.md, sessions 19 and 44).
     pub rolling_shutter_readout_s: f64,
+    /// The uncertainty of an odometry given with the frames ([`crate::Tracker::set_odometry`]):
+    /// the σ of the position it predicts, per axis, is `odometry_min_sigma_m` plus
+    /// `odometry_drift` times the distance it measured since the last good frame (wheel
+    /// odometry drifts by a few per cent of the distance; 5 % by default) ...
+    pub odometry_drift: f64,
+    /// ... with a floor per frame interval, metres, for what the distance does not explain:
+    /// the odometry's and the camera's clocks a few milliseconds apart, a lever arm, wheel
+    /// quantisation (5 mm by default: 5 ms at 1 m/s); over `n` intervals (dropped or lost
+    /// frames) it grows as a random walk, `√n` times ...
+    pub odometry_min_sigma_m: f64,
+    /// ... and the σ of the orientation, per axis: `odometry_min_sigma_deg` plus
+    /// `odometry_rotation_drift` times the angle it measured (5 % by default) ...
+    pub odometry_rotation_drift: f64,
+    /// ... with a floor, degrees (0.5° by default: 5 ms of a 100°/s turn, a base's flex).
+    pub odometry_min_sigma_deg: f64,
     /// The plane-based estimate's configuration.
     pub fallback: DepthMotionConfig,
     /// The instruction set the alignment's inner loop is run with: by default the widest this
@@ -236,6 +251,10 @@ impl Default for TrackerConfig {
             max_acceleration_m_s2: 9.81,
             frame_interval_s: 1.0 / 30.0,
             rolling_shutter_readout_s: 0.0,
+            odometry_drift: 0.05,
+            odometry_min_sigma_m: 0.005,
+            odometry_rotation_drift: 0.05,
+            odometry_min_sigma_deg: 0.5,
             fallback: DepthMotionConfig::default(),
             isa: Isa::detect(),
         }
@@ -278,6 +297,33 @@ impl TrackerConfig {
             if !(v.is_finite() && v > 0.0) {
                 return bad(format!(
                     "{name} must be positive, got {}",
+                    sl_core::Compact(v)
+                ));
+            }
+        }
+        for (name, v, range) in [
+            ("odometry_drift", self.odometry_drift, 0.0..=1.0),
+            (
+                "odometry_rotation_drift",
+                self.odometry_rotation_drift,
+                0.0..=1.0,
+            ),
+            (
+                "odometry_min_sigma_m",
+                self.odometry_min_sigma_m,
+                1e-6..=1.0,
+            ),
+            (
+                "odometry_min_sigma_deg",
+                self.odometry_min_sigma_deg,
+                1e-4..=90.0,
+            ),
+        ] {
+            if !(v.is_finite() && range.contains(&v)) {
+                return bad(format!(
+                    "{name} must lie in [{}, {}], got {}",
+                    sl_core::Compact(*range.start()),
+                    sl_core::Compact(*range.end()),
                     sl_core::Compact(v)
                 ));
             }

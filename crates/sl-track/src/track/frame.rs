@@ -144,8 +144,9 @@ impl Tracker {
         })
     }
 
-    /// The weakest direction's σ of the frame alone (the degenerate-view check on pyramid
-    /// level `check_level`) and, when `plan` is given, the first alignment's iterations.
+    /// The weakest direction of the frame alone (the degenerate-view check on pyramid level
+    /// `check_level`; `None` without that level) and, when `plan` is given, the first
+    /// alignment's iterations.
     ///
     /// The structure check (plane extraction and the weakest direction of the frame alone,
     /// about 1.8 ms of mostly sequential work on a 640×480 frame) and the first alignment's
@@ -157,29 +158,27 @@ impl Tracker {
         check_level: usize,
         plan: Option<&AlignPlan>,
         model: Option<&ReferenceMaps>,
-    ) -> Result<(f64, Option<Iterated>)> {
+    ) -> Result<(Option<structure::Weakest>, Option<Iterated>)> {
         let mut structure = std::mem::take(&mut self.structure);
         let this = &*self;
         let (gate, iterated) = rayon::join(
-            || -> Result<(f64, f64)> {
+            || -> Result<(Option<structure::Weakest>, f64)> {
                 // The acceptance checks' scale too: a sequential sum over the finest
                 // level, off the critical path here.
                 let scale_m = this.finest_mean_depth();
                 let Some(level) = this.pyramid.levels.get(check_level) else {
-                    return Ok((f64::NAN, scale_m));
+                    return Ok((None, scale_m));
                 };
                 structure.segment(level, check_level, &this.camera, &this.cfg)?;
-                let sigma = structure
-                    .weakest_sigma_m(
-                        level,
-                        check_level,
-                        &this.camera,
-                        &this.cfg,
-                        |_, _| Some(solve::OnReference::NONE),
-                        structure::MustAgree::default(),
-                    )
-                    .sigma_m;
-                Ok((sigma, scale_m))
+                let weakest = structure.weakest_sigma_m(
+                    level,
+                    check_level,
+                    &this.camera,
+                    &this.cfg,
+                    |_, _| Some(solve::OnReference::NONE),
+                    structure::MustAgree::default(),
+                );
+                Ok((Some(weakest), scale_m))
             },
             || {
                 plan.map(|p| {
@@ -193,9 +192,9 @@ impl Tracker {
             },
         );
         self.structure = structure;
-        let (sigma, scale_m) = gate?;
+        let (weakest, scale_m) = gate?;
         self.finest_mean_depth_m = Some(scale_m);
-        Ok((sigma, iterated))
+        Ok((weakest, iterated))
     }
 
     /// The result of a frame whose geometry leaves a direction of the pose to the motion
@@ -317,6 +316,7 @@ impl Tracker {
                 Some(fallback) => format!("{why}; {fallback}"),
                 None => why,
             }),
+            odometry_sigma_m: self.frame_odometry.map_or(f64::NAN, |o| o.sigma_t_m()),
         }
     }
 }

@@ -57,6 +57,7 @@ mod frame_planes;
 mod keyframes;
 mod model;
 mod normal_noise;
+mod odometry;
 mod pyramid;
 mod reference;
 mod reference_normal_noise;
@@ -74,6 +75,7 @@ use sl_planes::NoiseMeter;
 use crate::error::{Result, TrackError};
 use frame_planes::FramePlanes;
 use keyframes::Keyframes;
+use odometry::OdometryPrior;
 use pyramid::{Level, Pyramid, normal_radius};
 use structure::StructureCheck;
 
@@ -152,6 +154,10 @@ pub struct FrameResult {
     /// plane-based fallback was tried, by why that failed too (`…; plane fallback: motion not
     /// verified: …`); `None` for a frame with a pose, whichever attempt gave it.
     pub failure: Option<String>,
+    /// The σ of the position the odometry predicted for the frame, metres
+    /// ([`Tracker::set_odometry`]): where `weakest_sigma_m` is larger, the pose along that
+    /// direction is the odometry's. NaN when the frame had no odometry prior.
+    pub odometry_sigma_m: f64,
 }
 
 impl FrameResult {
@@ -168,6 +174,7 @@ impl FrameResult {
             iterations: 0,
             weakest_sigma_m: f64::NAN,
             failure: Some(failure),
+            odometry_sigma_m: f64::NAN,
         }
     }
 }
@@ -229,6 +236,16 @@ pub struct Tracker {
     /// Whether the frame being tracked was given a model to track against: an alignment to
     /// the last frame is then the fallback after the model's was rejected.
     model_given: bool,
+    /// The odometry's camera pose for the next frame ([`Tracker::set_odometry`]).
+    next_odometry: Option<Isometry3<f64>>,
+    /// The odometry's camera pose at the frame being tracked.
+    frame_odometry_pose: Option<Isometry3<f64>>,
+    /// The odometry's camera pose at the last good frame.
+    odometry_at_good: Option<Isometry3<f64>>,
+    /// The odometry's prediction and prior of the frame being tracked (`odometry`).
+    frame_odometry: Option<OdometryPrior>,
+    /// What the frame's alignments see of their data (`odometry::weak_projection`).
+    frame_projection: Option<nalgebra::Matrix6<f64>>,
 }
 
 impl Tracker {
@@ -265,6 +282,11 @@ impl Tracker {
             finest_mean_depth_m: None,
             rolling_motion: None,
             model_given: false,
+            next_odometry: None,
+            frame_odometry_pose: None,
+            odometry_at_good: None,
+            frame_odometry: None,
+            frame_projection: None,
         })
     }
 
@@ -412,6 +434,9 @@ impl Tracker {
     ) -> Result<FrameResult> {
         self.check_sizes(depth, model)?;
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
+        self.frame_odometry_pose = self.next_odometry.take();
+        self.frame_odometry = None;
+        self.frame_projection = None;
         self.prepare_frame(depth, model, timestamp_s)?;
         // A view whose geometry leaves some direction of the pose to the motion prior (a
         // single wall or floor, a bare corridor) is lost before any alignment: whatever pose
@@ -423,19 +448,45 @@ impl Tracker {
         if self.last_good.is_some() {
             self.intervals_since_good = self.intervals_since_good.saturating_add(intervals);
         }
-        let plan = self.plan_alignment();
+        let mut plan = self.plan_alignment();
+        // A measured motion replaces the constant-velocity prediction (`odometry`).
+        if let (Some(p), Some(now), Some(then)) = (
+            plan.as_mut(),
+            self.frame_odometry_pose,
+            self.odometry_at_good,
+        ) {
+            let o = OdometryPrior::new(&p.last, &then, &now, p.n, &self.cfg);
+            p.predicted = o.pose;
+            p.predicted_var = o.var_t_m2;
+            self.frame_odometry = Some(o);
+        }
         if let Some(p) = &plan {
             self.row_timing = p.row_timing;
             if model.is_none() {
                 self.refresh_last_ref();
             }
         }
-        let (weakest_sigma_m, first_iterated) = if checked {
+        let (weakest, mut first_iterated) = if checked {
             self.check_structure_beside_first_alignment(check_level, plan.as_ref(), model)?
         } else {
-            (f64::NAN, None)
+            (None, None)
         };
-        if weakest_sigma_m > prior_sigma_m {
+        let weakest_sigma_m = weakest.as_ref().map_or(f64::NAN, |w| w.sigma_m);
+        // Where the view pins some direction worse than the odometry, the alignment's data
+        // say nothing along it (`odometry::weak_projection`): aligned again, on such frames
+        // only.
+        self.frame_projection = match (&self.frame_odometry, &weakest) {
+            (Some(o), Some(w)) => odometry::weak_projection(w, o.var_t_m2),
+            _ => None,
+        };
+        if self.frame_projection.is_some() {
+            first_iterated = None;
+        }
+        // With odometry every direction is pinned, by the depth or by the odometry: the first
+        // frame anchors the sequence, and the odometry carries a later one's weak direction.
+        let odometry_pins =
+            self.frame_odometry.is_some() || (plan.is_none() && self.frame_odometry_pose.is_some());
+        if weakest_sigma_m > prior_sigma_m && !odometry_pins {
             return Ok(self.lost_to_degenerate_view(depth, weakest_sigma_m, prior_sigma_m));
         }
         let Some(plan) = plan else {
@@ -495,6 +546,7 @@ impl Tracker {
             iterations: 0,
             weakest_sigma_m: f64::NAN,
             failure: None,
+            odometry_sigma_m: f64::NAN,
         }
     }
 
@@ -508,6 +560,7 @@ impl Tracker {
         self.structure.hand_over(&mut self.last_planes);
         self.last_depth.data_mut().copy_from_slice(depth.data());
         self.last_good = Some(pose);
+        self.odometry_at_good = self.frame_odometry_pose;
         self.intervals_since_good = 0;
         if self.cfg.keyframe_relocalisation {
             let (m, deg) = (self.cfg.max_correction_m, self.cfg.max_correction_deg);

@@ -386,27 +386,53 @@ pub(crate) struct Prior {
     pub info_t: f64,
     /// The position the prior is centred on (world, metres).
     pub centre_t: Vector3<f64>,
+    /// Information of the orientation prior, `1/σ_r²` per axis, 1/rad² (0: none; only a
+    /// measured motion, the odometry's, gives one).
+    pub info_r: f64,
+    /// The orientation the prior is centred on (camera-to-world).
+    pub centre_r: UnitQuaternion<f64>,
+    /// `Q`: the data's information is taken as `Qᵀ·H·Q` and their gradient as `Qᵀ·g`, so that
+    /// they say nothing along the directions `Q` removes (a view's weak directions, left to
+    /// the odometry: `odometry::weak_projection`); `None`: all of it.
+    pub data_projection: Option<Matrix6<f64>>,
 }
 
 impl Prior {
     /// The objective the step control compares between poses: the mean loss of the associated
     /// points (so that points entering or leaving the overlap neither reward nor penalise a
     /// pose), counted for `points` points and scaled by `data_share` like `H`, plus the prior's
-    /// `½·|t − centre|²/σ²` at camera centre `t`.
-    pub fn cost(&self, s: &Sums, points: f64, t: &Vector3<f64>) -> f64 {
+    /// `½·|t − centre|²/σ_t²` at the pose's camera centre `t` and, with an orientation prior,
+    /// `½·θ²/σ_r²` for the angle `θ` between its rotation and the prior's.
+    pub fn cost(&self, s: &Sums, points: f64, pose: &Isometry3<f64>) -> f64 {
         let mean = if s.associated > 0.0 {
             s.loss / s.associated
         } else {
             f64::INFINITY
         };
-        self.data_share * points * mean + 0.5 * self.info_t * (t - self.centre_t).norm_squared()
+        let t = pose.translation.vector;
+        let mut c = self.data_share * points * mean
+            + 0.5 * self.info_t * (t - self.centre_t).norm_squared();
+        if self.info_r > 0.0 {
+            c += 0.5 * self.info_r * self.rotation_off(pose).norm_squared();
+        }
+        c
+    }
+
+    /// The rotation from the prior's orientation to `pose`'s, as a world-frame rotation vector
+    /// (the step's rotation `ω` adds to it to first order: `R ← exp(ω)·R`).
+    fn rotation_off(&self, pose: &Isometry3<f64>) -> Vector3<f64> {
+        (pose.rotation * self.centre_r.inverse()).scaled_axis()
     }
 
     /// `H` of the data (scaled by `data_share`) plus the prior's information.
     fn information(&self, s: &Sums) -> Matrix6<f64> {
         let mut h = s.hessian() * self.data_share;
-        for i in 3..6 {
-            h[(i, i)] += self.info_t;
+        if let Some(q) = &self.data_projection {
+            h = q.transpose() * h * q;
+        }
+        for i in 0..3 {
+            h[(i, i)] += self.info_r;
+            h[(3 + i, 3 + i)] += self.info_t;
         }
         h
     }
@@ -427,16 +453,30 @@ fn huber_loss<T: nalgebra::RealField + Copy>(e: T, k: T) -> T {
 
 /// The Levenberg–Marquardt step `ξ = (ω, v)` at a pose of camera centre `t` (the centre of the
 /// step's rotation, so `v` is the move of `t`): solves `(H + λ·diag H)·ξ = −g` with the data
-/// terms scaled by the prior's `data_share` and the position prior added (`λ = 0`: the
-/// Gauss–Newton step), or `None` when the matrix is singular.
-pub(crate) fn step(s: &Sums, prior: &Prior, t: &Vector3<f64>, lambda: f64) -> Option<Vector6<f64>> {
+/// terms scaled by the prior's `data_share` and the prior's position (and orientation)
+/// information added (`λ = 0`: the Gauss–Newton step), or `None` when the matrix is singular.
+pub(crate) fn step(
+    s: &Sums,
+    prior: &Prior,
+    pose: &Isometry3<f64>,
+    lambda: f64,
+) -> Option<Vector6<f64>> {
     let mut h = prior.information(s);
     for i in 0..6 {
         h[(i, i)] *= 1.0 + lambda;
     }
     let mut g = s.gradient() * prior.data_share;
-    let off = t - prior.centre_t;
+    if let Some(q) = &prior.data_projection {
+        g = q.transpose() * g;
+    }
+    let off = pose.translation.vector - prior.centre_t;
+    let turn = if prior.info_r > 0.0 {
+        prior.rotation_off(pose)
+    } else {
+        Vector3::zeros()
+    };
     for i in 0..3 {
+        g[i] += prior.info_r * turn[i];
         g[3 + i] += prior.info_t * off[i];
     }
     h.cholesky().map(|c| -c.solve(&g))

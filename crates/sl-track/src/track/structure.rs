@@ -69,12 +69,26 @@ pub(crate) struct Weakest {
     /// than those that agree with the pose, and within the motion prior's σ: that σ from them
     /// alone, metres. The pose is then disputed by the data, not determined by it.
     pub(crate) disputed_sigma_m: Option<f64>,
+    /// The information the view gives the pose, rotations as displacements at `scale_m`
+    /// (`solve::rotations_at_depth`); zero when it gives none.
+    pub(crate) info: Matrix6<f64>,
+    /// The depth the rotations of `info` are scaled at, metres.
+    pub(crate) scale_m: f64,
 }
 
 impl Weakest {
     const UNDETERMINED: Self = Self {
         sigma_m: f64::INFINITY,
         disputed_sigma_m: None,
+        info: Matrix6::new(
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0, //
+            0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+        ),
+        scale_m: 1.0,
     };
 }
 
@@ -330,7 +344,8 @@ impl StructureCheck {
             off_psd
         };
         // Rotations as displacements at the mean depth.
-        rotations_at_depth(&mut info, z_sum / count);
+        let scale_m = z_sum / count;
+        rotations_at_depth(&mut info, scale_m);
         let eigen = SymmetricEigen::new(info);
         let min = eigen
             .eigenvalues
@@ -341,7 +356,11 @@ impl StructureCheck {
         // Round-off of a rank-deficient sum leaves |λ_min| ~ 1e-12 of the largest.
         let determined = min > largest * 1e-9;
         if !determined {
-            return Weakest::UNDETERMINED;
+            return Weakest {
+                info,
+                scale_m,
+                ..Weakest::UNDETERMINED
+            };
         }
         let disputed_sigma_m = if dispute {
             rotations_at_depth(&mut info_beyond_gates, z_sum / count);
@@ -353,6 +372,8 @@ impl StructureCheck {
         Weakest {
             sigma_m: 1.0 / min.sqrt(),
             disputed_sigma_m,
+            info,
+            scale_m,
         }
     }
 

@@ -18,6 +18,7 @@ mod accuracy;
 mod fixed_map;
 mod fragments;
 mod lost;
+mod odometry;
 mod reference;
 mod rolling_shutter;
 mod weak_directions;

@@ -403,7 +403,8 @@ fn a_realsense_recording_is_read_with_its_units_device_and_timestamps() {
 /// `fuse REC --tf WORLD`: a bag whose `/tf` holds the camera's poses (world → base, moving,
 /// sampled at the frames' stamps) and `/tf_static` the chain to the images' optical frame fuses
 /// into the mesh the same poses give as a trajectory file, byte for byte; `info` lists the
-/// frames; transforms that end early leave frames out and say why; unknown frames are named.
+/// frames; `track --odometry-tf` takes them as an odometry; transforms that end early leave
+/// frames out and say why; unknown frames are named.
 #[test]
 fn fuse_poses_a_recording_by_its_transforms() {
     use sl_testkit::rosbag_writer::{TfEntry, tf_message};
@@ -516,6 +517,15 @@ fn fuse_poses_a_recording_by_its_transforms() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success() && err.contains(what), "{err}");
     }
+    // The same transforms as an odometry for `track`: every frame predicted by them.
+    let (t, stderr) = kinect_track_json_from(&[bag.to_str().unwrap()], &["--odometry-tf", "world"]);
+    assert_eq!(t["lost"], 0, "{stderr}");
+    assert_eq!(t["odometry"]["frames_with_pose"], 4, "{t}");
+    assert_eq!(t["odometry"]["prior_frames"], 3, "{t}");
+    assert!(
+        stderr.contains("odometry (camera_depth_optical_frame in world from the transforms of"),
+        "{stderr}"
+    );
     // The moving transform ends after two frames: the last two (33 and 67 ms later) have no
     // pose within 20 ms, and the message says which transform ran out; within 0.1 s they take
     // its last sample.

@@ -18,6 +18,7 @@ mod bag;
 mod fast_motion;
 mod fragments;
 mod fuse_along;
+mod odometry;
 
 /// Runs `sldepth` with `args` (ending in `--json`), which must succeed: its JSON summary and
 /// its standard error.

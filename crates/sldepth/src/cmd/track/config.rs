@@ -46,6 +46,9 @@ pub(super) fn reconstruction_config(
         .is_finite()
         .then_some(args.new_fragment_after_s);
     cfg.new_volume_when_full = args.when_model_full == "continue";
+    if args.odometry.given() {
+        args.odometry.configure(&mut cfg.tracker)?;
+    }
     Ok(cfg)
 }
 

@@ -41,6 +41,7 @@
 
 mod config;
 mod fragments;
+pub mod odometry;
 mod prepare;
 mod report;
 mod source;
@@ -243,6 +244,8 @@ pub struct Args {
     #[arg(skip)]
     pub data_y_up: bool,
     #[command(flatten)]
+    pub odometry: odometry::OdometryArgs,
+    #[command(flatten)]
     pub input: InputArgs,
 }
 
@@ -294,6 +297,12 @@ pub fn run(mut args: Args) -> Result<()> {
             .iter()
             .map(PathBuf::as_path)
             .chain(frames.iter().map(|f| f.depth_path.as_path())),
+    )?;
+    let mut odometry = odometry::load(
+        &args,
+        bag.as_mut().map(|(reader, _)| reader),
+        frame_numbers,
+        &frames,
     )?;
     let mut read_opts = ReadConfig::default();
     read_opts.format = parse_format(&args.input)?;
@@ -421,6 +430,9 @@ pub fn run(mut args: Args) -> Result<()> {
             Some(t) => t,
             None => i as f64 * interval_s,
         };
+        if let Some(o) = odometry.as_mut() {
+            rec.set_odometry(o.pose_at(stamp));
+        }
         let step = rec
             .step(&depth, Some(time_s))
             .with_context(|| format!("tracking {}", f.depth_path.display()))?;
@@ -431,6 +443,10 @@ pub fn run(mut args: Args) -> Result<()> {
     }
     bar.finish_and_clear();
     tally.wall_s = wall.elapsed().as_secs_f64();
+    if let Some(o) = &odometry {
+        o.note();
+        tally.odometry_poses = Some((o.found, o.missing));
+    }
     if !frames.is_empty() && tally.skipped_frames.len() == frames.len() {
         bail!(
             "none of the {} frames could be read (each is named above); nothing was written",

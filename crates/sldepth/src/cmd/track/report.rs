@@ -30,6 +30,12 @@ pub(super) struct Tally {
     pub(super) frame_ms: Vec<f64>,
     /// The whole loop over the frames, seconds.
     pub(super) wall_s: f64,
+    /// With an odometry: frames it gave a pose and frames it did not.
+    pub(super) odometry_poses: Option<(usize, usize)>,
+    /// Frames aligned with the odometry's prior, and those of them whose view left a direction
+    /// to it (the weakest σ of the view above the odometry's).
+    pub(super) odometry_prior: usize,
+    pub(super) odometry_pinned: usize,
 }
 
 impl Tally {
@@ -40,6 +46,12 @@ impl Tally {
         let tm = step.timings;
         self.track_ms.push(tm.track_ms);
         self.counts[r.status as usize] += 1;
+        if r.odometry_sigma_m.is_finite() {
+            self.odometry_prior += 1;
+            if r.weakest_sigma_m > r.odometry_sigma_m {
+                self.odometry_pinned += 1;
+            }
+        }
         if verbose {
             errln!(
                 "frame {i}: {} ovl {:.3} inl {:.3} rms {:.4} m ({:.2}σ) cond {:.2e} weakest σ {:.2} mm it {} {:.1} ms {}",
@@ -179,6 +191,9 @@ pub(super) fn print(
             "output": args.output.as_ref().map(|p| p.display().to_string()),
             "mesh": args.mesh.as_ref().map(|p| p.display().to_string()),
             "mesh_errors": mesh_errors,
+            // With --odometry or --odometry-tf: frames it gave a pose or none, frames aligned
+            // with its prior, and those whose view left a direction to it.
+            "odometry": odometry_json(tally),
         }))?;
     } else {
         errln!(
@@ -212,6 +227,13 @@ pub(super) fn print(
                 );
             }
         }
+        if tally.odometry_poses.is_some() {
+            errln!(
+                "{} frames aligned with the odometry's prior, {} of them along a direction their view left free",
+                tally.odometry_prior,
+                tally.odometry_pinned
+            );
+        }
         if unfused_frames > 0 {
             errln!(
                 "{unfused_frames} tracked frames not fused: the model reached the memory budget (--max-memory)"
@@ -237,4 +259,17 @@ pub(super) fn print(
 /// The median of `v` (0 for none).
 fn median(v: &[f64]) -> f64 {
     sl_noise::analysis::median(&mut v.to_vec()).unwrap_or(0.0)
+}
+
+/// The `odometry` object of the JSON summary (null without an odometry).
+fn odometry_json(tally: &Tally) -> serde_json::Value {
+    match tally.odometry_poses {
+        Some((found, missing)) => serde_json::json!({
+            "frames_with_pose": found,
+            "frames_without_pose": missing,
+            "prior_frames": tally.odometry_prior,
+            "weak_direction_from_odometry": tally.odometry_pinned,
+        }),
+        None => serde_json::Value::Null,
+    }
 }
