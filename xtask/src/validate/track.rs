@@ -10,6 +10,8 @@
 //! off), and inv-var at least as accurate as uniform up to the spread of a 20-frame run (×1.5).
 //! A simulated camera sliding along a single wall must be lost at every frame, the first too
 //! (the degenerate-view check); the real sequences' weakest-direction σ is reported beside the bound.
+//! With an odometry (`odometry`) the wall and a bare corridor are tracked, at the odometry's
+//! position along the direction the depth leaves free.
 //! Simulated rooms and corridors (`rooms`): lost frames reported, no wrong step checked with a
 //! steady and with a shaken camera, and the reported σ checked against the errors it claims to
 //! bound. Fragments (`fragments`): a
@@ -31,6 +33,7 @@ use super::Context;
 
 mod faster;
 mod fragments;
+mod odometry;
 mod rooms;
 
 /// Tracks `frames`; `None` for a lost frame.
@@ -298,6 +301,7 @@ pub fn run(ctx: &mut Context) -> Result<()> {
         }
     }
     md.push_str(&degenerate_views(ctx, &degenerate)?);
+    md.push_str(&odometry::run_section(ctx)?);
     md.push_str(&rooms::run(ctx)?);
     md.push_str(&fragments::run_section(ctx)?);
     md.push_str(&faster::run_section(ctx)?);
