@@ -66,6 +66,7 @@ mod structure;
 
 pub use config::{DEFAULT_LATERAL_SIGMA_PX, TrackerConfig, WeightMode};
 pub use model::ModelReference;
+pub use odometry::MAX_ODOMETRY_STEP_M;
 pub use reference::ReferenceMaps;
 
 use nalgebra::Isometry3;
@@ -454,8 +455,8 @@ impl Tracker {
             plan.as_mut(),
             self.frame_odometry_pose,
             self.odometry_at_good,
-        ) {
-            let o = OdometryPrior::new(&p.last, &then, &now, p.n, &self.cfg);
+        ) && let Some(o) = OdometryPrior::new(&p.last, &then, &now, p.n, &self.cfg)
+        {
             p.predicted = o.pose;
             p.predicted_var = o.var_t_m2;
             self.frame_odometry = Some(o);

@@ -14,6 +14,11 @@ use super::solve::{self, Prior};
 use super::structure::Weakest;
 use super::{Tracker, TrackerConfig};
 
+/// The longest motion between two frames an odometry is taken for, metres: beyond it (a
+/// kilometre: no camera tracked frame by frame moves so far between good frames) its poses are
+/// not in one frame, or not numbers a prior can hold.
+pub const MAX_ODOMETRY_STEP_M: f64 = 1000.0;
+
 /// The odometry's prediction of the frame being tracked and its uncertainty.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct OdometryPrior {
@@ -31,24 +36,32 @@ impl OdometryPrior {
     /// frame intervals later: `last` moved by the odometry's motion between the two, with σ
     /// growing with the distance and the angle the odometry measured, and its floor with the
     /// time (a random walk: `√n` floors over `n` intervals, across dropped or lost frames).
+    /// `None` for a motion that is not finite or longer than [`MAX_ODOMETRY_STEP_M`] (no
+    /// odometry for this frame, rather than a prior that would make the alignment's numbers
+    /// overflow).
     pub(super) fn new(
         last: &Isometry3<f64>,
         then: &Isometry3<f64>,
         now: &Isometry3<f64>,
         n: u32,
         cfg: &TrackerConfig,
-    ) -> Self {
+    ) -> Option<Self> {
         let motion = solve::renormalized(then.inverse() * now);
+        let step_m = motion.translation.vector.norm();
+        let within = step_m <= MAX_ODOMETRY_STEP_M;
+        if !within || !motion.rotation.coords.iter().all(|v| v.is_finite()) {
+            return None;
+        }
         let walk = f64::from(n.max(1)).sqrt();
         let sigma_t =
             cfg.odometry_min_sigma_m * walk + cfg.odometry_drift * motion.translation.vector.norm();
         let sigma_r = cfg.odometry_min_sigma_deg.to_radians() * walk
             + cfg.odometry_rotation_drift * motion.rotation.angle();
-        Self {
+        Some(Self {
             pose: solve::renormalized(last * motion),
             var_t_m2: sigma_t * sigma_t,
             var_r_rad2: sigma_r * sigma_r,
-        }
+        })
     }
 
     /// The σ of the predicted position, metres.

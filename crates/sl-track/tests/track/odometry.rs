@@ -221,3 +221,21 @@ fn a_bare_corridor_is_tracked_along_its_axis_with_odometry() {
         assert!(rel.rotation.angle().to_degrees() < 0.2, "frame {i}");
     }
 }
+
+/// Odometry poses that are no numbers, or a jump of 1e300 m, are no odometry for their frame:
+/// it is tracked as without one (no overflow into the alignment), and the next frames as before.
+#[test]
+fn odometry_that_is_no_number_or_out_of_reach_is_ignored() {
+    let (cam, truth, frames) = sequence(6, 7);
+    let mut odometry = odometry_of(&truth, 0.0);
+    odometry[2].translation.vector.x = f64::NAN;
+    odometry[3].translation.vector.x = 1e300;
+    let with = track_with(&cam, &frames, Some(&odometry), TrackerConfig::default());
+    assert!(with.iter().all(|r| r.status.is_tracked()));
+    assert!(with[2].odometry_sigma_m.is_nan() && with[3].odometry_sigma_m.is_nan());
+    assert!(with[5].odometry_sigma_m.is_finite());
+    let est: Vec<CameraToWorld> = with.iter().map(|r| r.pose).collect();
+    for (i, (t, r)) in errors(&truth, &est).iter().enumerate() {
+        assert!(*t < 0.003 && *r < 0.2, "frame {i}: {t} m, {r}°");
+    }
+}
