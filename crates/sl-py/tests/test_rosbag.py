@@ -506,3 +506,15 @@ def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
     for gap in (-1.0, 3600.5, 1e308, float("inf")):
         with pytest.raises(ValueError, match="max_gap_s must be from 0 to 3600"):
             bag.tf_lookup("odom", cam, stamps, max_gap_s=gap)
+    # The same transforms as an odometry for track_sequence: each frame's camera looked up in
+    # "odom" at its stamp; an unknown frame, poses of another shape, and a frame name for
+    # arrays are refused.
+    kinect = sldepth.Camera.preset("kinect-v1")
+    poses, statuses, _ = sldepth.track_sequence(path, kinect, odometry="odom", prefilter="none")
+    assert poses.shape == (2, 4, 4) and statuses[0] == "initialised"
+    with pytest.raises(ValueError, match='no transform names the frame "map"'):
+        sldepth.track_sequence(path, kinect, odometry="map")
+    with pytest.raises(ValueError, match=r"odometry must be 2 \(4, 4\)"):
+        sldepth.track_sequence(path, kinect, odometry=np.zeros((3, 4, 4)))
+    with pytest.raises(TypeError, match="frame name is for a robot recording"):
+        sldepth.track_sequence([z, z], kinect, odometry="odom")

@@ -113,6 +113,7 @@ def track_sequence(
     timestamps_s=None,
     layout=None,
     topic=None,
+    odometry=None,
     **tracker_options,
 ):
     """Tracks a depth sequence from its first frame on and fuses it (``sldepth track`` in one call).
@@ -141,6 +142,11 @@ def track_sequence(
     frame; with ``when_model_full="stop-fusing"`` it stops growing and the camera is tracked
     frame to frame from there, ``tracker.model_full``). A single path or array is not a
     sequence: it raises ``TypeError`` (pass a list, e.g. of ``sorted(glob.glob(...))``).
+    ``odometry``: the camera's pose in an odometry's frame at each frame
+    (``Tracker.track(..., odometry=)``): an array-like of N (4, 4) camera-to-odometry matrices
+    (NaN where there is none), or for a robot recording the name of the odometry's frame in its
+    transforms (``"odom"``: each frame's camera, ``RosBag.image_frame``, looked up in it at the
+    frame's stamp with ``RosBag.tf_lookup``, as ``sldepth track REC --odometry-tf odom``).
 
     Returns ``(poses, statuses, tracker)``: ``poses`` a float64 array (N, 4, 4) of
     camera-to-world matrices (the first frame is the identity; a lost frame gets the last good
@@ -161,10 +167,25 @@ def track_sequence(
         bag = RosBag(_os.fsdecode(frames))
         camera = bag.camera(topic) if camera is None else camera
         tracker = Tracker(camera, **tracker_options)
+        frames_iter = bag.depth_frames(topic, depth_scale)
+        by_name = isinstance(odometry, str)
+        if by_name:
+            camera_frame = bag.image_frame(topic)
+            if not camera_frame:
+                raise ValueError(
+                    "the depth images name no frame in their headers: give odometry as poses"
+                )
+            bag.tf_lookup(odometry, camera_frame, [])  # an unknown frame raises here
+        else:
+            odometry = _odometry_poses(odometry, len(frames_iter))
         poses = []
         statuses = []
-        for t, depth in bag.depth_frames(topic, depth_scale):
-            pose, status = tracker.track(depth, timestamp_s=t)
+        for i, (t, depth) in enumerate(frames_iter):
+            if by_name:
+                odo = bag.tf_lookup(odometry, camera_frame, [t])[0]
+            else:
+                odo = None if odometry is None else odometry[i]
+            pose, status = tracker.track(depth, timestamp_s=t, odometry=odo)
             poses.append(pose)
             statuses.append(status)
         stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
@@ -195,6 +216,11 @@ def track_sequence(
         raise TypeError("track_sequence needs a camera for depth arrays or a list of paths")
     tracker = Tracker(camera, **tracker_options)
     frames = list(frames)
+    if isinstance(odometry, str):
+        raise TypeError(
+            "odometry as a frame name is for a robot recording's transforms; give poses"
+        )
+    odometry = _odometry_poses(odometry, len(frames))
     if timestamps_s is None:
         times = [None] * len(frames)
     else:
@@ -205,18 +231,36 @@ def track_sequence(
             )
     poses = []
     statuses = []
-    for frame, t in zip(frames, times):
+    for i, (frame, t) in enumerate(zip(frames, times)):
+        odo = None if odometry is None else odometry[i]
         if isinstance(frame, (str, bytes, _os.PathLike)):
             pose, status = tracker.track(
-                read_depth(_os.fsdecode(frame), depth_scale=depth_scale), timestamp_s=t
+                read_depth(_os.fsdecode(frame), depth_scale=depth_scale),
+                timestamp_s=t,
+                odometry=odo,
             )
         else:
-            pose, status = tracker.track(frame, depth_scale, timestamp_s=t)
+            pose, status = tracker.track(frame, depth_scale, timestamp_s=t, odometry=odo)
         poses.append(pose)
         statuses.append(status)
     stacked = np.stack(poses) if poses else np.zeros((0, 4, 4))
     stacked = _poses_in_joined_worlds(stacked, tracker.frame_fragments, tracker.joins)
     return stacked, statuses, tracker
+
+
+def _odometry_poses(odometry, n):
+    """``odometry`` as a float64 (n, 4, 4) array, or None; another shape raises ``ValueError``."""
+    import numpy as np
+
+    if odometry is None:
+        return None
+    poses = np.asarray(odometry, dtype=np.float64)
+    if poses.shape != (n, 4, 4):
+        raise ValueError(
+            f"odometry must be {n} (4, 4) camera-to-odometry poses, one per frame, got shape "
+            f"{poses.shape}"
+        )
+    return poses
 
 
 def _is_bag(frames):

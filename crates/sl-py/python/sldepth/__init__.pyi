@@ -741,6 +741,7 @@ def track_sequence(
     timestamps_s: Optional[Iterable[float]] = None,
     layout: Optional[str] = None,
     topic: Optional[str] = None,
+    odometry: Optional[Union[str, npt.ArrayLike]] = None,
     weighting: str = "inv-var",
     frame_to_model: bool = True,
     voxel_m: float = 0.004,
@@ -764,4 +765,6 @@ def track_sequence(
     folder, a RealSense recording): its depth topic (topic, else
     RosBag.depth_topic), frame by frame with the header stamps, and unless given the camera of
     its camera_info (RosBag.camera).
-    camera is needed for arrays and lists of paths."""
+    camera is needed for arrays and lists of paths. odometry: N (4, 4) camera-to-odometry poses,
+    one per frame (NaN: none), or for a recording the name of the odometry's frame in its
+    transforms ("odom", as sldepth track REC --odometry-tf odom); see Tracker.track."""
