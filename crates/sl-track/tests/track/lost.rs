@@ -116,23 +116,7 @@ fn a_lost_frame_reports_why_the_plane_fallback_failed_too() {
 /// weakest σ under the motion prior's; disabling the check gives the old behaviour back.
 #[test]
 fn a_single_wall_is_a_degenerate_view() {
-    let scene = named_scene("wall").unwrap();
-    let k = scene.intrinsics.scaled(0.5).unwrap();
-    let cam = Camera {
-        intrinsics: k,
-        sensor: SensorModel::kinect_v1(),
-    };
-    let sim = KinectSimulator::kinect_v1();
-    let slide = CameraToCamera::from_isometry(Isometry3::from_parts(
-        Translation3::new(0.01, 0.0, 0.0),
-        UnitQuaternion::identity(),
-    ));
-    let mut pose = scene.pose;
-    let mut frames = Vec::new();
-    for i in 0..4u64 {
-        frames.push(sim.simulate(&scene.scene, &k, &pose, i).depth);
-        pose = pose * slide;
-    }
+    let (cam, _, frames) = wall_slide(4);
     let mut tracker = Tracker::new(cam, TrackerConfig::default()).unwrap();
     let first = tracker.track(&frames[0], None).unwrap();
     assert_eq!(first.status, TrackStatus::Lost, "{:?}", first.failure);

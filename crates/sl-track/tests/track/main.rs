@@ -57,6 +57,27 @@ fn sequence_in(name: &str, n: usize, seed: u64) -> (Camera, Vec<CameraToWorld>, 
     (cam, poses, frames)
 }
 
+/// The `wall` scene seen by a 320×240 Kinect (realistic noise) from a camera sliding 1 cm per
+/// frame along it: the camera, the true poses and `n` frames.
+fn wall_slide(n: u64) -> (Camera, Vec<CameraToWorld>, Vec<DepthImage>) {
+    let scene = named_scene("wall").unwrap();
+    let k = scene.intrinsics.scaled(0.5).unwrap();
+    let cam = Camera {
+        intrinsics: k,
+        sensor: SensorModel::kinect_v1(),
+    };
+    let sim = KinectSimulator::kinect_v1();
+    let slide = CameraToCamera::from_isometry(Isometry3::translation(0.01, 0.0, 0.0));
+    let mut pose = scene.pose;
+    let (mut truth, mut frames) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        frames.push(sim.simulate(&scene.scene, &k, &pose, i).depth);
+        truth.push(pose);
+        pose = pose * slide;
+    }
+    (cam, truth, frames)
+}
+
 /// Camera preset `name`, the realistic simulator for it and the prefilter `sldepth track`
 /// applies to its frames.
 fn realistic_preset(name: &str) -> (Camera, KinectSimulator, sl_filter::MultiScale) {
