@@ -8,7 +8,7 @@ use sl_core::preset::{ACTIVE_STEREO_SIGMA_D_PX, for_device_name};
 use sl_core::{Camera, LensDistortion, SensorModel};
 
 use super::RosBag;
-use super::stereo::{D400_SUBPIXEL_STEPS, camera_with};
+use super::stereo::D400_SUBPIXEL_STEPS;
 use crate::depth::DEFAULT_UNITS_PER_M;
 use crate::error::{IoError, Result};
 
@@ -100,7 +100,7 @@ impl RosBag {
                 ),
             ),
             (None, None) => match self.recorded_baseline(depth_topic)? {
-                Some(r) => (camera_with(&path, k, &r)?.sensor, r.describe()),
+                Some(r) => (r.sensor().map_err(core)?, r.describe()),
                 None => (
                     Camera::from_intrinsics(k, None, None).map_err(core)?.sensor,
                     match rs.device_name.as_deref() {

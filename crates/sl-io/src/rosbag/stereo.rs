@@ -12,13 +12,12 @@
 //! `−P[3]` is then `f·B` of the disparity the depth came from, at the focal length of the
 //! images it was matched in (`P[0]`), whatever image the depth was later registered to.
 
-use sl_core::Camera;
 use sl_core::camera::KINECT_SUBPIXEL_STEPS;
 use sl_core::sensor::DEFAULT_SIGMA_D_PX;
 use sl_core::{SensorModel, preset::ACTIVE_STEREO_SIGMA_D_PX};
 
 use super::{CAMERA_INFO_TYPE, RosBag, messages};
-use crate::error::{IoError, Result};
+use crate::error::Result;
 
 /// Shortest baseline read from a projection matrix, metres (no depth camera has a shorter
 /// one; a `Tx` this small is a calibration's rounding, not a stereo pair).
@@ -173,18 +172,6 @@ impl RosBag {
         });
         Ok(agree.then(|| first.clone()))
     }
-}
-
-/// The camera of `intrinsics` with the noise model of `recorded`, errors naming `path`.
-pub(super) fn camera_with(
-    path: &std::path::Path,
-    intrinsics: sl_core::Intrinsics,
-    recorded: &RecordedBaseline,
-) -> Result<Camera> {
-    let sensor = recorded
-        .sensor()
-        .map_err(|e| IoError::core(path, None, e))?;
-    Ok(Camera { intrinsics, sensor })
 }
 
 #[cfg(test)]
