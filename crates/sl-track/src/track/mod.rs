@@ -433,9 +433,11 @@ impl Tracker {
         model: Option<&ReferenceMaps>,
         timestamp_s: Option<f64>,
     ) -> Result<FrameResult> {
+        // The odometry given for this call is this call's, whatever becomes of it.
+        let odometry_pose = self.next_odometry.take();
         self.check_sizes(depth, model)?;
         let intervals = self.intervals_from_timestamp(timestamp_s)?;
-        self.frame_odometry_pose = self.next_odometry.take();
+        self.frame_odometry_pose = odometry_pose;
         self.frame_odometry = None;
         self.frame_projection = None;
         self.prepare_frame(depth, model, timestamp_s)?;
