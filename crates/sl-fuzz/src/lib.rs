@@ -139,6 +139,14 @@ pub fn rosbag(data: &[u8]) {
             return;
         };
         let _ = bag.topics();
+        for ns in bag
+            .tf_namespaces()
+            .into_iter()
+            .filter(|n| !n.is_empty())
+            .take(4)
+        {
+            let _ = bag.transforms_in(&ns);
+        }
         if let Ok(tree) = bag.transforms() {
             let frames = tree.frames();
             for (f, t) in frames.iter().zip(&frames).take(8) {

@@ -38,20 +38,23 @@ pub struct PyRosBag {
     bag: Mutex<BagState>,
 }
 
-/// The open recording and, once asked for, its transforms.
+/// The open recording and, once asked for, its trees of transforms by namespace.
 #[derive(Debug)]
 struct BagState {
     bag: RosBag,
-    transforms: Option<TfTree>,
+    transforms: std::collections::HashMap<String, TfTree>,
 }
 
 impl BagState {
-    /// The recording's transforms, read on first use.
-    fn transforms(&mut self) -> sl_io::Result<&TfTree> {
-        match self.transforms {
-            Some(ref t) => Ok(t),
-            None => Ok(self.transforms.insert(self.bag.transforms()?)),
+    /// The recording's transforms under `namespace` (`""`: `/tf`, `/tf_static`), read on
+    /// first use.
+    fn transforms(&mut self, namespace: &str) -> sl_io::Result<&TfTree> {
+        let key = namespace.trim_matches('/').to_string();
+        if !self.transforms.contains_key(&key) {
+            let tree = self.bag.transforms_in(&key)?;
+            self.transforms.insert(key.clone(), tree);
         }
+        Ok(&self.transforms[&key])
     }
 }
 
@@ -84,7 +87,7 @@ impl PyRosBag {
             path,
             bag: Mutex::new(BagState {
                 bag,
-                transforms: None,
+                transforms: std::collections::HashMap::new(),
             }),
         })
     }
@@ -250,13 +253,27 @@ impl PyRosBag {
         })
     }
 
+    /// The namespaces that hold a tree of transforms, sorted: ``""`` for ``/tf`` and
+    /// ``/tf_static``, ``"/robot1"`` for ``/robot1/tf`` (a multi-robot recording's remapping).
+    fn tf_namespaces(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        self.with_bag(py, |b| Ok(b.tf_namespaces()))
+    }
+
     /// The frames of the recording's transforms (``/tf``, ``/tf_static``:
     /// ``tf2_msgs/TFMessage``), one dict each, by name: ``frame``, ``parent``, ``static``,
     /// ``republished_constant`` (sampled on ``/tf`` and never changed, as ROS 1 ``tf``'s static
     /// publisher republished), ``samples``, ``first_s``, ``last_s``. Empty when the recording has none. Read on first
     /// use and kept; a malformed message, or a frame with two parents, raises ``OSError``.
-    fn transforms<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, pyo3::types::PyDict>>> {
-        let frames = self.with_state(py, |s| Ok(s.transforms()?.frames()))?;
+    /// ``namespace``: another tree, in a recording that remapped its transforms (``"/robot1"``:
+    /// ``/robot1/tf`` and ``/robot1/tf_static``; ``tf_namespaces()`` lists them).
+    #[pyo3(signature = (namespace = ""))]
+    fn transforms<'py>(
+        &self,
+        py: Python<'py>,
+        namespace: &str,
+    ) -> PyResult<Vec<Bound<'py, pyo3::types::PyDict>>> {
+        let ns = namespace.to_string();
+        let frames = self.with_state(py, move |s| Ok(s.transforms(&ns)?.frames()))?;
         frames
             .into_iter()
             .map(|f| {
@@ -282,9 +299,9 @@ impl PyRosBag {
     /// holds at any time); where a transform has no sample within ``max_gap_s`` of a time
     /// (beyond its first or last, or in a gap of its samples), at a NaN stamp, or where the
     /// pose is not finite, that matrix is all NaN. ``stamps_s`` is one 1-D sequence or array of
-    /// seconds, ``max_gap_s`` from 0 to 3600 s. A frame no transform names, two frames no chain
+    /// seconds, ``max_gap_s`` from 0 to 3600 s; ``namespace`` the tree (as ``transforms``). A frame no transform names, two frames no chain
     /// joins, or other stamps or gaps raise ``ValueError``.
-    #[pyo3(signature = (target_frame, frame, stamps_s, *, max_gap_s = 0.02))]
+    #[pyo3(signature = (target_frame, frame, stamps_s, *, max_gap_s = 0.02, namespace = ""))]
     fn tf_lookup<'py>(
         &self,
         py: Python<'py>,
@@ -292,7 +309,9 @@ impl PyRosBag {
         frame: String,
         stamps_s: &Bound<'py, PyAny>,
         max_gap_s: f64,
+        namespace: &str,
     ) -> PyResult<Bound<'py, numpy::PyArray3<f64>>> {
+        let ns = namespace.to_string();
         if !(0.0..=sl_io::trajectory::MAX_GAP_S).contains(&max_gap_s) {
             return Err(value_error(format!(
                 "max_gap_s must be from 0 to {} seconds, got {max_gap_s}",
@@ -301,7 +320,7 @@ impl PyRosBag {
         }
         let stamps_s = stamps_vector(stamps_s)?;
         let looked = self.with_state(py, move |s| {
-            let tree = s.transforms()?;
+            let tree = s.transforms(&ns)?;
             // A missing pose becomes NaN at once (its error, naming both frames, is not kept);
             // any other error ends the call.
             let mut matrices = Vec::with_capacity(stamps_s.len());

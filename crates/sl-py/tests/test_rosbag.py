@@ -518,3 +518,9 @@ def test_transforms_written_by_rosbags_pose_the_camera(tmp_path):
         sldepth.track_sequence(path, kinect, odometry=np.zeros((3, 4, 4)))
     with pytest.raises(TypeError, match="frame name is for a robot recording"):
         sldepth.track_sequence([z, z], kinect, odometry="odom")
+    # One tree, the root's; another namespace holds none (a multi-robot recording's
+    # /robot1/tf would be read with namespace="/robot1").
+    assert bag.tf_namespaces() == [""]
+    assert bag.transforms(namespace="/robot1") == []
+    with pytest.raises(ValueError, match="no transform names the frame"):
+        bag.tf_lookup("odom", cam, stamps, namespace="/robot1")

@@ -206,11 +206,48 @@ pub(crate) fn load(
     })
 }
 
+/// The tree of transforms of `bag` under `namespace` (`--tf-namespace`; `""`: the root's
+/// `/tf` and `/tf_static`). A recording without topics there but with trees under other
+/// namespaces is an error that names them.
+pub(crate) fn transforms_in(
+    bag: &mut sl_io::rosbag::RosBag,
+    namespace: &str,
+) -> Result<sl_io::rosbag::TfTree> {
+    if bag.tf_topics_in(namespace).is_empty() {
+        let others: Vec<String> = bag
+            .tf_namespaces()
+            .into_iter()
+            .filter(|ns| !ns.is_empty())
+            .collect();
+        if !others.is_empty() {
+            let here = match namespace.trim_matches('/') {
+                "" => "/tf or /tf_static".to_string(),
+                ns => format!("/{ns}/tf or /{ns}/tf_static"),
+            };
+            bail!(
+                "{}: no transforms on {here}; its trees of transforms are under {} (choose one \
+                 with --tf-namespace)",
+                bag.path().display(),
+                others
+                    .iter()
+                    .map(|n| n.escape_debug().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+    }
+    Ok(bag.transforms_in(namespace)?)
+}
+
 impl BagFrames {
-    /// The recording's transforms (`/tf`, `/tf_static`) and the frame the first depth image
-    /// names in its header (empty when the driver set none).
-    pub(crate) fn transforms(&mut self) -> Result<(sl_io::rosbag::TfTree, String)> {
-        let tree = self.bag.transforms()?;
+    /// The recording's transforms under `namespace` (`""`: `/tf`, `/tf_static`; see
+    /// [`transforms_in`]) and the frame the first depth image names in its header (empty when
+    /// the driver set none).
+    pub(crate) fn transforms(
+        &mut self,
+        namespace: &str,
+    ) -> Result<(sl_io::rosbag::TfTree, String)> {
+        let tree = transforms_in(&mut self.bag, namespace)?;
         let frame = match self.messages.first() {
             Some(m) => self.bag.image_frame_id(m)?,
             None => String::new(),

@@ -78,6 +78,14 @@ pub const COMPRESSED_IMAGE_TYPE: &str = "sensor_msgs/CompressedImage";
 pub const CAMERA_INFO_TYPE: &str = "sensor_msgs/CameraInfo";
 /// The message types of transforms: `tf2`'s, and ROS 1 `tf`'s of the same layout.
 pub const TF_TYPES: [&str; 2] = ["tf2_msgs/TFMessage", "tf/tfMessage"];
+
+/// The namespace of a transforms topic, without its slashes (`/tf` → `""`, `/robot1/tf_static`
+/// → `"robot1"`), or `None` for a topic that is not `tf` or `tf_static` under one.
+fn tf_namespace_of(topic: &str) -> Option<&str> {
+    let t = topic.trim_start_matches('/');
+    let (ns, last) = t.rsplit_once('/').unwrap_or(("", t));
+    matches!(last, "tf" | "tf_static").then_some(ns.trim_matches('/'))
+}
 /// Memory a transform sample is allowed, bytes: a recording's transforms are held to
 /// [`Limits::max_memory_bytes`] divided by this (4 million samples at the default budget).
 pub const BYTES_PER_TRANSFORM: u64 = 1 << 10;
@@ -559,16 +567,44 @@ impl RosBag {
 
     /// The topics of transforms [`RosBag::transforms`] reads: `/tf` and `/tf_static` of
     /// `tf2_msgs/TFMessage` (or ROS 1's `tf/tfMessage`), sorted. A robot's own namespaced
-    /// tree (`/robot1/tf`) is another tree and is not among them.
+    /// tree (`/robot1/tf`) is another tree and is not among them ([`RosBag::tf_topics_in`]).
     pub fn tf_topics(&self) -> Vec<String> {
+        self.tf_topics_in("")
+    }
+
+    /// The topics of the tree of transforms under `namespace` (`/robot1`: `/robot1/tf` and
+    /// `/robot1/tf_static`, as a multi-robot recording remaps them; `""` or `/`: the root's),
+    /// sorted.
+    pub fn tf_topics_in(&self, namespace: &str) -> Vec<String> {
+        let ns = namespace.trim_matches('/');
         self.topics()
             .into_iter()
             .filter(|t| {
-                TF_TYPES.contains(&t.message_type.as_str())
-                    && matches!(t.topic.trim_start_matches('/'), "tf" | "tf_static")
+                TF_TYPES.contains(&t.message_type.as_str()) && tf_namespace_of(&t.topic) == Some(ns)
             })
             .map(|t| t.topic)
             .collect()
+    }
+
+    /// The namespaces that hold a tree of transforms (`/tf` or `/tf_static` of a transform type
+    /// under them), sorted: `""` for the root's, `/robot1` for `/robot1/tf`.
+    pub fn tf_namespaces(&self) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .topics()
+            .iter()
+            .filter(|t| TF_TYPES.contains(&t.message_type.as_str()))
+            .filter_map(|t| tf_namespace_of(&t.topic))
+            .map(|ns| {
+                if ns.is_empty() {
+                    String::new()
+                } else {
+                    format!("/{ns}")
+                }
+            })
+            .collect();
+        out.sort();
+        out.dedup();
+        out
     }
 
     /// Every transform the recording holds on its [`RosBag::tf_topics`], as a tree of frames
@@ -579,10 +615,18 @@ impl RosBag {
     /// A malformed message, more samples than the budget allows ([`BYTES_PER_TRANSFORM`]), or
     /// transforms that make no tree (a frame with two parents, a frame its own parent).
     pub fn transforms(&mut self) -> Result<TfTree> {
+        self.transforms_in("")
+    }
+
+    /// [`RosBag::transforms`] of the tree under `namespace` ([`RosBag::tf_topics_in`]).
+    ///
+    /// # Errors
+    /// As [`RosBag::transforms`].
+    pub fn transforms_in(&mut self, namespace: &str) -> Result<TfTree> {
         let path = self.path.clone();
         let max = self.limits.max_memory_bytes / BYTES_PER_TRANSFORM;
         let mut tree = TfTree::new();
-        for topic in self.tf_topics() {
+        for topic in self.tf_topics_in(namespace) {
             let is_static = topic.ends_with("tf_static");
             for m in self.messages(&topic)? {
                 let b = self.message(&m)?;

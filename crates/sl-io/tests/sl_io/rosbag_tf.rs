@@ -255,3 +255,56 @@ fn malformed_and_contradictory_transforms_are_refused() {
     assert!(bag.tf_topics().is_empty());
     assert_eq!(bag.transforms().unwrap().samples(), 0);
 }
+
+/// A multi-robot recording remaps each robot's transforms (`/robot1/tf`, `/robot1/tf_static`):
+/// another tree, listed by `tf_namespaces` and read by `transforms_in`, never merged with the
+/// root's (here a plain `/tf` of another robot, whose frames share the names).
+#[test]
+fn namespaced_trees_are_read_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    let conns: [Conn; 5] = [
+        (0, "/camera/depth/image_raw", "sensor_msgs/Image"),
+        (1, "/robot1/tf", "tf2_msgs/TFMessage"),
+        (2, "/robot1/tf_static", "tf2_msgs/TFMessage"),
+        (3, "/tf", "tf2_msgs/TFMessage"),
+        (4, "/robot1/camera/tf_stuff", "tf2_msgs/TFMessage"),
+    ];
+    let mut msgs = messages(false);
+    msgs.push(Msg {
+        conn: 3,
+        time: (100, 0),
+        data: tf_message(
+            &[entry(
+                (100, 0),
+                "world",
+                "base",
+                [9.0, 0.0, 0.0],
+                [0.0, 0.0, 0.0, 1.0],
+            )],
+            false,
+        ),
+    });
+    msgs.sort_by_key(|m| m.time);
+    let path = dir.path().join("robots.bag");
+    sl_testkit::rosbag_writer::write_bag(&path, &conns, &msgs, "none", 7).unwrap();
+    let mut bag = RosBag::open(&path, &Limits::default()).unwrap();
+    assert_eq!(bag.tf_namespaces(), ["", "/robot1"]);
+    assert_eq!(bag.tf_topics(), ["/tf"]);
+    assert_eq!(
+        bag.tf_topics_in("/robot1/"),
+        ["/robot1/tf", "/robot1/tf_static"]
+    );
+    assert_eq!(bag.tf_topics_in("robot1"), bag.tf_topics_in("/robot1"));
+    assert!(bag.tf_topics_in("/robot2").is_empty());
+    let root = bag.transforms().unwrap();
+    assert_eq!(root.samples(), 1);
+    let robot1 = bag.transforms_in("/robot1").unwrap();
+    assert_eq!(robot1.samples(), 28);
+    let frame = "camera_depth_optical_frame";
+    let p = robot1.lookup("world", frame, 100.55, 0.02).unwrap();
+    assert!((p.translation.vector.x - 0.55).abs() < 1e-9);
+    assert!(matches!(
+        root.lookup("world", frame, 100.0, 0.02),
+        Err(TfLookupError::UnknownFrame(_))
+    ));
+}

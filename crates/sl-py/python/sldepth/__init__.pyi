@@ -473,10 +473,14 @@ class RosBag:
     def image_frame(self, topic: Optional[str] = None) -> str:
         """The frame the depth topic's images name in their headers (the camera driver's
         optical frame: z forward, x right, y down), the frame tf_lookup poses; "" when none."""
-    def transforms(self) -> List[Dict[str, Any]]:
-        """The frames of the recording's transforms (/tf, /tf_static), by name: dicts of frame,
-        parent, static, republished_constant, samples, first_s, last_s; empty without
-        transforms. Read once, kept."""
+    def tf_namespaces(self) -> List[str]:
+        """Namespaces holding a tree of transforms, sorted: "" for /tf and /tf_static,
+        "/robot1" for /robot1/tf."""
+    def transforms(self, namespace: str = "") -> List[Dict[str, Any]]:
+        """The frames of the recording's transforms (/tf, /tf_static; namespace "/robot1":
+        /robot1/tf, /robot1/tf_static), by name: dicts of frame, parent, static,
+        republished_constant, samples, first_s, last_s; empty without transforms. Read once,
+        kept."""
     def tf_lookup(
         self,
         target_frame: str,
@@ -484,6 +488,7 @@ class RosBag:
         stamps_s: Sequence[float],
         *,
         max_gap_s: float = 0.02,
+        namespace: str = "",
     ) -> npt.NDArray[np.float64]:
         """(N, 4, 4) poses of frame in target_frame at each stamp (for the camera's optical
         frame in a world frame: camera-to-world, as `sldepth fuse REC --tf` takes them); each

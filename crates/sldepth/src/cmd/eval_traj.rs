@@ -42,6 +42,10 @@ pub struct Args {
     /// The camera's optical frame for --tf, where the depth images name none or another one.
     #[arg(long, value_name = "FRAME", requires = "tf")]
     pub tf_camera_frame: Option<String>,
+    /// The namespace of the tree of transforms for --tf (`/robot1`: `/robot1/tf` and
+    /// `/robot1/tf_static`; default: `/tf`, `/tf_static`).
+    #[arg(long, value_name = "NS", requires = "tf", default_value = "")]
+    pub tf_namespace: String,
     /// The depth topic of the --tf recording (default: the one image topic holding depth).
     #[arg(long, value_name = "TOPIC", requires = "tf")]
     pub topic: Option<String>,
@@ -109,7 +113,7 @@ fn tf_ground_truth(args: &Args, world: &str) -> Result<Vec<StampedPose>> {
     crate::recording::note_split_piece(path);
     let topic = bag.depth_topic(args.topic.as_deref())?;
     let messages = bag.messages(&topic)?;
-    let tree = bag.transforms()?;
+    let tree = crate::recording::transforms_in(&mut bag, &args.tf_namespace)?;
     let image_frame = match messages.first() {
         Some(m) => bag.image_frame_id(m)?,
         None => bail!("{}: {topic} has no message", path.display()),

@@ -115,6 +115,11 @@ fn bag_info(args: &Args) -> Result<()> {
         },
         Err(_) => None,
     };
+    let other_trees: Vec<String> = bag
+        .tf_namespaces()
+        .into_iter()
+        .filter(|ns| !ns.is_empty())
+        .collect();
     let transforms = if bag.tf_topics().is_empty() {
         Ok((Vec::new(), 0))
     } else {
@@ -157,6 +162,8 @@ fn bag_info(args: &Args) -> Result<()> {
                 Err(e) => json!({"error": e}),
             },
             "transforms_left_out": transforms.as_ref().ok().map(|t| t.1),
+            // Namespaces of other trees (`/robot1/tf`), which `--tf-namespace` chooses.
+            "tf_namespaces": &other_trees,
             "realsense": realsense.as_ref().map(|r| json!({
                 "device": r.device_name,
                 "depth_units_m": r.depth_units_m,
@@ -239,6 +246,16 @@ fn bag_info(args: &Args) -> Result<()> {
                 }
             }
             Err(e) => outln!("  transforms    unreadable: {e}")?,
+        }
+        if !other_trees.is_empty() {
+            outln!(
+                "  other trees   {} (`--tf-namespace NS` chooses one)",
+                other_trees
+                    .iter()
+                    .map(|n| n.escape_debug().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
         }
     }
     Ok(())

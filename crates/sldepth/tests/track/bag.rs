@@ -619,3 +619,65 @@ fn a_piece_of_a_split_recording_is_said_to_be_one() {
     assert_eq!(v["frames"], 4, "{v}");
     assert!(!stderr.contains("is piece"), "{stderr}");
 }
+
+/// A recording whose transforms are remapped under a robot's namespace (`/robot1/tf`): `--tf`
+/// alone names the namespace to choose, `--tf-namespace /robot1` fuses by it, and `info` lists
+/// the tree.
+#[test]
+fn fuse_reads_a_namespaced_tree_when_told() {
+    use sl_testkit::rosbag_writer::{TfEntry, tf_message};
+    let tmp = tempfile::tempdir().unwrap();
+    let (seq, stamps, _) = tracked_sequence(tmp.path());
+    const TF: Conn = (3, "/robot1/tf", "tf2_msgs/TFMessage");
+    let mut msgs = bag_messages(&seq, &stamps);
+    for t in &stamps {
+        let stamp = (t.floor() as u32, ((t - t.floor()) * 1e9).round() as u32);
+        msgs.push(Msg {
+            conn: 3,
+            time: stamp,
+            data: tf_message(
+                &[TfEntry {
+                    stamp,
+                    parent: "world".into(),
+                    child: "camera_depth_optical_frame".into(),
+                    translation: [0.0, 0.0, 0.0],
+                    rotation: [0.0, 0.0, 0.0, 1.0],
+                }],
+                false,
+            ),
+        });
+    }
+    msgs.sort_by_key(|m| m.time);
+    let bag = tmp.path().join("robot1.bag");
+    write_bag(&bag, &[DEPTH, INFO, RGB, TF], &msgs, "none", 3).unwrap();
+    let mesh = tmp.path().join("m.ply");
+    let out = sldepth(&[
+        "fuse",
+        bag.to_str().unwrap(),
+        "--tf",
+        "world",
+        "--output",
+        mesh.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains(
+                "no transforms on /tf or /tf_static; its trees of transforms are under /robot1"
+            ),
+        "{err}"
+    );
+    let (v, stderr) = fuse_json(
+        &[
+            bag.to_str().unwrap(),
+            "--tf",
+            "world",
+            "--tf-namespace",
+            "/robot1",
+        ],
+        &mesh,
+    );
+    assert_eq!(v["frames"], 4, "{stderr}");
+    let (info, _) = sldepth_json(&["info", bag.to_str().unwrap(), "--json"]);
+    assert_eq!(info["tf_namespaces"][0], "/robot1", "{info}");
+}

@@ -102,6 +102,10 @@ pub struct Args {
     /// (ROS's optical frame: z forward, x right, y down, as every ROS camera driver publishes).
     #[arg(long, value_name = "FRAME", requires = "tf")]
     pub tf_camera_frame: Option<String>,
+    /// The namespace of the tree of transforms for --tf, in a recording that remapped them
+    /// (`/robot1`: `/robot1/tf` and `/robot1/tf_static`; default: `/tf`, `/tf_static`).
+    #[arg(long, value_name = "NS", requires = "tf", default_value = "")]
+    pub tf_namespace: String,
     /// Largest time, seconds, between a depth frame and the pose it takes, where frames are
     /// matched to poses by time: a TUM folder's `groundtruth.txt`, a TUM-format --trajectory,
     /// a recording's messages. Frames without a pose that near are skipped and counted. The
@@ -357,7 +361,7 @@ fn transforms_of(
     world: &str,
     args: &Args,
 ) -> Result<PoseSource> {
-    let (tree, image_frame) = reader.transforms()?;
+    let (tree, image_frame) = reader.transforms(&args.tf_namespace)?;
     let camera_frame = crate::recording::tf_camera_frame(
         path,
         &tree,

@@ -43,6 +43,10 @@ pub struct OdometryArgs {
     /// another one.
     #[arg(long, value_name = "FRAME", requires = "odometry_tf")]
     pub tf_camera_frame: Option<String>,
+    /// The namespace of the tree of transforms for --odometry-tf (`/robot1`: `/robot1/tf` and
+    /// `/robot1/tf_static`; default: `/tf`, `/tf_static`).
+    #[arg(long, value_name = "NS", requires = "odometry_tf", default_value = "")]
+    pub tf_namespace: String,
     /// The odometry's drift: the σ of the motion it measures, per axis, as a fraction of the
     /// distance (and of the angle) since the last tracked frame. Wheel odometry drifts by a few
     /// per cent.
@@ -249,7 +253,7 @@ pub(super) fn load(
             "--odometry-tf reads a recording's transforms: give a recording (REC.bag, .mcap, .db3)"
         );
     };
-    let (tree, image_frame) = reader.transforms()?;
+    let (tree, image_frame) = reader.transforms(&o.tf_namespace)?;
     let camera = crate::recording::tf_camera_frame(
         path,
         &tree,
