@@ -213,30 +213,42 @@ pub(crate) fn transforms_in(
     bag: &mut sl_io::rosbag::RosBag,
     namespace: &str,
 ) -> Result<sl_io::rosbag::TfTree> {
-    if bag.tf_topics_in(namespace).is_empty() {
+    let ns = namespace.trim_matches('/');
+    if bag.tf_topics_in(ns).is_empty() {
+        // The other trees, the root's shown as `/` (no --tf-namespace).
         let others: Vec<String> = bag
             .tf_namespaces()
             .into_iter()
-            .filter(|ns| !ns.is_empty())
+            .filter(|other| other.trim_matches('/') != ns)
+            .map(|other| match other.as_str() {
+                "" => "/ (no --tf-namespace)".to_string(),
+                _ => other.escape_debug().to_string(),
+            })
             .collect();
-        if !others.is_empty() {
-            let here = match namespace.trim_matches('/') {
+        // A recording without any transforms is said by `tf_camera_frame`, with what to do.
+        if !others.is_empty() || !ns.is_empty() {
+            let here = match ns {
                 "" => "/tf or /tf_static".to_string(),
-                ns => format!("/{ns}/tf or /{ns}/tf_static"),
+                ns => {
+                    let ns = ns.escape_debug();
+                    format!("/{ns}/tf or /{ns}/tf_static")
+                }
+            };
+            let elsewhere = if others.is_empty() {
+                "it has no tree of transforms".to_string()
+            } else {
+                format!(
+                    "its trees of transforms are under {} (choose one with --tf-namespace)",
+                    others.join(", ")
+                )
             };
             bail!(
-                "{}: no transforms on {here}; its trees of transforms are under {} (choose one \
-                 with --tf-namespace)",
-                bag.path().display(),
-                others
-                    .iter()
-                    .map(|n| n.escape_debug().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
+                "{}: no transforms on {here}; {elsewhere}",
+                bag.path().display()
             );
         }
     }
-    Ok(bag.transforms_in(namespace)?)
+    Ok(bag.transforms_in(ns)?)
 }
 
 impl BagFrames {

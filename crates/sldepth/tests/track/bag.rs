@@ -667,6 +667,25 @@ fn fuse_reads_a_namespaced_tree_when_told() {
             ),
         "{err}"
     );
+    let out = sldepth(&[
+        "fuse",
+        bag.to_str().unwrap(),
+        "--tf",
+        "world",
+        "--tf-namespace",
+        "/robot2",
+        "--output",
+        mesh.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && err.contains(
+                "no transforms on /robot2/tf or /robot2/tf_static; its trees of transforms are \
+                 under /robot1"
+            ),
+        "{err}"
+    );
     let (v, stderr) = fuse_json(
         &[
             bag.to_str().unwrap(),
