@@ -92,6 +92,6 @@ pub use reconstruction::{
 /// Plane extraction, re-exported for the motion API's inputs (`PlaneInfo`, `PlaneConfig`).
 pub use sl_planes::{Plane, PlaneConfig, PlaneExtractor, PlaneInfo};
 pub use track::{
-    DEFAULT_LATERAL_SIGMA_PX, FrameResult, MAX_ODOMETRY_STEP_M, ModelReference, ReferenceMaps,
-    TrackStatus, Tracker, TrackerConfig, WeightMode,
+    DEFAULT_LATERAL_SIGMA_PX, FrameResult, MAX_ODOMETRY_STEP_M, ModelReference,
+    ODOMETRY_WEAK_SHARE, ReferenceMaps, TrackStatus, Tracker, TrackerConfig, WeightMode,
 };

@@ -29,6 +29,9 @@ pub(super) struct Attempt {
     /// Whether the samples beyond the gates dispute the pose (`structure::Weakest`).
     pub(super) disputed: bool,
     pub(super) failure: Option<String>,
+    /// What the part of the frame that overlaps the reference says of the pose, when checked
+    /// (for the odometry's projection of its weak directions, `Tracker::align_on_overlap`).
+    pub(super) overlap: Option<super::structure::Weakest>,
 }
 
 impl Tracker {
@@ -65,7 +68,39 @@ impl Tracker {
         damped: bool,
     ) -> Attempt {
         let iterated = self.iterate(start, reference, prior_var_m2, damped);
-        self.judge(start, reference, iterated)
+        let attempt = self.judge(start, reference, iterated);
+        self.align_on_overlap(start, reference, prior_var_m2, damped, attempt)
+    }
+
+    /// With an odometry, `attempt` again from `start` when the part of the frame that overlaps
+    /// the reference pins some direction worse than the odometry (a model that holds one wall
+    /// so far): its data then say nothing along those directions either
+    /// (`odometry::weak_projection` of the overlap's information, which is weaker than the
+    /// whole frame's in every direction), and the pose there is the odometry's. Without an
+    /// odometry, or when the overlap pins every direction, `attempt` as it is.
+    pub(super) fn align_on_overlap(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        prior_var_m2: f64,
+        damped: bool,
+        attempt: Attempt,
+    ) -> Attempt {
+        let (Some(o), Some(overlap)) = (&self.frame_odometry, &attempt.overlap) else {
+            return attempt;
+        };
+        // NaN (not checked) or within the odometry's σ: the overlap pins every direction.
+        let weaker = overlap.sigma_m > o.sigma_t_m();
+        if !weaker {
+            return attempt;
+        }
+        let Some(q) = super::odometry::weak_projection(overlap, o.var_t_m2) else {
+            return attempt;
+        };
+        let again = self.iterate_with(start, reference, prior_var_m2, damped, Some(q));
+        let mut judged = self.judge(start, reference, again);
+        judged.iterations += attempt.iterations;
+        judged
     }
 
     /// The iterations of [`Tracker::align`]: the pose they reach and the finest level's
@@ -77,6 +112,25 @@ impl Tracker {
         reference: &ReferenceMaps,
         prior_var_m2: f64,
         damped: bool,
+    ) -> Iterated {
+        self.iterate_with(
+            start,
+            reference,
+            prior_var_m2,
+            damped,
+            self.frame_projection,
+        )
+    }
+
+    /// [`Tracker::iterate`] with the odometry's prior seeing the data through `projection`
+    /// (`odometry::weak_projection`).
+    fn iterate_with(
+        &self,
+        start: &Isometry3<f64>,
+        reference: &ReferenceMaps,
+        prior_var_m2: f64,
+        damped: bool,
+        projection: Option<nalgebra::Matrix6<f64>>,
     ) -> Iterated {
         let cfg = &self.cfg;
         let sensor = &self.camera.sensor;
@@ -98,7 +152,7 @@ impl Tracker {
             // A measured motion (the odometry's) is the prior of every start; otherwise the
             // position prior is centred on the start.
             let prior = match &self.frame_odometry {
-                Some(o) => o.prior(data_share, self.frame_projection),
+                Some(o) => o.prior(data_share, projection),
                 None => solve::Prior {
                     data_share,
                     info_t: 1.0 / prior_var_m2,
@@ -264,6 +318,7 @@ impl Tracker {
         // alignment.
         let mut overlap_sigma_m = f64::NAN;
         let mut disputed = false;
+        let mut overlap = None;
         let check_level = self.check_level();
         // Planes vouch only for what they agree with against the fused model, and against the
         // last frame when the start is a guess (see `StructureCheck::weakest_sigma_m`). Not
@@ -288,6 +343,7 @@ impl Tracker {
                     MustAgree { planes, samples },
                 );
                 overlap_sigma_m = weakest.sigma_m;
+                overlap = Some(weakest);
                 let bound = cfg.motion_prior_sigma_m();
                 // With odometry a direction the overlap leaves free takes the odometry's value.
                 if overlap_sigma_m > bound && self.frame_odometry.is_none() {
@@ -316,6 +372,7 @@ impl Tracker {
             overlap_sigma_m,
             disputed,
             failure,
+            overlap,
         }
     }
 }

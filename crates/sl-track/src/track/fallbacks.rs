@@ -56,7 +56,10 @@ impl Tracker {
         } = *plan;
         let reference = model.unwrap_or(&self.last_ref);
         let first = match first_iterated {
-            Some(it) => self.judge(&predicted, reference, it),
+            Some(it) => {
+                let judged = self.judge(&predicted, reference, it);
+                self.align_on_overlap(&predicted, reference, predicted_var, false, judged)
+            }
             None => self.align(&predicted, reference, predicted_var, false),
         };
         let mut o = Outcome {

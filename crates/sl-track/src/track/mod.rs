@@ -66,7 +66,7 @@ mod structure;
 
 pub use config::{DEFAULT_LATERAL_SIGMA_PX, TrackerConfig, WeightMode};
 pub use model::ModelReference;
-pub use odometry::MAX_ODOMETRY_STEP_M;
+pub use odometry::{MAX_ODOMETRY_STEP_M, ODOMETRY_WEAK_SHARE};
 pub use reference::ReferenceMaps;
 
 use nalgebra::Isometry3;
@@ -156,8 +156,9 @@ pub struct FrameResult {
     /// verified: …`); `None` for a frame with a pose, whichever attempt gave it.
     pub failure: Option<String>,
     /// The σ of the position the odometry predicted for the frame, metres
-    /// ([`Tracker::set_odometry`]): where `weakest_sigma_m` is larger, the pose along that
-    /// direction is the odometry's. NaN when the frame had no odometry prior.
+    /// ([`Tracker::set_odometry`]): where `weakest_sigma_m` is more than
+    /// √[`ODOMETRY_WEAK_SHARE`] times larger, the pose along that direction is the odometry's.
+    /// NaN when the frame had no odometry prior.
     pub odometry_sigma_m: f64,
 }
 

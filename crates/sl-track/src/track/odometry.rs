@@ -83,10 +83,18 @@ impl OdometryPrior {
     }
 }
 
+/// A direction is left to the odometry where the view's information there is less than
+/// `1/ODOMETRY_WEAK_SHARE` of the odometry's: the data's weight in the joint estimate would be under a
+/// tenth (σ more than √10 ≈ 3.2 times the odometry's), so dropping them loses little, while
+/// the alignment's own information there, from pixels' normals, holds the camera-fixed
+/// terraces the view's count leaves out. Where the view says more, the depth and the odometry
+/// are estimated together.
+pub const ODOMETRY_WEAK_SHARE: f64 = 10.0;
+
 /// The projection that leaves the alignment's data nothing to say along the directions the
 /// view pins worse than the odometry: the eigenvectors of the view's information (`weakest`,
 /// from its planes' normals and the sensor model, rotations as displacements at its depth)
-/// whose σ exceeds the odometry's position σ. `None` when there is none.
+/// whose σ exceeds the odometry's position σ by more than √[`ODOMETRY_WEAK_SHARE`]. `None` when there is none.
 ///
 /// Why not let the data speak there, weakly: a view that leaves a direction free still gives
 /// the point-to-plane alignment false information along it. A wall's correlated noise and
@@ -100,8 +108,9 @@ pub(super) fn weak_projection(weakest: &Weakest, var_t_m2: f64) -> Option<Matrix
     let mut p = Matrix6::identity();
     let mut any = false;
     for (i, &lambda) in eigen.eigenvalues.iter().enumerate() {
-        // σ along the direction = 1/√λ, weaker than the odometry's when λ·σ² < 1 (NaN too).
-        let pinned = lambda * var_t_m2 >= 1.0;
+        // σ along the direction = 1/√λ: left to the odometry when the data hold less than a
+        // tenth of its information there, λ·σ² < 1/ODOMETRY_WEAK_SHARE (NaN too).
+        let pinned = lambda * var_t_m2 * ODOMETRY_WEAK_SHARE >= 1.0;
         if !pinned {
             let v = eigen.eigenvectors.column(i);
             p -= v * v.transpose();

@@ -33,7 +33,7 @@ pub(super) struct Tally {
     /// With an odometry: frames it gave a pose and frames it did not.
     pub(super) odometry_poses: Option<(usize, usize)>,
     /// Frames aligned with the odometry's prior, and those of them whose view left a direction
-    /// to it (the weakest σ of the view above the odometry's).
+    /// to it (the weakest σ of the view above √`ODOMETRY_WEAK_SHARE` times the odometry's).
     pub(super) odometry_prior: usize,
     pub(super) odometry_pinned: usize,
 }
@@ -48,7 +48,8 @@ impl Tally {
         self.counts[r.status as usize] += 1;
         if r.odometry_sigma_m.is_finite() {
             self.odometry_prior += 1;
-            if r.weakest_sigma_m > r.odometry_sigma_m {
+            let share = sl_track::ODOMETRY_WEAK_SHARE;
+            if r.weakest_sigma_m.powi(2) > share * r.odometry_sigma_m.powi(2) {
                 self.odometry_pinned += 1;
             }
         }
