@@ -651,41 +651,26 @@ fn fuse_reads_a_namespaced_tree_when_told() {
     let bag = tmp.path().join("robot1.bag");
     write_bag(&bag, &[DEPTH, INFO, RGB, TF], &msgs, "none", 3).unwrap();
     let mesh = tmp.path().join("m.ply");
-    let out = sldepth(&[
-        "fuse",
-        bag.to_str().unwrap(),
-        "--tf",
-        "world",
-        "--output",
-        mesh.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success()
-            && err.contains(
-                "no transforms on /tf or /tf_static; its trees of transforms are under /robot1"
-            ),
-        "{err}"
-    );
-    let out = sldepth(&[
-        "fuse",
-        bag.to_str().unwrap(),
-        "--tf",
-        "world",
-        "--tf-namespace",
-        "/robot2",
-        "--output",
-        mesh.to_str().unwrap(),
-    ]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success()
-            && err.contains(
-                "no transforms on /robot2/tf or /robot2/tf_static; its trees of transforms are \
-                 under /robot1"
-            ),
-        "{err}"
-    );
+    for (namespace, what) in [
+        (
+            None,
+            "no transforms on /tf or /tf_static; its trees of transforms are under /robot1",
+        ),
+        (
+            Some("/robot2"),
+            "no transforms on /robot2/tf or /robot2/tf_static; its trees of transforms are \
+             under /robot1",
+        ),
+    ] {
+        let mut args = vec!["fuse", bag.to_str().unwrap(), "--tf", "world"];
+        if let Some(ns) = namespace {
+            args.extend_from_slice(&["--tf-namespace", ns]);
+        }
+        args.extend_from_slice(&["--output", mesh.to_str().unwrap()]);
+        let out = sldepth(&args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success() && err.contains(what), "{err}");
+    }
     let (v, stderr) = fuse_json(
         &[
             bag.to_str().unwrap(),

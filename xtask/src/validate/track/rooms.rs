@@ -173,7 +173,7 @@ fn track_scene(
 }
 
 /// Frames with a pose, bad steps and the worst step over several scenes.
-#[derive(Default)]
+#[derive(Default, Clone, Copy)]
 struct Totals {
     posed: usize,
     bad: usize,
@@ -181,6 +181,13 @@ struct Totals {
 }
 
 impl Totals {
+    /// The report's numbers of these totals under `group`.
+    fn report_rows(&self, ctx: &mut Context, group: &str) {
+        ctx.row(group, "frames-with-pose", self.posed as f64, "frames");
+        ctx.row(group, "bad-steps", self.bad as f64, "steps");
+        ctx.row(group, "worst-step", self.worst_m * 1e3, "mm");
+    }
+
     fn add(&mut self, o: &Outcome) {
         self.posed += FRAMES - o.lost;
         self.bad += o.bad;
@@ -239,24 +246,13 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
     } = steady;
     // The same rooms, the camera shaken (session 39: 5 bad steps; session 40: 2; session 41:
     // 0, and checked since).
+    let shaken = Totals::of_scenes(&seeds, SHAKE, None, false, &mut Vec::new())?;
+    shaken.report_rows(ctx, "track-rooms-shaken");
     let Totals {
         posed: shaken_posed,
         bad: shaken_bad,
         worst_m: shaken_worst,
-    } = Totals::of_scenes(&seeds, SHAKE, None, false, &mut Vec::new())?;
-    ctx.row(
-        "track-rooms-shaken",
-        "frames-with-pose",
-        shaken_posed as f64,
-        "frames",
-    );
-    ctx.row(
-        "track-rooms-shaken",
-        "bad-steps",
-        shaken_bad as f64,
-        "steps",
-    );
-    ctx.row("track-rooms-shaken", "worst-step", shaken_worst * 1e3, "mm");
+    } = shaken;
     // The same rooms through other sensors (reported, not checked).
     let mut camera_rows = String::new();
     for name in OTHER_CAMERAS {
@@ -275,9 +271,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
             t.worst_m * 1e3
         ));
         let group = format!("track-rooms-{name}");
-        ctx.row(&group, "frames-with-pose", t.posed as f64, "frames");
-        ctx.row(&group, "bad-steps", t.bad as f64, "steps");
-        ctx.row(&group, "worst-step", t.worst_m * 1e3, "mm");
+        t.report_rows(ctx, &group);
         ctx.row(&group, "median-error-over-sigma", c_median, "");
     }
     // The same rooms with an odometry (steady and shaken), checked for bad steps alike.
@@ -292,10 +286,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
             t.bad,
             t.worst_m * 1e3
         ));
-        let group = format!("track-rooms-odometry-{label}");
-        ctx.row(&group, "frames-with-pose", t.posed as f64, "frames");
-        ctx.row(&group, "bad-steps", t.bad as f64, "steps");
-        ctx.row(&group, "worst-step", t.worst_m * 1e3, "mm");
+        t.report_rows(ctx, &format!("track-rooms-odometry-{label}"));
         odometry_bad += t.bad;
         odometry_detail.push(format!(
             "{label}: {} bad steps in {} frames with a pose (without: {without}), worst step {:.1} mm",
@@ -310,9 +301,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
         odometry_detail.join("; "),
     );
     let (median, beyond3) = sigma_summary(&mut ratios);
-    ctx.row("track-rooms", "frames-with-pose", posed as f64, "frames");
-    ctx.row("track-rooms", "bad-steps", bad as f64, "steps");
-    ctx.row("track-rooms", "worst-step", worst * 1e3, "mm");
+    steady.report_rows(ctx, "track-rooms");
     ctx.row("track-rooms", "median-error-over-sigma", median, "");
     // A median of no steps says nothing: with no tracked step (`--quick`'s six rooms are all
     // degenerate views but for three first frames) the check is not made, and the report says so.
@@ -368,7 +357,7 @@ pub(super) fn run(ctx: &mut Context) -> Result<String> {
          long with a seeded uniform error of σ 2 mm and 0.2° per axis, a random walk within \
          the tracker's default odometry σ; checked alike): frames with a pose without and with \
          it, and the bad steps with it.\n\n\
-         | camera | frames with a pose without | with | bad steps | worst step (mm) |\n\
+         | camera path | frames with a pose without | with | bad steps | worst step (mm) |\n\
          |---|---|---|---|---|\n{odometry_rows}",
         seeds.first().copied().unwrap_or(0),
         seeds.last().copied().unwrap_or(0),
