@@ -45,6 +45,7 @@
 use rayon::prelude::*;
 
 use crate::domain::Domain;
+use crate::kernel::avx2_twin;
 
 /// Multiples of the measured σ of the second differences beyond which a window holds a crease
 /// (two-sided Gaussian tail: 6·10⁻⁵).
@@ -74,6 +75,7 @@ pub(crate) fn refuse_creases(
     r: usize,
     keep: &mut [bool],
     samples: &mut Vec<f32>,
+    avx2: bool,
 ) -> f32 {
     if matches!(domain, Domain::Flat) || w == 0 || u.len() != keep.len() {
         return f32::NAN;
@@ -110,10 +112,29 @@ pub(crate) fn refuse_creases(
             &u[y * w..(y + 1) * w],
             &u[(y + r) * w..(y + r + 1) * w],
         );
+        refuse_row(avx2, above, centre, below, r, domain, measured, row);
+    });
+    measured
+}
+
+avx2_twin! {
+    /// The crease test of one row (`centre`, with the rows `r` above and below) for the pixels
+    /// `keep` still passes, with `τ`'s measured part `measured`.
+    #[allow(clippy::too_many_arguments)]
+    fn refuse_row(
+        above: &[f32],
+        centre: &[f32],
+        below: &[f32],
+        r: usize,
+        domain: Domain,
+        measured: f32,
+        keep: &mut [bool],
+    ) {
+        let w = centre.len();
         let n = w - 2 * r;
         let (left, right) = (&centre[..n], &centre[2 * r..]);
         let (mid, up, down) = (&centre[r..w - r], &above[r..w - r], &below[r..w - r]);
-        let row = &mut row[r..w - r];
+        let row = &mut keep[r..w - r];
         // Branch-free, so the loop vectorises: where `keep` holds, the window is valid (no NaN).
         // One loop per kind of σ: with `domain.sigma` matched per pixel in a single loop LLVM
         // vectorised neither this loop nor the interior gate's (multi-scale call +45 %
@@ -138,8 +159,7 @@ pub(crate) fn refuse_creases(
                 }
             }
         }
-    });
-    measured
+    }
 }
 
 /// One step of Marsaglia's xorshift64 generator: the deterministic noise of this crate's test
@@ -164,8 +184,8 @@ mod tests {
     fn refuse(img: &DepthImage, range: &RangeKernel, r: usize, keep: &mut [bool]) -> f32 {
         let domain = Domain::of(range);
         let mut u = Vec::new();
-        domain.image_into(img, &mut u);
-        refuse_creases(&u, img.width(), domain, r, keep, &mut Vec::new())
+        domain.image_into(img, &mut u, false);
+        refuse_creases(&u, img.width(), domain, r, keep, &mut Vec::new(), false)
     }
 
     /// Two planes meeting in a vertical crease at column `cx` (disparity slopes `g0` left,

@@ -6,6 +6,14 @@ use rayon::prelude::*;
 use sl_core::DepthImage;
 
 use crate::filter::RangeKernel;
+use crate::kernel::avx2_twin;
+
+avx2_twin! {
+    /// [`Domain::fill`] of one row.
+    fn fill_row(domain: Domain, src: &[f32], dst: &mut [f32]) {
+        domain.fill(src, dst)
+    }
+}
 
 /// The domain of a [`RangeKernel`].
 #[derive(Clone, Copy, Debug)]
@@ -40,18 +48,22 @@ impl Domain {
     }
 
     /// Writes the domain value of every pixel of `depth` into `out` (NaN where invalid), by
-    /// rows in parallel, one branch-free loop per kernel.
-    pub(crate) fn image_into(self, depth: &DepthImage, out: &mut Vec<f32>) {
+    /// rows in parallel, one branch-free loop per kernel (built for AVX2 with `avx2`, see
+    /// `kernel::avx2_twin!`).
+    pub(crate) fn image_into(self, depth: &DepthImage, out: &mut Vec<f32>, avx2: bool) {
         let w = depth.width().max(1);
         out.resize(depth.data().len(), f32::NAN);
         out.par_chunks_mut(w)
             .zip(depth.data().par_chunks(w))
-            .for_each(|(dst, src)| self.fill(src, dst));
+            .for_each(|(dst, src)| fill_row(avx2, self, src, dst));
     }
 
     /// The domain values of a row of depths (NaN where invalid).
+    #[inline(always)]
     fn fill(self, src: &[f32], dst: &mut [f32]) {
-        let valid = |z: f32| z > 0.0 && z.is_finite();
+        // Both comparisons evaluated (`&`, not `&&`) and the value computed for every pixel,
+        // so each loop vectorises (a short-circuit made them scalar: 7 instructions a pixel).
+        let valid = |z: f32| (z > 0.0) & (z < f32::INFINITY);
         match self {
             Self::Flat => {
                 for (o, &z) in dst.iter_mut().zip(src) {
@@ -60,7 +72,8 @@ impl Domain {
             }
             Self::Disparity { fb, .. } => {
                 for (o, &z) in dst.iter_mut().zip(src) {
-                    *o = if valid(z) { fb / z } else { f32::NAN };
+                    let u = fb / z;
+                    *o = if valid(z) { u } else { f32::NAN };
                 }
             }
             Self::Adaptive { .. } | Self::Fixed { .. } => {
@@ -72,6 +85,7 @@ impl Domain {
     }
 
     /// The range σ when it does not depend on the value (infinite for [`Domain::Flat`]).
+    #[inline(always)]
     pub(crate) fn constant_sigma(self) -> Option<f32> {
         match self {
             Self::Flat => Some(f32::INFINITY),

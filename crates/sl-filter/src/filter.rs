@@ -430,13 +430,37 @@ impl DepthFilter {
     /// [`DepthFilter::apply_with_isa`] into `out` (`width × height`, every pixel written), for
     /// callers that reuse their buffers.
     pub(crate) fn apply_into(&self, depth: DepthView<'_>, isa: Isa, out: &mut [f32]) -> Result<()> {
+        self.apply_dilated_into(depth, 1, None, isa, out)
+    }
+
+    /// [`DepthFilter::apply_into`] with the window's taps `step` pixels apart (a dilated, "à
+    /// trous" pass: the window reaches `radius · step` pixels; `step = 1` is the filter
+    /// itself). The same as filtering each of the image's `step × step` polyphase sub-images
+    /// (every `step`-th pixel of every `step`-th row) with the filter and interleaving them
+    /// back, without copying them out: a window clipped by a sub-image's border is the dilated
+    /// window clipped by the image's. With `keep` (`width × height`), the output is the input
+    /// wherever `keep` is false.
+    pub(crate) fn apply_dilated_into(
+        &self,
+        depth: DepthView<'_>,
+        step: usize,
+        keep: Option<&[bool]>,
+        isa: Isa,
+        out: &mut [f32],
+    ) -> Result<()> {
         self.validate()?;
+        if step == 0 {
+            return Err(FilterError::InvalidParameter(
+                "the taps of a dilated window must be at least 1 px apart".into(),
+            ));
+        }
         let (w, h) = (depth.width(), depth.height());
         Self::check_size(w, h)?;
-        if out.len() != w * h {
+        if out.len() != w * h || keep.is_some_and(|k| k.len() != w * h) {
             return Err(FilterError::ImageSize(format!(
-                "output of {} pixels for a {w}x{h} image",
-                out.len()
+                "output of {} pixels (mask of {:?}) for a {w}x{h} image",
+                out.len(),
+                keep.map(<[bool]>::len)
             )));
         }
         let isa = if isa.is_supported() {
@@ -469,6 +493,7 @@ impl DepthFilter {
         }
         let taps = Taps {
             radius: r,
+            step,
             disc: self.window == Window::Disc,
             taps: &taps,
             exps: &exps,
@@ -485,6 +510,7 @@ impl DepthFilter {
             disparity_fb: None,
             min_m: MIN_DEPTH_M,
             max_m: MAX_DEPTH_M,
+            keep,
         };
         let ok = match self.range {
             RangeKernel::None => {

@@ -40,8 +40,72 @@
 //! groups of 16. Other radii use a runtime-radius loop. On x86-64 the AVX2+FMA and AVX-512 (F + DQ) versions are
 //! selected at run time after checking the CPU; every path is tested against
 //! [`crate::reference`].
+//!
+//! **Dilated windows** (`Taps::step` > 1: the taps `step` pixels apart, the multi-scale
+//! filter's coarse passes). The padding and the rows of context of a block are the window's
+//! reach, `radius · step`, and the blocks are taller (up to 64 rows) so that the context stays a
+//! fraction of them. The 5×5 window at steps 2, 4 and 8 has fast paths in every kernel (the
+//! step a compile-time constant: tap `(dx, dy)` reads row `dy·step`, column `dx·step`); other
+//! steps take the runtime-radius loop. A pass may come with a mask (`Source::keep`) of the pixels
+//! whose result is wanted: elsewhere the output is the input, merged block by block, and the
+//! fast paths skip groups of pixels (the kernel's groups, or whole chunks) none of which is kept.
 
 use crate::weight::{CENTRE_WEIGHT, TapExp, range_weight};
+
+// The AVX2 builds of the multi-scale filter's auxiliary loops (the gates, the domain values,
+// the merge of a pass), chosen at run time. The crate is compiled for the baseline x86-64
+// (SSE2), so the compiler vectorises these loops four `f32` or sixteen byte lanes wide.
+// `avx2_twin!` compiles one loop body a second time inside a `#[target_feature(enable =
+// "avx2")]` function and picks that build where the caller's `Isa` is not the portable one and
+// the CPU has AVX2: the same operations in the same order, so the results are bit-identical, on
+// vectors twice as wide. Measured on the person frame, one thread, AMD EPYC: the default
+// multi-scale filter 2.59 → 1.96 ms with the AVX-512 kernels and 3.37 → 2.81 ms with the AVX2
+// ones, as fast as the whole crate built for `x86-64-v3` (docs/bench/README.md, session 97).
+// Written by hand: a crate such as `multiversion` does the same with a procedural macro, for
+// five small loops not worth a dependency. It lives here because this file is the one place
+// `unsafe` is allowed (the runtime ISA dispatch).
+
+/// Whether the AVX2 twins run for `isa` on this CPU.
+pub(crate) fn use_avx2(isa: Isa) -> bool {
+    cfg!(target_arch = "x86_64") && isa != Isa::Portable && Isa::Avx2.is_supported()
+}
+
+/// Defines `fn $name(avx2: bool, args…)`, which runs `$body` compiled with AVX2 when `avx2`
+/// is true (the caller checked the CPU with [`use_avx2`]) and for the baseline otherwise.
+/// `$body` must not rely on anything but its arguments; functions it calls are inlined into
+/// both builds only when they are `#[inline(always)]`.
+macro_rules! avx2_twin {
+    (
+        $(#[$meta:meta])*
+        $vis:vis fn $name:ident $(<$($lt:lifetime),*>)? ($($arg:ident : $ty:ty),* $(,)?) $body:block
+    ) => {
+        $(#[$meta])*
+        $vis fn $name $(<$($lt),*>)? (avx2: bool, $($arg: $ty),*) {
+            #[inline(always)]
+            #[allow(clippy::too_many_arguments)]
+            fn body $(<$($lt),*>)? ($($arg: $ty),*) $body
+            #[cfg(target_arch = "x86_64")]
+            #[target_feature(enable = "avx2")]
+            #[allow(clippy::too_many_arguments)]
+            fn wide $(<$($lt),*>)? ($($arg: $ty),*) {
+                body($($arg),*)
+            }
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: the only precondition of a `#[target_feature]` function is that the
+                // CPU supports its features: `avx2` is true only after `use_avx2` checked it.
+                #[allow(unsafe_code)]
+                unsafe {
+                    return wide($($arg),*);
+                }
+            }
+            let _ = avx2;
+            body($($arg),*)
+        }
+    };
+}
+
+pub(crate) use avx2_twin;
 
 /// Sentinel stored for invalid pixels and padding in the range filters.
 pub(crate) const INVALID_FILL: f32 = 1.0e18;
@@ -129,6 +193,9 @@ pub(crate) struct Source<'a> {
     /// Supported depth range; valid depths outside it are reported.
     pub min_m: f32,
     pub max_m: f32,
+    /// `Some(keep)` (`width × height`): where `keep` is false the output is the input value,
+    /// unfiltered (merged block by block while both are in cache).
+    pub keep: Option<&'a [bool]>,
 }
 
 /// A padded block of rows: row `j` holds image row `y0 + j − r` (fill outside the image), with
@@ -138,17 +205,51 @@ pub(crate) struct Padded<'a> {
     pub data: &'a [f32],
     pub stride: usize,
     pub width: usize,
+    /// The block's rows of [`Source::keep`]: where it is false the output is replaced by the
+    /// input afterwards, so the fast paths may skip groups of pixels none of which is kept
+    /// (writing 0 there).
+    pub keep: Option<&'a [bool]>,
 }
 
-/// Row stride of the padded blocks.
-pub(crate) fn stride_for(width: usize, radius: usize) -> usize {
-    width.div_ceil(CHUNK) * CHUNK + 2 * radius.max(MAX_FAST_RADIUS)
+/// Whether any of `keep` is true: an OR over the bytes, which vectorises.
+#[inline(always)]
+pub(crate) fn any_kept(keep: &[bool]) -> bool {
+    keep.iter().fold(0u8, |a, &k| a | u8::from(k)) != 0
+}
+
+/// The groups of `G` pixels of a chunk starting at `x0` of an output row to compute: bit `g`
+/// set when group `g` holds a kept pixel (all set without a mask). A group past the row's
+/// end counts as kept; its output is never stored.
+#[inline(always)]
+pub(crate) fn kept_groups<const G: usize>(keep_row: Option<&[bool]>, x0: usize) -> u32 {
+    let Some(row) = keep_row else {
+        return u32::MAX;
+    };
+    let mut bits = 0u32;
+    for g in 0..CHUNK / G {
+        let (a, b) = (x0 + g * G, x0 + (g + 1) * G);
+        let kept = match row.get(a..b.min(row.len())) {
+            Some(k) if b <= row.len() => any_kept(k),
+            _ => true,
+        };
+        bits |= u32::from(kept) << g;
+    }
+    bits
+}
+
+/// Row stride of the padded blocks for a window reaching `reach` pixels from its centre.
+pub(crate) fn stride_for(width: usize, reach: usize) -> usize {
+    width.div_ceil(CHUNK) * CHUNK + 2 * reach.max(MAX_REACH)
 }
 
 /// Everything the row kernel needs besides the image.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Taps<'a> {
     pub radius: usize,
+    /// Pixels between neighbouring taps: 1 for the ordinary window, `s` for a dilated ("à
+    /// trous") one whose taps are `s` pixels apart (supported where [`dilated_fast_path`]
+    /// says so).
+    pub step: usize,
     /// The window is the disc `dx² + dy² ≤ r²` (OpenCV's rule) rather than the full square:
     /// the taps outside it are skipped, not weighted 0.
     pub disc: bool,
@@ -186,10 +287,14 @@ pub(crate) fn run<M: RangeMode>(
     if width == 0 || src.height == 0 {
         return true;
     }
-    let r = taps.radius;
+    // How far the window reaches from its centre: the padding of every block.
+    let r = taps.radius * taps.step;
     let stride = stride_for(width, r);
+    // A dilated window reaches further, so its blocks are taller: the rows of context copied
+    // with a block stay a fraction of it (at most 50 % for the largest dilated reach).
+    let block_rows = BLOCK_ROWS.max(4 * r.min(MAX_REACH));
     let bad = std::sync::atomic::AtomicBool::new(false);
-    let queue = std::sync::Mutex::new(out.chunks_mut(width * BLOCK_ROWS).enumerate());
+    let queue = std::sync::Mutex::new(out.chunks_mut(width * block_rows).enumerate());
     let drain = || {
         loop {
             // The lock is held only to take the next block (30 blocks for 640×480).
@@ -200,7 +305,7 @@ pub(crate) fn run<M: RangeMode>(
             let Some((bi, block)) = next else {
                 break;
             };
-            let y0 = bi * BLOCK_ROWS;
+            let y0 = bi * block_rows;
             let rows = block.len() / width;
             SCRATCH.with(|cell| {
                 let mut buf = cell.borrow_mut();
@@ -215,6 +320,14 @@ pub(crate) fn run<M: RangeMode>(
                         dispatch::<M, true>(isa, taps, src, y0, stride, buf, block, mode, fb)
                     }
                 };
+                if let Some(keep) = src.keep {
+                    keep_where(
+                        use_avx2(isa),
+                        block,
+                        &src.data[y0 * width..],
+                        &keep[y0 * width..],
+                    );
+                }
                 if !ok {
                     bad.store(true, std::sync::atomic::Ordering::Relaxed);
                 }
@@ -233,6 +346,18 @@ pub(crate) fn run<M: RangeMode>(
         });
     }
     !bad.into_inner()
+}
+
+avx2_twin! {
+    /// `out[i] = input[i]` where `keep[i]` is false (`out[i]` stays elsewhere). A select on
+    /// the bits, so the loop vectorises (a select of the two values became a scalar loop of
+    /// conditional loads).
+    fn keep_where(out: &mut [f32], input: &[f32], keep: &[bool]) {
+        for ((o, &z), &k) in out.iter_mut().zip(input).zip(keep) {
+            let filtered = 0u32.wrapping_sub(u32::from(k));
+            *o = f32::from_bits((o.to_bits() & filtered) | (z.to_bits() & !filtered));
+        }
+    }
 }
 
 /// Copies image rows `y0 − r .. y0 + rows + r` into `buf` (see [`Padded`]); `false` if a valid
@@ -306,21 +431,31 @@ fn dispatch<M: RangeMode, const DISP: bool>(
 
 macro_rules! pad_and_filter {
     ($fma:literal, $taps:ident, $src:ident, $y0:ident, $stride:ident, $buf:ident, $out:ident, $mode:ident, $fb:ident) => {{
-        let ok = fill_rows::<DISP>($src, $y0, $taps.radius, $stride, $buf, $fb);
+        let reach = $taps.radius * $taps.step;
+        let ok = fill_rows::<DISP>($src, $y0, reach, $stride, $buf, $fb);
         let p = Padded {
             data: $buf,
             stride: $stride,
             width: $src.width,
+            keep: $src
+                .keep
+                .and_then(|k| k.get($y0 * $src.width..$y0 * $src.width + $out.len())),
         };
         let p = &p;
-        match ($taps.radius, $taps.disc) {
-            (1, false) => block::<1, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            (2, false) => block::<2, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            (3, false) => block::<3, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            (1, true) => block::<1, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            (2, true) => block::<2, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            (3, true) => block::<3, true, $fma, M, DISP>($taps, p, $out, $mode, $fb),
-            _ => block::<0, false, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+        match ($taps.radius, $taps.disc, $taps.step) {
+            (1, false, 1) => block::<1, false, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, false, 1) => block::<2, false, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (3, false, 1) => block::<3, false, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (1, true, 1) => block::<1, true, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, true, 1) => block::<2, true, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (3, true, 1) => block::<3, true, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, false, 2) => block::<2, false, 2, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, false, 4) => block::<2, false, 4, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, false, 8) => block::<2, false, 8, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, true, 2) => block::<2, true, 2, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, true, 4) => block::<2, true, 4, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            (2, true, 8) => block::<2, true, 8, $fma, M, DISP>($taps, p, $out, $mode, $fb),
+            _ => block::<0, false, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
         }
         ok
     }};
@@ -332,20 +467,31 @@ macro_rules! pad_and_filter {
 /// so that it is compiled inside each `#[target_feature]` block function with its features.
 macro_rules! explicit_kernel {
     ($k:ident, $taps:ident, $src:ident, $y0:ident, $stride:ident, $buf:ident, $out:ident, $mode:ident, $fb:ident) => {{
-        if M::RANGE && (1..=MAX_FAST_RADIUS).contains(&$taps.radius) {
-            let ok = fill_rows::<DISP>($src, $y0, $taps.radius, $stride, $buf, $fb);
+        let fast = (1..=MAX_FAST_RADIUS).contains(&$taps.radius)
+            && ($taps.step == 1 || dilated_fast_path($taps.radius, $taps.step));
+        if M::RANGE && fast {
+            let ok = fill_rows::<DISP>($src, $y0, $taps.radius * $taps.step, $stride, $buf, $fb);
             let p = Padded {
                 data: $buf,
                 stride: $stride,
                 width: $src.width,
+                keep: $src
+                    .keep
+                    .and_then(|k| k.get($y0 * $src.width..$y0 * $src.width + $out.len())),
             };
-            match ($taps.radius, $taps.disc) {
-                (1, false) => $k::block::<1, false, M, DISP>($taps, &p, $out, $mode, $fb),
-                (2, false) => $k::block::<2, false, M, DISP>($taps, &p, $out, $mode, $fb),
-                (3, false) => $k::block::<3, false, M, DISP>($taps, &p, $out, $mode, $fb),
-                (1, true) => $k::block::<1, true, M, DISP>($taps, &p, $out, $mode, $fb),
-                (2, true) => $k::block::<2, true, M, DISP>($taps, &p, $out, $mode, $fb),
-                _ => $k::block::<3, true, M, DISP>($taps, &p, $out, $mode, $fb),
+            match ($taps.radius, $taps.disc, $taps.step) {
+                (1, false, _) => $k::block::<1, false, 1, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, false, 2) => $k::block::<2, false, 2, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, false, 4) => $k::block::<2, false, 4, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, false, 8) => $k::block::<2, false, 8, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, false, _) => $k::block::<2, false, 1, M, DISP>($taps, &p, $out, $mode, $fb),
+                (3, false, _) => $k::block::<3, false, 1, M, DISP>($taps, &p, $out, $mode, $fb),
+                (1, true, _) => $k::block::<1, true, 1, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, true, 2) => $k::block::<2, true, 2, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, true, 4) => $k::block::<2, true, 4, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, true, 8) => $k::block::<2, true, 8, M, DISP>($taps, &p, $out, $mode, $fb),
+                (2, true, _) => $k::block::<2, true, 1, M, DISP>($taps, &p, $out, $mode, $fb),
+                _ => $k::block::<3, true, 1, M, DISP>($taps, &p, $out, $mode, $fb),
             }
             ok
         } else {
@@ -407,12 +553,31 @@ pub(crate) const CHUNK: usize = 128;
 
 /// Largest radius with a constant-radius fast path.
 pub(crate) const MAX_FAST_RADIUS: usize = 3;
-/// Length of the row windows of the fast path: a chunk plus the largest fast-path apron.
-const CW: usize = CHUNK + 2 * MAX_FAST_RADIUS;
+/// The radius of the dilated fast paths (5×5 taps).
+pub(crate) const DILATED_RADIUS: usize = 2;
+/// The dilations (pixels between taps) with a fast path of radius [`DILATED_RADIUS`]: those of
+/// `MultiScale`'s default passes.
+pub(crate) const FAST_STEPS: [usize; 3] = [2, 4, 8];
+/// The farthest a fast path's window reaches from its centre (radius × step).
+pub(crate) const MAX_REACH: usize = DILATED_RADIUS * 8;
+/// Length of the row windows of the fast paths: a chunk plus the largest apron.
+const CW: usize = CHUNK + 2 * MAX_REACH;
+
+/// Whether a window of `radius` with taps `step` pixels apart has a dilated fast path.
+pub(crate) fn dilated_fast_path(radius: usize, step: usize) -> bool {
+    radius == DILATED_RADIUS && FAST_STEPS.contains(&step)
+}
 
 /// Filters the block of whole rows `out` from its padded block `p`. `R = 0`: runtime radius.
 #[inline(always)]
-fn block<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn block<
+    const R: usize,
+    const DISC: bool,
+    const S: usize,
+    const FMA: bool,
+    M: RangeMode,
+    const DISP: bool,
+>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -420,7 +585,7 @@ fn block<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const 
     fb: f32,
 ) {
     if R > 0 {
-        block_fast::<R, DISC, FMA, M, DISP>(taps, p, out, mode, fb);
+        block_fast::<R, DISC, S, FMA, M, DISP>(taps, p, out, mode, fb);
     } else {
         block_any::<FMA, M, DISP>(taps, p, out, mode, fb);
     }
@@ -477,7 +642,14 @@ const MAX_CLASSES: usize = (MAX_FAST_RADIUS + 1) * (MAX_FAST_RADIUS + 1);
 /// the whole `(2R+1)²` window is unrolled, so the sums stay in registers and the two divisions
 /// per pixel overlap with the taps' multiply-adds.
 #[inline(always)]
-fn block_fast<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn block_fast<
+    const R: usize,
+    const DISC: bool,
+    const S: usize,
+    const FMA: bool,
+    M: RangeMode,
+    const DISP: bool,
+>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -504,27 +676,34 @@ fn block_fast<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, c
     let lin = &lin;
     let mut res = [0.0f32; CHUNK];
     for (y, out_row) in out.chunks_mut(width).enumerate() {
-        // Rows y .. y + 2r of the padded block are the window rows of output row y.
-        let win = &p.data[y * stride..(y + k) * stride];
+        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of output row y.
+        let win = &p.data[y * stride..];
+        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
         let mut x0 = 0;
         while x0 < width {
-            // `CW`-long fixed-size row windows: every `row[i + dx]` below is provably in
+            let n = CHUNK.min(width - x0);
+            if kept_groups::<CHUNK>(keep_row, x0) == 0 {
+                // No pixel of the chunk is kept: its output is replaced by the input.
+                out_row[x0..x0 + n].fill(0.0);
+                x0 += CHUNK;
+                continue;
+            }
+            // `CW`-long fixed-size row windows: every `row[i + dx·S]` below is provably in
             // bounds, so the lane loop carries no bounds checks and vectorises.
             let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
             for (dy, row) in rows.iter_mut().enumerate().take(k) {
-                let Ok(r) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
-                else {
+                let at = dy * S * stride + x0;
+                let Some(Ok(r)) = win.get(at..at + CW).map(<&[f32; CW]>::try_from) else {
                     return;
                 };
                 *row = r;
             }
-            let n = CHUNK.min(width - x0);
             let dst: &mut [f32; CHUNK] =
                 match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
                     Ok(d) => d,
                     Err(_) => &mut res,
                 };
-            chunk::<R, DISC, FMA, M, DISP>(
+            chunk::<R, DISC, S, FMA, M, DISP>(
                 rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6], cls, lin, dst, mode,
                 fb,
             );
@@ -541,7 +720,14 @@ fn block_fast<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, c
 /// not alias `dst` and vectorises without runtime alias checks.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn chunk<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const DISP: bool>(
+fn chunk<
+    const R: usize,
+    const DISC: bool,
+    const S: usize,
+    const FMA: bool,
+    M: RangeMode,
+    const DISP: bool,
+>(
     r0: &[f32; CW],
     r1: &[f32; CW],
     r2: &[f32; CW],
@@ -557,7 +743,7 @@ fn chunk<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const 
 ) {
     let rows = [r0, r1, r2, r3, r4, r5, r6];
     for i in 0..CHUNK {
-        let c = rows[R][i + R];
+        let c = rows[R][i + R * S];
         let s = if M::RANGE { mode.scale(c) } else { 1.0 };
         let zs = s * c;
         // The centre tap (difference 0; weight 1 for the Gaussian, the range weight of
@@ -572,7 +758,8 @@ fn chunk<const R: usize, const DISC: bool, const FMA: bool, M: RangeMode, const 
                     // Indexing the tap's shifted row (rather than `row[i + dx]`) keeps GVN
                     // from carrying loads from one lane to the next (its load PRE would turn
                     // them into loop-carried values that the loop vectoriser rejects).
-                    let Ok(shifted) = <&[f32; CHUNK]>::try_from(&rows[$dy][$dx..$dx + CHUNK])
+                    let Ok(shifted) =
+                        <&[f32; CHUNK]>::try_from(&rows[$dy][$dx * S..$dx * S + CHUNK])
                     else {
                         return;
                     };
@@ -620,7 +807,7 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
     mode: M,
     fb: f32,
 ) {
-    let r = taps.radius;
+    let (r, step) = (taps.radius, taps.step);
     let k = 2 * r + 1;
     let stride = p.stride;
     let width = p.width;
@@ -630,10 +817,12 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
     let mut swd = [0.0f32; CHUNK];
     let mut res = [0.0f32; CHUNK];
     for (y, out_row) in out.chunks_mut(width).enumerate() {
-        let win = &p.data[y * stride..(y + k) * stride];
+        // Rows y, y + step, …, y + 2r·step of the padded block are the window rows of row y.
+        let win = &p.data[y * stride..(y + (k - 1) * step + 1) * stride];
         let mut x0 = 0;
         while x0 < width {
-            let centre = &win[r * stride + x0 + r..r * stride + x0 + r + CHUNK];
+            let c0 = r * step * stride + x0 + r * step;
+            let centre = &win[c0..c0 + CHUNK];
             for i in 0..CHUNK {
                 let z = centre[i];
                 let s = if M::RANGE { mode.scale(z) } else { 1.0 };
@@ -643,13 +832,13 @@ fn block_any<const FMA: bool, M: RangeMode, const DISP: bool>(
             sw.fill(if M::RANGE { CENTRE_WEIGHT } else { 1.0 });
             swd.fill(0.0);
             for dy in 0..k {
-                let row = &win[dy * stride + x0..];
+                let row = &win[dy * step * stride + x0..];
                 for dx in 0..k {
                     let d2 = dy.abs_diff(r).pow(2) + dx.abs_diff(r).pow(2);
                     if d2 == 0 || (taps.disc && d2 > r * r) {
                         continue;
                     }
-                    let nb = &row[dx..dx + CHUNK];
+                    let nb = &row[dx * step..dx * step + CHUNK];
                     let t = dy * k + dx;
                     if M::RANGE {
                         let ke = taps.exps[t];

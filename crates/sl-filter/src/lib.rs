@@ -133,6 +133,9 @@
 //! lanes) so that the sums' dependency chains overlap, and skip groups whose centres are all
 //! invalid (their output is 0). The filters' accuracy did not change measurably with the
 //! cheaper weight (`cargo xtask validate --only filter`: every RMSE within 0.01 mm). The
+//! multi-scale filter's dilated passes run the same kernels with their taps 2, 4 or 8 px apart
+//! on the full image, skip groups of pixels its gates do not keep, and its gates' loops have
+//! AVX2 builds chosen at run time too ([`multiscale`]). The
 //! runtime dispatch is the crate's only `unsafe`: calling a `#[target_feature]` function after
 //! `is_x86_feature_detected!` has confirmed the features (the intrinsics are safe inside it;
 //! `bytemuck` converts between arrays and vectors).
@@ -152,6 +155,7 @@ mod crease;
 mod domain;
 pub mod error;
 pub mod filter;
+mod gate;
 mod kernel;
 pub mod multiscale;
 pub mod prefilter;

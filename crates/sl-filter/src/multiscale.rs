@@ -19,9 +19,11 @@
 //! disparity domain matters at large supports: `D = f·B/Z` is affine on every 3D plane, so the
 //! symmetric kernel leaves planes exactly in place, whereas averaging depth over ±8 px would
 //! bias tilted planes away from the camera (see the crate docs' bound, which grows with the
-//! kernel's second moment). A dilated pass is computed exactly by splitting the image into its
-//! `s×s` polyphase sub-images (every `s`-th pixel), filtering each with the ordinary fast 5×5
-//! kernel and interleaving them back; invalid pixels, borders and the SIMD paths are those of
+//! kernel's second moment). A dilated pass is the fast 5×5 kernel with its taps `s` pixels
+//! apart, run on the full image (`DepthFilter`'s dilated fast paths for `s` = 2, 4 and 8, its
+//! runtime-radius path otherwise): exactly what filtering each of the image's `s×s` polyphase
+//! sub-images (every `s`-th pixel of every `s`-th row) with the ordinary 5×5 filter gives, bit for
+//! bit, without copying them out and back; invalid pixels, borders and the SIMD paths are those of
 //! [`DepthFilter`]. The range weight keeps depth edges: a neighbour across a jump of more than
 //! ~3 range σ contributes nothing, at any dilation. A wide pass is used only where its whole
 //! window is inside the image, valid and free of jumps larger than one range σ; elsewhere the
@@ -47,32 +49,29 @@
 //! the issue-11 target of half the raw residual at ≥ 2 m is not reached (0.79×), and the raw
 //! residual's own σ = 16 px Gaussian alone is already 0.55× raw there (the report's *floor*
 //! row). A fourth pass (dilation 16) gained 0.02 more there but made the white simulator's
-//! figure-walls scene worse below 1.5 m (0.24 → 0.29 mm); not taken. Time for person-depth.png (640×480),
-//! minimum of 30: on a 2-core Intel Xeon VM 6.0 / 3.6 ms on one / two threads with the AVX-512
-//! kernels, 8.3 / 4.7 ms with AVX2 (every part runs in parallel: the sub-images of a dilated
-//! pass, their interleaving, the interior gate by rows and bands of rows); on the 2-core AMD
-//! EPYC, before those parts ran in parallel, 10.8 / 8.6 ms (AVX-512) and 16.1 / 11.2 ms (AVX2),
-//! against OpenCV 5's `bilateralFilter` at 207 / 105 ms at the same 31-pixel support (42 / 22 ms
-//! at 15 px). On the AMD EPYC (Zen 4, AVX-512) in session 35: 9.0 → 4.3 ms on one thread and
-//! 4.0–4.8 → 2.2–2.9 ms on two, from the cheaper range weight (crate docs, *Speed*) and from
-//! this module: the sub-images of all passes share two `w·h` buffers (`Polyphase`), each pass
-//! is written back into the finer result only inside its interior, in place (before: two
-//! allocations per sub-image, a third full image per pass and a separate merge; fresh 1.2 MB
-//! buffers cost page faults on every call), and the interior gate's per-row loops match the
-//! range kernel once per row and are branch-free (1.8 ms a pass before). The third pass of
-//! session 58 costs about 30 % more: person-depth.png 6.6 → 8.7 ms on one thread and 4.5 → 5.6
-//! ms on two (AVX-512; AVX2 7.8 → 9.8 and 5.4 → 6.3 ms; minimum of 30, interleaved, a Zen 4
-//! whose clock was slower that day than in session 35), against 543 ms for OpenCV 5.1 at d = 63
-//! (93 ms at d = 31). Since session 60 a thread keeps the passes' buffers for its next call
-//! (`Scratch`): fresh ones came back from the system as zeroed pages, a page fault each 4 KB,
-//! about a quarter of the time. Person frame, minimum of 30, three interleaved rounds, Zen 4:
-//! AVX2 7.6–7.7 → 5.8 ms on one thread, 4.9–5.5 → 3.1–3.7 ms on two; AVX-512 6.1–6.4 → 4.5–4.6
-//! and 4.2–4.8 → 2.5–3.0 ms; the output byte for byte the same.
+//! figure-walls scene worse below 1.5 m (0.24 → 0.29 mm); not taken.
+//!
+//! **Speed.** person-depth.png (640×480), one thread, minimum of 30, AMD EPYC (session 97):
+//! 1.96 ms with the AVX-512 kernels and 2.76 ms with the AVX2 ones (two threads: 1.48 and
+//! 2.01 ms), against OpenCV 5.1's `bilateralFilter` at 543 ms at the same 63-pixel support (93
+//! ms at d = 31). Session 97 halved it (4.21 and 5.19 ms before), the output byte for byte the
+//! same:
+//! - the dilated passes run on the full image (above) instead of on polyphase sub-images
+//!   copied out and interleaved back, whose 80-pixel rows at dilation 8 also left a third of
+//!   every 128-pixel chunk of lanes empty;
+//! - the interior gate dilates byte masks by doubling (`gate`) instead of counting every window;
+//! - a pass is merged into the finer result block by block, while both are in cache, and the
+//!   kernels skip groups of pixels none of which the gates keep (at dilation 8 they keep 35–64 %
+//!   of the 16-pixel groups of real frames);
+//! - the auxiliary loops vectorise (no short-circuit or select of references in them) and run
+//!   in AVX2 builds (`kernel::avx2_twin!`).
+//!
+//! The passes' buffers are kept by the thread for its next call (`Scratch`). The history of
+//! these figures is in docs/bench/README.md (sessions 35, 58, 60 and 97).
 //!
 //! Beyond the paper: the paper filters once with one window; the dilated passes and the
 //! disparity domain at large supports are this crate's additions (issue 11).
 
-use rayon::prelude::*;
 use sl_core::{DepthImage, DepthView, SensorModel};
 
 use crate::crease::refuse_creases;
@@ -81,7 +80,9 @@ use crate::error::{FilterError, Result};
 #[cfg(test)]
 use crate::filter::RangeKernel;
 use crate::filter::{DEFAULT_K_MULTIPLIER, DepthFilter, Method};
+use crate::gate::Gate;
 use crate::kernel::Isa;
+use crate::kernel::use_avx2;
 
 /// Default dilations of the coarse passes (pixels between taps): 2, 4 and 8, so the passes
 /// reach ±4, ±8 and ±16 px and the total support is about 63×63 px.
@@ -106,7 +107,7 @@ pub const MAX_DILATION_PX: usize = 32;
 pub struct MultiScale {
     /// The fine pass (the paper's filter; default: adaptive 7×7).
     pub base: DepthFilter,
-    /// The filter of every coarse pass, applied on the polyphase sub-images.
+    /// The filter of every coarse pass, with its taps `s` pixels apart at each dilation `s`.
     pub coarse: DepthFilter,
     /// Dilations of the coarse passes, in order.
     pub dilations: Vec<usize>,
@@ -181,15 +182,26 @@ impl MultiScale {
     /// The coarse passes over `cur` (the base pass's result), in place.
     fn coarse_passes(&self, cur: &mut DepthImage, scratch: &mut Scratch, isa: Isa) -> Result<()> {
         let (w, h) = (cur.width(), cur.height());
-        let Scratch { keep, gate, subs } = scratch;
+        let Scratch {
+            keep,
+            gate,
+            samples,
+            filtered,
+        } = scratch;
         let domain = Domain::of(&self.coarse.range);
+        let avx2 = use_avx2(isa);
         for &s in &self.dilations {
             let r = self.coarse.radius_px * s;
-            gate.interior_into(cur, domain, r, keep);
-            refuse_creases(&gate.values, w, domain, r, keep, &mut gate.samples);
-            subs.filter(&self.coarse, cur.data(), w, h, s, isa)?;
-            // The coarse result inside the interior; outside it the finer result stays.
-            subs.interleave_where(cur.data_mut(), w, s, Some(keep));
+            gate.interior_into(cur, domain, r, keep, avx2);
+            refuse_creases(&gate.values, w, domain, r, keep, samples, avx2);
+            // The coarse result inside the interior; outside it the finer result stays. Every
+            // value of `filtered` is written; it becomes the current image, and the one before
+            // is the next pass's buffer.
+            filtered.resize(w * h, 0.0);
+            self.coarse
+                .apply_dilated_into(DepthView::from(&*cur), s, Some(keep), isa, filtered)?;
+            let done = DepthImage::from_vec(w, h, std::mem::take(filtered))?;
+            *filtered = std::mem::replace(cur, done).into_image().into_vec();
         }
         Ok(())
     }
@@ -201,8 +213,8 @@ impl MultiScale {
 const KEEP_SCRATCH_MAX_PIXELS: usize = 1 << 21;
 
 /// The coarse passes' working buffers: the interior gate's (`keep` and [`Gate`]) and the
-/// polyphase sub-images before and after filtering, each `w·h` values in all, shared by the
-/// passes of a call and kept by the thread for its next call.
+/// filtered image of a pass, each `w·h` values, shared by the passes of a call and kept by the
+/// thread for its next call.
 ///
 /// Why kept: freed at the end of every call, these ~4.5 MB (640×480) go back to the system
 /// (the allocator trims its heap) and come back as fresh pages, one page fault per 4 KB, on
@@ -213,7 +225,9 @@ const KEEP_SCRATCH_MAX_PIXELS: usize = 1 << 21;
 struct Scratch {
     keep: Vec<bool>,
     gate: Gate,
-    subs: Polyphase,
+    /// The crease test's samples.
+    samples: Vec<f32>,
+    filtered: Vec<f32>,
 }
 
 thread_local! {
@@ -255,131 +269,24 @@ impl Scratch {
 /// on the realistic simulator its surface RMSE is 0.6× the single adaptive pass's (3.68 against
 /// 6.07 mm), with the same edge error; on real frames (person, floor scan, TUM fr1/rpy,
 /// 7-Scenes) it removes about two fifths of the fine-scale plane residual where the single pass
-/// removes a fifth, and halves the spread of the surface normals; and it costs under a fiftieth
+/// removes a fifth, and halves the spread of the surface normals; and it costs under a hundredth
 /// of OpenCV's `bilateralFilter` at its 63-pixel support (person-depth.png, one thread, Zen 4,
-/// session 60: 4.5 ms with AVX-512, 5.8 ms with AVX2, against 331 ms for OpenCV 5.1.0.95).
+/// session 97: 1.96 ms with AVX-512, 2.8 ms with AVX2, against 311 ms for OpenCV 5.1.0.95).
 pub fn multiscale_by_default(method: Method) -> bool {
     matches!(method, Method::Adaptive | Method::Disparity)
-}
-
-/// The buffers of the multi-scale filter's gates, reused across passes: the frame's domain
-/// values ([`Domain::image_into`]), the pixels near a bad one, and the crease test's samples.
-#[derive(Default)]
-struct Gate {
-    values: Vec<f32>,
-    near: Vec<bool>,
-    samples: Vec<f32>,
-}
-
-impl Gate {
-    /// Pixels whose whole `(2R+1)²` neighbourhood is inside the image, valid and free of depth
-    /// jumps (neighbours more than one range σ apart), written into `out`; the frame's domain
-    /// values are left in `self.values` for the crease test. Only there is a wide pass
-    /// symmetric: a window clipped by the border, a hole or a rejected surface averages one
-    /// side of the pixel only, which on a slope (a floor at grazing incidence) shifts the depth
-    /// by the slope times the window's off-centre mean, up to `R` pixels' worth. Elsewhere the
-    /// finer result is kept.
-    ///
-    /// Cost: one image of domain values, one pass marking the bad pixels (invalid, or a jump to
-    /// the right or below neighbour) with a running count over each row, and one over each
-    /// column telling whether any bad pixel lies within `R` (a separable box test), all in
-    /// `f32`/`u32`/`bool` buffers without per-pixel allocation.
-    fn interior_into(&mut self, depth: &DepthImage, domain: Domain, r: usize, out: &mut Vec<bool>) {
-        let (w, h) = (depth.width(), depth.height());
-        out.clear();
-        out.resize(w * h, false);
-        domain.image_into(depth, &mut self.values);
-        if 2 * r + 1 > w || 2 * r + 1 > h {
-            return;
-        }
-        // Per row (in parallel): the bad pixels (invalid, or a jump of more than one σ to the
-        // right or below neighbour; comparisons with NaN are false; the last row is compared
-        // with itself), then whether a bad pixel lies within ±r in the row (a running count
-        // over the 2r+1 window). Every value of `near` is written below.
-        let u = &*self.values;
-        self.near.resize(w * h, false);
-        self.near.par_chunks_mut(w).enumerate().for_each_init(
-            || vec![false; w],
-            |bad, (y, dst)| {
-                let row = &u[y * w..(y + 1) * w];
-                let below = &u[(y + 1).min(h - 1) * w..][..w];
-                let jump = |v: f32, n: f32, s: f32| (v - n).abs() > s;
-                // One loop per kind of σ, so each vectorises (as in `crease.rs`).
-                match domain.constant_sigma() {
-                    Some(s) => {
-                        for x in 0..w - 1 {
-                            let v = row[x];
-                            bad[x] = v.is_nan() | jump(v, row[x + 1], s) | jump(v, below[x], s);
-                        }
-                    }
-                    None => {
-                        for x in 0..w - 1 {
-                            let (v, s) = (row[x], domain.sigma(row[x]));
-                            bad[x] = v.is_nan() | jump(v, row[x + 1], s) | jump(v, below[x], s);
-                        }
-                    }
-                }
-                let v = row[w - 1];
-                bad[w - 1] = v.is_nan() | jump(v, below[w - 1], domain.sigma(v));
-                let mut count: usize = bad[..2 * r].iter().filter(|&&b| b).count();
-                for x in r..w - r {
-                    count += usize::from(bad[x + r]);
-                    dst[x] = count > 0;
-                    count -= usize::from(bad[x - r]);
-                }
-                // Columns within r of the border are never interior.
-                dst[..r].fill(true);
-                dst[w - r..].fill(true);
-            },
-        );
-        // Vertical: a horizontally-near pixel within ±r in the column, counted per column over
-        // bands of rows in parallel (each band starts its counts from the 2r rows around its
-        // first).
-        const BAND_ROWS: usize = 32;
-        let near = &*self.near;
-        out.par_chunks_mut(BAND_ROWS * w).enumerate().for_each_init(
-            || vec![0u32; w],
-            |count, (b, dst)| {
-                let y0 = b * BAND_ROWS;
-                let (ys, ye) = (y0.max(r), (y0 + BAND_ROWS).min(h - r));
-                if ys >= ye {
-                    return;
-                }
-                count.fill(0);
-                for y in ys - r..ys + r {
-                    for (c, &n) in count.iter_mut().zip(&near[y * w..(y + 1) * w]) {
-                        *c += u32::from(n);
-                    }
-                }
-                for y in ys..ye {
-                    for (c, &n) in count.iter_mut().zip(&near[(y + r) * w..(y + r + 1) * w]) {
-                        *c += u32::from(n);
-                    }
-                    for (o, &c) in dst[(y - y0) * w..(y - y0 + 1) * w]
-                        .iter_mut()
-                        .zip(count.iter())
-                    {
-                        *o = c == 0;
-                    }
-                    for (c, &n) in count.iter_mut().zip(&near[(y - r) * w..(y - r + 1) * w]) {
-                        *c -= u32::from(n);
-                    }
-                }
-            },
-        );
-    }
 }
 
 /// [`Gate::interior_into`] into a new vector (tests).
 #[cfg(test)]
 fn interior(depth: &DepthImage, range: &RangeKernel, r: usize) -> Vec<bool> {
     let mut out = Vec::new();
-    Gate::default().interior_into(depth, Domain::of(range), r, &mut out);
+    Gate::default().interior_into(depth, Domain::of(range), r, &mut out, false);
     out
 }
 
-/// Applies `filter` with its taps `dilation` pixels apart: the image is split into its
-/// `dilation²` polyphase sub-images, each is filtered, and they are interleaved back.
+/// Applies `filter` with its taps `dilation` pixels apart: the same, bit for bit, as splitting
+/// the image into its `dilation²` polyphase sub-images, filtering each and interleaving them
+/// back, but computed on the full image (fast paths for a 5×5 window at dilations 2, 4 and 8).
 pub fn apply_dilated(
     filter: &DepthFilter,
     depth: &DepthImage,
@@ -400,131 +307,17 @@ pub fn apply_dilated_with_isa(
             "dilation {dilation} px must be in 1..={MAX_DILATION_PX}"
         )));
     }
-    if dilation == 1 {
-        return filter.apply_with_isa(depth, isa);
-    }
     let (w, h) = (depth.width(), depth.height());
-    let mut subs = Polyphase::default();
-    subs.filter(filter, depth.data(), w, h, dilation, isa)?;
     let mut out = vec![0.0f32; w * h];
-    subs.interleave_where(&mut out, w, dilation, None);
+    filter.apply_dilated_into(DepthView::from(depth), dilation, None, isa, &mut out)?;
     Ok(DepthImage::from_vec(w, h, out)?)
-}
-
-/// The elements `first, first + s, …` of `v`, each the first of its chunk of `s` (`chunk[0]`):
-/// the polyphase copies read and write them without an index computed and checked per pixel.
-#[inline]
-fn every_nth<T>(v: &[T], first: usize, s: usize) -> std::slice::Chunks<'_, T> {
-    v.get(first..).unwrap_or(&[]).chunks(s.max(1))
-}
-
-/// [`every_nth`] for writing.
-#[inline]
-fn every_nth_mut<T>(v: &mut [T], first: usize, s: usize) -> std::slice::ChunksMut<'_, T> {
-    v.get_mut(first..).unwrap_or(&mut []).chunks_mut(s.max(1))
-}
-
-/// The `s×s` polyphase sub-images of an image (every `s`-th pixel of every `s`-th row, from
-/// offset `(px, py)`), stored one after the other in two `w·h` buffers: as split, and as
-/// filtered. Reused across the passes of [`MultiScale::apply`] (two allocations per call, not
-/// two per sub-image and pass).
-#[derive(Default)]
-struct Polyphase {
-    input: Vec<f32>,
-    output: Vec<f32>,
-    /// Per sub-image, row-major over `(py, px)`: offset in the buffers, width, height.
-    layout: Vec<(usize, usize, usize)>,
-}
-
-impl Polyphase {
-    /// Splits `src` (`w × h`) into its sub-images for dilation `s` and filters each with
-    /// `filter`, all in parallel.
-    fn filter(
-        &mut self,
-        filter: &DepthFilter,
-        src: &[f32],
-        w: usize,
-        h: usize,
-        s: usize,
-        isa: Isa,
-    ) -> Result<()> {
-        let (nx, ny) = (s.min(w), s.min(h));
-        self.layout.clear();
-        let mut offset = 0;
-        for py in 0..ny {
-            for px in 0..nx {
-                let (sw, sh) = ((w - px).div_ceil(s), (h - py).div_ceil(s));
-                self.layout.push((offset, sw, sh));
-                offset += sw * sh;
-            }
-        }
-        // The sub-images tile the image: offset == w·h, and every value is written below.
-        self.input.resize(offset, 0.0);
-        self.output.resize(offset, 0.0);
-        let mut inputs = Vec::with_capacity(self.layout.len());
-        let mut outputs = Vec::with_capacity(self.layout.len());
-        let (mut rest_in, mut rest_out) = (&mut self.input[..], &mut self.output[..]);
-        for &(_, sw, sh) in &self.layout {
-            let (a, b) = std::mem::take(&mut rest_in).split_at_mut(sw * sh);
-            let (c, d) = std::mem::take(&mut rest_out).split_at_mut(sw * sh);
-            inputs.push(a);
-            outputs.push(c);
-            (rest_in, rest_out) = (b, d);
-        }
-        let layout = &self.layout;
-        inputs
-            .into_par_iter()
-            .zip(outputs)
-            .enumerate()
-            .try_for_each(|(p, (sub, out))| {
-                let (py, px) = (p / nx, p % nx);
-                let (_, sw, sh) = layout[p];
-                for (j, row) in sub.chunks_exact_mut(sw).enumerate() {
-                    for (v, from) in row.iter_mut().zip(every_nth(src, (py + j * s) * w + px, s)) {
-                        *v = from[0];
-                    }
-                }
-                filter.apply_into(DepthView::new(sw, sh, sub)?, isa, out)
-            })
-    }
-
-    /// Writes the filtered sub-images back to their pixels of `out` (`w` wide), by output rows
-    /// in parallel; with `keep`, only where it is true (elsewhere `out` keeps its value).
-    fn interleave_where(&self, out: &mut [f32], w: usize, s: usize, keep: Option<&[bool]>) {
-        let nx = s.min(w);
-        out.par_chunks_mut(w.max(1))
-            .enumerate()
-            .for_each(|(y, row)| {
-                let (py, j) = (y % s, y / s);
-                let keep_row = keep.map(|k| &k[y * w..(y + 1) * w]);
-                for (px, &(offset, sw, _)) in self.layout[py * nx..(py + 1) * nx].iter().enumerate()
-                {
-                    let filtered = &self.output[offset + j * sw..offset + (j + 1) * sw];
-                    let targets = every_nth_mut(row, px, s);
-                    match keep_row {
-                        None => {
-                            for (to, &v) in targets.zip(filtered) {
-                                to[0] = v;
-                            }
-                        }
-                        Some(k) => {
-                            let kept = every_nth(k, px, s);
-                            for ((to, keep), &v) in targets.zip(kept).zip(filtered) {
-                                if keep[0] {
-                                    to[0] = v;
-                                }
-                            }
-                        }
-                    }
-                }
-            });
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::crease::xorshift_step;
+    use crate::filter::Window;
 
     /// The range kernel's domain value of a depth and its range σ there (the brute-force
     /// test's own statement of what `RowScratch::values` computes).
@@ -566,28 +359,50 @@ mod tests {
         })
     }
 
+    /// The direct dilated pass is, bit for bit, the filter applied to each polyphase sub-image
+    /// (every `dil`-th pixel of every `dil`-th row) — the definition of a dilated pass — for
+    /// every kernel (the explicit AVX-512 and AVX2 ones where the CPU has them, the portable
+    /// one), the fast dilations and others, both window shapes and several radii and methods.
     #[test]
     fn a_dilated_pass_is_its_sub_images_filtered_one_by_one() {
         let s = SensorModel::kinect_v1();
-        let f = MultiScale::default_for(&s).coarse;
-        for (w, h) in [(101, 37), (3, 2), (64, 48)] {
-            let img = frame(w, h);
-            for dil in [2, 3, 4] {
-                let got = apply_dilated(&f, &img, dil).unwrap();
-                for py in 0..dil.min(h) {
-                    for px in 0..dil.min(w) {
-                        let (sw, sh) = ((w - px).div_ceil(dil), (h - py).div_ceil(dil));
-                        let sub: Vec<f32> = (0..sw * sh)
-                            .map(|k| img.data()[(py + k / sw * dil) * w + px + k % sw * dil])
-                            .collect();
-                        let want = f.apply(DepthView::new(sw, sh, &sub).unwrap()).unwrap();
-                        for (k, &v) in want.data().iter().enumerate() {
-                            let (x, y) = (px + k % sw * dil, py + k / sw * dil);
-                            assert_eq!(
-                                got.data()[y * w + x].to_bits(),
-                                v.to_bits(),
-                                "{w}x{h} dilation {dil} at ({x}, {y})"
-                            );
+        let coarse = MultiScale::default_for(&s).coarse;
+        let filters = [
+            coarse,
+            coarse.with_window(Window::Disc),
+            DepthFilter::default_for(Method::Adaptive, &s).with_radius(2),
+            DepthFilter::default_for(Method::Gaussian, &s).with_radius(2),
+            coarse.with_radius(1),
+            coarse.with_radius(3).with_window(Window::Disc),
+        ];
+        let isas = [Isa::Portable, Isa::Avx2, Isa::Avx512];
+        for isa in isas.into_iter().filter(|i| i.is_supported()) {
+            for f in &filters {
+                for (w, h) in [(101, 37), (3, 2), (64, 48), (300, 70)] {
+                    let img = frame(w, h);
+                    for dil in [2, 3, 4, 8] {
+                        let got = apply_dilated_with_isa(f, &img, dil, isa).unwrap();
+                        for py in 0..dil.min(h) {
+                            for px in 0..dil.min(w) {
+                                let (sw, sh) = ((w - px).div_ceil(dil), (h - py).div_ceil(dil));
+                                let sub: Vec<f32> = (0..sw * sh)
+                                    .map(|k| {
+                                        img.data()[(py + k / sw * dil) * w + px + k % sw * dil]
+                                    })
+                                    .collect();
+                                let view = DepthView::new(sw, sh, &sub).unwrap();
+                                let want = f.apply_with_isa(view, isa).unwrap();
+                                for (k, &v) in want.data().iter().enumerate() {
+                                    let (x, y) = (px + k % sw * dil, py + k / sw * dil);
+                                    assert_eq!(
+                                        got.data()[y * w + x].to_bits(),
+                                        v.to_bits(),
+                                        "{isa:?} {:?} r {} {w}x{h} dilation {dil} at ({x}, {y})",
+                                        f.method(),
+                                        f.radius_px
+                                    );
+                                }
+                            }
                         }
                     }
                 }
@@ -623,8 +438,16 @@ mod tests {
             let inside = keep.iter().filter(|&&k| k).count();
             let domain = Domain::of(&m.coarse.range);
             let mut u = Vec::new();
-            domain.image_into(&want, &mut u);
-            refuse_creases(&u, want.width(), domain, r, &mut keep, &mut Vec::new());
+            domain.image_into(&want, &mut u, false);
+            refuse_creases(
+                &u,
+                want.width(),
+                domain,
+                r,
+                &mut keep,
+                &mut Vec::new(),
+                false,
+            );
             // Planes have no crease, at any dilation: only the noise can refuse a pixel, and
             // the test's bound (4 σ of the frame's own second differences) seldom lets it.
             let kept = keep.iter().filter(|&&k| k).count();
@@ -777,6 +600,41 @@ mod tests {
         assert_ne!(one, single);
     }
 
+    /// The AVX2 builds of the gates (`kernel::avx2_twin!`) decide exactly as the baseline
+    /// builds, for every range kernel and several windows, on noisy frames with holes, slopes,
+    /// jumps and creases.
+    #[test]
+    fn the_avx2_builds_of_the_gates_match_the_baseline() {
+        if !use_avx2(Isa::Avx2) {
+            return;
+        }
+        let s = SensorModel::kinect_v1();
+        let ranges = [
+            MultiScale::default_for(&s).coarse.range,
+            RangeKernel::Adaptive { k_per_m: 0.003 },
+            RangeKernel::Fixed { sigma_d_m: 0.01 },
+            RangeKernel::None,
+        ];
+        for img in [frame(157, 61), two_planes(203, 97), frame(33, 20)] {
+            for range in &ranges {
+                let domain = Domain::of(range);
+                for r in [1, 2, 4, 8, 16] {
+                    let mut got = [Vec::new(), Vec::new()];
+                    let mut tau = [0.0f32; 2];
+                    for (i, avx2) in [false, true].into_iter().enumerate() {
+                        let mut gate = Gate::default();
+                        gate.interior_into(&img, domain, r, &mut got[i], avx2);
+                        let (w, keep) = (img.width(), &mut got[i]);
+                        tau[i] =
+                            refuse_creases(&gate.values, w, domain, r, keep, &mut Vec::new(), avx2);
+                    }
+                    assert_eq!(got[0], got[1], "{range:?} r {r}");
+                    assert_eq!(tau[0].to_bits(), tau[1].to_bits(), "{range:?} r {r}");
+                }
+            }
+        }
+    }
+
     fn interior_matches_brute_force(w: usize, h: usize, holes: &[(usize, usize)]) {
         let s = SensorModel::kinect_v1();
         // A slope with holes and a jump.
@@ -799,7 +657,7 @@ mod tests {
         ];
         for (range, r) in ranges
             .iter()
-            .flat_map(|g| [1usize, 2, 4, 8, 9].map(|r| (g, r)))
+            .flat_map(|g| [1usize, 2, 3, 4, 5, 8, 9, 16].map(|r| (g, r)))
         {
             let got = interior(&img, range, r);
             for y in 0..h {

@@ -29,7 +29,10 @@
 
 use std::arch::x86_64::*;
 
-use super::{CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap};
+use super::{
+    CHUNK, CW, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT, is_tap,
+    kept_groups,
+};
 use crate::weight::{CENTRE_WEIGHT, TapExp};
 
 /// 8 lanes from the start of `a` (at least 8 long), as an unaligned vector load.
@@ -74,7 +77,13 @@ struct Class {
 /// Filters the block of whole rows `out` (see [`super::block_fast`]).
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+pub(super) fn block<
+    const R: usize,
+    const DISC: bool,
+    const S: usize,
+    M: RangeMode,
+    const DISP: bool,
+>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -98,13 +107,24 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     let mut res = [0.0f32; CHUNK];
     let taps_on = std::hint::black_box(u64::MAX);
     for (y, out_row) in out.chunks_mut(width).enumerate() {
-        let win = &p.data[y * stride..(y + k) * stride];
+        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of row y.
+        let win = &p.data[y * stride..];
+        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
         let mut x0 = 0;
         while x0 < width {
+            // Groups of 16 pixels none of which is kept are skipped (their output is replaced
+            // by the input afterwards), a chunk of them without a call.
+            let groups = kept_groups::<16>(keep_row, x0);
+            if groups == 0 {
+                let n = CHUNK.min(width - x0);
+                out_row[x0..x0 + n].fill(0.0);
+                x0 += CHUNK;
+                continue;
+            }
             let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
             for (dy, row) in rows.iter_mut().enumerate().take(k) {
-                let Ok(r) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
-                else {
+                let at = dy * S * stride + x0;
+                let Some(Ok(r)) = win.get(at..at + CW).map(<&[f32; CW]>::try_from) else {
                     return;
                 };
                 *row = r;
@@ -115,7 +135,7 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
                     Ok(d) => d,
                     Err(_) => &mut res,
                 };
-            chunk::<R, DISC, M, DISP>(&rows, &cls, dst, mode, fb, taps_on);
+            chunk::<R, DISC, S, M, DISP>(&rows, &cls, dst, mode, fb, taps_on, groups);
             if n < CHUNK {
                 out_row[x0..x0 + n].copy_from_slice(&res[..n]);
             }
@@ -129,13 +149,14 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
 /// (the scheduler would hoist and spill the taps' work).
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+fn chunk<const R: usize, const DISC: bool, const S: usize, M: RangeMode, const DISP: bool>(
     rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
     cls: &[Class; TAPS],
     dst: &mut [f32; CHUNK],
     mode: M,
     fb: f32,
     taps_on: u64,
+    groups: u32,
 ) {
     let coef = _mm256_set1_ps(mode.coef());
     let max_scale = _mm256_set1_ps(MAX_SCALE);
@@ -165,7 +186,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     let mut zsv = [zero; CHUNK / 8];
     let mut okv = [zero; CHUNK / 8];
     for (j, ((s, zs), ok)) in sv.iter_mut().zip(&mut zsv).zip(&mut okv).enumerate() {
-        let c = load(&rows[R][8 * j + R..]);
+        let c = load(&rows[R][8 * j + R * S..]);
         *s = scale(c);
         *zs = _mm256_mul_ps(*s, c);
         *ok = valid(c);
@@ -175,8 +196,13 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     // Phase 2: the taps, two 8-lane groups interleaved; only the sums leave the loop.
     for g in 0..CHUNK / 16 {
         let i = 16 * g;
-        if _mm256_movemask_ps(_mm256_or_ps(okv[2 * g], okv[2 * g + 1])) == 0 {
-            // No valid centre among the 16: phase 3 writes 0 there whatever the sums are.
+        if (S > 1 && groups & (1 << g) == 0)
+            || _mm256_movemask_ps(_mm256_or_ps(okv[2 * g], okv[2 * g + 1])) == 0
+        {
+            // No valid centre among the 16: phase 3 writes 0 there whatever the sums are. Or,
+            // in a dilated pass (the only ones given a mask by the multi-scale filter; the test
+            // is compiled out of the others), none of them is kept: whatever phase 3 writes is
+            // replaced by the input.
             continue;
         }
         // Opaque to the optimiser: the constants are reloaded for every group, where each tap
@@ -206,9 +232,16 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
                 if $n % 3 != 0 || taps_on & (1 << $n) != 0 {
                     if let Some(q) = const { nth_tap::<R, DISC>($n) } {
                         let row = rows[q / FRAME];
-                        weigh!(load(&row[i + q % FRAME..]), sa, zsa, swa, sda, cls[q].y0);
                         weigh!(
-                            load(&row[i + 8 + q % FRAME..]),
+                            load(&row[i + q % FRAME * S..]),
+                            sa,
+                            zsa,
+                            swa,
+                            sda,
+                            cls[q].y0
+                        );
+                        weigh!(
+                            load(&row[i + 8 + q % FRAME * S..]),
                             sb,
                             zsb,
                             swb,
@@ -274,7 +307,7 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     }
     // Phase 3, independent per 8 lanes: the epilogue of `super::finish`, with masks.
     for (j, out) in dst.chunks_exact_mut(8).enumerate() {
-        let c = load(&rows[R][8 * j + R..]);
+        let c = load(&rows[R][8 * j + R * S..]);
         let v = _mm256_add_ps(c, _mm256_div_ps(sdv[j], _mm256_mul_ps(swv[j], sv[j])));
         let (v, c_out) = if DISP {
             (_mm256_div_ps(fbv, v), _mm256_div_ps(fbv, c))
@@ -371,6 +404,7 @@ mod tests {
                 }
                 let taps = Taps {
                     radius: r,
+                    step: 1,
                     disc,
                     taps: &[],
                     exps: &exps,
@@ -416,6 +450,7 @@ mod tests {
             disparity_fb: None,
             min_m: 0.1,
             max_m: 20.0,
+            keep: None,
         };
         let coef = |sigma: f64| ((f64::from(LOG2_E) / 2.0).sqrt() / sigma * E_SCALE) as f32;
         // Adaptive with the Kinect's k and a tenth of it (more cut-off weights), fixed σ.

@@ -17,7 +17,7 @@ use std::arch::x86_64::*;
 
 use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
-    class, is_row, is_tap,
+    class, is_row, is_tap, kept_groups,
 };
 use crate::weight::CENTRE_WEIGHT;
 
@@ -32,7 +32,13 @@ fn load(a: &[f32]) -> __m512 {
 /// Filters the block of whole rows `out` (see [`super::block_fast`]).
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 #[inline]
-pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+pub(super) fn block<
+    const R: usize,
+    const DISC: bool,
+    const S: usize,
+    M: RangeMode,
+    const DISP: bool,
+>(
     taps: Taps<'_>,
     p: &Padded<'_>,
     out: &mut [f32],
@@ -51,13 +57,24 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
     let mut res = [0.0f32; CHUNK];
     let rows_on = std::hint::black_box(u32::MAX);
     for (y, out_row) in out.chunks_mut(width).enumerate() {
-        let win = &p.data[y * stride..(y + k) * stride];
+        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of row y.
+        let win = &p.data[y * stride..];
+        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
         let mut x0 = 0;
         while x0 < width {
+            // Groups of 32 pixels none of which is kept are skipped (their output is replaced
+            // by the input afterwards), a chunk of them without a call.
+            let groups = kept_groups::<32>(keep_row, x0);
+            if groups == 0 {
+                let n = CHUNK.min(width - x0);
+                out_row[x0..x0 + n].fill(0.0);
+                x0 += CHUNK;
+                continue;
+            }
             let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
             for (dy, row) in rows.iter_mut().enumerate().take(k) {
-                let Ok(r) = <&[f32; CW]>::try_from(&win[dy * stride + x0..dy * stride + x0 + CW])
-                else {
+                let at = dy * S * stride + x0;
+                let Some(Ok(r)) = win.get(at..at + CW).map(<&[f32; CW]>::try_from) else {
                     return;
                 };
                 *row = r;
@@ -68,7 +85,7 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
                     Ok(d) => d,
                     Err(_) => &mut res,
                 };
-            chunk::<R, DISC, M, DISP>(&rows, &t, dst, mode, fb, rows_on);
+            chunk::<R, DISC, S, M, DISP>(&rows, &t, dst, mode, fb, rows_on, groups);
             if n < CHUNK {
                 out_row[x0..x0 + n].copy_from_slice(&res[..n]);
             }
@@ -82,13 +99,14 @@ pub(super) fn block<const R: usize, const DISC: bool, M: RangeMode, const DISP: 
 /// sums and spills most of it to the stack (measured 1.7× slower).
 #[target_feature(enable = "avx512f,avx512dq,avx2,fma")]
 #[inline(never)]
-fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
+fn chunk<const R: usize, const DISC: bool, const S: usize, M: RangeMode, const DISP: bool>(
     rows: &[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1],
     t: &[f32; MAX_CLASSES],
     dst: &mut [f32; CHUNK],
     mode: M,
     fb: f32,
     rows_on: u32,
+    groups: u32,
 ) {
     let coef = _mm512_set1_ps(mode.coef());
     let max_scale = _mm512_set1_ps(MAX_SCALE);
@@ -106,12 +124,15 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
     };
     for g in 0..CHUNK / 32 {
         let i = 32 * g;
-        let ca = load(&rows[R][i + R..]);
-        let cb = load(&rows[R][i + 16 + R..]);
+        let ca = load(&rows[R][i + R * S..]);
+        let cb = load(&rows[R][i + 16 + R * S..]);
         // Invalid centres hold the sentinel (≥ VALID_LIMIT), valid ones are below it.
-        if _mm512_cmp_ps_mask::<_CMP_LT_OQ>(_mm512_min_ps(ca, cb), valid_limit) == 0 {
+        if (S > 1 && groups & (1 << g) == 0)
+            || _mm512_cmp_ps_mask::<_CMP_LT_OQ>(_mm512_min_ps(ca, cb), valid_limit) == 0
+        {
             // All 32 centres are invalid (holes are common in Kinect frames): the output
-            // is 0 whatever the neighbours are.
+            // is 0 whatever the neighbours are. Or, in a dilated pass (the test is compiled
+            // out of the others), none of them is kept.
             dst[i..i + 32].fill(0.0);
             continue;
         }
@@ -137,8 +158,8 @@ fn chunk<const R: usize, const DISC: bool, M: RangeMode, const DISP: bool>(
             ($dy:literal, $dx:literal) => {
                 if is_tap::<R, DISC>($dy, $dx) {
                     let tc = tv[class::<R>($dy, $dx)];
-                    weigh!(load(&rows[$dy][i + $dx..]), sa, zsa, swa, sda, tc);
-                    weigh!(load(&rows[$dy][i + 16 + $dx..]), sb, zsb, swb, sdb, tc);
+                    weigh!(load(&rows[$dy][i + $dx * S..]), sa, zsa, swa, sda, tc);
+                    weigh!(load(&rows[$dy][i + 16 + $dx * S..]), sb, zsb, swb, sdb, tc);
                 }
             };
         }
