@@ -211,6 +211,38 @@ pub(crate) struct Padded<'a> {
     pub keep: Option<&'a [bool]>,
 }
 
+impl<'a> Padded<'a> {
+    /// The padded block `buf` of the `n` output values from image row `y0` of `src`.
+    fn of_block(buf: &'a [f32], stride: usize, src: &Source<'a>, y0: usize, n: usize) -> Self {
+        let at = y0 * src.width;
+        Self {
+            data: buf,
+            stride,
+            width: src.width,
+            keep: src.keep.and_then(|k| k.get(at..at + n)),
+        }
+    }
+}
+
+/// The `k` window rows of the chunk at `x0` of a fast path with taps `S` pixels apart, from
+/// `win` (the padded block from the output row's first window row on): rows `0, S, …` of it,
+/// each `CW` long from `x0`. `None` if the block is too short (never, for the blocks of
+/// [`run`]).
+#[inline(always)]
+pub(crate) fn window_rows<const S: usize>(
+    win: &[f32],
+    stride: usize,
+    x0: usize,
+    k: usize,
+) -> Option<[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1]> {
+    let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
+    for (dy, row) in rows.iter_mut().enumerate().take(k) {
+        let at = dy * S * stride + x0;
+        *row = win.get(at..at + CW)?.try_into().ok()?;
+    }
+    Some(rows)
+}
+
 /// Whether any of `keep` is true: an OR over the bytes, which vectorises.
 #[inline(always)]
 pub(crate) fn any_kept(keep: &[bool]) -> bool {
@@ -433,14 +465,7 @@ macro_rules! pad_and_filter {
     ($fma:literal, $taps:ident, $src:ident, $y0:ident, $stride:ident, $buf:ident, $out:ident, $mode:ident, $fb:ident) => {{
         let reach = $taps.radius * $taps.step;
         let ok = fill_rows::<DISP>($src, $y0, reach, $stride, $buf, $fb);
-        let p = Padded {
-            data: $buf,
-            stride: $stride,
-            width: $src.width,
-            keep: $src
-                .keep
-                .and_then(|k| k.get($y0 * $src.width..$y0 * $src.width + $out.len())),
-        };
+        let p = Padded::of_block($buf, $stride, $src, $y0, $out.len());
         let p = &p;
         match ($taps.radius, $taps.disc, $taps.step) {
             (1, false, 1) => block::<1, false, 1, $fma, M, DISP>($taps, p, $out, $mode, $fb),
@@ -471,14 +496,7 @@ macro_rules! explicit_kernel {
             && ($taps.step == 1 || dilated_fast_path($taps.radius, $taps.step));
         if M::RANGE && fast {
             let ok = fill_rows::<DISP>($src, $y0, $taps.radius * $taps.step, $stride, $buf, $fb);
-            let p = Padded {
-                data: $buf,
-                stride: $stride,
-                width: $src.width,
-                keep: $src
-                    .keep
-                    .and_then(|k| k.get($y0 * $src.width..$y0 * $src.width + $out.len())),
-            };
+            let p = Padded::of_block($buf, $stride, $src, $y0, $out.len());
             match ($taps.radius, $taps.disc, $taps.step) {
                 (1, false, _) => $k::block::<1, false, 1, M, DISP>($taps, &p, $out, $mode, $fb),
                 (2, false, 2) => $k::block::<2, false, 2, M, DISP>($taps, &p, $out, $mode, $fb),
@@ -690,14 +708,9 @@ fn block_fast<
             }
             // `CW`-long fixed-size row windows: every `row[i + dx·S]` below is provably in
             // bounds, so the lane loop carries no bounds checks and vectorises.
-            let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
-            for (dy, row) in rows.iter_mut().enumerate().take(k) {
-                let at = dy * S * stride + x0;
-                let Some(Ok(r)) = win.get(at..at + CW).map(<&[f32; CW]>::try_from) else {
-                    return;
-                };
-                *row = r;
-            }
+            let Some(rows) = window_rows::<S>(win, stride, x0, k) else {
+                return;
+            };
             let dst: &mut [f32; CHUNK] =
                 match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
                     Ok(d) => d,

@@ -17,7 +17,7 @@ use std::arch::x86_64::*;
 
 use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
-    class, is_row, is_tap, kept_groups,
+    class, is_row, is_tap, kept_groups, window_rows,
 };
 use crate::weight::CENTRE_WEIGHT;
 
@@ -71,14 +71,9 @@ pub(super) fn block<
                 x0 += CHUNK;
                 continue;
             }
-            let mut rows = [&[0.0f32; CW]; 2 * MAX_FAST_RADIUS + 1];
-            for (dy, row) in rows.iter_mut().enumerate().take(k) {
-                let at = dy * S * stride + x0;
-                let Some(Ok(r)) = win.get(at..at + CW).map(<&[f32; CW]>::try_from) else {
-                    return;
-                };
-                *row = r;
-            }
+            let Some(rows) = window_rows::<S>(win, stride, x0, k) else {
+                return;
+            };
             let n = CHUNK.min(width - x0);
             let dst: &mut [f32; CHUNK] =
                 match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
