@@ -4,6 +4,7 @@
 
 mod sl_filter {
     pub mod common;
+    mod dilated;
     mod invariants;
     mod real;
     mod reference;
