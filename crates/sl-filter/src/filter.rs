@@ -457,10 +457,10 @@ impl DepthFilter {
         let (w, h) = (depth.width(), depth.height());
         Self::check_size(w, h)?;
         if out.len() != w * h || keep.is_some_and(|k| k.len() != w * h) {
+            let mask = keep.map_or(String::new(), |k| format!(" and a mask of {}", k.len()));
             return Err(FilterError::ImageSize(format!(
-                "output of {} pixels (mask of {:?}) for a {w}x{h} image",
-                out.len(),
-                keep.map(<[bool]>::len)
+                "output of {} pixels{mask} for a {w}x{h} image",
+                out.len()
             )));
         }
         let isa = if isa.is_supported() {

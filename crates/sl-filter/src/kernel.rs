@@ -577,7 +577,7 @@ pub(crate) const DILATED_RADIUS: usize = 2;
 /// `MultiScale`'s default passes.
 pub(crate) const FAST_STEPS: [usize; 3] = [2, 4, 8];
 /// The farthest a fast path's window reaches from its centre (radius × step).
-pub(crate) const MAX_REACH: usize = DILATED_RADIUS * 8;
+pub(crate) const MAX_REACH: usize = DILATED_RADIUS * FAST_STEPS[FAST_STEPS.len() - 1];
 /// Length of the row windows of the fast paths: a chunk plus the largest apron.
 const CW: usize = CHUNK + 2 * MAX_REACH;
 

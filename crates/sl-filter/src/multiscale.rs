@@ -52,9 +52,9 @@
 //! figure-walls scene worse below 1.5 m (0.24 → 0.29 mm); not taken.
 //!
 //! **Speed.** person-depth.png (640×480), one thread, minimum of 30, AMD EPYC (session 97):
-//! 1.96 ms with the AVX-512 kernels and 2.76 ms with the AVX2 ones (two threads: 1.48 and
-//! 2.01 ms), against OpenCV 5.1's `bilateralFilter` at 543 ms at the same 63-pixel support (93
-//! ms at d = 31). Session 97 halved it (4.21 and 5.19 ms before), the output byte for byte the
+//! 1.96 ms with the AVX-512 kernels and 2.76 ms with the AVX2 ones (two threads: 1.2 and
+//! 1.65 ms), against OpenCV 5.1's `bilateralFilter` at 311 ms at the same 63-pixel support
+//! (48.6 ms at d = 31). Session 97 halved it (4.21 and 5.19 ms before), the output byte for byte the
 //! same:
 //! - the dilated passes run on the full image (above) instead of on polyphase sub-images
 //!   copied out and interleaved back, whose 80-pixel rows at dilation 8 also left a third of
