@@ -243,6 +243,50 @@ pub(crate) fn window_rows<const S: usize>(
     Some(rows)
 }
 
+/// Runs `f` on every chunk of `CHUNK` output pixels of a fast path's block `out` (whole rows
+/// of `p`): with the chunk's `k` window rows (taps `S` apart, see [`window_rows`]), its output
+/// (a scratch chunk, copied back, for a row's last and partial one) and which of its groups of
+/// `G` pixels hold a kept pixel ([`kept_groups`]). A chunk with none is written 0 without a
+/// call: its output is replaced by the input afterwards.
+#[inline(always)]
+pub(crate) fn for_each_chunk<const S: usize, const G: usize>(
+    p: &Padded<'_>,
+    out: &mut [f32],
+    k: usize,
+    mut f: impl FnMut(&[&[f32; CW]; 2 * MAX_FAST_RADIUS + 1], &mut [f32; CHUNK], u32),
+) {
+    let (stride, width) = (p.stride, p.width);
+    let mut res = [0.0f32; CHUNK];
+    for (y, out_row) in out.chunks_mut(width).enumerate() {
+        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of output row y.
+        let win = &p.data[y * stride..];
+        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
+        let mut x0 = 0;
+        while x0 < width {
+            let n = CHUNK.min(width - x0);
+            let groups = kept_groups::<G>(keep_row, x0);
+            if groups == 0 {
+                out_row[x0..x0 + n].fill(0.0);
+                x0 += CHUNK;
+                continue;
+            }
+            // `CW`-long fixed-size row windows: every `row[i + dx·S]` of a kernel is provably
+            // in bounds, so its lane loops carry no bounds checks.
+            let Some(rows) = window_rows::<S>(win, stride, x0, k) else {
+                return;
+            };
+            match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..x0 + n]) {
+                Ok(dst) => f(&rows, dst, groups),
+                Err(_) => {
+                    f(&rows, &mut res, groups);
+                    out_row[x0..x0 + n].copy_from_slice(&res[..n]);
+                }
+            }
+            x0 += CHUNK;
+        }
+    }
+}
+
 /// Whether any of `keep` is true: an OR over the bytes, which vectorises.
 #[inline(always)]
 pub(crate) fn any_kept(keep: &[bool]) -> bool {
@@ -675,8 +719,6 @@ fn block_fast<
     fb: f32,
 ) {
     let k = 2 * R + 1;
-    let stride = p.stride;
-    let width = p.width;
     // Per-class constants (range filters) or linear weights (Gaussian).
     let mut cls = [TapExp::default(); MAX_CLASSES];
     let mut lin = [0.0f32; MAX_CLASSES];
@@ -692,40 +734,11 @@ fn block_fast<
     }
     let cls = &cls;
     let lin = &lin;
-    let mut res = [0.0f32; CHUNK];
-    for (y, out_row) in out.chunks_mut(width).enumerate() {
-        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of output row y.
-        let win = &p.data[y * stride..];
-        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
-        let mut x0 = 0;
-        while x0 < width {
-            let n = CHUNK.min(width - x0);
-            if kept_groups::<CHUNK>(keep_row, x0) == 0 {
-                // No pixel of the chunk is kept: its output is replaced by the input.
-                out_row[x0..x0 + n].fill(0.0);
-                x0 += CHUNK;
-                continue;
-            }
-            // `CW`-long fixed-size row windows: every `row[i + dx·S]` below is provably in
-            // bounds, so the lane loop carries no bounds checks and vectorises.
-            let Some(rows) = window_rows::<S>(win, stride, x0, k) else {
-                return;
-            };
-            let dst: &mut [f32; CHUNK] =
-                match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
-                    Ok(d) => d,
-                    Err(_) => &mut res,
-                };
-            chunk::<R, DISC, S, FMA, M, DISP>(
-                rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6], cls, lin, dst, mode,
-                fb,
-            );
-            if n < CHUNK {
-                out_row[x0..x0 + n].copy_from_slice(&res[..n]);
-            }
-            x0 += CHUNK;
-        }
-    }
+    for_each_chunk::<S, CHUNK>(p, out, k, |rows, dst, _| {
+        chunk::<R, DISC, S, FMA, M, DISP>(
+            rows[0], rows[1], rows[2], rows[3], rows[4], rows[5], rows[6], cls, lin, dst, mode, fb,
+        );
+    });
 }
 
 /// One chunk of `CHUNK` output pixels of the fast path (see [`block_fast`]). The window rows

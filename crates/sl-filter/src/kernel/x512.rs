@@ -17,7 +17,7 @@ use std::arch::x86_64::*;
 
 use super::{
     CHUNK, CW, MAX_CLASSES, MAX_FAST_RADIUS, MAX_SCALE, Padded, RangeMode, Taps, VALID_LIMIT,
-    class, is_row, is_tap, kept_groups, window_rows,
+    class, for_each_chunk, is_row, is_tap,
 };
 use crate::weight::CENTRE_WEIGHT;
 
@@ -46,47 +46,16 @@ pub(super) fn block<
     fb: f32,
 ) {
     let k = 2 * R + 1;
-    let stride = p.stride;
-    let width = p.width;
     let mut t = [0.0f32; MAX_CLASSES];
     for dy in 0..k {
         for dx in 0..k {
             t[class::<R>(dy, dx)] = taps.exps[dy * k + dx].y0;
         }
     }
-    let mut res = [0.0f32; CHUNK];
     let rows_on = std::hint::black_box(u32::MAX);
-    for (y, out_row) in out.chunks_mut(width).enumerate() {
-        // Rows y, y + S, …, y + 2R·S of the padded block are the window rows of row y.
-        let win = &p.data[y * stride..];
-        let keep_row = p.keep.and_then(|k| k.get(y * width..(y + 1) * width));
-        let mut x0 = 0;
-        while x0 < width {
-            // Groups of 32 pixels none of which is kept are skipped (their output is replaced
-            // by the input afterwards), a chunk of them without a call.
-            let groups = kept_groups::<32>(keep_row, x0);
-            if groups == 0 {
-                let n = CHUNK.min(width - x0);
-                out_row[x0..x0 + n].fill(0.0);
-                x0 += CHUNK;
-                continue;
-            }
-            let Some(rows) = window_rows::<S>(win, stride, x0, k) else {
-                return;
-            };
-            let n = CHUNK.min(width - x0);
-            let dst: &mut [f32; CHUNK] =
-                match <&mut [f32; CHUNK]>::try_from(&mut out_row[x0..(x0 + CHUNK).min(width)]) {
-                    Ok(d) => d,
-                    Err(_) => &mut res,
-                };
-            chunk::<R, DISC, S, M, DISP>(&rows, &t, dst, mode, fb, rows_on, groups);
-            if n < CHUNK {
-                out_row[x0..x0 + n].copy_from_slice(&res[..n]);
-            }
-            x0 += CHUNK;
-        }
-    }
+    for_each_chunk::<S, 32>(p, out, k, |rows, dst, groups| {
+        chunk::<R, DISC, S, M, DISP>(rows, &t, dst, mode, fb, rows_on, groups);
+    });
 }
 
 /// One chunk of `CHUNK` output pixels, two 16-lane groups at a time. Not inlined: inlined
